@@ -1,0 +1,44 @@
+"""Named numerical tolerances and physical constants (SI units throughout).
+
+Every tolerance used by the library or its tests is defined here, so the
+contract stated in the README can be checked against one place.
+"""
+
+from __future__ import annotations
+
+#: Standard gravity, m/s^2.
+STANDARD_GRAVITY = 9.80665
+
+#: Cosine arguments of the analytic IK that exceed 1 in magnitude by at most
+#: this much are treated as rounding and clipped to +-1 (dimensionless).
+IK_CLIP_TOL = 1e-10
+
+#: |sin(theta5)| below this: wrist singular, theta6 undetermined (dimensionless).
+IK_WRIST_SINGULAR_TOL = 1e-9
+
+#: Wrist-centre radius margin relative to the lateral offset below which the
+#: shoulder solution is degenerate (m).
+IK_SHOULDER_SINGULAR_TOL = 1e-9
+
+#: Contract: FK(IK(T)) reproduces T to this (m for positions, rad for rotations).
+IK_ROUNDTRIP_TOL = 1e-10
+
+#: Contract: exact compensation puts the deflected TCP on the target to this (m).
+EXACT_COMPENSATION_TOL = 1e-9
+
+#: Newton iterations for the exact compensation / deflected equilibrium.
+EQUILIBRIUM_MAX_ITER = 50
+
+#: Step size below which the deflected-equilibrium Newton iteration stops (rad).
+EQUILIBRIUM_STEP_TOL = 1e-14
+
+#: Jacobian condition number above which the closed-form compensation switches
+#: to damped least squares and reports a warning (dimensionless).
+JACOBIAN_COND_WARN = 1e6
+
+#: Damping factor of the damped-least-squares inverse (same unit as J's entries).
+DLS_DAMPING = 1e-4
+
+#: A position beyond this distance from the base is implausible in metres (m);
+#: the loaders suggest a unit mistake (probably millimetres).
+PLAUSIBLE_POSITION_MAX_M = 5.0

@@ -1,0 +1,381 @@
+"""Robot descriptions: the data read from a robot file, validated.
+
+A :class:`Robot` is the *description* of an arm (DH table, limits, stiffness,
+masses, tool).  Working data computed from it (symbolic functions, caches) live
+in :mod:`models.symbolic`, in the spirit of pinocchio's ``model``/``data`` split.
+
+Conventions (see ``docs/conventions.md``):
+
+* lengths in m, angles in rad, stiffness in N*m/rad, masses in kg;
+* ``standard_dh``: ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``;
+* ``modified_dh``: ``A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)``,
+  where row *i* of the file holds ``a_{i-1}``, ``alpha_{i-1}``, ``d_i``;
+* ``theta_i = q_i + theta_offset_i``;
+* the tool transform ``flange2tcp`` maps TCP-frame coordinates to flange-frame
+  coordinates; its rotation is ``Rz(yaw) Ry(pitch) Rx(roll)``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .constants import STANDARD_GRAVITY
+from .errors import InputError
+from .transforms import rpy_to_matrix, transform
+
+CONVENTIONS = ("standard_dh", "modified_dh")
+BUILTIN_ROBOTS = ("ar5", "ur5", "ur10")
+
+# Keys that may be given in radians (plain name) or degrees (``_deg`` suffix).
+_ANGLE_KEYS = ("alpha", "theta_offset", "q_min", "q_max")
+_JOINT_REQUIRED = ("a", "alpha", "d", "theta_offset", "q_min", "q_max",
+                   "v_max", "a_max", "j_max", "stiffness")
+_JOINT_OPTIONAL = ("mass", "com")
+_TOP_KEYS = ("name", "convention", "description", "joints", "tool", "gravity",
+             "source")
+
+
+class RobotFileError(InputError):
+    """A robot file (or robot dictionary) is malformed; the message names where."""
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One revolute joint with the link that follows it (SI units).
+
+    Attributes
+    ----------
+    a, d : float
+        DH link length and offset, m.
+    alpha, theta_offset : float
+        DH twist and joint-angle offset, rad.
+    q_min, q_max : float
+        Position limits of the joint variable ``q``, rad.
+    v_max, a_max, j_max : float
+        Velocity, acceleration and jerk limits, rad/s, rad/s^2, rad/s^3.
+    stiffness : float
+        Joint (gear) stiffness, N*m/rad.
+    mass : float or None
+        Mass of the link carried by this joint, kg.
+    com : ndarray, shape (3,), or None
+        Centre of mass of that link in the joint's DH link frame *i*, m.
+    """
+
+    a: float
+    alpha: float
+    d: float
+    theta_offset: float
+    q_min: float
+    q_max: float
+    v_max: float
+    a_max: float
+    j_max: float
+    stiffness: float
+    mass: float | None = None
+    com: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A validated 6R arm description.
+
+    Attributes
+    ----------
+    name : str
+    convention : {"standard_dh", "modified_dh"}
+    joints : tuple of Joint, length 6
+    flange2tcp : ndarray, shape (4, 4)
+        Homogeneous transform TCP frame -> flange frame (x_flange = A @ x_tcp).
+    gravity : ndarray, shape (3,)
+        Gravity acceleration in the base frame, m/s^2.
+    description, source : str
+        Free text (what the values are and where they come from).
+    """
+
+    name: str
+    convention: str
+    joints: tuple[Joint, ...]
+    flange2tcp: np.ndarray = field(default_factory=lambda: np.eye(4))
+    gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -STANDARD_GRAVITY]))
+    description: str = ""
+    source: str = ""
+
+    # --- array views (shape (6,)) -------------------------------------------------
+    def _col(self, key: str) -> np.ndarray:
+        return np.array([getattr(j, key) for j in self.joints], dtype=float)
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def a(self) -> np.ndarray:
+        """DH a, m, shape (6,)."""
+        return self._col("a")
+
+    @property
+    def alpha(self) -> np.ndarray:
+        """DH alpha, rad, shape (6,)."""
+        return self._col("alpha")
+
+    @property
+    def d(self) -> np.ndarray:
+        """DH d, m, shape (6,)."""
+        return self._col("d")
+
+    @property
+    def theta_offset(self) -> np.ndarray:
+        """Joint-angle offsets, rad, shape (6,)."""
+        return self._col("theta_offset")
+
+    @property
+    def stiffness(self) -> np.ndarray:
+        """Joint stiffnesses, N*m/rad, shape (6,)."""
+        return self._col("stiffness")
+
+    @property
+    def q_min(self) -> np.ndarray:
+        return self._col("q_min")
+
+    @property
+    def q_max(self) -> np.ndarray:
+        return self._col("q_max")
+
+    @property
+    def v_max(self) -> np.ndarray:
+        return self._col("v_max")
+
+    @property
+    def a_max(self) -> np.ndarray:
+        return self._col("a_max")
+
+    @property
+    def j_max(self) -> np.ndarray:
+        return self._col("j_max")
+
+    @property
+    def has_masses(self) -> bool:
+        return all(j.mass is not None and j.com is not None for j in self.joints)
+
+    @property
+    def masses(self) -> np.ndarray:
+        """Link masses, kg, shape (6,); raises if the file gives none."""
+        if not self.has_masses:
+            raise RobotFileError(f"robot '{self.name}': link masses/com are not given")
+        return self._col("mass")
+
+    @property
+    def coms(self) -> np.ndarray:
+        """Centres of mass in DH link frames, m, shape (6, 3)."""
+        if not self.has_masses:
+            raise RobotFileError(f"robot '{self.name}': link masses/com are not given")
+        return np.array([j.com for j in self.joints], dtype=float)
+
+    def with_tool(self, flange2tcp: np.ndarray) -> "Robot":
+        """Return a copy with another tool transform (4x4, TCP -> flange)."""
+        t = np.asarray(flange2tcp, dtype=float)
+        if t.shape != (4, 4) or not np.all(np.isfinite(t)):
+            raise RobotFileError("tool transform must be a finite 4x4 matrix")
+        return replace(self, flange2tcp=t)
+
+    def with_stiffness(self, stiffness: np.ndarray) -> "Robot":
+        """Return a copy with other joint stiffnesses (N*m/rad, shape (6,))."""
+        k = np.asarray(stiffness, dtype=float).reshape(-1)
+        if k.shape != (self.n_joints,) or not np.all(np.isfinite(k)) or np.any(k <= 0):
+            raise RobotFileError(f"stiffness must be 6 finite positive values, got {k}")
+        joints = tuple(replace(j, stiffness=float(ki)) for j, ki in zip(self.joints, k))
+        return replace(self, joints=joints)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The robot as a dictionary in the robot-file schema (SI, radians)."""
+        joints = []
+        for j in self.joints:
+            row: dict[str, Any] = {k: float(getattr(j, k)) for k in _JOINT_REQUIRED}
+            if j.mass is not None:
+                row["mass"] = float(j.mass)
+            if j.com is not None:
+                row["com"] = [float(c) for c in j.com]
+            joints.append(row)
+        from .transforms import matrix_to_rpy
+        return {
+            "name": self.name,
+            "convention": self.convention,
+            "description": self.description,
+            "source": self.source,
+            "gravity": [float(g) for g in self.gravity],
+            "tool": {"xyz": [float(v) for v in self.flange2tcp[:3, 3]],
+                     "rpy": [float(v) for v in matrix_to_rpy(self.flange2tcp[:3, :3])]},
+            "joints": joints,
+        }
+
+
+# --------------------------------------------------------------------------------------
+# Loading and validation
+# --------------------------------------------------------------------------------------
+
+def _finite(where: str, key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise RobotFileError(f"{where}: key '{key}' must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise RobotFileError(f"{where}: key '{key}' must be finite, got {value!r}")
+    return v
+
+
+def _vector(where: str, key: str, value: Any, n: int) -> np.ndarray:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise RobotFileError(f"{where}: key '{key}' must be a list of {n} numbers, got {value!r}")
+    return np.array([_finite(where, f"{key}[{i}]", v) for i, v in enumerate(value)])
+
+
+def _angle(where: str, row: Mapping[str, Any], key: str) -> float:
+    has_rad, has_deg = key in row, f"{key}_deg" in row
+    if has_rad and has_deg:
+        raise RobotFileError(f"{where}: give either '{key}' (rad) or '{key}_deg', not both")
+    if has_deg:
+        return math.radians(_finite(where, f"{key}_deg", row[f"{key}_deg"]))
+    if has_rad:
+        return _finite(where, key, row[key])
+    raise RobotFileError(f"{where}: missing key '{key}' (rad) or '{key}_deg'")
+
+
+def _parse_joint(where: str, row: Any) -> Joint:
+    if not isinstance(row, Mapping):
+        raise RobotFileError(f"{where}: expected a table of joint keys, got {row!r}")
+    allowed = set(_JOINT_REQUIRED) | set(_JOINT_OPTIONAL) | {f"{k}_deg" for k in _ANGLE_KEYS}
+    unknown = sorted(set(row) - allowed)
+    if unknown:
+        raise RobotFileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+    vals: dict[str, Any] = {}
+    for key in _JOINT_REQUIRED:
+        if key in _ANGLE_KEYS:
+            vals[key] = _angle(where, row, key)
+        elif key not in row:
+            raise RobotFileError(f"{where}: missing key '{key}'")
+        else:
+            vals[key] = _finite(where, key, row[key])
+    if vals["q_min"] >= vals["q_max"]:
+        raise RobotFileError(f"{where}: q_min ({vals['q_min']}) must be below q_max ({vals['q_max']})")
+    for key in ("v_max", "a_max", "j_max", "stiffness"):
+        if vals[key] <= 0:
+            raise RobotFileError(f"{where}: key '{key}' must be > 0, got {vals[key]}")
+    if ("mass" in row) != ("com" in row):
+        raise RobotFileError(f"{where}: give 'mass' and 'com' together")
+    if "mass" in row:
+        vals["mass"] = _finite(where, "mass", row["mass"])
+        if vals["mass"] < 0:
+            raise RobotFileError(f"{where}: key 'mass' must be >= 0, got {vals['mass']}")
+        vals["com"] = _vector(where, "com", row["com"], 3)
+    return Joint(**vals)
+
+
+def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
+    """Build and validate a :class:`Robot` from a robot-file dictionary.
+
+    Parameters
+    ----------
+    data : mapping
+        The parsed TOML document (see ``docs/robot-file.md``).
+    where : str
+        Name of the source, used in error messages (usually the file path).
+
+    Raises
+    ------
+    RobotFileError
+        Naming the file, the key and the offending value.
+    """
+    if not isinstance(data, Mapping):
+        raise RobotFileError(f"{where}: expected a table at top level")
+    unknown = sorted(set(data) - set(_TOP_KEYS))
+    if unknown:
+        raise RobotFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP_KEYS)}")
+    name = data.get("name")
+    if not isinstance(name, str) or not name:
+        raise RobotFileError(f"{where}: key 'name' must be a non-empty string, got {name!r}")
+    conv = data.get("convention")
+    if conv not in CONVENTIONS:
+        raise RobotFileError(f"{where}: key 'convention' must be one of {CONVENTIONS}, got {conv!r}")
+    joints_raw = data.get("joints")
+    if not isinstance(joints_raw, list) or len(joints_raw) != 6:
+        n = len(joints_raw) if isinstance(joints_raw, list) else joints_raw
+        raise RobotFileError(f"{where}: key 'joints' must be an array of 6 [[joints]] tables, got {n!r}")
+    joints = tuple(_parse_joint(f"{where}: joints[{i + 1}]", row) for i, row in enumerate(joints_raw))
+
+    tool = data.get("tool", {})
+    if not isinstance(tool, Mapping):
+        raise RobotFileError(f"{where}: key 'tool' must be a table")
+    unknown = sorted(set(tool) - {"xyz", "rpy", "rpy_deg"})
+    if unknown:
+        raise RobotFileError(f"{where}: tool: unknown key(s) {unknown}; allowed: ['xyz', 'rpy', 'rpy_deg']")
+    xyz = _vector(f"{where}: tool", "xyz", tool.get("xyz", [0.0, 0.0, 0.0]), 3)
+    if "rpy" in tool and "rpy_deg" in tool:
+        raise RobotFileError(f"{where}: tool: give either 'rpy' (rad) or 'rpy_deg', not both")
+    if "rpy_deg" in tool:
+        rpy = np.radians(_vector(f"{where}: tool", "rpy_deg", tool["rpy_deg"], 3))
+    else:
+        rpy = _vector(f"{where}: tool", "rpy", tool.get("rpy", [0.0, 0.0, 0.0]), 3)
+    gravity = _vector(where, "gravity", data.get("gravity", [0.0, 0.0, -STANDARD_GRAVITY]), 3)
+    desc = data.get("description", "")
+    src = data.get("source", "")
+    for key, val in (("description", desc), ("source", src)):
+        if not isinstance(val, str):
+            raise RobotFileError(f"{where}: key '{key}' must be a string")
+    return Robot(name=name, convention=conv, joints=joints,
+                 flange2tcp=transform(rpy_to_matrix(rpy), xyz), gravity=gravity,
+                 description=desc, source=src)
+
+
+def load_robot(spec: str | Path) -> Robot:
+    """Load a robot by built-in name (``ar5``, ``ur5``, ``ur10``) or TOML file path.
+
+    Raises
+    ------
+    RobotFileError
+        The file is missing, not TOML, or fails validation (message names the key).
+    """
+    s = str(spec)
+    if s in BUILTIN_ROBOTS:
+        text = resources.files("models").joinpath(f"robots/{s}.toml").read_text(encoding="utf-8")
+        where = f"built-in robot '{s}'"
+    else:
+        path = Path(s)
+        if not path.is_file():
+            raise RobotFileError(
+                f"robot '{s}': no such file, and not a built-in robot (built-ins: {', '.join(BUILTIN_ROBOTS)})")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise RobotFileError(f"{path}: cannot read: {exc}") from None
+        where = str(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RobotFileError(f"{where}: not valid TOML: {exc}") from None
+    return robot_from_dict(data, where)
+
+
+def robot_to_toml(robot: Robot) -> str:
+    """Serialise a robot to robot-file TOML text (SI units, radians)."""
+    d = robot.to_dict()
+
+    def fmt(v: Any) -> str:
+        if isinstance(v, str):
+            return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+        if isinstance(v, list):
+            return "[" + ", ".join(fmt(x) for x in v) + "]"
+        return repr(float(v))
+
+    lines = [f"name = {fmt(d['name'])}", f"convention = {fmt(d['convention'])}",
+             f"description = {fmt(d['description'])}", f"source = {fmt(d['source'])}",
+             f"gravity = {fmt(d['gravity'])}", "", "[tool]",
+             f"xyz = {fmt(d['tool']['xyz'])}", f"rpy = {fmt(d['tool']['rpy'])}"]
+    for j in d["joints"]:
+        lines += ["", "[[joints]]"] + [f"{k} = {fmt(v)}" for k, v in j.items()]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,1 @@
+"""The pipeline and the ``compplan`` command line.  Depends on :mod:`problems` and :mod:`models`."""
