@@ -9,12 +9,10 @@ only under ``-v``.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import traceback
-from pathlib import Path
 from typing import Callable
-
-import numpy as np
 
 from models.errors import CompplanError
 
@@ -22,38 +20,9 @@ EXIT_OK = 0
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL = 3
 
-
-def _print_table(rows: list[tuple[str, float, float]], title: str) -> None:
-    print(title)
-    print(f"  {'case':<28}{'max [mm]':>12}{'RMS [mm]':>12}")
-    for name, mx, rms in rows:
-        print(f"  {name:<28}{mx:>12.6f}{rms:>12.6f}")
-
-
-def cmd_demo(args: argparse.Namespace) -> int:
-    from models import load_robot
-    from planner.demo import run_demo
-    from planner.output import OutputSet
-
-    robot = load_robot(args.robot)
-    res = run_demo(robot, n_points=args.points)
-    summary = res.summary()
-    out = OutputSet(args.out)
-    out.add_json("summary.json", summary)
-    rows = np.hstack([res.positions, res.exact.q_command])
-    out.add_csv("path.csv", ["x", "y", "z", "q1", "q2", "q3", "q4", "q5", "q6"], rows)
-    out.publish()
-    s = summary
-    _print_table([
-        ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
-        ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
-        ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
-    ], f"TCP position error, robot {robot.name}, branch {res.branch.label}, "
-       f"F = {[float(v) for v in res.wrench]} (N, N*m, base frame), {len(res.positions)} waypoints")
-    for w in s["warnings"]:
-        print(f"warning: {w}")
-    print(f"wrote {Path(args.out) / 'summary.json'} and {Path(args.out) / 'path.csv'}")
-    return EXIT_OK
+#: Sub-command modules under planner/commands/; each defines ``register(subparsers)``
+#: which adds its parser and sets ``func`` (returning an exit code).
+COMMAND_MODULES = ("demo",)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -62,11 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true", help="verbose solver output and tracebacks")
     sub = p.add_subparsers(dest="command", required=True)
 
-    d = sub.add_parser("demo", help="the paper's section-4.4 scenario on ar5")
-    d.add_argument("--out", required=True, help="output folder")
-    d.add_argument("--robot", default="ar5", help="built-in robot name or robot file (default ar5)")
-    d.add_argument("--points", type=int, default=40, help="number of waypoints (default 40)")
-    d.set_defaults(func=cmd_demo)
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"planner.commands.{name}").register(sub)
     return p
 
 

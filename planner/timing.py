@@ -141,8 +141,12 @@ TOPPRA_SMOOTHING_S: float = 0.02
 
 #: TOPP-RA limit-shrinking loop: total number of TOPP-RA runs and the extra
 #: relative margin applied on top of the measured ratio.
+#: The divisor applied to a limit exceeded with peak ratio r > 1 is
+#: r * (1 + max(SHRINK_MARGIN_FLOOR, shrink_margin * (r - 1))).
 TOPPRA_MAX_ITERATIONS: int = 6
-TOPPRA_SHRINK_MARGIN: float = 0.01
+TOPPRA_SHRINK_MARGIN: float = 0.5
+SHRINK_MARGIN_FLOOR: float = 1e-6
+SHRINK_MARGIN_MAX: float = 10.0
 
 #: Ruckig verification loop: total number of Ruckig runs and extra margin.
 RUCKIG_MAX_ITERATIONS: int = 4
@@ -637,6 +641,16 @@ def _toppra_once(
     return np.maximum(sd, 0.0), "", False
 
 
+def _shrink_factor(ratio: np.ndarray, margin: float) -> np.ndarray:
+    """Divisor for a limit whose measured peak ratio is ``ratio`` (> 1).
+
+    ``ratio * (1 + m)`` with ``m = max(SHRINK_MARGIN_FLOOR, margin * (ratio -
+    1))``: the extra margin is proportional to the overshoot, so a limit that
+    was exceeded by a rounding-level amount is only shrunk by that amount.
+    """
+    return ratio * (1.0 + np.maximum(SHRINK_MARGIN_FLOOR, margin * (ratio - 1.0)))
+
+
 class _ToppraLaw:
     """Scalar time law ``s(t)`` built from TOPP-RA's gridpoint velocities.
 
@@ -809,8 +823,8 @@ def _run_toppra(
         ra = ratio["acceleration"]
         over_v = rv > 1.0 + LIMIT_RATIO_TOL
         over_a = ra > 1.0 + LIMIT_RATIO_TOL
-        vlim = np.where(over_v, vlim / (rv * (1.0 + margin)), vlim)
-        alim = np.where(over_a, alim / (ra * (1.0 + margin)), alim)
+        vlim = np.where(over_v, vlim / _shrink_factor(rv, margin), vlim)
+        alim = np.where(over_a, alim / _shrink_factor(ra, margin), alim)
     assert best is not None
     return best
 
@@ -1029,8 +1043,10 @@ def _validate_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]
             fval = float(val)
         except (TypeError, ValueError):
             fval = math.nan
-        if not (0.0 <= fval < 0.5):
-            raise ValueError(f"option shrink_margin must be in [0, 0.5), got {val!r}")
+        if not (0.0 <= fval <= SHRINK_MARGIN_MAX):
+            raise ValueError(
+                f"option shrink_margin must be in [0, {SHRINK_MARGIN_MAX}], got {val!r}"
+            )
         out["shrink_margin"] = fval
     if "time_law" in out and out["time_law"] not in TOPPRA_TIME_LAWS:
         raise ValueError(

@@ -1,0 +1,1 @@
+"""One module per ``compplan`` sub-command; each defines ``register(subparsers)``."""
