@@ -39,7 +39,7 @@ _JOINT_REQUIRED = ("a", "alpha", "d", "theta_offset", "q_min", "q_max",
                    "v_max", "a_max", "j_max", "stiffness")
 _JOINT_OPTIONAL = ("mass", "com")
 _TOP_KEYS = ("name", "convention", "description", "joints", "tool", "gravity",
-             "source")
+             "source", "identified")
 
 
 class RobotFileError(InputError):
@@ -106,6 +106,9 @@ class Robot:
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -STANDARD_GRAVITY]))
     description: str = ""
     source: str = ""
+    #: Optional ``[identified]`` table written by ``compplan identify`` (registration,
+    #: effects and their parameters); opaque to the kinematics, used by ``problems.identify``.
+    identified: dict[str, Any] | None = None
 
     # --- array views (shape (6,)) -------------------------------------------------
     def _col(self, key: str) -> np.ndarray:
@@ -213,6 +216,7 @@ class Robot:
             "tool": {"xyz": [float(v) for v in self.flange2tcp[:3, 3]],
                      "rpy": [float(v) for v in matrix_to_rpy(self.flange2tcp[:3, :3])]},
             "joints": joints,
+            **({"identified": self.identified} if self.identified is not None else {}),
         }
 
 
@@ -327,9 +331,13 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
     for key, val in (("description", desc), ("source", src)):
         if not isinstance(val, str):
             raise RobotFileError(f"{where}: key '{key}' must be a string")
+    identified = data.get("identified")
+    if identified is not None and not isinstance(identified, Mapping):
+        raise RobotFileError(f"{where}: key 'identified' must be a table")
     return Robot(name=name, convention=conv, joints=joints,
                  flange2tcp=transform(rpy_to_matrix(rpy), xyz), gravity=gravity,
-                 description=desc, source=src)
+                 description=desc, source=src,
+                 identified=dict(identified) if identified is not None else None)
 
 
 def load_robot(spec: str | Path) -> Robot:
@@ -363,19 +371,5 @@ def load_robot(spec: str | Path) -> Robot:
 
 def robot_to_toml(robot: Robot) -> str:
     """Serialise a robot to robot-file TOML text (SI units, radians)."""
-    d = robot.to_dict()
-
-    def fmt(v: Any) -> str:
-        if isinstance(v, str):
-            return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
-        if isinstance(v, list):
-            return "[" + ", ".join(fmt(x) for x in v) + "]"
-        return repr(float(v))
-
-    lines = [f"name = {fmt(d['name'])}", f"convention = {fmt(d['convention'])}",
-             f"description = {fmt(d['description'])}", f"source = {fmt(d['source'])}",
-             f"gravity = {fmt(d['gravity'])}", "", "[tool]",
-             f"xyz = {fmt(d['tool']['xyz'])}", f"rpy = {fmt(d['tool']['rpy'])}"]
-    for j in d["joints"]:
-        lines += ["", "[[joints]]"] + [f"{k} = {fmt(v)}" for k, v in j.items()]
-    return "\n".join(lines) + "\n"
+    import tomli_w
+    return tomli_w.dumps(robot.to_dict())
