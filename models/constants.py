@@ -14,7 +14,9 @@ STANDARD_GRAVITY = 9.80665
 IK_CLIP_TOL = 1e-10
 
 #: |sin(theta5)| below this: wrist singular, theta6 undetermined (dimensionless).
-IK_WRIST_SINGULAR_TOL = 1e-9
+#: sin(theta5) is formed as sqrt(1 - cos^2), whose rounding floor is ~sqrt(eps) = 1.5e-8,
+#: so an exactly singular pose evaluates to about 1e-8: the threshold sits above it.
+IK_WRIST_SINGULAR_TOL = 1e-7
 
 #: Wrist-centre radius margin relative to the lateral offset below which the
 #: shoulder solution is degenerate (m).

@@ -90,6 +90,18 @@ def geometric_jacobian(frames: Sequence[Any], p_tcp: Any, convention: str) -> An
     return ca.horzcat(*cols)
 
 
+def compliance_from_jacobian(J: Any, kinv: Any) -> Any:
+    """``C = J diag(kinv) J^T`` built entry by entry on the upper triangle and mirrored,
+    so it is exactly symmetric and costs 21 instead of 36 dot products."""
+    n = J.shape[0]
+    entries = {}
+    for i in range(n):
+        for j in range(i, n):
+            entries[i, j] = sum(J[i, k] * kinv[k] * J[j, k] for k in range(J.shape[1]))
+    return ca.vertcat(*[ca.horzcat(*[entries[min(i, j), max(i, j)] for j in range(n)])
+                        for i in range(n)])
+
+
 class KinematicModel:
     """Named CasADi functions of one robot (working data built from a description).
 
@@ -125,9 +137,7 @@ class KinematicModel:
         base2tcp = ca.mtimes(frames[-1], ca.DM(robot.flange2tcp))
         J = geometric_jacobian(frames, base2tcp[:3, 3], robot.convention)
         kinv = ca.DM(1.0 / robot.stiffness)
-        JKinv = J * ca.repmat(kinv.T, 6, 1)          # J K^-1 (column scaling)
-        C = ca.mtimes(JKinv, J.T)
-        C = 0.5 * (C + C.T)
+        C = compliance_from_jacobian(J, 1.0 / robot.stiffness)
         tau = ca.mtimes(J.T, F)
         dq = kinv * tau
 

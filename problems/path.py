@@ -93,10 +93,19 @@ def branch_paths(ik: AnalyticIK, base2tcp: np.ndarray,
     return feasible, rejected
 
 
-def default_branch(feasible: dict[int, BranchPath], q_home: np.ndarray) -> int:
-    """The feasible branch whose first waypoint is nearest the home configuration."""
+def default_branch(feasible: dict[int, BranchPath], q_home: np.ndarray,
+                   rejected: dict[int, str] | None = None) -> int:
+    """The feasible branch whose first waypoint is nearest the home configuration.
+
+    Raises
+    ------
+    UnreachableError
+        No branch is feasible; the message gives each branch's reason.
+    """
     if not feasible:
-        raise UnreachableError("no IK branch is feasible along the whole path")
+        why = "; ".join(f"{BRANCH_LABELS[b]}: {r}" for b, r in sorted((rejected or {}).items()))
+        raise UnreachableError("no IK branch is feasible along the whole path"
+                               + (f" ({why})" if why else ""))
     home = np.asarray(q_home, float)
 
     def dist(bp: BranchPath) -> float:
