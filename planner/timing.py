@@ -35,18 +35,43 @@ exactly. The joint derivatives are obtained analytically by the chain rule::
     (``toppra.algorithm.TOPPRA`` with ``JointVelocityConstraint`` and
     ``JointAccelerationConstraint``, interpolation discretisation, ``seidel``
     solver) on a grid that always contains the waypoint knots. TOPP-RA returns
-    ``sd`` at the gridpoints; the time of each gridpoint follows from the
-    constant-acceleration law between gridpoints, and ``s(t)`` is the cubic
-    spline through the ``(t_i, s_i)`` pairs with ``sd = 0`` at both ends
-    (the scalar analogue of toppra's own ``ParametrizeSpline`` output, but
-    composed with ``P`` so that the geometric path is preserved exactly). That
-    interpolation overshoots the limits between gridpoints (the known TOPP-RA
-    output pitfall), so the result is checked on a fine time grid and, while a
-    velocity or acceleration ratio exceeds 1, TOPP-RA is re-run with the
-    offending joints' limits divided by their measured ratio (times
-    ``1 + shrink_margin``), at most ``max_iterations`` runs in all. TOPP-RA
-    does not limit jerk: the jerk ratio is reported but the status depends
-    only on velocity and acceleration.
+    ``sd`` at the gridpoints, i.e. a law with constant path acceleration
+    between gridpoints (piecewise-quadratic ``s(t)``, acceleration jumps).
+    Two ways to turn that into a C2 time law are offered (option
+    ``time_law``):
+
+    * ``"smoothed"`` (default): the constant-acceleration law filtered by a
+      causal moving average of width ``smoothing_s`` (default
+      ``TOPPRA_SMOOTHING_S``), evaluated exactly from the piecewise
+      polynomial and its antiderivative. It stays within the range of the
+      unfiltered path velocity/acceleration over the window, is monotone,
+      ends with zero velocity *and* acceleration, has finite jerk (about the
+      acceleration jump divided by the window) and lasts ``smoothing_s``
+      longer than the raw law.
+    * ``"spline"``: cubic spline through the ``(t_i, s_i)`` pairs with zero
+      end velocity (the scalar analogue of toppra's own ``ParametrizeSpline``
+      output). It rings between gridpoints: about 10-15 % acceleration
+      overshoot, whatever the grid density, and large jerk.
+
+    Either way, TOPP-RA only enforces the constraints at the gridpoints, so
+    the result is checked on a fine time grid. While a velocity or
+    acceleration ratio exceeds 1 (+ ``LIMIT_RATIO_TOL``), TOPP-RA is re-run,
+    at most ``max_iterations`` runs in all:
+
+    1. first (smoothed law only, at most ``refinements`` times, while the
+       overshoot exceeds ``TOPPRA_REFINE_MIN_EXCESS``) with the grid
+       intervals that produced the violation split in
+       ``TOPPRA_REFINE_FACTOR`` (discretisation error shrinks with the grid);
+    2. then with each offending joint's limit divided by
+       ``r (1 + max(SHRINK_MARGIN_FLOOR, shrink_margin (r - 1)))`` (``r`` its
+       measured peak ratio).
+
+    If the last run still exceeds, the status is ``LIMIT_EXCEEDED``. The
+    correction costs a little optimality: in a randomised sweep (6 joints,
+    5-80 waypoints, straight, smooth and random-walk paths) the durations
+    were a median 0.6 % and at most 2 % above a 5000-gridpoint reference.
+    TOPP-RA does not limit jerk: the jerk ratio is reported but the status
+    depends only on velocity and acceleration.
 
 ``method="ruckig"``
     Jerk-limited. Ruckig (community version) has no intermediate waypoints,
@@ -77,9 +102,13 @@ Sampling and checks
     waypoint at rest (zero velocity, acceleration and jerk), so
     ``duration_s = t[-1]`` is a multiple of ``dt``. ``limit_ratio`` is the
     peak ``|value| / limit`` per joint over the returned samples *and* a check
-    grid ``VERIFY_OVERSAMPLE`` times finer than ``dt`` (plus the TOPP-RA
-    gridpoint times, where the spline time law has its acceleration
-    extremes), so it bounds what a finer controller would see as well.
+    grid ``VERIFY_OVERSAMPLE`` times finer than ``dt`` (plus, for TOPP-RA,
+    the breakpoints of the time law, where its acceleration has kinks), so it
+    also bounds what a finer controller would see, up to the variation
+    between check points. Ruckig's ``at_time`` gives position, velocity and
+    acceleration of ``s``; the jerk of ``s`` and the fine check grid are
+    evaluated from Ruckig's jerk profile (``Trajectory.profiles``), which is
+    cross-checked against ``at_time`` on every sample.
 
 The module prints nothing; toppra's logger is raised to ``ERROR`` for the
 duration of the call (not thread-safe with respect to other code changing
@@ -105,6 +134,7 @@ import toppra.constraint
 from scipy.interpolate import CubicSpline, PPoly
 
 __all__ = [
+    "LIMIT_RATIO_TOL",
     "JointLimits",
     "Trajectory",
     "TimingStatus",
@@ -137,14 +167,23 @@ TOPPRA_GRIDPOINTS_PER_WAYPOINT: int = 10
 #: moving-average window (s) of the smoothed law.
 TOPPRA_TIME_LAWS: tuple[str, ...] = ("smoothed", "spline")
 TOPPRA_TIME_LAW: str = "smoothed"
-TOPPRA_SMOOTHING_S: float = 0.02
+TOPPRA_SMOOTHING_S: float = 0.01
 
-#: TOPP-RA limit-shrinking loop: total number of TOPP-RA runs and the extra
-#: relative margin applied on top of the measured ratio.
-#: The divisor applied to a limit exceeded with peak ratio r > 1 is
+#: TOPP-RA local grid refinement (before any limit shrinking): number of
+#: refinement rounds (smoothed time law only; the spline law's overshoot does
+#: not shrink with the grid), subdivision factor, and grid size cap.
+TOPPRA_MAX_REFINEMENTS: int = 2
+TOPPRA_REFINE_FACTOR: int = 4
+TOPPRA_MAX_GRIDPOINTS: int = 20000
+#: Refine only while the worst velocity/acceleration ratio exceeds 1 by more
+#: than this; smaller overshoots go straight to limit shrinking.
+TOPPRA_REFINE_MIN_EXCESS: float = 0.01
+
+#: TOPP-RA limit-shrinking loop: total number of TOPP-RA runs, and the
+#: divisor applied to a limit exceeded with peak ratio r > 1 is
 #: r * (1 + max(SHRINK_MARGIN_FLOOR, shrink_margin * (r - 1))).
 TOPPRA_MAX_ITERATIONS: int = 6
-TOPPRA_SHRINK_MARGIN: float = 0.5
+TOPPRA_SHRINK_MARGIN: float = 1.0
 SHRINK_MARGIN_FLOOR: float = 1e-6
 SHRINK_MARGIN_MAX: float = 10.0
 
@@ -237,7 +276,7 @@ class JointLimits:
             if bad.size:
                 j = int(bad[0])
                 raise ValueError(
-                    f"JointLimits.{name}: joint {j + 1} has value {arr[j]!r}; "
+                    f"JointLimits.{name}: joint {j + 1} has value {float(arr[j])!r}; "
                     "limits must be finite and > 0"
                 )
             arr.flags.writeable = False
@@ -285,8 +324,10 @@ class Trajectory:
         Number of TOPP-RA / Ruckig runs of the limit-verification loop
         (0 if none ran).
     first_pass_limit_ratio : dict[str, np.ndarray]
-        ``limit_ratio`` of the first run, before any limit shrinking (same
-        keys and shapes; empty if no run produced a trajectory).
+        Ratios of the first run, before any grid refinement or limit
+        shrinking, on the check grid (same keys and shapes; empty if no run
+        produced a trajectory). ``first_pass_limit_ratio["acceleration"]``
+        above 1 shows the raw TOPP-RA overshoot that was corrected.
     """
 
     method: str
@@ -475,8 +516,16 @@ def _validate_dt(dt: float) -> float:
     return value
 
 
-def _validate_path(q_path: Any, n: int) -> np.ndarray:
-    """Check ``q_path`` and drop consecutive exact duplicates; (N', n) copy."""
+def _validate_path(q_path: Any, n: int) -> tuple[np.ndarray, int]:
+    """Check ``q_path``; return it without consecutive exact duplicates.
+
+    Returns
+    -------
+    q : np.ndarray
+        Shape ``(N', n)``, rad, a copy with consecutive duplicates removed.
+    n_input : int
+        Number of waypoints given (``N``).
+    """
     try:
         q = np.array(q_path, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -495,10 +544,10 @@ def _validate_path(q_path: Any, n: int) -> np.ndarray:
         row, col = (int(x) for x in bad[0])
         raise ValueError(
             f"q_path[{row}, {col}] (waypoint row {row}, joint {col + 1}) is "
-            f"{q[row, col]!r}; all waypoint values must be finite"
+            f"{float(q[row, col])!r}; all waypoint values must be finite"
         )
     keep = np.concatenate(([True], np.any(np.diff(q, axis=0) != 0.0, axis=1)))
-    return q[keep]
+    return q[keep], int(q.shape[0])
 
 
 def _sample_times(duration: float, dt: float) -> np.ndarray:
@@ -613,6 +662,41 @@ def _toppra_grid(knots: np.ndarray, gridpoints: int) -> np.ndarray:
     return grid
 
 
+def _refine_grid(
+    grid: np.ndarray, tgrid: np.ndarray, t_bad: np.ndarray, lag: float
+) -> np.ndarray:
+    """Subdivide the grid intervals that influence the violating times.
+
+    Parameters
+    ----------
+    grid : np.ndarray
+        Shape ``(K,)``, gridpoints in s.
+    tgrid : np.ndarray
+        Shape ``(K,)``, s, time of each gridpoint in the raw TOPP-RA law.
+    t_bad : np.ndarray
+        Shape ``(B,)``, s, times where the check found a violation.
+    lag : float
+        s, the time law at ``t`` depends on the raw law on ``[t - lag, t]``.
+
+    Returns
+    -------
+    np.ndarray
+        Refined gridpoints: every interval overlapping ``[t - lag, t]`` for a
+        violating ``t``, and one neighbour on each side, is split into
+        ``TOPPRA_REFINE_FACTOR`` equal parts.
+    """
+    k = grid.size - 1
+    lo = np.clip(np.searchsorted(tgrid, t_bad - lag, side="right") - 2, 0, k - 1)
+    hi = np.clip(np.searchsorted(tgrid, t_bad, side="right"), 0, k - 1)
+    marks = np.zeros(k + 1, dtype=int)
+    np.add.at(marks, lo, 1)
+    np.add.at(marks, hi + 1, -1)
+    chosen = np.flatnonzero(np.cumsum(marks)[:k] > 0)
+    frac = np.arange(1, TOPPRA_REFINE_FACTOR) / TOPPRA_REFINE_FACTOR
+    extra = grid[chosen, None] + np.diff(grid)[chosen, None] * frac[None, :]
+    return np.unique(np.concatenate((grid, extra.ravel())))
+
+
 def _toppra_once(
     tp_path: Any, grid: np.ndarray, vlim: np.ndarray, alim: np.ndarray
 ) -> tuple[np.ndarray | None, str, bool]:
@@ -685,8 +769,10 @@ class _ToppraLaw:
             self._spline = CubicSpline(self.tgrid, grid, bc_type=((1, 0.0), (1, 0.0)))
             self.duration = t_end
             self.breaks = self.tgrid
+            self.lag = 0.0
             return
         self.window = float(window)
+        self.lag = self.window
         acc = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)  # (K-1,) 1/s^2
         x = np.concatenate(([-self.window], self.tgrid, [t_end + self.window]))
         c = np.zeros((3, x.size - 1))
@@ -714,6 +800,53 @@ class _ToppraLaw:
         return s, sd, sdd, sddd
 
 
+def _build_trajectory(
+    method: str,
+    path: _SplinePath,
+    limits: JointLimits,
+    dt: float,
+    law: Any,
+    duration: float,
+    check_ratio: Mapping[str, np.ndarray],
+    status: TimingStatus,
+    reason: str,
+    iterations: int,
+    first: dict[str, np.ndarray],
+    checked: tuple[str, ...],
+) -> Trajectory:
+    """Sample ``law`` at dt and assemble the :class:`Trajectory`.
+
+    ``law(t)`` returns ``(s, sd, sdd, sddd)`` for ``t < duration``. The
+    reported ratio is the maximum of ``check_ratio`` and the ratio over the
+    returned samples; an ``OK`` status is downgraded to ``LIMIT_EXCEEDED`` if
+    the samples exceed a ``checked`` limit (so OK can never coexist with a
+    ratio above ``1 + LIMIT_RATIO_TOL``).
+    """
+    t = _sample_times(duration, dt)
+    tm = t[t < duration]
+    q, qd, qdd, qddd = _sampled(path, t, duration, *law(tm))
+    ratio = _max_ratios(_ratios(qd, qdd, qddd, limits), check_ratio)
+    bad = _exceeds(ratio, checked)
+    if status is TimingStatus.OK and bad:
+        status = TimingStatus.LIMIT_EXCEEDED
+        reason = f"limit_exceeded: {' and '.join(bad)} ratio above 1 on the samples; {reason}"
+    return Trajectory(
+        method=method,
+        status=status,
+        reason=reason,
+        t=t,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        qddd=qddd,
+        duration_s=float(t[-1]),
+        limit_ratio=ratio,
+        dt=dt,
+        iterations=iterations,
+        first_pass_limit_ratio=first if first else dict(ratio),
+    )
+
+
 def _run_toppra(
     path: _SplinePath, limits: JointLimits, dt: float, opts: Mapping[str, Any]
 ) -> Trajectory:
@@ -726,27 +859,45 @@ def _run_toppra(
     margin = opts.get("shrink_margin", TOPPRA_SHRINK_MARGIN)
     kind = opts.get("time_law", TOPPRA_TIME_LAW)
     window = opts.get("smoothing_s", TOPPRA_SMOOTHING_S)
+    refinements = opts.get(
+        "refinements", TOPPRA_MAX_REFINEMENTS if kind == "smoothed" else 0
+    )
+    checked = ("velocity", "acceleration")
 
     grid = _toppra_grid(path.knots, gridpoints)
+    n_grid0 = grid.size
+    n_refined = 0
+    n_shrunk = 0
     tp_path = toppra.SplineInterpolator(path.knots, path.q_path, bc_type="natural")
     vlim = limits.velocity.astype(float).copy()
     alim = limits.acceleration.astype(float).copy()
     first: dict[str, np.ndarray] = {}
-    best: Trajectory | None = None
+    last: tuple[Any, dict[str, np.ndarray], str, int] | None = None
     law_desc = (
         f"constant-acceleration law smoothed over {window:g} s"
         if kind == "smoothed"
         else "cubic-spline time law through the gridpoint times"
     )
 
+    def build(
+        law: Any, ratio: dict[str, np.ndarray], status: TimingStatus, reason: str, it: int
+    ) -> Trajectory:
+        return _build_trajectory(
+            "toppra", path, limits, dt, law, law.duration, ratio, status, reason, it, first,
+            checked,
+        )
+
     for it in range(1, max_iter + 1):
         sd, msg, infeasible = _toppra_once(tp_path, grid, vlim, alim)
         if sd is None:
-            status = TimingStatus.INFEASIBLE if infeasible else TimingStatus.FAILED
             reason = f"TOPP-RA run {it} on {grid.size} gridpoints failed: {msg}"
-            if best is not None:  # keep the last trajectory we had
-                best.reason = f"{best.reason}; then {reason}"
-                return best
+            if last is not None:  # return the previous (limit-exceeding) run
+                law, ratio, prev_reason, prev_it = last
+                return build(
+                    law, ratio, TimingStatus.LIMIT_EXCEEDED, f"{prev_reason}; then {reason}",
+                    prev_it,
+                )
+            status = TimingStatus.INFEASIBLE if infeasible else TimingStatus.FAILED
             return _empty_trajectory("toppra", status, reason, n, dt, it)
         vmean = 0.5 * (sd[1:] + sd[:-1])
         if np.any(vmean <= 0.0):
@@ -762,71 +913,69 @@ def _run_toppra(
             )
         law = _ToppraLaw(grid, sd, kind, window)
         duration = law.duration
-        t = _sample_times(duration, dt)
-        tm = t[t < duration]
-        q, qd, qdd, qddd = _sampled(path, t, duration, *law(tm))
         tc = _check_times(duration, dt, law.breaks)
         cs, csd, csdd, csddd = law(tc)
         _, cqd, cqdd, cqddd = path.evaluate(cs, csd, csdd, csddd)
-        ratio = _max_ratios(_ratios(qd, qdd, qddd, limits), _ratios(cqd, cqdd, cqddd, limits))
+        ratio = _ratios(cqd, cqdd, cqddd, limits)
         if not first:
             first = ratio
-        traj = Trajectory(
-            method="toppra",
-            status=TimingStatus.OK,
-            reason="",
-            t=t,
-            q=q,
-            qd=qd,
-            qdd=qdd,
-            qddd=qddd,
-            duration_s=float(t[-1]),
-            limit_ratio=ratio,
-            dt=dt,
-            iterations=it,
-            first_pass_limit_ratio=first,
+        summary = (
+            f"TOPP-RA (seidel, {grid.size} gridpoints incl. all {n_way} waypoint "
+            f"knots, {law_desc}), {it} run(s) ({n_refined} local grid "
+            f"refinement(s) from {n_grid0} gridpoints, {n_shrunk} limit "
+            f"shrink(s)); motion {duration:.4f} s; {_fmt_ratio(ratio)}; "
+            f"first-pass ratios velocity {float(first['velocity'].max()):.4f}, "
+            f"acceleration {float(first['acceleration'].max()):.4f}; jerk is not "
+            "limited by TOPP-RA (its ratio is reported only; status depends on "
+            "velocity and acceleration)"
         )
         backwards = float(csd.min(initial=0.0))
         if backwards < -MONOTONE_TOL * max(1.0, float(sd.max())):
-            traj.status = TimingStatus.FAILED
-            traj.reason = (
-                f"TOPP-RA time law moves backwards along the path (min ds/dt = "
-                f"{backwards:.3g} 1/s); path not followed monotonically"
+            return build(
+                law,
+                ratio,
+                TimingStatus.FAILED,
+                f"failed: TOPP-RA time law moves backwards along the path (min "
+                f"ds/dt = {backwards:.3g} 1/s); {summary}",
+                it,
             )
-            return traj
-        bad = _exceeds(ratio, ("velocity", "acceleration"))
-        summary = (
-            f"TOPP-RA (seidel, {grid.size} gridpoints incl. all {n_way} waypoint "
-            f"knots, {law_desc}), {it} run(s); motion {duration:.4f} s, padded to "
-            f"{traj.duration_s:.4f} s; {_fmt_ratio(ratio)}; first-pass ratios "
-            f"velocity {float(first['velocity'].max()):.4f}, acceleration "
-            f"{float(first['acceleration'].max()):.4f}; jerk is not limited by "
-            "TOPP-RA (its ratio is reported only; status depends on velocity "
-            "and acceleration)"
-        )
+        bad = _exceeds(ratio, checked)
         if not bad:
-            shrunk = (
-                ""
-                if it == 1
-                else " after shrinking the TOPP-RA limits by the measured overshoot"
-            )
-            traj.reason = f"ok: velocity and acceleration within limits{shrunk}; {summary}"
-            return traj
-        traj.status = TimingStatus.LIMIT_EXCEEDED
-        traj.reason = (
-            f"limit_exceeded: {' and '.join(bad)} ratio above 1 after "
-            f"{it} run(s) (max_iterations={max_iter}); {summary}"
+            ok_reason = f"ok: velocity and acceleration within limits; {summary}"
+            return build(law, ratio, TimingStatus.OK, ok_reason, it)
+        last = (
+            law,
+            ratio,
+            f"limit_exceeded: {' and '.join(bad)} ratio above 1 after {it} run(s) "
+            f"(max_iterations={max_iter}); {summary}",
+            it,
         )
-        best = traj
+        excess = max(float(ratio[k].max()) for k in checked) - 1.0
+        if (
+            n_refined < refinements
+            and excess > TOPPRA_REFINE_MIN_EXCESS
+            and it + 1 < max_iter
+            and grid.size < TOPPRA_MAX_GRIDPOINTS
+        ):
+            # Discretisation error: TOPP-RA only enforces the constraints at
+            # the gridpoints. Refine the grid where the check found a
+            # violation, keeping the limits.
+            over = (np.abs(cqd) > limits.velocity * (1.0 + LIMIT_RATIO_TOL)).any(axis=1)
+            over |= (np.abs(cqdd) > limits.acceleration * (1.0 + LIMIT_RATIO_TOL)).any(axis=1)
+            grid = _refine_grid(grid, law.tgrid, tc[over], law.lag)
+            n_refined += 1
+            continue
         # Shrink the offending joints' limits by their measured ratio.
+        n_shrunk += 1
         rv = ratio["velocity"]
         ra = ratio["acceleration"]
         over_v = rv > 1.0 + LIMIT_RATIO_TOL
         over_a = ra > 1.0 + LIMIT_RATIO_TOL
         vlim = np.where(over_v, vlim / _shrink_factor(rv, margin), vlim)
         alim = np.where(over_a, alim / _shrink_factor(ra, margin), alim)
-    assert best is not None
-    return best
+    assert last is not None
+    law, ratio, reason, it = last
+    return build(law, ratio, TimingStatus.LIMIT_EXCEEDED, reason, it)
 
 
 # --------------------------------------------------------------------------- #
@@ -925,17 +1074,33 @@ def _run_ruckig(
     n = limits.n_joints
     max_iter = opts.get("max_iterations", RUCKIG_MAX_ITERATIONS)
     margin = opts.get("shrink_margin", RUCKIG_SHRINK_MARGIN)
+    checked = _LIMIT_KEYS
     law = _RuckigLaw()
     bounds, msg = _ruckig_bound_set(path, limits, law)
     if bounds is None:
         return _empty_trajectory("ruckig", TimingStatus.FAILED, f"Ruckig: {msg}", n, dt)
     sd_max, sdd_max, sddd_max = bounds
     first: dict[str, np.ndarray] = {}
-    traj: Trajectory | None = None
+    reason = ""
+    ratio: dict[str, np.ndarray] = {}
+    duration = math.nan
+
+    def sampled_law(tm: np.ndarray) -> tuple[np.ndarray, ...]:
+        """s, sd, sdd from ``at_time``; sddd from the jerk profile."""
+        states = np.array([law.traj.at_time(float(x))[:3] for x in tm], dtype=float)
+        states = states.reshape(tm.size, 3)
+        ps, vs, accs, js = law.profile_eval(tm)
+        scale = np.array([1.0, sd_max, sdd_max])
+        gap = np.abs(states - np.column_stack((ps, vs, accs))) / scale
+        if gap.size and float(gap.max()) > RUCKIG_CONSISTENCY_TOL:
+            raise RuntimeError(
+                f"Ruckig profile evaluation differs from at_time by {float(gap.max()):.3g}"
+            )
+        return states[:, 0], states[:, 1], states[:, 2], js
 
     for it in range(1, max_iter + 1):
-        duration = law.solve(sd_max, sdd_max, sddd_max)
-        if duration is None:
+        solved = law.solve(sd_max, sdd_max, sddd_max)
+        if solved is None:
             return _empty_trajectory(
                 "ruckig",
                 TimingStatus.FAILED,
@@ -945,62 +1110,43 @@ def _run_ruckig(
                 dt,
                 it,
             )
-        t = _sample_times(duration, dt)
-        tm = t[t < duration]
+        duration = solved
         try:
-            states = np.array([law.traj.at_time(float(x))[:3] for x in tm], dtype=float)
-            ps, vs, accs, js = law.profile_eval(tm)
-            states = states.reshape(tm.size, 3, 1)[:, :, 0]
-            scale = np.array([1.0, sd_max, sdd_max])
-            gap = float(np.max(np.abs(states - np.column_stack((ps, vs, accs))) / scale, initial=0.0))
-            if gap > RUCKIG_CONSISTENCY_TOL:
-                raise RuntimeError(f"profile evaluation differs from at_time by {gap:.3g}")
             tc = _check_times(duration, dt)
             cs, csd, csdd, csddd = law.profile_eval(tc)
-        except Exception as exc:  # noqa: BLE001 - becomes FAILED with reason
+        except RuntimeError as exc:
             return _empty_trajectory(
                 "ruckig", TimingStatus.FAILED, f"Ruckig sampling failed: {exc}", n, dt, it
             )
-        q, qd, qdd, qddd = _sampled(path, t, duration, states[:, 0], states[:, 1], states[:, 2], js)
         _, cqd, cqdd, cqddd = path.evaluate(cs, csd, csdd, csddd)
-        ratio = _max_ratios(_ratios(qd, qdd, qddd, limits), _ratios(cqd, cqdd, cqddd, limits))
+        ratio = _ratios(cqd, cqdd, cqddd, limits)
         if not first:
             first = ratio
-        traj = Trajectory(
-            method="ruckig",
-            status=TimingStatus.OK,
-            reason="",
-            t=t,
-            q=q,
-            qd=qd,
-            qdd=qdd,
-            qddd=qddd,
-            duration_s=float(t[-1]),
-            limit_ratio=ratio,
-            dt=dt,
-            iterations=it,
-            first_pass_limit_ratio=first,
-        )
         summary = (
             f"Ruckig on the path parameter with global bounds sd<={sd_max:.6g} 1/s, "
             f"|sdd|<={sdd_max:.6g} 1/s^2, |sddd|<={sddd_max:.6g} 1/s^3, {it} run(s); "
-            f"motion {duration:.4f} s, padded to {traj.duration_s:.4f} s; "
-            f"{_fmt_ratio(ratio)}"
+            f"motion {duration:.4f} s; {_fmt_ratio(ratio)}"
         )
-        backwards = float(min(csd.min(initial=0.0), states[:, 1].min(initial=0.0)))
+        backwards = float(csd.min(initial=0.0))
         if backwards < -MONOTONE_TOL * max(1.0, sd_max):
-            traj.status = TimingStatus.FAILED
-            traj.reason = f"Ruckig time law moves backwards (min ds/dt {backwards:.3g}); {summary}"
-            return traj
-        bad = _exceeds(ratio, _LIMIT_KEYS)
+            status = TimingStatus.FAILED
+            reason = (
+                f"failed: Ruckig time law moves backwards (min ds/dt {backwards:.3g}); "
+                f"{summary}"
+            )
+            break
+        bad = _exceeds(ratio, checked)
         if not bad:
-            traj.reason = f"ok: velocity, acceleration and jerk within limits; {summary}"
-            return traj
-        traj.status = TimingStatus.LIMIT_EXCEEDED
-        traj.reason = (
+            status = TimingStatus.OK
+            reason = f"ok: velocity, acceleration and jerk within limits; {summary}"
+            break
+        status = TimingStatus.LIMIT_EXCEEDED
+        reason = (
             f"limit_exceeded: {' and '.join(bad)} ratio above 1 after {it} run(s) "
             f"(max_iterations={max_iter}); {summary}"
         )
+        if it == max_iter:
+            break
         # Uniform time scaling of the bound set by the measured ratios.
         k = max(
             float(ratio["velocity"].max()),
@@ -1008,8 +1154,15 @@ def _run_ruckig(
             math.cbrt(float(ratio["jerk"].max())),
         ) * (1.0 + margin)
         sd_max, sdd_max, sddd_max = sd_max / k, sdd_max / k**2, sddd_max / k**3
-    assert traj is not None
-    return traj
+    try:
+        return _build_trajectory(
+            "ruckig", path, limits, dt, sampled_law, duration, ratio, status, reason, it,
+            first, checked,
+        )
+    except RuntimeError as exc:
+        return _empty_trajectory(
+            "ruckig", TimingStatus.FAILED, f"Ruckig sampling failed: {exc}", n, dt, it
+        )
 
 
 # --------------------------------------------------------------------------- #
@@ -1017,7 +1170,14 @@ def _run_ruckig(
 # --------------------------------------------------------------------------- #
 
 _OPTIONS: dict[str, tuple[str, ...]] = {
-    "toppra": ("gridpoints", "max_iterations", "shrink_margin", "time_law", "smoothing_s"),
+    "toppra": (
+        "gridpoints",
+        "max_iterations",
+        "shrink_margin",
+        "time_law",
+        "smoothing_s",
+        "refinements",
+    ),
     "ruckig": ("max_iterations", "shrink_margin"),
 }
 
@@ -1031,7 +1191,7 @@ def _validate_options(method: str, options: Mapping[str, Any]) -> dict[str, Any]
             f"{list(allowed)}"
         )
     out = dict(options)
-    for key, lo in (("gridpoints", 2), ("max_iterations", 1)):
+    for key, lo in (("gridpoints", 2), ("max_iterations", 1), ("refinements", 0)):
         if key in out:
             val = out[key]
             if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val < lo:
@@ -1088,13 +1248,19 @@ def time_parametrize(
     dt : float
         Controller period (s), ``0 < dt <= DT_MAX_S``.
     **options
-        ``toppra``: ``gridpoints`` (int, default
+        ``toppra``: ``gridpoints`` (int >= 2, default
         ``max(TOPPRA_MIN_GRIDPOINTS, TOPPRA_GRIDPOINTS_PER_WAYPOINT * N)``;
-        the waypoint knots are always added), ``max_iterations`` (int, total
-        TOPP-RA runs, default ``TOPPRA_MAX_ITERATIONS``), ``shrink_margin``
-        (float, default ``TOPPRA_SHRINK_MARGIN``). ``ruckig``:
-        ``max_iterations`` (default ``RUCKIG_MAX_ITERATIONS``),
-        ``shrink_margin`` (default ``RUCKIG_SHRINK_MARGIN``).
+        the waypoint knots are always added), ``max_iterations`` (int >= 1,
+        total TOPP-RA runs, default ``TOPPRA_MAX_ITERATIONS``),
+        ``shrink_margin`` (float, default ``TOPPRA_SHRINK_MARGIN``),
+        ``time_law`` (``"smoothed"`` or ``"spline"``, default
+        ``TOPPRA_TIME_LAW``), ``smoothing_s`` (float in (0, 1] s, default
+        ``TOPPRA_SMOOTHING_S``), ``refinements`` (int >= 0, local grid
+        refinement rounds, default ``TOPPRA_MAX_REFINEMENTS`` for the smoothed
+        law and 0 for the spline law). ``ruckig``: ``max_iterations`` (int >= 1,
+        default ``RUCKIG_MAX_ITERATIONS``), ``shrink_margin`` (float, the
+        bound set is time-scaled by ``k (1 + shrink_margin)``, default
+        ``RUCKIG_SHRINK_MARGIN``). See the module docstring for the methods.
 
     Returns
     -------
@@ -1121,8 +1287,7 @@ def time_parametrize(
     opts = _validate_options(method, options)
     dt = _validate_dt(dt)
     n = limits.n_joints
-    n_input = np.shape(q_path)[0] if np.ndim(q_path) >= 1 else 0
-    q = _validate_path(q_path, n)
+    q, n_input = _validate_path(q_path, n)
 
     if q.shape[0] < 2:
         zeros = np.zeros((1, n))
