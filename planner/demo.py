@@ -1,128 +1,67 @@
-"""The section-4.4 pipeline: IK along the path, error before, closed-form and exact compensation."""
+"""``compplan demo``: the plan of the paper's section-4.4 problem (``problems/files/paper_4_4.toml``).
+
+Kept for the API the report and its benchmark use: :func:`run_demo` returns the
+:class:`~planner.plan.PlanResult` of the shipped problem ``paper_4_4`` (robot and
+number of points may be overridden) and :func:`write_outputs` writes its files.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from pathlib import Path
-
-from models import AnalyticIK, KinematicModel, Robot
-from models.symbolic import directional_stiffness
-from models.errors import CompplanError, InfeasibleError
-from models.ik import BRANCH_LABELS
-from models.transforms import tool_down_rotation
+from models import Robot
 from problems import paper
-from problems.compensation import (CompensationResult, CompensationStatus, closed_form, exact,
-                                   uncompensated)
-from problems.path import BranchPath, branch_paths, default_branch, line_positions, poses
+from problems.problem import Problem, load_problem
 
-from planner.output import OutputSet
+from planner.plan import WAYPOINT_COLUMNS, PlanResult, plan
+from planner.plan import write_outputs as _write_plan_outputs
 
-#: Columns of ``waypoints.csv`` (see docs/output-files.md).
-WAYPOINT_COLUMNS = (["k", "s", "x", "y", "z"]
-                    + [f"qt{i}" for i in range(1, 7)] + [f"qc{i}" for i in range(1, 7)]
-                    + [f"qf{i}" for i in range(1, 7)]
-                    + ["ebx", "eby", "ebz", "efx", "efy", "efz", "eex", "eey", "eez", "kx", "ky", "kz"])
+#: The shipped problem the demo plans.
+DEMO_PROBLEM = "paper_4_4"
+
+#: Alias kept for existing callers: the demo result *is* a plan result.
+DemoResult = PlanResult
+
+__all__ = ["DEMO_PROBLEM", "DemoResult", "WAYPOINT_COLUMNS", "demo_problem", "error_stats", "run_demo",
+           "write_outputs"]
 
 
-def error_stats(res: CompensationResult) -> dict[str, float]:
-    """Max and RMS of the Euclidean TCP position error, mm."""
+def error_stats(res: Any) -> dict[str, float]:
+    """Max and RMS of the Euclidean TCP position error of a CompensationResult, mm."""
     e = res.error_norm_m * 1e3
     return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e ** 2)))}
 
 
-@dataclass
-class DemoResult:
-    robot: Robot
-    positions: np.ndarray          # (N, 3) target TCP, m, base frame
-    base2target: np.ndarray        # (N, 4, 4)
-    wrench: np.ndarray             # (6,)
-    branch: BranchPath
-    branches: dict[int, BranchPath]
-    rejected: dict[int, str]
-    before: CompensationResult
-    closed: CompensationResult
-    exact: CompensationResult
-    warnings: list[str] = field(default_factory=list)
+def demo_problem(robot: Robot | str | None = None, n_points: int | None = None) -> Problem:
+    """The paper's section-4.4 problem, optionally on another robot or with another point count.
 
-    def waypoint_table(self) -> np.ndarray:
-        """Rows of ``waypoints.csv`` (see :data:`WAYPOINT_COLUMNS`)."""
-        n = len(self.positions)
-        seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(self.positions, axis=0), axis=1))]
-        s = seg / seg[-1] if seg[-1] > 0 else seg
-        model = KinematicModel(self.robot)
-        Cs = model.C(self.branch.q)
-        k = np.stack([directional_stiffness(Cs, np.eye(3)[i]) for i in range(3)], axis=1)
-        return np.hstack([np.arange(n)[:, None], s[:, None], self.positions, self.branch.q,
-                          self.exact.q_command, self.closed.q_command, self.before.error_m,
-                          self.closed.error_m, self.exact.error_m, k])
-
-    def branch_table(self) -> tuple[list[str], np.ndarray]:
-        """``branches.csv``: load-induced TCP error norm (m) per feasible branch at its analytic posture."""
-        model = KinematicModel(self.robot)
-        cols, data = ["k"], [np.arange(len(self.positions))]
-        for b in sorted(self.branches):
-            res = uncompensated(model, self.branches[b].q, self.wrench)
-            cols.append(f"{self.branches[b].label}_analytic_m")
-            data.append(res.error_norm_m)
-        return cols, np.stack(data, axis=1)
-
-    def summary(self) -> dict[str, Any]:
-        return {
-            "scenario": "paper section 4.4",
-            "robot": self.robot.name,
-            "tcp": "flange",
-            "orientation": "tool z axis pointing down (base -z), R = Rx(pi)",
-            "wrench": {"frame": "base", "point": "TCP", "F_N": self.wrench[:3], "M_Nm": self.wrench[3:]},
-            "n_waypoints": int(len(self.positions)),
-            "branch": self.branch.label,
-            "error_before": error_stats(self.before),
-            "error_after": {"closed_form": error_stats(self.closed), "exact": error_stats(self.exact)},
-            "exact_residual_max_m": float(self.exact.error_norm_m.max()),
-            "status": {"closed_form": self.closed.status.value, "exact": self.exact.status.value},
-            "warnings": self.warnings + self.closed.warnings,
-            "rejected_branches": {BRANCH_LABELS[b]: r for b, r in self.rejected.items()},
-            "robot_file": self.robot.to_dict(),
-        }
-
-
-def run_demo(robot: Robot, n_points: int = paper.SECTION_4_4_POINTS,
-             wrench: np.ndarray | None = None) -> DemoResult:
-    """Run the paper's section-4.4 scenario on ``robot`` (TCP as in the robot file).
-
-    Raises
-    ------
-    CompplanError
-        If no branch reaches the whole path or the exact compensation fails.
+    ``robot`` may be a built-in name, a robot file path or a :class:`Robot` (its own tool is
+    replaced by the problem's: the TCP at the flange).
     """
-    F = paper.SECTION_4_4_WRENCH if wrench is None else np.asarray(wrench, float)
-    model = KinematicModel(robot)
-    ik = AnalyticIK(robot)
-    P = line_positions(paper.SECTION_4_4_START_M, paper.SECTION_4_4_END_M, n_points)
-    T = poses(P, tool_down_rotation())
-    feasible, rejected = branch_paths(ik, T)
-    b = default_branch(feasible, paper.HOME_Q, rejected)
-    bp = feasible[b]
-    before = uncompensated(model, bp.q, F)
-    closed = closed_form(model, bp.q, F)
-    ex = exact(model, bp.q, F)
-    if ex.status is not CompensationStatus.OK:
-        raise InfeasibleError(f"exact compensation failed: {ex.reason}")
-    return DemoResult(robot, P, T, F, bp, feasible, rejected, before, closed, ex)
+    pr = load_problem(DEMO_PROBLEM)
+    if isinstance(robot, Robot):
+        from dataclasses import replace
+        pr = replace(pr, robot=robot.with_tool(pr.robot.flange2tcp), robot_spec=robot.name)
+    elif robot is not None:
+        pr = pr.with_robot(str(robot))
+    if n_points is not None and n_points != pr.n:
+        pr = pr.with_points(n_points)
+    return pr
 
 
-def write_outputs(res: DemoResult, folder: str | Path) -> dict[str, Any]:
-    """Write summary.json, path.csv, waypoints.csv and branches.csv (all or nothing)."""
-    summary = res.summary()
-    out = OutputSet(folder)
-    out.add_json("summary.json", summary)
-    out.add_csv("path.csv", ["x", "y", "z", "q1", "q2", "q3", "q4", "q5", "q6"],
-                np.hstack([res.positions, res.exact.q_command]))
-    out.add_csv("waypoints.csv", WAYPOINT_COLUMNS, res.waypoint_table())
-    cols, rows = res.branch_table()
-    out.add_csv("branches.csv", cols, rows)
-    out.publish()
-    return summary
+def run_demo(robot: Robot | str | None = None, n_points: int = paper.SECTION_4_4_POINTS,
+             wrench: np.ndarray | None = None, verbose: bool = False) -> PlanResult:
+    """Plan the paper's section-4.4 problem (raises CompplanError if it is infeasible)."""
+    pr = demo_problem(robot, n_points)
+    if wrench is not None:
+        from dataclasses import replace
+        pr = replace(pr, wrench=np.broadcast_to(np.asarray(wrench, float), (pr.n, 6)).copy())
+    return plan(pr, verbose=verbose).raise_for_status()
+
+
+def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = False) -> dict[str, Any]:
+    """Write the demo's files (see :func:`planner.plan.write_outputs`); figures off by default."""
+    return _write_plan_outputs(res, folder, with_figures=with_figures)

@@ -1,36 +1,31 @@
-"""``compplan demo``: the paper's section-4.4 scenario."""
+"""``compplan demo``: ``compplan plan`` on the paper's section-4.4 problem (``paper_4_4``)."""
 
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
-
-from planner.commands.common import print_error_table
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    d = sub.add_parser("demo", help="the paper's section-4.4 scenario on ar5")
+    d = sub.add_parser("demo", help="plan the paper's section-4.4 problem (shipped problem paper_4_4) on ar5")
     d.add_argument("--out", required=True, help="output folder")
-    d.add_argument("--robot", default="ar5", help="built-in robot name or robot file (default ar5)")
-    d.add_argument("--points", type=int, default=40, help="number of waypoints (default 40)")
+    d.add_argument("--robot", default=None, help="built-in robot name or robot file (default: the problem's, ar5)")
+    d.add_argument("--points", type=int, default=None, help="number of waypoints (default: the problem's, 40)")
+    d.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png")
+    d.add_argument("--no-report", action="store_true",
+                   help="skip the report (report.html, report.md, figures/) written at the end")
     d.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from models import load_robot
-    from planner.demo import run_demo, write_outputs
+    from planner.commands.plan import print_plan
+    from planner.demo import demo_problem
+    from planner.plan import output_names, plan, write_outputs
 
-    robot = load_robot(args.robot)
-    res = run_demo(robot, n_points=args.points)
-    summary = write_outputs(res, args.out)
-    s = summary
-    print_error_table([
-        ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
-        ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
-        ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
-    ], f"TCP position error, robot {robot.name}, branch {res.branch.label}, "
-       f"F = {[float(v) for v in res.wrench]} (N, N*m, base frame), {len(res.positions)} waypoints")
-    for w in s["warnings"]:
-        print(f"warning: {w}")
-    print(f"wrote {Path(args.out)}/: summary.json, path.csv, waypoints.csv, branches.csv")
+    problem = demo_problem(args.robot, args.points)
+    res = plan(problem, verbose=args.verbose).raise_for_status()
+    write_outputs(res, args.out, with_figures=not args.no_figures)
+    print_plan(res, args.out, output_names(res, not args.no_figures))
+    if not args.no_report:
+        from planner.commands.report import write_run_report
+        write_run_report(args.out)
     return 0

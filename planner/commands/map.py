@@ -1,0 +1,45 @@
+"""``compplan map``: the compliance map C11..C66 over a plane (paper section 4.3, Fig. 5)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from planner.commands.report import add_map_arguments, map_options, report_progress
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    m = sub.add_parser("map", help="compliance map C11..C66 over a plane (paper Fig. 5)",
+                       description="Diagonal compliance C11..C66 of C = J K^-1 J^T over a plane "
+                                   "of TCP positions at a fixed end attitude. Writes "
+                                   "compliance_map.csv (SI), compliance_map.json and "
+                                   "figures/fig1_compliance_map.png|pdf.")
+    m.add_argument("--robot", default="ar5", help="built-in robot name or robot file (default ar5)")
+    m.add_argument("--out", required=True, help="output folder")
+    add_map_arguments(m)
+    m.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from models import load_robot
+    from planner.compliance_map import ELEMENT_NAMES
+    from planner.report import write_map
+
+    robot = load_robot(args.robot)
+    with report_progress() as prog:
+        cm, written = write_map(robot, Path(args.out), progress=prog, **map_options(args))
+    s = cm.summary()
+    print(f"compliance map, robot {robot.name}, plane {s['plane']}, "
+          f"{s['points'][0]}x{s['points'][1]} points, attitude rpy {s['rpy_rad']} rad "
+          f"({s['rpy_convention']}), branch rule {cm.branch_rule}")
+    print(f"  branches used: {s['branches_used'] or 'none'}; unreachable points: "
+          f"{cm.n_unreachable} of {cm.n_points}")
+    for i, name in enumerate(ELEMENT_NAMES):
+        lo, hi = s["diag_range_SI"][name]
+        if lo is None:
+            print(f"  {name}: no reachable point")
+            continue
+        unit, scale = (("mm/N", 1e3) if i < 3 else ("deg/(N*m)", 57.29577951308232))
+        print(f"  {name}: {lo * scale:.6g} .. {hi * scale:.6g} {unit}")
+    print(f"wrote {', '.join(str(p) for p in written)}")
+    return 0

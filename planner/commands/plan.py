@@ -1,0 +1,141 @@
+"""``compplan plan`` and ``compplan pose``: stiffness-optimal posture, compensation and timing."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from planner.commands.common import print_error_table
+
+
+def _dt(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--dt must be a number of seconds, got {text!r}") from None
+    if not (0.0 < v <= 0.1) or not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"--dt must be in (0, 0.1] s (e.g. 0.002, 0.004, 0.008), got {text!r}")
+    return v
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plan", help="stiffness-optimal branch and posture, exact compensation and timing "
+                                    "of a problem file")
+    p.add_argument("problem", help="problem file (TOML) or the name of a shipped problem")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--dt", type=_dt, default=None,
+                   help="controller period in s (default: the problem's timing.dt, else 0.008)")
+    p.add_argument("--no-optimise", action="store_true",
+                   help="branch choice only: analytic postures, no NLP")
+    p.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png")
+    p.add_argument("--no-report", action="store_true",
+                   help="skip the report (report.html, report.md, figures/) written at the end")
+    p.set_defaults(func=run)
+
+    q = sub.add_parser("pose", help="single-pose query: the stiffness-optimal posture for one "
+                                    "waypoint of a problem")
+    q.add_argument("problem", help="problem file (TOML) or the name of a shipped problem")
+    q.add_argument("--waypoint", type=int, default=0, help="waypoint index k (default 0)")
+    q.add_argument("--out", default=None, help="write pose.json into this folder")
+    q.set_defaults(func=run_pose)
+
+
+def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
+    """Print the branch table, the gains, the error table and the timing of a plan."""
+    from models.ik import BRANCH_LABELS
+
+    s = res.summary()
+    pr = res.problem
+    ps = res.posture
+    print(f"problem {pr.name} ({pr.source}): robot {pr.robot.name}, {pr.n} waypoints, "
+          f"rule {pr.rule.value}; {ps.freedom_note}")
+    print(f"  {'branch':<8}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
+          f"{'iter':>6}{'NLP [ms]':>10}")
+    for r in ps.branches.values():
+        mark = " *" if r.branch == ps.chosen else ("  (default)" if r.branch == ps.default else "")
+        ana = f"{r.rms_error_analytic_m * 1e3:.4f} mm" if np.isfinite(r.rms_error_analytic_m) else "—"
+        print(f"  {r.label:<8}{r.status.value:<21}{ana:>14}{r.rms_error_m * 1e3:>12.4f} mm{r.cost:>13.4g}"
+              f"{r.iterations:>6}{r.solve_time_s * 1e3:>10.1f}{mark}")
+    for b, why in ps.rejected.items():
+        print(f"  {BRANCH_LABELS[b]:<8}rejected: {why}")
+    g = s.get("gain", {})
+    print(f"chosen branch {s['chosen_branch']} (default {s['default_branch']}): RMS load-induced error "
+          f"{ps.best.rms_error_m * 1e3:.4f} mm; gain x{g.get('vs_default', float('nan')):.3f} over the default "
+          f"branch at its analytic posture, x{g.get('vs_best_analytic', float('nan')):.3f} over the best "
+          f"analytic posture")
+    print_error_table([
+        ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
+        ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
+        ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
+    ], f"TCP position error of the chosen posture, F = {[float(v) for v in pr.wrench[0]]} (N, N*m, base frame)"
+       + (" at waypoint 0 (per-waypoint wrench)" if pr.wrench_per_waypoint else ""))
+    if res.trajectories:
+        print(f"timing at dt = {pr.timing.dt * 1e3:g} ms (peak |value|/limit over the joints):")
+        for m, tr in res.trajectories.items():
+            lr = tr.limit_ratio
+            print(f"  {m:<7} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
+                  f"{np.max(lr['acceleration']):.3f}   jerk {np.max(lr['jerk']):.3f}"
+                  + ("   -> trajectory.csv" if m == res.controller else ""))
+    for w in s["warnings"]:
+        print(f"warning: {w}")
+    if out is not None:
+        print(f"wrote {Path(out)}/: {', '.join(names)}")
+
+
+def run(args: argparse.Namespace) -> int:
+    from planner.plan import output_names, plan, write_outputs
+    from problems.problem import load_problem
+
+    problem = load_problem(args.problem)
+    if args.dt is not None:
+        problem = problem.with_timing(dt=args.dt)
+    res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise)
+    res.raise_for_status()
+    write_outputs(res, args.out, with_figures=not args.no_figures)
+    print_plan(res, args.out, output_names(res, not args.no_figures))
+    if not args.no_report:
+        from planner.commands.report import write_run_report
+        write_run_report(args.out)
+    return 0
+
+
+def run_pose(args: argparse.Namespace) -> int:
+    from models.errors import InputError
+    from planner.output import OutputSet
+    from problems.posture import optimal_pose
+    from problems.problem import load_problem
+
+    pr = load_problem(args.problem)
+    k = args.waypoint
+    if not 0 <= k < pr.n:
+        raise InputError(f"pose: --waypoint {k} is outside the problem's waypoints 0..{pr.n - 1}")
+    res = optimal_pose(pr.robot, pr.positions[k], pr.rotations[k], pr.rule, pr.wrench[k],
+                       cone_half_angle=pr.cone_half_angle, home_q=pr.home_q, settings=pr.solver,
+                       scan=pr.scan, verbose=args.verbose)
+    if not res.ok:
+        from models.errors import InfeasibleError, UnreachableError
+        cls = UnreachableError if res.status.value == "unreachable" else InfeasibleError
+        raise cls(f"pose: waypoint {k} of '{pr.name}': {res.status.value}: {res.reason}")
+    p = pr.positions[k]
+    print(f"waypoint {k} of {pr.name}: TCP ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, rule {pr.rule.value}, "
+          f"F = {[float(v) for v in pr.wrench[k]]} (N, N*m, base frame)")
+    entries = {}
+    for r in res.branches.values():
+        mark = " *" if r.branch == res.chosen else ""
+        ana = f"{r.error_analytic_m[0] * 1e3:.4f}" if np.isfinite(r.error_analytic_m[0]) else "—"
+        print(f"  {r.label:<8}{r.status.value:<12} error analytic {ana:>9} mm, optimised "
+              f"{r.error_m[0] * 1e3:.4f} mm  q = [{', '.join(f'{v:.4f}' for v in r.q[0])}] rad{mark}")
+        entries[r.label] = {"status": r.status.value, "reason": r.reason, "q": r.q[0],
+                            "error_m": float(r.error_m[0]), "error_analytic_m": float(r.error_analytic_m[0])}
+    if args.out:
+        out = OutputSet(args.out)
+        out.add_json("pose.json", {"problem": pr.name, "waypoint": k, "position": p, "rule": pr.rule.value,
+                                   "wrench": pr.wrench[k], "chosen_branch": res.best.label,
+                                   "branches": entries, "freedom": res.freedom_note})
+        out.publish()
+        print(f"wrote {Path(args.out)}/pose.json")
+    return 0

@@ -1,0 +1,139 @@
+"""``compplan report DIR``: the report of an existing output folder.
+
+Also home of the tqdm progress adapter shared by the commands that write a
+report (demo, plan) or a compliance map (``compplan map``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+from typing import Any, Iterator
+
+from models.errors import InputError
+
+
+class TqdmProgress:
+    """``progress(stage, done, total)`` callback driving one tqdm bar per stage (stderr).
+
+    Bars are shown only on a terminal (tqdm's ``disable=None``).
+    """
+
+    def __init__(self) -> None:
+        self._bars: dict[str, Any] = {}
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        from tqdm import tqdm
+        bar = self._bars.get(stage)
+        if bar is None:
+            bar = tqdm(total=total, desc=stage, unit="pt" if stage == "compliance map" else "fig",
+                       unit_scale=stage == "compliance map", file=sys.stderr, disable=None,
+                       leave=False)
+            self._bars[stage] = bar
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+
+    def close(self) -> None:
+        for bar in self._bars.values():
+            bar.close()
+        self._bars.clear()
+
+
+@contextlib.contextmanager
+def report_progress() -> Iterator[TqdmProgress]:
+    """A :class:`TqdmProgress` whose bars are closed on exit (also on error)."""
+    p = TqdmProgress()
+    try:
+        yield p
+    finally:
+        p.close()
+
+
+def add_map_arguments(p: argparse.ArgumentParser, *, prefix: str = "") -> None:
+    """Options of the compliance-map plane (shared by ``report`` and ``map``)."""
+    from planner.compliance_map import DEFAULT_POINTS
+    from problems import paper
+    x0 = paper.SECTION_4_3_X_M
+    lo, hi = paper.SECTION_4_3_RANGE_M
+    g = p.add_argument_group("compliance map (default: the paper's section-4.3 plane)")
+    g.add_argument(f"--{prefix}plane", choices=("x", "y", "z"), default="x",
+                   help="base axis normal to the plane (default x; in-plane axes: x->(y,z), "
+                        "y->(x,z), z->(x,y))")
+    g.add_argument(f"--{prefix}offset-m", type=float, default=x0, metavar="M",
+                   help=f"plane position along its normal, m (default {x0:g})")
+    g.add_argument(f"--{prefix}u-range-m", type=float, nargs=2, default=(lo, hi),
+                   metavar=("LO", "HI"), help=f"first in-plane axis range, m (default {lo:g} {hi:g})")
+    g.add_argument(f"--{prefix}v-range-m", type=float, nargs=2, default=(lo, hi),
+                   metavar=("LO", "HI"), help=f"second in-plane axis range, m (default {lo:g} {hi:g})")
+    g.add_argument(f"--{prefix}points", type=int, default=DEFAULT_POINTS, metavar="N",
+                   help=f"grid points per in-plane axis (default {DEFAULT_POINTS})")
+    att = g.add_mutually_exclusive_group()
+    att.add_argument(f"--{prefix}rpy-rad", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+                     help="end attitude, rad, R = Rz(yaw) Ry(pitch) Rx(roll) (default "
+                          f"{' '.join(f'{a:g}' for a in paper.SECTION_4_3_RPY)}, the paper's)")
+    att.add_argument(f"--{prefix}rpy-deg", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+                     help="end attitude in degrees (same convention)")
+    g.add_argument(f"--{prefix}branch", default="home",
+                   help="IK branch rule: 'home' (per point, the branch nearest the home "
+                        "configuration; default) or a label such as s+w-e+")
+
+
+def map_options(args: argparse.Namespace, prefix: str = "") -> dict[str, Any]:
+    """Keyword arguments of :func:`planner.compliance_map.compliance_map` from parsed options."""
+    import math
+
+    from problems import paper
+    a = vars(args)
+    pre = prefix.replace("-", "_")
+    if a.get(f"{pre}rpy_deg") is not None:
+        rpy = [math.radians(v) for v in a[f"{pre}rpy_deg"]]
+    elif a.get(f"{pre}rpy_rad") is not None:
+        rpy = list(a[f"{pre}rpy_rad"])
+    else:
+        rpy = [float(v) for v in paper.SECTION_4_3_RPY]
+    return {"plane": a[f"{pre}plane"], "offset_m": a[f"{pre}offset_m"],
+            "u_range_m": tuple(a[f"{pre}u_range_m"]), "v_range_m": tuple(a[f"{pre}v_range_m"]),
+            "points": a[f"{pre}points"], "rpy_rad": rpy, "branch": a[f"{pre}branch"]}
+
+
+def write_run_report(folder: str | Path, **kwargs: Any) -> Path:
+    """Write the report of a run folder with progress bars and print where it went.
+
+    For the commands that produce a run (demo, plan): one call at the end of ``run``.
+    """
+    from planner.report import write_report
+
+    with report_progress() as prog:
+        html = write_report(Path(folder), progress=prog, **kwargs)
+    print(f"wrote {html} (self-contained), {html.with_suffix('.md').name} and "
+          f"{html.parent / 'figures'}/ (PNG, PDF)")
+    return html
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    r = sub.add_parser("report", help="write report.html/report.md/figures for an output folder",
+                       description="Write report.html (self-contained), report.md and "
+                                   "figures/*.png|pdf into an output folder of compplan demo "
+                                   "or compplan plan. Absent pieces (no trajectory, ...) are "
+                                   "stated in the report.")
+    r.add_argument("folder", help="output folder of compplan demo / plan")
+    r.add_argument("--no-map", action="store_true", help="leave out the compliance map (figure 1)")
+    r.add_argument("--no-map-cache", action="store_true",
+                   help="draw the compliance map again even if it is cached for this robot and "
+                        "these options ($COMPPLAN_CACHE/maps, default ~/.cache/compplan/maps)")
+    r.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="processes that render the figures (default: up to 2)")
+    add_map_arguments(r, prefix="map-")
+    r.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.jobs is not None and args.jobs < 1:
+        raise InputError(f"--jobs = {args.jobs}; expected an integer >= 1")
+    opts: Any = False if args.no_map else map_options(args, prefix="map-")
+    write_run_report(args.folder, map_options=opts, workers=args.jobs,
+                     map_cache=not args.no_map_cache)
+    return 0

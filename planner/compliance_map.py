@@ -1,0 +1,297 @@
+"""Compliance maps: the diagonal of ``C(q) = J K^-1 J^T`` over a plane of TCP positions.
+
+The paper's section-4.3 map (Fig. 5) fixes ``X = 0.3 m``, sweeps ``Y`` and ``Z``
+over ``(-0.3, 0.3) m`` and holds the end attitude at ``(-1.57, 0, 1.57) rad``.
+This module computes that map, or the same kind of map over any axis-aligned
+plane, for any robot and attitude.
+
+Conventions
+-----------
+* The plane is normal to one base axis (``plane="x"``, ``"y"`` or ``"z"``) at
+  ``offset_m``; the two in-plane coordinates are the other two base axes in
+  the order ``x, y, z`` (``x``-plane: ``u = y``, ``v = z``; ``y``-plane:
+  ``u = x``, ``v = z``; ``z``-plane: ``u = x``, ``v = y``).
+* The attitude is read as roll, pitch, yaw (rad) with
+  ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (:func:`models.transforms.rpy_to_matrix`),
+  the same convention as the robot file's tool rotation.  The paper's
+  ``(-1.57, 0, 1.57)`` thus points the tool z axis along base ``-x``.
+* Branch rule ``"home"``: at every grid point, the IK branch whose solution is
+  nearest :data:`problems.paper.HOME_Q` (Euclidean distance in joint space,
+  each angle shifted by ``2 pi k`` towards the home angle within the limits).
+  A branch label such as ``"s+w-e+"`` fixes the branch everywhere; points it
+  does not reach are unreachable.  Points without a valid branch are NaN.
+* ``C`` is evaluated in batch at the chosen configurations (no Python loop per
+  point).  Its diagonal is returned in SI: ``C11..C33`` in m/N, ``C44..C66``
+  in rad/(N*m).  ``C`` stays finite at singular poses (it is the stiffness
+  ``C^-1`` that blows up there).
+
+Nothing here prints; long computations report progress through a callback.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from models import AnalyticIK, KinematicModel, Robot
+from models.errors import InputError
+from models.ik import BRANCH_LABELS, IK_REASONS, IKStatus
+from models.transforms import rpy_to_matrix
+from problems import paper
+
+#: ``progress(stage, done, total)``: called after each chunk (the CLI drives tqdm with it).
+ProgressFn = Callable[[str, int, int], None]
+
+#: Valid plane names and their in-plane axes (indices into x, y, z).
+PLANE_AXES: dict[str, tuple[int, int, int]] = {"x": (0, 1, 2), "y": (1, 0, 2), "z": (2, 0, 1)}
+AXIS_NAMES = ("x", "y", "z")
+
+#: Default grid resolution per in-plane axis (the paper does not give one).
+DEFAULT_POINTS = 61
+#: Grid points per IK/compliance batch (one progress step per chunk).
+CHUNK_POINTS = 20_000
+#: Largest accepted grid (points per axis), to keep memory bounded.
+MAX_POINTS_PER_AXIS = 2000
+
+BRANCH_RULES = ("home",) + BRANCH_LABELS
+
+#: Names and SI units of the six diagonal elements.
+ELEMENT_NAMES = ("C11", "C22", "C33", "C44", "C55", "C66")
+
+
+@dataclass
+class ComplianceMap:
+    """Diagonal compliance over a plane grid.
+
+    Attributes
+    ----------
+    robot : str
+        Robot name.
+    plane : str
+        Normal axis of the plane, ``"x"``, ``"y"`` or ``"z"``.
+    offset_m : float
+        Plane position along its normal, m.
+    u_m, v_m : ndarray, shapes (nu,), (nv,)
+        In-plane grid coordinates, m (axes :attr:`u_axis`, :attr:`v_axis`).
+    rpy_rad : ndarray, shape (3,)
+        End attitude (roll, pitch, yaw), rad.
+    branch_rule : str
+        ``"home"`` or a branch label.
+    branch : ndarray of int, shape (nu, nv)
+        Branch index used at each point (-1: unreachable).
+    q : ndarray, shape (nu, nv, 6)
+        Configuration used at each point, rad (NaN where unreachable).
+    diag : ndarray, shape (nu, nv, 6)
+        ``C11..C66`` (m/N for 1-3, rad/(N*m) for 4-6); NaN where unreachable.
+    unreachable_reasons : dict of str to int
+        For unreachable points, how many fail for each IK reason (of the fixed
+        branch; for rule ``"home"``, the reason of branch 0).
+    """
+
+    robot: str
+    plane: str
+    offset_m: float
+    u_m: np.ndarray
+    v_m: np.ndarray
+    rpy_rad: np.ndarray
+    branch_rule: str
+    branch: np.ndarray
+    q: np.ndarray
+    diag: np.ndarray
+    unreachable_reasons: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def u_axis(self) -> str:
+        return AXIS_NAMES[PLANE_AXES[self.plane][1]]
+
+    @property
+    def v_axis(self) -> str:
+        return AXIS_NAMES[PLANE_AXES[self.plane][2]]
+
+    @property
+    def n_points(self) -> int:
+        return int(self.branch.size)
+
+    @property
+    def n_unreachable(self) -> int:
+        return int(np.count_nonzero(self.branch < 0))
+
+    def branches_used(self) -> dict[str, int]:
+        """Branch label -> number of grid points that use it."""
+        idx, counts = np.unique(self.branch[self.branch >= 0], return_counts=True)
+        return {BRANCH_LABELS[int(i)]: int(c) for i, c in zip(idx, counts)}
+
+    def table(self) -> tuple[list[str], np.ndarray]:
+        """Rows of ``compliance_map.csv``: u, v (m), branch index (-1 none), C11..C66 (SI)."""
+        U, V = np.meshgrid(self.u_m, self.v_m, indexing="ij")
+        cols = [f"{self.u_axis}_m", f"{self.v_axis}_m", "branch"] + [
+            f"{n}_{'m_per_N' if i < 3 else 'rad_per_Nm'}" for i, n in enumerate(ELEMENT_NAMES)]
+        rows = np.column_stack([U.ravel(), V.ravel(), self.branch.ravel(),
+                                self.diag.reshape(-1, 6)])
+        return cols, rows
+
+    def csv_bytes(self) -> bytes:
+        """``compliance_map.csv`` as bytes (17 significant digits, ``nan`` where unreachable).
+
+        Formatted by NumPy in one pass: a million-point map would take many seconds
+        through a per-value Python formatter.
+        """
+        cols, rows = self.table()
+        buf = io.StringIO()
+        buf.write(",".join(cols) + "\n")
+        np.savetxt(buf, rows, fmt="%.17g", delimiter=",")
+        return buf.getvalue().encode()
+
+    def summary(self) -> dict:
+        """JSON-ready description (ranges in SI)."""
+        finite = np.isfinite(self.diag).all(axis=-1)
+        rng = {}
+        for i, n in enumerate(ELEMENT_NAMES):
+            vals = self.diag[..., i][finite]
+            rng[n] = ([float(vals.min()), float(vals.max())] if vals.size else [None, None])
+        return {
+            "robot": self.robot,
+            "plane": f"{self.plane} = {self.offset_m:g} m",
+            f"{self.u_axis}_range_m": [float(self.u_m[0]), float(self.u_m[-1])],
+            f"{self.v_axis}_range_m": [float(self.v_m[0]), float(self.v_m[-1])],
+            "points": [int(self.u_m.size), int(self.v_m.size)],
+            "rpy_rad": [float(v) for v in self.rpy_rad],
+            "rpy_convention": "R = Rz(yaw) Ry(pitch) Rx(roll)",
+            "branch_rule": self.branch_rule,
+            "branches_used": self.branches_used(),
+            "n_unreachable": self.n_unreachable,
+            "unreachable_reasons": dict(self.unreachable_reasons),
+            "diag_range_SI": rng,
+            "units": {"C11..C33": "m/N", "C44..C66": "rad/(N*m)"},
+        }
+
+
+def _check_range(key: str, rng: tuple[float, float]) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise InputError(f"compliance map: {key} = {rng!r}; expected two numbers (m)") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise InputError(f"compliance map: {key} = ({lo:g}, {hi:g}); expected finite lo < hi (m)")
+    if max(abs(lo), abs(hi)) > 10.0:
+        raise InputError(f"compliance map: {key} = ({lo:g}, {hi:g}) m is implausibly large; "
+                         "expected metres (millimetres given?)")
+    return lo, hi
+
+
+def _branch_index(rule: str) -> int | None:
+    if rule == "home":
+        return None
+    if rule in BRANCH_LABELS:
+        return BRANCH_LABELS.index(rule)
+    raise InputError(f"compliance map: branch = {rule!r}; expected 'home' or one of "
+                     f"{', '.join(BRANCH_LABELS)}")
+
+
+def compliance_map(robot: Robot, *, plane: str = "x", offset_m: float = paper.SECTION_4_3_X_M,
+                   u_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
+                   v_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
+                   points: int | tuple[int, int] = DEFAULT_POINTS,
+                   rpy_rad: np.ndarray = paper.SECTION_4_3_RPY, branch: str = "home",
+                   progress: ProgressFn | None = None,
+                   chunk: int = CHUNK_POINTS) -> ComplianceMap:
+    """Diagonal compliance ``C11..C66`` over a plane of TCP positions (paper section 4.3).
+
+    Parameters
+    ----------
+    robot : Robot
+        A UR-type arm (the analytic IK applies).
+    plane : {"x", "y", "z"}
+        Base axis normal to the plane.
+    offset_m : float
+        Plane position along its normal, m (paper: X = 0.3 m).
+    u_range_m, v_range_m : (float, float)
+        In-plane ranges, m, both ends included (see module docstring for axes).
+    points : int or (int, int)
+        Grid points per in-plane axis.
+    rpy_rad : array_like, shape (3,)
+        End attitude roll, pitch, yaw (rad), ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+    branch : str
+        ``"home"`` (per point, nearest :data:`problems.paper.HOME_Q`) or a label.
+    progress : callable, optional
+        ``progress("compliance map", done_points, total_points)`` after each chunk.
+    chunk : int
+        Points per batch.
+
+    Returns
+    -------
+    ComplianceMap
+
+    Raises
+    ------
+    InputError
+        Bad plane, range, grid size, attitude or branch (the message names the key).
+    """
+    if plane not in PLANE_AXES:
+        raise InputError(f"compliance map: plane = {plane!r}; expected one of x, y, z")
+    try:
+        off = float(offset_m)
+    except (TypeError, ValueError):
+        raise InputError(f"compliance map: offset = {offset_m!r}; expected a number (m)") from None
+    if not np.isfinite(off) or abs(off) > 10.0:
+        raise InputError(f"compliance map: offset = {off!r} m; expected a finite value in metres")
+    u_lo, u_hi = _check_range("u range", u_range_m)
+    v_lo, v_hi = _check_range("v range", v_range_m)
+    nu, nv = (points, points) if np.isscalar(points) else tuple(points)  # type: ignore[misc]
+    for name, n in (("points (u)", nu), ("points (v)", nv)):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= MAX_POINTS_PER_AXIS:
+            raise InputError(f"compliance map: {name} = {n!r}; expected an integer in "
+                             f"[2, {MAX_POINTS_PER_AXIS}]")
+    rpy = np.asarray(rpy_rad, dtype=float).reshape(-1)
+    if rpy.shape != (3,) or not np.all(np.isfinite(rpy)):
+        raise InputError(f"compliance map: rpy = {rpy_rad!r}; expected three finite angles (rad)")
+    b_fixed = _branch_index(branch)
+
+    ik = AnalyticIK(robot)
+    model = KinematicModel(robot)
+    u = np.linspace(u_lo, u_hi, int(nu))
+    v = np.linspace(v_lo, v_hi, int(nv))
+    U, V = np.meshgrid(u, v, indexing="ij")
+    n_axis, u_axis, v_axis = PLANE_AXES[plane]
+    P = np.empty((U.size, 3))
+    P[:, n_axis] = off
+    P[:, u_axis] = U.ravel()
+    P[:, v_axis] = V.ravel()
+    R = rpy_to_matrix(rpy)
+
+    n = len(P)
+    q = np.full((n, 6), np.nan)
+    chosen = np.full(n, -1, dtype=int)
+    diag = np.full((n, 6), np.nan)
+    status_ref = np.zeros(n, dtype=int)
+    step = max(1, int(chunk))
+    for start in range(0, n, step):          # one batch per chunk, not per point
+        sl = slice(start, min(n, start + step))
+        T = np.zeros((sl.stop - sl.start, 4, 4))
+        T[:, :3, :3] = R
+        T[:, :3, 3] = P[sl]
+        T[:, 3, 3] = 1.0
+        qc, ch, sol = ik.nearest(T, paper.HOME_Q, branch=b_fixed)
+        q[sl], chosen[sl] = qc, ch
+        status_ref[sl] = sol.status[:, 0 if b_fixed is None else b_fixed]
+        ok = ch >= 0
+        if ok.any():
+            C = model.C(qc[ok])
+            idx = np.arange(sl.start, sl.stop)[ok]
+            diag[idx] = np.einsum("nii->ni", C)
+        if progress is not None:
+            progress("compliance map", sl.stop, n)
+
+    reasons: dict[str, int] = {}
+    bad = chosen < 0
+    if bad.any():
+        codes, counts = np.unique(status_ref[bad], return_counts=True)
+        for c, k in zip(codes, counts):
+            reasons[IK_REASONS[IKStatus(int(c))]] = int(k)
+    return ComplianceMap(robot=robot.name, plane=plane, offset_m=off, u_m=u, v_m=v, rpy_rad=rpy,
+                         branch_rule=branch, branch=chosen.reshape(U.shape),
+                         q=q.reshape(U.shape + (6,)), diag=diag.reshape(U.shape + (6,)),
+                         unreachable_reasons=reasons)

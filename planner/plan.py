@@ -1,0 +1,488 @@
+"""``compplan plan``: problem -> branches -> posture NLP -> choice -> exact compensation -> timing.
+
+Pipeline (every stage returns a status; the first failure stops the plan with a
+:class:`PlanStatus` and a one-line reason, and :meth:`PlanResult.raise_for_status`
+turns it into the matching :class:`~models.errors.CompplanError`):
+
+1. **Posture** (:func:`problems.posture.optimise_postures`): for every IK branch
+   that reaches the whole path, the stiffness-optimal posture (NLP), then the
+   branch of least load-induced error.
+2. **Compensation** (:func:`problems.compensation.exact`): the optimised posture
+   ``q`` is the *deflected* pose that must land on the waypoints, so the command
+   is ``q_c = q - K^-1 J(q)^T F``; its deflected equilibrium is solved and
+   checked to put the TCP on every waypoint (residual below
+   :data:`models.constants.EXACT_COMPENSATION_TOL`).  The uncompensated and
+   closed-form (paper) errors of the same posture are reported alongside.
+3. **Timing** (:func:`planner.timing.time_parametrize`) of the *commanded* path
+   ``q_c`` at the controller period: TOPP-RA (time-optimal under velocity and
+   acceleration limits) and Ruckig (jerk-limited).  Both time the same
+   geometric path (a cubic spline through the commanded waypoints) and are
+   independent: TOPP-RA gives the time-optimal duration under velocity and
+   acceleration limits (its jerk is not limited, so it is reported and written
+   to ``trajectory_toppra.csv`` but is not what the controller runs); Ruckig
+   gives the jerk-limited trajectory ``trajectory.csv``.  Every limit is checked
+   on the sampled trajectory and a method only succeeds when all the limits it
+   enforces hold (peak ratio <= 1).
+
+The module prints nothing.
+"""
+
+from __future__ import annotations
+
+import enum
+import io
+import os
+import time
+
+# The compiled batch kernels (models.codegen) run short OpenMP regions; with GNU OpenMP's
+# default (spinning) wait policy their idle threads compete with IPOPT/MUMPS's BLAS threads
+# on small machines, and each short batch call then costs ~10 ms instead of ~0.1 ms
+# (measured on 2 CPUs).  Sleeping idle threads avoid that.  Only effective if set before
+# libgomp is first loaded; a user's own setting wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models import AnalyticIK, KinematicModel
+from models.errors import InfeasibleError, UnreachableError
+from models.ik import BRANCH_LABELS
+from models.symbolic import directional_stiffness
+from problems.compensation import (CompensationResult, CompensationStatus, closed_form, exact,
+                                   uncompensated)
+from problems.posture import (BranchResult, PostureResult, PostureStatus, optimise_postures)
+from problems.problem import Problem
+
+from planner.output import OutputSet
+from planner.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
+
+#: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
+#: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
+#: before / after closed form / after exact (m, base frame), directional stiffness (N/m).
+WAYPOINT_COLUMNS = (["k", "s", "x", "y", "z"]
+                    + [f"qt{i}" for i in range(1, 7)] + [f"qc{i}" for i in range(1, 7)]
+                    + [f"qf{i}" for i in range(1, 7)]
+                    + ["ebx", "eby", "ebz", "efx", "efy", "efz", "eex", "eey", "eez", "kx", "ky", "kz"])
+#: Columns of ``path.csv``.
+PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
+#: Columns of ``trajectory*.csv``.
+TRAJECTORY_COLUMNS = (["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)]
+                      + [f"qdd{i}" for i in range(1, 7)])
+#: The method whose trajectory the controller runs (``trajectory.csv``), in order of preference.
+CONTROLLER_METHODS = ("ruckig", "toppra")
+#: Limits each timing method enforces.
+ENFORCED = {"toppra": ("velocity", "acceleration"), "ruckig": ("velocity", "acceleration", "jerk")}
+#: A peak limit ratio counts as within the limit up to 1 + this.
+LIMIT_RATIO_TOL = 1e-9
+#: Slack on the commanded joints' position limits (rad).
+COMMAND_LIMIT_TOL = 1e-9
+
+
+class PlanStatus(enum.Enum):
+    """Outcome of :func:`plan`."""
+
+    OK = "ok"
+    UNREACHABLE = "unreachable"                  # a waypoint has no IK solution
+    NO_BRANCH = "no_branch"                      # no branch along the whole path (flip, limits)
+    SOLVER_FAILED = "solver_failed"              # the posture NLP failed on every branch
+    COMPENSATION_FAILED = "compensation_failed"  # exact compensation failed or leaves the limits
+    TIMING_FAILED = "timing_failed"              # a time parametrisation failed or breaks a limit
+
+
+_ERROR_CLASS = {PlanStatus.UNREACHABLE: UnreachableError}
+
+
+@dataclass
+class PlanResult:
+    """Everything a plan produced.
+
+    Attributes
+    ----------
+    status : PlanStatus
+    reason : str
+        One line; names the stage, branch, waypoint or joint that failed.
+    problem : Problem
+    posture : PostureResult or None
+    before, closed, exact : CompensationResult or None
+        Of the chosen posture: uncompensated, closed-form and exact compensation.
+    trajectories : dict method -> Trajectory
+        Of the commanded path ``exact.q_command``.
+    controller : str or None
+        The method whose trajectory the controller runs (``trajectory.csv``).
+    warnings : list of str
+    stage_times_s : dict
+        Wall time of each stage, s.
+    """
+
+    status: PlanStatus
+    reason: str
+    problem: Problem
+    posture: PostureResult | None = None
+    before: CompensationResult | None = None
+    closed: CompensationResult | None = None
+    exact: CompensationResult | None = None
+    trajectories: dict[str, Trajectory] = field(default_factory=dict)
+    controller: str | None = None
+    warnings: list[str] = field(default_factory=list)
+    stage_times_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status is PlanStatus.OK
+
+    @property
+    def branch(self) -> BranchResult:
+        """The chosen branch (raises if the plan failed before choosing one)."""
+        if self.posture is None or self.posture.chosen is None:
+            raise InfeasibleError(f"plan '{self.problem.name}': no branch chosen ({self.reason})")
+        return self.posture.best
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.problem.positions
+
+    @property
+    def wrench(self) -> np.ndarray:
+        return self.problem.wrench
+
+    @property
+    def robot(self):  # noqa: ANN201 - Robot
+        return self.problem.robot
+
+    def raise_for_status(self) -> "PlanResult":
+        """Raise the matching CompplanError unless the plan succeeded; returns self."""
+        if self.ok:
+            return self
+        cls = _ERROR_CLASS.get(self.status, InfeasibleError)
+        raise cls(f"plan '{self.problem.name}' ({self.problem.source}): {self.status.value}: {self.reason}")
+
+    # ------------------------------------------------------------------ tables
+    def waypoint_table(self) -> np.ndarray:
+        """Rows of ``waypoints.csv`` (see :data:`WAYPOINT_COLUMNS`)."""
+        assert self.exact is not None and self.closed is not None and self.before is not None
+        P = self.positions
+        n = len(P)
+        seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+        s = seg / seg[-1] if seg[-1] > 0 else seg
+        model = KinematicModel(self.robot)
+        q = self.branch.q
+        Cs = model.C(q) if n > 1 else model.C(q[0])[None]
+        k = np.stack([directional_stiffness(Cs, np.eye(3)[i]) for i in range(3)], axis=1)
+        return np.hstack([np.arange(n)[:, None], s[:, None], P, q, self.exact.q_command,
+                          self.closed.q_command, self.before.error_m, self.closed.error_m,
+                          self.exact.error_m, k])
+
+    def branch_table(self) -> tuple[list[str], np.ndarray]:
+        """``branches.csv``: per feasible branch, the load-induced TCP error norm (m) per
+        waypoint at the analytic posture (NaN where the branch has none) and at the optimised
+        one, from the deflected equilibrium of the joint-compliance model."""
+        assert self.posture is not None
+        model = KinematicModel(self.robot)
+        n = self.problem.n
+        cols, data = ["k"], [np.arange(n, dtype=float)]
+        for b in sorted(self.posture.branches):
+            r = self.posture.branches[b]
+            if r.q_analytic is not None:
+                ana = uncompensated(model, r.q_analytic, self.wrench).error_norm_m
+            else:
+                ana = np.full(n, np.nan)
+            opt = uncompensated(model, r.q, self.wrench).error_norm_m
+            cols += [f"{r.label}_analytic_m", f"{r.label}_optimised_m"]
+            data += [ana, opt]
+        return cols, np.stack(data, axis=1)
+
+    # ------------------------------------------------------------------ summary
+    def summary(self) -> dict[str, Any]:
+        """The content of ``summary.json`` (SI units unless a key says otherwise)."""
+        pr = self.problem
+        R = pr.robot.flange2tcp
+        w = pr.wrench
+        s: dict[str, Any] = {
+            "command": "plan",
+            "plan_status": self.status.value,
+            "reason": self.reason,
+            "scenario": f"{pr.name}: {pr.description}" if pr.description else pr.name,
+            "problem": pr.to_dict(),
+            "robot": pr.robot.name,
+            "robot_file": pr.robot.to_dict(),
+            "tcp": ("flange" if np.allclose(R, np.eye(4)) else
+                    f"tool: xyz {[float(v) for v in R[:3, 3]]} m in the flange frame"),
+            "orientation": pr.rule.value,
+            "wrench": {"frame": "base", "point": "TCP", "F_N": w[0, :3], "M_Nm": w[0, 3:],
+                       "per_waypoint": bool(pr.wrench_per_waypoint)},
+            "n_waypoints": pr.n,
+            "limits": {"velocity": pr.limits.velocity, "acceleration": pr.limits.acceleration,
+                       "jerk": pr.limits.jerk, "max_joint_step": pr.limits.max_joint_step,
+                       "q_min": pr.robot.q_min, "q_max": pr.robot.q_max},
+            "dt": pr.timing.dt,
+            "warnings": list(self.warnings),
+            "stage_times_s": dict(self.stage_times_s),
+        }
+        if pr.wrench_per_waypoint:
+            s["wrench"]["rows"] = w
+            s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; rows holds every waypoint's wrench"
+        ps = self.posture
+        if ps is not None:
+            s["posture"] = {"status": ps.status.value, "reason": ps.reason, "rule": pr.rule.value,
+                            "freedom": ps.freedom, "note": ps.freedom_note,
+                            "solver": pr.solver.name, "build_time_s": ps.build_time_s,
+                            "solve_time_s": float(sum(r.solve_time_s for r in ps.branches.values())),
+                            "objective": ("sum_k ||S C(q_k) F_k||^2 + smoothness * sum_k ||q_{k+1} - q_k||^2, "
+                                          "S = [I3 0] (translational TCP deflection, m); costs reported "
+                                          "in m^2 without the smoothness term")}
+            s["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
+            s["rejected_branches"] = {BRANCH_LABELS[b]: r for b, r in ps.rejected.items()}
+            s["default_branch"] = BRANCH_LABELS[ps.default] if ps.default is not None else None
+            if ps.chosen is not None:
+                s["chosen_branch"] = ps.best.label
+                s["branch"] = ps.best.label
+                g = ps.gains()
+                s["gain"] = {**g, "definition": (
+                    "ratio of RMS load-induced TCP error (the *_cost keys: of summed squared error): "
+                    "vs_default = default branch (nearest branch.home) at its analytic posture over the "
+                    "chosen optimised posture; vs_best_analytic = best branch at its analytic posture "
+                    "over the chosen optimised posture (what the continuous freedom buys)")}
+        if self.exact is not None:
+            s["error_before"] = _error_stats(self.before)
+            s["error_after"] = {"closed_form": _error_stats(self.closed), "exact": _error_stats(self.exact)}
+            s["exact_residual_max_m"] = float(self.exact.error_norm_m.max())
+            s["status"] = {"closed_form": self.closed.status.value, "exact": self.exact.status.value}
+            s["warnings"] += list(self.closed.warnings)
+        if self.trajectories:
+            s["duration_s"] = {m: tr.duration_s for m, tr in self.trajectories.items()}
+            s["limit_ratio"] = {m: {k: v for k, v in tr.limit_ratio.items()}
+                                for m, tr in self.trajectories.items()}
+            s["timing"] = {m: {"status": tr.status.value, "reason": tr.reason,
+                               "limits_enforced": list(ENFORCED[m]),
+                               "within_all_limits": _within(tr, ("velocity", "acceleration", "jerk")),
+                               "iterations": tr.iterations, "dt": tr.dt,
+                               "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
+                           for m, tr in self.trajectories.items()}
+            s["controller_trajectory"] = self.controller
+        return s
+
+
+def _branch_entry(r: BranchResult) -> dict[str, Any]:
+    return {"status": r.status.value, "cost": r.cost, "cost_analytic": r.cost_analytic,
+            "cost_warm_start": r.cost_warm, "rms_error_mm": r.rms_error_m * 1e3,
+            "rms_error_analytic_mm": r.rms_error_analytic_m * 1e3,
+            "max_error_mm": float(r.error_m.max() * 1e3), "iterations": r.iterations,
+            "solve_time_s": r.solve_time_s, "warm_start": r.warm_offset, "reason": r.reason,
+            "active_singularity_guards": (", ".join(f"{k}: {v} waypoint(s)" for k, v in r.active_guards.items())
+                                          or "none")}
+
+
+def _error_stats(res: CompensationResult | None) -> dict[str, float]:
+    """Max and RMS of the Euclidean TCP position error, mm."""
+    assert res is not None
+    e = res.error_norm_m * 1e3
+    return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e ** 2)))}
+
+
+def _within(tr: Trajectory, keys: tuple[str, ...]) -> bool:
+    return all(np.all(np.isfinite(tr.limit_ratio[k])) and float(np.max(tr.limit_ratio[k])) <= 1.0 + LIMIT_RATIO_TOL
+               for k in keys)
+
+
+# --------------------------------------------------------------------------------------
+# The pipeline
+# --------------------------------------------------------------------------------------
+
+_POSTURE_TO_PLAN = {PostureStatus.UNREACHABLE: PlanStatus.UNREACHABLE,
+                    PostureStatus.NO_BRANCH: PlanStatus.NO_BRANCH,
+                    PostureStatus.SOLVER_FAILED: PlanStatus.SOLVER_FAILED}
+
+
+def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> PlanResult:
+    """Plan a problem: posture, exact compensation, time parametrisation.
+
+    Parameters
+    ----------
+    problem : Problem
+    verbose : bool
+        IPOPT output on.
+    optimise : bool
+        False: analytic postures only (branch choice without the NLP).
+
+    Returns
+    -------
+    PlanResult
+        Its status says whether (and where) the plan failed; it never raises for an
+        infeasible problem (see :meth:`PlanResult.raise_for_status`).
+    """
+    times: dict[str, float] = {}
+    t0 = time.perf_counter()
+    robot = problem.robot
+    model = KinematicModel(robot)
+    ik = AnalyticIK(robot)
+    times["model_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ps = optimise_postures(robot, problem.task(), problem.home_q, problem.solver, verbose,
+                           model=model, ik=ik, optimise=optimise)
+    times["posture_s"] = time.perf_counter() - t0
+    res = PlanResult(PlanStatus.OK, "", problem, ps, stage_times_s=times)
+    if not ps.ok:
+        res.status, res.reason = _POSTURE_TO_PLAN[ps.status], ps.reason
+        return res
+    failed = [r for r in ps.branches.values() if not r.status.usable]
+    for r in failed:
+        res.warnings.append(f"branch {r.label}: {r.status.value}: {r.reason}")
+    if ps.best.active_guards:
+        res.warnings.append(
+            f"chosen branch {ps.best.label}: the optimum rests on its singularity guard ("
+            + ", ".join(f"{k} at {v} waypoint(s)" for k, v in ps.best.active_guards.items())
+            + "): the model's load error keeps falling towards the singularity, where it is not credible")
+
+    t0 = time.perf_counter()
+    q = ps.best.q
+    F = problem.wrench
+    res.before = uncompensated(model, q, F)
+    res.closed = closed_form(model, q, F)
+    res.exact = exact(model, q, F)
+    times["compensation_s"] = time.perf_counter() - t0
+    if res.exact.status is not CompensationStatus.OK:
+        res.status = PlanStatus.COMPENSATION_FAILED
+        res.reason = f"exact compensation of branch {ps.best.label}: {res.exact.reason}"
+        return res
+    qc = res.exact.q_command
+    lo, hi = qc < robot.q_min - COMMAND_LIMIT_TOL, qc > robot.q_max + COMMAND_LIMIT_TOL
+    if lo.any() or hi.any():
+        k, j = (int(v) for v in np.argwhere(lo | hi)[0])
+        res.status = PlanStatus.COMPENSATION_FAILED
+        res.reason = (f"the compensated command of joint {j + 1} at waypoint {k} is {qc[k, j]:.6g} rad, "
+                      f"outside its limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad")
+        return res
+
+    if problem.n < 2:
+        res.warnings.append("single waypoint: nothing to time-parametrise")
+        return res
+    t0 = time.perf_counter()
+    lim = JointLimits(problem.limits.velocity, problem.limits.acceleration, problem.limits.jerk)
+    for m in problem.timing.methods:
+        t1 = time.perf_counter()
+        tr = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
+        times[f"timing_{m}_s"] = time.perf_counter() - t1
+        res.trajectories[m] = tr
+    times["timing_s"] = time.perf_counter() - t0
+    res.controller = next(m for m in CONTROLLER_METHODS if m in res.trajectories)
+    for m, tr in res.trajectories.items():
+        if tr.status is not TimingStatus.OK or not _within(tr, ENFORCED[m]):
+            res.status = PlanStatus.TIMING_FAILED
+            res.reason = f"{m}: {tr.reason}" if tr.reason.startswith(tr.status.value) else \
+                f"{m}: {tr.status.value}: {tr.reason}"
+            return res
+        if not _within(tr, ("velocity", "acceleration", "jerk")):
+            j = float(np.max(tr.limit_ratio["jerk"]))
+            res.warnings.append(f"{m} does not limit jerk: peak jerk ratio {j:.3g} > 1"
+                                + ("" if m != res.controller else "; add 'ruckig' to timing.methods for a "
+                                   "jerk-limited controller trajectory"))
+    return res
+
+
+# --------------------------------------------------------------------------------------
+# Outputs
+# --------------------------------------------------------------------------------------
+
+def _trajectory_rows(tr: Trajectory) -> np.ndarray:
+    return np.column_stack([tr.t, tr.q, tr.qd, tr.qdd]) if len(tr.t) else np.empty((0, 19))
+
+
+def figures(res: PlanResult) -> dict[str, bytes]:
+    """PNG figures: ``branches.png`` (error per branch) and ``trajectory.png`` (timed joints)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    out: dict[str, bytes] = {}
+    cols, data = res.branch_table()
+    fig = Figure(figsize=(8.0, 4.5))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    chosen = res.branch.label
+    for i, c in enumerate(cols[1:]):
+        label = c.rsplit("_", 2)[0]
+        kind = c.rsplit("_", 2)[1]
+        colour = f"C{(i // 2) % 10}"
+        thick = 2.5 if label == chosen else 1.0
+        ax.plot(data[:, 0], data[:, i + 1] * 1e3, color=colour, lw=thick,
+                ls="-" if kind == "analytic" else "--", label=f"{label} {kind}")
+    ax.set_xlabel("waypoint k [-]")
+    ax.set_ylabel("load-induced TCP error [mm]")
+    ax.set_title(f"{res.problem.name}: chosen {chosen} (thick); analytic solid, optimised dashed", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
+    out["branches.png"] = buf.getvalue()
+
+    if res.trajectories:
+        fig = Figure(figsize=(4.5 * len(res.trajectories) + 1.0, 8.0))
+        FigureCanvasAgg(fig)
+        axs = fig.subplots(4, len(res.trajectories), squeeze=False, sharex="col")
+        lim = res.problem.limits
+        for c, (m, tr) in enumerate(res.trajectories.items()):
+            for r, (y, name, L) in enumerate(((tr.q, "q [rad]", None), (tr.qd, "qd [rad/s]", lim.velocity),
+                                              (tr.qdd, "qdd [rad/s^2]", lim.acceleration),
+                                              (tr.qddd, "jerk [rad/s^3]", lim.jerk))):
+                ax = axs[r, c]
+                for j in range(6):
+                    ax.plot(tr.t, y[:, j], lw=0.9, label=f"joint {j + 1}")
+                if L is not None:
+                    for sgn in (1, -1):
+                        ax.axhline(sgn * float(np.min(L)), color="k", ls="--", lw=0.8)
+                ax.set_ylabel(name, fontsize=8)
+                ax.grid(alpha=0.3)
+            axs[0, c].set_title(f"{m}: {tr.duration_s:.3f} s", fontsize=9)
+            axs[-1, c].set_xlabel("t [s]")
+        axs[0, 0].legend(fontsize=6, ncol=3)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=80, metadata={"Software": None})
+        out["trajectory.png"] = buf.getvalue()
+    return out
+
+
+def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True) -> dict[str, Any]:
+    """Write the plan's files, all or nothing.
+
+    ``summary.json``, ``path.csv`` (x, y, z, q1..q6: the exact commands),
+    ``waypoints.csv``, ``branches.csv``, ``trajectory.csv`` (the controller's,
+    Ruckig when available), ``trajectory_<method>.csv`` for the other methods,
+    and with ``with_figures`` ``branches.png`` and ``trajectory.png``.
+
+    Raises
+    ------
+    CompplanError
+        If the plan failed (nothing is written).
+    """
+    res.raise_for_status()
+    assert res.exact is not None
+    summary = res.summary()
+    out = OutputSet(folder)
+    out.add_json("summary.json", summary)
+    out.add_csv("path.csv", PATH_COLUMNS, np.hstack([res.positions, res.exact.q_command]))
+    out.add_csv("waypoints.csv", WAYPOINT_COLUMNS, res.waypoint_table())
+    cols, rows = res.branch_table()
+    out.add_csv("branches.csv", cols, rows)
+    for m, tr in res.trajectories.items():
+        name = "trajectory.csv" if m == res.controller else f"trajectory_{m}.csv"
+        out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
+    if with_figures:
+        for name, data in figures(res).items():
+            out.add_bytes(name, data)
+    out.publish()
+    return summary
+
+
+def output_names(res: PlanResult, with_figures: bool = True) -> list[str]:
+    """Names of the files :func:`write_outputs` writes for ``res``."""
+    names = ["summary.json", "path.csv", "waypoints.csv", "branches.csv"]
+    names += ["trajectory.csv" if m == res.controller else f"trajectory_{m}.csv" for m in res.trajectories]
+    if with_figures:
+        names += ["branches.png"] + (["trajectory.png"] if res.trajectories else [])
+    return names
+
+
+__all__ = ["PlanResult", "PlanStatus", "WAYPOINT_COLUMNS", "figures", "output_names", "plan",
+           "write_outputs"]

@@ -1,0 +1,269 @@
+"""``compplan plan`` / ``demo`` end to end: output files, an independent physics check of
+``path.csv``, finite-difference limit checks of the trajectories, and every infeasible input
+giving its status, one line on stderr and a non-zero exit."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planner.cli import EXIT_USER_ERROR, main
+from planner.plan import PlanStatus, WAYPOINT_COLUMNS, plan
+from problems.problem import load_problem
+
+#: The independent check's contract: TCP on the straight line / waypoint to this (m).
+LINE_TOL_M = 1e-6
+#: Finite-difference limit checks: a ratio may exceed 1 by this much (rounding of the CSV).
+FD_RATIO_TOL = 1e-6
+#: Fixed-point iteration of the independent physics.
+FIXED_POINT_TOL = 1e-15
+
+
+# ------------------------------------------------------------------------------ helpers
+def _read(path: Path) -> dict[str, np.ndarray]:
+    rows = list(csv.reader(path.open()))
+    data = np.array(rows[1:], dtype=float).reshape(len(rows) - 1, len(rows[0]))
+    return {h: data[:, j] for j, h in enumerate(rows[0])}
+
+
+def _cols(d: dict[str, np.ndarray], prefix: str) -> np.ndarray:
+    return np.column_stack([d[f"{prefix}{i}"] for i in range(1, 7)])
+
+
+def _rpy(r: list[float]) -> np.ndarray:
+    cr, sr, cp, sp, cy, sy = np.cos(r[0]), np.sin(r[0]), np.cos(r[1]), np.sin(r[1]), np.cos(r[2]), np.sin(r[2])
+    return (np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]]) @ np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+            @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]]))
+
+
+def _tcp_and_jacobian(q: np.ndarray, robot: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Independent standard-DH forward kinematics and geometric Jacobian (NumPy, from the
+    robot dictionary written to summary.json)."""
+    assert robot["convention"] == "standard_dh"
+    T = np.eye(4)
+    origins = [np.eye(4)]
+    for j, qi in zip(robot["joints"], q):
+        th = qi + j["theta_offset"]
+        ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(j["alpha"]), np.sin(j["alpha"])
+        T = T @ np.array([[ct, -st * ca, st * sa, j["a"] * ct], [st, ct * ca, -ct * sa, j["a"] * st],
+                          [0.0, sa, ca, j["d"]], [0.0, 0.0, 0.0, 1.0]])
+        origins.append(T)
+    tool = np.eye(4)
+    tool[:3, :3] = _rpy(robot["tool"]["rpy"])
+    tool[:3, 3] = robot["tool"]["xyz"]
+    tcp = T @ tool
+    J = np.zeros((6, 6))
+    for i, O in enumerate(origins[:6]):
+        z = O[:3, 2]
+        J[:3, i] = np.cross(z, tcp[:3, 3] - O[:3, 3])
+        J[3:, i] = z
+    return tcp, J
+
+
+def _settle(q_command: np.ndarray, wrench: np.ndarray, robot: dict) -> np.ndarray:
+    """Deflected equilibrium q = q_c + K^-1 J(q)^T F by fixed-point iteration; returns the TCP pose."""
+    K = np.array([j["stiffness"] for j in robot["joints"]])
+    q = q_command.copy()
+    for _ in range(200):
+        _, J = _tcp_and_jacobian(q, robot)
+        q_new = q_command + (J.T @ wrench) / K
+        done = np.max(np.abs(q_new - q)) < FIXED_POINT_TOL
+        q = q_new
+        if done:
+            break
+    return _tcp_and_jacobian(q, robot)[0]
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def paper_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("paper")
+    assert main(["plan", "paper_4_4", "--out", str(out), "--no-figures", "--no-report"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def machining_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("machining")
+    assert main(["plan", "machining_offaxis", "--out", str(out), "--dt", "0.004", "--no-report"]) == 0
+    return out
+
+
+# ------------------------------------------------------------------------------ outputs
+def test_paper_plan_summary(paper_run):
+    s = json.loads((paper_run / "summary.json").read_text())
+    assert s["plan_status"] == "ok" and s["chosen_branch"] == "s-w-e-" and s["default_branch"] == "s-w-e+"
+    assert set(s["branches"]) == {"s+w+e+", "s+w+e-", "s-w-e+", "s-w-e-"}
+    for info in s["branches"].values():
+        assert info["status"] == "no_freedom" and info["cost"] > 0
+    costs = {k: v["cost"] for k, v in s["branches"].items()}
+    assert min(costs, key=costs.get) == "s-w-e-"
+    # the gain of the chosen branch over the default, in RMS load-induced TCP error
+    assert s["gain"]["vs_default"] == pytest.approx(np.sqrt(costs["s-w-e+"] / costs["s-w-e-"]))
+    assert s["gain"]["vs_default"] > 3.0
+    assert set(s["duration_s"]) == {"toppra", "ruckig"} and s["controller_trajectory"] == "ruckig"
+    for m in ("toppra", "ruckig"):
+        for k in ("velocity", "acceleration"):
+            assert len(s["limit_ratio"][m][k]) == 6 and max(s["limit_ratio"][m][k]) <= 1.0 + 1e-9
+    assert max(s["limit_ratio"]["ruckig"]["jerk"]) <= 1.0 + 1e-9
+    for k in ("velocity", "acceleration", "jerk"):
+        assert len(s["limits"][k]) == 6
+    assert s["robot_file"]["name"] == "ar5" and s["problem"]["name"] == "paper_4_4"
+    assert s["wrench"]["F_N"] == [5.0, 10.0, 20.0] and s["status"]["exact"] == "ok"
+    assert s["error_after"]["exact"]["max_mm"] < 1e-6 < s["error_before"]["max_mm"]
+
+
+def test_output_files_and_columns(paper_run):
+    names = {p.name for p in paper_run.iterdir()}
+    assert {"summary.json", "path.csv", "waypoints.csv", "branches.csv", "trajectory.csv",
+            "trajectory_toppra.csv"} <= names
+    wp = list(csv.reader((paper_run / "waypoints.csv").open()))[0]
+    assert wp == list(WAYPOINT_COLUMNS)
+    br = list(csv.reader((paper_run / "branches.csv").open()))[0]
+    assert br[0] == "k" and set(br[1:]) == {f"{b}_{k}_m" for b in ("s+w+e+", "s+w+e-", "s-w-e+", "s-w-e-")
+                                            for k in ("analytic", "optimised")}
+    assert list(csv.reader((paper_run / "path.csv").open()))[0] == ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
+    tr = list(csv.reader((paper_run / "trajectory.csv").open()))[0]
+    assert tr == ["t"] + [f"{p}{i}" for p in ("q", "qd", "qdd") for i in range(1, 7)]
+
+
+@pytest.mark.parametrize("run", ["paper_run", "machining_run"])
+def test_path_csv_lands_on_the_line_under_independent_physics(run, request):
+    folder = request.getfixturevalue(run)
+    s = json.loads((folder / "summary.json").read_text())
+    path = _read(folder / "path.csv")
+    P = np.column_stack([path["x"], path["y"], path["z"]])
+    Q = _cols(path, "q")
+    W = np.r_[s["wrench"]["F_N"], s["wrench"]["M_Nm"]]
+    a, b = np.array(s["problem"]["path"]["start"]), np.array(s["problem"]["path"]["end"])
+    u = (b - a) / np.linalg.norm(b - a)
+    for k in range(len(P)):
+        T = _settle(Q[k], W, s["robot_file"])
+        d = T[:3, 3] - a
+        assert np.linalg.norm(d - u * (d @ u)) < LINE_TOL_M, k            # on the straight line
+        assert np.linalg.norm(T[:3, 3] - P[k]) < LINE_TOL_M, k            # at its waypoint
+        if s["problem"]["orientation"]["rule"] in ("fixed", "free_tool_axis"):
+            assert abs(T[2, 2] + 1.0) < 1e-9                                # tool axis still down
+
+
+@pytest.mark.parametrize("run", ["paper_run", "machining_run"])
+def test_trajectories_respect_the_limits_by_finite_differences(run, request):
+    folder = request.getfixturevalue(run)
+    s = json.loads((folder / "summary.json").read_text())
+    lim = {k: np.array(s["limits"][k]) for k in ("velocity", "acceleration", "jerk")}
+    path = _cols(_read(folder / "path.csv"), "q")
+    for name, checked in (("trajectory.csv", ("velocity", "acceleration", "jerk")),
+                          ("trajectory_toppra.csv", ("velocity", "acceleration"))):
+        tr = _read(folder / name)
+        t, q = tr["t"], _cols(tr, "q")
+        dt = s["dt"]
+        assert np.allclose(np.diff(t), dt, atol=1e-12)
+        d = {"velocity": np.diff(q, axis=0) / dt, "acceleration": np.diff(q, 2, axis=0) / dt ** 2,
+             "jerk": np.diff(q, 3, axis=0) / dt ** 3}
+        for k in checked:
+            ratio = np.abs(d[k]).max(axis=0) / lim[k]
+            assert ratio.max() <= 1.0 + FD_RATIO_TOL, (name, k, ratio)
+        assert np.allclose(q[0], path[0], atol=1e-12) and np.allclose(q[-1], path[-1], atol=1e-12)
+        assert np.allclose(_cols(tr, "qd")[[0, -1]], 0.0, atol=1e-12)     # rest to rest
+        assert s["duration_s"][name == "trajectory.csv" and "ruckig" or "toppra"] == pytest.approx(t[-1])
+
+
+def test_machining_gain_and_figures(machining_run):
+    s = json.loads((machining_run / "summary.json").read_text())
+    assert s["posture"]["freedom"] == "free"
+    assert all(v["status"] == "optimised" for v in s["branches"].values())
+    for v in s["branches"].values():
+        assert v["cost"] <= v["cost_analytic"] + 1e-12
+    assert s["gain"]["vs_best_analytic"] > 1.05 and s["gain"]["vs_default"] > s["gain"]["vs_best_analytic"]
+    for name in ("branches.png", "trajectory.png"):
+        assert (machining_run / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_demo_is_plan_on_the_paper_problem(tmp_path, capsys, paper_run):
+    code, out, err = _run(capsys, "demo", "--out", str(tmp_path), "--no-figures", "--no-report")
+    assert code == 0 and err == ""
+    assert "before compensation" in out and "after exact" in out and "chosen branch s-w-e-" in out
+    s = json.loads((tmp_path / "summary.json").read_text())
+    ref = json.loads((paper_run / "summary.json").read_text())
+    assert {k: v["cost"] for k, v in s["branches"].items()} == {k: v["cost"] for k, v in ref["branches"].items()}
+    assert s["error_before"] == ref["error_before"]
+
+
+def test_demo_api_used_by_the_report(tmp_path):
+    from planner.demo import run_demo, write_outputs
+    res = run_demo(n_points=12)
+    assert res.ok and res.branch.label == "s-w-e-" and res.positions.shape == (12, 3)
+    summary = write_outputs(res, tmp_path)
+    assert summary["n_waypoints"] == 12 and (tmp_path / "branches.csv").is_file()
+
+
+# ------------------------------------------------------------------------------ failures
+def _problem_file(tmp_path: Path, **sections: str) -> Path:
+    base = {
+        "head": 'name = "bad"\n[robot]\nmodel = "ar5"\ntool = { xyz = [0.1, 0.0, 0.05] }\n',
+        "path": '[path]\nkind = "line"\nstart = [0.20, 0.40, 0.30]\nend = [0.45, -0.10, 0.30]\npoints = 10\n',
+        "orientation": '[orientation]\nrule = "free_tool_axis"\n',
+        "wrench": '[wrench]\nforce = [15.0, -25.0, 30.0]\n',
+        "rest": "",
+    }
+    base.update(sections)
+    p = tmp_path / "bad.toml"
+    p.write_text("".join(base.values()))
+    return p
+
+
+FAILURES = [
+    ("unreachable", {"path": '[path]\nkind = "waypoints"\npositions = [[0.3, 0.0, 0.3], [1.5, 0.0, 0.3], '
+                             '[0.3, 0.1, 0.3]]\n'}, ["unreachable", "waypoint 1"]),
+    ("flip", {"rest": "[limits]\nmax_joint_step = 0.01\n"}, ["no_branch", "flip between waypoints"]),
+    ("toppra", {"rest": "[timing]\ntoppra_max_iterations = 1\n"}, ["timing_failed", "toppra", "acceleration"]),
+    ("ipopt", {"rest": "[solver]\nmax_iter = 1\n"}, ["solver_failed", "IPOPT", "Maximum_Iterations_Exceeded"]),
+    ("bad file", {"rest": "[limits]\nspeed = 1\n"}, ["[limits]", "unknown key", "speed"]),
+]
+
+
+@pytest.mark.parametrize("case,sections,words", FAILURES, ids=[f[0] for f in FAILURES])
+def test_infeasible_input_gives_status_one_line_and_nonzero_exit(tmp_path, capsys, case, sections, words):
+    out_dir = tmp_path / "out"
+    code, out, err = _run(capsys, "plan", str(_problem_file(tmp_path, **sections)), "--out", str(out_dir))
+    assert code == EXIT_USER_ERROR
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("compplan: error: "), err
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert "Traceback" not in err and not out_dir.exists()       # nothing written
+
+
+def test_missing_problem_and_bad_dt(tmp_path, capsys):
+    code, _, err = _run(capsys, "plan", "no_such_problem", "--out", str(tmp_path))
+    assert code == EXIT_USER_ERROR and "not a shipped problem" in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(SystemExit):
+        main(["plan", "paper_4_4", "--out", str(tmp_path), "--dt", "0.5"])
+
+
+def test_plan_result_statuses_without_the_cli():
+    pr = load_problem("paper_4_4").with_timing(toppra_max_iterations=1)
+    res = plan(pr)
+    assert res.status is PlanStatus.TIMING_FAILED and "toppra" in res.reason
+    assert res.posture is not None and res.exact is not None          # what ran is kept
+    with pytest.raises(Exception, match="timing_failed"):
+        res.raise_for_status()
+
+
+def test_single_pose_command(tmp_path, capsys):
+    code, out, err = _run(capsys, "pose", "paper_4_4", "--waypoint", "39", "--out", str(tmp_path))
+    assert code == 0 and err == ""
+    d = json.loads((tmp_path / "pose.json").read_text())
+    e = [b["error_m"] for b in d["branches"].values()]
+    assert len(e) == 8 and d["chosen_branch"] == min(d["branches"], key=lambda k: d["branches"][k]["error_m"])
+    code, _, err = _run(capsys, "pose", "paper_4_4", "--waypoint", "40")
+    assert code == EXIT_USER_ERROR and "--waypoint 40" in err
