@@ -31,15 +31,7 @@ from __future__ import annotations
 
 import enum
 import io
-import os
 import time
-
-# The compiled batch kernels (models.codegen) run short OpenMP regions; with GNU OpenMP's
-# default (spinning) wait policy their idle threads compete with IPOPT/MUMPS's BLAS threads
-# on small machines, and each short batch call then costs ~10 ms instead of ~0.1 ms
-# (measured on 2 CPUs).  Sleeping idle threads avoid that.  Only effective if set before
-# libgomp is first loaded; a user's own setting wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
