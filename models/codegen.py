@@ -17,6 +17,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import platform
 import shutil
 import subprocess
 import tempfile
@@ -73,8 +74,61 @@ class CompileError(RuntimeError):
 def _cache_dir() -> Path:
     root = os.environ.get("COMPPLAN_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "compplan")
     p = Path(root)
-    p.mkdir(parents=True, exist_ok=True)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CompileError(f"cache folder {p} is not usable ({exc}); set COMPPLAN_CACHE") from None
     return p
+
+
+def _host_id() -> str:
+    """Identity of the CPU the code is compiled for (``-march=native``): part of the cache key,
+    so a cache shared between different machines never loads code for another CPU."""
+    model = platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.startswith(("model name", "flags")):
+                    model += line
+    except OSError:
+        model += platform.processor()
+    return model
+
+
+def compile_shared_library(src: str, prefix: str) -> Path:
+    """Compile C source into a cached shared library and return its path.
+
+    The cache key hashes the source, the flags, the CasADi version and the host
+    CPU.  Concurrent builds of the same library race safely (atomic rename).
+
+    Raises
+    ------
+    CompileError
+        No compiler, a compiler failure, or an unusable cache folder.
+    """
+    key = hashlib.sha256((src + " ".join(CFLAGS) + ca.__version__ + _host_id()).encode()).hexdigest()[:20]
+    lib = _cache_dir() / f"{prefix}_{key}.so"
+    if lib.exists():
+        return lib
+    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        raise CompileError("no C compiler found (set CC or install gcc)")
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            c_file = Path(tmp) / "f.c"
+            c_file.write_text(src)
+            tmp_lib = Path(tmp) / "f.so"
+            proc = subprocess.run([cc, *CFLAGS, str(c_file), "-o", str(tmp_lib), "-lm"],
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise CompileError(f"{cc} failed: {proc.stderr.strip()[:500]}")
+            fd, staged = tempfile.mkstemp(dir=lib.parent, suffix=".so")
+            os.close(fd)
+            shutil.copyfile(tmp_lib, staged)
+            os.replace(staged, lib)
+    except OSError as exc:
+        raise CompileError(f"cannot build {lib.name} in {lib.parent}: {exc}") from None
+    return lib
 
 
 def _dense(f: ca.Function) -> ca.Function:
@@ -108,35 +162,13 @@ class BatchFunction:
         src += f"\nstatic const long long {self.name}_out_nnz[{self.n_out}] = {{{nnz}}};\n"
         src += _WRAPPER % {"name": self.name, "n_in": self.n_in, "n_out": self.n_out,
                            "out_nnz": f"{self.name}_out_nnz", "min_batch": PARALLEL_MIN_BATCH}
-        key = hashlib.sha256((src + " ".join(CFLAGS)).encode()).hexdigest()[:20]
-        lib = _cache_dir() / f"{self.name}_{key}.so"
-        if not lib.exists():
-            self._compile(src, lib)
+        lib = compile_shared_library(src, self.name)
         self._lib = ctypes.CDLL(str(lib))
         fn = self._lib.compplan_batch
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_longlong, ctypes.POINTER(ctypes.c_void_p),
                        ctypes.POINTER(ctypes.c_longlong), ctypes.POINTER(ctypes.c_void_p), ctypes.c_int]
         self._fn = fn
-
-    @staticmethod
-    def _compile(src: str, lib: Path) -> None:
-        cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-        if cc is None:
-            raise CompileError("no C compiler found (set CC or install gcc)")
-        with tempfile.TemporaryDirectory() as tmp:
-            c_file = Path(tmp) / "f.c"
-            c_file.write_text(src)
-            tmp_lib = Path(tmp) / "f.so"
-            proc = subprocess.run([cc, *CFLAGS, str(c_file), "-o", str(tmp_lib), "-lm"],
-                                  capture_output=True, text=True)
-            if proc.returncode != 0:
-                raise CompileError(f"{cc} failed: {proc.stderr.strip()[:500]}")
-            # Atomic publish: concurrent processes may race to build the same file.
-            fd, staged = tempfile.mkstemp(dir=lib.parent, suffix=".so")
-            os.close(fd)
-            shutil.copyfile(tmp_lib, staged)
-            os.replace(staged, lib)
 
     def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
         if len(args) != self.n_in:

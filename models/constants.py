@@ -28,10 +28,10 @@ IK_ROUNDTRIP_TOL = 1e-10
 #: Contract: exact compensation puts the deflected TCP on the target to this (m).
 EXACT_COMPENSATION_TOL = 1e-9
 
-#: Newton iterations for the exact compensation / deflected equilibrium.
+#: Fixed-point iterations allowed for the deflected equilibrium q = q_c + dq(q, F).
 EQUILIBRIUM_MAX_ITER = 50
 
-#: Step size below which the deflected-equilibrium Newton iteration stops (rad).
+#: Step size below which the deflected-equilibrium iteration stops (rad).
 EQUILIBRIUM_STEP_TOL = 1e-14
 
 #: Jacobian condition number above which the closed-form compensation switches

@@ -26,7 +26,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .constants import STANDARD_GRAVITY
+from .constants import PLAUSIBLE_POSITION_MAX_M, STANDARD_GRAVITY
 from .errors import InputError
 from .transforms import rpy_to_matrix, transform
 
@@ -265,6 +265,11 @@ def _parse_joint(where: str, row: Any) -> Joint:
             raise RobotFileError(f"{where}: missing key '{key}'")
         else:
             vals[key] = _finite(where, key, row[key])
+    for key in ("a", "d"):
+        if abs(vals[key]) > PLAUSIBLE_POSITION_MAX_M:
+            raise RobotFileError(f"{where}: key '{key}' = {vals[key]:g} m is implausible for a link "
+                                 f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
+                                 "(millimetres given?)")
     if vals["q_min"] >= vals["q_max"]:
         raise RobotFileError(f"{where}: q_min ({vals['q_min']}) must be below q_max ({vals['q_max']})")
     for key in ("v_max", "a_max", "j_max", "stiffness"):
@@ -319,6 +324,9 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
     if unknown:
         raise RobotFileError(f"{where}: tool: unknown key(s) {unknown}; allowed: ['xyz', 'rpy', 'rpy_deg']")
     xyz = _vector(f"{where}: tool", "xyz", tool.get("xyz", [0.0, 0.0, 0.0]), 3)
+    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
+        raise RobotFileError(f"{where}: tool: key 'xyz' = {list(xyz)} is implausible (> "
+                             f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres (millimetres given?)")
     if "rpy" in tool and "rpy_deg" in tool:
         raise RobotFileError(f"{where}: tool: give either 'rpy' (rad) or 'rpy_deg', not both")
     if "rpy_deg" in tool:

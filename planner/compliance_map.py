@@ -37,6 +37,7 @@ from typing import Callable
 import numpy as np
 
 from models import AnalyticIK, KinematicModel, Robot
+from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
 from models.ik import BRANCH_LABELS, IK_REASONS, IKStatus
 from models.transforms import rpy_to_matrix
@@ -176,7 +177,7 @@ def _check_range(key: str, rng: tuple[float, float]) -> tuple[float, float]:
         raise InputError(f"compliance map: {key} = {rng!r}; expected two numbers (m)") from None
     if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
         raise InputError(f"compliance map: {key} = ({lo:g}, {hi:g}); expected finite lo < hi (m)")
-    if max(abs(lo), abs(hi)) > 10.0:
+    if max(abs(lo), abs(hi)) > PLAUSIBLE_POSITION_MAX_M:
         raise InputError(f"compliance map: {key} = ({lo:g}, {hi:g}) m is implausibly large; "
                          "expected metres (millimetres given?)")
     return lo, hi
@@ -189,6 +190,40 @@ def _branch_index(rule: str) -> int | None:
         return BRANCH_LABELS.index(rule)
     raise InputError(f"compliance map: branch = {rule!r}; expected 'home' or one of "
                      f"{', '.join(BRANCH_LABELS)}")
+
+
+def validate_map_options(plane: str, offset_m: float, u_range_m: tuple[float, float],
+                         v_range_m: tuple[float, float], points: int | tuple[int, int],
+                         rpy_rad: np.ndarray, branch: str) -> tuple:
+    """Check the options of :func:`compliance_map` (same meaning) and return them normalised:
+    ``(offset, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy (3,), branch index or None)``.
+
+    Raises
+    ------
+    InputError
+        Naming the option, its value and what was expected.
+    """
+    if plane not in PLANE_AXES:
+        raise InputError(f"compliance map: plane = {plane!r}; expected one of x, y, z")
+    try:
+        off = float(offset_m)
+    except (TypeError, ValueError):
+        raise InputError(f"compliance map: offset = {offset_m!r}; expected a number (m)") from None
+    if not np.isfinite(off) or abs(off) > PLAUSIBLE_POSITION_MAX_M:
+        raise InputError(f"compliance map: offset = {off!r} m; expected a finite value in metres")
+    u_lo, u_hi = _check_range("u range", u_range_m)
+    v_lo, v_hi = _check_range("v range", v_range_m)
+    nu, nv = (points, points) if np.isscalar(points) else tuple(points)  # type: ignore[misc]
+    for name, n in (("points (u)", nu), ("points (v)", nv)):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= MAX_POINTS_PER_AXIS:
+            raise InputError(f"compliance map: {name} = {n!r}; expected an integer in "
+                             f"[2, {MAX_POINTS_PER_AXIS}]")
+    rpy = np.asarray(rpy_rad, dtype=float).reshape(-1)
+    if rpy.shape != (3,) or not np.all(np.isfinite(rpy)):
+        raise InputError(f"compliance map: rpy = {rpy_rad!r}; expected three finite angles (rad)")
+    b_fixed = _branch_index(branch)
+    return off, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy, b_fixed
+
 
 
 def compliance_map(robot: Robot, *, plane: str = "x", offset_m: float = paper.SECTION_4_3_X_M,
@@ -230,25 +265,8 @@ def compliance_map(robot: Robot, *, plane: str = "x", offset_m: float = paper.SE
     InputError
         Bad plane, range, grid size, attitude or branch (the message names the key).
     """
-    if plane not in PLANE_AXES:
-        raise InputError(f"compliance map: plane = {plane!r}; expected one of x, y, z")
-    try:
-        off = float(offset_m)
-    except (TypeError, ValueError):
-        raise InputError(f"compliance map: offset = {offset_m!r}; expected a number (m)") from None
-    if not np.isfinite(off) or abs(off) > 10.0:
-        raise InputError(f"compliance map: offset = {off!r} m; expected a finite value in metres")
-    u_lo, u_hi = _check_range("u range", u_range_m)
-    v_lo, v_hi = _check_range("v range", v_range_m)
-    nu, nv = (points, points) if np.isscalar(points) else tuple(points)  # type: ignore[misc]
-    for name, n in (("points (u)", nu), ("points (v)", nv)):
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= MAX_POINTS_PER_AXIS:
-            raise InputError(f"compliance map: {name} = {n!r}; expected an integer in "
-                             f"[2, {MAX_POINTS_PER_AXIS}]")
-    rpy = np.asarray(rpy_rad, dtype=float).reshape(-1)
-    if rpy.shape != (3,) or not np.all(np.isfinite(rpy)):
-        raise InputError(f"compliance map: rpy = {rpy_rad!r}; expected three finite angles (rad)")
-    b_fixed = _branch_index(branch)
+    off, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy, b_fixed = validate_map_options(
+        plane, offset_m, u_range_m, v_range_m, points, rpy_rad, branch)
 
     ik = AnalyticIK(robot)
     model = KinematicModel(robot)

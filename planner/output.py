@@ -18,6 +18,8 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from models.errors import InputError
+
 
 def _jsonable(obj: Any) -> Any:
     if isinstance(obj, dict):
@@ -87,12 +89,61 @@ class OutputSet:
     def add_csv(self, name: str, header: Sequence[str], rows: Any) -> None:
         self.files[name] = csv_bytes(header, rows)
 
-    def publish(self) -> list[Path]:
-        """Write every file (each atomically); returns the paths written."""
-        self.folder.mkdir(parents=True, exist_ok=True)
+    def publish(self, stale: Iterable[str] = ()) -> list[Path]:
+        """Write every file (each atomically); returns the paths written.
+
+        Parameters
+        ----------
+        stale : iterable of str
+            Output names this kind of run may produce: those present in the folder
+            but not produced this time are removed, so a reused folder never mixes
+            an earlier run's files with this one's.
+
+        Raises
+        ------
+        InputError
+            The folder cannot be created or written (names the folder and the cause).
+        """
+        check_output_folder(self.folder, create=True)
         written = []
-        for name, data in self.files.items():
-            p = self.folder / name
-            atomic_write_bytes(p, data)
-            written.append(p)
+        try:
+            for name, data in self.files.items():
+                p = self.folder / name
+                atomic_write_bytes(p, data)
+                written.append(p)
+            for name in stale:
+                p = self.folder / name
+                if name not in self.files and p.is_file():
+                    p.unlink()
+        except OSError as exc:
+            raise InputError(f"output folder {self.folder}: cannot write ({exc})") from None
         return written
+
+
+def check_output_folder(folder: str | Path, create: bool = False) -> Path:
+    """Check that ``folder`` is, or can be created as, a writable directory.
+
+    Call it before long computations so a bad ``--out`` fails at once; nothing is
+    created unless ``create`` (so a run that fails later leaves no trace).
+
+    Raises
+    ------
+    InputError
+        Naming the folder and what is wrong with it.
+    """
+    p = Path(folder)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"--out {p}: exists and is not a folder; give a folder path")
+    parent = p
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(f"--out {p}: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"--out {p}: {parent} is not writable")
+    if create:
+        try:
+            p.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"--out {p}: cannot create the folder ({exc.strerror or exc})") from None
+    return p

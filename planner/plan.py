@@ -361,6 +361,16 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     times["timing_s"] = time.perf_counter() - t0
     res.controller = next(m for m in CONTROLLER_METHODS if m in res.trajectories)
     for m, tr in res.trajectories.items():
+        if tr.status is TimingStatus.OK and tr.q.size:
+            # The interpolating spline may overshoot between waypoints: check positions too.
+            out = (tr.q < robot.q_min - COMMAND_LIMIT_TOL) | (tr.q > robot.q_max + COMMAND_LIMIT_TOL)
+            if out.any():
+                i, j = (int(v) for v in np.argwhere(out)[0])
+                res.status = PlanStatus.TIMING_FAILED
+                res.reason = (f"{m}: joint {j + 1} reaches {tr.q[i, j]:.6g} rad at t = {tr.t[i]:.4g} s, "
+                              f"outside its position limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad "
+                              "(the interpolating spline overshoots between waypoints)")
+                return res
         if tr.status is not TimingStatus.OK or not _within(tr, ENFORCED[m]):
             res.status = PlanStatus.TIMING_FAILED
             res.reason = f"{m}: {tr.reason}" if tr.reason.startswith(tr.status.value) else \
@@ -435,6 +445,11 @@ def figures(res: PlanResult) -> dict[str, bytes]:
     return out
 
 
+#: Files a plan may write; those a new run in the same folder does not produce are removed.
+STALE_OUTPUTS = ("trajectory.csv", "trajectory_toppra.csv", "trajectory_ruckig.csv",
+                 "branches.png", "trajectory.png", "waypoints.csv", "branches.csv", "path.csv")
+
+
 def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True) -> dict[str, Any]:
     """Write the plan's files, all or nothing.
 
@@ -463,7 +478,7 @@ def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True
     if with_figures:
         for name, data in figures(res).items():
             out.add_bytes(name, data)
-    out.publish()
+    out.publish(stale=STALE_OUTPUTS)
     return summary
 
 

@@ -971,8 +971,9 @@ def _run_toppra(
         ra = ratio["acceleration"]
         over_v = rv > 1.0 + LIMIT_RATIO_TOL
         over_a = ra > 1.0 + LIMIT_RATIO_TOL
-        vlim = np.where(over_v, vlim / _shrink_factor(rv, margin), vlim)
-        alim = np.where(over_a, alim / _shrink_factor(ra, margin), alim)
+        # Only the offending joints are shrunk; the others keep their limit (no 0/0).
+        vlim = vlim / np.where(over_v, _shrink_factor(np.where(over_v, rv, 2.0), margin), 1.0)
+        alim = alim / np.where(over_a, _shrink_factor(np.where(over_a, ra, 2.0), margin), 1.0)
     assert last is not None
     law, ratio, reason, it = last
     return build(law, ratio, TimingStatus.LIMIT_EXCEEDED, reason, it)

@@ -82,21 +82,16 @@ The module prints nothing; IPOPT is quiet unless ``verbose=True``.
 from __future__ import annotations
 
 import enum
-import hashlib
 import math
-import os
-import shutil
-import subprocess
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
+from models.codegen import CompileError, compile_shared_library
 from models.errors import InputError
 from models.ik import BRANCH_LABELS, AnalyticIK, IK_REASONS, IKStatus
 from models.robot import Robot
@@ -159,8 +154,6 @@ IPOPT_DEFAULTS: dict[str, Any] = {"mu_strategy": "adaptive", "bound_push": 1e-6,
                                   "nlp_scaling_method": "none"}  # the NLP is scaled by hand (mm, mrad)
 #: IPOPT return statuses accepted as converged.
 IPOPT_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-#: Compiler flags for the stage functions.
-CFLAGS = ("-O2", "-fPIC", "-shared", "-fno-math-errno")
 #: Length of the stage parameter vector: p (3), R (9, column-major), F (6), branch signs (3).
 N_THETA = 21
 
@@ -478,7 +471,9 @@ def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
                         "solution of each branch; only the branch is chosen")
     T = robot.flange2tcp
     off = float(np.hypot(T[0, 3], T[1, 3]))
-    tilt = float(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))
+    # Angle between the tool axis and the joint-6 axis, either sense (a tool axis
+    # anti-parallel to joint 6 is just as degenerate).
+    tilt = float(np.arccos(np.clip(abs(T[2, 2]), 0.0, 1.0)))
     on_axis = off <= DEGENERATE_OFFSET_TOL_M and tilt <= DEGENERATE_ANGLE_TOL_RAD
     if rule is OrientationRule.FREE_TOOL_AXIS and on_axis:
         return "degenerate", ("degenerate: the TCP lies on the joint-6 axis and the tool axis is "
@@ -580,13 +575,6 @@ def _stage_sx(robot: Robot, rule: OrientationRule) -> dict[str, ca.Function]:
     }
 
 
-def _cache_dir() -> Path:
-    root = os.environ.get("COMPPLAN_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "compplan")
-    p = Path(root)
-    p.mkdir(parents=True, exist_ok=True)
-    return p
-
-
 class StageCompileError(RuntimeError):
     """No C compiler, or it failed (then the CasADi virtual machine is used)."""
 
@@ -598,24 +586,10 @@ def _compile_stage(funcs: dict[str, ca.Function]) -> dict[str, ca.Function]:
     for f in funcs.values():
         cg.add(f)
     src = cg.dump()
-    key = hashlib.sha256((src + " ".join(CFLAGS) + ca.__version__).encode()).hexdigest()[:20]
-    lib = _cache_dir() / f"posture_{key}.so"
-    if not lib.exists():
-        cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-        if cc is None:
-            raise StageCompileError("no C compiler found (set CC or install gcc)")
-        with tempfile.TemporaryDirectory() as tmp:
-            c_file = Path(tmp) / "stage.c"
-            c_file.write_text(src)
-            tmp_lib = Path(tmp) / "stage.so"
-            proc = subprocess.run([cc, *CFLAGS, str(c_file), "-o", str(tmp_lib), "-lm"],
-                                  capture_output=True, text=True)
-            if proc.returncode != 0:
-                raise StageCompileError(f"{cc} failed: {proc.stderr.strip()[:500]}")
-            fd, staged = tempfile.mkstemp(dir=lib.parent, suffix=".so")
-            os.close(fd)
-            shutil.copyfile(tmp_lib, staged)
-            os.replace(staged, lib)           # atomic publish (concurrent builds race safely)
+    try:
+        lib = compile_shared_library(src, "posture")
+    except CompileError as exc:
+        raise StageCompileError(str(exc)) from None
     return {k: ca.external(f.name(), str(lib)) for k, f in funcs.items()}
 
 

@@ -160,6 +160,9 @@ class Problem:
     home_q: np.ndarray
     timing: TimingSettings
     nominal_rpy: np.ndarray = field(default_factory=lambda: DEFAULT_RPY.copy())
+    #: The file's own ``source`` text (where the task comes from); ``source`` above is
+    #: where the file was read from.
+    source_text: str = ""
 
     @property
     def n(self) -> int:
@@ -205,7 +208,7 @@ class Problem:
         d: dict[str, Any] = {
             "name": self.name,
             "description": self.description,
-            "source": self.source,
+            "source": self.source_text,
             "robot": {"model": self.robot_spec,
                       "tool": {"xyz": [float(v) for v in T[:3, 3]],
                                "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]}},
@@ -586,7 +589,8 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
         raise _err(where, "timing.toppra_gridpoints", "must be 0 (default) or >= 2, got 1")
     _check_timing(where, timing)
 
-    return Problem(name=name.strip(), description=desc.strip(), source=where, robot_spec=spec,
+    return Problem(name=name.strip(), description=desc.strip(), source=where, source_text=src.strip(),
+                   robot_spec=spec,
                    robot=robot, path_kind=kind, line=line, positions=P, rotations=R, rule=rule,
                    cone_half_angle=half, scan=scan, wrench=W, wrench_per_waypoint=per_wp, limits=limits,
                    smoothness=smooth, solver=solver, home_q=home, timing=timing,

@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 
 import numpy as np
-import pytest
 
 from models import KinematicModel, load_robot
 from models.constants import EXACT_COMPENSATION_TOL

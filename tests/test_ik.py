@@ -143,6 +143,7 @@ def test_modified_dh_ik_and_non_ur_structure():
     Q = np.where(sol.valid[..., None], sol.q, 0).reshape(-1, 6)
     T2 = km.tcp(Q).reshape(500, 8, 4, 4)
     err = np.linalg.norm(T2[..., :3, 3] - T[:, None, :3, 3], axis=-1)
+    assert sol.valid.any(axis=1).all()
     assert np.all(err[sol.valid] < IK_ROUNDTRIP_TOL)
     # a non-UR arm: the error names the parameter
     d["joints"][3]["alpha"] = 0.0

@@ -56,6 +56,8 @@ def _base() -> dict:
     (lambda d: d["joints"][0].pop("com"), "together"),
     (lambda d: d.update(gravity=[0, 0, math.inf]), "gravity"),
     (lambda d: d.update(extra=1), "unknown top-level"),
+    (lambda d: d["joints"][1].update(a=-425.0), r"joints\[2\].*'a'.*millimetres"),
+    (lambda d: d.update(tool={"xyz": [0, 0, 31.0]}), "millimetres"),
 ])
 def test_validation_names_the_key(mutate, match):
     d = _base()

@@ -21,7 +21,10 @@ def run(args: argparse.Namespace) -> int:
     from planner.demo import demo_problem
     from planner.plan import output_names, plan, write_outputs
 
+    from planner.output import check_output_folder
+
     problem = demo_problem(args.robot, args.points)
+    check_output_folder(args.out)
     res = plan(problem, verbose=args.verbose).raise_for_status()
     write_outputs(res, args.out, with_figures=not args.no_figures)
     print_plan(res, args.out, output_names(res, not args.no_figures))

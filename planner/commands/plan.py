@@ -90,9 +90,12 @@ def run(args: argparse.Namespace) -> int:
     from planner.plan import output_names, plan, write_outputs
     from problems.problem import load_problem
 
+    from planner.output import check_output_folder
+
     problem = load_problem(args.problem)
     if args.dt is not None:
         problem = problem.with_timing(dt=args.dt)
+    check_output_folder(args.out)
     res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise)
     res.raise_for_status()
     write_outputs(res, args.out, with_figures=not args.no_figures)

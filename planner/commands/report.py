@@ -134,6 +134,9 @@ def run(args: argparse.Namespace) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs = {args.jobs}; expected an integer >= 1")
     opts: Any = False if args.no_map else map_options(args, prefix="map-")
+    if opts:
+        from planner.compliance_map import validate_map_options
+        validate_map_options(**opts)      # a bad --map-* option is the user's error: exit 2
     write_run_report(args.folder, map_options=opts, workers=args.jobs,
                      map_cache=not args.no_map_cache)
     return 0
