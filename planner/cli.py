@@ -22,7 +22,7 @@ EXIT_INTERNAL = 3
 
 #: Sub-command modules under planner/commands/; each defines ``register(subparsers)``
 #: which adds its parser and sets ``func`` (returning an exit code).
-COMMAND_MODULES = ("demo", "report", "map", "plan")
+COMMAND_MODULES = ("demo", "report", "map", "plan", "identify")
 
 
 def build_parser() -> argparse.ArgumentParser:

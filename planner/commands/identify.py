@@ -1,0 +1,229 @@
+"""``compplan identify | predict | compensate | simulate``: close the loop with measured data.
+
+* ``identify``: fit the declared model (joint stiffness, registration, measured
+  point) to a measurement file, add library effects while they explain a
+  significant, cross-validated share of the residual, and write the identified
+  model (a robot file with an ``[identified]`` table) and a report.
+* ``predict``: predicted measurement (measurement frame) of commands under loads.
+* ``compensate``: commands that put the real TCP on the nominal-FK TCP of the input.
+* ``simulate``: a measurement campaign from the virtual robot (and its truth file).
+
+Only this module prints; the library reports progress through a callback.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+#: Sub-commands defined here.
+COMMANDS = ("identify", "predict", "compensate", "simulate")
+
+
+def _effects_arg(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    t = text.strip()
+    if t in ("", "none"):
+        return []
+    if t == "all":
+        from problems.effects import LIBRARY
+        return list(LIBRARY)
+    return [e.strip() for e in t.split(",") if e.strip()]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("identify", help="identify the model from measurements and report before/after",
+                       description="Identify joint stiffness (+ registration and measured point for absolute "
+                                   "data) and add library effects while they explain a significant "
+                                   "cross-validated share of the residual.")
+    p.add_argument("--robot", required=True, help="built-in robot name or robot file (the declared model)")
+    p.add_argument("--data", required=True, help="measurement CSV (docs/measurement-file.md)")
+    p.add_argument("--out", required=True, help="identified model file to write (robot TOML)")
+    p.add_argument("--report", required=True, help="report folder (report.json, report.md, report.html)")
+    p.add_argument("--registered", action="store_true",
+                   help="the measurement frame is the base frame and the measured point is the robot's TCP")
+    p.add_argument("--candidates", default=None,
+                   help="comma-separated library effects the selection may add (default: all; 'none')")
+    p.add_argument("--include", default=None,
+                   help="comma-separated effects added without a test (must be identifiable from the data)")
+    p.add_argument("--folds", type=int, default=None, help="folds of the cross-validation (default 5)")
+    p.add_argument("--validation", default=None, help="held-out measurement CSV to report the RMS on")
+    p.add_argument("--truth", default=None,
+                   help="truth file of a virtual robot (compplan simulate): compensate and re-measure")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_identify)
+
+    p = sub.add_parser("predict", help="predicted measurement of commands under loads")
+    p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
+    p.add_argument("--input", required=True, help="CSV with q1..q6 and fx..mz (optional t, temperature)")
+    p.add_argument("--out", required=True, help="CSV to write: x, y, z (m), measurement frame")
+    p.set_defaults(func=run_predict)
+
+    p = sub.add_parser("compensate", help="commands that put the real TCP on the nominal target")
+    p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
+    p.add_argument("--input", required=True, help="CSV with q1..q6 (nominal commands) and fx..mz")
+    p.add_argument("--out", required=True, help="CSV to write: q1..q6 (rad), compensated")
+    p.add_argument("--strict", action="store_true",
+                   help="fail (nothing written) if any row cannot be compensated; default: write every row "
+                        "(the best command) and warn naming the rows")
+    p.set_defaults(func=run_compensate)
+
+    p = sub.add_parser("simulate", help="measurement campaign from the virtual robot")
+    p.add_argument("--robot", required=True, help="built-in robot name or robot file")
+    p.add_argument("--config", required=True, help="simulation configuration TOML (docs/identification.md)")
+    p.add_argument("--out", required=True, help="measurement CSV to write")
+    p.add_argument("--truth", default=None, help="truth file to write (default: OUT with .truth.toml)")
+    p.add_argument("--seed", type=int, default=None, help="random seed (default: the config's, else 0)")
+    p.set_defaults(func=run_simulate)
+
+
+class _Bar:
+    """tqdm progress bar fed by the library's ``progress(message, done, total)`` callback."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.bar: Any = None
+        self.enabled = enabled
+
+    def __call__(self, msg: str, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        from tqdm import tqdm
+        if self.bar is None:
+            self.bar = tqdm(total=total, desc="identify", unit="step", leave=False)
+        if self.bar.total != total:
+            self.bar.total = total
+        self.bar.n = min(done, total)
+        self.bar.set_postfix_str(msg[:60])
+        self.bar.refresh()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run_identify(args: argparse.Namespace) -> int:
+    from models import load_robot
+    from planner.identify_report import write_report
+    from planner.output import atomic_write_bytes
+    from problems.identify import (
+        CV_FOLDS,
+        compensation_check,
+        identify,
+        model_toml,
+        validate_on,
+    )
+    from problems.measurements import read_measurements
+
+    robot = load_robot(args.robot)
+    data = read_measurements(args.data)
+    val = read_measurements(args.validation) if args.validation else None
+    truth = None
+    if args.truth:
+        from problems.virtual import load_truth
+        truth = load_truth(args.truth)
+    bar = _Bar(not args.no_progress)
+    try:
+        res = identify(robot, data, registered=args.registered, candidates=_effects_arg(args.candidates),
+                       include=_effects_arg(args.include) or [], folds=args.folds or CV_FOLDS, progress=bar)
+    finally:
+        bar.close()
+    if val is not None:
+        res.validation = validate_on(res.model, val)
+    if truth is not None:
+        res.compensation_check = compensation_check(truth, res.model)
+    text = model_toml(res.model)
+    rep = write_report(res, args.report, model_path=str(args.out), data_path=str(args.data))
+    atomic_write_bytes(args.out, text.encode())
+    print(f"identify: {data.n} rows, {rep['data']['n_poses']} poses, status {res.status.value}")
+    print(f"  RMS before {res.rms_before_mm:.4f} mm -> after {res.rms_after_mm:.4f} mm "
+          f"(held-out {rep['heldout_rms_before_mm']:.4f} -> {rep['heldout_rms_after_mm']:.4f} mm, per axis)")
+    if res.noise_sigma_m is not None:
+        print(f"  noise floor {res.noise_sigma_m * 1e3:.4f} mm ({res.noise_source})")
+    print(f"  effects added: {', '.join(res.effects_added) or 'none'}")
+    if res.excluded:
+        print(f"  {len(res.excluded)} row(s) excluded as outliers (listed in the report)")
+    if res.unexplained.get("present"):
+        print(f"  unexplained: {res.unexplained['message']}")
+    if res.validation is not None:
+        print(f"  validation file: RMS {res.validation['rms_mm']:.4f} mm "
+              f"(nominal {res.validation['rms_nominal_mm']:.4f} mm)")
+    if res.compensation_check is not None:
+        c = res.compensation_check
+        print(f"  compensation on the virtual robot: TCP error RMS {c['rms_before_mm']:.4f} -> "
+              f"{c['rms_after_mm']:.4f} mm ({100 * c['fraction_left']:.2f} % left; measurement frame "
+              f"{100 * c['meas_frame_fraction_left']:.2f} % left)")
+    for n in res.notes:
+        print(f"  note: {n}")
+    print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html")
+    return 0
+
+
+def run_predict(args: argparse.Namespace) -> int:
+    from planner.output import atomic_write_bytes
+    from problems.identify import load_model, predict
+    from problems.measurements import commands_csv, read_measurements
+
+    model = load_model(args.model)
+    m = read_measurements(args.input, require_position=False)
+    p = predict(model, m)
+    atomic_write_bytes(args.out, commands_csv(["x", "y", "z"], p).encode())
+    print(f"predict: {m.n} rows, effects {', '.join(model.effects) or 'none'}; wrote {args.out} (x, y, z in m, "
+          "measurement frame)")
+    return 0
+
+
+def run_compensate(args: argparse.Namespace) -> int:
+    from models.errors import InfeasibleError
+    from planner.output import atomic_write_bytes
+    from problems.identify import compensate, load_model
+    from problems.measurements import commands_csv, read_measurements
+
+    model = load_model(args.model)
+    m = read_measurements(args.input, require_position=False)
+    out = compensate(model, m.q, m.wrench, m.temperature)
+    if out.status != "ok" and args.strict:
+        raise InfeasibleError(f"{args.input}: {out.reason}; nothing written")
+    atomic_write_bytes(args.out, commands_csv([f"q{i}" for i in range(1, 7)], out.q_command).encode())
+    if out.status != "ok":
+        lines = ", ".join(str(int(m.line[i])) for i in out.failed_rows[:10])
+        print(f"compensate: warning: {out.reason}; input lines {lines}")
+    print(f"compensate: {m.n} rows, status {out.status}; wrote {args.out} (q1..q6 in rad)")
+    return 0
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    import tomli_w
+
+    from models import load_robot
+    from models.errors import InputError
+    from planner.output import atomic_write_bytes
+    from problems.measurements import measurements_to_csv
+    from problems.virtual import VirtualRobot, load_config
+
+    cfg = load_config(args.config)
+    robot = load_robot(args.robot)
+    vr = VirtualRobot(robot, cfg, seed=args.seed, where=str(args.config))
+    m = vr.campaign()
+    units = str(cfg.get("units", "SI"))
+    if units not in ("SI", "mm"):
+        raise InputError(f"{args.config}: key 'units' must be 'SI' or 'mm', got {units!r}")
+    out = Path(args.out)
+    truth = Path(args.truth) if args.truth else out.with_name(out.stem + ".truth.toml")
+    data = measurements_to_csv(m, mm=(units == "mm")).encode()
+    truth_text = tomli_w.dumps(_toml_safe(vr.truth())).encode()
+    atomic_write_bytes(truth, truth_text)
+    atomic_write_bytes(out, data)
+    print(f"simulate: robot {robot.name}, {m.n} rows, {len(set(m.point))} poses, effects "
+          f"{', '.join(sorted(vr.effects)) or 'none'}; wrote {out} and {truth}")
+    return 0
+
+
+def _toml_safe(obj: Any) -> Any:
+    """Drop None values (TOML has no null) recursively."""
+    if isinstance(obj, dict):
+        return {k: _toml_safe(v) for k, v in obj.items() if v is not None}
+    if isinstance(obj, (list, tuple)):
+        return [_toml_safe(v) for v in obj if v is not None]
+    return obj

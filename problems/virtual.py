@@ -1,0 +1,704 @@
+"""The virtual robot: a measurement-campaign simulator with optional effects.
+
+It is the project's own test bench for ``compplan identify``.  It is written
+independently of the identification model (:mod:`problems.effects`): NumPy
+kinematics, physical forms of the effects (a two-slope hardening curve, a hard
+dead band, Euler-Bernoulli beams, COM Jacobians for gravity), so that a test
+passes only if the identification's parametrisation covers the physics rather
+than reproduces its own formulas.
+
+The configuration is a TOML table (schema in ``docs/identification.md``, examples
+in ``problems/files/sim/``).  :meth:`VirtualRobot.truth` returns every realised
+parameter, so a campaign can be re-measured after compensation.
+
+Conventions as everywhere: SI units, wrench ``[f; m]`` in the base frame acting
+on the TCP, a joint yields in the direction of the torque applied to it.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models.errors import InputError
+from models.robot import Robot, load_robot
+
+from .measurements import Measurements
+
+#: Fixed-point tolerance of the simulator's deflected equilibrium (rad).
+SIM_EQUILIBRIUM_TOL = 1e-13
+#: Maximum fixed-point iterations of the simulator.
+SIM_EQUILIBRIUM_MAX_ITER = 200
+#: Candidate poses drawn per requested pose when sampling the workspace.
+SIM_POSE_OVERSAMPLING = 40
+#: Jacobian condition number above which a sampled pose is rejected (too close to
+#: a singularity to be a sensible measurement pose).
+SIM_MAX_JACOBIAN_COND = 200.0
+
+#: Effects the simulator knows: the library ones and some outside the library.
+SIM_EFFECTS = ("gravity", "stiffness_hardening", "lost_motion", "joint_offset", "geometric",
+               "load_offset", "link_compliance", "drift", "thermal", "eccentricity", "outliers")
+#: Effects the identification library does not contain (for negative tests).
+OUT_OF_LIBRARY = ("eccentricity",)
+
+_TOP_KEYS = {"seed", "campaign", "noise", "registration", "temperature", "stiffness", "effects", "units"}
+
+
+class SimConfigError(InputError):
+    """A simulation configuration is malformed; the message names the key."""
+
+
+def rotvec_to_matrix(v: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (axis * angle, rad), shape (3, 3)."""
+    v = np.asarray(v, dtype=float)
+    th = float(np.linalg.norm(v))
+    if th < 1e-15:
+        return np.eye(3)
+    k = v / th
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K
+
+
+def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (rad) of a rotation matrix."""
+    c = (np.trace(R) - 1.0) / 2.0
+    th = math.acos(max(-1.0, min(1.0, c)))
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if th < 1e-12:
+        return 0.5 * w
+    if abs(math.pi - th) < 1e-6:
+        # near pi: axis from the symmetric part
+        M = (R + np.eye(3)) / 2.0
+        k = np.sqrt(np.maximum(np.diag(M), 0.0))
+        i = int(np.argmax(k))
+        k = M[:, i] / max(k[i], 1e-12)
+        k = k / np.linalg.norm(k)
+        return th * k
+    return th / (2.0 * math.sin(th)) * w
+
+
+# ----------------------------------------------------------------------------------
+# NumPy kinematics (vectorised over rows, per-row DH parameters allowed)
+# ----------------------------------------------------------------------------------
+
+def _link(theta: np.ndarray, d: np.ndarray, a: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
+          convention: str) -> np.ndarray:
+    n = theta.shape[0]
+    ct, st = np.cos(theta), np.sin(theta)
+    ca_, sa = np.cos(alpha), np.sin(alpha)
+    A = np.zeros((n, 4, 4))
+    if convention == "standard_dh":
+        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca_, st * sa, a * ct
+        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca_, -ct * sa, a * st
+        A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca_, d
+    else:
+        A[:, 0, 0], A[:, 0, 1], A[:, 0, 3] = ct, -st, a
+        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st * ca_, ct * ca_, -sa, -sa * d
+        A[:, 2, 0], A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = st * sa, ct * sa, ca_, ca_ * d
+    A[:, 3, 3] = 1.0
+    if np.any(beta != 0):
+        cb, sb = np.cos(beta), np.sin(beta)
+        Ry = np.zeros((n, 4, 4))
+        Ry[:, 0, 0], Ry[:, 0, 2], Ry[:, 1, 1], Ry[:, 2, 0], Ry[:, 2, 2], Ry[:, 3, 3] = cb, sb, 1, -sb, cb, 1
+        A = A @ Ry
+    return A
+
+
+@dataclass
+class _Geometry:
+    """Per-row DH parameters, shape (N, 6) each."""
+
+    a: np.ndarray
+    alpha: np.ndarray
+    d: np.ndarray
+    toff: np.ndarray
+    beta: np.ndarray
+
+
+def _frames(q: np.ndarray, g: _Geometry, convention: str) -> np.ndarray:
+    """Frames base2frame_i (i = 1..6), shape (N, 6, 4, 4)."""
+    n = q.shape[0]
+    out = np.zeros((n, 6, 4, 4))
+    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    for i in range(6):
+        T = T @ _link(q[:, i] + g.toff[:, i], g.d[:, i], g.a[:, i], g.alpha[:, i], g.beta[:, i], convention)
+        out[:, i] = T
+    return out
+
+
+def _axes(frames: np.ndarray, convention: str) -> tuple[np.ndarray, np.ndarray]:
+    """Joint axes z_i and points p_i, shape (N, 6, 3) each."""
+    n = frames.shape[0]
+    if convention == "standard_dh":
+        z = np.concatenate([np.broadcast_to([0.0, 0.0, 1.0], (n, 1, 3)), frames[:, :5, :3, 2]], axis=1)
+        p = np.concatenate([np.zeros((n, 1, 3)), frames[:, :5, :3, 3]], axis=1)
+    else:
+        z, p = frames[:, :, :3, 2], frames[:, :, :3, 3]
+    return z, p
+
+
+def _tau_point(z: np.ndarray, p: np.ndarray, point: np.ndarray, f: np.ndarray, m: np.ndarray,
+               first: int = 0) -> np.ndarray:
+    """Joint torques of force f at ``point`` and moment m: z_i . ((point - p_i) x f + m)."""
+    lever = point[:, None, :] - p
+    tau = np.einsum("nij,nij->ni", z, np.cross(lever, f[:, None, :]) + m[:, None, :])
+    tau[:, :first] = 0.0
+    return tau
+
+
+# ----------------------------------------------------------------------------------
+# Configuration
+# ----------------------------------------------------------------------------------
+
+def _num(where: str, key: str, v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+        raise SimConfigError(f"{where}: key '{key}' must be a finite number, got {v!r}")
+    return float(v)
+
+
+def _vec(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.ndarray:
+    if broadcast and isinstance(v, (int, float)) and not isinstance(v, bool):
+        return np.full(n, _num(where, key, v))
+    if not isinstance(v, (list, tuple)) or len(v) != n:
+        raise SimConfigError(f"{where}: key '{key}' must be {'a number or ' if broadcast else ''}"
+                             f"a list of {n} numbers, got {v!r}")
+    return np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+
+
+def _table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> dict[str, Any]:
+    t = cfg.get(key, {})
+    if not isinstance(t, Mapping):
+        raise SimConfigError(f"{where}: '{key}' must be a table")
+    unknown = sorted(set(t) - allowed)
+    if unknown:
+        raise SimConfigError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+    return dict(t)
+
+
+_EFFECT_KEYS: dict[str, set[str]] = {
+    "gravity": {"masses_kg", "coms_m", "mass_scale", "payload_kg", "payload_com_m"},
+    "stiffness_hardening": {"model", "knee_torque_Nm", "stiffness_ratio", "beta_per_Nm"},
+    "lost_motion": {"backlash_rad", "smoothing_Nm"},
+    "joint_offset": {"dtheta_rad"},
+    "geometric": {"sigma_length_m", "sigma_angle_rad", "da_m", "dalpha_rad", "dd_m", "dtheta_rad", "dbeta_rad"},
+    "load_offset": {"r_tool_m"},
+    "link_compliance": {"links", "EI_Nm2", "GJ_Nm2"},
+    "drift": {"rate_m_per_h", "accel_m_per_h2"},
+    "thermal": {"alpha_per_K", "links", "reference_C"},
+    "eccentricity": {"joint", "amplitude_rad", "harmonic", "phase_rad"},
+    "outliers": {"fraction", "magnitude_m"},
+}
+
+DEFAULT_CAMPAIGN = {
+    "poses": 100, "unloaded_rows": 1, "loaded_rows": 3, "force_magnitudes_N": [50.0, 100.0, 150.0],
+    "moment_magnitudes_Nm": [0.0], "directions": "random", "dt_s": 20.0, "r_min_m": 0.25,
+    "z_min_m": -0.2, "repeats": 0,
+}
+
+
+def load_config(path: str | Path) -> dict[str, Any]:
+    """Read a simulation configuration TOML file."""
+    p = Path(path)
+    if not p.is_file():
+        raise SimConfigError(f"{p}: no such simulation configuration file")
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise SimConfigError(f"{p}: not valid TOML: {exc}") from None
+
+
+# ----------------------------------------------------------------------------------
+# The virtual robot
+# ----------------------------------------------------------------------------------
+
+class VirtualRobot:
+    """A robot with 'true' parameters and effects, and a measurement system.
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal (declared) description.
+    config : mapping
+        Parsed configuration (schema in ``docs/identification.md``).
+    seed : int, optional
+        Seed of the random parts (geometric errors, poses, loads, noise);
+        overrides ``config['seed']``.
+    where : str
+        Name of the configuration source for error messages.
+    """
+
+    def __init__(self, robot: Robot, config: Mapping[str, Any], seed: int | None = None,
+                 where: str = "simulation config") -> None:
+        cfg = dict(config)
+        unknown = sorted(set(cfg) - _TOP_KEYS)
+        if unknown:
+            raise SimConfigError(f"{where}: unknown top-level key(s) {unknown}; allowed: {sorted(_TOP_KEYS)}")
+        self.robot = robot
+        self.where = where
+        self.config = copy.deepcopy(cfg)
+        self.seed = int(seed if seed is not None else cfg.get("seed", 0))
+        rng = np.random.default_rng(self.seed)
+        self.convention = robot.convention
+        # --- stiffness (true joint stiffness of the "declared" model)
+        st = _table(where, cfg, "stiffness", {"scale"})
+        self.k_true = robot.stiffness * _vec(f"{where}: [stiffness]", "scale", st.get("scale", 1.0), 6)
+        # --- registration and measured point
+        reg = _table(where, cfg, "registration", {"registered", "base2meas_xyz_m", "base2meas_rotvec_rad",
+                                                  "measured_point_m"})
+        self.registered = bool(reg.get("registered", False))
+        if self.registered:
+            self.R_reg, self.t_reg = np.eye(3), np.zeros(3)
+            self.p_tool = robot.flange2tcp[:3, 3].copy()
+        else:
+            self.R_reg = rotvec_to_matrix(_vec(where, "base2meas_rotvec_rad",
+                                               reg.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False))
+            self.t_reg = _vec(where, "base2meas_xyz_m", reg.get("base2meas_xyz_m", [1.5, -0.5, 0.2]), 3, False)
+            self.p_tool = _vec(where, "measured_point_m", reg.get("measured_point_m", [0.02, -0.015, 0.06]),
+                               3, False)
+        # --- effects
+        eff = cfg.get("effects", {})
+        if not isinstance(eff, Mapping):
+            raise SimConfigError(f"{where}: 'effects' must be a table of [effects.NAME] tables")
+        unknown = sorted(set(eff) - set(SIM_EFFECTS))
+        if unknown:
+            raise SimConfigError(f"{where}: unknown effect(s) {unknown}; known: {list(SIM_EFFECTS)}")
+        self.effects: dict[str, dict[str, Any]] = {}
+        for name, t in eff.items():
+            if not isinstance(t, Mapping):
+                raise SimConfigError(f"{where}: [effects.{name}] must be a table")
+            bad = sorted(set(t) - _EFFECT_KEYS[name])
+            if bad:
+                raise SimConfigError(f"{where}: [effects.{name}]: unknown key(s) {bad}; "
+                                     f"allowed: {sorted(_EFFECT_KEYS[name])}")
+            self.effects[name] = dict(t)
+        self._realise(rng)
+
+    # ------------------------------------------------------------------ realisation
+    def _realise(self, rng: np.random.Generator) -> None:
+        r, w = self.robot, self.where
+        self.da = np.zeros(6)
+        self.dalpha = np.zeros(6)
+        self.dd = np.zeros(6)
+        self.dtheta = np.zeros(6)
+        self.dbeta = np.zeros(6)
+        if "joint_offset" in self.effects:
+            e = self.effects["joint_offset"]
+            self.dtheta += _vec(f"{w}: [effects.joint_offset]", "dtheta_rad", e.get("dtheta_rad", 1e-3), 6)
+        if "geometric" in self.effects:
+            e = self.effects["geometric"]
+            ew = f"{w}: [effects.geometric]"
+            sl = _num(ew, "sigma_length_m", e.get("sigma_length_m", 5e-4))
+            sa = _num(ew, "sigma_angle_rad", e.get("sigma_angle_rad", 1e-3))
+            self.da += _vec(ew, "da_m", e["da_m"], 6) if "da_m" in e else rng.normal(0, sl, 6)
+            self.dd += _vec(ew, "dd_m", e["dd_m"], 6) if "dd_m" in e else rng.normal(0, sl, 6)
+            self.dalpha += _vec(ew, "dalpha_rad", e["dalpha_rad"], 6) if "dalpha_rad" in e else rng.normal(0, sa, 6)
+            self.dtheta += _vec(ew, "dtheta_rad", e["dtheta_rad"], 6) if "dtheta_rad" in e else rng.normal(0, sa, 6)
+            par = np.abs(np.sin(r.alpha)) < 1e-6
+            par[5] = False
+            beta = _vec(ew, "dbeta_rad", e["dbeta_rad"], 6) if "dbeta_rad" in e else rng.normal(0, sa, 6)
+            self.dbeta += np.where(par, beta, 0.0)
+        # gravity: link masses and COMs (robot file, overrides, or a generic set)
+        self.masses = np.zeros(6)
+        self.coms = np.zeros((6, 3))
+        if "gravity" in self.effects:
+            e = self.effects["gravity"]
+            ew = f"{w}: [effects.gravity]"
+            if "masses_kg" in e:
+                self.masses = _vec(ew, "masses_kg", e["masses_kg"], 6)
+            elif r.has_masses:
+                self.masses = r.masses.copy()
+            else:
+                self.masses = 12.0 * np.hypot(r.a, r.d) + 0.5   # generic: 12 kg/m plus 0.5 kg per joint
+            if "coms_m" in e:
+                c = e["coms_m"]
+                if not isinstance(c, list) or len(c) != 6:
+                    raise SimConfigError(f"{ew}: key 'coms_m' must be a list of 6 [x, y, z] lists")
+                self.coms = np.array([_vec(ew, f"coms_m[{i}]", ci, 3, False) for i, ci in enumerate(c)])
+            elif r.has_masses:
+                self.coms = r.coms.copy()
+            else:   # generic: half way back along the link (in link frame i, standard DH: -a/2 on x)
+                self.coms = np.column_stack([-r.a / 2.0, np.zeros(6), np.zeros(6)])
+            self.masses = self.masses * _num(ew, "mass_scale", e.get("mass_scale", 1.0))
+            self.payload = _num(ew, "payload_kg", e.get("payload_kg", 0.0))
+            self.payload_com = _vec(ew, "payload_com_m", e.get("payload_com_m", [0.0, 0.0, 0.05]), 3, False)
+        else:
+            self.payload, self.payload_com = 0.0, np.zeros(3)
+        if "lost_motion" in self.effects:
+            e = self.effects["lost_motion"]
+            self.backlash = _vec(f"{w}: [effects.lost_motion]", "backlash_rad", e.get("backlash_rad", 2e-4), 6)
+            self.backlash_smoothing = _num(w, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
+        if "stiffness_hardening" in self.effects:
+            e = self.effects["stiffness_hardening"]
+            ew = f"{w}: [effects.stiffness_hardening]"
+            self.hard_model = e.get("model", "two_slope")
+            if self.hard_model not in ("two_slope", "smooth"):
+                raise SimConfigError(f"{ew}: key 'model' must be 'two_slope' or 'smooth', got {self.hard_model!r}")
+            self.knee = _vec(ew, "knee_torque_Nm", e.get("knee_torque_Nm", 20.0), 6)
+            self.hard_ratio = _vec(ew, "stiffness_ratio", e.get("stiffness_ratio", 2.0), 6)
+            self.hard_beta = _vec(ew, "beta_per_Nm", e.get("beta_per_Nm", 0.01), 6)
+        self.r_tool = (_vec(w, "r_tool_m", self.effects["load_offset"].get("r_tool_m", [0.0, 0.03, 0.05]), 3, False)
+                       if "load_offset" in self.effects else np.zeros(3))
+        if "link_compliance" in self.effects:
+            e = self.effects["link_compliance"]
+            ew = f"{w}: [effects.link_compliance]"
+            links = e.get("links", [2, 3])
+            if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
+                raise SimConfigError(f"{ew}: key 'links' must be a list of joint numbers 1..6, got {links!r}")
+            self.beam_links = [x - 1 for x in links]
+            self.EI = _vec(ew, "EI_Nm2", e.get("EI_Nm2", 2.0e5), len(links))
+            self.GJ = _vec(ew, "GJ_Nm2", e.get("GJ_Nm2", 1.5e5), len(links))
+        if "drift" in self.effects:
+            e = self.effects["drift"]
+            self.drift_rate = _vec(w, "rate_m_per_h", e.get("rate_m_per_h", [1e-4, -5e-5, 8e-5]), 3, False) / 3600.0
+            self.drift_acc = _vec(w, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3, False) / 3600.0 ** 2
+        if "thermal" in self.effects:
+            e = self.effects["thermal"]
+            ew = f"{w}: [effects.thermal]"
+            self.th_alpha = _num(ew, "alpha_per_K", e.get("alpha_per_K", 2.3e-5))
+            links = e.get("links", [2, 3])
+            if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
+                raise SimConfigError(f"{ew}: key 'links' must be a list of joint numbers 1..6, got {links!r}")
+            self.th_links = [x - 1 for x in links]
+            self.th_ref = _num(ew, "reference_C", e.get("reference_C", 20.0))
+        if "eccentricity" in self.effects:
+            e = self.effects["eccentricity"]
+            ew = f"{w}: [effects.eccentricity]"
+            j = e.get("joint", 1)
+            if not isinstance(j, int) or not 1 <= j <= 6:
+                raise SimConfigError(f"{ew}: key 'joint' must be a joint number 1..6, got {j!r}")
+            self.ecc_joint = j - 1
+            self.ecc_amp = _num(ew, "amplitude_rad", e.get("amplitude_rad", 1e-3))
+            self.ecc_harm = _num(ew, "harmonic", e.get("harmonic", 2))
+            self.ecc_phase = _num(ew, "phase_rad", e.get("phase_rad", 0.3))
+
+    # ------------------------------------------------------------------ physics
+    def _geometry(self, temperature: np.ndarray) -> _Geometry:
+        r = self.robot
+        n = len(temperature)
+        a = np.tile(r.a + self.da, (n, 1))
+        d = np.tile(r.d + self.dd, (n, 1))
+        if "thermal" in self.effects:
+            s = 1.0 + self.th_alpha * (temperature - self.th_ref)
+            for i in self.th_links:
+                a[:, i] *= s
+                d[:, i] *= s
+        return _Geometry(a=a, alpha=np.tile(r.alpha + self.dalpha, (n, 1)), d=d,
+                         toff=np.tile(r.theta_offset + self.dtheta, (n, 1)),
+                         beta=np.tile(self.dbeta, (n, 1)))
+
+    def _tool(self) -> np.ndarray:
+        return self.robot.flange2tcp
+
+    def _torques(self, q: np.ndarray, F: np.ndarray, geo: _Geometry) -> np.ndarray:
+        fr = _frames(q, geo, self.convention)
+        z, p = _axes(fr, self.convention)
+        tcp = fr[:, 5] @ self._tool()
+        f, m = F[:, :3], F[:, 3:]
+        point = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
+        tau = _tau_point(z, p, point, f, m)
+        if "gravity" in self.effects:
+            g = self.robot.gravity
+            for j in range(6):
+                c = fr[:, j, :3, 3] + np.einsum("nij,j->ni", fr[:, j, :3, :3], self.coms[j])
+                tau += _tau_point(z, p, c, np.broadcast_to(self.masses[j] * g, c.shape), np.zeros_like(c)) \
+                    * (np.arange(6) <= j)[None, :]
+            if self.payload > 0:
+                c = fr[:, 5, :3, 3] + np.einsum("nij,j->ni", fr[:, 5, :3, :3], self.payload_com)
+                tau += _tau_point(z, p, c, np.broadcast_to(self.payload * g, c.shape), np.zeros_like(c))
+        return tau
+
+    def _deflection(self, tau: np.ndarray) -> np.ndarray:
+        k = self.k_true
+        if "stiffness_hardening" in self.effects:
+            if self.hard_model == "two_slope":
+                a = np.abs(tau)
+                lo = np.minimum(a, self.knee) / k
+                hi = np.maximum(a - self.knee, 0.0) / (k * self.hard_ratio)
+                dq = np.sign(tau) * (lo + hi)
+            else:
+                dq = tau / (k * (1.0 + self.hard_beta * np.abs(tau)))
+        else:
+            dq = tau / k
+        if "lost_motion" in self.effects:
+            if self.backlash_smoothing > 0:
+                dq = dq + self.backlash * np.tanh(tau / self.backlash_smoothing)
+            else:
+                dq = dq + self.backlash * np.sign(tau)
+        return dq
+
+    def equilibrium(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None) -> np.ndarray:
+        """Deflected joint angles ``q = q_c + dq(q)`` (rad), shape (N, 6).
+
+        Kinematic errors outside the compliance (eccentricity) are added to ``q``.
+        """
+        q_c = np.atleast_2d(q_c)
+        n = len(q_c)
+        F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
+        T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
+        geo = self._geometry(T)
+        q = q_c.copy()
+        for _ in range(SIM_EQUILIBRIUM_MAX_ITER):
+            q_new = q_c + self._deflection(self._torques(q, F, geo))
+            step = np.max(np.abs(q_new - q))
+            q = q_new
+            if step < SIM_EQUILIBRIUM_TOL:
+                break
+        if "eccentricity" in self.effects:
+            j = self.ecc_joint
+            q = q.copy()
+            q[:, j] += self.ecc_amp * np.sin(self.ecc_harm * q_c[:, j] + self.ecc_phase)
+        return q
+
+    def _beam_displacement(self, fr: np.ndarray, F: np.ndarray, point: np.ndarray) -> np.ndarray:
+        _z, p = _axes(fr, self.convention)
+        tcp = fr[:, 5] @ self._tool()
+        p_app = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
+        f, m = F[:, :3], F[:, 3:]
+        dp = np.zeros_like(point)
+        for k, i in enumerate(self.beam_links):
+            base = p[:, i]
+            tip = p[:, i + 1] if i < 5 else fr[:, 5, :3, 3]
+            seg = tip - base
+            L = np.linalg.norm(seg, axis=1, keepdims=True)
+            e = seg / L
+            m_tip = m + np.cross(p_app - tip, f)
+            f_perp = f - np.sum(f * e, axis=1, keepdims=True) * e
+            m_ax = np.sum(m_tip * e, axis=1, keepdims=True) * e
+            m_perp = m_tip - m_ax
+            EI, GJ = self.EI[k], self.GJ[k]
+            delta = f_perp * L ** 3 / (3 * EI) + np.cross(m_perp, e) * L ** 2 / (2 * EI)
+            phi = np.cross(e, f_perp) * L ** 2 / (2 * EI) + m_perp * L / EI + m_ax * L / GJ
+            dp += delta + np.cross(phi, point - tip)
+        return dp
+
+    def positions(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None,
+                  point: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """True position of a flange point and the TCP pose, base frame.
+
+        Returns
+        -------
+        p_point : ndarray, shape (N, 3)
+            Position of ``point`` (flange frame, m; default the measured point), m.
+        base2tcp : ndarray, shape (N, 4, 4)
+            TCP frame of the deflected arm (link compliance applied to the position).
+        """
+        q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
+        n = len(q_c)
+        F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
+        T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
+        q = self.equilibrium(q_c, F, T)
+        fr = _frames(q, self._geometry(T), self.convention)
+        pt = self.p_tool if point is None else np.asarray(point, dtype=float)
+        p_point = fr[:, 5, :3, 3] + np.einsum("nij,j->ni", fr[:, 5, :3, :3], pt)
+        tcp = fr[:, 5] @ self._tool()
+        if "link_compliance" in self.effects:
+            p_point = p_point + self._beam_displacement(fr, F, p_point)
+            tcp = tcp.copy()
+            tcp[:, :3, 3] += self._beam_displacement(fr, F, tcp[:, :3, 3].copy())
+        return p_point, tcp
+
+    def measure(self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None = None,
+                temperature: np.ndarray | None = None) -> np.ndarray:
+        """Noise-free measurement of the measured point, measurement frame, m, (N, 3)."""
+        p, _tcp = self.positions(q_c, F, temperature)
+        pm = p @ self.R_reg.T + self.t_reg
+        if "drift" in self.effects and t is not None:
+            tt = np.asarray(t, dtype=float)[:, None]
+            pm = pm + self.drift_rate * tt + self.drift_acc * tt ** 2
+        return pm
+
+    def tcp_error(self, q_command: np.ndarray, F: np.ndarray, base2target: np.ndarray,
+                  temperature: np.ndarray | None = None) -> np.ndarray:
+        """True TCP position minus target position, base frame, m, shape (N, 3)."""
+        _p, tcp = self.positions(q_command, F, temperature)
+        return tcp[:, :3, 3] - base2target[:, :3, 3]
+
+    # ------------------------------------------------------------------ campaign
+    def sample_poses(self, n: int, rng: np.random.Generator, r_min: float = 0.25,
+                     z_min: float = -0.2, max_cond: float = SIM_MAX_JACOBIAN_COND) -> np.ndarray:
+        """Random joint configurations with the TCP in a sensible workspace, (n, 6) rad.
+
+        Joints are drawn uniformly in [-pi, pi] (within the limits); a pose is kept when
+        the flange is at least ``r_min`` from the base axis, above ``z_min``, and the
+        nominal Jacobian condition number is below :data:`SIM_MAX_JACOBIAN_COND`.
+        """
+        from models.symbolic import KinematicModel
+        km = KinematicModel(self.robot)
+        fk = km.kinetostatics
+        lo = np.maximum(self.robot.q_min, -np.pi)
+        hi = np.minimum(self.robot.q_max, np.pi)
+        kept: list[np.ndarray] = []
+        total = 0
+        while sum(len(k) for k in kept) < n:
+            m = max(n * SIM_POSE_OVERSAMPLING, 200)
+            q = rng.uniform(lo, hi, (m, 6))
+            p, _R, J, _C = fk.map(m, "thread", 2)(q.T)
+            p = np.asarray(p).T
+            J = np.asarray(J).reshape(6, m, 6).transpose(1, 0, 2)
+            ok = (np.hypot(p[:, 0], p[:, 1]) >= r_min) & (p[:, 2] >= z_min)
+            ok &= np.linalg.cond(J) < max_cond
+            q = q[ok]
+            kept.append(q)
+            total += m
+            if total > 200 * max(n, 10) * SIM_POSE_OVERSAMPLING:
+                raise SimConfigError(f"{self.where}: cannot find {n} poses in the workspace "
+                                     f"(r >= {r_min} m, z >= {z_min} m); relax r_min_m/z_min_m")
+        return np.vstack(kept)[:n]
+
+    def campaign(self, progress: Callable[[int, int], None] | None = None,
+                 seed: int | None = None) -> Measurements:
+        """Simulate the measurement campaign of the configuration.
+
+        ``seed`` overrides the seed of the campaign's random parts (poses, loads,
+        noise, outliers) -- a second campaign of the same robot (held-out data) --
+        while the robot's realised parameters stay those of the configuration's seed.
+
+        Returns
+        -------
+        Measurements
+            Rows in measurement order, with ``point``, ``t`` and (if configured)
+            ``temperature`` and ``sigma``; positions in the measurement frame.
+            :attr:`outlier_rows` holds the indices of the rows given gross errors.
+        """
+        rng = np.random.default_rng(self.seed + 1 if seed is None else seed)
+        w = self.where
+        camp = {**DEFAULT_CAMPAIGN, **_table(w, self.config, "campaign", set(DEFAULT_CAMPAIGN))}
+        cw = f"{w}: [campaign]"
+        n_poses = int(_num(cw, "poses", camp["poses"]))
+        if n_poses < 1:
+            raise SimConfigError(f"{cw}: key 'poses' must be >= 1, got {n_poses}")
+        n_un = int(_num(cw, "unloaded_rows", camp["unloaded_rows"]))
+        n_ld = int(_num(cw, "loaded_rows", camp["loaded_rows"]))
+        n_rep = int(_num(cw, "repeats", camp["repeats"]))
+        mags = np.atleast_1d(np.asarray(camp["force_magnitudes_N"], dtype=float))
+        mmags = np.atleast_1d(np.asarray(camp["moment_magnitudes_Nm"], dtype=float))
+        dirs = camp["directions"]
+        if dirs not in ("random", "axes", "down"):
+            raise SimConfigError(f"{cw}: key 'directions' must be 'random', 'axes' or 'down', got {dirs!r}")
+        q_poses = self.sample_poses(n_poses, rng, _num(cw, "r_min_m", camp["r_min_m"]),
+                                    _num(cw, "z_min_m", camp["z_min_m"]))
+        qs, Fs, pts = [], [], []
+        for k in range(n_poses):
+            rows_F = [np.zeros(6)] * n_un
+            for _ in range(n_ld):
+                mag = rng.choice(mags)
+                if dirs == "random":
+                    u = rng.normal(size=3)
+                    u /= np.linalg.norm(u)
+                elif dirs == "axes":
+                    u = np.zeros(3)
+                    u[rng.integers(3)] = rng.choice([-1.0, 1.0])
+                else:
+                    u = np.array([0.0, 0.0, -1.0])
+                mm = rng.choice(mmags)
+                v = rng.normal(size=3)
+                v /= np.linalg.norm(v)
+                rows_F.append(np.concatenate([mag * u, mm * v]))
+            rows_F = rows_F + [rows_F[i % len(rows_F)] for i in range(n_rep)]
+            for Fk in rows_F:
+                qs.append(q_poses[k])
+                Fs.append(Fk)
+                pts.append(f"P{k + 1:04d}")
+        q = np.array(qs)
+        F = np.array(Fs)
+        n = len(q)
+        dt = _num(cw, "dt_s", camp["dt_s"])
+        t = np.arange(n) * dt
+        tcfg = _table(w, self.config, "temperature", {"start_C", "end_C", "time_constant_s", "noise_C"})
+        temperature = None
+        if tcfg:
+            tw = f"{w}: [temperature]"
+            t0 = _num(tw, "start_C", tcfg.get("start_C", 20.0))
+            t1 = _num(tw, "end_C", tcfg.get("end_C", t0))
+            tau = _num(tw, "time_constant_s", tcfg.get("time_constant_s", max(t[-1], 1.0) / 2))
+            temperature = t0 + (t1 - t0) * (1 - np.exp(-t / tau))
+            temperature = temperature + rng.normal(0, _num(tw, "noise_C", tcfg.get("noise_C", 0.0)), n)
+        p = self.measure(q, F, t, temperature)
+        ncfg = _table(w, self.config, "noise", {"sigma_m", "sigma_column"})
+        sigma = _num(f"{w}: [noise]", "sigma_m", ncfg.get("sigma_m", 2e-5))
+        p = p + rng.normal(0, sigma, p.shape)
+        self.outlier_rows = np.zeros(0, dtype=int)
+        if "outliers" in self.effects:
+            e = self.effects["outliers"]
+            frac = _num(f"{w}: [effects.outliers]", "fraction", e.get("fraction", 0.03))
+            mag = _num(f"{w}: [effects.outliers]", "magnitude_m", e.get("magnitude_m", 2e-3))
+            k = max(1, round(frac * n))
+            idx = np.sort(rng.choice(n, size=k, replace=False))
+            u = rng.normal(size=(k, 3))
+            u /= np.linalg.norm(u, axis=1, keepdims=True)
+            p[idx] += u * mag * rng.uniform(1.0, 2.0, (k, 1))
+            self.outlier_rows = idx
+        sig_col = np.full(n, sigma) if ncfg.get("sigma_column", False) else None
+        if progress is not None:
+            progress(n, n)
+        return Measurements(q=q, wrench=F, p=p, t=t, point=np.array(pts), temperature=temperature,
+                            sigma=sig_col, source="virtual robot")
+
+    # ------------------------------------------------------------------ truth
+    def truth(self) -> dict[str, Any]:
+        """Every realised parameter (SI), TOML-serialisable; rebuild with :func:`from_truth`."""
+        out: dict[str, Any] = {
+            "robot": self.robot.to_dict(), "config": self.config, "seed": self.seed,
+            "realised": {
+                "stiffness_Nm_per_rad": self.k_true.tolist(),
+                "base2meas_rotvec_rad": matrix_to_rotvec(self.R_reg).tolist(),
+                "base2meas_xyz_m": self.t_reg.tolist(),
+                "measured_point_m": self.p_tool.tolist(),
+                "da_m": self.da.tolist(), "dalpha_rad": self.dalpha.tolist(), "dd_m": self.dd.tolist(),
+                "dtheta_rad": self.dtheta.tolist(), "dbeta_rad": self.dbeta.tolist(),
+                "effects": sorted(self.effects),
+            },
+        }
+        if getattr(self, "outlier_rows", None) is not None:
+            out["realised"]["outlier_rows"] = [int(i) for i in self.outlier_rows]
+        return out
+
+
+def from_truth(truth: Mapping[str, Any]) -> VirtualRobot:
+    """Rebuild a :class:`VirtualRobot` from :meth:`VirtualRobot.truth`."""
+    from models.robot import robot_from_dict
+    try:
+        robot = robot_from_dict(truth["robot"], "truth: robot")
+        return VirtualRobot(robot, truth["config"], seed=int(truth["seed"]), where="truth: config")
+    except KeyError as exc:
+        raise SimConfigError(f"truth: missing key {exc}") from None
+
+
+def load_truth(path: str | Path) -> VirtualRobot:
+    """Load a truth file written by ``compplan simulate``."""
+    p = Path(path)
+    if not p.is_file():
+        raise SimConfigError(f"{p}: no such truth file")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise SimConfigError(f"{p}: not valid TOML: {exc}") from None
+    return from_truth(data)
+
+
+def simulator(robot: str | Robot, config: Mapping[str, Any], seed: int | None = None,
+              where: str = "simulation config") -> VirtualRobot:
+    """Convenience: a :class:`VirtualRobot` from a robot name/file and a config mapping."""
+    r = robot if isinstance(robot, Robot) else load_robot(robot)
+    return VirtualRobot(r, config, seed=seed, where=where)
+
+
+__all__ = [
+    "OUT_OF_LIBRARY",
+    "SIM_EFFECTS",
+    "SimConfigError",
+    "VirtualRobot",
+    "from_truth",
+    "load_config",
+    "load_truth",
+    "matrix_to_rotvec",
+    "rotvec_to_matrix",
+    "simulator",
+]
