@@ -13,7 +13,7 @@ from models.ik import BRANCH_LABELS
 from models.robot import robot_from_dict
 from models.transforms import rotation_angle
 
-from .conftest import ROBOTS, get_model
+from .conftest import ROBOTS, as_modified_dh, get_model
 
 N_RANDOM = 10_000
 #: Two configurations are "the same" when every wrapped joint difference is below this (rad).
@@ -126,16 +126,8 @@ def test_nearest_branch_helper_and_joint_limits():
 
 
 def test_modified_dh_ik_and_non_ur_structure():
-    r = load_robot("ur5")
-    d = r.to_dict()
-    rows = d["joints"]
-    mdh = []
-    for i in range(6):
-        row = dict(rows[i])
-        row["a"] = rows[i - 1]["a"] if i > 0 else 0.0
-        row["alpha"] = rows[i - 1]["alpha"] if i > 0 else 0.0
-        mdh.append(row)
-    rm = robot_from_dict({**d, "convention": "modified_dh", "joints": mdh})
+    d = load_robot("ur5").to_dict()
+    rm = robot_from_dict(as_modified_dh(d))
     km, ik = KinematicModel(rm), AnalyticIK(rm)
     q = np.random.default_rng(2).uniform(-np.pi, np.pi, (500, 6))
     T = km.tcp(q)

@@ -35,6 +35,7 @@ def test_installed_package_has_every_module_and_data_file(tmp_path):
         "from models import BUILTIN_ROBOTS, load_robot\n"
         "[load_robot(r) for r in BUILTIN_ROBOTS]\n"
         "names = [p.name for p in resources.files('problems').joinpath('files').iterdir()]\n"
+        "names += [p.name for p in resources.files('problems').joinpath('files/sim').iterdir()]\n"
         "print(sorted(names))\n"
     )
     r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=CLEAN_ENV,

@@ -13,7 +13,7 @@ from models.robot import robot_from_dict
 from models.symbolic import cartesian_stiffness, directional_stiffness
 from models.transforms import rot_x, rot_z, transform
 
-from .conftest import ROBOTS, get_model
+from .conftest import ROBOTS, as_modified_dh, get_model
 
 #: FK and Jacobian agreement with pinocchio (m, rad, dimensionless).
 PIN_TOL = 1e-12
@@ -145,16 +145,7 @@ def test_batch_compiled_equals_casadi_vm(rng):
 def test_modified_dh_equals_standard_dh(rng):
     """The same UR5 written in modified DH gives the same flange pose (conversion documented)."""
     r = load_robot("ur5")
-    d = r.to_dict()
-    rows = d["joints"]
-    mdh = []
-    for i in range(6):
-        row = dict(rows[i])
-        row["a"] = rows[i - 1]["a"] if i > 0 else 0.0
-        row["alpha"] = rows[i - 1]["alpha"] if i > 0 else 0.0
-        mdh.append(row)
-    d2 = {**d, "convention": "modified_dh", "joints": mdh}
-    rm = robot_from_dict(d2)
+    rm = robot_from_dict(as_modified_dh(r.to_dict()))
     km_s, km_m = KinematicModel(r), KinematicModel(rm)
     q = rng.uniform(-np.pi, np.pi, (100, 6))
     assert np.allclose(km_s.tcp(q), km_m.tcp(q), atol=1e-12)
