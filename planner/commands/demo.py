@@ -10,7 +10,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     d.add_argument("--out", required=True, help="output folder")
     d.add_argument("--robot", default=None, help="built-in robot name or robot file (default: the problem's, ar5)")
     d.add_argument("--points", type=int, default=None, help="number of waypoints (default: the problem's, 40)")
-    d.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png")
+    d.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png (written only with --no-report; "
+                   "the report has the same figures)")
     d.add_argument("--no-report", action="store_true",
                    help="skip the report (report.html, report.md, figures/) written at the end")
     d.set_defaults(func=run)
@@ -26,8 +27,11 @@ def run(args: argparse.Namespace) -> int:
     problem = demo_problem(args.robot, args.points)
     check_output_folder(args.out)
     res = plan(problem, verbose=args.verbose).raise_for_status()
-    write_outputs(res, args.out, with_figures=not args.no_figures)
-    print_plan(res, args.out, output_names(res, not args.no_figures))
+    # The report draws the same figures (5 and 6) and more: the quick PNGs are only
+    # worth their time when no report is written.
+    quick_figures = args.no_report and not args.no_figures
+    write_outputs(res, args.out, with_figures=quick_figures)
+    print_plan(res, args.out, output_names(res, quick_figures))
     if not args.no_report:
         from planner.commands.report import write_run_report
         write_run_report(args.out)

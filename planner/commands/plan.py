@@ -31,7 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="controller period in s (default: the problem's timing.dt, else 0.008)")
     p.add_argument("--no-optimise", action="store_true",
                    help="branch choice only: analytic postures, no NLP")
-    p.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png")
+    p.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png (written only with --no-report; "
+                   "the report has the same figures)")
     p.add_argument("--no-report", action="store_true",
                    help="skip the report (report.html, report.md, figures/) written at the end")
     p.set_defaults(func=run)
@@ -98,8 +99,11 @@ def run(args: argparse.Namespace) -> int:
     check_output_folder(args.out)
     res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise)
     res.raise_for_status()
-    write_outputs(res, args.out, with_figures=not args.no_figures)
-    print_plan(res, args.out, output_names(res, not args.no_figures))
+    # The report draws the same figures (5 and 6) and more: the quick PNGs are only
+    # worth their time when no report is written.
+    quick_figures = args.no_report and not args.no_figures
+    write_outputs(res, args.out, with_figures=quick_figures)
+    print_plan(res, args.out, output_names(res, quick_figures))
     if not args.no_report:
         from planner.commands.report import write_run_report
         write_run_report(args.out)
