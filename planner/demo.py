@@ -31,8 +31,7 @@ __all__ = ["DEMO_PROBLEM", "DemoResult", "WAYPOINT_COLUMNS", "demo_problem", "er
 
 def error_stats(res: Any) -> dict[str, float]:
     """Max and RMS of the Euclidean TCP position error of a CompensationResult, mm."""
-    e = res.error_norm_m * 1e3
-    return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e ** 2)))}
+    return res.stats_mm()
 
 
 def demo_problem(robot: Robot | str | None = None, n_points: int | None = None) -> Problem:

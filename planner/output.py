@@ -21,6 +21,11 @@ import numpy as np
 from models.errors import InputError
 
 
+#: Columns of ``trajectory*.csv`` (SI): time, positions, velocities, accelerations.
+TRAJECTORY_COLUMNS = (["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)]
+                      + [f"qdd{i}" for i in range(1, 7)])
+
+
 def _jsonable(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {str(k): _jsonable(v) for k, v in obj.items()}

@@ -47,6 +47,7 @@ from problems.compensation import (CompensationResult, CompensationStatus, close
 from problems.posture import (BranchResult, PostureResult, PostureStatus, optimise_postures)
 from problems.problem import Problem
 
+from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
 from planner.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
 
@@ -60,8 +61,7 @@ WAYPOINT_COLUMNS = (["k", "s", "x", "y", "z"]
 #: Columns of ``path.csv``.
 PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
 #: Columns of ``trajectory*.csv``.
-TRAJECTORY_COLUMNS = (["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)]
-                      + [f"qdd{i}" for i in range(1, 7)])
+TRAJECTORY_COLUMNS = OUTPUT_TRAJECTORY_COLUMNS
 #: The method whose trajectory the controller runs (``trajectory.csv``), in order of preference.
 CONTROLLER_METHODS = ("ruckig", "toppra")
 #: Limits each timing method enforces.
@@ -237,8 +237,9 @@ class PlanResult:
                     "chosen optimised posture; vs_best_analytic = best branch at its analytic posture "
                     "over the chosen optimised posture (what the continuous freedom buys)")}
         if self.exact is not None:
-            s["error_before"] = _error_stats(self.before)
-            s["error_after"] = {"closed_form": _error_stats(self.closed), "exact": _error_stats(self.exact)}
+            assert self.before is not None and self.closed is not None
+            s["error_before"] = self.before.stats_mm()
+            s["error_after"] = {"closed_form": self.closed.stats_mm(), "exact": self.exact.stats_mm()}
             s["exact_residual_max_m"] = float(self.exact.error_norm_m.max())
             s["status"] = {"closed_form": self.closed.status.value, "exact": self.exact.status.value}
             s["warnings"] += list(self.closed.warnings)
@@ -264,13 +265,6 @@ def _branch_entry(r: BranchResult) -> dict[str, Any]:
             "solve_time_s": r.solve_time_s, "warm_start": r.warm_offset, "reason": r.reason,
             "active_singularity_guards": (", ".join(f"{k}: {v} waypoint(s)" for k, v in r.active_guards.items())
                                           or "none")}
-
-
-def _error_stats(res: CompensationResult | None) -> dict[str, float]:
-    """Max and RMS of the Euclidean TCP position error, mm."""
-    assert res is not None
-    e = res.error_norm_m * 1e3
-    return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e ** 2)))}
 
 
 def _within(tr: Trajectory, keys: tuple[str, ...]) -> bool:

@@ -49,7 +49,7 @@ from models.ik import BRANCH_LABELS
 
 from planner import figures as F
 from planner.compliance_map import ComplianceMap, ProgressFn, compliance_map
-from planner.output import OutputSet, json_bytes
+from planner.output import TRAJECTORY_COLUMNS, OutputSet, json_bytes
 
 #: File names of the figures, in report order.
 FIGURE_NAMES = ("fig1_compliance_map", "fig2_stiffness_error", "fig3_compensation_angles",
@@ -206,9 +206,7 @@ def load_run(folder: str | Path) -> Run:
         p = folder / name
         if p.is_file():
             cols = _read_csv(p)
-            names = (["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)]
-                     + [f"qdd{i}" for i in range(1, 7)])
-            arr = _require(p, cols, names)
+            arr = _require(p, cols, TRAJECTORY_COLUMNS)
             if len(arr) == 0:
                 run.absent[f"trajectory {method}"] = f"{name} has no samples"
                 continue
@@ -453,6 +451,16 @@ class FigureItem:
     cache_key: str | None = None
 
 
+def _xyz(wp: Mapping[str, np.ndarray], prefix: str) -> np.ndarray:
+    """Columns ``<prefix>x, <prefix>y, <prefix>z`` of waypoints.csv as an (N, 3) array."""
+    return np.column_stack([wp[f"{prefix}{a}"] for a in "xyz"])
+
+
+def _joints(wp: Mapping[str, np.ndarray], prefix: str) -> np.ndarray:
+    """Columns ``<prefix>1 .. <prefix>6`` of waypoints.csv as an (N, 6) array."""
+    return np.column_stack([wp[f"{prefix}{i}"] for i in range(1, 7)])
+
+
 def _job(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> tuple[Callable[..., Any], tuple, dict]:
     return fn, args, kwargs
 
@@ -671,8 +679,8 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
     if wp is None:
         item.absent = n_absent
     else:
-        K = np.column_stack([wp["kx"], wp["ky"], wp["kz"]])
-        E = np.column_stack([wp["ebx"], wp["eby"], wp["ebz"]])
+        K = _xyz(wp, "k")
+        E = _xyz(wp, "eb")
         item.job = _job(F.stiffness_error_figure, k, K, E, title=f"{robot_name}, branch {branch}, {load}")
     items.append(item)
 
@@ -683,9 +691,9 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
     if wp is None:
         item.absent = n_absent
     else:
-        qt = np.column_stack([wp[f"qt{i}"] for i in range(1, 7)])
-        qc = np.column_stack([wp[f"qc{i}"] for i in range(1, 7)])
-        qf = np.column_stack([wp[f"qf{i}"] for i in range(1, 7)])
+        qt = _joints(wp, "qt")
+        qc = _joints(wp, "qc")
+        qf = _joints(wp, "qf")
         item.job = _job(F.compensation_figure, k, qc - qt, qf - qt,
                                     title=f"{robot_name}, branch {branch}: joint compensation angles, {load}")
     items.append(item)
@@ -697,9 +705,9 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
     if wp is None:
         item.absent = n_absent
     else:
-        eb = np.column_stack([wp["ebx"], wp["eby"], wp["ebz"]])
-        ef = np.column_stack([wp["efx"], wp["efy"], wp["efz"]])
-        ee = np.column_stack([wp["eex"], wp["eey"], wp["eez"]])
+        eb = _xyz(wp, "eb")
+        ef = _xyz(wp, "ef")
+        ee = _xyz(wp, "ee")
         stats = (f"max |Δ|: before {np.linalg.norm(eb, axis=1).max() * 1e3:.4g} mm, closed form "
                  f"{np.linalg.norm(ef, axis=1).max() * 1e3:.4g} mm, exact "
                  f"{np.linalg.norm(ee, axis=1).max() * 1e3:.3g} mm")
@@ -845,7 +853,7 @@ def _polylines(model: KinematicModel, q: np.ndarray) -> np.ndarray:
 def _arm(run: Run, wp: Mapping[str, np.ndarray], wrench: np.ndarray, branch: str,
          load: str) -> tuple[Any, str]:
     model = KinematicModel(run.robot)                  # type: ignore[arg-type]
-    qt = np.column_stack([wp[f"qt{i}"] for i in range(1, 7)])
+    qt = _joints(wp, "qt")
     n = len(qt)
     idx = np.unique(np.round(np.linspace(0, n - 1, min(ARM_POSES, n))).astype(int))
     q = qt[idx]
@@ -857,12 +865,12 @@ def _arm(run: Run, wp: Mapping[str, np.ndarray], wrench: np.ndarray, branch: str
         except (ValueError, IndexError, TypeError):
             pass
     dq = model.batch(model.joint_deflection, q, np.ascontiguousarray(W))[0]  # K^-1 J^T F, rad
-    eb = np.column_stack([wp["ebx"], wp["eby"], wp["ebz"]])
+    eb = _xyz(wp, "eb")
     true_max = float(np.linalg.norm(eb, axis=1).max())
     factor = F.nice_factor(true_max)
     nominal = _polylines(model, q)
     deflected = _polylines(model, q + factor * dq)
-    path = np.column_stack([wp["x"], wp["y"], wp["z"]])
+    path = _xyz(wp, "")
     labels = [f"k = {int(wp['k'][i])}" for i in idx]
     title = (f"{run.summary.get('robot', '?')}, branch {branch}: poses along the path, "
              f"deflection exaggerated ×{factor:g}\n(true TCP deflection up to "

@@ -104,6 +104,11 @@ class CompensationResult:
         """(N,) Euclidean TCP position error, m."""
         return np.linalg.norm(self.error_m, axis=1)
 
+    def stats_mm(self) -> dict[str, float]:
+        """Max and RMS of the Euclidean TCP position error, mm (the summary.json form)."""
+        e = self.error_norm_m * 1e3
+        return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e ** 2)))}
+
 
 def linear_deflection(model: KinematicModel) -> DeflectionFn:
     """The joint-compliance deflection ``dq = K^-1 J(q)^T F`` of a model."""

@@ -10,29 +10,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     d.add_argument("--out", required=True, help="output folder")
     d.add_argument("--robot", default=None, help="built-in robot name or robot file (default: the problem's, ar5)")
     d.add_argument("--points", type=int, default=None, help="number of waypoints (default: the problem's, 40)")
-    d.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png (written only with --no-report; "
-                   "the report has the same figures)")
+    d.add_argument("--no-figures", action="store_true",
+                   help="skip branches.png and trajectory.png (written only with --no-report; "
+                        "the report has the same figures)")
     d.add_argument("--no-report", action="store_true",
                    help="skip the report (report.html, report.md, figures/) written at the end")
     d.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from planner.commands.plan import print_plan
+    from planner.commands.plan import finish_run
     from planner.demo import demo_problem
-    from planner.plan import output_names, plan, write_outputs
-
     from planner.output import check_output_folder
+    from planner.plan import plan
 
     problem = demo_problem(args.robot, args.points)
     check_output_folder(args.out)
-    res = plan(problem, verbose=args.verbose).raise_for_status()
-    # The report draws the same figures (5 and 6) and more: the quick PNGs are only
-    # worth their time when no report is written.
-    quick_figures = args.no_report and not args.no_figures
-    write_outputs(res, args.out, with_figures=quick_figures)
-    print_plan(res, args.out, output_names(res, quick_figures))
-    if not args.no_report:
-        from planner.commands.report import write_run_report
-        write_run_report(args.out)
-    return 0
+    return finish_run(plan(problem, verbose=args.verbose).raise_for_status(), args)

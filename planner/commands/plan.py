@@ -17,8 +17,10 @@ def _dt(text: str) -> float:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"--dt must be a number of seconds, got {text!r}") from None
-    if not (0.0 < v <= 0.1) or not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"--dt must be in (0, 0.1] s (e.g. 0.002, 0.004, 0.008), got {text!r}")
+    from planner.timing import DT_MAX_S
+    if not (0.0 < v <= DT_MAX_S) or not math.isfinite(v):
+        raise argparse.ArgumentTypeError(
+            f"--dt must be in (0, {DT_MAX_S:g}] s (e.g. 0.002, 0.004, 0.008), got {text!r}")
     return v
 
 
@@ -88,7 +90,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from planner.plan import output_names, plan, write_outputs
+    from planner.plan import plan
     from problems.problem import load_problem
 
     from planner.output import check_output_folder
@@ -98,7 +100,13 @@ def run(args: argparse.Namespace) -> int:
         problem = problem.with_timing(dt=args.dt)
     check_output_folder(args.out)
     res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise)
-    res.raise_for_status()
+    return finish_run(res.raise_for_status(), args)
+
+
+def finish_run(res: Any, args: argparse.Namespace) -> int:
+    """Write a successful plan's outputs, print its summary and write the report (plan, demo)."""
+    from planner.plan import output_names, write_outputs
+
     # The report draws the same figures (5 and 6) and more: the quick PNGs are only
     # worth their time when no report is written.
     quick_figures = args.no_report and not args.no_figures
