@@ -19,96 +19,37 @@ Frames and signs (see ``docs/conventions.md``):
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
 
+from . import effects as fx
 from .codegen import BatchFunction, CompileError, compile_batch
+from .effects.graph import (arm_functions, compliance_from_jacobian, geometric_jacobian, joint_axes,
+                            link_transform)
 from .robot import Robot
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .arm import ArmModel
 
 #: Threads used by batch evaluation (``Function.map(..., "thread", N)``).
 BATCH_THREADS = 2
 
 
-def link_transform(theta: Any, d: Any, a: Any, alpha: Any, convention: str) -> ca.SX:
-    """DH link transform A_i as a 4x4 CasADi expression.
-
-    ``standard_dh``: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``;
-    ``modified_dh``: ``Rx(alpha) Tx(a) Rz(theta) Tz(d)`` (a, alpha of the previous link).
-    """
-    ct, st = ca.cos(theta), ca.sin(theta)
-    ca_, sa = ca.cos(alpha), ca.sin(alpha)
-    if convention == "standard_dh":
-        return ca.vertcat(
-            ca.horzcat(ct, -st * ca_, st * sa, a * ct),
-            ca.horzcat(st, ct * ca_, -ct * sa, a * st),
-            ca.horzcat(0, sa, ca_, d),
-            ca.horzcat(0, 0, 0, 1),
-        )
-    if convention == "modified_dh":
-        return ca.vertcat(
-            ca.horzcat(ct, -st, 0, a),
-            ca.horzcat(st * ca_, ct * ca_, -sa, -sa * d),
-            ca.horzcat(st * sa, ct * sa, ca_, ca_ * d),
-            ca.horzcat(0, 0, 0, 1),
-        )
-    raise ValueError(f"unknown DH convention {convention!r}")
-
-
-def dh_chain(q: Any, a: Any, alpha: Any, d: Any, theta_offset: Any,
-             convention: str) -> list[Any]:
-    """Frames ``base2frame_i`` (i = 1..6) of a DH chain, as CasADi expressions.
-
-    All arguments are length-6 CasADi vectors (SX or MX), symbolic or numeric,
-    so that the same code serves kinematics and parameter identification.
-    """
-    frames = []
-    T = ca.SX.eye(4) if isinstance(q, ca.SX) else ca.MX.eye(4)
-    for i in range(6):
-        T = ca.mtimes(T, link_transform(q[i] + theta_offset[i], d[i], a[i], alpha[i], convention))
-        frames.append(T)
-    return frames
-
-
-def joint_axes(frames: Sequence[Any], convention: str) -> tuple[list[Any], list[Any]]:
-    """Unit axis ``z`` and a point ``p`` of each joint, base frame (3-vectors)."""
-    if convention == "standard_dh":
-        origin = [ca.DM.eye(4)] + list(frames[:-1])   # joint i turns about z_{i-1}
-    else:
-        origin = list(frames)                          # joint i turns about z_i
-    return [T[:3, 2] for T in origin], [T[:3, 3] for T in origin]
-
-
-def geometric_jacobian(frames: Sequence[Any], p_tcp: Any, convention: str) -> Any:
-    """Geometric Jacobian at point ``p_tcp`` by the vector-product method (paper eq. 10).
-
-    Column i is ``[z_i x (p_tcp - p_i); z_i]`` (base frame).
-    """
-    zs, ps = joint_axes(frames, convention)
-    cols = [ca.vertcat(ca.cross(z, p_tcp - p), z) for z, p in zip(zs, ps)]
-    return ca.horzcat(*cols)
-
-
-def compliance_from_jacobian(J: Any, kinv: Any) -> Any:
-    """``C = J diag(kinv) J^T`` built entry by entry on the upper triangle and mirrored,
-    so it is exactly symmetric and costs 21 instead of 36 dot products."""
-    n = J.shape[0]
-    entries = {}
-    for i in range(n):
-        for j in range(i, n):
-            entries[i, j] = sum(J[i, k] * kinv[k] * J[j, k] for k in range(J.shape[1]))
-    return ca.vertcat(*[ca.horzcat(*[entries[min(i, j), max(i, j)] for j in range(n)])
-                        for i in range(n)])
+# The chain, its joint axes and the Jacobian are the model graph's (one FK chain in the product).
+__all__ = ["KinematicModel", "cartesian_stiffness", "compliance_from_jacobian", "directional_stiffness",
+           "geometric_jacobian", "joint_axes", "link_transform"]
 
 
 class KinematicModel:
-    """Named CasADi functions of one robot (working data built from a description).
+    """Named CasADi functions of one arm model, parameters fixed (working data).
 
     Parameters
     ----------
-    robot : Robot
-        The description; its DH table, stiffness and tool are baked in as constants.
+    source : Robot or ArmModel
+        A description (its nominal model: DH chain and linear joint springs) or an arm
+        model (identified geometry, springs and effects); baked in as constants.
 
     Attributes
     ----------
@@ -126,32 +67,34 @@ class KinematicModel:
         ``(q (6), F (6)) -> dq (6)``, ``dq = K^-1 J^T F`` (rad).
     kinetostatics : casadi.Function
         ``q (6) -> p (3), R (3x3), J (6x6), C (6x6)`` in one pass (batch workhorse).
+    fn : dict of casadi.Function
+        All of the above plus the load functions of the model (``L``: load vector,
+        :mod:`models.load`): ``tcp_wrench(q, L) -> W``, ``joint_torques(q, L) -> tau``,
+        ``load_deflection(q, L) -> dq``, ``loaded_tcp(q, L) -> p, R``,
+        ``load_error(q, L) -> e`` (see :class:`models.arm.ArmModel`).
+
+    ``C`` and ``joint_deflection`` are those of the linear joint springs (with the model's
+    identified spring compliances); the load functions include every active effect.
     """
 
-    def __init__(self, robot: Robot) -> None:
-        self.robot = robot
-        q = ca.SX.sym("q", 6)
-        F = ca.SX.sym("F", 6)
-        frames = dh_chain(q, ca.DM(robot.a), ca.DM(robot.alpha), ca.DM(robot.d),
-                          ca.DM(robot.theta_offset), robot.convention)
-        base2tcp = ca.mtimes(frames[-1], ca.DM(robot.flange2tcp))
-        J = geometric_jacobian(frames, base2tcp[:3, 3], robot.convention)
-        kinv = ca.DM(1.0 / robot.stiffness)
-        C = compliance_from_jacobian(J, 1.0 / robot.stiffness)
-        tau = ca.mtimes(J.T, F)
-        dq = kinv * tau
-
-        names = [f"base2frame{i + 1}" for i in range(6)]
-        self.fk_frames = ca.Function("fk_frames", [q], frames, ["q"], names)
-        self.fk_tcp = ca.Function("fk_tcp", [q], [base2tcp], ["q"], ["base2tcp"])
-        self.fk_position = ca.Function("fk_position", [q], [base2tcp[:3, 3]], ["q"], ["p_tcp"])
-        self.jacobian = ca.Function("jacobian", [q], [J], ["q"], ["J"])
-        self.compliance = ca.Function("compliance", [q], [C], ["q"], ["C"])
-        self.deflection = ca.Function("deflection", [q, F], [ca.mtimes(C, F)], ["q", "F"], ["D"])
-        self.joint_deflection = ca.Function("joint_deflection", [q, F], [dq], ["q", "F"], ["dq"])
-        self.kinetostatics = ca.Function(
-            "kinetostatics", [q], [base2tcp[:3, 3], base2tcp[:3, :3], J, C],
-            ["q"], ["p_tcp", "R_tcp", "J", "C"])
+    def __init__(self, source: "Robot | ArmModel") -> None:
+        from .arm import ArmModel
+        arm = source if isinstance(source, ArmModel) else ArmModel.from_robot(source)
+        self.arm = arm
+        self.robot = arm.nominal
+        el = fx.make_layout(arm.nominal).eligible
+        dT = arm.temperature_ref - fx.THERMAL_REFERENCE_C
+        #: Every named function of the model (see :func:`models.effects.graph.arm_functions`).
+        self.fn: dict[str, ca.Function] = arm_functions(arm.nominal.convention, arm.active_effects, arm.theta,
+                                                        arm.const, el, dT)
+        self.fk_frames = self.fn["fk_frames"]
+        self.fk_tcp = self.fn["fk_tcp"]
+        self.fk_position = self.fn["fk_position"]
+        self.jacobian = self.fn["jacobian"]
+        self.compliance = self.fn["compliance"]
+        self.deflection = self.fn["deflection"]
+        self.joint_deflection = self.fn["joint_deflection"]
+        self.kinetostatics = self.fn["kinetostatics"]
         self._maps: dict[tuple[str, int], ca.Function] = {}
         self._compiled: dict[str, BatchFunction | None] = {}
 

@@ -36,7 +36,8 @@ from typing import Callable
 
 import numpy as np
 
-from models import AnalyticIK, KinematicModel, Robot
+from models import AnalyticIK, Robot
+from models.arm import ArmModel
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
 from models.ik import BRANCH_LABELS, IK_REASONS, IKStatus
@@ -226,7 +227,7 @@ def validate_map_options(plane: str, offset_m: float, u_range_m: tuple[float, fl
 
 
 
-def compliance_map(robot: Robot, *, plane: str = "x", offset_m: float = paper.SECTION_4_3_X_M,
+def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: float = paper.SECTION_4_3_X_M,
                    u_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
                    v_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
                    points: int | tuple[int, int] = DEFAULT_POINTS,
@@ -268,8 +269,11 @@ def compliance_map(robot: Robot, *, plane: str = "x", offset_m: float = paper.SE
     off, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy, b_fixed = validate_map_options(
         plane, offset_m, u_range_m, v_range_m, points, rpy_rad, branch)
 
+    from models.arm import load_arm
+    arm = load_arm(robot)           # a Robot (nominal model) or an ArmModel (identified)
+    robot = arm.nominal
     ik = AnalyticIK(robot)
-    model = KinematicModel(robot)
+    model = arm.kinematics
     u = np.linspace(u_lo, u_hi, int(nu))
     v = np.linspace(v_lo, v_hi, int(nv))
     U, V = np.meshgrid(u, v, indexing="ij")

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from models import AnalyticIK, KinematicModel
+from models import AnalyticIK
 from models.errors import InfeasibleError, UnreachableError
 from models.ik import BRANCH_LABELS
 from models.symbolic import directional_stiffness
@@ -158,7 +158,7 @@ class PlanResult:
         n = len(P)
         seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
         s = seg / seg[-1] if seg[-1] > 0 else seg
-        model = KinematicModel(self.robot)
+        model = self.problem.model.kinematics
         q = self.branch.q
         Cs = model.C(q) if n > 1 else model.C(q[0])[None]
         k = np.stack([directional_stiffness(Cs, np.eye(3)[i]) for i in range(3)], axis=1)
@@ -171,16 +171,17 @@ class PlanResult:
         waypoint at the analytic posture (NaN where the branch has none) and at the optimised
         one, from the deflected equilibrium of the joint-compliance model."""
         assert self.posture is not None
-        model = KinematicModel(self.robot)
+        arm = self.problem.model
+        L = self.problem.load.rows(self.problem.n)
         n = self.problem.n
         cols, data = ["k"], [np.arange(n, dtype=float)]
         for b in sorted(self.posture.branches):
             r = self.posture.branches[b]
             if r.q_analytic is not None:
-                ana = uncompensated(model, r.q_analytic, self.wrench).error_norm_m
+                ana = uncompensated(arm, r.q_analytic, L).error_norm_m
             else:
                 ana = np.full(n, np.nan)
-            opt = uncompensated(model, r.q, self.wrench).error_norm_m
+            opt = uncompensated(arm, r.q, L).error_norm_m
             cols += [f"{r.label}_analytic_m", f"{r.label}_optimised_m"]
             data += [ana, opt]
         return cols, np.stack(data, axis=1)
@@ -202,8 +203,11 @@ class PlanResult:
             "tcp": ("flange" if np.allclose(R, np.eye(4)) else
                     f"tool: xyz {[float(v) for v in R[:3, 3]]} m in the flange frame"),
             "orientation": pr.rule.value,
-            "wrench": {"frame": "base", "point": "TCP", "F_N": w[0, :3], "M_Nm": w[0, 3:],
+            "wrench": {"frame": pr.wrench_frame, "point": "TCP", "F_N": w[0, :3], "M_Nm": w[0, 3:],
                        "per_waypoint": bool(pr.wrench_per_waypoint)},
+            "payload": ({"mass_kg": float(pr.payload_mass_kg), "com_m_tcp_frame": pr.payload_com_m,
+                         "gravity_m_s2": pr.load.gravity} if pr.payload_mass_kg else None),
+            "model": pr.model.describe(),
             "n_waypoints": pr.n,
             "limits": {"velocity": pr.limits.velocity, "acceleration": pr.limits.acceleration,
                        "jerk": pr.limits.jerk, "max_joint_step": pr.limits.max_joint_step,
@@ -301,12 +305,13 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     robot = problem.robot
-    model = KinematicModel(robot)
+    arm = problem.model
+    model = arm.kinematics
     ik = AnalyticIK(robot)
     times["model_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    ps = optimise_postures(robot, problem.task(), problem.home_q, problem.solver, verbose,
+    ps = optimise_postures(arm, problem.task(), problem.home_q, problem.solver, verbose,
                            model=model, ik=ik, optimise=optimise)
     times["posture_s"] = time.perf_counter() - t0
     res = PlanResult(PlanStatus.OK, "", problem, ps, stage_times_s=times)
@@ -324,10 +329,10 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
 
     t0 = time.perf_counter()
     q = ps.best.q
-    F = problem.wrench
-    res.before = uncompensated(model, q, F)
-    res.closed = closed_form(model, q, F)
-    res.exact = exact(model, q, F)
+    L = problem.load.rows(problem.n)
+    res.before = uncompensated(arm, q, L)
+    res.closed = closed_form(arm, q, L)
+    res.exact = exact(arm, q, L)
     times["compensation_s"] = time.perf_counter() - t0
     if res.exact.status is not CompensationStatus.OK:
         res.status = PlanStatus.COMPENSATION_FAILED

@@ -561,7 +561,11 @@ def _map_cache_key(robot: Robot, map_options: Mapping[str, Any]) -> str:
     opts = {k: p.default for k, p in sig.parameters.items()
             if p.default is not inspect.Parameter.empty and k not in ("progress", "chunk")}
     opts.update({k: v for k, v in map_options.items() if k not in ("progress", "chunk")})
-    blob = json.dumps({"robot": robot.to_dict(), "options": opts}, sort_keys=True,
+    from models.arm import ArmModel
+    desc = (robot.nominal.to_dict() | {"theta": robot.theta, "const": robot.const,
+                                       "effects": list(robot.active_effects)}
+            if isinstance(robot, ArmModel) else robot.to_dict())
+    blob = json.dumps({"robot": desc, "options": opts}, sort_keys=True,
                       default=lambda o: np.asarray(o, float).tolist())
     h = hashlib.sha256(blob.encode())
     for mod in (F, cmod):

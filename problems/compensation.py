@@ -1,45 +1,49 @@
-"""Compensation of load-induced TCP error: closed form (paper eqs. 32/47) and exact.
+"""Compensation of load-induced TCP error under an arm model: closed form (paper eqs. 32/47) and exact.
 
-Physics (joint-compliance model, see ``docs/conventions.md``): a joint command
-``q_c`` under a wrench ``F`` (base frame, on the TCP) settles at the deflected
-equilibrium ``q = q_c + dq(q, F)`` with ``dq(q, F) = K^-1 J(q)^T F`` by default.
-The deflection is evaluated at the *deflected* pose, since that is where the
-load acts.
+Physics (:class:`models.arm.ArmModel`, see ``docs/conventions.md``): a joint command
+``q_c`` under a load ``L`` (base- and tool-frame wrenches, payload, the arm's own weight
+when the model has ``gravity``) settles at the deflected equilibrium
+``q = q_c + dq(q, L)`` (:meth:`~models.arm.ArmModel.equilibrium`); the TCP of the loaded
+arm is the rigid TCP of ``q`` plus the displacement of effects that do not pass through
+the joints (link compliance).  The *target* of a waypoint is the rigid TCP pose of the
+planned configuration ``q_t`` under the model's geometry.
 
-* **Closed form** (paper eqs. 32/47, sign corrected): predict the TCP deflection
-  ``ds = C(q) F`` of the loaded arm (eq. 16) and command ``q_c = q_t - J(q)^+ ds``,
-  with ``q_t`` the IK solution of the target.  ``J^+`` is ``J^-1``, or damped least
-  squares when the condition number exceeds
-  :data:`~models.constants.JACOBIAN_COND_WARN` (reported in ``warnings``).
-  The paper's procedure linearises at the pose the loaded arm actually takes
-  when commanded ``q_t`` (``linearize_at="deflected"``, the default): this leaves
-  a second-order residual, because after compensation the arm settles at another
-  pose.  Linearising at ``q_t`` itself (``linearize_at="target"``) gives
-  ``J^-1 C F = K^-1 J^T F`` evaluated at the final pose, which for the pure
-  linear joint-spring model coincides with the exact solution below (a fact
-  documented in ``docs/paper-reproduction.md``); it stops being exact as soon as
-  the deflection model is nonlinear (gravity, hardening, lost motion).
-* **Exact**: the deflected pose must be ``q_t`` itself (it puts the TCP on the
-  target), so ``q_c = q_t - dq(q_t, F)``; then the equilibrium reached from
-  ``q_c`` is ``q_t`` (the fixed point is unique while the map is a contraction,
-  which is checked by solving it).  The residual is measured, not assumed.
+* **Closed form** (paper eqs. 32/47, sign corrected): predict the first-order TCP
+  deflection ``ds = [J dq + dp]`` at the pose the loaded, uncompensated arm takes
+  (``linearize_at="deflected"``, the paper's procedure, the default) or at ``q_t``
+  (``"target"``) and command ``q_c = q_t - J^+ ds``; ``J^+`` is ``J^-1``, or damped least
+  squares above :data:`~models.constants.JACOBIAN_COND_WARN` (reported).  For linear joint
+  springs and a constant base-frame wrench, ``"target"`` equals the exact solution.
+* **Exact**: find the deflected configuration ``q*`` whose loaded TCP is the target
+  (``q* = q_t`` when no effect displaces the TCP outside the joints; otherwise damped
+  Newton on the 6-D pose error), then ``q_c = q* - dq(q*, L)``: the equilibrium reached
+  from ``q_c`` is ``q*``.  The equilibrium is then solved independently and its TCP
+  compared with the target: the residual is measured, not assumed.
+
+This module is the only compensation engine of the product (plan, compensate, the
+report and the identification's checks use it).
 """
 
 from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
-from models.constants import (DLS_DAMPING, EQUILIBRIUM_MAX_ITER, EQUILIBRIUM_STEP_TOL,
-                              EXACT_COMPENSATION_TOL, JACOBIAN_COND_WARN)
-from models.symbolic import KinematicModel
+from models.arm import ArmModel, EquilibriumResult
+from models.constants import DLS_DAMPING, EXACT_COMPENSATION_TOL, JACOBIAN_COND_WARN
+from models.load import Load, load_rows
+from models.robot import Robot
 from models.transforms import rotation_angle
 
-#: ``dq = deflection(q_deflected (N,6), F (N,6) or (6,)) -> (N,6)`` rad.
-DeflectionFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+#: Damped-Newton iterations of the exact compensation's pose solve.
+NEWTON_MAX_ITER = 50
+#: Newton stops when every joint step is below this (rad).
+NEWTON_STEP_TOL = 1e-13
+
+__all__ = ["CompensationResult", "CompensationStatus", "EquilibriumResult", "closed_form", "equilibrium",
+           "exact", "rigid_pose_solve", "uncompensated"]
 
 
 class CompensationStatus(enum.Enum):
@@ -50,34 +54,17 @@ class CompensationStatus(enum.Enum):
 
 
 @dataclass
-class EquilibriumResult:
-    """Deflected equilibrium ``q = q_c + dq(q, F)`` for N commands.
-
-    Attributes
-    ----------
-    q : ndarray, shape (N, 6)
-        Deflected joint angles, rad.
-    converged : ndarray of bool, shape (N,)
-    iterations : int
-    """
-
-    q: np.ndarray
-    converged: np.ndarray
-    iterations: int
-
-
-@dataclass
 class CompensationResult:
     """Outcome of a compensation over N waypoints.
 
     Attributes
     ----------
     method : str
-        ``"closed_form"`` or ``"exact"``.
+        ``"none"``, ``"closed_form"`` or ``"exact"``.
     q_command : ndarray, shape (N, 6)
-        Compensated joint commands, rad.
+        Joint commands, rad.
     q_deflected : ndarray, shape (N, 6)
-        Equilibrium actually reached from ``q_command`` under the load, rad.
+        Equilibrium the model reaches from ``q_command`` under the load, rad.
     error_m : ndarray, shape (N, 3)
         TCP position error (reached - target), base frame, m.
     error_rad : ndarray, shape (N,)
@@ -110,85 +97,68 @@ class CompensationResult:
         return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e ** 2)))}
 
 
-def linear_deflection(model: KinematicModel) -> DeflectionFn:
-    """The joint-compliance deflection ``dq = K^-1 J(q)^T F`` of a model."""
-    def dq(q: np.ndarray, F: np.ndarray) -> np.ndarray:
-        return model.batch(model.joint_deflection, q, F)[0]
-    return dq
+def _arm(model: ArmModel | Robot | object) -> ArmModel:
+    if isinstance(model, ArmModel):
+        return model
+    if isinstance(model, Robot):
+        return ArmModel.from_robot(model)
+    arm = getattr(model, "arm", None)           # a KinematicModel
+    if isinstance(arm, ArmModel):
+        return arm
+    raise TypeError(f"expected an ArmModel, Robot or KinematicModel, got {type(model).__name__}")
 
 
-def equilibrium(q_command: np.ndarray, wrench: np.ndarray, deflection: DeflectionFn,
-                max_iter: int = EQUILIBRIUM_MAX_ITER, tol: float = EQUILIBRIUM_STEP_TOL) -> EquilibriumResult:
-    """Solve ``q = q_c + dq(q, F)`` by fixed-point iteration (vectorised over N).
-
-    The map is a contraction with factor ``|K^-1 d(J^T F)/dq|`` (about 1e-2 for
-    the paper's arm and load), so a few iterations reach machine precision.
-
-    Parameters
-    ----------
-    q_command : ndarray, shape (N, 6), rad
-    wrench : ndarray, shape (6,) or (N, 6); [N, N*m], base frame, on the TCP
-    deflection : callable
-        ``dq(q, F)``, see :data:`DeflectionFn`.
-    """
-    qc = np.atleast_2d(np.asarray(q_command, dtype=float))
-    q = qc + deflection(qc, wrench)
-    converged = np.zeros(len(qc), dtype=bool)
-    it = 0
-    for it in range(1, max_iter + 1):
-        q_new = qc + deflection(q, wrench)
-        step = np.max(np.abs(q_new - q), axis=1)
-        q = q_new
-        converged = step <= tol
-        if converged.all():
-            break
-    return EquilibriumResult(q=q, converged=converged, iterations=it)
+def equilibrium(model: ArmModel | Robot, q_command: np.ndarray, load: Load | np.ndarray) -> EquilibriumResult:
+    """The deflected equilibrium of ``q_command`` (see :meth:`models.arm.ArmModel.equilibrium`)."""
+    return _arm(model).equilibrium(q_command, load)
 
 
-def _errors(model: KinematicModel, q_reached: np.ndarray, base2target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    T = model.tcp(q_reached)
-    return T[:, :3, 3] - base2target[:, :3, 3], rotation_angle(T[:, :3, :3], base2target[:, :3, :3])
+def _targets(arm: ArmModel, q: np.ndarray) -> np.ndarray:
+    return arm.kinematics.tcp(np.atleast_2d(q)).reshape(-1, 4, 4)
 
 
-def uncompensated(model: KinematicModel, q_target: np.ndarray, wrench: np.ndarray,
-                  deflection: DeflectionFn | None = None) -> CompensationResult:
+def _errors(arm: ArmModel, q_reached: np.ndarray, L: np.ndarray,
+            base2target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    p, R = arm.loaded_tcp(q_reached, L)
+    return p - base2target[:, :3, 3], rotation_angle(R, base2target[:, :3, :3])
+
+
+def uncompensated(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray) -> CompensationResult:
     """Command the target configuration as is; the load deflects the TCP."""
-    dfl = deflection or linear_deflection(model)
-    qt = np.atleast_2d(q_target)
-    eq = equilibrium(qt, wrench, dfl)
-    e, r = _errors(model, eq.q, model.tcp(qt))
+    arm = _arm(model)
+    qt = np.atleast_2d(np.asarray(q_target, dtype=float))
+    L = load_rows(load, len(qt))
+    eq = arm.equilibrium(qt, L)
+    e, r = _errors(arm, eq.q, L, _targets(arm, qt))
     status = CompensationStatus.OK if eq.converged.all() else CompensationStatus.NOT_CONVERGED
     return CompensationResult("none", qt.copy(), eq.q, e, r, status,
                               "no compensation" if eq.converged.all() else "equilibrium did not converge")
 
 
-def closed_form(model: KinematicModel, q_target: np.ndarray, wrench: np.ndarray,
-                deflection: DeflectionFn | None = None,
+def closed_form(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray,
                 linearize_at: str = "deflected") -> CompensationResult:
-    """First-order compensation ``q_c = q_t - J^-1 C F`` (paper eqs. 32/47, sign corrected).
+    """First-order compensation ``q_c = q_t - J^-1 ds`` (paper eqs. 32/47, sign corrected).
 
     Parameters
     ----------
     q_target : ndarray, shape (N, 6)
-        Configurations that put the unloaded TCP on the targets, rad.
-    wrench : ndarray, shape (6,) or (N, 6)
-        [f (N); m (N*m)], base frame, on the TCP.
+        Configurations whose rigid TCP is the target, rad.
+    load : Load, load rows (N, 19), or a base-frame wrench (6,) / (N, 6)
     linearize_at : {"deflected", "target"}
-        Where J and C are evaluated: at the pose the loaded, uncompensated arm
+        Where ``J`` and ``ds`` are evaluated: at the pose the loaded, uncompensated arm
         takes (the paper's procedure) or at the target configuration.
     """
+    arm = _arm(model)
     qt = np.atleast_2d(np.asarray(q_target, dtype=float))
-    F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(qt), 6))
-    dfl = deflection or linear_deflection(model)
+    L = load_rows(load, len(qt))
     if linearize_at == "deflected":
-        q_lin = equilibrium(qt, F, dfl).q
+        q_lin = arm.equilibrium(qt, L).q
     elif linearize_at == "target":
         q_lin = qt
     else:
         raise ValueError(f"linearize_at must be 'deflected' or 'target', got {linearize_at!r}")
-    J = model.J(q_lin)
-    Cs = model.C(q_lin)
-    ds = np.einsum("nij,nj->ni", Cs, F)                   # (N, 6) [m; rad]
+    J = arm.kinematics.J(q_lin).reshape(-1, 6, 6)
+    ds = arm.load_error(q_lin, L)                    # (N, 6) [m; rad]
     cond = np.linalg.cond(J)
     warnings: list[str] = []
     dq = np.empty_like(qt)
@@ -201,8 +171,8 @@ def closed_form(model: KinematicModel, q_target: np.ndarray, wrench: np.ndarray,
         else:
             dq[i] = np.linalg.solve(J[i], ds[i])
     qc = qt - dq
-    eq = equilibrium(qc, F, dfl)
-    e, r = _errors(model, eq.q, model.tcp(qt))
+    eq = arm.equilibrium(qc, L)
+    e, r = _errors(arm, eq.q, L, _targets(arm, qt))
     if not eq.converged.all():
         status, reason = CompensationStatus.NOT_CONVERGED, "deflected equilibrium did not converge"
     elif warnings:
@@ -212,35 +182,90 @@ def closed_form(model: KinematicModel, q_target: np.ndarray, wrench: np.ndarray,
     return CompensationResult("closed_form", qc, eq.q, e, r, status, reason, warnings, cond)
 
 
-def exact(model: KinematicModel, q_target: np.ndarray, wrench: np.ndarray,
-          deflection: DeflectionFn | None = None,
-          tol_m: float = EXACT_COMPENSATION_TOL) -> CompensationResult:
-    """Exact compensation: commands whose deflected equilibrium is the target.
+def _stack(R: np.ndarray) -> np.ndarray:
+    n = R.shape[0]
+    return R.transpose(1, 0, 2).reshape(3, 3 * n)
 
-    ``q_c = q_t - dq(q_t, F)``; the equilibrium reached from ``q_c`` is then
-    solved independently and its TCP compared with the target.
+
+def _pose_solve(arm: ArmModel, q0: np.ndarray, L: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Damped Newton: joints whose loaded TCP pose is ``target`` (N, 4, 4), from ``q0``."""
+    f = arm.kinematics.fn["loaded_pose_error"]
+    n = len(q0)
+    fm = f.map(n, "thread", 2)
+    pt, Rt = target[:, :3, 3].T, _stack(target[:, :3, :3])
+
+    def err(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        e, J = fm(q.T, L.T, pt, Rt)
+        return np.asarray(e).T, np.asarray(J).reshape(6, n, 6).transpose(1, 0, 2)
+
+    q = q0.copy()
+    mu = np.zeros(n)
+    e, J = err(q)
+    for _ in range(NEWTON_MAX_ITER):
+        JtJ = np.einsum("nki,nkj->nij", J, J)
+        Jte = np.einsum("nki,nk->ni", J, e)
+        step = -np.linalg.solve(JtJ + (mu ** 2)[:, None, None] * np.eye(6), Jte[:, :, None])[:, :, 0]
+        e_t, J_t = err(q + step)
+        better = np.linalg.norm(e_t, axis=1) < np.linalg.norm(e, axis=1)
+        q[better] += step[better]
+        e[better], J[better] = e_t[better], J_t[better]
+        mu = np.where(better, mu / 10.0, np.maximum(mu * 10.0, 1e-6))
+        mu[mu < 1e-9] = 0.0
+        if np.max(np.abs(step[better]), initial=0.0) < NEWTON_STEP_TOL and \
+                (better | (np.linalg.norm(e, axis=1) < 1e-12)).all():
+            break
+    return q
+
+
+def rigid_pose_solve(model: ArmModel | Robot, q0: np.ndarray, base2target: np.ndarray) -> np.ndarray:
+    """Joints (N, 6) whose *unloaded* TCP under the model's geometry is ``base2target`` (N, 4, 4),
+    by damped Newton from ``q0`` (an IK solution of a nearby chain, e.g. the nominal one)."""
+    arm = _arm(model)
+    q0 = np.atleast_2d(np.asarray(q0, dtype=float))
+    return _pose_solve(arm, q0, np.zeros((len(q0), load_rows(np.zeros(6), 1).shape[1])),
+                       np.asarray(base2target, dtype=float).reshape(-1, 4, 4))
+
+
+def exact(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray,
+          tol_m: float = EXACT_COMPENSATION_TOL, base2target: np.ndarray | None = None) -> CompensationResult:
+    """Exact compensation: commands whose deflected, loaded TCP is on the target.
+
+    Parameters
+    ----------
+    q_target : ndarray, shape (N, 6)
+        Configurations whose rigid TCP (model geometry) is the target, rad; with
+        ``base2target`` given, the start of the pose solve instead.
+    load : Load, load rows (N, 19), or a base-frame wrench (6,) / (N, 6)
+    tol_m : float
+        Largest position residual accepted, m.
+    base2target : ndarray, shape (N, 4, 4), optional
+        Target TCP poses (base frame; TCP-frame coordinates -> base-frame coordinates).
 
     Returns
     -------
     CompensationResult
-        Status ``FAILED`` if any residual exceeds ``tol_m`` (m), naming the waypoint.
+        Status ``FAILED`` if any residual exceeds ``tol_m``, naming the waypoint.
     """
+    arm = _arm(model)
     qt = np.atleast_2d(np.asarray(q_target, dtype=float))
-    F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(qt), 6))
-    dfl = deflection or linear_deflection(model)
-    qc = qt - dfl(qt, F)
-    eq = equilibrium(qc, F, dfl)
-    e, r = _errors(model, eq.q, model.tcp(qt))
+    L = load_rows(load, len(qt))
+    target = _targets(arm, qt) if base2target is None else np.asarray(base2target, dtype=float).reshape(-1, 4, 4)
+    displaces = "link_compliance" in arm.active_effects
+    q_star = _pose_solve(arm, qt, L, target) if (displaces or base2target is not None) else qt
+    qc = q_star - arm.load_deflection(q_star, L)
+    eq = arm.equilibrium(qc, L)
+    e, r = _errors(arm, eq.q, L, target)
     en = np.linalg.norm(e, axis=1)
-    cond = np.linalg.cond(model.J(qt))
+    cond = np.linalg.cond(arm.kinematics.J(q_star).reshape(-1, 6, 6))
     if not eq.converged.all():
         bad = int(np.argmin(eq.converged))
         return CompensationResult("exact", qc, eq.q, e, r, CompensationStatus.NOT_CONVERGED,
                                   f"waypoint {bad}: deflected equilibrium did not converge "
                                   "(load too large for the joint stiffness?)", [], cond)
-    if np.any(en > tol_m):
-        bad = int(np.argmax(en))
+    if not np.all(np.isfinite(en)) or np.any(en > tol_m):
+        bad = int(np.argmax(np.where(np.isfinite(en), en, np.inf)))
         return CompensationResult("exact", qc, eq.q, e, r, CompensationStatus.FAILED,
-                                  f"waypoint {bad}: residual {en[bad]:.3g} m > {tol_m:g} m", [], cond)
+                                  f"waypoint {bad}: residual {en[bad]:.3g} m > {tol_m:g} m (target at the edge "
+                                  "of the model's reach or near a singularity)", [], cond)
     return CompensationResult("exact", qc, eq.q, e, r, CompensationStatus.OK,
                               f"max residual {en.max():.3g} m", [], cond)

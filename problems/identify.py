@@ -35,30 +35,34 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
 import numpy as np
 from scipy import stats
 
-from models.errors import InputError
-from models.robot import Robot, RobotFileError, load_robot, robot_from_dict
-from models.symbolic import KinematicModel
-
-from . import effects as fx
-from .effects import (
+from models import effects as fx
+from models.arm import ArmModel
+from models.arm_file import MODEL_FORMAT, load_model, model_from_robot, model_to_dict, model_toml  # noqa: F401
+from models.effects import (
     EFFECTS,
     GROUP_SLICES,
     LIBRARY,
     N_PARAMS,
     PARAM_NAMES,
     ModelLayout,
-    cayley_np,
+    get_const,
     make_const,
     make_layout,
-    model_functions,
+    set_const,
 )
+from models.errors import InputError
+from models.robot import Robot
+from models.symbolic import KinematicModel
+
+from .compensation import CompensationStatus
+from .compensation import exact as exact_compensation
 from .measurements import Measurements
 
 # ----------------------------------------------------------------------------------
@@ -157,9 +161,6 @@ COMPENSATION_CHECK_MAX_COND = 80.0
 #: unidentifiability.
 STRUCTURAL_DESIGN_ROWS = 240
 
-#: Format version of the ``[identified]`` table.
-MODEL_FORMAT = 1
-
 Progress = Callable[[str, int, int], None]
 
 
@@ -255,67 +256,8 @@ class Diagnostic:
     y_label: str = ""
 
 
-@dataclass
-class IdentifiedModel:
-    """A model ready for ``predict`` and ``compensate``.
-
-    Attributes
-    ----------
-    nominal : Robot
-        The description the parameters refer to (nominal DH, stiffness, tool).
-    theta : ndarray, shape (N_PARAMS,)
-        All parameters (effects not added sit at their nominal values).
-    R0 : ndarray, shape (3, 3)
-        Rotation the registration correction ``reg.w`` is applied to.
-    tau_scale : ndarray, shape (6,)
-        Joint torque scales of the hardening and lost-motion terms, N*m.
-    gravity_on : bool
-    beams : ndarray, shape (6, 3, 3)
-        Beam frames of ``link_compliance``.
-    time_ref : (float, float)
-        ``(t_start, t_span)``, s (or rows when the data had no time): ``tn = (t - t_start)/t_span``
-        (drift is zero at the first measurement).
-    temperature_ref : float
-        Temperature used when an input gives none, deg C.
-    effects : list of str
-    registered : bool
-    """
-
-    nominal: Robot
-    theta: np.ndarray
-    R0: np.ndarray
-    tau_scale: np.ndarray
-    gravity_on: bool
-    beams: np.ndarray
-    knots: np.ndarray | None = None
-    time_ref: tuple[float, float] = (0.0, 1.0)
-    temperature_ref: float = fx.THERMAL_REFERENCE_C
-    effects: list[str] = field(default_factory=list)
-    registered: bool = False
-    std: dict[str, float] = field(default_factory=dict)
-    noise_sigma_m: float | None = None
-    held: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def const(self) -> np.ndarray:
-        return make_const(self.nominal, self.R0, self.tau_scale, self.gravity_on, self.beams, self.knots)
-
-    def base2meas(self) -> np.ndarray:
-        """Identified measurement-frame registration, (4, 4)."""
-        T = np.eye(4)
-        T[:3, :3] = cayley_np(self.theta[GROUP_SLICES["reg.w"]]) @ self.R0
-        T[:3, 3] = self.theta[GROUP_SLICES["reg.t"]]
-        return T
-
-    @property
-    def measured_point(self) -> np.ndarray:
-        """Measured point in the flange frame, m, (3,)."""
-        return self.theta[GROUP_SLICES["tool.p"]].copy()
-
-    def robot(self) -> Robot:
-        """The identified robot: DH errors and stiffness folded into the ordinary fields,
-        everything else in the ``[identified]`` table (see :func:`model_to_dict`)."""
-        return robot_from_dict(model_to_dict(self), "identified model")
+#: An identified model is an :class:`models.arm.ArmModel` (the one model of the arm).
+IdentifiedModel = ArmModel
 
 
 @dataclass
@@ -370,7 +312,7 @@ class Evaluator:
     def __init__(self, convention: str, eligible: np.ndarray | None = None) -> None:
         el = np.ones(N_PARAMS, dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
         self.eligible_idx = np.flatnonzero(el)
-        self.fns = model_functions(convention, tuple(bool(x) for x in el))
+        self.fns = fx.identification_functions(convention, tuple(bool(x) for x in el))
         self._maps: dict[tuple[str, int], ca.Function] = {}
 
     def _map(self, name: str, n: int) -> ca.Function:
@@ -1091,9 +1033,6 @@ def _candidate_applicable(effect: str, m: Measurements) -> tuple[bool, str]:
     return True, ""
 
 
-KNOTS_SLICE = slice(119, 119 + 6 * fx.N_KNOTS)
-
-
 def _knots_from(tau: np.ndarray, ts: np.ndarray) -> np.ndarray:
     """Hardening knots (6, N_KNOTS), N*m: quantiles of the nonzero |tau| per joint."""
     tau = np.abs(tau)
@@ -1111,8 +1050,7 @@ def _update_knots(prob: _Problem, fit: _Fit) -> _Problem:
     rows = prob.rows
     te, tg, _q = prob.ev.call("torques", rows[:, 0:6], rows[:, 6:12], rows[:, 13:14], fit.theta, prob.const)
     tau = np.asarray(te).T + np.asarray(tg).T
-    c = prob.const.copy()
-    c[KNOTS_SLICE] = _knots_from(tau, c[58:64]).reshape(-1)
+    c = set_const(prob.const, "hardening.knots", _knots_from(tau, get_const(prob.const, "tau_scale")))
     return _Problem(m=prob.m, layout=prob.layout, ev=prob.ev, rows=prob.rows, const=c, weights=prob.weights,
                     folds=prob.folds, lower=prob.lower, upper=prob.upper)
 
@@ -1217,11 +1155,7 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     R0 = np.eye(3)
     rows = make_rows(m, t_ref, temp_ref)
     weights = 1.0 / m.sigma if m.sigma is not None else np.ones(m.n)
-    lower = np.full(N_PARAMS, -np.inf)
-    upper = np.full(N_PARAMS, np.inf)
-    s_rho = GROUP_SLICES["lost_motion.rho"]
-    lower[s_rho], upper[s_rho] = fx.LOST_MOTION_RHO_BOUNDS
-    lower[GROUP_SLICES["stiffness.s"]] = -0.95
+    lower, upper = layout.lower.copy(), layout.upper.copy()      # declared by the effect plug-ins
     fold_idx = _assign_folds(m, folds)
     total_steps = len(cand) + 3
     tick("registration", 0, total_steps)
@@ -1323,7 +1257,7 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
         return _score_p(p, layout, f, effs, registered)
 
     def with_effect(p: _Problem, th: np.ndarray, e: str) -> tuple[_Problem, np.ndarray]:
-        if e == "gravity" and p.const[64] < 0.5:
+        if e == "gravity" and get_const(p.const, "gravity.on")[0] < 0.5:
             th = th.copy()
             gi = layout.effect_indices("gravity")
             th[gi] = layout.nominal[gi]
@@ -1333,7 +1267,7 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     step_idx = 0
     stop_reason = "no candidate left"
     while True:
-        if "stiffness_hardening" not in active and prob.const[64] > 0.5:
+        if "stiffness_hardening" not in active and get_const(prob.const, "gravity.on")[0] > 0.5:
             prob = _update_knots(prob, fit)
             fit.J = _jac(prob, fit.theta, fit.q_eq)
         score_m, free_m = score_of(prob, fit, active)
@@ -1530,8 +1464,8 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     R_un = fit.residual(prob)
     R_in = R_un[fit.inliers]
     model = IdentifiedModel(nominal=robot, theta=fit.theta.copy(), R0=R0, tau_scale=tau_s,
-                            gravity_on=bool(prob.const[64] > 0.5), beams=fx.beam_frames(robot),
-                            knots=prob.const[KNOTS_SLICE].reshape(6, fx.N_KNOTS).copy(),
+                            gravity_on=bool(get_const(prob.const, "gravity.on")[0] > 0.5), beams=fx.beam_frames(robot),
+                            knots=get_const(prob.const, "hardening.knots").reshape(6, fx.N_KNOTS).copy(),
                             time_ref=t_ref, temperature_ref=temp_ref, effects=list(active),
                             registered=registered, std={PARAM_NAMES[i]: float(std[i]) for i in free_f},
                             noise_sigma_m=sigma_noise,
@@ -1597,8 +1531,7 @@ def _score_p(prob: _Problem, layout: ModelLayout, f: _Fit, effs: Sequence[str],
 
 
 def _gravity_problem(prob: _Problem, on: bool) -> _Problem:
-    c = prob.const.copy()
-    c[64] = 1.0 if on else 0.0
+    c = set_const(prob.const, "gravity.on", [1.0 if on else 0.0])
     return _Problem(m=prob.m, layout=prob.layout, ev=prob.ev, rows=prob.rows, const=c, weights=prob.weights,
                     folds=prob.folds, lower=prob.lower, upper=prob.upper)
 
@@ -1745,143 +1678,7 @@ def _nominal_gravity_torque(robot: Robot, m: Measurements) -> np.ndarray | None:
 # Model files
 # ----------------------------------------------------------------------------------
 
-_FOLDED = ("joint_offset.dtheta", "geometric.da", "geometric.dalpha", "geometric.dd", "stiffness.s")
-
-
-def model_to_dict(model: IdentifiedModel) -> dict[str, Any]:
-    """Robot-file dictionary of an identified model.
-
-    DH errors (``da, dalpha, dd, dtheta``) and stiffness go into the ordinary joint
-    fields; the ``[identified]`` table holds the registration, measured point,
-    effects with their parameters (SI), standard deviations, the nominal values the
-    parameters refer to, and the constants of the effect formulas.
-    """
-    r = model.nominal
-    th = model.theta
-    d = r.to_dict()
-    d.pop("identified", None)
-    def g(name: str) -> np.ndarray:
-        return th[GROUP_SLICES[name]]
-    for i, j in enumerate(d["joints"]):
-        j["a"] = float(r.a[i] + g("geometric.da")[i])
-        j["alpha"] = float(r.alpha[i] + g("geometric.dalpha")[i])
-        j["d"] = float(r.d[i] + g("geometric.dd")[i])
-        j["theta_offset"] = float(r.theta_offset[i] + g("joint_offset.dtheta")[i])
-        j["stiffness"] = float(r.stiffness[i] / (1.0 + g("stiffness.s")[i]))
-    from .virtual import matrix_to_rotvec
-    b2m = model.base2meas()
-    params: dict[str, Any] = {}
-    for grp, eff, names, unit in fx.PARAMETER_GROUPS:
-        if grp in _FOLDED or grp.startswith("reg.") or grp == "tool.p":
-            continue
-        if eff not in model.effects and not (grp == "geometric.dbeta" and "geometric" in model.effects):
-            continue
-        params[grp] = [float(v) for v in th[GROUP_SLICES[grp]]]
-    ident = {
-        "format": MODEL_FORMAT,
-        "registered": bool(model.registered),
-        "base2meas": {"xyz": [float(v) for v in b2m[:3, 3]],
-                      "rotvec": [float(v) for v in matrix_to_rotvec(b2m[:3, :3])]},
-        "measured_point": [float(v) for v in model.measured_point],
-        "effects": list(model.effects),
-        "parameters": params,
-        "std": {k: float(v) for k, v in model.std.items() if np.isfinite(v)},
-        "held": dict(model.held),
-        "constants": {"tau_scale_Nm": [float(v) for v in model.tau_scale], "gravity_on": bool(model.gravity_on),
-                      "beam_frames": [[float(v) for v in model.beams[i].reshape(-1)] for i in range(6)],
-                      "hardening_knots_Nm": [float(v) for v in (model.knots if model.knots is not None else
-                                             np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)).reshape(-1)],
-                      "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
-                      "temperature_ref_C": float(model.temperature_ref)},
-        "nominal": {"a": r.a.tolist(), "alpha": r.alpha.tolist(), "d": r.d.tolist(),
-                    "theta_offset": r.theta_offset.tolist(), "stiffness": r.stiffness.tolist()},
-    }
-    if model.noise_sigma_m is not None:
-        ident["noise_sigma_m"] = float(model.noise_sigma_m)
-    d["identified"] = ident
-    return d
-
-
-def _nums(where: str, key: str, v: Any, n: int) -> np.ndarray:
-    if not isinstance(v, list) or len(v) != n or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                         for x in v):
-        raise RobotFileError(f"{where}: [identified] key '{key}' must be a list of {n} numbers")
-    a = np.array(v, dtype=float)
-    if not np.all(np.isfinite(a)):
-        raise RobotFileError(f"{where}: [identified] key '{key}' must be finite")
-    return a
-
-
-def model_from_robot(robot: Robot, where: str = "model") -> IdentifiedModel:
-    """An :class:`IdentifiedModel` from a robot (plain file = nominal model, no effects)."""
-    ident = robot.identified
-    if ident is None:
-        layout = make_layout(robot)
-        return IdentifiedModel(nominal=robot, theta=layout.nominal.copy(), R0=np.eye(3), tau_scale=np.ones(6),
-                               gravity_on=False, beams=fx.beam_frames(robot), registered=True)
-    try:
-        fmt = ident.get("format")
-        if fmt != MODEL_FORMAT:
-            raise RobotFileError(f"{where}: [identified] format {fmt!r} is not supported (expected {MODEL_FORMAT})")
-        nom = ident["nominal"]
-        d = robot.to_dict()
-        d.pop("identified", None)
-        for key in ("a", "alpha", "d", "theta_offset", "stiffness"):
-            vals = _nums(where, f"nominal.{key}", nom[key], 6)
-            for i, j in enumerate(d["joints"]):
-                j[key] = float(vals[i])
-        nominal = robot_from_dict(d, where)
-        layout = make_layout(nominal)
-        theta = layout.nominal.copy()
-        # folded parameters: identified - nominal
-        theta[GROUP_SLICES["geometric.da"]] = robot.a - nominal.a
-        theta[GROUP_SLICES["geometric.dalpha"]] = robot.alpha - nominal.alpha
-        theta[GROUP_SLICES["geometric.dd"]] = robot.d - nominal.d
-        theta[GROUP_SLICES["joint_offset.dtheta"]] = robot.theta_offset - nominal.theta_offset
-        theta[GROUP_SLICES["stiffness.s"]] = nominal.stiffness / robot.stiffness - 1.0
-        b2m = ident["base2meas"]
-        from .virtual import rotvec_to_matrix
-        R0 = rotvec_to_matrix(_nums(where, "base2meas.rotvec", b2m["rotvec"], 3))
-        theta[GROUP_SLICES["reg.t"]] = _nums(where, "base2meas.xyz", b2m["xyz"], 3)
-        theta[GROUP_SLICES["tool.p"]] = _nums(where, "measured_point", ident["measured_point"], 3)
-        effects = list(ident.get("effects", []))
-        for e in effects:
-            if e not in LIBRARY:
-                raise RobotFileError(f"{where}: [identified] effect '{e}' is not in the library")
-        for grp, vals in dict(ident.get("parameters", {})).items():
-            if grp not in GROUP_SLICES:
-                raise RobotFileError(f"{where}: [identified.parameters] unknown group '{grp}'")
-            s = GROUP_SLICES[grp]
-            theta[s] = _nums(where, f"parameters.{grp}", vals, s.stop - s.start)
-        c = ident["constants"]
-        tau_s = _nums(where, "constants.tau_scale_Nm", c["tau_scale_Nm"], 6)
-        beams = np.array([_nums(where, "constants.beam_frames", b, 9).reshape(3, 3)
-                          for b in c["beam_frames"]])
-        if beams.shape != (6, 3, 3):
-            raise RobotFileError(f"{where}: [identified] key 'constants.beam_frames' must hold 6 lists of 9")
-        tr = _nums(where, "constants.time_ref_s", c["time_ref_s"], 2)
-        knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"],
-                      6 * fx.N_KNOTS).reshape(6, fx.N_KNOTS)
-        return IdentifiedModel(nominal=nominal, theta=theta, R0=R0, tau_scale=tau_s,
-                               gravity_on=bool(c.get("gravity_on", False)), beams=beams, knots=knots,
-                               time_ref=(float(tr[0]), float(tr[1])),
-                               temperature_ref=float(c.get("temperature_ref_C", fx.THERMAL_REFERENCE_C)),
-                               effects=effects, registered=bool(ident.get("registered", False)),
-                               std=dict(ident.get("std", {})), noise_sigma_m=ident.get("noise_sigma_m"),
-                               held=dict(ident.get("held", {})))
-    except KeyError as exc:
-        raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
-
-
-def load_model(spec: str) -> IdentifiedModel:
-    """Load an identified model file, or a plain robot file / built-in name (nominal)."""
-    robot = load_robot(spec)
-    return model_from_robot(robot, str(spec))
-
-
-def model_toml(model: IdentifiedModel) -> str:
-    import tomli_w
-    return tomli_w.dumps(model_to_dict(model))
+# Model files: models/arm_file.py (model_to_dict, model_from_robot, load_model, model_toml).
 
 
 # ----------------------------------------------------------------------------------
@@ -1913,11 +1710,11 @@ class CompensationOutcome:
     q_deflected : ndarray, shape (N, 6)
         Joint angles the identified model reaches from them under the load, rad.
     target : ndarray, shape (N, 4, 4)
-        Nominal-FK TCP of the input commands (base frame).
-    residual_m : ndarray, shape (N,)
-        Model-predicted TCP position error after compensation, m.
-    status : str
-        ``"ok"`` or ``"failed"``; ``reason`` says why.
+        Target TCP poses, base frame (TCP-frame coordinates -> base-frame coordinates).
+    residual_m, residual_rad : ndarray, shape (N,)
+        Model-predicted TCP position (m) and orientation (rad) error after compensation.
+    status : CompensationStatus
+    reason : str
     """
 
     q_command: np.ndarray
@@ -1925,105 +1722,59 @@ class CompensationOutcome:
     target: np.ndarray
     residual_m: np.ndarray
     residual_rad: np.ndarray
-    status: str
+    status: CompensationStatus
     reason: str
     failed_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
 
-def _pose_error_functions(convention: str, eligible: tuple[bool, ...]) -> tuple[ca.Function, ca.Function]:
-    fns = model_functions(convention, eligible)
-    q = ca.SX.sym("q", 6)
-    F = ca.SX.sym("F", 6)
-    dT = ca.SX.sym("dT", 1)
-    th = ca.SX.sym("theta", N_PARAMS)
-    c = ca.SX.sym("const", fx.CONST_SIZE)
-    pt = ca.SX.sym("p_t", 3)
-    Rt = ca.SX.sym("R_t", 3, 3)
-    p, R = fns["tcp_pose"](q, F, dT, th, c)
-    E = ca.mtimes(Rt.T, R)
-    rot = 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
-    e = ca.vertcat(p - pt, rot)
-    f = ca.Function("comp_err", [q, F, dT, th, c, pt, Rt], [e, ca.jacobian(e, q)])
-    return f, fns["joint_deflection"]
+def _at_temperature(model: ArmModel, temperature: np.ndarray | None) -> list[tuple[np.ndarray, ArmModel]]:
+    """Row groups that share a temperature, each with the model evaluated at it (thermal)."""
+    if temperature is None or "thermal" not in model.active_effects:
+        return [(np.arange(0), model)] if temperature is None else [(np.arange(len(temperature)), model)]
+    temp = np.asarray(temperature, dtype=float)
+    out = []
+    for t in np.unique(temp):
+        out.append((np.flatnonzero(temp == t), replace(model, temperature_ref=float(t))))
+    return out
 
 
-_POSE_FNS: dict[tuple, tuple[ca.Function, ca.Function]] = {}
+def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
+               temperature: np.ndarray | None = None,
+               base2target: np.ndarray | None = None) -> CompensationOutcome:
+    """Commands that put the real TCP on its targets under ``wrench`` (base frame).
 
-
-def compensate(model: IdentifiedModel, q_in: np.ndarray, wrench: np.ndarray,
-               temperature: np.ndarray | None = None) -> CompensationOutcome:
-    """Commands that put the real TCP on the nominal-FK TCP of ``q_in`` under ``wrench``.
-
-    Newton on the identified model (base frame, no registration): find the
-    deflected joints ``q*`` whose TCP pose (geometry, thermal, link compliance)
-    equals the target, then ``q_c = q* - dq(q*, F)`` (the deflection at the
-    equilibrium it must reach).  The equilibrium reached from ``q_c`` is solved
+    The targets are the nominal-FK TCP of ``q_in`` (the robot file's chain: what the
+    user commanded), or the poses ``base2target`` (N, 4, 4) when given.  The engine is the
+    product's one exact compensation (:func:`problems.compensation.exact`) on the
+    identified arm model; the equilibrium reached from the commands is solved
     independently and its TCP compared with the target.
     """
-    conv = model.nominal.convention
-    el = tuple(bool(x) for x in make_layout(model.nominal).eligible)
-    if (conv, el) not in _POSE_FNS:
-        _POSE_FNS[(conv, el)] = _pose_error_functions(conv, el)
-    ferr, fdq = _POSE_FNS[(conv, el)]
     q_in = np.atleast_2d(np.asarray(q_in, dtype=float))
     n = len(q_in)
     F = np.broadcast_to(np.asarray(wrench, dtype=float), (n, 6)).copy()
-    temp = np.full(n, model.temperature_ref) if temperature is None else np.asarray(temperature, dtype=float)
-    dT = (temp - fx.THERMAL_REFERENCE_C).reshape(-1, 1)
-    target = _nominal_tcp(model.nominal, q_in)
-    const = model.const
-    fm = ferr.map(n, "thread", 2)
-    Rt = _stack_mats(target[:, :3, :3])
-    def err(qq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        e, J = fm(qq.T, F.T, dT.T, model.theta, const, target[:, :3, 3].T, Rt)
-        return np.asarray(e).T, np.asarray(J).reshape(6, n, 6).transpose(1, 0, 2)
-
-    # Damped Newton per row (Levenberg-Marquardt on the 6-D pose error): Newton steps
-    # where they reduce the error, damped ones where a target is near or beyond the
-    # reach of the identified model (the closest pose is returned and reported).
-    q = q_in.copy()
-    mu = np.zeros(n)
-    e, J = err(q)
-    for _ in range(COMPENSATION_MAX_ITER):
-        JtJ = np.einsum("nki,nkj->nij", J, J)
-        Jte = np.einsum("nki,nk->ni", J, e)
-        step = -np.linalg.solve(JtJ + (mu ** 2)[:, None, None] * np.eye(6), Jte[:, :, None])[:, :, 0]
-        e_t, J_t = err(q + step)
-        better = np.linalg.norm(e_t, axis=1) < np.linalg.norm(e, axis=1)
-        q[better] += step[better]
-        e[better], J[better] = e_t[better], J_t[better]
-        mu = np.where(better, mu / 10.0, np.maximum(mu * 10.0, 1e-6))
-        mu[mu < 1e-9] = 0.0
-        if np.max(np.abs(step[better]), initial=0.0) < COMPENSATION_STEP_TOL and (better | (np.linalg.norm(
-                e, axis=1) < COMPENSATION_RESIDUAL_TOL * 1e-3)).all():
-            break
-    dq = np.asarray(fdq.map(n, "thread", 2)(q.T, F.T, dT.T, model.theta, const)).T
-    q_c = q - dq
-    # verify: equilibrium from q_c under the model
-    ev = _ev_for(model.nominal)
-    _te, _tg, q_eq = ev.call("torques", q_c, F, dT, model.theta, const)
-    q_eq = np.asarray(q_eq).T
-    e, _J = fm(q_eq.T, F.T, dT.T, model.theta, const, target[:, :3, 3].T, Rt)
-    e = np.asarray(e).T
-    res = np.linalg.norm(e[:, :3], axis=1)
-    rres = np.linalg.norm(e[:, 3:], axis=1)
+    target = _nominal_tcp(model.nominal, q_in) if base2target is None else np.asarray(base2target, float)
+    q_c = np.zeros_like(q_in)
+    q_eq = np.zeros_like(q_in)
+    res = np.zeros(n)
+    rres = np.zeros(n)
+    groups = _at_temperature(model, temperature)
+    if len(groups[0][0]) == 0:
+        groups = [(np.arange(n), model)]
+    for idx, arm in groups:
+        out = exact_compensation(arm, q_in[idx], F[idx], tol_m=COMPENSATION_RESIDUAL_TOL, base2target=target[idx])
+        q_c[idx], q_eq[idx] = out.q_command, out.q_deflected
+        res[idx], rres[idx] = out.error_norm_m, out.error_rad
     bad_rows = np.flatnonzero(~(np.isfinite(res) & (res <= COMPENSATION_RESIDUAL_TOL)))
     if len(bad_rows):
         worst = int(bad_rows[np.argmax(np.where(np.isfinite(res[bad_rows]), res[bad_rows], np.inf))])
-        return CompensationOutcome(q_c, q_eq, target, res, rres, "failed",
+        return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.FAILED,
                                    f"{len(bad_rows)} row(s) not compensated to {COMPENSATION_RESIDUAL_TOL:g} m "
                                    f"(rows {', '.join(str(int(i)) for i in bad_rows[:10])}"
                                    f"{' ...' if len(bad_rows) > 10 else ''}; worst row {worst}: "
                                    f"{res[worst]:.3g} m): target at the edge of the identified model's reach "
                                    "or near a singularity", failed_rows=bad_rows)
-    return CompensationOutcome(q_c, q_eq, target, res, rres, "ok",
+    return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.OK,
                                f"max model-predicted residual {res.max():.3g} m")
-
-
-def _stack_mats(R: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) -> CasADi map layout (3, 3N) with column blocks per row."""
-    n = R.shape[0]
-    return R.transpose(1, 0, 2).reshape(3, 3 * n)
 
 
 def compensation_check(vr: Any, model: IdentifiedModel, n_poses: int = 40,
@@ -2068,7 +1819,7 @@ def compensation_check(vr: Any, model: IdentifiedModel, n_poses: int = 40,
             "fraction_left": ra / rb if rb > 0 else 0.0,
             "meas_frame_rms_before_mm": rbm * 1e3, "meas_frame_rms_after_mm": ram * 1e3,
             "meas_frame_fraction_left": ram / rbm if rbm > 0 else 0.0,
-            "status": out.status, "reason": out.reason,
+            "status": out.status.value, "reason": out.reason,
             "metric": ("RMS of the 3-D TCP position error in the true base frame of the virtual robot; "
                        "meas_frame_*: the measured point in the measurement frame against its nominal target "
                        "mapped by the identified registration")}

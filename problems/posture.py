@@ -94,8 +94,11 @@ import numpy as np
 from models.codegen import CompileError, compile_shared_library
 from models.errors import InputError
 from models.ik import BRANCH_LABELS, AnalyticIK, IK_REASONS, IKStatus
+from models.arm import ArmModel
+from models.effects import LOAD_SIZE
+from models.load import load_rows
 from models.robot import Robot
-from models.symbolic import KinematicModel, dh_chain, geometric_jacobian
+from models.symbolic import KinematicModel
 from models.transforms import rotation_angle
 from problems.path import MAX_JOINT_STEP, BranchPath, branch_paths, default_branch, poses
 
@@ -155,7 +158,7 @@ IPOPT_DEFAULTS: dict[str, Any] = {"mu_strategy": "adaptive", "bound_push": 1e-6,
 #: IPOPT return statuses accepted as converged.
 IPOPT_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 #: Length of the stage parameter vector: p (3), R (9, column-major), F (6), branch signs (3).
-N_THETA = 21
+N_THETA = 3 + 9 + LOAD_SIZE + 3
 
 
 class OrientationRule(enum.Enum):
@@ -238,8 +241,9 @@ class PostureTask:
     rotations : ndarray, shape (N, 3, 3)
         Nominal base->TCP rotations; their z column is the nominal tool axis.
     rule : OrientationRule
-    wrench : ndarray, shape (N, 6)
-        [f (N); m (N*m)] on the TCP, base frame, per waypoint.
+    wrench : ndarray, shape (N, 6) or (N, LOAD_SIZE)
+        The load per waypoint: a base-frame wrench [f (N); m (N*m)] on the TCP, or load
+        rows (:mod:`models.load`: base- and tool-frame wrenches, payload), as given.
     cone_half_angle : float
         Cone half-angle alpha, rad (rule ``cone`` only), in (0, pi/2).
     max_joint_step : float
@@ -275,10 +279,11 @@ class PostureTask:
             raise PostureError(f"posture task: rotation of waypoint {k} is not a proper rotation matrix")
         self.rotations = np.ascontiguousarray(R)
         W = np.asarray(self.wrench, dtype=float)
-        if W.shape == (6,):
-            W = np.broadcast_to(W, (n, 6))
-        if W.shape != (n, 6):
-            raise PostureError(f"posture task: wrench must have shape (6,) or ({n}, 6), got {W.shape}")
+        if W.ndim == 1:
+            W = np.broadcast_to(W, (n, W.shape[0]))
+        if W.shape not in ((n, 6), (n, LOAD_SIZE)):
+            raise PostureError(f"posture task: wrench must have shape (6,), ({n}, 6) or ({n}, {LOAD_SIZE}), "
+                               f"got {W.shape}")
         self.wrench = np.ascontiguousarray(W)
         for name, arr in (("positions", self.positions), ("wrench", self.wrench)):
             if not np.all(np.isfinite(arr)):
@@ -295,6 +300,11 @@ class PostureTask:
             raise PostureError(f"posture task: smoothness must be >= 0, got {self.smoothness!r}")
         if int(self.scan) < 1:
             raise PostureError(f"posture task: scan must be >= 1, got {self.scan!r}")
+
+    @property
+    def load(self) -> np.ndarray:
+        """Load rows of every waypoint, (N, LOAD_SIZE) (see :mod:`models.load`)."""
+        return load_rows(self.wrench, self.n)
 
     @property
     def n(self) -> int:
@@ -527,25 +537,23 @@ def guard_bounds() -> np.ndarray:
     return np.array([SINGULAR_RHO_MIN_M, SINGULAR_SIN_MIN, SINGULAR_SIN_MIN])
 
 
-def _stage_sx(robot: Robot, rule: OrientationRule) -> dict[str, ca.Function]:
+def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule) -> dict[str, ca.Function]:
     """The per-waypoint SX functions.
 
-    ``theta = [p (3, m); R (9, column-major); F (6); sigma (3)]`` with ``sigma``
-    the signs of the branch's singularity factors.  Constraint vector ``g``:
-    position (mm), rule-specific orientation (scaled by AXIS_SCALE), then the
-    three singularity guards ``sigma_i * factor_i``.
+    ``theta = [p (3, m); R (9, column-major); L (LOAD_SIZE); sigma (3)]`` with ``L`` the
+    load vector of the waypoint and ``sigma`` the signs of the branch's singularity
+    factors.  The cost is the arm model's first-order load-induced TCP position error
+    (``load_error``), squared.  Constraint vector ``g``: position (mm), rule-specific
+    orientation (scaled by AXIS_SCALE), then the three singularity guards ``sigma_i * factor_i``.
     """
-    ik = AnalyticIK(robot)
+    arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
+    ik = AnalyticIK(arm.nominal)
     q = ca.SX.sym("q", 6)
     th = ca.SX.sym("theta", N_THETA)
-    p, R, F, sig = th[0:3], ca.reshape(th[3:12], 3, 3), th[12:18], th[18:21]
-    frames = dh_chain(q, ca.DM(robot.a), ca.DM(robot.alpha), ca.DM(robot.d),
-                      ca.DM(robot.theta_offset), robot.convention)
-    T = ca.mtimes(frames[-1], ca.DM(robot.flange2tcp))
-    J = geometric_jacobian(frames, T[:3, 3], robot.convention)
-    kinv = ca.DM(1.0 / robot.stiffness)
-    dq = kinv * ca.mtimes(J.T, F)                 # K^-1 J^T F (rad)
-    d = ca.mtimes(J[:3, :], dq)                   # S C F (m)
+    p, R, L, sig = th[0:3], ca.reshape(th[3:12], 3, 3), th[12:12 + LOAD_SIZE], th[12 + LOAD_SIZE:N_THETA]
+    fn = arm.kinematics.fn
+    T = fn["fk_tcp"](q)
+    d = fn["load_error"](q, L)[:3]                # first-order TCP position error (m)
     cost = COST_SCALE * ca.sumsqr(d)
     z = T[:3, 2]
     g = [POSITION_SCALE * (T[:3, 3] - p)]
@@ -639,13 +647,14 @@ class PostureNLP:
     build_time_s : float
     """
 
-    def __init__(self, robot: Robot, rule: OrientationRule, n: int,
+    def __init__(self, arm: ArmModel | Robot, rule: OrientationRule, n: int,
                  settings: SolverSettings = SolverSettings(), verbose: bool = False) -> None:
         if settings.name != "ipopt":
             raise InputError(f"solver: unknown NLP solver {settings.name!r}; available: ['ipopt']")
         t0 = time.perf_counter()
-        self.robot, self.rule, self.n, self.settings = robot, rule, n, settings
-        sx = _stage_sx(robot, rule)
+        arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
+        self.arm, self.robot, self.rule, self.n, self.settings = arm, arm.nominal, rule, n, settings
+        sx = _stage_sx(arm, rule)
         self.compiled = False
         funcs = sx
         if settings.codegen:
@@ -711,8 +720,8 @@ class PostureNLP:
         th = np.empty((N_THETA, n))
         th[0:3] = task.positions.T
         th[3:12] = task.rotations.transpose(0, 2, 1).reshape(n, 9).T   # column-major R
-        th[12:18] = task.wrench.T
-        th[18:21] = np.asarray(sign, dtype=float).reshape(3, 1)
+        th[12:12 + LOAD_SIZE] = task.load.T
+        th[12 + LOAD_SIZE:N_THETA] = np.asarray(sign, dtype=float).reshape(3, 1)
         return th
 
     def bounds_g(self, task: PostureTask) -> tuple[np.ndarray, np.ndarray]:
@@ -775,15 +784,19 @@ _SOLVERS: dict[tuple, PostureNLP] = {}
 _SOLVERS_LOCK = threading.Lock()
 
 
-def _robot_key(robot: Robot) -> tuple:
-    return (robot.convention, tuple(robot.a), tuple(robot.alpha), tuple(robot.d),
-            tuple(robot.theta_offset), tuple(robot.stiffness), tuple(robot.flange2tcp.reshape(-1)))
+def _model_key(arm: ArmModel) -> tuple:
+    r = arm.nominal
+    return (r.convention, tuple(r.a), tuple(r.alpha), tuple(r.d), tuple(r.theta_offset), tuple(r.stiffness),
+            tuple(r.flange2tcp.reshape(-1)), arm.active_effects, arm.theta.tobytes(), arm.const.tobytes(),
+            float(arm.temperature_ref))
 
 
-def get_nlp(robot: Robot, rule: OrientationRule, n: int, settings: SolverSettings = SolverSettings(),
+def get_nlp(arm: ArmModel | Robot, rule: OrientationRule, n: int, settings: SolverSettings = SolverSettings(),
             verbose: bool = False) -> PostureNLP:
-    """The cached :class:`PostureNLP` for (robot, rule, n, settings, verbose)."""
-    key = (_robot_key(robot), rule, n, settings, verbose)
+    """The cached :class:`PostureNLP` for (model, rule, n, settings, verbose)."""
+    arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
+    robot = arm
+    key = (_model_key(arm), rule, n, settings, verbose)
     with _SOLVERS_LOCK:
         nlp = _SOLVERS.get(key)
         if nlp is None:
@@ -850,8 +863,12 @@ class WarmStarts:
 
 
 def linear_error(model: KinematicModel, q: np.ndarray, wrench: np.ndarray) -> np.ndarray:
-    """``||S C(q_k) F_k||`` per row, m: q (N, 6), wrench (N, 6) or (6,) -> (N,)."""
-    D = model.batch(model.deflection, np.atleast_2d(q), wrench)[0]
+    """First-order load-induced TCP position error per row (the NLP's objective), m:
+    q (N, 6), load (N, 6) / (6,) base wrench or (N, LOAD_SIZE) load rows -> (N,).
+
+    For the nominal model and a base-frame wrench this is ``||S C(q_k) F_k||``."""
+    q = np.atleast_2d(q)
+    D = model.batch(model.fn["load_error"], q, load_rows(wrench, len(q)))[0]
     return np.linalg.norm(D[:, :3], axis=1)
 
 
@@ -896,7 +913,7 @@ def warm_starts(ik: AnalyticIK, model: KinematicModel, task: PostureTask) -> War
     rejected: dict[int, str] = {}
     if task.rule is OrientationRule.FIXED or S == 1:
         for b, bp in feas_nom.items():
-            err = linear_error(model, bp.q, task.wrench)
+            err = linear_error(model, bp.q, task.load)
             warm[b] = (bp, "nominal", float(np.sum(err ** 2)))
         return WarmStarts(feas_nom, warm, dict(rej_nom), unreachable)
 
@@ -907,7 +924,7 @@ def warm_starts(ik: AnalyticIK, model: KinematicModel, task: PostureTask) -> War
     cost = np.full((S, n, 8), np.inf)
     if len(idx):
         qv = Q[idx[:, 0], idx[:, 1], idx[:, 2]]
-        err = linear_error(model, qv, task.wrench[idx[:, 1]])
+        err = linear_error(model, qv, task.load[idx[:, 1]])
         cost[idx[:, 0], idx[:, 1], idx[:, 2]] = COST_SCALE * err ** 2
     lam = task.smoothness
     Qb = np.ascontiguousarray(np.nan_to_num(Q).transpose(2, 0, 1, 3))         # (8, S, N, 6)
@@ -1145,13 +1162,34 @@ def verify(model: KinematicModel, task: PostureTask, q: np.ndarray, q_min: np.nd
 # The whole stage
 # --------------------------------------------------------------------------------------
 
+def _onto_model_geometry(arm: ArmModel, ik: AnalyticIK, ws: WarmStarts) -> WarmStarts:
+    """Move the analytic postures and warm starts onto the model's geometry.
+
+    The closed-form IK solves the *nominal* chain; an identified model's chain differs
+    (DH errors, offsets, thermal).  Each path is moved by damped Newton to the joints whose
+    TCP under the model's geometry is the pose the nominal chain had (the IK target).
+    """
+    from problems.compensation import rigid_pose_solve
+    nominal = KinematicModel(ik.robot)
+
+    def move(bp: BranchPath) -> BranchPath:
+        q = rigid_pose_solve(arm, bp.q, nominal.tcp(bp.q).reshape(-1, 4, 4))
+        steps = float(np.abs(np.diff(q, axis=0)).max()) if len(q) > 1 else 0.0
+        return BranchPath(bp.branch, q, steps)
+
+    analytic = {b: move(bp) for b, bp in ws.analytic.items()}
+    warm = {b: (analytic[b] if b in analytic and bp.q is ws.analytic[b].q else move(bp), name, cost)
+            for b, (bp, name, cost) in ws.warm.items()}
+    return WarmStarts(analytic, warm, ws.rejected, ws.unreachable)
+
+
 def branch_signs(ik: AnalyticIK, q: np.ndarray) -> np.ndarray:
     """Signs (3,) of the singularity factors (shoulder, wrist, elbow) along a branch path (N, 6)."""
     f = singular_factors(ik, np.atleast_2d(q))
     return np.where(np.median(f, axis=0) >= 0.0, 1.0, -1.0)
 
 
-def optimise_postures(robot: Robot, task: PostureTask, home_q: np.ndarray,
+def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.ndarray,
                       settings: SolverSettings = SolverSettings(), verbose: bool = False,
                       model: KinematicModel | None = None, ik: AnalyticIK | None = None,
                       optimise: bool = True) -> PostureResult:
@@ -1177,11 +1215,15 @@ def optimise_postures(robot: Robot, task: PostureTask, home_q: np.ndarray,
     PostureResult
         Never raises for infeasible tasks: the status and reason say what failed.
     """
-    model = model or KinematicModel(robot)
+    arm = robot if isinstance(robot, ArmModel) else ArmModel.from_robot(robot)
+    robot = arm.nominal
+    model = model or arm.kinematics
     ik = ik or AnalyticIK(robot)
     q_min, q_max = robot.q_min, robot.q_max
     freedom, note = analyse_freedom(robot, task.rule)
     ws = warm_starts(ik, model, task)
+    if not arm.geometry_is_nominal:
+        ws = _onto_model_geometry(arm, ik, ws)
     default = default_branch(ws.analytic, home_q) if ws.analytic else (
         default_branch({b: v[0] for b, v in ws.warm.items()}, home_q) if ws.warm else None)
     if not ws.warm:
@@ -1206,14 +1248,14 @@ def optimise_postures(robot: Robot, task: PostureTask, home_q: np.ndarray,
     build = 0.0
     if optimise and freedom == "free":
         t0 = time.perf_counter()
-        nlp = get_nlp(robot, task.rule, task.n, settings, verbose)
+        nlp = get_nlp(arm, task.rule, task.n, settings, verbose)
         build = time.perf_counter() - t0
 
     results: dict[int, BranchResult] = {}
     for b in sorted(ws.warm):
         bp_warm, wname, wcost = ws.warm[b]
         qa = ws.analytic[b].q if b in ws.analytic else None
-        err_a = linear_error(model, qa, task.wrench) if qa is not None else np.full(task.n, np.nan)
+        err_a = linear_error(model, qa, task.load) if qa is not None else np.full(task.n, np.nan)
         cost_a = float(np.sum(err_a ** 2)) if qa is not None else math.nan
         base = qa if qa is not None else bp_warm.q
         if nlp is None:
@@ -1224,7 +1266,7 @@ def optimise_postures(robot: Robot, task: PostureTask, home_q: np.ndarray,
             else:
                 st, why = BranchStatus.ANALYTIC, "optimisation switched off: analytic posture"
             q = base
-            err = linear_error(model, q, task.wrench)
+            err = linear_error(model, q, task.load)
             results[b] = BranchResult(b, st, why, q, qa, bp_warm.q, wname if qa is None else "nominal",
                                       float(np.sum(err ** 2)), cost_a, wcost, err, err_a)
             continue
@@ -1241,7 +1283,7 @@ def optimise_postures(robot: Robot, task: PostureTask, home_q: np.ndarray,
         else:
             st, why = BranchStatus.OPTIMISED, f"IPOPT: {ip_status} in {iters} iterations"
         q = q_pol if st is BranchStatus.OPTIMISED else base
-        err = linear_error(model, q, task.wrench)
+        err = linear_error(model, q, task.load)
         margin = singular_factors(ik, q) * sign - guard_bounds()
         active = {GUARD_NAMES[i]: int(np.sum(margin[:, i] <= GUARD_ACTIVE_TOL)) for i in range(N_GUARDS)}
         results[b] = BranchResult(b, st, why, q, qa, bp_warm.q, wname, float(np.sum(err ** 2)), cost_a,
@@ -1262,7 +1304,7 @@ def optimise_postures(robot: Robot, task: PostureTask, home_q: np.ndarray,
                          note, ws.unreachable, build)
 
 
-def optimal_pose(robot: Robot, position: np.ndarray, rotation: np.ndarray, rule: OrientationRule,
+def optimal_pose(robot: ArmModel | Robot, position: np.ndarray, rotation: np.ndarray, rule: OrientationRule,
                  wrench: np.ndarray, cone_half_angle: float = 0.0, home_q: np.ndarray | None = None,
                  settings: SolverSettings = SolverSettings(), scan: int = DEFAULT_SCAN,
                  verbose: bool = False) -> PostureResult:

@@ -21,9 +21,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from models.arm import ArmModel, load_arm
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
-from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError, load_robot
+from models.load import Load
+from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError
 from models.transforms import matrix_to_rpy, rpy_to_matrix, transform
 from problems import paper
 from problems.path import MAX_JOINT_STEP, line_positions
@@ -41,14 +43,17 @@ MAX_WAYPOINTS = 2000
 #: Default nominal TCP orientation: tool z axis pointing down (roll = 180 deg).
 DEFAULT_RPY = np.array([math.pi, 0.0, 0.0])
 
-_TOP = ("name", "description", "source", "robot", "path", "orientation", "wrench", "limits",
+_TOP = ("name", "description", "source", "robot", "path", "orientation", "wrench", "payload", "limits",
         "cost", "solver", "branch", "timing")
+#: Frames a wrench may be given in.
+WRENCH_FRAMES = ("base", "tool")
 _TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "robot": ("model", "tool"),
     "robot.tool": ("xyz", "rpy", "rpy_deg"),
     "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg"),
     "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
     "wrench": ("frame", "force", "moment", "per_waypoint"),
+    "payload": ("mass_kg", "com_m", "gravity_m_s2"),
     "limits": ("velocity", "acceleration", "jerk", "velocity_scale", "acceleration_scale",
                "jerk_scale", "max_joint_step", "max_joint_step_deg"),
     "cost": ("smoothness",),
@@ -129,8 +134,18 @@ class Problem:
     scan : int
         Scanned rotations about the tool axis for the warm starts.
     wrench : ndarray, shape (N, 6)
-        [N, N*m], base frame, on the TCP.
+        [N, N*m] on the TCP, in the frame ``wrench_frame``.
     wrench_per_waypoint : bool
+    wrench_frame : {"base", "tool"}
+        ``tool``: the TCP frame (the wrench turns with the tool along the path).
+    payload_mass_kg : float
+    payload_com_m : ndarray, shape (3,)
+        Payload centre of mass, TCP frame, m.
+    gravity : ndarray, shape (3,)
+        Gravity acting on the payload, base frame, m/s^2.
+    arm : ArmModel
+        The arm model (chain and deflection model) with the problem's tool; ``robot`` is
+        its description.
     limits : Limits
     smoothness : float
         mm^2/rad^2.
@@ -160,6 +175,11 @@ class Problem:
     home_q: np.ndarray
     timing: TimingSettings
     nominal_rpy: np.ndarray = field(default_factory=lambda: DEFAULT_RPY.copy())
+    wrench_frame: str = "base"
+    payload_mass_kg: float = 0.0
+    payload_com_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gravity: np.ndarray | None = None
+    arm: ArmModel | None = None
     #: The file's own ``source`` text (where the task comes from); ``source`` above is
     #: where the file was read from.
     source_text: str = ""
@@ -169,9 +189,24 @@ class Problem:
         """Number of waypoints N."""
         return int(len(self.positions))
 
+    @property
+    def model(self) -> ArmModel:
+        """The arm model the problem is planned with (the robot file's nominal one unless
+        the file, or ``--robot``, names an identified model)."""
+        return self.arm if self.arm is not None else ArmModel.from_robot(self.robot)
+
+    @property
+    def load(self) -> Load:
+        """The load on the TCP: the wrench (in its frame) plus the payload."""
+        g = self.robot.gravity if self.gravity is None else self.gravity
+        W = self.wrench
+        return Load(wrench_base=W if self.wrench_frame == "base" else np.zeros(6),
+                    wrench_tool=W if self.wrench_frame == "tool" else np.zeros(6),
+                    payload_mass_kg=self.payload_mass_kg, payload_com_m=self.payload_com_m, gravity=g)
+
     def task(self) -> PostureTask:
         """The posture task of this problem."""
-        return PostureTask(self.positions, self.rotations, self.rule, self.wrench,
+        return PostureTask(self.positions, self.rotations, self.rule, self.load.rows(self.n),
                            cone_half_angle=self.cone_half_angle,
                            max_joint_step=self.limits.max_joint_step,
                            smoothness=self.smoothness, scan=self.scan)
@@ -191,10 +226,12 @@ class Problem:
         W = np.broadcast_to(self.wrench[0], (n, 6)).copy()
         return replace(self, positions=P, rotations=R, wrench=W)
 
-    def with_robot(self, robot_spec: str) -> "Problem":
-        """The same problem on another robot (built-in name or file), keeping the problem's tool."""
-        robot = load_robot(robot_spec).with_tool(self.robot.flange2tcp)
-        return replace(self, robot_spec=str(robot_spec), robot=robot)
+    def with_robot(self, robot_spec: "str | ArmModel") -> "Problem":
+        """The same problem on another arm model (built-in name, robot file, identified model
+        file, or an :class:`ArmModel`), keeping the problem's tool."""
+        arm = load_arm(robot_spec).with_tool(self.robot.flange2tcp)
+        spec = robot_spec if isinstance(robot_spec, str) else (arm.source or arm.name)
+        return replace(self, robot_spec=str(spec), robot=arm.nominal, arm=arm)
 
     def with_timing(self, **changes: Any) -> "Problem":
         """The same problem with other timing settings (e.g. ``dt=0.002``)."""
@@ -225,10 +262,15 @@ class Problem:
             o["half_angle"] = self.cone_half_angle
         d["orientation"] = o
         if self.wrench_per_waypoint:
-            d["wrench"] = {"frame": "base", "per_waypoint": self.wrench.tolist()}
+            d["wrench"] = {"frame": self.wrench_frame, "per_waypoint": self.wrench.tolist()}
         else:
-            d["wrench"] = {"frame": "base", "force": self.wrench[0, :3].tolist(),
+            d["wrench"] = {"frame": self.wrench_frame, "force": self.wrench[0, :3].tolist(),
                            "moment": self.wrench[0, 3:].tolist()}
+        if self.payload_mass_kg:
+            d["payload"] = {"mass_kg": float(self.payload_mass_kg),
+                            "com_m": [float(v) for v in self.payload_com_m]}
+            if self.gravity is not None:
+                d["payload"]["gravity_m_s2"] = [float(v) for v in self.gravity]
         d["limits"] = {"velocity": self.limits.velocity.tolist(),
                        "acceleration": self.limits.acceleration.tolist(),
                        "jerk": self.limits.jerk.tolist(), "max_joint_step": self.limits.max_joint_step}
@@ -408,14 +450,15 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
     if spec not in BUILTIN_ROBOTS and base_dir is not None and not Path(spec).is_absolute():
         spec = str((base_dir / spec).resolve())
     try:
-        robot = load_robot(spec)
+        arm = load_arm(spec)
     except RobotFileError as exc:
         raise ProblemFileError(f"{where}: key 'robot.model': {exc}") from None
     if "tool" in rt:
         tt = _table(where, data, "robot.tool")
         xyz = _vector(where, "robot.tool.xyz", tt.get("xyz", [0.0, 0.0, 0.0]), 3)
         rpy = _rpy(where, tt, "robot.tool.")
-        robot = robot.with_tool(transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz))
+        arm = arm.with_tool(transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz))
+    robot = arm.nominal
 
     # --- orientation (needed for per-waypoint defaults)
     ot = _table(where, data, "orientation")
@@ -503,8 +546,9 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
     # --- wrench
     wt = _table(where, data, "wrench")
     frame = wt.get("frame", "base")
-    if frame != "base":
-        raise _err(where, "wrench.frame", f"must be 'base' (the only frame supported), got {frame!r}")
+    if frame not in WRENCH_FRAMES:
+        raise _err(where, "wrench.frame", f"must be one of {list(WRENCH_FRAMES)} (base frame, or the TCP frame "
+                                          f"turning with the tool), got {frame!r}")
     if "per_waypoint" in wt:
         if "force" in wt or "moment" in wt:
             raise ProblemFileError(f"{where}: give either 'wrench.per_waypoint' or 'wrench.force'/'moment', "
@@ -520,6 +564,22 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
         m = _vector(where, "wrench.moment", wt.get("moment", [0.0, 0.0, 0.0]), 3)
         W = np.broadcast_to(np.r_[f, m], (n, 6)).copy()
         per_wp = False
+
+    # --- payload
+    pt = _table(where, data, "payload")
+    p_mass, p_com, p_grav = 0.0, np.zeros(3), None
+    if pt:
+        if "mass_kg" not in pt:
+            raise _err(where, "payload.mass_kg", "is required in a [payload] table (kg)")
+        p_mass = _number(where, "payload.mass_kg", pt["mass_kg"])
+        if p_mass < 0:
+            raise _err(where, "payload.mass_kg", f"must be >= 0 kg, got {p_mass!r}")
+        p_com = _vector(where, "payload.com_m", pt.get("com_m", [0.0, 0.0, 0.0]), 3)
+        if np.max(np.abs(p_com)) > PLAUSIBLE_POSITION_MAX_M:
+            raise _err(where, "payload.com_m", f"= {p_com.tolist()} m is implausible (> "
+                                               f"{PLAUSIBLE_POSITION_MAX_M:g} m; millimetres given?)")
+        if "gravity_m_s2" in pt:
+            p_grav = _vector(where, "payload.gravity_m_s2", pt["gravity_m_s2"], 3)
 
     # --- limits
     lt = _table(where, data, "limits")
@@ -594,7 +654,8 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
                    robot=robot, path_kind=kind, line=line, positions=P, rotations=R, rule=rule,
                    cone_half_angle=half, scan=scan, wrench=W, wrench_per_waypoint=per_wp, limits=limits,
                    smoothness=smooth, solver=solver, home_q=home, timing=timing,
-                   nominal_rpy=np.asarray(nominal_rpy, float))
+                   nominal_rpy=np.asarray(nominal_rpy, float), wrench_frame=frame, payload_mass_kg=p_mass,
+                   payload_com_m=p_com, gravity=p_grav, arm=arm)
 
 
 def shipped_problems() -> tuple[str, ...]:

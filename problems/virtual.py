@@ -1,7 +1,7 @@
 """The virtual robot: a measurement-campaign simulator with optional effects.
 
 It is the project's own test bench for ``compplan identify``.  It is written
-independently of the identification model (:mod:`problems.effects`): NumPy
+independently of the identification model (:mod:`models.effects`): NumPy
 kinematics, physical forms of the effects (a two-slope hardening curve, a hard
 dead band, Euler-Bernoulli beams, COM Jacobians for gravity), so that a test
 passes only if the identification's parametrisation covers the physics rather
@@ -29,6 +29,7 @@ import numpy as np
 
 from models.errors import InputError
 from models.robot import Robot, load_robot
+from models.transforms import matrix_to_rotvec, rotvec_to_matrix  # noqa: F401 - re-exported
 
 from .measurements import Measurements
 
@@ -53,35 +54,6 @@ _TOP_KEYS = {"seed", "campaign", "noise", "registration", "temperature", "stiffn
 
 class SimConfigError(InputError):
     """A simulation configuration is malformed; the message names the key."""
-
-
-def rotvec_to_matrix(v: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (axis * angle, rad), shape (3, 3)."""
-    v = np.asarray(v, dtype=float)
-    th = float(np.linalg.norm(v))
-    if th < 1e-15:
-        return np.eye(3)
-    k = v / th
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K
-
-
-def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (rad) of a rotation matrix."""
-    c = (np.trace(R) - 1.0) / 2.0
-    th = math.acos(max(-1.0, min(1.0, c)))
-    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if th < 1e-12:
-        return 0.5 * w
-    if abs(math.pi - th) < 1e-6:
-        # near pi: axis from the symmetric part
-        M = (R + np.eye(3)) / 2.0
-        k = np.sqrt(np.maximum(np.diag(M), 0.0))
-        i = int(np.argmax(k))
-        k = M[:, i] / max(k[i], 1e-12)
-        k = k / np.linalg.norm(k)
-        return th * k
-    return th / (2.0 * math.sin(th)) * w
 
 
 # ----------------------------------------------------------------------------------

@@ -12,8 +12,7 @@ from models.constants import EXACT_COMPENSATION_TOL
 from models.transforms import tool_down_rotation
 from planner.cli import main
 from problems import paper
-from problems.compensation import (CompensationStatus, closed_form, equilibrium, exact,
-                                   linear_deflection, uncompensated)
+from problems.compensation import CompensationStatus, closed_form, exact, uncompensated
 from problems.path import branch_paths, line_positions, poses
 
 from .conftest import get_model
@@ -136,5 +135,5 @@ def test_demo_path_csv_lands_on_target_under_independent_physics(tmp_path, capsy
 def test_equilibrium_reports_non_convergence():
     robot, km, _ = get_model("ar5")
     q = np.array([[0.1, -1.2, 1.3, -1.5, -1.4, 0.2]])
-    res = equilibrium(q, np.array([0, 0, -2.0e5, 0, 0, 0.0]), linear_deflection(km), max_iter=5)
+    res = km.arm.equilibrium(q, np.array([0, 0, -2.0e5, 0, 0, 0.0]), max_iter=5)
     assert not res.converged.all()

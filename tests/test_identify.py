@@ -20,7 +20,7 @@ import pytest
 
 from models import load_robot
 from planner.cli import main as cli_main
-from problems import effects as fx
+from models import effects as fx
 from problems.identify import (
     IdentifyStatus,
     compensate,
@@ -34,6 +34,7 @@ from problems.identify import (
     predict,
     validate_on,
 )
+from problems.compensation import CompensationStatus
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
 
@@ -233,7 +234,7 @@ def test_compensation_is_exact_under_the_identified_model() -> None:
     F = np.zeros((10, 6))
     F[:, 2] = -80.0
     out = compensate(res.model, q, F)
-    assert out.status == "ok" and out.residual_m.max() < 1e-9
+    assert out.status is CompensationStatus.OK and out.residual_m.max() < 1e-9
 
 
 # ----------------------------------------------------------------------------------

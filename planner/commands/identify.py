@@ -28,7 +28,7 @@ def _effects_arg(text: str | None) -> list[str] | None:
     if t in ("", "none"):
         return []
     if t == "all":
-        from problems.effects import LIBRARY
+        from models.effects import LIBRARY
         return list(LIBRARY)
     return [e.strip() for e in t.split(",") if e.strip()]
 
@@ -183,13 +183,13 @@ def run_compensate(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     m = read_measurements(args.input, require_position=False)
     out = compensate(model, m.q, m.wrench, m.temperature)
-    if out.status != "ok" and args.strict:
+    if out.status.value != "ok" and args.strict:
         raise InfeasibleError(f"{args.input}: {out.reason}; nothing written")
     atomic_write_bytes(args.out, commands_csv([f"q{i}" for i in range(1, 7)], out.q_command).encode())
-    if out.status != "ok":
+    if out.status.value != "ok":
         lines = ", ".join(str(int(m.line[i])) for i in out.failed_rows[:10])
         print(f"compensate: warning: {out.reason}; input lines {lines}")
-    print(f"compensate: {m.n} rows, status {out.status}; wrote {args.out} (q1..q6 in rad)")
+    print(f"compensate: {m.n} rows, status {out.status.value}; wrote {args.out} (q1..q6 in rad)")
     return 0
 
 

@@ -14,20 +14,22 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "of TCP positions at a fixed end attitude. Writes "
                                    "compliance_map.csv (SI), compliance_map.json and "
                                    "figures/fig1_compliance_map.png|pdf.")
-    m.add_argument("--robot", default="ar5", help="built-in robot name or robot file (default ar5)")
+    m.add_argument("--robot", default="ar5", help="built-in robot name, robot file or identified model file "
+                                                  "(default ar5)")
     m.add_argument("--out", required=True, help="output folder")
     add_map_arguments(m)
     m.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from models import load_robot
+    from models.arm import load_arm
     from planner.compliance_map import ELEMENT_NAMES
     from planner.report import write_map
 
-    robot = load_robot(args.robot)
+    arm = load_arm(args.robot)
+    robot = arm.nominal
     with report_progress() as prog:
-        cm, written = write_map(robot, Path(args.out), progress=prog, **map_options(args))
+        cm, written = write_map(arm, Path(args.out), progress=prog, **map_options(args))
     s = cm.summary()
     print(f"compliance map, robot {robot.name}, plane {s['plane']}, "
           f"{s['points'][0]}x{s['points'][1]} points, attitude rpy {s['rpy_rad']} rad "

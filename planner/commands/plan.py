@@ -31,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--dt", type=_dt, default=None,
                    help="controller period in s (default: the problem's timing.dt, else 0.008)")
+    p.add_argument("--robot", default=None,
+                   help="arm model to plan with instead of the problem's robot: a built-in name, a robot file or "
+                        "an identified model file (compplan identify --out MODEL); the problem's tool is kept")
     p.add_argument("--no-optimise", action="store_true",
                    help="branch choice only: analytic postures, no NLP")
     p.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png (written only with --no-report; "
@@ -43,6 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                     "waypoint of a problem")
     q.add_argument("problem", help="problem file (TOML) or the name of a shipped problem")
     q.add_argument("--waypoint", type=int, default=0, help="waypoint index k (default 0)")
+    q.add_argument("--robot", default=None, help="arm model instead of the problem's robot (as for plan)")
     q.add_argument("--out", default=None, help="write pose.json into this folder")
     q.set_defaults(func=run_pose)
 
@@ -54,8 +58,10 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
     s = res.summary()
     pr = res.problem
     ps = res.posture
+    md = pr.model.describe()
     print(f"problem {pr.name} ({pr.source}): robot {pr.robot.name}, {pr.n} waypoints, "
           f"rule {pr.rule.value}; {ps.freedom_note}")
+    print(f"arm model: {md['file'] or pr.robot.name}; effects: {', '.join(md['effects'])}")
     print(f"  {'branch':<8}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
           f"{'iter':>6}{'NLP [ms]':>10}")
     for r in ps.branches.values():
@@ -74,7 +80,8 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
         ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
         ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
         ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
-    ], f"TCP position error of the chosen posture, F = {[float(v) for v in pr.wrench[0]]} (N, N*m, base frame)"
+    ], f"TCP position error of the chosen posture, F = {[float(v) for v in pr.wrench[0]]} (N, N*m, "
+       f"{pr.wrench_frame} frame)" + (f" + payload {pr.payload_mass_kg:g} kg" if pr.payload_mass_kg else "")
        + (" at waypoint 0 (per-waypoint wrench)" if pr.wrench_per_waypoint else ""))
     if res.trajectories:
         print(f"timing at dt = {pr.timing.dt * 1e3:g} ms (peak |value|/limit over the joints):")
@@ -96,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
     from planner.output import check_output_folder
 
     problem = load_problem(args.problem)
+    if args.robot is not None:
+        problem = problem.with_robot(args.robot)
     if args.dt is not None:
         problem = problem.with_timing(dt=args.dt)
     check_output_folder(args.out)
@@ -125,10 +134,12 @@ def run_pose(args: argparse.Namespace) -> int:
     from problems.problem import load_problem
 
     pr = load_problem(args.problem)
+    if args.robot is not None:
+        pr = pr.with_robot(args.robot)
     k = args.waypoint
     if not 0 <= k < pr.n:
         raise InputError(f"pose: --waypoint {k} is outside the problem's waypoints 0..{pr.n - 1}")
-    res = optimal_pose(pr.robot, pr.positions[k], pr.rotations[k], pr.rule, pr.wrench[k],
+    res = optimal_pose(pr.model, pr.positions[k], pr.rotations[k], pr.rule, pr.load.rows(pr.n)[k],
                        cone_half_angle=pr.cone_half_angle, home_q=pr.home_q, settings=pr.solver,
                        scan=pr.scan, verbose=args.verbose)
     if not res.ok:
@@ -137,7 +148,8 @@ def run_pose(args: argparse.Namespace) -> int:
         raise cls(f"pose: waypoint {k} of '{pr.name}': {res.status.value}: {res.reason}")
     p = pr.positions[k]
     print(f"waypoint {k} of {pr.name}: TCP ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, rule {pr.rule.value}, "
-          f"F = {[float(v) for v in pr.wrench[k]]} (N, N*m, base frame)")
+          f"F = {[float(v) for v in pr.wrench[k]]} (N, N*m, {pr.wrench_frame} frame)"
+          + (f" + payload {pr.payload_mass_kg:g} kg" if pr.payload_mass_kg else ""))
     entries = {}
     for r in res.branches.values():
         mark = " *" if r.branch == res.chosen else ""

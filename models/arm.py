@@ -1,0 +1,265 @@
+"""The arm model: one object from measurement to motion.
+
+An :class:`ArmModel` is the kinematic chain of a robot description plus its
+deflection model, a set of effect plug-ins (:mod:`models.effects`) with their
+parameter values.  A plain robot file gives the nominal model (DH table and
+linear joint springs); a robot file with an ``[identified]`` table (written by
+``compplan identify``, see :mod:`models.arm_file`) gives the identified one.
+Planning, compensation, maps, prediction and reports all evaluate this object:
+
+* :attr:`ArmModel.kinematics` -- named CasADi functions with the parameters fixed
+  (:class:`models.symbolic.KinematicModel`), compiled for batches;
+* :meth:`ArmModel.equilibrium` -- the deflected equilibrium ``q = q_c + dq(q, L)``,
+  the one place the product decides where a loaded arm settles (the deflection is
+  evaluated at the deflected pose).
+
+Frames: the base frame of the robot (``base2tcp`` maps TCP-frame coordinates to
+base-frame coordinates); the measurement frame and the measured point matter only
+for identification and prediction (:meth:`base2meas`, :attr:`measured_point`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import effects as fx
+from .constants import EQUILIBRIUM_MAX_ITER, EQUILIBRIUM_STEP_TOL
+from .load import Load, load_rows
+from .robot import Robot
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .symbolic import KinematicModel
+
+
+@dataclass
+class EquilibriumResult:
+    """Deflected equilibrium ``q = q_c + dq(q, L)`` for N commands.
+
+    Attributes
+    ----------
+    q : ndarray, shape (N, 6)
+        Deflected joint angles, rad.
+    converged : ndarray of bool, shape (N,)
+    iterations : int
+    """
+
+    q: np.ndarray
+    converged: np.ndarray
+    iterations: int
+
+
+@dataclass
+class ArmModel:
+    """A robot's kinematic chain and deflection model (SI units).
+
+    Attributes
+    ----------
+    nominal : Robot
+        The description the parameters refer to (nominal DH, stiffness, limits, tool).
+    theta : ndarray, shape (N_PARAMS,)
+        Every effect parameter (effects not active sit at their defaults, where they vanish).
+    R0 : ndarray, shape (3, 3)
+        Rotation the registration correction is applied to (measurement frame).
+    tau_scale : ndarray, shape (6,)
+        Joint torque scales of the hardening and lost-motion terms, N*m.
+    gravity_on : bool
+        Self-weight torques included (the ``gravity`` effect).
+    beams : ndarray, shape (6, 3, 3)
+        Beam frames of ``link_compliance``.
+    knots : ndarray, shape (6, N_KNOTS) or None
+        Hardening knots, N*m.
+    time_ref : (float, float)
+        ``(t_start, t_span)`` of the identification campaign, s (drift).
+    temperature_ref : float
+        Temperature the model is evaluated at when none is given, deg C.
+    effects : list of str
+        Active library effects.
+    registered : bool
+        Whether the identification data were in the base frame.
+    std, held : dict
+        Standard deviations and held parameters of the identification.
+    noise_sigma_m : float or None
+    source, sha256 : str
+        Where the model was read from and the file's hash (empty when built in memory).
+    """
+
+    nominal: Robot
+    theta: np.ndarray
+    R0: np.ndarray = field(default_factory=lambda: np.eye(3))
+    tau_scale: np.ndarray = field(default_factory=lambda: np.ones(6))
+    gravity_on: bool = False
+    beams: np.ndarray | None = None
+    knots: np.ndarray | None = None
+    time_ref: tuple[float, float] = (0.0, 1.0)
+    temperature_ref: float = fx.THERMAL_REFERENCE_C
+    effects: list[str] = field(default_factory=list)
+    registered: bool = True
+    std: dict[str, float] = field(default_factory=dict)
+    noise_sigma_m: float | None = None
+    held: dict[str, str] = field(default_factory=dict)
+    source: str = ""
+    sha256: str = ""
+
+    def __post_init__(self) -> None:
+        if self.beams is None:
+            self.beams = fx.beam_frames(self.nominal)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_robot(cls, robot: Robot) -> "ArmModel":
+        """The nominal model of a description: its DH chain and linear joint springs."""
+        return cls(nominal=robot, theta=fx.make_layout(robot).nominal.copy())
+
+    def robot(self) -> Robot:
+        """The identified robot: DH errors and stiffness folded into the ordinary fields,
+        everything else in the ``[identified]`` table (see :mod:`models.arm_file`)."""
+        from .arm_file import model_to_dict
+        from .robot import robot_from_dict
+        return robot_from_dict(model_to_dict(self), "identified model")
+
+    @property
+    def name(self) -> str:
+        return self.nominal.name
+
+    def with_tool(self, flange2tcp: np.ndarray) -> "ArmModel":
+        """The same model with another TCP (4x4, TCP -> flange)."""
+        return replace(self, nominal=self.nominal.with_tool(flange2tcp))
+
+    # ------------------------------------------------------------------ parameters
+    @property
+    def const(self) -> np.ndarray:
+        """The constant vector of the model graph."""
+        return fx.make_const(self.nominal, self.R0, self.tau_scale, self.gravity_on, self.beams, self.knots)
+
+    def parameter(self, group: str) -> np.ndarray:
+        """Values of a parameter group (e.g. ``"geometric.da"``), SI."""
+        return self.theta[fx.GROUP_SLICES[group]].copy()
+
+    @property
+    def active_effects(self) -> tuple[str, ...]:
+        """Active library effects, with those they subsume (``geometric`` -> ``joint_offset``)."""
+        out: list[str] = []
+        for e in self.effects:
+            if e not in fx.EFFECTS:
+                continue
+            out += [e] + [s for s in fx.EFFECTS[e].subsumes]
+        if self.gravity_on and "gravity" not in out:
+            out.append("gravity")
+        return tuple(e.name for e in fx.registry() if e.name in out)
+
+    @property
+    def arm_effects(self) -> tuple[str, ...]:
+        """Effects that act on the arm (planning): declared ones and active library ones."""
+        return tuple(e.name for e in fx.registry() if e.acts_on == fx.ARM
+                     and (e.declared or e.name in self.active_effects))
+
+    @property
+    def geometry_is_nominal(self) -> bool:
+        """The chain is the robot file's DH table (no geometric, offset or thermal effect)."""
+        return not any(e in self.active_effects for e in ("joint_offset", "geometric", "thermal"))
+
+    @property
+    def is_nominal(self) -> bool:
+        """Nothing but the robot file's chain and springs."""
+        return not self.active_effects and np.allclose(
+            self.theta[fx.GROUP_SLICES["stiffness.s"]], 0.0)
+
+    def joint_compliance(self) -> np.ndarray:
+        """Linear joint-spring compliances ``c0 (1 + s)``, rad/(N*m), (6,)."""
+        return (1.0 / self.nominal.stiffness) * (1.0 + self.theta[fx.GROUP_SLICES["stiffness.s"]])
+
+    def base2meas(self) -> np.ndarray:
+        """Identified measurement-frame registration (4, 4): base-frame -> measurement-frame coordinates."""
+        T = np.eye(4)
+        T[:3, :3] = fx.cayley_np(self.theta[fx.GROUP_SLICES["reg.w"]]) @ self.R0
+        T[:3, 3] = self.theta[fx.GROUP_SLICES["reg.t"]]
+        return T
+
+    @property
+    def measured_point(self) -> np.ndarray:
+        """Measured point in the flange frame, m, (3,)."""
+        return self.theta[fx.GROUP_SLICES["tool.p"]].copy()
+
+    def describe(self) -> dict[str, Any]:
+        """What the summaries record about the model used."""
+        return {"robot": self.nominal.name, "file": self.source or None, "sha256": self.sha256 or None,
+                "identified": bool(self.effects) or not self.is_nominal,
+                "effects": ["joint_springs"] + list(self.active_effects),
+                "temperature_C": float(self.temperature_ref)}
+
+    # ------------------------------------------------------------------ evaluation
+    @cached_property
+    def kinematics(self) -> "KinematicModel":
+        """Named CasADi functions of this model with its parameters fixed (compiled batches)."""
+        from .symbolic import KinematicModel
+        return KinematicModel(self)
+
+    def load_deflection(self, q: np.ndarray, load: Load | np.ndarray) -> np.ndarray:
+        """Joint deflection ``dq(q, L)`` of the arm whose joints sit at ``q`` (N, 6), rad."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        km = self.kinematics
+        return km.batch(km.fn["load_deflection"], q, load_rows(load, len(q)))[0]
+
+    def loaded_tcp(self, q: np.ndarray, load: Load | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """TCP of the loaded arm whose joints sit at ``q``: positions (N, 3) m and rotations
+        (N, 3, 3), base frame (link compliance included)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        km = self.kinematics
+        p, R = km.batch(km.fn["loaded_tcp"], q, load_rows(load, len(q)))
+        return p, R
+
+    def tcp_wrench(self, q: np.ndarray, load: Load | np.ndarray) -> np.ndarray:
+        """Wrench on the TCP at the pose ``q``, base frame, (N, 6) [N; N*m]."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        km = self.kinematics
+        return km.batch(km.fn["tcp_wrench"], q, load_rows(load, len(q)))[0]
+
+    def load_error(self, q: np.ndarray, load: Load | np.ndarray) -> np.ndarray:
+        """First-order load-induced TCP error at the pose ``q`` (N, 6) [m; rad], base frame:
+        ``[J_v dq(q, L) + dp_link(q, L); J_w dq(q, L)]`` (the posture NLP's objective)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        km = self.kinematics
+        return km.batch(km.fn["load_error"], q, load_rows(load, len(q)))[0]
+
+    def equilibrium(self, q_command: np.ndarray, load: Load | np.ndarray,
+                    max_iter: int = EQUILIBRIUM_MAX_ITER, tol: float = EQUILIBRIUM_STEP_TOL) -> EquilibriumResult:
+        """Solve ``q = q_c + dq(q, L)`` by fixed-point iteration (vectorised over N).
+
+        The map contracts by about ``|d dq / dq|`` (1e-3 .. 1e-1 for real arms and loads),
+        so a few iterations reach machine precision; rows that do not converge within
+        ``max_iter`` are flagged.
+
+        Parameters
+        ----------
+        q_command : ndarray, shape (N, 6), rad
+        load : Load, load rows (N, 19), or a base-frame wrench (6,) / (N, 6)
+        """
+        qc = np.atleast_2d(np.asarray(q_command, dtype=float))
+        L = load_rows(load, len(qc))
+        q = qc + self.load_deflection(qc, L)
+        converged = np.zeros(len(qc), dtype=bool)
+        it = 0
+        for it in range(1, max_iter + 1):
+            q_new = qc + self.load_deflection(q, L)
+            step = np.max(np.abs(q_new - q), axis=1)
+            q = q_new
+            converged = step <= tol
+            if converged.all():
+                break
+        return EquilibriumResult(q=q, converged=converged, iterations=it)
+
+
+def load_arm(spec: str | Robot | ArmModel) -> ArmModel:
+    """An :class:`ArmModel` from a built-in name, a robot file (with or without an
+    ``[identified]`` table), a :class:`Robot` or an existing model."""
+    if isinstance(spec, ArmModel):
+        return spec
+    if isinstance(spec, Robot):
+        from .arm_file import model_from_robot
+        return model_from_robot(spec, spec.name)
+    from .arm_file import load_model
+    return load_model(str(spec))

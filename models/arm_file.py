@@ -1,0 +1,173 @@
+"""Model files: an :class:`~models.arm.ArmModel` as a robot file with an ``[identified]`` table.
+
+DH errors (``da, dalpha, dd, dtheta``) and stiffness are folded into the ordinary joint
+fields, so the file is a valid robot file for any tool; the ``[identified]`` table holds
+the registration, the measured point, the active effects with their parameters (SI,
+by parameter group, see ``docs/identification.md``), standard deviations, the nominal
+values the parameters refer to, and the constants of the effect formulas.  A plain
+robot file (no ``[identified]`` table) reads as the nominal model.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import effects as fx
+from .arm import ArmModel
+from .effects import GROUP_SLICES, LIBRARY, make_layout
+from .robot import BUILTIN_ROBOTS, Robot, RobotFileError, load_robot, robot_from_dict
+from .transforms import matrix_to_rotvec, rotvec_to_matrix
+
+#: Format version of the ``[identified]`` table.
+MODEL_FORMAT = 1
+
+_FOLDED = ("joint_offset.dtheta", "geometric.da", "geometric.dalpha", "geometric.dd", "stiffness.s")
+
+
+def model_to_dict(model: ArmModel) -> dict[str, Any]:
+    """Robot-file dictionary of an identified model.
+
+    DH errors (``da, dalpha, dd, dtheta``) and stiffness go into the ordinary joint
+    fields; the ``[identified]`` table holds the registration, measured point,
+    effects with their parameters (SI), standard deviations, the nominal values the
+    parameters refer to, and the constants of the effect formulas.
+    """
+    r = model.nominal
+    th = model.theta
+    d = r.to_dict()
+    d.pop("identified", None)
+    def g(name: str) -> np.ndarray:
+        return th[GROUP_SLICES[name]]
+    for i, j in enumerate(d["joints"]):
+        j["a"] = float(r.a[i] + g("geometric.da")[i])
+        j["alpha"] = float(r.alpha[i] + g("geometric.dalpha")[i])
+        j["d"] = float(r.d[i] + g("geometric.dd")[i])
+        j["theta_offset"] = float(r.theta_offset[i] + g("joint_offset.dtheta")[i])
+        j["stiffness"] = float(r.stiffness[i] / (1.0 + g("stiffness.s")[i]))
+    b2m = model.base2meas()
+    params: dict[str, Any] = {}
+    for grp, eff, names, unit in fx.PARAMETER_GROUPS:
+        if grp in _FOLDED or grp.startswith("reg.") or grp == "tool.p":
+            continue
+        if eff not in model.effects and not (grp == "geometric.dbeta" and "geometric" in model.effects):
+            continue
+        params[grp] = [float(v) for v in th[GROUP_SLICES[grp]]]
+    ident = {
+        "format": MODEL_FORMAT,
+        "registered": bool(model.registered),
+        "base2meas": {"xyz": [float(v) for v in b2m[:3, 3]],
+                      "rotvec": [float(v) for v in matrix_to_rotvec(b2m[:3, :3])]},
+        "measured_point": [float(v) for v in model.measured_point],
+        "effects": list(model.effects),
+        "parameters": params,
+        "std": {k: float(v) for k, v in model.std.items() if np.isfinite(v)},
+        "held": dict(model.held),
+        "constants": {"tau_scale_Nm": [float(v) for v in model.tau_scale], "gravity_on": bool(model.gravity_on),
+                      "beam_frames": [[float(v) for v in model.beams[i].reshape(-1)] for i in range(6)],
+                      "hardening_knots_Nm": [float(v) for v in (model.knots if model.knots is not None else
+                                             np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)).reshape(-1)],
+                      "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
+                      "temperature_ref_C": float(model.temperature_ref)},
+        "nominal": {"a": r.a.tolist(), "alpha": r.alpha.tolist(), "d": r.d.tolist(),
+                    "theta_offset": r.theta_offset.tolist(), "stiffness": r.stiffness.tolist()},
+    }
+    if model.noise_sigma_m is not None:
+        ident["noise_sigma_m"] = float(model.noise_sigma_m)
+    d["identified"] = ident
+    return d
+
+
+def _nums(where: str, key: str, v: Any, n: int) -> np.ndarray:
+    if not isinstance(v, list) or len(v) != n or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                         for x in v):
+        raise RobotFileError(f"{where}: [identified] key '{key}' must be a list of {n} numbers")
+    a = np.array(v, dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise RobotFileError(f"{where}: [identified] key '{key}' must be finite")
+    return a
+
+
+def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
+    """An :class:`ArmModel` from a robot (plain file = nominal model, no effects)."""
+    ident = robot.identified
+    if ident is None:
+        layout = make_layout(robot)
+        return ArmModel(nominal=robot, theta=layout.nominal.copy(), R0=np.eye(3), tau_scale=np.ones(6),
+                        gravity_on=False, beams=fx.beam_frames(robot), registered=True)
+    try:
+        fmt = ident.get("format")
+        if fmt != MODEL_FORMAT:
+            raise RobotFileError(f"{where}: [identified] format {fmt!r} is not supported (expected {MODEL_FORMAT})")
+        nom = ident["nominal"]
+        d = robot.to_dict()
+        d.pop("identified", None)
+        for key in ("a", "alpha", "d", "theta_offset", "stiffness"):
+            vals = _nums(where, f"nominal.{key}", nom[key], 6)
+            for i, j in enumerate(d["joints"]):
+                j[key] = float(vals[i])
+        nominal = robot_from_dict(d, where)
+        layout = make_layout(nominal)
+        theta = layout.nominal.copy()
+        # folded parameters: identified - nominal
+        theta[GROUP_SLICES["geometric.da"]] = robot.a - nominal.a
+        theta[GROUP_SLICES["geometric.dalpha"]] = robot.alpha - nominal.alpha
+        theta[GROUP_SLICES["geometric.dd"]] = robot.d - nominal.d
+        theta[GROUP_SLICES["joint_offset.dtheta"]] = robot.theta_offset - nominal.theta_offset
+        theta[GROUP_SLICES["stiffness.s"]] = nominal.stiffness / robot.stiffness - 1.0
+        b2m = ident["base2meas"]
+        R0 = rotvec_to_matrix(_nums(where, "base2meas.rotvec", b2m["rotvec"], 3))
+        theta[GROUP_SLICES["reg.t"]] = _nums(where, "base2meas.xyz", b2m["xyz"], 3)
+        theta[GROUP_SLICES["tool.p"]] = _nums(where, "measured_point", ident["measured_point"], 3)
+        effects = list(ident.get("effects", []))
+        for e in effects:
+            if e not in LIBRARY:
+                raise RobotFileError(f"{where}: [identified] effect '{e}' is not in the library")
+        for grp, vals in dict(ident.get("parameters", {})).items():
+            if grp not in GROUP_SLICES:
+                raise RobotFileError(f"{where}: [identified.parameters] unknown group '{grp}'")
+            s = GROUP_SLICES[grp]
+            theta[s] = _nums(where, f"parameters.{grp}", vals, s.stop - s.start)
+        c = ident["constants"]
+        tau_s = _nums(where, "constants.tau_scale_Nm", c["tau_scale_Nm"], 6)
+        beams = np.array([_nums(where, "constants.beam_frames", b, 9).reshape(3, 3)
+                          for b in c["beam_frames"]])
+        if beams.shape != (6, 3, 3):
+            raise RobotFileError(f"{where}: [identified] key 'constants.beam_frames' must hold 6 lists of 9")
+        tr = _nums(where, "constants.time_ref_s", c["time_ref_s"], 2)
+        knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"],
+                      6 * fx.N_KNOTS).reshape(6, fx.N_KNOTS)
+        return ArmModel(nominal=nominal, theta=theta, R0=R0, tau_scale=tau_s,
+                        gravity_on=bool(c.get("gravity_on", False)), beams=beams, knots=knots,
+                        time_ref=(float(tr[0]), float(tr[1])),
+                        temperature_ref=float(c.get("temperature_ref_C", fx.THERMAL_REFERENCE_C)),
+                        effects=effects, registered=bool(ident.get("registered", False)),
+                        std=dict(ident.get("std", {})), noise_sigma_m=ident.get("noise_sigma_m"),
+                        held=dict(ident.get("held", {})))
+    except KeyError as exc:
+        raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
+    except (TypeError, AttributeError, ValueError) as exc:
+        raise RobotFileError(f"{where}: [identified] table is malformed ({exc})") from None
+
+
+def load_model(spec: str | Path) -> ArmModel:
+    """Load an identified model file, or a plain robot file / built-in name (nominal).
+
+    The model records where it came from (``source``) and, for a file, its SHA-256.
+    """
+    robot = load_robot(spec)
+    model = model_from_robot(robot, str(spec))
+    model.source = str(spec) if str(spec) in BUILTIN_ROBOTS else str(Path(spec).resolve())
+    if str(spec) not in BUILTIN_ROBOTS:
+        model.sha256 = hashlib.sha256(Path(spec).read_bytes()).hexdigest()
+    return model
+
+
+def model_toml(model: ArmModel) -> str:
+    import tomli_w
+    return tomli_w.dumps(model_to_dict(model))
+
+

@@ -1,0 +1,78 @@
+"""The effect library: one module per effect, each registering an :class:`Effect` plug-in.
+
+Every module of this package other than ``base`` and ``graph`` is imported here, so
+adding an effect is adding a module that defines and registers it (see
+``docs/architecture.md``).  The layouts below are built from the registry once all
+built-in modules are imported.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+from . import base
+from .base import (ARM, MEASUREMENT, PARALLEL_AXIS_TOL, TORQUE_SCALE_FLOOR_NM, ConstGroup, Effect, ModelLayout,
+                   ParamGroup, default_constants, effect, get_const, layouts, make_layout, register, registry,
+                   set_const)
+
+for _m in pkgutil.iter_modules(__path__):
+    if _m.name not in ("base", "graph"):
+        importlib.import_module(f"{__name__}.{_m.name}")
+
+from .graph import (EQUILIBRIUM_UNROLL, JACOBIAN_UNROLL, LOAD_SIZE, ROW_SIZE, arm_functions,  # noqa: E402
+                    identification_functions)
+from .link_compliance import LINK_BEAM_MIN_FRACTION, beam_frames  # noqa: E402
+from .lost_motion import LOST_MOTION_RHO_BOUNDS, LOST_MOTION_RHO_INIT  # noqa: E402
+from .registration import cayley, cayley_np  # noqa: E402
+from .stiffness_hardening import HARDENING_KNOT_QUANTILES, N_HARDENING, N_KNOTS  # noqa: E402
+from .thermal import THERMAL_REFERENCE_C  # noqa: E402
+
+_L = layouts()
+#: Parameter groups ``(key, effect, labels, unit)`` in the order of ``theta``.
+PARAMETER_GROUPS: tuple[tuple[str, str, list[str], str], ...] = tuple(
+    (g.key, e.name, list(g.labels), g.unit if isinstance(g.unit, str) else "varies") for g, e in _L.groups)
+GROUP_SLICES: dict[str, slice] = dict(_L.slices)
+N_PARAMS: int = _L.n_params
+PARAM_NAMES: tuple[str, ...] = _L.names
+CONST_SIZE: int = _L.const_size
+CONST_SLICES: dict[str, slice] = dict(_L.const_slices)
+#: Effects of the identification library (candidates), in registry order, plus ``outliers``
+#: (robust fitting: not a model term).
+LIBRARY: tuple[str, ...] = tuple(e.name for e in registry() if not e.declared) + ("outliers",)
+#: Names of the declared (always present) parameter groups.
+BASE_GROUPS: tuple[str, ...] = tuple(g.key for e in registry() if e.declared for g in e.groups)
+#: Effect plug-ins by name.
+EFFECTS: dict[str, Effect] = {e.name: e for e in registry()}
+
+
+def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=None, knots=None):  # noqa: ANN001, ANN201
+    """The constant vector of ``robot`` (defaults from the declarations), with the
+    data-dependent blocks given: registration ``R0`` (3x3), joint torque scales
+    ``tau_scale`` (6, N*m, floored at :data:`TORQUE_SCALE_FLOOR_NM`), ``gravity_on``,
+    beam frames (6, 3, 3) and hardening knots (6, N_KNOTS, N*m; default: torque-scale
+    quantiles)."""
+    import numpy as np
+    c = default_constants(robot)
+    if R0 is not None:
+        c = set_const(c, "registration.R0", np.asarray(R0, dtype=float))
+    ts = np.ones(6) if tau_scale is None else np.maximum(np.asarray(tau_scale, dtype=float),
+                                                         TORQUE_SCALE_FLOOR_NM)
+    c = set_const(c, "tau_scale", ts)
+    c = set_const(c, "gravity.on", [1.0 if gravity_on else 0.0])
+    if beams is not None:
+        c = set_const(c, "link_compliance.beams",
+                      np.concatenate([np.asarray(b, dtype=float).reshape(-1, order="F") for b in beams]))
+    kn = np.outer(ts, HARDENING_KNOT_QUANTILES) if knots is None else np.asarray(knots, dtype=float)
+    return set_const(c, "hardening.knots", kn.reshape(-1))
+
+
+__all__ = [
+    "ARM", "BASE_GROUPS", "CONST_SIZE", "CONST_SLICES", "ConstGroup", "EFFECTS", "EQUILIBRIUM_UNROLL",
+    "Effect", "GROUP_SLICES", "HARDENING_KNOT_QUANTILES", "JACOBIAN_UNROLL", "LIBRARY", "LINK_BEAM_MIN_FRACTION",
+    "LOAD_SIZE", "LOST_MOTION_RHO_BOUNDS", "LOST_MOTION_RHO_INIT", "MEASUREMENT", "ModelLayout", "N_HARDENING",
+    "N_KNOTS", "N_PARAMS", "PARALLEL_AXIS_TOL", "PARAMETER_GROUPS", "PARAM_NAMES", "ParamGroup", "ROW_SIZE",
+    "THERMAL_REFERENCE_C", "TORQUE_SCALE_FLOOR_NM", "arm_functions", "base", "beam_frames", "cayley", "cayley_np",
+    "default_constants", "effect", "get_const", "identification_functions", "layouts", "make_const",
+    "make_layout", "register", "registry", "set_const",
+]

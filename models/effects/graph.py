@@ -1,0 +1,429 @@
+"""The one model graph: kinematic chain plus effect hooks, as CasADi expressions.
+
+The forward model of the loaded arm (all frames and vectors in the base frame
+unless stated; SI units)::
+
+    dh      = geometry hooks applied to the nominal DH table (offsets, errors, thermal)
+    frames  = chain(q; dh)                       base2frame_i, i = 1..6 (frame 6: flange)
+    W       = wrench on the TCP, [f (N); m (N*m)], base frame (the load, see models.load)
+    tau     = J_v^T f + J_w^T (m + r x f) + joint-torque hooks (self-weight)
+    dq      = sum of joint-deflection hooks(tau)  (linear springs, hardening, lost motion)
+    q       = q_c + dq(q)                         deflected equilibrium (deflection at the deflected pose)
+    p       = base2flange(q) * point + point-displacement hooks (link compliance)
+    p_meas  = measurement hooks(p)                (registration, drift; identification only)
+
+This module builds that graph once for every use: identification (parameters
+symbolic, :func:`identification_functions`) and planning (parameters fixed,
+:func:`arm_functions`), so there is one FK chain, one torque model and one
+deflection model in the product.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any, Callable, Sequence
+
+import casadi as ca
+import numpy as np
+
+from . import base
+from .base import Effect, layouts, registry
+
+#: Fixed-point iterations of the deflected equilibrium unrolled in the identification graph.
+#: The map contracts by about ``|d dq / dq|`` per iteration (1e-3 .. 1e-1), so 5 iterations
+#: leave far less than the measurement noise.
+EQUILIBRIUM_UNROLL = 5
+
+#: Fixed-point iterations restarted from the converged equilibrium to differentiate it:
+#: the derivative error is of order ``|d dq/dq|^JACOBIAN_UNROLL`` (relative).
+JACOBIAN_UNROLL = 1
+
+#: Per-row inputs of the identification functions: q_c (6, rad), F (6, N and N*m, base
+#: frame, on the TCP), tn (1), dT (1, K).
+ROW_SIZE = 14
+
+#: Load vector of the planning functions (see :mod:`models.load`):
+#: ``[f_base (3) N, m_base (3) N*m, f_tool (3) N, m_tool (3) N*m, payload mass (1) kg,
+#: payload centre of mass (3) m in the TCP frame, gravity (3) m/s^2 in the base frame]``.
+LOAD_SIZE = 19
+
+
+def link_transform(theta: Any, d: Any, a: Any, alpha: Any, convention: str) -> Any:
+    """DH link transform A_i as a 4x4 CasADi expression.
+
+    ``standard_dh``: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``;
+    ``modified_dh``: ``Rx(alpha) Tx(a) Rz(theta) Tz(d)`` (a, alpha of the previous link).
+    """
+    ct, st = ca.cos(theta), ca.sin(theta)
+    ca_, sa = ca.cos(alpha), ca.sin(alpha)
+    if convention == "standard_dh":
+        return ca.vertcat(
+            ca.horzcat(ct, -st * ca_, st * sa, a * ct),
+            ca.horzcat(st, ct * ca_, -ct * sa, a * st),
+            ca.horzcat(0, sa, ca_, d),
+            ca.horzcat(0, 0, 0, 1),
+        )
+    if convention == "modified_dh":
+        return ca.vertcat(
+            ca.horzcat(ct, -st, 0, a),
+            ca.horzcat(st * ca_, ct * ca_, -sa, -sa * d),
+            ca.horzcat(st * sa, ct * sa, ca_, ca_ * d),
+            ca.horzcat(0, 0, 0, 1),
+        )
+    raise ValueError(f"unknown DH convention {convention!r}")
+
+
+def _ry4(b: Any) -> Any:
+    c, s = ca.cos(b), ca.sin(b)
+    return ca.vertcat(ca.horzcat(c, 0, s, 0), ca.horzcat(0, 1, 0, 0),
+                      ca.horzcat(-s, 0, c, 0), ca.horzcat(0, 0, 0, 1))
+
+
+def _is_zero(x: Any) -> bool:
+    try:
+        return bool(ca.DM(x).is_zero()) if not isinstance(x, (ca.SX, ca.MX)) else bool(x.is_zero())
+    except Exception:  # noqa: BLE001 - symbolic: not known to be zero
+        return False
+
+
+def chain(q: Any, dh: dict[str, Any], convention: str) -> list[Any]:
+    """Frames ``base2frame_i`` (i = 1..6) of the chain ``A_i(q_i + theta_offset_i) Ry(beta_i)``.
+
+    ``dh`` holds length-6 vectors ``a, alpha, d, theta_offset, beta`` (symbolic or numeric);
+    ``beta`` is the Hayati angle of nominally parallel consecutive axes (0 elsewhere).
+    """
+    frames = []
+    T = ca.SX.eye(4) if not isinstance(q, ca.MX) else ca.MX.eye(4)
+    for i in range(6):
+        A = link_transform(q[i] + dh["theta_offset"][i], dh["d"][i], dh["a"][i], dh["alpha"][i], convention)
+        b = dh["beta"][i]
+        if not _is_zero(b):
+            A = ca.mtimes(A, _ry4(b))
+        T = ca.mtimes(T, A)
+        frames.append(T)
+    return frames
+
+
+def joint_axes(frames: Sequence[Any], convention: str) -> tuple[list[Any], list[Any]]:
+    """Unit axis ``z`` and a point ``p`` of each joint, base frame (3-vectors)."""
+    if convention == "standard_dh":
+        origin = [ca.DM.eye(4)] + list(frames[:-1])   # joint i turns about z_{i-1}
+    else:
+        origin = list(frames)                          # joint i turns about z_i
+    return [T[:3, 2] for T in origin], [T[:3, 3] for T in origin]
+
+
+def geometric_jacobian(frames: Sequence[Any], p_tcp: Any, convention: str) -> Any:
+    """Geometric Jacobian at point ``p_tcp`` by the vector-product method (paper eq. 10).
+
+    Column i is ``[z_i x (p_tcp - p_i); z_i]`` (base frame), rows ``[v; w]``.
+    """
+    zs, ps = joint_axes(frames, convention)
+    return ca.horzcat(*[ca.vertcat(ca.cross(z, p_tcp - p), z) for z, p in zip(zs, ps)])
+
+
+def load_wrench(R_tcp: Any, L: Any) -> Any:
+    """Wrench on the TCP, base frame, from a load vector (see :data:`LOAD_SIZE`).
+
+    ``f = f_base + R f_tool + m g``, ``m = m_base + R m_tool + (R c) x (m g)`` with ``R`` the
+    TCP rotation (base <- TCP), ``c`` the payload's centre of mass in the TCP frame.
+    """
+    fb, mb, ft, mt = L[0:3], L[3:6], L[6:9], L[9:12]
+    mass, com, g = L[12], L[13:16], L[16:19]
+    fw = mass * g
+    f = fb + ca.mtimes(R_tcp, ft) + fw
+    m = mb + ca.mtimes(R_tcp, mt) + ca.cross(ca.mtimes(R_tcp, com), fw)
+    return ca.vertcat(f, m)
+
+
+class Context:
+    """What a hook sees: parameters, constants, and the state of the arm being evaluated.
+
+    Attributes
+    ----------
+    convention : str
+    theta, const : CasADi vectors (symbolic or numeric)
+    dT, tn : CasADi scalars
+        Temperature minus the reference (K) and normalised campaign time (1).
+    eligible : ndarray of bool, shape (N_PARAMS,)
+        Parameters that exist for this robot (hooks may skip what does not).
+    frames, zs, ps, tcp, p_tcp, R_tcp, wrench
+        Set by :meth:`at` for the current joint angles (base frame).
+    """
+
+    def __init__(self, convention: str, theta: Any, const: Any, eligible: np.ndarray,
+                 dT: Any = 0.0, tn: Any = 0.0) -> None:
+        self.convention = convention
+        self.theta, self.const = theta, const
+        self.eligible = eligible
+        self.dT, self.tn = dT, tn
+        self._lay = layouts()
+        self.frames: list[Any] = []
+        self.graph: Graph | None = None
+
+    def p(self, key: str) -> Any:
+        """Parameter group ``key`` of theta."""
+        s = self._lay.slices[key]
+        return self.theta[s.start:s.stop]
+
+    def c(self, key: str) -> Any:
+        """Constant block ``key``."""
+        s = self._lay.const_slices[key]
+        return self.const[s.start:s.stop]
+
+    def load_arm(self) -> Any | None:
+        """Sum of the active effects' moment arms (base frame, m), None when there is none."""
+        arm = None
+        for e in self.graph.effects if self.graph is not None else ():
+            r = e.moment_arm(self)
+            if r is not None:
+                arm = r if arm is None else arm + r
+        return arm
+
+    def load_point(self) -> Any:
+        """Where the external force acts: the TCP plus the moment arms (base frame, m)."""
+        arm = self.load_arm()
+        return self.p_tcp if arm is None else self.p_tcp + arm
+
+    def eligible_of(self, key: str) -> np.ndarray:
+        return self.eligible[self._lay.slices[key]]
+
+    @property
+    def tool(self) -> Any:
+        return ca.reshape(self.c("tool"), 4, 4)
+
+    def at(self, frames: list[Any], wrench_fn: Callable[["Context"], Any]) -> "Context":
+        """Set the arm state (frames of the current joint angles) and the wrench on the TCP."""
+        self.frames = frames
+        self.zs, self.ps = joint_axes(frames, self.convention)
+        self.tcp = ca.mtimes(frames[-1], self.tool)
+        self.p_tcp, self.R_tcp = self.tcp[:3, 3], self.tcp[:3, :3]
+        self.wrench = wrench_fn(self)
+        return self
+
+
+class Graph:
+    """The model graph of one set of active effects (hooks called in registry order)."""
+
+    def __init__(self, convention: str, active: Sequence[Effect], eligible: np.ndarray) -> None:
+        self.convention = convention
+        self.effects = [e for e in registry() if e in active]
+        self.eligible = eligible
+
+    def context(self, theta: Any, const: Any, dT: Any = 0.0, tn: Any = 0.0) -> Context:
+        ctx = Context(self.convention, theta, const, self.eligible, dT, tn)
+        ctx.graph = self
+        return ctx
+
+    def geometry(self, ctx: Context) -> dict[str, Any]:
+        dh = {"a": ctx.c("dh.a"), "alpha": ctx.c("dh.alpha"), "d": ctx.c("dh.d"),
+              "theta_offset": ctx.c("dh.theta_offset"), "beta": ca.DM.zeros(6)}
+        for e in self.effects:
+            dh = e.geometry(ctx, dh)
+        return dh
+
+    def torques(self, ctx: Context) -> tuple[Any, Any]:
+        """External joint torques (of the wrench on the TCP) and the other joint torques."""
+        f, m = ctx.wrench[0:3], ctx.wrench[3:6]
+        arm = ctx.load_arm()
+        if arm is not None:
+            m = m + ca.cross(arm, f)
+        tau_ext = ca.vertcat(*[ca.dot(ctx.zs[i], ca.cross(ctx.p_tcp - ctx.ps[i], f) + m) for i in range(6)])
+        tau_other = ca.DM.zeros(6)
+        for e in self.effects:
+            t = e.joint_torque(ctx)
+            if t is not None:
+                tau_other = tau_other + t
+        return tau_ext, tau_other
+
+    def joint_deflection(self, ctx: Context, tau: Any) -> Any:
+        dq = ca.DM.zeros(6)
+        for e in self.effects:
+            d = e.joint_deflection(ctx, tau)
+            if d is not None:
+                dq = dq + d
+        return dq
+
+    def point_displacement(self, ctx: Context, point: Any) -> Any:
+        dp = ca.DM.zeros(3)
+        for e in self.effects:
+            d = e.point_displacement(ctx, point)
+            if d is not None:
+                dp = dp + d
+        return dp
+
+    def measurement(self, ctx: Context, p: Any) -> Any:
+        for e in self.effects:
+            p = e.measurement(ctx, p)
+        return p
+
+    def deflection_at(self, ctx: Context) -> Any:
+        """Joint deflection of the state set in ``ctx`` (torques at that pose)."""
+        te, to = self.torques(ctx)
+        return self.joint_deflection(ctx, te + to)
+
+    def equilibrium(self, ctx: Context, dh: dict[str, Any], qc: Any, wrench_fn: Callable[[Context], Any],
+                    q_start: Any = None, n_iter: int = EQUILIBRIUM_UNROLL) -> Any:
+        """Unrolled fixed point ``q = q_c + dq(q)``; leaves ``ctx`` at the final state."""
+        q = qc if q_start is None else q_start
+        for _ in range(n_iter):
+            ctx.at(chain(q, dh, self.convention), wrench_fn)
+            q = qc + self.deflection_at(ctx)
+        ctx.at(chain(q, dh, self.convention), wrench_fn)
+        return q
+
+
+# --------------------------------------------------------------------------------------
+# Identification: parameters symbolic
+# --------------------------------------------------------------------------------------
+
+def measured_point(graph: Graph, ctx: Context) -> Any:
+    """The measured point (``measured_point`` parameters, flange frame) in the base frame,
+    with point displacements, then through the measurement hooks."""
+    p_flange = ca.mtimes(ctx.frames[-1], ca.vertcat(ctx.p("tool.p"), 1))[:3]
+    p_base = p_flange + graph.point_displacement(ctx, p_flange)
+    return graph.measurement(ctx, p_base)
+
+
+@lru_cache(maxsize=8)
+def identification_functions(convention: str, eligible: tuple[bool, ...] | None = None) -> dict[str, ca.Function]:
+    """CasADi functions of the identification model (every registered effect in the graph).
+
+    ``eligible`` (length N_PARAMS) marks the parameters that exist for the robot: the
+    Jacobian is taken with respect to them only.  ``None``: all parameters.
+
+    Returns
+    -------
+    dict
+        ``measure(row (14), theta, const) -> p_meas (3), q_eq (6)``;
+        ``measure_jac(row, q_eq, theta, const) -> p (3), dp/dtheta (3 x N_PARAMS, ineligible
+        columns zero)``; ``torques(q_c, F, dT, theta, const) -> tau_ext, tau_other, q_eq``;
+        ``point_jacobian(q, dT, theta, const) -> p (3), Jp (3x6)``: the measured point of the
+        undeflected arm and its positional Jacobian, measurement frame (drift excluded).
+    """
+    lay = layouts()
+    n = lay.n_params
+    el = np.ones(n, dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
+    graph = Graph(convention, registry(), el)
+    theta = ca.SX.sym("theta", n)
+    row = ca.SX.sym("row", ROW_SIZE)
+    const = ca.SX.sym("const", lay.const_size)
+    qc, F, tn, dT = row[0:6], row[6:12], row[12], row[13]
+    const_F: Callable[[Context], Any] = lambda _ctx: F  # noqa: E731 - base-frame wrench of the row
+
+    ctx = graph.context(theta, const, dT, tn)
+    dh = graph.geometry(ctx)
+    q = graph.equilibrium(ctx, dh, qc, const_F)
+    p_meas = measured_point(graph, ctx)
+    measure = ca.Function("ident_measure", [row, theta, const], [p_meas, q],
+                          ["row", "theta", "const"], ["p", "q_eq"])
+
+    # Jacobian: the fixed point restarted from the converged q_eq (an input), so the value is
+    # exact and the derivative carries the implicit-function factor to first order.
+    idx_el = np.flatnonzero(el)
+    idx_fx = np.flatnonzero(~el)
+    th_el = ca.SX.sym("theta_el", len(idx_el))
+    th_fx = ca.SX.sym("theta_fixed", len(idx_fx))
+    parts: list[Any] = [None] * n
+    for k, i in enumerate(idx_el):
+        parts[i] = th_el[k]
+    for k, i in enumerate(idx_fx):
+        parts[i] = th_fx[k]
+    theta_v = ca.vertcat(*parts)
+    q_in = ca.SX.sym("q_eq", 6)
+    ctx2 = graph.context(theta_v, const, dT, tn)
+    dh2 = graph.geometry(ctx2)
+    graph.equilibrium(ctx2, dh2, qc, const_F, q_start=q_in, n_iter=JACOBIAN_UNROLL)
+    p2 = measured_point(graph, ctx2)
+    jac = ca.jacobian(p2, th_el)
+    jf = ca.Function("ident_measure_jac_el", [row, q_in, th_el, th_fx, const], [p2, jac])
+    pj, Jj = jf(row, q_in, theta[idx_el.tolist()] if len(idx_el) else ca.SX(0, 1),
+                theta[idx_fx.tolist()] if len(idx_fx) else ca.SX(0, 1), const)
+    measure_jac = ca.Function("ident_measure_jac", [row, q_in, theta, const], [pj, Jj],
+                              ["row", "q_eq", "theta", "const"], ["p", "J"])
+
+    qs, Fs, dTs = ca.SX.sym("q", 6), ca.SX.sym("F", 6), ca.SX.sym("dT", 1)
+    ctx3 = graph.context(theta, const, dTs)
+    dh3 = graph.geometry(ctx3)
+    q_eq = graph.equilibrium(ctx3, dh3, qs, lambda _c: Fs)
+    te, to = graph.torques(ctx3)
+    torques = ca.Function("ident_torques", [qs, Fs, dTs, theta, const], [te, to, q_eq],
+                          ["q_c", "F", "dT", "theta", "const"], ["tau_ext", "tau_g", "q_eq"])
+
+    ctx4 = graph.context(theta, const, dTs)
+    dh4 = graph.geometry(ctx4)
+    ctx4.at(chain(qs, dh4, convention), lambda _c: ca.DM.zeros(6))
+    p0 = ca.mtimes(ctx4.frames[-1], ca.vertcat(ctx4.p("tool.p"), 1))[:3]
+    p0m = graph.measurement(ctx4, p0)
+    point_jac = ca.Function("ident_point_jacobian", [qs, dTs, theta, const], [p0m, ca.jacobian(p0m, qs)],
+                            ["q", "dT", "theta", "const"], ["p", "Jp"])
+    return {"measure": measure, "measure_jac": measure_jac, "torques": torques, "point_jacobian": point_jac}
+
+
+# --------------------------------------------------------------------------------------
+# Planning: parameters fixed
+# --------------------------------------------------------------------------------------
+
+def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, const: np.ndarray,
+                  eligible: np.ndarray, dT: float = 0.0) -> dict[str, ca.Function]:
+    """Named CasADi functions of an arm model with fixed parameters (see :class:`models.arm.ArmModel`).
+
+    Only the effects that act on the arm and are active enter the graph (the
+    measurement effects, registration and drift, do not).  Inputs: ``q`` (6, rad) and,
+    for the load functions, the load vector ``L`` (:data:`LOAD_SIZE`).
+    """
+    effs = [e for e in registry() if e.acts_on == base.ARM and (e.declared or e.name in active)]
+    graph = Graph(convention, effs, np.asarray(eligible, dtype=bool))
+    q = ca.SX.sym("q", 6)
+    L = ca.SX.sym("L", LOAD_SIZE)
+    F = ca.SX.sym("F", 6)
+    ctx = graph.context(ca.SX(ca.DM(theta)), ca.SX(ca.DM(const)), float(dT))
+    dh = graph.geometry(ctx)
+    ctx.at(chain(q, dh, convention), lambda c: load_wrench(c.R_tcp, L))
+    frames, tcp = ctx.frames, ctx.tcp
+    J = geometric_jacobian(frames, ctx.p_tcp, convention)
+    te, to = graph.torques(ctx)
+    tau = te + to
+    dq = graph.joint_deflection(ctx, tau)
+    dp = graph.point_displacement(ctx, ctx.p_tcp)
+    err = ca.vertcat(ca.mtimes(J[:3, :], dq) + dp, ca.mtimes(J[3:, :], dq))
+    # the linear-spring compliance C = J diag(c) J^T with the model's spring compliances
+    springs = base.effect("joint_springs")
+    c = springs.compliance(ctx)
+    C = compliance_from_jacobian(J, c)
+    names = [f"base2frame{i + 1}" for i in range(6)]
+    out = {
+        "fk_frames": ca.Function("fk_frames", [q], frames, ["q"], names),
+        "fk_tcp": ca.Function("fk_tcp", [q], [tcp], ["q"], ["base2tcp"]),
+        "fk_position": ca.Function("fk_position", [q], [tcp[:3, 3]], ["q"], ["p_tcp"]),
+        "jacobian": ca.Function("jacobian", [q], [J], ["q"], ["J"]),
+        "compliance": ca.Function("compliance", [q], [C], ["q"], ["C"]),
+        "deflection": ca.Function("deflection", [q, F], [ca.mtimes(C, F)], ["q", "F"], ["D"]),
+        "joint_deflection": ca.Function("joint_deflection", [q, F], [c * ca.mtimes(J.T, F)],
+                                        ["q", "F"], ["dq"]),
+        "kinetostatics": ca.Function("kinetostatics", [q], [tcp[:3, 3], tcp[:3, :3], J, C],
+                                     ["q"], ["p_tcp", "R_tcp", "J", "C"]),
+        "tcp_wrench": ca.Function("tcp_wrench", [q, L], [ctx.wrench], ["q", "L"], ["W"]),
+        "joint_torques": ca.Function("joint_torques", [q, L], [tau], ["q", "L"], ["tau"]),
+        "load_deflection": ca.Function("load_deflection", [q, L], [dq], ["q", "L"], ["dq"]),
+        "loaded_tcp": ca.Function("loaded_tcp", [q, L], [tcp[:3, 3] + dp, tcp[:3, :3]],
+                                  ["q", "L"], ["p_tcp", "R_tcp"]),
+        "load_error": ca.Function("load_error", [q, L], [err], ["q", "L"], ["e"]),
+    }
+    # pose error of the loaded TCP against a target (position m; rotation vector of R_t^T R, rad)
+    p_t, R_t = ca.SX.sym("p_t", 3), ca.SX.sym("R_t", 3, 3)
+    E = ca.mtimes(R_t.T, tcp[:3, :3])
+    e = ca.vertcat(tcp[:3, 3] + dp - p_t, 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]))
+    out["loaded_pose_error"] = ca.Function("loaded_pose_error", [q, L, p_t, R_t], [e, ca.jacobian(e, q)],
+                                           ["q", "L", "p_t", "R_t"], ["e", "de_dq"])
+    return out
+
+
+def compliance_from_jacobian(J: Any, kinv: Any) -> Any:
+    """``C = J diag(kinv) J^T`` built on the upper triangle and mirrored (exactly symmetric)."""
+    n = J.shape[0]
+    entries = {}
+    for i in range(n):
+        for j in range(i, n):
+            entries[i, j] = sum(J[i, k] * kinv[k] * J[j, k] for k in range(J.shape[1]))
+    return ca.vertcat(*[ca.horzcat(*[entries[min(i, j), max(i, j)] for j in range(n)]) for i in range(n)])
