@@ -83,6 +83,13 @@ class ArmModel:
     std, held : dict
         Standard deviations and held parameters of the identification.
     noise_sigma_m : float or None
+    tcp_correction_m : ndarray, shape (3,)
+        Correction of the TCP in the flange frame, m, applied when planning.  With data
+        declared registered, the measured point *is* the TCP; position data cannot tell the
+        flange-side geometric errors (``da, dalpha, dd, dtheta`` of joint 6) from it, so the
+        fit puts them into the measured point, and its difference from the robot file's TCP
+        is this correction.  Zero for unregistered data (there the registration absorbs them:
+        see ``docs/identification.md``, section 8).
     source, sha256 : str
         Where the model was read from and the file's hash (empty when built in memory).
     """
@@ -101,6 +108,7 @@ class ArmModel:
     std: dict[str, float] = field(default_factory=dict)
     noise_sigma_m: float | None = None
     held: dict[str, str] = field(default_factory=dict)
+    tcp_correction_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     source: str = ""
     sha256: str = ""
 
@@ -132,8 +140,15 @@ class ArmModel:
     # ------------------------------------------------------------------ parameters
     @property
     def const(self) -> np.ndarray:
-        """The constant vector of the model graph."""
+        """The constant vector of the model graph (identification, prediction)."""
         return fx.make_const(self.nominal, self.R0, self.tau_scale, self.gravity_on, self.beams, self.knots)
+
+    @property
+    def planning_const(self) -> np.ndarray:
+        """The constant vector for planning: the TCP carries :attr:`tcp_correction_m`."""
+        T = np.array(self.nominal.flange2tcp, dtype=float)
+        T[:3, 3] += np.asarray(self.tcp_correction_m, dtype=float)
+        return fx.set_const(self.const, "tool", T.reshape(-1, order="F"))
 
     def parameter(self, group: str) -> np.ndarray:
         """Values of a parameter group (e.g. ``"geometric.da"``), SI."""
@@ -189,6 +204,8 @@ class ArmModel:
         return {"robot": self.nominal.name, "file": self.source or None, "sha256": self.sha256 or None,
                 "identified": bool(self.effects) or not self.is_nominal,
                 "effects": ["joint_springs"] + list(self.active_effects),
+                "registered": bool(self.registered),
+                "tcp_correction_m": [float(v) for v in self.tcp_correction_m],
                 "temperature_C": float(self.temperature_ref)}
 
     # ------------------------------------------------------------------ evaluation

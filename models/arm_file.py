@@ -62,6 +62,7 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
         "base2meas": {"xyz": [float(v) for v in b2m[:3, 3]],
                       "rotvec": [float(v) for v in matrix_to_rotvec(b2m[:3, :3])]},
         "measured_point": [float(v) for v in model.measured_point],
+        "tcp_correction_m": [float(v) for v in model.tcp_correction_m],
         "effects": list(model.effects),
         "parameters": params,
         "std": {k: float(v) for k, v in model.std.items() if np.isfinite(v)},
@@ -146,7 +147,8 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
                         temperature_ref=float(c.get("temperature_ref_C", fx.THERMAL_REFERENCE_C)),
                         effects=effects, registered=bool(ident.get("registered", False)),
                         std=dict(ident.get("std", {})), noise_sigma_m=ident.get("noise_sigma_m"),
-                        held=dict(ident.get("held", {})))
+                        held=dict(ident.get("held", {})),
+                        tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3))
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
     except (TypeError, AttributeError, ValueError) as exc:

@@ -86,7 +86,7 @@ class KinematicModel:
         dT = arm.temperature_ref - fx.THERMAL_REFERENCE_C
         #: Every named function of the model (see :func:`models.effects.graph.arm_functions`).
         self.fn: dict[str, ca.Function] = arm_functions(arm.nominal.convention, arm.active_effects, arm.theta,
-                                                        arm.const, el, dT)
+                                                        arm.planning_const, el, dT)
         self.fk_frames = self.fn["fk_frames"]
         self.fk_tcp = self.fn["fk_tcp"]
         self.fk_position = self.fn["fk_position"]

@@ -157,6 +157,9 @@ COMPENSATION_RESIDUAL_TOL = 1e-6
 #: condition number exceeds this (targets at the edge of the reach may be
 #: unreachable for the true arm).
 COMPENSATION_CHECK_MAX_COND = 80.0
+#: The parameter of a rotation about the last joint axis (held first when aliased).
+LAST_AXIS_ROTATION = "dtheta[6]"
+
 #: Rows of the synthetic design used to tell structural from data-caused
 #: unidentifiability.
 STRUCTURAL_DESIGN_ROWS = 240
@@ -551,7 +554,13 @@ def _order_for(layout: ModelLayout, effects: Sequence[str], registered: bool) ->
         for i in layout.effect_indices(e):
             if i not in order:
                 order.append(int(i))
-    return order
+    # The rotation of the flange about the last joint axis is what position data of a point
+    # near that axis cannot see: its sensitivity is the point's distance from the axis, and it
+    # then aliases with dalpha[6] and da[6], which move the point the same way.  Last in
+    # priority, it is the one held, so the identified flange is not turned about the tool axis
+    # (which would turn the tool frame, and every tool-frame load and payload with it).
+    last = [i for i in order if PARAM_NAMES[i] == LAST_AXIS_ROTATION]
+    return [i for i in order if i not in last] + last
 
 
 def _lm(prob: _Problem, theta0: np.ndarray, free: np.ndarray, mask: np.ndarray,
@@ -1050,7 +1059,7 @@ def _update_knots(prob: _Problem, fit: _Fit) -> _Problem:
     rows = prob.rows
     te, tg, _q = prob.ev.call("torques", rows[:, 0:6], rows[:, 6:12], rows[:, 13:14], fit.theta, prob.const)
     tau = np.asarray(te).T + np.asarray(tg).T
-    c = set_const(prob.const, "hardening.knots", _knots_from(tau, get_const(prob.const, "tau_scale")))
+    c = set_const(prob.const, "hardening.knots", _knots_from(tau, get_const(prob.const, "tau_scale")).reshape(-1))
     return _Problem(m=prob.m, layout=prob.layout, ev=prob.ev, rows=prob.rows, const=c, weights=prob.weights,
                     folds=prob.folds, lower=prob.lower, upper=prob.upper)
 
@@ -1469,7 +1478,9 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
                             time_ref=t_ref, temperature_ref=temp_ref, effects=list(active),
                             registered=registered, std={PARAM_NAMES[i]: float(std[i]) for i in free_f},
                             noise_sigma_m=sigma_noise,
-                            held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order_f})
+                            held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order_f},
+                            tcp_correction_m=(fit.theta[GROUP_SLICES["tool.p"]] - robot.flange2tcp[:3, 3]
+                                              if registered else np.zeros(3)))
     params = _parameter_table(layout, fit, order_f, std, active, registered)
     # diagnostics on the final residual (inliers)
     diags = _diagnose(prob, fit, robot)

@@ -317,11 +317,21 @@ def default_constants(robot: Robot) -> np.ndarray:
 
 
 def set_const(const: np.ndarray, key: str, value: Any) -> np.ndarray:
-    """Copy of ``const`` with block ``key`` set to ``value`` (flattened column-major)."""
+    """Copy of ``const`` with block ``key`` set to ``value``.
+
+    ``value`` is flat (the block's own layout, see its :class:`ConstGroup` doc) or a 3x3
+    or 4x4 matrix, which is stored column-major (CasADi's ``reshape``); any other 2-D
+    shape is refused, since its flattening order would be a guess.
+    """
     s = layouts().const_slices[key]
     out = np.array(const, dtype=float, copy=True)
     v = np.asarray(value, dtype=float)
-    out[s] = v.reshape(-1, order="F") if v.ndim > 1 else v.reshape(-1)
+    if v.ndim > 1 and v.shape not in ((3, 3), (4, 4)):
+        raise ValueError(f"constant '{key}': give a flat array (got shape {v.shape})")
+    flat = v.reshape(-1, order="F") if v.ndim > 1 else v.reshape(-1)
+    if flat.size != s.stop - s.start:
+        raise ValueError(f"constant '{key}' has {s.stop - s.start} values, got {flat.size}")
+    out[s] = flat
     return out
 
 
