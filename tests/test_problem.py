@@ -21,7 +21,8 @@ from problems.problem import (DEFAULT_DT, ProblemFileError, load_problem, proble
 SHIPPED = {"paper_4_4": (OrientationRule.FIXED, 40), "paper_5_2_points": (OrientationRule.FIXED, 11),
            "machining_offaxis": (OrientationRule.FREE_TOOL_AXIS, 40),
            "drilling_cone": (OrientationRule.CONE, 9),
-           "measuring_position_only": (OrientationRule.POSITION_ONLY, 30)}
+           "measuring_position_only": (OrientationRule.POSITION_ONLY, 30),
+           "ur10_payload_tilt": (OrientationRule.FIXED, 11), "ur5_tool_thrust": (OrientationRule.CONE, 20)}
 
 MINIMAL = """
 name = "t"
