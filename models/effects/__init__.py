@@ -1,20 +1,28 @@
 """The effect library: one module per effect, each registering an :class:`Effect` plug-in.
 
-Every module of this package other than ``base`` and ``graph`` is imported here, so
-adding an effect is adding a module that defines and registers it (see
-``docs/architecture.md``).  The layouts below are built from the registry once all
+Every module of this package other than ``base`` and ``graph`` (and every module in the
+folders named by ``$COMPPLAN_EFFECT_PATH``) is imported here, so adding an effect is
+adding a module that defines and registers it (see ``docs/architecture.md``).  The layouts below are built from the registry once all
 built-in modules are imported.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
 
 from . import base
 from .base import (ARM, MEASUREMENT, PARALLEL_AXIS_TOL, TORQUE_SCALE_FLOOR_NM, ConstGroup, Effect, ModelLayout,
                    ParamGroup, default_constants, effect, get_const, layouts, make_layout, register, registry,
                    set_const)
+
+#: Extra folders searched for effect modules (``os.pathsep``-separated), so an installed
+#: product can be extended without editing it: each ``*.py`` there is imported as
+#: ``models.effects.<name>`` and registers its effect (relative imports such as
+#: ``from .base import Effect`` work as for the built-in modules).
+EFFECT_PATH_VARIABLE = "COMPPLAN_EFFECT_PATH"
+__path__.extend(p for p in os.environ.get(EFFECT_PATH_VARIABLE, "").split(os.pathsep) if p)
 
 for _m in pkgutil.iter_modules(__path__):
     if _m.name not in ("base", "graph"):
