@@ -35,6 +35,10 @@ if TYPE_CHECKING:  # pragma: no cover
     from .symbolic import KinematicModel
 
 
+#: Joint torques up to this fraction above the identification data's range count as inside it.
+TORQUE_RANGE_SLACK = 0.05
+
+
 @dataclass
 class EquilibriumResult:
     """Deflected equilibrium ``q = q_c + dq(q, L)`` for N commands.
@@ -90,6 +94,9 @@ class ArmModel:
         fit puts them into the measured point, and its difference from the robot file's TCP
         is this correction.  Zero for unregistered data (there the registration absorbs them:
         see ``docs/identification.md``, section 8).
+    torque_range_Nm : ndarray, shape (6,), or None
+        Largest joint torque magnitude of the identification data (external plus self-weight),
+        N*m: beyond it the torque-nonlinear effects are extrapolated (see :meth:`extrapolation`).
     source, sha256 : str
         Where the model was read from and the file's hash (empty when built in memory).
     """
@@ -109,6 +116,7 @@ class ArmModel:
     noise_sigma_m: float | None = None
     held: dict[str, str] = field(default_factory=dict)
     tcp_correction_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    torque_range_Nm: np.ndarray | None = None
     source: str = ""
     sha256: str = ""
 
@@ -207,6 +215,28 @@ class ArmModel:
                 "registered": bool(self.registered),
                 "tcp_correction_m": [float(v) for v in self.tcp_correction_m],
                 "temperature_C": float(self.temperature_ref)}
+
+    #: Effects whose deflection is nonlinear in the joint torque (extrapolation matters).
+    TORQUE_NONLINEAR = ("stiffness_hardening", "lost_motion")
+
+    def extrapolation(self, q: np.ndarray, load: Load | np.ndarray) -> list[str]:
+        """Where joint torques at the poses ``q`` (N, 6) exceed the identification data's range
+        while a torque-nonlinear effect is active: one line per joint, empty when none."""
+        active = [e for e in self.TORQUE_NONLINEAR if e in self.active_effects]
+        if not active or self.torque_range_Nm is None:
+            return []
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        km = self.kinematics
+        tau = np.abs(km.batch(km.fn["joint_torques"], q, load_rows(load, len(q)))[0])
+        out = []
+        for j in range(6):
+            k = int(np.argmax(tau[:, j]))
+            lim = float(self.torque_range_Nm[j])
+            if tau[k, j] > lim * (1.0 + TORQUE_RANGE_SLACK):
+                out.append(f"joint {j + 1}: torque {tau[k, j]:.4g} N*m at waypoint {k} exceeds the identification "
+                           f"data's range ({lim:.4g} N*m): the identified {', '.join(active)} "
+                           "is extrapolated there")
+        return out
 
     # ------------------------------------------------------------------ evaluation
     @cached_property

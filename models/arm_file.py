@@ -63,6 +63,8 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
                       "rotvec": [float(v) for v in matrix_to_rotvec(b2m[:3, :3])]},
         "measured_point": [float(v) for v in model.measured_point],
         "tcp_correction_m": [float(v) for v in model.tcp_correction_m],
+        **({"torque_range_Nm": [float(v) for v in model.torque_range_Nm]}
+           if model.torque_range_Nm is not None else {}),
         "effects": list(model.effects),
         "parameters": params,
         "std": {k: float(v) for k, v in model.std.items() if np.isfinite(v)},
@@ -148,7 +150,9 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
                         effects=effects, registered=bool(ident.get("registered", False)),
                         std=dict(ident.get("std", {})), noise_sigma_m=ident.get("noise_sigma_m"),
                         held=dict(ident.get("held", {})),
-                        tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3))
+                        tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3),
+                        torque_range_Nm=(_nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6)
+                                         if "torque_range_Nm" in ident else None))
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
     except (TypeError, AttributeError, ValueError) as exc:
