@@ -281,3 +281,18 @@ def test_shipped_paper_end_point_branches_differ_by_about_four():
     res = optimal_pose(pr.robot, pr.positions[-1], pr.rotations[-1], pr.rule, pr.wrench[-1], home_q=pr.home_q)
     e = np.array([r.error_m[0] for r in res.branches.values()])
     assert len(e) == 8 and 3.5 < e.max() / e.min() < 5.0
+
+
+# ------------------------------------------------------------------------------ the package
+def test_package_reexports_its_modules_names():
+    """``problems.posture`` re-exports what other code imports, the same objects as its modules."""
+    import problems.posture as pkg
+    from problems.posture import solve, task, transcription, verification, warm_start
+
+    for name in pkg.__all__:
+        assert hasattr(pkg, name), name
+    assert pkg.PostureTask is task.PostureTask and pkg.N_THETA == task.N_THETA
+    assert pkg._stage_sx is transcription._stage_sx and pkg.get_nlp is transcription.get_nlp
+    assert pkg.warm_starts is warm_start.warm_starts and pkg.candidates is warm_start.candidates
+    assert pkg.verify is verification.verify and pkg.singular_factors is verification.singular_factors
+    assert pkg.optimise_postures is solve.optimise_postures and pkg.optimal_pose is solve.optimal_pose

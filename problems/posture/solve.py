@@ -1,0 +1,277 @@
+"""The posture stage: every feasible IK branch's NLP solved, verified, and the best chosen.
+
+:func:`optimise_postures` runs the whole stage for a path (warm starts, one IPOPT solve,
+Gauss-Newton polish and verification per branch, the choice); :func:`optimal_pose` is the
+single-pose query; :func:`analyse_freedom` says what the NLP can choose beyond the branch,
+and :func:`branch_signs` gives the singularity-factor signs a branch keeps.  Never raises
+for infeasible tasks: the result's status and reason say what failed.  Prints nothing.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from models.arm import ArmModel
+from models.ik import BRANCH_LABELS, IK_REASONS, AnalyticIK, IKStatus
+from models.robot import Robot
+from models.symbolic import KinematicModel
+from problems.path import default_branch, poses
+from problems.posture.task import (DEFAULT_SCAN, DEGENERATE_ANGLE_TOL_RAD, DEGENERATE_OFFSET_TOL_M,
+                                   GUARD_ACTIVE_TOL, GUARD_NAMES, IPOPT_OK, N_GUARDS, BranchResult,
+                                   BranchStatus, OrientationRule, PostureResult, PostureStatus, PostureTask,
+                                   SolverSettings)
+from problems.posture.transcription import PostureNLP, get_nlp
+from problems.posture.verification import guard_bounds, singular_factors, verify
+from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
+
+# --------------------------------------------------------------------------------------
+# What can be chosen
+# --------------------------------------------------------------------------------------
+
+def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
+    """What the NLP can choose beyond the branch.
+
+    Parameters
+    ----------
+    robot : Robot
+        Its tool (``flange2tcp``, flange frame, m) decides whether the free rotation is
+        degenerate (TCP on the joint-6 axis and tool axis along it).
+    rule : OrientationRule
+
+    Returns
+    -------
+    kind : {"none", "degenerate", "free"}
+    note : str
+        One sentence for the summary.
+    """
+    if rule is OrientationRule.FIXED:
+        return "none", ("fixed orientation: six equations for six joints, the posture is the IK "
+                        "solution of each branch; only the branch is chosen")
+    T = robot.flange2tcp
+    off = float(np.hypot(T[0, 3], T[1, 3]))
+    # Angle between the tool axis and the joint-6 axis, either sense (a tool axis
+    # anti-parallel to joint 6 is just as degenerate).
+    tilt = float(np.arccos(np.clip(abs(T[2, 2]), 0.0, 1.0)))
+    on_axis = off <= DEGENERATE_OFFSET_TOL_M and tilt <= DEGENERATE_ANGLE_TOL_RAD
+    if rule is OrientationRule.FREE_TOOL_AXIS and on_axis:
+        return "degenerate", ("degenerate: the TCP lies on the joint-6 axis and the tool axis is "
+                              "along it, so rotation about the tool axis only turns joint 6 and "
+                              "leaves C(q) unchanged (zero gradient); only the branch is chosen")
+    if on_axis and rule in (OrientationRule.CONE, OrientationRule.POSITION_ONLY):
+        return "free", (f"{rule.value}: the tool axis direction is optimised; rotation about it "
+                        "only turns joint 6 (TCP on the joint-6 axis) and is left to the smoothness term")
+    return "free", f"{rule.value}: the posture is optimised along the free directions"
+
+
+def branch_signs(ik: AnalyticIK, q: np.ndarray) -> np.ndarray:
+    """Signs (3,) of the singularity factors (shoulder, wrist, elbow) along a branch path (N, 6), rad.
+
+    Each is the sign of the median factor over the waypoints (+1 at zero).
+    """
+    f = singular_factors(ik, np.atleast_2d(q))
+    return np.where(np.median(f, axis=0) >= 0.0, 1.0, -1.0)
+
+
+# --------------------------------------------------------------------------------------
+# The whole stage
+# --------------------------------------------------------------------------------------
+
+def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.ndarray,
+                      settings: SolverSettings = SolverSettings(), verbose: bool = False,
+                      model: KinematicModel | None = None, ik: AnalyticIK | None = None,
+                      optimise: bool = True) -> PostureResult:
+    """Solve the posture NLP on every feasible branch and choose the best.
+
+    Parameters
+    ----------
+    robot : ArmModel or Robot
+        The arm model (a :class:`Robot` is wrapped in its nominal model), with its tool
+        (``flange2tcp``); must be UR-type for the analytic warm starts.  Its
+        ``kinematics.fn["load_error"]`` is the objective.
+    task : PostureTask
+    home_q : ndarray, shape (6,)
+        Home configuration (rad): the default branch is the one nearest to it.
+    settings : SolverSettings
+    verbose : bool
+        IPOPT output on.
+    model, ik : optional
+        Reuse already built objects for ``robot``.
+    optimise : bool
+        False: analytic postures only (every branch as if it had no freedom).
+
+    Returns
+    -------
+    PostureResult
+        Never raises for infeasible tasks: the status and reason say what failed.
+    """
+    arm = robot if isinstance(robot, ArmModel) else ArmModel.from_robot(robot)
+    robot = arm.nominal
+    model = model or arm.kinematics
+    ik = ik or AnalyticIK(robot)
+    freedom, note = analyse_freedom(robot, task.rule)
+    ws = warm_starts(ik, model, task)
+    if not arm.geometry_is_nominal:
+        ws = _onto_model_geometry(arm, ik, ws)
+    default = default_branch(ws.analytic, home_q) if ws.analytic else (
+        default_branch({b: v[0] for b, v in ws.warm.items()}, home_q) if ws.warm else None)
+    if not ws.warm:
+        return _infeasible_result(ik, task, ws, default, freedom, note)
+
+    nlp: PostureNLP | None = None
+    build = 0.0
+    if optimise and freedom == "free":
+        t0 = time.perf_counter()
+        nlp = get_nlp(arm, task.rule, task.n, settings, verbose)
+        build = time.perf_counter() - t0
+
+    results: dict[int, BranchResult] = {}
+    for b in sorted(ws.warm):
+        if nlp is None:
+            results[b] = _unoptimised_branch(model, task, ws, b, freedom, note)
+        else:
+            results[b] = _optimised_branch(nlp, model, ik, task, ws, b, robot.q_min, robot.q_max)
+    return _choose(task, ws, results, default, freedom, note, build)
+
+
+def _infeasible_result(ik: AnalyticIK, task: PostureTask, ws: WarmStarts, default: int | None,
+                       freedom: str, note: str) -> PostureResult:
+    """The result when no branch reaches the whole path: a waypoint unreachable on every
+    branch (status UNREACHABLE, naming the first one and the IK's reasons there), or every
+    branch rejected somewhere (status NO_BRANCH, with every branch's reason)."""
+    if ws.unreachable:
+        k = ws.unreachable[0]
+        p = task.positions[k]
+        sol = ik.solve(poses(task.positions[k:k + 1], task.rotations[k]))
+        why = "; ".join(sorted({IK_REASONS[IKStatus(int(c))] for c in sol.status[0]}))
+        reason = (f"no IK branch reaches waypoint {k} at ({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}) m "
+                  f"({why})")
+        if len(ws.unreachable) > 1:
+            reason += f"; {len(ws.unreachable)} unreachable waypoints in all"
+        status = PostureStatus.UNREACHABLE
+    else:
+        reason = "no IK branch reaches the whole path: " + "; ".join(
+            f"{BRANCH_LABELS[b]}: {r}" for b, r in sorted(ws.rejected.items()))
+        status = PostureStatus.NO_BRANCH
+    return PostureResult(status, reason, task, {}, ws.rejected, None, default, freedom, note,
+                         ws.unreachable)
+
+
+def _analytic_of(model: KinematicModel, task: PostureTask,
+                 ws: WarmStarts, b: int) -> tuple[np.ndarray | None, np.ndarray, float]:
+    """Branch ``b``'s analytic posture (N, 6) rad or None, its error per waypoint (N,) m (NaN
+    if None) and its cost (m^2, NaN if None)."""
+    qa = ws.analytic[b].q if b in ws.analytic else None
+    err_a = linear_error(model, qa, task.load) if qa is not None else np.full(task.n, np.nan)
+    cost_a = float(np.sum(err_a ** 2)) if qa is not None else math.nan
+    return qa, err_a, cost_a
+
+
+def _unoptimised_branch(model: KinematicModel, task: PostureTask, ws: WarmStarts, b: int,
+                        freedom: str, note: str) -> BranchResult:
+    """Branch ``b`` without an NLP: its analytic posture (else its warm start), with the
+    status saying why (no freedom, degenerate, or optimisation switched off)."""
+    bp_warm, wname, wcost = ws.warm[b]
+    qa, err_a, cost_a = _analytic_of(model, task, ws, b)
+    if freedom == "none":
+        st, why = BranchStatus.NO_FREEDOM, note
+    elif freedom == "degenerate":
+        st, why = BranchStatus.DEGENERATE, note
+    else:
+        st, why = BranchStatus.ANALYTIC, "optimisation switched off: analytic posture"
+    q = qa if qa is not None else bp_warm.q
+    err = linear_error(model, q, task.load)
+    return BranchResult(b, st, why, q, qa, bp_warm.q, wname if qa is None else "nominal",
+                        float(np.sum(err ** 2)), cost_a, wcost, err, err_a)
+
+
+def _optimised_branch(nlp: PostureNLP, model: KinematicModel, ik: AnalyticIK, task: PostureTask,
+                      ws: WarmStarts, b: int, q_min: np.ndarray, q_max: np.ndarray) -> BranchResult:
+    """Branch ``b`` through the NLP: IPOPT from its warm start, Gauss-Newton polish, verification.
+
+    The optimised posture is kept only if IPOPT converged and every constraint verifies;
+    otherwise the analytic posture (else the warm start) is kept and the status says why.
+    ``q_min``, ``q_max`` (6,) are the joint limits, rad.
+    """
+    bp_warm, wname, wcost = ws.warm[b]
+    qa, err_a, cost_a = _analytic_of(model, task, ws, b)
+    base = qa if qa is not None else bp_warm.q
+    sign = branch_signs(ik, bp_warm.q)
+    q_opt, ip_status, iters, dt = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
+    q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
+    problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
+    kept = "analytic posture" if qa is not None else "warm start"
+    if ip_status not in IPOPT_OK:
+        st, why = BranchStatus.SOLVER_FAILED, (f"IPOPT: {ip_status} after {iters} iterations; "
+                                               f"the {kept} is kept")
+    elif problems:
+        st, why = BranchStatus.CONSTRAINT_VIOLATED, f"{problems[0]}; the {kept} is kept"
+    else:
+        st, why = BranchStatus.OPTIMISED, f"IPOPT: {ip_status} in {iters} iterations"
+    q = q_pol if st is BranchStatus.OPTIMISED else base
+    err = linear_error(model, q, task.load)
+    margin = singular_factors(ik, q) * sign - guard_bounds()
+    active = {GUARD_NAMES[i]: int(np.sum(margin[:, i] <= GUARD_ACTIVE_TOL)) for i in range(N_GUARDS)}
+    return BranchResult(b, st, why, q, qa, bp_warm.q, wname, float(np.sum(err ** 2)), cost_a,
+                        wcost, err, err_a, iters, dt, ip_status, res_m, res_rad,
+                        {k: v for k, v in active.items() if v})
+
+
+def _choose(task: PostureTask, ws: WarmStarts, results: dict[int, BranchResult], default: int | None,
+            freedom: str, note: str, build: float) -> PostureResult:
+    """The usable branch of least cost (status OK), or SOLVER_FAILED if none is usable.
+
+    ``build`` is the solver's build time, s.
+    """
+    usable = {b: r for b, r in results.items() if r.status.usable}
+    if not usable:
+        reason = "the NLP failed on every feasible branch: " + "; ".join(
+            f"{r.label}: {r.reason}" for r in results.values())
+        return PostureResult(PostureStatus.SOLVER_FAILED, reason, task, results, ws.rejected, None,
+                             default, freedom, note, ws.unreachable, build)
+    chosen = min(usable, key=lambda b: usable[b].cost)
+    n_fail = len(results) - len(usable)
+    reason = (f"branch {BRANCH_LABELS[chosen]} chosen among {len(usable)} usable branch(es)"
+              + (f"; {n_fail} failed" if n_fail else ""))
+    return PostureResult(PostureStatus.OK, reason, task, results, ws.rejected, chosen, default, freedom,
+                         note, ws.unreachable, build)
+
+
+def optimal_pose(robot: ArmModel | Robot, position: np.ndarray, rotation: np.ndarray, rule: OrientationRule,
+                 wrench: np.ndarray, cone_half_angle: float = 0.0, home_q: np.ndarray | None = None,
+                 settings: SolverSettings = SolverSettings(), scan: int = DEFAULT_SCAN,
+                 verbose: bool = False) -> PostureResult:
+    """Single-pose query: the stiffness-optimal posture for one target and wrench.
+
+    Parameters
+    ----------
+    robot : ArmModel or Robot
+        As for :func:`optimise_postures`.
+    position : ndarray, shape (3,)
+        TCP target, m, base frame.
+    rotation : ndarray, shape (3, 3)
+        Nominal base->TCP rotation (the tool axis is its z column).
+    rule : OrientationRule
+    wrench : ndarray, shape (6,) or (LOAD_SIZE,)
+        [N, N*m] on the TCP, base frame (or a load row, :mod:`models.load`).
+    cone_half_angle : float
+        Rule ``cone`` only, rad.
+    home_q : ndarray, shape (6,), optional
+        For the default branch, rad (zeros if not given).
+    settings : SolverSettings
+    scan : int
+        Scanned rotations about the tool axis for the warm starts.
+    verbose : bool
+        IPOPT output on.
+
+    Returns
+    -------
+    PostureResult
+        With N = 1 (no joint-step constraint).
+    """
+    task = PostureTask(np.asarray(position, float).reshape(1, 3), np.asarray(rotation, float), rule,
+                       np.asarray(wrench, float), cone_half_angle=cone_half_angle, scan=scan)
+    return optimise_postures(robot, task, np.zeros(6) if home_q is None else np.asarray(home_q, float),
+                             settings, verbose)

@@ -1,0 +1,379 @@
+"""Transcription of the posture problem into an NLP: the per-waypoint stage functions,
+their compilation to C, and :class:`PostureNLP` (one IPOPT solver per model, rule and N).
+
+The stage functions (cost, constraints, their gradient, Jacobian and Lagrangian Hessian)
+are CasADi SX functions of one waypoint's joints ``q`` (6,) rad and parameters ``theta``
+(:data:`~problems.posture.task.N_THETA`,); they are compiled to C once per model, tool and
+rule (cached on disk under ``$COMPPLAN_CACHE``, keyed by a hash of the source) and are
+independent of ``N``.  The NLP is assembled in MX by mapping them over the waypoints, with
+the sparse derivative functions assembled by hand and passed to ``nlpsol`` (options
+``grad_f``, ``jac_g``, ``hess_lag``), so one solver per (model, rule, N) serves every
+branch: only the warm start and the parameters change.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from models.arm import ArmModel
+from models.codegen import CompileError, compile_shared_library
+from models.effects import LOAD_SIZE
+from models.errors import InputError
+from models.ik import AnalyticIK
+from models.robot import Robot
+from problems.posture.task import (AXIS_SCALE, COST_SCALE, IPOPT_DEFAULTS, N_GUARDS, N_ORIENTATION, N_THETA,
+                                   POLISH_MAX_ITER, POLISH_STEP_TOL, POSITION_SCALE, OrientationRule,
+                                   PostureTask, SolverSettings)
+from problems.posture.verification import guard_bounds, singular_factors
+
+# --------------------------------------------------------------------------------------
+# Stage functions (per waypoint) and their compilation
+# --------------------------------------------------------------------------------------
+
+def _n_stage_constraints(rule: OrientationRule) -> int:
+    """Constraints per waypoint: position (3), the rule's orientation, singularity guards (3)."""
+    return 3 + N_ORIENTATION[rule] + N_GUARDS
+
+
+def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule) -> dict[str, ca.Function]:
+    """The per-waypoint SX functions.
+
+    ``theta = [p (3, m); R (9, column-major); L (LOAD_SIZE); sigma (3)]`` with ``L`` the
+    load vector of the waypoint and ``sigma`` the signs of the branch's singularity
+    factors.  The cost is the arm model's first-order load-induced TCP position error
+    (``load_error``), squared.  Constraint vector ``g``: position (mm), rule-specific
+    orientation (scaled by AXIS_SCALE), then the three singularity guards ``sigma_i * factor_i``.
+
+    Parameters
+    ----------
+    arm : ArmModel or Robot
+        The arm model (a :class:`Robot` is wrapped in its nominal model); its
+        ``kinematics.fn["fk_tcp"]`` and ``kinematics.fn["load_error"]`` are evaluated.
+    rule : OrientationRule
+
+    Returns
+    -------
+    dict str -> casadi.Function
+        ``"f"``: (q, theta) -> (cost (mm^2), g (n_g,)); ``"grad"``: (q, theta) -> (cost,
+        d cost / dq (6,)); ``"jac"``: (q, theta) -> (g, dg/dq (n_g, 6) dense); ``"hess"``:
+        (q, theta, sigma, lam (n_g,)) -> Hessian (6, 6) of ``sigma cost + lam . g``, dense
+        and symmetric.  ``n_g = 3 + N_ORIENTATION[rule] + N_GUARDS`` constraints.
+    """
+    arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
+    ik = AnalyticIK(arm.nominal)
+    q = ca.SX.sym("q", 6)
+    th = ca.SX.sym("theta", N_THETA)
+    p, R, L, sig = th[0:3], ca.reshape(th[3:12], 3, 3), th[12:12 + LOAD_SIZE], th[12 + LOAD_SIZE:N_THETA]
+    fn = arm.kinematics.fn
+    T = fn["fk_tcp"](q)
+    d = fn["load_error"](q, L)[:3]                # first-order TCP position error (m)
+    cost = COST_SCALE * ca.sumsqr(d)
+    z = T[:3, 2]
+    g = [POSITION_SCALE * (T[:3, 3] - p)]
+    if rule is OrientationRule.FIXED:
+        Rd = ca.mtimes(R.T, T[:3, :3])
+        g.append(0.5 * AXIS_SCALE * ca.vertcat(Rd[2, 1] - Rd[1, 2], Rd[0, 2] - Rd[2, 0], Rd[1, 0] - Rd[0, 1]))
+    elif rule is OrientationRule.FREE_TOOL_AXIS:
+        g.append(AXIS_SCALE * ca.vertcat(ca.dot(R[:, 0], z), ca.dot(R[:, 1], z)))
+    elif rule is OrientationRule.CONE:
+        g.append(AXIS_SCALE * ca.dot(R[:, 2], z))
+    g.append(sig * singular_factors(ik, q))
+    g = ca.vertcat(*g)
+    sigma = ca.SX.sym("sigma")
+    lam = ca.SX.sym("lam", g.shape[0])
+    lag = sigma * cost + ca.dot(lam, g)
+    H = ca.hessian(lag, q)[0]
+    H = 0.5 * (H + H.T)
+    tag = rule.value
+    return {
+        "f": ca.Function(f"posture_{tag}_f", [q, th], [cost, g], ["q", "theta"], ["cost", "g"]),
+        "grad": ca.Function(f"posture_{tag}_grad", [q, th], [cost, ca.gradient(cost, q)],
+                            ["q", "theta"], ["cost", "grad"]),
+        "jac": ca.Function(f"posture_{tag}_jac", [q, th], [g, ca.densify(ca.jacobian(g, q))],
+                           ["q", "theta"], ["g", "jac"]),
+        "hess": ca.Function(f"posture_{tag}_hess", [q, th, sigma, lam], [ca.densify(H)],
+                            ["q", "theta", "sigma", "lam"], ["hess"]),
+    }
+
+
+class StageCompileError(RuntimeError):
+    """No C compiler, or it failed (then the CasADi virtual machine is used)."""
+
+
+def _compile_stage(funcs: dict[str, ca.Function]) -> dict[str, ca.Function]:
+    """Compile the stage functions into one shared library (cached) and load them.
+
+    Raises
+    ------
+    StageCompileError
+        No C compiler, or compilation failed.
+    """
+    cg = ca.CodeGenerator("posture_stage.c", {"with_header": False, "casadi_real": "double",
+                                              "casadi_int": "long long int"})
+    for f in funcs.values():
+        cg.add(f)
+    src = cg.dump()
+    try:
+        lib = compile_shared_library(src, "posture")
+    except CompileError as exc:
+        raise StageCompileError(str(exc)) from None
+    return {k: ca.external(f.name(), str(lib)) for k, f in funcs.items()}
+
+
+# --------------------------------------------------------------------------------------
+# The NLP (one per robot, rule, N; reused across branches)
+# --------------------------------------------------------------------------------------
+
+def _blockdiag_sparsity(n: int, rows: int, cols: int) -> ca.Sparsity:
+    """Sparsity (n rows, n cols) of ``n`` dense (rows, cols) blocks on the diagonal."""
+    r, c = [], []
+    for k in range(n):
+        for j in range(cols):
+            for i in range(rows):
+                r.append(k * rows + i)
+                c.append(k * cols + j)
+    return ca.Sparsity.triplet(n * rows, n * cols, r, c)
+
+
+def _difference_matrix(n: int) -> ca.DM:
+    """(6(N-1), 6N) sparse matrix D with ``D vec(X) = vec(X[:, 1:] - X[:, :-1])``."""
+    r, c, v = [], [], []
+    for k in range(n - 1):
+        for i in range(6):
+            row = 6 * k + i
+            r += [row, row]
+            c += [6 * k + i, 6 * (k + 1) + i]
+            v += [-1.0, 1.0]
+    return ca.DM.triplet(r, c, ca.DM(v), 6 * (n - 1), 6 * n)
+
+
+class PostureNLP:
+    """The posture NLP for one arm model, rule and number of waypoints.
+
+    Variables: the joints of every waypoint, ``vec(X)`` with ``X`` (6, N) rad.  Parameters:
+    the stage parameters (:meth:`theta`) and the smoothness weight (mm^2/rad^2).
+
+    Parameters
+    ----------
+    arm : ArmModel or Robot
+        The arm model whose ``load_error`` is the objective (a :class:`Robot` is wrapped
+        in its nominal model).
+    rule : OrientationRule
+    n : int
+        Number of waypoints.
+    settings : SolverSettings
+    verbose : bool
+        IPOPT output on (print level 5).
+
+    Attributes
+    ----------
+    compiled : bool
+        Whether the stage functions run as compiled C.
+    stage : dict str -> casadi.Function
+        The stage functions in use (see :func:`_stage_sx`).
+    m : int
+        Constraints per waypoint.
+    solver : casadi.Function
+        The IPOPT ``nlpsol``.
+    build_time_s : float
+        Time to build the solver (incl. compiling or loading the stage functions), s.
+    """
+
+    def __init__(self, arm: ArmModel | Robot, rule: OrientationRule, n: int,
+                 settings: SolverSettings = SolverSettings(), verbose: bool = False) -> None:
+        if settings.name != "ipopt":
+            raise InputError(f"solver: unknown NLP solver {settings.name!r}; available: ['ipopt']")
+        t0 = time.perf_counter()
+        arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
+        self.arm, self.robot, self.rule, self.n, self.settings = arm, arm.nominal, rule, n, settings
+        sx = _stage_sx(arm, rule)
+        self.compiled = False
+        funcs = sx
+        if settings.codegen:
+            try:
+                funcs = _compile_stage(sx)
+                self.compiled = True
+            except StageCompileError:
+                funcs = sx
+        self.stage = funcs
+        self.m = _n_stage_constraints(rule)
+        self._build(funcs, verbose)
+        self.build_time_s = time.perf_counter() - t0
+
+    def _build(self, funcs: dict[str, ca.Function], verbose: bool) -> None:
+        """Assemble the NLP and its hand-made sparse derivatives in MX, and make the solver."""
+        n, m = self.n, self.m
+        X = ca.MX.sym("X", 6, n)
+        Th = ca.MX.sym("Theta", N_THETA, n)
+        lam_s = ca.MX.sym("lam_s")
+        x = ca.vec(X)
+        p = ca.vertcat(ca.vec(Th), lam_s)
+        Dm = _difference_matrix(n)
+        LtL = ca.mtimes(Dm.T, Dm) if n > 1 else ca.DM(6 * n, 6 * n)
+
+        c_all, g_all = funcs["f"].map(n)(X, Th)
+        dX = ca.mtimes(Dm, x) if n > 1 else ca.MX(0, 1)
+        f = ca.sum2(c_all) + lam_s * ca.sumsqr(dX)
+        g = ca.vertcat(ca.vec(g_all), dX)
+
+        c_g, grad = funcs["grad"].map(n)(X, Th)
+        grad_f = ca.Function("grad_f", [x, p], [ca.sum2(c_g) + lam_s * ca.sumsqr(dX),
+                                                 ca.vec(grad) + 2.0 * lam_s * ca.mtimes(LtL, x)],
+                             ["x", "p"], ["f", "grad_f_x"])
+
+        g_j, jac = funcs["jac"].map(n)(X, Th)
+        jac_stage = ca.MX(_blockdiag_sparsity(n, m, 6), ca.vec(jac))
+        jac_full = ca.vertcat(jac_stage, ca.MX(Dm)) if n > 1 else jac_stage
+        jac_g = ca.Function("jac_g", [x, p], [ca.vertcat(ca.vec(g_j), dX), jac_full],
+                            ["x", "p"], ["g", "jac_g_x"])
+
+        lam_f = ca.MX.sym("lam_f")
+        lam_g = ca.MX.sym("lam_g", m * n + 6 * (n - 1))
+        Lg = ca.reshape(lam_g[: m * n], m, n)
+        H = funcs["hess"].map(n)(X, Th, ca.repmat(lam_f, 1, n), Lg)
+        H_stage = ca.MX(_blockdiag_sparsity(n, 6, 6), ca.vec(H))
+        H_full = H_stage + 2.0 * lam_f * lam_s * ca.MX(ca.DM(LtL)) if n > 1 else H_stage
+        hess = ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.triu(H_full)],
+                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+
+        s = self.settings
+        opts: dict[str, Any] = {
+            "grad_f": grad_f, "jac_g": jac_g, "hess_lag": hess,
+            "calc_lam_p": False, "no_nlp_grad": True, "print_time": False,
+            "ipopt": {**IPOPT_DEFAULTS, "print_level": 5 if verbose else 0, "sb": "yes",
+                      "max_iter": int(s.max_iter), "tol": float(s.tol), **dict(s.ipopt_options)},
+        }
+        self.solver = ca.nlpsol("posture", "ipopt", {"x": x, "p": p, "f": f, "g": g}, opts)
+        self._jac_map = funcs["jac"].map(n)
+
+    # ---------------------------------------------------------------- parameters
+    def theta(self, task: PostureTask, sign: np.ndarray) -> np.ndarray:
+        """Stage parameters, shape (N_THETA, N).
+
+        Columns: position (m), base->TCP rotation (column-major), load row (see
+        :mod:`models.load`) and the branch's singularity-factor signs ``sign`` (3,).
+        """
+        n = task.n
+        th = np.empty((N_THETA, n))
+        th[0:3] = task.positions.T
+        th[3:12] = task.rotations.transpose(0, 2, 1).reshape(n, 9).T   # column-major R
+        th[12:12 + LOAD_SIZE] = task.load.T
+        th[12 + LOAD_SIZE:N_THETA] = np.asarray(sign, dtype=float).reshape(3, 1)
+        return th
+
+    def bounds_g(self, task: PostureTask) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the constraint vector, each shape (m N + 6 (N-1),).
+
+        Per waypoint (scaled as in :func:`_stage_sx`): equalities (position, orientation),
+        the cone bound ``>= cos(alpha)``, the guards ``>= guard_bounds()``; then the joint
+        steps within ``+-max_joint_step`` (rad).
+        """
+        n, m = self.n, self.m
+        lo = np.zeros((m, n))
+        hi = np.zeros((m, n))
+        if self.rule is OrientationRule.CONE:
+            lo[3] = AXIS_SCALE * math.cos(task.cone_half_angle)
+            hi[3] = np.inf
+        lo[m - N_GUARDS:] = guard_bounds()[:, None]
+        hi[m - N_GUARDS:] = np.inf
+        step = np.full(6 * (n - 1), task.max_joint_step)
+        return np.r_[lo.reshape(-1, order="F"), -step], np.r_[hi.reshape(-1, order="F"), step]
+
+    def solve(self, task: PostureTask, q0: np.ndarray, sign: np.ndarray,
+              q_min: np.ndarray, q_max: np.ndarray) -> tuple[np.ndarray, str, int, float]:
+        """Run IPOPT from ``q0`` (N, 6) rad with joint limits ``q_min``, ``q_max`` (6,) rad.
+
+        Returns
+        -------
+        q : ndarray, shape (N, 6)
+            IPOPT's solution, rad.
+        status : str
+            IPOPT's return status.
+        iterations : int
+        wall_time_s : float
+        """
+        th = self.theta(task, sign)
+        lbg, ubg = self.bounds_g(task)
+        p = np.r_[th.reshape(-1, order="F"), task.smoothness]
+        t0 = time.perf_counter()
+        res = self.solver(x0=q0.reshape(-1), p=p, lbx=np.tile(q_min, self.n), ubx=np.tile(q_max, self.n),
+                          lbg=lbg, ubg=ubg)
+        dt = time.perf_counter() - t0
+        st = self.solver.stats()
+        q = np.asarray(res["x"]).reshape(self.n, 6)
+        return q, str(st.get("return_status", "unknown")), int(st.get("iter_count", 0)), dt
+
+    # ---------------------------------------------------------------- polishing
+    def polish(self, task: PostureTask, q: np.ndarray, sign: np.ndarray) -> np.ndarray:
+        """Project every waypoint onto its equality constraints (Gauss-Newton, min-norm steps).
+
+        The cone inequality joins the projection only where it is violated.
+
+        Parameters
+        ----------
+        q : ndarray, shape (N, 6)
+            Joints, rad (not modified).
+        sign : ndarray, shape (3,)
+            The branch's singularity-factor signs.
+
+        Returns
+        -------
+        ndarray, shape (N, 6)
+            The projected joints, rad.
+        """
+        th = self.theta(task, sign)
+        q = q.copy()
+        n_eq = 3 + (0 if self.rule is OrientationRule.CONE else N_ORIENTATION[self.rule])
+        cos_a = math.cos(task.cone_half_angle)
+        for _ in range(POLISH_MAX_ITER):
+            g, jac = self._jac_map(q.T, th)
+            g = np.asarray(g).T                                              # (N, m)
+            # jac is (m, 6N): columns 6k..6k+5 hold waypoint k's m x 6 Jacobian.
+            jac = np.asarray(jac).reshape(self.m, self.n, 6).transpose(1, 0, 2)  # (N, m, 6)
+            worst = 0.0
+            for k in range(self.n):
+                r = g[k, :n_eq]
+                A = jac[k, :n_eq]
+                if self.rule is OrientationRule.CONE and g[k, 3] < AXIS_SCALE * cos_a:
+                    r = np.r_[r, g[k, 3] - AXIS_SCALE * cos_a]
+                    A = np.vstack([A, jac[k, 3]])
+                dq = -np.linalg.lstsq(A, r, rcond=None)[0]
+                q[k] += dq
+                worst = max(worst, float(np.abs(dq).max()))
+            if worst < POLISH_STEP_TOL:
+                break
+        return q
+
+
+#: Solvers built so far, by (model key, rule, N, settings, verbose); cleared beyond 32.
+_SOLVERS: dict[tuple, PostureNLP] = {}
+_SOLVERS_LOCK = threading.Lock()
+
+
+def _model_key(arm: ArmModel) -> tuple:
+    """Hashable key of everything in the arm model the stage functions depend on."""
+    r = arm.nominal
+    return (r.convention, tuple(r.a), tuple(r.alpha), tuple(r.d), tuple(r.theta_offset), tuple(r.stiffness),
+            tuple(r.flange2tcp.reshape(-1)), arm.active_effects, arm.theta.tobytes(), arm.const.tobytes(),
+            float(arm.temperature_ref))
+
+
+def get_nlp(arm: ArmModel | Robot, rule: OrientationRule, n: int, settings: SolverSettings = SolverSettings(),
+            verbose: bool = False) -> PostureNLP:
+    """The cached :class:`PostureNLP` for (model, rule, n, settings, verbose)."""
+    arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
+    key = (_model_key(arm), rule, n, settings, verbose)
+    with _SOLVERS_LOCK:
+        nlp = _SOLVERS.get(key)
+        if nlp is None:
+            if len(_SOLVERS) > 32:
+                _SOLVERS.clear()
+            nlp = PostureNLP(arm, rule, n, settings, verbose)
+            _SOLVERS[key] = nlp
+    return nlp
