@@ -1,5 +1,8 @@
 """Tests for :mod:`planner.timing` (TOPP-RA and Ruckig time parametrisation).
 
+Covers the package split too: the method registry, the re-exported names and
+the Ruckig result codes kept on failed results.
+
 All paths are seeded; there are no wall-clock assertions.
 """
 
@@ -11,18 +14,24 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import ruckig
 import toppra.algorithm
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
+from models.errors import InputError
 from planner import timing
 from planner.timing import (
     LIMIT_RATIO_TOL,
     JointLimits,
     TimingStatus,
     Trajectory,
+    registry,
+    ruckig_method,
     time_parametrize,
+    toppra_method,
 )
+from planner.timing import trajectory as trajectory_module
 
 N_JOINTS = 6
 N_WAYPOINTS = 40
@@ -235,13 +244,13 @@ def test_both_methods_follow_the_documented_spline(path_name):
 
 def test_ruckig_verification_loop_shrinks_too_fast_bounds(monkeypatch):
     """If the bound set were too optimistic, the verification loop fixes it."""
-    original = timing._ruckig_bound_set
+    original = ruckig_method.ruckig_bound_set
 
     def optimistic(path, limits, law):
         bounds, msg = original(path, limits, law)
         return (bounds[0] * 1.5, bounds[1] * 2.0, bounds[2] * 3.0), msg
 
-    monkeypatch.setattr(timing, "_ruckig_bound_set", optimistic)
+    monkeypatch.setattr(ruckig_method, "ruckig_bound_set", optimistic)
     limits = LIMIT_SETS["uniform"]
     traj = time_parametrize(curved_path(), limits, "ruckig")
     assert max(float(r.max()) for r in traj.first_pass_limit_ratio.values()) > 1.2
@@ -354,7 +363,7 @@ def test_library_prints_and_logs_nothing(capsys, caplog):
     # the call and the logger level is restored afterwards
     toppra_logger = logging.getLogger("toppra")
     before = toppra_logger.level
-    with timing._quiet_toppra():
+    with toppra_method.quiet_toppra():
         logging.getLogger("toppra.algorithm").warning("muted")
     assert toppra_logger.level == before
     logging.getLogger("toppra.algorithm").warning("audible")
@@ -454,9 +463,11 @@ def test_limits_shape_mismatch_and_read_only():
 
 
 def test_unknown_method_lists_valid_names():
-    with pytest.raises(ValueError) as err:
+    with pytest.raises(InputError) as err:
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], method="totg")
-    assert "toppra" in str(err.value) and "ruckig" in str(err.value)
+    msg = str(err.value)
+    assert "'totg'" in msg and "toppra" in msg and "ruckig" in msg
+    assert isinstance(err.value, ValueError)  # InputError stays a ValueError
 
 
 @pytest.mark.parametrize("dt", [0.0, -0.008, 0.2, float("nan"), float("inf")])
@@ -522,7 +533,7 @@ def test_to_csv_failure_on_replace_leaves_nothing(tmp_path, monkeypatch):
     def boom(src, dst):
         raise OSError("simulated rename failure")
 
-    monkeypatch.setattr(timing.os, "replace", boom)
+    monkeypatch.setattr(trajectory_module.os, "replace", boom)
     with pytest.raises(OSError, match="simulated"):
         traj.to_csv(out)
     assert os.listdir(tmp_path) == []
@@ -534,3 +545,112 @@ def test_to_csv_rejects_inconsistent_arrays(tmp_path):
     with pytest.raises(ValueError, match="inconsistent"):
         broken.to_csv(tmp_path / "x.csv")
     assert os.listdir(tmp_path) == []
+
+
+# --------------------------------------------------------------------------- #
+# Package layout: registry, re-exports
+# --------------------------------------------------------------------------- #
+
+
+def test_names_imported_elsewhere_are_reexported():
+    # planner/plan.py, planner/commands/plan.py, benchmarks/*: keep working
+    for name in (
+        "JointLimits", "Trajectory", "TimingStatus", "time_parametrize", "DT_MAX_S",
+        "LIMIT_RATIO_TOL", "VALID_METHODS",
+    ):
+        assert hasattr(timing, name), name
+        assert name in timing.__all__, name
+    assert timing.DT_MAX_S == registry.DT_MAX_S == 0.1
+    assert timing.VALID_METHODS == registry.available_methods() == ("toppra", "ruckig")
+
+
+def test_registry_records_of_builtin_methods():
+    tp = registry.get_method("toppra")
+    rk = registry.get_method("ruckig")
+    assert tp.checked_limits == ("velocity", "acceleration")
+    assert rk.checked_limits == ("velocity", "acceleration", "jerk")
+    assert "time_law" in tp.options and "time_law" not in rk.options
+    with pytest.raises(ValueError, match="already registered"):
+        registry.register_method(tp)
+
+
+def test_a_new_method_is_a_registered_module():
+    """Adding a method = registering a TimingMethod; dispatch goes through the registry."""
+    calls = []
+
+    def run_rest(path, limits, dt, opts):
+        calls.append((path.q_path.shape, dt, dict(opts)))
+        return trajectory_module.Trajectory(
+            method="rest", status=TimingStatus.FAILED, reason="stub", t=np.empty(0),
+            q=np.empty((0, N_JOINTS)), qd=np.empty((0, N_JOINTS)),
+            qdd=np.empty((0, N_JOINTS)), qddd=np.empty((0, N_JOINTS)),
+            duration_s=float("nan"), limit_ratio={}, dt=dt,
+        )
+
+    def validate(out):
+        registry.check_integer_options(out, (("level", 0),))
+        return out
+
+    method = registry.TimingMethod("rest", run_rest, ("level",), validate, ("velocity",))
+    registry.register_method(method)
+    try:
+        assert "rest" in registry.available_methods()
+        traj = time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.004, level=2)
+        assert traj.method == "rest" and calls == [((N_WAYPOINTS, N_JOINTS), 0.004, {"level": 2})]
+        with pytest.raises(ValueError, match="level"):
+            time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", level=-1)
+        with pytest.raises(TypeError, match="valid options"):
+            time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", gridpoints=5)
+    finally:
+        registry.unregister_method("rest")
+    assert registry.available_methods() == ("toppra", "ruckig")
+    with pytest.raises(InputError, match="rest"):
+        time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest")
+
+
+# --------------------------------------------------------------------------- #
+# Ruckig result codes are kept
+# --------------------------------------------------------------------------- #
+
+
+class _FailingRuckig:
+    """Stand-in for ``ruckig.Ruckig`` whose calculation always returns an error code."""
+
+    def __init__(self, dofs):
+        self.dofs = dofs
+
+    def calculate(self, inp, traj):
+        return ruckig.Result.ErrorExecutionTimeCalculation
+
+
+def test_ruckig_ok_has_no_solver_code():
+    assert run("curved", "uniform", "ruckig").solver_code == ""
+    assert run("curved", "uniform", "toppra").solver_code == ""
+
+
+def test_ruckig_error_code_in_bound_search_is_kept(monkeypatch):
+    monkeypatch.setattr(ruckig, "Ruckig", _FailingRuckig)
+    traj = time_parametrize(curved_path(), LIMIT_SETS["uniform"], "ruckig")
+    assert traj.status is TimingStatus.FAILED
+    assert traj.solver_code == "ruckig.Result.ErrorExecutionTimeCalculation"
+    assert "ruckig.Result.ErrorExecutionTimeCalculation" in traj.reason
+    assert traj.t.size == 0 and np.isnan(traj.duration_s)
+
+
+def test_ruckig_error_code_in_verification_run_is_kept(monkeypatch):
+    monkeypatch.setattr(ruckig, "Ruckig", _FailingRuckig)
+    monkeypatch.setattr(ruckig_method, "ruckig_bound_set", lambda p, lim, law: ((1.0, 1.0, 1.0), ""))
+    traj = time_parametrize(curved_path(), LIMIT_SETS["uniform"], "ruckig")
+    assert traj.status is TimingStatus.FAILED and traj.iterations == 1
+    assert traj.solver_code == "ruckig.Result.ErrorExecutionTimeCalculation"
+    assert traj.reason.startswith("Ruckig run 1 failed")
+    assert traj.reason.endswith("returned ruckig.Result.ErrorExecutionTimeCalculation")
+
+
+def test_ruckig_exception_is_kept_with_its_message(monkeypatch):
+    # a negative bound makes the ruckig binding raise instead of returning a code
+    monkeypatch.setattr(ruckig_method, "ruckig_bound_set", lambda p, lim, law: ((-1.0, 1.0, 1.0), ""))
+    traj = time_parametrize(curved_path(), LIMIT_SETS["uniform"], "ruckig")
+    assert traj.status is TimingStatus.FAILED
+    assert traj.solver_code == "ruckig.RuckigError"
+    assert "raised ruckig.RuckigError" in traj.reason and "velocity" in traj.reason

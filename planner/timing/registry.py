@@ -1,0 +1,321 @@
+"""Registry of the timing methods, their tolerances and the controller-period bounds.
+
+A method is a :class:`TimingMethod`: a name, a runner that times a
+:class:`~planner.timing.path.SplinePath` under :class:`JointLimits`, the
+names of its keyword options with their validator, and the limits its
+``OK`` status depends on. Each backend module (``toppra_method``,
+``ruckig_method``) builds one and passes it to :func:`register_method` when
+it is imported; :mod:`planner.timing` imports the built-in backends, so
+adding a method means adding a module that registers itself (and importing
+it). :func:`time_parametrize` validates the common inputs and dispatches by
+name through the registry.
+
+The registry also owns the tolerances shared by all methods
+(:data:`LIMIT_RATIO_TOL`, :data:`MONOTONE_TOL`, :data:`SHRINK_MARGIN_MAX`)
+and the bounds of the controller period (:data:`DT_MAX_S`,
+:data:`DT_DEFAULT_S`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Mapping
+
+import numpy as np
+
+from models.errors import InputError
+from planner.timing.path import SplinePath, validate_path
+from planner.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
+
+__all__ = [
+    "DT_DEFAULT_S",
+    "DT_MAX_S",
+    "LIMIT_RATIO_TOL",
+    "MONOTONE_TOL",
+    "SHRINK_MARGIN_MAX",
+    "MethodRunner",
+    "OptionValidator",
+    "TimingMethod",
+    "available_methods",
+    "check_integer_options",
+    "check_shrink_margin",
+    "get_method",
+    "register_method",
+    "time_parametrize",
+    "unregister_method",
+    "validate_dt",
+]
+
+# --------------------------------------------------------------------------- #
+# Tolerances and dt bounds (shared by every method)
+# --------------------------------------------------------------------------- #
+
+#: A limit ratio ``peak |value| / limit`` counts as within the limit when it
+#: is ``<= 1 + LIMIT_RATIO_TOL``.
+LIMIT_RATIO_TOL: float = 1e-9
+
+#: Largest accepted controller period (s).
+DT_MAX_S: float = 0.1
+
+#: Default controller period of :func:`time_parametrize` (s).
+DT_DEFAULT_S: float = 0.008
+
+#: Largest allowed backwards motion of the time law, relative to max sd.
+MONOTONE_TOL: float = 1e-9
+
+#: Upper bound of the ``shrink_margin`` option of every method (-).
+SHRINK_MARGIN_MAX: float = 10.0
+
+# --------------------------------------------------------------------------- #
+# Method records
+# --------------------------------------------------------------------------- #
+
+#: ``run(path, limits, dt, options) -> Trajectory``: times ``path`` (rad)
+#: under ``limits`` (SI) with samples every ``dt`` s; ``options`` are already
+#: validated. Expected outcomes are returned as statuses, never raised.
+MethodRunner = Callable[[SplinePath, JointLimits, float, Mapping[str, Any]], Trajectory]
+
+#: ``validate(options) -> options``: checks and normalises the values of the
+#: method's keyword options (names are already known to be valid); raises
+#: ``ValueError`` naming the option.
+OptionValidator = Callable[[dict[str, Any]], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class TimingMethod:
+    """A registered time-parametrisation method.
+
+    Attributes
+    ----------
+    name : str
+        The ``method`` argument of :func:`time_parametrize`.
+    run : MethodRunner
+        The backend.
+    options : tuple of str
+        Names of the keyword options the method accepts.
+    validate_options : OptionValidator
+        Value check of those options.
+    checked_limits : tuple of str
+        Keys of :data:`~planner.timing.trajectory.LIMIT_KEYS` that decide the
+        ``OK`` status (the other ratios are reported only).
+    description : str
+        One line for listings.
+    """
+
+    name: str
+    run: MethodRunner
+    options: tuple[str, ...]
+    validate_options: OptionValidator
+    checked_limits: tuple[str, ...]
+    description: str = ""
+
+
+_METHODS: dict[str, TimingMethod] = {}
+
+
+def register_method(method: TimingMethod, *, replace: bool = False) -> TimingMethod:
+    """Add ``method`` to the registry (in registration order) and return it.
+
+    Raises
+    ------
+    ValueError
+        If the name is empty, a checked limit is unknown, or the name is
+        already registered and ``replace`` is false.
+    """
+    if not method.name:
+        raise ValueError("a timing method needs a non-empty name")
+    unknown = [k for k in method.checked_limits if k not in LIMIT_KEYS]
+    if unknown:
+        raise ValueError(f"method {method.name!r}: unknown checked limit(s) {unknown}")
+    if method.name in _METHODS and not replace:
+        raise ValueError(f"timing method {method.name!r} is already registered")
+    _METHODS[method.name] = method
+    return method
+
+
+def unregister_method(name: str) -> None:
+    """Remove a method (no error if it is not registered)."""
+    _METHODS.pop(name, None)
+
+
+def available_methods() -> tuple[str, ...]:
+    """Names of the registered methods, in registration order."""
+    return tuple(_METHODS)
+
+
+def get_method(name: str) -> TimingMethod:
+    """The registered method called ``name``.
+
+    Raises
+    ------
+    InputError
+        If no method has that name; the message names it and lists the
+        registered ones.
+    """
+    if not isinstance(name, str) or name not in _METHODS:
+        raise InputError(f"unknown method {name!r}; valid methods: {list(available_methods())}")
+    return _METHODS[name]
+
+
+# --------------------------------------------------------------------------- #
+# Input checks
+# --------------------------------------------------------------------------- #
+
+
+def validate_dt(dt: float) -> float:
+    """Controller period as float (s).
+
+    Raises
+    ------
+    ValueError
+        Not a number, not finite, ``<= 0`` or ``> DT_MAX_S``.
+    """
+    try:
+        value = float(dt)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"dt must be a number (s), got {dt!r}") from exc
+    if not math.isfinite(value) or value <= 0.0 or value > DT_MAX_S:
+        raise ValueError(f"dt must be finite, > 0 and <= {DT_MAX_S} s, got {dt!r}")
+    return value
+
+
+def check_integer_options(out: dict[str, Any], bounds: Iterable[tuple[str, int]]) -> None:
+    """Check (in the given order) that each present option is an int ``>= lo``.
+
+    Parameters
+    ----------
+    out : dict
+        Options; the checked values are replaced by plain ``int``.
+    bounds : iterable of (str, int)
+        ``(name, lo)`` pairs.
+    """
+    for key, lo in bounds:
+        if key in out:
+            val = out[key]
+            if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val < lo:
+                raise ValueError(f"option {key} must be an integer >= {lo}, got {val!r}")
+            out[key] = int(val)
+
+
+def check_shrink_margin(out: dict[str, Any]) -> None:
+    """Check ``shrink_margin`` (if present) is in ``[0, SHRINK_MARGIN_MAX]``; make it float."""
+    if "shrink_margin" in out:
+        val = out["shrink_margin"]
+        try:
+            fval = float(val)
+        except (TypeError, ValueError):
+            fval = math.nan
+        if not (0.0 <= fval <= SHRINK_MARGIN_MAX):
+            raise ValueError(
+                f"option shrink_margin must be in [0, {SHRINK_MARGIN_MAX}], got {val!r}"
+            )
+        out["shrink_margin"] = fval
+
+
+def _validate_options(method: TimingMethod, options: Mapping[str, Any]) -> dict[str, Any]:
+    """Reject unknown option names (``TypeError``), then check the values."""
+    allowed = method.options
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise TypeError(
+            f"unknown option(s) {unknown} for method {method.name!r}; valid options: "
+            f"{list(allowed)}"
+        )
+    return method.validate_options(dict(options))
+
+
+# --------------------------------------------------------------------------- #
+# Entry point
+# --------------------------------------------------------------------------- #
+
+
+def _zero_length_trajectory(
+    method: str, q: np.ndarray, n_input: int, dt: float
+) -> Trajectory:
+    """``INFEASIBLE`` result for a path whose waypoints are all identical.
+
+    One sample at ``t = 0`` holding ``q[0]`` (shape ``(n,)``, rad) at rest.
+    """
+    n = q.shape[1]
+    zeros = np.zeros((1, n))
+    return Trajectory(
+        method=method,
+        status=TimingStatus.INFEASIBLE,
+        reason=(
+            f"infeasible: path has zero length (all {n_input} waypoints are "
+            "identical); nothing to time-parametrise, the single sample holds "
+            "the start configuration at rest"
+        ),
+        t=np.zeros(1),
+        q=q[:1].copy(),
+        qd=zeros,
+        qdd=zeros.copy(),
+        qddd=zeros.copy(),
+        duration_s=0.0,
+        limit_ratio={k: np.zeros(n) for k in LIMIT_KEYS},
+        dt=dt,
+    )
+
+
+def time_parametrize(
+    q_path: np.ndarray,
+    limits: JointLimits,
+    method: str = "toppra",
+    dt: float = DT_DEFAULT_S,
+    **options: Any,
+) -> Trajectory:
+    """Time-parametrise a joint-space path, rest to rest.
+
+    Parameters
+    ----------
+    q_path : np.ndarray
+        Shape ``(N, n)``, rad (joint space). Waypoints of the geometric path,
+        ``N >= 2``, ``n`` equal to ``limits.n_joints``. Consecutive exact
+        duplicates are dropped. The trajectory follows the natural cubic
+        chord-length spline through the waypoints (:mod:`.path`).
+    limits : JointLimits
+        Per-joint velocity (rad/s), acceleration (rad/s^2), jerk (rad/s^3).
+    method : str
+        A registered method (:func:`available_methods`): ``"toppra"``
+        (time-optimal, velocity and acceleration limits) or ``"ruckig"``
+        (jerk-limited).
+    dt : float
+        Controller period (s), ``0 < dt <= DT_MAX_S``.
+    **options
+        Method options. ``toppra`` (:mod:`.toppra_method`): ``gridpoints``,
+        ``max_iterations``, ``shrink_margin``, ``time_law``, ``smoothing_s``,
+        ``refinements``. ``ruckig`` (:mod:`.ruckig_method`):
+        ``max_iterations``, ``shrink_margin``.
+
+    Returns
+    -------
+    Trajectory
+        Always returned for expected outcomes: ``OK``; ``LIMIT_EXCEEDED``
+        (samples present, limits not met after the allowed iterations);
+        ``INFEASIBLE`` (zero-length path: one sample at the start at rest,
+        ``duration_s = 0``; or TOPP-RA reports the instance uncontrollable);
+        ``FAILED`` (the library failed; empty samples, NaN duration, the
+        solver's code in ``solver_code`` where it gave one).
+
+    Raises
+    ------
+    InputError
+        Unknown ``method`` (the message names it and lists the registered
+        ones). A subclass of ``ValueError``.
+    ValueError
+        Malformed ``q_path`` (shape, joint count, non-finite value: the
+        message names the waypoint row and joint), bad ``dt``, or bad option
+        values.
+    TypeError
+        ``limits`` is not a :class:`JointLimits`, or an unknown option name.
+    """
+    spec = get_method(method)
+    if not isinstance(limits, JointLimits):
+        raise TypeError(f"limits must be a JointLimits, got {type(limits).__name__}")
+    opts = _validate_options(spec, options)
+    dt = validate_dt(dt)
+    q, n_input = validate_path(q_path, limits.n_joints)
+    if q.shape[0] < 2:
+        return _zero_length_trajectory(spec.name, q, n_input, dt)
+    return spec.run(SplinePath(q), limits, dt, opts)

@@ -1,0 +1,269 @@
+"""Sampling a time law on the controller grid and checking the joint limits.
+
+Samples are at ``t_k = k dt`` from 0 (s); the last sample is the first
+multiple of ``dt`` at or after the end of the motion and holds the final
+waypoint at rest (zero velocity, acceleration and jerk), so ``duration_s =
+t[-1]`` is a multiple of ``dt``. ``limit_ratio`` is the peak ``|value| /
+limit`` per joint (joint space, dimensionless) over the returned samples
+*and* a check grid ``VERIFY_OVERSAMPLE`` times finer than ``dt`` (plus any
+extra times a method adds, e.g. the breakpoints of the TOPP-RA time law where
+its acceleration has kinks), so it also bounds what a finer controller would
+see, up to the variation between check points. A ratio counts as within its
+limit when it is ``<= 1 + LIMIT_RATIO_TOL``; only the limits a method
+checks decide its ``OK`` status.
+
+The limits checked are the joint velocity (rad/s), acceleration (rad/s^2)
+and jerk (rad/s^3) of :class:`~planner.timing.trajectory.JointLimits`; the
+position follows the geometric path exactly (first and last samples are the
+first and last waypoints) and has no limit of its own here.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, Mapping
+
+import numpy as np
+
+from planner.timing.path import SplinePath
+from planner.timing.registry import LIMIT_RATIO_TOL, MONOTONE_TOL
+from planner.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
+
+__all__ = [
+    "VERIFY_OVERSAMPLE",
+    "TimeLaw",
+    "build_trajectory",
+    "check_times",
+    "empty_trajectory",
+    "exceeded_limits",
+    "format_ratios",
+    "limit_ratios",
+    "max_ratios",
+    "moves_backwards",
+    "nan_ratios",
+    "sample_path",
+    "sample_times",
+]
+
+#: The check grid used for ``limit_ratio`` is this many times finer than dt.
+VERIFY_OVERSAMPLE: int = 4
+
+#: ``law(t) -> (s, sd, sdd, sddd)``: a scalar time law evaluated at times
+#: ``t`` (shape ``(M,)``, s); each output shape ``(M,)`` in -, 1/s, 1/s^2,
+#: 1/s^3.
+TimeLaw = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
+
+
+def sample_times(duration: float, dt: float) -> np.ndarray:
+    """Uniform times ``k dt`` (s) up to the first multiple of dt >= ``duration``.
+
+    Returns
+    -------
+    np.ndarray
+        Shape ``(M,)``, s, at least two samples.
+    """
+    k_end = max(1, int(math.ceil(duration / dt)))
+    if k_end * dt < duration:
+        k_end += 1
+    return np.arange(k_end + 1, dtype=float) * dt
+
+
+def check_times(duration: float, dt: float, extra: np.ndarray | None = None) -> np.ndarray:
+    """Times (s) of the fine check grid strictly inside ``[0, duration)``.
+
+    Parameters
+    ----------
+    duration : float
+        End of the motion (s).
+    dt : float
+        Controller period (s); the grid step is ``dt / VERIFY_OVERSAMPLE``.
+    extra : np.ndarray, optional
+        Shape ``(E,)``, s, additional times; those in ``[0, duration)`` are
+        appended (unsorted).
+    """
+    fine = np.arange(0.0, duration, dt / VERIFY_OVERSAMPLE)
+    if extra is not None:
+        fine = np.concatenate((fine, extra[(extra >= 0.0) & (extra < duration)]))
+    return fine
+
+
+def limit_ratios(
+    qd: np.ndarray, qdd: np.ndarray, qddd: np.ndarray, limits: JointLimits
+) -> dict[str, np.ndarray]:
+    """Peak ``|value| / limit`` per joint.
+
+    Parameters
+    ----------
+    qd, qdd, qddd : np.ndarray
+        Shape ``(M, n)``: rad/s, rad/s^2, rad/s^3.
+    limits : JointLimits
+        The limits (SI).
+
+    Returns
+    -------
+    dict[str, np.ndarray]
+        Keys :data:`LIMIT_KEYS`, each shape ``(n,)``, dimensionless (zeros if
+        ``M = 0``).
+    """
+    out = {}
+    for key, arr in zip(LIMIT_KEYS, (qd, qdd, qddd)):
+        lim = getattr(limits, key)
+        out[key] = np.abs(arr).max(axis=0) / lim if arr.shape[0] else np.zeros_like(lim)
+    return out
+
+
+def max_ratios(*dicts: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Element-wise maximum of several ratio dicts (each value shape ``(n,)``)."""
+    return {k: np.maximum.reduce([d[k] for d in dicts]) for k in LIMIT_KEYS}
+
+
+def exceeded_limits(ratio: Mapping[str, np.ndarray], keys: tuple[str, ...]) -> list[str]:
+    """The ``keys`` whose peak ratio is above ``1 + LIMIT_RATIO_TOL``, in order."""
+    return [k for k in keys if float(np.max(ratio[k])) > 1.0 + LIMIT_RATIO_TOL]
+
+
+def format_ratios(ratio: Mapping[str, np.ndarray]) -> str:
+    """``"peak ratios velocity 0.9876 (joint 2), ..."`` for a reason text."""
+    parts = []
+    for k in LIMIT_KEYS:
+        r = ratio[k]
+        j = int(np.argmax(r))
+        parts.append(f"{k} {float(r[j]):.4f} (joint {j + 1})")
+    return "peak ratios " + ", ".join(parts)
+
+
+def nan_ratios(n: int) -> dict[str, np.ndarray]:
+    """Ratios marked unavailable: NaN, each shape ``(n,)``."""
+    return {k: np.full(n, np.nan) for k in LIMIT_KEYS}
+
+
+def moves_backwards(sd: np.ndarray, sd_scale: float) -> float | None:
+    """Most negative path velocity (1/s) if the law moves backwards, else None.
+
+    Backwards means ``min(sd) < -MONOTONE_TOL * max(1, sd_scale)``; ``sd``
+    has shape ``(M,)``, 1/s, and ``sd_scale`` is the law's peak ``sd`` (1/s).
+    """
+    backwards = float(sd.min(initial=0.0))
+    if backwards < -MONOTONE_TOL * max(1.0, sd_scale):
+        return backwards
+    return None
+
+
+def empty_trajectory(
+    method: str,
+    status: TimingStatus,
+    reason: str,
+    n: int,
+    dt: float,
+    iterations: int = 0,
+    solver_code: str = "",
+) -> Trajectory:
+    """A result without samples (``M = 0``, NaN duration and ratios) for ``n`` joints."""
+    empty = np.empty((0, n))
+    return Trajectory(
+        method=method,
+        status=status,
+        reason=reason,
+        t=np.empty(0),
+        q=empty,
+        qd=empty.copy(),
+        qdd=empty.copy(),
+        qddd=empty.copy(),
+        duration_s=math.nan,
+        limit_ratio=nan_ratios(n),
+        dt=dt,
+        iterations=iterations,
+        solver_code=solver_code,
+    )
+
+
+def sample_path(
+    path: SplinePath,
+    t: np.ndarray,
+    duration: float,
+    law_s: np.ndarray,
+    law_sd: np.ndarray,
+    law_sdd: np.ndarray,
+    law_sddd: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Map a time law (values given for ``t < duration``) to joint samples.
+
+    Parameters
+    ----------
+    path : SplinePath
+        The geometric path.
+    t : np.ndarray
+        Shape ``(M,)``, s, sample times.
+    duration : float
+        End of the motion (s).
+    law_s, law_sd, law_sdd, law_sddd : np.ndarray
+        Shape ``(K,)`` with ``K`` the number of ``t < duration``: the law and
+        its derivatives (-, 1/s, 1/s^2, 1/s^3) at those times.
+
+    Returns
+    -------
+    q, qd, qdd, qddd : np.ndarray
+        Shape ``(M, n)``: rad, rad/s, rad/s^2, rad/s^3. Samples at ``t >=
+        duration`` hold the last waypoint at rest; the first sample is the
+        first waypoint exactly.
+    """
+    n = path.q_path.shape[1]
+    m = t.shape[0]
+    q = np.empty((m, n))
+    qd = np.zeros((m, n))
+    qdd = np.zeros((m, n))
+    qddd = np.zeros((m, n))
+    moving = t < duration
+    k = int(np.count_nonzero(moving))
+    q[:k], qd[:k], qdd[:k], qddd[:k] = path.evaluate(law_s, law_sd, law_sdd, law_sddd)
+    q[k:] = path.q_path[-1]
+    q[0] = path.q_path[0]
+    return q, qd, qdd, qddd
+
+
+def build_trajectory(
+    method: str,
+    path: SplinePath,
+    limits: JointLimits,
+    dt: float,
+    law: TimeLaw,
+    duration: float,
+    check_ratio: Mapping[str, np.ndarray],
+    status: TimingStatus,
+    reason: str,
+    iterations: int,
+    first: dict[str, np.ndarray],
+    checked: tuple[str, ...],
+) -> Trajectory:
+    """Sample ``law`` at ``dt`` and assemble the :class:`Trajectory`.
+
+    ``law(t)`` returns ``(s, sd, sdd, sddd)`` for ``t < duration`` (s). The
+    reported ratio is the maximum of ``check_ratio`` (the fine check grid)
+    and the ratio over the returned samples; an ``OK`` status is downgraded
+    to ``LIMIT_EXCEEDED`` if the samples exceed a ``checked`` limit (so OK
+    can never coexist with a ratio above ``1 + LIMIT_RATIO_TOL``). ``first``
+    are the first-pass ratios (the final ones if empty).
+    """
+    t = sample_times(duration, dt)
+    tm = t[t < duration]
+    q, qd, qdd, qddd = sample_path(path, t, duration, *law(tm))
+    ratio = max_ratios(limit_ratios(qd, qdd, qddd, limits), check_ratio)
+    bad = exceeded_limits(ratio, checked)
+    if status is TimingStatus.OK and bad:
+        status = TimingStatus.LIMIT_EXCEEDED
+        reason = f"limit_exceeded: {' and '.join(bad)} ratio above 1 on the samples; {reason}"
+    return Trajectory(
+        method=method,
+        status=status,
+        reason=reason,
+        t=t,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        qddd=qddd,
+        duration_s=float(t[-1]),
+        limit_ratio=ratio,
+        dt=dt,
+        iterations=iterations,
+        first_pass_limit_ratio=first if first else dict(ratio),
+    )
