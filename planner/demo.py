@@ -2,7 +2,8 @@
 
 Kept for the API the report and its benchmark use: :func:`run_demo` returns the
 :class:`~planner.plan.PlanResult` of the shipped problem ``paper_4_4`` (robot and
-number of points may be overridden) and :func:`write_outputs` writes its files.
+number of points may be overridden) and :func:`write_outputs` writes its files and,
+on request, its report (built from the result in memory, as ``compplan demo`` does).
 """
 
 from __future__ import annotations
@@ -61,6 +62,15 @@ def run_demo(robot: Robot | str | None = None, n_points: int = paper.SECTION_4_4
     return plan(pr, verbose=verbose).raise_for_status()
 
 
-def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = False) -> dict[str, Any]:
-    """Write the demo's files (see :func:`planner.plan.write_outputs`); figures off by default."""
-    return _write_plan_outputs(res, folder, with_figures=with_figures)
+def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = False,
+                  report: bool = False, **report_options: Any) -> dict[str, Any]:
+    """Write the demo's files (see :func:`planner.plan.write_outputs`); figures off by default.
+
+    With ``report`` the report is written too, from ``res`` (keyword arguments of
+    :func:`planner.report.write_report` in ``report_options``).  Returns the summary.
+    """
+    summary = _write_plan_outputs(res, folder, with_figures=with_figures)
+    if report:
+        from planner.report import write_report
+        write_report(folder, result=res, **report_options)
+    return summary

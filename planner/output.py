@@ -21,18 +21,20 @@ import numpy as np
 from models.errors import InputError
 
 
-#: Columns of ``trajectory*.csv`` (SI): time, positions, velocities, accelerations.
+#: Columns of ``trajectory*.csv`` (SI): time, positions, velocities, accelerations, jerks.
 TRAJECTORY_COLUMNS = (["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)]
-                      + [f"qdd{i}" for i in range(1, 7)])
+                      + [f"qdd{i}" for i in range(1, 7)] + [f"qddd{i}" for i in range(1, 7)])
 
 
-def _jsonable(obj: Any) -> Any:
+def jsonable(obj: Any) -> Any:
+    """``obj`` as the JSON values :func:`json_bytes` writes (and ``json.loads`` reads back):
+    plain dicts with str keys, lists, floats (non-finite ones None), ints, bools, str."""
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     if isinstance(obj, (np.floating, float)):
         v = float(obj)
         return v if np.isfinite(v) else None
@@ -60,7 +62,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
 
 def json_bytes(obj: Any) -> bytes:
     """JSON text (non-finite floats become null) as bytes."""
-    return (json.dumps(_jsonable(obj), indent=2, allow_nan=False) + "\n").encode()
+    return (json.dumps(jsonable(obj), indent=2, allow_nan=False) + "\n").encode()
 
 
 def csv_bytes(header: Sequence[str], rows: Iterable[Sequence[float]] | np.ndarray) -> bytes:

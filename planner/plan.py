@@ -334,6 +334,7 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     res.closed = closed_form(arm, q, L)
     res.exact = exact(arm, q, L)
     times["compensation_s"] = time.perf_counter() - t0
+    res.warnings += arm.extrapolation(res.exact.q_deflected, L)
     if res.exact.status is not CompensationStatus.OK:
         res.status = PlanStatus.COMPENSATION_FAILED
         res.reason = f"exact compensation of branch {ps.best.label}: {res.exact.reason}"
@@ -388,7 +389,10 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
 # --------------------------------------------------------------------------------------
 
 def _trajectory_rows(tr: Trajectory) -> np.ndarray:
-    return np.column_stack([tr.t, tr.q, tr.qd, tr.qdd]) if len(tr.t) else np.empty((0, 19))
+    """Rows of ``trajectory*.csv`` (see :data:`TRAJECTORY_COLUMNS`): t, q, qd, qdd, qddd."""
+    if not len(tr.t):
+        return np.empty((0, len(TRAJECTORY_COLUMNS)))
+    return np.column_stack([tr.t, tr.q, tr.qd, tr.qdd, tr.qddd])
 
 
 def figures(res: PlanResult) -> dict[str, bytes]:

@@ -133,7 +133,7 @@ def test_output_files_and_columns(paper_run):
                                             for k in ("analytic", "optimised")}
     assert list(csv.reader((paper_run / "path.csv").open()))[0] == ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
     tr = list(csv.reader((paper_run / "trajectory.csv").open()))[0]
-    assert tr == ["t"] + [f"{p}{i}" for p in ("q", "qd", "qdd") for i in range(1, 7)]
+    assert tr == ["t"] + [f"{p}{i}" for p in ("q", "qd", "qdd", "qddd") for i in range(1, 7)]
 
 
 @pytest.mark.parametrize("run", ["paper_run", "machining_run"])

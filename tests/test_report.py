@@ -18,8 +18,9 @@ from models.ik import BRANCH_LABELS
 from planner.cli import main
 from planner.compliance_map import compliance_map
 from planner.demo import run_demo, write_outputs
-from planner.output import csv_bytes
-from planner.report import FIGURE_NAMES, lookup, write_report
+from planner.output import TRAJECTORY_COLUMNS, csv_bytes
+from planner.report import (FIGURE_NAMES, build_figures, load_run, lookup, render_html,
+                            render_markdown, run_from_plan, summary_tables, write_report)
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 #: A small map keeps the tests quick; the full 61x61 default is exercised by the demo report.
@@ -118,18 +119,24 @@ def check_figures_embedded(folder: Path, rep: _ReportParser, expected_present: s
 
 # --------------------------------------------------------------------------------- fixtures
 @pytest.fixture(scope="module")
-def demo_run(tmp_path_factory) -> Path:
+def demo_result():
+    """The plan of the demo (paper section 4.4 on ar5), in memory."""
+    return run_demo(load_robot("ar5"))
+
+
+@pytest.fixture(scope="module")
+def demo_run(demo_result, tmp_path_factory) -> Path:
     """A demo output folder (paper section 4.4 on ar5), without report."""
     folder = tmp_path_factory.mktemp("demo")
-    write_outputs(run_demo(load_robot("ar5")), folder)
+    write_outputs(demo_result, folder)
     return folder
 
 
 @pytest.fixture(scope="module")
-def demo_report(demo_run, tmp_path_factory) -> Path:
+def demo_report(demo_result, tmp_path_factory) -> Path:
+    """The demo's files and report, the report built from the result (as compplan demo)."""
     folder = tmp_path_factory.mktemp("demo_report") / "run"
-    shutil.copytree(demo_run, folder)
-    write_report(folder)                                      # defaults, as the CLI runs it
+    write_outputs(demo_result, folder, report=True)        # report defaults, as the CLI runs it
     return folder
 
 
@@ -163,10 +170,9 @@ def synthetic_timing(src: Path, dst: Path) -> Path:
     d = q1 - q0
     rows = np.column_stack([t, q0 + np.outer(10 * x**3 - 15 * x**4 + 6 * x**5, d),
                             np.outer((30 * x**2 - 60 * x**3 + 30 * x**4) / T, d),
-                            np.outer((60 * x - 180 * x**2 + 120 * x**3) / T**2, d)])
-    hdr = (["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)]
-           + [f"qdd{i}" for i in range(1, 7)])
-    (dst / "trajectory.csv").write_bytes(csv_bytes(hdr, rows))       # default: Ruckig
+                            np.outer((60 * x - 180 * x**2 + 120 * x**3) / T**2, d),
+                            np.outer((60 - 360 * x + 360 * x**2) / T**3, d)])
+    (dst / "trajectory.csv").write_bytes(csv_bytes(TRAJECTORY_COLUMNS, rows))  # default: Ruckig
     s["duration_s"] = T
     s["limit_ratio"] = {"velocity": [0.4] * 6, "acceleration": [0.7] * 6,
                         "jerk": [0.1, 0.2, 0.99, 0.3, 0.0, 0.5]}
@@ -211,6 +217,88 @@ def test_markdown_table_has_the_same_numbers(demo_report):
     assert float(cells[2]) == pytest.approx(s["error_before"]["rms_mm"], rel=1e-6)
 
 
+# ------------------------------------------------------------- the view from a plan and a folder
+def _same(a, b) -> bool:
+    """Deep equality of views and figure jobs: arrays exactly (NaN equal to NaN)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+    if isinstance(a, dict) and isinstance(b, dict):
+        return list(a) == list(b) and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return type(a) is type(b) and a == b
+
+
+def test_view_from_the_plan_equals_the_view_from_its_folder(demo_result, demo_run, monkeypatch):
+    """compplan plan/demo build the report from the PlanResult, compplan report from the files
+    written from it: the two views, their tables and figure data are the same."""
+    import planner.report.run as run_module
+
+    def no_reading(*args, **kwargs):
+        raise AssertionError("the view of a plan result read a file")
+    with monkeypatch.context() as m:                   # from the result: no file is read
+        for name in ("_read_csv", "_read_summary", "_read_trajectory"):
+            m.setattr(run_module, name, no_reading)
+        mem = run_from_plan(demo_result, demo_run)
+    disk = load_run(demo_run)
+
+    assert mem.summary == disk.summary == json.loads((demo_run / "summary.json").read_text())
+    assert mem.folder == disk.folder and mem.absent == disk.absent == {}
+    assert mem.trajectory_files == disk.trajectory_files and list(mem.trajectories) == ["toppra", "ruckig"]
+    for piece in ("waypoints", "branches", "trajectories"):
+        assert _same(getattr(mem, piece), getattr(disk, piece)), piece
+    assert mem.robot.to_dict() == disk.robot.to_dict()
+
+    t_mem, t_disk = summary_tables(mem.summary, mem.absent), summary_tables(disk.summary, disk.absent)
+    assert [t.html() for t in t_mem] == [t.html() for t in t_disk]
+    assert [t.markdown() for t in t_mem] == [t.markdown() for t in t_disk]
+    f_mem, f_disk = build_figures(mem, map_options=False), build_figures(disk, map_options=False)
+    assert [(f.name, f.title, f.caption, f.absent) for f in f_mem] == \
+        [(f.name, f.title, f.caption, f.absent) for f in f_disk]
+    assert all(f.job is not None for f in f_mem[1:])
+    for a, b in zip(f_mem, f_disk):
+        assert _same(a.job, b.job), f"{a.name}: the figure data differ"
+    assert render_markdown(mem, t_mem, f_mem) == render_markdown(disk, t_disk, f_disk)
+    assert render_html(mem, t_mem, f_mem) == render_html(disk, t_disk, f_disk)
+
+
+def test_report_draws_the_jerk_the_timing_computed(demo_result, demo_run):
+    """trajectory*.csv keeps each method's jerk qddd; figure 6 draws it, not a derivative."""
+    run = load_run(demo_run)
+    assert run.trajectories, "the demo is timed"
+    for method, tr in demo_result.trajectories.items():
+        name = run.trajectory_files[method]
+        header = (demo_run / name).read_text().splitlines()[0].split(",")
+        assert header == list(TRAJECTORY_COLUMNS) and header[-6:] == [f"qddd{i}" for i in range(1, 7)]
+        assert np.array_equal(run.trajectories[method]["qddd"], tr.qddd)
+    fig6 = build_figures(run, map_options=False)[5]
+    fn, (trajs, _limits), _ = fig6.job
+    assert fn.__name__ == "trajectory_figure"
+    for pretty, tr in trajs.items():
+        method = {"TOPP-RA": "toppra", "Ruckig": "ruckig"}[pretty]
+        assert tr["qddd"] is run.trajectories[method]["qddd"]
+    assert "qddd columns of the trajectory file" in fig6.caption
+
+
+def test_trajectory_file_without_jerk_columns_is_stated(demo_run, tmp_path):
+    """A trajectory file written before the jerk was recorded: the jerk panel says so."""
+    folder = synthetic_timing(demo_run, tmp_path / "old")
+    p = folder / "trajectory.csv"
+    rows = [line.split(",")[:19] for line in p.read_text().splitlines()]
+    p.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    run = load_run(folder)
+    assert run.trajectories["ruckig"]["qddd"] is None
+    write_report(folder, map_options=False, workers=1)
+    rep = check_cells_match_summary(folder)
+    check_figures_embedded(folder, rep, set(FIGURE_NAMES) - {"fig1_compliance_map"})
+    assert "Jerk not recorded in trajectory.csv" in (folder / "report.md").read_text()
+    rows[0][-1] = "qddd1"                                # part of the jerk columns: malformed
+    p.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    with pytest.raises(InputError, match="qddd2"):
+        write_report(folder, map_options=False, workers=1)
+
+
 # ------------------------------------------------------------------- runs with and without timing
 def test_run_without_trajectory_says_so(demo_run, tmp_path):
     folder = strip_timing(demo_run, tmp_path / "untimed")
@@ -253,7 +341,7 @@ def test_serial_and_parallel_rendering_give_the_same_files(demo_run, tmp_path):
 
 
 def test_compliance_map_is_cached_per_robot_and_options(demo_run, tmp_path, monkeypatch):
-    import planner.report as report
+    import planner.report.maps as report
     monkeypatch.setattr(report, "_map_cache_dir", lambda key: tmp_path / "cache" / key)
     a, b = tmp_path / "a", tmp_path / "b"
     shutil.copytree(demo_run, a)

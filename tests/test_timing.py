@@ -497,19 +497,15 @@ def test_to_csv_header_rows_and_values(tmp_path):
     out = tmp_path / "traj.csv"
     traj.to_csv(out)
     lines = out.read_text().splitlines()
-    expected = (
-        ["t"]
-        + [f"q{j}" for j in range(1, 7)]
-        + [f"qd{j}" for j in range(1, 7)]
-        + [f"qdd{j}" for j in range(1, 7)]
-    )
+    expected = ["t"] + [f"{p}{j}" for p in ("q", "qd", "qdd", "qddd") for j in range(1, 7)]
     assert lines[0].split(",") == expected
     assert len(lines) == traj.t.size + 1
     data = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert data.shape == (traj.t.size, 19)
+    assert data.shape == (traj.t.size, 25)
     np.testing.assert_array_equal(data[:, 0], traj.t)
     np.testing.assert_array_equal(data[:, 1:7], traj.q)
     np.testing.assert_array_equal(data[:, 13:19], traj.qdd)
+    np.testing.assert_array_equal(data[:, 19:25], traj.qddd)
     assert sorted(os.listdir(tmp_path)) == ["traj.csv"]
 
 

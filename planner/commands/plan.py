@@ -123,7 +123,7 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
     print_plan(res, args.out, output_names(res, quick_figures))
     if not args.no_report:
         from planner.commands.report import write_run_report
-        write_run_report(args.out)
+        write_run_report(args.out, result=res)      # the report's view is built from res
     return 0
 
 

@@ -178,26 +178,22 @@ class Trajectory:
         return self.status is TimingStatus.OK
 
     def _csv_table(self) -> tuple[str, np.ndarray]:
-        """Header line and data rows ``(M, 1 + 3 n)`` of :meth:`to_csv`."""
+        """Header line and data rows ``(M, 1 + 4 n)`` of :meth:`to_csv`: ``t, q, qd, qdd, qddd``
+        (the columns of the product's ``trajectory.csv``)."""
         t = np.asarray(self.t)
         m = t.shape[0] if t.ndim == 1 else -1
-        blocks = [np.asarray(self.q), np.asarray(self.qd), np.asarray(self.qdd)]
+        blocks = [np.asarray(self.q), np.asarray(self.qd), np.asarray(self.qdd), np.asarray(self.qddd)]
         if m < 0 or any(b.ndim != 2 or b.shape[0] != m for b in blocks):
             raise ValueError(
                 "inconsistent trajectory arrays: t "
                 f"{t.shape}, q {blocks[0].shape}, qd {blocks[1].shape}, "
-                f"qdd {blocks[2].shape}"
+                f"qdd {blocks[2].shape}, qddd {blocks[3].shape}"
             )
         n = blocks[0].shape[1]
         if any(b.shape[1] != n for b in blocks):
-            raise ValueError("q, qd and qdd must have the same number of joints")
-        header = ",".join(
-            ["t"]
-            + [f"q{j}" for j in range(1, n + 1)]
-            + [f"qd{j}" for j in range(1, n + 1)]
-            + [f"qdd{j}" for j in range(1, n + 1)]
-        )
-        data = np.column_stack([t] + blocks) if m else np.empty((0, 1 + 3 * n))
+            raise ValueError("q, qd, qdd and qddd must have the same number of joints")
+        header = ",".join(["t"] + [f"{p}{j}" for p in ("q", "qd", "qdd", "qddd") for j in range(1, n + 1)])
+        data = np.column_stack([t] + blocks) if m else np.empty((0, 1 + 4 * n))
         return header, data
 
     def to_csv(self, path: str | os.PathLike[str]) -> None:

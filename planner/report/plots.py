@@ -1,10 +1,11 @@
-"""The report's figures: pure functions from arrays to matplotlib Figures.
+"""The report's drawings: pure functions from arrays to matplotlib Figures.
 
 Every function takes plain arrays (SI units: m, rad, N, s) and returns a
 :class:`matplotlib.figure.Figure` attached to the Agg canvas, so nothing here
 needs a display, touches pyplot's global state or prints.  Conversions to the
 units shown (mm, deg, N/m) happen here, at the edge, and every axis names its
-unit.  :func:`render` turns a figure into PNG and PDF bytes.
+unit.  :func:`render` turns a figure into PNG and PDF bytes.  Which data goes
+into which figure is decided in :mod:`planner.report.figures`.
 
 Figure numbering follows issue 3 (see ``docs/paper-reproduction.md`` for the
 paper figure each one reproduces).
@@ -323,9 +324,10 @@ def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
 
     Parameters
     ----------
-    trajs : mapping method -> {"t": (M,), "q", "qd", "qdd": (M, 6), optional "jerk"}
+    trajs : mapping method -> {"t": (M,), "q", "qd", "qdd", "qddd": (M, 6)}
         One column per method (e.g. TOPP-RA, Ruckig); SI units (s, rad, rad/s ...).
-        Without ``"jerk"``, jerk is the finite difference of ``qdd`` over ``t``.
+        ``"qddd"`` is the jerk as the timing computed it; when it is None (a file
+        written before the jerk was recorded) the jerk panel says so.
     limits : mapping with keys "q_min", "q_max", "velocity", "acceleration", "jerk"
         Arrays (6,) or None; drawn as dashed lines (position limits only if in view).
     headers : mapping method -> str, optional
@@ -340,13 +342,16 @@ def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
     for c, m in enumerate(methods):
         tr = trajs[m]
         t = np.asarray(tr["t"], float)
-        jerk = tr.get("jerk")
-        if jerk is None:
-            jerk = (np.gradient(np.asarray(tr["qdd"], float), t, axis=0) if len(t) > 1
-                    else np.zeros_like(np.asarray(tr["qdd"], float)))
-        data = {"q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"], "jerk": jerk}
+        data = {"q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"], "jerk": tr.get("qddd")}
         for r, (key, ylabel, lim_key) in enumerate(rows):
             ax = axs[r, c]
+            if data[key] is None:
+                ax.text(0.5, 0.5, "jerk not recorded in this trajectory file\n(no qddd columns)",
+                        transform=ax.transAxes, ha="center", va="center")
+                ax.set_yticks([])
+                ax.set_ylabel(ylabel)
+                ax.set_xlabel("time t [s]")
+                continue
             y = np.asarray(data[key], float)
             for j in range(y.shape[1]):
                 ax.plot(t, y[:, j], color=JOINT_COLOURS[j % 6], lw=1.0, label=f"joint {j + 1}")

@@ -1,0 +1,52 @@
+"""The run report: ``report.html`` (self-contained), ``report.md`` and ``figures/*.png|pdf``.
+
+:func:`write_report` writes, into the output folder of ``compplan demo`` or
+``compplan plan``:
+
+* ``report.html``: a summary table, then one section per figure; the PNGs are
+  embedded as base64 data URIs so the file opens offline on its own;
+* ``report.md``: the same tables, referencing ``figures/*.png``;
+* ``figures/figN_*.png`` and ``.pdf``: every figure in both formats;
+* ``compliance_map.csv``: the data of figure 1.
+
+The report is drawn from a view of the run (:class:`Run`), built either from
+the in-memory :class:`~planner.plan.PlanResult` of the run that just planned
+(``write_report(folder, result=res)``: ``compplan plan``/``demo``) or from the
+folder's files (``summary.json``, ``waypoints.csv``, ``branches.csv`` and,
+when a plan was timed, ``trajectory.csv`` (Ruckig) and
+``trajectory_toppra.csv``: ``compplan report DIR``).  Both give the same view.
+
+Whatever piece of a run is absent (no trajectory, no branch table, no robot
+description) is stated in the report in place of its figure; it never fails
+the report.  The run's own ``summary.json`` is never rewritten.  Every number
+in the HTML tables is machine-checkable (see :mod:`planner.report.tables`).
+
+Path figures are drawn from the run's data, not recomputed; only the
+compliance map and the 3-D arm need the robot.  The compliance map is cached
+(:mod:`planner.report.maps`).  Figures are rendered in up to two forked
+processes where the platform allows it.  Everything is built in memory and
+published at the end (all or nothing).  The library prints nothing; progress
+goes to a callback.
+
+Modules: :mod:`~planner.report.run` (the view), :mod:`~planner.report.tables`,
+:mod:`~planner.report.figures` (which data each figure draws),
+:mod:`~planner.report.plots` (the matplotlib drawings),
+:mod:`~planner.report.maps` (compliance map and its cache),
+:mod:`~planner.report.rendering` (PNG/PDF, HTML, Markdown),
+:mod:`~planner.report.writer` (the entry point).
+"""
+
+from __future__ import annotations
+
+from planner.report.figures import ARM_POSES, FIGURE_NAMES, build_figures
+from planner.report.maps import _map_cache_key, map_job, write_map
+from planner.report.rendering import (MAX_WORKERS, FigureItem, default_workers, render_html,
+                                      render_items, render_markdown)
+from planner.report.run import METHOD_NAMES, TRAJECTORY_FILES, Run, load_run, run_from_plan
+from planner.report.tables import Cell, Table, fmt, lookup, summary_tables, value_cell
+from planner.report.writer import publish_report, write_report
+
+__all__ = ["ARM_POSES", "Cell", "FIGURE_NAMES", "FigureItem", "MAX_WORKERS", "METHOD_NAMES", "Run",
+           "TRAJECTORY_FILES", "Table", "build_figures", "default_workers", "fmt", "load_run",
+           "lookup", "map_job", "publish_report", "render_html", "render_items", "render_markdown",
+           "run_from_plan", "summary_tables", "value_cell", "write_map", "write_report"]

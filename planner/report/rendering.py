@@ -1,0 +1,194 @@
+"""Rendering: figure jobs to PNG/PDF bytes (in up to two forked processes) and the
+report's HTML and Markdown text.
+
+A figure is prepared as a :class:`FigureItem` whose ``job`` holds the drawing
+function of :mod:`planner.report.plots` and its arrays; :func:`render_items`
+runs the jobs.  Forked workers inherit the imported matplotlib, so start-up is
+cheap; without ``fork`` (Windows) the figures are rendered in this process.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from planner.compliance_map import ProgressFn
+from planner.report import plots
+from planner.report.run import Run
+from planner.report.tables import Table, report_title
+
+#: Most processes used to render figures (see :func:`render_items`).
+MAX_WORKERS = 2
+
+#: Relative rendering cost of each figure (longest first when rendering in parallel).
+_COST = {"fig1_compliance_map": 3.0, "fig6_trajectory": 2.5, "fig4_error_before_after": 1.8,
+         "fig3_compensation_angles": 1.6, "fig7_arm_3d": 1.2, "fig2_stiffness_error": 1.0,
+         "fig5_branches": 0.8}
+
+#: A figure to draw: ``(drawing function, args, kwargs)``.
+Job = tuple[Callable[..., Any], tuple, dict]
+
+
+@dataclass
+class FigureItem:
+    """One figure of the report: what to draw (``job``), or the drawn bytes, or why it is absent."""
+
+    name: str
+    title: str
+    caption: str
+    png: bytes | None = None
+    pdf: bytes | None = None
+    absent: str = ""
+    #: What to render; None when absent or already rendered.
+    job: Job | None = None
+    #: Key under which the rendered figure is cached (compliance map only).
+    cache_key: str | None = None
+
+
+def job(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Job:
+    """A figure job: ``fn(*args, **kwargs)`` builds the figure."""
+    return fn, args, kwargs
+
+
+def render_job(jb: Job) -> tuple[bytes, bytes]:
+    """Build one figure from its arrays and render it to PNG and PDF bytes."""
+    fn, args, kwargs = jb
+    return plots.render(fn(*args, **kwargs))
+
+
+def _fork_available() -> bool:
+    import multiprocessing
+    return "fork" in multiprocessing.get_all_start_methods()
+
+
+def default_workers() -> int:
+    """Processes used to render figures: 2 where ``fork`` exists and 2+ CPUs, else 1."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return min(MAX_WORKERS, cpus) if _fork_available() else 1
+
+
+def render_items(items: list[FigureItem], progress: ProgressFn | None = None,
+                 workers: int | None = None) -> None:
+    """Render every item that has a job, filling ``png`` and ``pdf``.
+
+    With ``workers > 1`` the figures are rendered in forked processes (they
+    inherit the imported matplotlib, so start-up is cheap); the jobs hold only
+    arrays and strings.  Without ``fork`` (Windows) or with ``workers=1`` they
+    are rendered here, one after the other.
+    """
+    todo = [it for it in items if it.job is not None]
+    total = len(todo)
+    n = default_workers() if workers is None else max(1, int(workers))
+    n = min(n, total)
+
+    def tick(i: int) -> None:
+        if progress is not None:
+            progress("figures", i, total)
+
+    if n <= 1 or not _fork_available():
+        for i, it in enumerate(todo, start=1):
+            it.png, it.pdf = render_job(it.job)  # type: ignore[arg-type]
+            tick(i)
+        return
+    import multiprocessing
+    # Most expensive first, so the two processes finish together.
+    order = sorted(todo, key=lambda it: -_COST.get(it.name, 1.0))
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(processes=n) as pool:
+        results = pool.imap(render_job, [it.job for it in order], chunksize=1)
+        for i, (it, (png, pdf)) in enumerate(zip(order, results), start=1):
+            it.png, it.pdf = png, pdf
+            tick(i)
+
+
+# ------------------------------------------------------------------------------ HTML and MD
+_CSS = """
+body{font-family:system-ui,Segoe UI,Helvetica,Arial,sans-serif;max-width:1250px;margin:2em auto;
+     padding:0 1em;color:#222}
+table.summary{border-collapse:collapse;margin:0.5em 0 1em}
+table.summary td,table.summary th{border:1px solid #bbb;padding:3px 8px;text-align:left}
+table.summary th{background:#eee} td.num{font-family:monospace;text-align:right}
+img{max-width:100%;border:1px solid #ddd} .note{color:#555;font-size:90%}
+.absent{background:#fff4e0;border-left:4px solid #e0a030;padding:0.5em 1em}
+figure{margin:1em 0 2em} figcaption{color:#333;font-size:92%;margin-top:0.3em}
+"""
+
+
+def _html_lists(run: Run) -> list[str]:
+    """Rejected branches, warnings and absent pieces, as HTML lists (when there are any)."""
+    s, out = run.summary, []
+    rej = s.get("rejected_branches") or {}
+    if rej:
+        out.append("<h3>IK branches not feasible along the path</h3><ul>"
+                   + "".join(f"<li>{html.escape(str(b))}: {html.escape(str(r))}</li>"
+                             for b, r in rej.items()) + "</ul>")
+    warn = s.get("warnings") or []
+    if warn:
+        out.append("<h3>Warnings</h3><ul>" + "".join(f"<li>{html.escape(str(w))}</li>" for w in warn) + "</ul>")
+    if run.absent:
+        out.append("<h3>Absent in this run</h3><ul>"
+                   + "".join(f"<li>{html.escape(v)}</li>" for v in run.absent.values()) + "</ul>")
+    return out
+
+
+def _html_figure(i: int, it: FigureItem) -> list[str]:
+    out = [f'<h3 id="{it.name}">Figure {i}. {html.escape(it.title)}</h3>']
+    if it.png is None:
+        out.append(f'<p class="absent" data-absent="{it.name}">{html.escape(it.absent)}</p>')
+        return out
+    b64 = base64.b64encode(it.png).decode("ascii")
+    out.append(f'<figure><img data-figure="{it.name}" alt="{html.escape(it.title)}" '
+               f'src="data:image/png;base64,{b64}">'
+               f"<figcaption>{html.escape(it.caption)} Files: "
+               f'<a href="figures/{it.name}.png">PNG</a>, '
+               f'<a href="figures/{it.name}.pdf">PDF</a>.</figcaption></figure>')
+    return out
+
+
+def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
+    """``report.html``: self-contained (the PNGs embedded as data URIs)."""
+    title = report_title(run.summary)
+    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+           f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+           f"<h1>{html.escape(title)}</h1>",
+           f'<p class="note">Output folder: {html.escape(str(run.folder))}. All values from '
+           "summary.json and the CSV files of this folder; SI inside, mm and deg in the "
+           "displays.</p>", "<h2>Summary</h2>"]
+    out += [t.html() for t in tables]
+    out += _html_lists(run)
+    out.append("<h2>Figures</h2>")
+    for i, it in enumerate(items, start=1):
+        out += _html_figure(i, it)
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
+def render_markdown(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
+    """``report.md``: the same tables, referencing ``figures/*.png``."""
+    s = run.summary
+    out = [f"# {report_title(s)}", "",
+           "All values from summary.json and the CSV files of this folder; SI inside, mm and deg "
+           "in the displays.", "", "## Summary", ""]
+    for t in tables:
+        out += [t.markdown(), ""]
+    rej = s.get("rejected_branches") or {}
+    if rej:
+        out += ["### IK branches not feasible along the path", ""] + [
+            f"- {b}: {r}" for b, r in rej.items()] + [""]
+    warn = s.get("warnings") or []
+    if warn:
+        out += ["### Warnings", ""] + [f"- {w}" for w in warn] + [""]
+    if run.absent:
+        out += ["### Absent in this run", ""] + [f"- {v}" for v in run.absent.values()] + [""]
+    out += ["## Figures", ""]
+    for i, it in enumerate(items, start=1):
+        out += [f"### Figure {i}. {it.title}", ""]
+        if it.png is None:
+            out += [f"*{it.absent}*", ""]
+            continue
+        out += [f"![Figure {i}. {it.title}](figures/{it.name}.png)", "",
+                f"{it.caption} ([PDF](figures/{it.name}.pdf))", ""]
+    return "\n".join(out)

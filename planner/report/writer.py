@@ -1,0 +1,98 @@
+"""Writing a report: view -> tables and figures -> ``report.html``, ``report.md``, ``figures/``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping
+
+from planner.compliance_map import ProgressFn
+from planner.output import OutputSet
+from planner.report.figures import build_figures
+from planner.report.maps import cache_rendered_maps
+from planner.report.rendering import FigureItem, render_html, render_items, render_markdown
+from planner.report.run import Run, load_run, run_from_plan
+from planner.report.tables import summary_tables
+
+if TYPE_CHECKING:
+    from planner.plan import PlanResult
+
+
+def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
+                 result: "PlanResult | None" = None,
+                 map_options: Mapping[str, Any] | None | bool = None,
+                 workers: int | None = None, map_cache: bool = True) -> Path:
+    """Write ``report.html``, ``report.md`` and ``figures/*.png|pdf`` into a run folder.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Output folder of ``compplan demo`` or ``compplan plan``.
+    progress : callable, optional
+        ``progress(stage, done, total)`` with stage ``"compliance map"`` (per
+        chunk of grid points) and ``"figures"`` (per figure).
+    result : PlanResult, optional
+        The plan whose outputs the folder holds, still in memory: the report is
+        built from it (:func:`~planner.report.run.run_from_plan`) instead of
+        from the folder's files (:func:`~planner.report.run.load_run`).
+    map_options : mapping, None or False
+        Options of :func:`planner.compliance_map.compliance_map` for figure 1
+        (default: the paper's section-4.3 plane with the run's robot);
+        ``False`` leaves the map out.
+    workers : int, optional
+        Processes that render the figures (default
+        :func:`~planner.report.rendering.default_workers`; 1 renders in this process).
+    map_cache : bool
+        Reuse the compliance map drawn earlier for the same robot and options
+        (kept under ``$COMPPLAN_CACHE/maps``, default ``~/.cache/compplan``).
+
+    Returns
+    -------
+    Path
+        The path of ``report.html``.
+
+    Raises
+    ------
+    InputError
+        The folder is not a run folder or one of its files is malformed.
+    """
+    run = run_from_plan(result, folder) if result is not None else load_run(folder)
+    return publish_report(run, progress, map_options=map_options, workers=workers,
+                          map_cache=map_cache)
+
+
+def publish_report(run: Run, progress: ProgressFn | None = None, *,
+                   map_options: Mapping[str, Any] | None | bool = None,
+                   workers: int | None = None, map_cache: bool = True) -> Path:
+    """Write the report of a :class:`~planner.report.run.Run` into ``run.folder``, all or
+    nothing (options as for :func:`write_report`); returns the path of ``report.html``."""
+    files: dict[str, bytes] = {}
+    items = build_figures(run, progress, map_options, files, map_cache)
+    render_items(items, progress, workers)
+    cache_rendered_maps(items, files)
+    tables = summary_tables(run.summary, run.absent)
+    out = OutputSet(run.folder)
+    for it in items:
+        if it.png is not None:
+            out.add_bytes(f"figures/{it.name}.png", it.png)
+            out.add_bytes(f"figures/{it.name}.pdf", it.pdf)  # type: ignore[arg-type]
+    for name, data in files.items():
+        out.add_bytes(name, data)
+    out.add_bytes("report.md", render_markdown(run, tables, items).encode())
+    out.add_bytes("report.html", render_html(run, tables, items).encode())
+    out.publish()
+    _remove_stale(run.folder, items, with_map=map_options is not False)
+    return run.folder / "report.html"
+
+
+def _remove_stale(folder: Path, items: list[FigureItem], with_map: bool) -> None:
+    """Figures of an earlier report that this run no longer has would mislead: remove them."""
+    for it in items:
+        if it.png is None:
+            for ext in ("png", "pdf"):
+                stale = folder / "figures" / f"{it.name}.{ext}"
+                if stale.exists():
+                    stale.unlink()
+    if not with_map or items[0].png is None:
+        stale = folder / "compliance_map.csv"
+        if stale.exists():
+            stale.unlink()
