@@ -216,25 +216,28 @@ class ArmModel:
                 "tcp_correction_m": [float(v) for v in self.tcp_correction_m],
                 "temperature_C": float(self.temperature_ref)}
 
-    #: Effects whose deflection is nonlinear in the joint torque (extrapolation matters).
-    TORQUE_NONLINEAR = ("stiffness_hardening", "lost_motion")
-
     def extrapolation(self, q: np.ndarray, load: Load | np.ndarray) -> list[str]:
         """Where joint torques at the poses ``q`` (N, 6) exceed the identification data's range
-        while a torque-nonlinear effect is active: one line per joint, empty when none."""
-        active = [e for e in self.TORQUE_NONLINEAR if e in self.active_effects]
-        if not active or self.torque_range_Nm is None:
+        on a joint where an effect's term acts (:meth:`models.effects.Effect.joints_acting`:
+        the torque-nonlinear ones, hardening and lost motion): one line per joint, empty when none."""
+        acting: dict[str, np.ndarray] = {}
+        for name in self.active_effects:
+            where = fx.effect(name).joints_acting(self.parameter)
+            if where is not None and where.any():
+                acting[name] = where
+        if not acting or self.torque_range_Nm is None:
             return []
         q = np.atleast_2d(np.asarray(q, dtype=float))
         km = self.kinematics
         tau = np.abs(km.batch(km.fn["joint_torques"], q, load_rows(load, len(q)))[0])
         out = []
         for j in range(6):
+            names = [n for n, w in acting.items() if w[j]]
             k = int(np.argmax(tau[:, j]))
             lim = float(self.torque_range_Nm[j])
-            if tau[k, j] > lim * (1.0 + TORQUE_RANGE_SLACK):
+            if names and tau[k, j] > lim * (1.0 + TORQUE_RANGE_SLACK):
                 out.append(f"joint {j + 1}: torque {tau[k, j]:.4g} N*m at waypoint {k} exceeds the identification "
-                           f"data's range ({lim:.4g} N*m): the identified {', '.join(active)} "
+                           f"data's range ({lim:.4g} N*m): the identified {', '.join(names)} "
                            "is extrapolated there")
         return out
 

@@ -231,3 +231,15 @@ def test_exact_compensation_with_link_compliance_solves_the_pose():
     miss = exact(arm, q, F)
     p, _R = arm2.loaded_tcp(arm2.equilibrium(miss.q_command, F).q, F)
     assert np.linalg.norm(p - arm2.kinematics.tcp(q)[:, :3, 3], axis=1).max() > 1e-5
+
+
+def test_plan_warns_where_the_identified_torque_curve_is_extrapolated(identified_ur10):
+    _vr, res, model_path = identified_ur10
+    assert "stiffness_hardening" in res.model.effects and res.model.torque_range_Nm is not None
+    from dataclasses import replace
+    problem = load_problem("ur10_payload_tilt").with_robot(str(model_path))
+    inside = plan(problem)
+    assert not [w for w in inside.warnings if "extrapolated" in w]
+    heavy = plan(replace(problem, payload_mass_kg=60.0))
+    lines = [w for w in heavy.warnings if "extrapolated" in w]
+    assert lines and "stiffness_hardening" in lines[0] and "N*m" in lines[0]

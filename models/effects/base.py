@@ -205,6 +205,12 @@ class Effect:
     def measurement(self, ctx: "Context", p: Any) -> Any:
         return p
 
+    def joints_acting(self, param: Callable[[str], np.ndarray]) -> np.ndarray | None:
+        """Which joints (bool, (6,)) the effect's term acts on with the given parameter values
+        (``param(group_key)`` returns a group's values), or None when it is not per joint.
+        Used to say where a torque-nonlinear term is extrapolated beyond its data."""
+        return None
+
     # ---- helpers -------------------------------------------------------------------
     @property
     def freed_groups(self) -> tuple[str, ...]:

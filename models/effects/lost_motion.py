@@ -29,6 +29,9 @@ class LostMotion(Effect):
     formula = "smooth dead band dq_i += b_i tanh(tau_i / (exp(rho) tau_s,i)), b = half the lost motion"
     simulation = "lost_motion"
 
+    def joints_acting(self, param: Any) -> np.ndarray:
+        return np.asarray(param("lost_motion.b")).reshape(6) != 0.0
+
     def joint_deflection(self, ctx: Any, tau: Any) -> Any:
         tau0 = ca.exp(ctx.p("lost_motion.rho")) * ctx.c("tau_scale")
         return ctx.p("lost_motion.b") * ca.tanh(tau / tau0)

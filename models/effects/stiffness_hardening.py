@@ -37,6 +37,9 @@ class StiffnessHardening(Effect):
                "+ sum_k b_ik sign(tau_i) (|tau_i| - kappa_ik)_+^2) / tau_s,i, knots kappa_ik at torque quantiles")
     simulation = "stiffness_hardening"
 
+    def joints_acting(self, param: Any) -> np.ndarray:
+        return np.any(np.asarray(param("hardening.b")).reshape(6, N_HARDENING) != 0.0, axis=1)
+
     def joint_deflection(self, ctx: Any, tau: Any) -> Any:
         b, ts, knots, c0 = ctx.p("hardening.b"), ctx.c("tau_scale"), ctx.c("hardening.knots"), ctx.c("compliance0")
         terms = []

@@ -5,7 +5,9 @@
   significant, cross-validated share of the residual, and write the identified
   model (a robot file with an ``[identified]`` table) and a report.
 * ``predict``: predicted measurement (measurement frame) of commands under loads.
-* ``compensate``: commands that put the real TCP on the nominal-FK TCP of the input.
+* ``compensate``: commands that put the real TCP on its targets: the nominal-FK TCP of
+  the input's commands (default), TCP positions in the base frame, or positions of the
+  measured point in the measurement frame (``--targets-frame``).
 * ``simulate``: a measurement campaign from the virtual robot (and its truth file).
 
 Only this module prints; the library reports progress through a callback.
@@ -14,6 +16,7 @@ Only this module prints; the library reports progress through a callback.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +25,7 @@ COMMANDS = ("identify", "predict", "compensate", "simulate")
 
 
 def _effects_arg(text: str | None) -> list[str] | None:
+    """Effect list of ``--candidates``/``--include`` (``all``, ``none`` or comma-separated)."""
     if text is None:
         return None
     t = text.strip()
@@ -34,6 +38,7 @@ def _effects_arg(text: str | None) -> list[str] | None:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    """Add the sub-commands of this module."""
     p = sub.add_parser("identify", help="identify the model from measurements and report before/after",
                        description="Identify joint stiffness (+ registration and measured point for absolute "
                                    "data) and add library effects while they explain a significant "
@@ -61,10 +66,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="CSV to write: x, y, z (m), measurement frame")
     p.set_defaults(func=run_predict)
 
-    p = sub.add_parser("compensate", help="commands that put the real TCP on the nominal target")
+    p = sub.add_parser("compensate", help="commands that put the real TCP on its targets under the load")
     p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
-    p.add_argument("--input", required=True, help="CSV with q1..q6 (nominal commands) and fx..mz")
+    p.add_argument("--input", required=True,
+                   help="CSV with q1..q6 (commands) and fx..mz; x, y, z for --targets-frame base/measurement")
     p.add_argument("--out", required=True, help="CSV to write: q1..q6 (rad), compensated")
+    p.add_argument("--targets-frame", choices=("nominal", "base", "measurement"), default="nominal",
+                   help="the targets: 'nominal' (default), the nominal-FK TCP poses of q1..q6; 'base', TCP "
+                        "positions x, y, z in the robot base frame; 'measurement', positions x, y, z of the "
+                        "measured point in the measurement frame (exact there even for unregistered data). "
+                        "Orientation: that of the nominal TCP of q1..q6, which also seed the solve")
     p.add_argument("--strict", action="store_true",
                    help="fail (nothing written) if any row cannot be compensated; default: write every row "
                         "(the best command) and warn naming the rows")
@@ -104,6 +115,7 @@ class _Bar:
 
 
 def run_identify(args: argparse.Namespace) -> int:
+    """Identify, write the model file and the report, print the summary."""
     from models import load_robot
     from planner.identify_report import write_report
     from planner.output import atomic_write_bytes
@@ -161,6 +173,7 @@ def run_identify(args: argparse.Namespace) -> int:
 
 
 def run_predict(args: argparse.Namespace) -> int:
+    """Predicted measurement (measurement frame) of the commands of ``--input``."""
     from planner.output import atomic_write_bytes
     from problems.identify import load_model, predict
     from problems.measurements import commands_csv, read_measurements
@@ -175,25 +188,32 @@ def run_predict(args: argparse.Namespace) -> int:
 
 
 def run_compensate(args: argparse.Namespace) -> int:
+    """Compensated commands for the targets of ``--input`` (``--targets-frame``); warnings on stderr."""
     from models.errors import InfeasibleError
     from planner.output import atomic_write_bytes
-    from problems.identify import compensate, load_model
+    from problems.compensation import CompensationStatus
+    from problems.identify import compensate_targets, load_model
     from problems.measurements import commands_csv, read_measurements
 
     model = load_model(args.model)
     m = read_measurements(args.input, require_position=False)
-    out = compensate(model, m.q, m.wrench, m.temperature)
-    if out.status.value != "ok" and args.strict:
+    out = compensate_targets(model, m, args.targets_frame)
+    failed = out.status not in (CompensationStatus.OK, CompensationStatus.WARNING)
+    if failed and args.strict:
         raise InfeasibleError(f"{args.input}: {out.reason}; nothing written")
     atomic_write_bytes(args.out, commands_csv([f"q{i}" for i in range(1, 7)], out.q_command).encode())
-    if out.status.value != "ok":
+    if failed:
         lines = ", ".join(str(int(m.line[i])) for i in out.failed_rows[:10])
-        print(f"compensate: warning: {out.reason}; input lines {lines}")
-    print(f"compensate: {m.n} rows, status {out.status.value}; wrote {args.out} (q1..q6 in rad)")
+        print(f"compplan: warning: {out.reason}; input lines {lines}", file=sys.stderr)
+    for w in out.warnings:
+        print(f"compplan: warning: {w}", file=sys.stderr)
+    print(f"compensate: {m.n} rows, targets {out.targets_frame.value} frame, status {out.status.value}; "
+          f"wrote {args.out} (q1..q6 in rad)")
     return 0
 
 
 def run_simulate(args: argparse.Namespace) -> int:
+    """Simulate a measurement campaign and write it with its truth file."""
     import tomli_w
 
     from models import load_robot

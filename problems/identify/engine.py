@@ -1,0 +1,469 @@
+"""The identification: from measured data to an :class:`~models.arm.ArmModel` that explains it.
+
+:func:`identify` runs the named steps of ``docs/identification.md``:
+
+1. :func:`_setup` -- rows, weights, folds, torque scales; the initial registration
+   (Kabsch on the nominal model) and the "before" fit (registration and measured
+   point only);
+2. :func:`_declared_model` -- joint stiffness (+ registration, measured point and the
+   effects included without a test); too few data raise :class:`DataError`;
+3. :func:`_saturated` -- every testable library effect at once: can the library
+   explain the data, and which rows are outliers against the most flexible model;
+4. forward selection and backward pass (:mod:`problems.identify.selection`);
+5. :func:`_final_fit` -- every row re-tested against the final model;
+6. :func:`_result` -- covariance, identified model, parameter table, diagnostics and
+   the verdict (ok / unexplained structure / not converged).
+
+Everything is SI; the library never prints -- progress goes to an optional
+callback ``progress(message, done, total)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from models import effects as fx
+from models.effects import GROUP_SLICES, LIBRARY, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_const, make_layout
+from models.errors import InputError
+from models.robot import Robot
+
+from ..measurements import Measurements
+from .diagnostics import UNEXPLAINED_MIN_FRACTION, UNEXPLAINED_RMS_RATIO, _diagnose, structure_left
+from .evaluation import _ev_for, _gravity_problem, _Problem, _torque_scale, make_rows, time_reference
+from .identifiability import _order_for, _structural_held
+from .lsq import _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _wjac, _wres, kabsch
+from .outliers import _outlier_mask
+from .results import (
+    DataError,
+    Diagnostic,
+    IdentificationResult,
+    IdentifiedModel,
+    IdentifyStatus,
+    ParameterEstimate,
+    ParameterStatus,
+    Progress,
+)
+from .selection import (
+    CV_FOLDS,
+    _assign_folds,
+    _candidate_applicable,
+    _linear_scores,
+    _Run,
+    _Score,
+    _score_p,
+    _State,
+    backward_pass,
+    forward_selection,
+    noise_floor,
+)
+
+#: LM iterations of the saturated (all effects) fit: a diagnostic, not an estimate.
+SATURATED_MAX_ITER = 8
+#: Parameter groups of the registration and the measured point.
+REGISTRATION_GROUPS = ("reg.t", "reg.w", "tool.p")
+
+
+@dataclass
+class _Setup:
+    """Fixed inputs of one identification and its "before" fit.
+
+    Attributes
+    ----------
+    prob : _Problem
+    theta : ndarray, shape (N_PARAMS,)
+        Start of the declared model (registration and measured point of the "before" fit).
+    R0 : ndarray, shape (3, 3)
+        Kabsch rotation of the registration (identity for registered data).
+    tau_s : ndarray, shape (6,)
+        Joint torque scales, N*m.
+    t_ref : (float, float)
+        Time reference ``(t_start, t_span)``, s.
+    temp_ref : float
+        Mean temperature of the data (20 deg C without a column).
+    fit_b : _Fit
+        The "before" fit: the nominal model with only registration and measured point.
+    order_b : list of int
+        Its free parameters.
+    n_poses : int
+    total_steps : int
+        Progress total.
+    """
+
+    prob: _Problem
+    theta: np.ndarray
+    R0: np.ndarray
+    tau_s: np.ndarray
+    t_ref: tuple[float, float]
+    temp_ref: float
+    fit_b: _Fit
+    order_b: list[int]
+    n_poses: int
+    total_steps: int
+
+
+def _effect_lists(candidates: Sequence[str] | None, include: Sequence[str]) -> tuple[list[str], list[str], bool]:
+    """Candidates, included effects (``outliers`` taken out) and whether the fit is robust."""
+    cand = list(LIBRARY if candidates is None else candidates)
+    for e in list(cand) + list(include):
+        if e not in LIBRARY:
+            raise InputError(f"unknown effect '{e}'; library: {', '.join(LIBRARY)}")
+    robust = "outliers" in cand or "outliers" in include
+    inc = [e for e in include if e != "outliers"]
+    cand = [e for e in cand if e != "outliers" and e not in inc]
+    return cand, inc, robust
+
+
+def _setup(robot: Robot, m: Measurements, registered: bool, folds: int, n_cand: int,
+           tick: Progress) -> _Setup:
+    """Step 1: problem inputs, initial registration and the "before" fit."""
+    n_poses = len(np.unique(m.pose_groups()))
+    layout = make_layout(robot)
+    tau_s, knots = _torque_scale(robot, m)
+    t_ref = time_reference(m)
+    temp_ref = float(np.mean(m.temperature)) if m.temperature is not None else fx.THERMAL_REFERENCE_C
+    ev = _ev_for(robot)
+    theta = layout.nominal.copy()
+    R0 = np.eye(3)
+    rows = make_rows(m, t_ref, temp_ref)
+    weights = 1.0 / m.sigma if m.sigma is not None else np.ones(m.n)
+    lower, upper = layout.lower.copy(), layout.upper.copy()      # declared by the effect plug-ins
+    fold_idx = _assign_folds(m, folds)
+    total_steps = n_cand + 3
+    tick("registration", 0, total_steps)
+    if not registered:
+        if n_poses < 3:
+            raise DataError(f"{m.source}: {n_poses} distinct pose(s); the registration of the measurement "
+                            "frame and the measured point need at least 3 poses (many more for a useful fit); "
+                            "or declare the data registered")
+        pred0, _q = ev.measure(rows, theta, make_const(robot, R0, tau_s, False, knots=knots))
+        R0, t0 = kabsch(pred0, m.p)
+        theta[GROUP_SLICES["reg.t"]] = t0
+    prob = _Problem(m=m, layout=layout, ev=ev, rows=rows, const=make_const(robot, R0, tau_s, False, knots=knots),
+                    weights=weights, folds=fold_idx, lower=lower, upper=upper)
+    all_rows = np.ones(m.n, dtype=bool)
+    order_b = [] if registered else list(layout.indices(REGISTRATION_GROUPS))
+    pred_b, q_b = _evaluate(prob, theta)
+    if registered:
+        fit_b = _Fit(theta=theta.copy(), free=np.zeros(0, dtype=int), held={}, inliers=all_rows.copy(),
+                     pred=pred_b, q_eq=q_b, J=_jac(prob, theta, q_b), converged=True, iterations=0)
+    else:
+        fit_b = _lm(prob, theta, np.asarray(order_b), all_rows, pred_b, q_b)
+        theta = fit_b.theta.copy()
+    return _Setup(prob=prob, theta=theta, R0=R0, tau_s=tau_s, t_ref=t_ref, temp_ref=temp_ref, fit_b=fit_b,
+                  order_b=order_b, n_poses=n_poses, total_steps=total_steps)
+
+
+def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust: bool, structural: set[int],
+                    notes: list[str]) -> tuple[_Problem, _Fit]:
+    """Step 2: fit the declared model and the included effects; raise :class:`DataError`
+    when the registration, the measured point or an included effect cannot be identified
+    (and the cause is not structural)."""
+    m, layout = s.prob.m, s.prob.layout
+    prob = _gravity_problem(s.prob, True) if "gravity" in include else s.prob
+    fit = _fit_model(prob, s.theta, include, registered, np.ones(m.n, dtype=bool), robust=robust)
+    reg_idx = set(layout.indices(REGISTRATION_GROUPS)) if not registered else set()
+    bad = [i for i in fit.held if i in reg_idx and i not in structural]
+    if bad:
+        raise DataError(f"{m.source}: too few or too similar poses ({s.n_poses} distinct): cannot identify "
+                        + ", ".join(f"{PARAM_NAMES[i]} ({fit.held[i]})" for i in bad)
+                        + "; measure more poses spread over the workspace, or declare the data registered")
+    inc_idx = {int(i): e for e in include for i in layout.effect_indices(e)}
+    bad = [i for i in fit.held if i in inc_idx and i not in structural]
+    if bad:
+        raise DataError(f"{m.source}: the data ({m.n} rows, {s.n_poses} poses) cannot identify "
+                        + ", ".join(f"{PARAM_NAMES[i]} [{inc_idx[i]}] ({fit.held[i]})" for i in bad[:8])
+                        + (f" and {len(bad) - 8} more" if len(bad) > 8 else "")
+                        + "; add poses/loads that excite them or do not include the effect")
+    if all(i in fit.held for i in layout.indices(("stiffness.s",))):
+        notes.append("joint stiffness is held at the robot file's values: the applied wrench does not excite it"
+                     if not m.load_varies() else "joint stiffness cannot be identified from these data")
+    return prob, fit
+
+
+def _saturated(robot: Robot, prob: _Problem, fit: _Fit, include: Sequence[str], sat_effects: list[str],
+               registered: bool, robust: bool) -> tuple[bool, dict[str, Any], np.ndarray, _Fit]:
+    """Step 3: the saturated model, every testable library effect at once.
+
+    Its residual tells whether the library can explain the data at all (then no
+    attribution can be a partial fit of something else), and its robust fit finds the
+    outliers against the most flexible model available.
+
+    Returns
+    -------
+    clean : bool
+        The saturated model leaves no structure.
+    info : dict
+        ``identifiability.saturated_model`` of the report.
+    mask_sel : ndarray of bool, shape (N,)
+        Rows of the selection.
+    fit : _Fit
+        The declared model, refitted on ``mask_sel`` when rows were excluded.
+    """
+    layout = prob.layout
+    info: dict[str, Any] = {"effects": sat_effects}
+    mask_sel = fit.inliers.copy()
+    if len(sat_effects) <= len(include):
+        return False, info, mask_sel, fit
+    prob_s = _gravity_problem(prob, True) if "gravity" in sat_effects else prob
+    th_s = fit.theta.copy()
+    if "gravity" in sat_effects and "gravity" not in include:
+        gi = layout.effect_indices("gravity")
+        th_s[gi] = layout.nominal[gi]
+    fit_s = _fit_model(prob_s, th_s, sat_effects, registered, np.ones(prob.m.n, dtype=bool), robust=robust,
+                       max_iter=SATURATED_MAX_ITER, passes=1, rounds=2)
+    left = structure_left(_diagnose(prob_s, fit_s, robot))
+    clean = left is None or left.explained_fraction < UNEXPLAINED_MIN_FRACTION
+    if robust and not clean and (~fit_s.inliers).any():
+        # structure outside the library: only gross errors count as outliers
+        fit_s.inliers = _outlier_mask(prob_s, fit_s.pred, gross_only=True)
+    sc_s, _fr = _score_p(prob_s, layout, fit_s, sat_effects, registered)
+    info.update({"cv_rms_mm": sc_s.cv_rms_m * 1e3, "clean": clean,
+                 "structure": None if left is None else left.variable,
+                 "n_excluded": int((~fit_s.inliers).sum())})
+    if robust:
+        mask_sel = fit_s.inliers.copy()
+        if (~mask_sel).any():
+            fit = _fit_model(prob, fit.theta, include, registered, mask_sel, robust=robust)
+    return clean, info, mask_sel, fit
+
+
+def _final_fit(run: _Run, st: _State) -> None:
+    """Step 5: every row is tested against the final model (robust fit), or the final
+    model is refitted on all rows."""
+    prob, fit = st.prob, st.fit
+    if run.robust:
+        # a residual with structure the library lacks is not a Gaussian bulk: gross errors only
+        structured = structure_left(_diagnose(prob, fit, run.robot)) is not None
+        final_mask = _outlier_mask(prob, fit.pred, gross_only=structured)
+        if not np.array_equal(final_mask, fit.inliers):
+            fit = _fit_model(prob, fit.theta, st.active, run.registered, final_mask, robust=False)
+            fit.inliers = final_mask
+    else:
+        fit = _fit_model(prob, fit.theta, st.active, run.registered, np.ones(prob.m.n, dtype=bool), robust=False)
+    if run.robust and (~fit.inliers).any():
+        st.effects_added.append("outliers")
+    st.fit = fit
+
+
+def identify(robot: Robot, data: Measurements, registered: bool = False,
+             candidates: Sequence[str] | None = None, include: Sequence[str] = (),
+             folds: int = CV_FOLDS, progress: Progress | None = None,
+             max_steps: int = 12) -> IdentificationResult:
+    """Identify the declared model and select effects from the library.
+
+    Parameters
+    ----------
+    robot : Robot
+        Nominal description (DH, stiffness, tool, masses).
+    data : Measurements
+        With positions ``p`` (measurement frame, m).
+    registered : bool
+        True when the measurement frame is the base frame and the measured point is
+        the robot file's TCP; otherwise both are identified.
+    candidates : sequence of str, optional
+        Library effects the selection may add (default: all, ``outliers`` included).
+    include : sequence of str
+        Effects added without a test (their parameters must be identifiable from
+        the data; otherwise :class:`DataError` names them).
+    folds : int
+        K of the K-fold cross-validation.
+    progress : callable, optional
+        ``progress(message, done, total)``.
+    max_steps : int
+        Most forward steps.
+
+    Returns
+    -------
+    IdentificationResult
+
+    Raises
+    ------
+    DataError
+        Too few rows/poses for the declared model or an included effect (names the
+        unidentifiable parameters), or no measured positions.
+    InputError
+        An unknown effect name.
+    """
+    def tick(msg: str, k: int, total: int) -> None:
+        if progress is not None:
+            progress(msg, k, total)
+
+    m = data
+    if m.p is None:
+        raise DataError(f"{m.source}: no measured positions (columns x, y, z) to identify from")
+    cand, inc, robust = _effect_lists(candidates, include)
+    notes: list[str] = []
+    if robot.identified is not None:
+        notes.append("the robot file carries an [identified] table; identification starts from its "
+                     "ordinary fields and ignores that table")
+    s = _setup(robot, m, registered, folds, len(cand), tick)
+    structural = _structural_held(robot, list(inc) + cand, registered)   # structural vs too few data
+    tick("declared model", 1, s.total_steps)
+    prob, fit = _declared_model(s, inc, registered, robust, structural, notes)
+    sigma_noise, noise_src = noise_floor(m)
+    sigma_w = None if sigma_noise is None else (1.0 if m.sigma is not None else sigma_noise)
+    applicable: dict[str, str] = {}
+    for e in cand:
+        ok, why = _candidate_applicable(e, m)
+        if not ok:
+            applicable[e] = why
+    tick("saturated library model", 2, s.total_steps)
+    sat_effects = list(inc) + [e for e in cand if e not in applicable]
+    if "geometric" in sat_effects and "joint_offset" in sat_effects:
+        sat_effects.remove("joint_offset")
+    sat_clean, sat_info, mask_sel, fit = _saturated(robot, prob, fit, inc, sat_effects, registered, robust)
+    score_b = _linear_scores(prob, s.fit_b.J, s.fit_b.pred, fit.inliers, np.asarray(s.order_b, dtype=int))
+    run = _Run(robot=robot, layout=prob.layout, registered=registered, robust=robust, include=list(inc),
+               cand=cand, applicable=applicable, sigma_noise=sigma_noise, sigma_w=sigma_w, sat_clean=sat_clean,
+               mask_sel=mask_sel, max_steps=max_steps, tick=tick, total_steps=s.total_steps)
+    st = _State(prob=prob, fit=fit, active=list(inc))
+    forward_selection(run, st)
+    backward_pass(run, st)
+    tick("final fit and diagnostics", s.total_steps, s.total_steps)
+    _final_fit(run, st)
+    return _result(run, st, s, score_b, sat_info, noise_src, notes)
+
+
+# ----------------------------------------------------------------------------------
+# Step 6: the result
+# ----------------------------------------------------------------------------------
+
+def _covariance(prob: _Problem, fit: _Fit, free: Sequence[int]) -> tuple[np.ndarray, float]:
+    """Standard deviations (N_PARAMS,), SI (NaN where not free), from ``s^2 (J^T J)^-1``,
+    and the condition number of the column-normalised Jacobian."""
+    r_w = _wres(prob, fit.pred, fit.inliers)
+    n_res, k_f = r_w.size, len(free)
+    s2 = float(r_w @ r_w) / max(n_res - k_f, 1)
+    Js = _wjac(prob, fit.J, fit.inliers, np.asarray(free, dtype=int))
+    std = np.full(N_PARAMS, np.nan)
+    cond = float("nan")
+    if k_f:
+        G = Js.T @ Js
+        try:
+            cov = np.linalg.inv(G) * s2
+            std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0)) * prob.layout.scale[free]
+        except np.linalg.LinAlgError:
+            pass
+        Jn = Js / np.maximum(np.linalg.norm(Js, axis=0), 1e-300)
+        sv = np.linalg.svd(Jn, compute_uv=False)
+        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+    return std, cond
+
+
+def _effect_of(i: int) -> str:
+    """Effect (or declared group) of parameter index ``i``."""
+    for g, e, _names, _u in fx.PARAMETER_GROUPS:
+        s = GROUP_SLICES[g]
+        if s.start <= i < s.stop:
+            return e
+    return "?"
+
+
+def _parameter_table(layout: ModelLayout, fit: _Fit, order: Sequence[int], std: np.ndarray,
+                     active: Sequence[str], registered: bool) -> list[ParameterEstimate]:
+    """Every parameter of the model (priority order), with value, std, unit and status."""
+    out = []
+    order_set = set(order)
+    for i in order:
+        name = PARAM_NAMES[i]
+        if i in fit.held:
+            out.append(ParameterEstimate(name, _effect_of(i), float(fit.theta[i]), None, layout.units[i],
+                                         ParameterStatus.HELD, fit.held[i]))
+        else:
+            out.append(ParameterEstimate(name, _effect_of(i), float(fit.theta[i]),
+                                         float(std[i]) if np.isfinite(std[i]) else None, layout.units[i],
+                                         ParameterStatus.FREE))
+    if registered:
+        for i in layout.indices(REGISTRATION_GROUPS):
+            if i not in order_set:
+                out.insert(0, ParameterEstimate(PARAM_NAMES[i], _effect_of(i), float(fit.theta[i]), None,
+                                                layout.units[i], ParameterStatus.HELD, "data declared registered"))
+    return out
+
+
+def _build_model(run: _Run, st: _State, s: _Setup, std: np.ndarray, free: Sequence[int],
+                 order: Sequence[int], sigma_noise: float | None) -> IdentifiedModel:
+    """The identified :class:`~models.arm.ArmModel`."""
+    fit, robot = st.fit, run.robot
+    rows = st.prob.rows[fit.inliers]
+    te, tg, _q = st.prob.ev.call("torques", rows[:, 0:6], rows[:, 6:12], rows[:, 13:14], fit.theta, st.prob.const)
+    torque_range = np.max(np.abs(np.asarray(te).T + np.asarray(tg).T), axis=0)
+    return IdentifiedModel(nominal=robot, theta=fit.theta.copy(), R0=s.R0, tau_scale=s.tau_s,
+                           gravity_on=bool(get_const(st.prob.const, "gravity.on")[0] > 0.5),
+                           beams=fx.beam_frames(robot),
+                           knots=get_const(st.prob.const, "hardening.knots").reshape(6, fx.N_KNOTS).copy(),
+                           time_ref=s.t_ref, temperature_ref=s.temp_ref, effects=list(st.active),
+                           registered=run.registered, std={PARAM_NAMES[i]: float(std[i]) for i in free},
+                           noise_sigma_m=sigma_noise,
+                           held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order},
+                           tcp_correction_m=(fit.theta[GROUP_SLICES["tool.p"]] - robot.flange2tcp[:3, 3]
+                                             if run.registered else np.zeros(3)),
+                           torque_range_Nm=torque_range)
+
+
+def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | None, stop_reason: str,
+             converged: bool) -> tuple[IdentifyStatus, str, dict[str, Any]]:
+    """Status, reason and the ``unexplained`` record of the final residual."""
+    top = structure_left(diags)
+    above_floor = sigma_noise is not None and score_f.cv_rms_m > UNEXPLAINED_RMS_RATIO * sigma_noise
+    strong = top is not None and top.explained_fraction >= UNEXPLAINED_MIN_FRACTION
+    if strong or above_floor:
+        if top is None:
+            top = diags[0]
+        unexplained = {
+            "present": True, "diagnostic": f"residual vs {top.variable}", "variable": top.variable,
+            "explained_fraction": top.explained_fraction, "p_value": top.p_value,
+            "description": top.description,
+            "rms_over_noise": (score_f.cv_rms_m / sigma_noise) if sigma_noise else None,
+            "message": (f"structure remains that no library effect explains: the residual depends on "
+                        f"{top.variable} (cross-validated regression explains {100 * top.explained_fraction:.0f} % "
+                        f"of its variance, p = {top.p_value:.2g})"
+                        + (f"; held-out RMS is {score_f.cv_rms_m / sigma_noise:.2f} x the noise floor"
+                           if sigma_noise else "")),
+        }
+        status = IdentifyStatus.UNEXPLAINED
+        reason = unexplained["message"]
+    else:
+        unexplained = {"present": False, "diagnostic": None, "variable": None,
+                       "explained_fraction": (diags[0].explained_fraction if diags else None),
+                       "message": "no diagnostic shows structure the model leaves unexplained"}
+        status = IdentifyStatus.OK
+        reason = stop_reason
+    if not converged:
+        status = IdentifyStatus.NOT_CONVERGED
+        reason = "the final least-squares fit did not converge"
+    return status, reason, unexplained
+
+
+def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[str, Any], noise_src: str,
+            notes: list[str]) -> IdentificationResult:
+    """Step 6: covariance, model, parameter table, diagnostics and verdict."""
+    prob, fit, m = st.prob, st.fit, st.prob.m
+    score_f, free_f = run.score(prob, fit, st.active)
+    order_f = _order_for(prob.layout, st.active, run.registered)
+    std, cond = _covariance(prob, fit, free_f)
+    R_un = fit.residual(prob)
+    model = _build_model(run, st, s, std, free_f, order_f, run.sigma_noise)
+    params = _parameter_table(prob.layout, fit, order_f, std, st.active, run.registered)
+    diags = _diagnose(prob, fit, run.robot)       # diagnostics on the final residual (inliers)
+    status, reason, unexplained = _verdict(diags, score_f, run.sigma_noise, st.stop_reason, fit.converged)
+    excluded = [{"row": int(i), "line": int(m.line[i]), "residual_mm": float(np.linalg.norm(R_un[i]) * 1e3),
+                 "residual_xyz_mm": (R_un[i] * 1e3).tolist()} for i in np.flatnonzero(~fit.inliers)]
+    ident = {
+        "rank": len(free_f), "condition_number": cond, "n_rows": int(m.n), "n_inliers": int(fit.inliers.sum()),
+        "n_poses": int(s.n_poses), "saturated_model": sat_info,
+        "held": [{"name": PARAM_NAMES[i], "effect": _effect_of(i), "reason": r}
+                 for i, r in fit.held.items() if i in order_f],
+    }
+    res_b = s.fit_b.residual(prob)
+    return IdentificationResult(
+        status=status, reason=reason, model=model, effects_added=st.effects_added, history=st.history,
+        parameters=params, rms_before_m=_rms(res_b[fit.inliers]), rms_after_m=_rms(R_un[fit.inliers]),
+        cv_rms_before_m=score_b.cv_rms_m, cv_rms_after_m=score_f.cv_rms_m, noise_sigma_m=run.sigma_noise,
+        noise_source=noise_src, excluded=excluded, unexplained=unexplained, diagnostics=diags,
+        identifiability=ident, residual_before=res_b, residual_after=R_un, inliers=fit.inliers, data=m,
+        notes=notes)

@@ -1,0 +1,273 @@
+"""Forward evaluation of the identification model over many rows.
+
+* :class:`Evaluator` -- the model graph's CasADi functions (``models.effects``)
+  mapped over rows with threads, cached per size;
+* :func:`make_rows` and :func:`time_reference` -- the per-row inputs
+  ``[q_c (6) rad, F (6) N and N*m base frame, tn (1), dT (1) K]``;
+* :class:`_Problem` -- the data and fixed inputs of one identification, and the
+  constant-vector updates of the selection (hardening knots, gravity switch);
+* the nominal model's evaluations used by diagnostics and compensation.
+
+Everything is SI; positions are in the measurement frame unless named otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import casadi as ca
+import numpy as np
+
+from models import effects as fx
+from models.effects import GROUP_SLICES, N_PARAMS, ModelLayout, get_const, make_const, make_layout, set_const
+from models.robot import Robot
+from models.symbolic import KinematicModel
+
+from ..measurements import Measurements
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .lsq import _Fit
+
+
+class Evaluator:
+    """Evaluate the model over many rows (CasADi ``map`` with threads), cached per size.
+
+    Parameters
+    ----------
+    convention : str
+        DH convention of the robot (``"standard_dh"`` or ``"modified_dh"``).
+    eligible : ndarray of bool, shape (N_PARAMS,), optional
+        Parameters that exist for the robot (the Jacobian is taken w.r.t. them only).
+    """
+
+    THREADS = 2
+
+    def __init__(self, convention: str, eligible: np.ndarray | None = None) -> None:
+        el = np.ones(N_PARAMS, dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
+        self.eligible_idx = np.flatnonzero(el)
+        self.fns = fx.identification_functions(convention, tuple(bool(x) for x in el))
+        self._maps: dict[tuple[str, int], ca.Function] = {}
+
+    def _map(self, name: str, n: int) -> ca.Function:
+        """Function ``name`` mapped over ``n`` rows (threads), cached."""
+        key = (name, n)
+        f = self._maps.get(key)
+        if f is None:
+            f = self.fns[name].map(n, "thread", self.THREADS)
+            if len(self._maps) > 16:
+                self._maps.clear()
+            self._maps[key] = f
+        return f
+
+    def measure(self, rows: np.ndarray, theta: np.ndarray, const: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted measurement and deflected equilibrium.
+
+        Parameters
+        ----------
+        rows : ndarray, shape (N, ROW_SIZE)
+            Per-row inputs (:func:`make_rows`).
+        theta : ndarray, shape (N_PARAMS,)
+            Parameters, SI.
+        const : ndarray
+            Constant vector (``models.effects.make_const``).
+
+        Returns
+        -------
+        p : ndarray, shape (N, 3)
+            Measured point, measurement frame, m.
+        q : ndarray, shape (N, 6)
+            Equilibrium joints, rad.
+        """
+        n = len(rows)
+        p, q = self._map("measure", n)(rows.T, theta, const)
+        return np.asarray(p).T, np.asarray(q).T
+
+    def jacobian(self, rows: np.ndarray, q_eq: np.ndarray, theta: np.ndarray,
+                 const: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted measurement (N, 3), m, and its Jacobian w.r.t. ``theta``.
+
+        Returns
+        -------
+        p : ndarray, shape (N, 3)
+        J : ndarray, shape (3N, N_PARAMS)
+            Rows ``[x0, y0, z0, x1, ...]`` (m per SI unit of the parameter); columns of
+            ineligible parameters are zero.
+        """
+        n = len(rows)
+        p, J = self._map("measure_jac", n)(rows.T, q_eq.T, theta, const)
+        ne = len(self.eligible_idx)
+        Je = np.asarray(J).reshape(3, n, ne).transpose(1, 0, 2).reshape(3 * n, ne)
+        if ne == N_PARAMS:
+            return np.asarray(p).T, Je
+        Jf = np.zeros((3 * n, N_PARAMS))
+        Jf[:, self.eligible_idx] = Je
+        return np.asarray(p).T, Jf
+
+    def call(self, name: str, *args: np.ndarray) -> list[np.ndarray]:
+        """Evaluate a per-row function over rows; 2-D args are (N, k), 1-D are broadcast.
+
+        Returns the outputs as CasADi-shaped arrays (k, N)."""
+        n = max(a.shape[0] for a in args if a.ndim == 2)
+        ins = [a.T if a.ndim == 2 else a for a in args]
+        out = self._map(name, n)(*ins)
+        out = out if isinstance(out, (list, tuple)) else [out]
+        return [np.asarray(o) for o in out]
+
+
+_EVALUATORS: dict[tuple, Evaluator] = {}
+
+
+def evaluator(convention: str, eligible: np.ndarray | None = None) -> Evaluator:
+    """Shared :class:`Evaluator` per convention and parameter eligibility."""
+    key = (convention, None if eligible is None else tuple(bool(x) for x in eligible))
+    ev = _EVALUATORS.get(key)
+    if ev is None:
+        if len(_EVALUATORS) > 8:
+            _EVALUATORS.clear()
+        ev = _EVALUATORS[key] = Evaluator(convention, eligible)
+    return ev
+
+
+def _ev_for(robot: Robot) -> Evaluator:
+    """The shared :class:`Evaluator` of a robot (its convention and eligible parameters)."""
+    return evaluator(robot.convention, make_layout(robot).eligible)
+
+
+def time_reference(m: Measurements) -> tuple[float, float]:
+    """``(t_start, t_span)`` of the campaign, s (row numbers when there is no ``t``).
+
+    Drift is measured from the first measurement, where the instrument (and, for
+    registered data, the registration) is taken as exact."""
+    t = m.t if m.t is not None else np.arange(m.n, dtype=float)
+    lo, hi = float(np.min(t)), float(np.max(t))
+    return lo, max(hi - lo, 1e-9)
+
+
+def make_rows(m: Measurements, time_ref: tuple[float, float] | None, temperature_ref: float,
+              use_time: bool = True) -> np.ndarray:
+    """Per-row inputs of the CasADi functions, shape (N, ROW_SIZE).
+
+    ``[q_c (6) rad, F (6) N and N*m (base frame), tn (1), dT (1) K]``: ``tn`` is the
+    time since ``time_ref[0]`` over ``time_ref[1]`` (zero without a time reference),
+    ``dT`` the temperature (else ``temperature_ref``, deg C) minus 20 deg C.
+    """
+    rows = np.zeros((m.n, fx.ROW_SIZE))
+    rows[:, 0:6] = m.q
+    rows[:, 6:12] = m.wrench
+    if use_time and time_ref is not None:
+        t = m.t if m.t is not None else np.arange(m.n, dtype=float)
+        rows[:, 12] = (t - time_ref[0]) / time_ref[1]
+    temp = m.temperature if m.temperature is not None else np.full(m.n, temperature_ref)
+    rows[:, 13] = temp - fx.THERMAL_REFERENCE_C
+    return rows
+
+
+@dataclass
+class _Problem:
+    """Data and fixed inputs of one identification.
+
+    Attributes
+    ----------
+    m : Measurements
+    layout : ModelLayout
+    ev : Evaluator
+    rows : ndarray, shape (N, ROW_SIZE)
+    const : ndarray
+        Constant vector of the model graph.
+    weights : ndarray, shape (N,)
+        ``1/sigma`` (1/m) or ones.
+    folds : ndarray of int, shape (N,)
+        Cross-validation fold per row.
+    lower, upper : ndarray, shape (N_PARAMS,)
+        Parameter bounds, SI.
+    """
+
+    m: Measurements
+    layout: ModelLayout
+    ev: Evaluator
+    rows: np.ndarray
+    const: np.ndarray
+    weights: np.ndarray
+    folds: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+def _knots_from(tau: np.ndarray, ts: np.ndarray) -> np.ndarray:
+    """Hardening knots (6, N_KNOTS), N*m: quantiles of the nonzero |tau| per joint.
+
+    ``tau`` (N, 6) joint torques, N*m; ``ts`` (6,) torque scales, N*m (the knots of a
+    joint with fewer than 10 nonzero torques are fixed fractions of its scale)."""
+    tau = np.abs(tau)
+    knots = np.outer(ts, fx.HARDENING_KNOT_QUANTILES)
+    for j in range(6):
+        nz = tau[:, j][tau[:, j] > 1e-9 * ts[j]]
+        if len(nz) >= 10:
+            knots[j] = np.quantile(nz, fx.HARDENING_KNOT_QUANTILES)
+    return knots
+
+
+def _torque_scale(prob_robot: Robot, m: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """Per-joint torque scale (90th percentile of |J^T F| over the data), N*m, (6,),
+    and hardening knots (quantiles of the nonzero |J^T F|), N*m, (6, N_KNOTS)."""
+    layout = make_layout(prob_robot)
+    const = make_const(prob_robot, np.eye(3), np.ones(6), False)
+    te, _tg, _q = _ev_for(prob_robot).call(
+        "torques", m.q, m.wrench, np.zeros((m.n, 1)), np.zeros(N_PARAMS) + layout.nominal, const)
+    tau = np.abs(np.asarray(te).T)
+    ts = np.maximum(np.percentile(tau, 90, axis=0), fx.TORQUE_SCALE_FLOOR_NM)
+    return ts, _knots_from(tau, ts)
+
+
+def _update_knots(prob: _Problem, fit: _Fit) -> _Problem:
+    """Place the hardening knots on the joint torques the current model applies (external
+    plus, when ``gravity`` is on, self-weight): only while hardening is not active."""
+    rows = prob.rows
+    te, tg, _q = prob.ev.call("torques", rows[:, 0:6], rows[:, 6:12], rows[:, 13:14], fit.theta, prob.const)
+    tau = np.asarray(te).T + np.asarray(tg).T
+    c = set_const(prob.const, "hardening.knots", _knots_from(tau, get_const(prob.const, "tau_scale")).reshape(-1))
+    return replace(prob, const=c)
+
+
+def _gravity_problem(prob: _Problem, on: bool) -> _Problem:
+    """The same problem with the self-weight torques switched on or off."""
+    c = set_const(prob.const, "gravity.on", [1.0 if on else 0.0])
+    return replace(prob, const=c)
+
+
+def _nominal_points(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Nominal TCP positions for joints ``q`` (N, 6) rad: base frame, m, (N, 3), without
+    compiling anything."""
+    layout = make_layout(robot)
+    rows = np.zeros((len(q), fx.ROW_SIZE))
+    rows[:, :6] = q
+    const = make_const(robot, np.eye(3), np.ones(6), False)
+    p, _q = _ev_for(robot).measure(rows, layout.nominal, const)
+    return p
+
+
+def _nominal_tcp(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Nominal-FK TCP frames of joints ``q`` (N, 6) rad: ``base2tcp``, (N, 4, 4), m, via
+    ``Function.map`` (no compilation)."""
+    km = KinematicModel(robot)
+    n = len(q)
+    T = np.asarray(km.fk_tcp.map(n, "thread", 2)(q.T))
+    return T.reshape(4, n, 4).transpose(1, 0, 2)
+
+
+def _nominal_gravity_torque(robot: Robot, m: Measurements) -> np.ndarray | None:
+    """Nominal gravity torques (N*m, (N, 6)) from the robot's masses, or a generic
+    proxy (unit masses at the link mid-points) when the file gives none."""
+    layout = make_layout(robot)
+    theta = layout.nominal.copy()
+    if not robot.has_masses:
+        s = GROUP_SLICES["gravity.m"]
+        theta[s] = 1.0
+        h = np.zeros((6, 3))
+        h[:, 0] = -robot.a / 2.0
+        theta[GROUP_SLICES["gravity.h"]] = h.reshape(-1)
+    const = make_const(robot, np.eye(3), np.ones(6), True)
+    ev = _ev_for(robot)
+    _te, tg, _q = ev.call("torques", m.q, np.zeros((m.n, 6)), np.zeros((m.n, 1)), theta, const)
+    return np.asarray(tg).T
