@@ -13,7 +13,7 @@ Planning, compensation, maps, prediction and reports all evaluate this object:
   the one place the product decides where a loaded arm settles (the deflection is
   evaluated at the deflected pose).
 
-Frames: the base frame of the robot (``base2tcp`` maps TCP-frame coordinates to
+Frames: the base frame of the robot (``tcp2base`` maps TCP-frame coordinates to
 base-frame coordinates); the measurement frame and the measured point matter only
 for identification and prediction (:meth:`base2meas`, :attr:`measured_point`).
 """
@@ -141,9 +141,9 @@ class ArmModel:
     def name(self) -> str:
         return self.nominal.name
 
-    def with_tool(self, flange2tcp: np.ndarray) -> "ArmModel":
+    def with_tool(self, tcp2flange: np.ndarray) -> "ArmModel":
         """The same model with another TCP (4x4, TCP -> flange)."""
-        return replace(self, nominal=self.nominal.with_tool(flange2tcp))
+        return replace(self, nominal=self.nominal.with_tool(tcp2flange))
 
     # ------------------------------------------------------------------ parameters
     @property
@@ -154,7 +154,7 @@ class ArmModel:
     @property
     def planning_const(self) -> np.ndarray:
         """The constant vector for planning: the TCP carries :attr:`tcp_correction_m`."""
-        T = np.array(self.nominal.flange2tcp, dtype=float)
+        T = np.array(self.nominal.tcp2flange, dtype=float)
         T[:3, 3] += np.asarray(self.tcp_correction_m, dtype=float)
         return fx.set_const(self.const, "tool", T.reshape(-1, order="F"))
 

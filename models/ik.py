@@ -132,12 +132,13 @@ class AnalyticIK:
         self.robot = robot
         a, alpha, d, off = robot.a, robot.alpha, robot.d, robot.theta_offset
         if robot.convention == "modified_dh":
-            # Row i holds a_{i-1}, alpha_{i-1}: shift to an equivalent standard chain.
-            self._base_pre = _rx_tx(alpha[0], a[0])
+            # Row i holds a_{i-1}, alpha_{i-1}: shift to an equivalent standard chain whose base
+            # frame "sdh0" is the robot base turned by Rx(alpha_0) Tx(a_0) (sdh0 -> base).
+            self._sdh02base = _rx_tx(alpha[0], a[0])
             a = np.r_[a[1:], 0.0]
             alpha = np.r_[alpha[1:], 0.0]
         else:
-            self._base_pre = np.eye(4)
+            self._sdh02base = np.eye(4)
         bad = [f"alpha{i + 1} = {alpha[i]:.6g} rad (expected {UR_ALPHA[i]:.6g})"
                for i in range(6) if abs(alpha[i] - UR_ALPHA[i]) > _STRUCT_TOL]
         bad += [f"a{i + 1} = {a[i]:.6g} m (expected 0)" for i in (0, 3, 4, 5) if abs(a[i]) > _STRUCT_TOL]
@@ -149,8 +150,8 @@ class AnalyticIK:
                 f"robot '{robot.name}' is not UR-type, analytic IK does not apply: " + "; ".join(bad))
         self.a, self.alpha, self.d, self.offset = a, alpha, d, off
         self.D = float(d[1] + d[2] + d[3])
-        self._base_pre_inv = invert(self._base_pre)
-        self._tcp2flange = invert(robot.flange2tcp)
+        self._base2sdh0 = invert(self._sdh02base)
+        self._flange2tcp = invert(robot.tcp2flange)
         self.q_min, self.q_max = robot.q_min, robot.q_max
         self.function = self._build_function()
         self._compiled: BatchFunction | None | bool = False
@@ -158,13 +159,13 @@ class AnalyticIK:
     def _build_function(self) -> ca.Function:
         """The closed form as a named CasADi Function of the flange pose.
 
-        ``base2tcp (4x4) -> q (6x8, column = branch, rad, within the limits),
+        ``tcp2base (4x4) -> q (6x8, column = branch, rad, within the limits),
         status (8, IKStatus codes)``.  Cosines are clipped before acos/asin; the
         unclipped values decide the status.
         """
         a, d, alpha, D = self.a, self.d, self.alpha, self.D
-        Tt = ca.SX.sym("base2tcp", 4, 4)
-        Tf = ca.mtimes([ca.DM(self._base_pre_inv), Tt, ca.DM(self._tcp2flange)])
+        Tt = ca.SX.sym("tcp2base", 4, 4)
+        Tf = ca.mtimes([ca.DM(self._base2sdh0), Tt, ca.DM(self._flange2tcp)])
         X, Y, Z, P = Tf[:3, 0], Tf[:3, 1], Tf[:3, 2], Tf[:3, 3]
         p5 = P - d[5] * Z
         r = ca.sqrt(p5[0] ** 2 + p5[1] ** 2)
@@ -230,7 +231,7 @@ class AnalyticIK:
             code = ca.if_else(ca.fabs(ratio) > 1 + IK_CLIP_TOL, float(IKStatus.SHOULDER_UNREACHABLE), code)
             codes.append(code)
         return ca.Function("ik_branches", [Tt], [ca.horzcat(*qs), ca.vertcat(*codes)],
-                           ["base2tcp"], ["q", "status"])
+                           ["tcp2base"], ["q", "status"])
 
     def _batch(self, flat: np.ndarray) -> list[np.ndarray]:
         if self._compiled is False:
@@ -245,12 +246,12 @@ class AnalyticIK:
         return [np.asarray(x).reshape(self.function.size_out(k)[0], n, -1).transpose(1, 0, 2).reshape(n, -1)
                 if self.function.size_out(k)[1] > 1 else np.asarray(x).T for k, x in enumerate(res)]
 
-    def solve(self, base2tcp: np.ndarray) -> IKSolution:
+    def solve(self, tcp2base: np.ndarray) -> IKSolution:
         """All 8 branches for target TCP pose(s).
 
         Parameters
         ----------
-        base2tcp : ndarray, shape (4, 4) or (N, 4, 4)
+        tcp2base : ndarray, shape (4, 4) or (N, 4, 4)
             Target TCP poses in the base frame.
 
         Returns
@@ -258,7 +259,7 @@ class AnalyticIK:
         IKSolution
             ``q`` (N, 8, 6) rad and ``status`` (N, 8).
         """
-        T = np.asarray(base2tcp, dtype=float)
+        T = np.asarray(tcp2base, dtype=float)
         if T.shape[-2:] != (4, 4):
             raise ValueError(f"target poses must have shape (N, 4, 4), got {T.shape}")
         T = T.reshape(-1, 4, 4)
@@ -288,13 +289,13 @@ class AnalyticIK:
             ok = (cand >= self.q_min - 1e-12) & (cand <= self.q_max + 1e-12)
         return cand, ok.all(axis=-1) | np.isnan(q).any(axis=-1)
 
-    def nearest(self, base2tcp: np.ndarray, seed: np.ndarray,
+    def nearest(self, tcp2base: np.ndarray, seed: np.ndarray,
                 branch: int | None = None) -> tuple[np.ndarray, np.ndarray, IKSolution]:
         """The solution nearest a seed configuration.
 
         Parameters
         ----------
-        base2tcp : ndarray, shape (N, 4, 4) or (4, 4)
+        tcp2base : ndarray, shape (N, 4, 4) or (4, 4)
         seed : ndarray, shape (N, 6) or (6,)
             Each joint of every branch is shifted by 2*pi*k (within limits) to lie
             nearest the seed; the branch with the smallest Euclidean distance wins.
@@ -310,7 +311,7 @@ class AnalyticIK:
         sol : IKSolution
             All branches (shifted to the seed).
         """
-        sol = self.solve(base2tcp)
+        sol = self.solve(tcp2base)
         n = sol.q.shape[0]
         seed = np.broadcast_to(np.asarray(seed, dtype=float).reshape(-1, 6), (n, 6))
         qs, ok = self._into_limits(sol.q, seed[:, None, :])

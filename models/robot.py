@@ -11,7 +11,7 @@ Conventions (see ``docs/conventions.md``):
 * ``modified_dh``: ``A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)``,
   where row *i* of the file holds ``a_{i-1}``, ``alpha_{i-1}``, ``d_i``;
 * ``theta_i = q_i + theta_offset_i``;
-* the tool transform ``flange2tcp`` maps TCP-frame coordinates to flange-frame
+* the tool transform ``tcp2flange`` maps TCP-frame coordinates to flange-frame
   coordinates; its rotation is ``Rz(yaw) Ry(pitch) Rx(roll)``.
 """
 
@@ -91,7 +91,7 @@ class Robot:
     name : str
     convention : {"standard_dh", "modified_dh"}
     joints : tuple of Joint, length 6
-    flange2tcp : ndarray, shape (4, 4)
+    tcp2flange : ndarray, shape (4, 4)
         Homogeneous transform TCP frame -> flange frame (x_flange = A @ x_tcp).
     gravity : ndarray, shape (3,)
         Gravity acceleration in the base frame, m/s^2.
@@ -102,7 +102,7 @@ class Robot:
     name: str
     convention: str
     joints: tuple[Joint, ...]
-    flange2tcp: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tcp2flange: np.ndarray = field(default_factory=lambda: np.eye(4))
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -STANDARD_GRAVITY]))
     description: str = ""
     source: str = ""
@@ -181,12 +181,12 @@ class Robot:
             raise RobotFileError(f"robot '{self.name}': link masses/com are not given")
         return np.array([j.com for j in self.joints], dtype=float)
 
-    def with_tool(self, flange2tcp: np.ndarray) -> "Robot":
+    def with_tool(self, tcp2flange: np.ndarray) -> "Robot":
         """Return a copy with another tool transform (4x4, TCP -> flange)."""
-        t = np.asarray(flange2tcp, dtype=float)
+        t = np.asarray(tcp2flange, dtype=float)
         if t.shape != (4, 4) or not np.all(np.isfinite(t)):
             raise RobotFileError("tool transform must be a finite 4x4 matrix")
-        return replace(self, flange2tcp=t)
+        return replace(self, tcp2flange=t)
 
     def with_stiffness(self, stiffness: np.ndarray) -> "Robot":
         """Return a copy with other joint stiffnesses (N*m/rad, shape (6,))."""
@@ -213,8 +213,8 @@ class Robot:
             "description": self.description,
             "source": self.source,
             "gravity": [float(g) for g in self.gravity],
-            "tool": {"xyz": [float(v) for v in self.flange2tcp[:3, 3]],
-                     "rpy": [float(v) for v in matrix_to_rpy(self.flange2tcp[:3, :3])]},
+            "tool": {"xyz": [float(v) for v in self.tcp2flange[:3, 3]],
+                     "rpy": [float(v) for v in matrix_to_rpy(self.tcp2flange[:3, :3])]},
             "joints": joints,
             **({"identified": self.identified} if self.identified is not None else {}),
         }
@@ -343,7 +343,7 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
     if identified is not None and not isinstance(identified, Mapping):
         raise RobotFileError(f"{where}: key 'identified' must be a table")
     return Robot(name=name, convention=conv, joints=joints,
-                 flange2tcp=transform(rpy_to_matrix(rpy), xyz), gravity=gravity,
+                 tcp2flange=transform(rpy_to_matrix(rpy), xyz), gravity=gravity,
                  description=desc, source=src,
                  identified=dict(identified) if identified is not None else None)
 

@@ -7,8 +7,8 @@ NumPy arrays are converted once per batch, not once per pose.
 
 Frames and signs (see ``docs/conventions.md``):
 
-* ``base2frame_i`` (i = 1..6): DH frame *i* in the base frame; frame 6 is the flange.
-* ``base2tcp = base2flange @ flange2tcp``.
+* ``frame_i2base`` (i = 1..6): DH frame *i* in the base frame; frame 6 is the flange.
+* ``tcp2base = flange2base @ tcp2flange``.
 * Jacobian ``J`` (6, 6): geometric, at the TCP point, base frame, rows
   ``[v_x, v_y, v_z, w_x, w_y, w_z]`` (linear velocity first), ``twist = J qdot``.
 * A wrench ``F = [f; m]`` (N, N*m), base frame, acts on the TCP; joint torques
@@ -54,9 +54,9 @@ class KinematicModel:
     Attributes
     ----------
     fk_frames : casadi.Function
-        ``q (6) -> base2frame1 ... base2frame6`` (4x4 each).
+        ``q (6) -> frame12base ... frame62base`` (4x4 each).
     fk_tcp : casadi.Function
-        ``q (6) -> base2tcp`` (4x4).
+        ``q (6) -> tcp2base`` (4x4).
     jacobian : casadi.Function
         ``q (6) -> J`` (6x6), geometric, TCP point, base frame.
     compliance : casadi.Function
@@ -159,7 +159,7 @@ class KinematicModel:
 
     # ------------------------------------------------------------- numeric conveniences
     def tcp(self, q: np.ndarray) -> np.ndarray:
-        """``base2tcp`` for one pose (6,) -> (4, 4), or a batch (N, 6) -> (N, 4, 4)."""
+        """``tcp2base`` for one pose (6,) -> (4, 4), or a batch (N, 6) -> (N, 4, 4)."""
         q = np.asarray(q, dtype=float)
         if q.ndim == 1:
             return np.asarray(self.fk_tcp(q))

@@ -1,7 +1,7 @@
 """Small numeric helpers for rotations and homogeneous transforms (NumPy).
 
-Names follow the ``A2B`` habit: ``base2tcp`` maps TCP-frame coordinates to
-base-frame coordinates (``x_base = base2tcp @ x_tcp``).
+Names follow the ``A2B`` habit: ``tcp2base`` maps TCP-frame coordinates to
+base-frame coordinates (``x_base = tcp2base @ x_tcp``).
 """
 
 from __future__ import annotations

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import io
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -227,6 +227,44 @@ def validate_map_options(plane: str, offset_m: float, u_range_m: tuple[float, fl
 
 
 
+def _evaluate_grid(arm: "ArmModel", P: np.ndarray, R: np.ndarray, b_fixed: int | None, chunk: int,
+                   progress: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """IK branch and compliance diagonal at every TCP position of ``P`` (N, 3), base frame, at the
+    attitude ``R`` (TCP -> base rotation), in batches of ``chunk`` points.
+
+    Returns q (N, 6) rad, the chosen branch (N,) (-1: none), diag C (N, 6) SI, and the IK status
+    of the reference branch (N,)."""
+    ik = AnalyticIK(arm.nominal)
+    model = arm.kinematics
+    n = len(P)
+    q = np.full((n, 6), np.nan)
+    chosen = np.full(n, -1, dtype=int)
+    diag = np.full((n, 6), np.nan)
+    status_ref = np.zeros(n, dtype=int)
+    step = max(1, int(chunk))
+    for start in range(0, n, step):          # one batch per chunk, not per point
+        sl = slice(start, min(n, start + step))
+        T = np.zeros((sl.stop - sl.start, 4, 4))
+        T[:, :3, :3] = R
+        T[:, :3, 3] = P[sl]
+        T[:, 3, 3] = 1.0
+        qc, ch, sol = ik.nearest(T, paper.HOME_Q, branch=b_fixed)
+        if not arm.geometry_is_nominal and (ch >= 0).any():
+            # the closed form solves the nominal chain: move onto the model's (identified) geometry
+            from problems.compensation import rigid_pose_solve
+            qc = qc.copy()
+            qc[ch >= 0] = rigid_pose_solve(arm, qc[ch >= 0], T[ch >= 0])
+        q[sl], chosen[sl] = qc, ch
+        status_ref[sl] = sol.status[:, 0 if b_fixed is None else b_fixed]
+        ok = ch >= 0
+        if ok.any():
+            C = model.C(qc[ok])
+            diag[np.arange(sl.start, sl.stop)[ok]] = np.einsum("nii->ni", C.reshape(-1, 6, 6))
+        if progress is not None:
+            progress("compliance map", sl.stop, n)
+    return q, chosen, diag, status_ref
+
+
 def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: float = paper.SECTION_4_3_X_M,
                    u_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
                    v_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
@@ -272,8 +310,6 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
     from models.arm import load_arm
     arm = load_arm(robot)           # a Robot (nominal model) or an ArmModel (identified)
     robot = arm.nominal
-    ik = AnalyticIK(robot)
-    model = arm.kinematics
     u = np.linspace(u_lo, u_hi, int(nu))
     v = np.linspace(v_lo, v_hi, int(nv))
     U, V = np.meshgrid(u, v, indexing="ij")
@@ -282,30 +318,7 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
     P[:, n_axis] = off
     P[:, u_axis] = U.ravel()
     P[:, v_axis] = V.ravel()
-    R = rpy_to_matrix(rpy)
-
-    n = len(P)
-    q = np.full((n, 6), np.nan)
-    chosen = np.full(n, -1, dtype=int)
-    diag = np.full((n, 6), np.nan)
-    status_ref = np.zeros(n, dtype=int)
-    step = max(1, int(chunk))
-    for start in range(0, n, step):          # one batch per chunk, not per point
-        sl = slice(start, min(n, start + step))
-        T = np.zeros((sl.stop - sl.start, 4, 4))
-        T[:, :3, :3] = R
-        T[:, :3, 3] = P[sl]
-        T[:, 3, 3] = 1.0
-        qc, ch, sol = ik.nearest(T, paper.HOME_Q, branch=b_fixed)
-        q[sl], chosen[sl] = qc, ch
-        status_ref[sl] = sol.status[:, 0 if b_fixed is None else b_fixed]
-        ok = ch >= 0
-        if ok.any():
-            C = model.C(qc[ok])
-            idx = np.arange(sl.start, sl.stop)[ok]
-            diag[idx] = np.einsum("nii->ni", C)
-        if progress is not None:
-            progress("compliance map", sl.stop, n)
+    q, chosen, diag, status_ref = _evaluate_grid(arm, P, rpy_to_matrix(rpy), b_fixed, chunk, progress)
 
     reasons: dict[str, int] = {}
     bad = chosen < 0

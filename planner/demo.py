@@ -44,7 +44,7 @@ def demo_problem(robot: Robot | str | None = None, n_points: int | None = None) 
     pr = load_problem(DEMO_PROBLEM)
     if isinstance(robot, Robot):
         from dataclasses import replace
-        pr = replace(pr, robot=robot.with_tool(pr.robot.flange2tcp), robot_spec=robot.name)
+        pr = replace(pr, robot=robot.with_tool(pr.robot.tcp2flange), robot_spec=robot.name)
     elif robot is not None:
         pr = pr.with_robot(str(robot))
     if n_points is not None and n_points != pr.n:

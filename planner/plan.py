@@ -49,7 +49,7 @@ from problems.problem import Problem
 
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
-from planner.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
+from planner.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
@@ -66,8 +66,6 @@ TRAJECTORY_COLUMNS = OUTPUT_TRAJECTORY_COLUMNS
 CONTROLLER_METHODS = ("ruckig", "toppra")
 #: Limits each timing method enforces.
 ENFORCED = {"toppra": ("velocity", "acceleration"), "ruckig": ("velocity", "acceleration", "jerk")}
-#: A peak limit ratio counts as within the limit up to 1 + this.
-LIMIT_RATIO_TOL = 1e-9
 #: Slack on the commanded joints' position limits (rad).
 COMMAND_LIMIT_TOL = 1e-9
 
@@ -190,7 +188,7 @@ class PlanResult:
     def summary(self) -> dict[str, Any]:
         """The content of ``summary.json`` (SI units unless a key says otherwise)."""
         pr = self.problem
-        R = pr.robot.flange2tcp
+        R = pr.robot.tcp2flange
         w = pr.wrench
         s: dict[str, Any] = {
             "command": "plan",
@@ -291,6 +289,7 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     Parameters
     ----------
     problem : Problem
+        With its arm model (``problem.model``) and load (``problem.load``).
     verbose : bool
         IPOPT output on.
     optimise : bool
@@ -304,41 +303,58 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     """
     times: dict[str, float] = {}
     t0 = time.perf_counter()
-    robot = problem.robot
     arm = problem.model
-    model = arm.kinematics
-    ik = AnalyticIK(robot)
+    ik = AnalyticIK(problem.robot)
     times["model_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     ps = optimise_postures(arm, problem.task(), problem.home_q, problem.solver, verbose,
-                           model=model, ik=ik, optimise=optimise)
+                           model=arm.kinematics, ik=ik, optimise=optimise)
     times["posture_s"] = time.perf_counter() - t0
     res = PlanResult(PlanStatus.OK, "", problem, ps, stage_times_s=times)
     if not ps.ok:
         res.status, res.reason = _POSTURE_TO_PLAN[ps.status], ps.reason
         return res
-    failed = [r for r in ps.branches.values() if not r.status.usable]
-    for r in failed:
-        res.warnings.append(f"branch {r.label}: {r.status.value}: {r.reason}")
-    if ps.best.active_guards:
-        res.warnings.append(
-            f"chosen branch {ps.best.label}: the optimum rests on its singularity guard ("
-            + ", ".join(f"{k} at {v} waypoint(s)" for k, v in ps.best.active_guards.items())
-            + "): the model's load error keeps falling towards the singularity, where it is not credible")
-
+    res.warnings += _posture_warnings(ps)
     t0 = time.perf_counter()
-    q = ps.best.q
+    _compensate(res)
+    times["compensation_s"] = time.perf_counter() - t0
+    if not res.ok:
+        return res
+    if problem.n < 2:
+        res.warnings.append("single waypoint: nothing to time-parametrise")
+        return res
+    t0 = time.perf_counter()
+    _time(res)
+    times["timing_s"] = time.perf_counter() - t0
+    return res
+
+
+def _posture_warnings(ps: PostureResult) -> list[str]:
+    """Failed branches, and a chosen optimum that rests on a singularity guard."""
+    out = [f"branch {r.label}: {r.status.value}: {r.reason}" for r in ps.branches.values() if not r.status.usable]
+    if ps.best.active_guards:
+        out.append(f"chosen branch {ps.best.label}: the optimum rests on its singularity guard ("
+                   + ", ".join(f"{k} at {v} waypoint(s)" for k, v in ps.best.active_guards.items())
+                   + "): the model's load error keeps falling towards the singularity, where it is not credible")
+    return out
+
+
+def _compensate(res: PlanResult) -> None:
+    """Uncompensated, closed-form and exact compensation of the chosen posture (sets the status
+    when the exact one fails or leaves the joint limits)."""
+    problem, arm, robot = res.problem, res.problem.model, res.problem.robot
+    assert res.posture is not None
+    q = res.posture.best.q
     L = problem.load.rows(problem.n)
     res.before = uncompensated(arm, q, L)
     res.closed = closed_form(arm, q, L)
     res.exact = exact(arm, q, L)
-    times["compensation_s"] = time.perf_counter() - t0
     res.warnings += arm.extrapolation(res.exact.q_deflected, L)
     if res.exact.status is not CompensationStatus.OK:
         res.status = PlanStatus.COMPENSATION_FAILED
-        res.reason = f"exact compensation of branch {ps.best.label}: {res.exact.reason}"
-        return res
+        res.reason = f"exact compensation of branch {res.posture.best.label}: {res.exact.reason}"
+        return
     qc = res.exact.q_command
     lo, hi = qc < robot.q_min - COMMAND_LIMIT_TOL, qc > robot.q_max + COMMAND_LIMIT_TOL
     if lo.any() or hi.any():
@@ -346,42 +362,45 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
         res.status = PlanStatus.COMPENSATION_FAILED
         res.reason = (f"the compensated command of joint {j + 1} at waypoint {k} is {qc[k, j]:.6g} rad, "
                       f"outside its limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad")
-        return res
 
-    if problem.n < 2:
-        res.warnings.append("single waypoint: nothing to time-parametrise")
-        return res
-    t0 = time.perf_counter()
+
+def _time(res: PlanResult) -> None:
+    """Time the commanded path with every requested method and check each trajectory."""
+    problem = res.problem
+    assert res.exact is not None
+    qc = res.exact.q_command
     lim = JointLimits(problem.limits.velocity, problem.limits.acceleration, problem.limits.jerk)
     for m in problem.timing.methods:
         t1 = time.perf_counter()
-        tr = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
-        times[f"timing_{m}_s"] = time.perf_counter() - t1
-        res.trajectories[m] = tr
-    times["timing_s"] = time.perf_counter() - t0
+        res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
+        res.stage_times_s[f"timing_{m}_s"] = time.perf_counter() - t1
     res.controller = next(m for m in CONTROLLER_METHODS if m in res.trajectories)
     for m, tr in res.trajectories.items():
-        if tr.status is TimingStatus.OK and tr.q.size:
-            # The interpolating spline may overshoot between waypoints: check positions too.
-            out = (tr.q < robot.q_min - COMMAND_LIMIT_TOL) | (tr.q > robot.q_max + COMMAND_LIMIT_TOL)
-            if out.any():
-                i, j = (int(v) for v in np.argwhere(out)[0])
-                res.status = PlanStatus.TIMING_FAILED
-                res.reason = (f"{m}: joint {j + 1} reaches {tr.q[i, j]:.6g} rad at t = {tr.t[i]:.4g} s, "
-                              f"outside its position limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad "
-                              "(the interpolating spline overshoots between waypoints)")
-                return res
-        if tr.status is not TimingStatus.OK or not _within(tr, ENFORCED[m]):
-            res.status = PlanStatus.TIMING_FAILED
-            res.reason = f"{m}: {tr.reason}" if tr.reason.startswith(tr.status.value) else \
-                f"{m}: {tr.status.value}: {tr.reason}"
-            return res
+        failure = _trajectory_failure(res, m, tr)
+        if failure:
+            res.status, res.reason = PlanStatus.TIMING_FAILED, failure
+            return
         if not _within(tr, ("velocity", "acceleration", "jerk")):
             j = float(np.max(tr.limit_ratio["jerk"]))
             res.warnings.append(f"{m} does not limit jerk: peak jerk ratio {j:.3g} > 1"
                                 + ("" if m != res.controller else "; add 'ruckig' to timing.methods for a "
                                    "jerk-limited controller trajectory"))
-    return res
+
+
+def _trajectory_failure(res: PlanResult, m: str, tr: Trajectory) -> str:
+    """Why trajectory ``tr`` of method ``m`` fails (empty if it does not): its own status, a limit
+    it enforces, or a joint position limit between waypoints (the spline may overshoot)."""
+    robot = res.problem.robot
+    if tr.status is TimingStatus.OK and tr.q.size:
+        out = (tr.q < robot.q_min - COMMAND_LIMIT_TOL) | (tr.q > robot.q_max + COMMAND_LIMIT_TOL)
+        if out.any():
+            i, j = (int(v) for v in np.argwhere(out)[0])
+            return (f"{m}: joint {j + 1} reaches {tr.q[i, j]:.6g} rad at t = {tr.t[i]:.4g} s, "
+                    f"outside its position limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad "
+                    "(the interpolating spline overshoots between waypoints)")
+    if tr.status is not TimingStatus.OK or not _within(tr, ENFORCED[m]):
+        return f"{m}: {tr.reason}" if tr.reason.startswith(tr.status.value) else f"{m}: {tr.status.value}: {tr.reason}"
+    return ""
 
 
 # --------------------------------------------------------------------------------------

@@ -118,9 +118,9 @@ def _targets(arm: ArmModel, q: np.ndarray) -> np.ndarray:
 
 
 def _errors(arm: ArmModel, q_reached: np.ndarray, L: np.ndarray,
-            base2target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            target2base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     p, R = arm.loaded_tcp(q_reached, L)
-    return p - base2target[:, :3, 3], rotation_angle(R, base2target[:, :3, :3])
+    return p - target2base[:, :3, 3], rotation_angle(R, target2base[:, :3, :3])
 
 
 def uncompensated(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray) -> CompensationResult:
@@ -217,28 +217,28 @@ def _pose_solve(arm: ArmModel, q0: np.ndarray, L: np.ndarray, target: np.ndarray
     return q
 
 
-def rigid_pose_solve(model: ArmModel | Robot, q0: np.ndarray, base2target: np.ndarray) -> np.ndarray:
-    """Joints (N, 6) whose *unloaded* TCP under the model's geometry is ``base2target`` (N, 4, 4),
+def rigid_pose_solve(model: ArmModel | Robot, q0: np.ndarray, target2base: np.ndarray) -> np.ndarray:
+    """Joints (N, 6) whose *unloaded* TCP under the model's geometry is ``target2base`` (N, 4, 4),
     by damped Newton from ``q0`` (an IK solution of a nearby chain, e.g. the nominal one)."""
     arm = _arm(model)
     q0 = np.atleast_2d(np.asarray(q0, dtype=float))
     return _pose_solve(arm, q0, np.zeros((len(q0), load_rows(np.zeros(6), 1).shape[1])),
-                       np.asarray(base2target, dtype=float).reshape(-1, 4, 4))
+                       np.asarray(target2base, dtype=float).reshape(-1, 4, 4))
 
 
 def exact(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray,
-          tol_m: float = EXACT_COMPENSATION_TOL, base2target: np.ndarray | None = None) -> CompensationResult:
+          tol_m: float = EXACT_COMPENSATION_TOL, target2base: np.ndarray | None = None) -> CompensationResult:
     """Exact compensation: commands whose deflected, loaded TCP is on the target.
 
     Parameters
     ----------
     q_target : ndarray, shape (N, 6)
         Configurations whose rigid TCP (model geometry) is the target, rad; with
-        ``base2target`` given, the start of the pose solve instead.
+        ``target2base`` given, the start of the pose solve instead.
     load : Load, load rows (N, 19), or a base-frame wrench (6,) / (N, 6)
     tol_m : float
         Largest position residual accepted, m.
-    base2target : ndarray, shape (N, 4, 4), optional
+    target2base : ndarray, shape (N, 4, 4), optional
         Target TCP poses (base frame; TCP-frame coordinates -> base-frame coordinates).
 
     Returns
@@ -249,9 +249,9 @@ def exact(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray
     arm = _arm(model)
     qt = np.atleast_2d(np.asarray(q_target, dtype=float))
     L = load_rows(load, len(qt))
-    target = _targets(arm, qt) if base2target is None else np.asarray(base2target, dtype=float).reshape(-1, 4, 4)
+    target = _targets(arm, qt) if target2base is None else np.asarray(target2base, dtype=float).reshape(-1, 4, 4)
     displaces = "link_compliance" in arm.active_effects
-    q_star = _pose_solve(arm, qt, L, target) if (displaces or base2target is not None) else qt
+    q_star = _pose_solve(arm, qt, L, target) if (displaces or target2base is not None) else qt
     qc = q_star - arm.load_deflection(q_star, L)
     eq = arm.equilibrium(qc, L)
     e, r = _errors(arm, eq.q, L, target)

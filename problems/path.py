@@ -22,11 +22,11 @@ def line_positions(p_start: np.ndarray, p_end: np.ndarray, n: int) -> np.ndarray
     return (1.0 - s) * np.asarray(p_start, float) + s * np.asarray(p_end, float)
 
 
-def poses(positions: np.ndarray, base2tcp_rotation: np.ndarray) -> np.ndarray:
+def poses(positions: np.ndarray, tcp2base_rotation: np.ndarray) -> np.ndarray:
     """Stack positions (N, 3) m with one rotation (3, 3) or N rotations (N, 3, 3) into (N, 4, 4)."""
     p = np.asarray(positions, float)
     T = np.zeros((len(p), 4, 4))
-    T[:, :3, :3] = base2tcp_rotation
+    T[:, :3, :3] = tcp2base_rotation
     T[:, :3, 3] = p
     T[:, 3, 3] = 1.0
     return T
@@ -55,7 +55,7 @@ class BranchPath:
         return BRANCH_LABELS[self.branch]
 
 
-def branch_paths(ik: AnalyticIK, base2tcp: np.ndarray,
+def branch_paths(ik: AnalyticIK, tcp2base: np.ndarray,
                  max_step: float = MAX_JOINT_STEP) -> tuple[dict[int, BranchPath], dict[int, str]]:
     """IK of every waypoint on every branch, unwrapped into continuous joint paths.
 
@@ -66,7 +66,7 @@ def branch_paths(ik: AnalyticIK, base2tcp: np.ndarray,
     rejected : dict branch -> str
         Why each other branch was rejected (naming the waypoint).
     """
-    sol = ik.solve(base2tcp)
+    sol = ik.solve(tcp2base)
     feasible: dict[int, BranchPath] = {}
     rejected: dict[int, str] = {}
     for b in range(8):

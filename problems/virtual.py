@@ -23,7 +23,7 @@ import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -95,7 +95,7 @@ class _Geometry:
 
 
 def _frames(q: np.ndarray, g: _Geometry, convention: str) -> np.ndarray:
-    """Frames base2frame_i (i = 1..6), shape (N, 6, 4, 4)."""
+    """Frames frame_i2base (i = 1..6), shape (N, 6, 4, 4)."""
     n = q.shape[0]
     out = np.zeros((n, 6, 4, 4))
     T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
@@ -154,6 +154,13 @@ def _table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> d
     return dict(t)
 
 
+def _joint_list(where: str, links: Any) -> list[int]:
+    """``links``, checked to be a list of joint numbers 1..6 (``where``: the table, for messages)."""
+    if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
+        raise SimConfigError(f"{where}: key 'links' must be a list of joint numbers 1..6, got {links!r}")
+    return links
+
+
 _EFFECT_KEYS: dict[str, set[str]] = {
     "gravity": {"masses_kg", "coms_m", "mass_scale", "payload_kg", "payload_com_m"},
     "stiffness_hardening": {"model", "knee_torque_Nm", "stiffness_ratio", "beta_per_Nm"},
@@ -184,6 +191,38 @@ def load_config(path: str | Path) -> dict[str, Any]:
         return tomllib.loads(p.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise SimConfigError(f"{p}: not valid TOML: {exc}") from None
+
+
+class _CampaignPlan(NamedTuple):
+    """The validated ``[campaign]`` settings that shape the rows.
+
+    Attributes
+    ----------
+    poses : int
+        Number of measurement poses (>= 1).
+    unloaded_rows, loaded_rows, repeats : int
+        Rows per pose: with zero wrench, with a random load, and repeated rows.
+    force_magnitudes_N : ndarray, shape (M,)
+        Force magnitudes to draw from, N.
+    moment_magnitudes_Nm : ndarray, shape (K,)
+        Moment magnitudes to draw from, N*m.
+    directions : {"random", "axes", "down"}
+        How force directions are drawn (base frame).
+    r_min_m, z_min_m : float
+        Workspace of the sampled poses: flange at least ``r_min_m`` from the base z axis
+        and above ``z_min_m``, m, base frame.
+    """
+
+    poses: int
+    unloaded_rows: int
+    loaded_rows: int
+    repeats: int
+    force_magnitudes_N: np.ndarray
+    moment_magnitudes_Nm: np.ndarray
+    directions: str
+    r_min_m: float
+    z_min_m: float
+
 
 
 # ----------------------------------------------------------------------------------
@@ -227,7 +266,7 @@ class VirtualRobot:
         self.registered = bool(reg.get("registered", False))
         if self.registered:
             self.R_reg, self.t_reg = np.eye(3), np.zeros(3)
-            self.p_tool = robot.flange2tcp[:3, 3].copy()
+            self.p_tool = robot.tcp2flange[:3, 3].copy()
         else:
             self.R_reg = rotvec_to_matrix(_vec(where, "base2meas_rotvec_rad",
                                                reg.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False))
@@ -254,101 +293,167 @@ class VirtualRobot:
 
     # ------------------------------------------------------------------ realisation
     def _realise(self, rng: np.random.Generator) -> None:
-        r, w = self.robot, self.where
+        """Realise the true parameters of every configured effect (in this fixed order).
+
+        Only the geometric errors draw random numbers; the order below is the order of
+        the checks (the first malformed effect is the one reported).
+        """
         self.da = np.zeros(6)
         self.dalpha = np.zeros(6)
         self.dd = np.zeros(6)
         self.dtheta = np.zeros(6)
         self.dbeta = np.zeros(6)
+        self._realise_joint_offset()
+        self._realise_geometric(rng)
+        self._realise_gravity()
+        self._realise_lost_motion()
+        self._realise_stiffness_hardening()
+        self._realise_load_offset()
+        self._realise_link_compliance()
+        self._realise_drift()
+        self._realise_thermal()
+        self._realise_eccentricity()
+
+    def _realise_joint_offset(self) -> None:
+        """Effect ``joint_offset``: add the zero offsets to :attr:`dtheta`, shape (6,), rad."""
         if "joint_offset" in self.effects:
             e = self.effects["joint_offset"]
-            self.dtheta += _vec(f"{w}: [effects.joint_offset]", "dtheta_rad", e.get("dtheta_rad", 1e-3), 6)
-        if "geometric" in self.effects:
-            e = self.effects["geometric"]
-            ew = f"{w}: [effects.geometric]"
-            sl = _num(ew, "sigma_length_m", e.get("sigma_length_m", 5e-4))
-            sa = _num(ew, "sigma_angle_rad", e.get("sigma_angle_rad", 1e-3))
-            self.da += _vec(ew, "da_m", e["da_m"], 6) if "da_m" in e else rng.normal(0, sl, 6)
-            self.dd += _vec(ew, "dd_m", e["dd_m"], 6) if "dd_m" in e else rng.normal(0, sl, 6)
-            self.dalpha += _vec(ew, "dalpha_rad", e["dalpha_rad"], 6) if "dalpha_rad" in e else rng.normal(0, sa, 6)
-            self.dtheta += _vec(ew, "dtheta_rad", e["dtheta_rad"], 6) if "dtheta_rad" in e else rng.normal(0, sa, 6)
-            par = np.abs(np.sin(r.alpha)) < 1e-6
-            par[5] = False
-            beta = _vec(ew, "dbeta_rad", e["dbeta_rad"], 6) if "dbeta_rad" in e else rng.normal(0, sa, 6)
-            self.dbeta += np.where(par, beta, 0.0)
-        # gravity: link masses and COMs (robot file, overrides, or a generic set)
+            self.dtheta += _vec(f"{self.where}: [effects.joint_offset]", "dtheta_rad",
+                                e.get("dtheta_rad", 1e-3), 6)
+
+    def _realise_geometric(self, rng: np.random.Generator) -> None:
+        """Effect ``geometric``: DH errors, given or drawn from ``rng``.
+
+        Adds to :attr:`da`, :attr:`dd` (m), :attr:`dalpha`, :attr:`dtheta` and :attr:`dbeta`
+        (rad), each shape (6,); ``dbeta`` (Hayati) only on joints with a parallel next axis
+        (not joint 6).  Draws, in this order, da, dd, dalpha, dtheta, dbeta (6 normals each,
+        for every one not given).
+        """
+        if "geometric" not in self.effects:
+            return
+        e = self.effects["geometric"]
+        ew = f"{self.where}: [effects.geometric]"
+        sl = _num(ew, "sigma_length_m", e.get("sigma_length_m", 5e-4))
+        sa = _num(ew, "sigma_angle_rad", e.get("sigma_angle_rad", 1e-3))
+        self.da += _vec(ew, "da_m", e["da_m"], 6) if "da_m" in e else rng.normal(0, sl, 6)
+        self.dd += _vec(ew, "dd_m", e["dd_m"], 6) if "dd_m" in e else rng.normal(0, sl, 6)
+        self.dalpha += _vec(ew, "dalpha_rad", e["dalpha_rad"], 6) if "dalpha_rad" in e else rng.normal(0, sa, 6)
+        self.dtheta += _vec(ew, "dtheta_rad", e["dtheta_rad"], 6) if "dtheta_rad" in e else rng.normal(0, sa, 6)
+        par = np.abs(np.sin(self.robot.alpha)) < 1e-6
+        par[5] = False
+        beta = _vec(ew, "dbeta_rad", e["dbeta_rad"], 6) if "dbeta_rad" in e else rng.normal(0, sa, 6)
+        self.dbeta += np.where(par, beta, 0.0)
+
+    def _realise_gravity(self) -> None:
+        """Effect ``gravity``: link masses and COMs (robot file, overrides, or a generic set).
+
+        Sets :attr:`masses` (6,) kg, :attr:`coms` (6, 3) m in link frame i, :attr:`payload`
+        kg and :attr:`payload_com` (3,) m in the flange frame; zeros without the effect.
+        """
+        r = self.robot
         self.masses = np.zeros(6)
         self.coms = np.zeros((6, 3))
-        if "gravity" in self.effects:
-            e = self.effects["gravity"]
-            ew = f"{w}: [effects.gravity]"
-            if "masses_kg" in e:
-                self.masses = _vec(ew, "masses_kg", e["masses_kg"], 6)
-            elif r.has_masses:
-                self.masses = r.masses.copy()
-            else:
-                self.masses = 12.0 * np.hypot(r.a, r.d) + 0.5   # generic: 12 kg/m plus 0.5 kg per joint
-            if "coms_m" in e:
-                c = e["coms_m"]
-                if not isinstance(c, list) or len(c) != 6:
-                    raise SimConfigError(f"{ew}: key 'coms_m' must be a list of 6 [x, y, z] lists")
-                self.coms = np.array([_vec(ew, f"coms_m[{i}]", ci, 3, False) for i, ci in enumerate(c)])
-            elif r.has_masses:
-                self.coms = r.coms.copy()
-            else:   # generic: half way back along the link (in link frame i, standard DH: -a/2 on x)
-                self.coms = np.column_stack([-r.a / 2.0, np.zeros(6), np.zeros(6)])
-            self.masses = self.masses * _num(ew, "mass_scale", e.get("mass_scale", 1.0))
-            self.payload = _num(ew, "payload_kg", e.get("payload_kg", 0.0))
-            self.payload_com = _vec(ew, "payload_com_m", e.get("payload_com_m", [0.0, 0.0, 0.05]), 3, False)
-        else:
+        if "gravity" not in self.effects:
             self.payload, self.payload_com = 0.0, np.zeros(3)
+            return
+        e = self.effects["gravity"]
+        ew = f"{self.where}: [effects.gravity]"
+        if "masses_kg" in e:
+            self.masses = _vec(ew, "masses_kg", e["masses_kg"], 6)
+        elif r.has_masses:
+            self.masses = r.masses.copy()
+        else:
+            self.masses = 12.0 * np.hypot(r.a, r.d) + 0.5   # generic: 12 kg/m plus 0.5 kg per joint
+        if "coms_m" in e:
+            c = e["coms_m"]
+            if not isinstance(c, list) or len(c) != 6:
+                raise SimConfigError(f"{ew}: key 'coms_m' must be a list of 6 [x, y, z] lists")
+            self.coms = np.array([_vec(ew, f"coms_m[{i}]", ci, 3, False) for i, ci in enumerate(c)])
+        elif r.has_masses:
+            self.coms = r.coms.copy()
+        else:   # generic: half way back along the link (in link frame i, standard DH: -a/2 on x)
+            self.coms = np.column_stack([-r.a / 2.0, np.zeros(6), np.zeros(6)])
+        self.masses = self.masses * _num(ew, "mass_scale", e.get("mass_scale", 1.0))
+        self.payload = _num(ew, "payload_kg", e.get("payload_kg", 0.0))
+        self.payload_com = _vec(ew, "payload_com_m", e.get("payload_com_m", [0.0, 0.0, 0.05]), 3, False)
+
+    def _realise_lost_motion(self) -> None:
+        """Effect ``lost_motion``: :attr:`backlash` (6,) rad (half dead band) and
+        :attr:`backlash_smoothing` N*m (0: a hard sign)."""
         if "lost_motion" in self.effects:
             e = self.effects["lost_motion"]
-            self.backlash = _vec(f"{w}: [effects.lost_motion]", "backlash_rad", e.get("backlash_rad", 2e-4), 6)
-            self.backlash_smoothing = _num(w, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
-        if "stiffness_hardening" in self.effects:
-            e = self.effects["stiffness_hardening"]
-            ew = f"{w}: [effects.stiffness_hardening]"
-            self.hard_model = e.get("model", "two_slope")
-            if self.hard_model not in ("two_slope", "smooth"):
-                raise SimConfigError(f"{ew}: key 'model' must be 'two_slope' or 'smooth', got {self.hard_model!r}")
-            self.knee = _vec(ew, "knee_torque_Nm", e.get("knee_torque_Nm", 20.0), 6)
-            self.hard_ratio = _vec(ew, "stiffness_ratio", e.get("stiffness_ratio", 2.0), 6)
-            self.hard_beta = _vec(ew, "beta_per_Nm", e.get("beta_per_Nm", 0.01), 6)
-        self.r_tool = (_vec(w, "r_tool_m", self.effects["load_offset"].get("r_tool_m", [0.0, 0.03, 0.05]), 3, False)
+            self.backlash = _vec(f"{self.where}: [effects.lost_motion]", "backlash_rad",
+                                 e.get("backlash_rad", 2e-4), 6)
+            self.backlash_smoothing = _num(self.where, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
+
+    def _realise_stiffness_hardening(self) -> None:
+        """Effect ``stiffness_hardening``: :attr:`hard_model`, :attr:`knee` (6,) N*m,
+        :attr:`hard_ratio` (6,) and :attr:`hard_beta` (6,) 1/(N*m)."""
+        if "stiffness_hardening" not in self.effects:
+            return
+        e = self.effects["stiffness_hardening"]
+        ew = f"{self.where}: [effects.stiffness_hardening]"
+        self.hard_model = e.get("model", "two_slope")
+        if self.hard_model not in ("two_slope", "smooth"):
+            raise SimConfigError(f"{ew}: key 'model' must be 'two_slope' or 'smooth', got {self.hard_model!r}")
+        self.knee = _vec(ew, "knee_torque_Nm", e.get("knee_torque_Nm", 20.0), 6)
+        self.hard_ratio = _vec(ew, "stiffness_ratio", e.get("stiffness_ratio", 2.0), 6)
+        self.hard_beta = _vec(ew, "beta_per_Nm", e.get("beta_per_Nm", 0.01), 6)
+
+    def _realise_load_offset(self) -> None:
+        """Effect ``load_offset``: :attr:`r_tool` (3,) m, TCP frame, where the wrench's force
+        acts (zeros without the effect)."""
+        self.r_tool = (_vec(self.where, "r_tool_m", self.effects["load_offset"].get("r_tool_m", [0.0, 0.03, 0.05]),
+                            3, False)
                        if "load_offset" in self.effects else np.zeros(3))
-        if "link_compliance" in self.effects:
-            e = self.effects["link_compliance"]
-            ew = f"{w}: [effects.link_compliance]"
-            links = e.get("links", [2, 3])
-            if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
-                raise SimConfigError(f"{ew}: key 'links' must be a list of joint numbers 1..6, got {links!r}")
-            self.beam_links = [x - 1 for x in links]
-            self.EI = _vec(ew, "EI_Nm2", e.get("EI_Nm2", 2.0e5), len(links))
-            self.GJ = _vec(ew, "GJ_Nm2", e.get("GJ_Nm2", 1.5e5), len(links))
+
+    def _realise_link_compliance(self) -> None:
+        """Effect ``link_compliance``: :attr:`beam_links` (0-based joints), :attr:`EI` and
+        :attr:`GJ` (one per link), N*m^2."""
+        if "link_compliance" not in self.effects:
+            return
+        e = self.effects["link_compliance"]
+        ew = f"{self.where}: [effects.link_compliance]"
+        links = _joint_list(ew, e.get("links", [2, 3]))
+        self.beam_links = [x - 1 for x in links]
+        self.EI = _vec(ew, "EI_Nm2", e.get("EI_Nm2", 2.0e5), len(links))
+        self.GJ = _vec(ew, "GJ_Nm2", e.get("GJ_Nm2", 1.5e5), len(links))
+
+    def _realise_drift(self) -> None:
+        """Effect ``drift``: :attr:`drift_rate` (3,) m/s and :attr:`drift_acc` (3,) m/s^2,
+        measurement frame."""
         if "drift" in self.effects:
             e = self.effects["drift"]
+            w = self.where
             self.drift_rate = _vec(w, "rate_m_per_h", e.get("rate_m_per_h", [1e-4, -5e-5, 8e-5]), 3, False) / 3600.0
             self.drift_acc = _vec(w, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3, False) / 3600.0 ** 2
-        if "thermal" in self.effects:
-            e = self.effects["thermal"]
-            ew = f"{w}: [effects.thermal]"
-            self.th_alpha = _num(ew, "alpha_per_K", e.get("alpha_per_K", 2.3e-5))
-            links = e.get("links", [2, 3])
-            if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
-                raise SimConfigError(f"{ew}: key 'links' must be a list of joint numbers 1..6, got {links!r}")
-            self.th_links = [x - 1 for x in links]
-            self.th_ref = _num(ew, "reference_C", e.get("reference_C", 20.0))
-        if "eccentricity" in self.effects:
-            e = self.effects["eccentricity"]
-            ew = f"{w}: [effects.eccentricity]"
-            j = e.get("joint", 1)
-            if not isinstance(j, int) or not 1 <= j <= 6:
-                raise SimConfigError(f"{ew}: key 'joint' must be a joint number 1..6, got {j!r}")
-            self.ecc_joint = j - 1
-            self.ecc_amp = _num(ew, "amplitude_rad", e.get("amplitude_rad", 1e-3))
-            self.ecc_harm = _num(ew, "harmonic", e.get("harmonic", 2))
-            self.ecc_phase = _num(ew, "phase_rad", e.get("phase_rad", 0.3))
+
+    def _realise_thermal(self) -> None:
+        """Effect ``thermal``: :attr:`th_alpha` 1/K, :attr:`th_links` (0-based joints whose
+        a and d expand) and :attr:`th_ref` deg C."""
+        if "thermal" not in self.effects:
+            return
+        e = self.effects["thermal"]
+        ew = f"{self.where}: [effects.thermal]"
+        self.th_alpha = _num(ew, "alpha_per_K", e.get("alpha_per_K", 2.3e-5))
+        links = _joint_list(ew, e.get("links", [2, 3]))
+        self.th_links = [x - 1 for x in links]
+        self.th_ref = _num(ew, "reference_C", e.get("reference_C", 20.0))
+
+    def _realise_eccentricity(self) -> None:
+        """Effect ``eccentricity``: :attr:`ecc_joint` (0-based), :attr:`ecc_amp` rad,
+        :attr:`ecc_harm` (per revolution) and :attr:`ecc_phase` rad."""
+        if "eccentricity" not in self.effects:
+            return
+        e = self.effects["eccentricity"]
+        ew = f"{self.where}: [effects.eccentricity]"
+        j = e.get("joint", 1)
+        if not isinstance(j, int) or not 1 <= j <= 6:
+            raise SimConfigError(f"{ew}: key 'joint' must be a joint number 1..6, got {j!r}")
+        self.ecc_joint = j - 1
+        self.ecc_amp = _num(ew, "amplitude_rad", e.get("amplitude_rad", 1e-3))
+        self.ecc_harm = _num(ew, "harmonic", e.get("harmonic", 2))
+        self.ecc_phase = _num(ew, "phase_rad", e.get("phase_rad", 0.3))
 
     # ------------------------------------------------------------------ physics
     def _geometry(self, temperature: np.ndarray) -> _Geometry:
@@ -366,7 +471,7 @@ class VirtualRobot:
                          beta=np.tile(self.dbeta, (n, 1)))
 
     def _tool(self) -> np.ndarray:
-        return self.robot.flange2tcp
+        return self.robot.tcp2flange
 
     def _torques(self, q: np.ndarray, F: np.ndarray, geo: _Geometry) -> np.ndarray:
         fr = _frames(q, geo, self.convention)
@@ -458,7 +563,7 @@ class VirtualRobot:
         -------
         p_point : ndarray, shape (N, 3)
             Position of ``point`` (flange frame, m; default the measured point), m.
-        base2tcp : ndarray, shape (N, 4, 4)
+        tcp2base : ndarray, shape (N, 4, 4)
             TCP frame of the deflected arm (link compliance applied to the position).
         """
         q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
@@ -486,11 +591,11 @@ class VirtualRobot:
             pm = pm + self.drift_rate * tt + self.drift_acc * tt ** 2
         return pm
 
-    def tcp_error(self, q_command: np.ndarray, F: np.ndarray, base2target: np.ndarray,
+    def tcp_error(self, q_command: np.ndarray, F: np.ndarray, target2base: np.ndarray,
                   temperature: np.ndarray | None = None) -> np.ndarray:
         """True TCP position minus target position, base frame, m, shape (N, 3)."""
         _p, tcp = self.positions(q_command, F, temperature)
-        return tcp[:, :3, 3] - base2target[:, :3, 3]
+        return tcp[:, :3, 3] - target2base[:, :3, 3]
 
     # ------------------------------------------------------------------ campaign
     def sample_poses(self, n: int, rng: np.random.Generator, r_min: float = 0.25,
@@ -539,10 +644,27 @@ class VirtualRobot:
             ``temperature`` and ``sigma``; positions in the measurement frame.
             :attr:`outlier_rows` holds the indices of the rows given gross errors.
         """
+        # One generator, drawn in this order: poses, loads, temperature noise,
+        # measurement noise, outliers.
         rng = np.random.default_rng(self.seed + 1 if seed is None else seed)
-        w = self.where
-        camp = {**DEFAULT_CAMPAIGN, **_table(w, self.config, "campaign", set(DEFAULT_CAMPAIGN))}
-        cw = f"{w}: [campaign]"
+        camp = {**DEFAULT_CAMPAIGN, **_table(self.where, self.config, "campaign", set(DEFAULT_CAMPAIGN))}
+        plan = self._campaign_plan(camp)
+        q_poses = self.sample_poses(plan.poses, rng, plan.r_min_m, plan.z_min_m)
+        q, F, pts = self._campaign_loads(q_poses, plan, rng)
+        n = len(q)
+        t, temperature = self._campaign_times(camp, n, rng)
+        p = self.measure(q, F, t, temperature)
+        p, sig_col = self._campaign_noise(p, rng)
+        self._campaign_outliers(p, rng)
+        if progress is not None:
+            progress(n, n)
+        return Measurements(q=q, wrench=F, p=p, t=t, point=np.array(pts), temperature=temperature,
+                            sigma=sig_col, source="virtual robot")
+
+    def _campaign_plan(self, camp: Mapping[str, Any]) -> _CampaignPlan:
+        """Validate the row-shaping keys of ``camp``, the ``[campaign]`` table merged over
+        :data:`DEFAULT_CAMPAIGN` (``dt_s`` is read later, by :meth:`_campaign_times`)."""
+        cw = f"{self.where}: [campaign]"
         n_poses = int(_num(cw, "poses", camp["poses"]))
         if n_poses < 1:
             raise SimConfigError(f"{cw}: key 'poses' must be >= 1, got {n_poses}")
@@ -554,64 +676,146 @@ class VirtualRobot:
         dirs = camp["directions"]
         if dirs not in ("random", "axes", "down"):
             raise SimConfigError(f"{cw}: key 'directions' must be 'random', 'axes' or 'down', got {dirs!r}")
-        q_poses = self.sample_poses(n_poses, rng, _num(cw, "r_min_m", camp["r_min_m"]),
-                                    _num(cw, "z_min_m", camp["z_min_m"]))
+        return _CampaignPlan(n_poses, n_un, n_ld, n_rep, mags, mmags, dirs,
+                             _num(cw, "r_min_m", camp["r_min_m"]), _num(cw, "z_min_m", camp["z_min_m"]))
+
+    def _campaign_loads(self, q_poses: np.ndarray, plan: _CampaignPlan,
+                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """The rows of the campaign: per pose, unloaded rows, random loads, then repeats.
+
+        Parameters
+        ----------
+        q_poses : ndarray, shape (P, 6)
+            Commanded joint angles of the poses, rad.
+        plan : _CampaignPlan
+        rng : Generator
+            Draws the loads pose by pose (see :meth:`_random_load`).
+
+        Returns
+        -------
+        q : ndarray, shape (N, 6)
+            Commanded joint angles of each row, rad.
+        F : ndarray, shape (N, 6)
+            Wrench ``[f; m]`` on the TCP of each row, N and N*m, base frame.
+        points : list of str
+            Pose label of each row (``P0001``, ...).
+        """
         qs, Fs, pts = [], [], []
-        for k in range(n_poses):
-            rows_F = [np.zeros(6)] * n_un
-            for _ in range(n_ld):
-                mag = rng.choice(mags)
-                if dirs == "random":
-                    u = rng.normal(size=3)
-                    u /= np.linalg.norm(u)
-                elif dirs == "axes":
-                    u = np.zeros(3)
-                    u[rng.integers(3)] = rng.choice([-1.0, 1.0])
-                else:
-                    u = np.array([0.0, 0.0, -1.0])
-                mm = rng.choice(mmags)
-                v = rng.normal(size=3)
-                v /= np.linalg.norm(v)
-                rows_F.append(np.concatenate([mag * u, mm * v]))
-            rows_F = rows_F + [rows_F[i % len(rows_F)] for i in range(n_rep)]
+        for k in range(plan.poses):
+            rows_F = [np.zeros(6)] * plan.unloaded_rows
+            for _ in range(plan.loaded_rows):
+                rows_F.append(self._random_load(plan, rng))
+            rows_F = rows_F + [rows_F[i % len(rows_F)] for i in range(plan.repeats)]
             for Fk in rows_F:
                 qs.append(q_poses[k])
                 Fs.append(Fk)
                 pts.append(f"P{k + 1:04d}")
-        q = np.array(qs)
-        F = np.array(Fs)
-        n = len(q)
-        dt = _num(cw, "dt_s", camp["dt_s"])
+        return np.array(qs), np.array(Fs), pts
+
+    @staticmethod
+    def _random_load(plan: _CampaignPlan, rng: np.random.Generator) -> np.ndarray:
+        """One random load ``[f; m]``, shape (6,), N and N*m, base frame.
+
+        Draws, in order: the force magnitude, the force direction (3 normals for
+        ``random``, an axis and a sign for ``axes``, nothing for ``down``), the moment
+        magnitude and the moment direction (3 normals).
+        """
+        mag = rng.choice(plan.force_magnitudes_N)
+        if plan.directions == "random":
+            u = rng.normal(size=3)
+            u /= np.linalg.norm(u)
+        elif plan.directions == "axes":
+            u = np.zeros(3)
+            u[rng.integers(3)] = rng.choice([-1.0, 1.0])
+        else:
+            u = np.array([0.0, 0.0, -1.0])
+        mm = rng.choice(plan.moment_magnitudes_Nm)
+        v = rng.normal(size=3)
+        v /= np.linalg.norm(v)
+        return np.concatenate([mag * u, mm * v])
+
+    def _campaign_times(self, camp: Mapping[str, Any], n: int,
+                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+        """Measurement times and, with a ``[temperature]`` table, temperatures of the rows.
+
+        Parameters
+        ----------
+        camp : mapping
+            The ``[campaign]`` table merged over :data:`DEFAULT_CAMPAIGN` (``dt_s`` is read).
+        n : int
+            Number of rows N.
+        rng : Generator
+            Draws N temperature-noise normals (only with a ``[temperature]`` table).
+
+        Returns
+        -------
+        t : ndarray, shape (N,)
+            Time of each row, s (``dt_s`` apart, from 0).
+        temperature : ndarray, shape (N,) or None
+            Warm-up curve ``start + (end - start)(1 - exp(-t/tau))`` plus noise, deg C.
+        """
+        dt = _num(f"{self.where}: [campaign]", "dt_s", camp["dt_s"])
         t = np.arange(n) * dt
-        tcfg = _table(w, self.config, "temperature", {"start_C", "end_C", "time_constant_s", "noise_C"})
-        temperature = None
-        if tcfg:
-            tw = f"{w}: [temperature]"
-            t0 = _num(tw, "start_C", tcfg.get("start_C", 20.0))
-            t1 = _num(tw, "end_C", tcfg.get("end_C", t0))
-            tau = _num(tw, "time_constant_s", tcfg.get("time_constant_s", max(t[-1], 1.0) / 2))
-            temperature = t0 + (t1 - t0) * (1 - np.exp(-t / tau))
-            temperature = temperature + rng.normal(0, _num(tw, "noise_C", tcfg.get("noise_C", 0.0)), n)
-        p = self.measure(q, F, t, temperature)
-        ncfg = _table(w, self.config, "noise", {"sigma_m", "sigma_column"})
-        sigma = _num(f"{w}: [noise]", "sigma_m", ncfg.get("sigma_m", 2e-5))
+        tcfg = _table(self.where, self.config, "temperature", {"start_C", "end_C", "time_constant_s", "noise_C"})
+        if not tcfg:
+            return t, None
+        tw = f"{self.where}: [temperature]"
+        t0 = _num(tw, "start_C", tcfg.get("start_C", 20.0))
+        t1 = _num(tw, "end_C", tcfg.get("end_C", t0))
+        tau = _num(tw, "time_constant_s", tcfg.get("time_constant_s", max(t[-1], 1.0) / 2))
+        temperature = t0 + (t1 - t0) * (1 - np.exp(-t / tau))
+        temperature = temperature + rng.normal(0, _num(tw, "noise_C", tcfg.get("noise_C", 0.0)), n)
+        return t, temperature
+
+    def _campaign_noise(self, p: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+        """Add the ``[noise]`` Gaussian measurement noise.
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Noise-free measured positions, measurement frame, m.
+        rng : Generator
+            Draws N x 3 normals.
+
+        Returns
+        -------
+        p : ndarray, shape (N, 3)
+            Noisy positions (a new array), measurement frame, m.
+        sigma : ndarray, shape (N,) or None
+            The per-axis noise sigma of each row, m, if ``sigma_column`` is set.
+        """
+        ncfg = _table(self.where, self.config, "noise", {"sigma_m", "sigma_column"})
+        sigma = _num(f"{self.where}: [noise]", "sigma_m", ncfg.get("sigma_m", 2e-5))
         p = p + rng.normal(0, sigma, p.shape)
+        sig_col = np.full(len(p), sigma) if ncfg.get("sigma_column", False) else None
+        return p, sig_col
+
+    def _campaign_outliers(self, p: np.ndarray, rng: np.random.Generator) -> None:
+        """Effect ``outliers``: add gross errors to some rows of ``p`` in place.
+
+        Sets :attr:`outlier_rows` (sorted row indices; empty without the effect).  Each
+        outlier is a random direction times ``magnitude_m`` times a factor in [1, 2).
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Measured positions, measurement frame, m; modified in place.
+        rng : Generator
+            Draws the rows, then K x 3 normals (directions), then K uniforms (factors).
+        """
         self.outlier_rows = np.zeros(0, dtype=int)
-        if "outliers" in self.effects:
-            e = self.effects["outliers"]
-            frac = _num(f"{w}: [effects.outliers]", "fraction", e.get("fraction", 0.03))
-            mag = _num(f"{w}: [effects.outliers]", "magnitude_m", e.get("magnitude_m", 2e-3))
-            k = max(1, round(frac * n))
-            idx = np.sort(rng.choice(n, size=k, replace=False))
-            u = rng.normal(size=(k, 3))
-            u /= np.linalg.norm(u, axis=1, keepdims=True)
-            p[idx] += u * mag * rng.uniform(1.0, 2.0, (k, 1))
-            self.outlier_rows = idx
-        sig_col = np.full(n, sigma) if ncfg.get("sigma_column", False) else None
-        if progress is not None:
-            progress(n, n)
-        return Measurements(q=q, wrench=F, p=p, t=t, point=np.array(pts), temperature=temperature,
-                            sigma=sig_col, source="virtual robot")
+        if "outliers" not in self.effects:
+            return
+        n = len(p)
+        e = self.effects["outliers"]
+        frac = _num(f"{self.where}: [effects.outliers]", "fraction", e.get("fraction", 0.03))
+        mag = _num(f"{self.where}: [effects.outliers]", "magnitude_m", e.get("magnitude_m", 2e-3))
+        k = max(1, round(frac * n))
+        idx = np.sort(rng.choice(n, size=k, replace=False))
+        u = rng.normal(size=(k, 3))
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        p[idx] += u * mag * rng.uniform(1.0, 2.0, (k, 1))
+        self.outlier_rows = idx
 
     # ------------------------------------------------------------------ truth
     def truth(self) -> dict[str, Any]:

@@ -294,7 +294,7 @@ def test_arm_model_with_every_effect_equals_the_identification_graph(rng):
     arm, theta = _random_model("ur10", rng)
     robot = arm.nominal
     theta = theta.copy()
-    theta[fx.GROUP_SLICES["tool.p"]] = robot.flange2tcp[:3, 3]
+    theta[fx.GROUP_SLICES["tool.p"]] = robot.tcp2flange[:3, 3]
     for g in ("reg.w", "reg.t", "drift.v", "drift.a"):
         theta[fx.GROUP_SLICES[g]] = 0.0
     arm = ArmModel(nominal=robot, theta=theta, tau_scale=arm.tau_scale, gravity_on=True, effects=arm.effects,

@@ -35,7 +35,7 @@ def pinocchio_from_dh(robot) -> tuple[pin.Model, int]:
         # Tz(d) Tx(a) Rx(alpha) of this link
         static_prev = pin.SE3(np.eye(3), np.array([0.0, 0.0, j.d])) * \
             pin.SE3(rot_x(j.alpha), np.array([j.a, 0.0, 0.0]))
-    tcp = static_prev * pin.SE3(robot.flange2tcp[:3, :3], robot.flange2tcp[:3, 3])
+    tcp = static_prev * pin.SE3(robot.tcp2flange[:3, :3], robot.tcp2flange[:3, 3])
     fid = model.addFrame(pin.Frame("tcp", parent, 0, tcp, pin.FrameType.OP_FRAME))
     return model, fid
 

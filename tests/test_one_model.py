@@ -77,7 +77,7 @@ def _truth_landing(vr: VirtualRobot, q_command: np.ndarray, load: Load, target_p
 @pytest.fixture(scope="module")
 def identified_ur10(tmp_path_factory):
     problem = load_problem("ur10_payload_tilt")
-    vr, robot = _truth("ur10", problem.robot.flange2tcp, seed=21)
+    vr, robot = _truth("ur10", problem.robot.tcp2flange, seed=21)
     res = identify(robot, vr.campaign(), registered=True)
     path = tmp_path_factory.mktemp("model") / "ur10_identified.toml"
     path.write_text(model_toml(res.model))
@@ -109,7 +109,7 @@ def test_identified_model_plans_commands_that_land_on_the_truth_robot(identified
 
 def test_tool_frame_wrench_plan_lands_on_the_truth_robot():
     problem = load_problem("ur5_tool_thrust")
-    vr, robot = _truth("ur5", problem.robot.flange2tcp, seed=22)
+    vr, robot = _truth("ur5", problem.robot.tcp2flange, seed=22)
     res = identify(robot, vr.campaign(), registered=True)
     identified = plan(problem.with_robot(res.model))
     nominal = plan(problem)
@@ -130,9 +130,9 @@ def test_plan_with_identified_model_equals_compensate_on_the_same_commands(ident
     problem = replace(problem, payload_mass_kg=0.0,
                       wrench=np.broadcast_to([0.0, 0.0, -50.0, 0.0, 0.0, 0.0], (problem.n, 6)).copy())
     out = plan(problem.with_robot(str(model_path)))
-    model = load_model(model_path).with_tool(problem.robot.flange2tcp)
+    model = load_model(model_path).with_tool(problem.robot.tcp2flange)
     targets = model.kinematics.tcp(out.branch.q)
-    comp = compensate(model, out.branch.q, problem.wrench, base2target=targets)
+    comp = compensate(model, out.branch.q, problem.wrench, target2base=targets)
     assert comp.status is CompensationStatus.OK
     assert np.abs(comp.q_command - out.exact.q_command).max() < 1e-12
 

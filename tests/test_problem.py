@@ -61,12 +61,12 @@ def test_paper_problem_is_the_papers_scenario():
     assert np.allclose(pr.positions[-1], paper.SECTION_4_4_END_M)
     assert np.allclose(pr.wrench, paper.SECTION_4_4_WRENCH)
     assert np.allclose(pr.home_q, paper.HOME_Q)
-    assert np.allclose(pr.robot.flange2tcp, np.eye(4))
+    assert np.allclose(pr.robot.tcp2flange, np.eye(4))
     assert np.allclose(pr.rotations[0][:, 2], [0.0, 0.0, -1.0])      # tool down
 
 
 def test_off_axis_problems_have_their_tool():
-    assert np.allclose(load_problem("machining_offaxis").robot.flange2tcp[:3, 3], [0.1, 0.0, 0.05])
+    assert np.allclose(load_problem("machining_offaxis").robot.tcp2flange[:3, 3], [0.1, 0.0, 0.05])
     dr = load_problem("drilling_cone")
     assert math.isclose(dr.cone_half_angle, math.radians(20.0))
     assert dr.wrench_per_waypoint and np.ptp(dr.wrench[:, 2]) > 0
@@ -82,7 +82,7 @@ def test_to_dict_round_trips(name):
     assert math.isclose(again.cone_half_angle, pr.cone_half_angle)
     for key in ("velocity", "acceleration", "jerk"):
         assert np.allclose(getattr(again.limits, key), getattr(pr.limits, key))
-    assert np.allclose(again.robot.flange2tcp, pr.robot.flange2tcp)
+    assert np.allclose(again.robot.tcp2flange, pr.robot.tcp2flange)
     assert again.timing == pr.timing and again.solver == pr.solver
 
 
@@ -104,7 +104,7 @@ def test_units_scales_axis_and_relative_robot_path(tmp_path):
     text += "[limits]\nvelocity_scale = 0.5\njerk = 20.0\nmax_joint_step_deg = 10\n[timing]\ndt = 0.002\n"
     pr = load_problem(_write(tmp_path / "", text))
     assert pr.robot.name == "ur5"
-    assert np.allclose(pr.robot.flange2tcp[:3, 3], [0.0, 0.0, 0.1])
+    assert np.allclose(pr.robot.tcp2flange[:3, 3], [0.0, 0.0, 0.1])
     assert np.allclose(pr.rotations[0][:, 2], [1.0, 0.0, 0.0])
     assert math.isclose(pr.cone_half_angle, math.radians(10))
     assert np.allclose(pr.limits.velocity, 0.5 * load_robot("ur5").v_max)

@@ -4,12 +4,12 @@ The forward model of the loaded arm (all frames and vectors in the base frame
 unless stated; SI units)::
 
     dh      = geometry hooks applied to the nominal DH table (offsets, errors, thermal)
-    frames  = chain(q; dh)                       base2frame_i, i = 1..6 (frame 6: flange)
+    frames  = chain(q; dh)                       frame_i2base, i = 1..6 (frame 6: flange)
     W       = wrench on the TCP, [f (N); m (N*m)], base frame (the load, see models.load)
     tau     = J_v^T f + J_w^T (m + r x f) + joint-torque hooks (self-weight)
     dq      = sum of joint-deflection hooks(tau)  (linear springs, hardening, lost motion)
     q       = q_c + dq(q)                         deflected equilibrium (deflection at the deflected pose)
-    p       = base2flange(q) * point + point-displacement hooks (link compliance)
+    p       = flange2base(q) * point + point-displacement hooks (link compliance)
     p_meas  = measurement hooks(p)                (registration, drift; identification only)
 
 This module builds that graph once for every use: identification (parameters
@@ -87,7 +87,7 @@ def _is_zero(x: Any) -> bool:
 
 
 def chain(q: Any, dh: dict[str, Any], convention: str) -> list[Any]:
-    """Frames ``base2frame_i`` (i = 1..6) of the chain ``A_i(q_i + theta_offset_i) Ry(beta_i)``.
+    """Frames ``frame_i2base`` (i = 1..6) of the chain ``A_i(q_i + theta_offset_i) Ry(beta_i)``.
 
     ``dh`` holds length-6 vectors ``a, alpha, d, theta_offset, beta`` (symbolic or numeric);
     ``beta`` is the Hayati angle of nominally parallel consecutive axes (0 elsewhere).
@@ -391,10 +391,10 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
     springs = base.effect("joint_springs")
     c = springs.compliance(ctx)
     C = compliance_from_jacobian(J, c)
-    names = [f"base2frame{i + 1}" for i in range(6)]
+    names = [f"frame{i + 1}2base" for i in range(6)]
     out = {
         "fk_frames": ca.Function("fk_frames", [q], frames, ["q"], names),
-        "fk_tcp": ca.Function("fk_tcp", [q], [tcp], ["q"], ["base2tcp"]),
+        "fk_tcp": ca.Function("fk_tcp", [q], [tcp], ["q"], ["tcp2base"]),
         "fk_position": ca.Function("fk_position", [q], [tcp[:3, 3]], ["q"], ["p_tcp"]),
         "jacobian": ca.Function("jacobian", [q], [J], ["q"], ["J"]),
         "compliance": ca.Function("compliance", [q], [C], ["q"], ["C"]),

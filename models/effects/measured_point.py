@@ -17,5 +17,5 @@ class MeasuredPoint(Effect):
     acts_on = MEASUREMENT
     declared = True
     groups = (ParamGroup("tool.p", xyz_labels("measured_point"), "m", scale=1e-3,
-                         default=lambda r: r.flange2tcp[:3, 3]),)
+                         default=lambda r: r.tcp2flange[:3, 3]),)
     formula = "the measured point, flange frame"

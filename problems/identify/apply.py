@@ -12,7 +12,7 @@
 * :func:`compensation_check` -- simulate, compensate, re-measure on a virtual robot;
 * :func:`validate_on` -- RMS on a held-out measurement file.
 
-Frames: ``base2target`` poses map target-frame coordinates to base-frame coordinates
+Frames: ``target2base`` poses map target-frame coordinates to base-frame coordinates
 (4x4, m); ``model.base2meas()`` maps base-frame coordinates to measurement-frame
 coordinates.  Everything is SI.
 """
@@ -88,11 +88,11 @@ def _at_temperature(model: ArmModel, temperature: np.ndarray | None) -> list[tup
 
 def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
                temperature: np.ndarray | None = None,
-               base2target: np.ndarray | None = None) -> CompensationOutcome:
+               target2base: np.ndarray | None = None) -> CompensationOutcome:
     """Commands that put the real TCP on its targets under ``wrench``.
 
     The targets are the nominal-FK TCP of ``q_in`` (the robot file's chain: what the
-    user commanded), or the poses ``base2target`` when given.  The engine is the
+    user commanded), or the poses ``target2base`` when given.  The engine is the
     product's one exact compensation (:func:`problems.compensation.exact`) on the
     identified arm model; the equilibrium reached from the commands is solved
     independently and its TCP compared with the target.
@@ -107,7 +107,7 @@ def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
         (:mod:`models.load`).
     temperature : ndarray, shape (N,), optional
         deg C (thermal models are evaluated per temperature).
-    base2target : ndarray, shape (N, 4, 4), optional
+    target2base : ndarray, shape (N, 4, 4), optional
         Target TCP poses, base frame (TCP-frame coordinates -> base-frame coordinates), m.
 
     Returns
@@ -119,7 +119,7 @@ def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
     q_in = np.atleast_2d(np.asarray(q_in, dtype=float))
     n = len(q_in)
     L = load_rows(np.asarray(wrench, dtype=float), n)
-    target = _nominal_tcp(model.nominal, q_in) if base2target is None else np.asarray(base2target, float)
+    target = _nominal_tcp(model.nominal, q_in) if target2base is None else np.asarray(target2base, float)
     q_c = np.zeros_like(q_in)
     q_eq = np.zeros_like(q_in)
     res = np.zeros(n)
@@ -128,7 +128,7 @@ def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
     if len(groups[0][0]) == 0:
         groups = [(np.arange(n), model)]
     for idx, arm in groups:
-        out = exact_compensation(arm, q_in[idx], L[idx], tol_m=COMPENSATION_RESIDUAL_TOL, base2target=target[idx])
+        out = exact_compensation(arm, q_in[idx], L[idx], tol_m=COMPENSATION_RESIDUAL_TOL, target2base=target[idx])
         q_c[idx], q_eq[idx] = out.q_command, out.q_deflected
         res[idx], rres[idx] = out.error_norm_m, out.error_rad
     bad_rows = np.flatnonzero(~(np.isfinite(res) & (res <= COMPENSATION_RESIDUAL_TOL)))
@@ -192,7 +192,7 @@ def measured_point_model(model: ArmModel) -> ArmModel:
     :attr:`~models.arm.ArmModel.measured_point` (flange frame, m); the planning TCP
     correction is dropped (the measured point is the identified point itself).
     """
-    T = np.array(model.nominal.flange2tcp, dtype=float)
+    T = np.array(model.nominal.tcp2flange, dtype=float)
     T[:3, 3] = model.measured_point
     return replace(model.with_tool(T), tcp_correction_m=np.zeros(3))
 
@@ -208,7 +208,7 @@ def _measured_point_loads(model: ArmModel, wrench: np.ndarray) -> np.ndarray:
     ``a`` and "gravity" ``f``.
     """
     F = np.atleast_2d(np.asarray(wrench, dtype=float))
-    T = np.asarray(model.nominal.flange2tcp, dtype=float)
+    T = np.asarray(model.nominal.tcp2flange, dtype=float)
     a = T[:3, :3].T @ (T[:3, 3] - model.measured_point)
     L = np.zeros((len(F), LOAD_SIZE))
     L[:, 3:6] = F[:, 3:6]
@@ -270,7 +270,7 @@ def alias_effect_m(model: ArmModel, names: list[str], q: np.ndarray, wrench: np.
     theta = model.theta.copy()
     theta[GROUP_SLICES["reg.w"]] = 0.0
     theta[GROUP_SLICES["reg.t"]] = 0.0
-    theta[GROUP_SLICES["tool.p"]] = np.asarray(robot.flange2tcp)[:3, 3] + np.asarray(model.tcp_correction_m)
+    theta[GROUP_SLICES["tool.p"]] = np.asarray(robot.tcp2flange)[:3, 3] + np.asarray(model.tcp_correction_m)
     const = make_const(robot, np.eye(3), model.tau_scale, model.gravity_on, model.beams, model.knots)
     m = Measurements(q=np.atleast_2d(q), wrench=np.atleast_2d(wrench), temperature=temperature)
     rows = make_rows(m, None, model.temperature_ref)
@@ -360,17 +360,17 @@ def compensate_targets(model: ArmModel, m: Measurements,
         if frame is TargetsFrame.BASE:
             _check_seeds(m, p, target[:, :3, 3].copy(), frame, "nominal TCP")
             target[:, :3, 3] = p
-            out = compensate(model, m.q, m.wrench, m.temperature, base2target=target)
+            out = compensate(model, m.q, m.wrench, m.temperature, target2base=target)
         else:
             b2m = model.base2meas()
             p_base = (p - b2m[:3, 3]) @ b2m[:3, :3]                 # R^T (p - t), row-wise
-            tcp2point = np.linalg.solve(np.asarray(model.nominal.flange2tcp, dtype=float),
+            point_in_tcp = np.linalg.solve(np.asarray(model.nominal.tcp2flange, dtype=float),
                                         np.append(model.measured_point, 1.0))[:3]
-            seed = target[:, :3, :3] @ tcp2point + target[:, :3, 3]
+            seed = target[:, :3, :3] @ point_in_tcp + target[:, :3, 3]       # (N, 3) base frame
             _check_seeds(m, p_base, seed, frame, "measured point of the nominal arm (mapped to the base frame)")
             target[:, :3, 3] = p_base
             out = compensate(measured_point_model(model), m.q, _measured_point_loads(model, m.wrench),
-                             m.temperature, base2target=target)
+                             m.temperature, target2base=target)
     out.targets_frame = frame
     if frame is not TargetsFrame.MEASUREMENT:
         warn = base_frame_warning(model, m.q, m.wrench, m.temperature)
@@ -413,7 +413,7 @@ def compensation_check(vr: Any, model: IdentifiedModel, n_poses: int = 40,
     # by the identified registration (what a tracker can check; free of the base-frame aliasing
     # of unregistered data)
     b2m = model.base2meas()
-    p_t = target[:, :3, :3] @ (np.linalg.solve(model.nominal.flange2tcp, np.append(model.measured_point, 1.0))[:3]) \
+    p_t = target[:, :3, :3] @ (np.linalg.solve(model.nominal.tcp2flange, np.append(model.measured_point, 1.0))[:3]) \
         + target[:, :3, 3]
     p_t = p_t @ b2m[:3, :3].T + b2m[:3, 3]
     t0 = np.full(n_poses, model.time_ref[0])   # drift is zero at the campaign's first row

@@ -400,7 +400,7 @@ def _build_model(run: _Run, st: _State, s: _Setup, std: np.ndarray, free: Sequen
                            registered=run.registered, std={PARAM_NAMES[i]: float(std[i]) for i in free},
                            noise_sigma_m=sigma_noise,
                            held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order},
-                           tcp_correction_m=(fit.theta[GROUP_SLICES["tool.p"]] - robot.flange2tcp[:3, 3]
+                           tcp_correction_m=(fit.theta[GROUP_SLICES["tool.p"]] - robot.tcp2flange[:3, 3]
                                              if run.registered else np.zeros(3)),
                            torque_range_Nm=torque_range)
 

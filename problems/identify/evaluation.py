@@ -248,7 +248,7 @@ def _nominal_points(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 
 def _nominal_tcp(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """Nominal-FK TCP frames of joints ``q`` (N, 6) rad: ``base2tcp``, (N, 4, 4), m, via
+    """Nominal-FK TCP frames of joints ``q`` (N, 6) rad: ``tcp2base``, (N, 4, 4), m, via
     ``Function.map`` (no compilation)."""
     km = KinematicModel(robot)
     n = len(q)

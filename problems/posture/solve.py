@@ -37,7 +37,7 @@ def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
     Parameters
     ----------
     robot : Robot
-        Its tool (``flange2tcp``, flange frame, m) decides whether the free rotation is
+        Its tool (``tcp2flange``, flange frame, m) decides whether the free rotation is
         degenerate (TCP on the joint-6 axis and tool axis along it).
     rule : OrientationRule
 
@@ -50,7 +50,7 @@ def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
     if rule is OrientationRule.FIXED:
         return "none", ("fixed orientation: six equations for six joints, the posture is the IK "
                         "solution of each branch; only the branch is chosen")
-    T = robot.flange2tcp
+    T = robot.tcp2flange
     off = float(np.hypot(T[0, 3], T[1, 3]))
     # Angle between the tool axis and the joint-6 axis, either sense (a tool axis
     # anti-parallel to joint 6 is just as degenerate).
@@ -89,7 +89,7 @@ def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.nda
     ----------
     robot : ArmModel or Robot
         The arm model (a :class:`Robot` is wrapped in its nominal model), with its tool
-        (``flange2tcp``); must be UR-type for the analytic warm starts.  Its
+        (``tcp2flange``); must be UR-type for the analytic warm starts.  Its
         ``kinematics.fn["load_error"]`` is the objective.
     task : PostureTask
     home_q : ndarray, shape (6,)

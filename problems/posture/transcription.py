@@ -360,7 +360,7 @@ def _model_key(arm: ArmModel) -> tuple:
     """Hashable key of everything in the arm model the stage functions depend on."""
     r = arm.nominal
     return (r.convention, tuple(r.a), tuple(r.alpha), tuple(r.d), tuple(r.theta_offset), tuple(r.stiffness),
-            tuple(r.flange2tcp.reshape(-1)), arm.active_effects, arm.theta.tobytes(), arm.const.tobytes(),
+            tuple(r.tcp2flange.reshape(-1)), arm.active_effects, arm.theta.tobytes(), arm.const.tobytes(),
             float(arm.temperature_ref))
 
 

@@ -1,0 +1,671 @@
+"""The problem-file format: one validating parser per section of a problem file.
+
+A problem file (TOML, documented in ``docs/problem-file.md``) has the sections
+header (``name``, ``description``, ``source``), ``[robot]`` (with its tool),
+``[orientation]``, ``[path]``, ``[wrench]``, ``[payload]``, ``[limits]``,
+``[cost]``, ``[solver]``, ``[branch]`` and ``[timing]``.  Each ``parse_*``
+function below validates one section of the parsed document and returns its
+values in SI units (m, rad, N, N*m, kg, s); :func:`problems.problem.problem_from_dict`
+calls them in file order and assembles the :class:`~problems.problem.Problem`.
+
+Every error is a :class:`ProblemFileError` naming the file, the key (dotted,
+e.g. ``path.points``) and, for tables of rows, the row; the value found; and
+what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping, NamedTuple
+
+import numpy as np
+
+from models.arm import ArmModel, load_arm
+from models.constants import PLAUSIBLE_POSITION_MAX_M
+from models.errors import InputError
+from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError
+from models.transforms import matrix_to_rpy, rpy_to_matrix, transform
+from problems import paper
+from problems.path import MAX_JOINT_STEP, line_positions
+from problems.posture import (DEFAULT_MAX_ITER, DEFAULT_SCAN, DEFAULT_SMOOTHNESS, DEFAULT_TOL,
+                              OrientationRule, SolverSettings)
+
+#: Time-parametrisation methods a problem may name (see planner.timing).
+TIMING_METHODS = ("toppra", "ruckig")
+#: Default controller period, s.
+DEFAULT_DT = 0.008
+#: Largest accepted controller period, s.
+DT_MAX = 0.1
+#: Largest accepted number of waypoints (keeps an NLP at a sane size).
+MAX_WAYPOINTS = 2000
+#: Default nominal TCP orientation: tool z axis pointing down (roll = 180 deg).
+DEFAULT_RPY = np.array([math.pi, 0.0, 0.0])
+
+_TOP = ("name", "description", "source", "robot", "path", "orientation", "wrench", "payload", "limits",
+        "cost", "solver", "branch", "timing")
+#: Frames a wrench may be given in.
+WRENCH_FRAMES = ("base", "tool")
+_TABLE_KEYS: dict[str, tuple[str, ...]] = {
+    "robot": ("model", "tool"),
+    "robot.tool": ("xyz", "rpy", "rpy_deg"),
+    "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg"),
+    "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
+    "wrench": ("frame", "force", "moment", "per_waypoint"),
+    "payload": ("mass_kg", "com_m", "gravity_m_s2"),
+    "limits": ("velocity", "acceleration", "jerk", "velocity_scale", "acceleration_scale",
+               "jerk_scale", "max_joint_step", "max_joint_step_deg"),
+    "cost": ("smoothness",),
+    "solver": ("name", "max_iter", "tol", "codegen"),
+    "branch": ("home", "home_deg"),
+    "timing": ("methods", "dt", "toppra_gridpoints", "toppra_max_iterations",
+               "ruckig_max_iterations"),
+}
+
+
+class ProblemFileError(InputError):
+    """A problem file is malformed; the message names the file, key, value and expectation."""
+
+
+# --------------------------------------------------------------------------------------
+# Settings and parsed sections
+# --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Limits:
+    """Kinematic limits used by the plan (SI).
+
+    Attributes
+    ----------
+    velocity, acceleration, jerk : ndarray, shape (6,)
+        rad/s, rad/s^2, rad/s^3.
+    max_joint_step : float
+        Largest joint step between neighbouring waypoints, rad.
+    """
+
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+    max_joint_step: float = MAX_JOINT_STEP
+
+
+@dataclass(frozen=True)
+class TimingSettings:
+    """Time parametrisation: methods by name, controller period and method options."""
+
+    methods: tuple[str, ...] = TIMING_METHODS
+    dt: float = DEFAULT_DT
+    toppra_gridpoints: int = 0          # 0: the timing module's default
+    toppra_max_iterations: int = 0      # 0: default
+    ruckig_max_iterations: int = 0      # 0: default
+
+    def options(self, method: str) -> dict[str, int]:
+        """Keyword options for ``planner.timing.time_parametrize``."""
+        out: dict[str, int] = {}
+        if method == "toppra":
+            if self.toppra_gridpoints:
+                out["gridpoints"] = self.toppra_gridpoints
+            if self.toppra_max_iterations:
+                out["max_iterations"] = self.toppra_max_iterations
+        elif method == "ruckig" and self.ruckig_max_iterations:
+            out["max_iterations"] = self.ruckig_max_iterations
+        return out
+
+
+class Header(NamedTuple):
+    """The top-level keys of a problem file.
+
+    Attributes
+    ----------
+    name : str
+        Non-empty, stripped.
+    description : str
+        Stripped; ``""`` if absent.
+    source_text : str
+        The file's ``source`` key (where the task comes from), stripped; ``""`` if absent.
+    """
+
+    name: str
+    description: str
+    source_text: str
+
+
+class RobotSection(NamedTuple):
+    """The ``[robot]`` section.
+
+    Attributes
+    ----------
+    spec : str
+        The robot as named in the file (built-in name, or robot / model file path
+        resolved against the problem file's directory).
+    arm : ArmModel
+        The arm model with the file's tool (``robot.tool``: TCP in the flange frame, m, rad)
+        applied.
+    """
+
+    spec: str
+    arm: ArmModel
+
+
+class OrientationSection(NamedTuple):
+    """The ``[orientation]`` section.
+
+    Attributes
+    ----------
+    rule : OrientationRule
+    nominal_rpy : ndarray, shape (3,)
+        Nominal base->TCP roll-pitch-yaw, rad.
+    rotation : ndarray, shape (3, 3)
+        The same nominal base->TCP rotation as a matrix (base frame).
+    cone_half_angle : float
+        rad (rule ``cone``), else 0.
+    scan : int
+        Scanned rotations about the tool axis for the warm starts.
+    """
+
+    rule: OrientationRule
+    nominal_rpy: np.ndarray
+    rotation: np.ndarray
+    cone_half_angle: float
+    scan: int
+
+
+class PathSection(NamedTuple):
+    """The ``[path]`` section.
+
+    Attributes
+    ----------
+    kind : {"line", "waypoints"}
+    line : tuple (start (3,), end (3,)) or None
+        For ``line`` paths, m, base frame.
+    positions : ndarray, shape (N, 3)
+        TCP waypoints, m, base frame.
+    rotations : ndarray, shape (N, 3, 3)
+        Nominal base->TCP rotations (the path's own or the orientation's nominal one).
+    """
+
+    kind: str
+    line: tuple[np.ndarray, np.ndarray] | None
+    positions: np.ndarray
+    rotations: np.ndarray
+
+
+class WrenchSection(NamedTuple):
+    """The ``[wrench]`` section.
+
+    Attributes
+    ----------
+    frame : {"base", "tool"}
+        Frame of the wrench (``tool``: the TCP frame, turning with the tool).
+    wrench : ndarray, shape (N, 6)
+        ``[f; m]`` on the TCP per waypoint, N and N*m, in ``frame``.
+    per_waypoint : bool
+        Whether the file gave one row per waypoint.
+    """
+
+    frame: str
+    wrench: np.ndarray
+    per_waypoint: bool
+
+
+class PayloadSection(NamedTuple):
+    """The ``[payload]`` section (all defaults when the table is absent or empty).
+
+    Attributes
+    ----------
+    mass_kg : float
+        Payload mass, kg (0 if absent).
+    com_m : ndarray, shape (3,)
+        Payload centre of mass, TCP frame, m.
+    gravity : ndarray, shape (3,) or None
+        Gravity acting on the payload, base frame, m/s^2; None: the robot's.
+    """
+
+    mass_kg: float
+    com_m: np.ndarray
+    gravity: np.ndarray | None
+
+
+# --------------------------------------------------------------------------------------
+# Value helpers (every message: "<file>: key '<key>' ...")
+# --------------------------------------------------------------------------------------
+
+def _err(where: str, key: str, msg: str) -> ProblemFileError:
+    return ProblemFileError(f"{where}: key '{key}' {msg}")
+
+
+def _number(where: str, key: str, v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _err(where, key, f"must be a number, got {v!r}")
+    f = float(v)
+    if not math.isfinite(f):
+        raise _err(where, key, f"must be finite, got {v!r}")
+    return f
+
+
+def _positive(where: str, key: str, v: Any) -> float:
+    f = _number(where, key, v)
+    if f <= 0.0:
+        raise _err(where, key, f"must be > 0, got {v!r}")
+    return f
+
+
+def _integer(where: str, key: str, v: Any, lo: int, hi: int | None = None) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
+        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise _err(where, key, f"must be an integer {rng}, got {v!r}")
+    return int(v)
+
+
+def _vector(where: str, key: str, v: Any, n: int) -> np.ndarray:
+    if not isinstance(v, list) or len(v) != n:
+        raise _err(where, key, f"must be a list of {n} numbers, got {v!r}")
+    return np.array([_number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+
+
+def _vector_or_scalar(where: str, key: str, v: Any, n: int) -> np.ndarray:
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return np.full(n, _number(where, key, v))
+    return _vector(where, key, v, n)
+
+
+def _rows(where: str, key: str, v: Any, width: int) -> np.ndarray:
+    if not isinstance(v, list) or not v:
+        raise _err(where, key, f"must be a non-empty list of rows of {width} numbers, got {v!r}")
+    out = np.empty((len(v), width))
+    for i, row in enumerate(v):
+        if not isinstance(row, list) or len(row) != width:
+            raise ProblemFileError(f"{where}: key '{key}' row {i}: must be a list of {width} numbers, "
+                                   f"got {row!r}")
+        for j, x in enumerate(row):
+            out[i, j] = _number(where, f"{key}[{i}][{j}]", x)
+    return out
+
+
+def _table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+    parts = key.split(".")
+    cur: Any = data
+    for p in parts:
+        cur = cur.get(p, {}) if isinstance(cur, Mapping) else None
+        if not isinstance(cur, Mapping):
+            raise _err(where, key, f"must be a table, got {cur!r}")
+    unknown = sorted(set(cur) - set(_TABLE_KEYS[key]))
+    if unknown:
+        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: "
+                               f"{list(_TABLE_KEYS[key])}")
+    return cur
+
+
+def _angle_pair(where: str, tab: Mapping[str, Any], key: str, prefix: str) -> tuple[Any, bool] | None:
+    """The raw value of ``key`` (rad) or ``key_deg``, and whether it is in degrees."""
+    has_rad, has_deg = key in tab, f"{key}_deg" in tab
+    if has_rad and has_deg:
+        raise ProblemFileError(f"{where}: give either '{prefix}{key}' (rad) or '{prefix}{key}_deg', not both")
+    if has_deg:
+        return tab[f"{key}_deg"], True
+    if has_rad:
+        return tab[key], False
+    return None
+
+
+def _rpy(where: str, tab: Mapping[str, Any], prefix: str) -> np.ndarray | None:
+    got = _angle_pair(where, tab, "rpy", prefix)
+    if got is None:
+        return None
+    raw, deg = got
+    v = _vector(where, f"{prefix}rpy{'_deg' if deg else ''}", raw, 3)
+    return np.radians(v) if deg else v
+
+
+def _rotation_with_axis(axis: np.ndarray) -> np.ndarray:
+    """A rotation whose z column is ``axis`` (x chosen deterministically)."""
+    z = axis / np.linalg.norm(axis)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = ref - z * (ref @ z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.column_stack([x, y, z])
+
+
+def _check_positions(where: str, key: str, P: np.ndarray) -> None:
+    r = np.linalg.norm(P, axis=1)
+    if np.any(r > PLAUSIBLE_POSITION_MAX_M):
+        k = int(np.argmax(r))
+        raise ProblemFileError(
+            f"{where}: key '{key}' row {k}: position {P[k].tolist()} is {r[k]:.4g} m from the base "
+            f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); positions are in metres (millimetres given?)")
+
+
+def check_timing(where: str, t: TimingSettings) -> None:
+    """Validate timing settings (methods known and non-empty, ``dt`` in (0, DT_MAX] s).
+
+    Parameters
+    ----------
+    where : str
+        The source, used in error messages.
+    t : TimingSettings
+
+    Raises
+    ------
+    ProblemFileError
+        Naming ``timing.methods`` or ``timing.dt``.
+    """
+    if not t.methods:
+        raise _err(where, "timing.methods", f"must name at least one of {list(TIMING_METHODS)}")
+    for m in t.methods:
+        if m not in TIMING_METHODS:
+            raise _err(where, "timing.methods", f"has unknown method {m!r}; valid: {list(TIMING_METHODS)}")
+    if not (0.0 < t.dt <= DT_MAX) or not math.isfinite(t.dt):
+        raise _err(where, "timing.dt", f"must be in (0, {DT_MAX}] s, got {t.dt!r}")
+
+
+# --------------------------------------------------------------------------------------
+# Section parsers, in file order (each: where = the source for messages, data = the document)
+# --------------------------------------------------------------------------------------
+
+def parse_header(where: str, data: Any) -> Header:
+    """Check the document is a table with known top-level keys; read name, description, source.
+
+    Raises
+    ------
+    ProblemFileError
+        Not a table, an unknown top-level key, an empty ``name``, or a non-string
+        ``description`` / ``source``.
+    """
+    if not isinstance(data, Mapping):
+        raise ProblemFileError(f"{where}: expected a table at top level")
+    unknown = sorted(set(data) - set(_TOP))
+    if unknown:
+        raise ProblemFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP)}")
+    name = data.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise _err(where, "name", f"must be a non-empty string, got {name!r}")
+    desc = data.get("description", "")
+    src = data.get("source", "")
+    for key, val in (("description", desc), ("source", src)):
+        if not isinstance(val, str):
+            raise _err(where, key, f"must be a string, got {val!r}")
+    return Header(name.strip(), desc.strip(), src.strip())
+
+
+def parse_robot(where: str, data: Mapping[str, Any], base_dir: Path | None) -> RobotSection:
+    """The ``[robot]`` section: load the arm model and apply the tool.
+
+    Parameters
+    ----------
+    base_dir : Path, optional
+        Directory against which a relative ``robot.model`` path is resolved.
+    """
+    rt = _table(where, data, "robot")
+    spec = rt.get("model")
+    if not isinstance(spec, str) or not spec:
+        raise _err(where, "robot.model", f"must be a built-in robot name {list(BUILTIN_ROBOTS)} or a "
+                                         f"robot file path, got {spec!r}")
+    if spec not in BUILTIN_ROBOTS and base_dir is not None and not Path(spec).is_absolute():
+        spec = str((base_dir / spec).resolve())
+    try:
+        arm = load_arm(spec)
+    except RobotFileError as exc:
+        raise ProblemFileError(f"{where}: key 'robot.model': {exc}") from None
+    if "tool" in rt:
+        tt = _table(where, data, "robot.tool")
+        xyz = _vector(where, "robot.tool.xyz", tt.get("xyz", [0.0, 0.0, 0.0]), 3)
+        rpy = _rpy(where, tt, "robot.tool.")
+        arm = arm.with_tool(transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz))
+    return RobotSection(spec, arm)
+
+
+def parse_orientation(where: str, data: Mapping[str, Any]) -> OrientationSection:
+    """The ``[orientation]`` section: rule, nominal rotation (rpy or tool axis), cone, scan."""
+    ot = _table(where, data, "orientation")
+    rule_raw = ot.get("rule")
+    try:
+        rule = OrientationRule(rule_raw)
+    except ValueError:
+        raise _err(where, "orientation.rule", f"must be one of {[r.value for r in OrientationRule]}, "
+                                              f"got {rule_raw!r}") from None
+    rpy = _rpy(where, ot, "orientation.")
+    if "axis" in ot:
+        if rpy is not None:
+            raise ProblemFileError(f"{where}: give either 'orientation.axis' or 'orientation.rpy'/'rpy_deg', "
+                                   "not both")
+        if rule is OrientationRule.FIXED:
+            raise _err(where, "orientation.axis", "cannot define a fixed orientation (an axis leaves the "
+                                                  "rotation about it open); give orientation.rpy_deg")
+        ax = _vector(where, "orientation.axis", ot["axis"], 3)
+        if np.linalg.norm(ax) < 1e-12:
+            raise _err(where, "orientation.axis", f"must be a non-zero vector, got {ax.tolist()}")
+        R_nom = _rotation_with_axis(ax)
+        nominal_rpy = matrix_to_rpy(R_nom)
+    else:
+        nominal_rpy = DEFAULT_RPY.copy() if rpy is None else rpy
+        R_nom = rpy_to_matrix(nominal_rpy)
+    half = _cone_half_angle(where, ot, rule)
+    scan = _integer(where, "orientation.scan", ot.get("scan", DEFAULT_SCAN), 1, 720)
+    return OrientationSection(rule, np.asarray(nominal_rpy, float), R_nom, half, scan)
+
+
+def _cone_half_angle(where: str, ot: Mapping[str, Any], rule: OrientationRule) -> float:
+    """``orientation.half_angle`` (rad) / ``half_angle_deg``: required for, and only for, rule cone."""
+    half = 0.0
+    got = _angle_pair(where, ot, "half_angle", "orientation.")
+    if rule is OrientationRule.CONE:
+        if got is None:
+            raise _err(where, "orientation.half_angle_deg", "is required for rule 'cone' (or half_angle, rad)")
+        raw, deg = got
+        half = _number(where, f"orientation.half_angle{'_deg' if deg else ''}", raw)
+        half = math.radians(half) if deg else half
+        if not 0.0 < half < math.pi / 2:
+            raise _err(where, "orientation.half_angle_deg", f"must be in (0, 90) deg, got "
+                                                            f"{math.degrees(half):g} deg")
+    elif got is not None:
+        raise _err(where, "orientation.half_angle", f"only applies to rule 'cone' (rule is '{rule.value}')")
+    return half
+
+
+def parse_path(where: str, data: Mapping[str, Any], R_nom: np.ndarray) -> PathSection:
+    """The ``[path]`` section: a line or explicit waypoints.
+
+    Parameters
+    ----------
+    R_nom : ndarray, shape (3, 3)
+        The orientation's nominal base->TCP rotation, used where the path gives none.
+    """
+    pt = _table(where, data, "path")
+    kind = pt.get("kind")
+    if kind == "line":
+        return _line_path(where, pt, R_nom)
+    if kind == "waypoints":
+        return _waypoints_path(where, pt, R_nom)
+    raise _err(where, "path.kind", f"must be 'line' or 'waypoints', got {kind!r}")
+
+
+def _line_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> PathSection:
+    """A ``kind = "line"`` path: ``points`` waypoints from ``start`` to ``end`` (m, base frame)."""
+    for key in ("positions", "rpy", "rpy_deg"):
+        if key in pt:
+            raise _err(where, f"path.{key}", "only applies to kind 'waypoints'")
+    for key in ("start", "end", "points"):
+        if key not in pt:
+            raise _err(where, f"path.{key}", "is required for kind 'line'")
+    start = _vector(where, "path.start", pt["start"], 3)
+    end = _vector(where, "path.end", pt["end"], 3)
+    n = _integer(where, "path.points", pt["points"], 2, MAX_WAYPOINTS)
+    _check_positions(where, "path.start/end", np.vstack([start, end]))
+    if np.linalg.norm(end - start) < 1e-9:
+        raise _err(where, "path.end", f"equals path.start {start.tolist()}; a line needs two distinct points")
+    P = line_positions(start, end, n)
+    R = np.broadcast_to(R_nom, (n, 3, 3)).copy()
+    return PathSection("line", (start, end), P, R)
+
+
+def _waypoints_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> PathSection:
+    """A ``kind = "waypoints"`` path: explicit positions (m) and optional per-row rpy."""
+    for key in ("start", "end", "points"):
+        if key in pt:
+            raise _err(where, f"path.{key}", "only applies to kind 'line'")
+    if "positions" not in pt:
+        raise _err(where, "path.positions", "is required for kind 'waypoints'")
+    P = _rows(where, "path.positions", pt["positions"], 3)
+    n = len(P)
+    if n > MAX_WAYPOINTS:
+        raise _err(where, "path.positions", f"has {n} rows; at most {MAX_WAYPOINTS}")
+    _check_positions(where, "path.positions", P)
+    got = _angle_pair(where, pt, "rpy", "path.")
+    if got is not None:
+        raw, deg = got
+        key = f"path.rpy{'_deg' if deg else ''}"
+        A = _rows(where, key, raw, 3)
+        if len(A) != n:
+            raise _err(where, key, f"has {len(A)} rows but path.positions has {n}")
+        R = np.stack([rpy_to_matrix(np.radians(a) if deg else a) for a in A])
+    else:
+        R = np.broadcast_to(R_nom, (n, 3, 3)).copy()
+    return PathSection("waypoints", None, P, R)
+
+
+def parse_wrench(where: str, data: Mapping[str, Any], n: int) -> WrenchSection:
+    """The ``[wrench]`` section: frame, and a constant force/moment or one row per waypoint.
+
+    Parameters
+    ----------
+    n : int
+        Number of waypoints N of the path.
+    """
+    wt = _table(where, data, "wrench")
+    frame = wt.get("frame", "base")
+    if frame not in WRENCH_FRAMES:
+        raise _err(where, "wrench.frame", f"must be one of {list(WRENCH_FRAMES)} (base frame, or the TCP frame "
+                                          f"turning with the tool), got {frame!r}")
+    if "per_waypoint" in wt:
+        if "force" in wt or "moment" in wt:
+            raise ProblemFileError(f"{where}: give either 'wrench.per_waypoint' or 'wrench.force'/'moment', "
+                                   "not both")
+        W = _rows(where, "wrench.per_waypoint", wt["per_waypoint"], 6)
+        if len(W) != n:
+            raise _err(where, "wrench.per_waypoint", f"has {len(W)} rows but the path has {n} waypoints")
+        return WrenchSection(frame, W, True)
+    if "force" not in wt:
+        raise _err(where, "wrench.force", "is required (or wrench.per_waypoint), in N")
+    f = _vector(where, "wrench.force", wt["force"], 3)
+    m = _vector(where, "wrench.moment", wt.get("moment", [0.0, 0.0, 0.0]), 3)
+    W = np.broadcast_to(np.r_[f, m], (n, 6)).copy()
+    return WrenchSection(frame, W, False)
+
+
+def parse_payload(where: str, data: Mapping[str, Any]) -> PayloadSection:
+    """The ``[payload]`` section: mass (kg), centre of mass (TCP frame, m), optional gravity."""
+    pt = _table(where, data, "payload")
+    p_mass, p_com, p_grav = 0.0, np.zeros(3), None
+    if pt:
+        if "mass_kg" not in pt:
+            raise _err(where, "payload.mass_kg", "is required in a [payload] table (kg)")
+        p_mass = _number(where, "payload.mass_kg", pt["mass_kg"])
+        if p_mass < 0:
+            raise _err(where, "payload.mass_kg", f"must be >= 0 kg, got {p_mass!r}")
+        p_com = _vector(where, "payload.com_m", pt.get("com_m", [0.0, 0.0, 0.0]), 3)
+        if np.max(np.abs(p_com)) > PLAUSIBLE_POSITION_MAX_M:
+            raise _err(where, "payload.com_m", f"= {p_com.tolist()} m is implausible (> "
+                                               f"{PLAUSIBLE_POSITION_MAX_M:g} m; millimetres given?)")
+        if "gravity_m_s2" in pt:
+            p_grav = _vector(where, "payload.gravity_m_s2", pt["gravity_m_s2"], 3)
+    return PayloadSection(p_mass, p_com, p_grav)
+
+
+def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
+    """The ``[limits]`` section: joint limits (absolute or scaling the robot's) and joint step.
+
+    Parameters
+    ----------
+    robot : Robot
+        Supplies the default velocity, acceleration and jerk limits (rad/s, rad/s^2, rad/s^3).
+    """
+    lt = _table(where, data, "limits")
+    lims = {}
+    for key, base in (("velocity", robot.v_max), ("acceleration", robot.a_max), ("jerk", robot.j_max)):
+        if key in lt and f"{key}_scale" in lt:
+            raise ProblemFileError(f"{where}: give either 'limits.{key}' or 'limits.{key}_scale', not both")
+        if key in lt:
+            v = _vector_or_scalar(where, f"limits.{key}", lt[key], 6)
+            bad = np.where(v <= 0)[0]
+            if bad.size:
+                raise ProblemFileError(f"{where}: key 'limits.{key}' joint {bad[0] + 1}: must be > 0, "
+                                       f"got {v[bad[0]]!r}")
+        elif f"{key}_scale" in lt:
+            s = _positive(where, f"limits.{key}_scale", lt[f"{key}_scale"])
+            v = base * s
+        else:
+            v = base.copy()
+        lims[key] = v
+    got = _angle_pair(where, lt, "max_joint_step", "limits.")
+    if got is None:
+        step = MAX_JOINT_STEP
+    else:
+        raw, deg = got
+        step = _positive(where, f"limits.max_joint_step{'_deg' if deg else ''}", raw)
+        step = math.radians(step) if deg else step
+    return Limits(lims["velocity"], lims["acceleration"], lims["jerk"], step)
+
+
+def parse_cost(where: str, data: Mapping[str, Any]) -> float:
+    """The ``[cost]`` section: the smoothness weight, mm^2/rad^2 (>= 0)."""
+    ct = _table(where, data, "cost")
+    smooth = _number(where, "cost.smoothness", ct.get("smoothness", DEFAULT_SMOOTHNESS))
+    if smooth < 0:
+        raise _err(where, "cost.smoothness", f"must be >= 0 (mm^2/rad^2), got {smooth!r}")
+    return smooth
+
+
+def parse_solver(where: str, data: Mapping[str, Any]) -> SolverSettings:
+    """The ``[solver]`` section: NLP solver name (only ``ipopt``), iterations, tolerance, codegen."""
+    st = _table(where, data, "solver")
+    sname = st.get("name", "ipopt")
+    if sname != "ipopt":
+        raise _err(where, "solver.name", f"must be 'ipopt' (the only NLP solver available), got {sname!r}")
+    codegen = st.get("codegen", True)
+    if not isinstance(codegen, bool):
+        raise _err(where, "solver.codegen", f"must be true or false, got {codegen!r}")
+    return SolverSettings(name=sname,
+                          max_iter=_integer(where, "solver.max_iter", st.get("max_iter", DEFAULT_MAX_ITER), 0),
+                          tol=_positive(where, "solver.tol", st.get("tol", DEFAULT_TOL)),
+                          codegen=codegen)
+
+
+def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:
+    """The ``[branch]`` section: the home configuration choosing the IK branch.
+
+    Returns
+    -------
+    ndarray, shape (6,)
+        Joint angles, rad (the paper's home pose if absent).
+    """
+    bt = _table(where, data, "branch")
+    got = _angle_pair(where, bt, "home", "branch.")
+    if got is None:
+        return paper.HOME_Q.copy()
+    raw, deg = got
+    home = _vector(where, f"branch.home{'_deg' if deg else ''}", raw, 6)
+    return np.radians(home) if deg else home
+
+
+def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
+    """The ``[timing]`` section: methods, controller period (s) and method options."""
+    tt = _table(where, data, "timing")
+    methods = tt.get("methods", list(TIMING_METHODS))
+    if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
+        raise _err(where, "timing.methods", f"must be a list of method names {list(TIMING_METHODS)}, "
+                                            f"got {methods!r}")
+    timing = TimingSettings(
+        methods=tuple(methods),
+        dt=_positive(where, "timing.dt", tt.get("dt", DEFAULT_DT)),
+        toppra_gridpoints=_integer(where, "timing.toppra_gridpoints", tt.get("toppra_gridpoints", 0), 0),
+        toppra_max_iterations=_integer(where, "timing.toppra_max_iterations",
+                                       tt.get("toppra_max_iterations", 0), 0),
+        ruckig_max_iterations=_integer(where, "timing.ruckig_max_iterations",
+                                       tt.get("ruckig_max_iterations", 0), 0))
+    if timing.toppra_gridpoints == 1:
+        raise _err(where, "timing.toppra_gridpoints", "must be 0 (default) or >= 2, got 1")
+    check_timing(where, timing)
+    return timing
+
