@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from models import AnalyticIK
+from models.arm import ArmModel
 from models.errors import InfeasibleError, UnreachableError
 from models.ik import BRANCH_LABELS
 from models.symbolic import directional_stiffness
@@ -351,6 +352,7 @@ def _compensate(res: PlanResult) -> None:
     res.closed = closed_form(arm, q, L)
     res.exact = exact(arm, q, L)
     res.warnings += arm.extrapolation(res.exact.q_deflected, L)
+    res.warnings += _base_frame_caveat(arm, q, L)
     if res.exact.status is not CompensationStatus.OK:
         res.status = PlanStatus.COMPENSATION_FAILED
         res.reason = f"exact compensation of branch {res.posture.best.label}: {res.exact.reason}"
@@ -362,6 +364,22 @@ def _compensate(res: PlanResult) -> None:
         res.status = PlanStatus.COMPENSATION_FAILED
         res.reason = (f"the compensated command of joint {j + 1} at waypoint {k} is {qc[k, j]:.6g} rad, "
                       f"outside its limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad")
+
+
+def _base_frame_caveat(arm: ArmModel, q: np.ndarray, L: np.ndarray) -> list[str]:
+    """A model identified from unregistered data leaves the parameters that alias with the
+    registration and the measured point at zero: the plan is not exact in the base frame there."""
+    from problems.identify import alias_effect_m, unobservable_in_base
+    names = unobservable_in_base(arm)
+    if not names:
+        return []
+    size = alias_effect_m(arm, names, q, arm.tcp_wrench(q, L))
+    worst = max(names, key=lambda n: size[n])
+    return [f"the arm model was identified from unregistered data: {', '.join(names)} cannot be told apart from "
+            "the registration or the measured point and are held at their nominal values (zero for DH errors), so the commands are exact in the "
+            f"measurement frame, not in the base frame (the largest, {worst}, moves the TCP by up to "
+            f"{size[worst] * 1e3:.3g} mm per typical magnitude on this path); identify from registered data "
+            "(--registered) to plan exactly in the base frame"]
 
 
 def _time(res: PlanResult) -> None:

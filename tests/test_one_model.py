@@ -243,3 +243,16 @@ def test_plan_warns_where_the_identified_torque_curve_is_extrapolated(identified
     heavy = plan(replace(problem, payload_mass_kg=60.0))
     lines = [w for w in heavy.warnings if "extrapolated" in w]
     assert lines and "stiffness_hardening" in lines[0] and "N*m" in lines[0]
+
+
+def test_plan_with_a_model_from_unregistered_data_says_the_base_frame_is_not_exact():
+    problem = load_problem("ur5_tool_thrust")
+    robot = load_robot("ur5").with_tool(problem.robot.tcp2flange)
+    cfg = {"campaign": {"poses": 60}, "noise": {"sigma_m": NOISE_SIGMA_M}, "registration": {"registered": False},
+           "effects": {"geometric": {}}}
+    res = identify(robot, VirtualRobot(robot, cfg, seed=23).campaign(), candidates=["geometric"])
+    out = plan(problem.with_robot(res.model), optimise=False)
+    lines = [w for w in out.warnings if "unregistered" in w]
+    assert out.ok and lines and "dtheta[1]" in lines[0] and "measurement frame" in lines[0]
+    registered = plan(problem, optimise=False)
+    assert not [w for w in registered.warnings if "unregistered" in w]

@@ -229,28 +229,22 @@ class Graph:
         if arm is not None:
             m = m + ca.cross(arm, f)
         tau_ext = ca.vertcat(*[ca.dot(ctx.zs[i], ca.cross(ctx.p_tcp - ctx.ps[i], f) + m) for i in range(6)])
-        tau_other = ca.DM.zeros(6)
+        return tau_ext, self._sum("joint_torque", 6, ctx)
+
+    def _sum(self, hook: str, size: int, ctx: Context, *args: Any) -> Any:
+        """Sum of the effects' ``hook`` terms (those that return None add nothing)."""
+        total = ca.DM.zeros(size)
         for e in self.effects:
-            t = e.joint_torque(ctx)
-            if t is not None:
-                tau_other = tau_other + t
-        return tau_ext, tau_other
+            term = getattr(e, hook)(ctx, *args)
+            if term is not None:
+                total = total + term
+        return total
 
     def joint_deflection(self, ctx: Context, tau: Any) -> Any:
-        dq = ca.DM.zeros(6)
-        for e in self.effects:
-            d = e.joint_deflection(ctx, tau)
-            if d is not None:
-                dq = dq + d
-        return dq
+        return self._sum("joint_deflection", 6, ctx, tau)
 
     def point_displacement(self, ctx: Context, point: Any) -> Any:
-        dp = ca.DM.zeros(3)
-        for e in self.effects:
-            d = e.point_displacement(ctx, point)
-            if d is not None:
-                dp = dp + d
-        return dp
+        return self._sum("point_displacement", 3, ctx, point)
 
     def measurement(self, ctx: Context, p: Any) -> Any:
         for e in self.effects:

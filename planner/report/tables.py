@@ -168,11 +168,14 @@ def _run_table(s: Mapping[str, Any]) -> Table:
     rows = [
         [Cell("robot"), value_cell(s, "robot"), Cell("")],
         [Cell("scenario"), value_cell(s, _scenario_key(s)), Cell("")],
-        [Cell("load: force F"), value_cell(s, "wrench.F_N"), Cell("N")],
-        [Cell("load: moment M"), value_cell(s, "wrench.M_Nm"), Cell("N·m")],
-        [Cell("load: frame / point"),
-         Cell(f"{s.get('wrench', {}).get('frame', '?')} frame, at the "
-              f"{s.get('wrench', {}).get('point', '?')}"), Cell("")],
+        [Cell("process wrench: force F"), value_cell(s, "wrench.F_N"), Cell("N")],
+        [Cell("process wrench: moment M"), value_cell(s, "wrench.M_Nm"), Cell("N·m")],
+        [Cell("process wrench: frame / point"),
+         Cell(f"{s.get('wrench', {}).get('frame', '?')} frame"
+              + (" (turns with the tool)" if s.get("wrench", {}).get("frame") == "tool" else "")
+              + f", at the {s.get('wrench', {}).get('point', '?')}"), Cell("")],
+        *_payload_rows(s),
+        *_model_rows(s),
         [Cell("IK branch used"), value_cell(s, branch_key), Cell("")],
         [Cell("waypoints"), value_cell(s, "n_waypoints"), Cell("")],
         [Cell("compensation status, closed form"), value_cell(s, "status.closed_form"), Cell("")],
@@ -194,6 +197,27 @@ def _run_table(s: Mapping[str, Any]) -> Table:
     return Table("Run", ["quantity", "value", "unit"], rows)
 
 
+def _payload_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
+    """Payload mass and centre of mass, when the problem has one."""
+    if not s.get("payload"):
+        return []
+    return [[Cell("payload: mass"), value_cell(s, "payload.mass_kg"), Cell("kg")],
+            [Cell("payload: centre of mass (TCP frame)"), value_cell(s, "payload.com_m_tcp_frame"), Cell("m")]]
+
+
+def _model_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
+    """Which arm model planned: its file (and hash) and its effects."""
+    md = s.get("model")
+    if not isinstance(md, Mapping):
+        return []
+    src = md.get("file") or f"robot file '{s.get('robot', '?')}' (nominal)"
+    rows = [[Cell("arm model"), Cell(str(src)), Cell("")],
+            [Cell("arm model: effects"), Cell(", ".join(md.get("effects", [])) or "joint_springs"), Cell("")]]
+    if md.get("sha256"):
+        rows.append([Cell("arm model: SHA-256"), Cell(str(md["sha256"])[:16] + "…"), Cell("")])
+    return rows
+
+
 def _error_table(s: Mapping[str, Any]) -> Table:
     rows = []
     for label, key in (("before compensation", "error_before"),
@@ -201,8 +225,8 @@ def _error_table(s: Mapping[str, Any]) -> Table:
                        ("after exact compensation", "error_after.exact")):
         rows.append([Cell(label), value_cell(s, f"{key}.max_mm"), value_cell(s, f"{key}.rms_mm")])
     return Table("TCP position error under load [mm]", ["case", "max [mm]", "RMS [mm]"], rows,
-                 "Euclidean norm of (reached - target) TCP position over the waypoints, deflected "
-                 "equilibrium of the joint-compliance model.")
+                 "Euclidean norm of (reached - target) TCP position over the waypoints, at the exact "
+                 "deflected equilibrium of the arm model named above (its effects, under the whole load).")
 
 
 def _timing_table(s: Mapping[str, Any], absent: Mapping[str, str]) -> Table:

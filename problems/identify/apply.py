@@ -313,7 +313,7 @@ def base_frame_warning(model: ArmModel, q: np.ndarray, wrench: np.ndarray,
         turn = f" and turns the tool by {typical}" if layout.units[i] == "rad" else ""
         parts.append(f"{n}: {typical} moves the TCP by up to {mm:.3g} mm{turn}")
     return (f"the model was identified from unregistered data: {', '.join(names)} cannot be told apart from "
-            "the registration or the measured point, are held at zero and cannot be compensated in the base "
+            "the registration or the measured point, are held at their nominal values (zero for DH errors) and cannot be compensated in the base "
             f"frame (over these rows, {'; '.join(parts)}); the compensation is exact in the measurement frame "
             "(use --targets-frame measurement)")
 
