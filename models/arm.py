@@ -241,6 +241,23 @@ class ArmModel:
                            "is extrapolated there")
         return out
 
+    def caveats(self, q: np.ndarray, load: Load | np.ndarray) -> list[str]:
+        """Everything that limits the model's trust along the poses ``q`` (N, 6): torques beyond the
+        identification data (:meth:`extrapolation`) and each active effect's own caveats
+        (:meth:`models.effects.Effect.caveats`, e.g. a joint left inside its dead band)."""
+        out = self.extrapolation(q, load)
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        km = self.kinematics
+        tau = km.batch(km.fn["joint_torques"], q, load_rows(load, len(q)))[0]
+        lever = np.linalg.norm(km.J(q).reshape(-1, 6, 6)[:, :3, :], axis=1)
+        const = self.const
+
+        def c(key: str) -> np.ndarray:
+            return fx.get_const(const, key)
+        for name in self.active_effects:
+            out += fx.effect(name).caveats(self.parameter, c, tau, lever)
+        return out
+
     # ------------------------------------------------------------------ evaluation
     @cached_property
     def kinematics(self) -> "KinematicModel":

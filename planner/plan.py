@@ -351,7 +351,7 @@ def _compensate(res: PlanResult) -> None:
     res.before = uncompensated(arm, q, L)
     res.closed = closed_form(arm, q, L)
     res.exact = exact(arm, q, L)
-    res.warnings += arm.extrapolation(res.exact.q_deflected, L)
+    res.warnings += arm.caveats(res.exact.q_deflected, L)
     res.warnings += _base_frame_caveat(arm, q, L)
     if res.exact.status is not CompensationStatus.OK:
         res.status = PlanStatus.COMPENSATION_FAILED

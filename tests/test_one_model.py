@@ -256,3 +256,21 @@ def test_plan_with_a_model_from_unregistered_data_says_the_base_frame_is_not_exa
     assert out.ok and lines and "dtheta[1]" in lines[0] and "measurement frame" in lines[0]
     registered = plan(problem, optimise=False)
     assert not [w for w in registered.warnings if "unregistered" in w]
+
+
+def test_plan_says_where_a_joint_stays_inside_its_dead_band():
+    """A thrust along a vertical tool axis puts (almost) no torque on the wrist joint 5: with lost
+    motion identified there the joint's side of its dead band is not determined, which the plan
+    must say (with the size)."""
+    from models import effects as fx
+    problem = load_problem("ur5_tool_thrust")
+    lay = fx.make_layout(problem.robot)
+    theta = lay.nominal.copy()
+    theta[fx.GROUP_SLICES["lost_motion.b"]] = 2e-4
+    arm = ArmModel(nominal=problem.robot, theta=theta, tau_scale=np.full(6, 20.0), effects=["lost_motion"])
+    out = plan(problem.with_robot(arm), optimise=False)
+    lines = [w for w in out.warnings if "dead band" in w]
+    assert out.ok and any(w.startswith("joint 5:") for w in lines), out.warnings
+    mm = float(lines[0].split("up to ")[1].split(" mm")[0])
+    assert 0.01 < mm < 0.5          # 2e-4 rad times a lever of 0.05 .. 2.5 m
+    assert not [w for w in plan(problem, optimise=False).warnings if "dead band" in w]

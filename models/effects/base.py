@@ -211,6 +211,21 @@ class Effect:
         Used to say where a torque-nonlinear term is extrapolated beyond its data."""
         return None
 
+    def caveats(self, param: Callable[[str], np.ndarray], const: Callable[[str], np.ndarray],
+                tau: np.ndarray, lever_m: np.ndarray) -> list[str]:
+        """Where this effect's prediction cannot be trusted along a path (one line each).
+
+        Parameters
+        ----------
+        param, const : callable
+            ``param(group_key)`` / ``const(block_key)``: the model's values.
+        tau : ndarray, shape (N, 6)
+            Joint torques at the planned (deflected) poses, N*m.
+        lever_m : ndarray, shape (N, 6)
+            TCP displacement per radian of each joint, m/rad (norm of the Jacobian's columns).
+        """
+        return []
+
     # ---- helpers -------------------------------------------------------------------
     @property
     def freed_groups(self) -> tuple[str, ...]:
