@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .codegen import BatchFunction, CompileError, compile_batch
+from .codegen import BatchFunction, VMBatchFunction, batch_function
 from .errors import InputError
 from .constants import IK_CLIP_TOL, IK_SHOULDER_SINGULAR_TOL, IK_WRIST_SINGULAR_TOL
 from .robot import Robot
@@ -40,6 +40,8 @@ BRANCH_LABELS: tuple[str, ...] = tuple(
 #: alpha pattern of a UR-type arm in standard DH, rad.
 UR_ALPHA = np.array([np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0])
 _STRUCT_TOL = 1e-9
+#: Threads of the batch evaluation of the closed form (compiled or virtual machine).
+IK_BATCH_THREADS = 2
 
 
 class IKStatus(enum.IntEnum):
@@ -154,7 +156,7 @@ class AnalyticIK:
         self._flange2tcp = invert(robot.tcp2flange)
         self.q_min, self.q_max = robot.q_min, robot.q_max
         self.function = self._build_function()
-        self._compiled: BatchFunction | None | bool = False
+        self._evaluator: BatchFunction | VMBatchFunction | None = None
 
     def _build_function(self) -> ca.Function:
         """The closed form as a named CasADi Function of the flange pose.
@@ -233,18 +235,17 @@ class AnalyticIK:
         return ca.Function("ik_branches", [Tt], [ca.horzcat(*qs), ca.vertcat(*codes)],
                            ["tcp2base"], ["q", "status"])
 
+    @property
+    def evaluator(self) -> BatchFunction | VMBatchFunction:
+        """The batch evaluator of :attr:`function`, built on first use: compiled C, or
+        CasADi's virtual machine without a C compiler (its ``compiled`` attribute says which)."""
+        if self._evaluator is None:
+            self._evaluator = batch_function(self.function, IK_BATCH_THREADS)
+        return self._evaluator
+
     def _batch(self, flat: np.ndarray) -> list[np.ndarray]:
-        if self._compiled is False:
-            try:
-                self._compiled = compile_batch(self.function)
-            except CompileError:
-                self._compiled = None
-        if self._compiled is not None:
-            return self._compiled(flat)
-        n = flat.shape[0]
-        res = self.function.map(n, "thread", 2)(flat.T)
-        return [np.asarray(x).reshape(self.function.size_out(k)[0], n, -1).transpose(1, 0, 2).reshape(n, -1)
-                if self.function.size_out(k)[1] > 1 else np.asarray(x).T for k, x in enumerate(res)]
+        """``q`` (N, 6, 8) and ``status`` (N, 8) for column-major flattened poses ``flat`` (N, 16)."""
+        return self.evaluator(flat)
 
     def solve(self, tcp2base: np.ndarray) -> IKSolution:
         """All 8 branches for target TCP pose(s).

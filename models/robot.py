@@ -46,6 +46,62 @@ class RobotFileError(InputError):
     """A robot file (or robot dictionary) is malformed; the message names where."""
 
 
+# --------------------------------------------------------------------------------------
+# Reading a user's text file (robot, problem, measurement, simulation files)
+# --------------------------------------------------------------------------------------
+
+def _not_utf8(where: str, raw: bytes, exc: UnicodeDecodeError) -> str:
+    """One line for text that is not UTF-8: line and column of the first bad byte, a hint."""
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return (f"{where}: the file is UTF-16 encoded; save the file as UTF-8 (a plain text file, "
+                "e.g. 'Save as... UTF-8' in the editor or spreadsheet)")
+    start = exc.start
+    line = raw.count(b"\n", 0, start) + 1
+    if b"\x00" in raw[:4096]:
+        return (f"{where}: not a text file (binary content, byte 0x{raw[start]:02x} at line {line}); "
+                "expected UTF-8 text")
+    col = start - (raw.rfind(b"\n", 0, start) + 1) + 1
+    return (f"{where}: line {line}, column {col}: byte 0x{raw[start]:02x} is not UTF-8 text (the file is "
+            "probably Latin-1 / Windows-1252); save the file as UTF-8")
+
+
+def read_text_file(path: str | Path, what: str = "file", error: type[InputError] = InputError) -> str:
+    """The text of a user's input file, decoded as UTF-8 (a UTF-8 byte-order mark is dropped).
+
+    Parameters
+    ----------
+    path : path
+        The file.
+    what : str
+        What the file is, for messages (``"robot file"``, ``"measurement file"``, ...).
+    error : type
+        The :class:`~models.errors.InputError` subclass raised.
+
+    Raises
+    ------
+    InputError
+        One line naming the path: no such file, a folder where a file is expected, not
+        readable, binary, or not UTF-8 (line and column of the first bad byte and the hint to
+        save the file as UTF-8).
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise error(f"{p}: is a folder; expected a {what}")
+    if not p.exists():
+        raise error(f"{p}: no such {what}")
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise error(f"{p}: cannot read the {what}: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(_not_utf8(str(p), raw, exc)) from None
+    if "\x00" in text:
+        raise error(f"{p}: not a text file (binary content); expected a {what} (UTF-8 text)")
+    return text.removeprefix("\ufeff")
+
+
 @dataclass(frozen=True)
 class Joint:
     """One revolute joint with the link that follows it (SI units).
@@ -80,6 +136,17 @@ class Joint:
     stiffness: float
     mass: float | None = None
     com: np.ndarray | None = None
+    #: Angle keys the robot file gave in degrees (``{"q_min", "q_max"}`` for ``q_min_deg``,
+    #: ``q_max_deg``): messages quote a limit in the key and unit the file used.
+    deg_keys: frozenset[str] = field(default=frozenset(), compare=False, repr=False)
+
+    def limit_text(self, key: str, value_rad: float | None = None) -> str:
+        """``key`` (``q_min``/``q_max``) as the robot file wrote it, with ``value_rad`` (default:
+        the limit itself) in that key's unit: ``"q_max_deg = 360"`` or ``"q_max = 6.283 rad"``."""
+        v = getattr(self, key) if value_rad is None else float(value_rad)
+        if key in self.deg_keys:
+            return f"{key}_deg = {math.degrees(v):.6g}"
+        return f"{key} = {v:.6g} rad"
 
 
 @dataclass(frozen=True)
@@ -239,6 +306,23 @@ def _vector(where: str, key: str, value: Any, n: int) -> np.ndarray:
     return np.array([_finite(where, f"{key}[{i}]", v) for i, v in enumerate(value)])
 
 
+#: A DH twist, joint offset or tool angle in radians beyond this magnitude is implausible:
+#: degrees given under the radian key (one turn).
+PLAUSIBLE_ANGLE_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
+#: A joint limit in radians beyond this magnitude is implausible (two turns).
+PLAUSIBLE_LIMIT_MAX_RAD = 4.0 * math.pi * (1.0 + 1e-9)
+
+
+def _check_radians(where: str, key: str, value: float, limit: float = PLAUSIBLE_ANGLE_MAX_RAD,
+                   deg_key: str | None = None) -> float:
+    """Refuse a radian value that is almost certainly degrees (|value| > ``limit``); the
+    message suggests ``deg_key`` (default ``key + "_deg"``)."""
+    if abs(value) > limit:
+        raise RobotFileError(f"{where}: key '{key}' = {value:g} rad is implausible (|value| > {limit:.4g} rad); "
+                             f"a key without '_deg' is in radians: degrees given? use '{deg_key or key + '_deg'}'")
+    return value
+
+
 def _angle(where: str, row: Mapping[str, Any], key: str) -> float:
     has_rad, has_deg = key in row, f"{key}_deg" in row
     if has_rad and has_deg:
@@ -246,8 +330,17 @@ def _angle(where: str, row: Mapping[str, Any], key: str) -> float:
     if has_deg:
         return math.radians(_finite(where, f"{key}_deg", row[f"{key}_deg"]))
     if has_rad:
-        return _finite(where, key, row[key])
+        limit = PLAUSIBLE_LIMIT_MAX_RAD if key in ("q_min", "q_max") else PLAUSIBLE_ANGLE_MAX_RAD
+        return _check_radians(where, key, _finite(where, key, row[key]), limit)
     raise RobotFileError(f"{where}: missing key '{key}' (rad) or '{key}_deg'")
+
+
+def _as_written(row: Mapping[str, Any], key: str) -> tuple[str, str]:
+    """The key of an angle as the file wrote it (``q_min`` or ``q_min_deg``) and its value text
+    with the unit (``"-360 deg"``, ``"1 rad"``)."""
+    if f"{key}_deg" in row:
+        return f"{key}_deg", f"{float(row[f'{key}_deg']):g} deg"
+    return key, f"{float(row[key]):g} rad"
 
 
 def _parse_joint(where: str, row: Any) -> Joint:
@@ -271,7 +364,9 @@ def _parse_joint(where: str, row: Any) -> Joint:
                                  f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
                                  "(millimetres given?)")
     if vals["q_min"] >= vals["q_max"]:
-        raise RobotFileError(f"{where}: q_min ({vals['q_min']}) must be below q_max ({vals['q_max']})")
+        (kmin, vmin), (kmax, vmax) = _as_written(row, "q_min"), _as_written(row, "q_max")
+        raise RobotFileError(f"{where}: key '{kmin}' ({vmin}) must be below '{kmax}' ({vmax}); "
+                             "limits inverted?")
     for key in ("v_max", "a_max", "j_max", "stiffness"):
         if vals[key] <= 0:
             raise RobotFileError(f"{where}: key '{key}' must be > 0, got {vals[key]}")
@@ -282,7 +377,8 @@ def _parse_joint(where: str, row: Any) -> Joint:
         if vals["mass"] < 0:
             raise RobotFileError(f"{where}: key 'mass' must be >= 0, got {vals['mass']}")
         vals["com"] = _vector(where, "com", row["com"], 3)
-    return Joint(**vals)
+    deg = frozenset(k for k in _ANGLE_KEYS if f"{k}_deg" in row)
+    return Joint(**vals, deg_keys=deg)
 
 
 def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
@@ -304,7 +400,9 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
         raise RobotFileError(f"{where}: expected a table at top level")
     unknown = sorted(set(data) - set(_TOP_KEYS))
     if unknown:
-        raise RobotFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP_KEYS)}")
+        hint = ("; this looks like a problem file (compplan plan PROBLEM), not a robot file"
+                if {"path", "wrench", "orientation"} & set(unknown) else "")
+        raise RobotFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP_KEYS)}{hint}")
     name = data.get("name")
     if not isinstance(name, str) or not name:
         raise RobotFileError(f"{where}: key 'name' must be a non-empty string, got {name!r}")
@@ -333,6 +431,8 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
         rpy = np.radians(_vector(f"{where}: tool", "rpy_deg", tool["rpy_deg"], 3))
     else:
         rpy = _vector(f"{where}: tool", "rpy", tool.get("rpy", [0.0, 0.0, 0.0]), 3)
+        for i, v in enumerate(rpy):
+            _check_radians(f"{where}: tool", f"rpy[{i}]", float(v), deg_key="rpy_deg")
     gravity = _vector(where, "gravity", data.get("gravity", [0.0, 0.0, -STANDARD_GRAVITY]), 3)
     desc = data.get("description", "")
     src = data.get("source", "")
@@ -362,13 +462,10 @@ def load_robot(spec: str | Path) -> Robot:
         where = f"built-in robot '{s}'"
     else:
         path = Path(s)
-        if not path.is_file():
+        if not path.exists():
             raise RobotFileError(
                 f"robot '{s}': no such file, and not a built-in robot (built-ins: {', '.join(BUILTIN_ROBOTS)})")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise RobotFileError(f"{path}: cannot read: {exc}") from None
+        text = read_text_file(path, "robot file (TOML)", RobotFileError)
         where = str(path)
     try:
         data = tomllib.loads(text)

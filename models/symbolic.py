@@ -2,7 +2,8 @@
 
 :class:`KinematicModel` is the working data built from a :class:`~models.robot.Robot`
 description.  Every quantity is a named :class:`casadi.Function`; batch helpers
-evaluate them over many poses in one call (``Function.map`` with threads), so
+evaluate them over many poses in one call (compiled C from :mod:`models.codegen`, or,
+without a C compiler, ``Function.map`` with threads on CasADi's virtual machine), so
 NumPy arrays are converted once per batch, not once per pose.
 
 Frames and signs (see ``docs/conventions.md``):
@@ -19,13 +20,13 @@ Frames and signs (see ``docs/conventions.md``):
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
 from . import effects as fx
-from .codegen import BatchFunction, CompileError, compile_batch
+from .codegen import BatchFunction, VMBatchFunction, batch_function
 from .effects.graph import (arm_functions, compliance_from_jacobian, geometric_jacobian, joint_axes,
                             link_transform)
 from .robot import Robot
@@ -33,7 +34,7 @@ from .robot import Robot
 if TYPE_CHECKING:  # pragma: no cover
     from .arm import ArmModel
 
-#: Threads used by batch evaluation (``Function.map(..., "thread", N)``).
+#: Threads used by batch evaluation (OpenMP, or ``Function.map(..., "thread", N)`` without a compiler).
 BATCH_THREADS = 2
 
 
@@ -95,22 +96,14 @@ class KinematicModel:
         self.deflection = self.fn["deflection"]
         self.joint_deflection = self.fn["joint_deflection"]
         self.kinetostatics = self.fn["kinetostatics"]
-        self._maps: dict[tuple[str, int], ca.Function] = {}
-        self._compiled: dict[str, BatchFunction | None] = {}
+        self._evaluators: dict[str, BatchFunction | VMBatchFunction] = {}
 
     # ------------------------------------------------------------------ batch helpers
-    def _mapped(self, f: ca.Function, n: int) -> ca.Function:
-        key = (f.name(), n)
-        fm = self._maps.get(key)
-        if fm is None:
-            fm = f.map(n, "thread", BATCH_THREADS)
-            if len(self._maps) > 64:
-                self._maps.clear()
-            self._maps[key] = fm
-        return fm
-
     def batch(self, f: ca.Function, *args: np.ndarray) -> list[np.ndarray]:
         """Evaluate ``f`` over a batch without a Python loop.
+
+        Compiled C when a compiler (or a cached library) is available, else CasADi's
+        virtual machine with the same results to rounding (see :mod:`models.codegen`).
 
         Parameters
         ----------
@@ -126,36 +119,25 @@ class KinematicModel:
         """
         arrs = [np.atleast_2d(np.asarray(a, dtype=float)) for a in args]
         n = max(a.shape[0] for a in arrs)
-        compiled = self.compiled(f)
-        if compiled is not None:
-            return compiled(*[a if a.shape[0] == n else a.reshape(-1) for a in arrs])
-        cols = []
         for a in arrs:
             if a.shape[0] not in (1, n):
                 raise ValueError(f"batch arguments have {a.shape[0]} and {n} rows")
-            cols.append(np.ascontiguousarray(a.T) if a.shape[0] == n else a.reshape(-1, 1))
-        fm = self._mapped(f, n)
-        res = fm.call(cols)
-        out = []
-        for k, r in enumerate(res):
-            sh = f.size_out(k)
-            arr = np.asarray(r)  # (rows, cols*n), column blocks per pose
-            if sh[1] == 1:
-                out.append(arr.T.reshape(n, sh[0]))
-            else:
-                out.append(arr.reshape(sh[0], n, sh[1]).transpose(1, 0, 2))
-        return out
+        return self.evaluator(f)(*[a if a.shape[0] == n else a.reshape(-1) for a in arrs])
+
+    def evaluator(self, f: ca.Function) -> BatchFunction | VMBatchFunction:
+        """The batch evaluator of ``f``, built once: compiled (cached on disk) or, without a
+        C compiler, CasADi's virtual machine (its ``compiled`` attribute says which)."""
+        name = f.name()
+        ev = self._evaluators.get(name)
+        if ev is None:
+            ev = self._evaluators[name] = batch_function(f, BATCH_THREADS)
+        return ev
 
     def compiled(self, f: ca.Function) -> BatchFunction | None:
         """The compiled batch evaluator of ``f`` (built once, cached on disk), or
-        None if no C compiler is available (then ``batch`` uses ``Function.map``)."""
-        name = f.name()
-        if name not in self._compiled:
-            try:
-                self._compiled[name] = compile_batch(f, BATCH_THREADS)
-            except CompileError:
-                self._compiled[name] = None
-        return self._compiled[name]
+        None if there is no compiled code (then ``batch`` uses CasADi's virtual machine)."""
+        ev = self.evaluator(f)
+        return ev if isinstance(ev, BatchFunction) else None
 
     # ------------------------------------------------------------- numeric conveniences
     def tcp(self, q: np.ndarray) -> np.ndarray:

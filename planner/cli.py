@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 import traceback
-from typing import Callable
+from typing import Callable, NoReturn
 
+from models.codegen import clear_codegen_notes, codegen_notes
 from models.errors import CompplanError
+from planner.provenance import command_line_scope
+from planner.provenance import version as _version
 
 EXIT_OK = 0
 EXIT_USER_ERROR = 2
@@ -22,13 +26,47 @@ EXIT_INTERNAL = 3
 
 #: Sub-command modules under planner/commands/; each defines ``register(subparsers)``
 #: which adds its parser and sets ``func`` (returning an exit code).
-COMMAND_MODULES = ("demo", "report", "map", "plan", "identify")
+COMMAND_MODULES = ("demo", "report", "map", "plan", "identify", "robot")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the product's error format: one line ``compplan: error: ...``, exit 2.
+
+    Sub-command parsers are built by ``add_subparsers`` with the parent's class, so every
+    option error (missing, unknown, bad choice, bad value) gets the same one line, naming
+    the sub-command, the option and the value, and where the usage is.
+    """
+
+    def error(self, message: str) -> "NoReturn":  # type: ignore[override]
+        cmd = self.prog.removeprefix("compplan").strip()
+        where = f"{cmd}: " if cmd else ""
+        self.exit(EXIT_USER_ERROR, f"compplan: error: {where}{one_line(message)} (usage: {self.prog} --help)\n")
+
+
+#: ``np.float64(1.5)``-style reprs (NumPy >= 2) that must not reach a message.
+_NUMPY_REPR = re.compile(r"\bnp\.(?:float|int|uint|bool_?|str_)\d*\(([^()]*)\)")
+
+
+def one_line(message: object) -> str:
+    """A message on one line, without NumPy scalar reprs (``np.float64(0.5)`` -> ``0.5``)."""
+    text = _NUMPY_REPR.sub(r"\1", str(message))
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+def _os_error_message(exc: OSError) -> str:
+    """One line for a file-system error (permissions, a full disk, a folder where a file is
+    expected ...): the path(s) and the system's reason."""
+    paths = [str(p) for p in (exc.filename, exc.filename2) if p is not None]
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    return f"{' -> '.join(paths)}: {reason}" if paths else f"{reason} (a file-system error)"
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="compplan",
+    p = _Parser(prog="compplan",
                                 description="Plan, compensate and time 6R arm paths under load.")
     p.add_argument("-v", "--verbose", action="store_true", help="verbose solver output and tracebacks")
+    p.add_argument("--version", action="version", version=f"compplan {_version()}",
+                   help="print the compplan version and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
     for name in COMMAND_MODULES:
@@ -40,10 +78,25 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
+    clear_codegen_notes()
+    # The outputs of the command record its command line (planner.provenance).
+    command = ["compplan", *(sys.argv[1:] if argv is None else argv)]
     try:
-        return func(args)
+        with command_line_scope(command):
+            code = func(args)
+        _print_codegen_notes()
+        return code
     except CompplanError as exc:
-        print(f"compplan: error: {exc}", file=sys.stderr)
+        print(f"compplan: error: {one_line(exc)}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except OSError as exc:          # the environment: permissions, a full disk, a vanished file
+        if args.verbose:
+            traceback.print_exc()
+        print(f"compplan: error: {one_line(_os_error_message(exc))}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except MemoryError as exc:      # an input asking for more than the machine has
+        print(f"compplan: error: not enough memory for this input ({one_line(exc) or 'MemoryError'}); "
+              "reduce its size (points, samples, rows)", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("compplan: interrupted", file=sys.stderr)
@@ -51,9 +104,18 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - last-resort guard at the boundary
         if args.verbose:
             traceback.print_exc()
-        print(f"compplan: internal error: {type(exc).__name__}: {exc} (run with -v for details)",
+        print(f"compplan: internal error: {type(exc).__name__}: {one_line(exc)} (run with -v for details)",
               file=sys.stderr)
+        _print_codegen_notes()
         return EXIT_INTERNAL
+
+
+def _print_codegen_notes() -> None:
+    """One line per note the library recorded in this run (e.g. no C compiler: evaluating
+    with CasADi's virtual machine; a compile cache rebuilt or bypassed).  Printed after a
+    run that completed or failed internally, not after a user error (its one line stands alone)."""
+    for note in codegen_notes():
+        print(f"compplan: note: {note}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -48,8 +48,11 @@ from problems.compensation import (CompensationResult, CompensationStatus, close
 from problems.posture import (BranchResult, PostureResult, PostureStatus, optimise_postures)
 from problems.problem import Problem
 
+from planner import branches as branch_words
+from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, round_sig
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
+from planner.provenance import invocation, problem_input, provenance, robot_input
 from planner.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
@@ -105,6 +108,9 @@ class PlanResult:
     warnings : list of str
     stage_times_s : dict
         Wall time of each stage, s.
+    made : dict
+        When and by which command line the result was made (``command_line``, ``argv``,
+        ``date_utc``; :func:`planner.provenance.invocation`): the summary's provenance.
     """
 
     status: PlanStatus
@@ -118,6 +124,7 @@ class PlanResult:
     controller: str | None = None
     warnings: list[str] = field(default_factory=list)
     stage_times_s: dict[str, float] = field(default_factory=dict)
+    made: dict[str, Any] = field(default_factory=invocation)
 
     @property
     def ok(self) -> bool:
@@ -187,7 +194,12 @@ class PlanResult:
 
     # ------------------------------------------------------------------ summary
     def summary(self) -> dict[str, Any]:
-        """The content of ``summary.json`` (SI units unless a key says otherwise)."""
+        """The content of ``summary.json`` (SI units unless a key says otherwise).
+
+        It opens with ``headline`` (status, branch, TCP error before and after, duration:
+        rounded to what they mean, units in the keys; see :func:`_headline`) and
+        ``provenance`` (compplan version, command line, date, input files with SHA-256).
+        """
         pr = self.problem
         R = pr.robot.tcp2flange
         w = pr.wrench
@@ -228,6 +240,7 @@ class PlanResult:
                                           "S = [I3 0] (translational TCP deflection, m); costs reported "
                                           "in m^2 without the smoothness term")}
             s["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
+            _add_branch_postures(self, s["branches"])
             s["rejected_branches"] = {BRANCH_LABELS[b]: r for b, r in ps.rejected.items()}
             s["default_branch"] = BRANCH_LABELS[ps.default] if ps.default is not None else None
             if ps.chosen is not None:
@@ -257,7 +270,85 @@ class PlanResult:
                                "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
                            for m, tr in self.trajectories.items()}
             s["controller_trajectory"] = self.controller
-        return s
+        head = {"headline": _headline(s), "provenance": self.provenance()}
+        return {**head, **s}
+
+    def provenance(self) -> dict[str, Any]:
+        """The ``provenance`` block: version, command line and date (when the result was made),
+        and the input files (problem, arm model) with their SHA-256."""
+        pr = self.problem
+        md = pr.model.describe()
+        return provenance([problem_input(pr.source), robot_input(md.get("file") or pr.robot_spec,
+                                                                 sha256=md.get("sha256"))], self.made)
+
+
+#: What the headline's errors are (``summary.json`` ``headline.definition``).
+HEADLINE_DEFINITION = (
+    "TCP position error |reached - target| over the waypoints, at the exact deflected equilibrium of the arm "
+    "model under the whole load (the same numbers as error_before / error_after.exact at full precision): "
+    "before = the chosen posture commanded as is, after = with exact compensation. Rounded to 4 significant "
+    "digits; an error below numerical_floor_mm (the exact-compensation contract, 1e-9 m) is 0: the accuracy "
+    "of the equilibrium solve, not an error of the arm. The IK branch table's RMS errors are first order "
+    "(|S C(q) F|, the posture NLP's objective), its rms_error_equilibrium_mm the exact equilibrium.")
+
+
+def _headline(s: dict[str, Any]) -> dict[str, Any]:
+    """The ``headline`` block of a summary: what a cell engineer reads first.
+
+    Status, chosen IK branch (decoded), TCP error before and after compensation (max and
+    RMS, mm, rounded; 0 below :data:`~planner.numbers.NUMERICAL_FLOOR_MM`) and the
+    duration of the controller's trajectory (s).  Units are in every key.
+    """
+    h: dict[str, Any] = {"status": s.get("plan_status"), "reason": s.get("reason") or None}
+    label = s.get("chosen_branch")
+    h["branch"] = label
+    h["branch_meaning"] = branch_words.decode(label) if label else None
+    if label and isinstance(s.get("branches"), dict) and label in s["branches"]:
+        h["branch_posture"] = s["branches"][label].get("posture")
+    h["default_branch"] = s.get("default_branch")
+    g = s.get("gain") or {}
+    h["gain_vs_default"] = round_sig(g["vs_default"]) if np.isfinite(g.get("vs_default", np.nan)) else None
+    eb, ea = s.get("error_before"), (s.get("error_after") or {})
+    for tag, st in (("error_before", eb), ("error_after", ea.get("exact")),
+                    ("error_after_closed_form", ea.get("closed_form"))):
+        for k in ("max", "rms"):
+            h[f"{tag}_{k}_mm"] = headline_mm(st[f"{k}_mm"]) if st else None
+    h["numerical_floor_mm"] = NUMERICAL_FLOOR_MM
+    h["below_numerical_floor"] = [k for k, v in h.items() if k.startswith("error_") and v == 0.0]
+    ctrl = s.get("controller_trajectory")
+    dur = s.get("duration_s") or {}
+    h["duration_s"] = round_sig(dur[ctrl]) if ctrl in dur else None
+    h["duration_method"] = ctrl
+    h["duration_note"] = ({"ruckig": "Ruckig, jerk-limited: the trajectory the controller runs (trajectory.csv)",
+                           "toppra": "TOPP-RA, time-optimal, jerk not limited (trajectory.csv)"}.get(ctrl, ctrl)
+                          if ctrl else "not timed")
+    if "toppra" in dur and ctrl != "toppra":
+        h["duration_time_optimal_s"] = round_sig(dur["toppra"])
+    h["definition"] = HEADLINE_DEFINITION
+    return h
+
+
+def _add_branch_postures(res: "PlanResult", entries: dict[str, dict[str, Any]]) -> None:
+    """Add to each branch entry its meaning, its posture in words (at waypoint 0) and its
+    load-induced TCP error at the exact deflected equilibrium (RMS and max, mm): the same
+    measure as ``error_before``, where ``rms_error_mm`` is the NLP's first-order one."""
+    assert res.posture is not None
+    pr = res.problem
+    arm = pr.model
+    km = arm.kinematics
+    L = pr.load.rows(pr.n)
+    for r in res.posture.branches.values():
+        e = entries[r.label]
+        e["meaning"] = branch_words.decode(r.label)
+        e["status_meaning"] = branch_words.status_text(r.status.value)
+        e["posture"] = e["rms_error_equilibrium_mm"] = e["max_error_equilibrium_mm"] = None
+        if not np.all(np.isfinite(r.q)):          # a branch without a posture along the whole path
+            continue
+        frames = [f[0] for f in km.batch(km.fk_frames, r.q[:1])]
+        e["posture"] = branch_words.posture_words(frames, r.q[0], r.label, pr.robot.convention)
+        err = uncompensated(arm, r.q, L).error_norm_m
+        e["rms_error_equilibrium_mm"] = float(np.sqrt(np.mean(err ** 2)) * 1e3)
+        e["max_error_equilibrium_mm"] = float(err.max() * 1e3)
 
 
 def _branch_entry(r: BranchResult) -> dict[str, Any]:
@@ -369,6 +460,8 @@ def _compensate(res: PlanResult) -> None:
 def _base_frame_caveat(arm: ArmModel, q: np.ndarray, L: np.ndarray) -> list[str]:
     """A model identified from unregistered data leaves the parameters that alias with the
     registration and the measured point at zero: the plan is not exact in the base frame there."""
+    if arm.registered:                   # nothing aliases (and problems.identify, with scipy.stats, is not imported)
+        return []
     from problems.identify import alias_effect_m, unobservable_in_base
     names = unobservable_in_base(arm)
     if not names:

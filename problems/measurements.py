@@ -194,15 +194,29 @@ def read_measurements(path: str | Path, require_position: bool = True,
         implausible magnitudes (the message suggests the unit), duplicated rows,
         time running backwards.
     """
+    from models.robot import read_text_file
+
     p = Path(path)
-    where = str(p)
-    if not p.is_file():
-        raise InputError(f"{where}: no such measurement file")
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{where}: cannot read: {exc}") from None
-    return parse_measurements(text, where, require_position, require_wrench)
+    text = read_text_file(p, "measurement file (CSV)")
+    return parse_measurements(text, str(p), require_position, require_wrench)
+
+
+#: Separators a spreadsheet may have written instead of ``,`` (name for the message).
+_OTHER_SEPARATORS = {";": "';'", "\t": "tab", "|": "'|'"}
+
+
+def _check_separator(where: str, header_line: int, header: list[str]) -> None:
+    """Refuse a header that is one cell holding another separator (``;`` from a spreadsheet
+    with a decimal comma, tabs): the message names the separator and asks for ``,``."""
+    if len(header) > 2:
+        return
+    joined = ",".join(header)
+    for sep, name in _OTHER_SEPARATORS.items():
+        if joined.count(sep) >= 2:
+            shown = joined[:60].replace("\t", "\\t")
+            raise InputError(f"{where}: line {header_line}: the header '{shown}' looks {name}-separated; "
+                             "use ',' as the separator (and '.' as the decimal point), e.g. export as "
+                             "'CSV (comma delimited)'")
 
 
 def parse_measurements(text: str, where: str = "<text>", require_position: bool = True,
@@ -220,6 +234,7 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
     if not table:
         raise InputError(f"{where}: empty file; expected a header row and measurement rows")
     header_line, header = table[0]
+    _check_separator(where, header_line, header)
     rows = table[1:]
     if not rows:
         raise InputError(f"{where}: no measurement rows after the header (line {header_line})")
@@ -251,7 +266,10 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
     ncol = len(header)
     for lineno, cells in rows:
         if len(cells) != ncol:
-            raise InputError(f"{where}: line {lineno}: {len(cells)} cells, expected {ncol} (as the header)")
+            hint = ""
+            if len(cells) > ncol and any(c.isdigit() and c.lstrip("-").isdigit() for c in cells):
+                hint = "; a decimal comma (0,40)? write numbers with '.' (0.40)"
+            raise InputError(f"{where}: line {lineno}: {len(cells)} cells, expected {ncol} (as the header){hint}")
 
     def column(base: str) -> np.ndarray:
         k, col, factor = colmap[base]

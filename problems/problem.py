@@ -275,11 +275,9 @@ def load_problem(spec: str | Path) -> Problem:
     """
     s = str(spec)
     path = Path(s)
-    if path.is_file():
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ProblemFileError(f"{path}: cannot read: {exc}") from None
+    if path.is_file() or (path.exists() and s not in shipped_problems()):
+        from models.robot import read_text_file
+        text = read_text_file(path, "problem file (TOML)", ProblemFileError)
         where, base = str(path), path.parent
     elif s in shipped_problems():
         res = resources.files("problems").joinpath(f"files/{s}.toml")

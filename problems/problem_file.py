@@ -315,6 +315,8 @@ def _rpy(where: str, tab: Mapping[str, Any], prefix: str) -> np.ndarray | None:
         return None
     raw, deg = got
     v = _vector(where, f"{prefix}rpy{'_deg' if deg else ''}", raw, 3)
+    if not deg:
+        _check_radians(where, f"{prefix}rpy", v, PLAUSIBLE_RPY_MAX_RAD, f"{prefix}rpy_deg")
     return np.radians(v) if deg else v
 
 
@@ -335,6 +337,27 @@ def _check_positions(where: str, key: str, P: np.ndarray) -> None:
         raise ProblemFileError(
             f"{where}: key '{key}' row {k}: position {P[k].tolist()} is {r[k]:.4g} m from the base "
             f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); positions are in metres (millimetres given?)")
+
+
+#: An orientation angle (rpy) in radians beyond this magnitude is implausible: degrees given
+#: under the radian key (one turn).
+PLAUSIBLE_RPY_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
+#: A joint angle (``branch.home``) or joint step in radians beyond this magnitude is
+#: implausible (two turns for a joint angle, one turn for a step).
+PLAUSIBLE_JOINT_MAX_RAD = 4.0 * math.pi * (1.0 + 1e-9)
+PLAUSIBLE_JOINT_STEP_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
+
+
+def _check_radians(where: str, key: str, values: np.ndarray, limit: float, deg_key: str) -> None:
+    """Refuse radian values that are almost certainly degrees (|value| > ``limit``), naming the
+    key, the value and the ``_deg`` key to use instead."""
+    v = np.atleast_1d(np.asarray(values, dtype=float))
+    bad = np.flatnonzero(np.abs(v) > limit)
+    if bad.size:
+        i = int(bad[0])
+        raise _err(where, key, f"= {v.tolist() if v.size > 1 else float(v[0])} rad is implausible "
+                               f"(|{float(v[i]):g}| > {limit:.4g} rad): a key without '_deg' is in radians; "
+                               f"degrees given? use '{deg_key}'")
 
 
 def check_timing(where: str, t: TimingSettings) -> None:
@@ -377,7 +400,9 @@ def parse_header(where: str, data: Any) -> Header:
         raise ProblemFileError(f"{where}: expected a table at top level")
     unknown = sorted(set(data) - set(_TOP))
     if unknown:
-        raise ProblemFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP)}")
+        hint = ("; this looks like a robot file (give it as [robot] model = \"FILE\" or --robot), not a "
+                "problem file" if {"joints", "convention"} & set(unknown) else "")
+        raise ProblemFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP)}{hint}")
     name = data.get("name")
     if not isinstance(name, str) or not name.strip():
         raise _err(where, "name", f"must be a non-empty string, got {name!r}")
@@ -411,6 +436,10 @@ def parse_robot(where: str, data: Mapping[str, Any], base_dir: Path | None) -> R
     if "tool" in rt:
         tt = _table(where, data, "robot.tool")
         xyz = _vector(where, "robot.tool.xyz", tt.get("xyz", [0.0, 0.0, 0.0]), 3)
+        if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
+            raise _err(where, "robot.tool.xyz", f"= {xyz.tolist()} m is implausible for a tool (> "
+                                                f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
+                                                "(millimetres given?)")
         rpy = _rpy(where, tt, "robot.tool.")
         arm = arm.with_tool(transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz))
     return RobotSection(spec, arm)
@@ -454,11 +483,13 @@ def _cone_half_angle(where: str, ot: Mapping[str, Any], rule: OrientationRule) -
         if got is None:
             raise _err(where, "orientation.half_angle_deg", "is required for rule 'cone' (or half_angle, rad)")
         raw, deg = got
-        half = _number(where, f"orientation.half_angle{'_deg' if deg else ''}", raw)
-        half = math.radians(half) if deg else half
+        key = f"orientation.half_angle{'_deg' if deg else ''}"
+        given = _number(where, key, raw)
+        half = math.radians(given) if deg else given
         if not 0.0 < half < math.pi / 2:
-            raise _err(where, "orientation.half_angle_deg", f"must be in (0, 90) deg, got "
-                                                            f"{math.degrees(half):g} deg")
+            rng = "(0, 90) deg" if deg else "(0, pi/2) rad, i.e. (0, 1.5708)"
+            hint = "" if deg or given <= 0 else "; degrees given? use 'orientation.half_angle_deg'"
+            raise _err(where, key, f"must be in {rng}, got {given:g}{' deg' if deg else ' rad'}{hint}")
     elif got is not None:
         raise _err(where, "orientation.half_angle", f"only applies to rule 'cone' (rule is '{rule.value}')")
     return half
@@ -519,6 +550,9 @@ def _waypoints_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> Pat
         A = _rows(where, key, raw, 3)
         if len(A) != n:
             raise _err(where, key, f"has {len(A)} rows but path.positions has {n}")
+        if not deg:
+            for i, row in enumerate(A):
+                _check_radians(where, f"path.rpy[{i}]", row, PLAUSIBLE_RPY_MAX_RAD, "path.rpy_deg")
         R = np.stack([rpy_to_matrix(np.radians(a) if deg else a) for a in A])
     else:
         R = np.broadcast_to(R_nom, (n, 3, 3)).copy()
@@ -545,13 +579,30 @@ def parse_wrench(where: str, data: Mapping[str, Any], n: int) -> WrenchSection:
         W = _rows(where, "wrench.per_waypoint", wt["per_waypoint"], 6)
         if len(W) != n:
             raise _err(where, "wrench.per_waypoint", f"has {len(W)} rows but the path has {n} waypoints")
+        _check_wrench(where, "wrench.per_waypoint", W)
         return WrenchSection(frame, W, True)
     if "force" not in wt:
         raise _err(where, "wrench.force", "is required (or wrench.per_waypoint), in N")
     f = _vector(where, "wrench.force", wt["force"], 3)
     m = _vector(where, "wrench.moment", wt.get("moment", [0.0, 0.0, 0.0]), 3)
+    _check_wrench(where, "wrench", np.r_[f, m][None, :])
     W = np.broadcast_to(np.r_[f, m], (n, 6)).copy()
     return WrenchSection(frame, W, False)
+
+
+def _check_wrench(where: str, key: str, W: np.ndarray) -> None:
+    """Refuse implausible force (N) or moment (N*m) components (kN or N*mm given by mistake),
+    with the limits of the measurement files."""
+    from problems.measurements import PLAUSIBLE_FORCE_MAX_N, PLAUSIBLE_MOMENT_MAX_NM
+
+    for cols, limit, name, unit in ((slice(0, 3), PLAUSIBLE_FORCE_MAX_N, "force", "N"),
+                                    (slice(3, 6), PLAUSIBLE_MOMENT_MAX_NM, "moment", "N*m")):
+        part = np.abs(W[:, cols])
+        if np.any(part > limit):
+            i, j = np.unravel_index(int(np.argmax(part)), part.shape)
+            k = (f"{key}[{i}][{j + cols.start}]" if key.endswith("per_waypoint") else f"{key}.{name}[{j}]")
+            raise _err(where, k, f"= {float(W[i, j + cols.start]):g} {unit} is implausible (|value| above "
+                                 f"{limit:g} {unit}); the {name} is in {unit}")
 
 
 def parse_payload(where: str, data: Mapping[str, Any]) -> PayloadSection:
@@ -590,8 +641,8 @@ def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
             v = _vector_or_scalar(where, f"limits.{key}", lt[key], 6)
             bad = np.where(v <= 0)[0]
             if bad.size:
-                raise ProblemFileError(f"{where}: key 'limits.{key}' joint {bad[0] + 1}: must be > 0, "
-                                       f"got {v[bad[0]]!r}")
+                raise ProblemFileError(f"{where}: key 'limits.{key}' joint {int(bad[0]) + 1}: must be > 0, "
+                                       f"got {float(v[bad[0]]):g}")
         elif f"{key}_scale" in lt:
             s = _positive(where, f"limits.{key}_scale", lt[f"{key}_scale"])
             v = base * s
@@ -604,6 +655,9 @@ def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
     else:
         raw, deg = got
         step = _positive(where, f"limits.max_joint_step{'_deg' if deg else ''}", raw)
+        if not deg:
+            _check_radians(where, "limits.max_joint_step", np.array([step]), PLAUSIBLE_JOINT_STEP_MAX_RAD,
+                           "limits.max_joint_step_deg")
         step = math.radians(step) if deg else step
     return Limits(lims["velocity"], lims["acceleration"], lims["jerk"], step)
 
@@ -646,6 +700,8 @@ def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:
         return paper.HOME_Q.copy()
     raw, deg = got
     home = _vector(where, f"branch.home{'_deg' if deg else ''}", raw, 6)
+    if not deg:
+        _check_radians(where, "branch.home", home, PLAUSIBLE_JOINT_MAX_RAD, "branch.home_deg")
     return np.radians(home) if deg else home
 
 

@@ -50,6 +50,8 @@ SIM_EFFECTS = ("gravity", "stiffness_hardening", "lost_motion", "joint_offset", 
 OUT_OF_LIBRARY = ("eccentricity",)
 
 _TOP_KEYS = {"seed", "campaign", "noise", "registration", "temperature", "stiffness", "effects", "units"}
+#: Largest number of rows a simulated campaign may have (poses x rows per pose).
+SIM_MAX_ROWS = 1_000_000
 
 
 class SimConfigError(InputError):
@@ -144,6 +146,43 @@ def _vec(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.nda
     return np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
 
 
+def _at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bool = False,
+              what: str = "") -> None:
+    """Refuse values below ``lo`` (or equal to it when ``strict``), naming the key and the value."""
+    arr = np.atleast_1d(np.asarray(v, dtype=float))
+    bad = np.flatnonzero(arr <= lo) if strict else np.flatnonzero(arr < lo)
+    if bad.size:
+        i = int(bad[0])
+        k = key if arr.size == 1 and np.ndim(v) == 0 else f"{key}[{i}]"
+        raise SimConfigError(f"{where}: key '{k}' must be {'>' if strict else '>='} {lo:g}"
+                             f"{' ' + what if what else ''}, got {float(arr[i]):g}")
+
+
+def _int(where: str, key: str, v: Any, lo: int) -> int:
+    """An integer >= ``lo`` (a float such as 20.5 or a string is refused)."""
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+        raise SimConfigError(f"{where}: key '{key}' must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def _bool(where: str, key: str, v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise SimConfigError(f"{where}: key '{key}' must be true or false, got {v!r}")
+    return v
+
+
+def _magnitudes(where: str, key: str, v: Any) -> np.ndarray:
+    """A number or a non-empty list of finite numbers >= 0 (force or moment magnitudes)."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        out = np.array([_num(where, key, v)])
+    elif isinstance(v, list) and v:
+        out = np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+    else:
+        raise SimConfigError(f"{where}: key '{key}' must be a number or a non-empty list of numbers, got {v!r}")
+    _at_least(where, key, out if isinstance(v, list) else out[0], 0.0)
+    return out
+
+
 def _table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> dict[str, Any]:
     t = cfg.get(key, {})
     if not isinstance(t, Mapping):
@@ -184,11 +223,12 @@ DEFAULT_CAMPAIGN = {
 
 def load_config(path: str | Path) -> dict[str, Any]:
     """Read a simulation configuration TOML file."""
+    from models.robot import read_text_file
+
     p = Path(path)
-    if not p.is_file():
-        raise SimConfigError(f"{p}: no such simulation configuration file")
+    text = read_text_file(p, "simulation configuration file (TOML)", SimConfigError)
     try:
-        return tomllib.loads(p.read_text(encoding="utf-8"))
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SimConfigError(f"{p}: not valid TOML: {exc}") from None
 
@@ -254,16 +294,27 @@ class VirtualRobot:
         self.robot = robot
         self.where = where
         self.config = copy.deepcopy(cfg)
-        self.seed = int(seed if seed is not None else cfg.get("seed", 0))
+        if seed is not None:
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+                raise SimConfigError(f"{where}: seed {seed!r}: expected an integer >= 0")
+            self.seed = int(seed)
+        else:
+            self.seed = _int(where, "seed", cfg.get("seed", 0), 0)
+        units = cfg.get("units", "SI")
+        if units not in ("SI", "mm"):
+            raise SimConfigError(f"{where}: key 'units' must be 'SI' or 'mm', got {units!r}")
         rng = np.random.default_rng(self.seed)
         self.convention = robot.convention
         # --- stiffness (true joint stiffness of the "declared" model)
         st = _table(where, cfg, "stiffness", {"scale"})
-        self.k_true = robot.stiffness * _vec(f"{where}: [stiffness]", "scale", st.get("scale", 1.0), 6)
+        scale = _vec(f"{where}: [stiffness]", "scale", st.get("scale", 1.0), 6)
+        _at_least(f"{where}: [stiffness]", "scale", scale if isinstance(st.get("scale"), list) else scale[0],
+                  0.0, strict=True)
+        self.k_true = robot.stiffness * scale
         # --- registration and measured point
         reg = _table(where, cfg, "registration", {"registered", "base2meas_xyz_m", "base2meas_rotvec_rad",
                                                   "measured_point_m"})
-        self.registered = bool(reg.get("registered", False))
+        self.registered = _bool(f"{where}: [registration]", "registered", reg.get("registered", False))
         if self.registered:
             self.R_reg, self.t_reg = np.eye(3), np.zeros(3)
             self.p_tool = robot.tcp2flange[:3, 3].copy()
@@ -335,6 +386,8 @@ class VirtualRobot:
         ew = f"{self.where}: [effects.geometric]"
         sl = _num(ew, "sigma_length_m", e.get("sigma_length_m", 5e-4))
         sa = _num(ew, "sigma_angle_rad", e.get("sigma_angle_rad", 1e-3))
+        _at_least(ew, "sigma_length_m", sl, 0.0, what="(a standard deviation, m)")
+        _at_least(ew, "sigma_angle_rad", sa, 0.0, what="(a standard deviation, rad)")
         self.da += _vec(ew, "da_m", e["da_m"], 6) if "da_m" in e else rng.normal(0, sl, 6)
         self.dd += _vec(ew, "dd_m", e["dd_m"], 6) if "dd_m" in e else rng.normal(0, sl, 6)
         self.dalpha += _vec(ew, "dalpha_rad", e["dalpha_rad"], 6) if "dalpha_rad" in e else rng.normal(0, sa, 6)
@@ -360,6 +413,7 @@ class VirtualRobot:
         ew = f"{self.where}: [effects.gravity]"
         if "masses_kg" in e:
             self.masses = _vec(ew, "masses_kg", e["masses_kg"], 6)
+            _at_least(ew, "masses_kg", self.masses, 0.0)
         elif r.has_masses:
             self.masses = r.masses.copy()
         else:
@@ -373,8 +427,11 @@ class VirtualRobot:
             self.coms = r.coms.copy()
         else:   # generic: half way back along the link (in link frame i, standard DH: -a/2 on x)
             self.coms = np.column_stack([-r.a / 2.0, np.zeros(6), np.zeros(6)])
-        self.masses = self.masses * _num(ew, "mass_scale", e.get("mass_scale", 1.0))
+        mass_scale = _num(ew, "mass_scale", e.get("mass_scale", 1.0))
+        _at_least(ew, "mass_scale", mass_scale, 0.0)
+        self.masses = self.masses * mass_scale
         self.payload = _num(ew, "payload_kg", e.get("payload_kg", 0.0))
+        _at_least(ew, "payload_kg", self.payload, 0.0)
         self.payload_com = _vec(ew, "payload_com_m", e.get("payload_com_m", [0.0, 0.0, 0.05]), 3, False)
 
     def _realise_lost_motion(self) -> None:
@@ -382,9 +439,11 @@ class VirtualRobot:
         :attr:`backlash_smoothing` N*m (0: a hard sign)."""
         if "lost_motion" in self.effects:
             e = self.effects["lost_motion"]
-            self.backlash = _vec(f"{self.where}: [effects.lost_motion]", "backlash_rad",
-                                 e.get("backlash_rad", 2e-4), 6)
-            self.backlash_smoothing = _num(self.where, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
+            ew = f"{self.where}: [effects.lost_motion]"
+            self.backlash = _vec(ew, "backlash_rad", e.get("backlash_rad", 2e-4), 6)
+            _at_least(ew, "backlash_rad", self.backlash, 0.0, what="(half the dead band)")
+            self.backlash_smoothing = _num(ew, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
+            _at_least(ew, "smoothing_Nm", self.backlash_smoothing, 0.0)
 
     def _realise_stiffness_hardening(self) -> None:
         """Effect ``stiffness_hardening``: :attr:`hard_model`, :attr:`knee` (6,) N*m,
@@ -399,6 +458,9 @@ class VirtualRobot:
         self.knee = _vec(ew, "knee_torque_Nm", e.get("knee_torque_Nm", 20.0), 6)
         self.hard_ratio = _vec(ew, "stiffness_ratio", e.get("stiffness_ratio", 2.0), 6)
         self.hard_beta = _vec(ew, "beta_per_Nm", e.get("beta_per_Nm", 0.01), 6)
+        _at_least(ew, "knee_torque_Nm", self.knee, 0.0)
+        _at_least(ew, "stiffness_ratio", self.hard_ratio, 0.0, strict=True)
+        _at_least(ew, "beta_per_Nm", self.hard_beta, 0.0)
 
     def _realise_load_offset(self) -> None:
         """Effect ``load_offset``: :attr:`r_tool` (3,) m, TCP frame, where the wrench's force
@@ -418,6 +480,8 @@ class VirtualRobot:
         self.beam_links = [x - 1 for x in links]
         self.EI = _vec(ew, "EI_Nm2", e.get("EI_Nm2", 2.0e5), len(links))
         self.GJ = _vec(ew, "GJ_Nm2", e.get("GJ_Nm2", 1.5e5), len(links))
+        _at_least(ew, "EI_Nm2", self.EI, 0.0, strict=True)
+        _at_least(ew, "GJ_Nm2", self.GJ, 0.0, strict=True)
 
     def _realise_drift(self) -> None:
         """Effect ``drift``: :attr:`drift_rate` (3,) m/s and :attr:`drift_acc` (3,) m/s^2,
@@ -665,19 +729,27 @@ class VirtualRobot:
         """Validate the row-shaping keys of ``camp``, the ``[campaign]`` table merged over
         :data:`DEFAULT_CAMPAIGN` (``dt_s`` is read later, by :meth:`_campaign_times`)."""
         cw = f"{self.where}: [campaign]"
-        n_poses = int(_num(cw, "poses", camp["poses"]))
-        if n_poses < 1:
-            raise SimConfigError(f"{cw}: key 'poses' must be >= 1, got {n_poses}")
-        n_un = int(_num(cw, "unloaded_rows", camp["unloaded_rows"]))
-        n_ld = int(_num(cw, "loaded_rows", camp["loaded_rows"]))
-        n_rep = int(_num(cw, "repeats", camp["repeats"]))
-        mags = np.atleast_1d(np.asarray(camp["force_magnitudes_N"], dtype=float))
-        mmags = np.atleast_1d(np.asarray(camp["moment_magnitudes_Nm"], dtype=float))
+        n_poses = _int(cw, "poses", camp["poses"], 1)
+        n_un = _int(cw, "unloaded_rows", camp["unloaded_rows"], 0)
+        n_ld = _int(cw, "loaded_rows", camp["loaded_rows"], 0)
+        n_rep = _int(cw, "repeats", camp["repeats"], 0)
+        if n_un + n_ld == 0:
+            raise SimConfigError(f"{cw}: keys 'unloaded_rows' and 'loaded_rows' are both 0; a pose needs at "
+                                 "least one row")
+        n_rows = n_poses * (n_un + n_ld + n_rep)
+        if n_rows > SIM_MAX_ROWS:
+            raise SimConfigError(f"{cw}: {n_poses} poses x {n_un + n_ld + n_rep} rows = {n_rows} rows, more than "
+                                 f"the cap of {SIM_MAX_ROWS} rows (SIM_MAX_ROWS)")
+        mags = _magnitudes(cw, "force_magnitudes_N", camp["force_magnitudes_N"])
+        mmags = _magnitudes(cw, "moment_magnitudes_Nm", camp["moment_magnitudes_Nm"])
         dirs = camp["directions"]
         if dirs not in ("random", "axes", "down"):
             raise SimConfigError(f"{cw}: key 'directions' must be 'random', 'axes' or 'down', got {dirs!r}")
-        return _CampaignPlan(n_poses, n_un, n_ld, n_rep, mags, mmags, dirs,
-                             _num(cw, "r_min_m", camp["r_min_m"]), _num(cw, "z_min_m", camp["z_min_m"]))
+        dt = _num(cw, "dt_s", camp["dt_s"])
+        _at_least(cw, "dt_s", dt, 0.0, strict=True, what="s (the time between rows)")
+        r_min = _num(cw, "r_min_m", camp["r_min_m"])
+        _at_least(cw, "r_min_m", r_min, 0.0)
+        return _CampaignPlan(n_poses, n_un, n_ld, n_rep, mags, mmags, dirs, r_min, _num(cw, "z_min_m", camp["z_min_m"]))
 
     def _campaign_loads(self, q_poses: np.ndarray, plan: _CampaignPlan,
                         rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -763,8 +835,11 @@ class VirtualRobot:
         t0 = _num(tw, "start_C", tcfg.get("start_C", 20.0))
         t1 = _num(tw, "end_C", tcfg.get("end_C", t0))
         tau = _num(tw, "time_constant_s", tcfg.get("time_constant_s", max(t[-1], 1.0) / 2))
+        _at_least(tw, "time_constant_s", tau, 0.0, strict=True, what="s")
+        noise_c = _num(tw, "noise_C", tcfg.get("noise_C", 0.0))
+        _at_least(tw, "noise_C", noise_c, 0.0, what="(a standard deviation, deg C)")
         temperature = t0 + (t1 - t0) * (1 - np.exp(-t / tau))
-        temperature = temperature + rng.normal(0, _num(tw, "noise_C", tcfg.get("noise_C", 0.0)), n)
+        temperature = temperature + rng.normal(0, noise_c, n)
         return t, temperature
 
     def _campaign_noise(self, p: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
@@ -785,9 +860,13 @@ class VirtualRobot:
             The per-axis noise sigma of each row, m, if ``sigma_column`` is set.
         """
         ncfg = _table(self.where, self.config, "noise", {"sigma_m", "sigma_column"})
-        sigma = _num(f"{self.where}: [noise]", "sigma_m", ncfg.get("sigma_m", 2e-5))
+        nw = f"{self.where}: [noise]"
+        sigma = _num(nw, "sigma_m", ncfg.get("sigma_m", 2e-5))
+        column = _bool(nw, "sigma_column", ncfg.get("sigma_column", False))
+        _at_least(nw, "sigma_m", sigma, 0.0, strict=column,
+                  what="(a standard deviation, m" + ("; the sigma column needs it > 0)" if column else ")"))
         p = p + rng.normal(0, sigma, p.shape)
-        sig_col = np.full(len(p), sigma) if ncfg.get("sigma_column", False) else None
+        sig_col = np.full(len(p), sigma) if column else None
         return p, sig_col
 
     def _campaign_outliers(self, p: np.ndarray, rng: np.random.Generator) -> None:
@@ -808,8 +887,12 @@ class VirtualRobot:
             return
         n = len(p)
         e = self.effects["outliers"]
-        frac = _num(f"{self.where}: [effects.outliers]", "fraction", e.get("fraction", 0.03))
-        mag = _num(f"{self.where}: [effects.outliers]", "magnitude_m", e.get("magnitude_m", 2e-3))
+        ow = f"{self.where}: [effects.outliers]"
+        frac = _num(ow, "fraction", e.get("fraction", 0.03))
+        mag = _num(ow, "magnitude_m", e.get("magnitude_m", 2e-3))
+        if not 0.0 <= frac <= 1.0:
+            raise SimConfigError(f"{ow}: key 'fraction' must be in [0, 1] (a fraction of the rows), got {frac:g}")
+        _at_least(ow, "magnitude_m", mag, 0.0)
         k = max(1, round(frac * n))
         idx = np.sort(rng.choice(n, size=k, replace=False))
         u = rng.normal(size=(k, 3))
@@ -849,13 +932,18 @@ def from_truth(truth: Mapping[str, Any]) -> VirtualRobot:
 
 def load_truth(path: str | Path) -> VirtualRobot:
     """Load a truth file written by ``compplan simulate``."""
+    from models.robot import read_text_file
+
     p = Path(path)
-    if not p.is_file():
-        raise SimConfigError(f"{p}: no such truth file")
+    text = read_text_file(p, "truth file (TOML, written by compplan simulate)", SimConfigError)
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SimConfigError(f"{p}: not valid TOML: {exc}") from None
+    missing = [k for k in ("robot", "config", "seed") if k not in data]
+    if missing:
+        raise SimConfigError(f"{p}: not a truth file of compplan simulate (missing key(s) "
+                             f"{', '.join(missing)}); give the .truth.toml written next to the simulated data")
     return from_truth(data)
 
 

@@ -81,6 +81,8 @@ def _settle(q_command: np.ndarray, wrench: np.ndarray, robot: dict) -> np.ndarra
 def _run(capsys, *argv: str) -> tuple[int, str, str]:
     code = main(list(argv))
     out, err = capsys.readouterr()
+    # without a C compiler the CLI adds one "compplan: note: ..." line (tests/test_no_compiler.py)
+    err = "".join(line for line in err.splitlines(keepends=True) if not line.startswith("compplan: note:"))
     return code, out, err
 
 
@@ -120,6 +122,19 @@ def test_paper_plan_summary(paper_run):
     assert s["robot_file"]["name"] == "ar5" and s["problem"]["name"] == "paper_4_4"
     assert s["wrench"]["F_N"] == [5.0, 10.0, 20.0] and s["status"]["exact"] == "ok"
     assert s["error_after"]["exact"]["max_mm"] < 1e-6 < s["error_before"]["max_mm"]
+    # the headline first (units in the keys, rounded), then where the run came from
+    assert list(s)[:2] == ["headline", "provenance"]
+    h = s["headline"]
+    assert (h["status"], h["branch"], h["default_branch"]) == ("ok", "s-w-e-", "s-w-e+")
+    assert h["error_after_max_mm"] == 0.0 and h["error_before_max_mm"] == pytest.approx(
+        s["error_before"]["max_mm"], rel=5e-4)
+    assert h["duration_s"] == pytest.approx(s["duration_s"]["ruckig"], rel=5e-4)
+    p = s["provenance"]
+    assert p["argv"] == ["compplan", "plan", "paper_4_4", "--out", str(paper_run), "--no-figures", "--no-report"]
+    assert p["command_line"].startswith("compplan plan paper_4_4 --out ") and p["date_utc"].endswith("Z")
+    assert [e["role"] for e in p["inputs"]] == ["problem", "robot model"] and all(e["sha256"] for e in p["inputs"])
+    for info in s["branches"].values():      # the exact-equilibrium error beside the NLP's first-order one
+        assert info["rms_error_equilibrium_mm"] == pytest.approx(info["rms_error_mm"], rel=0.02)
 
 
 def test_output_files_and_columns(paper_run):
@@ -263,6 +278,7 @@ def test_single_pose_command(tmp_path, capsys):
     code, out, err = _run(capsys, "pose", "paper_4_4", "--waypoint", "39", "--out", str(tmp_path))
     assert code == 0 and err == ""
     d = json.loads((tmp_path / "pose.json").read_text())
+    assert d["provenance"]["argv"][:2] == ["compplan", "pose"] and d["provenance"]["inputs"][0]["name"] == "paper_4_4"
     e = [b["error_m"] for b in d["branches"].values()]
     assert len(e) == 8 and d["chosen_branch"] == min(d["branches"], key=lambda k: d["branches"][k]["error_m"])
     code, _, err = _run(capsys, "pose", "paper_4_4", "--waypoint", "40")

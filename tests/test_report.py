@@ -19,10 +19,14 @@ from planner.cli import main
 from planner.compliance_map import compliance_map
 from planner.demo import run_demo, write_outputs
 from planner.output import TRAJECTORY_COLUMNS, csv_bytes
+from planner.numbers import (DISPLAY_DIGITS, NUMERICAL_FLOOR_MM, NUMERICAL_ZERO_TEXT, format_value,
+                             is_error_key, round_sig)
 from planner.report import (FIGURE_NAMES, build_figures, load_run, lookup, render_html,
                             render_markdown, run_from_plan, summary_tables, write_report)
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+#: A number shown with DISPLAY_DIGITS significant digits is within this of its value (relative).
+DISPLAY_REL = 0.5 * 10.0 ** (1 - DISPLAY_DIGITS)
 #: A small map keeps the tests quick; the full 61x61 default is exercised by the demo report.
 SMALL_MAP = {"points": 13}
 
@@ -78,8 +82,24 @@ def _flat(v):
     return [v]
 
 
+def _shown_matches(text: str, value: float | int, key: str) -> None:
+    """A displayed number is the value rounded to DISPLAY_DIGITS significant digits (an integer
+    in full), or, for a TCP error below the numerical floor, "0 (numerical)"."""
+    expected = float(value)
+    if text == NUMERICAL_ZERO_TEXT:
+        assert is_error_key(key), f"{key}: only TCP errors are shown as numerically zero"
+        floor = NUMERICAL_FLOOR_MM if key.endswith("_mm") else NUMERICAL_FLOOR_MM * 1e-3
+        assert abs(expected) < floor, (key, expected)
+        return
+    assert float(text) == pytest.approx(expected, rel=DISPLAY_REL, abs=0), (key, text, expected)
+    if isinstance(value, float) and expected != 0.0:     # rounded to what it means, not more
+        digits = len(text.split("e")[0].replace("-", "").replace(".", "").lstrip("0"))
+        assert digits <= DISPLAY_DIGITS, (key, text)
+
+
 def check_cells_match_summary(folder: Path) -> _ReportParser:
-    """Every value cell of the HTML tables equals its summary.json entry."""
+    """Every value cell of the HTML tables equals its summary.json entry (data-value, full
+    precision) and shows it rounded to what it means (text)."""
     summary = json.loads((folder / "summary.json").read_text())
     rep = parse(folder)
     assert rep.cells, "no machine-checkable cells in report.html"
@@ -92,12 +112,14 @@ def check_cells_match_summary(folder: Path) -> _ReportParser:
         if isinstance(expected, str):
             assert text == expected
         elif isinstance(expected, list):
-            shown = [float(x) for x in text.strip("[]").split(",")]
-            assert shown == pytest.approx([float(x) for x in expected], rel=1e-6, abs=0)
+            for t, e in zip(text.strip("[]").split(","), expected, strict=True):
+                _shown_matches(t.strip(), e, c["key"])
         elif expected is None:
             assert text == "n/a"
+        elif isinstance(expected, bool):
+            assert text == str(expected).lower()
         else:
-            assert float(text) == pytest.approx(float(expected), rel=1e-6, abs=0), c
+            _shown_matches(text, expected, c["key"])
     return rep
 
 
@@ -213,8 +235,10 @@ def test_markdown_table_has_the_same_numbers(demo_report):
     s = json.loads((demo_report / "summary.json").read_text())
     row = next(line for line in md.splitlines() if line.startswith("| before compensation"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert float(cells[1]) == pytest.approx(s["error_before"]["max_mm"], rel=1e-6)
-    assert float(cells[2]) == pytest.approx(s["error_before"]["rms_mm"], rel=1e-6)
+    assert float(cells[1]) == pytest.approx(s["error_before"]["max_mm"], rel=DISPLAY_REL)
+    assert float(cells[2]) == pytest.approx(s["error_before"]["rms_mm"], rel=DISPLAY_REL)
+    row = next(line for line in md.splitlines() if line.startswith("| after exact compensation"))
+    assert [c.strip() for c in row.strip("|").split("|")][1:] == [NUMERICAL_ZERO_TEXT] * 2
 
 
 # ------------------------------------------------------------- the view from a plan and a folder
@@ -463,3 +487,271 @@ def test_cli_report_and_map(demo_run, tmp_path, capsys):
     assert main(["report", str(tmp_path / "missing")]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert main(["map", "--out", str(tmp_path / "m2"), "--branch", "xyz"]) == 2
+
+
+# -------------------------------------------------- headline, provenance, figures (issue 9)
+def _sha256(path: Path) -> str:
+    import hashlib
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def test_summary_opens_with_the_headline_in_units_and_rounded(demo_run):
+    s = json.loads((demo_run / "summary.json").read_text())
+    assert list(s)[:2] == ["headline", "provenance"]
+    h = s["headline"]
+    assert h["status"] == s["plan_status"] == "ok"
+    assert h["branch"] == s["chosen_branch"] == "s-w-e-"
+    assert "shoulder −" in h["branch_meaning"] and "elbow −" in h["branch_meaning"]
+    assert h["branch_posture"] == s["branches"]["s-w-e-"]["posture"]
+    for tag, full in (("error_before", s["error_before"]), ("error_after", s["error_after"]["exact"]),
+                      ("error_after_closed_form", s["error_after"]["closed_form"])):
+        for k in ("max", "rms"):
+            key, v = f"{tag}_{k}_mm", full[f"{k}_mm"]
+            assert h[key] == (0.0 if abs(v) < NUMERICAL_FLOOR_MM else round_sig(v)), key
+    assert h["error_before_max_mm"] == 1.779 and h["error_after_max_mm"] == 0.0
+    assert h["numerical_floor_mm"] == NUMERICAL_FLOOR_MM == 1e-6
+    assert set(h["below_numerical_floor"]) == {"error_after_max_mm", "error_after_rms_mm"}
+    assert h["duration_method"] == s["controller_trajectory"] == "ruckig"
+    assert h["duration_s"] == round_sig(s["duration_s"]["ruckig"])
+    # units in every numeric key of the headline
+    for k, v in h.items():
+        if isinstance(v, float) and k != "gain_vs_default":
+            assert k.endswith(("_mm", "_s")), k
+    assert "first order" in h["definition"]              # the two "before" errors explained
+
+
+def test_branch_entries_say_what_the_branch_is_and_both_errors(demo_result, demo_run):
+    s = json.loads((demo_run / "summary.json").read_text())
+    for label, e in s["branches"].items():
+        assert e["meaning"].startswith("shoulder") and e["status_meaning"].startswith("fixed orientation")
+        assert "elbow up" in e["posture"] or "elbow down" in e["posture"]
+        assert e["rms_error_equilibrium_mm"] > 0 and e["rms_error_mm"] > 0
+    chosen = s["branches"]["s-w-e-"]
+    # the exact-equilibrium branch error is the error table's "before"; the NLP's is first order
+    assert chosen["rms_error_equilibrium_mm"] == pytest.approx(s["error_before"]["rms_mm"], rel=1e-12)
+    assert chosen["rms_error_mm"] != pytest.approx(chosen["rms_error_equilibrium_mm"], rel=1e-6)
+    # the UR home pose (the demo's default branch) is elbow up
+    assert "elbow up" in s["branches"][s["default_branch"]]["posture"]
+
+
+def test_provenance_names_version_date_and_hashed_inputs(demo_run):
+    from datetime import datetime
+
+    from planner.provenance import version
+    p = json.loads((demo_run / "summary.json").read_text())["provenance"]
+    assert p["compplan_version"] == version() != "unknown"
+    assert p["command_line"] is None and p["argv"] is None       # a library call, not a command
+    when = datetime.fromisoformat(p["date_utc"].replace("Z", "+00:00"))
+    assert p["date_utc"].endswith("Z") and when.utcoffset().total_seconds() == 0
+    roles = {e["role"]: e for e in p["inputs"]}
+    assert roles["problem"]["name"] == "paper_4_4" and roles["robot model"]["name"] == "ar5"
+    for e in p["inputs"]:
+        assert Path(e["path"]).is_file() and e["sha256"] == _sha256(e["path"])
+
+
+def test_report_opens_with_the_headline_and_closes_the_summary_with_provenance(demo_report):
+    text = (demo_report / "report.html").read_text()
+    first_table = text.index("<table")
+    assert 'class="summary headline"' in text[first_table:first_table + 60]
+    assert text.index('id="headline"') < text.index("Run details") < text.index('id="provenance"') \
+        < text.index("<h2>Figures</h2>")
+    rep = check_cells_match_summary(demo_report)
+    head = [c for c in rep.cells if c["key"].startswith("headline.")]
+    assert [c["key"] for c in head][:3] == ["headline.status", "headline.branch", "headline.error_before_max_mm"]
+    shown = {c["key"]: c["text"].strip() for c in head}
+    assert shown["headline.error_before_max_mm"] == "1.779"
+    assert shown["headline.error_after_max_mm"] == NUMERICAL_ZERO_TEXT
+    assert shown["headline.duration_s"] == "2.36"
+    keys = {c["key"] for c in rep.cells}
+    assert {"provenance.compplan_version", "provenance.date_utc", "provenance.inputs.0.sha256",
+            "provenance.inputs.1.sha256"} <= keys
+    assert not [c for c in rep.cells if "e-1" in c["text"]]      # no rounding residue shown
+    assert "fixed orientation: the IK solution, nothing to optimise" in text
+    assert "shoulder left/right" in text                          # the branch labels decoded
+    md = (demo_report / "report.md").read_text()
+    assert md.index("### Headline") < md.index("## Run details") < md.index("### Provenance")
+
+
+def test_numbers_are_shown_rounded_to_what_they_mean():
+    assert format_value(5.551115123125783e-14, "error_after.exact.max_mm") == NUMERICAL_ZERO_TEXT
+    assert format_value(8.8e-15, "exact_residual_max_m") == NUMERICAL_ZERO_TEXT
+    assert format_value(1.779017464983031, "error_before.max_mm") == "1.779"
+    assert format_value(6.251752085921565e-05, "branches.s-w-e-.cost") == "6.252e-5"
+    assert format_value(5.5e-14, "cost") == "5.5e-14"           # only errors have the floor
+    assert format_value([5.0, 10.0, 20.0], "wrench.F_N") == "[5, 10, 20]"
+    assert round_sig(0.025092427957477882) == 0.02509 and round_sig(2.36) == 2.36
+
+
+def test_path_figures_are_drawn_against_the_path_length(demo_run):
+    run = load_run(demo_run)
+    items = {it.name: it for it in build_figures(run, map_options=False)}
+    P = np.column_stack([run.waypoints[a] for a in "xyz"])
+    s_mm = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))] * 1e3
+    for name in ("fig2_stiffness_error", "fig3_compensation_angles", "fig4_error_before_after"):
+        fn, args, _ = items[name].job
+        assert np.array_equal(args[0], s_mm), name
+    assert s_mm[-1] == pytest.approx(np.linalg.norm(P[-1] - P[0]) * 1e3)    # a line: its length
+    # figure 5: a bar per IK branch (infeasible ones marked) plus the chosen and default curves
+    fn, args, kw = items["fig5_branches"].job
+    labels, r_ana, r_opt, infeasible, x, curves, chosen, default = args
+    assert fn.__name__ == "branch_figure" and list(labels) == list(BRANCH_LABELS)
+    s = run.summary
+    assert set(infeasible) == set(s["rejected_branches"]) and chosen == "s-w-e-" and default == "s-w-e+"
+    for lab, v in zip(labels, r_opt):
+        if lab in s["branches"]:
+            assert v == pytest.approx(s["branches"][lab]["rms_error_equilibrium_mm"], rel=1e-9)
+        else:
+            assert math.isnan(v)
+    assert any("(chosen)" in k for k in curves) and any("(default)" in k for k in curves)
+    assert all("optimised" not in k for k in curves)             # no_freedom: the IK solution
+    # figure 3: exact and closed form, and their difference drawn per joint
+    fn, args, _ = items["fig3_compensation_angles"].job
+    assert args[2] is not None and "exact − closed form" in items["fig3_compensation_angles"].caption
+
+
+def test_compliance_map_is_drawn_on_the_plane_of_the_path(demo_run, tmp_path, monkeypatch):
+    import planner.report.maps as maps
+    monkeypatch.setattr(maps, "_map_cache_dir", lambda key: tmp_path / "cache" / key)
+    run = load_run(demo_run)
+    files: dict[str, bytes] = {}
+    item = maps.map_item(run, None, None, files, map_cache=False)
+    fn, args, kw = item.job
+    P = np.column_stack([run.waypoints[a] for a in "xyz"])
+    plane = maps.path_plane(P)
+    assert plane.off_plane_m < 1e-12                              # the line lies in its plane
+    assert np.allclose(plane.origin + plane.uv(P) @ np.stack([plane.e_u, plane.e_v]), P, atol=1e-12)
+    assert np.allclose(kw["path_uv_m"], plane.uv(P), atol=1e-12)
+    assert abs(plane.normal[2]) < 1e-12 and plane.e_v[2] > 0      # a line: the vertical plane through it
+    assert "plane of this run's path" in item.caption and "outside its reach" in item.caption
+    header = files["compliance_map.csv"].decode().splitlines()[0].split(",")
+    assert header[:6] == ["u_m", "v_m", "x_m", "y_m", "z_m", "branch"]
+    rows = np.loadtxt(files["compliance_map.csv"].decode().splitlines()[1:], delimiter=",")
+    n_bad = int(np.sum(rows[:, 5] < 0))
+    assert f"{n_bad} of {len(rows)} points are outside its reach" in item.caption
+    assert np.allclose((rows[:, 2:5] - plane.origin) @ plane.normal, 0.0, atol=1e-12)
+    # a planar path whose plane is a base plane keeps the base axes' names
+    ur10 = maps.path_plane(np.array([[0.7, -0.3, 0.3], [0.7, 0.0, 0.35], [0.7, 0.3, 0.3]]))
+    assert (ur10.u_label, ur10.v_label, ur10.description) == ("y", "z", "x = 0.7 m")
+
+
+def test_payload_and_tool_frame_loads_are_named_not_a_zero_base_force(demo_run, tmp_path):
+    from planner.report.tables import load_words
+    folder = tmp_path / "payload"
+    shutil.copytree(demo_run, folder)
+    s = json.loads((folder / "summary.json").read_text())
+    s["wrench"].update({"F_N": [0.0, 0.0, 0.0], "M_Nm": [0.0, 0.0, 0.0]})
+    s["payload"] = {"mass_kg": 5.0, "com_m_tcp_frame": [0.0, 0.05, 0.08], "gravity_m_s2": [0, 0, -9.80665]}
+    (folder / "summary.json").write_text(json.dumps(s))
+    assert load_words(s) == "payload 5 kg (centre of mass [0, 0.05, 0.08] m, TCP frame)"
+    run = load_run(folder)
+    items = build_figures(run, map_options=False)
+    for it in items[1:]:
+        title = it.job[2].get("title", "")
+        assert "F = [0, 0, 0]" not in title and "F = [0, 0, 0]" not in it.caption, it.name
+        if it.name != "fig6_trajectory":                         # the joint trajectories name no load
+            assert "payload 5 kg" in title, it.name
+    tool = {**s, "payload": None, "wrench": {**s["wrench"], "frame": "tool", "F_N": [0.0, 0.0, -40.0]}}
+    assert load_words(tool).startswith("tool-frame wrench (turns with the tool) F = [0, 0, -40] N")
+    write_report(folder, map_options=False, workers=1)
+    html_text = (folder / "report.html").read_text()
+    assert "F = [0, 0, 0]" not in html_text and "process wrench</td><td>none (the payload is the load)" in html_text
+
+
+def test_arm_figure_draws_the_deflection_the_plan_computed(demo_run):
+    """Figure 7 deflects q_target by q_target - q_command (whatever the load's kind), the arm as
+    links between joint centres at the start, middle and end."""
+    run = load_run(demo_run)
+    fn, args, kw = build_figures(run, map_options=False)[6].job
+    nominal, deflected, path, labels, factor = args
+    assert fn.__name__ == "arm_figure" and labels == ["k = 0", "k = 20", "k = 39"]
+    from planner.report.figures import _polylines
+    model = KinematicModel(run.robot)
+    qt = np.column_stack([run.waypoints[f"qt{i}"] for i in range(1, 7)])[[0, 20, 39]]
+    qc = np.column_stack([run.waypoints[f"qc{i}"] for i in range(1, 7)])[[0, 20, 39]]
+    expect, joints = _polylines(model, qt + factor * (qt - qc))
+    assert np.allclose(deflected, expect) and kw["joint_index"] == joints
+    assert np.allclose(nominal[:, -1], path[[0, 20, 39]], atol=1e-9)   # the TCP on the path
+
+
+def test_version_and_robot_show(capsys, tmp_path):
+    from planner.provenance import builtin_robot_file, version
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"compplan {version()}"
+    assert main(["robot", "show", "ur5"]) == 0
+    text = capsys.readouterr().out
+    assert text == builtin_robot_file("ur5").read_text()
+    (tmp_path / "my_ur5.toml").write_text(text)
+    assert load_robot(str(tmp_path / "my_ur5.toml")).to_dict() == load_robot("ur5").to_dict()
+    assert main(["robot", "list"]) == 0
+    assert [ln.split()[0] for ln in capsys.readouterr().out.splitlines()] == ["ar5", "ur5", "ur10"]
+    assert main(["robot", "show", "ur7"]) == 2
+    assert "not a built-in robot" in capsys.readouterr().err
+
+
+def test_command_outputs_record_their_command_line(tmp_path, capsys):
+    out = tmp_path / "map"
+    argv = ["map", "--out", str(out), "--points", "5"]
+    assert main(argv) == 0
+    p = json.loads((out / "compliance_map.json").read_text())["provenance"]
+    assert p["argv"] == ["compplan", *argv] and p["command_line"].startswith("compplan map --out ")
+    assert p["inputs"][0]["name"] == "ar5" and p["inputs"][0]["sha256"] == _sha256(p["inputs"][0]["path"])
+
+
+def test_examples_in_the_docs_exist_and_run(tmp_path, capsys):
+    root = Path(__file__).resolve().parents[1]
+    cli_doc = (root / "docs" / "cli.md").read_text() + (root / "README.md").read_text()
+    for name in ("docs/examples/commands.csv", "docs/examples/my_task.toml"):
+        assert name in cli_doc and (root / name).is_file(), name
+    assert main(["predict", "--model", "ur5", "--input", str(root / "docs/examples/commands.csv"),
+                 "--out", str(tmp_path / "p.csv")]) == 0
+    assert main(["compensate", "--model", "ur5", "--input", str(root / "docs/examples/commands.csv"),
+                 "--out", str(tmp_path / "c.csv")]) == 0
+    from problems.problem import load_problem
+    assert load_problem(root / "docs/examples/my_task.toml").n == 40
+
+
+def test_robot_file_doc_example_is_a_complete_loadable_file(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "docs" / "robot-file.md").read_text()
+    block = text.split("## Example")[1].split("```toml\n")[1].split("```")[0]
+    f = tmp_path / "my_ur5.toml"
+    f.write_text(block)
+    robot = load_robot(str(f))
+    assert robot.name == "my_ur5" and len(robot.d) == 6
+    assert np.allclose(robot.a, load_robot("ur5").a) and np.allclose(robot.d, load_robot("ur5").d)
+    from models import AnalyticIK
+    AnalyticIK(robot)                                         # UR-type: plan, pose and demo accept it
+
+
+def test_identification_report_is_styled_and_explains_itself(tmp_path):
+    """The identify report: headline first, provenance, per-axis residual figure, units on the axes,
+    and the compensation sentence that says what unregistered data cannot check."""
+    from planner.identify_report import VARIABLE_UNITS, compensation_sentence, write_report as write_identify
+    from problems.identify import compensation_check, identify
+    from problems.virtual import VirtualRobot
+    cfg = {"campaign": {"poses": 40}, "noise": {"sigma_m": 2e-5}, "registration": {"registered": False},
+           "effects": {"gravity": {}}}
+    vr = VirtualRobot(load_robot("ur5"), cfg, seed=4)
+    data = vr.campaign()
+    res = identify(load_robot("ur5"), data, candidates=[])
+    res.compensation_check = compensation_check(vr, res.model, n_poses=12)
+    csv_file = tmp_path / "data.csv"
+    csv_file.write_text("q1\n")                               # a stand-in file to hash
+    rep = write_identify(res, tmp_path / "rep", model_path=str(tmp_path / "m.toml"), data_path=str(csv_file))
+    assert list(rep)[:2] == ["headline", "provenance"]
+    h = rep["headline"]
+    assert h["rms_before_mm"] == round_sig(rep["rms_before_mm"]) and h["registered"] is False
+    assert h["compensation"] == compensation_sentence(rep)
+    if rep["base_frame_aliases"]:
+        assert h["compensation"].startswith("base-frame error cannot be checked with unregistered data")
+        assert "see the measurement-frame figure" in h["compensation"]
+    roles = {e["role"]: e for e in rep["provenance"]["inputs"]}
+    assert roles["measurements"]["sha256"] == _sha256(csv_file) and roles["declared robot"]["name"] == "ur5"
+    assert roles["declared robot"]["sha256"] == _sha256(roles["declared robot"]["path"])
+    html_text = (tmp_path / "rep" / "report.html").read_text()
+    assert html_text.index('class="summary headline"') < html_text.index("<h2>Figures</h2>")
+    for key in ("residuals", "history", "compensation"):
+        assert f'data-figure="{key}"' in html_text
+    assert "meas_frame_" not in (tmp_path / "rep" / "report.md").read_text()   # no raw keys in prose
+    assert set(VARIABLE_UNITS) >= {"q1", "q6", "load_magnitude", "pose", "time", "position"}

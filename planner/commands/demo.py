@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from planner.commands.common import check_output, releases_outputs
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     d = sub.add_parser("demo", help="plan the paper's section-4.4 problem (shipped problem paper_4_4) on ar5")
@@ -18,12 +20,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     d.set_defaults(func=run)
 
 
+@releases_outputs
 def run(args: argparse.Namespace) -> int:
     from planner.commands.plan import finish_run
     from planner.demo import demo_problem
-    from planner.output import check_output_folder
     from planner.plan import plan
 
+    check_output(args.out, {"--robot": args.robot})
     problem = demo_problem(args.robot, args.points)
-    check_output_folder(args.out)
     return finish_run(plan(problem, verbose=args.verbose).raise_for_status(), args)

@@ -20,6 +20,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from planner.commands.common import check_output, releases_outputs
+
 #: Sub-commands defined here.
 COMMANDS = ("identify", "predict", "compensate", "simulate")
 
@@ -35,6 +37,30 @@ def _effects_arg(text: str | None) -> list[str] | None:
         from models.effects import LIBRARY
         return list(LIBRARY)
     return [e.strip() for e in t.split(",") if e.strip()]
+
+
+def _folds(text: str) -> int:
+    """``--folds``: an integer >= 2 (one fold is held out at a time; one fold leaves nothing to fit)."""
+    try:
+        k = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--folds {text!r}: expected an integer >= 2") from None
+    if k < 2:
+        raise argparse.ArgumentTypeError(
+            f"--folds {k}: expected an integer >= 2 (the cross-validation holds out one fold of poses at a "
+            "time and fits the others)")
+    return k
+
+
+def _seed(text: str) -> int:
+    """``--seed``: an integer >= 0 (NumPy's generators take no negative seed)."""
+    try:
+        k = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--seed {text!r}: expected an integer >= 0") from None
+    if k < 0:
+        raise argparse.ArgumentTypeError(f"--seed {k}: expected an integer >= 0")
+    return k
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,7 +79,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="comma-separated library effects the selection may add (default: all; 'none')")
     p.add_argument("--include", default=None,
                    help="comma-separated effects added without a test (must be identifiable from the data)")
-    p.add_argument("--folds", type=int, default=None, help="folds of the cross-validation (default 5)")
+    p.add_argument("--folds", type=_folds, default=None,
+                   help="folds of the cross-validation over poses, an integer >= 2 and at most the number "
+                        "of poses (default 5, fewer when the data have fewer poses)")
     p.add_argument("--validation", default=None, help="held-out measurement CSV to report the RMS on")
     p.add_argument("--truth", default=None,
                    help="truth file of a virtual robot (compplan simulate): compensate and re-measure")
@@ -86,7 +114,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", required=True, help="simulation configuration TOML (docs/identification.md)")
     p.add_argument("--out", required=True, help="measurement CSV to write")
     p.add_argument("--truth", default=None, help="truth file to write (default: OUT with .truth.toml)")
-    p.add_argument("--seed", type=int, default=None, help="random seed (default: the config's, else 0)")
+    p.add_argument("--seed", type=_seed, default=None, help="random seed, an integer >= 0 (default: the config's, "
+                                                             "else 0)")
     p.set_defaults(func=run_simulate)
 
 
@@ -102,7 +131,9 @@ class _Bar:
             return
         from tqdm import tqdm
         if self.bar is None:
-            self.bar = tqdm(total=total, desc="identify", unit="step", leave=False)
+            # on a terminal only (as the other bars): a log or a pipe gets no bar lines
+            self.bar = tqdm(total=total, desc="identify", unit="step", leave=False, file=sys.stderr,
+                            disable=None)
         if self.bar.total != total:
             self.bar.total = total
         self.bar.n = min(done, total)
@@ -114,9 +145,15 @@ class _Bar:
             self.bar.close()
 
 
+@releases_outputs
 def run_identify(args: argparse.Namespace) -> int:
     """Identify, write the model file and the report, print the summary."""
+    inputs = {"--robot": args.robot, "--data": args.data, "--validation": args.validation,
+              "--truth": args.truth}
+    check_output(args.out, inputs, kind="file", outputs={"--report": args.report})
+    check_output(args.report, inputs, kind="folder", option="--report", outputs={"--out": args.out})
     from models import load_robot
+    from models.errors import InputError
     from planner.identify_report import write_report
     from planner.output import atomic_write_bytes
     from problems.identify import (
@@ -130,6 +167,11 @@ def run_identify(args: argparse.Namespace) -> int:
 
     robot = load_robot(args.robot)
     data = read_measurements(args.data)
+    if args.folds is not None:
+        n_poses = len(set(data.pose_groups().tolist()))
+        if args.folds > n_poses:
+            raise InputError(f"--folds {args.folds}: more folds than the {n_poses} poses of {args.data} "
+                             f"(a fold holds whole poses); give --folds between 2 and {n_poses}")
     val = read_measurements(args.validation) if args.validation else None
     truth = None
     if args.truth:
@@ -168,12 +210,16 @@ def run_identify(args: argparse.Namespace) -> int:
               f"{100 * c['meas_frame_fraction_left']:.2f} % left)")
     for n in res.notes:
         print(f"  note: {n}")
+    if res.status.value == "implausible_geometry":
+        print(f"compplan: warning: {res.reason}", file=sys.stderr)
     print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html")
     return 0
 
 
+@releases_outputs
 def run_predict(args: argparse.Namespace) -> int:
     """Predicted measurement (measurement frame) of the commands of ``--input``."""
+    check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
     from planner.output import atomic_write_bytes
     from problems.identify import load_model, predict
     from problems.measurements import commands_csv, read_measurements
@@ -187,8 +233,10 @@ def run_predict(args: argparse.Namespace) -> int:
     return 0
 
 
+@releases_outputs
 def run_compensate(args: argparse.Namespace) -> int:
     """Compensated commands for the targets of ``--input`` (``--targets-frame``); warnings on stderr."""
+    check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
     from models.errors import InfeasibleError
     from planner.output import atomic_write_bytes
     from problems.compensation import CompensationStatus
@@ -212,8 +260,13 @@ def run_compensate(args: argparse.Namespace) -> int:
     return 0
 
 
+@releases_outputs
 def run_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign and write it with its truth file."""
+    inputs = {"--robot": args.robot, "--config": args.config}
+    truth_out = args.truth or Path(args.out).with_name(Path(args.out).stem + ".truth.toml")
+    check_output(args.out, inputs, kind="file", outputs={"--truth": truth_out})
+    check_output(truth_out, inputs, kind="file", option="--truth", outputs={"--out": args.out})
     import tomli_w
 
     from models import load_robot

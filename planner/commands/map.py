@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planner.commands.common import check_output, releases_outputs
 from planner.commands.report import add_map_arguments, map_options, report_progress
 
 
@@ -21,11 +22,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.set_defaults(func=run)
 
 
+@releases_outputs
 def run(args: argparse.Namespace) -> int:
     from models.arm import load_arm
     from planner.compliance_map import ELEMENT_NAMES
     from planner.report import write_map
 
+    check_output(args.out, {"--robot": args.robot})
     arm = load_arm(args.robot)
     robot = arm.nominal
     with report_progress() as prog:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.commands.common import print_error_table
+from planner.commands.common import check_output, print_error_table, releases_outputs
 
 
 def _dt(text: str) -> float:
@@ -54,6 +54,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
     """Print the branch table, the gains, the error table and the timing of a plan."""
     from models.ik import BRANCH_LABELS
+    from planner.numbers import format_number, mm_text
+    from planner.report.tables import load_words
 
     s = res.summary()
     pr = res.problem
@@ -80,9 +82,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
         ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
         ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
         ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
-    ], f"TCP position error of the chosen posture, F = {[float(v) for v in pr.wrench[0]]} (N, N*m, "
-       f"{pr.wrench_frame} frame)" + (f" + payload {pr.payload_mass_kg:g} kg" if pr.payload_mass_kg else "")
-       + (" at waypoint 0 (per-waypoint wrench)" if pr.wrench_per_waypoint else ""))
+    ], f"TCP position error of the chosen posture, load: {load_words(s)}")
     if res.trajectories:
         print(f"timing at dt = {pr.timing.dt * 1e3:g} ms (peak |value|/limit over the joints):")
         for m, tr in res.trajectories.items():
@@ -92,22 +92,27 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
                   + ("   -> trajectory.csv" if m == res.controller else ""))
     for w in s["warnings"]:
         print(f"warning: {w}")
+    h = s["headline"]
+    dur = (f", duration {format_number(h['duration_s'])} s ({h['duration_method']})"
+           if h.get("duration_s") is not None else "")
+    print(f"headline: {h['status']}, branch {h['branch']} ({h.get('branch_posture') or ''}), TCP error max "
+          f"{mm_text(h['error_before_max_mm'])} before -> {mm_text(h['error_after_max_mm'])} after exact "
+          f"compensation{dur}")
     if out is not None:
         print(f"wrote {Path(out)}/: {', '.join(names)}")
 
 
+@releases_outputs
 def run(args: argparse.Namespace) -> int:
     from planner.plan import plan
     from problems.problem import load_problem
 
-    from planner.output import check_output_folder
-
+    check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot})
     problem = load_problem(args.problem)
     if args.robot is not None:
         problem = problem.with_robot(args.robot)
     if args.dt is not None:
         problem = problem.with_timing(dt=args.dt)
-    check_output_folder(args.out)
     res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise)
     return finish_run(res.raise_for_status(), args)
 
@@ -127,12 +132,15 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
     return 0
 
 
+@releases_outputs
 def run_pose(args: argparse.Namespace) -> int:
     from models.errors import InputError
     from planner.output import OutputSet
     from problems.posture import optimal_pose
     from problems.problem import load_problem
 
+    if args.out:
+        check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot})
     pr = load_problem(args.problem)
     if args.robot is not None:
         pr = pr.with_robot(args.robot)
@@ -160,7 +168,12 @@ def run_pose(args: argparse.Namespace) -> int:
                             "error_m": float(r.error_m[0]), "error_analytic_m": float(r.error_analytic_m[0])}
     if args.out:
         out = OutputSet(args.out)
-        out.add_json("pose.json", {"problem": pr.name, "waypoint": k, "position": p, "rule": pr.rule.value,
+        from planner.provenance import problem_input, provenance, robot_input
+        md = pr.model.describe()
+        prov = provenance([problem_input(pr.source), robot_input(md.get("file") or pr.robot_spec,
+                                                                 sha256=md.get("sha256"))])
+        out.add_json("pose.json", {"provenance": prov, "problem": pr.name, "waypoint": k, "position": p,
+                                   "rule": pr.rule.value,
                                    "wrench": pr.wrench[k], "chosen_branch": res.best.label,
                                    "branches": entries, "freedom": res.freedom_note})
         out.publish()

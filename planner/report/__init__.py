@@ -3,8 +3,11 @@
 :func:`write_report` writes, into the output folder of ``compplan demo`` or
 ``compplan plan``:
 
-* ``report.html``: a summary table, then one section per figure; the PNGs are
-  embedded as base64 data URIs so the file opens offline on its own;
+* ``report.html``: the headline table (status, IK branch, TCP error before and
+  after, duration; :func:`~planner.report.tables.headline_table`), the run's
+  tables, its provenance (version, command line, date, input files with
+  SHA-256), then one section per figure; the PNGs are embedded as base64 data
+  URIs so the file opens offline on its own;
 * ``report.md``: the same tables, referencing ``figures/*.png``;
 * ``figures/figN_*.png`` and ``.pdf``: every figure in both formats;
 * ``compliance_map.csv``: the data of figure 1.
@@ -43,10 +46,12 @@ from planner.report.maps import _map_cache_key, map_job, write_map
 from planner.report.rendering import (MAX_WORKERS, FigureItem, default_workers, render_html,
                                       render_items, render_markdown)
 from planner.report.run import METHOD_NAMES, TRAJECTORY_FILES, Run, load_run, run_from_plan
-from planner.report.tables import Cell, Table, fmt, lookup, summary_tables, value_cell
+from planner.report.tables import (Cell, Table, fmt, headline_table, load_words, lookup, provenance_table,
+                                   summary_tables, value_cell)
 from planner.report.writer import publish_report, write_report
 
 __all__ = ["ARM_POSES", "Cell", "FIGURE_NAMES", "FigureItem", "MAX_WORKERS", "METHOD_NAMES", "Run",
-           "TRAJECTORY_FILES", "Table", "build_figures", "default_workers", "fmt", "load_run",
-           "lookup", "map_job", "publish_report", "render_html", "render_items", "render_markdown",
-           "run_from_plan", "summary_tables", "value_cell", "write_map", "write_report"]
+           "TRAJECTORY_FILES", "Table", "build_figures", "default_workers", "fmt", "headline_table",
+           "load_run", "load_words", "lookup", "map_job", "provenance_table", "publish_report", "render_html",
+           "render_items", "render_markdown", "run_from_plan", "summary_tables", "value_cell", "write_map",
+           "write_report"]

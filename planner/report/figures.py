@@ -18,30 +18,32 @@ import numpy as np
 
 from models import KinematicModel
 from models.errors import InputError
+from models.ik import BRANCH_LABELS
 
+from planner.branches import BRANCH_LEGEND
 from planner.compliance_map import ProgressFn
+from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
 from planner.report import plots
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job
 from planner.report.run import METHOD_NAMES, Run
-from planner.report.tables import RATIO_KINDS, flat_numbers
+from planner.report.tables import RATIO_KINDS, flat_numbers, load_words
 
 #: File names of the figures, in report order.
 FIGURE_NAMES = (MAP_FIGURE, "fig2_stiffness_error", "fig3_compensation_angles",
                 "fig4_error_before_after", "fig5_branches", "fig6_trajectory", "fig7_arm_3d")
 
-#: Number of poses drawn in figure 7.
-ARM_POSES = 4
+#: Number of poses drawn in figure 7 (start, middle, end).
+ARM_POSES = 3
 
 
 @dataclass
 class _Context:
-    """What several figures share: the run and its load, branch and names."""
+    """What several figures share: the run and its load, branch, names and path length."""
 
     run: Run
     robot_name: str
     branch: str
-    wrench: np.ndarray | None
     load: str
 
     @property
@@ -51,6 +53,11 @@ class _Context:
     @property
     def no_waypoints(self) -> str:
         return self.run.absent.get("waypoints", "")
+
+    @property
+    def s_mm(self) -> np.ndarray:
+        """Path length from the first waypoint along the waypoints, mm."""
+        return path_length_mm(_xyz(self.wp, ""))          # type: ignore[arg-type]
 
 
 def build_figures(run: Run, progress: ProgressFn | None = None,
@@ -65,8 +72,10 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
     Parameters
     ----------
     map_options : mapping, None or False
-        Keyword arguments of :func:`planner.compliance_map.compliance_map`
-        (default: the paper's section-4.3 plane); ``False`` skips the map.
+        None (default): the map over the plane of the run's own path, at its attitude,
+        on its IK branch (:func:`planner.report.maps.map_item`); a mapping: keyword
+        arguments of :func:`planner.compliance_map.compliance_map` (an axis-aligned
+        plane; the path is drawn projected onto it); ``False`` skips the map.
     files : dict, optional
         Extra data files produced on the way (``compliance_map.csv``) are added here.
     map_cache : bool
@@ -83,16 +92,10 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
 def _context(run: Run) -> _Context:
     s = run.summary
     try:
-        wrench = _wrench(s)
+        _wrench(s)
     except InputError as exc:
-        wrench = None
         run.absent.setdefault("wrench", str(exc))
-    load = (f"F = {_fmt_vec(wrench[:3], 'N')}, M = {_fmt_vec(wrench[3:], 'N·m')} (base frame, at the TCP)"
-            if wrench is not None else "load unknown")
-    if wrench is not None and s.get("wrench", {}).get("per_waypoint"):
-        load = f"per-waypoint load, waypoint 0: {load}"
-    return _Context(run, s.get("robot", "?"), s.get("chosen_branch", s.get("branch", "?")),
-                    wrench, load)
+    return _Context(run, s.get("robot", "?"), s.get("chosen_branch", s.get("branch", "?")), load_words(s))
 
 
 def _wrench(summary: Mapping[str, Any]) -> np.ndarray:
@@ -104,8 +107,12 @@ def _wrench(summary: Mapping[str, Any]) -> np.ndarray:
                          "expected 3 + 3 numbers (N, N*m)") from None
 
 
-def _fmt_vec(v: np.ndarray, unit: str) -> str:
-    return "[" + ", ".join(f"{x:g}" for x in v) + f"] {unit}"
+def path_length_mm(P: np.ndarray) -> np.ndarray:
+    """Cumulative length (mm) along the polyline of the waypoints ``P`` (N, 3), m; 0 at the first."""
+    P = np.asarray(P, float)
+    if len(P) < 2:
+        return np.zeros(len(P))
+    return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))] * 1e3
 
 
 def _xyz(wp: Mapping[str, np.ndarray], prefix: str) -> np.ndarray:
@@ -125,55 +132,68 @@ def _wrap(text: str, width: int) -> str:
 # -------------------------------------------------------------------------- path figures 2-5
 def _stiffness_item(ctx: _Context) -> FigureItem:
     item = FigureItem(FIGURE_NAMES[1], "Directional stiffness and load-induced error along the path",
-                      "Paper Figs. 6–7. (a) stiffness 1/(uᵀ C u) along base X, Y, Z (N/m); "
-                      "(b) TCP error under load without compensation, per base axis and norm (mm).")
+                      "Paper Figs. 6–7, against the path length (mm). (a) stiffness 1/(uᵀ C u) along "
+                      "base X, Y, Z in N/mm on a log axis (C: the translational compliance of the chosen "
+                      "posture); (b) TCP error under the load without compensation, per base axis and "
+                      "its norm (mm), at the exact deflected equilibrium.")
     wp = ctx.wp
     if wp is None:
         item.absent = ctx.no_waypoints
     else:
-        item.job = job(plots.stiffness_error_figure, wp["k"], _xyz(wp, "k"), _xyz(wp, "eb"),
-                       title=f"{ctx.robot_name}, branch {ctx.branch}, {ctx.load}")
+        item.job = job(plots.stiffness_error_figure, ctx.s_mm, _xyz(wp, "k"), _xyz(wp, "eb"),
+                       title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}; load: {ctx.load}", 130))
     return item
 
 
 def _compensation_item(ctx: _Context) -> FigureItem:
     item = FigureItem(FIGURE_NAMES[2], "Compensation angle per joint along the path",
-                      "Paper Fig. 8. Δθ = q_command − q_target (deg): exact compensation (solid) "
-                      "and the paper's closed form, eqs. 32/47 (dashed).")
+                      "Paper Fig. 8. Δθ = q_command − q_target per joint against the path length: exact "
+                      "compensation (solid) and the paper's closed form q − K⁻¹Jᵀ(q)F, eqs. 32/47 (dashed); "
+                      "under each joint, the difference exact − closed form. Each panel has its own unit "
+                      "(deg, mdeg = 0.001°, µdeg = 10⁻⁶°) so every joint is readable.")
     wp = ctx.wp
     if wp is None:
         item.absent = ctx.no_waypoints
     else:
         qt = _joints(wp, "qt")
-        item.job = job(plots.compensation_figure, wp["k"], _joints(wp, "qc") - qt,
+        item.job = job(plots.compensation_figure, ctx.s_mm, _joints(wp, "qc") - qt,
                        _joints(wp, "qf") - qt,
-                       title=f"{ctx.robot_name}, branch {ctx.branch}: joint compensation angles, "
-                             f"{ctx.load}")
+                       title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}: joint compensation angles; "
+                                   f"load: {ctx.load}", 130))
     return item
 
 
 def _error_item(ctx: _Context) -> FigureItem:
     item = FigureItem(FIGURE_NAMES[3], "TCP error before and after compensation",
-                      "Paper Figs. 9 and 13. Top: error before (solid) and after compensation "
-                      "(closed form dashed, exact dotted), mm; bottom: the residuals alone, µm.")
+                      "Paper Figs. 9 and 13, against the path length. Top: error per base axis before "
+                      "compensation (solid) and after it (closed form dashed, exact dotted), mm; bottom: "
+                      "the residuals alone, µm. Errors at the exact deflected equilibrium; a residual below "
+                      f"{format_number(NUMERICAL_FLOOR_MM)} mm is 0 (numerical).")
     wp = ctx.wp
     if wp is None:
         item.absent = ctx.no_waypoints
         return item
     eb, ef, ee = _xyz(wp, "eb"), _xyz(wp, "ef"), _xyz(wp, "ee")
-    stats = (f"max |Δ|: before {np.linalg.norm(eb, axis=1).max() * 1e3:.4g} mm, closed form "
-             f"{np.linalg.norm(ef, axis=1).max() * 1e3:.4g} mm, exact "
-             f"{np.linalg.norm(ee, axis=1).max() * 1e3:.3g} mm")
-    item.job = job(plots.error_before_after_figure, wp["k"], eb, ef, ee,
-                   title=f"{ctx.robot_name}, branch {ctx.branch}, {ctx.load}\n{stats}")
+    stats = (f"max |Δ|: before {mm_text(np.linalg.norm(eb, axis=1).max() * 1e3)}, after closed form "
+             f"{mm_text(np.linalg.norm(ef, axis=1).max() * 1e3)}, after exact "
+             f"{mm_text(np.linalg.norm(ee, axis=1).max() * 1e3)}")
+    item.job = job(plots.error_before_after_figure, ctx.s_mm, eb, ef, ee,
+                   title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}; load: {ctx.load}", 130) + f"\n{stats}")
     return item
+
+
+def _rms(v: np.ndarray) -> float:
+    v = np.asarray(v, float)
+    return float(np.sqrt(np.mean(v ** 2))) if np.isfinite(v).all() and v.size else float("nan")
 
 
 def _branch_item(ctx: _Context) -> FigureItem:
     item = FigureItem(FIGURE_NAMES[4], "Branch comparison",
-                      "Load-induced TCP error norm along the path for every feasible IK branch "
-                      "(analytic posture solid, optimised posture dashed when present); the branch "
-                      "used is thick with markers.")
+                      "(a) RMS load-induced TCP error of every IK branch (exact deflected equilibrium, "
+                      "from branches.csv: the measure of the error table; the branch table's first-order "
+                      "values differ by the second-order terms); branches that cannot follow the path are "
+                      "marked not feasible. (b) The error along the path of the chosen branch and of the "
+                      "default branch (the one nearest the home pose). " + BRANCH_LEGEND)
     run = ctx.run
     if run.branches is None:
         item.absent = run.absent.get("branches", "branches.csv absent")
@@ -185,7 +205,30 @@ def _branch_item(ctx: _Context) -> FigureItem:
     if not ana:
         item.absent = "branches.csv has no <branch>_analytic_m columns"
         return item
-    rej = run.summary.get("rejected_branches") or {}
+    s = run.summary
+    rej = s.get("rejected_branches") or {}
+    chosen, default = ctx.branch, s.get("default_branch")
+    labels = list(BRANCH_LABELS) + sorted(lab for lab in ana if lab not in BRANCH_LABELS)
+    labels = [lab for lab in labels if lab in ana or lab in rej]
+    r_ana = [_rms(ana[lab]) if lab in ana else float("nan") for lab in labels]
+    r_opt = [_rms(opt[lab]) if lab in opt else float("nan") for lab in labels] if opt else None
+    if ctx.wp is not None and len(ctx.wp["k"]) == len(run.branches["k"]):
+        x, x_label = ctx.s_mm, "path length from the first waypoint [mm]"
+    else:
+        x, x_label = run.branches["k"], "waypoint k [-]"
+    curves: dict[str, np.ndarray] = {}
+    for lab, kind in ((chosen, "chosen"), (default, "default")):
+        if lab not in ana or (kind == "default" and lab == chosen):
+            continue
+        if lab in opt:
+            info = (s.get("branches") or {}).get(lab) or {}
+            what = "IK solution (fixed orientation)" if info.get("status") == "no_freedom" else "optimised posture"
+            curves[f"{lab} ({kind}), {what}"] = opt[lab] * 1e3
+        if np.isfinite(ana[lab]).all() and (lab not in opt or not np.allclose(ana[lab], opt[lab], rtol=1e-9,
+                                                                               atol=1e-15)):
+            curves[f"{lab} ({kind}), analytic posture"] = ana[lab] * 1e3
+    if default == chosen and chosen in ana:
+        item.caption += " The chosen branch is the default one."
     by_reason: dict[str, list[str]] = {}
     for b, r in rej.items():
         by_reason.setdefault(str(r), []).append(str(b))
@@ -193,9 +236,11 @@ def _branch_item(ctx: _Context) -> FigureItem:
             if rej else "")
     if not opt:
         item.caption += " No optimised postures in this run."
-    item.job = job(plots.branch_figure, run.branches["k"], ana, opt or None, ctx.branch,
-                   title=f"{ctx.robot_name}: load-induced error per IK branch, {ctx.load}",
-                   note=_wrap(note, 120))
+    item.job = job(plots.branch_figure, labels, np.asarray(r_ana) * 1e3,
+                   None if r_opt is None else np.asarray(r_opt) * 1e3, {str(k): str(v) for k, v in rej.items()},
+                   x, curves, chosen, default, x_label=x_label,
+                   title=_wrap(f"{ctx.robot_name}: load-induced TCP error per IK branch; load: {ctx.load}", 130),
+                   note=_wrap(note, 160))
     return item
 
 
@@ -204,7 +249,10 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
     item = FigureItem(FIGURE_NAMES[5], "Trajectory: q, q̇, q̈ and jerk against time",
                       "Joint position, velocity, acceleration and jerk (the qddd columns of the "
                       "trajectory file, as the timing computed them) for each timing method, with "
-                      "the limits dashed.")
+                      "the limits dashed; the methods share the time axis and, per row, the value axis. "
+                      "The jerk row shows at most "
+                      f"{format_number(plots.JERK_VIEW_LIMITS)}× the jerk limit; a method that does not "
+                      "limit jerk (TOPP-RA) is cut off there and its peak is written on the panel.")
     run, s = ctx.run, ctx.run.summary
     if not run.trajectories:
         item.absent = run.absent.get("trajectory", "no trajectory in this run")
@@ -263,7 +311,7 @@ def _traj_header(s: Mapping[str, Any], method: str, pretty: str, fname: str,
     if d is None:
         d = float(tr["t"][-1] - tr["t"][0])
     ctrl = " — controller" if s.get("controller_trajectory") == method else ""
-    head = f"{pretty} ({fname}{ctrl}): duration {float(d):.4g} s"
+    head = f"{pretty} ({fname}{ctrl}): duration {format_number(float(d))} s"
     lr = s.get("limit_ratio")
     if isinstance(lr, Mapping):
         sub = lr.get(method) if method in lr else (lr if any(k in lr for k in RATIO_KINDS) else None)
@@ -272,7 +320,7 @@ def _traj_header(s: Mapping[str, Any], method: str, pretty: str, fname: str,
             for k, short in zip(RATIO_KINDS, ("v", "a", "j")):
                 nums = flat_numbers(sub.get(k))
                 if nums:
-                    parts.append(f"{short} {max(nums):.3g}")
+                    parts.append(f"{short} {format_number(max(nums), 3)}")
             if parts:
                 head += "\npeak |value|/limit: " + ", ".join(parts)
     return head
@@ -280,21 +328,24 @@ def _traj_header(s: Mapping[str, Any], method: str, pretty: str, fname: str,
 
 # --------------------------------------------------------------------------------- 7. the arm
 def _arm_item(ctx: _Context) -> FigureItem:
-    item = FigureItem(FIGURE_NAMES[6], "The arm in 3-D, nominal and deflected", "")
+    item = FigureItem(FIGURE_NAMES[6], "The arm in 3-D, planned and deflected", "")
     run = ctx.run
     if run.robot is None:
         item.absent = f"arm not drawn: {run.absent.get('robot')}"
     elif ctx.wp is None:
         item.absent = f"arm not drawn: {ctx.no_waypoints}"
-    elif ctx.wrench is None:
-        item.absent = f"arm not drawn: {run.absent.get('wrench')}"
     else:
-        item.job, item.caption = _arm(run, ctx.wp, ctx.wrench, ctx.branch, ctx.load)
+        item.job, item.caption = _arm(run, ctx.wp, ctx.branch, ctx.load)
     return item
 
 
-def _polylines(model: KinematicModel, q: np.ndarray) -> np.ndarray:
-    """(P, L, 3) points through the base, each link's offset corner, the frame origins and the TCP."""
+def _polylines(model: KinematicModel, q: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    """Points of the arm drawn as its links, (P, L, 3), and which of them are joint centres.
+
+    The polyline runs from the base through a point on every joint axis (each DH frame
+    origin and, where a link has an offset d along the previous joint axis, the point
+    that offset reaches) to the TCP: the links as straight segments between joint centres.
+    """
     frames = model.batch(model.fk_frames, q)          # 6 x (P, 4, 4)
     tcp = model.tcp(q)[:, :3, 3]
     P = len(q)
@@ -305,39 +356,42 @@ def _polylines(model: KinematicModel, q: np.ndarray) -> np.ndarray:
         if model.robot.convention == "standard_dh" and abs(d[i]) > 0:
             pts.append(prev_o + d[i] * prev_z)         # the d_i offset along z_{i-1}
         o = Tf[:, :3, 3]
-        pts.append(o)
+        if not np.allclose(o, pts[-1], atol=1e-12):     # a zero-length link adds no point
+            pts.append(o)
         prev_o, prev_z = o, Tf[:, :3, 2]
-    pts.append(tcp)
-    return np.stack(pts, axis=1)
+    if not np.allclose(tcp, pts[-1], atol=1e-12):
+        pts.append(tcp)
+    out = np.stack(pts, axis=1)
+    return out, list(range(1, out.shape[1] - 1))
 
 
-def _arm(run: Run, wp: Mapping[str, np.ndarray], wrench: np.ndarray, branch: str,
-         load: str) -> tuple[Job, str]:
+def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tuple[Job, str]:
+    """Figure 7: the planned poses q_target at the start, middle and end of the path, and the
+    same commands under the load without compensation, their joint deflection exaggerated.
+
+    The joint deflection is ``q_target - q_command`` of the exact compensation (the
+    equilibrium reached from ``q_command`` is ``q_target``): the deflection the whole load
+    (wrench in its frame, payload) causes at ``q_target``, whatever the load's kind.
+    """
     model = KinematicModel(run.robot)                  # type: ignore[arg-type]
-    qt = _joints(wp, "qt")
+    qt, qc = _joints(wp, "qt"), _joints(wp, "qc")
     n = len(qt)
     idx = np.unique(np.round(np.linspace(0, n - 1, min(ARM_POSES, n))).astype(int))
-    q = qt[idx]
-    W = np.broadcast_to(wrench, (len(idx), 6))
-    rows = run.summary.get("wrench", {}).get("rows")
-    if rows is not None:                              # a per-waypoint wrench (plan)
-        try:
-            W = np.asarray(rows, float)[idx].reshape(len(idx), 6)
-        except (ValueError, IndexError, TypeError):
-            pass
-    dq = model.batch(model.joint_deflection, q, np.ascontiguousarray(W))[0]  # K^-1 J^T F, rad
+    dq = qt[idx] - qc[idx]                              # joint deflection under the load, rad
     eb = _xyz(wp, "eb")
     true_max = float(np.linalg.norm(eb, axis=1).max())
     factor = plots.nice_factor(true_max)
-    nominal = _polylines(model, q)
-    deflected = _polylines(model, q + factor * dq)
+    nominal, joints = _polylines(model, qt[idx])
+    deflected, _ = _polylines(model, qt[idx] + factor * dq)
     labels = [f"k = {int(wp['k'][i])}" for i in idx]
-    title = (f"{run.summary.get('robot', '?')}, branch {branch}: poses along the path, "
-             f"deflection exaggerated ×{factor:g}\n(true TCP deflection up to "
-             f"{true_max * 1e3:.3g} mm under {load})")
-    jb = job(plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title)
-    caption = (f"Links drawn through the DH frame origins (with each link's d offset) at "
-               f"{len(idx)} waypoints: nominal configuration q_target (solid) and loaded "
-               f"q_target + {factor:g}·K⁻¹Jᵀ(q)F (dashed), i.e. the joint deflection exaggerated "
-               f"×{factor:g}.")
+    title = (f"{run.summary.get('robot', '?')}, branch {branch}: the arm at the start, middle and end of the path"
+             "\n" + _wrap(f"load: {load}; true TCP deflection up to {format_number(true_max * 1e3)} mm, "
+                          f"drawn ×{factor:g}", 115))
+    jb = job(plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title,
+             joint_index=joints)
+    caption = (f"The arm as its links (straight segments between joint centres: the DH frame origins and "
+               f"the link offsets along the joint axes) at {len(idx)} waypoints, equal scale on x, y, z: the "
+               f"planned pose q_target that puts the TCP on the path (solid), and the same joint angles "
+               f"under the load without compensation (dashed), their joint deflection q_target − q_command "
+               f"exaggerated ×{factor:g}.")
     return jb, caption

@@ -3,8 +3,9 @@
 Every function takes plain arrays (SI units: m, rad, N, s) and returns a
 :class:`matplotlib.figure.Figure` attached to the Agg canvas, so nothing here
 needs a display, touches pyplot's global state or prints.  Conversions to the
-units shown (mm, deg, N/m) happen here, at the edge, and every axis names its
-unit.  :func:`render` turns a figure into PNG and PDF bytes.  Which data goes
+units shown (mm, deg, N/mm) happen here, at the edge, and every axis names its
+unit.  Path figures are drawn against the path length (mm), not the waypoint
+index.  :func:`render` turns a figure into PNG and PDF bytes.  Which data goes
 into which figure is decided in :mod:`planner.report.figures`.
 
 Figure numbering follows issue 3 (see ``docs/paper-reproduction.md`` for the
@@ -19,13 +20,18 @@ import math
 from typing import Mapping, Sequence
 
 import matplotlib
+import matplotlib.ticker
 import numpy as np
 from matplotlib.backends import backend_pdf  # noqa: F401  (imported once, before any fork)
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
-from matplotlib.patches import Rectangle
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch, Rectangle
+from mpl_toolkits.axes_grid1 import make_axes_locatable
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
+
+from planner.numbers import NUMERICAL_FLOOR_MM, NUMERICAL_FLOOR_RAD, format_number
 
 #: PNG resolution (dots per inch): modest, keeps the report small and fast.
 PNG_DPI = 100
@@ -33,13 +39,28 @@ PNG_DPI = 100
 #: Colours: one per base axis X, Y, Z and one per joint 1..6.
 AXIS_COLOURS = ("tab:blue", "tab:orange", "tab:green")
 JOINT_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+#: Colours of the chosen and the default IK branch (figure 5).
+CHOSEN_COLOUR, DEFAULT_COLOUR, OTHER_COLOUR = "tab:red", "tab:blue", "0.62"
 
 #: A map whose (max - min) / |mean| is below this is drawn as one colour and labelled constant.
 CONSTANT_REL_SPREAD = 1e-6
+#: Jerk panels of figure 6 show at most this multiple of the jerk limit (a method that does not
+#: limit jerk, TOPP-RA, would squash the others); what is cut off is stated on the panel.
+JERK_VIEW_LIMITS = 1.6
+#: Angle units of figure 3, largest first: (name, degrees per unit); the first one in which the
+#: largest magnitude is at least 0.1 is used.
+ANGLE_UNITS = (("deg", 1.0), ("mdeg", 1e-3), ("µdeg", 1e-6))
+#: Figure 7 looks at the path from its side, turned by this much (deg) so the arms do not overlap.
+ARM_VIEW_TURN_DEG = 35.0
+#: PNG compression level (zlib, 0-9): 6 is matplotlib's default; 3 writes about twice as fast
+#: for files a few per cent larger.
+PNG_COMPRESS_LEVEL = 3
 
-#: Style applied while a figure is built and saved (text sizes are fixed at creation).
-STYLE = {"pdf.compression": 6, "font.size": 9, "axes.titlesize": 9, "legend.fontsize": 8,
-         "figure.titlesize": 10}
+#: Style applied while a figure is built and saved (text sizes are fixed at creation).  A fixed
+#: ``axes.titley`` spares matplotlib placing every axes title around the tick labels above it
+#: (about a sixth of the drawing time; no panel here has decorations on top).
+STYLE = {"pdf.compression": 3, "font.size": 9, "axes.titlesize": 9, "legend.fontsize": 8,
+         "figure.titlesize": 10, "axes.titley": 1.0, "axes.titlepad": 5.0}
 
 
 def _styled(fn):
@@ -67,10 +88,22 @@ def render(fig: Figure, dpi: int = PNG_DPI) -> tuple[bytes, bytes]:
     """PNG and PDF bytes of ``fig`` (metadata fixed so output is reproducible)."""
     png, pdf = io.BytesIO(), io.BytesIO()
     with matplotlib.rc_context(STYLE):
-        fig.savefig(png, format="png", dpi=dpi, metadata={"Software": None})
+        fig.savefig(png, format="png", dpi=dpi, metadata={"Software": None},
+                    pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
         fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None,
                                                  "Producer": None})
     return png.getvalue(), pdf.getvalue()
+
+
+def _angle_unit(values_rad: np.ndarray) -> tuple[str, float]:
+    """Unit name and factor (rad -> unit) that shows ``values_rad`` readably (:data:`ANGLE_UNITS`)."""
+    peak = float(np.nanmax(np.abs(values_rad))) if np.size(values_rad) else 0.0
+    peak_deg = math.degrees(peak)
+    for name, deg in ANGLE_UNITS:
+        if peak_deg / deg >= 0.1:
+            return name, 180.0 / math.pi / deg
+    name, deg = ANGLE_UNITS[-1]
+    return name, 180.0 / math.pi / deg
 
 
 # ----------------------------------------------------------------------------- 1. compliance map
@@ -78,7 +111,9 @@ def render(fig: Figure, dpi: int = PNG_DPI) -> tuple[bytes, bytes]:
 def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
                           u_label: str, v_label: str, title: str,
                           branch: np.ndarray | None = None,
-                          branch_labels: Sequence[str] = ()) -> Figure:
+                          branch_labels: Sequence[str] = (),
+                          path_uv_m: np.ndarray | None = None,
+                          path_label: str = "") -> Figure:
     """Paper Fig. 5: the six diagonal compliances as a 2x3 grid of heat maps.
 
     Parameters
@@ -96,9 +131,15 @@ def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
         Branch index per point; where it changes, a black boundary is drawn.
     branch_labels : sequence of str
         Labels of the branch indices (for the boundary legend).
+    path_uv_m : ndarray, shape (N, 2), optional
+        The run's path in the plane's coordinates (m), drawn on every panel (start marked).
+    path_label : str
+        What the path line is (legend), e.g. "path (in the plane)".
     """
-    fig = _figure(12.5, 8.2, left=0.055, right=0.93, bottom=0.065, top=0.83, wspace=0.55,
-                  hspace=0.36)
+    aspect = float(np.clip((v_m[-1] - v_m[0]) / max(u_m[-1] - u_m[0], 1e-12), 0.4, 1.2))
+    height = 2.0 * (2.75 * aspect + 0.85) + 1.7          # two rows of panels at equal scale, title, legend
+    fig = _figure(12.5, height, left=0.055, right=0.925, bottom=0.65 / height, top=1.0 - 1.2 / height,
+                  wspace=0.45, hspace=0.7 / (2.75 * aspect))
     axs = fig.subplots(2, 3)
     du = (u_m[-1] - u_m[0]) / max(1, len(u_m) - 1) / 2
     dv = (v_m[-1] - v_m[0]) / max(1, len(v_m) - 1) / 2
@@ -124,64 +165,82 @@ def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
             mesh = ax.imshow(data, origin="lower", extent=extent, aspect="equal",
                              cmap="viridis", norm=Normalize(lo, hi), interpolation="nearest",
                              zorder=1)
-            cb = fig.colorbar(mesh, ax=ax, fraction=0.046, pad=0.03)
+            cax = make_axes_locatable(ax).append_axes("right", size="5%", pad=0.06)
+            cb = fig.colorbar(mesh, cax=cax)
             cb.set_label(f"C{i + 1}{i + 1} [{units[i]}]")
             cb.formatter.set_useOffset(False)
             cb.update_ticks()
             if constant:
                 spread = (float(finite.max()) - float(finite.min())) / max(abs(mean), 1e-300)
-                ax.text(0.5, 0.5, f"constant over the plane:\n{mean:.5g} {units[i]}\n"
+                ax.text(0.5, 0.5, f"constant over the plane:\n{mean:.4g} {units[i]}\n"
                         f"(relative spread {spread:.1e})",
                         transform=ax.transAxes, ha="center", va="center", fontsize=8,
-                        bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "0.5"})
+                        bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.5"}, zorder=8)
+        else:
+            ax.text(0.5, 0.5, "no reachable point", transform=ax.transAxes, ha="center", va="center")
         if multi:
             ax.contour(u_m, v_m, np.ma.masked_less(branch.T, 0).astype(float),
                        levels=np.arange(-0.5, 8.5, 1.0), colors="k", linewidths=0.8, zorder=2)
+        if path_uv_m is not None and len(path_uv_m):
+            ax.plot(path_uv_m[:, 0], path_uv_m[:, 1], color="white", lw=3.2, zorder=5)
+            ax.plot(path_uv_m[:, 0], path_uv_m[:, 1], color="crimson", lw=1.6, zorder=6)
+            ax.plot(*path_uv_m[0], marker="o", color="crimson", mec="white", ms=6, zorder=7)
+            ax.plot(*path_uv_m[-1], marker=">", color="crimson", mec="white", ms=6, zorder=7)
         ax.set_xlim(extent[0], extent[1])
         ax.set_ylim(extent[2], extent[3])
         ax.set_xlabel(f"{u_label} [m]")
         ax.set_ylabel(f"{v_label} [m]")
         ax.set_title(f"({'abcdef'[i]}) C{i + 1}{i + 1}: {what[i]}")
-    note = "hatched: unreachable"
+    handles = [Patch(facecolor="white", edgecolor="0.4", hatch="///",
+                     label="unreachable (no IK solution at this attitude)")]
+    if path_uv_m is not None and len(path_uv_m):
+        handles.append(Line2D([], [], color="crimson", lw=1.6, marker="o", ms=5,
+                              label=path_label or "the run's path (● start)"))
     if multi:
         used = sorted({branch_labels[int(b)] for b in np.unique(branch[branch >= 0])}) \
             if branch_labels else []
-        note += f"; black lines: branch changes ({', '.join(used)})"
-    fig.suptitle(f"{title}\n{note}")
+        handles.append(Line2D([], [], color="k", lw=0.8, label=f"branch changes ({', '.join(used)})"))
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False,
+               bbox_to_anchor=(0.5, 0.0))
+    fig.suptitle(title)
     return fig
 
 
 # ------------------------------------------------------------- 2. stiffness and error along path
 @_styled
-def stiffness_error_figure(k: np.ndarray, stiffness_n_per_m: np.ndarray, error_m: np.ndarray,
+def stiffness_error_figure(s_mm: np.ndarray, stiffness_n_per_m: np.ndarray, error_m: np.ndarray,
                            *, title: str) -> Figure:
     """Paper Figs. 6-7: directional stiffness and load-induced TCP error along the path.
 
     Parameters
     ----------
-    k : ndarray, shape (N,)
-        Waypoint index.
+    s_mm : ndarray, shape (N,)
+        Path length from the first waypoint, mm.
     stiffness_n_per_m : ndarray, shape (N, 3)
-        ``1 / (u^T C_tt u)`` along base x, y, z, N/m.
+        ``1 / (u^T C_tt u)`` along base x, y, z, N/m (drawn in N/mm on a log axis).
     error_m : ndarray, shape (N, 3)
         TCP position error under load, uncompensated, base frame, m.
     """
-    fig = _figure(11.0, 4.6, left=0.07, right=0.985, bottom=0.12, top=0.83, wspace=0.22)
-    a1, a2 = fig.subplots(1, 2)
+    fig = _figure(11.0, 4.6, left=0.07, right=0.985, bottom=0.12, top=0.83, wspace=0.24)
+    a1, a2 = fig.subplots(1, 2, sharex=True)
     for j, name in enumerate("XYZ"):
-        a1.plot(k, stiffness_n_per_m[:, j], color=AXIS_COLOURS[j], marker=".", ms=3,
-                label=f"k{name.lower()} (along base {name})")
-        a2.plot(k, error_m[:, j] * 1e3, color=AXIS_COLOURS[j], marker=".", ms=3,
-                label=f"Δ{name.lower()}")
-    a2.plot(k, np.linalg.norm(error_m, axis=1) * 1e3, color="k", ls="--", label="|Δ|")
-    a1.set_ylabel("directional stiffness [N/m]")
-    a1.set_title("(a) stiffness along X, Y, Z (paper Fig. 6)")
+        a1.plot(s_mm, stiffness_n_per_m[:, j] * 1e-3, color=AXIS_COLOURS[j], marker=".", ms=3,
+                label=f"along base {name}")
+        a2.plot(s_mm, error_m[:, j] * 1e3, color=AXIS_COLOURS[j], marker=".", ms=3,
+                label=f"Δ{name.lower()} (base {name})")
+    a2.plot(s_mm, np.linalg.norm(error_m, axis=1) * 1e3, color="k", ls="--", label="|Δ| (norm)")
+    a1.set_yscale("log")
+    a1.yaxis.set_major_locator(matplotlib.ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+    a1.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _pos: f"{v:g}"))
+    a1.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    a1.set_ylabel("directional stiffness 1/(uᵀCu) [N/mm], log scale")
+    a1.set_title("(a) stiffness along base X, Y, Z (paper Fig. 6)")
     a2.set_ylabel("TCP position error [mm]")
-    a2.set_title("(b) load-induced error, no compensation (paper Fig. 7)")
+    a2.set_title("(b) load-induced TCP error, no compensation (paper Fig. 7)")
     a2.axhline(0.0, color="0.5", lw=0.6)
     for a in (a1, a2):
-        a.set_xlabel("waypoint k [-]")
-        a.grid(alpha=0.3)
+        a.set_xlabel("path length from the first waypoint [mm]")
+        a.grid(alpha=0.3, which="both")
         a.legend(loc="best")
     fig.suptitle(title)
     return fig
@@ -189,69 +248,113 @@ def stiffness_error_figure(k: np.ndarray, stiffness_n_per_m: np.ndarray, error_m
 
 # --------------------------------------------------------------------- 3. compensation angles
 @_styled
-def compensation_figure(k: np.ndarray, dq_exact_rad: np.ndarray,
+def compensation_figure(s_mm: np.ndarray, dq_exact_rad: np.ndarray,
                         dq_closed_rad: np.ndarray | None, *, title: str) -> Figure:
-    """Paper Fig. 8: compensation angle ``q_command - q_target`` per joint along the path.
+    """Paper Fig. 8: compensation angle ``q_command - q_target`` per joint along the path, and
+    the difference exact minus closed form, each joint in the unit that shows it (deg, mdeg, µdeg).
 
     Parameters
     ----------
-    k : ndarray, shape (N,)
-        Waypoint index.
+    s_mm : ndarray, shape (N,)
+        Path length from the first waypoint, mm.
     dq_exact_rad, dq_closed_rad : ndarray, shape (N, 6)
         Exact and closed-form compensation angles, rad (closed form optional).
     """
-    fig = _figure(11.0, 5.8, left=0.075, right=0.985, bottom=0.09, top=0.87, wspace=0.38,
-                  hspace=0.28)
-    axs = fig.subplots(2, 3, sharex=True)
-    for j, ax in enumerate(axs.ravel()):
-        ax.plot(k, np.degrees(dq_exact_rad[:, j]), color=JOINT_COLOURS[j], lw=1.6, label="exact")
-        if dq_closed_rad is not None:
-            ax.plot(k, np.degrees(dq_closed_rad[:, j]), color="k", lw=1.0, ls="--",
-                    label="closed form")
-        ax.axhline(0.0, color="0.5", lw=0.6)
-        ax.set_title(f"joint {j + 1}: Δθ{j + 1}")
-        ax.set_ylabel("compensation angle [deg]")
+    rows = 4 if dq_closed_rad is not None else 2
+    height = 2.35 * rows + 1.2
+    fig = _figure(12.0, height, left=0.075, right=0.985, bottom=0.6 / height, top=1.0 - 0.75 / height,
+                  wspace=0.36, hspace=0.55)
+    axs = fig.subplots(rows, 3, sharex=True)
+    legend_done = False
+    for j in range(6):
+        r0 = (j // 3) * (2 if dq_closed_rad is not None else 1)
+        ax = axs[r0, j % 3]
+        y = dq_exact_rad[:, j]
+        if np.all(np.abs(y) < NUMERICAL_FLOOR_RAD):
+            ax.plot(s_mm, np.zeros_like(s_mm), color=JOINT_COLOURS[j], lw=1.8)
+            ax.text(0.5, 0.72, f"Δθ{j + 1} = 0 on the whole path\n(|Δθ{j + 1}| < {NUMERICAL_FLOOR_RAD:g} rad: "
+                    f"no load torque on joint {j + 1})", transform=ax.transAxes, ha="center",
+                    va="center", fontsize=8, bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.6"})
+            ax.set_ylim(-1.0, 1.0)
+            ax.set_yticks([-1.0, 0.0, 1.0])
+            unit, f = "deg", 180.0 / math.pi
+        else:
+            both = y if dq_closed_rad is None else np.r_[y, dq_closed_rad[:, j]]
+            unit, f = _angle_unit(both)
+            ax.plot(s_mm, y * f, color=JOINT_COLOURS[j], lw=1.8, label="exact")
+            if dq_closed_rad is not None:
+                ax.plot(s_mm, dq_closed_rad[:, j] * f, color="k", lw=1.0, ls="--",
+                        label="closed form (paper eqs. 32/47)")
+            ax.axhline(0.0, color="0.5", lw=0.6)
+        ax.set_title(f"joint {j + 1}: compensation angle Δθ{j + 1}")
+        ax.set_ylabel(f"Δθ{j + 1} [{unit}]")
         ax.grid(alpha=0.3)
-        ax.ticklabel_format(axis="y", useOffset=False)
-        if j >= 3:
-            ax.set_xlabel("waypoint k [-]")
-        if j == 0:
+        ax.ticklabel_format(axis="y", useOffset=False, style="plain")
+        if not legend_done and ax.get_legend_handles_labels()[0]:
             ax.legend(loc="best")
+            legend_done = True
+        if dq_closed_rad is not None:
+            bx = axs[r0 + 1, j % 3]
+            d = dq_exact_rad[:, j] - dq_closed_rad[:, j]
+            if np.all(np.abs(d) < NUMERICAL_FLOOR_RAD):
+                bx.plot(s_mm, np.zeros_like(s_mm), color="0.25", lw=1.2)
+                bx.text(0.5, 0.72, f"0 (numerical: < {NUMERICAL_FLOOR_RAD:g} rad)", transform=bx.transAxes,
+                        ha="center", va="center", fontsize=8)
+                bx.set_ylim(-1.0, 1.0)
+                bx.set_yticks([-1.0, 0.0, 1.0])
+                du = "deg"
+            else:
+                du, fd = _angle_unit(d)
+                bx.plot(s_mm, d * fd, color="0.25", lw=1.2)
+                bx.axhline(0.0, color="0.5", lw=0.6)
+            bx.set_title(f"joint {j + 1}: exact − closed form", fontsize=8.5)
+            bx.set_ylabel(f"difference [{du}]")
+            bx.grid(alpha=0.3)
+            bx.ticklabel_format(axis="y", useOffset=False, style="plain")
+    for ax in axs[-1]:
+        ax.set_xlabel("path length from the first waypoint [mm]")
     fig.suptitle(title)
     return fig
 
 
 # ---------------------------------------------------------------------- 4. error before/after
 @_styled
-def error_before_after_figure(k: np.ndarray, before_m: np.ndarray, closed_m: np.ndarray,
+def error_before_after_figure(s_mm: np.ndarray, before_m: np.ndarray, closed_m: np.ndarray,
                               exact_m: np.ndarray, *, title: str) -> Figure:
     """Paper Figs. 9 and 13: TCP error before and after compensation, per axis.
 
     Top row: before vs. after (mm, one scale).  Bottom row: after only, in µm,
-    so the residual of the closed form is readable (the exact residual sits at
-    rounding level).
+    so the residual of the closed form is readable; the exact residual, at the
+    level of the equilibrium solve, is stated as 0 (numerical) when it is below
+    :data:`~planner.numbers.NUMERICAL_FLOOR_MM`.
 
     Parameters
     ----------
+    s_mm : ndarray, shape (N,)
+        Path length from the first waypoint, mm.
     before_m, closed_m, exact_m : ndarray, shape (N, 3)
         TCP position error (reached - target), base frame, m.
     """
     fig = _figure(12.0, 7.0, left=0.065, right=0.985, bottom=0.08, top=0.86, wspace=0.3,
-                  hspace=0.3)
+                  hspace=0.32)
     axs = fig.subplots(2, 3, sharex=True)
+    exact_zero = bool(np.all(np.abs(exact_m) * 1e3 < NUMERICAL_FLOOR_MM))
+    exact_label = ("after exact compensation: 0 (numerical)" if exact_zero
+                   else "after exact compensation")
     for j, name in enumerate("xyz"):
         top, bot = axs[0, j], axs[1, j]
-        top.plot(k, before_m[:, j] * 1e3, color=AXIS_COLOURS[j], lw=1.6, label="before (solid)")
-        top.plot(k, closed_m[:, j] * 1e3, color="k", ls="--", lw=1.0,
-                 label="after, closed form (paper's _SM)")
-        top.plot(k, exact_m[:, j] * 1e3, color="tab:red", ls=":", lw=1.2, label="after, exact")
+        top.plot(s_mm, before_m[:, j] * 1e3, color=AXIS_COLOURS[j], lw=1.8, label="before compensation")
+        top.plot(s_mm, closed_m[:, j] * 1e3, color="k", ls="--", lw=1.0,
+                 label="after closed-form compensation (paper)")
+        top.plot(s_mm, exact_m[:, j] * 1e3, color="tab:red", ls=":", lw=1.4, label=exact_label)
         top.set_ylabel(f"Δ{name} [mm]")
-        top.set_title(f"{name.upper()} direction: before and after")
-        bot.plot(k, closed_m[:, j] * 1e6, color="k", ls="--", lw=1.0, label="after, closed form")
-        bot.plot(k, exact_m[:, j] * 1e6, color="tab:red", ls=":", lw=1.2, label="after, exact")
-        bot.set_ylabel(f"Δ{name} after [µm]")
-        bot.set_xlabel("waypoint k [-]")
-        bot.set_title(f"{name.upper()} direction: residual after compensation")
+        top.set_title(f"base {name.upper()}: before and after")
+        bot.plot(s_mm, closed_m[:, j] * 1e6, color="k", ls="--", lw=1.0,
+                 label="after closed-form compensation (paper)")
+        bot.plot(s_mm, exact_m[:, j] * 1e6, color="tab:red", ls=":", lw=1.4, label=exact_label)
+        bot.set_ylabel(f"Δ{name} after compensation [µm]")
+        bot.set_xlabel("path length from the first waypoint [mm]")
+        bot.set_title(f"base {name.upper()}: residual after compensation")
         for a in (top, bot):
             a.axhline(0.0, color="0.5", lw=0.6)
             a.grid(alpha=0.3)
@@ -263,40 +366,86 @@ def error_before_after_figure(k: np.ndarray, before_m: np.ndarray, closed_m: np.
 
 # ----------------------------------------------------------------------- 5. branch comparison
 @_styled
-def branch_figure(k: np.ndarray, analytic_m: Mapping[str, np.ndarray],
-                  optimised_m: Mapping[str, np.ndarray] | None, chosen: str | None,
-                  *, title: str, note: str = "") -> Figure:
-    """Load-induced TCP error norm along the path for every feasible IK branch.
+def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
+                  rms_optimised_mm: Sequence[float] | None, infeasible: Mapping[str, str],
+                  s_mm: np.ndarray, curves_mm: Mapping[str, np.ndarray], chosen: str | None,
+                  default: str | None, *, title: str, note: str = "",
+                  x_label: str = "path length from the first waypoint [mm]") -> Figure:
+    """IK branch comparison: RMS load-induced error per branch (bars) and, along the path, the
+    chosen and the default branch.
 
     Parameters
     ----------
-    analytic_m : mapping label -> ndarray (N,)
-        Error norm (m) at the analytic IK posture of each branch.
-    optimised_m : mapping label -> ndarray (N,), optional
-        Error norm (m) after posture optimisation (dashed, same colour).
-    chosen : str, optional
-        The branch used; drawn thick and marked in the legend.
+    labels : sequence of str
+        Every branch label, in order (feasible or not).
+    rms_analytic_mm, rms_optimised_mm : sequence of float
+        RMS error (mm, exact equilibrium) of each branch at its analytic and its optimised
+        posture (NaN where the branch is not feasible or has no analytic posture);
+        ``rms_optimised_mm`` None when the run has no optimised postures.
+    infeasible : mapping label -> str
+        Why a branch cannot follow the path (written on its empty bar slot).
+    s_mm : ndarray, shape (N,)
+        Path length, mm.
+    curves_mm : mapping name -> ndarray (N,)
+        Error norm along the path (mm) to draw in panel (b), e.g. ``"s-w-e- (chosen), optimised"``.
+    chosen, default : str, optional
+        Labels of the chosen and the default branch (coloured and marked).
     note : str
-        Extra line under the title (e.g. rejected branches).
+        Extra line at the bottom (e.g. why branches are not feasible).
+    x_label : str
+        Label of the path axis of panel (b) (the path length, or the waypoint index when
+        the run has no waypoint positions).
     """
-    fig = _figure(11.0, 5.2, left=0.07, right=0.74, bottom=0.1, top=0.84)
-    ax = fig.subplots()
-    for i, (label, e) in enumerate(analytic_m.items()):
-        c = f"C{i % 10}"
-        is_chosen = label == chosen
-        ax.plot(k, e * 1e3, color=c, lw=2.8 if is_chosen else 1.2,
-                marker="o" if is_chosen else None, ms=3,
-                label=f"{label} analytic" + ("  ◀ chosen" if is_chosen else ""), zorder=3 if is_chosen else 2)
-        if optimised_m and label in optimised_m:
-            same = np.allclose(optimised_m[label], e, rtol=1e-9, atol=1e-15, equal_nan=True)
-            ax.plot(k, optimised_m[label] * 1e3, color=c, ls="--", lw=2.0 if is_chosen else 1.0,
-                    label=f"{label} optimised" + (" (= analytic)" if same else ""))
-    ax.set_xlabel("waypoint k [-]")
-    ax.set_ylabel("load-induced TCP error |Δ| [mm]")
-    ax.set_ylim(bottom=0.0)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
-    fig.suptitle(title + (f"\n{note}" if note else ""))
+    fig = _figure(12.5, 5.2, left=0.06, right=0.985, bottom=0.2, top=0.84, wspace=0.22)
+    a1, a2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1.0]})
+    x = np.arange(len(labels))
+    ana = np.asarray(rms_analytic_mm, float)
+    opt = None if rms_optimised_mm is None else np.asarray(rms_optimised_mm, float)
+    same = opt is None or np.allclose(np.nan_to_num(opt, nan=-1.0), np.nan_to_num(ana, nan=-1.0),
+                                      rtol=1e-9, atol=1e-12)
+    colours = [CHOSEN_COLOUR if lab == chosen else DEFAULT_COLOUR if lab == default else OTHER_COLOUR
+               for lab in labels]
+    top = np.nanmax(np.r_[ana, opt if opt is not None else []]) if np.isfinite(ana).any() or (
+        opt is not None and np.isfinite(opt).any()) else 1.0
+    if same:
+        vals = opt if opt is not None else ana
+        a1.bar(x, np.nan_to_num(vals), color=colours, width=0.7)
+        shown = vals
+    else:
+        a1.bar(x - 0.18, np.nan_to_num(ana), color=colours, alpha=0.35, width=0.36, hatch="//",
+               edgecolor="0.3", label="analytic posture")
+        a1.bar(x + 0.18, np.nan_to_num(opt), color=colours, width=0.36, label="optimised posture")
+        shown = opt
+        a1.legend(loc="upper left")
+    for i, lab in enumerate(labels):
+        v = shown[i] if shown is not None else np.nan
+        if np.isfinite(v):
+            a1.text(x[i], v + 0.015 * top, format_number(v), ha="center", va="bottom", fontsize=8)
+        elif lab in infeasible:
+            a1.text(x[i], 0.03 * top, "not feasible", rotation=90, ha="center", va="bottom", fontsize=8,
+                    color="0.35")
+    ticks = [lab + ("\nchosen" if lab == chosen else "\ndefault" if lab == default else "") for lab in labels]
+    a1.set_xticks(x, ticks, fontsize=8)
+    a1.set_ylabel("RMS load-induced TCP error [mm]")
+    a1.set_ylim(0.0, top * 1.15)
+    a1.set_title("(a) RMS error per IK branch" + ("" if same else " (analytic hatched, optimised solid)"))
+    a1.grid(alpha=0.3, axis="y")
+    styles = {"chosen": (CHOSEN_COLOUR, "-", 2.4), "default": (DEFAULT_COLOUR, "--", 1.6)}
+    for name, y in curves_mm.items():
+        kind = "chosen" if "chosen" in name else "default" if "default" in name else ""
+        c, ls, lw = styles.get(kind, (OTHER_COLOUR, ":", 1.2))
+        if "analytic" in name and kind == "chosen":
+            ls, lw = ":", 1.4
+        a2.plot(s_mm, y, color=c, ls=ls, lw=lw, label=name)
+    a2.set_xlabel(x_label)
+    a2.set_ylabel("load-induced TCP error |Δ| [mm]")
+    a2.set_ylim(bottom=0.0)
+    a2.set_title("(b) along the path: the chosen and the default branch")
+    a2.grid(alpha=0.3)
+    a2.legend(loc="best")
+    if note:
+        fig.text(0.5, 0.015, note, ha="center", va="bottom", fontsize=8, color="0.3")
+    fig.suptitle(title)
     return fig
 
 
@@ -322,6 +471,10 @@ def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
                       headers: Mapping[str, str] | None = None) -> Figure:
     """Joint position, velocity, acceleration and jerk against time, with limits.
 
+    All panels share the time axis (the methods' durations compare at a glance) and
+    each row its value axis; the jerk row shows at most :data:`JERK_VIEW_LIMITS` times
+    the jerk limit and says what a method that does not limit jerk leaves outside.
+
     Parameters
     ----------
     trajs : mapping method -> {"t": (M,), "q", "qd", "qdd", "qddd": (M, 6)}
@@ -335,46 +488,59 @@ def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
     """
     methods = list(trajs)
     fig = _figure(5.8 * max(1, len(methods)) + 0.8, 10.5, left=0.08, right=0.985, bottom=0.05,
-                  top=0.88, wspace=0.25, hspace=0.25)
-    axs = np.atleast_2d(fig.subplots(4, len(methods), sharex="col", squeeze=False))
+                  top=0.88, wspace=0.12, hspace=0.25)
+    axs = np.atleast_2d(fig.subplots(4, len(methods), sharex="all", sharey="row", squeeze=False))
     rows = (("q", "q [rad]", None), ("qd", "q̇ [rad/s]", "velocity"),
             ("qdd", "q̈ [rad/s²]", "acceleration"), ("jerk", "jerk [rad/s³]", "jerk"))
+    q_all = np.concatenate([np.asarray(trajs[m]["q"], float).ravel() for m in methods]) if methods else np.zeros(1)
+    qlo, qhi = float(np.nanmin(q_all)), float(np.nanmax(q_all))
+    qpad = 0.1 * max(qhi - qlo, 1e-3)
+    jlim = limits.get("jerk")
+    jview = JERK_VIEW_LIMITS * float(np.max(jlim)) if jlim is not None else None
     for c, m in enumerate(methods):
         tr = trajs[m]
         t = np.asarray(tr["t"], float)
         data = {"q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"], "jerk": tr.get("qddd")}
         for r, (key, ylabel, lim_key) in enumerate(rows):
             ax = axs[r, c]
+            if c == 0:
+                ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+            if r == 3:
+                ax.set_xlabel("time t [s]")
             if data[key] is None:
                 ax.text(0.5, 0.5, "jerk not recorded in this trajectory file\n(no qddd columns)",
                         transform=ax.transAxes, ha="center", va="center")
-                ax.set_yticks([])
-                ax.set_ylabel(ylabel)
-                ax.set_xlabel("time t [s]")
                 continue
             y = np.asarray(data[key], float)
             for j in range(y.shape[1]):
                 ax.plot(t, y[:, j], color=JOINT_COLOURS[j % 6], lw=1.0, label=f"joint {j + 1}")
             if key == "q":
-                lo, hi = float(np.nanmin(y)), float(np.nanmax(y))
-                pad = 0.1 * max(hi - lo, 1e-3)
-                ax.set_ylim(lo - pad, hi + pad)
+                ax.set_ylim(qlo - qpad, qhi + qpad)
                 qmin, qmax = limits.get("q_min"), limits.get("q_max")
                 shown = False
                 if qmin is not None and qmax is not None:
                     for j in range(len(qmin)):
                         for v in (qmin[j], qmax[j]):
-                            if lo - pad <= v <= hi + pad:
+                            if qlo - qpad <= v <= qhi + qpad:
                                 ax.axhline(v, color=JOINT_COLOURS[j], ls="--", lw=0.8)
                                 shown = True
-                ax.set_title((headers or {}).get(m, m) + ("" if shown or qmin is None
-                                                           else "\nposition limits outside the view"))
+                note = ""
+                if qmin is not None and qmax is not None and not shown:
+                    note = (f"\nposition limits outside the view (joint ranges "
+                            f"{format_number(float(np.min(qmin)))} … {format_number(float(np.max(qmax)))} rad)")
+                ax.set_title((headers or {}).get(m, m) + note)
             else:
                 _limit_lines(ax, limits.get(lim_key), JOINT_COLOURS)
-            ax.set_ylabel(ylabel)
-            ax.grid(alpha=0.3)
-            if r == 3:
-                ax.set_xlabel("time t [s]")
+            if key == "jerk" and jview is not None:
+                peak = float(np.nanmax(np.abs(y))) if y.size else 0.0
+                if peak > jview:
+                    ax.text(0.5, 0.97, f"peak |jerk| of the samples {format_number(peak)} rad/s³ = "
+                            f"{format_number(peak / float(np.max(jlim)))}× the limit: cut off "
+                            "(this method does not limit jerk)", transform=ax.transAxes, ha="center",
+                            va="top", fontsize=8, bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"})
+    if jview is not None:
+        axs[3, 0].set_ylim(-jview, jview)
     handles, labels = axs[1, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", ncol=len(labels), bbox_to_anchor=(0.5, 0.965),
                frameon=False)
@@ -399,43 +565,76 @@ def nice_factor(max_deflection_m: float, target_m: float = 0.05) -> float:
 
 @_styled
 def arm_figure(nominal_m: np.ndarray, deflected_m: np.ndarray, path_m: np.ndarray,
-               labels: Sequence[str], factor: float, *, title: str) -> Figure:
-    """The arm drawn in 3-D at a few poses, nominal and (exaggerated) deflected.
+               labels: Sequence[str], factor: float, *, title: str,
+               joint_index: Sequence[int] | None = None) -> Figure:
+    """The arm drawn in 3-D at a few poses: links between joint centres, nominal and
+    (exaggerated) deflected, on equal axes.
 
     Parameters
     ----------
     nominal_m, deflected_m : ndarray, shape (P, L, 3)
-        Polyline points (base, DH frame origins, TCP) per pose, m.
+        Polyline points per pose, m: base, the joint centres along the chain, the TCP.
     path_m : ndarray, shape (N, 3)
         Target TCP path, m.
     labels : sequence of str, length P
-        Pose names (e.g. ``"k = 0"``).
+        Pose names (e.g. ``"k = 0"``), written at each pose's TCP.
     factor : float
-        Deflection exaggeration factor (stated in the title).
+        Deflection exaggeration factor (stated in the legend).
+    joint_index : sequence of int, optional
+        Which polyline points are joint centres (drawn as dots); default all but the
+        first (base) and the last (TCP).
     """
-    fig = _figure(10.0, 7.2)
-    ax = fig.add_axes((0.0, 0.07, 0.72, 0.82), projection="3d")
-    ax.plot(*path_m.T, color="0.5", lw=1.0, label="target TCP path")
-    for p in range(len(nominal_m)):
+    fig = _figure(9.5, 7.4)
+    ax = fig.add_axes((0.0, 0.05, 1.0, 0.83), projection="3d")
+    P, L = nominal_m.shape[:2]
+    joints = list(joint_index) if joint_index is not None else list(range(1, L - 1))
+    # look at the path from its side, turned by ARM_VIEW_TURN_DEG so the depth shows
+    run_xy = path_m[-1, :2] - path_m[0, :2] if len(path_m) > 1 else np.array([1.0, 0.0])
+    azim = (math.degrees(math.atan2(run_xy[1], run_xy[0])) - 90.0 - ARM_VIEW_TURN_DEG
+            if np.linalg.norm(run_xy) > 1e-6 else -60.0)
+    size = float(np.ptp(np.concatenate([nominal_m.reshape(-1, 3), path_m]), axis=0).max())
+    label_offset = np.array([0.0, 0.0, -0.06 * size])
+    ax.plot(*path_m.T, color="0.35", lw=1.2, ls="-", zorder=1)
+    for p in range(P):
         c = f"C{p % 10}"
-        ax.plot(*nominal_m[p].T, color=c, lw=2.2, marker="o", ms=3,
-                label=f"{labels[p]} nominal (no load)")
-        ax.plot(*deflected_m[p].T, color=c, lw=1.2, ls="--",
-                label=f"{labels[p]} loaded, ×{factor:g}")
-    ax.scatter([0.0], [0.0], [0.0], color="k", marker="s", s=30, label="base origin")
+        nom, dfl = nominal_m[p], deflected_m[p]
+        ax.plot(*dfl.T, color=c, lw=1.1, ls="--", alpha=0.9)
+        ax.plot(*nom.T, color=c, lw=3.0, solid_capstyle="round")
+        ax.scatter(*nom[joints].T, color="white", edgecolor=c, s=22, depthshade=False, zorder=5)
+        ax.scatter(*nom[-1], color=c, marker="v", s=40, depthshade=False)
+        ax.text(*(nom[-1] + label_offset), labels[p], color=c, fontsize=9, ha="center", va="center",
+                bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0}, zorder=10)
+    ax.scatter([0.0], [0.0], [0.0], color="k", marker="s", s=40, depthshade=False)
     pts = np.concatenate([nominal_m.reshape(-1, 3), deflected_m.reshape(-1, 3), path_m,
                           np.zeros((1, 3))])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * float(np.max(hi - lo))
+    lo, hi = lo - pad, hi + pad
     span = np.maximum(hi - lo, 1e-3)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
-    ax.set_box_aspect(span)
+    ax.set_box_aspect(span)                  # equal scale on the three axes
+    for setter in (ax.xaxis, ax.yaxis, ax.zaxis):
+        setter.set_major_locator(matplotlib.ticker.MaxNLocator(4))
+        setter.pane.set_alpha(0.15)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    fig.legend(*ax.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.72, 0.86),
+    handles = [Line2D([], [], color="0.2", lw=3.0, marker="o", mfc="white", ms=5,
+                      label="planned pose, TCP on the path (links between joint centres)"),
+               Line2D([], [], color="0.2", lw=1.1, ls="--",
+                      label=f"the same command under the load, uncompensated: joint deflection ×{factor:g}"),
+               Line2D([], [], color="0.35", lw=1.2, label="target TCP path"),
+               Line2D([], [], color="k", marker="s", ls="", label="base origin"),
+               Line2D([], [], color="0.2", marker="v", ls="", label="TCP")]
+    fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.925), frameon=False,
                fontsize=8)
-    ax.view_init(elev=22, azim=-55)
-    fig.suptitle(title)
+    ax.view_init(elev=18, azim=azim)
+    fig.suptitle(title, y=0.985)
     return fig
+
+
+__all__ = ["ANGLE_UNITS", "JERK_VIEW_LIMITS", "PNG_DPI", "arm_figure", "branch_figure", "compensation_figure",
+           "compliance_map_figure", "error_before_after_figure", "nice_factor", "render", "stiffness_error_figure",
+           "trajectory_figure"]

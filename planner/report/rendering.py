@@ -24,9 +24,9 @@ from planner.report.tables import Table, report_title
 MAX_WORKERS = 2
 
 #: Relative rendering cost of each figure (longest first when rendering in parallel).
-_COST = {"fig1_compliance_map": 3.0, "fig6_trajectory": 2.5, "fig4_error_before_after": 1.8,
-         "fig3_compensation_angles": 1.6, "fig7_arm_3d": 1.2, "fig2_stiffness_error": 1.0,
-         "fig5_branches": 0.8}
+_COST = {"fig1_compliance_map": 3.0, "fig3_compensation_angles": 2.8, "fig6_trajectory": 2.7,
+         "fig4_error_before_after": 1.9, "fig2_stiffness_error": 1.0, "fig7_arm_3d": 1.0,
+         "fig5_branches": 0.9}
 
 #: A figure to draw: ``(drawing function, args, kwargs)``.
 Job = tuple[Callable[..., Any], tuple, dict]
@@ -108,12 +108,18 @@ def render_items(items: list[FigureItem], progress: ProgressFn | None = None,
 _CSS = """
 body{font-family:system-ui,Segoe UI,Helvetica,Arial,sans-serif;max-width:1250px;margin:2em auto;
      padding:0 1em;color:#222}
+h1{font-size:1.5em;margin-bottom:0.3em} h2{border-bottom:1px solid #ccc;padding-bottom:0.2em;margin-top:1.6em}
 table.summary{border-collapse:collapse;margin:0.5em 0 1em}
-table.summary td,table.summary th{border:1px solid #bbb;padding:3px 8px;text-align:left}
+table.summary td,table.summary th{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}
 table.summary th{background:#eee} td.num{font-family:monospace;text-align:right}
-img{max-width:100%;border:1px solid #ddd} .note{color:#555;font-size:90%}
+table.headline{font-size:1.08em} table.headline td:first-child{font-weight:600}
+table.headline td.num{font-size:1.1em} table.headline td:nth-child(2){white-space:nowrap}
+td.mono{font-family:monospace;font-size:88%;text-align:left;word-break:break-all}
+td.hash{font-size:80%}
+img{max-width:100%;border:1px solid #ddd} .note{color:#555;font-size:90%;max-width:1100px}
 .absent{background:#fff4e0;border-left:4px solid #e0a030;padding:0.5em 1em}
-figure{margin:1em 0 2em} figcaption{color:#333;font-size:92%;margin-top:0.3em}
+figure{margin:1em 0 2em} figcaption{color:#333;font-size:92%;margin-top:0.3em;max-width:1100px}
+nav.toc{font-size:90%;color:#444} nav.toc a{margin-right:0.9em}
 """
 
 
@@ -148,17 +154,31 @@ def _html_figure(i: int, it: FigureItem) -> list[str]:
     return out
 
 
+def _split_tables(tables: list[Table]) -> tuple[list[Table], list[Table], list[Table]]:
+    """(headline, body, provenance) tables, by their anchors."""
+    head = [t for t in tables if t.anchor == "headline"]
+    prov = [t for t in tables if t.anchor == "provenance"]
+    body = [t for t in tables if t.anchor not in ("headline", "provenance")]
+    return head, body, prov
+
+
 def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
-    """``report.html``: self-contained (the PNGs embedded as data URIs)."""
+    """``report.html``: self-contained (the PNGs embedded as data URIs), the headline first."""
     title = report_title(run.summary)
+    head, body, prov = _split_tables(tables)
+    toc = " ".join(f'<a href="#{it.name}">Fig. {i}</a>' for i, it in enumerate(items, start=1))
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
-           f"<h1>{html.escape(title)}</h1>",
-           f'<p class="note">Output folder: {html.escape(str(run.folder))}. All values from '
-           "summary.json and the CSV files of this folder; SI inside, mm and deg in the "
-           "displays.</p>", "<h2>Summary</h2>"]
-    out += [t.html() for t in tables]
+           f"<h1>{html.escape(title)}</h1>"]
+    out += [t.html() for t in head]
+    out += [f'<nav class="toc"><a href="#details">Run details</a> <a href="#provenance">Provenance</a> {toc}</nav>',
+            '<h2 id="details">Run details</h2>',
+            f'<p class="note">Output folder: {html.escape(str(run.folder))}. All values from '
+            "summary.json and the CSV files of this folder; SI inside, mm and deg in the "
+            "displays.</p>"]
+    out += [t.html() for t in body]
     out += _html_lists(run)
+    out += [t.html() for t in prov]
     out.append("<h2>Figures</h2>")
     for i, it in enumerate(items, start=1):
         out += _html_figure(i, it)
@@ -169,10 +189,14 @@ def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
 def render_markdown(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
     """``report.md``: the same tables, referencing ``figures/*.png``."""
     s = run.summary
-    out = [f"# {report_title(s)}", "",
-           "All values from summary.json and the CSV files of this folder; SI inside, mm and deg "
-           "in the displays.", "", "## Summary", ""]
-    for t in tables:
+    head, body, prov = _split_tables(tables)
+    out = [f"# {report_title(s)}", ""]
+    for t in head:
+        out += [t.markdown(), ""]
+    out += ["## Run details", "",
+            "All values from summary.json and the CSV files of this folder; SI inside, mm and deg "
+            "in the displays.", ""]
+    for t in body:
         out += [t.markdown(), ""]
     rej = s.get("rejected_branches") or {}
     if rej:
@@ -183,6 +207,8 @@ def render_markdown(run: Run, tables: list[Table], items: list[FigureItem]) -> s
         out += ["### Warnings", ""] + [f"- {w}" for w in warn] + [""]
     if run.absent:
         out += ["### Absent in this run", ""] + [f"- {v}" for v in run.absent.values()] + [""]
+    for t in prov:
+        out += [t.markdown(), ""]
     out += ["## Figures", ""]
     for i, it in enumerate(items, start=1):
         out += [f"### Figure {i}. {it.title}", ""]

@@ -1,9 +1,16 @@
 """The report's tables: the numbers of ``summary.json`` that head the report.
 
 Every number in the HTML tables is machine-checkable: its cell carries
-``data-key`` (the dotted path into ``summary.json``), ``data-value`` (the JSON
-value, full precision) and, when the cell shows the maximum over joints of a
-list, ``data-agg="max"``.  The text shows 7 significant digits.
+``data-key`` (the dotted path into ``summary.json``; list items by index, e.g.
+``provenance.inputs.0.sha256``), ``data-value`` (the JSON value, full
+precision) and, when the cell shows the maximum over joints of a list,
+``data-agg="max"``.  The text is rounded to what it means
+(:mod:`planner.numbers`): 4 significant digits, and a TCP error below the
+numerical floor (1e-6 mm) reads "0 (numerical)".
+
+The first table is the headline (status, IK branch, TCP error before and after,
+duration); the provenance table (version, command line, date, input files with
+SHA-256) closes the summary.
 """
 
 from __future__ import annotations
@@ -14,46 +21,41 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-import numpy as np
-
+from planner import branches as branch_words
+from planner.numbers import NUMERICAL_FLOOR_MM, format_number, format_value
 from planner.report.run import METHOD_NAMES
 
 #: Kinds of limit ratio, in table order.
 RATIO_KINDS = ("velocity", "acceleration", "jerk")
 
 #: Columns of the branch table when summary.json's branch entries have them (plan, issue 5).
-_BRANCH_KEYS = ("status", "rms_error_analytic_mm", "rms_error_mm", "max_error_mm", "cost",
-                "iterations")
-_BRANCH_HEADERS = {"rms_error_analytic_mm": "RMS error, analytic posture [mm]",
-                   "rms_error_mm": "RMS error, optimised posture [mm]",
-                   "max_error_mm": "max error, optimised [mm]", "cost": "cost [m²]",
+_BRANCH_KEYS = ("rms_error_equilibrium_mm", "max_error_equilibrium_mm", "rms_error_analytic_mm",
+                "rms_error_mm", "cost", "iterations")
+_BRANCH_HEADERS = {"rms_error_equilibrium_mm": "RMS error, exact equilibrium [mm]",
+                   "max_error_equilibrium_mm": "max error, exact equilibrium [mm]",
+                   "rms_error_analytic_mm": "RMS error, first order, analytic posture [mm]",
+                   "rms_error_mm": "RMS error, first order, optimised posture [mm]",
+                   "max_error_mm": "max error, first order, optimised [mm]", "cost": "NLP cost [m²]",
                    "iterations": "solver iterations"}
 
 
 # ------------------------------------------------------------------------------- value helpers
 def lookup(summary: Mapping[str, Any], key: str) -> Any:
-    """Value at a dotted path in ``summary`` (``KeyError`` if absent)."""
+    """Value at a dotted path in ``summary`` (``KeyError`` if absent); a numeric part indexes a list."""
     cur: Any = summary
     for part in key.split("."):
-        if not isinstance(cur, Mapping) or part not in cur:
+        if isinstance(cur, Mapping) and part in cur:
+            cur = cur[part]
+        elif isinstance(cur, list) and part.isdigit() and int(part) < len(cur):
+            cur = cur[int(part)]
+        else:
             raise KeyError(key)
-        cur = cur[part]
     return cur
 
 
-def fmt(v: Any) -> str:
-    """Display text of a table value: numbers with 7 significant digits."""
-    if v is None:
-        return "n/a"
-    if isinstance(v, bool):
-        return str(v).lower()
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return "n/a" if not math.isfinite(float(v)) else f"{float(v):.7g}"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(fmt(x) for x in v) + "]"
-    return str(v)
+def fmt(v: Any, key: str = "") -> str:
+    """Display text of a table value (see :func:`planner.numbers.format_value`)."""
+    return format_value(v, key)
 
 
 def flat_numbers(v: Any) -> list[float]:
@@ -73,18 +75,21 @@ class Cell:
     key: str | None = None
     value: Any = None
     agg: str | None = None
+    #: Extra CSS class (e.g. ``"hash"`` for monospace digests).
+    css: str = ""
 
     def html(self) -> str:
+        cls = f' class="{self.css}"' if self.css else ""
         if self.key is None:
-            return f"<td>{html.escape(self.text)}</td>"
+            return f"<td{cls}>{html.escape(self.text)}</td>"
         attrs = f' data-key="{html.escape(self.key)}" data-value="{html.escape(json.dumps(self.value))}"'
         if self.agg:
             attrs += f' data-agg="{self.agg}"'
-        cls = "text" if isinstance(self.value, str) else "num"
-        return f'<td class="{cls}"{attrs}>{html.escape(self.text)}</td>'
+        css = ("text" if isinstance(self.value, str) else "num") + (f" {self.css}" if self.css else "")
+        return f'<td class="{css}"{attrs}>{html.escape(self.text)}</td>'
 
 
-def value_cell(summary: Mapping[str, Any], key: str, agg: str | None = None) -> Cell:
+def value_cell(summary: Mapping[str, Any], key: str, agg: str | None = None, css: str = "") -> Cell:
     """A cell showing ``summary[key]`` (or the max of its numbers with ``agg="max"``)."""
     try:
         v = lookup(summary, key)
@@ -95,10 +100,10 @@ def value_cell(summary: Mapping[str, Any], key: str, agg: str | None = None) -> 
         if not nums:
             return Cell("n/a")
         shown = max(nums)
-        return Cell(fmt(shown), key, shown, "max")
+        return Cell(fmt(shown, key), key, shown, "max", css)
     if isinstance(v, Mapping):
         return Cell(json.dumps(v))
-    return Cell(fmt(v), key, v)
+    return Cell(fmt(v, key), key, v, css=css)
 
 
 @dataclass
@@ -107,9 +112,14 @@ class Table:
     header: list[str]
     rows: list[list[Cell]]
     note: str = ""
+    #: CSS class of the HTML table (``summary``; the headline is ``summary headline``).
+    css: str = "summary"
+    #: HTML id (anchor) of the table.
+    anchor: str = ""
 
     def html(self) -> str:
-        out = [f"<h3>{html.escape(self.title)}</h3>", '<table class="summary">',
+        anchor = f' id="{self.anchor}"' if self.anchor else ""
+        out = [f"<h3{anchor}>{html.escape(self.title)}</h3>", f'<table class="{self.css}">',
                "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in self.header) + "</tr>"]
         out += ["<tr>" + "".join(c.html() for c in row) + "</tr>" for row in self.rows]
         out.append("</table>")
@@ -155,25 +165,124 @@ def report_title(s: Mapping[str, Any]) -> str:
 
 
 def summary_tables(summary: Mapping[str, Any], absent: Mapping[str, str]) -> list[Table]:
-    """The tables that head the report (numbers traceable to summary.json)."""
-    tables = [_run_table(summary), _error_table(summary), _timing_table(summary, absent)]
+    """The tables of the report, headline first and provenance last (numbers traceable to
+    summary.json)."""
+    tables = [headline_table(summary), _run_table(summary), _error_table(summary),
+              _timing_table(summary, absent)]
     branches = _branch_table(summary)
     if branches is not None:
         tables.append(branches)
+    tables.append(provenance_table(summary))
     return tables
+
+
+def load_words(s: Mapping[str, Any]) -> str:
+    """The load of a run in words: payload, tool-frame or base-frame wrench (never a misleading
+    base-frame ``F = [0, 0, 0]`` for a run whose load is a payload or a tool-frame wrench)."""
+    w = s.get("wrench") if isinstance(s.get("wrench"), Mapping) else {}
+    parts = []
+    F, M = flat_numbers(w.get("F_N")), flat_numbers(w.get("M_Nm"))
+    frame = w.get("frame", "base")
+    per_wp = bool(w.get("per_waypoint"))
+    nonzero = any(abs(v) > 0 for v in F + M) or per_wp
+    if nonzero and F and M:
+        vec = (f"F = [{', '.join(format_number(v) for v in F)}] N, "
+               f"M = [{', '.join(format_number(v) for v in M)}] N·m")
+        where = ("tool-frame wrench (turns with the tool)" if frame == "tool" else "base-frame wrench")
+        parts.append(f"{where} {vec}" + (" at waypoint 0 (per-waypoint wrench)" if per_wp else ""))
+    p = s.get("payload")
+    if isinstance(p, Mapping) and p.get("mass_kg"):
+        com = flat_numbers(p.get("com_m_tcp_frame"))
+        parts.append(f"payload {format_number(float(p['mass_kg']))} kg"
+                     + (f" (centre of mass [{', '.join(format_number(v) for v in com)}] m, TCP frame)"
+                        if com and any(com) else ""))
+    return " + ".join(parts) if parts else "no load"
+
+
+def headline_table(s: Mapping[str, Any]) -> Table:
+    """The headline: status, IK branch, TCP error before / after, duration (one short table)."""
+    h = s.get("headline")
+    if not isinstance(h, Mapping):
+        return Table("Headline", ["quantity", "value", "unit", "note"],
+                     [[Cell("headline"), Cell("absent"), Cell(""),
+                       Cell("summary.json has no headline block (written by an earlier compplan)")]],
+                     css="summary headline", anchor="headline")
+    label = h.get("branch")
+    branch_note = h.get("branch_posture") or ""
+    if label and h.get("default_branch") and h.get("default_branch") != label and h.get("gain_vs_default"):
+        branch_note += (f"{'; ' if branch_note else ''}{format_number(h['gain_vs_default'])}× less RMS error than "
+                        f"the default branch {h['default_branch']} (nearest home)")
+    elif label and h.get("default_branch") == label:
+        branch_note += f"{'; ' if branch_note else ''}the default branch (nearest home)"
+    floor = f"below the numerical floor {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm"
+    rows = [[Cell("status"), value_cell(s, "headline.status"), Cell(""),
+             Cell(str(h.get("reason") or ""))],
+            [Cell("IK branch"), value_cell(s, "headline.branch"), Cell(""),
+             Cell(f"{branch_words.short(label) if label else ''}{': ' if branch_note else ''}{branch_note}")]]
+    below = set(h.get("below_numerical_floor") or [])
+    for text, key, note in (
+            ("TCP error before compensation, max", "error_before_max_mm",
+             "the chosen posture commanded as is, exact deflected equilibrium"),
+            ("TCP error before compensation, RMS", "error_before_rms_mm", ""),
+            ("TCP error after exact compensation, max", "error_after_max_mm", ""),
+            ("TCP error after exact compensation, RMS", "error_after_rms_mm", ""),
+            ("TCP error after closed-form compensation (paper), max", "error_after_closed_form_max_mm",
+             "first-order compensation q − K⁻¹Jᵀ(q)F, for comparison")):
+        if key not in h:
+            continue
+        rows.append([Cell(text), value_cell(s, f"headline.{key}"), Cell("mm"),
+                     Cell(floor if key in below else note)])
+    if h.get("duration_s") is not None:
+        note = str(h.get("duration_note") or "")
+        if h.get("duration_time_optimal_s") is not None:
+            note += f"; time-optimal (TOPP-RA, jerk not limited): {format_number(h['duration_time_optimal_s'])} s"
+        rows.append([Cell("duration"), value_cell(s, "headline.duration_s"), Cell("s"), Cell(note)])
+    else:
+        rows.append([Cell("duration"), Cell("not timed"), Cell(""), Cell(str(h.get("duration_note") or ""))])
+    return Table("Headline", ["quantity", "value", "unit", "note"], rows,
+                 "TCP error = |reached − target| TCP position over the waypoints at the exact deflected "
+                 f"equilibrium under the whole load ({load_words(s)}); rounded to 4 significant digits, "
+                 f"and an error below {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm "
+                 "(the exact-compensation contract) is 0: the accuracy of the equilibrium solve, not an "
+                 "error of the arm. Full precision: the tables below and summary.json.",
+                 css="summary headline", anchor="headline")
+
+
+def provenance_table(s: Mapping[str, Any]) -> Table:
+    """compplan version, command line, date (UTC) and input files with their SHA-256."""
+    p = s.get("provenance")
+    if not isinstance(p, Mapping):
+        return Table("Provenance", ["item", "value", "SHA-256"],
+                     [[Cell("provenance"), Cell("absent: summary.json written by an earlier compplan"), Cell("")]],
+                     anchor="provenance")
+    rows = [[Cell("compplan version"), value_cell(s, "provenance.compplan_version"), Cell("")],
+            [Cell("command line"),
+             value_cell(s, "provenance.command_line", css="mono") if p.get("command_line")
+             else Cell("none: written by a library call"), Cell("")],
+            [Cell("date (UTC, ISO 8601)"), value_cell(s, "provenance.date_utc"), Cell("")]]
+    for i, e in enumerate(p.get("inputs") or []):
+        if not isinstance(e, Mapping):
+            continue
+        name = f" '{e['name']}'" if e.get("name") else ""
+        where = (value_cell(s, f"provenance.inputs.{i}.path", css="mono") if e.get("path")
+                 else Cell(str(e.get("note") or "not a file")))
+        digest = (value_cell(s, f"provenance.inputs.{i}.sha256", css="mono hash") if e.get("sha256")
+                  else Cell("—"))
+        rows.append([Cell(f"input: {e.get('role', '?')}{name}"), where, digest])
+    return Table("Provenance", ["item", "value", "SHA-256"], rows,
+                 "Inputs as read by this run; their SHA-256 identifies the exact files (built-in robots and "
+                 "shipped problems are hashed from the installed package).", anchor="provenance")
 
 
 def _run_table(s: Mapping[str, Any]) -> Table:
     branch_key = "chosen_branch" if "chosen_branch" in s else "branch"
+    w = s.get("wrench") if isinstance(s.get("wrench"), Mapping) else {}
+    frame = w.get("frame", "?")
     rows = [
         [Cell("robot"), value_cell(s, "robot"), Cell("")],
         [Cell("scenario"), value_cell(s, _scenario_key(s)), Cell("")],
-        [Cell("process wrench: force F"), value_cell(s, "wrench.F_N"), Cell("N")],
-        [Cell("process wrench: moment M"), value_cell(s, "wrench.M_Nm"), Cell("N·m")],
-        [Cell("process wrench: frame / point"),
-         Cell(f"{s.get('wrench', {}).get('frame', '?')} frame"
-              + (" (turns with the tool)" if s.get("wrench", {}).get("frame") == "tool" else "")
-              + f", at the {s.get('wrench', {}).get('point', '?')}"), Cell("")],
+        [Cell("load"), Cell(load_words(s)), Cell("")],
+        *_wrench_rows(s, w, frame),
         *_payload_rows(s),
         *_model_rows(s),
         [Cell("IK branch used"), value_cell(s, branch_key), Cell("")],
@@ -195,6 +304,20 @@ def _run_table(s: Mapping[str, Any]) -> Table:
             continue
         rows.append([Cell(label), value_cell(s, key), Cell(unit)])
     return Table("Run", ["quantity", "value", "unit"], rows)
+
+
+def _wrench_rows(s: Mapping[str, Any], w: Mapping[str, Any], frame: str) -> list[list[Cell]]:
+    """The process wrench: force, moment, frame and point; one row "none" when it is zero."""
+    values = flat_numbers(w.get("F_N")) + flat_numbers(w.get("M_Nm"))
+    if values and not any(values) and not w.get("per_waypoint"):
+        return [[Cell("process wrench"), Cell("none" + (" (the payload is the load)" if s.get("payload") else "")),
+                 Cell("")]]
+    return [[Cell(f"process wrench: force F ({frame} frame)"), value_cell(s, "wrench.F_N"), Cell("N")],
+            [Cell(f"process wrench: moment M ({frame} frame)"), value_cell(s, "wrench.M_Nm"), Cell("N·m")],
+            [Cell("process wrench: frame / point"),
+             Cell(f"{frame} frame" + (" (turns with the tool)" if frame == "tool" else "")
+                  + f", at the {w.get('point', '?')}"
+                  + ("; per-waypoint: the values are waypoint 0's" if w.get("per_waypoint") else "")), Cell("")]]
 
 
 def _payload_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
@@ -225,8 +348,12 @@ def _error_table(s: Mapping[str, Any]) -> Table:
                        ("after exact compensation", "error_after.exact")):
         rows.append([Cell(label), value_cell(s, f"{key}.max_mm"), value_cell(s, f"{key}.rms_mm")])
     return Table("TCP position error under load [mm]", ["case", "max [mm]", "RMS [mm]"], rows,
-                 "Euclidean norm of (reached - target) TCP position over the waypoints, at the exact "
-                 "deflected equilibrium of the arm model named above (its effects, under the whole load).")
+                 "Euclidean norm of (reached − target) TCP position over the waypoints, at the exact "
+                 "deflected equilibrium of the arm model named above (its effects, under the whole load). "
+                 "'Before' is the chosen posture commanded as is; the IK branch table's first-order "
+                 "errors (|S·C(q)·F|, the NLP's objective) differ from it by the second-order terms, its "
+                 "'exact equilibrium' column is this same measure. "
+                 f"Below {format_number(NUMERICAL_FLOOR_MM)} mm: 0 (numerical).")
 
 
 def _timing_table(s: Mapping[str, Any], absent: Mapping[str, str]) -> Table:
@@ -243,7 +370,8 @@ def _timing_table(s: Mapping[str, Any], absent: Mapping[str, str]) -> Table:
             dcell = value_cell(s, "duration_s")
         else:
             dcell = Cell("absent")
-        rows.append([Cell(METHOD_NAMES.get(m, m)), dcell]
+        name = METHOD_NAMES.get(m, m) + (" (controller)" if s.get("controller_trajectory") == m else "")
+        rows.append([Cell(name), dcell]
                     + [value_cell(s, f"{prefix}.{k}", agg="max") for k in RATIO_KINDS]
                     + [value_cell(s, f"timing.{m}.status")])
     note = ("Limit ratio: peak |value| / limit, maximum over the joints (1 = at the limit). "
@@ -264,13 +392,30 @@ def _branch_table(s: Mapping[str, Any]) -> Table | None:
     for info in br.values():
         if isinstance(info, Mapping):
             for k, v in info.items():
-                if k not in keys and (isinstance(v, (int, float, str, bool)) or v is None):
+                if k not in keys and (isinstance(v, (int, float, bool)) or v is None) and k != "status":
                     keys.append(k)
     preferred = [k for k in _BRANCH_KEYS if k in keys]
     keys = preferred or keys[:8]
     rows = []
-    chosen = s.get("chosen_branch")
-    for label in br:
-        name = f"{label} (chosen)" if label == chosen else str(label)
-        rows.append([Cell(name)] + [value_cell(s, f"branches.{label}.{k}") for k in keys])
-    return Table("IK branches", ["branch"] + [_BRANCH_HEADERS.get(k, k) for k in keys], rows)
+    chosen, default = s.get("chosen_branch"), s.get("default_branch")
+    for label, info in br.items():
+        info = info if isinstance(info, Mapping) else {}
+        marks = [m for m, on in (("chosen", label == chosen), ("default", label == default)) if on]
+        name = f"{label} ({', '.join(marks)})" if marks else str(label)
+        posture = str(info.get("posture") or branch_words.short(str(label)))
+        status = str(info.get("status", "?"))
+        rows.append([Cell(name), Cell(posture), Cell(branch_words.status_text(status))]
+                    + [value_cell(s, f"branches.{label}.{k}") for k in keys])
+    diff = ""
+    ci = br.get(chosen) if isinstance(br.get(chosen), Mapping) else {}
+    a, b = ci.get("rms_error_mm"), ci.get("rms_error_equilibrium_mm")
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and b:
+        diff = f" ({format_number(100.0 * (a - b) / b, 2)} % for the chosen branch)"
+    note = (branch_words.BRANCH_LEGEND + " Posture at waypoint 0, seen from above from the base. "
+            "'Exact equilibrium': the load-induced TCP error of the branch's posture at the deflected "
+            "equilibrium (the measure of the error table and of figure 5); 'first order': |S·C(q)·F|, "
+            "the posture NLP's objective, which neglects the change of C over the deflection"
+            f"{diff}. Status 'fixed orientation: the IK solution, nothing to optimise' (no_freedom) is "
+            "not a failure: six equations fix the six joints and only the branch is chosen.")
+    return Table("IK branches", ["branch", "posture", "status"]
+                 + [_BRANCH_HEADERS.get(k, k) for k in keys], rows, note)

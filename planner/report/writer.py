@@ -9,12 +9,15 @@ from planner.compliance_map import ProgressFn
 from planner.output import OutputSet
 from planner.report.figures import build_figures
 from planner.report.maps import cache_rendered_maps
-from planner.report.rendering import FigureItem, render_html, render_items, render_markdown
+from planner.report.rendering import render_html, render_items, render_markdown
 from planner.report.run import Run, load_run, run_from_plan
 from planner.report.tables import summary_tables
 
 if TYPE_CHECKING:
     from planner.plan import PlanResult
+
+#: The entries of a run folder that its report owns (replaced together by each report).
+REPORT_OUTPUTS = ("report.html", "report.md", "figures", "compliance_map.csv")
 
 
 def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
@@ -64,13 +67,19 @@ def publish_report(run: Run, progress: ProgressFn | None = None, *,
                    map_options: Mapping[str, Any] | None | bool = None,
                    workers: int | None = None, map_cache: bool = True) -> Path:
     """Write the report of a :class:`~planner.report.run.Run` into ``run.folder``, all or
-    nothing (options as for :func:`write_report`); returns the path of ``report.html``."""
+    nothing (options as for :func:`write_report`); returns the path of ``report.html``.
+
+    The folder's :data:`REPORT_OUTPUTS` are replaced together, in one step (the folder is
+    rebuilt beside itself with the run's other files hard-linked, then swapped in; see
+    :class:`planner.output.OutputSet`): an earlier report's figure or map is never left
+    beside the new report, and a failure leaves the earlier report as it was.
+    """
     files: dict[str, bytes] = {}
     items = build_figures(run, progress, map_options, files, map_cache)
     render_items(items, progress, workers)
     cache_rendered_maps(items, files)
     tables = summary_tables(run.summary, run.absent)
-    out = OutputSet(run.folder)
+    out = OutputSet(run.folder, owns=REPORT_OUTPUTS)
     for it in items:
         if it.png is not None:
             out.add_bytes(f"figures/{it.name}.png", it.png)
@@ -79,20 +88,5 @@ def publish_report(run: Run, progress: ProgressFn | None = None, *,
         out.add_bytes(name, data)
     out.add_bytes("report.md", render_markdown(run, tables, items).encode())
     out.add_bytes("report.html", render_html(run, tables, items).encode())
-    out.publish()
-    _remove_stale(run.folder, items, with_map=map_options is not False)
+    out.publish()           # every entry of REPORT_OUTPUTS replaced at once: no earlier figure is left
     return run.folder / "report.html"
-
-
-def _remove_stale(folder: Path, items: list[FigureItem], with_map: bool) -> None:
-    """Figures of an earlier report that this run no longer has would mislead: remove them."""
-    for it in items:
-        if it.png is None:
-            for ext in ("png", "pdf"):
-                stale = folder / "figures" / f"{it.name}.{ext}"
-                if stale.exists():
-                    stale.unlink()
-    if not with_map or items[0].png is None:
-        stale = folder / "compliance_map.csv"
-        if stale.exists():
-            stale.unlink()

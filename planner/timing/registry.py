@@ -32,6 +32,7 @@ __all__ = [
     "DT_DEFAULT_S",
     "DT_MAX_S",
     "LIMIT_RATIO_TOL",
+    "MAX_TRAJECTORY_SAMPLES",
     "MONOTONE_TOL",
     "SHRINK_MARGIN_MAX",
     "MethodRunner",
@@ -39,6 +40,7 @@ __all__ = [
     "TimingMethod",
     "available_methods",
     "check_integer_options",
+    "check_sample_count",
     "check_shrink_margin",
     "get_method",
     "register_method",
@@ -66,6 +68,12 @@ MONOTONE_TOL: float = 1e-9
 
 #: Upper bound of the ``shrink_margin`` option of every method (-).
 SHRINK_MARGIN_MAX: float = 10.0
+
+#: Largest number of samples (at the controller period ``dt``) of a trajectory. Longer
+#: motions are refused before anything is sampled: 10^6 samples are 2.2 h at dt = 8 ms or
+#: 33 min at 2 ms, and a CSV of about 0.5 GB; a limit given in the wrong unit (a velocity
+#: limit of 1e-9 rad/s) would otherwise ask for terabytes.
+MAX_TRAJECTORY_SAMPLES: int = 1_000_000
 
 # --------------------------------------------------------------------------- #
 # Method records
@@ -178,6 +186,61 @@ def validate_dt(dt: float) -> float:
     if not math.isfinite(value) or value <= 0.0 or value > DT_MAX_S:
         raise ValueError(f"dt must be finite, > 0 and <= {DT_MAX_S} s, got {dt!r}")
     return value
+
+
+def check_sample_count(duration_s: float, dt: float, method: str = "", lower_bound: bool = False) -> int:
+    """Number of samples of a motion of ``duration_s`` s at ``dt`` s, checked against the cap.
+
+    Parameters
+    ----------
+    duration_s : float
+        Duration of the motion, s (or a lower bound of it, ``lower_bound=True``).
+    dt : float
+        Controller period, s.
+    method : str
+        The timing method, for the message.
+    lower_bound : bool
+        Whether ``duration_s`` is a lower bound (the message says "at least").
+
+    Returns
+    -------
+    int
+        ``ceil(duration_s / dt) + 1``.
+
+    Raises
+    ------
+    InputError
+        More than :data:`MAX_TRAJECTORY_SAMPLES` samples (or a non-finite duration): the
+        message gives the number of samples, the duration, ``dt`` and the cap.
+    """
+    n = duration_s / dt + 1.0 if math.isfinite(duration_s) else math.inf
+    if n > MAX_TRAJECTORY_SAMPLES:
+        least = "at least " if lower_bound else ""
+        who = f"timing ({method})" if method else "timing"
+        count = f"{n:.4g}" if math.isfinite(n) else "infinitely many"
+        raise InputError(
+            f"{who}: the trajectory would need {least}{count} samples ({least}{duration_s:.4g} s at "
+            f"dt = {dt:g} s), more than the cap of {MAX_TRAJECTORY_SAMPLES} samples "
+            "(MAX_TRAJECTORY_SAMPLES); the joint limits are probably in the wrong unit (velocity in "
+            "rad/s, acceleration in rad/s^2, jerk in rad/s^3): raise them, or raise dt"
+        )
+    return int(math.ceil(duration_s / dt)) + 1
+
+
+def _duration_lower_bound(q: np.ndarray, limits: JointLimits, checked: tuple[str, ...]) -> float:
+    """A duration (s) no rest-to-rest motion along the waypoints ``q`` (N, n) can beat.
+
+    The spline passes through every waypoint, so joint ``j`` travels at least the total
+    variation ``D_j`` of its waypoints: at most ``v_j`` it takes ``D_j / v_j``, and from rest to
+    rest at most ``a_j`` at least ``2 sqrt(D_j / a_j)`` (and, jerk-limited, ``(32 D_j / j_j)^(1/3)``).
+    """
+    travel = np.sum(np.abs(np.diff(q, axis=0)), axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bounds = [travel / limits.velocity, 2.0 * np.sqrt(travel / limits.acceleration)]
+        if "jerk" in checked:
+            bounds.append(np.cbrt(32.0 * travel / limits.jerk))
+    t = np.nan_to_num(np.max(np.vstack(bounds), axis=0), nan=0.0, posinf=math.inf)
+    return float(np.max(t)) if t.size else 0.0
 
 
 def check_integer_options(out: dict[str, Any], bounds: Iterable[tuple[str, int]]) -> None:
@@ -318,4 +381,6 @@ def time_parametrize(
     q, n_input = validate_path(q_path, limits.n_joints)
     if q.shape[0] < 2:
         return _zero_length_trajectory(spec.name, q, n_input, dt)
+    # refuse a motion longer than the sample cap before any method runs or samples
+    check_sample_count(_duration_lower_bound(q, limits, spec.checked_limits), dt, spec.name, lower_bound=True)
     return spec.run(SplinePath(q), limits, dt, opts)

@@ -26,7 +26,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from planner.timing.path import SplinePath
-from planner.timing.registry import LIMIT_RATIO_TOL, MONOTONE_TOL
+from planner.timing.registry import LIMIT_RATIO_TOL, MONOTONE_TOL, check_sample_count
 from planner.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
 
 __all__ = [
@@ -80,7 +80,15 @@ def check_times(duration: float, dt: float, extra: np.ndarray | None = None) -> 
     extra : np.ndarray, optional
         Shape ``(E,)``, s, additional times; those in ``[0, duration)`` are
         appended (unsorted).
+
+    Raises
+    ------
+    InputError
+        The motion needs more than ``MAX_TRAJECTORY_SAMPLES`` samples at ``dt``
+        (checked here, before anything is sampled).
     """
+    if math.isfinite(duration):
+        check_sample_count(duration, dt)
     fine = np.arange(0.0, duration, dt / VERIFY_OVERSAMPLE)
     if extra is not None:
         fine = np.concatenate((fine, extra[(extra >= 0.0) & (extra < duration)]))

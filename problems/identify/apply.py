@@ -51,6 +51,9 @@ COMPENSATION_CHECK_MAX_COND = 80.0
 #: solve and pick the branch, so they must command a pose near the target (a larger gap
 #: means targets in another frame or unit than declared).
 TARGET_SEED_MAX_M = 0.05
+#: Tolerance of the joint-limit checks of :func:`compensate` and :func:`compensate_targets`
+#: (rad): a command this far beyond ``q_min``/``q_max`` is outside the limits.
+JOINT_LIMIT_TOL_RAD = 1e-12
 #: A held parameter whose reason names one of these aliases with the registration or the
 #: measured point (unregistered data): unobservable in the base frame.
 REGISTRATION_ALIAS_MARKERS = ("registration.", "measured_point")
@@ -114,7 +117,8 @@ def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
     -------
     CompensationOutcome
         Status ``FAILED`` (naming the rows) when a row is not compensated to
-        :data:`COMPENSATION_RESIDUAL_TOL`.
+        :data:`COMPENSATION_RESIDUAL_TOL` or its compensated command is outside the robot's
+        joint limits (the reason names the row, the joint, the value and the limit).
     """
     q_in = np.atleast_2d(np.asarray(q_in, dtype=float))
     n = len(q_in)
@@ -132,6 +136,12 @@ def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
         q_c[idx], q_eq[idx] = out.q_command, out.q_deflected
         res[idx], rres[idx] = out.error_norm_m, out.error_rad
     bad_rows = np.flatnonzero(~(np.isfinite(res) & (res <= COMPENSATION_RESIDUAL_TOL)))
+    limit_msg, limit_rows = _outside_limits(model, q_c)
+    if len(limit_rows):
+        rows = np.union1d(bad_rows, limit_rows)
+        return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.FAILED,
+                                   f"{len(limit_rows)} row(s) need a compensated command outside the joint limits "
+                                   f"({limit_msg})", failed_rows=rows)
     if len(bad_rows):
         worst = int(bad_rows[np.argmax(np.where(np.isfinite(res[bad_rows]), res[bad_rows], np.inf))])
         return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.FAILED,
@@ -142,6 +152,48 @@ def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
                                    "or near a singularity", failed_rows=bad_rows)
     return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.OK,
                                f"max model-predicted residual {res.max():.3g} m")
+
+
+def _outside_limits(model: ArmModel, q: np.ndarray) -> tuple[str, np.ndarray]:
+    """Rows (0-based) of ``q`` (N, 6), rad, outside the robot's joint limits, and a text naming
+    the first: row, joint, value and the limit in the robot file's key and unit."""
+    robot = model.nominal
+    lo = q < robot.q_min - JOINT_LIMIT_TOL_RAD
+    hi = q > robot.q_max + JOINT_LIMIT_TOL_RAD
+    rows = np.flatnonzero(np.any(lo | hi, axis=1))
+    if not len(rows):
+        return "", rows
+    i = int(rows[0])
+    j = int(np.argmax(lo[i] | hi[i]))
+    key = "q_min" if lo[i, j] else "q_max"
+    joint = robot.joints[j]
+    return (f"row {i}: joint {j + 1} = {q[i, j]:.6g} rad, beyond {joint.limit_text(key)} of robot "
+            f"'{robot.name}'"), rows
+
+
+def _check_command_limits(model: ArmModel, m: Measurements) -> None:
+    """Refuse input commands outside the robot's joint limits, naming the file line, the column
+    (as written, e.g. ``q1_deg``), the value in that column's unit and the limit in the robot
+    file's key and unit (with its value in the column's unit when they differ)."""
+    robot = model.nominal
+    lo = m.q < robot.q_min - JOINT_LIMIT_TOL_RAD
+    hi = m.q > robot.q_max + JOINT_LIMIT_TOL_RAD
+    bad = np.flatnonzero(np.any(lo | hi, axis=1))
+    if not len(bad):
+        return
+    i = int(bad[0])
+    j = int(np.argmax(lo[i] | hi[i]))
+    key = "q_min" if lo[i, j] else "q_max"
+    col = _column(m, f"q{j + 1}")
+    factor = m.units.get(col, 1.0)
+    unit = "deg" if col.endswith("_deg") else "rad"
+    limit = getattr(robot.joints[j], key)
+    limit_text = robot.joints[j].limit_text(key)
+    in_col = f" ({limit / factor:.6g} {unit})" if (unit == "deg") != (key in robot.joints[j].deg_keys) else ""
+    raise TargetsError(f"{m.source}: line {int(m.line[i])}, column '{col}': command {m.q[i, j] / factor:.6g} {unit} "
+                       f"is {'below' if key == 'q_min' else 'above'} the joint-{j + 1} limit {limit_text}{in_col} of "
+                       f"robot '{robot.name}' ({len(bad)} row(s) outside the limits); the commands must be within "
+                       "the robot's joint limits")
 
 
 # ----------------------------------------------------------------------------------
@@ -348,10 +400,12 @@ def compensate_targets(model: ArmModel, m: Measurements,
     Raises
     ------
     TargetsError
-        ``x, y, z`` missing for ``base``/``measurement``, or a target too far from the
-        nominal position of its row's commands (:data:`TARGET_SEED_MAX_M`).
+        ``x, y, z`` missing for ``base``/``measurement``, a target too far from the
+        nominal position of its row's commands (:data:`TARGET_SEED_MAX_M`), or a command
+        outside the robot's joint limits (naming the line, column, value and limit).
     """
     frame = TargetsFrame(frame)
+    _check_command_limits(model, m)
     if frame is TargetsFrame.NOMINAL:
         out = compensate(model, m.q, m.wrench, m.temperature)
     else:

@@ -65,6 +65,14 @@ from .selection import (
 SATURATED_MAX_ITER = 8
 #: Parameter groups of the registration and the measured point.
 REGISTRATION_GROUPS = ("reg.t", "reg.w", "tool.p")
+#: An identified DH length correction (``da``, ``dd``) larger than this is implausible for the
+#: declared robot (m): a real arm is built to its drawing within millimetres, so such a
+#: "correction" means the data come from another arm than the robot file describes.
+IMPLAUSIBLE_LENGTH_ERROR_M = 0.020
+#: The same for an angle correction (``dalpha``, ``dtheta``, ``dbeta``, joint offsets), rad (2 deg).
+IMPLAUSIBLE_ANGLE_ERROR_RAD = float(np.radians(2.0))
+#: Parameter groups checked against those thresholds.
+GEOMETRY_GROUPS = ("joint_offset.dtheta", "geometric.da", "geometric.dalpha", "geometric.dd", "geometric.dbeta")
 
 
 @dataclass
@@ -168,9 +176,14 @@ def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust:
     reg_idx = set(layout.indices(REGISTRATION_GROUPS)) if not registered else set()
     bad = [i for i in fit.held if i in reg_idx and i not in structural]
     if bad:
+        rms_b = _rms(s.fit_b.residual(s.prob))
+        wrong_robot = (f"; the nominal model of robot '{s.prob.layout.robot.name}' misses the data by "
+                       f"{rms_b * 1e3:.0f} mm RMS after the registration: is --robot the arm that was measured?"
+                       if rms_b > IMPLAUSIBLE_LENGTH_ERROR_M else "")
         raise DataError(f"{m.source}: too few or too similar poses ({s.n_poses} distinct): cannot identify "
                         + ", ".join(f"{PARAM_NAMES[i]} ({fit.held[i]})" for i in bad)
-                        + "; measure more poses spread over the workspace, or declare the data registered")
+                        + "; measure more poses spread over the workspace, or declare the data registered"
+                        + wrong_robot)
     inc_idx = {int(i): e for e in include for i in layout.effect_indices(e)}
     bad = [i for i in fit.held if i in inc_idx and i not in structural]
     if bad:
@@ -405,6 +418,40 @@ def _build_model(run: _Run, st: _State, s: _Setup, std: np.ndarray, free: Sequen
                            torque_range_Nm=torque_range)
 
 
+def implausible_geometry(robot: Robot, theta: np.ndarray, held: Sequence[int] = ()) -> str | None:
+    """A message naming the identified geometry corrections that are implausibly large for the
+    declared robot (:data:`IMPLAUSIBLE_LENGTH_ERROR_M`, :data:`IMPLAUSIBLE_ANGLE_ERROR_RAD`), or
+    None.  Parameters in ``held`` (indices) stay at their nominal values and are not checked.
+
+    Parameters
+    ----------
+    robot : Robot
+        The declared robot (named in the message).
+    theta : ndarray, shape (N_PARAMS,)
+        Identified parameters, SI.
+    """
+    layout = make_layout(robot)
+    held_set = set(int(i) for i in held)
+    found: list[tuple[float, str]] = []
+    for g in GEOMETRY_GROUPS:
+        for i in range(GROUP_SLICES[g].start, GROUP_SLICES[g].stop):
+            if i in held_set:
+                continue
+            v = float(theta[i] - layout.nominal[i])
+            if layout.units[i] == "m" and abs(v) > IMPLAUSIBLE_LENGTH_ERROR_M:
+                found.append((abs(v) / IMPLAUSIBLE_LENGTH_ERROR_M, f"{PARAM_NAMES[i]} = {v * 1e3:.1f} mm"))
+            elif layout.units[i] == "rad" and abs(v) > IMPLAUSIBLE_ANGLE_ERROR_RAD:
+                found.append((abs(v) / IMPLAUSIBLE_ANGLE_ERROR_RAD, f"{PARAM_NAMES[i]} = {np.degrees(v):.2f} deg"))
+    if not found:
+        return None
+    found.sort(key=lambda x: -x[0])
+    names = ", ".join(t for _r, t in found[:6]) + (f" and {len(found) - 6} more" if len(found) > 6 else "")
+    return (f"implausible geometry for robot '{robot.name}': the identified corrections {names} exceed "
+            f"{IMPLAUSIBLE_LENGTH_ERROR_M * 1e3:g} mm (lengths) / {np.degrees(IMPLAUSIBLE_ANGLE_ERROR_RAD):g} deg "
+            "(angles), far more than a real arm differs from its drawing; the data probably come from another arm "
+            "than the robot file describes: check --robot (the robot file) before using this model")
+
+
 def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | None, stop_reason: str,
              converged: bool) -> tuple[IdentifyStatus, str, dict[str, Any]]:
     """Status, reason and the ``unexplained`` record of the final residual."""
@@ -451,6 +498,9 @@ def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[st
     params = _parameter_table(prob.layout, fit, order_f, std, st.active, run.registered)
     diags = _diagnose(prob, fit, run.robot)       # diagnostics on the final residual (inliers)
     status, reason, unexplained = _verdict(diags, score_f, run.sigma_noise, st.stop_reason, fit.converged)
+    implausible = implausible_geometry(run.robot, fit.theta, [i for i in fit.held])
+    if implausible is not None and status is not IdentifyStatus.NOT_CONVERGED:
+        status, reason = IdentifyStatus.IMPLAUSIBLE, implausible
     excluded = [{"row": int(i), "line": int(m.line[i]), "residual_mm": float(np.linalg.norm(R_un[i]) * 1e3),
                  "residual_xyz_mm": (R_un[i] * 1e3).tolist()} for i in np.flatnonzero(~fit.inliers)]
     ident = {

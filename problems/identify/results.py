@@ -30,6 +30,7 @@ class IdentifyStatus(enum.Enum):
     OK = "ok"                       # the model explains the data (noise floor or no structure left)
     UNEXPLAINED = "unexplained"     # structure remains that no library effect explains
     NOT_CONVERGED = "not_converged"
+    IMPLAUSIBLE = "implausible_geometry"  # DH corrections too large for the declared robot: wrong robot file?
 
 
 class ParameterStatus(str, enum.Enum):

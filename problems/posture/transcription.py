@@ -5,7 +5,10 @@ The stage functions (cost, constraints, their gradient, Jacobian and Lagrangian 
 are CasADi SX functions of one waypoint's joints ``q`` (6,) rad and parameters ``theta``
 (:data:`~problems.posture.task.N_THETA`,); they are compiled to C once per model, tool and
 rule (cached on disk under ``$COMPPLAN_CACHE``, keyed by a hash of the source) and are
-independent of ``N``.  The NLP is assembled in MX by mapping them over the waypoints, with
+independent of ``N``; without a usable C compiler (or with ``$COMPPLAN_NO_COMPILER=1``) the
+SX functions themselves run on CasADi's virtual machine, slower, with the same results to
+rounding (:attr:`PostureNLP.compiled` says which; :func:`models.codegen.codegen_notes`
+records why).  The NLP is assembled in MX by mapping them over the waypoints, with
 the sparse derivative functions assembled by hand and passed to ``nlpsol`` (options
 ``grad_f``, ``jac_g``, ``hess_lag``), so one solver per (model, rule, N) serves every
 branch: only the warm start and the parameters change.
@@ -22,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from models.arm import ArmModel
-from models.codegen import CompileError, compile_shared_library
+from models.codegen import CompileError, compile_shared_library, note_virtual_machine
 from models.effects import LOAD_SIZE
 from models.errors import InputError
 from models.ik import AnalyticIK
@@ -112,7 +115,8 @@ def _compile_stage(funcs: dict[str, ca.Function]) -> dict[str, ca.Function]:
     Raises
     ------
     StageCompileError
-        No C compiler, or compilation failed.
+        No C compiler, compilation failed, or the library cannot be loaded (a note is
+        recorded, see :func:`models.codegen.codegen_notes`).
     """
     cg = ca.CodeGenerator("posture_stage.c", {"with_header": False, "casadi_real": "double",
                                               "casadi_int": "long long int"})
@@ -123,7 +127,13 @@ def _compile_stage(funcs: dict[str, ca.Function]) -> dict[str, ca.Function]:
         lib = compile_shared_library(src, "posture")
     except CompileError as exc:
         raise StageCompileError(str(exc)) from None
-    return {k: ca.external(f.name(), str(lib)) for k, f in funcs.items()}
+    try:
+        return {k: ca.external(f.name(), str(lib)) for k, f in funcs.items()}
+    except RuntimeError as exc:
+        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
+        reason = f"cannot load compiled library {lib} ({first})"
+        note_virtual_machine(reason)
+        raise StageCompileError(reason) from None
 
 
 # --------------------------------------------------------------------------------------
