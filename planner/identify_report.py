@@ -221,6 +221,10 @@ def _figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> di
     return figs
 
 
+#: Residual histograms whose largest value is below this (m) are drawn in micrometres.
+RESIDUAL_UM_BELOW_M = 1e-4
+
+
 def _residual_png(res: IdentificationResult) -> str:
     """Histograms of the residual per axis (x, y, z), before (nominal) and after (identified)."""
     inl = res.inliers
@@ -228,13 +232,16 @@ def _residual_png(res: IdentificationResult) -> str:
     axs = fig.subplots(2, 3)
     for row, (name, R, colour) in enumerate((("before: nominal model", res.residual_before[inl], "tab:red"),
                                              ("after: identified model", res.residual_after[inl], "tab:green"))):
+        # residuals below 0.1 mm are drawn in um, so the tick labels stay short and readable
+        um = bool(np.max(np.abs(R[:, :3]), initial=0.0) < RESIDUAL_UM_BELOW_M)
+        unit, k = ("µm", 1e6) if um else ("mm", 1e3)
         for j, ax_name in enumerate("xyz"):
             ax = axs[row, j]
-            r = R[:, j] * 1e3
+            r = R[:, j] * k
             ax.hist(r, bins=40, color=colour, alpha=0.8)
             ax.axvline(0.0, color="0.3", lw=0.8)
-            ax.set_title(f"{ax_name} axis, {name}: RMS {format_number(_rms(r))} mm")
-            ax.set_xlabel(f"residual r_{ax_name} = predicted − measured [mm]")
+            ax.set_title(f"{ax_name} axis, {name}: RMS {format_number(_rms(r))} {unit}")
+            ax.set_xlabel(f"residual r_{ax_name} = predicted − measured [{unit}]")
             ax.set_ylabel("rows [count]")
             ax.grid(alpha=0.3)
     fig.suptitle(f"Residual per axis of the measurement frame, {int(np.count_nonzero(inl))} inlier rows "
@@ -467,7 +474,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
 #: Figures of the HTML report, in order: key -> (title, caption).
 FIGURE_TEXT = {
     "residuals": ("Residual per axis, before and after",
-                  "Histograms of predicted − measured per axis of the measurement frame (mm), inlier rows: top, "
+                  "Histograms of predicted − measured per axis of the measurement frame (mm; µm where every residual is below 0.1 mm), inlier rows: top, "
                   "the nominal model (registration and measured point fitted); bottom, the identified model."),
     "history": ("Selection history",
                 "Per-axis RMS (mm) at each step of the selection: held-out (cross-validated over poses) and "
