@@ -423,6 +423,10 @@ REPORT = [
       ["run/report.html"], ["summary.json"]),
     C("report-summary-list", "report {t}/run --no-map", {"run": None, "run/summary.json": "[]"},
       ["run/report.html"], ["summary.json"]),
+    C("report-summary-empty-object", "report {t}/run --no-map", {"run": None, "run/summary.json": "{}"},
+      ["run/report.html"], ["summary.json", "'command'", "plan or demo"]),
+    C("report-summary-of-identify", "report {t}/run --no-map",
+      {"run": None, "run/summary.json": '{"command": "identify"}'}, ["run/report.html"], ["'identify'"]),
 ]
 
 S = "simulate --robot ur5 --config {t}/s.toml --out {t}/d.csv"
@@ -607,6 +611,8 @@ PREDICT = [
       {"m.toml": PROBLEM}, ["o.csv"], ["m.toml", "problem file"]),
     C("predict-robot-5-joints", "predict --model {t}/r.toml --input {fx}/cmds.csv --out {t}/o.csv",
       {"r.toml": drop_last_joint(UR5)}, ["o.csv"], ["r.toml", "joints"]),
+    C("predict-joint-outside-limits", "predict --model ur5 --input {t}/c.csv --out {t}/o.csv",
+      {"c.csv": cmds(("0.1,-1.2,1.4", "7.0,-1.2,1.4"))}, ["o.csv"], ["c.csv", "line 2", "q1", "7", "q_max"]),
 ]
 
 COMPENSATE = [

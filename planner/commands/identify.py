@@ -221,11 +221,12 @@ def run_predict(args: argparse.Namespace) -> int:
     """Predicted measurement (measurement frame) of the commands of ``--input``."""
     check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
     from planner.output import atomic_write_bytes
-    from problems.identify import load_model, predict
+    from problems.identify import check_command_limits, load_model, predict
     from problems.measurements import commands_csv, read_measurements
 
     model = load_model(args.model)
     m = read_measurements(args.input, require_position=False)
+    check_command_limits(model, m)          # a command the robot cannot run has no prediction
     p = predict(model, m)
     atomic_write_bytes(args.out, commands_csv(["x", "y", "z"], p).encode())
     print(f"predict: {m.n} rows, effects {', '.join(model.effects) or 'none'}; wrote {args.out} (x, y, z in m, "

@@ -177,6 +177,10 @@ def _read_trajectory(path: Path) -> dict[str, np.ndarray | None]:
             "qddd": jerk}
 
 
+#: Values of ``summary.json``'s ``command`` key of the runs ``compplan report`` reports on.
+RUN_COMMANDS = ("plan", "demo")
+
+
 def _read_summary(folder: Path) -> dict[str, Any]:
     if not folder.is_dir():
         raise InputError(f"report: folder {str(folder)!r} does not exist; expected the output "
@@ -191,6 +195,10 @@ def _read_summary(folder: Path) -> dict[str, Any]:
         raise InputError(f"report: {sp}: not valid JSON ({exc})") from None
     if not isinstance(summary, dict):
         raise InputError(f"report: {sp}: top level is {type(summary).__name__}; expected an object")
+    command = summary.get("command")
+    if command not in RUN_COMMANDS:
+        raise InputError(f"report: {sp}: 'command' is {command!r}, not one of {list(RUN_COMMANDS)}: this is not the "
+                         "summary of a compplan plan or demo run (compplan report writes the report of such a folder)")
     return summary
 
 

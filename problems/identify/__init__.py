@@ -85,6 +85,7 @@ from .apply import (
     alias_effect_m,
     base_frame_warning,
     compensate,
+    check_command_limits,
     compensate_targets,
     compensation_check,
     measured_point_model,
@@ -230,7 +231,8 @@ __all__ = [
     # applying a model
     "COMPENSATION_CHECK_MAX_COND", "COMPENSATION_MAX_ITER", "COMPENSATION_RESIDUAL_TOL", "COMPENSATION_STEP_TOL",
     "REGISTRATION_ALIAS_MARKERS", "TARGET_SEED_MAX_M", "alias_effect_m", "base_frame_warning", "compensate",
-    "compensate_targets", "compensation_check", "measured_point_model", "predict", "unobservable_in_base",
+    "check_command_limits", "compensate_targets", "compensation_check", "measured_point_model", "predict",
+    "unobservable_in_base",
     "validate_on",
     # re-exported for code that imported them from here (model files, layout, model)
     "MODEL_FORMAT", "load_model", "model_from_robot", "model_to_dict", "model_toml",

@@ -171,7 +171,7 @@ def _outside_limits(model: ArmModel, q: np.ndarray) -> tuple[str, np.ndarray]:
             f"'{robot.name}'"), rows
 
 
-def _check_command_limits(model: ArmModel, m: Measurements) -> None:
+def check_command_limits(model: ArmModel, m: Measurements) -> None:
     """Refuse input commands outside the robot's joint limits, naming the file line, the column
     (as written, e.g. ``q1_deg``), the value in that column's unit and the limit in the robot
     file's key and unit (with its value in the column's unit when they differ)."""
@@ -405,7 +405,7 @@ def compensate_targets(model: ArmModel, m: Measurements,
         outside the robot's joint limits (naming the line, column, value and limit).
     """
     frame = TargetsFrame(frame)
-    _check_command_limits(model, m)
+    check_command_limits(model, m)
     if frame is TargetsFrame.NOMINAL:
         out = compensate(model, m.q, m.wrench, m.temperature)
     else:
