@@ -243,9 +243,16 @@ class ArmModel:
 
     def caveats(self, q: np.ndarray, load: Load | np.ndarray) -> list[str]:
         """Everything that limits the model's trust along the poses ``q`` (N, 6): torques beyond the
-        identification data (:meth:`extrapolation`) and each active effect's own caveats
+        identification data (:meth:`extrapolation`), geometry corrections too large for the robot
+        file (:func:`models.plausibility.implausible_geometry`), and each active effect's own caveats
         (:meth:`models.effects.Effect.caveats`, e.g. a joint left inside its dead band)."""
         out = self.extrapolation(q, load)
+        if not self.geometry_is_nominal:
+            from .plausibility import implausible_geometry
+            held = [fx.PARAM_NAMES.index(n) for n in self.held if n in fx.PARAM_NAMES]
+            msg = implausible_geometry(self.nominal, self.theta, held)
+            if msg:
+                out.append(msg)
         q = np.atleast_2d(np.asarray(q, dtype=float))
         km = self.kinematics
         tau = km.batch(km.fn["joint_torques"], q, load_rows(load, len(q)))[0]

@@ -274,3 +274,18 @@ def test_plan_says_where_a_joint_stays_inside_its_dead_band():
     mm = float(lines[0].split("up to ")[1].split(" mm")[0])
     assert 0.01 < mm < 0.5          # 2e-4 rad times a lever of 0.05 .. 2.5 m
     assert not [w for w in plan(problem, optimise=False).warnings if "dead band" in w]
+
+
+def test_plan_with_a_model_of_implausible_geometry_says_so():
+    """A model whose DH corrections are centimetres (identified with the wrong robot file) plans
+    with a warning naming them, not silently."""
+    from models import effects as fx
+    problem = load_problem("ur5_tool_thrust")
+    lay = fx.make_layout(problem.robot)
+    theta = lay.nominal.copy()
+    theta[fx.GROUP_SLICES["geometric.da"]][1] = -0.05          # 50 mm on a2
+    arm = ArmModel(nominal=problem.robot, theta=theta, effects=["geometric"])
+    out = plan(problem.with_robot(arm), optimise=False)
+    lines = [w for w in out.warnings if "implausible geometry" in w]
+    assert lines and "da[2] = -50.0 mm" in lines[0]
+    assert not [w for w in plan(problem, optimise=False).warnings if "implausible" in w]

@@ -29,6 +29,8 @@ import numpy as np
 from models import effects as fx
 from models.effects import GROUP_SLICES, LIBRARY, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_const, make_layout
 from models.errors import InputError
+from models.plausibility import (GEOMETRY_GROUPS, IMPLAUSIBLE_ANGLE_ERROR_RAD,  # noqa: F401
+                                 IMPLAUSIBLE_LENGTH_ERROR_M, implausible_geometry)
 from models.robot import Robot
 
 from ..measurements import Measurements
@@ -65,14 +67,6 @@ from .selection import (
 SATURATED_MAX_ITER = 8
 #: Parameter groups of the registration and the measured point.
 REGISTRATION_GROUPS = ("reg.t", "reg.w", "tool.p")
-#: An identified DH length correction (``da``, ``dd``) larger than this is implausible for the
-#: declared robot (m): a real arm is built to its drawing within millimetres, so such a
-#: "correction" means the data come from another arm than the robot file describes.
-IMPLAUSIBLE_LENGTH_ERROR_M = 0.020
-#: The same for an angle correction (``dalpha``, ``dtheta``, ``dbeta``, joint offsets), rad (2 deg).
-IMPLAUSIBLE_ANGLE_ERROR_RAD = float(np.radians(2.0))
-#: Parameter groups checked against those thresholds.
-GEOMETRY_GROUPS = ("joint_offset.dtheta", "geometric.da", "geometric.dalpha", "geometric.dd", "geometric.dbeta")
 
 
 @dataclass
@@ -416,40 +410,6 @@ def _build_model(run: _Run, st: _State, s: _Setup, std: np.ndarray, free: Sequen
                            tcp_correction_m=(fit.theta[GROUP_SLICES["tool.p"]] - robot.tcp2flange[:3, 3]
                                              if run.registered else np.zeros(3)),
                            torque_range_Nm=torque_range)
-
-
-def implausible_geometry(robot: Robot, theta: np.ndarray, held: Sequence[int] = ()) -> str | None:
-    """A message naming the identified geometry corrections that are implausibly large for the
-    declared robot (:data:`IMPLAUSIBLE_LENGTH_ERROR_M`, :data:`IMPLAUSIBLE_ANGLE_ERROR_RAD`), or
-    None.  Parameters in ``held`` (indices) stay at their nominal values and are not checked.
-
-    Parameters
-    ----------
-    robot : Robot
-        The declared robot (named in the message).
-    theta : ndarray, shape (N_PARAMS,)
-        Identified parameters, SI.
-    """
-    layout = make_layout(robot)
-    held_set = set(int(i) for i in held)
-    found: list[tuple[float, str]] = []
-    for g in GEOMETRY_GROUPS:
-        for i in range(GROUP_SLICES[g].start, GROUP_SLICES[g].stop):
-            if i in held_set:
-                continue
-            v = float(theta[i] - layout.nominal[i])
-            if layout.units[i] == "m" and abs(v) > IMPLAUSIBLE_LENGTH_ERROR_M:
-                found.append((abs(v) / IMPLAUSIBLE_LENGTH_ERROR_M, f"{PARAM_NAMES[i]} = {v * 1e3:.1f} mm"))
-            elif layout.units[i] == "rad" and abs(v) > IMPLAUSIBLE_ANGLE_ERROR_RAD:
-                found.append((abs(v) / IMPLAUSIBLE_ANGLE_ERROR_RAD, f"{PARAM_NAMES[i]} = {np.degrees(v):.2f} deg"))
-    if not found:
-        return None
-    found.sort(key=lambda x: -x[0])
-    names = ", ".join(t for _r, t in found[:6]) + (f" and {len(found) - 6} more" if len(found) > 6 else "")
-    return (f"implausible geometry for robot '{robot.name}': the identified corrections {names} exceed "
-            f"{IMPLAUSIBLE_LENGTH_ERROR_M * 1e3:g} mm (lengths) / {np.degrees(IMPLAUSIBLE_ANGLE_ERROR_RAD):g} deg "
-            "(angles), far more than a real arm differs from its drawing; the data probably come from another arm "
-            "than the robot file describes: check --robot (the robot file) before using this model")
 
 
 def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | None, stop_reason: str,
