@@ -64,8 +64,22 @@ BRANCH_RULES = ("home",) + BRANCH_LABELS
 ELEMENT_NAMES = ("C11", "C22", "C33", "C44", "C55", "C66")
 
 
+class GridCounts:
+    """Point counts of a map whose ``branch`` array holds -1 where no IK branch reaches."""
+
+    branch: np.ndarray
+
+    @property
+    def n_points(self) -> int:
+        return int(self.branch.size)
+
+    @property
+    def n_unreachable(self) -> int:
+        return int(np.count_nonzero(self.branch < 0))
+
+
 @dataclass
-class ComplianceMap:
+class ComplianceMap(GridCounts):
     """Diagonal compliance over a plane grid.
 
     Attributes
@@ -113,13 +127,6 @@ class ComplianceMap:
     def v_axis(self) -> str:
         return AXIS_NAMES[PLANE_AXES[self.plane][2]]
 
-    @property
-    def n_points(self) -> int:
-        return int(self.branch.size)
-
-    @property
-    def n_unreachable(self) -> int:
-        return int(np.count_nonzero(self.branch < 0))
 
     def branches_used(self) -> dict[str, int]:
         """Branch label -> number of grid points that use it."""

@@ -259,6 +259,49 @@ def holds_output_lock(target: str | Path) -> bool:
     return _real(target) in _HELD
 
 
+def _lock_attempt(path: Path, created: list[Path], target: str | Path, what: str) -> tuple[int | None, bool]:
+    """One attempt at the lock file ``path``: ``(fd, True)`` when locked, ``(None, True)`` on a
+    file system without locks, ``(None, False)`` when the file was removed under us (try again).
+
+    Raises
+    ------
+    OutputError
+        Another run holds the lock, or the lock file cannot be created or locked.
+    """
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, FILE_MODE)
+    except OSError as exc:
+        _remove_if_empty(created)
+        raise OutputError(f"{what} {target}: cannot create the lock file {path} ({_cause(exc)})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = _holder(fd)
+        os.close(fd)
+        _remove_if_empty(created)
+        raise OutputError(f"{what} {target}: another compplan run is writing it "
+                          f"({holder + ', ' if holder else ''}lock {path}); wait for it to finish "
+                          "or choose another path") from None
+    except OSError as exc:
+        os.close(fd)
+        if exc.errno in _NO_LOCKING:
+            with contextlib.suppress(OSError):
+                path.unlink()
+            _remove_if_empty(created)
+            return None, True
+        _remove_if_empty(created)
+        raise OutputError(f"{what} {target}: cannot lock {path} ({_cause(exc)})") from None
+    # The previous holder removes the file on release: ours may be an unlinked one.
+    try:
+        same = os.path.samestat(os.fstat(fd), os.stat(path))
+    except FileNotFoundError:
+        same = False
+    if same:
+        return fd, True
+    os.close(fd)
+    return None, False
+
+
 def acquire_output_lock(target: str | Path, what: str = "output") -> Path:
     """Lock ``target`` (a file or folder to be written) for this process, without waiting.
 
@@ -300,37 +343,11 @@ def acquire_output_lock(target: str | Path, what: str = "output") -> Path:
     except OSError as exc:
         raise OutputError(f"{what} {target}: cannot create the folder {path.parent} ({_cause(exc)})") from None
     for _ in range(LOCK_ATTEMPTS):
-        try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, FILE_MODE)
-        except OSError as exc:
-            _remove_if_empty(created)
-            raise OutputError(f"{what} {target}: cannot create the lock file {path} ({_cause(exc)})") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = _holder(fd)
-            os.close(fd)
-            _remove_if_empty(created)
-            raise OutputError(f"{what} {target}: another compplan run is writing it "
-                              f"({holder + ', ' if holder else ''}lock {path}); wait for it to finish "
-                              "or choose another path") from None
-        except OSError as exc:
-            os.close(fd)
-            if exc.errno in _NO_LOCKING:        # a file system without locks: write unlocked
-                with contextlib.suppress(OSError):
-                    path.unlink()
-                _remove_if_empty(created)
-                return path
-            _remove_if_empty(created)
-            raise OutputError(f"{what} {target}: cannot lock {path} ({_cause(exc)})") from None
-        # The previous holder removes the file on release: ours may be an unlinked one.
-        try:
-            same = os.path.samestat(os.fstat(fd), os.stat(path))
-        except FileNotFoundError:
-            same = False
-        if same:
+        fd, locked = _lock_attempt(path, created, target, what)
+        if locked and fd is None:               # a file system without locks: write unlocked
+            return path
+        if locked:
             break
-        os.close(fd)
     else:
         _remove_if_empty(created)
         raise OutputError(f"{what} {target}: cannot lock {path} (removed repeatedly by other runs)")

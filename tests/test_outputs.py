@@ -32,6 +32,8 @@ MAP_POINTS = "21"
 FSIZE_LIMIT_BYTES = 100_000
 #: Seconds to wait for the first of two concurrent runs to take its lock.
 LOCK_APPEAR_S = 60.0
+#: Polling interval while waiting for that lock (s).
+LOCK_POLL_S = 0.02
 
 
 def _main(capsys, *argv: str) -> tuple[int, str, str]:
@@ -233,11 +235,12 @@ def test_two_runs_into_one_out(tmp_path):
     cmd = [sys.executable, "-m", "planner", "demo", "--out", "run"]
     first = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + LOCK_APPEAR_S
         lock = lock_path(tmp_path / "run")
-        while not lock.exists():
-            assert first.poll() is None and time.monotonic() < deadline, "the first run never took its lock"
-            time.sleep(0.02)
+        for _ in range(int(LOCK_APPEAR_S / LOCK_POLL_S)):     # wait for the first run's lock
+            if lock.exists() or first.poll() is not None:
+                break
+            time.sleep(LOCK_POLL_S)
+        assert lock.exists() and first.poll() is None, "the first run never took its lock"
         second = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=600)
         still_running = first.poll() is None
         out1, err1 = first.communicate(timeout=600)

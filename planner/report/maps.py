@@ -31,7 +31,8 @@ from models import KinematicModel, Robot
 from models.errors import CompplanError
 from models.ik import BRANCH_LABELS, IK_REASONS, IKStatus
 
-from planner.compliance_map import DEFAULT_POINTS, PLANE_AXES, ComplianceMap, ProgressFn, compliance_map
+from planner.compliance_map import (DEFAULT_POINTS, PLANE_AXES, ComplianceMap, GridCounts, ProgressFn,
+                                    compliance_map)
 from planner.numbers import format_number
 from planner.output import OutputSet, atomic_write_bytes, json_bytes
 from planner.provenance import provenance, robot_input
@@ -147,7 +148,7 @@ def path_plane(P: np.ndarray) -> PathPlane:
 
 
 @dataclass
-class PlaneMap:
+class PlaneMap(GridCounts):
     """Diagonal compliance over the grid of a :class:`PathPlane` (a report's figure 1).
 
     Attributes
@@ -177,13 +178,6 @@ class PlaneMap:
     diag: np.ndarray
     unreachable_reasons: dict[str, int] = field(default_factory=dict)
 
-    @property
-    def n_points(self) -> int:
-        return int(self.branch.size)
-
-    @property
-    def n_unreachable(self) -> int:
-        return int(np.count_nonzero(self.branch < 0))
 
     def csv_bytes(self) -> bytes:
         """``compliance_map.csv``: u, v (m, in the plane), x, y, z (m, base frame), branch index

@@ -17,7 +17,7 @@ from __future__ import annotations
 import functools
 import io
 import math
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import matplotlib
 import matplotlib.ticker
@@ -107,6 +107,44 @@ def _angle_unit(values_rad: np.ndarray) -> tuple[str, float]:
 
 
 # ----------------------------------------------------------------------------- 1. compliance map
+def _heat_panel(fig: Figure, ax: Any, values: np.ndarray, extent: tuple[float, float, float, float],
+                label: str, unit: str) -> None:
+    """One heat map (rows = v, columns = u; NaN unreachable, hatched) with its colour bar; a map
+    constant to :data:`CONSTANT_REL_SPREAD` gets one colour and its value written on it."""
+    data = np.ma.masked_invalid(values)
+    ax.add_patch(Rectangle((extent[0], extent[2]), extent[1] - extent[0], extent[3] - extent[2],
+                           facecolor="white", edgecolor="0.6", hatch="///", linewidth=0, zorder=0))
+    finite = data.compressed()
+    if not finite.size:
+        ax.text(0.5, 0.5, "no reachable point", transform=ax.transAxes, ha="center", va="center")
+        return
+    lo, hi = float(finite.min()), float(finite.max())
+    mean = float(finite.mean())
+    constant = hi - lo <= CONSTANT_REL_SPREAD * max(abs(mean), 1e-300)
+    if constant:           # uniform colour; the value is written on the panel
+        lo, hi = mean - 0.01 * abs(mean) - 1e-300, mean + 0.01 * abs(mean) + 1e-300
+    mesh = ax.imshow(data, origin="lower", extent=extent, aspect="equal", cmap="viridis",
+                     norm=Normalize(lo, hi), interpolation="nearest", zorder=1)
+    cax = make_axes_locatable(ax).append_axes("right", size="5%", pad=0.06)
+    cb = fig.colorbar(mesh, cax=cax)
+    cb.set_label(label)
+    cb.formatter.set_useOffset(False)
+    cb.update_ticks()
+    if constant:
+        spread = (float(finite.max()) - float(finite.min())) / max(abs(mean), 1e-300)
+        ax.text(0.5, 0.5, f"constant over the plane:\n{mean:.4g} {unit}\n(relative spread {spread:.1e})",
+                transform=ax.transAxes, ha="center", va="center", fontsize=8,
+                bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.5"}, zorder=8)
+
+
+def _path_overlay(ax: Any, path_uv_m: np.ndarray) -> None:
+    """The run's path on a map panel (m, plane coordinates): a line, ● at the start, ▶ at the end."""
+    ax.plot(path_uv_m[:, 0], path_uv_m[:, 1], color="white", lw=3.2, zorder=5)
+    ax.plot(path_uv_m[:, 0], path_uv_m[:, 1], color="crimson", lw=1.6, zorder=6)
+    ax.plot(*path_uv_m[0], marker="o", color="crimson", mec="white", ms=6, zorder=7)
+    ax.plot(*path_uv_m[-1], marker=">", color="crimson", mec="white", ms=6, zorder=7)
+
+
 @_styled
 def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
                           u_label: str, v_label: str, title: str,
@@ -151,41 +189,12 @@ def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
             "rotation about y per N·m about y", "rotation about z per N·m about z")
     multi = branch is not None and len(np.unique(branch[branch >= 0])) > 1
     for i, ax in enumerate(axs.ravel()):
-        data = np.ma.masked_invalid(diag[..., i].T * scale[i])   # rows = v, columns = u
-        ax.add_patch(Rectangle((extent[0], extent[2]), extent[1] - extent[0], extent[3] - extent[2],
-                               facecolor="white", edgecolor="0.6", hatch="///", linewidth=0,
-                               zorder=0))
-        finite = data.compressed()
-        if finite.size:
-            lo, hi = float(finite.min()), float(finite.max())
-            mean = float(finite.mean())
-            constant = hi - lo <= CONSTANT_REL_SPREAD * max(abs(mean), 1e-300)
-            if constant:           # uniform colour; the value is written on the panel
-                lo, hi = mean - 0.01 * abs(mean) - 1e-300, mean + 0.01 * abs(mean) + 1e-300
-            mesh = ax.imshow(data, origin="lower", extent=extent, aspect="equal",
-                             cmap="viridis", norm=Normalize(lo, hi), interpolation="nearest",
-                             zorder=1)
-            cax = make_axes_locatable(ax).append_axes("right", size="5%", pad=0.06)
-            cb = fig.colorbar(mesh, cax=cax)
-            cb.set_label(f"C{i + 1}{i + 1} [{units[i]}]")
-            cb.formatter.set_useOffset(False)
-            cb.update_ticks()
-            if constant:
-                spread = (float(finite.max()) - float(finite.min())) / max(abs(mean), 1e-300)
-                ax.text(0.5, 0.5, f"constant over the plane:\n{mean:.4g} {units[i]}\n"
-                        f"(relative spread {spread:.1e})",
-                        transform=ax.transAxes, ha="center", va="center", fontsize=8,
-                        bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.5"}, zorder=8)
-        else:
-            ax.text(0.5, 0.5, "no reachable point", transform=ax.transAxes, ha="center", va="center")
+        _heat_panel(fig, ax, diag[..., i].T * scale[i], extent, f"C{i + 1}{i + 1} [{units[i]}]", units[i])
         if multi:
             ax.contour(u_m, v_m, np.ma.masked_less(branch.T, 0).astype(float),
                        levels=np.arange(-0.5, 8.5, 1.0), colors="k", linewidths=0.8, zorder=2)
         if path_uv_m is not None and len(path_uv_m):
-            ax.plot(path_uv_m[:, 0], path_uv_m[:, 1], color="white", lw=3.2, zorder=5)
-            ax.plot(path_uv_m[:, 0], path_uv_m[:, 1], color="crimson", lw=1.6, zorder=6)
-            ax.plot(*path_uv_m[0], marker="o", color="crimson", mec="white", ms=6, zorder=7)
-            ax.plot(*path_uv_m[-1], marker=">", color="crimson", mec="white", ms=6, zorder=7)
+            _path_overlay(ax, path_uv_m)
         ax.set_xlim(extent[0], extent[1])
         ax.set_ylim(extent[2], extent[3])
         ax.set_xlabel(f"{u_label} [m]")
