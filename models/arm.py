@@ -97,6 +97,9 @@ class ArmModel:
     torque_range_Nm : ndarray, shape (6,), or None
         Largest joint torque magnitude of the identification data (external plus self-weight),
         N*m: beyond it the torque-nonlinear effects are extrapolated (see :meth:`extrapolation`).
+    effect_const : dict of str to ndarray
+        Data-dependent constant blocks of effects by key (e.g. ``error_map.freq``, cycles/rev, and
+        ``error_map.range``, rad, of :mod:`models.effects.joint_error_map`); others keep their defaults.
     source, sha256 : str
         Where the model was read from and the file's hash (empty when built in memory).
     """
@@ -117,6 +120,7 @@ class ArmModel:
     held: dict[str, str] = field(default_factory=dict)
     tcp_correction_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     torque_range_Nm: np.ndarray | None = None
+    effect_const: dict[str, np.ndarray] = field(default_factory=dict)
     source: str = ""
     sha256: str = ""
 
@@ -149,7 +153,8 @@ class ArmModel:
     @property
     def const(self) -> np.ndarray:
         """The constant vector of the model graph (identification, prediction)."""
-        return fx.make_const(self.nominal, self.R0, self.tau_scale, self.gravity_on, self.beams, self.knots)
+        return fx.make_const(self.nominal, self.R0, self.tau_scale, self.gravity_on, self.beams, self.knots,
+                             self.effect_const)
 
     @property
     def planning_const(self) -> np.ndarray:
@@ -263,6 +268,7 @@ class ArmModel:
             return fx.get_const(const, key)
         for name in self.active_effects:
             out += fx.effect(name).caveats(self.parameter, c, tau, lever)
+            out += fx.effect(name).angle_caveats(self.parameter, c, q)
         return out
 
     # ------------------------------------------------------------------ evaluation

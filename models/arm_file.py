@@ -74,7 +74,9 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
                       "hardening_knots_Nm": [float(v) for v in (model.knots if model.knots is not None else
                                              np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)).reshape(-1)],
                       "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
-                      "temperature_ref_C": float(model.temperature_ref)},
+                      "temperature_ref_C": float(model.temperature_ref),
+                      **({"effect": {k: [float(v) for v in np.asarray(a, dtype=float).reshape(-1)]
+                                     for k, a in model.effect_const.items()}} if model.effect_const else {})},
         "nominal": {"a": r.a.tolist(), "alpha": r.alpha.tolist(), "d": r.d.tolist(),
                     "theta_offset": r.theta_offset.tolist(), "stiffness": r.stiffness.tolist()},
     }
@@ -143,6 +145,12 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
         tr = _nums(where, "constants.time_ref_s", c["time_ref_s"], 2)
         knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"],
                       6 * fx.N_KNOTS).reshape(6, fx.N_KNOTS)
+        effect_const = {}
+        for key, vals in dict(c.get("effect", {})).items():
+            if key not in fx.CONST_SLICES or key.split(".")[0] in ("dh", "tool", "gravity", "compliance0", "tau_scale"):
+                raise RobotFileError(f"{where}: [identified.constants.effect] unknown constant block '{key}'")
+            sl = fx.CONST_SLICES[key]
+            effect_const[key] = _nums(where, f"constants.effect.{key}", vals, sl.stop - sl.start)
         return ArmModel(nominal=nominal, theta=theta, R0=R0, tau_scale=tau_s,
                         gravity_on=bool(c.get("gravity_on", False)), beams=beams, knots=knots,
                         time_ref=(float(tr[0]), float(tr[1])),
@@ -152,7 +160,8 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
                         held=dict(ident.get("held", {})),
                         tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3),
                         torque_range_Nm=(_nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6)
-                                         if "torque_range_Nm" in ident else None))
+                                         if "torque_range_Nm" in ident else None),
+                        effect_const=effect_const)
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
     except (TypeError, AttributeError, ValueError) as exc:

@@ -83,7 +83,7 @@ class KinematicModel:
         arm = source if isinstance(source, ArmModel) else ArmModel.from_robot(source)
         self.arm = arm
         self.robot = arm.nominal
-        el = fx.make_layout(arm.nominal).eligible
+        el = fx.make_layout(arm.nominal, arm.const).eligible
         dT = arm.temperature_ref - fx.THERMAL_REFERENCE_C
         #: Every named function of the model (see :func:`models.effects.graph.arm_functions`).
         self.fn: dict[str, ca.Function] = arm_functions(arm.nominal.convention, arm.active_effects, arm.theta,

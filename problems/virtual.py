@@ -11,6 +11,10 @@ The configuration is a TOML table (schema in ``docs/identification.md``, example
 in ``problems/files/sim/``).  :meth:`VirtualRobot.truth` returns every realised
 parameter, so a campaign can be re-measured after compensation.
 
+A campaign measures the position of the measured point and, with ``[campaign]
+orientation = true``, the orientation of the measured frame (the TCP's orientation,
+carried to the measured point) as a rotation vector in the measurement frame.
+
 Conventions as everywhere: SI units, wrench ``[f; m]`` in the base frame acting
 on the TCP, a joint yields in the direction of the torque applied to it.
 """
@@ -20,7 +24,7 @@ from __future__ import annotations
 import copy
 import math
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -43,11 +47,21 @@ SIM_POSE_OVERSAMPLING = 40
 #: a singularity to be a sensible measurement pose).
 SIM_MAX_JACOBIAN_COND = 200.0
 
+#: Largest amplitude of one periodic joint-error term (rad): a transmission error, not an offset.
+SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD = 0.05
+#: Largest harmonic (cycles per revolution of the joint) of a periodic joint-error term.
+SIM_JOINT_ERROR_MAX_HARMONIC = 200.0
+
 #: Effects the simulator knows: the library ones and some outside the library.
+#: ``joint_error_map`` is the same simulated physics as ``eccentricity`` (periodic joint
+#: transmission errors), spelled as the library effect that models it; give one of the two.
 SIM_EFFECTS = ("gravity", "stiffness_hardening", "lost_motion", "joint_offset", "geometric",
-               "load_offset", "link_compliance", "drift", "thermal", "eccentricity", "outliers")
+               "load_offset", "link_compliance", "drift", "thermal", "eccentricity", "joint_error_map",
+               "outliers")
 #: Effects the identification library does not contain (for negative tests).
 OUT_OF_LIBRARY = ("eccentricity",)
+#: The two spellings of the periodic joint-error effect (``[effects.NAME]``).
+JOINT_ERROR_EFFECTS = ("eccentricity", "joint_error_map")
 
 _TOP_KEYS = {"seed", "campaign", "noise", "registration", "temperature", "stiffness", "effects", "units"}
 #: Largest number of rows a simulated campaign may have (poses x rows per pose).
@@ -125,6 +139,12 @@ def _tau_point(z: np.ndarray, p: np.ndarray, point: np.ndarray, f: np.ndarray, m
     tau = np.einsum("nij,nij->ni", z, np.cross(lever, f[:, None, :]) + m[:, None, :])
     tau[:, :first] = 0.0
     return tau
+
+
+def rotvecs(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (axis x angle, rad, angle in [0, pi]) of rotations (N, 3, 3) -> (N, 3)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_matrix(np.asarray(R, dtype=float).reshape(-1, 3, 3)).as_rotvec()
 
 
 # ----------------------------------------------------------------------------------
@@ -211,14 +231,17 @@ _EFFECT_KEYS: dict[str, set[str]] = {
     "drift": {"rate_m_per_h", "accel_m_per_h2"},
     "thermal": {"alpha_per_K", "links", "reference_C"},
     "eccentricity": {"joint", "amplitude_rad", "harmonic", "phase_rad"},
+    "joint_error_map": {"joint", "amplitude_rad", "harmonic", "phase_rad"},
     "outliers": {"fraction", "magnitude_m"},
 }
 
 DEFAULT_CAMPAIGN = {
     "poses": 100, "unloaded_rows": 1, "loaded_rows": 3, "force_magnitudes_N": [50.0, 100.0, 150.0],
     "moment_magnitudes_Nm": [0.0], "directions": "random", "dt_s": 20.0, "r_min_m": 0.25,
-    "z_min_m": -0.2, "repeats": 0,
+    "z_min_m": -0.2, "repeats": 0, "orientation": False,
 }
+#: Keys of the ``[noise]`` table and their defaults.
+DEFAULT_NOISE = {"sigma_m": 2e-5, "sigma_column": False, "sigma_rad": 2e-5, "sigma_rot_column": False}
 
 
 def load_config(path: str | Path) -> dict[str, Any]:
@@ -340,6 +363,11 @@ class VirtualRobot:
                 raise SimConfigError(f"{where}: [effects.{name}]: unknown key(s) {bad}; "
                                      f"allowed: {sorted(_EFFECT_KEYS[name])}")
             self.effects[name] = dict(t)
+        both = [name for name in JOINT_ERROR_EFFECTS if name in self.effects]
+        if len(both) > 1:
+            raise SimConfigError(f"{where}: [effects.eccentricity] and [effects.joint_error_map] are two spellings "
+                                 "of the same effect (periodic joint errors); give one of them, with all its "
+                                 "terms as lists")
         self._realise(rng)
 
     # ------------------------------------------------------------------ realisation
@@ -363,7 +391,7 @@ class VirtualRobot:
         self._realise_link_compliance()
         self._realise_drift()
         self._realise_thermal()
-        self._realise_eccentricity()
+        self._realise_joint_error()
 
     def _realise_joint_offset(self) -> None:
         """Effect ``joint_offset``: add the zero offsets to :attr:`dtheta`, shape (6,), rad."""
@@ -504,20 +532,99 @@ class VirtualRobot:
         self.th_links = [x - 1 for x in links]
         self.th_ref = _num(ew, "reference_C", e.get("reference_C", 20.0))
 
-    def _realise_eccentricity(self) -> None:
-        """Effect ``eccentricity``: :attr:`ecc_joint` (0-based), :attr:`ecc_amp` rad,
-        :attr:`ecc_harm` (per revolution) and :attr:`ecc_phase` rad."""
-        if "eccentricity" not in self.effects:
+    def _realise_joint_error(self) -> None:
+        """Effect ``eccentricity`` (or its spelling ``joint_error_map``): periodic joint
+        transmission errors, a sum of terms ``amplitude sin(harmonic q_c[joint] + phase)``.
+
+        Sets, one entry per term (K terms; K = 0 without the effect): :attr:`ecc_joint`
+        (K,) int, 0-based joint; :attr:`ecc_amp` (K,) rad; :attr:`ecc_harm` (K,) cycles per
+        revolution; :attr:`ecc_phase` (K,) rad.  Each key is a number (applied to every term)
+        or a list with one entry per term; lists must have equal lengths.
+        """
+        self.ecc_joint = np.zeros(0, dtype=int)
+        self.ecc_amp = np.zeros(0)
+        self.ecc_harm = np.zeros(0)
+        self.ecc_phase = np.zeros(0)
+        name = next((n for n in JOINT_ERROR_EFFECTS if n in self.effects), None)
+        if name is None:
             return
-        e = self.effects["eccentricity"]
-        ew = f"{self.where}: [effects.eccentricity]"
-        j = e.get("joint", 1)
-        if not isinstance(j, int) or not 1 <= j <= 6:
-            raise SimConfigError(f"{ew}: key 'joint' must be a joint number 1..6, got {j!r}")
-        self.ecc_joint = j - 1
-        self.ecc_amp = _num(ew, "amplitude_rad", e.get("amplitude_rad", 1e-3))
-        self.ecc_harm = _num(ew, "harmonic", e.get("harmonic", 2))
-        self.ecc_phase = _num(ew, "phase_rad", e.get("phase_rad", 0.3))
+        e = self.effects[name]
+        ew = f"{self.where}: [effects.{name}]"
+        raw = {"joint": e.get("joint", 1), "amplitude_rad": e.get("amplitude_rad", 1e-3),
+               "harmonic": e.get("harmonic", 2), "phase_rad": e.get("phase_rad", 0.3)}
+        for key, v in raw.items():
+            if isinstance(v, list) and not v:
+                raise SimConfigError(f"{ew}: key '{key}' must be a number or a non-empty list (one entry per "
+                                     f"term), got {v!r}")
+        lengths = {key: len(v) for key, v in raw.items() if isinstance(v, list)}
+        if len(set(lengths.values())) > 1:
+            shown = ", ".join(f"'{k}' has {n}" for k, n in lengths.items())
+            raise SimConfigError(f"{ew}: the lists must have one entry per term, all of the same length; {shown} "
+                                 "entries (a number applies to every term)")
+        k_terms = next(iter(lengths.values()), 1)
+
+        def entries(key: str) -> list[tuple[str, Any]]:
+            v = raw[key]
+            if isinstance(v, list):
+                return [(f"{key}[{i}]", x) for i, x in enumerate(v)]
+            return [(key, v)] * k_terms
+
+        joints = []
+        for k, j in entries("joint"):
+            if isinstance(j, bool) or not isinstance(j, int) or not 1 <= j <= 6:
+                raise SimConfigError(f"{ew}: key '{k}' must be a joint number 1..6, got {j!r}")
+            joints.append(j - 1)
+        amp = np.array([_num(ew, k, v) for k, v in entries("amplitude_rad")])
+        harm = np.array([_num(ew, k, v) for k, v in entries("harmonic")])
+        phase = np.array([_num(ew, k, v) for k, v in entries("phase_rad")])
+        amax, hmax = SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD, SIM_JOINT_ERROR_MAX_HARMONIC
+        for (k, _v), a in zip(entries("amplitude_rad"), amp):
+            if abs(a) > amax:
+                raise SimConfigError(f"{ew}: key '{k}' must be within [-{amax:g}, {amax:g}] rad (a transmission "
+                                     f"error; a constant offset is [effects.joint_offset]), got {a:g}")
+        for (k, _v), h in zip(entries("harmonic"), harm):
+            if not 0.0 < h <= hmax:
+                raise SimConfigError(f"{ew}: key '{k}' must be > 0 and <= {hmax:g} (cycles per revolution of the "
+                                     f"joint), got {h:g}")
+        self.ecc_joint = np.array(joints, dtype=int)
+        self.ecc_amp, self.ecc_harm, self.ecc_phase = amp, harm, phase
+
+    def joint_error_terms(self) -> list[dict[str, Any]]:
+        """The periodic joint-error terms applied (empty without the effect).
+
+        Returns
+        -------
+        list of dict
+            One per term: ``joint`` (1..6), ``amplitude_rad`` (rad), ``harmonic`` (cycles
+            per revolution) and ``phase_rad`` (rad); the error of ``joint`` is the sum of
+            ``amplitude_rad * sin(harmonic * q_c + phase_rad)`` over its terms.
+        """
+        return [{"joint": int(j) + 1, "amplitude_rad": float(a), "harmonic": float(h), "phase_rad": float(ph)}
+                for j, a, h, ph in zip(self.ecc_joint, self.ecc_amp, self.ecc_harm, self.ecc_phase)]
+
+    def joint_error(self, q_c: np.ndarray) -> np.ndarray:
+        """Periodic joint error the simulator adds to each joint (effect ``eccentricity`` /
+        ``joint_error_map``), a function of the commanded angle.
+
+        Parameters
+        ----------
+        q_c : ndarray, shape (N, 6) or (6,)
+            Commanded joint angles, rad.
+
+        Returns
+        -------
+        ndarray, shape (N, 6)
+            Error added to each joint angle of the arm before the kinematics, rad
+            (``sum_k amplitude_k sin(harmonic_k q_c[joint_k] + phase_k)``; zeros without
+            the effect).
+        """
+        q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
+        if q_c.ndim != 2 or q_c.shape[1] != 6:
+            raise ValueError(f"joint_error: q_c must have shape (N, 6), got {q_c.shape}")
+        err = np.zeros(q_c.shape)
+        for j, a, h, ph in zip(self.ecc_joint, self.ecc_amp, self.ecc_harm, self.ecc_phase):
+            err[:, j] += float(a) * np.sin(float(h) * q_c[:, j] + float(ph))
+        return err
 
     # ------------------------------------------------------------------ physics
     def _geometry(self, temperature: np.ndarray) -> _Geometry:
@@ -577,32 +684,33 @@ class VirtualRobot:
     def equilibrium(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None) -> np.ndarray:
         """Deflected joint angles ``q = q_c + dq(q)`` (rad), shape (N, 6).
 
-        Kinematic errors outside the compliance (eccentricity) are added to ``q``.
+        Periodic joint errors (:meth:`joint_error` of the commanded angles) are part of the
+        pose the loads act on: ``q = q_c + e(q_c) + dq(q)``.
         """
         q_c = np.atleast_2d(q_c)
         n = len(q_c)
         F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
         T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
         geo = self._geometry(T)
-        q = q_c.copy()
+        q0 = q_c + self.joint_error(q_c) if self.ecc_joint.size else q_c
+        q = q0.copy()
         for _ in range(SIM_EQUILIBRIUM_MAX_ITER):
-            q_new = q_c + self._deflection(self._torques(q, F, geo))
+            q_new = q0 + self._deflection(self._torques(q, F, geo))
             step = np.max(np.abs(q_new - q))
             q = q_new
             if step < SIM_EQUILIBRIUM_TOL:
                 break
-        if "eccentricity" in self.effects:
-            j = self.ecc_joint
-            q = q.copy()
-            q[:, j] += self.ecc_amp * np.sin(self.ecc_harm * q_c[:, j] + self.ecc_phase)
         return q
 
-    def _beam_displacement(self, fr: np.ndarray, F: np.ndarray, point: np.ndarray) -> np.ndarray:
+    def _beams(self, fr: np.ndarray, F: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Euler-Bernoulli beams of effect ``link_compliance``, one per link: yields the tip
+        displacement ``delta`` (N, 3) m, the tip rotation ``phi`` (N, 3) rad (a small rotation
+        vector) and the tip position (N, 3) m, base frame; everything distal to the tip moves
+        by ``delta + phi x (x - tip)`` and turns by ``phi``."""
         _z, p = _axes(fr, self.convention)
         tcp = fr[:, 5] @ self._tool()
         p_app = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
         f, m = F[:, :3], F[:, 3:]
-        dp = np.zeros_like(point)
         for k, i in enumerate(self.beam_links):
             base = p[:, i]
             tip = p[:, i + 1] if i < 5 else fr[:, 5, :3, 3]
@@ -616,8 +724,33 @@ class VirtualRobot:
             EI, GJ = self.EI[k], self.GJ[k]
             delta = f_perp * L ** 3 / (3 * EI) + np.cross(m_perp, e) * L ** 2 / (2 * EI)
             phi = np.cross(e, f_perp) * L ** 2 / (2 * EI) + m_perp * L / EI + m_ax * L / GJ
+            yield delta, phi, tip
+
+    def _beam_displacement(self, fr: np.ndarray, F: np.ndarray, point: np.ndarray) -> np.ndarray:
+        """Displacement of ``point`` (N, 3), base frame, m, by the link beams."""
+        dp = np.zeros_like(point)
+        for delta, phi, tip in self._beams(fr, F):
             dp += delta + np.cross(phi, point - tip)
         return dp
+
+    def _beam_rotation(self, fr: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """Rotation of the flange by the link beams: the sum of their tip rotations, a
+        rotation vector (N, 3), rad, base frame (small: the beams are linear)."""
+        phi_sum = np.zeros((fr.shape[0], 3))
+        for _delta, phi, _tip in self._beams(fr, F):
+            phi_sum += phi
+        return phi_sum
+
+    def _deflected_frames(self, q_c: np.ndarray, F: np.ndarray,
+                          temperature: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Frames frame_i2base of the deflected arm (N, 6, 4, 4) and the wrench broadcast
+        to (N, 6): equilibrium joints (plus periodic joint errors) on the true geometry."""
+        q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
+        n = len(q_c)
+        F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
+        T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
+        q = self.equilibrium(q_c, F, T)
+        return _frames(q, self._geometry(T), self.convention), F
 
     def positions(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None,
                   point: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -628,14 +761,15 @@ class VirtualRobot:
         p_point : ndarray, shape (N, 3)
             Position of ``point`` (flange frame, m; default the measured point), m.
         tcp2base : ndarray, shape (N, 4, 4)
-            TCP frame of the deflected arm (link compliance applied to the position).
+            TCP frame of the deflected arm (link compliance applied to the position only;
+            :meth:`orientations` also turns the frame by the beams).
         """
-        q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
-        n = len(q_c)
-        F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
-        T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
-        q = self.equilibrium(q_c, F, T)
-        fr = _frames(q, self._geometry(T), self.convention)
+        fr, F = self._deflected_frames(q_c, F, temperature)
+        return self._positions_from_frames(fr, F, point)
+
+    def _positions_from_frames(self, fr: np.ndarray, F: np.ndarray,
+                               point: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`positions` from the deflected frames of :meth:`_deflected_frames`."""
         pt = self.p_tool if point is None else np.asarray(point, dtype=float)
         p_point = fr[:, 5, :3, 3] + np.einsum("nij,j->ni", fr[:, 5, :3, :3], pt)
         tcp = fr[:, 5] @ self._tool()
@@ -645,15 +779,60 @@ class VirtualRobot:
             tcp[:, :3, 3] += self._beam_displacement(fr, F, tcp[:, :3, 3].copy())
         return p_point, tcp
 
-    def measure(self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None = None,
-                temperature: np.ndarray | None = None) -> np.ndarray:
-        """Noise-free measurement of the measured point, measurement frame, m, (N, 3)."""
-        p, _tcp = self.positions(q_c, F, temperature)
+    def orientations(self, q_c: np.ndarray, F: np.ndarray,
+                     temperature: np.ndarray | None = None) -> np.ndarray:
+        """True orientation of the measured frame, base frame, shape (N, 3, 3).
+
+        The measured frame sits at the measured point with the TCP's orientation:
+        ``R = exp([phi]) R_flange2base(q) R_tcp2flange``, ``q`` the deflected joints plus
+        periodic joint errors on the true geometry (DH errors, joint offsets, thermal
+        lengths), ``phi`` the summed tip rotations of the link beams (effect
+        ``link_compliance``; zero without it).
+        """
+        fr, F = self._deflected_frames(q_c, F, temperature)
+        return self._orientations_from_frames(fr, F)
+
+    def _orientations_from_frames(self, fr: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """:meth:`orientations` from the deflected frames of :meth:`_deflected_frames`."""
+        R = fr[:, 5, :3, :3] @ self._tool()[:3, :3]
+        if "link_compliance" in self.effects:
+            from scipy.spatial.transform import Rotation
+            R = Rotation.from_rotvec(self._beam_rotation(fr, F)).as_matrix() @ R
+        return R
+
+    def _to_measurement_frame(self, p: np.ndarray, t: np.ndarray | None) -> np.ndarray:
+        """Base-frame positions (N, 3) to the measurement frame, with drift at times ``t``, m."""
         pm = p @ self.R_reg.T + self.t_reg
         if "drift" in self.effects and t is not None:
             tt = np.asarray(t, dtype=float)[:, None]
             pm = pm + self.drift_rate * tt + self.drift_acc * tt ** 2
         return pm
+
+    def measure(self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None = None,
+                temperature: np.ndarray | None = None) -> np.ndarray:
+        """Noise-free measurement of the measured point, measurement frame, m, (N, 3)."""
+        p, _tcp = self.positions(q_c, F, temperature)
+        return self._to_measurement_frame(p, t)
+
+    def measure_orientation(self, q_c: np.ndarray, F: np.ndarray,
+                            temperature: np.ndarray | None = None) -> np.ndarray:
+        """Noise-free orientation of the measured frame in the measurement frame,
+        ``R_base2meas @ orientations(...)``, shape (N, 3, 3).  Drift (a translation of the
+        instrument) does not turn it."""
+        return self.R_reg @ self.orientations(q_c, F, temperature)
+
+    def measure_rotvec(self, q_c: np.ndarray, F: np.ndarray,
+                       temperature: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`measure_orientation` as rotation vectors (axis x angle, angle in [0, pi]),
+        rad, shape (N, 3): the ``rx, ry, rz`` columns of a noise-free campaign."""
+        return rotvecs(self.measure_orientation(q_c, F, temperature))
+
+    def _measure_pose(self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None,
+                      temperature: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`measure` and :meth:`measure_orientation` from one equilibrium."""
+        fr, F = self._deflected_frames(q_c, F, temperature)
+        p, _tcp = self._positions_from_frames(fr, F)
+        return self._to_measurement_frame(p, t), self.R_reg @ self._orientations_from_frames(fr, F)
 
     def tcp_error(self, q_command: np.ndarray, F: np.ndarray, target2base: np.ndarray,
                   temperature: np.ndarray | None = None) -> np.ndarray:
@@ -705,25 +884,71 @@ class VirtualRobot:
         -------
         Measurements
             Rows in measurement order, with ``point``, ``t`` and (if configured)
-            ``temperature`` and ``sigma``; positions in the measurement frame.
-            :attr:`outlier_rows` holds the indices of the rows given gross errors.
+            ``temperature`` and ``sigma``; positions in the measurement frame.  With
+            ``[campaign] orientation = true`` also ``rotation`` (N, 3): the orientation
+            of the measured frame in the measurement frame as a rotation vector, rad
+            (noise ``[noise] sigma_rad``; with ``sigma_rot_column`` also ``sigma_rot``).
+            :attr:`outlier_rows` holds the indices of the rows given gross errors (positions
+            only; the orientation of those rows is not corrupted).
         """
         # One generator, drawn in this order: poses, loads, temperature noise,
-        # measurement noise, outliers.
+        # measurement noise, outliers, orientation noise (last, so that switching the
+        # orientation on leaves every other column of the campaign unchanged).
         rng = np.random.default_rng(self.seed + 1 if seed is None else seed)
         camp = {**DEFAULT_CAMPAIGN, **_table(self.where, self.config, "campaign", set(DEFAULT_CAMPAIGN))}
         plan = self._campaign_plan(camp)
+        orientation = _bool(f"{self.where}: [campaign]", "orientation", camp["orientation"])
+        sigma_rad, rot_column = self._rotation_noise_config(orientation)
         q_poses = self.sample_poses(plan.poses, rng, plan.r_min_m, plan.z_min_m)
         q, F, pts = self._campaign_loads(q_poses, plan, rng)
         n = len(q)
         t, temperature = self._campaign_times(camp, n, rng)
-        p = self.measure(q, F, t, temperature)
+        if orientation:
+            p, R = self._measure_pose(q, F, t, temperature)
+        else:
+            p, R = self.measure(q, F, t, temperature), None
         p, sig_col = self._campaign_noise(p, rng)
         self._campaign_outliers(p, rng)
+        extra: dict[str, Any] = {}
+        if R is not None:
+            extra["rotation"] = rotvecs(self._campaign_rotation_noise(R, sigma_rad, rng))
+            if rot_column:
+                extra["sigma_rot"] = np.full((n, 3), sigma_rad)
         if progress is not None:
             progress(n, n)
         return Measurements(q=q, wrench=F, p=p, t=t, point=np.array(pts), temperature=temperature,
-                            sigma=sig_col, source="virtual robot")
+                            sigma=sig_col, source="virtual robot", **extra)
+
+    def _rotation_noise_config(self, orientation: bool) -> tuple[float, bool]:
+        """The orientation keys of ``[noise]``: ``sigma_rad`` (rad, >= 0; > 0 with the column)
+        and ``sigma_rot_column`` (needs ``[campaign] orientation = true``)."""
+        ncfg = _table(self.where, self.config, "noise", set(DEFAULT_NOISE))
+        nw = f"{self.where}: [noise]"
+        sigma = _num(nw, "sigma_rad", ncfg.get("sigma_rad", DEFAULT_NOISE["sigma_rad"]))
+        column = _bool(nw, "sigma_rot_column", ncfg.get("sigma_rot_column", DEFAULT_NOISE["sigma_rot_column"]))
+        _at_least(nw, "sigma_rad", sigma, 0.0, strict=column,
+                  what="(a standard deviation, rad" + ("; the sigma_rot column needs it > 0)" if column else ")"))
+        if column and not orientation:
+            raise SimConfigError(f"{nw}: key 'sigma_rot_column' = true needs [campaign] orientation = true "
+                                 "(there is no orientation to give a sigma for)")
+        return sigma, column
+
+    @staticmethod
+    def _campaign_rotation_noise(R: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
+        """Orientation noise: ``R exp([w]x)``, ``w ~ N(0, sigma_rad^2 I)`` (measured frame).
+
+        Parameters
+        ----------
+        R : ndarray, shape (N, 3, 3)
+            Noise-free orientations, measurement frame.
+        sigma_rad : float
+            Standard deviation of each rotation-vector component, rad.
+        rng : Generator
+            Draws N x 3 normals.
+        """
+        from scipy.spatial.transform import Rotation
+        w = rng.normal(0.0, sigma_rad, (len(R), 3))
+        return R @ Rotation.from_rotvec(w).as_matrix()
 
     def _campaign_plan(self, camp: Mapping[str, Any]) -> _CampaignPlan:
         """Validate the row-shaping keys of ``camp``, the ``[campaign]`` table merged over
@@ -859,10 +1084,10 @@ class VirtualRobot:
         sigma : ndarray, shape (N,) or None
             The per-axis noise sigma of each row, m, if ``sigma_column`` is set.
         """
-        ncfg = _table(self.where, self.config, "noise", {"sigma_m", "sigma_column"})
+        ncfg = _table(self.where, self.config, "noise", set(DEFAULT_NOISE))
         nw = f"{self.where}: [noise]"
-        sigma = _num(nw, "sigma_m", ncfg.get("sigma_m", 2e-5))
-        column = _bool(nw, "sigma_column", ncfg.get("sigma_column", False))
+        sigma = _num(nw, "sigma_m", ncfg.get("sigma_m", DEFAULT_NOISE["sigma_m"]))
+        column = _bool(nw, "sigma_column", ncfg.get("sigma_column", DEFAULT_NOISE["sigma_column"]))
         _at_least(nw, "sigma_m", sigma, 0.0, strict=column,
                   what="(a standard deviation, m" + ("; the sigma column needs it > 0)" if column else ")"))
         p = p + rng.normal(0, sigma, p.shape)
@@ -912,6 +1137,7 @@ class VirtualRobot:
                 "measured_point_m": self.p_tool.tolist(),
                 "da_m": self.da.tolist(), "dalpha_rad": self.dalpha.tolist(), "dd_m": self.dd.tolist(),
                 "dtheta_rad": self.dtheta.tolist(), "dbeta_rad": self.dbeta.tolist(),
+                "joint_error_terms": self.joint_error_terms(),
                 "effects": sorted(self.effects),
             },
         }
@@ -955,6 +1181,7 @@ def simulator(robot: str | Robot, config: Mapping[str, Any], seed: int | None = 
 
 
 __all__ = [
+    "JOINT_ERROR_EFFECTS",
     "OUT_OF_LIBRARY",
     "SIM_EFFECTS",
     "SimConfigError",
@@ -964,5 +1191,6 @@ __all__ = [
     "load_truth",
     "matrix_to_rotvec",
     "rotvec_to_matrix",
+    "rotvecs",
     "simulator",
 ]

@@ -99,6 +99,21 @@ def _map_registration(vr: VirtualRobot, th: dict, c: dict) -> None:
     th["reg.t"], th["tool.p"] = vr.t_reg, vr.p_tool
 
 
+def _map_error_map(vr: VirtualRobot, th: dict, c: dict) -> None:
+    """Each simulated term ``A sin(h q + phi)`` of joint j is a theta-component slot with frequency
+    h: ``a cos(h q) + b sin(h q)``, a = A sin(phi), b = A cos(phi); the range is left open."""
+    from models.effects.joint_error_map import COEF_SHAPE, FREQ_SHAPE
+    coef, freq = np.zeros(COEF_SHAPE), np.zeros(FREQ_SHAPE)
+    used = np.zeros(6, dtype=int)
+    for t in vr.joint_error_terms():
+        j, s = t["joint"] - 1, used[t["joint"] - 1]
+        freq[j, 0, s] = t["harmonic"]
+        coef[j, 0, s] = [t["amplitude_rad"] * np.sin(t["phase_rad"]), t["amplitude_rad"] * np.cos(t["phase_rad"])]
+        used[j] += 1
+    th["error_map.c"] = coef.reshape(-1)
+    c["error_map.freq"] = freq.reshape(-1)
+
+
 def _map_springs(vr: VirtualRobot, th: dict, c: dict) -> None:
     th["stiffness.s"] = vr.robot.stiffness / vr.k_true - 1.0
 
@@ -126,6 +141,9 @@ SIMULATION_MAP = {
               {}, True, _map_drift),
     "thermal": ("ur5", {"thermal": {"alpha_per_K": 2.3e-5, "links": [2, 3]}}, {}, True, _map_thermal),
     "stiffness_hardening": None,       # no exact mapping: see test_hardening_spline_fits_the_simulated_curves
+    "joint_error_map": ("ur5", {"joint_error_map": {"joint": [1, 1, 3], "amplitude_rad": [1e-3, 2e-4, 4e-4],
+                                                    "harmonic": [2, 13.4, 5.5], "phase_rad": [0.3, -1.2, 1.1]}},
+                        {}, True, _map_error_map),
 }
 
 
@@ -162,21 +180,21 @@ def test_symbolic_term_equals_the_virtual_robot(name, rng):
     robot_name, effects, extra, registered, mapping = SIMULATION_MAP[name]
     vr = _vr(robot_name, effects, registered, extra)
     robot = vr.robot
-    lay = fx.make_layout(robot)
     th: dict = {}
     c: dict = {}
     mapping(vr, th, c)
+    const = fx.make_const(robot)
+    for k, v in c.items():
+        const = fx.set_const(const, k, np.asarray(v, dtype=float))
+    lay = fx.make_layout(robot, const)
     theta = lay.nominal.copy()
     if registered:
         theta[fx.GROUP_SLICES["tool.p"]] = vr.p_tool
     for k, v in th.items():
         theta[fx.GROUP_SLICES[k]] = np.asarray(v, dtype=float).reshape(-1)
-    const = fx.make_const(robot)
-    for k, v in c.items():
-        const = fx.set_const(const, k, np.asarray(v, dtype=float))
     n = 24
     q, F, t, temp = _rows(vr, n, rng)
-    rows = np.column_stack([q, F, t / SPAN_S, temp - fx.THERMAL_REFERENCE_C])
+    rows = np.column_stack([q, F, t / SPAN_S, temp - fx.THERMAL_REFERENCE_C, np.zeros((n, 4))])
     f = fx.identification_functions(robot.convention, tuple(bool(x) for x in lay.eligible))["measure"]
     pred = np.array([np.asarray(f(rows[i], theta, const)[0]).reshape(3) for i in range(n)])
     meas = vr.measure(q, F, t, temp)
@@ -259,16 +277,22 @@ def test_planning_functions_with_every_effect_match_finite_differences(fname, rn
 @pytest.mark.parametrize("effect", [e.name for e in fx.registry() if e.groups])
 def test_identification_derivatives_of_each_effect_match_finite_differences(effect, rng):
     robot = load_robot("ur10")
-    lay = fx.make_layout(robot)
+    const = fx.make_const(robot, np.eye(3), np.full(6, 40.0), True)
+    if effect == "joint_error_map":      # two slots of every joint and component in use
+        from models.effects.joint_error_map import FREQ_SHAPE
+        freq = np.zeros(FREQ_SHAPE)
+        freq[:, :, 0], freq[:, :, 1] = 3.0, 7.5
+        const = fx.set_const(const, "error_map.freq", freq.reshape(-1))
+        const = fx.set_const(const, "error_map.range", np.tile([-2.0, 2.0], 6))
+    lay = fx.make_layout(robot, const)
     theta = lay.nominal + rng.normal(0, 0.3, fx.N_PARAMS) * lay.scale * lay.eligible
     theta[fx.GROUP_SLICES["lost_motion.rho"]] = np.log(0.2)
-    const = fx.make_const(robot, np.eye(3), np.full(6, 40.0), True)
     fns = fx.identification_functions(robot.convention, tuple(bool(x) for x in lay.eligible))
     idx = lay.effect_indices(effect) if not fx.effect(effect).declared else \
         lay.indices([g.key for g in fx.effect(effect).groups])
     assert len(idx)
     for _ in range(3):
-        row = np.r_[rng.uniform(-2.5, 2.5, 6), rng.normal(0, 15.0, 3), rng.normal(0, 1.0, 3), 0.4, 6.0]
+        row = np.r_[rng.uniform(-2.5, 2.5, 6), rng.normal(0, 15.0, 3), rng.normal(0, 1.0, 3), 0.4, 6.0, 0, 0, 0, 0]
         _p, q_eq = fns["measure"](row, theta, const)
         _p, J = fns["measure_jac"](row, q_eq, theta, const)
         J = np.asarray(J)
@@ -304,7 +328,7 @@ def test_arm_model_with_every_effect_equals_the_identification_graph(rng):
     for _ in range(5):
         q = rng.uniform(-2.5, 2.5, 6)
         F = np.r_[rng.normal(0, 40.0, 3), rng.normal(0, 2.0, 3)]
-        row = np.r_[q, F, 0.0, 27.0 - fx.THERMAL_REFERENCE_C]
+        row = np.r_[q, F, 0.0, 27.0 - fx.THERMAL_REFERENCE_C, 0, 0, 0, 0]
         p_id = np.asarray(f(row, theta, arm.const)[0]).reshape(3)
         eq = arm.equilibrium(q[None], F)
         p_plan, _R = arm.loaded_tcp(eq.q, F)

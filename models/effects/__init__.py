@@ -54,12 +54,13 @@ BASE_GROUPS: tuple[str, ...] = tuple(g.key for e in registry() if e.declared for
 EFFECTS: dict[str, Effect] = {e.name: e for e in registry()}
 
 
-def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=None, knots=None):  # noqa: ANN001, ANN201
+def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=None, knots=None,  # noqa: ANN001, ANN201
+               extra=None):  # noqa: ANN001
     """The constant vector of ``robot`` (defaults from the declarations), with the
     data-dependent blocks given: registration ``R0`` (3x3), joint torque scales
     ``tau_scale`` (6, N*m, floored at :data:`TORQUE_SCALE_FLOOR_NM`), ``gravity_on``,
-    beam frames (6, 3, 3) and hardening knots (6, N_KNOTS, N*m; default: torque-scale
-    quantiles)."""
+    beam frames (6, 3, 3), hardening knots (6, N_KNOTS, N*m; default: torque-scale
+    quantiles) and ``extra``: any other blocks by key (e.g. ``error_map.freq``)."""
     import numpy as np
     c = default_constants(robot)
     if R0 is not None:
@@ -72,7 +73,10 @@ def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=N
         c = set_const(c, "link_compliance.beams",
                       np.concatenate([np.asarray(b, dtype=float).reshape(-1, order="F") for b in beams]))
     kn = np.outer(ts, HARDENING_KNOT_QUANTILES) if knots is None else np.asarray(knots, dtype=float)
-    return set_const(c, "hardening.knots", kn.reshape(-1))
+    c = set_const(c, "hardening.knots", kn.reshape(-1))
+    for key, value in (extra or {}).items():
+        c = set_const(c, key, np.asarray(value, dtype=float).reshape(-1))
+    return c
 
 
 __all__ = [

@@ -226,6 +226,18 @@ class Effect:
         """
         return []
 
+    def in_use(self, const: Callable[[str], np.ndarray]) -> dict[str, np.ndarray] | None:
+        """Which parameters of the effect's groups enter the model with these constants
+        (``const(block_key)``): group key -> bool array; None when all do.  A parameter not in
+        use is not eligible (no Jacobian column; see :func:`make_layout`)."""
+        return None
+
+    def angle_caveats(self, param: Callable[[str], np.ndarray], const: Callable[[str], np.ndarray],
+                      q: np.ndarray) -> list[str]:
+        """Where this effect's prediction cannot be trusted at the joint angles ``q`` (N, 6) rad
+        (e.g. beyond the angle range it was identified on), one line each."""
+        return []
+
     # ---- helpers -------------------------------------------------------------------
     @property
     def freed_groups(self) -> tuple[str, ...]:
@@ -406,8 +418,12 @@ class ModelLayout:
         return self.indices(list(effect(name).freed_groups))
 
 
-def make_layout(robot: Robot) -> ModelLayout:
-    """Defaults, scales, bounds and eligibility of every parameter for ``robot``."""
+def make_layout(robot: Robot, const: np.ndarray | None = None) -> ModelLayout:
+    """Defaults, scales, bounds and eligibility of every parameter for ``robot``.
+
+    ``const`` (the constant vector of a model; default the robot's defaults) decides which
+    parameters of effects with data-dependent terms are in use (:meth:`Effect.in_use`, e.g.
+    the slots of a joint error map that have a frequency); the others are not eligible."""
     lay = layouts()
     n = lay.n_params
     nominal, scale = np.zeros(n), np.ones(n)
@@ -423,5 +439,10 @@ def make_layout(robot: Robot) -> ModelLayout:
         if g.bounds is not None:
             lower[s], upper[s] = g.bounds
         units += g.units()
+    cv = default_constants(robot) if const is None else np.asarray(const, dtype=float)
+    for e in registry():
+        use = e.in_use(lambda key: get_const(cv, key))
+        for key, mask in (use or {}).items():
+            eligible[lay.slices[key]] &= np.asarray(mask, dtype=bool).reshape(-1)
     return ModelLayout(robot=robot, nominal=nominal, scale=scale, eligible=eligible, lower=lower,
                        upper=upper, units=units)

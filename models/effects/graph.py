@@ -39,8 +39,10 @@ EQUILIBRIUM_UNROLL = 5
 JACOBIAN_UNROLL = 1
 
 #: Per-row inputs of the identification functions: q_c (6, rad), F (6, N and N*m, base
-#: frame, on the TCP), tn (1), dT (1, K).
-ROW_SIZE = 14
+#: frame, on the TCP), tn (1), dT (1, K), kind (1: 0 position row, 1 orientation row), the
+#: measured orientation of an orientation row (3, rotation vector of the measured frame in the
+#: measurement frame, rad).
+ROW_SIZE = 18
 
 #: Load vector of the planning functions (see :mod:`models.load`):
 #: ``[f_base (3) N, m_base (3) N*m, f_tool (3) N, m_tool (3) N*m, payload mass (1) kg,
@@ -145,6 +147,9 @@ class Context:
     theta, const : CasADi vectors (symbolic or numeric)
     dT, tn : CasADi scalars
         Temperature minus the reference (K) and normalised campaign time (1).
+    qc : CasADi vector (6,)
+        The commanded joint angles, rad (what the controller was told; angle-dependent
+        transmission errors are functions of it).
     eligible : ndarray of bool, shape (N_PARAMS,)
         Parameters that exist for this robot (hooks may skip what does not).
     frames, zs, ps, tcp, p_tcp, R_tcp, wrench
@@ -152,11 +157,12 @@ class Context:
     """
 
     def __init__(self, convention: str, theta: Any, const: Any, eligible: np.ndarray,
-                 dT: Any = 0.0, tn: Any = 0.0) -> None:
+                 dT: Any = 0.0, tn: Any = 0.0, qc: Any = None) -> None:
         self.convention = convention
         self.theta, self.const = theta, const
         self.eligible = eligible
         self.dT, self.tn = dT, tn
+        self.qc = qc
         self._lay = layouts()
         self.frames: list[Any] = []
         self.graph: Graph | None = None
@@ -210,8 +216,8 @@ class Graph:
         self.effects = [e for e in registry() if e in active]
         self.eligible = eligible
 
-    def context(self, theta: Any, const: Any, dT: Any = 0.0, tn: Any = 0.0) -> Context:
-        ctx = Context(self.convention, theta, const, self.eligible, dT, tn)
+    def context(self, theta: Any, const: Any, dT: Any = 0.0, tn: Any = 0.0, qc: Any = None) -> Context:
+        ctx = Context(self.convention, theta, const, self.eligible, dT, tn, qc)
         ctx.graph = self
         return ctx
 
@@ -279,12 +285,42 @@ def measured_point(graph: Graph, ctx: Context) -> Any:
     return graph.measurement(ctx, p_base)
 
 
+def rotvec_matrix(w: Any) -> Any:
+    """Rotation matrix of a rotation vector ``w`` (axis x angle, rad), Rodrigues (exact at 0)."""
+    th2 = ca.dot(w, w)
+    th = ca.sqrt(th2 + 1e-300)
+    W = ca.skew(w)
+    a = ca.if_else(th2 > 1e-12, ca.sin(th) / th, 1 - th2 / 6)
+    b = ca.if_else(th2 > 1e-12, (1 - ca.cos(th)) / (th2 + 1e-300), 0.5 - th2 / 24)
+    return ca.SX.eye(3) + a * W + b * ca.mtimes(W, W)
+
+
+def orientation_error(graph: Graph, ctx: Context, p_meas: Any, rv_meas: Any) -> Any:
+    """Orientation error of the measured frame: ``vee(skew(R_m^T R))`` with ``R`` the model's
+    frame and ``R_m`` the measured one (``rv_meas``, rotation vector), both in the measurement
+    frame; components in the measured frame, rad (the rotation vector of ``R_m^T R`` to first
+    order).  The frame's rotation into the measurement frame is the linear part of the
+    measurement hooks (affine maps), taken from the images of three points."""
+    from .registration import cayley
+    R_tool = ca.mtimes(ca.reshape(ctx.c("measured_frame.R0"), 3, 3), cayley(ctx.p("tool.r")))
+    R_base = ca.mtimes(ctx.frames[-1][:3, :3], R_tool)
+    p_flange = ca.mtimes(ctx.frames[-1], ca.vertcat(ctx.p("tool.p"), 1))[:3]
+    cols = [graph.measurement(ctx, p_flange + R_base[:, k]) - graph.measurement(ctx, p_flange) for k in range(3)]
+    R = ca.horzcat(*cols)
+    E = ca.mtimes(rotvec_matrix(rv_meas).T, R)
+    return 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
+
+
 @lru_cache(maxsize=8)
-def identification_functions(convention: str, eligible: tuple[bool, ...] | None = None) -> dict[str, ca.Function]:
+def identification_functions(convention: str, eligible: tuple[bool, ...] | None = None,
+                             orientation: bool = False) -> dict[str, ca.Function]:
     """CasADi functions of the identification model (every registered effect in the graph).
 
     ``eligible`` (length N_PARAMS) marks the parameters that exist for the robot: the
     Jacobian is taken with respect to them only.  ``None``: all parameters.
+    ``orientation``: rows may be orientation rows (``kind`` = 1), whose output is the
+    orientation error of the measured frame (:func:`orientation_error`, rad) instead of the
+    measured point; without it every row is a position row (and cheaper).
 
     Returns
     -------
@@ -303,12 +339,19 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
     row = ca.SX.sym("row", ROW_SIZE)
     const = ca.SX.sym("const", lay.const_size)
     qc, F, tn, dT = row[0:6], row[6:12], row[12], row[13]
+    kind, rv = row[14], row[15:18]
     const_F: Callable[[Context], Any] = lambda _ctx: F  # noqa: E731 - base-frame wrench of the row
 
-    ctx = graph.context(theta, const, dT, tn)
+    def observed(g: Graph, c: Context) -> Any:
+        """Position (position rows) or orientation error (orientation rows) of the row."""
+        if not orientation:
+            return measured_point(g, c)
+        return ca.if_else(kind > 0.5, orientation_error(g, c, None, rv), measured_point(g, c))
+
+    ctx = graph.context(theta, const, dT, tn, qc)
     dh = graph.geometry(ctx)
     q = graph.equilibrium(ctx, dh, qc, const_F)
-    p_meas = measured_point(graph, ctx)
+    p_meas = observed(graph, ctx)
     measure = ca.Function("ident_measure", [row, theta, const], [p_meas, q],
                           ["row", "theta", "const"], ["p", "q_eq"])
 
@@ -325,10 +368,10 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
         parts[i] = th_fx[k]
     theta_v = ca.vertcat(*parts)
     q_in = ca.SX.sym("q_eq", 6)
-    ctx2 = graph.context(theta_v, const, dT, tn)
+    ctx2 = graph.context(theta_v, const, dT, tn, qc)
     dh2 = graph.geometry(ctx2)
     graph.equilibrium(ctx2, dh2, qc, const_F, q_start=q_in, n_iter=JACOBIAN_UNROLL)
-    p2 = measured_point(graph, ctx2)
+    p2 = observed(graph, ctx2)
     jac = ca.jacobian(p2, th_el)
     jf = ca.Function("ident_measure_jac_el", [row, q_in, th_el, th_fx, const], [p2, jac])
     pj, Jj = jf(row, q_in, theta[idx_el.tolist()] if len(idx_el) else ca.SX(0, 1),
@@ -337,14 +380,14 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
                               ["row", "q_eq", "theta", "const"], ["p", "J"])
 
     qs, Fs, dTs = ca.SX.sym("q", 6), ca.SX.sym("F", 6), ca.SX.sym("dT", 1)
-    ctx3 = graph.context(theta, const, dTs)
+    ctx3 = graph.context(theta, const, dTs, 0.0, qs)
     dh3 = graph.geometry(ctx3)
     q_eq = graph.equilibrium(ctx3, dh3, qs, lambda _c: Fs)
     te, to = graph.torques(ctx3)
     torques = ca.Function("ident_torques", [qs, Fs, dTs, theta, const], [te, to, q_eq],
                           ["q_c", "F", "dT", "theta", "const"], ["tau_ext", "tau_g", "q_eq"])
 
-    ctx4 = graph.context(theta, const, dTs)
+    ctx4 = graph.context(theta, const, dTs, 0.0, qs)
     dh4 = graph.geometry(ctx4)
     ctx4.at(chain(qs, dh4, convention), lambda _c: ca.DM.zeros(6))
     p0 = ca.mtimes(ctx4.frames[-1], ca.vertcat(ctx4.p("tool.p"), 1))[:3]
@@ -371,7 +414,7 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
     q = ca.SX.sym("q", 6)
     L = ca.SX.sym("L", LOAD_SIZE)
     F = ca.SX.sym("F", 6)
-    ctx = graph.context(ca.SX(ca.DM(theta)), ca.SX(ca.DM(const)), float(dT))
+    ctx = graph.context(ca.SX(ca.DM(theta)), ca.SX(ca.DM(const)), float(dT), 0.0, q)
     dh = graph.geometry(ctx)
     ctx.at(chain(q, dh, convention), lambda c: load_wrench(c.R_tcp, L))
     frames, tcp = ctx.frames, ctx.tcp

@@ -63,6 +63,59 @@ def _seed(text: str) -> int:
     return k
 
 
+def _joint_names(text: str) -> tuple[str, ...] | None:
+    """``--joint-names``: ``none`` (q1..q6), a preset (``ros-ur``) or six comma-separated column names."""
+    from models.errors import InputError
+    from problems.measurements import resolve_joint_names
+    try:
+        return resolve_joint_names(text, where="--joint-names")
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _add_csv_options(p: argparse.ArgumentParser, files: str) -> None:
+    """``--csv-dialect`` and ``--joint-names``: how the measurement/command files ``files`` are read."""
+    from problems.measurements import DIALECT_CHOICES, JOINT_NAME_PRESETS
+    p.add_argument("--csv-dialect", choices=DIALECT_CHOICES, default="auto",
+                   help=f"CSV dialect of {files}: 'comma' (',' separator, '.' decimal point), 'semicolon' (';' "
+                        "separator, decimal comma), 'auto' (default: ';' in the header and no ',' means "
+                        "semicolon; a header with both is an error; a detected dialect is noted on stderr)")
+    p.add_argument("--joint-names", type=_joint_names, default=None, metavar="NAMES",
+                   help=f"columns read as q1..q6 in {files}: 'none' (default: q1..q6), a preset "
+                        f"({', '.join(JOINT_NAME_PRESETS)}: the ROS UR names shoulder_pan_joint, ..., "
+                        "wrist_3_joint, rad or with _deg) or six comma-separated names, joint 1 first")
+
+
+def _read(args: argparse.Namespace, path: str, require_position: bool = True) -> Any:
+    """A measurement/command file read with the options ``--csv-dialect`` and ``--joint-names``."""
+    from problems.measurements import read_measurements
+    return read_measurements(path, require_position=require_position, dialect=args.csv_dialect,
+                             joint_names=args.joint_names)
+
+
+def _print_notes(*tables: Any) -> None:
+    """The readers' notes (a detected dialect, date-times, a joint-name mapping) on stderr,
+    one ``compplan: note:`` line each, as the CLI's other notes."""
+    for m in tables:
+        if m is not None:
+            for n in m.notes:
+                print(f"compplan: note: {n}", file=sys.stderr)
+
+
+#: ``--known`` words and the part of the set-up each declares (``identify(known=...)``).
+KNOWN_WORDS = {"registration": "registration", "measured-point": "measured_point"}
+
+
+def _known(text: str) -> tuple[str, ...]:
+    """``--known`` value: comma-separated words of :data:`KNOWN_WORDS`."""
+    words = [w.strip() for w in text.split(",") if w.strip()]
+    bad = [w for w in words if w not in KNOWN_WORDS]
+    if not words or bad:
+        raise argparse.ArgumentTypeError(f"got {text!r}; expected a comma-separated list of "
+                                         f"{', '.join(KNOWN_WORDS)}")
+    return tuple(KNOWN_WORDS[w] for w in words)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the sub-commands of this module."""
     p = sub.add_parser("identify", help="identify the model from measurements and report before/after",
@@ -75,6 +128,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report", required=True, help="report folder (report.json, report.md, report.html)")
     p.add_argument("--registered", action="store_true",
                    help="the measurement frame is the base frame and the measured point is the robot's TCP")
+    p.add_argument("--known", type=_known, default=(),
+                   help="comma-separated parts of the set-up known from a calibration and held: 'registration' "
+                        "(measurement frame = base frame, e.g. a tracker base calibration) and/or 'measured-point' "
+                        "(measured point, and frame with orientation data, = the robot file's TCP, e.g. a tool "
+                        "calibration); both = --registered")
     p.add_argument("--candidates", default=None,
                    help="comma-separated library effects the selection may add (default: all; 'none')")
     p.add_argument("--include", default=None,
@@ -86,12 +144,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--truth", default=None,
                    help="truth file of a virtual robot (compplan simulate): compensate and re-measure")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_csv_options(p, "--data and --validation")
     p.set_defaults(func=run_identify)
 
     p = sub.add_parser("predict", help="predicted measurement of commands under loads")
     p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
     p.add_argument("--input", required=True, help="CSV with q1..q6 and fx..mz (optional t, temperature)")
     p.add_argument("--out", required=True, help="CSV to write: x, y, z (m), measurement frame")
+    _add_csv_options(p, "--input")
     p.set_defaults(func=run_predict)
 
     p = sub.add_parser("compensate", help="commands that put the real TCP on its targets under the load")
@@ -107,6 +167,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--strict", action="store_true",
                    help="fail (nothing written) if any row cannot be compensated; default: write every row "
                         "(the best command) and warn naming the rows")
+    _add_csv_options(p, "--input")
     p.set_defaults(func=run_compensate)
 
     p = sub.add_parser("simulate", help="measurement campaign from the virtual robot")
@@ -163,16 +224,15 @@ def run_identify(args: argparse.Namespace) -> int:
         model_toml,
         validate_on,
     )
-    from problems.measurements import read_measurements
 
     robot = load_robot(args.robot)
-    data = read_measurements(args.data)
+    data = _read(args, args.data)
     if args.folds is not None:
         n_poses = len(set(data.pose_groups().tolist()))
         if args.folds > n_poses:
             raise InputError(f"--folds {args.folds}: more folds than the {n_poses} poses of {args.data} "
                              f"(a fold holds whole poses); give --folds between 2 and {n_poses}")
-    val = read_measurements(args.validation) if args.validation else None
+    val = _read(args, args.validation) if args.validation else None
     truth = None
     if args.truth:
         from problems.virtual import load_truth
@@ -180,7 +240,8 @@ def run_identify(args: argparse.Namespace) -> int:
     bar = _Bar(not args.no_progress)
     try:
         res = identify(robot, data, registered=args.registered, candidates=_effects_arg(args.candidates),
-                       include=_effects_arg(args.include) or [], folds=args.folds or CV_FOLDS, progress=bar)
+                       include=_effects_arg(args.include) or [], folds=args.folds or CV_FOLDS, progress=bar,
+                       known=args.known)
     finally:
         bar.close()
     if val is not None:
@@ -210,6 +271,7 @@ def run_identify(args: argparse.Namespace) -> int:
               f"{100 * c['meas_frame_fraction_left']:.2f} % left)")
     for n in res.notes:
         print(f"  note: {n}")
+    _print_notes(data, val)
     if res.status.value == "implausible_geometry":
         print(f"compplan: warning: {res.reason}", file=sys.stderr)
     print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html")
@@ -222,13 +284,14 @@ def run_predict(args: argparse.Namespace) -> int:
     check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
     from planner.output import atomic_write_bytes
     from problems.identify import check_command_limits, load_model, predict
-    from problems.measurements import commands_csv, read_measurements
+    from problems.measurements import commands_csv
 
     model = load_model(args.model)
-    m = read_measurements(args.input, require_position=False)
+    m = _read(args, args.input, require_position=False)
     check_command_limits(model, m)          # a command the robot cannot run has no prediction
     p = predict(model, m)
     atomic_write_bytes(args.out, commands_csv(["x", "y", "z"], p).encode())
+    _print_notes(m)
     print(f"predict: {m.n} rows, effects {', '.join(model.effects) or 'none'}; wrote {args.out} (x, y, z in m, "
           "measurement frame)")
     return 0
@@ -242,10 +305,10 @@ def run_compensate(args: argparse.Namespace) -> int:
     from planner.output import atomic_write_bytes
     from problems.compensation import CompensationStatus
     from problems.identify import compensate_targets, load_model
-    from problems.measurements import commands_csv, read_measurements
+    from problems.measurements import commands_csv
 
     model = load_model(args.model)
-    m = read_measurements(args.input, require_position=False)
+    m = _read(args, args.input, require_position=False)
     out = compensate_targets(model, m, args.targets_frame)
     failed = out.status not in (CompensationStatus.OK, CompensationStatus.WARNING)
     if failed and args.strict:
@@ -256,6 +319,7 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"compplan: warning: {out.reason}; input lines {lines}", file=sys.stderr)
     for w in out.warnings:
         print(f"compplan: warning: {w}", file=sys.stderr)
+    _print_notes(m)
     print(f"compensate: {m.n} rows, targets {out.targets_frame.value} frame, status {out.status.value}; "
           f"wrote {args.out} (q1..q6 in rad)")
     return 0

@@ -71,7 +71,7 @@ def predict(model: IdentifiedModel, m: Measurements) -> np.ndarray:
     otherwise the state at the campaign's first row), temperature from the input or
     the identification data's mean.
     """
-    ev = _ev_for(model.nominal)
+    ev = _ev_for(model.nominal, model.const)
     rows = make_rows(m, model.time_ref if m.t is not None else None, model.temperature_ref)
     p, _q = ev.measure(rows, model.theta, model.const)
     return p
@@ -318,15 +318,16 @@ def alias_effect_m(model: ArmModel, names: list[str], q: np.ndarray, wrench: np.
         deg C.
     """
     robot = model.nominal
-    layout = make_layout(robot)
+    layout = make_layout(robot, model.const)
     theta = model.theta.copy()
     theta[GROUP_SLICES["reg.w"]] = 0.0
     theta[GROUP_SLICES["reg.t"]] = 0.0
     theta[GROUP_SLICES["tool.p"]] = np.asarray(robot.tcp2flange)[:3, 3] + np.asarray(model.tcp_correction_m)
-    const = make_const(robot, np.eye(3), model.tau_scale, model.gravity_on, model.beams, model.knots)
+    const = make_const(robot, np.eye(3), model.tau_scale, model.gravity_on, model.beams, model.knots,
+                       model.effect_const)
     m = Measurements(q=np.atleast_2d(q), wrench=np.atleast_2d(wrench), temperature=temperature)
     rows = make_rows(m, None, model.temperature_ref)
-    ev = _ev_for(robot)
+    ev = _ev_for(robot, const)
     _p, q_eq = ev.measure(rows, theta, const)
     _p, J = ev.jacobian(rows, q_eq, theta, const)
     out: dict[str, float] = {}

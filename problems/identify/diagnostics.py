@@ -2,7 +2,9 @@
 
 The final residual (measurement frame, weighted) is regressed, with the same
 cross-validation folds as the selection, on time, load, load sign, joint torque,
-each joint angle, gravity torque, temperature, workspace position and pose.  A
+gravity torque, temperature, workspace position and pose, and -- nonparametrically,
+with cross-validated P-splines (:mod:`.error_map`) -- on each joint angle, both as an
+error of that joint and per residual axis.  A
 diagnostic is *significant* when its F-test passes at :data:`DIAG_ALPHA` over the
 number of diagnostics and it explains more than :data:`DIAG_MIN_FRACTION` of the
 residual variance out of fold; :func:`structure_left` picks the most specific one.
@@ -19,6 +21,7 @@ from scipy import stats
 from models.robot import Robot
 
 from ..measurements import Measurements
+from .error_map import joint_smoother_cv, smoother_cv
 from .evaluation import _nominal_gravity_torque, _nominal_points, _Problem
 from .results import Diagnostic
 
@@ -131,12 +134,6 @@ def diagnostic_variables(m: Measurements, Jp: np.ndarray, tau: np.ndarray, tau_g
                             for j in range(6)], axis=2)
         out["joint_torque"] = (np.abs(tau).max(axis=1), X,
                                "joint deflection as an odd cubic of each joint torque (J_j (a tau_j + b tau_j^3))")
-    for j in range(6):
-        if np.ptp(m.q[:, j]) > 1e-3:
-            B = np.column_stack([np.ones(n), _fourier(m.q[:, j], 3)])
-            out[f"q{j + 1}"] = (m.q[:, j], _joint_design(Jp, j, B),
-                                (f"joint {j + 1} angle: an error of joint {j + 1} periodic in q{j + 1} "
-                                 "(Fourier order 3)"))
     if tau_g is not None:
         cols = [j for j in range(6) if np.ptp(tau_g[:, j]) > 1e-9]
         if cols:
@@ -176,18 +173,58 @@ def _pose_anova(R: np.ndarray, groups: np.ndarray) -> tuple[float, float]:
     return adj, float(stats.f.sf(F, df1, df2))
 
 
+def joint_angle_diagnostics(R: np.ndarray, Jw: np.ndarray, q: np.ndarray, folds: np.ndarray) -> list[Diagnostic]:
+    """Nonparametric residual-versus-joint-angle diagnostics (significance not yet decided).
+
+    Per joint j whose angle varies: ``q{j}``, the residual against an error of joint j that is
+    any smooth function of its angle (``J_j(q) s(q_j)``, :func:`~.error_map.joint_smoother_cv`),
+    and ``q{j}.x``, ``q{j}.y``, ``q{j}.z``, each residual axis against ``q_j`` alone
+    (:func:`~.error_map.smoother_cv`): cross-validated P-splines with knots fine enough for
+    :data:`~.error_map.MAP_MAX_CPR` cycles per revolution, so high harmonics and non-periodic
+    smooth structure are both seen.
+
+    Parameters
+    ----------
+    R : ndarray, shape (n, 3)
+        Weighted residual, measurement frame.
+    Jw : ndarray, shape (n, 3, 6)
+        Positional Jacobian of the measured point with the same weights.
+    q : ndarray, shape (n, 6)
+        Commanded joint angles, rad.
+    """
+    out: list[Diagnostic] = []
+    for j in range(6):
+        x = q[:, j]
+        if np.ptp(x) <= 1e-3:
+            continue
+        sj = joint_smoother_cv(R, Jw[:, :, j], x, folds)
+        out.append(Diagnostic(f"q{j + 1}", sj.explained, sj.p_value, False, x,
+                              (f"joint {j + 1} angle: an error of joint {j + 1} that is any smooth function of q{j + 1} "
+                               f"(P-spline through the joint's Jacobian column, {sj.edf:.0f} effective dof)")))
+        for k, ax in enumerate("xyz"):
+            sk = smoother_cv(R[:, k], x, folds)
+            out.append(Diagnostic(f"q{j + 1}.{ax}", sk.explained, sk.p_value, False, x,
+                                  (f"residual {ax} against q{j + 1} alone (P-spline, {sk.edf:.0f} effective dof)"),
+                                  y=R[:, k], y_label=f"weighted residual {ax}"))
+    return out
+
+
 def run_diagnostics(R: np.ndarray, m: Measurements, variables: Mapping[str, tuple[np.ndarray, np.ndarray, str]],
-                    folds: np.ndarray) -> list[Diagnostic]:
-    """Regress the residual on each variable; significance with a Bonferroni correction.
+                    folds: np.ndarray, extra: Sequence[Diagnostic] = ()) -> list[Diagnostic]:
+    """Regress the residual on each variable; significance with a Bonferroni correction over
+    every diagnostic (``extra``: ones already computed, e.g. :func:`joint_angle_diagnostics`).
 
     Returned sorted by explained fraction (largest first).
     """
     out: list[Diagnostic] = []
-    n_tests = len(variables) + 1
+    n_tests = len(variables) + 1 + len(extra)
     for name, (x, X, desc) in variables.items():
         frac, p = _regress_cv(R, X, folds)
         sig = (p < DIAG_ALPHA / n_tests) and frac > DIAG_MIN_FRACTION
         out.append(Diagnostic(name, frac, p, sig, x, desc))
+    for d in extra:
+        d.significant = (d.p_value < DIAG_ALPHA / n_tests) and d.explained_fraction > DIAG_MIN_FRACTION
+        out.append(d)
     groups = m.pose_groups()
     frac, p = _pose_anova(R, groups)
     out.append(Diagnostic("pose", frac, p, (p < DIAG_ALPHA / n_tests) and frac > DIAG_MIN_FRACTION,
@@ -214,7 +251,8 @@ def _diagnose(prob: _Problem, fit: _Fit, robot: Robot) -> list[Diagnostic]:
     joint torques of the applied wrench (N*m) come from the fitted model; the gravity
     torques and workspace positions from the nominal ``robot``.
     """
-    mask = fit.inliers
+    mask_all = fit.inliers
+    mask = mask_all & prob.pos
     m = prob.m.subset(mask)
     n = m.n
     ev = prob.ev
@@ -227,15 +265,34 @@ def _diagnose(prob: _Problem, fit: _Fit, robot: Robot) -> list[Diagnostic]:
     tau_g = _nominal_gravity_torque(robot, m)
     p_nom = _nominal_points(robot, m.q)
     variables = diagnostic_variables(m, Jp, tau, tau_g, p_nom)
-    R = (fit.pred[mask] - m.p) * prob.weights[mask][:, None]
-    diags = run_diagnostics(R, m, variables, prob.folds[mask])
+    W = prob.weights[mask]
+    R = (fit.pred[mask] - m.p) * W
+    # the joint-error signature needs one weight per row: the axes' RMS (equal weights: exact)
+    w_row = np.sqrt(np.mean(W ** 2, axis=1))
+    Jw = Jp * w_row[:, None, None]
+    extra = joint_angle_diagnostics(R, Jw, m.q, prob.folds[mask])
+    rot = mask_all & ~prob.pos
+    if rot.any():
+        # orientation rows: each axis of the (weighted) orientation error against each joint angle
+        Rr = (fit.pred[rot] - prob.m.p[rot]) * prob.weights[rot]
+        qr = prob.m.q[rot]
+        for j in range(6):
+            if np.ptp(qr[:, j]) <= 1e-3:
+                continue
+            for k, ax in enumerate(("rx", "ry", "rz")):
+                sk = smoother_cv(Rr[:, k], qr[:, j], prob.folds[rot])
+                extra.append(Diagnostic(f"q{j + 1}.{ax}", sk.explained, sk.p_value, False, qr[:, j],
+                                        f"orientation residual {ax} against q{j + 1} alone (P-spline, "
+                                        f"{sk.edf:.0f} effective dof)", y=Rr[:, k],
+                                        y_label=f"weighted orientation residual {ax}"))
+    diags = run_diagnostics(R, m, variables, prob.folds[mask], extra)
     # joint-angle diagnostics are shown as the equivalent error of that joint: the residual
     # projected on the joint's column of the positional Jacobian, (J_j . r) / |J_j|^2 (rad)
     Ru = fit.pred[mask] - m.p
     for d in diags:
-        if d.variable.startswith("q") and d.variable[1:].isdigit():
+        if d.variable.startswith("q") and d.variable[1:].isdigit() and d.y is None:
             j = int(d.variable[1:]) - 1
             Jj = Jp[:, :, j]
             d.y = np.einsum("ni,ni->n", Jj, Ru) / np.maximum(np.einsum("ni,ni->n", Jj, Jj), 1e-12)
-            d.y_label = f"equivalent joint-{j + 1} error (mrad)"
+            d.y_label = f"equivalent joint-{j + 1} error (rad)"
     return diags

@@ -21,23 +21,28 @@ callback ``progress(message, done, total)``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from models import effects as fx
-from models.effects import GROUP_SLICES, LIBRARY, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_const, make_layout
+from models.effects import (GROUP_SLICES, LIBRARY, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_const,
+                            make_layout, set_const)
+from models.effects.joint_error_map import MAP_CONST_KEYS
 from models.errors import InputError
 from models.plausibility import (GEOMETRY_GROUPS, IMPLAUSIBLE_ANGLE_ERROR_RAD,  # noqa: F401
                                  IMPLAUSIBLE_LENGTH_ERROR_M, implausible_geometry)
 from models.robot import Robot
+from models.transforms import rotvec_to_matrix
 
 from ..measurements import Measurements
 from .diagnostics import UNEXPLAINED_MIN_FRACTION, UNEXPLAINED_RMS_RATIO, _diagnose, structure_left
-from .evaluation import _ev_for, _gravity_problem, _Problem, _torque_scale, make_rows, time_reference
-from .identifiability import _order_for, _structural_held
+from .evaluation import (_ev_for, _gravity_problem, _nominal_tcp, _Problem, _torque_scale, make_rows, row_weights,
+                         time_reference, with_orientation_rows)
+from .identifiability import Known, _order_for, _structural_held, select_identifiable
 from .lsq import _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _wjac, _wres, kabsch
+from .map_summary import ErrorMapSummary, summarise_maps
 from .outliers import _outlier_mask
 from .results import (
     DataError,
@@ -51,6 +56,7 @@ from .results import (
 )
 from .selection import (
     CV_FOLDS,
+    MAP_CHANNEL_GROUPS,
     _assign_folds,
     _candidate_applicable,
     _linear_scores,
@@ -65,8 +71,10 @@ from .selection import (
 
 #: LM iterations of the saturated (all effects) fit: a diagnostic, not an estimate.
 SATURATED_MAX_ITER = 8
-#: Parameter groups of the registration and the measured point.
-REGISTRATION_GROUPS = ("reg.t", "reg.w", "tool.p")
+#: Parameter groups of the registration and the measured point (and frame).
+REGISTRATION_GROUPS = ("reg.t", "reg.w", "tool.p", "tool.r")
+#: Parts of the set-up that can be declared known (``identify(known=...)``).
+KNOWN_PARTS = ("registration", "measured_point")
 
 
 @dataclass
@@ -119,44 +127,87 @@ def _effect_lists(candidates: Sequence[str] | None, include: Sequence[str]) -> t
     return cand, inc, robust
 
 
-def _setup(robot: Robot, m: Measurements, registered: bool, folds: int, n_cand: int,
+def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand: int,
            tick: Progress) -> _Setup:
-    """Step 1: problem inputs, initial registration and the "before" fit."""
+    """Step 1: problem inputs, initial registration (and measured frame) and the "before" fit."""
+    known = Known.of(registered)
     n_poses = len(np.unique(m.pose_groups()))
-    layout = make_layout(robot)
     tau_s, knots = _torque_scale(robot, m)
     t_ref = time_reference(m)
     temp_ref = float(np.mean(m.temperature)) if m.temperature is not None else fx.THERMAL_REFERENCE_C
-    ev = _ev_for(robot)
-    theta = layout.nominal.copy()
+    orient = m.rotation is not None
+    mx, is_pos = with_orientation_rows(m) if orient else (m, np.ones(m.n, dtype=bool))
     R0 = np.eye(3)
-    rows = make_rows(m, t_ref, temp_ref)
-    weights = 1.0 / m.sigma if m.sigma is not None else np.ones(m.n)
+    rows = make_rows(mx, t_ref, temp_ref)
+    if orient:
+        rows[~is_pos, 14] = 1.0
+        rows[~is_pos, 15:18] = mx.rotation[~is_pos]
+    const = make_const(robot, R0, tau_s, False, knots=knots)
+    if orient:
+        const = set_const(const, "measured_frame.on", [1.0])
+    layout = make_layout(robot, const)
+    ev = _ev_for(robot, const)
+    theta = layout.nominal.copy()
+    weights = row_weights(mx, is_pos)
     lower, upper = layout.lower.copy(), layout.upper.copy()      # declared by the effect plug-ins
-    fold_idx = _assign_folds(m, folds)
+    fold_idx = _assign_folds(mx, folds)
     total_steps = n_cand + 3
     tick("registration", 0, total_steps)
-    if not registered:
+    if not known.registration:
         if n_poses < 3:
             raise DataError(f"{m.source}: {n_poses} distinct pose(s); the registration of the measurement "
                             "frame and the measured point need at least 3 poses (many more for a useful fit); "
                             "or declare the data registered")
-        pred0, _q = ev.measure(rows, theta, make_const(robot, R0, tau_s, False, knots=knots))
-        R0, t0 = kabsch(pred0, m.p)
+        pred0, _q = ev.measure(rows, theta, const)
+        R0, t0 = kabsch(pred0[is_pos], m.p)
         theta[GROUP_SLICES["reg.t"]] = t0
-    prob = _Problem(m=m, layout=layout, ev=ev, rows=rows, const=make_const(robot, R0, tau_s, False, knots=knots),
-                    weights=weights, folds=fold_idx, lower=lower, upper=upper)
-    all_rows = np.ones(m.n, dtype=bool)
-    order_b = [] if registered else list(layout.indices(REGISTRATION_GROUPS))
+        const = set_const(const, "registration.R0", R0)
+    if orient and not known.measured_point:
+        const = set_const(const, "measured_frame.R0", _measured_frame_start(robot, m, R0))
+    prob = _Problem(m=mx, layout=layout, ev=ev, rows=rows, const=const, weights=weights, folds=fold_idx,
+                    lower=lower, upper=upper, is_pos=is_pos)
+    all_rows = np.ones(mx.n, dtype=bool)
+    order_b = _order_for(layout, [], known)
     pred_b, q_b = _evaluate(prob, theta)
-    if registered:
+    if not order_b:
         fit_b = _Fit(theta=theta.copy(), free=np.zeros(0, dtype=int), held={}, inliers=all_rows.copy(),
                      pred=pred_b, q_eq=q_b, J=_jac(prob, theta, q_b), converged=True, iterations=0)
     else:
+        order_b = [i for i in order_b if i not in layout.indices(("stiffness.s",))]
         fit_b = _lm(prob, theta, np.asarray(order_b), all_rows, pred_b, q_b)
         theta = fit_b.theta.copy()
     return _Setup(prob=prob, theta=theta, R0=R0, tau_s=tau_s, t_ref=t_ref, temp_ref=temp_ref, fit_b=fit_b,
                   order_b=order_b, n_poses=n_poses, total_steps=total_steps)
+
+
+def _balance_orientation(prob: _Problem, fit: _Fit, include: Sequence[str], registered: Known, robust: bool,
+                         notes: list[str]) -> tuple[_Problem, _Fit]:
+    """Without ``sigma_r`` columns, weigh the orientation rows so that the declared model's
+    orientation residual counts as much as its position residual (per axis RMS, weighted units),
+    then refit; the weight (m/rad) goes into the notes."""
+    pos = prob.pos
+    R = (fit.pred - prob.m.p) * prob.weights
+    rp, rr = _rms(R[pos & fit.inliers]), _rms(R[~pos & fit.inliers])
+    if not (rp > 0 and rr > 0):
+        return prob, fit
+    w = prob.weights.copy()
+    w[~pos] *= rp / rr
+    notes.append(f"orientation rows weighted {float(np.mean(w[~pos])):.4g} per rad against position rows' "
+                 f"{float(np.mean(w[pos])):.4g} per m (no sigma_r column: balanced on the declared model's residual; "
+                 "give sigma_r / sigma_rx.. columns to weigh by the instrument's accuracy)")
+    prob = replace(prob, weights=w)
+    return prob, _fit_model(prob, fit.theta, include, registered, np.ones(prob.m.n, dtype=bool), robust=robust)
+
+
+def _measured_frame_start(robot: Robot, m: Measurements, R0: np.ndarray) -> np.ndarray:
+    """Start of the measured frame's rotation to the flange, (3, 3): the rotation closest to the
+    mean of ``flange2base(q)^T R0^T R_measured`` over the rows (nominal kinematics)."""
+    T = _nominal_tcp(robot, m.q)
+    R_f = T[:, :3, :3] @ np.asarray(robot.tcp2flange)[:3, :3].T
+    R_m = np.array([rotvec_to_matrix(v) for v in m.rotation])
+    M = np.einsum("nji,jk,nkl->il", R_f, R0.T, R_m)
+    U, _s, Vt = np.linalg.svd(M)
+    return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
 
 
 def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust: bool, structural: set[int],
@@ -167,7 +218,7 @@ def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust:
     m, layout = s.prob.m, s.prob.layout
     prob = _gravity_problem(s.prob, True) if "gravity" in include else s.prob
     fit = _fit_model(prob, s.theta, include, registered, np.ones(m.n, dtype=bool), robust=robust)
-    reg_idx = set(layout.indices(REGISTRATION_GROUPS)) if not registered else set()
+    reg_idx = set(_order_for(layout, [], registered)) - set(layout.indices(("stiffness.s",)))
     bad = [i for i in fit.held if i in reg_idx and i not in structural]
     if bad:
         rms_b = _rms(s.fit_b.residual(s.prob))
@@ -176,7 +227,8 @@ def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust:
                        if rms_b > IMPLAUSIBLE_LENGTH_ERROR_M else "")
         raise DataError(f"{m.source}: too few or too similar poses ({s.n_poses} distinct): cannot identify "
                         + ", ".join(f"{PARAM_NAMES[i]} ({fit.held[i]})" for i in bad)
-                        + "; measure more poses spread over the workspace, or declare the data registered"
+                        + "; measure more poses spread over the workspace (and tool orientations), or declare "
+                          "known parts of the set-up (--known measured-point / registration, or --registered)"
                         + wrong_robot)
     inc_idx = {int(i): e for e in include for i in layout.effect_indices(e)}
     bad = [i for i in fit.held if i in inc_idx and i not in structural]
@@ -259,7 +311,7 @@ def _final_fit(run: _Run, st: _State) -> None:
 def identify(robot: Robot, data: Measurements, registered: bool = False,
              candidates: Sequence[str] | None = None, include: Sequence[str] = (),
              folds: int = CV_FOLDS, progress: Progress | None = None,
-             max_steps: int = 12) -> IdentificationResult:
+             max_steps: int = 12, known: Sequence[str] = ()) -> IdentificationResult:
     """Identify the declared model and select effects from the library.
 
     Parameters
@@ -270,7 +322,11 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
         With positions ``p`` (measurement frame, m).
     registered : bool
         True when the measurement frame is the base frame and the measured point is
-        the robot file's TCP; otherwise both are identified.
+        the robot file's TCP; otherwise both are identified (unless ``known``).
+    known : sequence of str
+        Parts of the set-up declared known and held, ``"registration"`` (measurement frame =
+        base frame) and/or ``"measured_point"`` (measured point, and frame with orientation
+        data, = the robot file's TCP); both together are ``registered``.
     candidates : sequence of str, optional
         Library effects the selection may add (default: all, ``outliers`` included).
     include : sequence of str
@@ -303,6 +359,10 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     if m.p is None:
         raise DataError(f"{m.source}: no measured positions (columns x, y, z) to identify from")
     cand, inc, robust = _effect_lists(candidates, include)
+    bad_known = [k for k in known if k not in KNOWN_PARTS]
+    if bad_known:
+        raise InputError(f"known part(s) {bad_known}: expected any of {list(KNOWN_PARTS)}")
+    registered = Known(bool(registered) or "registration" in known, bool(registered) or "measured_point" in known)
     notes: list[str] = []
     if robot.identified is not None:
         notes.append("the robot file carries an [identified] table; identification starts from its "
@@ -311,6 +371,8 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     structural = _structural_held(robot, list(inc) + cand, registered)   # structural vs too few data
     tick("declared model", 1, s.total_steps)
     prob, fit = _declared_model(s, inc, registered, robust, structural, notes)
+    if m.rotation is not None and getattr(m, "sigma_rot", None) is None:
+        prob, fit = _balance_orientation(prob, fit, inc, registered, robust, notes)
     sigma_noise, noise_src = noise_floor(m)
     sigma_w = None if sigma_noise is None else (1.0 if m.sigma is not None else sigma_noise)
     applicable: dict[str, str] = {}
@@ -339,9 +401,11 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
 # Step 6: the result
 # ----------------------------------------------------------------------------------
 
-def _covariance(prob: _Problem, fit: _Fit, free: Sequence[int]) -> tuple[np.ndarray, float]:
+def _covariance(prob: _Problem, fit: _Fit, free: Sequence[int],
+                full: list[np.ndarray] | None = None) -> tuple[np.ndarray, float]:
     """Standard deviations (N_PARAMS,), SI (NaN where not free), from ``s^2 (J^T J)^-1``,
-    and the condition number of the column-normalised Jacobian."""
+    and the condition number of the column-normalised Jacobian; the whole covariance
+    (N_PARAMS, N_PARAMS), SI, zero where not free, is appended to ``full`` when given."""
     r_w = _wres(prob, fit.pred, fit.inliers)
     n_res, k_f = r_w.size, len(free)
     s2 = float(r_w @ r_w) / max(n_res - k_f, 1)
@@ -353,6 +417,11 @@ def _covariance(prob: _Problem, fit: _Fit, free: Sequence[int]) -> tuple[np.ndar
         try:
             cov = np.linalg.inv(G) * s2
             std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0)) * prob.layout.scale[free]
+            if full is not None:
+                C = np.zeros((N_PARAMS, N_PARAMS))
+                sc = prob.layout.scale[free]
+                C[np.ix_(free, free)] = cov * np.outer(sc, sc)
+                full.append(C)
         except np.linalg.LinAlgError:
             pass
         Jn = Js / np.maximum(np.linalg.norm(Js, axis=0), 1e-300)
@@ -384,11 +453,14 @@ def _parameter_table(layout: ModelLayout, fit: _Fit, order: Sequence[int], std: 
             out.append(ParameterEstimate(name, _effect_of(i), float(fit.theta[i]),
                                          float(std[i]) if np.isfinite(std[i]) else None, layout.units[i],
                                          ParameterStatus.FREE))
-    if registered:
+    known = Known.of(registered)
+    if known.registration or known.measured_point:
         for i in layout.indices(REGISTRATION_GROUPS):
             if i not in order_set:
                 out.insert(0, ParameterEstimate(PARAM_NAMES[i], _effect_of(i), float(fit.theta[i]), None,
-                                                layout.units[i], ParameterStatus.HELD, "data declared registered"))
+                                                layout.units[i], ParameterStatus.HELD,
+                                                "data declared registered" if known else
+                                                f"declared known ({known.describe()})"))
     return out
 
 
@@ -404,12 +476,15 @@ def _build_model(run: _Run, st: _State, s: _Setup, std: np.ndarray, free: Sequen
                            beams=fx.beam_frames(robot),
                            knots=get_const(st.prob.const, "hardening.knots").reshape(6, fx.N_KNOTS).copy(),
                            time_ref=s.t_ref, temperature_ref=s.temp_ref, effects=list(st.active),
-                           registered=run.registered, std={PARAM_NAMES[i]: float(std[i]) for i in free},
+                           registered=Known.of(run.registered).registration,
+                           std={PARAM_NAMES[i]: float(std[i]) for i in free},
                            noise_sigma_m=sigma_noise,
                            held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order},
                            tcp_correction_m=(fit.theta[GROUP_SLICES["tool.p"]] - robot.tcp2flange[:3, 3]
-                                             if run.registered else np.zeros(3)),
-                           torque_range_Nm=torque_range)
+                                             if bool(run.registered) else np.zeros(3)),
+                           torque_range_Nm=torque_range,
+                           effect_const=({k: get_const(st.prob.const, k).copy() for k in MAP_CONST_KEYS}
+                                         if "joint_error_map" in st.active else {}))
 
 
 def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | None, stop_reason: str,
@@ -417,27 +492,31 @@ def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | 
     """Status, reason and the ``unexplained`` record of the final residual."""
     top = structure_left(diags)
     above_floor = sigma_noise is not None and score_f.cv_rms_m > UNEXPLAINED_RMS_RATIO * sigma_noise
-    strong = top is not None and top.explained_fraction >= UNEXPLAINED_MIN_FRACTION
-    if strong or above_floor:
+    # strong: any significant diagnostic (the unspecific per-pose one too) explains the threshold
+    strong = any(d.significant and d.explained_fraction >= UNEXPLAINED_MIN_FRACTION for d in diags)
+    if strong or above_floor or top is not None:
         if top is None:
             top = diags[0]
+        weak = not (strong or above_floor)
         unexplained = {
             "present": True, "diagnostic": f"residual vs {top.variable}", "variable": top.variable,
             "explained_fraction": top.explained_fraction, "p_value": top.p_value,
-            "description": top.description,
+            "description": top.description, "weak": weak,
             "rms_over_noise": (score_f.cv_rms_m / sigma_noise) if sigma_noise else None,
-            "message": (f"structure remains that no library effect explains: the residual depends on "
-                        f"{top.variable} (cross-validated regression explains {100 * top.explained_fraction:.0f} % "
-                        f"of its variance, p = {top.p_value:.2g})"
+            "message": (f"{'weak ' if weak else ''}structure remains that no library effect explains: the residual "
+                        f"depends on {top.variable} (cross-validated regression explains "
+                        f"{100 * top.explained_fraction:.0f} % of its variance, p = {top.p_value:.2g})"
                         + (f"; held-out RMS is {score_f.cv_rms_m / sigma_noise:.2f} x the noise floor"
                            if sigma_noise else "")),
         }
-        status = IdentifyStatus.UNEXPLAINED
-        reason = unexplained["message"]
+        status = IdentifyStatus.OK if weak else IdentifyStatus.UNEXPLAINED
+        reason = stop_reason + "; " + unexplained["message"] if weak else unexplained["message"]
     else:
-        unexplained = {"present": False, "diagnostic": None, "variable": None,
+        unexplained = {"present": False, "diagnostic": None, "variable": None, "weak": False,
                        "explained_fraction": (diags[0].explained_fraction if diags else None),
-                       "message": "no diagnostic shows structure the model leaves unexplained"}
+                       "message": ("no diagnostic shows structure the model leaves unexplained (cross-validated "
+                                   "nonparametric fits of the residual on each joint angle, per axis and through "
+                                   "each joint, and on time, load, temperature, position and pose)")}
         status = IdentifyStatus.OK
         reason = stop_reason
     if not converged:
@@ -452,7 +531,8 @@ def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[st
     prob, fit, m = st.prob, st.fit, st.prob.m
     score_f, free_f = run.score(prob, fit, st.active)
     order_f = _order_for(prob.layout, st.active, run.registered)
-    std, cond = _covariance(prob, fit, free_f)
+    cov: list[np.ndarray] = []
+    std, cond = _covariance(prob, fit, free_f, cov)
     R_un = fit.residual(prob)
     model = _build_model(run, st, s, std, free_f, order_f, run.sigma_noise)
     params = _parameter_table(prob.layout, fit, order_f, std, st.active, run.registered)
@@ -461,19 +541,58 @@ def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[st
     implausible = implausible_geometry(run.robot, fit.theta, [i for i in fit.held])
     if implausible is not None and status is not IdentifyStatus.NOT_CONVERGED:
         status, reason = IdentifyStatus.IMPLAUSIBLE, implausible
-    excluded = [{"row": int(i), "line": int(m.line[i]), "residual_mm": float(np.linalg.norm(R_un[i]) * 1e3),
-                 "residual_xyz_mm": (R_un[i] * 1e3).tolist()} for i in np.flatnonzero(~fit.inliers)]
+    pos = prob.pos
+    R_un_all = R_un
+    R_un = R_un_all[pos]
+    excluded = [{"row": int(i), "line": int(m.line[i]), "residual_mm": float(np.linalg.norm(R_un_all[i]) * 1e3),
+                 "residual_xyz_mm": (R_un_all[i] * 1e3).tolist(), "kind": "position" if pos[i] else "orientation"}
+                for i in np.flatnonzero(~fit.inliers)]
     ident = {
-        "rank": len(free_f), "condition_number": cond, "n_rows": int(m.n), "n_inliers": int(fit.inliers.sum()),
+        "rank": len(free_f), "condition_number": cond, "n_rows": int(pos.sum()), "n_inliers": int(fit.inliers[pos].sum()),
         "n_poses": int(s.n_poses), "saturated_model": sat_info,
         "held": [{"name": PARAM_NAMES[i], "effect": _effect_of(i), "reason": r}
                  for i, r in fit.held.items() if i in order_f],
+        "known": Known.of(run.registered).describe(),
     }
-    res_b = s.fit_b.residual(prob)
+    res_b_all = s.fit_b.residual(prob)
+    res_b = res_b_all[pos]
+    inl = fit.inliers[pos]
+    orient: dict[str, Any] | None = None
+    if (~pos).any():
+        rot = ~pos & fit.inliers
+        orient = {"rms_before_rad": _rms(res_b_all[~pos][fit.inliers[~pos]]), "rms_after_rad": _rms(R_un_all[rot]),
+                  "n_rows": int((~pos).sum()),
+                  "identifiable_thanks_to_orientation": _orientation_gain(prob, fit, order_f)}
+        ident["orientation"] = orient
     return IdentificationResult(
         status=status, reason=reason, model=model, effects_added=st.effects_added, history=st.history,
-        parameters=params, rms_before_m=_rms(res_b[fit.inliers]), rms_after_m=_rms(R_un[fit.inliers]),
+        parameters=params, rms_before_m=_rms(res_b[inl]), rms_after_m=_rms(R_un[inl]),
         cv_rms_before_m=score_b.cv_rms_m, cv_rms_after_m=score_f.cv_rms_m, noise_sigma_m=run.sigma_noise,
         noise_source=noise_src, excluded=excluded, unexplained=unexplained, diagnostics=diags,
-        identifiability=ident, residual_before=res_b, residual_after=R_un, inliers=fit.inliers, data=m,
-        notes=notes)
+        identifiability=ident, residual_before=res_b, residual_after=R_un, inliers=inl, data=m.subset(pos),
+        notes=notes, error_maps=_error_maps(st, cov[0] if cov else None), orientation=orient)
+
+
+def _orientation_gain(prob: _Problem, fit: _Fit, order: Sequence[int]) -> list[str]:
+    """Parameters identifiable with the orientation rows that position rows alone would hold."""
+    sig = _rms(_wres(prob, fit.pred, fit.inliers))
+    kept_all, _h = select_identifiable(_wjac(prob, fit.J, fit.inliers, np.asarray(order, dtype=int)), order, sig)
+    pos_only = fit.inliers & prob.pos
+    kept_pos, _h2 = select_identifiable(_wjac(prob, fit.J, pos_only, np.asarray(order, dtype=int)), order, sig)
+    return [PARAM_NAMES[i] for i in kept_all if i not in set(kept_pos)]
+
+
+def _error_maps(st: _State, cov: np.ndarray | None) -> list[ErrorMapSummary]:
+    """Summaries of the identified joint error maps (empty without ``joint_error_map``)."""
+    if "joint_error_map" not in st.active:
+        return []
+    prob, fit = st.prob, st.fit
+    mask = fit.inliers
+    n = int(mask.sum())
+    J3 = fit.J[np.repeat(mask, 3)]
+    lever = np.zeros((n, 6, len(MAP_CHANNEL_GROUPS)))
+    for k, group in enumerate(MAP_CHANNEL_GROUPS):
+        for j in range(6):
+            lever[:, j, k] = np.linalg.norm(J3[:, GROUP_SLICES[group].start + j].reshape(n, 3), axis=1)
+    return summarise_maps(fit.theta, cov, get_const(prob.const, "error_map.freq"),
+                          get_const(prob.const, "error_map.range"), lever, prob.m.q[mask])

@@ -43,10 +43,10 @@ class Evaluator:
 
     THREADS = 2
 
-    def __init__(self, convention: str, eligible: np.ndarray | None = None) -> None:
+    def __init__(self, convention: str, eligible: np.ndarray | None = None, orientation: bool = False) -> None:
         el = np.ones(N_PARAMS, dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
         self.eligible_idx = np.flatnonzero(el)
-        self.fns = fx.identification_functions(convention, tuple(bool(x) for x in el))
+        self.fns = fx.identification_functions(convention, tuple(bool(x) for x in el), orientation)
         self._maps: dict[tuple[str, int], ca.Function] = {}
 
     def _map(self, name: str, n: int) -> ca.Function:
@@ -118,20 +118,23 @@ class Evaluator:
 _EVALUATORS: dict[tuple, Evaluator] = {}
 
 
-def evaluator(convention: str, eligible: np.ndarray | None = None) -> Evaluator:
-    """Shared :class:`Evaluator` per convention and parameter eligibility."""
-    key = (convention, None if eligible is None else tuple(bool(x) for x in eligible))
+def evaluator(convention: str, eligible: np.ndarray | None = None, orientation: bool = False) -> Evaluator:
+    """Shared :class:`Evaluator` per convention, parameter eligibility and orientation rows."""
+    key = (convention, None if eligible is None else tuple(bool(x) for x in eligible), orientation)
     ev = _EVALUATORS.get(key)
     if ev is None:
         if len(_EVALUATORS) > 8:
             _EVALUATORS.clear()
-        ev = _EVALUATORS[key] = Evaluator(convention, eligible)
+        ev = _EVALUATORS[key] = Evaluator(convention, eligible, orientation)
     return ev
 
 
-def _ev_for(robot: Robot) -> Evaluator:
-    """The shared :class:`Evaluator` of a robot (its convention and eligible parameters)."""
-    return evaluator(robot.convention, make_layout(robot).eligible)
+def _ev_for(robot: Robot, const: np.ndarray | None = None) -> Evaluator:
+    """The shared :class:`Evaluator` of a robot (its convention and eligible parameters) and,
+    when given, a model's constant vector (the parameters in use, see ``make_layout``; orientation
+    rows when its ``measured_frame.on`` is set)."""
+    orient = const is not None and float(get_const(const, "measured_frame.on")[0]) > 0.5
+    return evaluator(robot.convention, make_layout(robot, const).eligible, orient)
 
 
 def time_reference(m: Measurements) -> tuple[float, float]:
@@ -181,6 +184,8 @@ class _Problem:
         Cross-validation fold per row.
     lower, upper : ndarray, shape (N_PARAMS,)
         Parameter bounds, SI.
+    is_pos : ndarray of bool, shape (N,)
+        Position rows (the others are orientation rows of 6-D data, :func:`with_orientation_rows`).
     """
 
     m: Measurements
@@ -192,6 +197,45 @@ class _Problem:
     folds: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    is_pos: np.ndarray | None = None
+
+    @property
+    def pos(self) -> np.ndarray:
+        """Position rows (bool, (N,))."""
+        return np.ones(self.m.n, dtype=bool) if self.is_pos is None else self.is_pos
+
+
+def with_orientation_rows(m: Measurements) -> tuple[Measurements, np.ndarray]:
+    """6-D data as rows of 3: the N position rows, then N orientation rows (same commands, loads,
+    times and pose ids; measured value 0, the model's output there being the orientation error).
+
+    Returns the table (2N rows; ``p`` of the orientation rows is zero) and ``is_pos`` (2N,)."""
+    n = m.n
+
+    def two(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else np.concatenate([a, a])
+    mx = Measurements(q=two(m.q), wrench=two(m.wrench), p=np.vstack([m.p, np.zeros((n, 3))]), t=two(m.t),
+                      point=two(m.point), rotation=two(m.rotation), temperature=two(m.temperature),
+                      sigma=two(m.sigma), line=two(m.line), source=m.source, units=dict(m.units),
+                      sigma_xyz=two(m.sigma_xyz), sigma_rot=two(m.sigma_rot))
+    return mx, np.concatenate([np.ones(n, dtype=bool), np.zeros(n, dtype=bool)])
+
+
+def row_weights(m: Measurements, is_pos: np.ndarray, rot_weight: float = 1.0) -> np.ndarray:
+    """Weights (N, 3) of the rows of ``m`` (after :func:`with_orientation_rows`): ``1/sigma`` per axis
+    of the position rows (1/m; ones without sigma) and of the orientation rows (1/rad; without
+    ``sigma_rot``, ``rot_weight`` m/rad, which with unit position weights makes 1 rad count as
+    ``rot_weight`` metres)."""
+    w = np.ones((m.n, 3))
+    sx = getattr(m, "sigma_xyz", None)
+    if sx is not None:
+        w[is_pos] = 1.0 / np.asarray(sx)[is_pos]
+    elif m.sigma is not None:
+        w[is_pos] = 1.0 / np.asarray(m.sigma)[is_pos][:, None]
+    if (~is_pos).any():
+        sr = getattr(m, "sigma_rot", None)
+        w[~is_pos] = (1.0 / np.asarray(sr)[~is_pos]) if sr is not None else rot_weight
+    return w
 
 
 def _knots_from(tau: np.ndarray, ts: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ few data.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -97,11 +98,40 @@ def _alias_reason(Q: np.ndarray, c: np.ndarray, kept: Sequence[int], names: Sequ
     return "cannot be told apart from " + ", ".join(alias)
 
 
-def _order_for(layout: ModelLayout, effects: Sequence[str], registered: bool) -> list[int]:
-    """Parameter indices in priority order: registration, point, stiffness, effects."""
+@dataclass(frozen=True)
+class Known:
+    """Parts of the measurement set-up declared known (held) rather than identified.
+
+    ``registration``: the measurement frame is the robot base frame (a tracker base calibration);
+    ``measured_point``: the measured point (and, with orientation data, the measured frame) is the
+    robot file's TCP (a tool calibration).  ``bool(known)`` is True when both are: the data are
+    *registered*.
+    """
+
+    registration: bool = False
+    measured_point: bool = False
+
+    def __bool__(self) -> bool:
+        return self.registration and self.measured_point
+
+    @classmethod
+    def of(cls, registered: "bool | Known") -> "Known":
+        return registered if isinstance(registered, Known) else cls(bool(registered), bool(registered))
+
+    def describe(self) -> str:
+        parts = [w for w, k in (("registration", self.registration), ("measured point", self.measured_point)) if k]
+        return " and ".join(parts) if parts else "nothing"
+
+
+def _order_for(layout: ModelLayout, effects: Sequence[str], registered: "bool | Known") -> list[int]:
+    """Parameter indices in priority order: registration, point, stiffness, effects
+    (registration and point only where not known, see :class:`Known`)."""
+    known = Known.of(registered)
     order: list[int] = []
-    if not registered:
-        order += list(layout.indices(("reg.t", "reg.w", "tool.p")))
+    if not known.registration:
+        order += list(layout.indices(("reg.t", "reg.w")))
+    if not known.measured_point:
+        order += list(layout.indices(("tool.p", "tool.r")))
     order += list(layout.indices(("stiffness.s",)))
     for e in effects:
         for i in layout.effect_indices(e):

@@ -114,13 +114,13 @@ class _Fit:
 
 def _wres(prob: _Problem, pred: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Weighted residual of the rows in ``mask``, flattened ``[x0, y0, z0, x1, ...]``."""
-    r = (pred - prob.m.p) * prob.weights[:, None]
+    r = (pred - prob.m.p) * prob.weights
     return r[mask].reshape(-1)
 
 
 def _wjac(prob: _Problem, J: np.ndarray, mask: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Weighted Jacobian of the rows in ``mask`` and columns ``cols``, times the parameter scales."""
-    W = np.repeat(prob.weights, 3)[:, None]
+    W = prob.weights.reshape(-1)[:, None]
     rows3 = np.repeat(mask, 3)
     return (J[rows3][:, cols] * W[rows3]) * prob.layout.scale[cols][None, :]
 

@@ -103,7 +103,7 @@ def _outlier_mask(prob: _Problem, pred: np.ndarray, gross_only: bool = False) ->
     :data:`OUTLIER_MAX_FRACTION` of the rows would be.  ``gross_only``: only gross
     errors (used when the residual is known to hold structure the model lacks).
     """
-    r = (pred - prob.m.p) * prob.weights[:, None]
+    r = (pred - prob.m.p) * prob.weights
     n = len(r)
     out = np.zeros(n, dtype=bool)
     groups = prob.m.pose_groups()

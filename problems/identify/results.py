@@ -125,6 +125,7 @@ class CandidateScore:
     accepted: bool = False
     reason: str = ""
     held: list[str] = field(default_factory=list)
+    detail: str = ""
 
 
 @dataclass
@@ -208,6 +209,11 @@ class IdentificationResult:
     notes: list[str] = field(default_factory=list)
     validation: dict[str, Any] | None = None
     compensation_check: dict[str, Any] | None = None
+    #: Identified joint error maps (``problems.identify.map_summary.ErrorMapSummary``), empty without any.
+    error_maps: list[Any] = field(default_factory=list)
+    #: With orientation data: ``rms_before_rad``, ``rms_after_rad`` (per axis, inlier orientation rows),
+    #: ``n_rows`` and ``identifiable_thanks_to_orientation`` (parameter names); None without.
+    orientation: dict[str, Any] | None = None
 
     @property
     def rms_before_mm(self) -> float:

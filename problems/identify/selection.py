@@ -17,17 +17,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
 
-from models.effects import EFFECTS, N_PARAMS, PARAM_NAMES, ModelLayout, get_const
+from models.effects import (EFFECTS, GROUP_SLICES, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_layout,
+                            set_const)
+from models.effects.joint_error_map import MAP_COMPONENTS
 from models.robot import Robot
 
 from ..measurements import Measurements
 from .diagnostics import _diagnose, structure_left
-from .evaluation import _gravity_problem, _Problem, _update_knots
+from .error_map import MapProposal, propose_map
+from .evaluation import _ev_for, _gravity_problem, _Problem, _update_knots
 from .identifiability import _order_for, select_identifiable
 from .lsq import _evaluate, _Fit, _fit_model, _jac, _rms, _solve_normal, _wjac, _wres
 from .results import CandidateScore, SelectionStep
@@ -53,6 +56,14 @@ REFINE_TOP = 2
 PARSIMONY_REL_TOL = 0.02
 #: Stop when the cross-validated RMS is below this multiple of the noise floor.
 NOISE_FLOOR_STOP_RATIO = 1.10
+#: The parameter groups whose Jacobian columns are the signatures of the map's components
+#: (``models.effects.joint_error_map.MAP_COMPONENTS``: theta, d, a, alpha, beta).
+MAP_CHANNEL_GROUPS = ("joint_offset.dtheta", "geometric.dd", "geometric.da", "geometric.dalpha", "geometric.dbeta")
+#: Components the map candidate searches: the angular positioning error (gear transmission error,
+#: encoder error).  The model carries runout and wobble (d, a, alpha, beta) too, but from position
+#: data their signatures are flexible enough to absorb structure of other origins (an error that
+#: depends on two joints, a compliance): searched, they would attribute wrongly.
+MAP_SEARCH_COMPONENTS = ("theta",)
 #: Temperature range below which ``thermal`` cannot be tested, K.
 THERMAL_MIN_RANGE_K = 0.5
 
@@ -119,7 +130,8 @@ def _linear_scores(prob: _Problem, J: np.ndarray, pred: np.ndarray, mask: np.nda
     if shift is not None:
         nz = np.flatnonzero(shift)
         r = r + _wjac(prob, J, mask, nz) @ (shift[nz] / prob.layout.scale[nz])
-    w3 = np.repeat(prob.weights[mask], 3)
+    w3 = prob.weights[mask].reshape(-1)
+    pos3 = np.repeat(prob.pos[mask], 3)
     Js = _wjac(prob, J, mask, cols)
     G = Js.T @ Js
     g = Js.T @ r
@@ -136,10 +148,11 @@ def _linear_scores(prob: _Problem, J: np.ndarray, pred: np.ndarray, mask: np.nda
         dk = -_solve_normal(Gk, gk)
         ek = rk + Jk @ dk
         cv_rss += float(ek @ ek)
-        cv_un += float(np.sum(np.square(ek / w3[sel])))
+        cv_un += float(np.sum(np.square(ek / w3[sel])[pos3[sel]]))
     n = r.size
-    return _Score(rss=float(r_in @ r_in), cv_rss=cv_rss, cv_rms_m=math.sqrt(cv_un / n),
-                  rms_m=math.sqrt(float(np.sum(np.square(r_in / w3))) / n), n=n, k=len(cols))
+    npos = max(int(pos3.sum()), 1)
+    return _Score(rss=float(r_in @ r_in), cv_rss=cv_rss, cv_rms_m=math.sqrt(cv_un / npos),
+                  rms_m=math.sqrt(float(np.sum(np.square(r_in / w3)[pos3])) / npos), n=n, k=len(cols))
 
 
 def _assign_folds(m: Measurements, k: int, seed: int = CV_SEED) -> np.ndarray:
@@ -299,24 +312,62 @@ class _Run:
     max_steps: int
     tick: Callable[[str, int, int], None]
     total_steps: int
+    map_proposals: list[MapProposal | None] = field(default_factory=list)
 
     def score(self, p: _Problem, f: _Fit, effs: Sequence[str]) -> tuple[_Score, list[int]]:
         """Scores and free parameters of the fit ``f`` of the model with ``effs``."""
-        return _score_p(p, self.layout, f, effs, self.registered)
+        return _score_p(p, p.layout, f, effs, self.registered)
 
     def refit(self, p: _Problem, th: np.ndarray, effs: Sequence[str], mask: np.ndarray) -> _Fit:
         """Full (robust when asked) fit of the model with ``effs`` from ``th``."""
         return _fit_model(p, th, effs, self.registered, mask, robust=self.robust)
 
-    def with_effect(self, p: _Problem, th: np.ndarray, e: str) -> tuple[_Problem, np.ndarray]:
+    def with_effect(self, p: _Problem, th: np.ndarray, e: str, fit: _Fit | None = None,
+                    others: np.ndarray | None = None) -> tuple[_Problem | None, np.ndarray]:
         """Problem and start parameters with ``e`` switched on (``gravity``: its switch
-        and the robot file's masses)."""
+        and the robot file's masses; ``joint_error_map``: the frequencies the residual of
+        ``fit`` shows beyond the directions ``others``, None when it shows none)."""
+        if e == "joint_error_map":
+            if fit is None:
+                return None, th
+            return self.map_problem(p, fit, th, others)
         if e == "gravity" and get_const(p.const, "gravity.on")[0] < 0.5:
             th = th.copy()
             gi = self.layout.effect_indices("gravity")
             th[gi] = self.layout.nominal[gi]
             return _gravity_problem(p, True), th
         return p, th
+
+
+    def map_problem(self, p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
+                    ) -> tuple[_Problem | None, np.ndarray]:
+        """The problem with the map frequencies of :func:`~.error_map.propose_map` on the residual of
+        ``fit`` (its free parameters and the weighted, scaled Jacobian columns ``others`` (3n, k) of
+        the other candidates projected out), or None when no term passes."""
+        mask = fit.inliers
+        m = p.m.subset(mask)
+        w3 = p.weights[mask].reshape(-1)
+        channels = {}
+        for j in range(6):
+            for c, group in enumerate(MAP_CHANNEL_GROUPS):
+                if MAP_COMPONENTS[c] not in MAP_SEARCH_COMPONENTS:
+                    continue
+                i = GROUP_SLICES[group].start + j
+                channels[(j, c)] = (fit.J[np.repeat(mask, 3), i] * w3).reshape(m.n, 3)
+        free = [i for i in fit.free if i not in fit.held]
+        Jfree = _wjac(p, fit.J, mask, np.asarray(free, dtype=int))
+        if others is not None:
+            Jfree = np.column_stack([Jfree, others])
+        prop = propose_map(_wres(p, fit.pred, mask), channels, m.q, Jfree, p.folds[mask])
+        self.map_proposals.append(prop)
+        if prop is None:
+            return None, th
+        const = set_const(p.const, "error_map.freq", prop.freq.reshape(-1))
+        const = set_const(const, "error_map.range", prop.range_rad.reshape(-1))
+        layout = make_layout(self.robot, const)
+        th = th.copy()
+        th[layout.effect_indices("joint_error_map")] = 0.0
+        return replace(p, const=const, layout=layout, ev=_ev_for(self.robot, const)), th
 
 
 @dataclass
@@ -330,6 +381,16 @@ class _State:
     history: list[SelectionStep] = field(default_factory=list)
     step_idx: int = 0
     stop_reason: str = "no candidate left"
+    #: Candidate problems of the current step (effect -> problem, start), from the screen.
+    pending: dict[str, tuple[_Problem, np.ndarray]] = field(default_factory=dict)
+    #: The map proposal of the accepted joint_error_map, if any.
+    map_proposal: MapProposal | None = None
+
+
+def map_detail(prop: MapProposal) -> str:
+    """One line naming the joints and frequencies of a map proposal."""
+    parts = [f"{t.label} ({100 * t.rss_share:.1f} % of the residual SS)" for t in prop.terms]
+    return "periodic terms found: " + "; ".join(parts)
 
 
 # ----------------------------------------------------------------------------------
@@ -341,9 +402,13 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
     """Linearised score of every remaining candidate (one Gauss-Newton step and CV).
 
     Returns every candidate's record and those with a score (to rank)."""
-    layout, fit = run.layout, st.fit
+    fit = st.fit
     sig_now = _rms(_wres(st.prob, fit.pred, fit.inliers))
-    cur_order = _order_for(layout, st.active, run.registered)
+    cur_order = _order_for(st.prob.layout, st.active, run.registered)
+    st.pending = {}
+    # directions of the other candidates' new parameters: the map, the most flexible candidate,
+    # searches only what none of them can explain (it is screened last, in registry order)
+    others: list[np.ndarray] = []
     scores: list[CandidateScore] = []
     prelim: list[CandidateScore] = []
     for e in remaining:
@@ -351,12 +416,20 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
             scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
                                          reason=f"not testable: {run.applicable[e]}"))
             continue
+        prob_e, th_e = run.with_effect(st.prob, fit.theta, e, fit,
+                                       np.column_stack(others) if others else None)
+        if prob_e is None:
+            scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
+                                         reason="no joint angle shows a significant periodic error in the residual "
+                                                "(spectrum search with a family-wise test)"))
+            continue
+        layout = prob_e.layout
         new = [int(i) for i in layout.effect_indices(e) if i not in cur_order]
         if not new:
             scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
                                          reason="subsumed by an effect already added"))
             continue
-        prob_e, th_e = run.with_effect(st.prob, fit.theta, e)
+        st.pending[e] = (prob_e, th_e)
         if prob_e is st.prob:
             J_e, pred_e = fit.J, fit.pred
         else:
@@ -366,6 +439,8 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
         Js = _wjac(prob_e, J_e, fit.inliers, np.asarray(order, dtype=int))
         kept, held = select_identifiable(Js, order, sig_now)
         kept_new = [i for i in kept if i in new]
+        if kept_new and e != "joint_error_map":
+            others.append(Js[:, [order.index(i) for i in kept_new]])
         if not kept_new:
             scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
                                          reason="no parameter identifiable from these data",
@@ -374,6 +449,8 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
         sc = _linear_scores(prob_e, J_e, pred_e, fit.inliers, np.asarray(kept, dtype=int))
         cs = _candidate_score(e, sc, score_m, run.sigma_w, len(kept_new))
         cs.held = [f"{PARAM_NAMES[i]}: {held[i]}" for i in new if i in held]
+        if e == "joint_error_map" and run.map_proposals and run.map_proposals[-1] is not None:
+            cs.detail = map_detail(run.map_proposals[-1])
         prelim.append(cs)
         scores.append(cs)
     return scores, prelim
@@ -393,14 +470,14 @@ def _refine(run: _Run, st: _State, prelim: Sequence[CandidateScore], score_m: _S
     for cs in to_refine:
         e = cs.effect
         run.tick(f"step {st.step_idx}: fitting {e}", min(3 + st.step_idx, run.total_steps), run.total_steps)
-        prob_e, th_e = run.with_effect(st.prob, st.fit.theta, e)
+        prob_e, th_e = st.pending[e]
         f_e = _fit_model(prob_e, th_e, st.active + [e], run.registered, st.fit.inliers, robust=False)
         sc_e, free_e = run.score(prob_e, f_e, st.active + [e])
         cs2 = _candidate_score(e, sc_e, score_m, run.sigma_w, len([i for i in free_e if i not in free_m]))
         cs.cv_rms_m, cs.rms_m, cs.bic, cs.delta_bic = cs2.cv_rms_m, cs2.rms_m, cs2.bic, cs2.delta_bic
         cs.f_pvalue, cs.explained_share, cs.n_params = cs2.f_pvalue, cs2.explained_share, cs2.n_params
         cs.refined = True
-        cs.held = [f"{PARAM_NAMES[i]}: {f_e.held[i]}" for i in run.layout.effect_indices(e) if i in f_e.held]
+        cs.held = [f"{PARAM_NAMES[i]}: {f_e.held[i]}" for i in prob_e.layout.effect_indices(e) if i in f_e.held]
         refined.append((cs, f_e, prob_e))
     return refined
 
@@ -473,6 +550,8 @@ def _forward_step(run: _Run, st: _State) -> bool:
                 best[0].accepted = True
                 accepted = best[0].effect
                 st.prob = best[2]
+                if accepted == "joint_error_map":
+                    st.map_proposal = run.map_proposals[-1]
                 st.active.append(accepted)
                 st.effects_added.append(accepted)
                 st.fit = run.refit(st.prob, best[1].theta, st.active, run.mask_sel)
@@ -500,7 +579,7 @@ def forward_selection(run: _Run, st: _State) -> None:
 def _try_simpler(run: _Run, st: _State, e: str, alt: list[str], score_m: _Score) -> bool:
     """Replace the current model by ``alt`` (``e`` removed or replaced) when its CV RMS is
     within :data:`PARSIMONY_REL_TOL` and its BIC not worse by more than ``2 ln n``."""
-    layout, fit = run.layout, st.fit
+    layout, fit = st.prob.layout, st.fit
     p_alt = st.prob
     th_alt = fit.theta.copy()
     alt_order = _order_for(layout, alt, run.registered)

@@ -1,0 +1,159 @@
+"""Per-joint angle error maps: the error motion of each joint as a function of its own angle.
+
+Joint j's DH row gets, per component ``c`` of :data:`MAP_COMPONENTS` (``theta``: angular
+positioning error; ``d``: axial; ``a``: radial along the link's x axis; ``alpha``, ``beta``:
+tilts about the link's x and y axes -- the error motions of ISO 230-7 expressed in DH terms),
+
+``p_c,j += e_cj(q_c,j)``,  ``e_cj(q) = sum_s a_cjs cos(f_cjs q~) + b_cjs sin(f_cjs q~)``,
+``q~ = clip(q, lo_j, hi_j)``
+
+a Fourier series of the *commanded* angle ``q_c,j`` (the transmission error of a strain-wave
+or cycloidal gear, a bearing's runout and wobble, an output encoder's error: functions of the
+joint's own angle, what machine tools compensate with axis error tables).
+
+* ``f_js`` (constants ``error_map.freq``, cycles per revolution; 0: slot unused) are chosen
+  from the residual by :mod:`problems.identify.error_map` (a cross-validated spectrum search
+  with a significance test), up to :data:`MAP_SLOTS` per joint;
+* ``a_js, b_js`` (parameters ``error_map.c``, rad) are fitted like every other parameter;
+* ``[lo_j, hi_j]`` (constants ``error_map.range``, rad) is the angle range the data covered:
+  beyond it the map is held at its value at the end of the range (not extrapolated) and
+  planning says so (:meth:`JointErrorMap.angle_caveats`).
+
+The parameters of unused slots are not in use (:meth:`JointErrorMap.in_use`: not eligible, no
+Jacobian column), so a model without a map costs nothing.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from .base import ConstGroup, Effect, ParamGroup, register
+
+#: Components of a joint's error motion (DH row entries) and their SI units.
+MAP_COMPONENTS = ("theta", "d", "a", "alpha", "beta")
+MAP_UNITS = ("rad", "m", "m", "rad", "rad")
+N_COMP = len(MAP_COMPONENTS)
+#: Fourier terms (slots) per joint and component.
+MAP_SLOTS = 6
+#: Default range bound (no clipping), rad.
+MAP_RANGE_OPEN_RAD = 1.0e3
+#: The constant blocks an identified model carries for its maps.
+MAP_CONST_KEYS = ("error_map.freq", "error_map.range")
+#: Typical magnitude of a map coefficient, rad or m (10 urad, 10 um).
+MAP_COEF_SCALE = 1e-5
+#: Shape of the coefficient block ``error_map.c`` and of ``error_map.freq`` (joint, component, slot).
+COEF_SHAPE = (6, N_COMP, MAP_SLOTS, 2)
+FREQ_SHAPE = (6, N_COMP, MAP_SLOTS)
+
+
+def _labels() -> tuple[str, ...]:
+    return tuple(f"error_map.q{j + 1}.{c}.s{s + 1}.{f}" for j in range(6) for c in MAP_COMPONENTS
+                 for s in range(MAP_SLOTS) for f in ("cos", "sin"))
+
+
+def slot_index(j: int, c: int, s: int) -> tuple[int, int]:
+    """Offsets of the cos and sin coefficients of joint ``j``, component ``c``, slot ``s`` (0-based)
+    in ``error_map.c``."""
+    k = 2 * ((N_COMP * j + c) * MAP_SLOTS + s)
+    return k, k + 1
+
+
+def map_values(coef: np.ndarray, freq: np.ndarray, rng: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The maps ``e_cj(q_j)`` at commanded angles ``q`` (N, 6) rad: (N, 6, N_COMP) in the
+    components' units (numeric twin of the hook).
+
+    ``coef`` (prod(COEF_SHAPE),), ``freq`` (prod(FREQ_SHAPE),) cycles/rev, ``rng`` (12,) rad."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    c = np.asarray(coef, dtype=float).reshape(COEF_SHAPE)
+    f = np.asarray(freq, dtype=float).reshape(FREQ_SHAPE)
+    r = np.asarray(rng, dtype=float).reshape(6, 2)
+    out = np.zeros((len(q), 6, N_COMP))
+    for j in range(6):
+        qj = np.clip(q[:, j], r[j, 0], r[j, 1])
+        for k in range(N_COMP):
+            for s in range(MAP_SLOTS):
+                if f[j, k, s] > 0:
+                    out[:, j, k] += (c[j, k, s, 0] * np.cos(f[j, k, s] * qj)
+                                     + c[j, k, s, 1] * np.sin(f[j, k, s] * qj))
+    return out
+
+
+@register
+class JointErrorMap(Effect):
+    name = "joint_error_map"
+    order = 12
+    groups = (ParamGroup("error_map.c", _labels(),
+                         tuple(u for _j in range(6) for u in MAP_UNITS for _s in range(2 * MAP_SLOTS)),
+                         scale=MAP_COEF_SCALE),)
+    constants = (
+        ConstGroup("error_map.freq", int(np.prod(FREQ_SHAPE)), 0.0,
+                   "frequency of each slot (joint, component, slot; row-major), cycles per revolution; 0: unused"),
+        ConstGroup("error_map.range", 12, lambda r: np.tile([-MAP_RANGE_OPEN_RAD, MAP_RANGE_OPEN_RAD], 6),
+                   "angle range of each joint's map (6 x [lo, hi]), rad: held constant beyond it"),
+    )
+    formula = ("per-joint angle error maps: DH entry c of joint j (theta, d, a, alpha, beta) += sum_s a cos(f q_c,j) "
+               "+ b sin(f q_c,j), harmonics f (cycles/rev) chosen by a cross-validated spectrum search with a "
+               "family-wise test, q_c,j clipped to the range the data covered")
+    simulation = "eccentricity"
+
+    def in_use(self, const: Any) -> dict[str, np.ndarray]:
+        """The coefficients of slots with a frequency."""
+        return {"error_map.c": np.repeat(np.asarray(const("error_map.freq")).reshape(-1) != 0, 2)}
+
+    def joints_acting(self, param: Any) -> np.ndarray:
+        return np.any(np.asarray(param("error_map.c")).reshape(6, -1) != 0.0, axis=1)
+
+    def geometry(self, ctx: Any, dh: dict[str, Any]) -> dict[str, Any]:
+        if ctx.qc is None:
+            return dh
+        c, f, rng = ctx.p("error_map.c"), ctx.c("error_map.freq"), ctx.c("error_map.range")
+        used = self._slots_used(ctx, c, f)
+        if not used.any():
+            return dh
+        out = dict(dh)
+        for k, comp in enumerate(MAP_COMPONENTS):
+            if not used[:, k].any():
+                continue
+            terms = []
+            for j in range(6):
+                acc: Any = 0
+                if used[j, k].any():
+                    qj = ca.fmin(ca.fmax(ctx.qc[j], rng[2 * j]), rng[2 * j + 1])
+                    for s in np.flatnonzero(used[j, k]):
+                        kc, ks = slot_index(j, k, int(s))
+                        fs = f[(N_COMP * j + k) * MAP_SLOTS + int(s)]
+                        acc = acc + c[kc] * ca.cos(fs * qj) + c[ks] * ca.sin(fs * qj)
+                terms.append(acc)
+            key = "theta_offset" if comp == "theta" else comp
+            out[key] = dh[key] + ca.vertcat(*terms)
+        return out
+
+    @staticmethod
+    def _slots_used(ctx: Any, c: Any, f: Any) -> np.ndarray:
+        """Slots (6, N_COMP, MAP_SLOTS) that enter the graph: with fixed numbers (planning) those with a
+        frequency and a nonzero coefficient; with symbols (identification) the eligible ones."""
+        cs, fsx = ca.SX(c), ca.SX(f)
+        if cs.is_constant() and fsx.is_constant():
+            cv = np.asarray(ca.DM(cs)).reshape(COEF_SHAPE)
+            fv = np.asarray(ca.DM(fsx)).reshape(FREQ_SHAPE)
+            return (fv != 0) & np.any(cv != 0, axis=3)
+        el = np.asarray(ctx.eligible_of("error_map.c"), dtype=bool).reshape(COEF_SHAPE)
+        return np.any(el, axis=3)
+
+    def angle_caveats(self, param: Any, const: Any, q: np.ndarray) -> list[str]:
+        """Joints whose commanded angle leaves the map's range (one line each)."""
+        acting = self.joints_acting(param)
+        rng = np.asarray(const("error_map.range")).reshape(6, 2)
+        out = []
+        for j in np.flatnonzero(acting):
+            lo, hi = rng[j]
+            bad = (q[:, j] < lo) | (q[:, j] > hi)
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                out.append(f"joint {j + 1}: commanded angle {np.degrees(q[k, j]):.4g} deg at waypoint {k} is outside the "
+                           f"range its error map was identified on ({np.degrees(lo):.4g} .. {np.degrees(hi):.4g} deg, "
+                           f"{int(bad.sum())} waypoint(s)): the map is held at its end value there, not extrapolated")
+        return out
