@@ -618,6 +618,19 @@ def _fmt(v: Any, nd: int = 4) -> str:
     return str(v)
 
 
+def _setup_note(rep: dict[str, Any]) -> str:
+    """What was known of the measurement set-up and what was identified."""
+    known = (rep.get("identifiability") or {}).get("known")
+    if known is None:
+        known = "registration and measured point" if rep["data"]["registered"] else "nothing"
+    if known == "registration and measured point":
+        return "registered: the measurement frame is the base frame and the measured point the TCP"
+    if known == "nothing":
+        return "unregistered: the registration and the measured point are identified too"
+    other = "measured point" if known == "registration" else "registration"
+    return f"{known} declared known (held); the {other} is identified"
+
+
 def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(quantity, value, note) rows of the headline table."""
     h = rep.get("headline") or _headline(rep)
@@ -634,11 +647,16 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
             ("effects added (in order)", ", ".join(h["effects_added"]) or "none", ""),
             ("structure left in the residual", _structure_value(rep),
              "as the status says" if structure_sentence(rep) == str(h["reason"]) else structure_sentence(rep)),
-            ("data", f"{d['n_rows']} rows, {d['n_poses']} poses",
-             "registered: the measurement frame is the base frame and the measured point the TCP"
-             if d["registered"] else "unregistered: the registration and the measured point are identified too"),
+            ("data", f"{d['n_rows']} rows, {d['n_poses']} poses", _setup_note(rep)),
             ("compensation check", "re-measured" if rep.get("compensation_check") else "not run",
              str(h["compensation"]))]
+    ori = (rep.get("identifiability") or {}).get("orientation")
+    if ori:
+        gained = ori.get("identifiable_thanks_to_orientation") or []
+        rows.insert(3, ("orientation residual per axis, before → after (in-sample)",
+                        f"{_fmt(ori['rms_before_rad'] * 1e6)} → {_fmt(ori['rms_after_rad'] * 1e6)} µrad",
+                        f"{ori['n_rows']} orientation rows (rx, ry, rz); identifiable only thanks to them: "
+                        + (", ".join(gained) if gained else "none")))
     maps = rep.get("error_maps") or []
     if maps:
         top = max(maps, key=lambda m: m["rms_tcp_um"] or 0.0)

@@ -30,6 +30,11 @@ if TYPE_CHECKING:  # pragma: no cover
     from .lsq import _Fit
 
 
+def _np(x: ca.DM) -> np.ndarray:
+    """A CasADi DM as a dense NumPy array (``DM.full``: about twice as fast as ``np.asarray``)."""
+    return x.full() if isinstance(x, ca.DM) else np.asarray(x)
+
+
 class Evaluator:
     """Evaluate the model over many rows (CasADi ``map`` with threads), cached per size.
 
@@ -81,7 +86,7 @@ class Evaluator:
         """
         n = len(rows)
         p, q = self._map("measure", n)(rows.T, theta, const)
-        return np.asarray(p).T, np.asarray(q).T
+        return _np(p).T, _np(q).T
 
     def jacobian(self, rows: np.ndarray, q_eq: np.ndarray, theta: np.ndarray,
                  const: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -97,12 +102,12 @@ class Evaluator:
         n = len(rows)
         p, J = self._map("measure_jac", n)(rows.T, q_eq.T, theta, const)
         ne = len(self.eligible_idx)
-        Je = np.asarray(J).reshape(3, n, ne).transpose(1, 0, 2).reshape(3 * n, ne)
+        Je = _np(J).reshape(3, n, ne).transpose(1, 0, 2).reshape(3 * n, ne)
         if ne == N_PARAMS:
-            return np.asarray(p).T, Je
+            return _np(p).T, Je
         Jf = np.zeros((3 * n, N_PARAMS))
         Jf[:, self.eligible_idx] = Je
-        return np.asarray(p).T, Jf
+        return _np(p).T, Jf
 
     def call(self, name: str, *args: np.ndarray) -> list[np.ndarray]:
         """Evaluate a per-row function over rows; 2-D args are (N, k), 1-D are broadcast.
@@ -112,7 +117,7 @@ class Evaluator:
         ins = [a.T if a.ndim == 2 else a for a in args]
         out = self._map(name, n)(*ins)
         out = out if isinstance(out, (list, tuple)) else [out]
-        return [np.asarray(o) for o in out]
+        return [_np(o) for o in out]
 
 
 _EVALUATORS: dict[tuple, Evaluator] = {}

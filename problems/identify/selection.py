@@ -51,6 +51,12 @@ F_TEST_ALPHA = 1e-3
 MIN_EXPLAINED_SHARE = 0.30
 #: Candidates refined with a full nonlinear fit after the linearised ranking.
 REFINE_TOP = 2
+#: A runner-up is refined only when its linearised CV RMS is within this relative margin of the best
+#: (a full fit can reorder close candidates, not distant ones).
+REFINE_MARGIN = 0.10
+#: Levenberg-Marquardt iterations of a candidate's refinement (a ranking: the accepted candidate is
+#: refitted to convergence).
+REFINE_MAX_ITER = 12
 #: Among refined candidates, one with fewer parameters whose CV RMS is within this
 #: relative margin of the best is preferred (parsimony).
 PARSIMONY_REL_TOL = 0.02
@@ -461,7 +467,8 @@ def _refine(run: _Run, st: _State, prelim: Sequence[CandidateScore], score_m: _S
     """Full nonlinear fit of the best :data:`REFINE_TOP` candidates (and of ``gravity``
     when its linearisation is visibly off); their records are re-scored in place."""
     ranked = sorted(prelim, key=lambda c: c.cv_rms_m)
-    to_refine = [c for c in ranked[:REFINE_TOP] if c.cv_rms_m < score_m.cv_rms_m]
+    to_refine = [c for c in ranked[:REFINE_TOP] if c.cv_rms_m < score_m.cv_rms_m
+                 and c.cv_rms_m <= ranked[0].cv_rms_m * (1 + REFINE_MARGIN)]
     # gravity switches on at the file's masses: when its linearisation is visibly
     # off (worse in-sample than the current model) it is refined anyway
     to_refine += [c for c in ranked if c.effect == "gravity" and c not in to_refine
@@ -471,7 +478,8 @@ def _refine(run: _Run, st: _State, prelim: Sequence[CandidateScore], score_m: _S
         e = cs.effect
         run.tick(f"step {st.step_idx}: fitting {e}", min(3 + st.step_idx, run.total_steps), run.total_steps)
         prob_e, th_e = st.pending[e]
-        f_e = _fit_model(prob_e, th_e, st.active + [e], run.registered, st.fit.inliers, robust=False)
+        f_e = _fit_model(prob_e, th_e, st.active + [e], run.registered, st.fit.inliers, robust=False,
+                         max_iter=REFINE_MAX_ITER)
         sc_e, free_e = run.score(prob_e, f_e, st.active + [e])
         cs2 = _candidate_score(e, sc_e, score_m, run.sigma_w, len([i for i in free_e if i not in free_m]))
         cs.cv_rms_m, cs.rms_m, cs.bic, cs.delta_bic = cs2.cv_rms_m, cs2.rms_m, cs2.bic, cs2.delta_bic
