@@ -125,6 +125,9 @@ def test_map_beyond_its_angle_range_is_a_caveat(map_case) -> None:
     msgs = [c for c in res.model.caveats(q, np.zeros(6)) if "error map" in c]
     assert len(msgs) == 1 and f"joint {j + 1}" in msgs[0] and "2 waypoint(s)" in msgs[0], msgs
     assert not [c for c in res.model.caveats(q[:1], np.zeros(6)) if "error map" in c]
+    # the map does not depend on torque: no torque-range caveat names it, whatever the load
+    heavy = np.array([0.0, 0.0, -400.0, 0.0, 0.0, 0.0])
+    assert not [c for c in res.model.caveats(q, heavy) if "joint_error_map" in c]
 
 
 # ----------------------------------------------------------------------------------
@@ -227,3 +230,14 @@ def test_unknown_known_part_is_refused() -> None:
     vr = VirtualRobot(load_robot("ur5"), _config({}, False), seed=6)
     with pytest.raises(Exception, match="known part"):
         identify(load_robot("ur5"), vr.campaign(), known=["tool"])
+
+
+def test_map_components_are_checked_and_runout_is_searched_on_request() -> None:
+    vr = VirtualRobot(load_robot("ur5"), _config(MAP_EFFECTS, True, poses=60), seed=21)
+    m = vr.campaign()
+    with pytest.raises(Exception, match="map component"):
+        identify(load_robot("ur5"), m, registered=True, map_components=["wobble"])
+    res = identify(load_robot("ur5"), m, registered=True, map_components=["theta", "d", "a"],
+                   candidates=["joint_error_map"])
+    assert res.effects_added == ["joint_error_map"]
+    assert {(e.joint, e.component) for e in res.error_maps} >= {(1, "theta")}

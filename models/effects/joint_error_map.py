@@ -103,7 +103,10 @@ class JointErrorMap(Effect):
         """The coefficients of slots with a frequency."""
         return {"error_map.c": np.repeat(np.asarray(const("error_map.freq")).reshape(-1) != 0, 2)}
 
-    def joints_acting(self, param: Any) -> np.ndarray:
+    @staticmethod
+    def joints_with_map(param: Any) -> np.ndarray:
+        """Joints (bool, (6,)) whose map has a nonzero term (not ``joints_acting``: the map does not
+        depend on torque, so the torque range of the data does not limit it; its angle range does)."""
         return np.any(np.asarray(param("error_map.c")).reshape(6, -1) != 0.0, axis=1)
 
     def geometry(self, ctx: Any, dh: dict[str, Any]) -> dict[str, Any]:
@@ -145,7 +148,7 @@ class JointErrorMap(Effect):
 
     def angle_caveats(self, param: Any, const: Any, q: np.ndarray) -> list[str]:
         """Joints whose commanded angle leaves the map's range (one line each)."""
-        acting = self.joints_acting(param)
+        acting = self.joints_with_map(param)
         rng = np.asarray(const("error_map.range")).reshape(6, 2)
         out = []
         for j in np.flatnonzero(acting):

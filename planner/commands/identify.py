@@ -116,6 +116,17 @@ def _known(text: str) -> tuple[str, ...]:
     return tuple(KNOWN_WORDS[w] for w in words)
 
 
+def _map_components(text: str) -> tuple[str, ...]:
+    """``--map-components`` value: comma-separated components of a joint error map."""
+    from models.effects.joint_error_map import MAP_COMPONENTS
+    words = [w.strip() for w in text.split(",") if w.strip()]
+    bad = [w for w in words if w not in MAP_COMPONENTS]
+    if not words or bad:
+        raise argparse.ArgumentTypeError(f"got {text!r}; expected a comma-separated list of "
+                                         f"{', '.join(MAP_COMPONENTS)}")
+    return tuple(words)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the sub-commands of this module."""
     p = sub.add_parser("identify", help="identify the model from measurements and report before/after",
@@ -133,6 +144,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(measurement frame = base frame, e.g. a tracker base calibration) and/or 'measured-point' "
                         "(measured point, and frame with orientation data, = the robot file's TCP, e.g. a tool "
                         "calibration); both = --registered")
+    p.add_argument("--map-components", type=_map_components, default=("theta",),
+                   help="components of the joint error maps the search proposes, comma-separated from "
+                        "theta (angular error; the default), d (axial), a (radial), alpha, beta (tilts): runout "
+                        "and wobble are searched only on request, because from position data their signatures "
+                        "can absorb structure of other origins")
     p.add_argument("--candidates", default=None,
                    help="comma-separated library effects the selection may add (default: all; 'none')")
     p.add_argument("--include", default=None,
@@ -241,7 +257,7 @@ def run_identify(args: argparse.Namespace) -> int:
     try:
         res = identify(robot, data, registered=args.registered, candidates=_effects_arg(args.candidates),
                        include=_effects_arg(args.include) or [], folds=args.folds or CV_FOLDS, progress=bar,
-                       known=args.known)
+                       known=args.known, map_components=args.map_components)
     finally:
         bar.close()
     if val is not None:

@@ -29,7 +29,7 @@ import numpy as np
 from models import effects as fx
 from models.effects import (GROUP_SLICES, LIBRARY, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_const,
                             make_layout, set_const)
-from models.effects.joint_error_map import MAP_CONST_KEYS
+from models.effects.joint_error_map import MAP_COMPONENTS, MAP_CONST_KEYS
 from models.errors import InputError
 from models.plausibility import (GEOMETRY_GROUPS, IMPLAUSIBLE_ANGLE_ERROR_RAD,  # noqa: F401
                                  IMPLAUSIBLE_LENGTH_ERROR_M, implausible_geometry)
@@ -57,6 +57,7 @@ from .results import (
 from .selection import (
     CV_FOLDS,
     MAP_CHANNEL_GROUPS,
+    MAP_SEARCH_COMPONENTS,
     _assign_folds,
     _candidate_applicable,
     _linear_scores,
@@ -311,7 +312,8 @@ def _final_fit(run: _Run, st: _State) -> None:
 def identify(robot: Robot, data: Measurements, registered: bool = False,
              candidates: Sequence[str] | None = None, include: Sequence[str] = (),
              folds: int = CV_FOLDS, progress: Progress | None = None,
-             max_steps: int = 12, known: Sequence[str] = ()) -> IdentificationResult:
+             max_steps: int = 12, known: Sequence[str] = (),
+             map_components: Sequence[str] = MAP_SEARCH_COMPONENTS) -> IdentificationResult:
     """Identify the declared model and select effects from the library.
 
     Parameters
@@ -327,6 +329,9 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
         Parts of the set-up declared known and held, ``"registration"`` (measurement frame =
         base frame) and/or ``"measured_point"`` (measured point, and frame with orientation
         data, = the robot file's TCP); both together are ``registered``.
+    map_components : sequence of str
+        Components of the joint error maps the search proposes (``theta``, ``d``, ``a``, ``alpha``,
+        ``beta``; default the angular error only, see ``docs/identification.md`` section 4a).
     candidates : sequence of str, optional
         Library effects the selection may add (default: all, ``outliers`` included).
     include : sequence of str
@@ -359,6 +364,10 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     if m.p is None:
         raise DataError(f"{m.source}: no measured positions (columns x, y, z) to identify from")
     cand, inc, robust = _effect_lists(candidates, include)
+    bad_comp = [c for c in map_components if c not in MAP_COMPONENTS]
+    if bad_comp or not map_components:
+        raise InputError(f"map component(s) {bad_comp or list(map_components)}: expected one or more of "
+                         f"{list(MAP_COMPONENTS)}")
     bad_known = [k for k in known if k not in KNOWN_PARTS]
     if bad_known:
         raise InputError(f"known part(s) {bad_known}: expected any of {list(KNOWN_PARTS)}")
@@ -388,7 +397,8 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     score_b = _linear_scores(prob, s.fit_b.J, s.fit_b.pred, fit.inliers, np.asarray(s.order_b, dtype=int))
     run = _Run(robot=robot, layout=prob.layout, registered=registered, robust=robust, include=list(inc),
                cand=cand, applicable=applicable, sigma_noise=sigma_noise, sigma_w=sigma_w, sat_clean=sat_clean,
-               mask_sel=mask_sel, max_steps=max_steps, tick=tick, total_steps=s.total_steps)
+               mask_sel=mask_sel, max_steps=max_steps, tick=tick, total_steps=s.total_steps,
+               map_components=tuple(map_components))
     st = _State(prob=prob, fit=fit, active=list(inc))
     forward_selection(run, st)
     backward_pass(run, st)
@@ -579,7 +589,9 @@ def _orientation_gain(prob: _Problem, fit: _Fit, order: Sequence[int]) -> list[s
     kept_all, _h = select_identifiable(_wjac(prob, fit.J, fit.inliers, np.asarray(order, dtype=int)), order, sig)
     pos_only = fit.inliers & prob.pos
     kept_pos, _h2 = select_identifiable(_wjac(prob, fit.J, pos_only, np.asarray(order, dtype=int)), order, sig)
-    return [PARAM_NAMES[i] for i in kept_all if i not in set(kept_pos)]
+    own = set(range(GROUP_SLICES["tool.r"].start, GROUP_SLICES["tool.r"].stop))
+    # the measured frame's own rotation exists only with orientation data: not a gain
+    return [PARAM_NAMES[i] for i in kept_all if i not in set(kept_pos) and i not in own]
 
 
 def _error_maps(st: _State, cov: np.ndarray | None) -> list[ErrorMapSummary]:

@@ -319,6 +319,8 @@ class _Run:
     tick: Callable[[str, int, int], None]
     total_steps: int
     map_proposals: list[MapProposal | None] = field(default_factory=list)
+    #: Components of the joint error map the search proposes (:data:`MAP_SEARCH_COMPONENTS`).
+    map_components: tuple[str, ...] = MAP_SEARCH_COMPONENTS
 
     def score(self, p: _Problem, f: _Fit, effs: Sequence[str]) -> tuple[_Score, list[int]]:
         """Scores and free parameters of the fit ``f`` of the model with ``effs``."""
@@ -356,7 +358,7 @@ class _Run:
         channels = {}
         for j in range(6):
             for c, group in enumerate(MAP_CHANNEL_GROUPS):
-                if MAP_COMPONENTS[c] not in MAP_SEARCH_COMPONENTS:
+                if MAP_COMPONENTS[c] not in self.map_components:
                     continue
                 i = GROUP_SLICES[group].start + j
                 channels[(j, c)] = (fit.J[np.repeat(mask, 3), i] * w3).reshape(m.n, 3)

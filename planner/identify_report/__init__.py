@@ -1,0 +1,54 @@
+"""Report of ``compplan identify``: ``report.json``, ``report.md`` and ``report.html``.
+
+The JSON holds every figure of the identification (see ``docs/identification.md``,
+section "Report"), opened by a ``headline`` (status, RMS before/after in-sample and
+held-out, noise floor, effects added, the structure left -- "weak structure remains"
+when a significant but small one does -- the joint error maps, and the compensation
+check in one sentence that says what it can and cannot show) and a ``provenance``
+block (compplan version, command line, date, input files with SHA-256).  The
+Markdown and HTML say the same for people, the HTML styled like the plan report
+(headline table first, then the joint error maps when the model has any: a table of
+their harmonics and sizes at the TCP and a figure of each map over its angle range
+with its band) with embedded figures (PNG, base64, matplotlib's Agg canvas, no
+pyplot): the residuals per axis before and after, the cross-validated RMS at each
+selection step, the compensation re-measured on the virtual robot (base and
+measurement frame), and the residual against the diagnostic variables (the one
+that shows unexplained structure first, then the significant ones; joint angles in
+degrees).  Every axis names its unit.
+Files are written through :class:`planner.output.OutputSet` (all or nothing).
+Lengths in the report are in mm (names end in ``_mm``).  Nothing here prints.
+
+Modules (each imports only those listed before it): :mod:`~planner.identify_report.canvas`
+(the Agg canvas and its PNG), :mod:`~planner.identify_report.text` (values and Markdown cells
+as text), :mod:`~planner.identify_report.diagnostics` (which diagnostics are shown, the words
+of their variables), :mod:`~planner.identify_report.data` (``report.json``: report_dict,
+headline, sentences), :mod:`~planner.identify_report.maps` (the joint error maps: table rows,
+Markdown, figure), :mod:`~planner.identify_report.figures` (residual, history, compensation
+and diagnostic figures), :mod:`~planner.identify_report.markdown`,
+:mod:`~planner.identify_report.html`, :mod:`~planner.identify_report.writer` (write_report).
+"""
+
+from __future__ import annotations
+
+from planner.identify_report.canvas import REPORT_DPI, _figure, _png, _rms
+from planner.identify_report.data import (_aliases, _headline, _inputs, _mm, _structure_value, compensation_sentence,
+                                          report_dict, structure_sentence)
+from planner.identify_report.diagnostics import (REPORT_DIAGNOSTIC_PLOTS, REPORT_DIAGNOSTIC_ROWS, VARIABLE_LABELS,
+                                                 VARIABLE_UNITS, _axis_diag, _diag_groups, _is_angle,
+                                                 _shown_diagnostics, _var_name)
+from planner.identify_report.figures import (AXIS_COLOURS, REPORT_ANGLE_BINS_MAX, REPORT_BINS, RESIDUAL_UM_BELOW_M,
+                                             _axes_png, _bin_edges, _compensation_png, _diag_png, _figures,
+                                             _history_png, _length_scale, _residual_png, _scatter_panel, _x_of)
+from planner.identify_report.html import FIGURE_TEXT, _diag_figure_text, _html_table, _md_block, _md_cells, report_html
+from planner.identify_report.maps import (MAP_COMPONENT_WORDS, MAP_TABLE_NOTE, REPORT_MAP_HARMONICS, REPORT_MAP_PANELS,
+                                          _harmonic_freqs, _harmonic_text, _map_name, _map_rows, _maps_drawn,
+                                          _maps_markdown, _maps_png)
+from planner.identify_report.markdown import (_headline_rows, _provenance_rows, _setup_note, _unexplained_markdown,
+                                              report_markdown)
+from planner.identify_report.text import _fmt, _md_cell
+from planner.identify_report.writer import write_report
+
+__all__ = ["AXIS_COLOURS", "FIGURE_TEXT", "MAP_COMPONENT_WORDS", "MAP_TABLE_NOTE", "REPORT_ANGLE_BINS_MAX",
+           "REPORT_BINS", "REPORT_DIAGNOSTIC_PLOTS", "REPORT_DIAGNOSTIC_ROWS", "REPORT_DPI", "REPORT_MAP_HARMONICS",
+           "REPORT_MAP_PANELS", "RESIDUAL_UM_BELOW_M", "VARIABLE_LABELS", "VARIABLE_UNITS", "compensation_sentence",
+           "report_dict", "report_html", "report_markdown", "structure_sentence", "write_report"]

@@ -1,0 +1,114 @@
+"""Measurement files: loading, validation and writing (see ``docs/measurement-file.md``).
+
+A measurement file is a CSV table with one header row and one row per
+measurement, in measurement order.  Lines starting with ``#`` are comments.
+Column names carry their unit as a suffix (``x_mm``, ``q1_deg``, ``fx_N``);
+a plain name is SI (m, rad, N, N*m, s, deg C).  Inside the library everything
+is SI.
+
+Two CSV dialects are read (``dialect``): ``comma`` (``,`` separator, ``.``
+decimal point) and ``semicolon`` (``;`` separator, decimal comma ``1,5``; a
+spreadsheet's or tracker software's export in a German/French locale); ``auto``
+tells them apart by the header line and records that it did in
+:attr:`Measurements.notes`.  Joint columns may carry other names than
+``q1..q6`` (``joint_names``: the ROS preset ``"ros-ur"`` or six names).
+
+Every problem is an :class:`~models.errors.InputError` whose one-line message
+names the file, the row (file line number) or column, the value and what was
+expected; nothing is dropped silently.  The library prints nothing: what it
+decided on its own (a detected dialect, date-times read as times, a joint-name
+mapping) is stored in :attr:`Measurements.notes` for the caller to show.
+
+Modules
+-------
+:mod:`~problems.measurements.columns`
+    Column names and their units, column groups, ``joint_names`` presets, CSV dialects.
+:mod:`~problems.measurements.table`
+    The :class:`Measurements` table and :func:`sigma_rms`.
+:mod:`~problems.measurements.cells`
+    Cells: numbers in either dialect, date-times, the ``t`` column.
+:mod:`~problems.measurements.parse`
+    :func:`read_measurements`, :func:`parse_measurements`: dialect detection, header
+    and joint-name mapping (:func:`resolve_joint_names`), building the table.
+:mod:`~problems.measurements.validation`
+    :func:`validate` and the plausibility limits (``PLAUSIBLE_*``).
+:mod:`~problems.measurements.write`
+    :func:`measurements_to_csv`, :func:`commands_csv`.
+
+Dependencies run one way: ``columns`` and ``table`` and ``cells`` import nothing of
+the package; ``validation`` and ``write`` use ``columns`` and ``table``; ``parse``
+uses all but ``write``.
+"""
+
+from __future__ import annotations
+
+from models.constants import PLAUSIBLE_POSITION_MAX_M
+from models.errors import InputError
+
+from .cells import _DATETIME, _NUMBER, _Cells, _parse_datetime, _parse_float, _time_column
+from .columns import (
+    _UNITS,
+    COLUMNS,
+    DIALECT_CHOICES,
+    DIALECTS,
+    IGNORED_PREFIXES,
+    JOINT_NAME_PRESETS,
+    LABEL_COLUMNS,
+    POSITION_COLUMNS,
+    Q_COLUMNS,
+    ROTATION_COLUMNS,
+    SIGMA_ROT_COLUMNS,
+    SIGMA_XYZ_COLUMNS,
+    WRENCH_COLUMNS,
+)
+from .parse import (
+    _OTHER_SEPARATORS,
+    _check_dialect,
+    _check_separator,
+    _detect_dialect,
+    _header_text,
+    _joint_map,
+    _ros_hint,
+    _split_unit,
+    parse_measurements,
+    read_measurements,
+    resolve_joint_names,
+)
+from .table import Measurements, sigma_rms
+from .validation import (
+    _UNIT_HINT,
+    PLAUSIBLE_ANGLE_MAX_RAD,
+    PLAUSIBLE_FORCE_MAX_N,
+    PLAUSIBLE_MOMENT_MAX_NM,
+    PLAUSIBLE_SIGMA_MAX_M,
+    PLAUSIBLE_SIGMA_ROT_MAX_RAD,
+    PLAUSIBLE_TEMPERATURE_C,
+    _first_bad,
+    validate,
+)
+from .write import commands_csv, measurements_to_csv
+
+__all__ = [
+    # the table
+    "Measurements", "sigma_rms",
+    # reading
+    "read_measurements", "parse_measurements", "resolve_joint_names",
+    # checks and their limits
+    "validate", "PLAUSIBLE_ANGLE_MAX_RAD", "PLAUSIBLE_FORCE_MAX_N", "PLAUSIBLE_MOMENT_MAX_NM",
+    "PLAUSIBLE_SIGMA_MAX_M", "PLAUSIBLE_SIGMA_ROT_MAX_RAD", "PLAUSIBLE_TEMPERATURE_C",
+    # writing
+    "measurements_to_csv", "commands_csv",
+    # the format's vocabulary
+    "COLUMNS", "Q_COLUMNS", "WRENCH_COLUMNS", "POSITION_COLUMNS", "ROTATION_COLUMNS", "SIGMA_XYZ_COLUMNS",
+    "SIGMA_ROT_COLUMNS", "LABEL_COLUMNS", "IGNORED_PREFIXES", "DIALECTS", "DIALECT_CHOICES", "JOINT_NAME_PRESETS",
+    # re-exported for code that imported them from here (the single module this package replaces)
+    "InputError", "PLAUSIBLE_POSITION_MAX_M",
+]
+
+#: Private helpers kept importable from here (the single module this package replaces
+#: defined them); not part of the API.
+_COMPAT = (
+    _UNITS, _UNIT_HINT, _NUMBER, _DATETIME, _OTHER_SEPARATORS, _Cells, _parse_float, _parse_datetime,
+    _time_column, _joint_map, _ros_hint, _split_unit, _check_dialect, _check_separator, _header_text,
+    _detect_dialect, _first_bad,
+)

@@ -1,0 +1,398 @@
+"""Reading measurement files: dialects, header and joint-name mapping, the table.
+
+:func:`read_measurements` / :func:`parse_measurements` turn CSV text into a
+validated :class:`~problems.measurements.table.Measurements`; the cells themselves
+are read by :mod:`.cells` and the finished table is checked by :mod:`.validation`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from models.errors import InputError
+
+from .cells import _Cells, _time_column
+from .columns import (
+    _UNITS,
+    COLUMNS,
+    DIALECT_CHOICES,
+    DIALECTS,
+    IGNORED_PREFIXES,
+    JOINT_NAME_PRESETS,
+    LABEL_COLUMNS,
+    POSITION_COLUMNS,
+    Q_COLUMNS,
+    ROTATION_COLUMNS,
+    SIGMA_ROT_COLUMNS,
+    SIGMA_XYZ_COLUMNS,
+    WRENCH_COLUMNS,
+)
+from .table import Measurements, sigma_rms
+from .validation import validate
+
+
+# ----------------------------------------------------------------------------------
+# Options: dialect and joint names
+# ----------------------------------------------------------------------------------
+
+def resolve_joint_names(joint_names: str | Sequence[str] | None, where: str = "joint_names") \
+        -> tuple[str, ...] | None:
+    """The six joint column names of a ``joint_names`` option, or None for ``q1..q6``.
+
+    Parameters
+    ----------
+    joint_names : str, sequence of str or None
+        ``None`` (or ``"none"``): the plain ``q1..q6``.  A preset name of
+        :data:`JOINT_NAME_PRESETS` (``"ros-ur"``), six comma-separated names
+        (``"a,b,c,d,e,f"``) or a sequence of six names: the columns read as
+        ``q1..q6`` in this order.
+    where : str
+        What the option is called, for messages.
+
+    Raises
+    ------
+    InputError
+        Unknown preset, not six names, an empty or repeated name, a name that is
+        another column of the format (``fx``, ``x``, ``t``, ``q3`` for joint 1 ...).
+    """
+    if joint_names is None:
+        return None
+    if isinstance(joint_names, str):
+        spec = joint_names.strip()
+        if spec in ("", "none"):
+            return None
+        if spec in JOINT_NAME_PRESETS:
+            return JOINT_NAME_PRESETS[spec]
+        if "," not in spec:
+            raise InputError(f"{where} {joint_names!r}: expected a preset ({', '.join(JOINT_NAME_PRESETS)}), "
+                             "'none' (q1..q6) or six comma-separated column names (joint 1 to joint 6)")
+        names = [n.strip() for n in spec.split(",")]
+    else:
+        names = [str(n).strip() for n in joint_names]
+    shown = ",".join(names)
+    if len(names) != 6:
+        raise InputError(f"{where} '{shown}': {len(names)} name(s); expected six column names, joint 1 to joint 6 "
+                         f"(or a preset: {', '.join(JOINT_NAME_PRESETS)})")
+    for i, name in enumerate(names):
+        if name == "":
+            raise InputError(f"{where} '{shown}': name {i + 1} is empty; expected six column names")
+        if names.index(name) != i:
+            raise InputError(f"{where} '{shown}': '{name}' is given for joints {names.index(name) + 1} and {i + 1}; "
+                             "expected six different column names")
+        for other in names:
+            if other != name and name.startswith(other) and name[len(other):] in _UNITS["angle"]:
+                raise InputError(f"{where} '{shown}': '{name}' reads as '{other}' with a unit suffix; "
+                                 "expected six column names without unit suffixes (a column may add one)")
+        try:
+            as_column = _split_unit(where, name)[0]
+        except InputError:
+            as_column = None
+        taken = (as_column is not None and not (as_column == Q_COLUMNS[i] and name == Q_COLUMNS[i])) \
+            or any(name.startswith(pfx) for pfx in IGNORED_PREFIXES)
+        if taken:
+            raise InputError(f"{where} '{shown}': '{name}' (joint {i + 1}) is the name of another column of the "
+                             "measurement file format; expected the file's own names of the six joint columns")
+    return tuple(names)
+
+
+def _joint_map(joint_names: tuple[str, ...] | None) -> dict[str, str]:
+    """Joint column name -> ``q<i>`` (empty for the plain names)."""
+    if joint_names is None:
+        return {}
+    return {name: Q_COLUMNS[i] for i, name in enumerate(joint_names)}
+
+
+def _ros_hint(col: str) -> str:
+    """The hint for an unknown column that is a ROS UR joint name."""
+    for preset, names in JOINT_NAME_PRESETS.items():
+        for name in names:
+            if col.startswith(name) and col[len(name):] in _UNITS["angle"]:
+                return (f"; '{name}' is a ROS joint name: read the joint columns with --joint-names {preset} "
+                        f"(joint_names='{preset}': {', '.join(names)} -> q1..q6)")
+    return ""
+
+# ----------------------------------------------------------------------------------
+# Reading
+# ----------------------------------------------------------------------------------
+
+def _split_unit(where: str, col: str, joint_map: dict[str, str] | None = None) -> tuple[str, float]:
+    """Map a column header to (base name, SI factor); raise for unknown names."""
+    if col in LABEL_COLUMNS:
+        return col, 1.0
+    for name, base in (joint_map or {}).items():
+        if col.startswith(name) and col[len(name):] in _UNITS["angle"]:
+            return base, _UNITS["angle"][col[len(name):]]
+    for base, qty in COLUMNS.items():
+        if col.startswith(base):
+            suffix = col[len(base):]
+            if suffix in _UNITS[qty]:
+                return base, _UNITS[qty][suffix]
+    known = ", ".join(list(COLUMNS) + list(LABEL_COLUMNS))
+    hint = _ros_hint(col) if not joint_map else ""
+    raise InputError(f"{where}: unknown column '{col}'{hint}; expected one of {known} "
+                     "(with an optional unit suffix such as _mm, _deg, _N), or a column starting with "
+                     f"{' / '.join(IGNORED_PREFIXES)}")
+
+
+def read_measurements(path: str | Path, require_position: bool = True, require_wrench: bool = True, *,
+                      dialect: str = "auto",
+                      joint_names: str | Sequence[str] | None = None) -> Measurements:
+    """Read and validate a measurement file.
+
+    Parameters
+    ----------
+    path : path
+        CSV file (see ``docs/measurement-file.md``).
+    require_position : bool
+        Whether ``x, y, z`` are required (False for command files of ``predict``
+        and ``compensate``).
+    require_wrench : bool
+        Whether ``fx..mz`` are required (a missing wrench is *not* assumed zero).
+    dialect : {"auto", "comma", "semicolon"}
+        ``comma``: ``,`` separates cells, ``.`` is the decimal point.  ``semicolon``:
+        ``;`` separates cells, numbers have a decimal comma (``1,5``; ``1.5`` is read
+        too, a cell with both ``,`` and ``.`` is an error).  ``auto`` (default): the
+        ``semicolon`` dialect when the header line has ``;`` and no ``,``, an error
+        when it has both, else ``comma``; choosing ``semicolon`` adds a note.
+    joint_names : str, sequence of str or None
+        Columns read as ``q1..q6``: None for ``q1..q6`` themselves, ``"ros-ur"`` for
+        ``shoulder_pan_joint, shoulder_lift_joint, elbow_joint, wrist_1_joint,
+        wrist_2_joint, wrist_3_joint`` (rad; ``_deg`` suffix allowed), or six names
+        (a sequence or one comma-separated string).  See :func:`resolve_joint_names`.
+
+    Returns
+    -------
+    Measurements
+        SI units; :attr:`Measurements.notes` lists what was detected or mapped.
+
+    Raises
+    ------
+    InputError
+        Missing or duplicated columns, non-numeric, empty, NaN or infinite cells,
+        implausible magnitudes (the message suggests the unit), duplicated rows,
+        time running backwards, a separator other than the dialect's, an ambiguous
+        header under ``auto``, a bad ``dialect`` or ``joint_names``.
+    """
+    from models.robot import read_text_file
+
+    p = Path(path)
+    _check_dialect(dialect)
+    names = resolve_joint_names(joint_names)
+    text = read_text_file(p, "measurement file (CSV)")
+    return parse_measurements(text, str(p), require_position, require_wrench, dialect=dialect,
+                              joint_names=names)
+
+
+#: Separators a spreadsheet may have written instead of the dialect's (name for the message).
+_OTHER_SEPARATORS = {",": "','", ";": "';'", "\t": "tab", "|": "'|'"}
+
+
+def _check_dialect(dialect: str) -> None:
+    if dialect not in DIALECT_CHOICES:
+        raise InputError(f"CSV dialect {dialect!r}: expected one of {', '.join(DIALECT_CHOICES)}")
+
+
+def _check_separator(where: str, header_line: int, header: list[str], dialect: str = "comma") -> None:
+    """Refuse a header that is one cell holding another separator (``;`` from a spreadsheet
+    with a decimal comma, tabs): the message names the separator and the way out."""
+    if len(header) > 2:
+        return
+    sep_ok = DIALECTS[dialect][0]
+    joined = sep_ok.join(header)
+    for sep, name in _OTHER_SEPARATORS.items():
+        if sep == sep_ok:
+            continue
+        if joined.count(sep) >= 2:
+            shown = joined[:60].replace("\t", "\\t")
+            if sep == ";":
+                way = ("use ',' as the separator (and '.' as the decimal point), e.g. export as "
+                       "'CSV (comma delimited)', or read the file as it is with --csv-dialect semicolon "
+                       "(or auto)")
+            elif sep == ",":
+                way = "read it with --csv-dialect comma (or auto), or export it with ';' as the separator"
+            else:
+                way = (f"use '{sep_ok}' as the separator, e.g. export as 'CSV (comma delimited)'"
+                       if sep_ok == "," else f"use '{sep_ok}' as the separator")
+            raise InputError(f"{where}: line {header_line}: the header '{shown}' looks {name}-separated, but the "
+                             f"file is read as the {dialect} dialect ('{sep_ok}'-separated); {way}")
+
+
+def _header_text(lines: list[str]) -> tuple[int, str] | None:
+    """(line number, text) of the first line that is neither empty nor a comment."""
+    for i, ln in enumerate(lines, start=1):
+        s = ln.strip()
+        if not s or s.startswith("#") or s.startswith('"#'):
+            continue
+        return i, ln
+    return None
+
+
+def _detect_dialect(where: str, lines: list[str]) -> str:
+    """``semicolon`` when the header line has ';' and no ',', an error when it has both, else ``comma``."""
+    head = _header_text(lines)
+    if head is None:
+        return "comma"
+    ln, text = head
+    if ";" in text and "," in text:
+        raise InputError(f"{where}: line {ln}: the header has both ',' and ';', so the separator cannot be told "
+                         "apart; declare the dialect (--csv-dialect comma or --csv-dialect semicolon)")
+    return "semicolon" if ";" in text else "comma"
+
+
+def parse_measurements(text: str, where: str = "<text>", require_position: bool = True,
+                       require_wrench: bool = True, *, dialect: str = "auto",
+                       joint_names: str | Sequence[str] | None = None) -> Measurements:
+    """Parse measurement-file text; see :func:`read_measurements` (same parameters;
+    ``where`` names the text in messages and notes)."""
+    _check_dialect(dialect)
+    names = resolve_joint_names(joint_names)
+    jmap = _joint_map(names)
+    lines = text.splitlines()
+    notes: list[str] = []
+    detected = dialect == "auto"
+    if detected:
+        dialect = _detect_dialect(where, lines)
+    sep, decimal_comma = DIALECTS[dialect]
+    cells_parser = _Cells(where, decimal_comma)
+    table: list[tuple[int, list[str]]] = []
+    reader = csv.reader(io.StringIO("\n".join(lines)), delimiter=sep)
+    for lineno, cells in enumerate(reader, start=1):
+        if not cells or (len(cells) == 1 and cells[0].strip() == ""):
+            continue
+        if cells[0].lstrip().startswith("#"):
+            continue
+        table.append((lineno, [c.strip() for c in cells]))
+    if not table:
+        raise InputError(f"{where}: empty file; expected a header row and measurement rows")
+    header_line, header = table[0]
+    _check_separator(where, header_line, header, dialect)
+    rows = table[1:]
+    if not rows:
+        raise InputError(f"{where}: no measurement rows after the header (line {header_line})")
+    # map columns
+    colmap: dict[str, tuple[int, str, float]] = {}
+    ignored: list[str] = []
+    unmapped_q: list[str] = []          # q1..q6 columns when joint_names names the joint columns
+    for k, col in enumerate(header):
+        if col == "":
+            raise InputError(f"{where}: line {header_line}: column {k + 1} has an empty name")
+        if any(col.startswith(pfx) for pfx in IGNORED_PREFIXES):
+            ignored.append(col)
+            continue
+        base, factor = _split_unit(where, col, jmap)
+        if jmap and base in Q_COLUMNS and not any(col.startswith(n) and col[len(n):] in _UNITS["angle"]
+                                                  for n in jmap):
+            unmapped_q.append(col)
+            continue
+        if base in colmap:
+            other = colmap[base][1]
+            raise InputError(f"{where}: column '{base}' is given twice ('{other}' and '{col}'); "
+                             "keep exactly one (with its unit suffix)")
+        colmap[base] = (k, col, factor)
+    required = list(Q_COLUMNS) + (list(WRENCH_COLUMNS) if require_wrench else []) \
+        + (list(POSITION_COLUMNS) if require_position else [])
+    missing = [c for c in required if c not in colmap]
+    if missing:
+        qname = {q: n for n, q in jmap.items()}
+        shown = ", ".join(qname.get(c, c) for c in missing)
+        via = (f" (joint columns named by joint_names / --joint-names: {', '.join(names or ())})"
+               if any(c in qname for c in missing) else "")
+        also = (f"; the file has {', '.join(unmapped_q)}: to read those, leave the joint names at q1..q6"
+                if unmapped_q else "")
+        raise InputError(f"{where}: missing required column(s) {shown}{via} "
+                         f"(header on line {header_line}: {', '.join(header)}){also}")
+    if unmapped_q:
+        raise InputError(f"{where}: column(s) {', '.join(unmapped_q)} besides the joint columns named by "
+                         f"joint_names / --joint-names ({', '.join(colmap[q][1] for q in Q_COLUMNS)}); "
+                         "keep one set of joint columns")
+    for grp in (WRENCH_COLUMNS, POSITION_COLUMNS, ROTATION_COLUMNS, SIGMA_XYZ_COLUMNS, SIGMA_ROT_COLUMNS):
+        have = [c for c in grp if c in colmap]
+        if have and len(have) != len(grp):
+            raise InputError(f"{where}: columns {', '.join(grp)} go together; found only "
+                             f"{', '.join(colmap[c][1] for c in have)}")
+    for single, per_axis, what in (("sigma", "sigma_x", "position"), ("sigma_r", "sigma_rx", "orientation")):
+        if single in colmap and per_axis in colmap:
+            grp = SIGMA_XYZ_COLUMNS if single == "sigma" else SIGMA_ROT_COLUMNS
+            raise InputError(f"{where}: columns '{colmap[single][1]}' and '{colmap[per_axis][1]}' are both given; "
+                             f"give either '{single}' (one {what} standard deviation for every axis) or "
+                             f"{', '.join(grp)} (per axis), not both")
+    rot_sigma = [colmap[c][1] for c in ("sigma_r", *SIGMA_ROT_COLUMNS) if c in colmap]
+    if rot_sigma and "rx" not in colmap:
+        raise InputError(f"{where}: column(s) {', '.join(rot_sigma)} (orientation standard deviation) need the "
+                         "measured orientation rx, ry, rz, which the file does not have")
+    ncol = len(header)
+    for lineno, cells in rows:
+        if len(cells) != ncol:
+            hint = ""
+            if not decimal_comma and len(cells) > ncol \
+                    and any(c.isdigit() and c.lstrip("-").isdigit() for c in cells):
+                hint = "; a decimal comma (0,40)? write numbers with '.' (0.40)"
+            raise InputError(f"{where}: line {lineno}: {len(cells)} cells, expected {ncol} (as the header){hint}")
+
+    def column(base: str) -> np.ndarray:
+        k, col, factor = colmap[base]
+        return np.array([cells_parser.number(ln, col, cells[k]) for ln, cells in rows]) * factor
+
+    line = np.array([ln for ln, _c in rows], dtype=int)
+    units = {col: factor for (_k, col, factor) in colmap.values()}
+    q = np.column_stack([column(c) for c in Q_COLUMNS])
+    wrench = (np.column_stack([column(c) for c in WRENCH_COLUMNS]) if "fx" in colmap
+              else np.zeros((len(rows), 6)))
+    pos = np.column_stack([column(c) for c in POSITION_COLUMNS]) if "x" in colmap else None
+    rot = np.column_stack([column(c) for c in ROTATION_COLUMNS]) if "rx" in colmap else None
+    t = t_origin = None
+    if "t" in colmap:
+        k, col, factor = colmap["t"]
+        t, t_origin = _time_column(where, rows, k, col, factor, cells_parser)
+    temp = column("temperature") if "temperature" in colmap else None
+    sigma = column("sigma") if "sigma" in colmap else None
+    sigma_xyz = (np.column_stack([column(c) for c in SIGMA_XYZ_COLUMNS]) if "sigma_x" in colmap
+                 else None)
+    if sigma_xyz is not None:
+        sigma = sigma_rms(sigma_xyz)
+    sigma_rot = None
+    if "sigma_rx" in colmap:
+        sigma_rot = np.column_stack([column(c) for c in SIGMA_ROT_COLUMNS])
+    elif "sigma_r" in colmap:
+        sigma_rot = np.repeat(column("sigma_r")[:, None], 3, axis=1)
+    point = None
+    if "point" in colmap:
+        k = colmap["point"][0]
+        point = np.array([cells[k] for _ln, cells in rows], dtype=object)
+        for ln, cells in rows:
+            if cells[k] == "":
+                raise InputError(f"{where}: line {ln}, column 'point': empty cell; expected a pose id")
+        point = point.astype(str)
+    # what was decided without the user saying so
+    if detected and dialect == "semicolon":
+        extra = ""
+        if cells_parser.n_point:
+            extra = (f"; {cells_parser.n_point} cell(s) written with a decimal point (e.g. 1.5) were read with "
+                     "'.' as the decimal point too")
+        notes.append(f"{where}: read as ';'-separated with decimal commas (detected from the header line; "
+                     f"declare --csv-dialect to fix it){extra}")
+    elif decimal_comma and cells_parser.n_point and cells_parser.n_comma:
+        notes.append(f"{where}: {cells_parser.n_comma} cell(s) have a decimal comma and {cells_parser.n_point} a "
+                     "decimal point; both were read as the decimal separator")
+    if t_origin is not None:
+        zone = ("" if t_origin.tzinfo is not None
+                else "; no time zone given: local clock times are taken as they are (a daylight-saving change "
+                     "inside the file would shift them by 1 h)")
+        notes.append(f"{where}: column 't' read as date-times: t = seconds since this file's first row "
+                     f"(line {int(line[0])}, {t_origin.isoformat()}){zone}")
+    if names is not None:
+        preset = next((p for p, v in JOINT_NAME_PRESETS.items() if v == names), None)
+        how = f"preset '{preset}'" if preset else "joint names given"
+        mapping = ", ".join(f"{colmap[q][1]} = {q}" for q in Q_COLUMNS)
+        notes.append(f"{where}: joint columns read as q1..q6 ({how}): {mapping}")
+    m = Measurements(q=q, wrench=wrench, p=pos, t=t, point=point, rotation=rot, temperature=temp,
+                     sigma=sigma, line=line, source=where, units=units, sigma_xyz=sigma_xyz, sigma_rot=sigma_rot,
+                     notes=notes, columns={base: col for base, (_k, col, _f) in colmap.items()},
+                     t_origin=t_origin)
+    validate(m, colmap, _plain=frozenset(c for c in header if c in COLUMNS or c in jmap))
+    return m
