@@ -330,7 +330,46 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
     if not prop.terms:
         return None
     _backfit(prop, chans, grids, res, q, r0, Q, rss / max(3 * n - k_free - Z.shape[1], 1))
-    return prop
+    _prune(prop, chans, q, r0, Q, alpha)
+    return prop if prop.terms else None
+
+
+def _prune(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], q: np.ndarray, r0: np.ndarray,
+           Q: np.ndarray, alpha: float) -> None:
+    """Backward elimination: with every term in the model (after backfitting), drop the least
+    significant one while its F-test fails at ``alpha`` or it removes under :data:`MAP_MIN_TERM_SHARE`
+    of the residual left without it (a term that mattered only while the others were still missing)."""
+    def sig(t: MapTerm) -> np.ndarray:
+        D = _signature(chans[(t.joint, t.component)], q[:, t.joint], np.array([t.freq_cpr]))
+        return D - Q @ (Q.T @ D)
+
+    def rss_of(cols: list[np.ndarray]) -> float:
+        if not cols:
+            return float(r0 @ r0)
+        Z = _orth(np.column_stack(cols))
+        e = r0 - Z @ (Z.T @ r0)
+        return float(e @ e)
+    while prop.terms:
+        sigs = [sig(t) for t in prop.terms]
+        rss_full = rss_of(sigs)
+        df2 = max(len(r0) - Q.shape[1] - 2 * len(sigs), 1)
+        worst, worst_p = None, -1.0
+        for k in range(len(sigs)):
+            rss_k = rss_of(sigs[:k] + sigs[k + 1:])
+            gain = max(rss_k - rss_full, 0.0)
+            p = float(stats.f.sf((gain / 2) / max(rss_full / df2, 1e-300), 2, df2))
+            if gain < MAP_MIN_TERM_SHARE * rss_k:
+                p = max(p, 1.0)
+            if p > worst_p:
+                worst, worst_p = k, p
+        if worst is None or worst_p < alpha:
+            break
+        del prop.terms[worst]
+    prop.freq[:] = 0.0
+    used = np.zeros(prop.freq.shape[:2], dtype=int)
+    for t in prop.terms:
+        prop.freq[t.joint, t.component, used[t.joint, t.component]] = t.freq_cpr
+        used[t.joint, t.component] += 1
 
 
 def _backfit(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: dict[int, np.ndarray],
