@@ -241,3 +241,20 @@ def test_map_components_are_checked_and_runout_is_searched_on_request() -> None:
                    candidates=["joint_error_map"])
     assert res.effects_added == ["joint_error_map"]
     assert {(e.joint, e.component) for e in res.error_maps} >= {(1, "theta")}
+
+
+def test_predict_warns_beyond_the_map_range(map_case, tmp_path, capsys) -> None:
+    from planner.cli import main as cli_main
+    from problems.measurements import measurements_to_csv
+    _vr, m, res = map_case
+    model = tmp_path / "model.toml"
+    model.write_text(model_toml(res.model))
+    j = res.error_maps[0].joint - 1
+    cmd = m.subset(np.arange(3))
+    cmd.q = cmd.q.copy()
+    cmd.q[1, j] = res.error_maps[0].range_rad[1] + 0.2
+    (tmp_path / "cmd.csv").write_text(measurements_to_csv(cmd))
+    rc = cli_main(["predict", "--model", str(model), "--input", str(tmp_path / "cmd.csv"),
+                   "--out", str(tmp_path / "pred.csv")])
+    err = capsys.readouterr().err
+    assert rc == 0 and f"joint {j + 1}" in err and "error map" in err and "at row 1" in err, err

@@ -299,6 +299,8 @@ def run_predict(args: argparse.Namespace) -> int:
     """Predicted measurement (measurement frame) of the commands of ``--input``."""
     check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
     from planner.output import atomic_write_bytes
+    from models.effects import effect as fx_effect
+    from models.effects import get_const
     from problems.identify import check_command_limits, load_model, predict
     from problems.measurements import commands_csv
 
@@ -308,6 +310,9 @@ def run_predict(args: argparse.Namespace) -> int:
     p = predict(model, m)
     atomic_write_bytes(args.out, commands_csv(["x", "y", "z"], p).encode())
     _print_notes(m)
+    for name in model.active_effects:       # e.g. a joint error map beyond its identified angle range
+        for line in fx_effect(name).angle_caveats(model.parameter, lambda k: get_const(model.const, k), m.q):
+            print(f"compplan: warning: {line.replace('waypoint', 'row')}", file=sys.stderr)
     print(f"predict: {m.n} rows, effects {', '.join(model.effects) or 'none'}; wrote {args.out} (x, y, z in m, "
           "measurement frame)")
     return 0
