@@ -83,7 +83,9 @@ class ArmModel:
     effects : list of str
         Active library effects.
     registered : bool
-        Whether the identification data were in the base frame.
+        Whether the identification data were registered: measurement frame = base frame *and*
+        measured point = TCP (with only one of them known, the parameters aliased with the other
+        are held and named, and base-frame plans say so).
     std, held : dict
         Standard deviations and held parameters of the identification.
     noise_sigma_m : float or None

@@ -486,7 +486,7 @@ def _build_model(run: _Run, st: _State, s: _Setup, std: np.ndarray, free: Sequen
                            beams=fx.beam_frames(robot),
                            knots=get_const(st.prob.const, "hardening.knots").reshape(6, fx.N_KNOTS).copy(),
                            time_ref=s.t_ref, temperature_ref=s.temp_ref, effects=list(st.active),
-                           registered=Known.of(run.registered).registration,
+                           registered=bool(run.registered),
                            std={PARAM_NAMES[i]: float(std[i]) for i in free},
                            noise_sigma_m=sigma_noise,
                            held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order},

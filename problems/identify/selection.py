@@ -346,7 +346,6 @@ class _Run:
             return _gravity_problem(p, True), th
         return p, th
 
-
     def map_problem(self, p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
                     ) -> tuple[_Problem | None, np.ndarray]:
         """The problem with the map frequencies of :func:`~.error_map.propose_map` on the residual of
