@@ -21,6 +21,7 @@ Units: angles rad, frequencies cycles per revolution, residuals in weighted unit
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -231,6 +232,34 @@ def _refine(Jc: np.ndarray, q: np.ndarray, r: np.ndarray, Q: np.ndarray, f0: flo
     return best
 
 
+def _bracket(fg: np.ndarray, f: float, others: Sequence[float], sep: float) -> tuple[float, float]:
+    """Interval of the grid ``fg`` around ``f`` that keeps ``sep`` (cycles/rev) clear of the
+    channel's other frequencies ``others``."""
+    lo_f, hi_f = float(fg[0]), float(fg[-1])
+    for t in others:
+        if t < f:
+            lo_f = max(lo_f, t + sep)
+        else:
+            hi_f = min(hi_f, t - sep)
+    return lo_f, hi_f
+
+
+def _term_signature(t: MapTerm, chans: dict[tuple[int, int], np.ndarray], q: np.ndarray,
+                    Q: np.ndarray) -> np.ndarray:
+    """Signature (3n, 2) of a term with the directions ``Q`` projected out."""
+    D = _signature(chans[(t.joint, t.component)], q[:, t.joint], np.array([t.freq_cpr]))
+    return D - Q @ (Q.T @ D)
+
+
+def _set_freq(prop: MapProposal) -> None:
+    """``prop.freq`` from its terms (slots of each channel in the order of the terms)."""
+    prop.freq[:] = 0.0
+    used = np.zeros(prop.freq.shape[:2], dtype=int)
+    for t in prop.terms:
+        prop.freq[t.joint, t.component, used[t.joint, t.component]] = t.freq_cpr
+        used[t.joint, t.component] += 1
+
+
 def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: np.ndarray, Jfree: np.ndarray,
                 folds: np.ndarray) -> MapProposal | None:
     """Search the residual for per-joint periodic error motions (see the module docstring).
@@ -299,13 +328,7 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
         fg = grids[j]
         Jc = chans[(j, c)]
         step = float(fg[1] - fg[0]) if len(fg) > 1 else MAP_FREQ_STEP_CPR
-        taken = freq[j, c, :used[j, c]]
-        lo_f, hi_f = float(fg[0]), float(fg[-1])
-        for t in taken:      # stay clear of the channel's other terms
-            if t < f:
-                lo_f = max(lo_f, t + MAP_MIN_SEPARATION * res[j])
-            else:
-                hi_f = min(hi_f, t - MAP_MIN_SEPARATION * res[j])
+        lo_f, hi_f = _bracket(fg, f, freq[j, c, :used[j, c]], MAP_MIN_SEPARATION * res[j])
         df2 = 3 * n - k_free - Z.shape[1] - 2
         f = _refine(Jc, q[:, j], r, QZ, f, lo_f, hi_f, step, max(rss - best[0], 0.0) / max(df2, 1))
         D = _signature(Jc, q[:, j], np.array([f]))
@@ -339,10 +362,6 @@ def _prune(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], q: np.nd
     """Backward elimination: with every term in the model (after backfitting), drop the least
     significant one while its F-test fails at ``alpha`` or it removes under :data:`MAP_MIN_TERM_SHARE`
     of the residual left without it (a term that mattered only while the others were still missing)."""
-    def sig(t: MapTerm) -> np.ndarray:
-        D = _signature(chans[(t.joint, t.component)], q[:, t.joint], np.array([t.freq_cpr]))
-        return D - Q @ (Q.T @ D)
-
     def rss_of(cols: list[np.ndarray]) -> float:
         if not cols:
             return float(r0 @ r0)
@@ -350,7 +369,7 @@ def _prune(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], q: np.nd
         e = r0 - Z @ (Z.T @ r0)
         return float(e @ e)
     while prop.terms:
-        sigs = [sig(t) for t in prop.terms]
+        sigs = [_term_signature(t, chans, q, Q) for t in prop.terms]
         rss_full = rss_of(sigs)
         df2 = max(len(r0) - Q.shape[1] - 2 * len(sigs), 1)
         worst, worst_p = None, -1.0
@@ -365,40 +384,24 @@ def _prune(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], q: np.nd
         if worst is None or worst_p < alpha:
             break
         del prop.terms[worst]
-    prop.freq[:] = 0.0
-    used = np.zeros(prop.freq.shape[:2], dtype=int)
-    for t in prop.terms:
-        prop.freq[t.joint, t.component, used[t.joint, t.component]] = t.freq_cpr
-        used[t.joint, t.component] += 1
+    _set_freq(prop)
 
 
 def _backfit(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: dict[int, np.ndarray],
              res: dict[int, float], q: np.ndarray, r0: np.ndarray, Q: np.ndarray, s2: float) -> None:
     """Refine each term's frequency with the others in the model (:data:`MAP_BACKFIT_PASSES`
     passes): a term found early was fitted while later ones were still in the residual."""
-    def sig(t: MapTerm) -> np.ndarray:
-        D = _signature(chans[(t.joint, t.component)], q[:, t.joint], np.array([t.freq_cpr]))
-        return D - Q @ (Q.T @ D)
     for _ in range(MAP_BACKFIT_PASSES):
         for k, t in enumerate(prop.terms):
-            others = [sig(u) for i, u in enumerate(prop.terms) if i != k]
+            others = [_term_signature(u, chans, q, Q) for i, u in enumerate(prop.terms) if i != k]
             O = _orth(np.column_stack([Q] + others)) if others else Q
             r = r0 - O @ (O.T @ r0)
             fg = grids[t.joint]
             step = float(fg[1] - fg[0]) if len(fg) > 1 else MAP_FREQ_STEP_CPR
-            lo_f, hi_f = float(fg[0]), float(fg[-1])
-            for u in prop.terms:
-                if u is not t and (u.joint, u.component) == (t.joint, t.component):
-                    if u.freq_cpr < t.freq_cpr:
-                        lo_f = max(lo_f, u.freq_cpr + MAP_MIN_SEPARATION * res[t.joint])
-                    else:
-                        hi_f = min(hi_f, u.freq_cpr - MAP_MIN_SEPARATION * res[t.joint])
+            same = [u.freq_cpr for u in prop.terms if u is not t and (u.joint, u.component) == (t.joint, t.component)]
+            lo_f, hi_f = _bracket(fg, t.freq_cpr, same, MAP_MIN_SEPARATION * res[t.joint])
             t.freq_cpr = _refine(chans[(t.joint, t.component)], q[:, t.joint], r, O, t.freq_cpr, lo_f, hi_f, step, s2)
-    prop.freq[:] = 0.0
-    used = np.zeros(prop.freq.shape[:2], dtype=int)
-    for t in prop.terms:
-        prop.freq[t.joint, t.component, used[t.joint, t.component]] = t.freq_cpr
-        used[t.joint, t.component] += 1
+    _set_freq(prop)
 
 
 # ----------------------------------------------------------------------------------
