@@ -28,6 +28,7 @@ import numpy as np
 
 from . import base
 from .base import Effect, layouts, registry
+from .registration import cayley
 
 #: Fixed-point iterations of the deflected equilibrium unrolled in the identification graph.
 #: The map contracts by about ``|d dq / dq|`` per iteration (1e-3 .. 1e-1), so 5 iterations
@@ -295,13 +296,12 @@ def rotvec_matrix(w: Any) -> Any:
     return ca.SX.eye(3) + a * W + b * ca.mtimes(W, W)
 
 
-def orientation_error(graph: Graph, ctx: Context, p_meas: Any, rv_meas: Any) -> Any:
+def orientation_error(graph: Graph, ctx: Context, rv_meas: Any) -> Any:
     """Orientation error of the measured frame: ``vee(skew(R_m^T R))`` with ``R`` the model's
     frame and ``R_m`` the measured one (``rv_meas``, rotation vector), both in the measurement
     frame; components in the measured frame, rad (the rotation vector of ``R_m^T R`` to first
     order).  The frame's rotation into the measurement frame is the linear part of the
     measurement hooks (affine maps), taken from the images of three points."""
-    from .registration import cayley
     R_tool = ca.mtimes(ca.reshape(ctx.c("measured_frame.R0"), 3, 3), cayley(ctx.p("tool.r")))
     R_base = ca.mtimes(ctx.frames[-1][:3, :3], R_tool)
     p_flange = ca.mtimes(ctx.frames[-1], ca.vertcat(ctx.p("tool.p"), 1))[:3]
@@ -346,7 +346,7 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
         """Position (position rows) or orientation error (orientation rows) of the row."""
         if not orientation:
             return measured_point(g, c)
-        return ca.if_else(kind > 0.5, orientation_error(g, c, None, rv), measured_point(g, c))
+        return ca.if_else(kind > 0.5, orientation_error(g, c, rv), measured_point(g, c))
 
     ctx = graph.context(theta, const, dT, tn, qc)
     dh = graph.geometry(ctx)
