@@ -99,7 +99,6 @@ from .diagnostics import (
     UNEXPLAINED_MIN_FRACTION,
     UNEXPLAINED_RMS_RATIO,
     _diagnose,
-    _fourier,
     _joint_design,
     _poly,
     _pose_anova,
@@ -243,7 +242,7 @@ __all__ = [
 #: Private helpers kept importable from here (tests and tools imported them from the single
 #: module this package replaces); not part of the API.
 _COMPAT = (
-    _at_temperature, _diagnose, _fourier, _joint_design, _poly, _pose_anova, _regress_cv, _scalar_design,
+    _at_temperature, _diagnose, _joint_design, _poly, _pose_anova, _regress_cv, _scalar_design,
     _effect_of, _parameter_table, _EVALUATORS, _ev_for, _gravity_problem, _knots_from,
     _nominal_gravity_torque, _nominal_points, _nominal_tcp, _Problem, _torque_scale, _update_knots,
     _order_for, _structural_held, _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _solve_normal, _wjac, _wres,

@@ -38,11 +38,6 @@ UNEXPLAINED_MIN_FRACTION = 0.10
 UNEXPLAINED_RMS_RATIO = 1.5
 
 
-def _fourier(x: np.ndarray, order: int = 3) -> np.ndarray:
-    """Fourier basis ``sin(k x), cos(k x)``, k = 1..order, of angles ``x`` (N,) rad: (N, 2 order)."""
-    return np.column_stack([f(k * x) for k in range(1, order + 1) for f in (np.sin, np.cos)])
-
-
 def _poly(x: np.ndarray, deg: int) -> np.ndarray:
     """Powers 1..deg of the standardised ``x`` (N,): (N, deg), dimensionless."""
     s = np.std(x)
