@@ -21,7 +21,7 @@ callback ``progress(message, done, total)``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,15 +34,15 @@ from models.errors import InputError
 from models.plausibility import (GEOMETRY_GROUPS, IMPLAUSIBLE_ANGLE_ERROR_RAD,  # noqa: F401
                                  IMPLAUSIBLE_LENGTH_ERROR_M, implausible_geometry)
 from models.robot import Robot
-from models.transforms import rotvec_to_matrix
 
 from ..measurements import Measurements
 from .diagnostics import UNEXPLAINED_MIN_FRACTION, UNEXPLAINED_RMS_RATIO, _diagnose, structure_left
-from .evaluation import (_ev_for, _gravity_problem, _nominal_tcp, _Problem, _torque_scale, make_rows, row_weights,
+from .evaluation import (_ev_for, _gravity_problem, _Problem, _torque_scale, make_rows, row_weights,
                          time_reference, with_orientation_rows)
-from .identifiability import Known, _order_for, _structural_held, select_identifiable
+from .identifiability import Known, _order_for, _structural_held
 from .lsq import _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _wjac, _wres, kabsch
 from .map_summary import ErrorMapSummary, summarise_maps
+from .orientation import _balance_orientation, _measured_frame_start, _orientation_gain
 from .outliers import _outlier_mask
 from .results import (
     DataError,
@@ -128,6 +128,19 @@ def _effect_lists(candidates: Sequence[str] | None, include: Sequence[str]) -> t
     return cand, inc, robust
 
 
+def _known_parts(registered: bool, known: Sequence[str], map_components: Sequence[str]) -> Known:
+    """The :class:`Known` parts of the set-up of ``identify``'s arguments (checked, as the map
+    components)."""
+    bad_comp = [c for c in map_components if c not in MAP_COMPONENTS]
+    if bad_comp or not map_components:
+        raise InputError(f"map component(s) {bad_comp or list(map_components)}: expected one or more of "
+                         f"{list(MAP_COMPONENTS)}")
+    bad_known = [k for k in known if k not in KNOWN_PARTS]
+    if bad_known:
+        raise InputError(f"known part(s) {bad_known}: expected any of {list(KNOWN_PARTS)}")
+    return Known(bool(registered) or "registration" in known, bool(registered) or "measured_point" in known)
+
+
 def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand: int,
            tick: Progress) -> _Setup:
     """Step 1: problem inputs, initial registration (and measured frame) and the "before" fit."""
@@ -179,36 +192,6 @@ def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand:
         theta = fit_b.theta.copy()
     return _Setup(prob=prob, theta=theta, R0=R0, tau_s=tau_s, t_ref=t_ref, temp_ref=temp_ref, fit_b=fit_b,
                   order_b=order_b, n_poses=n_poses, total_steps=total_steps)
-
-
-def _balance_orientation(prob: _Problem, fit: _Fit, include: Sequence[str], registered: Known, robust: bool,
-                         notes: list[str]) -> tuple[_Problem, _Fit]:
-    """Without ``sigma_r`` columns, weigh the orientation rows so that the declared model's
-    orientation residual counts as much as its position residual (per axis RMS, weighted units),
-    then refit; the weight (m/rad) goes into the notes."""
-    pos = prob.pos
-    R = (fit.pred - prob.m.p) * prob.weights
-    rp, rr = _rms(R[pos & fit.inliers]), _rms(R[~pos & fit.inliers])
-    if not (rp > 0 and rr > 0):
-        return prob, fit
-    w = prob.weights.copy()
-    w[~pos] *= rp / rr
-    notes.append(f"orientation rows weighted {float(np.mean(w[~pos])):.4g} per rad against position rows' "
-                 f"{float(np.mean(w[pos])):.4g} per m (no sigma_r column: balanced on the declared model's residual; "
-                 "give sigma_r / sigma_rx.. columns to weigh by the instrument's accuracy)")
-    prob = replace(prob, weights=w)
-    return prob, _fit_model(prob, fit.theta, include, registered, np.ones(prob.m.n, dtype=bool), robust=robust)
-
-
-def _measured_frame_start(robot: Robot, m: Measurements, R0: np.ndarray) -> np.ndarray:
-    """Start of the measured frame's rotation to the flange, (3, 3): the rotation closest to the
-    mean of ``flange2base(q)^T R0^T R_measured`` over the rows (nominal kinematics)."""
-    T = _nominal_tcp(robot, m.q)
-    R_f = T[:, :3, :3] @ np.asarray(robot.tcp2flange)[:3, :3].T
-    R_m = np.array([rotvec_to_matrix(v) for v in m.rotation])
-    M = np.einsum("nji,jk,nkl->il", R_f, R0.T, R_m)
-    U, _s, Vt = np.linalg.svd(M)
-    return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
 
 
 def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust: bool, structural: set[int],
@@ -364,14 +347,7 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     if m.p is None:
         raise DataError(f"{m.source}: no measured positions (columns x, y, z) to identify from")
     cand, inc, robust = _effect_lists(candidates, include)
-    bad_comp = [c for c in map_components if c not in MAP_COMPONENTS]
-    if bad_comp or not map_components:
-        raise InputError(f"map component(s) {bad_comp or list(map_components)}: expected one or more of "
-                         f"{list(MAP_COMPONENTS)}")
-    bad_known = [k for k in known if k not in KNOWN_PARTS]
-    if bad_known:
-        raise InputError(f"known part(s) {bad_known}: expected any of {list(KNOWN_PARTS)}")
-    registered = Known(bool(registered) or "registration" in known, bool(registered) or "measured_point" in known)
+    registered = _known_parts(registered, known, map_components)
     notes: list[str] = []
     if robot.identified is not None:
         notes.append("the robot file carries an [identified] table; identification starts from its "
@@ -581,17 +557,6 @@ def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[st
         noise_source=noise_src, excluded=excluded, unexplained=unexplained, diagnostics=diags,
         identifiability=ident, residual_before=res_b, residual_after=R_un, inliers=inl, data=m.subset(pos),
         notes=notes, error_maps=_error_maps(st, cov[0] if cov else None), orientation=orient)
-
-
-def _orientation_gain(prob: _Problem, fit: _Fit, order: Sequence[int]) -> list[str]:
-    """Parameters identifiable with the orientation rows that position rows alone would hold."""
-    sig = _rms(_wres(prob, fit.pred, fit.inliers))
-    kept_all, _h = select_identifiable(_wjac(prob, fit.J, fit.inliers, np.asarray(order, dtype=int)), order, sig)
-    pos_only = fit.inliers & prob.pos
-    kept_pos, _h2 = select_identifiable(_wjac(prob, fit.J, pos_only, np.asarray(order, dtype=int)), order, sig)
-    own = set(range(GROUP_SLICES["tool.r"].start, GROUP_SLICES["tool.r"].stop))
-    # the measured frame's own rotation exists only with orientation data: not a gain
-    return [PARAM_NAMES[i] for i in kept_all if i not in set(kept_pos) and i not in own]
 
 
 def _error_maps(st: _State, cov: np.ndarray | None) -> list[ErrorMapSummary]:

@@ -260,6 +260,31 @@ def _set_freq(prop: MapProposal) -> None:
         used[t.joint, t.component] += 1
 
 
+def _scan(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: dict[int, np.ndarray],
+          res: dict[int, float], q: np.ndarray, r: np.ndarray, QZ: np.ndarray, used: np.ndarray, alpha: float,
+          rss: float, df2_first: int) -> tuple[float, tuple[int, int], float] | None:
+    """The spectrum: the best (gain, (joint, component), frequency) over every channel with a free
+    slot, frequencies within a separation of the channel's terms excluded; the first scan's spectra
+    (share of the residual SS, and the share the family-wise test needs) go into ``prop.spectra``."""
+    best: tuple[float, tuple[int, int], float] | None = None
+    for (j, c), Jc in chans.items():
+        if used[j, c] >= MAP_SLOTS:
+            continue
+        fg = grids[j]
+        g = _channel_gain(Jc, q[:, j], fg, r, QZ)
+        taken = prop.freq[j, c, :used[j, c]]
+        if len(taken):
+            near = np.min(np.abs(fg[:, None] - taken[None, :]), axis=1) < MAP_MIN_SEPARATION * res[j]
+            g = np.where(near, 0.0, g)
+        if not prop.terms:
+            fcrit = stats.f.isf(alpha, 2, df2_first)
+            prop.spectra[(j, c)] = (fg.copy(), g / max(rss, 1e-300), float(2 * fcrit / (df2_first + 2 * fcrit)))
+        k = int(np.argmax(g))
+        if best is None or g[k] > best[0]:
+            best = (float(g[k]), (j, c), float(fg[k]))
+    return best
+
+
 def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: np.ndarray, Jfree: np.ndarray,
                 folds: np.ndarray) -> MapProposal | None:
     """Search the residual for per-joint periodic error motions (see the module docstring).
@@ -305,23 +330,7 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
     used = np.zeros((6, N_COMP), dtype=int)
     while True:
         QZ = np.column_stack([Q, Z]) if Z.size else Q
-        best: tuple[float, tuple[int, int], float] | None = None
-        for (j, c), Jc in chans.items():
-            if used[j, c] >= MAP_SLOTS:
-                continue
-            fg = grids[j]
-            g = _channel_gain(Jc, q[:, j], fg, r, QZ)
-            taken = freq[j, c, :used[j, c]]
-            if len(taken):
-                near = np.min(np.abs(fg[:, None] - taken[None, :]), axis=1) < MAP_MIN_SEPARATION * res[j]
-                g = np.where(near, 0.0, g)
-            if not prop.terms:
-                df2 = 3 * n - k_free - 2
-                fcrit = stats.f.isf(alpha, 2, df2)
-                prop.spectra[(j, c)] = (fg.copy(), g / max(rss, 1e-300), float(2 * fcrit / (df2 + 2 * fcrit)))
-            k = int(np.argmax(g))
-            if best is None or g[k] > best[0]:
-                best = (float(g[k]), (j, c), float(fg[k]))
+        best = _scan(prop, chans, grids, res, q, r, QZ, used, alpha, rss, 3 * n - k_free - 2)
         if best is None or best[0] <= 0:
             break
         _g, (j, c), f = best
