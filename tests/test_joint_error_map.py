@@ -258,3 +258,24 @@ def test_predict_warns_beyond_the_map_range(map_case, tmp_path, capsys) -> None:
                    "--out", str(tmp_path / "pred.csv")])
     err = capsys.readouterr().err
     assert rc == 0 and f"joint {j + 1}" in err and "error map" in err and "at row 1" in err, err
+
+
+def test_per_axis_sigmas_weight_each_residual_component() -> None:
+    """Position rows weigh each axis by 1/sigma_x, 1/sigma_y, 1/sigma_z; orientation rows by
+    1/sigma_rx.. (rad); without orientation sigmas, by the balancing weight given."""
+    from problems.identify.evaluation import row_weights, with_orientation_rows
+    n = 4
+    q = np.zeros((n, 6))
+    sx = np.tile([1e-5, 2e-5, 4e-5], (n, 1))
+    sr = np.tile([1e-5, 1e-5, 5e-5], (n, 1))
+    m = Measurements(q=q, wrench=np.zeros((n, 6)), p=np.zeros((n, 3)), rotation=np.zeros((n, 3)),
+                     sigma_xyz=sx, sigma_rot=sr)
+    mx, is_pos = with_orientation_rows(m)
+    w = row_weights(mx, is_pos)
+    assert w.shape == (2 * n, 3) and is_pos.sum() == n
+    np.testing.assert_array_equal(w[is_pos], 1.0 / sx)
+    np.testing.assert_array_equal(w[~is_pos], 1.0 / sr)
+    m2 = Measurements(q=q, wrench=np.zeros((n, 6)), p=np.zeros((n, 3)), rotation=np.zeros((n, 3)), sigma_xyz=sx)
+    mx2, is_pos2 = with_orientation_rows(m2)
+    w2 = row_weights(mx2, is_pos2, rot_weight=0.7)
+    np.testing.assert_array_equal(w2[~is_pos2], np.full((n, 3), 0.7))
