@@ -8,6 +8,7 @@ are read by :mod:`.cells` and the finished table is checked by :mod:`.validation
 from __future__ import annotations
 
 import csv
+import datetime as _dt
 import io
 from collections.abc import Sequence
 from pathlib import Path
@@ -244,21 +245,19 @@ def _detect_dialect(where: str, lines: list[str]) -> str:
     return "semicolon" if ";" in text else "comma"
 
 
-def parse_measurements(text: str, where: str = "<text>", require_position: bool = True,
-                       require_wrench: bool = True, *, dialect: str = "auto",
-                       joint_names: str | Sequence[str] | None = None) -> Measurements:
-    """Parse measurement-file text; see :func:`read_measurements` (same parameters;
-    ``where`` names the text in messages and notes)."""
-    _check_dialect(dialect)
-    names = resolve_joint_names(joint_names)
-    jmap = _joint_map(names)
-    lines = text.splitlines()
-    notes: list[str] = []
+def _resolve_dialect(where: str, lines: list[str], dialect: str) -> tuple[str, bool]:
+    """(dialect, detected): ``auto`` resolved by the header line, else the declared one."""
     detected = dialect == "auto"
     if detected:
         dialect = _detect_dialect(where, lines)
-    sep, decimal_comma = DIALECTS[dialect]
-    cells_parser = _Cells(where, decimal_comma)
+    return dialect, detected
+
+
+def _read_rows(where: str, lines: list[str], dialect: str) \
+        -> tuple[int, list[str], list[tuple[int, list[str]]]]:
+    """(header line, header cells, rows as (line, cells)) of the non-empty, non-comment
+    lines; raises for an empty file, a header in another separator or no rows."""
+    sep = DIALECTS[dialect][0]
     table: list[tuple[int, list[str]]] = []
     reader = csv.reader(io.StringIO("\n".join(lines)), delimiter=sep)
     for lineno, cells in enumerate(reader, start=1):
@@ -274,15 +273,19 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
     rows = table[1:]
     if not rows:
         raise InputError(f"{where}: no measurement rows after the header (line {header_line})")
-    # map columns
+    return header_line, header, rows
+
+
+def _map_columns(where: str, header_line: int, header: list[str], jmap: dict[str, str]) \
+        -> tuple[dict[str, tuple[int, str, float]], list[str]]:
+    """(quantity -> (column index, column as written, SI factor); the q1..q6 columns left
+    unmapped because joint_names names the joint columns)."""
     colmap: dict[str, tuple[int, str, float]] = {}
-    ignored: list[str] = []
     unmapped_q: list[str] = []          # q1..q6 columns when joint_names names the joint columns
     for k, col in enumerate(header):
         if col == "":
             raise InputError(f"{where}: line {header_line}: column {k + 1} has an empty name")
         if any(col.startswith(pfx) for pfx in IGNORED_PREFIXES):
-            ignored.append(col)
             continue
         base, factor = _split_unit(where, col, jmap)
         if jmap and base in Q_COLUMNS and not any(col.startswith(n) and col[len(n):] in _UNITS["angle"]
@@ -294,6 +297,13 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
             raise InputError(f"{where}: column '{base}' is given twice ('{other}' and '{col}'); "
                              "keep exactly one (with its unit suffix)")
         colmap[base] = (k, col, factor)
+    return colmap, unmapped_q
+
+
+def _check_required(where: str, header_line: int, header: list[str], colmap: dict[str, tuple[int, str, float]],
+                    unmapped_q: list[str], jmap: dict[str, str], names: tuple[str, ...] | None,
+                    require_position: bool, require_wrench: bool) -> None:
+    """Raise for a missing required column, or q1..q6 besides the named joint columns."""
     required = list(Q_COLUMNS) + (list(WRENCH_COLUMNS) if require_wrench else []) \
         + (list(POSITION_COLUMNS) if require_position else [])
     missing = [c for c in required if c not in colmap]
@@ -310,6 +320,11 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
         raise InputError(f"{where}: column(s) {', '.join(unmapped_q)} besides the joint columns named by "
                          f"joint_names / --joint-names ({', '.join(colmap[q][1] for q in Q_COLUMNS)}); "
                          "keep one set of joint columns")
+
+
+def _check_groups(where: str, colmap: dict[str, tuple[int, str, float]]) -> None:
+    """Raise for an incomplete column group, a single and a per-axis standard deviation
+    together, or an orientation standard deviation without rx, ry, rz."""
     for grp in (WRENCH_COLUMNS, POSITION_COLUMNS, ROTATION_COLUMNS, SIGMA_XYZ_COLUMNS, SIGMA_ROT_COLUMNS):
         have = [c for c in grp if c in colmap]
         if have and len(have) != len(grp):
@@ -325,7 +340,10 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
     if rot_sigma and "rx" not in colmap:
         raise InputError(f"{where}: column(s) {', '.join(rot_sigma)} (orientation standard deviation) need the "
                          "measured orientation rx, ry, rz, which the file does not have")
-    ncol = len(header)
+
+
+def _check_row_lengths(where: str, rows: list[tuple[int, list[str]]], ncol: int, decimal_comma: bool) -> None:
+    """Raise for a row whose cell count differs from the header's (hinting at a decimal comma)."""
     for lineno, cells in rows:
         if len(cells) != ncol:
             hint = ""
@@ -334,17 +352,34 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
                 hint = "; a decimal comma (0,40)? write numbers with '.' (0.40)"
             raise InputError(f"{where}: line {lineno}: {len(cells)} cells, expected {ncol} (as the header){hint}")
 
-    def column(base: str) -> np.ndarray:
-        k, col, factor = colmap[base]
-        return np.array([cells_parser.number(ln, col, cells[k]) for ln, cells in rows]) * factor
 
-    line = np.array([ln for ln, _c in rows], dtype=int)
-    units = {col: factor for (_k, col, factor) in colmap.values()}
-    q = np.column_stack([column(c) for c in Q_COLUMNS])
-    wrench = (np.column_stack([column(c) for c in WRENCH_COLUMNS]) if "fx" in colmap
-              else np.zeros((len(rows), 6)))
-    pos = np.column_stack([column(c) for c in POSITION_COLUMNS]) if "x" in colmap else None
-    rot = np.column_stack([column(c) for c in ROTATION_COLUMNS]) if "rx" in colmap else None
+def _column(colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells,
+            base: str) -> np.ndarray:
+    """One numeric column in SI units, shape (N,)."""
+    k, col, factor = colmap[base]
+    return np.array([cells_parser.number(ln, col, cells[k]) for ln, cells in rows]) * factor
+
+
+def _numeric_columns(where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]],
+                     cells_parser: _Cells) -> dict:
+    """The numeric fields of :class:`Measurements`, read in column order: joints, wrench
+    (zero when absent), position, orientation, then the optional columns."""
+    def stack(cols: tuple[str, ...]) -> np.ndarray:
+        return np.column_stack([_column(colmap, rows, cells_parser, c) for c in cols])
+
+    q = stack(Q_COLUMNS)
+    wrench = stack(WRENCH_COLUMNS) if "fx" in colmap else np.zeros((len(rows), 6))
+    pos = stack(POSITION_COLUMNS) if "x" in colmap else None
+    rot = stack(ROTATION_COLUMNS) if "rx" in colmap else None
+    return dict(q=q, wrench=wrench, p=pos, rotation=rot, **_optional_columns(where, colmap, rows, cells_parser))
+
+
+def _optional_columns(where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]],
+                      cells_parser: _Cells) -> dict:
+    """t (numbers or date-times), temperature and the standard deviations (None when absent)."""
+    def column(base: str) -> np.ndarray:
+        return _column(colmap, rows, cells_parser, base)
+
     t = t_origin = None
     if "t" in colmap:
         k, col, factor = colmap["t"]
@@ -360,15 +395,28 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
         sigma_rot = np.column_stack([column(c) for c in SIGMA_ROT_COLUMNS])
     elif "sigma_r" in colmap:
         sigma_rot = np.repeat(column("sigma_r")[:, None], 3, axis=1)
-    point = None
-    if "point" in colmap:
-        k = colmap["point"][0]
-        point = np.array([cells[k] for _ln, cells in rows], dtype=object)
-        for ln, cells in rows:
-            if cells[k] == "":
-                raise InputError(f"{where}: line {ln}, column 'point': empty cell; expected a pose id")
-        point = point.astype(str)
-    # what was decided without the user saying so
+    return dict(t=t, t_origin=t_origin, temperature=temp, sigma=sigma, sigma_xyz=sigma_xyz, sigma_rot=sigma_rot)
+
+
+def _point_column(where: str, colmap: dict[str, tuple[int, str, float]],
+                  rows: list[tuple[int, list[str]]]) -> np.ndarray | None:
+    """The pose ids of the ``point`` column (str), or None; raises for an empty cell."""
+    if "point" not in colmap:
+        return None
+    k = colmap["point"][0]
+    point = np.array([cells[k] for _ln, cells in rows], dtype=object)
+    for ln, cells in rows:
+        if cells[k] == "":
+            raise InputError(f"{where}: line {ln}, column 'point': empty cell; expected a pose id")
+    return point.astype(str)
+
+
+def _notes(where: str, dialect: str, detected: bool, cells_parser: _Cells, t_origin: _dt.datetime | None,
+           line: np.ndarray,
+           names: tuple[str, ...] | None, colmap: dict[str, tuple[int, str, float]]) -> list[str]:
+    """What was decided without the user saying so: a detected dialect, mixed decimal
+    separators, date-times read as times, a joint-name mapping."""
+    notes: list[str] = []
     if detected and dialect == "semicolon":
         extra = ""
         if cells_parser.n_point:
@@ -376,7 +424,7 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
                      "'.' as the decimal point too")
         notes.append(f"{where}: read as ';'-separated with decimal commas (detected from the header line; "
                      f"declare --csv-dialect to fix it){extra}")
-    elif decimal_comma and cells_parser.n_point and cells_parser.n_comma:
+    elif DIALECTS[dialect][1] and cells_parser.n_point and cells_parser.n_comma:
         notes.append(f"{where}: {cells_parser.n_comma} cell(s) have a decimal comma and {cells_parser.n_point} a "
                      "decimal point; both were read as the decimal separator")
     if t_origin is not None:
@@ -390,9 +438,32 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
         how = f"preset '{preset}'" if preset else "joint names given"
         mapping = ", ".join(f"{colmap[q][1]} = {q}" for q in Q_COLUMNS)
         notes.append(f"{where}: joint columns read as q1..q6 ({how}): {mapping}")
-    m = Measurements(q=q, wrench=wrench, p=pos, t=t, point=point, rotation=rot, temperature=temp,
-                     sigma=sigma, line=line, source=where, units=units, sigma_xyz=sigma_xyz, sigma_rot=sigma_rot,
-                     notes=notes, columns={base: col for base, (_k, col, _f) in colmap.items()},
-                     t_origin=t_origin)
+    return notes
+
+
+def parse_measurements(text: str, where: str = "<text>", require_position: bool = True,
+                       require_wrench: bool = True, *, dialect: str = "auto",
+                       joint_names: str | Sequence[str] | None = None) -> Measurements:
+    """Parse measurement-file text; see :func:`read_measurements` (same parameters;
+    ``where`` names the text in messages and notes)."""
+    _check_dialect(dialect)
+    names = resolve_joint_names(joint_names)
+    jmap = _joint_map(names)
+    lines = text.splitlines()
+    dialect, detected = _resolve_dialect(where, lines, dialect)
+    decimal_comma = DIALECTS[dialect][1]
+    cells_parser = _Cells(where, decimal_comma)
+    header_line, header, rows = _read_rows(where, lines, dialect)
+    colmap, unmapped_q = _map_columns(where, header_line, header, jmap)
+    _check_required(where, header_line, header, colmap, unmapped_q, jmap, names, require_position, require_wrench)
+    _check_groups(where, colmap)
+    _check_row_lengths(where, rows, len(header), decimal_comma)
+    line = np.array([ln for ln, _c in rows], dtype=int)
+    units = {col: factor for (_k, col, factor) in colmap.values()}
+    fields = _numeric_columns(where, colmap, rows, cells_parser)
+    point = _point_column(where, colmap, rows)
+    notes = _notes(where, dialect, detected, cells_parser, fields["t_origin"], line, names, colmap)
+    m = Measurements(**fields, point=point, line=line, source=where, units=units, notes=notes,
+                     columns={base: col for base, (_k, col, _f) in colmap.items()})
     validate(m, colmap, _plain=frozenset(c for c in header if c in COLUMNS or c in jmap))
     return m

@@ -45,56 +45,67 @@ def _first_bad(values: np.ndarray, bad: np.ndarray) -> int:
     return int(np.argmax(bad))
 
 
-def validate(m: Measurements, colmap: dict[str, tuple[int, str, float]] | None = None, *,
-             _plain: frozenset[str] | None = None) -> None:
-    """Check magnitudes and consistency of a table (raises :class:`InputError`).
+class _Checks:
+    """Magnitude and sign checks of one table's columns; messages quote the column as
+    written (from ``colmap``) and, for a plain column name, the unit suffix to declare."""
 
-    ``colmap`` (quantity -> (column index, column as written, SI factor)) lets the
-    messages quote the file's column and unit."""
-    where = m.source
+    def __init__(self, m: Measurements, colmap: dict[str, tuple[int, str, float]] | None,
+                 plain: frozenset[str] | None) -> None:
+        self.m = m
+        self.where = m.source
+        self.colmap = colmap
+        self.plain = plain
 
-    def colname(base: str) -> str:
-        return colmap[base][1] if colmap and base in colmap else base
+    def colname(self, base: str) -> str:
+        return self.colmap[base][1] if self.colmap and base in self.colmap else base
 
-    def factor(base: str) -> float:
-        return colmap[base][2] if colmap and base in colmap else 1.0
+    def factor(self, base: str) -> float:
+        return self.colmap[base][2] if self.colmap and base in self.colmap else 1.0
 
-    def is_plain(name: str, base: str) -> bool:
-        return name == base or (_plain is not None and name in _plain)
+    def is_plain(self, name: str, base: str) -> bool:
+        return name == base or (self.plain is not None and name in self.plain)
 
-    def check(base: str, values: np.ndarray, limit: float, qty: str) -> None:
+    def check(self, base: str, values: np.ndarray, limit: float, qty: str) -> None:
+        """Raise for the first value above ``limit`` in magnitude (SI units)."""
         bad = np.abs(values) > limit
         if bad.any():
             i = _first_bad(values, bad)
             hint = _UNIT_HINT.get(qty)
-            name = colname(base)
+            name = self.colname(base)
             unit_msg = (f"; if the column is in other units, declare them by the suffix (e.g. '{name}{hint}')"
-                        if hint and is_plain(name, base) else "")
-            raise InputError(f"{where}: line {m.line[i]}, column '{name}': value {values[i] / factor(base):g} "
-                             f"is implausible (|value| above {limit:g} in SI units){unit_msg}")
+                        if hint and self.is_plain(name, base) else "")
+            raise InputError(f"{self.where}: line {self.m.line[i]}, column '{name}': value "
+                             f"{values[i] / self.factor(base):g} is implausible (|value| above {limit:g} in SI "
+                             f"units){unit_msg}")
 
-    def positive(base: str, values: np.ndarray, unit: str) -> None:
+    def positive(self, base: str, values: np.ndarray, unit: str) -> None:
+        """Raise for the first standard deviation that is not > 0."""
         bad = ~(values > 0)
         if bad.any():
             i = _first_bad(values, bad)
-            name = colname(base)
-            shown = f"{values[i] / factor(base):g}" + (f" {unit}" if is_plain(name, base) else "")
-            raise InputError(f"{where}: line {m.line[i]}, column '{name}': value {shown}; "
+            name = self.colname(base)
+            shown = f"{values[i] / self.factor(base):g}" + (f" {unit}" if self.is_plain(name, base) else "")
+            raise InputError(f"{self.where}: line {self.m.line[i]}, column '{name}': value {shown}; "
                              "expected a standard deviation > 0")
 
-    if m.n == 0:
-        raise InputError(f"{where}: no measurement rows")
+
+def _check_pose_and_load(ck: _Checks, m: Measurements) -> None:
+    """Joint angles, forces and moments, position and orientation within their limits."""
     for j, c in enumerate(Q_COLUMNS):
-        check(c, m.q[:, j], PLAUSIBLE_ANGLE_MAX_RAD, "angle")
+        ck.check(c, m.q[:, j], PLAUSIBLE_ANGLE_MAX_RAD, "angle")
     for j, c in enumerate(WRENCH_COLUMNS):
-        check(c, m.wrench[:, j], PLAUSIBLE_FORCE_MAX_N if j < 3 else PLAUSIBLE_MOMENT_MAX_NM,
-              "force" if j < 3 else "moment")
+        ck.check(c, m.wrench[:, j], PLAUSIBLE_FORCE_MAX_N if j < 3 else PLAUSIBLE_MOMENT_MAX_NM,
+                 "force" if j < 3 else "moment")
     if m.p is not None:
         for j, c in enumerate(POSITION_COLUMNS):
-            check(c, m.p[:, j], PLAUSIBLE_POSITION_MAX_M, "length")
+            ck.check(c, m.p[:, j], PLAUSIBLE_POSITION_MAX_M, "length")
     if m.rotation is not None:
         for j, c in enumerate(ROTATION_COLUMNS):
-            check(c, m.rotation[:, j], 2 * math.pi, "angle")
+            ck.check(c, m.rotation[:, j], 2 * math.pi, "angle")
+
+
+def _check_sigma(ck: _Checks, m: Measurements, colmap: dict[str, tuple[int, str, float]] | None) -> None:
+    """Position standard deviations (per axis, or the single one) > 0 and plausible."""
     if colmap is not None:
         per_axis = "sigma_x" in colmap
     else:
@@ -103,35 +114,50 @@ def validate(m: Measurements, colmap: dict[str, tuple[int, str, float]] | None =
     if per_axis:
         assert m.sigma_xyz is not None
         for j, c in enumerate(SIGMA_XYZ_COLUMNS):
-            positive(c, m.sigma_xyz[:, j], "m")
-            check(c, m.sigma_xyz[:, j], PLAUSIBLE_SIGMA_MAX_M, "length")
+            ck.positive(c, m.sigma_xyz[:, j], "m")
+            ck.check(c, m.sigma_xyz[:, j], PLAUSIBLE_SIGMA_MAX_M, "length")
     elif m.sigma is not None:
-        positive("sigma", m.sigma, "m")
-        check("sigma", m.sigma, PLAUSIBLE_SIGMA_MAX_M, "length")
+        ck.positive("sigma", m.sigma, "m")
+        ck.check("sigma", m.sigma, PLAUSIBLE_SIGMA_MAX_M, "length")
+
+
+def _check_sigma_rot(ck: _Checks, m: Measurements, colmap: dict[str, tuple[int, str, float]] | None) -> None:
+    """Orientation standard deviations: with a measured orientation, > 0 and plausible."""
     if m.sigma_rot is not None:
         if m.rotation is None:
-            raise InputError(f"{where}: orientation standard deviations without the measured orientation "
+            raise InputError(f"{ck.where}: orientation standard deviations without the measured orientation "
                              "rx, ry, rz")
         single = colmap is not None and "sigma_r" in colmap
         for j, c in enumerate(SIGMA_ROT_COLUMNS):
             base = "sigma_r" if single else c
-            positive(base, m.sigma_rot[:, j], "rad")
-            check(base, m.sigma_rot[:, j], PLAUSIBLE_SIGMA_ROT_MAX_RAD, "small_angle")
+            ck.positive(base, m.sigma_rot[:, j], "rad")
+            ck.check(base, m.sigma_rot[:, j], PLAUSIBLE_SIGMA_ROT_MAX_RAD, "small_angle")
+
+
+def _check_temperature(ck: _Checks, m: Measurements) -> None:
+    """Temperatures within :data:`PLAUSIBLE_TEMPERATURE_C`."""
     if m.temperature is not None:
         lo, hi = PLAUSIBLE_TEMPERATURE_C
         bad = (m.temperature < lo) | (m.temperature > hi)
         if bad.any():
             i = _first_bad(m.temperature, bad)
-            raise InputError(f"{where}: line {m.line[i]}, column '{colname('temperature')}': value "
+            raise InputError(f"{ck.where}: line {m.line[i]}, column '{ck.colname('temperature')}': value "
                              f"{m.temperature[i]:g} deg C is outside the plausible range [{lo:g}, {hi:g}] "
                              "(temperature is in deg C)")
+
+
+def _check_time_order(ck: _Checks, m: Measurements) -> None:
+    """Times never running backwards."""
     if m.t is not None and m.n > 1:
         back = np.diff(m.t) < 0
         if back.any():
             i = int(np.argmax(back)) + 1
-            raise InputError(f"{where}: line {m.line[i]}, column '{colname('t')}': time {m.t[i]:g} s is "
+            raise InputError(f"{ck.where}: line {m.line[i]}, column '{ck.colname('t')}': time {m.t[i]:g} s is "
                              f"earlier than the previous row ({m.t[i - 1]:g} s); rows must be in measurement order")
-    # duplicated rows: every value equal (a copy, not a repeated measurement)
+
+
+def _check_duplicates(where: str, m: Measurements) -> None:
+    """No duplicated rows: every value equal (a copy, not a repeated measurement)."""
     parts = [m.q, m.wrench]
     for extra in (m.p, m.rotation, m.sigma_xyz, m.sigma_rot):
         if extra is not None:
@@ -152,3 +178,20 @@ def validate(m: Measurements, colmap: dict[str, tuple[int, str, float]] | None =
         raise InputError(f"{where}: lines {m.line[a]} and {m.line[b]} are identical in every column "
                          "(a duplicated row); remove the copy, or if it is a genuine repeated measurement "
                          "its measured values cannot be bit-identical")
+
+
+def validate(m: Measurements, colmap: dict[str, tuple[int, str, float]] | None = None, *,
+             _plain: frozenset[str] | None = None) -> None:
+    """Check magnitudes and consistency of a table (raises :class:`InputError`).
+
+    ``colmap`` (quantity -> (column index, column as written, SI factor)) lets the
+    messages quote the file's column and unit."""
+    if m.n == 0:
+        raise InputError(f"{m.source}: no measurement rows")
+    ck = _Checks(m, colmap, _plain)
+    _check_pose_and_load(ck, m)
+    _check_sigma(ck, m, colmap)
+    _check_sigma_rot(ck, m, colmap)
+    _check_temperature(ck, m)
+    _check_time_order(ck, m)
+    _check_duplicates(m.source, m)
