@@ -1,5 +1,5 @@
 """Every effect plug-in: its symbolic term against the virtual robot's simulation of the same
-physics (an independent NumPy implementation, problems/virtual.py), and its derivatives
+physics (an independent NumPy implementation, problems/virtual/), and its derivatives
 against finite differences.
 
 For each effect the simulator is configured with that effect alone; its realised physical

@@ -1,0 +1,110 @@
+"""The virtual robot: a measurement-campaign simulator with optional effects.
+
+It is the project's own test bench for ``compplan identify``.  It is written
+independently of the identification model (:mod:`models.effects`): NumPy
+kinematics, physical forms of the effects (a two-slope hardening curve, a hard
+dead band, Euler-Bernoulli beams, COM Jacobians for gravity), so that a test
+passes only if the identification's parametrisation covers the physics rather
+than reproduces its own formulas.
+
+The configuration is a TOML table (schema in ``docs/identification.md``, examples
+in ``problems/files/sim/``).  :meth:`VirtualRobot.truth` returns every realised
+parameter, so a campaign can be re-measured after compensation.
+
+A campaign measures the position of the measured point and, with ``[campaign]
+orientation = true``, the orientation of the measured frame (the TCP's orientation,
+carried to the measured point) as a rotation vector in the measurement frame.
+
+Conventions as everywhere: SI units, wrench ``[f; m]`` in the base frame acting
+on the TCP, a joint yields in the direction of the torque applied to it.
+
+Modules
+-------
+:mod:`~problems.virtual.config`
+    The configuration's key tables, defaults and limits, :class:`SimConfigError`,
+    :func:`load_config` and the checks of values.
+:mod:`~problems.virtual.geometry`
+    NumPy kinematics of the true arm: link transforms, frames, joint axes, torques of
+    a force at a point, :func:`rotvecs`.
+:mod:`~problems.virtual.effects`
+    Realising each ``[effects.NAME]`` table: the true parameters of the arm.
+:mod:`~problems.virtual.physics`
+    Joint errors, torques (loads and gravity), joint deflection (hardening, lost
+    motion), the deflected equilibrium, the link beams.
+:mod:`~problems.virtual.measure`
+    True positions and orientations of the deflected arm and their noise-free
+    measurement (registration, drift); the TCP error.
+:mod:`~problems.virtual.campaign`
+    A campaign: pose sampling, loads, times and temperatures, noise, outliers, the
+    :class:`~problems.measurements.Measurements`.
+:mod:`~problems.virtual.robot`
+    :class:`VirtualRobot` (its ``__init__`` checks the configuration; its methods come
+    from the parts in ``effects``, ``physics``, ``measure`` and ``campaign``),
+    :meth:`VirtualRobot.truth`, :func:`simulator`.
+:mod:`~problems.virtual.truth`
+    Truth records: :func:`from_truth`, :func:`load_truth`.
+
+Dependencies run one way: ``config`` and ``geometry`` import nothing of the package;
+``effects`` uses ``config``; ``physics`` and ``measure`` use ``geometry``; ``campaign``
+uses ``config`` and ``geometry``; ``robot`` uses ``config`` and the four parts; ``truth``
+uses ``config`` and ``robot``.
+"""
+
+from __future__ import annotations
+
+from models.errors import InputError
+from models.robot import Robot, load_robot
+from models.transforms import matrix_to_rotvec, rotvec_to_matrix
+
+from ..measurements import Measurements
+from .campaign import SIM_MAX_JACOBIAN_COND, SIM_POSE_OVERSAMPLING, _CampaignPlan
+from .config import (
+    _EFFECT_KEYS,
+    _TOP_KEYS,
+    DEFAULT_CAMPAIGN,
+    DEFAULT_NOISE,
+    JOINT_ERROR_EFFECTS,
+    OUT_OF_LIBRARY,
+    SIM_EFFECTS,
+    SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD,
+    SIM_JOINT_ERROR_MAX_HARMONIC,
+    SIM_MAX_ROWS,
+    SimConfigError,
+    _at_least,
+    _bool,
+    _int,
+    _joint_list,
+    _magnitudes,
+    _num,
+    _table,
+    _vec,
+    load_config,
+)
+from .geometry import _axes, _frames, _Geometry, _link, _tau_point, rotvecs
+from .physics import SIM_EQUILIBRIUM_MAX_ITER, SIM_EQUILIBRIUM_TOL
+from .robot import VirtualRobot, simulator
+from .truth import from_truth, load_truth
+
+__all__ = [
+    "JOINT_ERROR_EFFECTS",
+    "OUT_OF_LIBRARY",
+    "SIM_EFFECTS",
+    "SimConfigError",
+    "VirtualRobot",
+    "from_truth",
+    "load_config",
+    "load_truth",
+    "matrix_to_rotvec",
+    "rotvec_to_matrix",
+    "rotvecs",
+    "simulator",
+]
+
+#: Names kept importable from here (the single module this package replaces defined or
+#: imported them); not part of the API.
+_COMPAT = (
+    InputError, Robot, load_robot, Measurements, DEFAULT_CAMPAIGN, DEFAULT_NOISE, SIM_EQUILIBRIUM_TOL,
+    SIM_EQUILIBRIUM_MAX_ITER, SIM_POSE_OVERSAMPLING, SIM_MAX_JACOBIAN_COND, SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD,
+    SIM_JOINT_ERROR_MAX_HARMONIC, SIM_MAX_ROWS, _TOP_KEYS, _EFFECT_KEYS, _CampaignPlan, _Geometry, _link, _frames,
+    _axes, _tau_point, _num, _vec, _at_least, _int, _bool, _magnitudes, _table, _joint_list,
+)

@@ -1,0 +1,151 @@
+"""The simulation configuration: its key tables, defaults and limits, the checks of its values.
+
+The schema is in ``docs/identification.md``; every check raises :class:`SimConfigError`
+with a message naming the source, the table, the key and the value.  Nothing here
+realises a parameter: the checks are called by the modules that read each table.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models.errors import InputError
+
+
+#: Top-level keys of a configuration.
+_TOP_KEYS = {"seed", "campaign", "noise", "registration", "temperature", "stiffness", "effects", "units"}
+#: Effects the simulator knows: the library ones and some outside the library.
+#: ``joint_error_map`` is the same simulated physics as ``eccentricity`` (periodic joint
+#: transmission errors), spelled as the library effect that models it; give one of the two.
+SIM_EFFECTS = ("gravity", "stiffness_hardening", "lost_motion", "joint_offset", "geometric",
+               "load_offset", "link_compliance", "drift", "thermal", "eccentricity", "joint_error_map",
+               "outliers")
+#: Effects the identification library does not contain (for negative tests).
+OUT_OF_LIBRARY = ("eccentricity",)
+#: The two spellings of the periodic joint-error effect (``[effects.NAME]``).
+JOINT_ERROR_EFFECTS = ("eccentricity", "joint_error_map")
+#: Keys of each ``[effects.NAME]`` table.
+_EFFECT_KEYS: dict[str, set[str]] = {
+    "gravity": {"masses_kg", "coms_m", "mass_scale", "payload_kg", "payload_com_m"},
+    "stiffness_hardening": {"model", "knee_torque_Nm", "stiffness_ratio", "beta_per_Nm"},
+    "lost_motion": {"backlash_rad", "smoothing_Nm"},
+    "joint_offset": {"dtheta_rad"},
+    "geometric": {"sigma_length_m", "sigma_angle_rad", "da_m", "dalpha_rad", "dd_m", "dtheta_rad", "dbeta_rad"},
+    "load_offset": {"r_tool_m"},
+    "link_compliance": {"links", "EI_Nm2", "GJ_Nm2"},
+    "drift": {"rate_m_per_h", "accel_m_per_h2"},
+    "thermal": {"alpha_per_K", "links", "reference_C"},
+    "eccentricity": {"joint", "amplitude_rad", "harmonic", "phase_rad"},
+    "joint_error_map": {"joint", "amplitude_rad", "harmonic", "phase_rad"},
+    "outliers": {"fraction", "magnitude_m"},
+}
+#: Keys of the ``[campaign]`` table and their defaults.
+DEFAULT_CAMPAIGN = {
+    "poses": 100, "unloaded_rows": 1, "loaded_rows": 3, "force_magnitudes_N": [50.0, 100.0, 150.0],
+    "moment_magnitudes_Nm": [0.0], "directions": "random", "dt_s": 20.0, "r_min_m": 0.25,
+    "z_min_m": -0.2, "repeats": 0, "orientation": False,
+}
+#: Keys of the ``[noise]`` table and their defaults.
+DEFAULT_NOISE = {"sigma_m": 2e-5, "sigma_column": False, "sigma_rad": 2e-5, "sigma_rot_column": False}
+
+#: Largest number of rows a simulated campaign may have (poses x rows per pose).
+SIM_MAX_ROWS = 1_000_000
+#: Largest amplitude of one periodic joint-error term (rad): a transmission error, not an offset.
+SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD = 0.05
+#: Largest harmonic (cycles per revolution of the joint) of a periodic joint-error term.
+SIM_JOINT_ERROR_MAX_HARMONIC = 200.0
+
+
+class SimConfigError(InputError):
+    """A simulation configuration is malformed; the message names the key."""
+
+
+def load_config(path: str | Path) -> dict[str, Any]:
+    """Read a simulation configuration TOML file."""
+    from models.robot import read_text_file
+
+    p = Path(path)
+    text = read_text_file(p, "simulation configuration file (TOML)", SimConfigError)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SimConfigError(f"{p}: not valid TOML: {exc}") from None
+
+
+# ----------------------------------------------------------------------------------
+# Checks of values (each names the source, the key and the value)
+# ----------------------------------------------------------------------------------
+
+def _num(where: str, key: str, v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+        raise SimConfigError(f"{where}: key '{key}' must be a finite number, got {v!r}")
+    return float(v)
+
+
+def _vec(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.ndarray:
+    if broadcast and isinstance(v, (int, float)) and not isinstance(v, bool):
+        return np.full(n, _num(where, key, v))
+    if not isinstance(v, (list, tuple)) or len(v) != n:
+        raise SimConfigError(f"{where}: key '{key}' must be {'a number or ' if broadcast else ''}"
+                             f"a list of {n} numbers, got {v!r}")
+    return np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+
+
+def _at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bool = False,
+              what: str = "") -> None:
+    """Refuse values below ``lo`` (or equal to it when ``strict``), naming the key and the value."""
+    arr = np.atleast_1d(np.asarray(v, dtype=float))
+    bad = np.flatnonzero(arr <= lo) if strict else np.flatnonzero(arr < lo)
+    if bad.size:
+        i = int(bad[0])
+        k = key if arr.size == 1 and np.ndim(v) == 0 else f"{key}[{i}]"
+        raise SimConfigError(f"{where}: key '{k}' must be {'>' if strict else '>='} {lo:g}"
+                             f"{' ' + what if what else ''}, got {float(arr[i]):g}")
+
+
+def _int(where: str, key: str, v: Any, lo: int) -> int:
+    """An integer >= ``lo`` (a float such as 20.5 or a string is refused)."""
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+        raise SimConfigError(f"{where}: key '{key}' must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def _bool(where: str, key: str, v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise SimConfigError(f"{where}: key '{key}' must be true or false, got {v!r}")
+    return v
+
+
+def _magnitudes(where: str, key: str, v: Any) -> np.ndarray:
+    """A number or a non-empty list of finite numbers >= 0 (force or moment magnitudes)."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        out = np.array([_num(where, key, v)])
+    elif isinstance(v, list) and v:
+        out = np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+    else:
+        raise SimConfigError(f"{where}: key '{key}' must be a number or a non-empty list of numbers, got {v!r}")
+    _at_least(where, key, out if isinstance(v, list) else out[0], 0.0)
+    return out
+
+
+def _table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> dict[str, Any]:
+    t = cfg.get(key, {})
+    if not isinstance(t, Mapping):
+        raise SimConfigError(f"{where}: '{key}' must be a table")
+    unknown = sorted(set(t) - allowed)
+    if unknown:
+        raise SimConfigError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+    return dict(t)
+
+
+def _joint_list(where: str, links: Any) -> list[int]:
+    """``links``, checked to be a list of joint numbers 1..6 (``where``: the table, for messages)."""
+    if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
+        raise SimConfigError(f"{where}: key 'links' must be a list of joint numbers 1..6, got {links!r}")
+    return links

@@ -1,0 +1,174 @@
+"""The physics of the true arm: joint errors, torques, joint deflection, equilibrium, link beams.
+
+:class:`_Physics` is a part of :class:`~problems.virtual.robot.VirtualRobot`: its
+methods read the realised parameters (set by ``__init__`` and
+:class:`~problems.virtual.effects._EffectRealisation`) and give the deflected arm:
+the fixed point ``q = q_c + e(q_c) + dq(q)`` of the joints and the Euler-Bernoulli
+beams of the links.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from .geometry import _axes, _frames, _Geometry, _tau_point
+
+#: Fixed-point tolerance of the simulator's deflected equilibrium (rad).
+SIM_EQUILIBRIUM_TOL = 1e-13
+#: Maximum fixed-point iterations of the simulator.
+SIM_EQUILIBRIUM_MAX_ITER = 200
+
+
+class _Physics:
+    """The deflected arm of the true parameters (a part of :class:`VirtualRobot`)."""
+
+    def joint_error(self, q_c: np.ndarray) -> np.ndarray:
+        """Periodic joint error the simulator adds to each joint (effect ``eccentricity`` /
+        ``joint_error_map``), a function of the commanded angle.
+
+        Parameters
+        ----------
+        q_c : ndarray, shape (N, 6) or (6,)
+            Commanded joint angles, rad.
+
+        Returns
+        -------
+        ndarray, shape (N, 6)
+            Error added to each joint angle of the arm before the kinematics, rad
+            (``sum_k amplitude_k sin(harmonic_k q_c[joint_k] + phase_k)``; zeros without
+            the effect).
+        """
+        q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
+        if q_c.ndim != 2 or q_c.shape[1] != 6:
+            raise ValueError(f"joint_error: q_c must have shape (N, 6), got {q_c.shape}")
+        err = np.zeros(q_c.shape)
+        for j, a, h, ph in zip(self.ecc_joint, self.ecc_amp, self.ecc_harm, self.ecc_phase):
+            err[:, j] += float(a) * np.sin(float(h) * q_c[:, j] + float(ph))
+        return err
+
+    def _geometry(self, temperature: np.ndarray) -> _Geometry:
+        r = self.robot
+        n = len(temperature)
+        a = np.tile(r.a + self.da, (n, 1))
+        d = np.tile(r.d + self.dd, (n, 1))
+        if "thermal" in self.effects:
+            s = 1.0 + self.th_alpha * (temperature - self.th_ref)
+            for i in self.th_links:
+                a[:, i] *= s
+                d[:, i] *= s
+        return _Geometry(a=a, alpha=np.tile(r.alpha + self.dalpha, (n, 1)), d=d,
+                         toff=np.tile(r.theta_offset + self.dtheta, (n, 1)),
+                         beta=np.tile(self.dbeta, (n, 1)))
+
+    def _tool(self) -> np.ndarray:
+        return self.robot.tcp2flange
+
+    def _torques(self, q: np.ndarray, F: np.ndarray, geo: _Geometry) -> np.ndarray:
+        fr = _frames(q, geo, self.convention)
+        z, p = _axes(fr, self.convention)
+        tcp = fr[:, 5] @ self._tool()
+        f, m = F[:, :3], F[:, 3:]
+        point = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
+        tau = _tau_point(z, p, point, f, m)
+        if "gravity" in self.effects:
+            g = self.robot.gravity
+            for j in range(6):
+                c = fr[:, j, :3, 3] + np.einsum("nij,j->ni", fr[:, j, :3, :3], self.coms[j])
+                tau += _tau_point(z, p, c, np.broadcast_to(self.masses[j] * g, c.shape), np.zeros_like(c)) \
+                    * (np.arange(6) <= j)[None, :]
+            if self.payload > 0:
+                c = fr[:, 5, :3, 3] + np.einsum("nij,j->ni", fr[:, 5, :3, :3], self.payload_com)
+                tau += _tau_point(z, p, c, np.broadcast_to(self.payload * g, c.shape), np.zeros_like(c))
+        return tau
+
+    def _deflection(self, tau: np.ndarray) -> np.ndarray:
+        k = self.k_true
+        if "stiffness_hardening" in self.effects:
+            if self.hard_model == "two_slope":
+                a = np.abs(tau)
+                lo = np.minimum(a, self.knee) / k
+                hi = np.maximum(a - self.knee, 0.0) / (k * self.hard_ratio)
+                dq = np.sign(tau) * (lo + hi)
+            else:
+                dq = tau / (k * (1.0 + self.hard_beta * np.abs(tau)))
+        else:
+            dq = tau / k
+        if "lost_motion" in self.effects:
+            if self.backlash_smoothing > 0:
+                dq = dq + self.backlash * np.tanh(tau / self.backlash_smoothing)
+            else:
+                dq = dq + self.backlash * np.sign(tau)
+        return dq
+
+    def equilibrium(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None) -> np.ndarray:
+        """Deflected joint angles ``q = q_c + dq(q)`` (rad), shape (N, 6).
+
+        Periodic joint errors (:meth:`joint_error` of the commanded angles) are part of the
+        pose the loads act on: ``q = q_c + e(q_c) + dq(q)``.
+        """
+        q_c = np.atleast_2d(q_c)
+        n = len(q_c)
+        F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
+        T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
+        geo = self._geometry(T)
+        q0 = q_c + self.joint_error(q_c) if self.ecc_joint.size else q_c
+        q = q0.copy()
+        for _ in range(SIM_EQUILIBRIUM_MAX_ITER):
+            q_new = q0 + self._deflection(self._torques(q, F, geo))
+            step = np.max(np.abs(q_new - q))
+            q = q_new
+            if step < SIM_EQUILIBRIUM_TOL:
+                break
+        return q
+
+    def _beams(self, fr: np.ndarray, F: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Euler-Bernoulli beams of effect ``link_compliance``, one per link: yields the tip
+        displacement ``delta`` (N, 3) m, the tip rotation ``phi`` (N, 3) rad (a small rotation
+        vector) and the tip position (N, 3) m, base frame; everything distal to the tip moves
+        by ``delta + phi x (x - tip)`` and turns by ``phi``."""
+        _z, p = _axes(fr, self.convention)
+        tcp = fr[:, 5] @ self._tool()
+        p_app = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
+        f, m = F[:, :3], F[:, 3:]
+        for k, i in enumerate(self.beam_links):
+            base = p[:, i]
+            tip = p[:, i + 1] if i < 5 else fr[:, 5, :3, 3]
+            seg = tip - base
+            L = np.linalg.norm(seg, axis=1, keepdims=True)
+            e = seg / L
+            m_tip = m + np.cross(p_app - tip, f)
+            f_perp = f - np.sum(f * e, axis=1, keepdims=True) * e
+            m_ax = np.sum(m_tip * e, axis=1, keepdims=True) * e
+            m_perp = m_tip - m_ax
+            EI, GJ = self.EI[k], self.GJ[k]
+            delta = f_perp * L ** 3 / (3 * EI) + np.cross(m_perp, e) * L ** 2 / (2 * EI)
+            phi = np.cross(e, f_perp) * L ** 2 / (2 * EI) + m_perp * L / EI + m_ax * L / GJ
+            yield delta, phi, tip
+
+    def _beam_displacement(self, fr: np.ndarray, F: np.ndarray, point: np.ndarray) -> np.ndarray:
+        """Displacement of ``point`` (N, 3), base frame, m, by the link beams."""
+        dp = np.zeros_like(point)
+        for delta, phi, tip in self._beams(fr, F):
+            dp += delta + np.cross(phi, point - tip)
+        return dp
+
+    def _beam_rotation(self, fr: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """Rotation of the flange by the link beams: the sum of their tip rotations, a
+        rotation vector (N, 3), rad, base frame (small: the beams are linear)."""
+        phi_sum = np.zeros((fr.shape[0], 3))
+        for _delta, phi, _tip in self._beams(fr, F):
+            phi_sum += phi
+        return phi_sum
+
+    def _deflected_frames(self, q_c: np.ndarray, F: np.ndarray,
+                          temperature: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Frames frame_i2base of the deflected arm (N, 6, 4, 4) and the wrench broadcast
+        to (N, 6): equilibrium joints (plus periodic joint errors) on the true geometry."""
+        q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
+        n = len(q_c)
+        F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
+        T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
+        q = self.equilibrium(q_c, F, T)
+        return _frames(q, self._geometry(T), self.convention), F
