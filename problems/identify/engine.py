@@ -41,6 +41,7 @@ from .evaluation import (_ev_for, _gravity_problem, _Problem, _torque_scale, mak
                          time_reference, with_orientation_rows)
 from .identifiability import Known, _order_for, _structural_held
 from .lsq import _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _wjac, _wres, kabsch
+from .map_candidate import MAP_CHANNEL_GROUPS, MAP_SEARCH_COMPONENTS
 from .map_summary import ErrorMapSummary, summarise_maps
 from .orientation import _balance_orientation, _measured_frame_start, _orientation_gain
 from .outliers import _outlier_mask
@@ -56,8 +57,6 @@ from .results import (
 )
 from .selection import (
     CV_FOLDS,
-    MAP_CHANNEL_GROUPS,
-    MAP_SEARCH_COMPONENTS,
     _assign_folds,
     _candidate_applicable,
     _linear_scores,

@@ -17,22 +17,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
-from models.effects import (EFFECTS, GROUP_SLICES, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_layout,
-                            set_const)
-from models.effects.joint_error_map import MAP_COMPONENTS
+from models.effects import EFFECTS, N_PARAMS, PARAM_NAMES, ModelLayout, get_const
 from models.robot import Robot
 
 from ..measurements import Measurements
 from .diagnostics import _diagnose, structure_left
-from .error_map import MapProposal, propose_map
-from .evaluation import _ev_for, _gravity_problem, _Problem, _update_knots
+from .error_map import MapProposal
+from .evaluation import _gravity_problem, _Problem, _update_knots
 from .identifiability import _order_for, select_identifiable
 from .lsq import _evaluate, _Fit, _fit_model, _jac, _rms, _solve_normal, _wjac, _wres
+from .map_candidate import MAP_SEARCH_COMPONENTS, map_detail, map_problem
 from .results import CandidateScore, SelectionStep
 
 #: Folds of the cross-validation (whole poses are held out together).
@@ -62,14 +61,6 @@ REFINE_MAX_ITER = 12
 PARSIMONY_REL_TOL = 0.02
 #: Stop when the cross-validated RMS is below this multiple of the noise floor.
 NOISE_FLOOR_STOP_RATIO = 1.10
-#: The parameter groups whose Jacobian columns are the signatures of the map's components
-#: (``models.effects.joint_error_map.MAP_COMPONENTS``: theta, d, a, alpha, beta).
-MAP_CHANNEL_GROUPS = ("joint_offset.dtheta", "geometric.dd", "geometric.da", "geometric.dalpha", "geometric.dbeta")
-#: Components the map candidate searches: the angular positioning error (gear transmission error,
-#: encoder error).  The model carries runout and wobble (d, a, alpha, beta) too, but from position
-#: data their signatures are flexible enough to absorb structure of other origins (an error that
-#: depends on two joints, a compliance): searched, they would attribute wrongly.
-MAP_SEARCH_COMPONENTS = ("theta",)
 #: Temperature range below which ``thermal`` cannot be tested, K.
 THERMAL_MIN_RANGE_K = 0.5
 
@@ -348,33 +339,11 @@ class _Run:
 
     def map_problem(self, p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
                     ) -> tuple[_Problem | None, np.ndarray]:
-        """The problem with the map frequencies of :func:`~.error_map.propose_map` on the residual of
-        ``fit`` (its free parameters and the weighted, scaled Jacobian columns ``others`` (3n, k) of
-        the other candidates projected out), or None when no term passes."""
-        mask = fit.inliers
-        m = p.m.subset(mask)
-        w3 = p.weights[mask].reshape(-1)
-        channels = {}
-        for j in range(6):
-            for c, group in enumerate(MAP_CHANNEL_GROUPS):
-                if MAP_COMPONENTS[c] not in self.map_components:
-                    continue
-                i = GROUP_SLICES[group].start + j
-                channels[(j, c)] = (fit.J[np.repeat(mask, 3), i] * w3).reshape(m.n, 3)
-        free = [i for i in fit.free if i not in fit.held]
-        Jfree = _wjac(p, fit.J, mask, np.asarray(free, dtype=int))
-        if others is not None:
-            Jfree = np.column_stack([Jfree, others])
-        prop = propose_map(_wres(p, fit.pred, mask), channels, m.q, Jfree, p.folds[mask])
+        """The ``joint_error_map`` candidate's problem (:func:`~.map_candidate.map_problem`), the
+        proposal recorded in :attr:`map_proposals`."""
+        prob_e, th_e, prop = map_problem(self.robot, self.map_components, p, fit, th, others)
         self.map_proposals.append(prop)
-        if prop is None:
-            return None, th
-        const = set_const(p.const, "error_map.freq", prop.freq.reshape(-1))
-        const = set_const(const, "error_map.range", prop.range_rad.reshape(-1))
-        layout = make_layout(self.robot, const)
-        th = th.copy()
-        th[layout.effect_indices("joint_error_map")] = 0.0
-        return replace(p, const=const, layout=layout, ev=_ev_for(self.robot, const)), th
+        return prob_e, th_e
 
 
 @dataclass
@@ -392,12 +361,6 @@ class _State:
     pending: dict[str, tuple[_Problem, np.ndarray]] = field(default_factory=dict)
     #: The map proposal of the accepted joint_error_map, if any.
     map_proposal: MapProposal | None = None
-
-
-def map_detail(prop: MapProposal) -> str:
-    """One line naming the joints and frequencies of a map proposal."""
-    parts = [f"{t.label} ({100 * t.rss_share:.1f} % of the residual SS)" for t in prop.terms]
-    return "periodic terms found: " + "; ".join(parts)
 
 
 # ----------------------------------------------------------------------------------
