@@ -61,26 +61,6 @@ def slot_index(j: int, c: int, s: int) -> tuple[int, int]:
     return k, k + 1
 
 
-def map_values(coef: np.ndarray, freq: np.ndarray, rng: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """The maps ``e_cj(q_j)`` at commanded angles ``q`` (N, 6) rad: (N, 6, N_COMP) in the
-    components' units (numeric twin of the hook).
-
-    ``coef`` (prod(COEF_SHAPE),), ``freq`` (prod(FREQ_SHAPE),) cycles/rev, ``rng`` (12,) rad."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    c = np.asarray(coef, dtype=float).reshape(COEF_SHAPE)
-    f = np.asarray(freq, dtype=float).reshape(FREQ_SHAPE)
-    r = np.asarray(rng, dtype=float).reshape(6, 2)
-    out = np.zeros((len(q), 6, N_COMP))
-    for j in range(6):
-        qj = np.clip(q[:, j], r[j, 0], r[j, 1])
-        for k in range(N_COMP):
-            for s in range(MAP_SLOTS):
-                if f[j, k, s] > 0:
-                    out[:, j, k] += (c[j, k, s, 0] * np.cos(f[j, k, s] * qj)
-                                     + c[j, k, s, 1] * np.sin(f[j, k, s] * qj))
-    return out
-
-
 @register
 class JointErrorMap(Effect):
     name = "joint_error_map"

@@ -90,23 +90,11 @@ class MapProposal:
         ``[lo, hi]`` commanded angle range of each joint's map, rad.
     terms : list of MapTerm
         In the order found.
-    spectra : dict
-        (joint, component) -> (frequencies (F,), share of the residual SS each would remove
-        alone (F,), the share the family-wise test needs), of the first search step.
-    n_tests : int
-        (joint, component, frequency) triples searched.
     """
 
     freq: np.ndarray
     range_rad: np.ndarray
     terms: list[MapTerm] = field(default_factory=list)
-    spectra: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, float]] = field(default_factory=dict)
-    n_tests: int = 0
-
-    @property
-    def joints(self) -> list[int]:
-        """Joints (0-based) with at least one term."""
-        return sorted({t.joint for t in self.terms})
 
 
 def joint_max_cpr(q: np.ndarray) -> float:
@@ -183,7 +171,8 @@ def _channel_gain(Jc: np.ndarray, q: np.ndarray, f: np.ndarray, r: np.ndarray, Q
     aa, bb, ab = (C * C).T @ s2, (S * S).T @ s2, (C * S).T @ s2
     if M.shape[1]:
         U, V = M.T @ C, M.T @ S
-        a, b = a - U.T @ (Q.T @ r), b - V.T @ (Q.T @ r)
+        Qr = Q.T @ r
+        a, b = a - U.T @ Qr, b - V.T @ Qr
         aa, bb, ab = aa - np.einsum("kf,kf->f", U, U), bb - np.einsum("kf,kf->f", V, V), ab - np.einsum("kf,kf->f", U, V)
     return _gain2(a, b, aa, bb, ab)
 
@@ -261,11 +250,10 @@ def _set_freq(prop: MapProposal) -> None:
 
 
 def _scan(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: dict[int, np.ndarray],
-          res: dict[int, float], q: np.ndarray, r: np.ndarray, QZ: np.ndarray, used: np.ndarray, alpha: float,
-          rss: float, df2_first: int) -> tuple[float, tuple[int, int], float] | None:
+          res: dict[int, float], q: np.ndarray, r: np.ndarray, QZ: np.ndarray, used: np.ndarray
+          ) -> tuple[float, tuple[int, int], float] | None:
     """The spectrum: the best (gain, (joint, component), frequency) over every channel with a free
-    slot, frequencies within a separation of the channel's terms excluded; the first scan's spectra
-    (share of the residual SS, and the share the family-wise test needs) go into ``prop.spectra``."""
+    slot, frequencies within a separation of the channel's terms excluded."""
     best: tuple[float, tuple[int, int], float] | None = None
     for (j, c), Jc in chans.items():
         if used[j, c] >= MAP_SLOTS:
@@ -276,9 +264,6 @@ def _scan(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: di
         if len(taken):
             near = np.min(np.abs(fg[:, None] - taken[None, :]), axis=1) < MAP_MIN_SEPARATION * res[j]
             g = np.where(near, 0.0, g)
-        if not prop.terms:
-            fcrit = stats.f.isf(alpha, 2, df2_first)
-            prop.spectra[(j, c)] = (fg.copy(), g / max(rss, 1e-300), float(2 * fcrit / (df2_first + 2 * fcrit)))
         k = int(np.argmax(g))
         if best is None or g[k] > best[0]:
             best = (float(g[k]), (j, c), float(fg[k]))
@@ -319,7 +304,7 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
     chans = {jc: Jc for jc, Jc in channels.items() if len(grids[jc[0]]) and np.any(Jc != 0)}
     n_tests = int(sum(len(grids[j]) for j, _c in chans))
     freq = np.zeros(FREQ_SHAPE)
-    prop = MapProposal(freq=freq, range_rad=np.column_stack([q.min(axis=0), q.max(axis=0)]), n_tests=n_tests)
+    prop = MapProposal(freq=freq, range_rad=np.column_stack([q.min(axis=0), q.max(axis=0)]))
     if not n_tests:
         return None
     alpha = MAP_ALPHA / n_tests
@@ -330,7 +315,7 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
     used = np.zeros((6, N_COMP), dtype=int)
     while True:
         QZ = np.column_stack([Q, Z]) if Z.size else Q
-        best = _scan(prop, chans, grids, res, q, r, QZ, used, alpha, rss, 3 * n - k_free - 2)
+        best = _scan(prop, chans, grids, res, q, r, QZ, used)
         if best is None or best[0] <= 0:
             break
         _g, (j, c), f = best

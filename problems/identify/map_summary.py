@@ -107,7 +107,7 @@ def summarise_maps(theta: np.ndarray, cov: np.ndarray | None, const_freq: np.nda
                 continue
             lo, hi = float(rng[j, 0]), float(rng[j, 1])
             med_lever = float(np.median(lever[:, j, k])) if len(lever) else 0.0
-            grid = np.linspace(lo, hi, 240)
+            grid = np.linspace(lo, hi, MAP_CURVE_POINTS)
             idx, cols = [], []
             harm = []
             for s in slots:

@@ -309,7 +309,8 @@ class _Run:
     max_steps: int
     tick: Callable[[str, int, int], None]
     total_steps: int
-    map_proposals: list[MapProposal | None] = field(default_factory=list)
+    #: The last proposal of the map search (its terms are the candidate's ``detail``).
+    map_proposal: MapProposal | None = None
     #: Components of the joint error map the search proposes (:data:`MAP_SEARCH_COMPONENTS`).
     map_components: tuple[str, ...] = MAP_SEARCH_COMPONENTS
 
@@ -340,9 +341,8 @@ class _Run:
     def map_problem(self, p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
                     ) -> tuple[_Problem | None, np.ndarray]:
         """The ``joint_error_map`` candidate's problem (:func:`~.map_candidate.map_problem`), the
-        proposal recorded in :attr:`map_proposals`."""
-        prob_e, th_e, prop = map_problem(self.robot, self.map_components, p, fit, th, others)
-        self.map_proposals.append(prop)
+        proposal recorded in :attr:`map_proposal`."""
+        prob_e, th_e, self.map_proposal = map_problem(self.robot, self.map_components, p, fit, th, others)
         return prob_e, th_e
 
 
@@ -359,8 +359,6 @@ class _State:
     stop_reason: str = "no candidate left"
     #: Candidate problems of the current step (effect -> problem, start), from the screen.
     pending: dict[str, tuple[_Problem, np.ndarray]] = field(default_factory=dict)
-    #: The map proposal of the accepted joint_error_map, if any.
-    map_proposal: MapProposal | None = None
 
 
 # ----------------------------------------------------------------------------------
@@ -419,8 +417,8 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
         sc = _linear_scores(prob_e, J_e, pred_e, fit.inliers, np.asarray(kept, dtype=int))
         cs = _candidate_score(e, sc, score_m, run.sigma_w, len(kept_new))
         cs.held = [f"{PARAM_NAMES[i]}: {held[i]}" for i in new if i in held]
-        if e == "joint_error_map" and run.map_proposals and run.map_proposals[-1] is not None:
-            cs.detail = map_detail(run.map_proposals[-1])
+        if e == "joint_error_map" and run.map_proposal is not None:
+            cs.detail = map_detail(run.map_proposal)
         prelim.append(cs)
         scores.append(cs)
     return scores, prelim
@@ -522,8 +520,6 @@ def _forward_step(run: _Run, st: _State) -> bool:
                 best[0].accepted = True
                 accepted = best[0].effect
                 st.prob = best[2]
-                if accepted == "joint_error_map":
-                    st.map_proposal = run.map_proposals[-1]
                 st.active.append(accepted)
                 st.effects_added.append(accepted)
                 st.fit = run.refit(st.prob, best[1].theta, st.active, run.mask_sel)
