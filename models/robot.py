@@ -31,15 +31,17 @@ from .errors import InputError
 from .transforms import rpy_to_matrix, transform
 
 CONVENTIONS = ("standard_dh", "modified_dh")
-BUILTIN_ROBOTS = ("ar5", "ur5", "ur10")
+BUILTIN_ROBOTS = ("ar5", "ur5", "ur10", "ur5e", "kr6_r900")
 
 # Keys that may be given in radians (plain name) or degrees (``_deg`` suffix).
 _ANGLE_KEYS = ("alpha", "theta_offset", "q_min", "q_max")
 _JOINT_REQUIRED = ("a", "alpha", "d", "theta_offset", "q_min", "q_max",
                    "v_max", "a_max", "j_max", "stiffness")
-_JOINT_OPTIONAL = ("mass", "com")
+_JOINT_OPTIONAL = ("mass", "com", "inertia")
 _TOP_KEYS = ("name", "convention", "description", "joints", "tool", "gravity",
-             "source", "identified")
+             "source", "identified", "joint_names", "frame0_in_base", "flange_in_frame6")
+#: Keys of a transform table (``[tool]``, ``[frame0_in_base]``, ``[flange_in_frame6]``).
+_FRAME_KEYS = ("xyz", "rpy", "rpy_deg")
 
 
 class RobotFileError(InputError):
@@ -122,6 +124,8 @@ class Joint:
         Mass of the link carried by this joint, kg.
     com : ndarray, shape (3,), or None
         Centre of mass of that link in the joint's DH link frame *i*, m.
+    inertia : ndarray, shape (3, 3), or None
+        Inertia tensor of that link about its centre of mass, axes of DH link frame *i*, kg*m^2.
     """
 
     a: float
@@ -136,6 +140,7 @@ class Joint:
     stiffness: float
     mass: float | None = None
     com: np.ndarray | None = None
+    inertia: np.ndarray | None = None
     #: Angle keys the robot file gave in degrees (``{"q_min", "q_max"}`` for ``q_min_deg``,
     #: ``q_max_deg``): messages quote a limit in the key and unit the file used.
     deg_keys: frozenset[str] = field(default=frozenset(), compare=False, repr=False)
@@ -164,6 +169,17 @@ class Robot:
         Gravity acceleration in the base frame, m/s^2.
     description, source : str
         Free text (what the values are and where they come from).
+    frame02base : ndarray, shape (4, 4)
+        DH frame 0 -> base frame (identity for a plain DH table); a chain read from a URDF
+        gets the frame its DH table starts from.
+    flange2frame6 : ndarray, shape (4, 4)
+        Flange frame -> DH frame 6 (identity for a plain DH table: the flange *is* DH frame 6).
+    joint_names : tuple of str, length 6, or None
+        The controller's / URDF's joint names, base to tip.
+    urdf : dict or None
+        Where a URDF-based robot came from: ``{"path", "base_link", "tip_link"}``.
+    notes : tuple of str
+        What was assumed while reading the file (defaults taken, parts ignored).
     """
 
     name: str
@@ -176,6 +192,16 @@ class Robot:
     #: Optional ``[identified]`` table written by ``compplan identify`` (registration,
     #: effects and their parameters); opaque to the kinematics, used by ``problems.identify``.
     identified: dict[str, Any] | None = None
+    frame02base: np.ndarray = field(default_factory=lambda: np.eye(4))
+    flange2frame6: np.ndarray = field(default_factory=lambda: np.eye(4))
+    joint_names: tuple[str, ...] | None = None
+    urdf: dict[str, str] | None = field(default=None, compare=False)
+    notes: tuple[str, ...] = field(default=(), compare=False)
+
+    @property
+    def has_chain_transforms(self) -> bool:
+        """Whether DH frame 0 or the flange differ from the base frame / DH frame 6."""
+        return not (np.array_equal(self.frame02base, np.eye(4)) and np.array_equal(self.flange2frame6, np.eye(4)))
 
     # --- array views (shape (6,)) -------------------------------------------------
     def _col(self, key: str) -> np.ndarray:
@@ -242,6 +268,17 @@ class Robot:
         return self._col("mass")
 
     @property
+    def has_inertias(self) -> bool:
+        return self.has_masses and all(j.inertia is not None for j in self.joints)
+
+    @property
+    def inertias(self) -> np.ndarray:
+        """Link inertia tensors about their centres of mass, DH link frames, kg*m^2, shape (6, 3, 3)."""
+        if not self.has_inertias:
+            raise RobotFileError(f"robot '{self.name}': link inertias are not given")
+        return np.array([j.inertia for j in self.joints], dtype=float)
+
+    @property
     def coms(self) -> np.ndarray:
         """Centres of mass in DH link frames, m, shape (6, 3)."""
         if not self.has_masses:
@@ -272,19 +309,35 @@ class Robot:
                 row["mass"] = float(j.mass)
             if j.com is not None:
                 row["com"] = [float(c) for c in j.com]
+            if j.inertia is not None:
+                I = np.asarray(j.inertia, dtype=float)
+                row["inertia"] = [float(I[0, 0]), float(I[1, 1]), float(I[2, 2]),
+                                  float(I[0, 1]), float(I[0, 2]), float(I[1, 2])]
             joints.append(row)
-        from .transforms import matrix_to_rpy
-        return {
+        out: dict[str, Any] = {
             "name": self.name,
             "convention": self.convention,
             "description": self.description,
             "source": self.source,
             "gravity": [float(g) for g in self.gravity],
-            "tool": {"xyz": [float(v) for v in self.tcp2flange[:3, 3]],
-                     "rpy": [float(v) for v in matrix_to_rpy(self.tcp2flange[:3, :3])]},
-            "joints": joints,
-            **({"identified": self.identified} if self.identified is not None else {}),
+            "tool": _frame_dict(self.tcp2flange),
         }
+        if self.joint_names is not None:
+            out["joint_names"] = list(self.joint_names)
+        if not np.array_equal(self.frame02base, np.eye(4)):
+            out["frame0_in_base"] = _frame_dict(self.frame02base)
+        if not np.array_equal(self.flange2frame6, np.eye(4)):
+            out["flange_in_frame6"] = _frame_dict(self.flange2frame6)
+        out["joints"] = joints
+        if self.identified is not None:
+            out["identified"] = self.identified
+        return out
+
+
+def _frame_dict(T: np.ndarray) -> dict[str, list[float]]:
+    """A transform as a robot-file table ``{xyz (m), rpy (rad)}``."""
+    from .transforms import matrix_to_rpy
+    return {"xyz": [float(v) for v in T[:3, 3]], "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]}
 
 
 # --------------------------------------------------------------------------------------
@@ -377,19 +430,44 @@ def _parse_joint(where: str, row: Any) -> Joint:
         if vals["mass"] < 0:
             raise RobotFileError(f"{where}: key 'mass' must be >= 0, got {vals['mass']}")
         vals["com"] = _vector(where, "com", row["com"], 3)
+    if "inertia" in row:
+        if "mass" not in row:
+            raise RobotFileError(f"{where}: key 'inertia' needs 'mass' and 'com'")
+        vals["inertia"] = inertia_matrix(where, _vector(where, "inertia", row["inertia"], 6))
     deg = frozenset(k for k in _ANGLE_KEYS if f"{k}_deg" in row)
     return Joint(**vals, deg_keys=deg)
 
 
-def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
+#: Relative tolerance of the triangle inequality of principal moments (rounding in published tables).
+INERTIA_TRIANGLE_RTOL = 1e-6
+
+
+def inertia_matrix(where: str, v: np.ndarray) -> np.ndarray:
+    """Symmetric 3x3 inertia from ``[ixx, iyy, izz, ixy, ixz, iyz]`` (kg*m^2), checked physical:
+    positive semi-definite and principal moments obeying the triangle inequality."""
+    ixx, iyy, izz, ixy, ixz, iyz = (float(x) for x in v)
+    I = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    ev = np.linalg.eigvalsh(I)
+    scale = max(float(np.max(np.abs(ev))), 1e-300)
+    if ev[0] < -INERTIA_TRIANGLE_RTOL * scale or ev[2] > ev[0] + ev[1] + INERTIA_TRIANGLE_RTOL * scale:
+        raise RobotFileError(f"{where}: key 'inertia' = {[float(x) for x in v]} kg*m^2 is not a physical inertia "
+                             f"(principal moments {[float(e) for e in ev]}: each must be >= 0 and at most "
+                             "the sum of the other two); order is [ixx, iyy, izz, ixy, ixz, iyz]")
+    return I
+
+
+def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Path | None = None) -> Robot:
     """Build and validate a :class:`Robot` from a robot-file dictionary.
 
     Parameters
     ----------
     data : mapping
-        The parsed TOML document (see ``docs/robot-file.md``).
+        The parsed TOML document (see ``docs/robot-file.md``): a DH table, or a URDF-based
+        file (key ``urdf``, read by :mod:`models.urdf`).
     where : str
         Name of the source, used in error messages (usually the file path).
+    base_dir : Path, optional
+        Folder a ``urdf`` path is relative to (the robot file's folder).
 
     Raises
     ------
@@ -398,6 +476,9 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
     """
     if not isinstance(data, Mapping):
         raise RobotFileError(f"{where}: expected a table at top level")
+    if "urdf" in data:
+        from .urdf import robot_from_urdf_dict
+        return robot_from_urdf_dict(data, where, base_dir)
     unknown = sorted(set(data) - set(_TOP_KEYS))
     if unknown:
         hint = ("; this looks like a problem file (compplan plan PROBLEM), not a robot file"
@@ -415,24 +496,7 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
         raise RobotFileError(f"{where}: key 'joints' must be an array of 6 [[joints]] tables, got {n!r}")
     joints = tuple(_parse_joint(f"{where}: joints[{i + 1}]", row) for i, row in enumerate(joints_raw))
 
-    tool = data.get("tool", {})
-    if not isinstance(tool, Mapping):
-        raise RobotFileError(f"{where}: key 'tool' must be a table")
-    unknown = sorted(set(tool) - {"xyz", "rpy", "rpy_deg"})
-    if unknown:
-        raise RobotFileError(f"{where}: tool: unknown key(s) {unknown}; allowed: ['xyz', 'rpy', 'rpy_deg']")
-    xyz = _vector(f"{where}: tool", "xyz", tool.get("xyz", [0.0, 0.0, 0.0]), 3)
-    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-        raise RobotFileError(f"{where}: tool: key 'xyz' = {list(xyz)} is implausible (> "
-                             f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres (millimetres given?)")
-    if "rpy" in tool and "rpy_deg" in tool:
-        raise RobotFileError(f"{where}: tool: give either 'rpy' (rad) or 'rpy_deg', not both")
-    if "rpy_deg" in tool:
-        rpy = np.radians(_vector(f"{where}: tool", "rpy_deg", tool["rpy_deg"], 3))
-    else:
-        rpy = _vector(f"{where}: tool", "rpy", tool.get("rpy", [0.0, 0.0, 0.0]), 3)
-        for i, v in enumerate(rpy):
-            _check_radians(f"{where}: tool", f"rpy[{i}]", float(v), deg_key="rpy_deg")
+    tcp2flange = parse_frame_table(where, "tool", data.get("tool", {}))
     gravity = _vector(where, "gravity", data.get("gravity", [0.0, 0.0, -STANDARD_GRAVITY]), 3)
     desc = data.get("description", "")
     src = data.get("source", "")
@@ -442,14 +506,56 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot") -> Robot:
     identified = data.get("identified")
     if identified is not None and not isinstance(identified, Mapping):
         raise RobotFileError(f"{where}: key 'identified' must be a table")
-    return Robot(name=name, convention=conv, joints=joints,
-                 tcp2flange=transform(rpy_to_matrix(rpy), xyz), gravity=gravity,
+    frames = {key: parse_frame_table(where, key, data[key]) for key in ("frame0_in_base", "flange_in_frame6")
+              if key in data}
+    return Robot(name=name, convention=conv, joints=joints, tcp2flange=tcp2flange, gravity=gravity,
                  description=desc, source=src,
-                 identified=dict(identified) if identified is not None else None)
+                 identified=dict(identified) if identified is not None else None,
+                 frame02base=frames.get("frame0_in_base", np.eye(4)),
+                 flange2frame6=frames.get("flange_in_frame6", np.eye(4)),
+                 joint_names=parse_joint_names(where, data.get("joint_names")))
+
+
+def parse_frame_table(where: str, key: str, table: Any) -> np.ndarray:
+    """A transform table ``{xyz (m), rpy (rad) | rpy_deg}`` of a robot file as a 4x4 matrix.
+
+    ``R = Rz(yaw) Ry(pitch) Rx(roll)`` with ``rpy = [roll, pitch, yaw]``; missing keys are zero.
+    Raises :class:`RobotFileError` naming ``key`` and the offending entry.
+    """
+    if not isinstance(table, Mapping):
+        raise RobotFileError(f"{where}: key '{key}' must be a table")
+    w = f"{where}: {key}"
+    unknown = sorted(set(table) - set(_FRAME_KEYS))
+    if unknown:
+        raise RobotFileError(f"{w}: unknown key(s) {unknown}; allowed: {list(_FRAME_KEYS)}")
+    xyz = _vector(w, "xyz", table.get("xyz", [0.0, 0.0, 0.0]), 3)
+    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
+        raise RobotFileError(f"{w}: key 'xyz' = {list(xyz)} is implausible (> "
+                             f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres (millimetres given?)")
+    if "rpy" in table and "rpy_deg" in table:
+        raise RobotFileError(f"{w}: give either 'rpy' (rad) or 'rpy_deg', not both")
+    if "rpy_deg" in table:
+        rpy = np.radians(_vector(w, "rpy_deg", table["rpy_deg"], 3))
+    else:
+        rpy = _vector(w, "rpy", table.get("rpy", [0.0, 0.0, 0.0]), 3)
+        for i, v in enumerate(rpy):
+            _check_radians(w, f"rpy[{i}]", float(v), deg_key="rpy_deg")
+    return transform(rpy_to_matrix(rpy), xyz)
+
+
+def parse_joint_names(where: str, names: Any) -> tuple[str, ...] | None:
+    """The optional ``joint_names`` (6 distinct non-empty strings, base to tip)."""
+    if names is None:
+        return None
+    if (not isinstance(names, list) or len(names) != 6 or not all(isinstance(n, str) and n for n in names)
+            or len(set(names)) != 6):
+        raise RobotFileError(f"{where}: key 'joint_names' must be a list of 6 distinct non-empty strings, "
+                             f"got {names!r}")
+    return tuple(names)
 
 
 def load_robot(spec: str | Path) -> Robot:
-    """Load a robot by built-in name (``ar5``, ``ur5``, ``ur10``) or TOML file path.
+    """Load a robot by built-in name (:data:`BUILTIN_ROBOTS`) or TOML file path.
 
     Raises
     ------
@@ -458,8 +564,10 @@ def load_robot(spec: str | Path) -> Robot:
     """
     s = str(spec)
     if s in BUILTIN_ROBOTS:
-        text = resources.files("models").joinpath(f"robots/{s}.toml").read_text(encoding="utf-8")
+        folder = resources.files("models").joinpath("robots")
+        text = folder.joinpath(f"{s}.toml").read_text(encoding="utf-8")
         where = f"built-in robot '{s}'"
+        base_dir = Path(str(folder))
     else:
         path = Path(s)
         if not path.exists():
@@ -467,11 +575,12 @@ def load_robot(spec: str | Path) -> Robot:
                 f"robot '{s}': no such file, and not a built-in robot (built-ins: {', '.join(BUILTIN_ROBOTS)})")
         text = read_text_file(path, "robot file (TOML)", RobotFileError)
         where = str(path)
+        base_dir = path.parent
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise RobotFileError(f"{where}: not valid TOML: {exc}") from None
-    return robot_from_dict(data, where)
+    return robot_from_dict(data, where, base_dir)
 
 
 def robot_to_toml(robot: Robot) -> str:

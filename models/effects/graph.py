@@ -90,13 +90,16 @@ def _is_zero(x: Any) -> bool:
 
 
 def chain(q: Any, dh: dict[str, Any], convention: str) -> list[Any]:
-    """Frames ``frame_i2base`` (i = 1..6) of the chain ``A_i(q_i + theta_offset_i) Ry(beta_i)``.
+    """Frames ``frame_i2base`` (i = 1..6) of the chain ``frame02base A_i(q_i + theta_offset_i) Ry(beta_i)``.
 
     ``dh`` holds length-6 vectors ``a, alpha, d, theta_offset, beta`` (symbolic or numeric);
-    ``beta`` is the Hayati angle of nominally parallel consecutive axes (0 elsewhere).
+    ``beta`` is the Hayati angle of nominally parallel consecutive axes (0 elsewhere); and,
+    for a chain whose DH frame 0 is not the base frame (a URDF chain), ``frame02base`` (4x4).
     """
     frames = []
     T = ca.SX.eye(4) if not isinstance(q, ca.MX) else ca.MX.eye(4)
+    if dh.get("frame02base") is not None:
+        T = dh["frame02base"]
     for i in range(6):
         A = link_transform(q[i] + dh["theta_offset"][i], dh["d"][i], dh["a"][i], dh["alpha"][i], convention)
         b = dh["beta"][i]
@@ -107,21 +110,23 @@ def chain(q: Any, dh: dict[str, Any], convention: str) -> list[Any]:
     return frames
 
 
-def joint_axes(frames: Sequence[Any], convention: str) -> tuple[list[Any], list[Any]]:
-    """Unit axis ``z`` and a point ``p`` of each joint, base frame (3-vectors)."""
+def joint_axes(frames: Sequence[Any], convention: str, frame02base: Any = None) -> tuple[list[Any], list[Any]]:
+    """Unit axis ``z`` and a point ``p`` of each joint, base frame (3-vectors); ``frame02base``
+    is DH frame 0 in the base frame (None: the base frame itself)."""
     if convention == "standard_dh":
-        origin = [ca.DM.eye(4)] + list(frames[:-1])   # joint i turns about z_{i-1}
+        first = ca.DM.eye(4) if frame02base is None else frame02base
+        origin = [first] + list(frames[:-1])          # joint i turns about z_{i-1}
     else:
         origin = list(frames)                          # joint i turns about z_i
     return [T[:3, 2] for T in origin], [T[:3, 3] for T in origin]
 
 
-def geometric_jacobian(frames: Sequence[Any], p_tcp: Any, convention: str) -> Any:
+def geometric_jacobian(frames: Sequence[Any], p_tcp: Any, convention: str, frame02base: Any = None) -> Any:
     """Geometric Jacobian at point ``p_tcp`` by the vector-product method (paper eq. 10).
 
     Column i is ``[z_i x (p_tcp - p_i); z_i]`` (base frame), rows ``[v; w]``.
     """
-    zs, ps = joint_axes(frames, convention)
+    zs, ps = joint_axes(frames, convention, frame02base)
     return ca.horzcat(*[ca.vertcat(ca.cross(z, p_tcp - p), z) for z, p in zip(zs, ps)])
 
 
@@ -199,11 +204,23 @@ class Context:
     def tool(self) -> Any:
         return ca.reshape(self.c("tool"), 4, 4)
 
+    @property
+    def general(self) -> bool:
+        """Whether the chain has end transforms (DH frame 0 != base, flange != DH frame 6)."""
+        return self.graph is not None and self.graph.general
+
+    def frame02base(self) -> Any:
+        """DH frame 0 in the base frame (4x4), None for a plain DH chain."""
+        return ca.reshape(self.c("chain.frame02base"), 4, 4) if self.general else None
+
     def at(self, frames: list[Any], wrench_fn: Callable[["Context"], Any]) -> "Context":
         """Set the arm state (frames of the current joint angles) and the wrench on the TCP."""
         self.frames = frames
-        self.zs, self.ps = joint_axes(frames, self.convention)
-        self.tcp = ca.mtimes(frames[-1], self.tool)
+        self.zs, self.ps = joint_axes(frames, self.convention, self.frame02base())
+        #: flange2base of the current joint angles
+        self.flange = (ca.mtimes(frames[-1], ca.reshape(self.c("chain.flange2frame6"), 4, 4)) if self.general
+                       else frames[-1])
+        self.tcp = ca.mtimes(self.flange, self.tool)
         self.p_tcp, self.R_tcp = self.tcp[:3, 3], self.tcp[:3, :3]
         self.wrench = wrench_fn(self)
         return self
@@ -212,10 +229,13 @@ class Context:
 class Graph:
     """The model graph of one set of active effects (hooks called in registry order)."""
 
-    def __init__(self, convention: str, active: Sequence[Effect], eligible: np.ndarray) -> None:
+    def __init__(self, convention: str, active: Sequence[Effect], eligible: np.ndarray,
+                 general: bool = False) -> None:
         self.convention = convention
         self.effects = [e for e in registry() if e in active]
         self.eligible = eligible
+        #: the chain has end transforms (``chain.frame02base``, ``chain.flange2frame6``)
+        self.general = general
 
     def context(self, theta: Any, const: Any, dT: Any = 0.0, tn: Any = 0.0, qc: Any = None) -> Context:
         ctx = Context(self.convention, theta, const, self.eligible, dT, tn, qc)
@@ -224,7 +244,8 @@ class Graph:
 
     def geometry(self, ctx: Context) -> dict[str, Any]:
         dh = {"a": ctx.c("dh.a"), "alpha": ctx.c("dh.alpha"), "d": ctx.c("dh.d"),
-              "theta_offset": ctx.c("dh.theta_offset"), "beta": ca.DM.zeros(6)}
+              "theta_offset": ctx.c("dh.theta_offset"), "beta": ca.DM.zeros(6),
+              "frame02base": ctx.frame02base()}
         for e in self.effects:
             dh = e.geometry(ctx, dh)
         return dh
@@ -281,7 +302,7 @@ class Graph:
 def measured_point(graph: Graph, ctx: Context) -> Any:
     """The measured point (``measured_point`` parameters, flange frame) in the base frame,
     with point displacements, then through the measurement hooks."""
-    p_flange = ca.mtimes(ctx.frames[-1], ca.vertcat(ctx.p("tool.p"), 1))[:3]
+    p_flange = ca.mtimes(ctx.flange, ca.vertcat(ctx.p("tool.p"), 1))[:3]
     p_base = p_flange + graph.point_displacement(ctx, p_flange)
     return graph.measurement(ctx, p_base)
 
@@ -303,8 +324,8 @@ def orientation_error(graph: Graph, ctx: Context, rv_meas: Any) -> Any:
     order).  The frame's rotation into the measurement frame is the linear part of the
     measurement hooks (affine maps), taken from the images of three points."""
     R_tool = ca.mtimes(ca.reshape(ctx.c("measured_frame.R0"), 3, 3), cayley(ctx.p("tool.r")))
-    R_base = ca.mtimes(ctx.frames[-1][:3, :3], R_tool)
-    p_flange = ca.mtimes(ctx.frames[-1], ca.vertcat(ctx.p("tool.p"), 1))[:3]
+    R_base = ca.mtimes(ctx.flange[:3, :3], R_tool)
+    p_flange = ca.mtimes(ctx.flange, ca.vertcat(ctx.p("tool.p"), 1))[:3]
     cols = [graph.measurement(ctx, p_flange + R_base[:, k]) - graph.measurement(ctx, p_flange) for k in range(3)]
     R = ca.horzcat(*cols)
     E = ca.mtimes(rotvec_matrix(rv_meas).T, R)
@@ -313,7 +334,7 @@ def orientation_error(graph: Graph, ctx: Context, rv_meas: Any) -> Any:
 
 @lru_cache(maxsize=8)
 def identification_functions(convention: str, eligible: tuple[bool, ...] | None = None,
-                             orientation: bool = False) -> dict[str, ca.Function]:
+                             orientation: bool = False, general: bool = False) -> dict[str, ca.Function]:
     """CasADi functions of the identification model (every registered effect in the graph).
 
     ``eligible`` (length N_PARAMS) marks the parameters that exist for the robot: the
@@ -334,7 +355,7 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
     lay = layouts()
     n = lay.n_params
     el = np.ones(n, dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
-    graph = Graph(convention, registry(), el)
+    graph = Graph(convention, registry(), el, general)
     theta = ca.SX.sym("theta", n)
     row = ca.SX.sym("row", ROW_SIZE)
     const = ca.SX.sym("const", lay.const_size)
@@ -390,7 +411,7 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
     ctx4 = graph.context(theta, const, dTs, 0.0, qs)
     dh4 = graph.geometry(ctx4)
     ctx4.at(chain(qs, dh4, convention), lambda _c: ca.DM.zeros(6))
-    p0 = ca.mtimes(ctx4.frames[-1], ca.vertcat(ctx4.p("tool.p"), 1))[:3]
+    p0 = ca.mtimes(ctx4.flange, ca.vertcat(ctx4.p("tool.p"), 1))[:3]
     p0m = graph.measurement(ctx4, p0)
     point_jac = ca.Function("ident_point_jacobian", [qs, dTs, theta, const], [p0m, ca.jacobian(p0m, qs)],
                             ["q", "dT", "theta", "const"], ["p", "Jp"])
@@ -410,7 +431,10 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
     for the load functions, the load vector ``L`` (:data:`LOAD_SIZE`).
     """
     effs = [e for e in registry() if e.acts_on == base.ARM and (e.declared or e.name in active)]
-    graph = Graph(convention, effs, np.asarray(eligible, dtype=bool))
+    lay = layouts()
+    general = any(not np.array_equal(np.asarray(const)[lay.const_slices[k]], np.eye(4).reshape(-1))
+                  for k in ("chain.frame02base", "chain.flange2frame6"))
+    graph = Graph(convention, effs, np.asarray(eligible, dtype=bool), general)
     q = ca.SX.sym("q", 6)
     L = ca.SX.sym("L", LOAD_SIZE)
     F = ca.SX.sym("F", 6)
@@ -418,7 +442,7 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
     dh = graph.geometry(ctx)
     ctx.at(chain(q, dh, convention), lambda c: load_wrench(c.R_tcp, L))
     frames, tcp = ctx.frames, ctx.tcp
-    J = geometric_jacobian(frames, ctx.p_tcp, convention)
+    J = geometric_jacobian(frames, ctx.p_tcp, convention, ctx.frame02base())
     te, to = graph.torques(ctx)
     tau = te + to
     dq = graph.joint_deflection(ctx, tau)

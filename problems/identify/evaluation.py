@@ -48,10 +48,11 @@ class Evaluator:
 
     THREADS = 2
 
-    def __init__(self, convention: str, eligible: np.ndarray | None = None, orientation: bool = False) -> None:
+    def __init__(self, convention: str, eligible: np.ndarray | None = None, orientation: bool = False,
+                 general: bool = False) -> None:
         el = np.ones(N_PARAMS, dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
         self.eligible_idx = np.flatnonzero(el)
-        self.fns = fx.identification_functions(convention, tuple(bool(x) for x in el), orientation)
+        self.fns = fx.identification_functions(convention, tuple(bool(x) for x in el), orientation, general)
         self._maps: dict[tuple[str, int], ca.Function] = {}
 
     def _map(self, name: str, n: int) -> ca.Function:
@@ -123,14 +124,16 @@ class Evaluator:
 _EVALUATORS: dict[tuple, Evaluator] = {}
 
 
-def evaluator(convention: str, eligible: np.ndarray | None = None, orientation: bool = False) -> Evaluator:
-    """Shared :class:`Evaluator` per convention, parameter eligibility and orientation rows."""
-    key = (convention, None if eligible is None else tuple(bool(x) for x in eligible), orientation)
+def evaluator(convention: str, eligible: np.ndarray | None = None, orientation: bool = False,
+              general: bool = False) -> Evaluator:
+    """Shared :class:`Evaluator` per convention, parameter eligibility, orientation rows and chain
+    form (``general``: end transforms, a URDF chain)."""
+    key = (convention, None if eligible is None else tuple(bool(x) for x in eligible), orientation, general)
     ev = _EVALUATORS.get(key)
     if ev is None:
         if len(_EVALUATORS) > 8:
             _EVALUATORS.clear()
-        ev = _EVALUATORS[key] = Evaluator(convention, eligible, orientation)
+        ev = _EVALUATORS[key] = Evaluator(convention, eligible, orientation, general)
     return ev
 
 
@@ -139,7 +142,7 @@ def _ev_for(robot: Robot, const: np.ndarray | None = None) -> Evaluator:
     when given, a model's constant vector (the parameters in use, see ``make_layout``; orientation
     rows when its ``measured_frame.on`` is set)."""
     orient = const is not None and float(get_const(const, "measured_frame.on")[0]) > 0.5
-    return evaluator(robot.convention, make_layout(robot, const).eligible, orient)
+    return evaluator(robot.convention, make_layout(robot, const).eligible, orient, robot.has_chain_transforms)
 
 
 def time_reference(m: Measurements) -> tuple[float, float]:

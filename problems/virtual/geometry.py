@@ -36,32 +36,36 @@ def _link(theta: np.ndarray, d: np.ndarray, a: np.ndarray, alpha: np.ndarray, be
 
 @dataclass
 class _Geometry:
-    """Per-row DH parameters, shape (N, 6) each."""
+    """Per-row DH parameters, shape (N, 6) each, and DH frame 0 in the base frame (4x4)."""
 
     a: np.ndarray
     alpha: np.ndarray
     d: np.ndarray
     toff: np.ndarray
     beta: np.ndarray
+    frame02base: np.ndarray | None = None
 
 
 def _frames(q: np.ndarray, g: _Geometry, convention: str) -> np.ndarray:
     """Frames frame_i2base (i = 1..6), shape (N, 6, 4, 4)."""
     n = q.shape[0]
     out = np.zeros((n, 6, 4, 4))
-    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    T = np.broadcast_to(np.eye(4) if g.frame02base is None else g.frame02base, (n, 4, 4)).copy()
     for i in range(6):
         T = T @ _link(q[:, i] + g.toff[:, i], g.d[:, i], g.a[:, i], g.alpha[:, i], g.beta[:, i], convention)
         out[:, i] = T
     return out
 
 
-def _axes(frames: np.ndarray, convention: str) -> tuple[np.ndarray, np.ndarray]:
-    """Joint axes z_i and points p_i, shape (N, 6, 3) each."""
+def _axes(frames: np.ndarray, convention: str,
+          frame02base: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Joint axes z_i and points p_i, shape (N, 6, 3) each (``frame02base``: DH frame 0, default
+    the base frame)."""
     n = frames.shape[0]
     if convention == "standard_dh":
-        z = np.concatenate([np.broadcast_to([0.0, 0.0, 1.0], (n, 1, 3)), frames[:, :5, :3, 2]], axis=1)
-        p = np.concatenate([np.zeros((n, 1, 3)), frames[:, :5, :3, 3]], axis=1)
+        F0 = np.eye(4) if frame02base is None else np.asarray(frame02base, dtype=float)
+        z = np.concatenate([np.broadcast_to(F0[:3, 2], (n, 1, 3)), frames[:, :5, :3, 2]], axis=1)
+        p = np.concatenate([np.broadcast_to(F0[:3, 3], (n, 1, 3)), frames[:, :5, :3, 3]], axis=1)
     else:
         z, p = frames[:, :, :3, 2], frames[:, :, :3, 3]
     return z, p

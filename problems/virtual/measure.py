@@ -34,8 +34,9 @@ class _Measuring:
                                point: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`positions` from the deflected frames of :meth:`_deflected_frames`."""
         pt = self.p_tool if point is None else np.asarray(point, dtype=float)
-        p_point = fr[:, 5, :3, 3] + np.einsum("nij,j->ni", fr[:, 5, :3, :3], pt)
-        tcp = fr[:, 5] @ self._tool()
+        fl = self._flange(fr)
+        p_point = fl[:, :3, 3] + np.einsum("nij,j->ni", fl[:, :3, :3], pt)
+        tcp = fl @ self._tool()
         if "link_compliance" in self.effects:
             p_point = p_point + self._beam_displacement(fr, F, p_point)
             tcp = tcp.copy()
@@ -57,7 +58,7 @@ class _Measuring:
 
     def _orientations_from_frames(self, fr: np.ndarray, F: np.ndarray) -> np.ndarray:
         """:meth:`orientations` from the deflected frames of :meth:`_deflected_frames`."""
-        R = fr[:, 5, :3, :3] @ self._tool()[:3, :3]
+        R = self._flange(fr)[:, :3, :3] @ self._tool()[:3, :3]
         if "link_compliance" in self.effects:
             from scipy.spatial.transform import Rotation
             R = Rotation.from_rotvec(self._beam_rotation(fr, F)).as_matrix() @ R

@@ -60,15 +60,20 @@ class _Physics:
                 d[:, i] *= s
         return _Geometry(a=a, alpha=np.tile(r.alpha + self.dalpha, (n, 1)), d=d,
                          toff=np.tile(r.theta_offset + self.dtheta, (n, 1)),
-                         beta=np.tile(self.dbeta, (n, 1)))
+                         beta=np.tile(self.dbeta, (n, 1)), frame02base=np.asarray(r.frame02base, dtype=float))
 
     def _tool(self) -> np.ndarray:
         return self.robot.tcp2flange
 
+    def _flange(self, fr: np.ndarray) -> np.ndarray:
+        """flange2base (N, 4, 4) from the frames: DH frame 6 and the chain's ``flange2frame6``."""
+        return fr[:, 5] @ np.asarray(self.robot.flange2frame6, dtype=float)
+
     def _torques(self, q: np.ndarray, F: np.ndarray, geo: _Geometry) -> np.ndarray:
         fr = _frames(q, geo, self.convention)
-        z, p = _axes(fr, self.convention)
-        tcp = fr[:, 5] @ self._tool()
+        z, p = _axes(fr, self.convention, geo.frame02base)
+        fl = self._flange(fr)
+        tcp = fl @ self._tool()
         f, m = F[:, :3], F[:, 3:]
         point = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
         tau = _tau_point(z, p, point, f, m)
@@ -79,7 +84,7 @@ class _Physics:
                 tau += _tau_point(z, p, c, np.broadcast_to(self.masses[j] * g, c.shape), np.zeros_like(c)) \
                     * (np.arange(6) <= j)[None, :]
             if self.payload > 0:
-                c = fr[:, 5, :3, 3] + np.einsum("nij,j->ni", fr[:, 5, :3, :3], self.payload_com)
+                c = fl[:, :3, 3] + np.einsum("nij,j->ni", fl[:, :3, :3], self.payload_com)
                 tau += _tau_point(z, p, c, np.broadcast_to(self.payload * g, c.shape), np.zeros_like(c))
         return tau
 
@@ -128,8 +133,8 @@ class _Physics:
         displacement ``delta`` (N, 3) m, the tip rotation ``phi`` (N, 3) rad (a small rotation
         vector) and the tip position (N, 3) m, base frame; everything distal to the tip moves
         by ``delta + phi x (x - tip)`` and turns by ``phi``."""
-        _z, p = _axes(fr, self.convention)
-        tcp = fr[:, 5] @ self._tool()
+        _z, p = _axes(fr, self.convention, self.robot.frame02base)
+        tcp = self._flange(fr) @ self._tool()
         p_app = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
         f, m = F[:, :3], F[:, 3:]
         for k, i in enumerate(self.beam_links):

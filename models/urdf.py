@@ -1,0 +1,562 @@
+"""Robot files that name a URDF: the chain between two links, read with ``yourdfpy``, as a DH model.
+
+A URDF-based robot file (``docs/robot-file.md``) gives ``urdf``, ``base_link``, ``tip_link``
+(the flange) and the joint stiffnesses.  This module reads the kinematic chain from
+``base_link`` down to ``tip_link`` and turns it, exactly, into the product's one chain form:
+a **modified-DH** table (Khalil-Kleinfinger / Craig) with a fixed transform ``frame02base``
+(DH frame 0 -> base link) before it and ``flange2frame6`` (tip link -> DH frame 6) after it.
+Every model function, effect, IK family and identification parametrisation then works on it
+unchanged.
+
+Reading the URDF (``docs/robot-file.md``, "URDF-based robot files"):
+
+* only ``revolute`` joints move; ``fixed`` joints are folded into the neighbouring
+  transforms; ``continuous`` joints need limits in the robot file; ``prismatic``,
+  ``planar``, ``floating`` joints and ``mimic`` joints in the chain are errors;
+* exactly 6 revolute joints between ``base_link`` and ``tip_link``;
+* a joint's angle ``q`` is the URDF joint variable (same zero, same sign), so the
+  controller's angles are the model's;
+* link masses, centres of mass and inertias: every link rigidly attached after joint *i*
+  (fixed joints, also off the chain) is one body; its mass, centre of mass and inertia
+  about the centre of mass are combined and expressed in DH frame *i*.  Links hanging
+  off the chain by a moving joint are left out (a note says which).
+
+The DH frames are chosen so that frame *i*'s z axis is joint *i*'s URDF axis: frame 0 is the
+base link's frame when joint 1 turns about its z axis (else a frame on joint 1's axis),
+each common normal is taken from joint *i* towards joint *i + 1* (``a >= 0``), frames on
+parallel axes keep ``d = 0``, and frame 6 sits where the tip link's origin projects on
+joint 6's axis, with ``theta_offset_6 = 0``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from xml.etree import ElementTree
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .robot import (Joint, Robot, RobotFileError, _angle, _check_radians, _finite, _vector, parse_frame_table,
+                    read_text_file)
+from .constants import STANDARD_GRAVITY
+
+#: Keys of a URDF-based robot file.
+URDF_TOP_KEYS = ("name", "description", "source", "urdf", "base_link", "tip_link", "stiffness", "a_max",
+                 "j_max", "gravity", "tool", "joints", "identified")
+#: Per-joint override keys (``[joints.<urdf joint name>]``).
+URDF_JOINT_KEYS = ("q_min", "q_max", "q_min_deg", "q_max_deg", "v_max", "a_max", "j_max")
+#: A joint axis shorter than this (URDF ``<axis xyz>``) is refused as zero.
+AXIS_MIN_NORM = 1e-9
+#: Two axes closer to parallel than this (sine of the angle) are treated as parallel.
+DH_PARALLEL_TOL = 1e-9
+#: Two axes closer than this (m) are treated as meeting.
+DH_INTERSECT_TOL_M = 1e-9
+#: The DH model must reproduce the URDF chain's flange pose to this (m and rotation entries).
+DH_CHECK_TOL = 1e-10
+#: Without an ``a_max`` the acceleration limit is ``v_max / DEFAULT_TIME_TO_SPEED_S`` (full speed in this time).
+DEFAULT_TIME_TO_SPEED_S = 0.5
+#: Without a ``j_max`` the jerk limit is ``a_max / DEFAULT_TIME_TO_ACCEL_S``.
+DEFAULT_TIME_TO_ACCEL_S = 0.1
+
+
+# --------------------------------------------------------------------------------------
+# The chain read from the URDF
+# --------------------------------------------------------------------------------------
+
+@dataclass
+class Body:
+    """Mass properties of one rigid body, in the frame of the body's first link.
+
+    ``mass`` kg; ``com`` (3,) m; ``inertia`` (3, 3) kg*m^2 about the centre of mass.
+    """
+
+    mass: float = 0.0
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    links: list[str] = field(default_factory=list)
+
+    def add(self, mass: float, com: np.ndarray, inertia: np.ndarray) -> None:
+        """Add a part (mass, com, inertia about its own com, all in this body's frame)."""
+        if mass <= 0.0:
+            return
+        total = self.mass + mass
+        c = (self.mass * self.com + mass * com) / total
+        I = _shift(self.inertia, self.mass, self.com - c) + _shift(inertia, mass, com - c)
+        self.mass, self.com, self.inertia = total, c, I
+
+
+def _shift(I: np.ndarray, m: float, r: np.ndarray) -> np.ndarray:
+    """Inertia about a point at ``-r`` from the centre of mass (parallel-axis theorem)."""
+    return I + m * (float(r @ r) * np.eye(3) - np.outer(r, r))
+
+
+@dataclass
+class UrdfChain:
+    """The moving part of a URDF between two links, at q = 0.
+
+    Attributes
+    ----------
+    joint_names : list of str, length 6
+    frames : ndarray, shape (6, 4, 4)
+        Joint frame *i* (the child link frame of joint *i*) in the base link frame at q = 0.
+    axes : ndarray, shape (6, 3)
+        Unit axis of joint *i* in its joint frame.
+    tip : ndarray, shape (4, 4)
+        Tip link frame in the base link frame at q = 0.
+    limits : list of (lower, upper, velocity) with None where the URDF gives none
+    continuous : list of bool
+    bodies : list of Body, length 6
+        Mass properties after joint *i*, in joint frame *i*.
+    notes : list of str
+    """
+
+    joint_names: list[str]
+    frames: np.ndarray
+    axes: np.ndarray
+    tip: np.ndarray
+    limits: list[tuple[float | None, float | None, float | None]]
+    continuous: list[bool]
+    bodies: list[Body]
+    notes: list[str]
+
+    def zero_axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unit axes ``w`` (6, 3) and points ``p`` (6, 3), base link frame, at q = 0."""
+        w = np.einsum("nij,nj->ni", self.frames[:, :3, :3], self.axes)
+        return w, self.frames[:, :3, 3].copy()
+
+
+def _origin(where: str, j: Any) -> np.ndarray:
+    T = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
+    if not np.all(np.isfinite(T)):
+        raise RobotFileError(f"{where}: joint '{j.name}': <origin> is not finite (NaN or inf)")
+    return T
+
+
+def _load_urdf(where: str, path: Path) -> Any:
+    try:
+        import yourdfpy
+    except ImportError:  # pragma: no cover - a declared dependency
+        raise RobotFileError(f"{where}: reading a URDF needs the package 'yourdfpy' (pip install yourdfpy)") from None
+    text = read_text_file(path, "URDF file", RobotFileError)
+    if "<robot" not in text:
+        raise RobotFileError(f"{path}: not a URDF (no <robot> element)")
+    try:  # well-formedness first: the URDF parser would otherwise guess at broken XML
+        ElementTree.fromstring(text.encode("utf-8"))
+    except ElementTree.ParseError as exc:
+        line, col = exc.position
+        raise RobotFileError(f"{path}: not well-formed XML at line {line}, column {col + 1}: {exc}") from None
+    try:
+        return yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+                                  load_collision_meshes=False).robot
+    except Exception as exc:  # noqa: BLE001 - the parser's own error, reported with the file
+        raise RobotFileError(f"{path}: not a readable URDF: {exc}") from None
+
+
+def _chain_joints(where: str, model: Any, base_link: str, tip_link: str) -> tuple[np.ndarray, list[Any]]:
+    """The path from base_link to tip_link: the fixed transform from base_link up to the
+    links' common ancestor (fixed joints only), and the joints from there down to tip_link."""
+    links = {lk.name for lk in model.links}
+    for key, name in (("base_link", base_link), ("tip_link", tip_link)):
+        if name not in links:
+            raise RobotFileError(f"{where}: key '{key}' = {name!r}: no such link in the URDF; links: {sorted(links)}")
+    parent_joint = {j.child: j for j in model.joints}
+
+    def up(link: str) -> list[Any]:
+        out = []
+        while link in parent_joint:
+            out.append(parent_joint[link])
+            link = parent_joint[link].parent
+        return out
+    tip_up, base_up = up(tip_link), up(base_link)
+    tip_links = [tip_link] + [j.parent for j in tip_up]
+    base_links = [base_link] + [j.parent for j in base_up]
+    common = next((lk for lk in base_links if lk in tip_links), None)
+    if common is None:
+        raise RobotFileError(f"{where}: base_link {base_link!r} and tip_link {tip_link!r} are in different trees")
+    rise = base_up[:base_links.index(common)]
+    moving = [j.name for j in rise if j.type != "fixed"]
+    if moving:
+        raise RobotFileError(f"{where}: tip_link {tip_link!r} is not below base_link {base_link!r} in the URDF tree: "
+                             f"the path from the base goes up through the moving joint(s) {moving} to {common!r}; "
+                             "the chain must run from base_link down to tip_link")
+    base2common = np.eye(4)
+    for j in rise:                               # base_link -> ... -> common, all fixed
+        base2common = _origin(where, j) @ base2common
+    return np.linalg.inv(base2common), tip_up[:tip_links.index(common)][::-1]
+
+
+def _check_joint(where: str, j: Any) -> None:
+    if j.mimic is not None:
+        raise RobotFileError(f"{where}: joint '{j.name}' mimics joint '{j.mimic.joint}': mimic joints are not "
+                             "supported in the chain (every chain joint must be driven)")
+    if j.type in ("prismatic", "planar", "floating"):
+        raise RobotFileError(f"{where}: joint '{j.name}' is {j.type}: only revolute (and fixed) joints may be in "
+                             "the chain between base_link and tip_link")
+    if j.type not in ("revolute", "continuous", "fixed"):
+        raise RobotFileError(f"{where}: joint '{j.name}' has unknown type {j.type!r}")
+
+
+def read_chain(where: str, urdf_path: Path, base_link: str, tip_link: str) -> UrdfChain:
+    """Read the chain between two links of a URDF (see the module docstring for the rules).
+
+    Raises
+    ------
+    RobotFileError
+        Naming the file, the joint or link, the value and what was expected.
+    """
+    model = _load_urdf(where, urdf_path)
+    common2base, joints = _chain_joints(where, model, base_link, tip_link)
+    for j in joints:
+        _check_joint(where, j)
+    moving = [j for j in joints if j.type != "fixed"]
+    if len(moving) != 6:
+        raise RobotFileError(f"{where}: {len(moving)} moving joint(s) between {base_link!r} and {tip_link!r} "
+                             f"({[j.name for j in moving]}); expected 6 revolute joints")
+    T = common2base.copy()
+    frames, axes, limits = [], [], []
+    for j in joints:
+        T = T @ _origin(where, j)
+        if j.type == "fixed":
+            continue
+        ax = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=float)
+        if not np.all(np.isfinite(ax)):
+            raise RobotFileError(f"{where}: joint '{j.name}': <axis xyz> = {[float(x) for x in ax]} is not finite")
+        n = float(np.linalg.norm(ax))
+        if n < AXIS_MIN_NORM:
+            raise RobotFileError(f"{where}: joint '{j.name}': <axis xyz> = {[float(x) for x in ax]} is zero; "
+                                 "expected a direction")
+        frames.append(T.copy())
+        axes.append(ax / n)
+        lim = j.limit
+        limits.append((None, None, None) if lim is None else (lim.lower, lim.upper, lim.velocity))
+    notes: list[str] = []
+    bodies = _bodies(model, moving, notes)
+    return UrdfChain(joint_names=[j.name for j in moving], frames=np.array(frames), axes=np.array(axes), tip=T,
+                     limits=limits, continuous=[j.type == "continuous" for j in moving], bodies=bodies, notes=notes)
+
+
+def _bodies(model: Any, moving: list[Any], notes: list[str]) -> list[Body]:
+    """Mass properties of the body after each moving joint, in that joint's frame."""
+    link_map = {lk.name: lk for lk in model.links}
+    children: dict[str, list[Any]] = {}
+    for j in model.joints:
+        children.setdefault(j.parent, []).append(j)
+    chain_names = {j.name for j in moving}
+    bodies = []
+    for mj in moving:
+        body = Body()
+        stack = [(mj.child, np.eye(4))]
+        while stack:
+            name, T = stack.pop()
+            body.links.append(name)
+            inert = link_map[name].inertial
+            if inert is not None and inert.mass is not None:
+                O = np.eye(4) if inert.origin is None else np.asarray(inert.origin, dtype=float)
+                I = np.zeros((3, 3)) if inert.inertia is None else np.asarray(inert.inertia, dtype=float)
+                R = T[:3, :3] @ O[:3, :3]
+                body.add(float(inert.mass), (T @ O)[:3, 3], R @ I @ R.T)
+            for cj in children.get(name, []):
+                if cj.type == "fixed":
+                    stack.append((cj.child, T @ (np.eye(4) if cj.origin is None else np.asarray(cj.origin, float))))
+                elif cj.name not in chain_names:
+                    notes.append(f"link '{cj.child}' (joint '{cj.name}', {cj.type}) hangs off the chain by a moving "
+                                 "joint: its mass is left out")
+        bodies.append(body)
+    return bodies
+
+
+# --------------------------------------------------------------------------------------
+# The chain as modified DH
+# --------------------------------------------------------------------------------------
+
+@dataclass
+class DHChain:
+    """A modified-DH table with its fixed end transforms (see the module docstring)."""
+
+    a: np.ndarray
+    alpha: np.ndarray
+    d: np.ndarray
+    theta_offset: np.ndarray
+    frame02base: np.ndarray
+    flange2frame6: np.ndarray
+    frames0: np.ndarray   # (7, 4, 4): DH frames 0..6 in the base frame at q = 0
+
+
+def _frame(x: np.ndarray, z: np.ndarray, o: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, o
+    return T
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _first_frame(w1: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    """DH frame 0: the base frame when joint 1 turns about its z axis, else a frame on axis 1."""
+    ez = np.array([0.0, 0.0, 1.0])
+    if np.linalg.norm(w1 - ez) < DH_PARALLEL_TOL and np.linalg.norm(p1[:2]) < DH_INTERSECT_TOL_M:
+        return np.eye(4)
+    o = p1 - float(p1 @ w1) * w1          # foot of the perpendicular from the base origin
+    ref = np.array([1.0, 0.0, 0.0]) if abs(w1[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    return _frame(_unit(ref - float(ref @ w1) * w1), w1, o)
+
+
+def _normal(where: str, k: int, entry: np.ndarray, wk: np.ndarray, wn: np.ndarray,
+            pn: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Origin and x axis of the DH frame on axis ``k`` (1-based, through ``entry``, direction
+    ``wk``) towards axis ``k + 1`` (``wn`` through ``pn``), and the length ``a`` of that normal.
+
+    Skew or meeting axes: the foot of the common normal (x from axis k to k + 1, or
+    ``wk x wn`` where they meet).  Parallel axes: ``entry`` itself (``d = 0``).
+    """
+    n = np.cross(wk, wn)
+    if np.linalg.norm(n) > DH_PARALLEL_TOL:
+        r = pn - entry
+        A = np.array([[wk @ wk, -(wk @ wn)], [wk @ wn, -(wn @ wn)]])
+        s, t = np.linalg.solve(A, np.array([r @ wk, r @ wn]))
+        fk, fn = entry + s * wk, pn + t * wn
+        dist = float(np.linalg.norm(fn - fk))
+        if dist > DH_INTERSECT_TOL_M:
+            return fk, (fn - fk) / dist, dist
+        return fk, _unit(n), 0.0
+    v = pn - entry
+    v = v - float(v @ wk) * wk
+    dist = float(np.linalg.norm(v))
+    if dist <= DH_INTERSECT_TOL_M:
+        raise RobotFileError(f"{where}: joints {k} and {k + 1} turn about one and the same axis: the chain "
+                             "has only 5 independent joints")
+    return entry, v / dist, dist
+
+
+def dh_from_axes(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray) -> DHChain:
+    """The modified-DH table of a chain given by its joint axes at q = 0.
+
+    Parameters
+    ----------
+    where : str
+        For messages (the robot file).
+    w, p : ndarray, shape (6, 3)
+        Unit joint axes and a point on each, base frame, at q = 0.
+    tip : ndarray, shape (4, 4)
+        The flange (tip link) in the base frame at q = 0.
+
+    Returns
+    -------
+    DHChain
+        ``A_k = Rx(alpha_k) Tx(a_k) Rz(q_k + theta_offset_k) Tz(d_k)`` (row k holds the previous
+        frame's ``a``, ``alpha``), ``flange2base(q) = frame02base A_1 ... A_6 flange2frame6``.
+    """
+    F = [_first_frame(w[0], p[0])]
+    a, alpha, d, off = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
+    entry, a_prev = F[0][:3, 3], 0.0      # where the previous frame's x axis meets this axis
+    for k in range(6):
+        entry = _on_axis(entry, w[k], p[k])
+        if k < 5:
+            o, x, dist = _normal(where, k + 1, entry, w[k], w[k + 1], p[k + 1])
+        else:
+            o, x, dist = _on_axis(tip[:3, 3], w[5], p[5]), F[-1][:3, 0], 0.0
+        prev = F[-1]
+        xp, zp = prev[:3, 0], prev[:3, 2]
+        alpha[k] = math.atan2(float(np.cross(zp, w[k]) @ xp), float(zp @ w[k]))
+        a[k] = a_prev
+        d[k] = float((o - entry) @ w[k])
+        off[k] = math.atan2(float(np.cross(xp, x) @ w[k]), float(xp @ x))
+        F.append(_frame(x, w[k], o))
+        entry, a_prev = o + dist * x, dist
+    return DHChain(a=a, alpha=alpha, d=d, theta_offset=off, frame02base=F[0],
+                   flange2frame6=np.linalg.inv(F[6]) @ tip, frames0=np.array(F))
+
+
+def _on_axis(point: np.ndarray, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Foot of the perpendicular from ``point`` on the line (p, w)."""
+    return p + float((point - p) @ w) * w
+
+
+# --------------------------------------------------------------------------------------
+# Checks: the DH model reproduces the URDF chain
+# --------------------------------------------------------------------------------------
+
+def _rodrigues(w: np.ndarray, th: float) -> np.ndarray:
+    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K
+
+
+def poe_fk(w: np.ndarray, p: np.ndarray, tip: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Flange pose of the chain at ``q`` (6,) by the product of exponentials, (4, 4), base frame."""
+    T = np.eye(4)
+    for wi, pi, qi in zip(w, p, q):
+        E = np.eye(4)
+        E[:3, :3] = _rodrigues(wi, float(qi))
+        E[:3, 3] = pi - E[:3, :3] @ pi
+        T = T @ E
+    return T @ tip
+
+
+def modified_dh_fk(ch: DHChain, q: np.ndarray) -> np.ndarray:
+    """Flange pose of a :class:`DHChain` at ``q`` (6,), (4, 4), base frame."""
+    T = ch.frame02base.copy()
+    for k in range(6):
+        ca_, sa = math.cos(ch.alpha[k]), math.sin(ch.alpha[k])
+        th = float(q[k]) + ch.theta_offset[k]
+        ct, st = math.cos(th), math.sin(th)
+        T = T @ np.array([[ct, -st, 0, ch.a[k]], [st * ca_, ct * ca_, -sa, -sa * ch.d[k]],
+                          [st * sa, ct * sa, ca_, ca_ * ch.d[k]], [0, 0, 0, 1.0]])
+    return T @ ch.flange2frame6
+
+
+def check_dh(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray, ch: DHChain, n: int = 16) -> None:
+    """Raise if the DH form misses the chain's flange pose at ``n`` fixed pseudo-random q."""
+    rng = np.random.default_rng(0)
+    scale = max(1.0, float(np.max(np.abs(p))), float(np.max(np.abs(tip[:3, 3]))))
+    for q in np.vstack([np.zeros(6), rng.uniform(-np.pi, np.pi, (n, 6))]):
+        err = np.abs(poe_fk(w, p, tip, q) - modified_dh_fk(ch, q))
+        if err[:3, :3].max() > DH_CHECK_TOL or err[:3, 3].max() > DH_CHECK_TOL * scale:
+            raise RobotFileError(f"{where}: internal error: the DH form of the URDF chain misses its flange "
+                                 f"pose by {err.max():.3g} at q = {list(np.round(q, 4))}")
+
+
+# --------------------------------------------------------------------------------------
+# The robot file
+# --------------------------------------------------------------------------------------
+
+def _six(where: str, data: Mapping[str, Any], key: str, positive: bool = True) -> np.ndarray | None:
+    if key not in data:
+        return None
+    v = _vector(where, key, data[key], 6)
+    if positive and np.any(v <= 0):
+        i = int(np.argmax(v <= 0))
+        raise RobotFileError(f"{where}: key '{key}'[{i}] (joint {i + 1}) must be > 0, got {v[i]:g}")
+    return v
+
+
+def _joint_limits(where: str, chain: UrdfChain, overrides: Mapping[str, Any], i: int) -> dict[str, float]:
+    """q_min, q_max, v_max of chain joint ``i``: the URDF's, replaced by the robot file's overrides."""
+    name = chain.joint_names[i]
+    ov = overrides.get(name, {})
+    w = f"{where}: joints.{name}"
+    lo, hi, vel = chain.limits[i]
+    out: dict[str, float] = {}
+    for key, urdf_val in (("q_min", lo), ("q_max", hi)):
+        if key in ov or f"{key}_deg" in ov:
+            out[key] = _angle(w, ov, key)
+        elif chain.continuous[i]:
+            raise RobotFileError(f"{where}: joint '{name}' is continuous (no position limits in the URDF); give "
+                                 f"its limits in the robot file: [joints.{name}] q_min_deg = ..., q_max_deg = ...")
+        elif urdf_val is None or not math.isfinite(float(urdf_val)):
+            raise RobotFileError(f"{where}: joint '{name}': the URDF gives no finite <limit {key.replace('q_min', 'lower').replace('q_max', 'upper')}>; "
+                                 f"give it in the robot file: [joints.{name}] {key}_deg = ...")
+        else:
+            out[key] = _check_radians(f"{where}: URDF joint '{name}'", key, float(urdf_val), 4 * math.pi * (1 + 1e-9))
+    if out["q_min"] >= out["q_max"]:
+        raise RobotFileError(f"{where}: joint '{name}': lower limit {out['q_min']:g} rad must be below the upper "
+                             f"limit {out['q_max']:g} rad")
+    if "v_max" in ov:
+        out["v_max"] = _finite(w, "v_max", ov["v_max"])
+    elif vel is None or not math.isfinite(float(vel)) or float(vel) <= 0:
+        raise RobotFileError(f"{where}: joint '{name}': the URDF gives no positive <limit velocity> ({vel!r}); "
+                             f"give it in the robot file: [joints.{name}] v_max = ... (rad/s)")
+    else:
+        out["v_max"] = float(vel)
+    if out["v_max"] <= 0:
+        raise RobotFileError(f"{w}: key 'v_max' must be > 0, got {out['v_max']:g}")
+    return out
+
+
+def _overrides(where: str, data: Mapping[str, Any], chain: UrdfChain) -> Mapping[str, Any]:
+    ov = data.get("joints", {})
+    if not isinstance(ov, Mapping):
+        raise RobotFileError(f"{where}: key 'joints' of a URDF-based robot file is a table of per-joint overrides "
+                             "([joints.<URDF joint name>]), not an array of DH rows")
+    for name, row in ov.items():
+        if name not in chain.joint_names:
+            raise RobotFileError(f"{where}: joints.{name}: no such moving joint in the chain; joints: "
+                                 f"{chain.joint_names}")
+        if not isinstance(row, Mapping):
+            raise RobotFileError(f"{where}: joints.{name}: expected a table of overrides")
+        bad = sorted(set(row) - set(URDF_JOINT_KEYS))
+        if bad:
+            raise RobotFileError(f"{where}: joints.{name}: unknown key(s) {bad}; allowed: {list(URDF_JOINT_KEYS)}")
+    return ov
+
+
+def _str_key(where: str, data: Mapping[str, Any], key: str) -> str:
+    v = data.get(key)
+    if not isinstance(v, str) or not v:
+        raise RobotFileError(f"{where}: key '{key}' must be a non-empty string, got {v!r}")
+    return v
+
+
+def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | None) -> Robot:
+    """Build a :class:`Robot` from a URDF-based robot-file dictionary (see ``docs/robot-file.md``).
+
+    Parameters
+    ----------
+    data : mapping
+        The parsed TOML document (has the key ``urdf``).
+    where : str
+        The robot file, for messages.
+    base_dir : Path or None
+        Folder the ``urdf`` path is relative to (the robot file's); None: the working folder.
+    """
+    unknown = sorted(set(data) - set(URDF_TOP_KEYS))
+    if unknown:
+        hint = "; 'convention' and [[joints]] DH rows belong to DH robot files" if "convention" in unknown else ""
+        raise RobotFileError(f"{where}: unknown key(s) {unknown} for a URDF-based robot file; allowed: "
+                             f"{list(URDF_TOP_KEYS)}{hint}")
+    name = _str_key(where, data, "name")
+    urdf_rel = _str_key(where, data, "urdf")
+    path = Path(urdf_rel) if base_dir is None or Path(urdf_rel).is_absolute() else base_dir / urdf_rel
+    base_link, tip_link = _str_key(where, data, "base_link"), _str_key(where, data, "tip_link")
+    if "stiffness" not in data:
+        raise RobotFileError(f"{where}: missing key 'stiffness' (6 joint stiffnesses, N*m/rad, base to tip)")
+    stiffness = _six(where, data, "stiffness")
+    chain = read_chain(where, path, base_link, tip_link)
+    ov = _overrides(where, data, chain)
+    w, p = chain.zero_axes()
+    ch = dh_from_axes(where, w, p, chain.tip)
+    check_dh(where, w, p, chain.tip, ch)
+    notes = list(chain.notes)
+    a_max, j_max = _six(where, data, "a_max"), _six(where, data, "j_max")
+    has_mass = any(b.mass > 0 for b in chain.bodies)
+    joints = []
+    for i in range(6):
+        lim = _joint_limits(where, chain, ov, i)
+        row_ov = ov.get(chain.joint_names[i], {})
+        am = float(_finite(where, "a_max", row_ov["a_max"])) if "a_max" in row_ov else (
+            float(a_max[i]) if a_max is not None else lim["v_max"] / DEFAULT_TIME_TO_SPEED_S)
+        jm = float(_finite(where, "j_max", row_ov["j_max"])) if "j_max" in row_ov else (
+            float(j_max[i]) if j_max is not None else am / DEFAULT_TIME_TO_ACCEL_S)
+        mass_kw: dict[str, Any] = {}
+        if has_mass:
+            b = chain.bodies[i]
+            D2J = np.linalg.inv(chain.frames[i]) @ ch.frames0[i + 1]     # DH frame i+1 -> joint frame
+            R = D2J[:3, :3]
+            com = R.T @ (b.com - D2J[:3, 3])
+            mass_kw = {"mass": b.mass, "com": com, "inertia": R.T @ b.inertia @ R}
+        joints.append(Joint(a=float(ch.a[i]), alpha=float(ch.alpha[i]), d=float(ch.d[i]),
+                            theta_offset=float(ch.theta_offset[i]), q_min=lim["q_min"], q_max=lim["q_max"],
+                            v_max=lim["v_max"], a_max=am, j_max=jm, stiffness=float(stiffness[i]), **mass_kw))
+    if a_max is None:
+        notes.append(f"a_max not given: v_max / {DEFAULT_TIME_TO_SPEED_S:g} s assumed (full speed in "
+                     f"{DEFAULT_TIME_TO_SPEED_S:g} s)")
+    if j_max is None:
+        notes.append(f"j_max not given: a_max / {DEFAULT_TIME_TO_ACCEL_S:g} s assumed")
+    if not has_mass:
+        notes.append("the URDF gives no link masses: no self-weight model")
+    tcp2flange = parse_frame_table(where, "tool", data.get("tool", {}))
+    gravity = _vector(where, "gravity", data.get("gravity", [0.0, 0.0, -STANDARD_GRAVITY]), 3)
+    for key in ("description", "source"):
+        if not isinstance(data.get(key, ""), str):
+            raise RobotFileError(f"{where}: key '{key}' must be a string")
+    identified = data.get("identified")
+    if identified is not None and not isinstance(identified, Mapping):
+        raise RobotFileError(f"{where}: key 'identified' must be a table")
+    return Robot(name=name, convention="modified_dh", joints=tuple(joints), tcp2flange=tcp2flange, gravity=gravity,
+                 description=data.get("description", ""), source=data.get("source", ""),
+                 identified=dict(identified) if identified is not None else None,
+                 frame02base=ch.frame02base, flange2frame6=ch.flange2frame6,
+                 joint_names=tuple(chain.joint_names),
+                 urdf={"path": str(path), "base_link": base_link, "tip_link": tip_link}, notes=tuple(notes))
