@@ -36,11 +36,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from models import AnalyticIK, Robot
+from models import Robot
 from models.arm import ArmModel
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
-from models.ik import BRANCH_LABELS, IK_REASONS, IKStatus
+from models.ik import IK_REASONS, IKStatus, ik_solver
 from models.transforms import rpy_to_matrix
 from problems import paper
 
@@ -58,7 +58,6 @@ CHUNK_POINTS = 20_000
 #: Largest accepted grid (points per axis), to keep memory bounded.
 MAX_POINTS_PER_AXIS = 2000
 
-BRANCH_RULES = ("home",) + BRANCH_LABELS
 
 #: Names and SI units of the six diagonal elements.
 ELEMENT_NAMES = ("C11", "C22", "C33", "C44", "C55", "C66")
@@ -105,6 +104,8 @@ class ComplianceMap(GridCounts):
     unreachable_reasons : dict of str to int
         For unreachable points, how many fail for each IK reason (of the fixed
         branch; for rule ``"home"``, the reason of branch 0).
+    labels : tuple of str
+        The IK family's branch labels (index -> label).
     """
 
     robot: str
@@ -118,6 +119,7 @@ class ComplianceMap(GridCounts):
     q: np.ndarray
     diag: np.ndarray
     unreachable_reasons: dict[str, int] = field(default_factory=dict)
+    labels: tuple[str, ...] = ()
 
     @property
     def u_axis(self) -> str:
@@ -131,7 +133,7 @@ class ComplianceMap(GridCounts):
     def branches_used(self) -> dict[str, int]:
         """Branch label -> number of grid points that use it."""
         idx, counts = np.unique(self.branch[self.branch >= 0], return_counts=True)
-        return {BRANCH_LABELS[int(i)]: int(c) for i, c in zip(idx, counts)}
+        return {self.labels[int(i)]: int(c) for i, c in zip(idx, counts)}
 
     def table(self) -> tuple[list[str], np.ndarray]:
         """Rows of ``compliance_map.csv``: u, v (m), branch index (-1 none), C11..C66 (SI)."""
@@ -191,13 +193,17 @@ def _check_range(key: str, rng: tuple[float, float]) -> tuple[float, float]:
     return lo, hi
 
 
-def _branch_index(rule: str) -> int | None:
-    if rule == "home":
+def _branch_index(rule: str, labels: tuple[str, ...] | None = None) -> int | None:
+    """The branch index of ``rule`` among ``labels`` (None for ``"home"``); without labels (the
+    robot not known yet) only the type is checked."""
+    if not isinstance(rule, str) or not rule:
+        raise InputError(f"compliance map: branch = {rule!r}; expected 'home' or a branch label")
+    if rule == "home" or labels is None:
         return None
-    if rule in BRANCH_LABELS:
-        return BRANCH_LABELS.index(rule)
-    raise InputError(f"compliance map: branch = {rule!r}; expected 'home' or one of "
-                     f"{', '.join(BRANCH_LABELS)}")
+    if rule in labels:
+        return labels.index(rule)
+    raise InputError(f"compliance map: branch = {rule!r}; expected 'home' or one of the robot's branch "
+                     f"labels {', '.join(labels)}")
 
 
 def validate_map_options(plane: str, offset_m: float, u_range_m: tuple[float, float],
@@ -241,7 +247,7 @@ def _evaluate_grid(arm: "ArmModel", P: np.ndarray, R: np.ndarray, b_fixed: int |
 
     Returns q (N, 6) rad, the chosen branch (N,) (-1: none), diag C (N, 6) SI, and the IK status
     of the reference branch (N,)."""
-    ik = AnalyticIK(arm.nominal)
+    ik = ik_solver(arm.nominal)
     model = arm.kinematics
     n = len(P)
     q = np.full((n, 6), np.nan)
@@ -283,8 +289,8 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
 
     Parameters
     ----------
-    robot : Robot
-        A UR-type arm (the analytic IK applies).
+    robot : Robot or ArmModel
+        Any arm with an IK family (:func:`models.ik.ik_solver`).
     plane : {"x", "y", "z"}
         Base axis normal to the plane.
     offset_m : float
@@ -317,6 +323,8 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
     from models.arm import load_arm
     arm = load_arm(robot)           # a Robot (nominal model) or an ArmModel (identified)
     robot = arm.nominal
+    labels = ik_solver(robot).labels
+    b_fixed = _branch_index(branch, labels)
     u = np.linspace(u_lo, u_hi, int(nu))
     v = np.linspace(v_lo, v_hi, int(nv))
     U, V = np.meshgrid(u, v, indexing="ij")
@@ -336,4 +344,4 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
     return ComplianceMap(robot=robot.name, plane=plane, offset_m=off, u_m=u, v_m=v, rpy_rad=rpy,
                          branch_rule=branch, branch=chosen.reshape(U.shape),
                          q=q.reshape(U.shape + (6,)), diag=diag.reshape(U.shape + (6,)),
-                         unreachable_reasons=reasons)
+                         unreachable_reasons=reasons, labels=labels)

@@ -38,10 +38,9 @@ from typing import Any
 
 import numpy as np
 
-from models import AnalyticIK
 from models.arm import ArmModel
 from models.errors import InfeasibleError, UnreachableError
-from models.ik import BRANCH_LABELS
+from models.ik import ik_solver
 from models.symbolic import directional_stiffness
 from problems.compensation import (CompensationResult, CompensationStatus, closed_form, exact,
                                    uncompensated)
@@ -241,8 +240,10 @@ class PlanResult:
                                           "in m^2 without the smoothness term")}
             s["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
             _add_branch_postures(self, s["branches"])
-            s["rejected_branches"] = {BRANCH_LABELS[b]: r for b, r in ps.rejected.items()}
-            s["default_branch"] = BRANCH_LABELS[ps.default] if ps.default is not None else None
+            s["ik_family"] = ps.ik_family
+            s["branch_labels"] = list(ps.labels)
+            s["rejected_branches"] = {ps.labels[b]: r for b, r in ps.rejected.items()}
+            s["default_branch"] = ps.labels[ps.default] if ps.default is not None else None
             if ps.chosen is not None:
                 s["chosen_branch"] = ps.best.label
                 s["branch"] = ps.best.label
@@ -345,7 +346,8 @@ def _add_branch_postures(res: "PlanResult", entries: dict[str, dict[str, Any]]) 
         if not np.all(np.isfinite(r.q)):          # a branch without a posture along the whole path
             continue
         frames = [f[0] for f in km.batch(km.fk_frames, r.q[:1])]
-        e["posture"] = branch_words.posture_words(frames, r.q[0], r.label, pr.robot.convention)
+        e["posture"] = branch_words.posture_words(frames, r.q[0], r.label, pr.robot.convention,
+                                                  pr.robot.frame02base)
         err = uncompensated(arm, r.q, L).error_norm_m
         e["rms_error_equilibrium_mm"] = float(np.sqrt(np.mean(err ** 2)) * 1e3)
         e["max_error_equilibrium_mm"] = float(err.max() * 1e3)
@@ -396,7 +398,7 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     arm = problem.model
-    ik = AnalyticIK(problem.robot)
+    ik = ik_solver(problem.robot)
     times["model_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

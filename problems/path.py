@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.errors import InputError, UnreachableError
-from models.ik import BRANCH_LABELS, AnalyticIK, IKStatus, IK_REASONS
+from models.ik import IK_REASONS, IKSolver, IKStatus
 
 #: Largest joint step (rad) allowed between neighbouring waypoints before the
 #: path is declared to flip (a configuration change between two samples).
@@ -39,23 +39,22 @@ class BranchPath:
     Attributes
     ----------
     branch : int
-        Branch index (see :data:`models.ik.BRANCH_LABELS`).
+        Branch index into the IK family's labels.
     q : ndarray, shape (N, 6), rad
         Continuous joint path (each joint unwrapped to follow its predecessor).
     max_step : float
         Largest joint step between neighbouring waypoints, rad.
+    label : str
+        The branch's label (``docs/conventions.md``, "IK branches").
     """
 
     branch: int
     q: np.ndarray
     max_step: float
-
-    @property
-    def label(self) -> str:
-        return BRANCH_LABELS[self.branch]
+    label: str = ""
 
 
-def branch_paths(ik: AnalyticIK, tcp2base: np.ndarray,
+def branch_paths(ik: IKSolver, tcp2base: np.ndarray,
                  max_step: float = MAX_JOINT_STEP) -> tuple[dict[int, BranchPath], dict[int, str]]:
     """IK of every waypoint on every branch, unwrapped into continuous joint paths.
 
@@ -69,7 +68,7 @@ def branch_paths(ik: AnalyticIK, tcp2base: np.ndarray,
     sol = ik.solve(tcp2base)
     feasible: dict[int, BranchPath] = {}
     rejected: dict[int, str] = {}
-    for b in range(8):
+    for b in range(ik.n_branches):
         bad = np.where(sol.status[:, b] != IKStatus.OK)[0]
         if bad.size:
             k = int(bad[0])
@@ -89,12 +88,12 @@ def branch_paths(ik: AnalyticIK, tcp2base: np.ndarray,
             rejected[b] = (f"flip between waypoints {k} and {k + 1}: joint step "
                            f"{steps[k]:.3g} rad > {max_step:g} rad")
             continue
-        feasible[b] = BranchPath(b, q, float(steps.max()))
+        feasible[b] = BranchPath(b, q, float(steps.max()), ik.labels[b])
     return feasible, rejected
 
 
 def default_branch(feasible: dict[int, BranchPath], q_home: np.ndarray,
-                   rejected: dict[int, str] | None = None) -> int:
+                   rejected: dict[int, str] | None = None, labels: tuple[str, ...] = ()) -> int:
     """The feasible branch whose first waypoint is nearest the home configuration.
 
     Raises
@@ -103,7 +102,7 @@ def default_branch(feasible: dict[int, BranchPath], q_home: np.ndarray,
         No branch is feasible; the message gives each branch's reason.
     """
     if not feasible:
-        why = "; ".join(f"{BRANCH_LABELS[b]}: {r}" for b, r in sorted((rejected or {}).items()))
+        why = "; ".join(f"{labels[b] if b < len(labels) else b}: {r}" for b, r in sorted((rejected or {}).items()))
         raise UnreachableError("no IK branch is feasible along the whole path"
                                + (f" ({why})" if why else ""))
     home = np.asarray(q_home, float)

@@ -342,8 +342,6 @@ MAP = [
     C("map-missing-out", "map", {}, [], ["--out"]),
     C("map-range-empty", "map --out {t}/out --u-range-m 0.2 0.2", {}, ["out"], ["range", "0.2"]),
     C("map-points-float", "map --out {t}/out --points 2.5", {}, ["out"], ["--points", "2.5"]),
-    C("map-robot-not-ur-type", "map --robot {t}/r.toml --out {t}/out",
-      {"r.toml": robot(("alpha_deg = 0.0", "alpha_deg = 45.0"))}, ["out"], ["not UR-type"]),
     C("map-robot-problem-file-given", "map --robot {t}/r.toml --out {t}/out", {"r.toml": PROBLEM}, ["out"],
       ["r.toml", "problem file"]),
 ]

@@ -684,7 +684,8 @@ def test_version_and_robot_show(capsys, tmp_path):
     (tmp_path / "my_ur5.toml").write_text(text)
     assert load_robot(str(tmp_path / "my_ur5.toml")).to_dict() == load_robot("ur5").to_dict()
     assert main(["robot", "list"]) == 0
-    assert [ln.split()[0] for ln in capsys.readouterr().out.splitlines()] == ["ar5", "ur5", "ur10"]
+    assert [ln.split()[0] for ln in capsys.readouterr().out.splitlines()] == ["ar5", "ur5", "ur10", "ur5e",
+                                                                              "kr6_r900"]
     assert main(["robot", "show", "ur7"]) == 2
     assert "not a built-in robot" in capsys.readouterr().err
 

@@ -6,6 +6,11 @@ that axis add up to the lateral offset ``D = d2 + d3 + d4`` (the paper's eq. 37
 uses d4 alone, which is only right when d2 = d3 = 0).  A ``modified_dh`` file
 describing the same structure is converted exactly: its first-row ``Rx(alpha0)
 Tx(a0)`` becomes a constant base pre-transform and the other rows shift by one.
+A chain with end transforms (``frame02base``, ``flange2frame6``: a URDF chain) is solved
+in DH frame 0 for DH frame 6.  Frames whose x axis is the opposite of the UR pattern's
+(``alpha_i`` of the other sign, e.g. a chain read from a URDF) are turned by pi about
+their z axis (``a_i, alpha_i -> -a_i, -alpha_i``, ``theta_offset_i += pi``,
+``theta_offset_{i+1} -= pi``), an exact re-description of the same chain.
 
 Branches are labelled ``s{+-}w{+-}e{+-}`` and indexed ``4*shoulder + 2*wrist +
 elbow`` (0 for ``+``):
@@ -22,17 +27,16 @@ nearest to 0 (``(-pi, pi]`` when the limits allow it).
 
 from __future__ import annotations
 
-import enum
-from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from .codegen import BatchFunction, VMBatchFunction, batch_function
-from .errors import InputError
-from .constants import IK_CLIP_TOL, IK_SHOULDER_SINGULAR_TOL, IK_WRIST_SINGULAR_TOL
-from .robot import Robot
-from .transforms import invert
+from ..codegen import BatchFunction, VMBatchFunction, batch_function
+from ..constants import IK_CLIP_TOL, IK_SHOULDER_SINGULAR_TOL, IK_WRIST_SINGULAR_TOL
+from ..robot import Robot
+from ..transforms import invert
+from .base import IKSolution, IKSolver, IKStatus, IKStructureError, check_poses, register_family
 
 BRANCH_LABELS: tuple[str, ...] = tuple(
     f"s{'+-'[s]}w{'+-'[w]}e{'+-'[e]}" for s in (0, 1) for w in (0, 1) for e in (0, 1))
@@ -42,70 +46,6 @@ UR_ALPHA = np.array([np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0])
 _STRUCT_TOL = 1e-9
 #: Threads of the batch evaluation of the closed form (compiled or virtual machine).
 IK_BATCH_THREADS = 2
-
-
-class IKStatus(enum.IntEnum):
-    """Why a branch has (or has no) solution."""
-
-    OK = 0
-    SHOULDER_UNREACHABLE = 1   # wrist centre inside the lateral-offset cylinder
-    WRIST_UNREACHABLE = 2      # |cos(theta5)| > 1
-    WRIST_SINGULAR = 3         # sin(theta5) ~ 0: theta6 undetermined (joints 4, 6 aligned)
-    ELBOW_UNREACHABLE = 4      # target beyond the reach of links 2-3
-    JOINT_LIMIT = 5            # a solution exists but no 2*pi shift puts it in the limits
-    SHOULDER_SINGULAR = 6      # wrist centre on the joint-1 axis: theta1 undetermined
-
-
-IK_REASONS = {
-    IKStatus.OK: "ok",
-    IKStatus.SHOULDER_UNREACHABLE: "unreachable: wrist centre closer to the base axis than the lateral offset",
-    IKStatus.WRIST_UNREACHABLE: "unreachable: no theta5 (|cos theta5| > 1)",
-    IKStatus.WRIST_SINGULAR: "singular: wrist (sin theta5 = 0), theta4 and theta6 not separable",
-    IKStatus.ELBOW_UNREACHABLE: "unreachable: beyond the reach of the upper arm and forearm",
-    IKStatus.JOINT_LIMIT: "outside the joint limits",
-    IKStatus.SHOULDER_SINGULAR: "singular: wrist centre on the joint-1 axis (shoulder singularity)",
-}
-
-
-class IKStructureError(InputError):
-    """The robot is not UR-type, so the analytic IK does not apply."""
-
-
-@dataclass
-class IKSolution:
-    """All 8 branches for N target poses.
-
-    Attributes
-    ----------
-    q : ndarray, shape (N, 8, 6)
-        Joint angles (rad); NaN where the branch has no solution.
-    status : ndarray of int, shape (N, 8)
-        :class:`IKStatus` per branch.
-    """
-
-    q: np.ndarray
-    status: np.ndarray
-
-    @property
-    def valid(self) -> np.ndarray:
-        """(N, 8) bool: branch has a solution within the limits."""
-        return self.status == IKStatus.OK
-
-    @property
-    def labels(self) -> tuple[str, ...]:
-        return BRANCH_LABELS
-
-    def reason(self, i: int, branch: int) -> str:
-        """Human-readable reason for pose ``i``, branch ``branch``."""
-        return IK_REASONS[IKStatus(int(self.status[i, branch]))]
-
-    def summary(self, i: int) -> str:
-        """One line per pose: the worst reason if no branch is valid."""
-        if self.valid[i].any():
-            return f"{int(self.valid[i].sum())} branch(es)"
-        codes = sorted({int(c) for c in self.status[i]})
-        return "; ".join(IK_REASONS[IKStatus(c)] for c in codes)
-
 
 def _sdh_inv_sx(ct: ca.SX, st: ca.SX, d: float, a: float, alpha: float) -> ca.SX:
     """Inverse of a standard-DH link transform, given cos and sin of theta (CasADi)."""
@@ -120,7 +60,8 @@ def _rx_tx(alpha: float, a: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0, a], [0.0, c, -s, 0.0], [0.0, s, c, 0.0], [0.0, 0.0, 0.0, 1.0]])
 
 
-class AnalyticIK:
+@register_family
+class AnalyticIK(IKSolver):
     """Closed-form IK of a UR-type arm described by a robot file.
 
     Parameters
@@ -130,17 +71,25 @@ class AnalyticIK:
         names the parameter that breaks the structure.
     """
 
+    family = "ur"
+    order = 10
+    description = "UR-type: joints 2, 3, 4 parallel, offset wrist (closed form, 8 branches)"
+    labels = BRANCH_LABELS
+    guard_names = ("shoulder", "wrist", "elbow")   # rho (m), sin(theta5), sin(theta3)
+    guard_kinds = ("length", "sine", "sine")
+
     def __init__(self, robot: Robot) -> None:
-        self.robot = robot
-        a, alpha, d, off = robot.a, robot.alpha, robot.d, robot.theta_offset
+        super().__init__(robot)
+        a, alpha, d, off = robot.a, robot.alpha, robot.d, robot.theta_offset.copy()
         if robot.convention == "modified_dh":
             # Row i holds a_{i-1}, alpha_{i-1}: shift to an equivalent standard chain whose base
-            # frame "sdh0" is the robot base turned by Rx(alpha_0) Tx(a_0) (sdh0 -> base).
-            self._sdh02base = _rx_tx(alpha[0], a[0])
+            # frame "sdh0" is DH frame 0 turned by Rx(alpha_0) Tx(a_0) (sdh0 -> frame 0).
+            sdh02frame0 = _rx_tx(alpha[0], a[0])
             a = np.r_[a[1:], 0.0]
             alpha = np.r_[alpha[1:], 0.0]
         else:
-            self._sdh02base = np.eye(4)
+            sdh02frame0 = np.eye(4)
+        a, alpha, off = _flip_to_pattern(a, alpha, off)
         bad = [f"alpha{i + 1} = {alpha[i]:.6g} rad (expected {UR_ALPHA[i]:.6g})"
                for i in range(6) if abs(alpha[i] - UR_ALPHA[i]) > _STRUCT_TOL]
         bad += [f"a{i + 1} = {a[i]:.6g} m (expected 0)" for i in (0, 3, 4, 5) if abs(a[i]) > _STRUCT_TOL]
@@ -152,11 +101,39 @@ class AnalyticIK:
                 f"robot '{robot.name}' is not UR-type, analytic IK does not apply: " + "; ".join(bad))
         self.a, self.alpha, self.d, self.offset = a, alpha, d, off
         self.D = float(d[1] + d[2] + d[3])
-        self._base2sdh0 = invert(self._sdh02base)
-        self._flange2tcp = invert(robot.tcp2flange)
-        self.q_min, self.q_max = robot.q_min, robot.q_max
+        self._base2sdh0 = invert(robot.frame02base @ sdh02frame0)
+        self._frame62tcp = invert(robot.flange2frame6 @ robot.tcp2flange)
         self.function = self._build_function()
         self._evaluator: BatchFunction | VMBatchFunction | None = None
+
+    def branch_meaning(self) -> dict[str, str]:
+        return {lab: (f"theta1 = psi {'+ asin(D/r)' if lab[1] == '+' else '+ pi - asin(D/r)'}, "
+                      f"theta5 = {lab[3]}acos(c5), theta3 = {lab[5]}acos(c3)") for lab in self.labels}
+
+    def guard_factors(self, q: Any) -> Any:
+        """The three factors of ``det J`` whose signs are the branch.
+
+        ``det J = a2 a3 * sin(theta3) * sin(theta5) * rho`` with
+        ``rho = a2 cos(theta2) + a3 cos(theta2 + theta3) + d5 sin(theta2 + theta3 + theta4)``
+        (m) and ``theta = q + theta_offset`` in the standard-DH reading of this solver.
+
+        Parameters
+        ----------
+        q : casadi SX/MX (6,) or ndarray (6,) or (N, 6), rad
+
+        Returns
+        -------
+        ``[rho (m), sin(theta5), sin(theta3)]``: CasADi (3,) or ndarray (3,) / (N, 3).
+        """
+        a, d, off = self.a, self.d, self.offset
+        if isinstance(q, (ca.SX, ca.MX)):
+            th = [q[i] + off[i] for i in range(6)]
+            rho = a[1] * ca.cos(th[1]) + a[2] * ca.cos(th[1] + th[2]) + d[4] * ca.sin(th[1] + th[2] + th[3])
+            return ca.vertcat(rho, ca.sin(th[4]), ca.sin(th[2]))
+        th = np.asarray(q, dtype=float) + off
+        rho = (a[1] * np.cos(th[..., 1]) + a[2] * np.cos(th[..., 1] + th[..., 2])
+               + d[4] * np.sin(th[..., 1] + th[..., 2] + th[..., 3]))
+        return np.stack([rho, np.sin(th[..., 4]), np.sin(th[..., 2])], axis=-1)
 
     def _build_function(self) -> ca.Function:
         """The closed form as a named CasADi Function of the flange pose.
@@ -167,7 +144,7 @@ class AnalyticIK:
         """
         a, d, alpha, D = self.a, self.d, self.alpha, self.D
         Tt = ca.SX.sym("tcp2base", 4, 4)
-        Tf = ca.mtimes([ca.DM(self._base2sdh0), Tt, ca.DM(self._flange2tcp)])
+        Tf = ca.mtimes([ca.DM(self._base2sdh0), Tt, ca.DM(self._frame62tcp)])
         X, Y, Z, P = Tf[:3, 0], Tf[:3, 1], Tf[:3, 2], Tf[:3, 3]
         p5 = P - d[5] * Z
         r = ca.sqrt(p5[0] ** 2 + p5[1] ** 2)
@@ -260,72 +237,22 @@ class AnalyticIK:
         IKSolution
             ``q`` (N, 8, 6) rad and ``status`` (N, 8).
         """
-        T = np.asarray(tcp2base, dtype=float)
-        if T.shape[-2:] != (4, 4):
-            raise ValueError(f"target poses must have shape (N, 4, 4), got {T.shape}")
-        T = T.reshape(-1, 4, 4)
-        if not np.all(np.isfinite(T)):
-            bad = int(np.where(~np.isfinite(T).all(axis=(1, 2)))[0][0])
-            raise ValueError(f"target pose {bad} is not finite")
+        T = check_poses(tcp2base)
         n = T.shape[0]
         # Column-major flattening of each 4x4, as CasADi expects.
         qc, st = self._batch(T.transpose(0, 2, 1).reshape(n, 16))
         q = qc.transpose(0, 2, 1)   # (n, 8, 6), contiguous (the C output is branch-major)
         status = st.astype(int)
         q[status != IKStatus.OK] = np.nan
-        return IKSolution(q=q, status=status)
+        return IKSolution(q=q, status=status, labels=self.labels)
 
-    def _into_limits(self, q: np.ndarray, seed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Shift each angle by 2*pi*k into [q_min, q_max], nearest to ``seed`` (default 0)."""
-        ref = np.zeros_like(q) if seed is None else np.broadcast_to(seed, q.shape)
-        two_pi = 2.0 * np.pi
-        with np.errstate(invalid="ignore"):
-            k = np.round((ref - q) / two_pi)
-            cand = q + two_pi * k
-            # Pull into the limits when the nearest copy lies outside.
-            lo = cand < self.q_min
-            cand = np.where(lo, cand + two_pi * np.ceil((self.q_min - cand) / two_pi), cand)
-            hi = cand > self.q_max
-            cand = np.where(hi, cand - two_pi * np.ceil((cand - self.q_max) / two_pi), cand)
-            ok = (cand >= self.q_min - 1e-12) & (cand <= self.q_max + 1e-12)
-        return cand, ok.all(axis=-1) | np.isnan(q).any(axis=-1)
 
-    def nearest(self, tcp2base: np.ndarray, seed: np.ndarray,
-                branch: int | None = None) -> tuple[np.ndarray, np.ndarray, IKSolution]:
-        """The solution nearest a seed configuration.
-
-        Parameters
-        ----------
-        tcp2base : ndarray, shape (N, 4, 4) or (4, 4)
-        seed : ndarray, shape (N, 6) or (6,)
-            Each joint of every branch is shifted by 2*pi*k (within limits) to lie
-            nearest the seed; the branch with the smallest Euclidean distance wins.
-        branch : int, optional
-            Restrict to one branch index (0..7).
-
-        Returns
-        -------
-        q : ndarray, shape (N, 6)
-            NaN rows where no branch is valid.
-        chosen : ndarray of int, shape (N,)
-            Branch index, -1 where none.
-        sol : IKSolution
-            All branches (shifted to the seed).
-        """
-        sol = self.solve(tcp2base)
-        n = sol.q.shape[0]
-        seed = np.broadcast_to(np.asarray(seed, dtype=float).reshape(-1, 6), (n, 6))
-        qs, ok = self._into_limits(sol.q, seed[:, None, :])
-        valid = sol.valid & ok
-        dist = np.linalg.norm(qs - seed[:, None, :], axis=-1)
-        dist = np.where(valid, dist, np.inf)
-        if branch is not None:
-            mask = np.zeros(8, bool)
-            mask[branch] = True
-            dist = np.where(mask, dist, np.inf)
-        chosen = np.argmin(dist, axis=1)
-        none = ~np.isfinite(dist[np.arange(n), chosen])
-        q = qs[np.arange(n), chosen].copy()
-        q[none] = np.nan
-        chosen = np.where(none, -1, chosen)
-        return q, chosen, IKSolution(q=np.where(valid[..., None], qs, np.nan), status=sol.status)
+def _flip_to_pattern(a: np.ndarray, alpha: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Turn standard-DH frames 1..5 by pi about z where ``alpha_i`` is the UR pattern's negative."""
+    a, alpha, off = a.copy(), alpha.copy(), off.copy()
+    for i in range(5):
+        if UR_ALPHA[i] != 0.0 and abs(alpha[i] + UR_ALPHA[i]) <= _STRUCT_TOL:
+            a[i], alpha[i] = -a[i], -alpha[i]
+            off[i] += np.pi
+            off[i + 1] -= np.pi
+    return a, alpha, off

@@ -53,7 +53,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
     """Print the branch table, the gains, the error table and the timing of a plan."""
-    from models.ik import BRANCH_LABELS
     from planner.numbers import format_number, mm_text
     from planner.report.tables import load_words
 
@@ -64,15 +63,16 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
     print(f"problem {pr.name} ({pr.source}): robot {pr.robot.name}, {pr.n} waypoints, "
           f"rule {pr.rule.value}; {ps.freedom_note}")
     print(f"arm model: {md['file'] or pr.robot.name}; effects: {', '.join(md['effects'])}")
-    print(f"  {'branch':<8}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
+    w = max([8] + [len(lab) + 2 for lab in ps.labels])
+    print(f"  {'branch':<{w}}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
           f"{'iter':>6}{'NLP [ms]':>10}")
     for r in ps.branches.values():
         mark = " *" if r.branch == ps.chosen else ("  (default)" if r.branch == ps.default else "")
         ana = f"{r.rms_error_analytic_m * 1e3:.4f} mm" if np.isfinite(r.rms_error_analytic_m) else "—"
-        print(f"  {r.label:<8}{r.status.value:<21}{ana:>14}{r.rms_error_m * 1e3:>12.4f} mm{r.cost:>13.4g}"
+        print(f"  {r.label:<{w}}{r.status.value:<21}{ana:>14}{r.rms_error_m * 1e3:>12.4f} mm{r.cost:>13.4g}"
               f"{r.iterations:>6}{r.solve_time_s * 1e3:>10.1f}{mark}")
     for b, why in ps.rejected.items():
-        print(f"  {BRANCH_LABELS[b]:<8}rejected: {why}")
+        print(f"  {ps.labels[b]:<{w}}rejected: {why}")
     g = s.get("gain", {})
     print(f"chosen branch {s['chosen_branch']} (default {s['default_branch']}): RMS load-induced error "
           f"{ps.best.rms_error_m * 1e3:.4f} mm; gain x{g.get('vs_default', float('nan')):.3f} over the default "

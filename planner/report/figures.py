@@ -20,7 +20,7 @@ from models import KinematicModel
 from models.errors import InputError
 from models.ik import BRANCH_LABELS
 
-from planner.branches import BRANCH_LEGEND
+from planner.branches import legend
 from planner.compliance_map import ProgressFn
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
 from planner.report import plots
@@ -193,7 +193,8 @@ def _branch_item(ctx: _Context) -> FigureItem:
                       "from branches.csv: the measure of the error table; the branch table's first-order "
                       "values differ by the second-order terms); branches that cannot follow the path are "
                       "marked not feasible. (b) The error along the path of the chosen branch and of the "
-                      "default branch (the one nearest the home pose). " + BRANCH_LEGEND)
+                      "default branch (the one nearest the home pose). "
+                      + legend(list((ctx.run.summary or {}).get("branches") or [])))
     run = ctx.run
     if run.branches is None:
         item.absent = run.absent.get("branches", "branches.csv absent")
@@ -208,7 +209,9 @@ def _branch_item(ctx: _Context) -> FigureItem:
     s = run.summary
     rej = s.get("rejected_branches") or {}
     chosen, default = ctx.branch, s.get("default_branch")
-    labels = list(BRANCH_LABELS) + sorted(lab for lab in ana if lab not in BRANCH_LABELS)
+    order = [str(lab) for lab in (s.get("branch_labels") or BRANCH_LABELS)]   # the IK family's order
+    known = [lab for lab in order if lab in ana or lab in rej]
+    labels = known + sorted(lab for lab in set(ana) | set(rej) if lab not in known)
     labels = [lab for lab in labels if lab in ana or lab in rej]
     r_ana = [_rms(ana[lab]) if lab in ana else float("nan") for lab in labels]
     r_opt = [_rms(opt[lab]) if lab in opt else float("nan") for lab in labels] if opt else None

@@ -29,7 +29,7 @@ import numpy as np
 
 from models import KinematicModel, Robot
 from models.errors import CompplanError
-from models.ik import BRANCH_LABELS, IK_REASONS, IKStatus
+from models.ik import IK_REASONS, IKStatus, ik_solver
 
 from planner.compliance_map import (DEFAULT_POINTS, PLANE_AXES, ComplianceMap, GridCounts, ProgressFn,
                                     compliance_map)
@@ -166,6 +166,8 @@ class PlaneMap(GridCounts):
     diag : ndarray, shape (nu, nv, 6)
         ``C11..C66`` (m/N, rad/(N*m)); NaN where unreachable.
     unreachable_reasons : dict of str to int
+    labels : tuple of str
+        The IK family's branch labels (index -> label).
     """
 
     robot: str
@@ -177,7 +179,7 @@ class PlaneMap(GridCounts):
     branch: np.ndarray
     diag: np.ndarray
     unreachable_reasons: dict[str, int] = field(default_factory=dict)
-
+    labels: tuple[str, ...] = ()
 
     def csv_bytes(self) -> bytes:
         """``compliance_map.csv``: u, v (m, in the plane), x, y, z (m, base frame), branch index
@@ -225,7 +227,8 @@ def path_plane_map(robot: Robot, P: np.ndarray, R: np.ndarray, branch: str,
     nu, nv = (int(round(size[i] / step)) + 1 for i in (0, 1))
     u, v = _grid(lo[0], hi[0], nu), _grid(lo[1], hi[1], nv)
     arm = load_arm(robot)
-    b = BRANCH_LABELS.index(branch) if branch in BRANCH_LABELS else None
+    labels = ik_solver(arm.nominal).labels
+    b = labels.index(branch) if branch in labels else None
     q, chosen, diag, status_ref = _evaluate_grid(arm, plane.points(u, v), np.asarray(R, float), b,
                                                  max(1, len(u) * len(v)), progress)
     reasons: dict[str, int] = {}
@@ -236,7 +239,7 @@ def path_plane_map(robot: Robot, P: np.ndarray, R: np.ndarray, branch: str,
             reasons[IK_REASONS[IKStatus(int(c_))]] = int(k)
     shape = (len(u), len(v))
     return PlaneMap(arm.nominal.name, plane, u, v, np.asarray(R, float), branch if b is not None else "home",
-                    chosen.reshape(shape), diag.reshape(shape + (6,)), reasons)
+                    chosen.reshape(shape), diag.reshape(shape + (6,)), reasons, labels)
 
 
 def _path_map_job(pm: PlaneMap, path: np.ndarray, k_mid: int) -> tuple[Job, str]:
@@ -251,7 +254,7 @@ def _path_map_job(pm: PlaneMap, path: np.ndarray, k_mid: int) -> tuple[Job, str]
              f"deg), branch {pm.branch_label} at every point; {n_bad} of {pm.n_points} points outside its "
              "reach at this attitude (hatched)")
     jb = job(plots.compliance_map_figure, pm.u_m, pm.v_m, pm.diag, u_label=pm.plane.u_label,
-             v_label=pm.plane.v_label, title=title, branch=pm.branch, branch_labels=BRANCH_LABELS,
+             v_label=pm.plane.v_label, title=title, branch=pm.branch, branch_labels=pm.labels,
              path_uv_m=pm.plane.uv(path), path_label="the run's path (● first waypoint, ▶ last)")
     reasons = "; ".join(f"{k}: {v}" for k, v in pm.unreachable_reasons.items())
     caption = (f"Paper Fig. 5, over the plane of this run's path with the path drawn on it (red). "
@@ -299,7 +302,7 @@ def map_job(cm: ComplianceMap, path: np.ndarray | None = None) -> tuple[Job, str
                         f"{format_number(lo)} to {format_number(hi)} mm from it along {cm.plane}: the "
                         "compliance along the path differs from the map's."))
     jb = job(plots.compliance_map_figure, cm.u_m, cm.v_m, cm.diag, u_label=cm.u_axis,
-             v_label=cm.v_axis, title=title, branch=cm.branch, branch_labels=BRANCH_LABELS,
+             v_label=cm.v_axis, title=title, branch=cm.branch, branch_labels=cm.labels,
              path_uv_m=path_uv, path_label=path_label)
     reasons = "; ".join(f"{k}: {v}" for k, v in cm.unreachable_reasons.items())
     caption = (f"Paper Fig. 5. C11–C33: translational compliance (mm/N); C44–C66: rotational "
@@ -340,7 +343,7 @@ def map_item(run: Run, map_options: Mapping[str, Any] | None | bool,
         return item
     path = _run_path(run)
     branch = run.summary.get("chosen_branch", run.summary.get("branch"))
-    path_mode = map_options is None and path is not None and branch in BRANCH_LABELS
+    path_mode = map_options is None and path is not None and isinstance(branch, str) and bool(branch)
     if path_mode:
         P, R, k_mid = path                               # type: ignore[misc]
         key_opts: dict[str, Any] = {"mode": "path plane", "path": P, "R": R, "branch": branch,

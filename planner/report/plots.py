@@ -405,7 +405,12 @@ def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
         Label of the path axis of panel (b) (the path length, or the waypoint index when
         the run has no waypoint positions).
     """
-    fig = _figure(12.5, 5.2, left=0.06, right=0.985, bottom=0.2, top=0.84, wspace=0.22)
+    # long labels (OPW: front-up-noflip) two parts a line, so neighbouring ticks do not overlap
+    ticks = [(lab.replace("-", "\n", 2).replace("\n", "-", 1) if len(lab) > 8 else lab)
+             + ("\nchosen" if lab == chosen else "\ndefault" if lab == default else "") for lab in labels]
+    n_lines = max(t.count("\n") + 1 for t in ticks) if ticks else 1
+    fig = _figure(12.5, 5.2 + 0.15 * max(0, n_lines - 2), left=0.06, right=0.985,
+                  bottom=0.2 + 0.035 * max(0, n_lines - 2), top=0.84, wspace=0.22)
     a1, a2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1.0]})
     x = np.arange(len(labels))
     ana = np.asarray(rms_analytic_mm, float)
@@ -433,7 +438,6 @@ def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
         elif lab in infeasible:
             a1.text(x[i], 0.03 * top, "not feasible", rotation=90, ha="center", va="bottom", fontsize=8,
                     color="0.35")
-    ticks = [lab + ("\nchosen" if lab == chosen else "\ndefault" if lab == default else "") for lab in labels]
     a1.set_xticks(x, ticks, fontsize=8)
     a1.set_ylabel("RMS load-induced TCP error [mm]")
     a1.set_ylim(0.0, top * 1.15)

@@ -21,6 +21,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+import numpy as np
+
 from planner import branches as branch_words
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, format_value
 from planner.report.run import METHOD_NAMES
@@ -59,7 +61,9 @@ def fmt(v: Any, key: str = "") -> str:
 
 
 def flat_numbers(v: Any) -> list[float]:
-    """The numbers of a (nested) list, flattened; other values are skipped."""
+    """The numbers of a (nested) list or array, flattened; other values are skipped."""
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
     if isinstance(v, (list, tuple)):
         return [x for item in v for x in flat_numbers(item)]
     if isinstance(v, (int, float)) and not isinstance(v, bool):
@@ -411,7 +415,7 @@ def _branch_table(s: Mapping[str, Any]) -> Table | None:
     a, b = ci.get("rms_error_mm"), ci.get("rms_error_equilibrium_mm")
     if isinstance(a, (int, float)) and isinstance(b, (int, float)) and b:
         diff = f" ({format_number(100.0 * (a - b) / b, 2)} % for the chosen branch)"
-    note = (branch_words.BRANCH_LEGEND + " Posture at waypoint 0, seen from above from the base. "
+    note = (branch_words.legend(list(br)) + " Posture at waypoint 0, seen from above from the base. "
             "'Exact equilibrium': the load-induced TCP error of the branch's posture at the deflected "
             "equilibrium (the measure of the error table and of figure 5); 'first order': |S·C(q)·F|, "
             "the posture NLP's objective, which neglects the change of C over the deflection"

@@ -21,13 +21,17 @@ shape (6,)) at the waypoints ``k = 0..N-1``::
   cost this module *reports* is in m^2 (SI).
 * ``lam`` (``smoothness``, mm^2/rad^2) is a small smoothness weight; it
   regularises directions the load does not see and keeps the path smooth.
-* The singularity guards: on a UR-type arm ``det J = a2 a3 sin(theta3)
-  sin(theta5) rho`` (:func:`singular_factors`), and the signs of the three
-  factors (shoulder ``rho``, wrist ``sin theta5``, elbow ``sin theta3``) *are* the
-  IK branch.  Each factor keeps the sign it has at the warm start, with a margin
-  (``SINGULAR_RHO_MIN_M``, ``SINGULAR_SIN_MIN``), so the optimum stays on its
-  branch and away from singular poses (where ``C`` loses rank and the error
-  would vanish only on paper).
+* The singularity guards are the IK family's guard factors
+  (:meth:`models.ik.IKSolver.guard_factors`), whose signs *are* the branch: on a
+  UR-type arm the three factors of ``det J = a2 a3 sin(theta3) sin(theta5) rho``
+  (shoulder ``rho``, wrist ``sin theta5``, elbow ``sin theta3``); on an OPW arm the
+  wrist centre's signed distance from axis 1 (front/back), the sine of the elbow bend
+  (up/down) and ``sin theta5`` (flip); on any other 6R arm the sign of ``det J`` (with
+  the branch re-checked after solving).  Each factor keeps the sign it has at the warm
+  start, with a margin per kind (``SINGULAR_RHO_MIN_M`` for lengths,
+  ``SINGULAR_SIN_MIN`` for sines, ``SINGULAR_DET_MIN``), so the optimum stays on its
+  branch and away from singular poses (where ``C`` loses rank and the error would
+  vanish only on paper).
 
 Orientation rules (``z(q)`` is the TCP z axis = the tool axis, ``R_k`` the nominal
 base->TCP rotation of waypoint k, ``a_k = R_k e_z`` its tool axis):
@@ -59,7 +63,7 @@ cone's rim for ``cone`` and tool axes covering the sphere for ``position_only``)
 and the cheapest sequence under the NLP's own objective (node cost plus
 smoothness, joint steps above ``dq_max`` excluded) is found by dynamic
 programming over the waypoints (:func:`warm_starts`).  The branch keeps the IK
-label of its warm start (:data:`models.ik.BRANCH_LABELS`); the guards make the
+label of its warm start (the IK family's ``labels``); the guards make the
 label hold at the optimum.
 
 Implementation
@@ -101,10 +105,10 @@ from __future__ import annotations
 from problems.posture.task import (AXIS_SCALE, COST_SCALE, DEFAULT_MAX_ITER, DEFAULT_SCAN,
                                    DEFAULT_SMOOTHNESS, DEFAULT_TOL, DEGENERATE_ANGLE_TOL_RAD,
                                    DEGENERATE_OFFSET_TOL_M, DP_MAX_STATES, DP_NEIGHBOUR_ANGLE_RAD,
-                                   GUARD_ACTIVE_TOL, GUARD_NAMES, IPOPT_DEFAULTS, IPOPT_OK, JOINT_TOL_RAD,
-                                   N_GUARDS, N_ORIENTATION, N_THETA, ORIENTATION_TOL_RAD, POLISH_MAX_ITER,
+                                   GUARD_ACTIVE_TOL, IPOPT_DEFAULTS, IPOPT_OK, JOINT_TOL_RAD,
+                                   N_ORIENTATION, N_THETA, ORIENTATION_TOL_RAD, POLISH_MAX_ITER,
                                    POLISH_STEP_TOL, POSITION_ONLY_AXES, POSITION_SCALE, POSITION_TOL_M,
-                                   SINGULAR_RHO_MIN_M, SINGULAR_SIN_MIN, BranchResult, BranchStatus,
+                                   SINGULAR_DET_MIN, SINGULAR_RHO_MIN_M, SINGULAR_SIN_MIN, BranchResult, BranchStatus,
                                    OrientationRule, PostureError, PostureResult, PostureStatus, PostureTask,
                                    SolverSettings)
 from problems.posture.verification import guard_bounds, singular_factors, verify
@@ -119,9 +123,10 @@ __all__ = [
     # task data, constants and results
     "AXIS_SCALE", "COST_SCALE", "DEFAULT_MAX_ITER", "DEFAULT_SCAN", "DEFAULT_SMOOTHNESS", "DEFAULT_TOL",
     "DEGENERATE_ANGLE_TOL_RAD", "DEGENERATE_OFFSET_TOL_M", "DP_MAX_STATES", "DP_NEIGHBOUR_ANGLE_RAD",
-    "GUARD_ACTIVE_TOL", "GUARD_NAMES", "IPOPT_DEFAULTS", "IPOPT_OK", "JOINT_TOL_RAD", "N_GUARDS",
+    "GUARD_ACTIVE_TOL", "IPOPT_DEFAULTS", "IPOPT_OK", "JOINT_TOL_RAD",
     "N_ORIENTATION", "N_THETA", "ORIENTATION_TOL_RAD", "POLISH_MAX_ITER", "POLISH_STEP_TOL",
-    "POSITION_ONLY_AXES", "POSITION_SCALE", "POSITION_TOL_M", "SINGULAR_RHO_MIN_M", "SINGULAR_SIN_MIN",
+    "POSITION_ONLY_AXES", "POSITION_SCALE", "POSITION_TOL_M", "SINGULAR_DET_MIN", "SINGULAR_RHO_MIN_M",
+    "SINGULAR_SIN_MIN",
     "BranchResult", "BranchStatus", "OrientationRule", "PostureError", "PostureResult", "PostureStatus",
     "PostureTask", "SolverSettings",
     # verification

@@ -15,16 +15,16 @@ import time
 import numpy as np
 
 from models.arm import ArmModel
-from models.ik import BRANCH_LABELS, IK_REASONS, AnalyticIK, IKStatus
+from models.ik import IK_REASONS, IKSolver, IKStatus, ik_solver
 from models.robot import Robot
 from models.symbolic import KinematicModel
 from problems.path import default_branch, poses
-from problems.posture.task import (DEFAULT_SCAN, DEGENERATE_ANGLE_TOL_RAD, DEGENERATE_OFFSET_TOL_M,
-                                   GUARD_ACTIVE_TOL, GUARD_NAMES, IPOPT_OK, N_GUARDS, BranchResult,
+from problems.posture.task import (COST_SCALE, DEFAULT_SCAN, DEGENERATE_ANGLE_TOL_RAD, DEGENERATE_OFFSET_TOL_M,
+                                   GUARD_ACTIVE_TOL, IPOPT_OK, BranchResult,
                                    BranchStatus, OrientationRule, PostureResult, PostureStatus, PostureTask,
                                    SolverSettings)
 from problems.posture.transcription import PostureNLP, get_nlp
-from problems.posture.verification import guard_bounds, singular_factors, verify
+from problems.posture.verification import guard_bounds, verify
 from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
 
 # --------------------------------------------------------------------------------------
@@ -66,12 +66,12 @@ def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
     return "free", f"{rule.value}: the posture is optimised along the free directions"
 
 
-def branch_signs(ik: AnalyticIK, q: np.ndarray) -> np.ndarray:
-    """Signs (3,) of the singularity factors (shoulder, wrist, elbow) along a branch path (N, 6), rad.
+def branch_signs(ik: IKSolver, q: np.ndarray) -> np.ndarray:
+    """Signs (G,) of the IK family's guard factors along a branch path (N, 6), rad.
 
     Each is the sign of the median factor over the waypoints (+1 at zero).
     """
-    f = singular_factors(ik, np.atleast_2d(q))
+    f = ik.guard_factors(np.atleast_2d(q))
     return np.where(np.median(f, axis=0) >= 0.0, 1.0, -1.0)
 
 
@@ -81,7 +81,7 @@ def branch_signs(ik: AnalyticIK, q: np.ndarray) -> np.ndarray:
 
 def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.ndarray,
                       settings: SolverSettings = SolverSettings(), verbose: bool = False,
-                      model: KinematicModel | None = None, ik: AnalyticIK | None = None,
+                      model: KinematicModel | None = None, ik: IKSolver | None = None,
                       optimise: bool = True) -> PostureResult:
     """Solve the posture NLP on every feasible branch and choose the best.
 
@@ -89,7 +89,7 @@ def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.nda
     ----------
     robot : ArmModel or Robot
         The arm model (a :class:`Robot` is wrapped in its nominal model), with its tool
-        (``tcp2flange``); must be UR-type for the analytic warm starts.  Its
+        (``tcp2flange``); its IK family (:func:`models.ik.ik_solver`) gives the warm starts.  Its
         ``kinematics.fn["load_error"]`` is the objective.
     task : PostureTask
     home_q : ndarray, shape (6,)
@@ -110,7 +110,7 @@ def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.nda
     arm = robot if isinstance(robot, ArmModel) else ArmModel.from_robot(robot)
     robot = arm.nominal
     model = model or arm.kinematics
-    ik = ik or AnalyticIK(robot)
+    ik = ik or ik_solver(robot)
     freedom, note = analyse_freedom(robot, task.rule)
     ws = warm_starts(ik, model, task)
     if not arm.geometry_is_nominal:
@@ -133,10 +133,13 @@ def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.nda
             results[b] = _unoptimised_branch(model, task, ws, b, freedom, note)
         else:
             results[b] = _optimised_branch(nlp, model, ik, task, ws, b, robot.q_min, robot.q_max)
-    return _choose(task, ws, results, default, freedom, note, build)
+        results[b].label = ik.labels[b]
+    res = _choose(task, ws, results, default, freedom, note, build, ik.labels)
+    res.ik_family = ik.family
+    return res
 
 
-def _infeasible_result(ik: AnalyticIK, task: PostureTask, ws: WarmStarts, default: int | None,
+def _infeasible_result(ik: IKSolver, task: PostureTask, ws: WarmStarts, default: int | None,
                        freedom: str, note: str) -> PostureResult:
     """The result when no branch reaches the whole path: a waypoint unreachable on every
     branch (status UNREACHABLE, naming the first one and the IK's reasons there), or every
@@ -153,10 +156,10 @@ def _infeasible_result(ik: AnalyticIK, task: PostureTask, ws: WarmStarts, defaul
         status = PostureStatus.UNREACHABLE
     else:
         reason = "no IK branch reaches the whole path: " + "; ".join(
-            f"{BRANCH_LABELS[b]}: {r}" for b, r in sorted(ws.rejected.items()))
+            f"{ik.labels[b]}: {r}" for b, r in sorted(ws.rejected.items()))
         status = PostureStatus.NO_BRANCH
     return PostureResult(status, reason, task, {}, ws.rejected, None, default, freedom, note,
-                         ws.unreachable)
+                         ws.unreachable, labels=ik.labels, ik_family=ik.family)
 
 
 def _analytic_of(model: KinematicModel, task: PostureTask,
@@ -187,7 +190,7 @@ def _unoptimised_branch(model: KinematicModel, task: PostureTask, ws: WarmStarts
                         float(np.sum(err ** 2)), cost_a, wcost, err, err_a)
 
 
-def _optimised_branch(nlp: PostureNLP, model: KinematicModel, ik: AnalyticIK, task: PostureTask,
+def _optimised_branch(nlp: PostureNLP, model: KinematicModel, ik: IKSolver, task: PostureTask,
                       ws: WarmStarts, b: int, q_min: np.ndarray, q_max: np.ndarray) -> BranchResult:
     """Branch ``b`` through the NLP: IPOPT from its warm start, Gauss-Newton polish, verification.
 
@@ -211,32 +214,43 @@ def _optimised_branch(nlp: PostureNLP, model: KinematicModel, ik: AnalyticIK, ta
     else:
         st, why = BranchStatus.OPTIMISED, f"IPOPT: {ip_status} in {iters} iterations"
     q = q_pol if st is BranchStatus.OPTIMISED else base
+    if st is BranchStatus.OPTIMISED and _objective(model, task, bp_warm.q) < _objective(model, task, q) \
+            and not verify(model, task, bp_warm.q, q_min, q_max, ik, sign)[0]:
+        # a local optimum worse than the (feasible) point it started from: keep the start
+        q, why = bp_warm.q, (f"IPOPT: {ip_status} in {iters} iterations at a local optimum worse than its warm "
+                             "start; the warm start is kept")
     err = linear_error(model, q, task.load)
-    margin = singular_factors(ik, q) * sign - guard_bounds()
-    active = {GUARD_NAMES[i]: int(np.sum(margin[:, i] <= GUARD_ACTIVE_TOL)) for i in range(N_GUARDS)}
+    margin = ik.guard_factors(q) * sign - guard_bounds(ik)
+    active = {name: int(np.sum(margin[:, i] <= GUARD_ACTIVE_TOL)) for i, name in enumerate(ik.guard_names)}
     return BranchResult(b, st, why, q, qa, bp_warm.q, wname, float(np.sum(err ** 2)), cost_a,
                         wcost, err, err_a, iters, dt, ip_status, res_m, res_rad,
                         {k: v for k, v in active.items() if v})
 
 
+def _objective(model: KinematicModel, task: PostureTask, q: np.ndarray) -> float:
+    """The NLP's objective at ``q`` (N, 6): ``COST_SCALE sum ||S C F||^2 + smoothness sum ||dq||^2`` (mm^2)."""
+    err = linear_error(model, q, task.load)
+    return float(COST_SCALE * np.sum(err ** 2) + task.smoothness * np.sum(np.diff(q, axis=0) ** 2))
+
+
 def _choose(task: PostureTask, ws: WarmStarts, results: dict[int, BranchResult], default: int | None,
-            freedom: str, note: str, build: float) -> PostureResult:
+            freedom: str, note: str, build: float, labels: tuple[str, ...]) -> PostureResult:
     """The usable branch of least cost (status OK), or SOLVER_FAILED if none is usable.
 
-    ``build`` is the solver's build time, s.
+    ``build`` is the solver's build time, s; ``labels`` the IK family's branch labels.
     """
     usable = {b: r for b, r in results.items() if r.status.usable}
     if not usable:
         reason = "the NLP failed on every feasible branch: " + "; ".join(
             f"{r.label}: {r.reason}" for r in results.values())
         return PostureResult(PostureStatus.SOLVER_FAILED, reason, task, results, ws.rejected, None,
-                             default, freedom, note, ws.unreachable, build)
+                             default, freedom, note, ws.unreachable, build, labels)
     chosen = min(usable, key=lambda b: usable[b].cost)
     n_fail = len(results) - len(usable)
-    reason = (f"branch {BRANCH_LABELS[chosen]} chosen among {len(usable)} usable branch(es)"
+    reason = (f"branch {labels[chosen]} chosen among {len(usable)} usable branch(es)"
               + (f"; {n_fail} failed" if n_fail else ""))
     return PostureResult(PostureStatus.OK, reason, task, results, ws.rejected, chosen, default, freedom,
-                         note, ws.unreachable, build)
+                         note, ws.unreachable, build, labels)
 
 
 def optimal_pose(robot: ArmModel | Robot, position: np.ndarray, rotation: np.ndarray, rule: OrientationRule,

@@ -19,7 +19,6 @@ import numpy as np
 
 from models.effects import LOAD_SIZE
 from models.errors import InputError
-from models.ik import BRANCH_LABELS
 from models.load import load_rows
 from problems.path import MAX_JOINT_STEP
 
@@ -29,19 +28,24 @@ from problems.path import MAX_JOINT_STEP
 
 #: Objective scale: m^2 -> mm^2 (conditioning only; reported costs are in m^2).
 COST_SCALE = 1e6
+#: Bounds of the objective weight that brings the warm start's objective to about one per
+#: waypoint (conditioning only; see :meth:`problems.posture.transcription.PostureNLP.objective_weight`).
+OBJECTIVE_WEIGHT_MIN = 1e-2
+OBJECTIVE_WEIGHT_MAX = 1e4
 #: Position constraints are posed in mm (m -> mm).
 POSITION_SCALE = 1e3
 #: Tool-axis constraints are posed in mrad (dimensionless -> 1e-3).
 AXIS_SCALE = 1e3
-#: Singularity guards (see :func:`~problems.posture.verification.singular_factors`): the
-#: wrist and elbow sines stay at least this far from 0 (dimensionless; about 2.9 deg) ...
+#: Singularity guards (the IK family's guard factors, see
+#: :func:`~problems.posture.verification.guard_bounds`): a sine factor (wrist, elbow) stays at
+#: least this far from 0 (dimensionless; about 2.9 deg) ...
 SINGULAR_SIN_MIN = 0.05
-#: ... and the shoulder factor rho at least this far from 0 (m).
+#: ... a length factor (the UR shoulder factor rho, the OPW wrist-centre distance from axis 1)
+#: at least this far (m) ...
 SINGULAR_RHO_MIN_M = 0.02
-#: Singularity guards per waypoint (shoulder, wrist, elbow).
-N_GUARDS = 3
-GUARD_NAMES = ("shoulder", "wrist", "elbow")
-#: A guard counts as active within this of its bound (m for the shoulder, else dimensionless).
+#: ... and a Jacobian-determinant factor (general 6R arms, dimensionless) at least this far.
+SINGULAR_DET_MIN = 1e-3
+#: A guard counts as active within this of its bound (m for a length factor, else dimensionless).
 GUARD_ACTIVE_TOL = 1e-6
 #: Contract: TCP position of the optimised posture on the waypoint to this (m).
 POSITION_TOL_M = 1e-9
@@ -252,7 +256,7 @@ class BranchResult:
     Attributes
     ----------
     branch : int
-        Index into :data:`models.ik.BRANCH_LABELS` (label of the warm start's IK).
+        Index into the IK family's labels (label of the warm start's IK, :attr:`label`).
     status : BranchStatus
     reason : str
     q : ndarray, shape (N, 6)
@@ -304,11 +308,8 @@ class BranchResult:
     residual_m: float = 0.0
     residual_rad: float = 0.0
     active_guards: dict[str, int] = field(default_factory=dict)
-
-    @property
-    def label(self) -> str:
-        """The branch's IK label (e.g. ``"s+w-e+"``, see :data:`models.ik.BRANCH_LABELS`)."""
-        return BRANCH_LABELS[self.branch]
+    #: The branch's IK label (e.g. ``"s+w-e+"`` or ``"front-up-noflip"``, see ``docs/conventions.md``).
+    label: str = ""
 
     @property
     def rms_error_m(self) -> float:
@@ -344,6 +345,10 @@ class PostureResult:
         Waypoints with no IK solution on any branch at any scanned candidate.
     build_time_s : float
         Time to build (or load) the solver, s.
+    labels : tuple of str
+        The IK family's branch labels (index -> label).
+    ik_family : str
+        The IK family (``"ur"``, ``"opw"``, ``"general"``).
     """
 
     status: PostureStatus
@@ -357,6 +362,8 @@ class PostureResult:
     freedom_note: str
     unreachable: list[int] = field(default_factory=list)
     build_time_s: float = 0.0
+    labels: tuple[str, ...] = ()
+    ik_family: str = ""
 
     @property
     def ok(self) -> bool:

@@ -28,23 +28,24 @@ from models.arm import ArmModel
 from models.codegen import CompileError, compile_shared_library, note_virtual_machine
 from models.effects import LOAD_SIZE
 from models.errors import InputError
-from models.ik import AnalyticIK
+from models.ik import IKSolver, ik_solver
 from models.robot import Robot
-from problems.posture.task import (AXIS_SCALE, COST_SCALE, IPOPT_DEFAULTS, N_GUARDS, N_ORIENTATION, N_THETA,
+from problems.posture.task import (AXIS_SCALE, COST_SCALE, IPOPT_DEFAULTS, N_ORIENTATION, N_THETA,
+                                   OBJECTIVE_WEIGHT_MAX, OBJECTIVE_WEIGHT_MIN,
                                    POLISH_MAX_ITER, POLISH_STEP_TOL, POSITION_SCALE, OrientationRule,
                                    PostureTask, SolverSettings)
-from problems.posture.verification import guard_bounds, singular_factors
+from problems.posture.verification import guard_bounds
 
 # --------------------------------------------------------------------------------------
 # Stage functions (per waypoint) and their compilation
 # --------------------------------------------------------------------------------------
 
-def _n_stage_constraints(rule: OrientationRule) -> int:
-    """Constraints per waypoint: position (3), the rule's orientation, singularity guards (3)."""
-    return 3 + N_ORIENTATION[rule] + N_GUARDS
+def _n_stage_constraints(rule: OrientationRule, n_guards: int) -> int:
+    """Constraints per waypoint: position (3), the rule's orientation, the IK family's guards."""
+    return 3 + N_ORIENTATION[rule] + n_guards
 
 
-def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule) -> dict[str, ca.Function]:
+def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule, ik: IKSolver | None = None) -> dict[str, ca.Function]:
     """The per-waypoint SX functions.
 
     ``theta = [p (3, m); R (9, column-major); L (LOAD_SIZE); sigma (3)]`` with ``L`` the
@@ -66,10 +67,11 @@ def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule) -> dict[str, ca.Func
         ``"f"``: (q, theta) -> (cost (mm^2), g (n_g,)); ``"grad"``: (q, theta) -> (cost,
         d cost / dq (6,)); ``"jac"``: (q, theta) -> (g, dg/dq (n_g, 6) dense); ``"hess"``:
         (q, theta, sigma, lam (n_g,)) -> Hessian (6, 6) of ``sigma cost + lam . g``, dense
-        and symmetric.  ``n_g = 3 + N_ORIENTATION[rule] + N_GUARDS`` constraints.
+        and symmetric.  ``n_g = 3 + N_ORIENTATION[rule] + G`` constraints (G: the IK family's guard factors).
     """
     arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
-    ik = AnalyticIK(arm.nominal)
+    ik = ik or ik_solver(arm.nominal)
+    n_guards = len(ik.guard_kinds)
     q = ca.SX.sym("q", 6)
     th = ca.SX.sym("theta", N_THETA)
     p, R, L, sig = th[0:3], ca.reshape(th[3:12], 3, 3), th[12:12 + LOAD_SIZE], th[12 + LOAD_SIZE:N_THETA]
@@ -86,7 +88,7 @@ def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule) -> dict[str, ca.Func
         g.append(AXIS_SCALE * ca.vertcat(ca.dot(R[:, 0], z), ca.dot(R[:, 1], z)))
     elif rule is OrientationRule.CONE:
         g.append(AXIS_SCALE * ca.dot(R[:, 2], z))
-    g.append(sig * singular_factors(ik, q))
+    g.append(sig[:n_guards] * ik.guard_factors(q))
     g = ca.vertcat(*g)
     sigma = ca.SX.sym("sigma")
     lam = ca.SX.sym("lam", g.shape[0])
@@ -202,7 +204,8 @@ class PostureNLP:
         t0 = time.perf_counter()
         arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
         self.arm, self.robot, self.rule, self.n, self.settings = arm, arm.nominal, rule, n, settings
-        sx = _stage_sx(arm, rule)
+        self.ik = ik_solver(arm.nominal)
+        sx = _stage_sx(arm, rule, self.ik)
         self.compiled = False
         funcs = sx
         if settings.codegen:
@@ -212,7 +215,7 @@ class PostureNLP:
             except StageCompileError:
                 funcs = sx
         self.stage = funcs
-        self.m = _n_stage_constraints(rule)
+        self.m = _n_stage_constraints(rule, len(self.ik.guard_kinds))
         self._build(funcs, verbose)
         self.build_time_s = time.perf_counter() - t0
 
@@ -222,19 +225,20 @@ class PostureNLP:
         X = ca.MX.sym("X", 6, n)
         Th = ca.MX.sym("Theta", N_THETA, n)
         lam_s = ca.MX.sym("lam_s")
+        w_obj = ca.MX.sym("w_obj")          # objective weight (conditioning, see solve)
         x = ca.vec(X)
-        p = ca.vertcat(ca.vec(Th), lam_s)
+        p = ca.vertcat(ca.vec(Th), lam_s, w_obj)
         Dm = _difference_matrix(n)
         LtL = ca.mtimes(Dm.T, Dm) if n > 1 else ca.DM(6 * n, 6 * n)
 
         c_all, g_all = funcs["f"].map(n)(X, Th)
         dX = ca.mtimes(Dm, x) if n > 1 else ca.MX(0, 1)
-        f = ca.sum2(c_all) + lam_s * ca.sumsqr(dX)
+        f = w_obj * (ca.sum2(c_all) + lam_s * ca.sumsqr(dX))
         g = ca.vertcat(ca.vec(g_all), dX)
 
         c_g, grad = funcs["grad"].map(n)(X, Th)
-        grad_f = ca.Function("grad_f", [x, p], [ca.sum2(c_g) + lam_s * ca.sumsqr(dX),
-                                                 ca.vec(grad) + 2.0 * lam_s * ca.mtimes(LtL, x)],
+        grad_f = ca.Function("grad_f", [x, p], [w_obj * (ca.sum2(c_g) + lam_s * ca.sumsqr(dX)),
+                                                 w_obj * (ca.vec(grad) + 2.0 * lam_s * ca.mtimes(LtL, x))],
                              ["x", "p"], ["f", "grad_f_x"])
 
         g_j, jac = funcs["jac"].map(n)(X, Th)
@@ -246,9 +250,9 @@ class PostureNLP:
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", m * n + 6 * (n - 1))
         Lg = ca.reshape(lam_g[: m * n], m, n)
-        H = funcs["hess"].map(n)(X, Th, ca.repmat(lam_f, 1, n), Lg)
+        H = funcs["hess"].map(n)(X, Th, ca.repmat(lam_f * w_obj, 1, n), Lg)
         H_stage = ca.MX(_blockdiag_sparsity(n, 6, 6), ca.vec(H))
-        H_full = H_stage + 2.0 * lam_f * lam_s * ca.MX(ca.DM(LtL)) if n > 1 else H_stage
+        H_full = H_stage + 2.0 * lam_f * w_obj * lam_s * ca.MX(ca.DM(LtL)) if n > 1 else H_stage
         hess = ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.triu(H_full)],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
 
@@ -261,27 +265,30 @@ class PostureNLP:
         }
         self.solver = ca.nlpsol("posture", "ipopt", {"x": x, "p": p, "f": f, "g": g}, opts)
         self._jac_map = funcs["jac"].map(n)
+        self._f_map = funcs["f"].map(n)
 
     # ---------------------------------------------------------------- parameters
     def theta(self, task: PostureTask, sign: np.ndarray) -> np.ndarray:
         """Stage parameters, shape (N_THETA, N).
 
         Columns: position (m), base->TCP rotation (column-major), load row (see
-        :mod:`models.load`) and the branch's singularity-factor signs ``sign`` (3,).
+        :mod:`models.load`) and the branch's guard-factor signs ``sign`` (G,), zero-padded to 3.
         """
         n = task.n
         th = np.empty((N_THETA, n))
         th[0:3] = task.positions.T
         th[3:12] = task.rotations.transpose(0, 2, 1).reshape(n, 9).T   # column-major R
         th[12:12 + LOAD_SIZE] = task.load.T
-        th[12 + LOAD_SIZE:N_THETA] = np.asarray(sign, dtype=float).reshape(3, 1)
+        sig = np.zeros(N_THETA - 12 - LOAD_SIZE)
+        sig[:len(sign)] = np.asarray(sign, dtype=float)
+        th[12 + LOAD_SIZE:N_THETA] = sig[:, None]
         return th
 
     def bounds_g(self, task: PostureTask) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of the constraint vector, each shape (m N + 6 (N-1),).
 
         Per waypoint (scaled as in :func:`_stage_sx`): equalities (position, orientation),
-        the cone bound ``>= cos(alpha)``, the guards ``>= guard_bounds()``; then the joint
+        the cone bound ``>= cos(alpha)``, the guards ``>= guard_bounds(ik)``; then the joint
         steps within ``+-max_joint_step`` (rad).
         """
         n, m = self.n, self.m
@@ -290,8 +297,9 @@ class PostureNLP:
         if self.rule is OrientationRule.CONE:
             lo[3] = AXIS_SCALE * math.cos(task.cone_half_angle)
             hi[3] = np.inf
-        lo[m - N_GUARDS:] = guard_bounds()[:, None]
-        hi[m - N_GUARDS:] = np.inf
+        ng = len(self.ik.guard_kinds)
+        lo[m - ng:] = guard_bounds(self.ik)[:, None]
+        hi[m - ng:] = np.inf
         step = np.full(6 * (n - 1), task.max_joint_step)
         return np.r_[lo.reshape(-1, order="F"), -step], np.r_[hi.reshape(-1, order="F"), step]
 
@@ -310,7 +318,7 @@ class PostureNLP:
         """
         th = self.theta(task, sign)
         lbg, ubg = self.bounds_g(task)
-        p = np.r_[th.reshape(-1, order="F"), task.smoothness]
+        p = np.r_[th.reshape(-1, order="F"), task.smoothness, self.objective_weight(task, q0, th)]
         t0 = time.perf_counter()
         res = self.solver(x0=q0.reshape(-1), p=p, lbx=np.tile(q_min, self.n), ubx=np.tile(q_max, self.n),
                           lbg=lbg, ubg=ubg)
@@ -318,6 +326,21 @@ class PostureNLP:
         st = self.solver.stats()
         q = np.asarray(res["x"]).reshape(self.n, 6)
         return q, str(st.get("return_status", "unknown")), int(st.get("iter_count", 0)), dt
+
+    def objective_weight(self, task: PostureTask, q0: np.ndarray, th: np.ndarray) -> float:
+        """Weight that brings the objective at the warm start to about one per waypoint.
+
+        IPOPT's convergence test is absolute: a stiff industrial arm whose load-induced error
+        is a few micrometres (costs of 1e-2 mm^2) would otherwise need tens of iterations to
+        meet it, where a cobot's (1 mm^2) needs five.  The weight multiplies the whole
+        objective, so the optimum is unchanged; it is clipped to
+        [OBJECTIVE_WEIGHT_MIN, OBJECTIVE_WEIGHT_MAX] (no load: no rescaling to speak of).
+        """
+        c, _ = self._f_map(q0.T, th)
+        dq = np.diff(q0, axis=0)
+        f0 = float(np.sum(np.asarray(c))) + task.smoothness * float(np.sum(dq ** 2))
+        w = self.n / f0 if f0 > 0 else OBJECTIVE_WEIGHT_MAX
+        return float(min(max(w, OBJECTIVE_WEIGHT_MIN), OBJECTIVE_WEIGHT_MAX))
 
     # ---------------------------------------------------------------- polishing
     def polish(self, task: PostureTask, q: np.ndarray, sign: np.ndarray) -> np.ndarray:
@@ -329,8 +352,8 @@ class PostureNLP:
         ----------
         q : ndarray, shape (N, 6)
             Joints, rad (not modified).
-        sign : ndarray, shape (3,)
-            The branch's singularity-factor signs.
+        sign : ndarray, shape (G,)
+            The branch's guard-factor signs.
 
         Returns
         -------

@@ -1,9 +1,10 @@
-"""Singularity factors and guards, and the verification of a posture against its task.
+"""Singularity guards, and the verification of a posture against its task.
 
-:func:`singular_factors` are the three factors of ``det J`` of a UR-type arm whose signs
-are the IK branch; :func:`guard_bounds` the margins the NLP keeps them from zero.
-:func:`verify` checks every constraint of a :class:`~problems.posture.task.PostureTask` at
-a posture with the model's own forward kinematics, after the solver.
+The guard factors are the IK family's (:meth:`models.ik.IKSolver.guard_factors`: smooth
+functions of q whose signs are the branch); :func:`guard_bounds` gives the margins the NLP
+keeps them from zero, per kind of factor.  :func:`verify` checks every constraint of a
+:class:`~problems.posture.task.PostureTask` at a posture with the model's own forward
+kinematics, after the solver.
 """
 
 from __future__ import annotations
@@ -11,51 +12,26 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import casadi as ca
 import numpy as np
 
-from models.ik import AnalyticIK
+from models.ik import IKSolver
 from models.symbolic import KinematicModel
 from models.transforms import rotation_angle
-from problems.posture.task import (JOINT_TOL_RAD, ORIENTATION_TOL_RAD, POSITION_TOL_M, SINGULAR_RHO_MIN_M,
-                                   SINGULAR_SIN_MIN, OrientationRule, PostureTask)
+from problems.posture.task import (JOINT_TOL_RAD, ORIENTATION_TOL_RAD, POSITION_TOL_M, SINGULAR_DET_MIN,
+                                   SINGULAR_RHO_MIN_M, SINGULAR_SIN_MIN, OrientationRule, PostureTask)
 
-#: Names of the singularity factors in verification messages (shoulder, wrist, elbow).
-_FACTOR_NAMES = ("shoulder factor rho", "wrist sin(theta5)", "elbow sin(theta3)")
-
-
-def singular_factors(ik: AnalyticIK, q: Any) -> Any:
-    """The three singularity factors of a UR-type arm.
-
-    ``det J = a2 a3 * sin(theta3) * sin(theta5) * rho`` with
-    ``rho = a2 cos(theta2) + a3 cos(theta2 + theta3) + d5 sin(theta2 + theta3 + theta4)``
-    (m) and ``theta = q + theta_offset``, in the standard-DH reading the analytic
-    IK uses.  Their signs are the IK branch (shoulder: rho, wrist: sin theta5,
-    elbow: sin theta3), so keeping them away from zero keeps the branch.
-
-    Parameters
-    ----------
-    ik : AnalyticIK
-    q : casadi SX/MX (6,) or ndarray (6,) or (N, 6), rad
-
-    Returns
-    -------
-    ``[rho (m), sin(theta5), sin(theta3)]``: CasADi (3,) or ndarray (3,) / (N, 3).
-    """
-    a, d, off = ik.a, ik.d, ik.offset
-    if isinstance(q, (ca.SX, ca.MX)):
-        th = [q[i] + off[i] for i in range(6)]
-        rho = a[1] * ca.cos(th[1]) + a[2] * ca.cos(th[1] + th[2]) + d[4] * ca.sin(th[1] + th[2] + th[3])
-        return ca.vertcat(rho, ca.sin(th[4]), ca.sin(th[2]))
-    th = np.asarray(q, dtype=float) + off
-    rho = (a[1] * np.cos(th[..., 1]) + a[2] * np.cos(th[..., 1] + th[..., 2])
-           + d[4] * np.sin(th[..., 1] + th[..., 2] + th[..., 3]))
-    return np.stack([rho, np.sin(th[..., 4]), np.sin(th[..., 2])], axis=-1)
+#: Margin of each kind of guard factor (see :attr:`models.ik.IKSolver.guard_kinds`).
+GUARD_MARGINS = {"length": SINGULAR_RHO_MIN_M, "sine": SINGULAR_SIN_MIN, "det": SINGULAR_DET_MIN}
 
 
-def guard_bounds() -> np.ndarray:
-    """Lower bounds of ``sigma_i * factor_i`` (shoulder m, wrist, elbow), shape (3,)."""
-    return np.array([SINGULAR_RHO_MIN_M, SINGULAR_SIN_MIN, SINGULAR_SIN_MIN])
+def singular_factors(ik: IKSolver, q: Any) -> Any:
+    """The IK family's guard factors at ``q`` (CasADi (6,) -> (G,), ndarray (..., 6) -> (..., G))."""
+    return ik.guard_factors(q)
+
+
+def guard_bounds(ik: IKSolver) -> np.ndarray:
+    """Lower bounds of ``sigma_i * factor_i`` for the family of ``ik``, shape (G,)."""
+    return np.array([GUARD_MARGINS[k] for k in ik.guard_kinds])
 
 
 def _orientation_problems(task: PostureTask, T: np.ndarray) -> tuple[list[str], float]:
@@ -95,7 +71,7 @@ def _orientation_problems(task: PostureTask, T: np.ndarray) -> tuple[list[str], 
 
 
 def _joint_problems(task: PostureTask, q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
-                    ik: AnalyticIK | None, signs: np.ndarray | None) -> list[str]:
+                    ik: IKSolver | None, signs: np.ndarray | None) -> list[str]:
     """Joint limits (rad), singularity guards (with ``ik`` and ``signs``) and joint steps (rad)
     of ``q`` (N, 6), each with slack :data:`~problems.posture.task.JOINT_TOL_RAD`."""
     out: list[str] = []
@@ -105,10 +81,10 @@ def _joint_problems(task: PostureTask, q: np.ndarray, q_min: np.ndarray, q_max: 
         k, j = (int(v) for v in np.argwhere(lo | hi)[0])
         out.append(f"waypoint {k}: joint {j + 1} = {q[k, j]:.6g} rad outside [{q_min[j]:.6g}, {q_max[j]:.6g}]")
     if ik is not None and signs is not None:
-        g = singular_factors(ik, q) * signs - guard_bounds()
+        g = ik.guard_factors(q) * signs - guard_bounds(ik)
         if np.any(g < -JOINT_TOL_RAD):
             k, i = (int(v) for v in np.unravel_index(np.argmin(g), g.shape))
-            out.append(f"waypoint {k}: {_FACTOR_NAMES[i]} crosses its singularity guard "
+            out.append(f"waypoint {k}: the {ik.guard_names[i]} guard factor crosses its singularity guard "
                        f"(margin {g[k, i]:.3g})")
     if len(q) > 1:
         steps = np.abs(np.diff(q, axis=0))
@@ -120,11 +96,11 @@ def _joint_problems(task: PostureTask, q: np.ndarray, q_min: np.ndarray, q_max: 
 
 
 def verify(model: KinematicModel, task: PostureTask, q: np.ndarray, q_min: np.ndarray,
-           q_max: np.ndarray, ik: AnalyticIK | None = None,
+           q_max: np.ndarray, ik: IKSolver | None = None,
            signs: np.ndarray | None = None) -> tuple[list[str], float, float]:
     """Check every constraint of the task at ``q`` (N, 6), rad.
 
-    With ``ik`` and ``signs`` (the branch's singularity-factor signs, shape (3,)) the
+    With ``ik`` and ``signs`` (the branch's guard-factor signs, shape (G,)) the
     singularity guards are checked as well.
 
     Parameters
@@ -136,8 +112,8 @@ def verify(model: KinematicModel, task: PostureTask, q: np.ndarray, q_min: np.nd
         Joint angles, rad.
     q_min, q_max : ndarray, shape (6,)
         Joint limits, rad.
-    ik : AnalyticIK, optional
-    signs : ndarray, shape (3,), optional
+    ik : IKSolver, optional
+    signs : ndarray, shape (G,), optional
 
     Returns
     -------

@@ -19,16 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.arm import ArmModel
-from models.ik import IK_REASONS, AnalyticIK, IKSolution, IKStatus
+from models.ik import IK_REASONS, IKSolution, IKSolver, IKStatus
 from models.load import load_rows
 from models.symbolic import KinematicModel
 from problems.path import BranchPath, branch_paths, poses
 from problems.posture.task import (COST_SCALE, DP_MAX_STATES, DP_NEIGHBOUR_ANGLE_RAD, POSITION_ONLY_AXES,
                                    OrientationRule, PostureTask)
-from problems.posture.verification import guard_bounds, singular_factors
+from problems.posture.verification import guard_bounds
 
-#: Number of IK branches of the analytic IK (:data:`models.ik.BRANCH_LABELS`).
-_N_BRANCHES = 8
 
 # --------------------------------------------------------------------------------------
 # Candidates and helpers
@@ -145,7 +143,7 @@ def _into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray) -> np.ndar
 # Warm starts
 # --------------------------------------------------------------------------------------
 
-def warm_starts(ik: AnalyticIK, model: KinematicModel, task: PostureTask) -> WarmStarts:
+def warm_starts(ik: IKSolver, model: KinematicModel, task: PostureTask) -> WarmStarts:
     """Analytic IK at the nominal rotations, and a warm start per branch.
 
     The warm start of a branch is the cheapest sequence of scanned candidates
@@ -157,8 +155,8 @@ def warm_starts(ik: AnalyticIK, model: KinematicModel, task: PostureTask) -> War
 
     Parameters
     ----------
-    ik : AnalyticIK
-        The closed-form IK of the nominal chain.
+    ik : IKSolver
+        The all-branch IK of the nominal chain.
     model : KinematicModel
         Evaluates the node costs (:func:`linear_error`).
     task : PostureTask
@@ -176,12 +174,13 @@ def warm_starts(ik: AnalyticIK, model: KinematicModel, task: PostureTask) -> War
         return _analytic_warm_starts(model, task, feas_nom, rej_nom, unreachable)
 
     cost = _node_costs(ik, model, task, Q, ok)
-    Qb = np.ascontiguousarray(np.nan_to_num(Q).transpose(2, 0, 1, 3))         # (8, S, N, 6)
+    nb = ik.n_branches
+    Qb = np.ascontiguousarray(np.nan_to_num(Q).transpose(2, 0, 1, 3))         # (B, S, N, 6)
     sparse = _sparse_sequences(cost, Qb, task, cands) if len(cands) > DP_MAX_STATES else {}
-    first_status = sol.status.reshape(len(cands), task.n, _N_BRANCHES)[0]      # (N, 8)
+    first_status = sol.status.reshape(len(cands), task.n, nb)[0]              # (N, B)
     warm: dict[int, tuple[BranchPath, str, float]] = {}
     rejected: dict[int, str] = {}
-    for b in range(_N_BRANCHES):
+    for b in range(nb):
         out = _branch_warm_start(ik, task, cands, b, cost[:, :, b], Qb[b], sparse.get(b),
                                  first_status[:, b])
         if isinstance(out, str):
@@ -194,7 +193,7 @@ def warm_starts(ik: AnalyticIK, model: KinematicModel, task: PostureTask) -> War
     return WarmStarts(feas_nom, warm, rejected, unreachable)
 
 
-def _solve_candidates(ik: AnalyticIK, task: PostureTask,
+def _solve_candidates(ik: IKSolver, task: PostureTask,
                       cands: list[tuple[str, np.ndarray]]) -> tuple[IKSolution, np.ndarray, np.ndarray]:
     """Analytic IK of every waypoint at every candidate orientation.
 
@@ -202,16 +201,16 @@ def _solve_candidates(ik: AnalyticIK, task: PostureTask,
     -------
     sol : IKSolution
         Of the S * N poses, candidate-major.
-    Q : ndarray, shape (S, N, 8, 6)
+    Q : ndarray, shape (S, N, B, 6)
         Joint angles per candidate, waypoint and branch, rad (NaN where unsolved).
-    ok : ndarray of bool, shape (S, N, 8)
+    ok : ndarray of bool, shape (S, N, B)
         Where the IK succeeded.
     """
     S, n = len(cands), task.n
     T_all = np.concatenate([poses(task.positions, R) for _, R in cands])      # (S*N, 4, 4)
     sol = ik.solve(T_all)
-    Q = sol.q.reshape(S, n, _N_BRANCHES, 6)
-    ok = sol.status.reshape(S, n, _N_BRANCHES) == IKStatus.OK
+    Q = sol.q.reshape(S, n, ik.n_branches, 6)
+    ok = sol.status.reshape(S, n, ik.n_branches) == IKStatus.OK
     return sol, Q, ok
 
 
@@ -225,16 +224,16 @@ def _analytic_warm_starts(model: KinematicModel, task: PostureTask, feas_nom: di
     return WarmStarts(feas_nom, warm, dict(rej_nom), unreachable)
 
 
-def _node_costs(ik: AnalyticIK, model: KinematicModel, task: PostureTask, Q: np.ndarray,
+def _node_costs(ik: IKSolver, model: KinematicModel, task: PostureTask, Q: np.ndarray,
                 ok: np.ndarray) -> np.ndarray:
-    """Node costs ``COST_SCALE ||S C F||^2`` (mm^2), shape (S, N, 8); inf where the IK failed
-    or a singularity factor lies inside its guard (a node must lie on the branch's side of
+    """Node costs ``COST_SCALE ||S C F||^2`` (mm^2), shape (S, N, B); inf where the IK failed
+    or a guard factor lies inside its guard (a node must lie on the branch's side of
     every singularity, with margin)."""
     S, n = Q.shape[:2]
-    fac = singular_factors(ik, np.nan_to_num(Q))                              # (S, N, 8, 3)
-    valid = ok & (np.abs(fac) >= guard_bounds()).all(axis=-1)
+    fac = ik.guard_factors(np.nan_to_num(Q))                                   # (S, N, B, G)
+    valid = ok & (np.abs(fac) >= guard_bounds(ik)).all(axis=-1)
     idx = np.argwhere(valid)                                                  # (M, 3): s, k, b
-    cost = np.full((S, n, _N_BRANCHES), np.inf)
+    cost = np.full((S, n, ik.n_branches), np.inf)
     if len(idx):
         qv = Q[idx[:, 0], idx[:, 1], idx[:, 2]]
         err = linear_error(model, qv, task.load[idx[:, 1]])
@@ -247,9 +246,9 @@ def _sparse_sequences(cost: np.ndarray, Qb: np.ndarray, task: PostureTask,
     """Candidate sequences of every branch reaching all waypoints, by the neighbour-restricted
     programme (:func:`_dp_sparse`); branches whose restricted graph is blocked are left out.
 
-    ``cost`` (S, N, 8) node costs, ``Qb`` (8, S, N, 6) candidate joints (rad).
+    ``cost`` (S, N, B) node costs, ``Qb`` (B, S, N, 6) candidate joints (rad).
     """
-    reach_all = np.isfinite(cost).any(axis=0).all(axis=0)                     # (8,)
+    reach_all = np.isfinite(cost).any(axis=0).all(axis=0)                     # (B,)
     bs = np.flatnonzero(reach_all)
     if not bs.size:
         return {}
@@ -272,7 +271,7 @@ def _dense_sequence(node: np.ndarray, qb: np.ndarray, task: PostureTask) -> np.n
     return seq
 
 
-def _branch_warm_start(ik: AnalyticIK, task: PostureTask, cands: list[tuple[str, np.ndarray]], b: int,
+def _branch_warm_start(ik: IKSolver, task: PostureTask, cands: list[tuple[str, np.ndarray]], b: int,
                        node: np.ndarray, qb: np.ndarray, seq: np.ndarray | None,
                        first_status: np.ndarray) -> tuple[BranchPath, str, float] | str:
     """One branch's warm start, or why the branch is rejected.
@@ -316,7 +315,7 @@ def _branch_warm_start(ik: AnalyticIK, task: PostureTask, cands: list[tuple[str,
     steps = np.abs(np.diff(q, axis=0)).max() if n > 1 else 0.0
     names = sorted({cands[s][0] for s in found})
     label = names[0] if len(names) == 1 else f"per-waypoint scan over {len(cands)} orientations"
-    return (BranchPath(b, q, float(steps)), label, float(np.sum(node[found, np.arange(n)])) / COST_SCALE)
+    return (BranchPath(b, q, float(steps), ik.labels[b]), label, float(np.sum(node[found, np.arange(n)])) / COST_SCALE)
 
 
 # --------------------------------------------------------------------------------------
@@ -441,7 +440,7 @@ def _dp(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float,
 # Onto the model's geometry
 # --------------------------------------------------------------------------------------
 
-def _onto_model_geometry(arm: ArmModel, ik: AnalyticIK, ws: WarmStarts) -> WarmStarts:
+def _onto_model_geometry(arm: ArmModel, ik: IKSolver, ws: WarmStarts) -> WarmStarts:
     """Move the analytic postures and warm starts onto the model's geometry.
 
     The closed-form IK solves the *nominal* chain; an identified model's chain differs
@@ -452,8 +451,8 @@ def _onto_model_geometry(arm: ArmModel, ik: AnalyticIK, ws: WarmStarts) -> WarmS
     ----------
     arm : ArmModel
         The model whose geometry the paths are moved onto.
-    ik : AnalyticIK
-        The closed-form IK of the nominal chain (``ik.robot``) that produced ``ws``.
+    ik : IKSolver
+        The IK of the nominal chain (``ik.robot``) that produced ``ws``.
     ws : WarmStarts
 
     Returns
@@ -468,7 +467,7 @@ def _onto_model_geometry(arm: ArmModel, ik: AnalyticIK, ws: WarmStarts) -> WarmS
         """The path (N, 6) rad moved onto the model's geometry, with its largest joint step."""
         q = rigid_pose_solve(arm, bp.q, nominal.tcp(bp.q).reshape(-1, 4, 4))
         steps = float(np.abs(np.diff(q, axis=0)).max()) if len(q) > 1 else 0.0
-        return BranchPath(bp.branch, q, steps)
+        return BranchPath(bp.branch, q, steps, bp.label)
 
     analytic = {b: move(bp) for b, bp in ws.analytic.items()}
     warm = {b: (analytic[b] if b in analytic and bp.q is ws.analytic[b].q else move(bp), name, cost)

@@ -1,0 +1,299 @@
+"""What every IK family shares: statuses, the solution object, the solver interface, the registry.
+
+An IK family is a module of :mod:`models.ik` with one :class:`IKSolver` subclass decorated
+with :func:`register_family`.  :func:`ik_solver` tries the families in their ``order`` and
+returns the first whose structure check accepts the robot's chain, so the family is
+detected from the chain itself (joint axes and offsets), never from a name.
+
+Every family gives, per target pose, a fixed list of *branches* with stable labels
+(``labels``): branch ``b`` of one pose and branch ``b`` of the next are the same formula,
+so a path can be followed on one branch.  Its ``guard_factors`` are smooth functions of the
+joint angles whose signs identify the branch and which cross zero at the singularities that
+separate branches; the posture NLP keeps ``sign * factor >= guard_bounds`` to stay on its
+branch (``docs/conventions.md``, "IK branches").
+"""
+
+from __future__ import annotations
+
+import abc
+import enum
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..errors import InputError
+from ..robot import Robot
+
+
+class IKStatus(enum.IntEnum):
+    """Why a branch has (or has no) solution."""
+
+    OK = 0
+    SHOULDER_UNREACHABLE = 1   # wrist centre inside the lateral-offset cylinder
+    WRIST_UNREACHABLE = 2      # |cos(theta5)| > 1
+    WRIST_SINGULAR = 3         # sin(theta5) ~ 0: theta6 undetermined (joints 4, 6 aligned)
+    ELBOW_UNREACHABLE = 4      # target beyond the reach of links 2-3
+    JOINT_LIMIT = 5            # a solution exists but no 2*pi shift puts it in the limits
+    SHOULDER_SINGULAR = 6      # wrist centre on the joint-1 axis: theta1 undetermined
+    UNREACHABLE = 7            # general arms: this branch has no solution for the pose
+    SINGULAR = 8               # general arms: the solution is at a singular Jacobian
+
+
+IK_REASONS = {
+    IKStatus.OK: "ok",
+    IKStatus.SHOULDER_UNREACHABLE: "unreachable: wrist centre closer to the base axis than the lateral offset",
+    IKStatus.WRIST_UNREACHABLE: "unreachable: no theta5 (|cos theta5| > 1)",
+    IKStatus.WRIST_SINGULAR: "singular: wrist (axes 4 and 6 aligned), theta4 and theta6 not separable",
+    IKStatus.ELBOW_UNREACHABLE: "unreachable: beyond the reach of the upper arm and forearm",
+    IKStatus.JOINT_LIMIT: "outside the joint limits",
+    IKStatus.SHOULDER_SINGULAR: "singular: wrist centre on the joint-1 axis (shoulder singularity)",
+    IKStatus.UNREACHABLE: "unreachable: no solution on this branch",
+    IKStatus.SINGULAR: "singular: the Jacobian is singular at the solution",
+}
+
+
+class IKStructureError(InputError):
+    """No IK family applies to the robot's chain (the message says why for each)."""
+
+
+@dataclass
+class IKSolution:
+    """All branches of an IK family for N target poses.
+
+    Attributes
+    ----------
+    q : ndarray, shape (N, B, 6)
+        Joint angles (rad); NaN where the branch has no solution.
+    status : ndarray of int, shape (N, B)
+        :class:`IKStatus` per branch.
+    labels : tuple of str, length B
+        The family's branch labels.
+    """
+
+    q: np.ndarray
+    status: np.ndarray
+    labels: tuple[str, ...] = field(default=())
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(N, B) bool: branch has a solution within the limits."""
+        return self.status == IKStatus.OK
+
+    def reason(self, i: int, branch: int) -> str:
+        """Human-readable reason for pose ``i``, branch ``branch``."""
+        return IK_REASONS[IKStatus(int(self.status[i, branch]))]
+
+    def summary(self, i: int) -> str:
+        """One line per pose: the worst reason if no branch is valid."""
+        if self.valid[i].any():
+            return f"{int(self.valid[i].sum())} branch(es)"
+        codes = sorted({int(c) for c in self.status[i]})
+        return "; ".join(IK_REASONS[IKStatus(c)] for c in codes)
+
+
+def into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
+                seed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Shift each angle by 2*pi*k into [q_min, q_max], nearest to ``seed`` (default 0).
+
+    Returns the shifted angles (same shape as ``q``) and, per row of the last axis, whether
+    all of its joints fit (rows with NaN count as fitting: they are masked elsewhere).
+    """
+    ref = np.zeros_like(q) if seed is None else np.broadcast_to(seed, q.shape)
+    two_pi = 2.0 * np.pi
+    with np.errstate(invalid="ignore"):
+        k = np.round((ref - q) / two_pi)
+        cand = q + two_pi * k
+        lo = cand < q_min
+        cand = np.where(lo, cand + two_pi * np.ceil((q_min - cand) / two_pi), cand)
+        hi = cand > q_max
+        cand = np.where(hi, cand - two_pi * np.ceil((cand - q_max) / two_pi), cand)
+        ok = (cand >= q_min - 1e-12) & (cand <= q_max + 1e-12)
+    return cand, ok.all(axis=-1) | np.isnan(q).any(axis=-1)
+
+
+def check_poses(tcp2base: np.ndarray) -> np.ndarray:
+    """Target poses as (N, 4, 4), refusing wrong shapes and non-finite entries."""
+    T = np.asarray(tcp2base, dtype=float)
+    if T.shape[-2:] != (4, 4):
+        raise ValueError(f"target poses must have shape (N, 4, 4), got {T.shape}")
+    T = T.reshape(-1, 4, 4)
+    if not np.all(np.isfinite(T)):
+        bad = int(np.where(~np.isfinite(T).all(axis=(1, 2)))[0][0])
+        raise ValueError(f"target pose {bad} is not finite")
+    return T
+
+
+class IKSolver(abc.ABC):
+    """All-branch inverse kinematics of one robot (one family).
+
+    Attributes
+    ----------
+    family : str
+        ``"ur"``, ``"opw"``, ``"general"``.
+    labels : tuple of str
+        Branch labels (stable along a path).
+    guard_names : tuple of str
+        Names of the guard factors (messages).
+    guard_kinds : tuple of str
+        What each factor is: ``"length"`` (m), ``"sine"`` (1) or ``"det"`` (dimensionless
+        Jacobian determinant); the posture NLP's margins are set per kind.
+    complete : bool
+        Whether every branch is found for certain (False for a numeric search).
+    """
+
+    family: ClassVar[str] = ""
+    #: Families are tried in increasing order (closed forms first).
+    order: ClassVar[int] = 100
+    #: One line: which arms the family serves.
+    description: ClassVar[str] = ""
+    labels: tuple[str, ...] = ()
+    guard_names: tuple[str, ...] = ()
+    guard_kinds: tuple[str, ...] = ()
+    complete: bool = True
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        self.q_min, self.q_max = robot.q_min, robot.q_max
+
+    @property
+    def n_branches(self) -> int:
+        return len(self.labels)
+
+    @abc.abstractmethod
+    def solve(self, tcp2base: np.ndarray) -> IKSolution:
+        """All branches for target TCP pose(s) ``tcp2base`` ((4, 4) or (N, 4, 4), base frame).
+
+        Returns angles within the joint limits (nearest to 0), NaN and a status where none.
+        """
+
+    @abc.abstractmethod
+    def guard_factors(self, q: Any) -> Any:
+        """The branch's guard factors at ``q``: CasADi (6,) -> (G,), or ndarray (..., 6) -> (..., G)."""
+
+    def branch_meaning(self) -> dict[str, str]:
+        """What each label means physically (for reports and docs)."""
+        return {lab: lab for lab in self.labels}
+
+    def nearest(self, tcp2base: np.ndarray, seed: np.ndarray,
+                branch: int | None = None) -> tuple[np.ndarray, np.ndarray, IKSolution]:
+        """The solution nearest a seed configuration.
+
+        Parameters
+        ----------
+        tcp2base : ndarray, shape (N, 4, 4) or (4, 4)
+        seed : ndarray, shape (N, 6) or (6,)
+            Each joint of every branch is shifted by 2*pi*k (within limits) to lie
+            nearest the seed; the branch with the smallest Euclidean distance wins.
+        branch : int, optional
+            Restrict to one branch index.
+
+        Returns
+        -------
+        q : ndarray, shape (N, 6)
+            NaN rows where no branch is valid.
+        chosen : ndarray of int, shape (N,)
+            Branch index, -1 where none.
+        sol : IKSolution
+            All branches (shifted to the seed).
+        """
+        sol = self.solve(tcp2base)
+        n, nb = sol.q.shape[:2]
+        seed = np.broadcast_to(np.asarray(seed, dtype=float).reshape(-1, 6), (n, 6))
+        qs, ok = into_limits(sol.q, self.q_min, self.q_max, seed[:, None, :])
+        valid = sol.valid & ok
+        dist = np.linalg.norm(qs - seed[:, None, :], axis=-1)
+        dist = np.where(valid, dist, np.inf)
+        if branch is not None:
+            mask = np.zeros(nb, bool)
+            mask[branch] = True
+            dist = np.where(mask, dist, np.inf)
+        chosen = np.argmin(dist, axis=1)
+        none = ~np.isfinite(dist[np.arange(n), chosen])
+        q = qs[np.arange(n), chosen].copy()
+        q[none] = np.nan
+        chosen = np.where(none, -1, chosen)
+        return q, chosen, IKSolution(q=np.where(valid[..., None], qs, np.nan), status=sol.status, labels=sol.labels)
+
+
+_FAMILIES: list[type[IKSolver]] = []
+
+
+def register_family(cls: type[IKSolver]) -> type[IKSolver]:
+    """Class decorator: add an IK family to the registry (tried in ``order``)."""
+    if not cls.family:
+        raise TypeError(f"{cls.__name__}: an IK family needs a 'family' name")
+    if any(c.family == cls.family for c in _FAMILIES):
+        raise TypeError(f"IK family '{cls.family}' registered twice")
+    _FAMILIES.append(cls)
+    _FAMILIES.sort(key=lambda c: c.order)
+    return cls
+
+
+def families() -> list[type[IKSolver]]:
+    """The registered IK families, in the order they are tried."""
+    return list(_FAMILIES)
+
+
+def ik_solver(robot: Robot, family: str | None = None) -> IKSolver:
+    """The IK solver of ``robot``: the first family whose structure check accepts its chain.
+
+    Parameters
+    ----------
+    robot : Robot
+    family : str, optional
+        Force one family (``"ur"``, ``"opw"``, ``"general"``).
+
+    Raises
+    ------
+    IKStructureError
+        No family applies (or the forced one does not), with each family's reason.
+    """
+    reasons = []
+    for cls in _FAMILIES:
+        if family is not None and cls.family != family:
+            continue
+        try:
+            return cls(robot)
+        except IKStructureError as exc:
+            reasons.append(f"{cls.family}: {exc}")
+    if family is not None and not reasons:
+        raise IKStructureError(f"unknown IK family {family!r}; families: {[c.family for c in _FAMILIES]}")
+    raise IKStructureError(f"robot '{robot.name}': no IK family applies: " + " | ".join(reasons))
+
+
+def dh_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """DH frames 0..6 of the robot's nominal chain at ``q`` (6,), base frame, shape (7, 4, 4)
+    (NumPy; frame 0 is ``frame02base``)."""
+    T = np.array(robot.frame02base, dtype=float)
+    out = [T]
+    for j, qi in zip(robot.joints, np.asarray(q, dtype=float)):
+        th = qi + j.theta_offset
+        ct, st, ca_, sa = np.cos(th), np.sin(th), np.cos(j.alpha), np.sin(j.alpha)
+        if robot.convention == "standard_dh":
+            A = np.array([[ct, -st * ca_, st * sa, j.a * ct], [st, ct * ca_, -ct * sa, j.a * st],
+                          [0.0, sa, ca_, j.d], [0.0, 0.0, 0.0, 1.0]])
+        else:
+            A = np.array([[ct, -st, 0.0, j.a], [st * ca_, ct * ca_, -sa, -sa * j.d],
+                          [st * sa, ct * sa, ca_, ca_ * j.d], [0.0, 0.0, 0.0, 1.0]])
+        T = T @ A
+        out.append(T)
+    return np.array(out)
+
+
+def zero_axes(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The chain at q = 0 in product-of-exponentials form (nominal geometry).
+
+    Returns
+    -------
+    w : ndarray, shape (6, 3)
+        Unit joint axes, base frame (joint i turns positively about w_i).
+    p : ndarray, shape (6, 3)
+        A point on each axis, base frame, m.
+    flange2base : ndarray, shape (4, 4)
+        The flange at q = 0.
+    """
+    F = dh_frames(robot, np.zeros(6))
+    axis_frames = F[:6] if robot.convention == "standard_dh" else F[1:7]
+    return (axis_frames[:, :3, 2].copy(), axis_frames[:, :3, 3].copy(),
+            F[6] @ np.asarray(robot.flange2frame6, dtype=float))

@@ -1,0 +1,58 @@
+"""IK family: any other 6R arm, through EAIK's subproblem decomposition or a numeric multi-start.
+
+Tried last.  :mod:`models.ik.general_solver` builds an EAIK robot from the chain's joint axes; when
+EAIK knows a closed-form decomposition of the geometry every branch is found for certain;
+otherwise a deterministic numeric multi-start finds the branches it can and says it may have
+missed one (``complete`` is False, ``note`` says why).  The guard is the sign of the
+Jacobian's determinant (the branches of a general arm have no simpler invariant), and the
+posture result is re-checked against the branch after solving.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .general_solver import GeneralIK, general_guard_factors
+from ..robot import Robot
+from ..transforms import invert
+from .base import IKSolution, IKSolver, IKStatus, check_poses, into_limits, register_family, zero_axes
+
+#: The helper's status codes -> IKStatus.
+_CODES = {0: IKStatus.OK, 4: IKStatus.UNREACHABLE, 3: IKStatus.SINGULAR}
+
+
+@register_family
+class GeneralSixR(IKSolver):
+    """All branches of a 6R arm that is neither UR-type nor OPW."""
+
+    family = "general"
+    order = 90
+    description = "any other 6R (EAIK subproblem decomposition, else numeric multi-start)"
+    guard_names = ("det J",)
+    guard_kinds = ("det",)
+
+    def __init__(self, robot: Robot) -> None:
+        super().__init__(robot)
+        self._w, self._p, self._M0 = zero_axes(robot)
+        self.backend = GeneralIK(self._w, self._p, self._M0)
+        self.labels = tuple(self.backend.labels)
+        self.complete = self.backend.kind == "eaik"
+        self._flange2tcp = invert(np.asarray(robot.tcp2flange, dtype=float))
+        self.note = ""
+
+    def guard_factors(self, q: Any) -> Any:
+        """``det J`` of the flange Jacobian over a length scale cubed (dimensionless)."""
+        return general_guard_factors(self._w, self._p, self._M0, q)
+
+    def solve(self, tcp2base: np.ndarray) -> IKSolution:
+        """Every branch found for target TCP pose(s) ((4, 4) or (N, 4, 4), base frame)."""
+        res = self.backend.solve(check_poses(tcp2base) @ self._flange2tcp)
+        status = np.vectorize(lambda c: int(_CODES.get(int(c), IKStatus.UNREACHABLE)))(res.status)
+        q, fits = into_limits(np.asarray(res.q, dtype=float), self.q_min, self.q_max)
+        status = np.where((status == IKStatus.OK) & ~fits, int(IKStatus.JOINT_LIMIT), status)
+        q[status != IKStatus.OK] = np.nan
+        self.complete = bool(res.complete)
+        self.note = res.note
+        return IKSolution(q=q, status=status.astype(int), labels=self.labels)
