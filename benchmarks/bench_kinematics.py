@@ -1,9 +1,12 @@
-"""Batch throughput of FK+J+C and of the 8-branch IK, beside pinocchio and ur-analytic-ik.
+"""Batch throughput of FK+J+C and of the all-branch IK, beside pinocchio, ur-analytic-ik and an
+independent OPW solver.
 
 Run: ``python benchmarks/bench_kinematics.py [--n 1000000]``.  Prints poses/s
 (best of several runs) and the ratios to the references measured in the same run.
 Targets on the 2-core reference machine: FK+J+C >= 10x the pinocchio Python loop
-and >= 3 M poses/s; IK >= 8x the ur-analytic-ik Python loop and >= 0.6 M poses/s.
+and >= 3 M poses/s; UR IK >= 8x the ur-analytic-ik Python loop and >= 0.6 M poses/s;
+OPW IK (the KUKA KR 6 R900, all 8 branches, joint limits applied) >= 2x py-opw-kinematics'
+batch call (all 8 branches, ``Robot.reach``) on the same poses.
 """
 
 from __future__ import annotations
@@ -79,6 +82,33 @@ def main() -> None:
     print(f"IK all 8 branches batch ({n_ik} poses):         {ik_rate / 1e6:8.3f} M poses/s")
     print(f"ur-analytic-ik Python loop:                    {urik_rate / 1e6:8.3f} M poses/s")
     print(f"  ratio {ik_rate / urik_rate:6.1f}x   (target >= 8x and >= 0.6 M poses/s)")
+    bench_opw(min(args.n, 200_000))
+
+
+def bench_opw(n: int) -> None:
+    """All-branch OPW IK of the shipped KUKA beside py-opw-kinematics' batch call, same poses."""
+    import math
+
+    import py_opw_kinematics as pko
+    from scipy.spatial.transform import RigidTransform
+
+    from models import KinematicModel, ik_solver, load_robot
+
+    robot = load_robot("kr6_r900")
+    km, ik = KinematicModel(robot), ik_solver(robot)
+    rng = np.random.default_rng(1)
+    q = rng.uniform(np.maximum(robot.q_min, -np.pi), np.minimum(robot.q_max, np.pi), (n, 6))
+    T = km.tcp(q)
+    ik.solve(T[:10])                            # build / load the compiled code
+    ours = best_rate(lambda: ik.solve(T), n)
+    ref = pko.Robot(pko.KinematicModel(a1=0.025, a2=-0.035, b=0.0, c1=0.400, c2=0.455, c3=0.420, c4=0.080,
+                                       offsets=(0.0, -math.pi / 2, 0.0, 0.0, 0.0, 0.0),
+                                       flip_axes=(True, False, False, True, False, True)), degrees=False)
+    RT = RigidTransform.from_matrix(T)
+    theirs = best_rate(lambda: ref.reach(RT).joints, n)
+    print(f"OPW IK all 8 branches, KR 6 R900 ({n} poses):   {ours / 1e6:8.3f} M poses/s")
+    print(f"py-opw-kinematics Robot.reach batch (8 br.):   {theirs / 1e6:8.3f} M poses/s")
+    print(f"  ratio {ours / theirs:6.1f}x   (target >= 2x)")
 
 
 if __name__ == "__main__":
