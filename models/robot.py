@@ -530,7 +530,7 @@ def parse_frame_table(where: str, key: str, table: Any) -> np.ndarray:
         raise RobotFileError(f"{w}: unknown key(s) {unknown}; allowed: {list(_FRAME_KEYS)}")
     xyz = _vector(w, "xyz", table.get("xyz", [0.0, 0.0, 0.0]), 3)
     if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-        raise RobotFileError(f"{w}: key 'xyz' = {list(xyz)} is implausible (> "
+        raise RobotFileError(f"{w}: key 'xyz' = {[float(v) for v in xyz]} is implausible (> "
                              f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres (millimetres given?)")
     if "rpy" in table and "rpy_deg" in table:
         raise RobotFileError(f"{w}: give either 'rpy' (rad) or 'rpy_deg', not both")

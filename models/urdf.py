@@ -38,7 +38,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .robot import (Joint, Robot, RobotFileError, _angle, _check_radians, _finite, _vector, parse_frame_table,
+from .robot import (Joint, Robot, RobotFileError, _angle, _finite, _vector, inertia_matrix, parse_frame_table,
                     read_text_file)
 from .constants import STANDARD_GRAVITY
 
@@ -53,8 +53,13 @@ AXIS_MIN_NORM = 1e-9
 DH_PARALLEL_TOL = 1e-9
 #: Two axes closer than this (m) are treated as meeting.
 DH_INTERSECT_TOL_M = 1e-9
+#: Two nearly parallel axes whose common normal lies farther than this many arm sizes from the
+#: chain are refused (the DH form is ill-conditioned there).
+DH_NEAR_PARALLEL_REACH = 10.0
 #: The DH model must reproduce the URDF chain's flange pose to this (m and rotation entries).
 DH_CHECK_TOL = 1e-10
+#: A URDF joint limit beyond two turns (rad) is implausible: degrees written as radians.
+PLAUSIBLE_URDF_LIMIT_RAD = 4.0 * math.pi * (1.0 + 1e-9)
 #: Without an ``a_max`` the acceleration limit is ``v_max / DEFAULT_TIME_TO_SPEED_S`` (full speed in this time).
 DEFAULT_TIME_TO_SPEED_S = 0.5
 #: Without a ``j_max`` the jerk limit is ``a_max / DEFAULT_TIME_TO_ACCEL_S``.
@@ -232,12 +237,25 @@ def read_chain(where: str, urdf_path: Path, base_link: str, tip_link: str) -> Ur
         lim = j.limit
         limits.append((None, None, None) if lim is None else (lim.lower, lim.upper, lim.velocity))
     notes: list[str] = []
-    bodies = _bodies(model, moving, notes)
+    bodies = _bodies(where, model, moving, notes)
     return UrdfChain(joint_names=[j.name for j in moving], frames=np.array(frames), axes=np.array(axes), tip=T,
                      limits=limits, continuous=[j.type == "continuous" for j in moving], bodies=bodies, notes=notes)
 
 
-def _bodies(model: Any, moving: list[Any], notes: list[str]) -> list[Body]:
+def _check_inertial(where: str, link: str, mass: float, origin: np.ndarray, inertia: np.ndarray) -> None:
+    """A link's <inertial>: finite, mass >= 0, a physical inertia tensor (clear error naming the link)."""
+    if not (math.isfinite(mass) and np.all(np.isfinite(origin)) and np.all(np.isfinite(inertia))):
+        raise RobotFileError(f"{where}: link '{link}': <inertial> has a non-finite value")
+    if mass < 0:
+        raise RobotFileError(f"{where}: link '{link}': <mass value=\"{mass:g}\"> must be >= 0 (kg)")
+    v = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+    try:
+        inertia_matrix(f"{where}: link '{link}': <inertia>", np.array(v))
+    except RobotFileError as exc:
+        raise RobotFileError(str(exc).replace("key 'inertia'", "<inertia ixx iyy izz ixy ixz iyz>")) from None
+
+
+def _bodies(where: str, model: Any, moving: list[Any], notes: list[str]) -> list[Body]:
     """Mass properties of the body after each moving joint, in that joint's frame."""
     link_map = {lk.name: lk for lk in model.links}
     children: dict[str, list[Any]] = {}
@@ -255,6 +273,7 @@ def _bodies(model: Any, moving: list[Any], notes: list[str]) -> list[Body]:
             if inert is not None and inert.mass is not None:
                 O = np.eye(4) if inert.origin is None else np.asarray(inert.origin, dtype=float)
                 I = np.zeros((3, 3)) if inert.inertia is None else np.asarray(inert.inertia, dtype=float)
+                _check_inertial(where, name, float(inert.mass), O, I)
                 R = T[:3, :3] @ O[:3, :3]
                 body.add(float(inert.mass), (T @ O)[:3, 3], R @ I @ R.T)
             for cj in children.get(name, []):
@@ -305,7 +324,7 @@ def _first_frame(w1: np.ndarray, p1: np.ndarray) -> np.ndarray:
 
 
 def _normal(where: str, k: int, entry: np.ndarray, wk: np.ndarray, wn: np.ndarray,
-            pn: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+            pn: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Origin and x axis of the DH frame on axis ``k`` (1-based, through ``entry``, direction
     ``wk``) towards axis ``k + 1`` (``wn`` through ``pn``), and the length ``a`` of that normal.
 
@@ -313,15 +332,22 @@ def _normal(where: str, k: int, entry: np.ndarray, wk: np.ndarray, wn: np.ndarra
     ``wk x wn`` where they meet).  Parallel axes: ``entry`` itself (``d = 0``).
     """
     n = np.cross(wk, wn)
-    if np.linalg.norm(n) > DH_PARALLEL_TOL:
+    sin_a = float(np.linalg.norm(n))
+    if sin_a > DH_PARALLEL_TOL:
+        nh = n / sin_a                                 # the common normal's direction
         r = pn - entry
-        A = np.array([[wk @ wk, -(wk @ wn)], [wk @ wn, -(wn @ wn)]])
-        s, t = np.linalg.solve(A, np.array([r @ wk, r @ wn]))
-        fk, fn = entry + s * wk, pn + t * wn
-        dist = float(np.linalg.norm(fn - fk))
-        if dist > DH_INTERSECT_TOL_M:
-            return fk, (fn - fk) / dist, dist
-        return fk, _unit(n), 0.0
+        dist = float(r @ nh)                           # signed length along nh
+        # foot on axis k: entry + s wk with (r - s wk + t wn) perpendicular to both axes
+        s = float(np.cross(r, wn) @ n) / sin_a ** 2
+        if abs(s) > DH_NEAR_PARALLEL_REACH * scale:
+            raise RobotFileError(f"{where}: joints {k} and {k + 1} are nearly but not exactly parallel (angle "
+                                 f"{math.asin(min(sin_a, 1.0)):.3g} rad): their common normal lies {abs(s):.3g} m "
+                                 "away and the DH form is ill-conditioned; give the nominal geometry (exactly "
+                                 "parallel axes) and identify small errors with compplan identify")
+        fk = entry + s * wk
+        if abs(dist) > DH_INTERSECT_TOL_M:
+            return fk, nh * math.copysign(1.0, dist), abs(dist)
+        return fk, nh, 0.0
     v = pn - entry
     v = v - float(v @ wk) * wk
     dist = float(np.linalg.norm(v))
@@ -350,12 +376,13 @@ def dh_from_axes(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray) -> D
         frame's ``a``, ``alpha``), ``flange2base(q) = frame02base A_1 ... A_6 flange2frame6``.
     """
     F = [_first_frame(w[0], p[0])]
+    scale = max(1.0, float(np.max(np.abs(p))), float(np.max(np.abs(tip[:3, 3]))))   # arm size, m
     a, alpha, d, off = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
     entry, a_prev = F[0][:3, 3], 0.0      # where the previous frame's x axis meets this axis
     for k in range(6):
         entry = _on_axis(entry, w[k], p[k])
         if k < 5:
-            o, x, dist = _normal(where, k + 1, entry, w[k], w[k + 1], p[k + 1])
+            o, x, dist = _normal(where, k + 1, entry, w[k], w[k + 1], p[k + 1], scale)
         else:
             o, x, dist = _on_axis(tip[:3, 3], w[5], p[5]), F[-1][:3, 0], 0.0
         prev = F[-1]
@@ -415,7 +442,7 @@ def check_dh(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray, ch: DHCh
         err = np.abs(poe_fk(w, p, tip, q) - modified_dh_fk(ch, q))
         if err[:3, :3].max() > DH_CHECK_TOL or err[:3, 3].max() > DH_CHECK_TOL * scale:
             raise RobotFileError(f"{where}: internal error: the DH form of the URDF chain misses its flange "
-                                 f"pose by {err.max():.3g} at q = {list(np.round(q, 4))}")
+                                 f"pose by {err.max():.3g} at q = {[round(float(x), 4) for x in q]}")
 
 
 # --------------------------------------------------------------------------------------
@@ -448,13 +475,18 @@ def _joint_limits(where: str, chain: UrdfChain, overrides: Mapping[str, Any], i:
         elif urdf_val is None or not math.isfinite(float(urdf_val)):
             raise RobotFileError(f"{where}: joint '{name}': the URDF gives no finite <limit {key.replace('q_min', 'lower').replace('q_max', 'upper')}>; "
                                  f"give it in the robot file: [joints.{name}] {key}_deg = ...")
+        elif abs(float(urdf_val)) > PLAUSIBLE_URDF_LIMIT_RAD:
+            tag = "lower" if key == "q_min" else "upper"
+            raise RobotFileError(f"{where}: URDF joint '{name}': <limit {tag}=\"{float(urdf_val):g}\"> rad is implausible "
+                                 f"(|value| > {PLAUSIBLE_URDF_LIMIT_RAD:.4g} rad, two turns; URDF limits are in radians); "
+                                 f"override it in the robot file: [joints.{name}] {key}_deg = ...")
         else:
-            out[key] = _check_radians(f"{where}: URDF joint '{name}'", key, float(urdf_val), 4 * math.pi * (1 + 1e-9))
+            out[key] = float(urdf_val)
     if out["q_min"] >= out["q_max"]:
         raise RobotFileError(f"{where}: joint '{name}': lower limit {out['q_min']:g} rad must be below the upper "
                              f"limit {out['q_max']:g} rad")
     if "v_max" in ov:
-        out["v_max"] = _finite(w, "v_max", ov["v_max"])
+        out["v_max"] = _positive(where, name, ov, "v_max")
     elif vel is None or not math.isfinite(float(vel)) or float(vel) <= 0:
         raise RobotFileError(f"{where}: joint '{name}': the URDF gives no positive <limit velocity> ({vel!r}); "
                              f"give it in the robot file: [joints.{name}] v_max = ... (rad/s)")
@@ -463,6 +495,14 @@ def _joint_limits(where: str, chain: UrdfChain, overrides: Mapping[str, Any], i:
     if out["v_max"] <= 0:
         raise RobotFileError(f"{w}: key 'v_max' must be > 0, got {out['v_max']:g}")
     return out
+
+
+def _positive(where: str, joint: str, row: Mapping[str, Any], key: str) -> float:
+    """An override that must be a positive number (``[joints.<joint>] key``)."""
+    v = _finite(f"{where}: joints.{joint}", key, row[key])
+    if v <= 0:
+        raise RobotFileError(f"{where}: joints.{joint}: key '{key}' must be > 0, got {v:g}")
+    return v
 
 
 def _overrides(where: str, data: Mapping[str, Any], chain: UrdfChain) -> Mapping[str, Any]:
@@ -525,9 +565,9 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
     for i in range(6):
         lim = _joint_limits(where, chain, ov, i)
         row_ov = ov.get(chain.joint_names[i], {})
-        am = float(_finite(where, "a_max", row_ov["a_max"])) if "a_max" in row_ov else (
+        am = _positive(where, chain.joint_names[i], row_ov, "a_max") if "a_max" in row_ov else (
             float(a_max[i]) if a_max is not None else lim["v_max"] / DEFAULT_TIME_TO_SPEED_S)
-        jm = float(_finite(where, "j_max", row_ov["j_max"])) if "j_max" in row_ov else (
+        jm = _positive(where, chain.joint_names[i], row_ov, "j_max") if "j_max" in row_ov else (
             float(j_max[i]) if j_max is not None else am / DEFAULT_TIME_TO_ACCEL_S)
         mass_kw: dict[str, Any] = {}
         if has_mass:

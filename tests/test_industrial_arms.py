@@ -234,3 +234,45 @@ def test_a_plan_on_an_unshipped_industrial_arm_lands_on_the_path(tmp_path, tilt_
     tcp0 = _pinocchio_landing(tmp_path / "irb2400.urdf", robot.joint_names, robot.stiffness, robot.tcp2flange,
                               res.posture.best.q, np.array([20.0, -10.0, -250.0]), np.array([0.0, 0.0, 6.0]))
     assert np.linalg.norm(tcp0 - pr.positions, axis=1).max() > 100 * LANDING_TOL_M
+
+
+def test_a_ur_arm_with_reversed_axes_is_solved_completely_by_the_general_family(tmp_path):
+    """A UR5 whose URDF turns joints 2 and 5 the other way is not UR-type (anti-parallel axes);
+    EAIK solves it once its parallel axes are made to agree, every branch found."""
+    from tests.test_urdf import _robot_file, _with_masses, urdf_from_dh
+    urdf_from_dh(_with_masses(load_robot("ur5")), tmp_path / "arm.urdf", (1, 4))
+    robot = load_robot(_robot_file(tmp_path, load_robot("ur5")))
+    ik = ik_solver(robot)
+    assert ik.family == "general" and ik.complete
+    km = KinematicModel(robot)
+    q = np.random.default_rng(4).uniform(-np.pi, np.pi, (300, 6))
+    T = km.tcp(q)
+    sol = ik.solve(T)
+    assert sol.valid.sum(axis=1).mean() > 6.5                 # a UR pose has 8 solutions, few fewer
+    Tq = km.tcp(np.nan_to_num(sol.q.reshape(-1, 6))).reshape(len(q), ik.n_branches, 4, 4)
+    assert np.abs(Tq - T[:, None])[sol.valid].max() < FK_IK_TOL
+    d = np.abs(_wrap(sol.q - q[:, None])).max(axis=2)
+    assert (np.nanmin(np.where(sol.valid, d, np.nan), axis=1) < GENERATOR_TOL_RAD).mean() > 0.99
+
+
+def test_general_branch_labels_follow_a_reference():
+    """The general family's labels hold within one call; solve_like puts another call's branches
+    in the reference's slots (the posture warm starts rely on it)."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        (Path(d) / "irb2400.urdf").write_text(_tilted_irb2400(20.0), encoding="utf-8")
+        (Path(d) / "irb2400.toml").write_text(IRB2400_ROBOT, encoding="utf-8")
+        robot = load_robot(Path(d) / "irb2400.toml")
+    ik = ik_solver(robot)
+    assert not ik.labels_stable
+    km = KinematicModel(robot)
+    q = np.random.default_rng(6).uniform(-1.0, 1.0, (12, 6))
+    T = km.tcp(q)
+    ref = ik.solve(T)
+    mixed = ik.solve(np.concatenate([km.tcp(np.random.default_rng(7).uniform(-1, 1, (5, 6))), T]))
+    from models.ik.base import IKSolution, match_branches
+    tail = IKSolution(q=mixed.q[5:], status=mixed.status[5:], labels=mixed.labels)
+    matched = match_branches(tail, ref.q)
+    assert np.array_equal(np.isnan(matched.q), np.isnan(ref.q))
+    assert np.allclose(np.nan_to_num(matched.q), np.nan_to_num(ref.q), atol=1e-9)
+    assert np.array_equal(matched.status, ref.status)

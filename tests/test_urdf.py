@@ -103,6 +103,15 @@ def _robot_file(folder: Path, robot, urdf: str = "arm.urdf", extra: str = "") ->
     return p
 
 
+def _weight_torques(robot, q: np.ndarray, L: np.ndarray) -> np.ndarray:
+    """Joint torques of the arm's own weight (the gravity effect on), N*m, (N, 6)."""
+    from dataclasses import replace
+
+    from models.arm import ArmModel
+    km = KinematicModel(replace(ArmModel.from_robot(robot), gravity_on=True))
+    return km.batch(km.fn["joint_torques"], q, L)[0]
+
+
 def _with_masses(robot):
     """The robot with a mass, centre of mass and inertia on every link (for the torque checks)."""
     from dataclasses import replace
@@ -174,12 +183,21 @@ def test_urdf_from_dh_equals_pinocchio_and_the_dh_model(name, flips, tmp_path, r
     assert np.abs(km_u.J(q) - Jd).max() < DH_URDF_TOL
     C_u, C_d = km_u.C(q), km_d.C(qd)
     assert np.abs(C_u - C_d).max() < DH_URDF_TOL * np.abs(C_d).max()
-    # masses, centres of mass and inertias: the self-weight torques agree
+    # masses, centres of mass: the self-weight torques (gravity effect on) agree
     L = np.zeros((1, 19))
     L[0, 16:19] = dh.gravity
-    tu = km_u.batch(km_u.fn["joint_torques"], q, L)[0]
-    td = km_d.batch(km_d.fn["joint_torques"], qd, L)[0] * sign
+    tu = _weight_torques(ur, q, L)
+    td = _weight_torques(dh, qd, L) * sign
+    assert np.abs(tu).max() > 1.0                            # the check can fail: real torques
     assert np.abs(tu - td).max() < DH_URDF_TOL * max(1.0, np.abs(td).max())
+    # ... and equal pinocchio's generalised gravity from the same URDF (the load's torque on the
+    # joints is minus the torque that holds the arm)
+    model = pin.buildModelFromUrdf(str(tmp_path / "arm.urdf"))
+    model.gravity.linear = np.asarray(dh.gravity, dtype=float)       # pinocchio's default is 9.81
+    data = model.createData()
+    idx = [model.joints[model.getJointId(n)].idx_v for n in ur.joint_names]
+    g_pin = np.array([pin.computeGeneralizedGravity(model, data, qi)[idx] for qi in q])
+    assert np.abs(tu + g_pin).max() < DH_URDF_TOL * max(1.0, np.abs(g_pin).max())
     assert np.allclose(ur.masses, dh.masses, rtol=0, atol=1e-12)
 
 
@@ -267,6 +285,11 @@ _SIX = [_REV_Z, _REV, _REV, _REV_Z, _REV, _REV_Z]
                  '<mimic joint="j5"/>'], "flange", "base_link", "joint 'j6' mimics joint 'j5'"),
     (_SIX[:5] + ['type="revolute"|<axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="0" effort="1"/>'],
      "flange", "base_link", "joint 'j6': the URDF gives no positive <limit velocity>"),
+    (_SIX[:5] + ['type="revolute"|<axis xyz="0 0 1"/><limit lower="-360" upper="360" velocity="1" effort="1"/>'],
+     "flange", "base_link", "URDF joint 'j6': <limit lower=\"-360\"> rad is implausible"),
+    (_SIX[:2] + ['type="revolute"|<origin xyz="0 0 0.1"/><axis xyz="0 1 0.001"/>'
+                 '<limit lower="-3" upper="3" velocity="2" effort="1"/>'] + _SIX[3:],
+     "flange", "base_link", "joints 2 and 3 are nearly but not exactly parallel"),
 ])
 def test_bad_urdfs_give_clear_errors(tmp_path, joints, tip, base, needle):
     p = _write(tmp_path, _chain(joints), tip=tip, base=base)
@@ -274,6 +297,26 @@ def test_bad_urdfs_give_clear_errors(tmp_path, joints, tip, base, needle):
         load_robot(p)
     assert needle in str(ei.value)
     assert str(p) in str(ei.value) or str(tmp_path / "arm.urdf") in str(ei.value)
+
+
+@pytest.mark.parametrize("inertial,needle", [
+    ('<inertial><mass value="-2"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>',
+     "link 'l2': <mass value=\"-2\"> must be >= 0"),
+    ('<inertial><mass value="2"/><inertia ixx="-5" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>',
+     "link 'l2': <inertia>: <inertia ixx iyy izz ixy ixz iyz>"),
+])
+def test_bad_inertials_are_refused_naming_the_link(tmp_path, inertial, needle):
+    urdf = _chain(_SIX).replace('<link name="l2"/>', f'<link name="l2">{inertial}</link>')
+    with pytest.raises(RobotFileError) as ei:
+        load_robot(_write(tmp_path, urdf))
+    assert needle in str(ei.value)
+
+
+def test_override_limits_must_be_positive(tmp_path):
+    for key in ("a_max", "j_max", "v_max"):
+        p = _write(tmp_path, _chain(_SIX), toml_extra=f"[joints.j1]\n{key} = -1.0\n")
+        with pytest.raises(RobotFileError, match=f"joints.j1: key '{key}' must be > 0, got -1"):
+            load_robot(p)
 
 
 def test_a_tip_on_another_branch_of_the_tree_is_refused(tmp_path):

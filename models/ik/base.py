@@ -112,6 +112,24 @@ def into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
     return cand, ok.all(axis=-1) | np.isnan(q).any(axis=-1)
 
 
+#: Cost of leaving a reference slot unmatched (rad; above any real joint distance).
+UNMATCHED_COST = 1e3
+
+
+def match_branches(sol: IKSolution, reference: np.ndarray) -> IKSolution:
+    """``sol`` with each pose's branches permuted onto the slots of the nearest ``reference``
+    branches (N, B, 6), rad (wrapped joint distance; linear assignment; NaN never matches)."""
+    from scipy.optimize import linear_sum_assignment
+    q, st = sol.q.copy(), sol.status.copy()
+    ref = np.broadcast_to(np.asarray(reference, dtype=float), q.shape)
+    for i in range(q.shape[0]):
+        d = np.linalg.norm((q[i][:, None, :] - ref[i][None, :, :] + np.pi) % (2 * np.pi) - np.pi, axis=2)
+        d = np.where(np.isfinite(d), d, UNMATCHED_COST)
+        rows, cols = linear_sum_assignment(d)
+        q[i, cols], st[i, cols] = sol.q[i, rows], sol.status[i, rows]
+    return IKSolution(q=q, status=st, labels=sol.labels)
+
+
 def check_poses(tcp2base: np.ndarray) -> np.ndarray:
     """Target poses as (N, 4, 4), refusing wrong shapes and non-finite entries."""
     T = np.asarray(tcp2base, dtype=float)
@@ -151,6 +169,9 @@ class IKSolver(abc.ABC):
     guard_names: tuple[str, ...] = ()
     guard_kinds: tuple[str, ...] = ()
     complete: bool = True
+    #: Whether a label means the same formula branch in every call (closed forms); otherwise
+    #: labels follow continuity within one call and :meth:`solve_like` matches them to a reference.
+    labels_stable: bool = True
 
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
@@ -174,6 +195,13 @@ class IKSolver(abc.ABC):
     def branch_meaning(self) -> dict[str, str]:
         """What each label means physically (for reports and docs)."""
         return {lab: lab for lab in self.labels}
+
+    def solve_like(self, tcp2base: np.ndarray, reference: np.ndarray) -> IKSolution:
+        """:meth:`solve`, with each pose's branches in the slots of the nearest ``reference``
+        solutions (N, B, 6), rad: a continuation from neighbouring poses (e.g. the same waypoint
+        at a slightly turned tool).  Families with stable labels ignore ``reference``."""
+        sol = self.solve(tcp2base)
+        return sol if self.labels_stable else match_branches(sol, reference)
 
     def nearest(self, tcp2base: np.ndarray, seed: np.ndarray,
                 branch: int | None = None) -> tuple[np.ndarray, np.ndarray, IKSolution]:

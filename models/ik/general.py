@@ -1,6 +1,9 @@
 """IK family: any other 6R arm, through EAIK's subproblem decomposition or a numeric multi-start.
 
-Tried last.  :mod:`models.ik.general_solver` builds an EAIK robot from the chain's joint axes; when
+Tried last.  Branch labels ``b1, b2, ...`` follow continuity along the poses of one call
+(EAIK returns its solutions in no fixed order); :meth:`solve_like` matches them to a
+reference, which is how the posture warm starts keep one label per branch across scanned
+orientations.  :mod:`models.ik.general_solver` builds an EAIK robot from the chain's joint axes; when
 EAIK knows a closed-form decomposition of the geometry every branch is found for certain;
 otherwise a deterministic numeric multi-start finds the branches it can and says it may have
 missed one (``complete`` is False, ``note`` says why).  The guard is the sign of the
@@ -32,6 +35,7 @@ class GeneralSixR(IKSolver):
     description = "any other 6R (EAIK subproblem decomposition, else numeric multi-start)"
     guard_names = ("det J",)
     guard_kinds = ("det",)
+    labels_stable = False
 
     def __init__(self, robot: Robot) -> None:
         super().__init__(robot)

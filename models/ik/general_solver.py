@@ -115,6 +115,12 @@ SAME_SOLUTION_TOL = 1e-6
 SINGULAR_DET_TOL = 1e-7
 #: Tolerance on |w_i| = 1 and on the rotation part of M0 (dimensionless).
 UNIT_TOL = 1e-9
+#: Axes closer to parallel than this (sine of the angle) are turned to point the same way for EAIK.
+PARALLEL_SIGN_TOL = 1e-8
+#: EAIK must find the configuration of FK(q) for this many fixed pseudo-random q ...
+SELF_CHECK_POSES = 16
+#: ... to this (rad, modulo 2 pi), else the numeric multi-start is used.
+SELF_CHECK_TOL = 1e-6
 #: Tracking cost of a slot that never held a solution (rad; above any wrapped distance).
 NEW_SLOT_COST = 100.0
 #: Jacobians per zero-copy CasADi evaluation.
@@ -422,6 +428,17 @@ def _hp_parameters(w: np.ndarray, p: np.ndarray, M0: np.ndarray) -> tuple[np.nda
     return w.copy(), P
 
 
+def _parallel_signs(w: np.ndarray) -> np.ndarray:
+    """+1 / -1 per axis so that every axis parallel to an earlier one points the same way."""
+    sign = np.ones(6)
+    for i in range(6):
+        for j in range(i):
+            if np.linalg.norm(np.cross(w[i], w[j])) < PARALLEL_SIGN_TOL:
+                sign[i] = sign[j] * (1.0 if float(w[i] @ w[j]) > 0 else -1.0)
+                break
+    return sign
+
+
 def _validated_chain(w: np.ndarray, p: np.ndarray, M0: np.ndarray) -> Chain:
     w, p, M0 = (np.asarray(a, dtype=float) for a in (w, p, M0))
     if w.shape != (6, 3) or p.shape != (6, 3) or M0.shape != (4, 4):
@@ -476,17 +493,34 @@ class GeneralIK:
         self.length_scale = arm_length_scale(self.w, self.p, self.M0)
         if self.length_scale <= 0.0:
             raise InputError("GeneralIK: the axis points and the flange all coincide")
+        # EAIK's decompositions assume parallel axes point the same way: hand it the chain with
+        # such axes turned to agree (q_i -> -q_i), and turn its solutions back
+        self._sign = _parallel_signs(self.w)
         try:
-            self._eaik = HPRobot(*_hp_parameters(self.w, self.p, self.M0))
+            self._eaik = HPRobot(*_hp_parameters(self.w * self._sign[:, None], self.p, self.M0))
             self.family: str = self._eaik.getKinematicFamily()
             known = self._eaik.hasKnownDecomposition()
         except RuntimeError as exc:              # EAIK refuses some degenerate chains
             self.family, known = f"6R-Unknown Kinematic Class (EAIK: {exc})", False
         self.method = self.kind = "eaik" if known and method == "auto" else "numeric"
+        self.n_branches = EAIK_MAX_BRANCHES
+        if self.method == "eaik" and not self._eaik_finds_its_own_poses():
+            self.family += " (EAIK missed known solutions in the self-check: numeric multi-start used)"
+            self.method = self.kind = "numeric"
         self.n_branches = EAIK_MAX_BRANCHES if self.method == "eaik" else NUMERIC_MAX_BRANCHES
         self.labels = tuple(f"b{k + 1}" for k in range(self.n_branches))
         u = qmc.Sobol(6, scramble=False).random(NUMERIC_N_STARTS) + 0.5 / NUMERIC_N_STARTS
         self.starts = wrap_angle(2.0 * np.pi * (u % 1.0) - np.pi)
+
+    def _eaik_finds_its_own_poses(self) -> bool:
+        """Whether EAIK finds the configuration of FK(q) for every one of SELF_CHECK_POSES
+        fixed pseudo-random q (a guard against a decomposition that does not fit the chain)."""
+        q = np.random.default_rng(0).uniform(-np.pi, np.pi, (SELF_CHECK_POSES, 6))
+        sols, _, _ = self._solve_eaik(_fk_np(*self._chain, q))
+        for qi, s in zip(q, sols):
+            if len(s) == 0 or _wrapped_distance(s, qi[None, :]).min() > SELF_CHECK_TOL:
+                return False
+        return True
 
     def solve(self, flange2base: np.ndarray, track: bool = True) -> GeneralIKResult:
         """Every branch for each target.
@@ -520,7 +554,7 @@ class GeneralIK:
         Tq = T.copy()
         Tq[:, :3, :3] = T[:, :3, :3] @ self.M0[:3, :3].T      # HPRobot's flange is I at q = 0
         raw = self._eaik.IK_batched(Tq, EAIK_THREADS) if len(T) else []
-        cand, mask = _pad([np.asarray(s.Q, dtype=float).reshape(-1, 6) for s in raw], len(T))
+        cand, mask = _pad([np.asarray(s.Q, dtype=float).reshape(-1, 6) * self._sign for s in raw], len(T))
         owner = np.nonzero(mask)[0]
         flat = cand[mask]
         near = _residual(_pose_error(_fk_np(*self._chain, flat), T[owner])) <= EAIK_CANDIDATE_TOL

@@ -334,13 +334,15 @@ class PostureNLP:
         is a few micrometres (costs of 1e-2 mm^2) would otherwise need tens of iterations to
         meet it, where a cobot's (1 mm^2) needs five.  The weight multiplies the whole
         objective, so the optimum is unchanged; it is clipped to
-        [OBJECTIVE_WEIGHT_MIN, OBJECTIVE_WEIGHT_MAX] (no load: no rescaling to speak of).
+        [OBJECTIVE_WEIGHT_MIN, OBJECTIVE_WEIGHT_MAX], and it is 1 when the load error at the
+        warm start is zero (no load: only the smoothness term, nothing to rescale for).
         """
         c, _ = self._f_map(q0.T, th)
-        dq = np.diff(q0, axis=0)
-        f0 = float(np.sum(np.asarray(c))) + task.smoothness * float(np.sum(dq ** 2))
-        w = self.n / f0 if f0 > 0 else OBJECTIVE_WEIGHT_MAX
-        return float(min(max(w, OBJECTIVE_WEIGHT_MIN), OBJECTIVE_WEIGHT_MAX))
+        cost = float(np.sum(np.asarray(c)))
+        if cost <= 0.0:
+            return 1.0
+        f0 = cost + task.smoothness * float(np.sum(np.diff(q0, axis=0) ** 2))
+        return float(min(max(self.n / f0, OBJECTIVE_WEIGHT_MIN), OBJECTIVE_WEIGHT_MAX))
 
     # ---------------------------------------------------------------- polishing
     def polish(self, task: PostureTask, q: np.ndarray, sign: np.ndarray) -> np.ndarray:

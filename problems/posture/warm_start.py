@@ -207,11 +207,36 @@ def _solve_candidates(ik: IKSolver, task: PostureTask,
         Where the IK succeeded.
     """
     S, n = len(cands), task.n
-    T_all = np.concatenate([poses(task.positions, R) for _, R in cands])      # (S*N, 4, 4)
-    sol = ik.solve(T_all)
+    if ik.labels_stable:
+        T_all = np.concatenate([poses(task.positions, R) for _, R in cands])      # (S*N, 4, 4)
+        sol = ik.solve(T_all)
+    else:
+        sol = _continued_solutions(ik, task, cands)
     Q = sol.q.reshape(S, n, ik.n_branches, 6)
     ok = sol.status.reshape(S, n, ik.n_branches) == IKStatus.OK
     return sol, Q, ok
+
+
+def _continued_solutions(ik: IKSolver, task: PostureTask, cands: list[tuple[str, np.ndarray]]) -> IKSolution:
+    """Every candidate's IK (candidate-major, S * N poses) for a family whose labels hold only
+    within one call: the nominal candidate is solved along the path (labels by continuity, as
+    :func:`~problems.path.branch_paths` does), then each other candidate, nearest in rotation
+    to one already solved, takes that one's branches as the reference of its labels."""
+    S = len(cands)
+    sols: list[IKSolution | None] = [None] * S
+    sols[0] = ik.solve(poses(task.positions, cands[0][1]))
+    R0 = np.stack([R[0] for _, R in cands])                                 # (S, 3, 3) at waypoint 0
+    dist = np.arccos(np.clip((np.einsum("aji,bji->ab", R0, R0) - 1.0) / 2.0, -1.0, 1.0))
+    done = [0]
+    for _ in range(S - 1):
+        todo = [s for s in range(S) if sols[s] is None]
+        sub = dist[np.ix_(todo, done)]
+        i, j = np.unravel_index(np.argmin(sub), sub.shape)
+        s, ref = todo[int(i)], sols[done[int(j)]]
+        sols[s] = ik.solve_like(poses(task.positions, cands[s][1]), ref.q)
+        done.append(s)
+    return IKSolution(q=np.concatenate([x.q for x in sols]), status=np.concatenate([x.status for x in sols]),
+                      labels=ik.labels)
 
 
 def _analytic_warm_starts(model: KinematicModel, task: PostureTask, feas_nom: dict[int, BranchPath],
