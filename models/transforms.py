@@ -118,3 +118,45 @@ def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
         k = k / np.linalg.norm(k)
         return th * k
     return th / (2.0 * math.sin(th)) * w
+
+
+def rotations_about(w: np.ndarray, th: np.ndarray) -> np.ndarray:
+    """Rotations about the unit axis ``w`` (3,) by angles ``th`` (N,) rad (Rodrigues), (N, 3, 3)."""
+    w = np.asarray(w, dtype=float)
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    th = np.asarray(th, dtype=float).reshape(-1)
+    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
+def poe_fk(w: np.ndarray, p: np.ndarray, M0: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Forward kinematics by the product of exponentials ``exp([S1] q1) ... exp([S6] q6) M0``.
+
+    Parameters
+    ----------
+    w, p : ndarray, shape (6, 3)
+        Unit joint axes and a point on each axis, base frame (m), at q = 0; joint i turns
+        positively about ``w_i``.
+    M0 : ndarray, shape (4, 4)
+        ``flange2base`` at q = 0.
+    q : ndarray, shape (N, 6) or (6,)
+        Joint angles, rad.
+
+    Returns
+    -------
+    ndarray, shape (N, 4, 4), or (4, 4) for one q
+        ``flange2base``.
+    """
+    w, p, M0 = (np.asarray(x, dtype=float) for x in (w, p, M0))
+    qa = np.asarray(q, dtype=float)
+    q2 = qa.reshape(-1, 6)
+    n = q2.shape[0]
+    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    for i in range(6):
+        E = np.zeros((n, 4, 4))
+        E[:, :3, :3] = rotations_about(w[i], q2[:, i])
+        E[:, :3, 3] = p[i] - E[:, :3, :3] @ p[i]
+        E[:, 3, 3] = 1.0
+        T = T @ E
+    T = T @ M0
+    return T[0] if qa.ndim == 1 else T

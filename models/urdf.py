@@ -41,6 +41,7 @@ import numpy as np
 from .robot import (Joint, Robot, RobotFileError, _angle, _finite, _vector, inertia_matrix, parse_frame_table,
                     read_text_file)
 from .constants import STANDARD_GRAVITY
+from .transforms import poe_fk
 
 #: Keys of a URDF-based robot file.
 URDF_TOP_KEYS = ("name", "description", "source", "urdf", "base_link", "tip_link", "stiffness", "a_max",
@@ -405,22 +406,6 @@ def _on_axis(point: np.ndarray, w: np.ndarray, p: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------
 # Checks: the DH model reproduces the URDF chain
 # --------------------------------------------------------------------------------------
-
-def _rodrigues(w: np.ndarray, th: float) -> np.ndarray:
-    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K
-
-
-def poe_fk(w: np.ndarray, p: np.ndarray, tip: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Flange pose of the chain at ``q`` (6,) by the product of exponentials, (4, 4), base frame."""
-    T = np.eye(4)
-    for wi, pi, qi in zip(w, p, q):
-        E = np.eye(4)
-        E[:3, :3] = _rodrigues(wi, float(qi))
-        E[:3, 3] = pi - E[:3, :3] @ pi
-        T = T @ E
-    return T @ tip
-
 
 def modified_dh_fk(ch: DHChain, q: np.ndarray) -> np.ndarray:
     """Flange pose of a :class:`DHChain` at ``q`` (6,), (4, 4), base frame."""

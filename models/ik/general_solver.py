@@ -81,7 +81,7 @@ from scipy.stats import qmc
 
 from ..constants import IK_ROUNDTRIP_TOL
 from ..errors import InputError
-from ..transforms import wrap_angle
+from ..transforms import poe_fk, wrap_angle
 
 #: A chain ``(w (6, 3), p (6, 3) m, M0 (4, 4))`` (see the module docstring).
 Chain = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -180,40 +180,8 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _fk_np(w: np.ndarray, p: np.ndarray, M0: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """POE forward kinematics, vectorised: q (n, 6) rad -> ``flange2base`` (n, 4, 4)."""
-    n = q.shape[0]
-    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for i in range(6):
-        K = _skew(w[i])
-        s, c = np.sin(q[:, i])[:, None, None], np.cos(q[:, i])[:, None, None]
-        R = np.eye(3) + s * K + (1.0 - c) * (K @ K)
-        E = np.zeros((n, 4, 4))
-        E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = R, p[i] - R @ p[i], 1.0
-        T = T @ E
-    return T @ M0
-
-
-def poe_fk(w: np.ndarray, p: np.ndarray, M0: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Reference forward kinematics ``T(q) = exp([S1] q1) ... exp([S6] q6) M0``.
-
-    Parameters
-    ----------
-    w, p : ndarray, shape (6, 3)
-        Unit joint axes and a point on each (base frame, m), at q = 0.
-    M0 : ndarray, shape (4, 4)
-        ``flange2base`` at q = 0.
-    q : ndarray, shape (N, 6) or (6,)
-        Joint variables (rad).
-
-    Returns
-    -------
-    ndarray, shape (N, 4, 4) (or (4, 4) for one q)
-        ``flange2base``.
-    """
-    q = np.asarray(q, dtype=float)
-    T = _fk_np(np.asarray(w, float), np.asarray(p, float), np.asarray(M0, float), q.reshape(-1, 6))
-    return T[0] if q.ndim == 1 else T
+#: Vectorised POE forward kinematics, q (n, 6) rad -> ``flange2base`` (n, 4, 4).
+_fk_np = poe_fk
 
 
 def arm_length_scale(w: np.ndarray, p: np.ndarray, M0: np.ndarray) -> float:

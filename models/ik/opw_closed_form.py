@@ -50,6 +50,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import InputError
+from ..transforms import poe_fk as _poe_fk, rotations_about
 
 #: Structure checks: largest deviation of an axis angle from 0 or pi/2 (rad).
 OPW_ANGLE_TOL = 1e-9
@@ -165,11 +166,7 @@ class OPWGeometry:
 
 # --------------------------------------------------------------------------- numeric FK
 
-def _rodrigues(w: np.ndarray, th: np.ndarray) -> np.ndarray:
-    """Rotations about unit axis ``w`` (3,) by angles ``th`` (N,) rad, shape (N, 3, 3)."""
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+_rodrigues = rotations_about
 
 
 def _check_chain(w: Any, p: Any, M0: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -207,15 +204,7 @@ def poe_fk(w: Any, p: Any, M0: Any, q: Any) -> np.ndarray:
         ``flange2base`` for each configuration.
     """
     w, p, M0 = _check_chain(w, p, M0)
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n = q.shape[0]
-    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for i in range(6):
-        E = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-        E[:, :3, :3] = _rodrigues(w[i], q[:, i])
-        E[:, :3, 3] = p[i] - E[:, :3, :3] @ p[i]
-        T = T @ E
-    return T @ M0
+    return _poe_fk(w, p, M0, np.atleast_2d(np.asarray(q, dtype=float)))
 
 
 def opw_canonical_fk(geom: OPWGeometry, phi: Any) -> np.ndarray:
