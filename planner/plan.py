@@ -14,13 +14,15 @@ turns it into the matching :class:`~models.errors.CompplanError`):
    :data:`models.constants.EXACT_COMPENSATION_TOL`).  The uncompensated and
    closed-form (paper) errors of the same posture are reported alongside.
 3. **Timing** (:func:`planner.timing.time_parametrize`) of the *commanded* path
-   ``q_c`` at the controller period: TOPP-RA (time-optimal under velocity and
-   acceleration limits) and Ruckig (jerk-limited).  Both time the same
-   geometric path (a cubic spline through the commanded waypoints) and are
-   independent: TOPP-RA gives the time-optimal duration under velocity and
-   acceleration limits (its jerk is not limited, so it is reported and written
-   to ``trajectory_toppra.csv`` but is not what the controller runs); Ruckig
-   gives the jerk-limited trajectory ``trajectory.csv``.  Every limit is checked
+   ``q_c`` at the controller period, by default with TOPP-RA (time-optimal under
+   velocity and acceleration limits) and ``jerk_optimal`` (time-optimal under
+   velocity, acceleration *and* jerk limits: an NLP over the path-velocity
+   profile, :mod:`planner.timing.jerk_optimal`); Ruckig (jerk-limited, global
+   bounds on the path parameter) on request.  All time the same geometric path
+   (a cubic spline through the commanded waypoints): TOPP-RA's jerk is not
+   limited, so it is reported and written to ``trajectory_toppra.csv`` as the
+   time-optimal reference but is not what the controller runs; the jerk-limited
+   trajectory (``jerk_optimal``, else Ruckig) is ``trajectory.csv``.  Every limit is checked
    on the sampled trajectory and a method only succeeds when all the limits it
    enforces hold (peak ratio <= 1).
 
@@ -66,9 +68,10 @@ PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
 #: Columns of ``trajectory*.csv``.
 TRAJECTORY_COLUMNS = OUTPUT_TRAJECTORY_COLUMNS
 #: The method whose trajectory the controller runs (``trajectory.csv``), in order of preference.
-CONTROLLER_METHODS = ("ruckig", "toppra")
+CONTROLLER_METHODS = ("jerk_optimal", "ruckig", "toppra")
 #: Limits each timing method enforces.
-ENFORCED = {"toppra": ("velocity", "acceleration"), "ruckig": ("velocity", "acceleration", "jerk")}
+ENFORCED = {"toppra": ("velocity", "acceleration"), "ruckig": ("velocity", "acceleration", "jerk"),
+            "jerk_optimal": ("velocity", "acceleration", "jerk")}
 #: Slack on the commanded joints' position limits (rad).
 COMMAND_LIMIT_TOL = 1e-9
 
@@ -320,7 +323,9 @@ def _headline(s: dict[str, Any]) -> dict[str, Any]:
     dur = s.get("duration_s") or {}
     h["duration_s"] = round_sig(dur[ctrl]) if ctrl in dur else None
     h["duration_method"] = ctrl
-    h["duration_note"] = ({"ruckig": "Ruckig, jerk-limited: the trajectory the controller runs (trajectory.csv)",
+    h["duration_note"] = ({"jerk_optimal": "time-optimal under velocity, acceleration and jerk limits: the "
+                                           "trajectory the controller runs (trajectory.csv)",
+                           "ruckig": "Ruckig, jerk-limited: the trajectory the controller runs (trajectory.csv)",
                            "toppra": "TOPP-RA, time-optimal, jerk not limited (trajectory.csv)"}.get(ctrl, ctrl)
                           if ctrl else "not timed")
     if "toppra" in dur and ctrl != "toppra":
@@ -496,8 +501,8 @@ def _time(res: PlanResult) -> None:
         if not _within(tr, ("velocity", "acceleration", "jerk")):
             j = float(np.max(tr.limit_ratio["jerk"]))
             res.warnings.append(f"{m} does not limit jerk: peak jerk ratio {j:.3g} > 1"
-                                + ("" if m != res.controller else "; add 'ruckig' to timing.methods for a "
-                                   "jerk-limited controller trajectory"))
+                                + ("" if m != res.controller else "; add 'jerk_optimal' to timing.methods "
+                                   "for a jerk-limited controller trajectory"))
 
 
 def _trajectory_failure(res: PlanResult, m: str, tr: Trajectory) -> str:

@@ -30,7 +30,8 @@ from models.robot import Robot
 from models.transforms import matrix_to_rpy
 from problems.path import line_positions
 from problems.posture import OrientationRule, PostureTask, SolverSettings
-from problems.problem_file import (DEFAULT_DT, DEFAULT_RPY, DT_MAX, MAX_WAYPOINTS, TIMING_METHODS,
+from problems.problem_file import (DEFAULT_DT, DEFAULT_RPY, DEFAULT_TIMING_METHODS, DT_MAX, MAX_WAYPOINTS,
+                                   TIMING_METHODS,
                                    WRENCH_FRAMES, Limits, ProblemFileError, TimingSettings, check_timing,
                                    parse_branch, parse_cost, parse_header, parse_limits,
                                    parse_orientation, parse_path, parse_payload, parse_robot,
@@ -298,7 +299,7 @@ __all__ = [
     "DEFAULT_RPY",
     "DT_MAX",
     "MAX_WAYPOINTS",
-    "TIMING_METHODS",
+    "DEFAULT_TIMING_METHODS", "TIMING_METHODS",
     "WRENCH_FRAMES",
     "Limits",
     "Problem",

@@ -33,7 +33,10 @@ from problems.posture import (DEFAULT_MAX_ITER, DEFAULT_SCAN, DEFAULT_SMOOTHNESS
                               OrientationRule, SolverSettings)
 
 #: Time-parametrisation methods a problem may name (see planner.timing).
-TIMING_METHODS = ("toppra", "ruckig")
+TIMING_METHODS = ("toppra", "jerk_optimal", "ruckig")
+#: The methods run when a problem names none: the time-optimal reference (jerk not limited) and
+#: the jerk-limited trajectory the controller runs.
+DEFAULT_TIMING_METHODS = ("toppra", "jerk_optimal")
 #: Default controller period, s.
 DEFAULT_DT = 0.008
 #: Largest accepted controller period, s.
@@ -94,7 +97,7 @@ class Limits:
 class TimingSettings:
     """Time parametrisation: methods by name, controller period and method options."""
 
-    methods: tuple[str, ...] = TIMING_METHODS
+    methods: tuple[str, ...] = DEFAULT_TIMING_METHODS
     dt: float = DEFAULT_DT
     toppra_gridpoints: int = 0          # 0: the timing module's default
     toppra_max_iterations: int = 0      # 0: default
@@ -708,7 +711,7 @@ def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:
 def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
     """The ``[timing]`` section: methods, controller period (s) and method options."""
     tt = _table(where, data, "timing")
-    methods = tt.get("methods", list(TIMING_METHODS))
+    methods = tt.get("methods", list(DEFAULT_TIMING_METHODS))
     if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
         raise _err(where, "timing.methods", f"must be a list of method names {list(TIMING_METHODS)}, "
                                             f"got {methods!r}")

@@ -112,11 +112,11 @@ def test_paper_plan_summary(paper_run):
     # the gain of the chosen branch over the default, in RMS load-induced TCP error
     assert s["gain"]["vs_default"] == pytest.approx(np.sqrt(costs["s-w-e+"] / costs["s-w-e-"]))
     assert s["gain"]["vs_default"] > 3.0
-    assert set(s["duration_s"]) == {"toppra", "ruckig"} and s["controller_trajectory"] == "ruckig"
-    for m in ("toppra", "ruckig"):
+    assert set(s["duration_s"]) == {"toppra", "jerk_optimal"} and s["controller_trajectory"] == "jerk_optimal"
+    for m in ("toppra", "jerk_optimal"):
         for k in ("velocity", "acceleration"):
             assert len(s["limit_ratio"][m][k]) == 6 and max(s["limit_ratio"][m][k]) <= 1.0 + 1e-9
-    assert max(s["limit_ratio"]["ruckig"]["jerk"]) <= 1.0 + 1e-9
+    assert max(s["limit_ratio"]["jerk_optimal"]["jerk"]) <= 1.0 + 1e-9
     for k in ("velocity", "acceleration", "jerk"):
         assert len(s["limits"][k]) == 6
     assert s["robot_file"]["name"] == "ar5" and s["problem"]["name"] == "paper_4_4"
@@ -128,7 +128,7 @@ def test_paper_plan_summary(paper_run):
     assert (h["status"], h["branch"], h["default_branch"]) == ("ok", "s-w-e-", "s-w-e+")
     assert h["error_after_max_mm"] == 0.0 and h["error_before_max_mm"] == pytest.approx(
         s["error_before"]["max_mm"], rel=5e-4)
-    assert h["duration_s"] == pytest.approx(s["duration_s"]["ruckig"], rel=5e-4)
+    assert h["duration_s"] == pytest.approx(s["duration_s"]["jerk_optimal"], rel=5e-4)
     p = s["provenance"]
     assert p["argv"] == ["compplan", "plan", "paper_4_4", "--out", str(paper_run), "--no-figures", "--no-report"]
     assert p["command_line"].startswith("compplan plan paper_4_4 --out ") and p["date_utc"].endswith("Z")
@@ -189,7 +189,7 @@ def test_trajectories_respect_the_limits_by_finite_differences(run, request):
             assert ratio.max() <= 1.0 + FD_RATIO_TOL, (name, k, ratio)
         assert np.allclose(q[0], path[0], atol=1e-12) and np.allclose(q[-1], path[-1], atol=1e-12)
         assert np.allclose(_cols(tr, "qd")[[0, -1]], 0.0, atol=1e-12)     # rest to rest
-        assert s["duration_s"][name == "trajectory.csv" and "ruckig" or "toppra"] == pytest.approx(t[-1])
+        assert s["duration_s"][name == "trajectory.csv" and "jerk_optimal" or "toppra"] == pytest.approx(t[-1])
 
 
 def test_machining_gain_and_figures(machining_run):

@@ -91,7 +91,7 @@ def test_defaults_come_from_the_robot_and_the_paper(tmp_path):
     pr = load_problem(_write(tmp_path, MINIMAL))
     robot = load_robot("ar5")
     assert np.allclose(pr.limits.velocity, robot.v_max) and np.allclose(pr.limits.jerk, robot.j_max)
-    assert pr.timing.dt == DEFAULT_DT and pr.timing.methods == ("toppra", "ruckig")
+    assert pr.timing.dt == DEFAULT_DT and pr.timing.methods == ("toppra", "jerk_optimal")
     assert np.allclose(pr.home_q, paper.HOME_Q)
     assert np.allclose(pr.rotations[:, :, 2], [0.0, 0.0, -1.0])      # default: tool down
     assert np.allclose(pr.wrench[:, 2], -10.0) and np.allclose(pr.wrench[:, 3:], 0.0)

@@ -269,7 +269,7 @@ def test_view_from_the_plan_equals_the_view_from_its_folder(demo_result, demo_ru
 
     assert mem.summary == disk.summary == json.loads((demo_run / "summary.json").read_text())
     assert mem.folder == disk.folder and mem.absent == disk.absent == {}
-    assert mem.trajectory_files == disk.trajectory_files and list(mem.trajectories) == ["toppra", "ruckig"]
+    assert mem.trajectory_files == disk.trajectory_files and list(mem.trajectories) == ["toppra", "jerk_optimal"]
     for piece in ("waypoints", "branches", "trajectories"):
         assert _same(getattr(mem, piece), getattr(disk, piece)), piece
     assert mem.robot.to_dict() == disk.robot.to_dict()
@@ -300,7 +300,7 @@ def test_report_draws_the_jerk_the_timing_computed(demo_result, demo_run):
     fn, (trajs, _limits), _ = fig6.job
     assert fn.__name__ == "trajectory_figure"
     for pretty, tr in trajs.items():
-        method = {"TOPP-RA": "toppra", "Ruckig": "ruckig"}[pretty]
+        method = {"TOPP-RA": "toppra", "Ruckig": "ruckig", "jerk-optimal": "jerk_optimal"}[pretty]
         assert tr["qddd"] is run.trajectories[method]["qddd"]
     assert "qddd columns of the trajectory file" in fig6.caption
 
@@ -511,8 +511,8 @@ def test_summary_opens_with_the_headline_in_units_and_rounded(demo_run):
     assert h["error_before_max_mm"] == 1.779 and h["error_after_max_mm"] == 0.0
     assert h["numerical_floor_mm"] == NUMERICAL_FLOOR_MM == 1e-6
     assert set(h["below_numerical_floor"]) == {"error_after_max_mm", "error_after_rms_mm"}
-    assert h["duration_method"] == s["controller_trajectory"] == "ruckig"
-    assert h["duration_s"] == round_sig(s["duration_s"]["ruckig"])
+    assert h["duration_method"] == s["controller_trajectory"] == "jerk_optimal"
+    assert h["duration_s"] == round_sig(s["duration_s"]["jerk_optimal"])
     # units in every numeric key of the headline
     for k, v in h.items():
         if isinstance(v, float) and k != "gain_vs_default":
@@ -561,7 +561,7 @@ def test_report_opens_with_the_headline_and_closes_the_summary_with_provenance(d
     shown = {c["key"]: c["text"].strip() for c in head}
     assert shown["headline.error_before_max_mm"] == "1.779"
     assert shown["headline.error_after_max_mm"] == NUMERICAL_ZERO_TEXT
-    assert shown["headline.duration_s"] == "2.36"
+    assert shown["headline.duration_s"] == "1.584"
     keys = {c["key"] for c in rep.cells}
     assert {"provenance.compplan_version", "provenance.date_utc", "provenance.inputs.0.sha256",
             "provenance.inputs.1.sha256"} <= keys

@@ -64,7 +64,7 @@ LIMIT_SETS = {
         jerk=np.array([40.0, 40.0, 60.0, 80.0, 80.0, 100.0]),
     ),
 }
-METHODS = ("toppra", "ruckig")
+METHODS = ("toppra", "ruckig", "jerk_optimal")
 
 
 # --------------------------------------------------------------------------- #
@@ -557,7 +557,7 @@ def test_names_imported_elsewhere_are_reexported():
         assert hasattr(timing, name), name
         assert name in timing.__all__, name
     assert timing.DT_MAX_S == registry.DT_MAX_S == 0.1
-    assert timing.VALID_METHODS == registry.available_methods() == ("toppra", "ruckig")
+    assert timing.VALID_METHODS == registry.available_methods() == ("toppra", "ruckig", "jerk_optimal")
 
 
 def test_registry_records_of_builtin_methods():
@@ -599,7 +599,7 @@ def test_a_new_method_is_a_registered_module():
             time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", gridpoints=5)
     finally:
         registry.unregister_method("rest")
-    assert registry.available_methods() == ("toppra", "ruckig")
+    assert registry.available_methods() == ("toppra", "ruckig", "jerk_optimal")
     with pytest.raises(InputError, match="rest"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest")
 
@@ -650,3 +650,37 @@ def test_ruckig_exception_is_kept_with_its_message(monkeypatch):
     assert traj.status is TimingStatus.FAILED
     assert traj.solver_code == "ruckig.RuckigError"
     assert "raised ruckig.RuckigError" in traj.reason and "velocity" in traj.reason
+
+
+# --------------------------------------------------------------------------- #
+# jerk_optimal: the NLP over the path-velocity profile
+# --------------------------------------------------------------------------- #
+
+#: jerk_optimal against TOPP-RA (jerk not limited) on the test paths: at most this much slower.
+JERK_OPTIMAL_MAX_RATIO = 1.25
+
+
+@pytest.mark.parametrize("path_name", list(PATHS))
+def test_jerk_optimal_is_close_to_time_optimal_and_limits_jerk(path_name):
+    opt = run(path_name, "varied", "toppra")
+    jo = run(path_name, "varied", "jerk_optimal")
+    rk = run(path_name, "varied", "ruckig")
+    assert jo.status is TimingStatus.OK, jo.reason
+    assert max(float(jo.limit_ratio[k].max()) for k in ("velocity", "acceleration", "jerk")) <= 1.0 + 1e-9
+    assert opt.duration_s <= jo.duration_s <= JERK_OPTIMAL_MAX_RATIO * opt.duration_s
+    # never slower than the global-bound Ruckig scheme (equal on a straight line, where it is optimal)
+    assert jo.duration_s <= rk.duration_s + jo.dt
+    # it uses its limits: some limit binds (ratio near 1) somewhere
+    assert max(float(jo.limit_ratio[k].max()) for k in ("acceleration", "jerk")) > 0.95
+
+
+def test_jerk_optimal_options_are_checked():
+    with pytest.raises(ValueError, match="gridpoints"):
+        time_parametrize(curved_path(), LIMIT_SETS["uniform"], "jerk_optimal", gridpoints=5)
+    with pytest.raises(ValueError, match="max_iterations"):
+        time_parametrize(curved_path(), LIMIT_SETS["uniform"], "jerk_optimal", max_iterations=0)
+
+
+def test_jerk_optimal_solver_failure_is_reported_not_raised():
+    traj = time_parametrize(curved_path(), LIMIT_SETS["uniform"], "jerk_optimal", max_iterations=1)
+    assert traj.status is not TimingStatus.OK and "IPOPT" in traj.reason

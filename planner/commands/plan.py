@@ -87,7 +87,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
         print(f"timing at dt = {pr.timing.dt * 1e3:g} ms (peak |value|/limit over the joints):")
         for m, tr in res.trajectories.items():
             lr = tr.limit_ratio
-            print(f"  {m:<7} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
+            print(f"  {m:<12} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
                   f"{np.max(lr['acceleration']):.3f}   jerk {np.max(lr['jerk']):.3f}"
                   + ("   -> trajectory.csv" if m == res.controller else ""))
     for w in s["warnings"]:

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 #: trajectory is ``trajectory.csv``, Ruckig when available).
 TRAJECTORY_FILES = (("trajectory_toppra.csv", "toppra"), ("trajectory.csv", "ruckig"))
 #: Display names of the timing methods (column order of figure 6).
-METHOD_NAMES = {"toppra": "TOPP-RA", "ruckig": "Ruckig"}
+METHOD_NAMES = {"toppra": "TOPP-RA", "jerk_optimal": "jerk-optimal", "ruckig": "Ruckig"}
 
 #: Jerk columns of ``trajectory*.csv`` (absent in files written before they were recorded).
 _JERK_COLUMNS = [c for c in TRAJECTORY_COLUMNS if c.startswith("qddd")]

@@ -55,6 +55,7 @@ from planner.timing.verification import VERIFY_OVERSAMPLE
 # order is the order of VALID_METHODS and of the error messages.
 from planner.timing import toppra_method  # isort: skip
 from planner.timing import ruckig_method  # isort: skip
+from planner.timing import jerk_optimal  # isort: skip
 from planner.timing.ruckig_method import (
     RUCKIG_BUDGET_FRACTIONS,
     RUCKIG_CONSISTENCY_TOL,

@@ -1,0 +1,457 @@
+"""``method="jerk_optimal"``: time-optimal under joint velocity, acceleration *and jerk* limits.
+
+The path-velocity profile is optimised directly: on a grid ``s_0 = 0 < s_1 < ... < s_K = 1``
+of the path parameter, the variables are the path velocity ``x_k = ds/dt`` (1/s) and the
+path acceleration ``u_k = d2s/dt2`` (1/s^2) at every gridpoint, and IPOPT (through CasADi,
+exact derivatives) minimises the motion time ``T = sum_k 2 ds_k / (x_k + x_{k+1})`` subject to
+
+* consistency of the two: ``x_{k+1}^2 - x_k^2 = (u_k + u_{k+1}) ds_k`` (``d(x^2)/ds = 2u``);
+* rest at both ends: ``x_0 = x_K = u_0 = u_K = 0``;
+* per joint ``j`` at every gridpoint: ``|P'_j x| <= v_j`` and ``|P''_j x^2 + P'_j u| <= a_j``;
+* per joint at every interval's midpoint ``m``: the jerk
+  ``x_m (P'''_j x_m^2 + 3 P''_j u_m + P'_j (u_{k+1} - u_k) / ds_k)`` within ``+-jerk_j``
+  (``d3s/dt3 = x du/ds``).
+
+The NLP is parametric (the path derivatives, the grid steps and the limits are parameters),
+so it is built once per grid size and joint count and reused (:data:`JERK_GRIDPOINTS`). It
+is warm-started from TOPP-RA's time-optimal velocity/acceleration profile on the same grid.
+
+The optimum is turned into a time law ``s(t)``: gridpoint times from the trapezoid rule, a
+quintic Hermite polynomial per interval matching ``s``, ``ds/dt``, ``d2s/dt2`` at both ends
+(so the law is C2 and its jerk bounded). The constraints hold at the gridpoints and
+midpoints only, so the sampled trajectory is checked on the fine grid like every method's,
+and when a ratio exceeds 1 (discretisation) the law is slowed uniformly in time by
+``k = max(r_v, sqrt(r_a), cbrt(r_j))`` (times ``1 + JERK_SCALE_MARGIN``), which divides
+every velocity by k, acceleration by k^2 and jerk by k^3 on the same path: the result is
+always within every limit, at the price of that factor in duration (reported).
+
+Why this method (``docs/cli.md``, "Timing"; ``benchmarks/bench_timing.py`` compares them):
+Ruckig (community version) has no intermediate waypoints, so ``method="ruckig"`` times the
+path parameter under global bounds and is 1.6-2.2x slower than time-optimal; TOPP-RA's law
+smoothed to the jerk limit by a moving average is 1.1-1.7x slower (the window is paid at
+every acceleration switch); this NLP lands within a few per cent of the jerk-free optimum.
+
+Options: ``gridpoints`` (int >= 20, default :func:`default_gridpoints`), ``max_iterations``
+(int >= 1, IPOPT's iteration limit, default ``JERK_MAX_ITER``).  Importing this module
+registers the method.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from typing import Any, Mapping
+
+import casadi as ca
+import numpy as np
+
+from planner.timing.path import SplinePath
+from planner.timing.registry import LIMIT_RATIO_TOL, TimingMethod, check_integer_options, register_method
+from planner.timing.toppra_method import toppra_once
+from planner.timing.trajectory import JointLimits, TimingStatus, Trajectory
+from planner.timing.verification import (
+    build_trajectory,
+    check_times,
+    empty_trajectory,
+    exceeded_limits,
+    format_ratios,
+    limit_ratios,
+    moves_backwards,
+)
+
+__all__ = ["JERK_GRIDPOINTS", "JERK_MAX_ITER", "JERK_OPTIONS", "JERK_OPTIMAL_METHOD", "JerkLaw",
+           "default_gridpoints", "run_jerk_optimal"]
+
+#: Grid sizes the NLP is built for (the smallest >= 4 gridpoints per waypoint is used, capped).
+JERK_GRIDPOINTS: tuple[int, ...] = (120, 240, 480, 960)
+#: Gridpoints per waypoint wanted before capping at the largest size.
+JERK_GRIDPOINTS_PER_WAYPOINT: int = 4
+#: IPOPT iteration limit and tolerance.
+JERK_MAX_ITER: int = 300
+JERK_TOL: float = 1e-7
+#: Weight of the jerk-smoothness penalty (s per (1/s^2)^2 of du/ds change, integrated over s).
+JERK_SMOOTHING: float = 1e-6
+#: IPOPT's constraint tolerance: the velocity-acceleration consistency holds to this (1/s^2 * 1),
+#: so the law's path acceleration is continuous at the gridpoints to about this over the step.
+JERK_CONSTR_TOL: float = 1e-10
+#: Extra factor on the uniform slow-down when the fine check exceeds a limit, and the most
+#: slow-down rounds (each slower law is checked again, at its own times).
+JERK_SCALE_MARGIN: float = 1e-5
+JERK_SCALE_ROUNDS: int = 4
+#: Fraction of the TOPP-RA profile used as the warm start (jerk-feasible-ish, strictly inside).
+JERK_WARM_FRACTION: float = 0.8
+#: Joints constrained per interval in the NLP (the most loaded ones; the others are checked after
+#: the solve), the most solves while swapping joints in, and the model ratio that calls a swap.
+JERK_SLOTS: int = 3
+JERK_SLOT_ROUNDS: int = 4
+JERK_SLOT_TOL: float = 1e-6
+#: Option names accepted by ``method="jerk_optimal"``.
+JERK_OPTIONS: tuple[str, ...] = ("gridpoints", "max_iterations")
+
+_CHECKED: tuple[str, ...] = ("velocity", "acceleration", "jerk")
+_NLP_CACHE: dict[tuple[int, int, int], ca.Function] = {}
+_NLP_LOCK = threading.Lock()
+
+
+def profile_grid(knots: np.ndarray, n_grid: int) -> np.ndarray:
+    """Exactly ``n_grid`` gridpoints in s: every waypoint knot and the rest spread over the
+    intervals in proportion to their length; a uniform grid when there are more knots than
+    gridpoints (the fine check then covers what lies between)."""
+    N = knots.size
+    if N >= n_grid:
+        return np.linspace(0.0, 1.0, n_grid)
+    h = np.diff(knots)
+    extra = (n_grid - N) * h / h.sum()
+    k = np.floor(extra).astype(int)
+    k[np.argsort(extra - k)[::-1][: (n_grid - N) - int(k.sum())]] += 1
+    pts = [knots[:1]]
+    for i in range(N - 1):
+        pts.append(np.linspace(knots[i], knots[i + 1], k[i] + 2)[1:])
+    return np.concatenate(pts)
+
+
+def default_gridpoints(n_waypoints: int) -> int:
+    """The grid size for a path of ``n_waypoints`` waypoints (from :data:`JERK_GRIDPOINTS`)."""
+    want = JERK_GRIDPOINTS_PER_WAYPOINT * n_waypoints
+    return next((g for g in JERK_GRIDPOINTS if g >= want), JERK_GRIDPOINTS[-1])
+
+
+# --------------------------------------------------------------------------- #
+# The parametric NLP
+# --------------------------------------------------------------------------- #
+
+def _solver(n_grid: int, n_slots: int, max_iter: int) -> ca.Function:
+    """IPOPT solver of the profile NLP for ``n_grid`` gridpoints and ``n_slots`` joint slots (cached).
+
+    Each interval constrains the ``n_slots`` joints most likely to bind there (chosen per call,
+    :func:`_slots`; the others are checked after the solve and swapped in if they exceed).
+    Variables ``[x (K+1); u (K+1)]``; parameters ``[ds (K); then per slot a (K, 9) block:
+    first and second path derivatives at the interval's left and right gridpoints, the first
+    three at its midpoint, and the slot joint's acceleration and jerk limits]``.
+    """
+    key = (n_grid, n_slots, max_iter)
+    with _NLP_LOCK:
+        if key in _NLP_CACHE:
+            return _NLP_CACHE[key]
+        K1, K = n_grid, n_grid - 1
+        x, u = ca.SX.sym("x", K1), ca.SX.sym("u", K1)
+        ds = ca.SX.sym("ds", K)
+        slots = [ca.SX.sym(f"slot{r}", K, 9) for r in range(n_slots)]
+        du = (u[1:] - u[:-1]) / ds
+        # the end intervals start (end) at rest with constant jerk: s = J t^3 / 6, so at their
+        # inner gridpoint J = x1 u1 / (3 ds) (the linear-in-s model would say x1 u1 / ds)
+        w_end = ca.DM.ones(K)
+        w_end[0] = w_end[K - 1] = 1.0 / 3.0
+        dul, dur = du * w_end, du * w_end
+        dul[0] = 0.0                                   # at rest: no jerk term from x = 0
+        dur[K - 1] = 0.0
+        xm2 = x[:-1] ** 2 + u[:-1] * ds + 0.25 * (u[1:] - u[:-1]) * ds   # x^2 at the midpoint (model)
+        um = 0.5 * (u[:-1] + u[1:])
+        # consistency: u linear in s inside (d(x^2)/ds = 2u); the end intervals are constant-jerk
+        # cubics in time from / to rest (x^2 = 1.5 |u| ds at their inner gridpoint)
+        cons = x[1:] ** 2 - x[:-1] ** 2 - (u[:-1] + u[1:]) * ds
+        cons[0] = x[1] ** 2 - 1.5 * u[1] * ds[0]
+        cons[K - 1] = x[K - 1] ** 2 + 1.5 * u[K - 1] * ds[K - 1]
+        g = [cons]
+        xl, xr, ul, ur = x[:-1], x[1:], u[:-1], u[1:]
+        for S in slots:                       # (velocity: bounds on x, see _bounds)
+            L1, L2, R1, R2, M1, M2, M3, alim, jlim = (S[:, c] for c in range(9))
+            g.append((L2 * xl ** 2 + L1 * ul) / alim)
+            g.append((M2 * xm2 + M1 * um) / alim)
+            # jerk at both ends of every interval (x changes fastest near rest)
+            g.append(xl * (M3 * xl ** 2 + 3.0 * L2 * ul + L1 * dul) / jlim)
+            g.append(xr * (M3 * xr ** 2 + 3.0 * R2 * ur + R1 * dur) / jlim)
+        T = ca.sum1(_interval_times(ds, x, ca))
+        # a small penalty on the change of du/ds between neighbouring intervals keeps the jerk from
+        # chattering at the grid's period (IPOPT otherwise alternates between equivalent optima)
+        dc = du[1:] - du[:-1]
+        T = T + JERK_SMOOTHING * ca.sum1(dc ** 2 * 0.5 * (ds[1:] + ds[:-1]))
+        p = ca.vertcat(ds, *[ca.vec(S) for S in slots])
+        opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": int(max_iter),
+                                              "tol": JERK_TOL, "constr_viol_tol": JERK_CONSTR_TOL,
+                                              "mu_strategy": "adaptive"}}
+        solver = ca.nlpsol("jerk_optimal", "ipopt", {"x": ca.vertcat(x, u), "p": p, "f": T,
+                                                    "g": ca.vertcat(*g)}, opts)
+        _NLP_CACHE[key] = solver
+        return solver
+
+
+class _Terms:
+    """Path derivatives (gridpoints and midpoints) and limits of every joint, for the slots."""
+
+    def __init__(self, path: SplinePath, grid: np.ndarray, limits: JointLimits) -> None:
+        m = 0.5 * (grid[:-1] + grid[1:])
+        self.P1, self.P2 = path._d1(grid), path._d2(grid)                  # (K+1, n)
+        self.M1, self.M2, self.M3 = path._d1(m), path._d2(m), path._d3(m)  # (K, n)
+        self.a, self.j = np.asarray(limits.acceleration), np.asarray(limits.jerk)
+        self.ds = np.diff(grid)
+
+    def ratios(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Model ratios (K, n): the worst of acceleration (left gridpoint, midpoint) and jerk
+        (both ends) of every joint on every interval, for the profile ``x``, ``u``."""
+        ds, du = self.ds, np.diff(u) / self.ds
+        w = np.ones_like(ds)
+        w[0] = w[-1] = 1.0 / 3.0
+        dul, dur = du * w, du * w
+        dul[0], dur[-1] = 0.0, 0.0
+        xl, xr, ul, ur = x[:-1, None], x[1:, None], u[:-1, None], u[1:, None]
+        xm2 = (x[:-1] ** 2 + u[:-1] * ds + 0.25 * np.diff(u) * ds)[:, None]
+        um = 0.5 * (ul + ur)
+        acc = np.maximum(np.abs(self.P2[:-1] * xl ** 2 + self.P1[:-1] * ul),
+                         np.abs(self.M2 * xm2 + self.M1 * um)) / self.a
+        jl = np.abs(xl * (self.M3 * xl ** 2 + 3.0 * self.P2[:-1] * ul + self.P1[:-1] * dul[:, None]))
+        jr = np.abs(xr * (self.M3 * xr ** 2 + 3.0 * self.P2[1:] * ur + self.P1[1:] * dur[:, None]))
+        return np.maximum(acc, np.maximum(jl, jr) / self.j)
+
+    def parameters(self, slots: np.ndarray) -> np.ndarray:
+        """The NLP's parameter vector for slot joints ``slots`` (K, R)."""
+        k = np.arange(self.ds.size)[:, None]
+        blocks = [self.ds]
+        for r in range(slots.shape[1]):
+            j = slots[:, r:r + 1]
+            cols = [self.P1[:-1][k, j], self.P2[:-1][k, j], self.P1[1:][k, j], self.P2[1:][k, j],
+                    self.M1[k, j], self.M2[k, j], self.M3[k, j], self.a[j], self.j[j]]
+            blocks.append(np.hstack(cols).reshape(-1, order="F"))
+        return np.concatenate(blocks)
+
+
+def _slots(ratio: np.ndarray, n_slots: int) -> np.ndarray:
+    """The ``n_slots`` joints of largest model ratio on every interval, (K, n_slots) int."""
+    return np.argsort(-ratio, axis=1, kind="stable")[:, :n_slots]
+
+
+def _interval_times(ds: Any, x: Any, lib: Any = np) -> Any:
+    """Duration of each interval (s): the trapezoid rule ``2 ds / (x_k + x_{k+1})`` inside, and
+    ``3 ds / x`` for the two end intervals, which start or end at rest with constant jerk
+    (``s = J t^3 / 6``: ``t = 3 s / x``).  NumPy or CasADi (``lib``) vectors."""
+    h = 2.0 * ds / (x[:-1] + x[1:] + 1e-12)
+    if lib is np:
+        h = np.array(h, dtype=float)
+        h[0], h[-1] = 3.0 * ds[0] / x[1], 3.0 * ds[-1] / x[-2]
+        return h
+    n = ds.shape[0]
+    first = 3.0 * ds[0] / (x[1] + 1e-12)
+    last = 3.0 * ds[n - 1] / (x[n - 1] + 1e-12)
+    return ca.vertcat(first, h[1:n - 1], last)
+
+
+def _bounds(n_grid: int, n_slots: int, x_max: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Variable and constraint bounds: ``0 <= x <= x_max`` (the velocity limits, 1/s), rest at
+    both ends; consistency = 0; acceleration and jerk ratios in [-1, 1]."""
+    K1 = n_grid
+    lbx = np.r_[np.zeros(K1), np.full(K1, -np.inf)]
+    ubx = np.r_[x_max, np.full(K1, np.inf)]
+    for i in (0, K1 - 1, K1, 2 * K1 - 1):
+        lbx[i] = ubx[i] = 0.0
+    ub = np.r_[np.zeros(K1 - 1), np.ones(4 * (K1 - 1) * n_slots)]
+    return lbx, ubx, -ub, ub
+
+
+# --------------------------------------------------------------------------- #
+# The time law
+# --------------------------------------------------------------------------- #
+
+#: Gauss-Legendre nodes and weights on [0, 1] for the interval times of the law.
+_GL_X, _GL_W = (0.5 * (np.polynomial.legendre.leggauss(6)[0] + 1.0), 0.5 * np.polynomial.legendre.leggauss(6)[1])
+#: Newton iterations that invert t(s) inside an interval.
+_NEWTON_STEPS = 6
+
+
+class JerkLaw:
+    """The time law of the optimised profile, exactly as the NLP models it.
+
+    Inside, the path acceleration is linear in ``s`` on each interval, so
+    ``x(s)^2 = x_k^2 + 2 u_k sigma + c_k sigma^2`` (``sigma = s - s_k``, ``c_k = du/ds`` chosen so
+    that ``x`` reaches ``x_{k+1}`` exactly), ``sdd = u_k + c_k sigma``,
+    ``sddd = x(s) c_k``, and ``t(s) = integral ds / x`` (Gauss-Legendre, inverted by Newton's
+    method when sampling).  The end intervals are constant-jerk cubics in time from and to rest
+    (``s = J t^3 / 6`` over ``h = 3 ds / x``, ``J = 2 x / h^2``).
+
+    Parameters
+    ----------
+    s, x, u : ndarray, shape (K + 1,)
+        Gridpoints (-), path velocity (1/s) and acceleration (1/s^2) there.
+    scale : float
+        Uniform slow-down >= 1 (time stretched by it).
+    """
+
+    def __init__(self, s: np.ndarray, x: np.ndarray, u: np.ndarray, scale: float = 1.0) -> None:
+        self.s, self.x, self.u, self.scale = s, x, u, float(scale)
+        ds = np.diff(s)
+        # du/ds per interval from the end velocities, so that s and ds/dt are exactly continuous
+        # whatever the solver's tolerance (d2s/dt2 then jumps by that tolerance at gridpoints)
+        self.ds, self.du = ds, (x[1:] ** 2 - x[:-1] ** 2 - 2.0 * u[:-1] * ds) / ds ** 2
+        h = np.empty(ds.size)
+        h[0], h[-1] = 3.0 * ds[0] / x[1], 3.0 * ds[-1] / x[-2]
+        inner = slice(1, ds.size - 1)
+        sig = ds[inner, None] * _GL_X[None, :]
+        h[inner] = ds[inner] * (_GL_W[None, :] / self._x(np.arange(1, ds.size - 1)[:, None], sig)).sum(axis=1)
+        self.h = h
+        self.t = np.concatenate(([0.0], np.cumsum(h)))
+        self.duration = float(self.t[-1]) * self.scale
+        self.breaks = self.t[1:-1] * self.scale
+
+    def _x(self, k: np.ndarray, sig: np.ndarray) -> np.ndarray:
+        """Path velocity at ``sigma`` into interval ``k`` (inner intervals), 1/s."""
+        b = self.x[k] ** 2 + 2.0 * self.u[k] * sig + self.du[k] * sig ** 2
+        return np.sqrt(np.maximum(b, 1e-300))
+
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``s, sd, sdd, sddd`` at times ``t`` (s), each shape (M,)."""
+        k_s = self.scale
+        tau_all = np.asarray(t, dtype=float) / k_s
+        K = self.ds.size
+        i = np.clip(np.searchsorted(self.t, tau_all, side="right") - 1, 0, K - 1)
+        tau = tau_all - self.t[i]
+        s, sd, sdd, sddd = (np.empty_like(tau) for _ in range(4))
+        first, last = i == 0, i == K - 1
+        if first.any():
+            J = 2.0 * self.x[1] / self.h[0] ** 2
+            tt = tau[first]
+            s[first], sd[first], sdd[first], sddd[first] = J * tt ** 3 / 6, J * tt ** 2 / 2, J * tt, J
+        if last.any():
+            J = 2.0 * self.x[K - 1] / self.h[K - 1] ** 2
+            tt = self.h[K - 1] - tau[last]
+            s[last], sd[last], sdd[last], sddd[last] = 1.0 - J * tt ** 3 / 6, J * tt ** 2 / 2, -J * tt, J
+        mid = ~(first | last)
+        if mid.any():
+            s[mid], sd[mid], sdd[mid], sddd[mid] = self._inner(i[mid], tau[mid])
+        return s, sd / k_s, sdd / k_s ** 2, sddd / k_s ** 3
+
+    def _inner(self, k: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The law inside inner intervals ``k`` at times ``tau`` after their start."""
+        ds = self.ds[k]
+        sig = np.clip(tau * 0.5 * (self.x[k] + self.x[k + 1]), 0.0, ds)
+        for _ in range(_NEWTON_STEPS):
+            t_sig = sig * (_GL_W[None, :] / self._x(k[:, None], sig[:, None] * _GL_X[None, :])).sum(axis=1)
+            sig = np.clip(sig - (t_sig - tau) * self._x(k, sig), 0.0, ds)
+        xs = self._x(k, sig)
+        us = self.u[k] + self.du[k] * sig
+        return self.s[k] + sig, xs, us, xs * self.du[k]
+
+
+# --------------------------------------------------------------------------- #
+# The method
+# --------------------------------------------------------------------------- #
+
+def _warm_start(path: SplinePath, grid: np.ndarray, limits: JointLimits) -> np.ndarray | None:
+    """TOPP-RA's velocity/acceleration-optimal profile on the grid, scaled inside (x, u)."""
+    import toppra
+    tp = toppra.SplineInterpolator(path.knots, path.q_path, bc_type="natural")
+    sd, _msg, _inf = toppra_once(tp, grid, limits.velocity, limits.acceleration)
+    if sd is None:
+        return None
+    x = JERK_WARM_FRACTION * sd
+    x[0] = x[-1] = 0.0
+    b = x ** 2
+    u = np.zeros_like(x)
+    u[1:-1] = (b[2:] - b[:-2]) / (2.0 * (grid[2:] - grid[:-2]))
+    return np.r_[x, u]
+
+
+def _fine_check(path: SplinePath, limits: JointLimits, dt: float, law: JerkLaw) -> dict[str, np.ndarray]:
+    tc = check_times(law.duration, dt, law.breaks)
+    cs, csd, csdd, csddd = law(tc[tc < law.duration])
+    _, qd, qdd, qddd = path.evaluate(cs, csd, csdd, csddd)
+    return limit_ratios(qd, qdd, qddd, limits)
+
+
+def _optimise(terms: _Terms, z0: np.ndarray, x_max: np.ndarray, max_iter: int) -> tuple[np.ndarray, dict, int]:
+    """Solve the slot NLP, swapping in any joint the solution shows above its limits (at most
+    JERK_SLOT_ROUNDS solves, each warm-started from the last).  Returns the solution, IPOPT's
+    stats of the last solve and the number of solves."""
+    K1 = terms.ds.size + 1
+    n_slots = min(JERK_SLOTS, terms.a.size)
+    slots = _slots(terms.ratios(z0[:K1], z0[K1:]), n_slots)
+    solver = _solver(K1, n_slots, max_iter)
+    lbx, ubx, lbg, ubg = _bounds(K1, n_slots, x_max)
+    z, st, rounds = z0, {}, 0
+    for rounds in range(1, JERK_SLOT_ROUNDS + 1):
+        res = solver(x0=z, p=terms.parameters(slots), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        st, z = solver.stats(), np.asarray(res["x"]).ravel()
+        if not st.get("success", False):
+            break
+        ratio = terms.ratios(np.maximum(z[:K1], 0.0), z[K1:])
+        k_bad, j_bad = np.nonzero(ratio > 1.0 + JERK_SLOT_TOL)
+        outside = [(k, j) for k, j in zip(k_bad, j_bad) if j not in slots[k]]
+        if not outside:
+            break
+        for k, j in outside:                  # the joint replaces the slot of smallest ratio there
+            slots[k, int(np.argmin(ratio[k, slots[k]]))] = j
+    return z, st, rounds
+
+
+def run_jerk_optimal(path: SplinePath, limits: JointLimits, dt: float, opts: Mapping[str, Any]) -> Trajectory:
+    """Time ``path`` time-optimally under velocity, acceleration and jerk limits (see module doc).
+
+    Returns
+    -------
+    Trajectory
+        ``method = "jerk_optimal"``; status OK only with every ratio within its limit; never
+        raises for solver failures (IPOPT's own status is quoted in the reason).
+    """
+    n = limits.n_joints
+    n_grid = int(opts.get("gridpoints", default_gridpoints(path.knots.shape[0])))
+    max_iter = int(opts.get("max_iterations", JERK_MAX_ITER))
+    grid = profile_grid(path.knots, n_grid)
+    z0 = _warm_start(path, grid, limits)
+    if z0 is None:
+        return empty_trajectory("jerk_optimal", TimingStatus.FAILED, "TOPP-RA warm start failed on the grid",
+                                n, dt, 0)
+    terms = _Terms(path, grid, limits)
+    with np.errstate(divide="ignore"):
+        x_max = np.min(limits.velocity[None, :] / np.abs(terms.P1), axis=1)      # (K+1,) 1/s
+    z0[:n_grid] = np.minimum(z0[:n_grid], x_max)
+    z, st, rounds = _optimise(terms, z0, x_max, max_iter)
+    ip = str(st.get("return_status", "unknown"))
+    x, u = np.maximum(z[:n_grid], 0.0), z[n_grid:].copy()
+    x[0] = x[-1] = u[0] = u[-1] = 0.0
+    if not st.get("success", False) or np.any(x[1:-1] <= 0.0):
+        return empty_trajectory("jerk_optimal", TimingStatus.FAILED,
+                                f"failed: IPOPT ({ip}) after {st.get('iter_count', 0)} iterations on "
+                                f"{n_grid} gridpoints", n, dt, rounds)
+    law, scale = JerkLaw(grid, x, u), 1.0
+    ratio = _fine_check(path, limits, dt, law)
+    for _ in range(JERK_SCALE_ROUNDS):         # a slower law is checked at other times: repeat
+        r = max(float(ratio["velocity"].max()), math.sqrt(float(ratio["acceleration"].max())),
+                float(ratio["jerk"].max()) ** (1.0 / 3.0))
+        if r <= 1.0 + LIMIT_RATIO_TOL:
+            break
+        scale *= r * (1.0 + JERK_SCALE_MARGIN)
+        law = JerkLaw(grid, x, u, scale)
+        ratio = _fine_check(path, limits, dt, law)
+    t_nlp = float(np.sum(_interval_times(np.diff(grid), x)))
+    summary = (f"IPOPT ({ip}, {st.get('iter_count', 0)} iterations in the last of {rounds} solve(s)) on {n_grid} "
+               f"gridpoints with the {min(JERK_SLOTS, n)} most loaded joints of every interval, warm start "
+               f"TOPP-RA; optimal profile {t_nlp:.4f} s, slowed x{scale:.4f} after the fine check; "
+               f"motion {law.duration:.4f} s; {format_ratios(ratio)}")
+    backwards = moves_backwards(law(check_times(law.duration, dt, law.breaks))[1], float(x.max()))
+    if backwards is not None:
+        return build_trajectory("jerk_optimal", path, limits, dt, law, law.duration, ratio, TimingStatus.FAILED,
+                                f"failed: the time law moves backwards (min ds/dt = {backwards:.3g} 1/s); "
+                                f"{summary}", 1, {}, _CHECKED)
+    bad = exceeded_limits(ratio, _CHECKED)
+    status = TimingStatus.OK if not bad else TimingStatus.LIMIT_EXCEEDED
+    reason = (f"ok: velocity, acceleration and jerk within limits; {summary}" if not bad
+              else f"limit_exceeded: {' and '.join(bad)} ratio above 1; {summary}")
+    return build_trajectory("jerk_optimal", path, limits, dt, law, law.duration, ratio, status, reason, 1, {},
+                            _CHECKED)
+
+
+def _validate(out: dict[str, Any]) -> dict[str, Any]:
+    check_integer_options(out, (("gridpoints", 20), ("max_iterations", 1)))
+    return out
+
+
+#: The registry record of ``method="jerk_optimal"``.
+JERK_OPTIMAL_METHOD: TimingMethod = register_method(
+    TimingMethod(
+        name="jerk_optimal",
+        run=run_jerk_optimal,
+        options=JERK_OPTIONS,
+        validate_options=_validate,
+        checked_limits=_CHECKED,
+        description="time-optimal under joint velocity, acceleration and jerk limits (NLP over the "
+                    "path-velocity profile, IPOPT, warm-started from TOPP-RA)",
+    )
+)
