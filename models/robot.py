@@ -39,7 +39,9 @@ _JOINT_REQUIRED = ("a", "alpha", "d", "theta_offset", "q_min", "q_max",
                    "v_max", "a_max", "j_max", "stiffness")
 _JOINT_OPTIONAL = ("mass", "com", "inertia")
 _TOP_KEYS = ("name", "convention", "description", "joints", "tool", "gravity",
-             "source", "identified", "joint_names", "frame0_in_base", "flange_in_frame6")
+             "source", "identified", "joint_names", "frame0_in_base", "flange_in_frame6", "controller")
+#: Keys of the ``[controller]`` table: the controller's joint angle is ``sign * q + offset``.
+_CONTROLLER_KEYS = ("joint_sign", "joint_offset", "joint_offset_deg")
 #: Keys of a transform table (``[tool]``, ``[frame0_in_base]``, ``[flange_in_frame6]``).
 _FRAME_KEYS = ("xyz", "rpy", "rpy_deg")
 
@@ -197,6 +199,10 @@ class Robot:
     joint_names: tuple[str, ...] | None = None
     urdf: dict[str, str] | None = field(default=None, compare=False)
     notes: tuple[str, ...] = field(default=(), compare=False)
+    #: The controller's joint angle is ``controller_sign * q + controller_offset`` (rad): the sign
+    #: and zero of each joint on the robot's controller (exports, ``docs/export.md``).
+    controller_sign: np.ndarray = field(default_factory=lambda: np.ones(6), compare=False)
+    controller_offset: np.ndarray = field(default_factory=lambda: np.zeros(6), compare=False)
 
     @property
     def has_chain_transforms(self) -> bool:
@@ -328,6 +334,9 @@ class Robot:
             out["frame0_in_base"] = _frame_dict(self.frame02base)
         if not np.array_equal(self.flange2frame6, np.eye(4)):
             out["flange_in_frame6"] = _frame_dict(self.flange2frame6)
+        if np.any(self.controller_sign != 1.0) or np.any(self.controller_offset != 0.0):
+            out["controller"] = {"joint_sign": [int(v) for v in self.controller_sign],
+                                 "joint_offset": [float(v) for v in self.controller_offset]}
         out["joints"] = joints
         if self.identified is not None:
             out["identified"] = self.identified
@@ -513,7 +522,8 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Pat
                  identified=dict(identified) if identified is not None else None,
                  frame02base=frames.get("frame0_in_base", np.eye(4)),
                  flange2frame6=frames.get("flange_in_frame6", np.eye(4)),
-                 joint_names=parse_joint_names(where, data.get("joint_names")))
+                 joint_names=parse_joint_names(where, data.get("joint_names")),
+                 **parse_controller(where, data.get("controller")))
 
 
 def parse_frame_table(where: str, key: str, table: Any) -> np.ndarray:
@@ -541,6 +551,37 @@ def parse_frame_table(where: str, key: str, table: Any) -> np.ndarray:
         for i, v in enumerate(rpy):
             _check_radians(w, f"rpy[{i}]", float(v), deg_key="rpy_deg")
     return transform(rpy_to_matrix(rpy), xyz)
+
+
+def parse_controller(where: str, table: Any) -> dict[str, np.ndarray]:
+    """The optional ``[controller]`` table: ``joint_sign`` (6 of +1/-1) and ``joint_offset``
+    (rad) or ``joint_offset_deg``: the controller's angle is ``sign * q + offset``."""
+    if table is None:
+        return {}
+    w = f"{where}: controller"
+    if not isinstance(table, Mapping):
+        raise RobotFileError(f"{where}: key 'controller' must be a table")
+    unknown = sorted(set(table) - set(_CONTROLLER_KEYS))
+    if unknown:
+        raise RobotFileError(f"{w}: unknown key(s) {unknown}; allowed: {list(_CONTROLLER_KEYS)}")
+    out: dict[str, np.ndarray] = {}
+    if "joint_sign" in table:
+        sign = _vector(w, "joint_sign", table["joint_sign"], 6)
+        bad = [i for i, v in enumerate(sign) if v not in (1.0, -1.0)]
+        if bad:
+            raise RobotFileError(f"{w}: key 'joint_sign'[{bad[0]}] (joint {bad[0] + 1}) = {sign[bad[0]]:g}; "
+                                 "expected +1 or -1")
+        out["controller_sign"] = sign
+    if "joint_offset" in table and "joint_offset_deg" in table:
+        raise RobotFileError(f"{w}: give either 'joint_offset' (rad) or 'joint_offset_deg', not both")
+    if "joint_offset_deg" in table:
+        out["controller_offset"] = np.radians(_vector(w, "joint_offset_deg", table["joint_offset_deg"], 6))
+    elif "joint_offset" in table:
+        off = _vector(w, "joint_offset", table["joint_offset"], 6)
+        for i, v in enumerate(off):
+            _check_radians(w, f"joint_offset[{i}]", float(v), deg_key="joint_offset_deg")
+        out["controller_offset"] = off
+    return out
 
 
 def parse_joint_names(where: str, names: Any) -> tuple[str, ...] | None:

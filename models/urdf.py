@@ -38,14 +38,14 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .robot import (Joint, Robot, RobotFileError, _angle, _finite, _vector, inertia_matrix, parse_frame_table,
-                    read_text_file)
+from .robot import (Joint, Robot, RobotFileError, _angle, _finite, _vector, inertia_matrix, parse_controller,
+                    parse_frame_table, read_text_file)
 from .constants import STANDARD_GRAVITY
 from .transforms import poe_fk
 
 #: Keys of a URDF-based robot file.
 URDF_TOP_KEYS = ("name", "description", "source", "urdf", "base_link", "tip_link", "stiffness", "a_max",
-                 "j_max", "gravity", "tool", "joints", "identified")
+                 "j_max", "gravity", "tool", "joints", "identified", "controller")
 #: Per-joint override keys (``[joints.<urdf joint name>]``).
 URDF_JOINT_KEYS = ("q_min", "q_max", "q_min_deg", "q_max_deg", "v_max", "a_max", "j_max")
 #: A joint axis shorter than this (URDF ``<axis xyz>``) is refused as zero.
@@ -584,4 +584,5 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
                  identified=dict(identified) if identified is not None else None,
                  frame02base=ch.frame02base, flange2frame6=ch.flange2frame6,
                  joint_names=tuple(chain.joint_names),
-                 urdf={"path": str(path), "base_link": base_link, "tip_link": tip_link}, notes=tuple(notes))
+                 urdf={"path": str(path), "base_link": base_link, "tip_link": tip_link}, notes=tuple(notes),
+                 **parse_controller(where, data.get("controller")))
