@@ -160,3 +160,27 @@ def poe_fk(w: np.ndarray, p: np.ndarray, M0: np.ndarray, q: np.ndarray) -> np.nd
         T = T @ E
     T = T @ M0
     return T[0] if qa.ndim == 1 else T
+
+
+def dh_chain_frames(convention: str, a: np.ndarray, alpha: np.ndarray, d: np.ndarray, theta_offset: np.ndarray,
+                    q: np.ndarray, frame02base: np.ndarray | None = None) -> np.ndarray:
+    """DH frames 0..6 of a chain at ``q`` (6,), base frame, shape (7, 4, 4) (NumPy twin of the
+    model graph's chain; frame 0 is ``frame02base``, default the base frame).
+
+    ``standard_dh``: ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``; ``modified_dh``:
+    ``A_i = Rx(alpha_i) Tx(a_i) Rz(theta_i) Tz(d_i)`` (row i holds the previous link's a, alpha);
+    ``theta_i = q_i + theta_offset_i``.
+    """
+    T = np.eye(4) if frame02base is None else np.array(frame02base, dtype=float)
+    out = [T]
+    for ai, al, di, off, qi in zip(a, alpha, d, theta_offset, np.asarray(q, dtype=float)):
+        ct, st, ca_, sa = np.cos(qi + off), np.sin(qi + off), np.cos(al), np.sin(al)
+        if convention == "standard_dh":
+            A = np.array([[ct, -st * ca_, st * sa, ai * ct], [st, ct * ca_, -ct * sa, ai * st],
+                          [0.0, sa, ca_, di], [0.0, 0.0, 0.0, 1.0]])
+        else:
+            A = np.array([[ct, -st, 0.0, ai], [st * ca_, ct * ca_, -sa, -sa * di],
+                          [st * sa, ct * sa, ca_, ca_ * di], [0.0, 0.0, 0.0, 1.0]])
+        T = T @ A
+        out.append(T)
+    return np.array(out)

@@ -41,7 +41,7 @@ import numpy as np
 from .robot import (Joint, Robot, RobotFileError, _angle, _finite, _vector, inertia_matrix, parse_controller,
                     parse_frame_table, read_text_file)
 from .constants import STANDARD_GRAVITY
-from .transforms import poe_fk
+from .transforms import dh_chain_frames, poe_fk
 
 #: Keys of a URDF-based robot file.
 URDF_TOP_KEYS = ("name", "description", "source", "urdf", "base_link", "tip_link", "stiffness", "a_max",
@@ -407,24 +407,13 @@ def _on_axis(point: np.ndarray, w: np.ndarray, p: np.ndarray) -> np.ndarray:
 # Checks: the DH model reproduces the URDF chain
 # --------------------------------------------------------------------------------------
 
-def modified_dh_fk(ch: DHChain, q: np.ndarray) -> np.ndarray:
-    """Flange pose of a :class:`DHChain` at ``q`` (6,), (4, 4), base frame."""
-    T = ch.frame02base.copy()
-    for k in range(6):
-        ca_, sa = math.cos(ch.alpha[k]), math.sin(ch.alpha[k])
-        th = float(q[k]) + ch.theta_offset[k]
-        ct, st = math.cos(th), math.sin(th)
-        T = T @ np.array([[ct, -st, 0, ch.a[k]], [st * ca_, ct * ca_, -sa, -sa * ch.d[k]],
-                          [st * sa, ct * sa, ca_, ca_ * ch.d[k]], [0, 0, 0, 1.0]])
-    return T @ ch.flange2frame6
-
-
 def check_dh(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray, ch: DHChain, n: int = 16) -> None:
     """Raise if the DH form misses the chain's flange pose at ``n`` fixed pseudo-random q."""
     rng = np.random.default_rng(0)
     scale = max(1.0, float(np.max(np.abs(p))), float(np.max(np.abs(tip[:3, 3]))))
     for q in np.vstack([np.zeros(6), rng.uniform(-np.pi, np.pi, (n, 6))]):
-        err = np.abs(poe_fk(w, p, tip, q) - modified_dh_fk(ch, q))
+        F6 = dh_chain_frames("modified_dh", ch.a, ch.alpha, ch.d, ch.theta_offset, q, ch.frame02base)[6]
+        err = np.abs(poe_fk(w, p, tip, q) - F6 @ ch.flange2frame6)
         if err[:3, :3].max() > DH_CHECK_TOL or err[:3, 3].max() > DH_CHECK_TOL * scale:
             raise RobotFileError(f"{where}: internal error: the DH form of the URDF chain misses its flange "
                                  f"pose by {err.max():.3g} at q = {[round(float(x), 4) for x in q]}")

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..robot import Robot
+from ..transforms import dh_chain_frames
 
 
 class IKStatus(enum.IntEnum):
@@ -291,22 +292,9 @@ def ik_solver(robot: Robot, family: str | None = None) -> IKSolver:
 
 
 def dh_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """DH frames 0..6 of the robot's nominal chain at ``q`` (6,), base frame, shape (7, 4, 4)
-    (NumPy; frame 0 is ``frame02base``)."""
-    T = np.array(robot.frame02base, dtype=float)
-    out = [T]
-    for j, qi in zip(robot.joints, np.asarray(q, dtype=float)):
-        th = qi + j.theta_offset
-        ct, st, ca_, sa = np.cos(th), np.sin(th), np.cos(j.alpha), np.sin(j.alpha)
-        if robot.convention == "standard_dh":
-            A = np.array([[ct, -st * ca_, st * sa, j.a * ct], [st, ct * ca_, -ct * sa, j.a * st],
-                          [0.0, sa, ca_, j.d], [0.0, 0.0, 0.0, 1.0]])
-        else:
-            A = np.array([[ct, -st, 0.0, j.a], [st * ca_, ct * ca_, -sa, -sa * j.d],
-                          [st * sa, ct * sa, ca_, ca_ * j.d], [0.0, 0.0, 0.0, 1.0]])
-        T = T @ A
-        out.append(T)
-    return np.array(out)
+    """DH frames 0..6 of the robot's nominal chain at ``q`` (6,), base frame, shape (7, 4, 4)."""
+    return dh_chain_frames(robot.convention, robot.a, robot.alpha, robot.d, robot.theta_offset, q,
+                           robot.frame02base)
 
 
 def zero_axes(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

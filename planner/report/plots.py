@@ -375,6 +375,13 @@ def error_before_after_figure(s_mm: np.ndarray, before_m: np.ndarray, closed_m: 
 
 # ----------------------------------------------------------------------- 5. branch comparison
 @_styled
+def _branch_ticks(labels: Sequence[str], chosen: str | None, default: str | None) -> list[str]:
+    """Tick labels of the branch bars: long labels (OPW: front-up-noflip) two parts a line, so
+    neighbouring ticks do not overlap; the chosen and the default branch marked."""
+    return [(lab.replace("-", "\n", 2).replace("\n", "-", 1) if len(lab) > 8 else lab)
+            + ("\nchosen" if lab == chosen else "\ndefault" if lab == default else "") for lab in labels]
+
+
 def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
                   rms_optimised_mm: Sequence[float] | None, infeasible: Mapping[str, str],
                   s_mm: np.ndarray, curves_mm: Mapping[str, np.ndarray], chosen: str | None,
@@ -405,9 +412,7 @@ def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
         Label of the path axis of panel (b) (the path length, or the waypoint index when
         the run has no waypoint positions).
     """
-    # long labels (OPW: front-up-noflip) two parts a line, so neighbouring ticks do not overlap
-    ticks = [(lab.replace("-", "\n", 2).replace("\n", "-", 1) if len(lab) > 8 else lab)
-             + ("\nchosen" if lab == chosen else "\ndefault" if lab == default else "") for lab in labels]
+    ticks = _branch_ticks(labels, chosen, default)
     n_lines = max(t.count("\n") + 1 for t in ticks) if ticks else 1
     fig = _figure(12.5, 5.2 + 0.15 * max(0, n_lines - 2), left=0.06, right=0.985,
                   bottom=0.2 + 0.035 * max(0, n_lines - 2), top=0.84, wspace=0.22)
