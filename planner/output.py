@@ -517,6 +517,36 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
         raise
 
 
+def atomic_write_files(files: dict[Path, bytes]) -> None:
+    """Write several single files whole or not at all (e.g. a KRL ``.src``/``.dat`` pair).
+
+    Every file is first written to a hidden temporary sibling; only when all are written are
+    they moved into place (:func:`os.replace`, which does not fail for want of space).  A
+    failure while writing removes the temporaries and leaves every target unchanged.
+
+    Raises
+    ------
+    OutputError
+        Naming the file that could not be written and the cause.
+    """
+    staged: list[tuple[Path, Path]] = []
+    try:
+        for path, data in files.items():
+            real = _real(Path(path))
+            try:
+                real.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
+                tmp = _new_sibling_name(real, TEMP_KIND)
+                staged.append((tmp, real))
+                _write_new_file(tmp, data)
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot write ({_cause(exc)}); no file of the set was changed") from None
+        for tmp, real in staged:
+            os.replace(tmp, real)
+    finally:
+        for tmp, _real_path in staged:
+            _remove(tmp)
+
+
 def _exchange(a: Path, b: Path) -> bool:
     """Swap two paths atomically (Linux ``renameat2(RENAME_EXCHANGE)``); False if unsupported."""
     if not sys.platform.startswith("linux"):

@@ -36,7 +36,7 @@ import io
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -55,6 +55,7 @@ from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
 from planner.provenance import invocation, problem_input, provenance, robot_input
 from planner.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
+from planner.timing.limit_use import limit_use
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
@@ -271,9 +272,12 @@ class PlanResult:
                                "limits_enforced": list(ENFORCED[m]),
                                "within_all_limits": _within(tr, ("velocity", "acceleration", "jerk")),
                                "iterations": tr.iterations, "dt": tr.dt,
+                               "limit_use": limit_use(tr, pr.limits, ENFORCED[m]),
                                "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
                            for m, tr in self.trajectories.items()}
             s["controller_trajectory"] = self.controller
+            s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items()
+                              if t["limit_use"]["why"]]
         head = {"headline": _headline(s), "provenance": self.provenance()}
         return {**head, **s}
 
@@ -590,13 +594,15 @@ STALE_OUTPUTS = ("trajectory.csv", "trajectory_toppra.csv", "trajectory_ruckig.c
                  "branches.png", "trajectory.png", "waypoints.csv", "branches.csv", "path.csv")
 
 
-def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True) -> dict[str, Any]:
+def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True,
+                  extra: Mapping[str, bytes] | None = None) -> dict[str, Any]:
     """Write the plan's files, all or nothing.
 
     ``summary.json``, ``path.csv`` (x, y, z, q1..q6: the exact commands),
     ``waypoints.csv``, ``branches.csv``, ``trajectory.csv`` (the controller's,
     Ruckig when available), ``trajectory_<method>.csv`` for the other methods,
-    and with ``with_figures`` ``branches.png`` and ``trajectory.png``.
+    and with ``with_figures`` ``branches.png`` and ``trajectory.png``; ``extra`` adds files by
+    name (the exports of ``plan --export``), in the same set.
 
     Raises
     ------
@@ -618,6 +624,8 @@ def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True
     if with_figures:
         for name, data in figures(res).items():
             out.add_bytes(name, data)
+    for name, data in (extra or {}).items():
+        out.add_bytes(name, data)
     out.publish(stale=STALE_OUTPUTS)
     return summary
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from planner.commands.common import check_output, releases_outputs
+from planner.commands.export import add_export_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -17,6 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "the report has the same figures)")
     d.add_argument("--no-report", action="store_true",
                    help="skip the report (report.html, report.md, figures/) written at the end")
+    add_export_argument(d)
     d.set_defaults(func=run)
 
 

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from planner.commands.common import check_output, print_error_table, releases_outputs
+from planner.commands.export import add_export_argument, plan_exports
 
 
 def _dt(text: str) -> float:
@@ -40,6 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "the report has the same figures)")
     p.add_argument("--no-report", action="store_true",
                    help="skip the report (report.html, report.md, figures/) written at the end")
+    add_export_argument(p)
     p.set_defaults(func=run)
 
     q = sub.add_parser("pose", help="single-pose query: the stiffness-optimal posture for one "
@@ -55,6 +57,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
     """Print the branch table, the gains, the error table and the timing of a plan."""
     from planner.numbers import format_number, mm_text
     from planner.report.tables import load_words
+    from planner.timing.limit_use import describe_binding
 
     s = res.summary()
     pr = res.problem
@@ -90,6 +93,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
             print(f"  {m:<12} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
                   f"{np.max(lr['acceleration']):.3f}   jerk {np.max(lr['jerk']):.3f}"
                   + ("   -> trajectory.csv" if m == res.controller else ""))
+            print(f"  {'':<12} {describe_binding(s['timing'][m]['limit_use'])}")
     for w in s["warnings"]:
         print(f"warning: {w}")
     h = s["headline"]
@@ -124,8 +128,9 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
     # The report draws the same figures (5 and 6) and more: the quick PNGs are only
     # worth their time when no report is written.
     quick_figures = args.no_report and not args.no_figures
-    write_outputs(res, args.out, with_figures=quick_figures)
-    print_plan(res, args.out, output_names(res, quick_figures))
+    exports = plan_exports(res, getattr(args, "export", []))
+    write_outputs(res, args.out, with_figures=quick_figures, extra=exports)
+    print_plan(res, args.out, output_names(res, quick_figures) + list(exports))
     if not args.no_report:
         from planner.commands.report import write_run_report
         write_run_report(args.out, result=res)      # the report's view is built from res

@@ -23,8 +23,8 @@ import numpy as np
 
 from models.errors import InputError
 
-__all__ = ["EXPORT_FORMATS", "ExportData", "ExportError", "ExportFormat", "data_from_plan", "data_from_run",
-           "export_files", "formats", "register_format"]
+__all__ = ["EXPORT_FORMATS", "EXPORT_LIMIT_TOL", "ExportData", "ExportError", "ExportFormat", "data_from_plan",
+           "data_from_run", "export_files", "formats", "register_format", "verify_limits"]
 
 
 class ExportError(InputError):
@@ -41,14 +41,21 @@ class ExportData:
         Program name (letters, digits, underscores).
     robot : str
     joint_names : tuple of str, length 6
+        Base to tip (the robot file's ``joint_names``, else ``joint_1`` ... ``joint_6``).
     t : ndarray, shape (M,)
-        Sample times, s, from 0 at the controller period ``dt``.
-    q, qd, qdd : ndarray, shape (M, 6)
-        Joint positions (rad), velocities (rad/s), accelerations (rad/s^2), model convention.
+        Sample times, s, from 0 every ``dt``.
+    q, qd, qdd, qddd : ndarray, shape (M, 6)
+        Joint positions (rad), velocities (rad/s), accelerations (rad/s^2) and jerks (rad/s^3),
+        model convention.
     dt : float
         The trajectory's sample period, s.
-    v_max, a_max : ndarray, shape (6,)
-        The robot's velocity (rad/s) and acceleration (rad/s^2) limits.
+    v_max, a_max, j_max : ndarray, shape (6,)
+        The plan's velocity (rad/s), acceleration (rad/s^2) and jerk (rad/s^3) limits.
+    q_min, q_max : ndarray, shape (6,)
+        The robot's joint position limits, rad (model convention).
+    enforced : tuple of str
+        The rate limits the timing method enforced (``velocity``, ``acceleration``, ``jerk``);
+        :func:`verify_limits` checks these and the positions.
     sign, offset : ndarray, shape (6,)
         Controller angle = ``sign * q + offset`` (rad).
     source : str
@@ -62,9 +69,14 @@ class ExportData:
     q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray
+    qddd: np.ndarray
     dt: float
     v_max: np.ndarray
     a_max: np.ndarray
+    j_max: np.ndarray
+    q_min: np.ndarray
+    q_max: np.ndarray
+    enforced: tuple[str, ...] = ("velocity", "acceleration", "jerk")
     sign: np.ndarray = field(default_factory=lambda: np.ones(6))
     offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
     source: str = ""
@@ -82,6 +94,52 @@ class ExportData:
         k = max(1, int(round(step_s / self.dt)))
         idx = np.arange(0, len(self.t), k)
         return idx if idx[-1] == len(self.t) - 1 else np.r_[idx, len(self.t) - 1]
+
+
+#: Relative slack of the limit check before export (the timing's own LIMIT_RATIO_TOL).
+EXPORT_LIMIT_TOL: float = 1e-9
+#: Slack on the position limits (rad) and on the sample period's uniformity (s).
+EXPORT_POSITION_TOL: float = 1e-9
+EXPORT_TIME_TOL: float = 1e-9
+
+
+def verify_limits(data: ExportData, where: str) -> None:
+    """Refuse a trajectory outside its limits, or not sampled every ``dt`` from 0.
+
+    Checks the positions against ``q_min``/``q_max`` and every rate in ``data.enforced``
+    against its limit (relative slack :data:`EXPORT_LIMIT_TOL`).
+
+    Raises
+    ------
+    ExportError
+        Naming ``where``, the quantity, the joint (1-based), the sample and its time, the value
+        and the limit.
+    """
+    t = data.t
+    if t.ndim != 1 or t.size < 2 or abs(t[0]) > EXPORT_TIME_TOL:
+        raise ExportError(f"{where}: expected at least 2 samples starting at t = 0 s")
+    step = np.diff(t)
+    k = int(np.argmax(np.abs(step - data.dt)))
+    if abs(step[k] - data.dt) > EXPORT_TIME_TOL + 1e-9 * t[-1]:
+        raise ExportError(f"{where}: sample {k + 1} at t = {t[k + 1]:.9g} s is {step[k]:.9g} s after the previous "
+                          f"one; expected the period dt = {data.dt:.9g} s throughout")
+    for arr in (data.q, data.qd, data.qdd, data.qddd):
+        if arr.shape != (t.size, 6) or not np.all(np.isfinite(arr)):
+            raise ExportError(f"{where}: expected finite (samples, 6) joint arrays")
+    checks = [("position", data.q - data.q_max, data.q_max, "above q_max", "rad"),
+              ("position", data.q_min - data.q, data.q_min, "below q_min", "rad")]
+    for name, arr, lim, unit in (("velocity", data.qd, data.v_max, "rad/s"),
+                                 ("acceleration", data.qdd, data.a_max, "rad/s^2"),
+                                 ("jerk", data.qddd, data.j_max, "rad/s^3")):
+        if name in data.enforced:
+            checks.append((name, np.abs(arr) - lim * (1.0 + EXPORT_LIMIT_TOL), lim, "above its limit", unit))
+    for name, excess, lim, what, unit in checks:
+        tol = EXPORT_POSITION_TOL if name == "position" else 0.0
+        if np.any(excess > tol):
+            i, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
+            value = {"position": data.q, "velocity": data.qd, "acceleration": data.qdd, "jerk": data.qddd}[name][i, j]
+            raise ExportError(f"{where}: joint {j + 1} {name} {value:.9g} {unit} at sample {i} (t = {t[i]:.6g} s) is "
+                              f"{what} ({lim[j]:.9g} {unit}); refusing to export a trajectory outside its limits")
 
 
 @dataclass(frozen=True)
@@ -146,8 +204,14 @@ def _program_name(text: str) -> str:
 # Sources
 # --------------------------------------------------------------------------------------
 
+#: The rate limits a timing method enforces when a run's summary does not say (older runs).
+_DEFAULT_ENFORCED = ("velocity", "acceleration", "jerk")
+
+
 def data_from_plan(res: Any) -> ExportData:
-    """The controller's trajectory of a :class:`~planner.plan.PlanResult` (in memory)."""
+    """The controller's trajectory of a :class:`~planner.plan.PlanResult` (in memory), checked
+    by :func:`verify_limits`."""
+    from planner.plan import ENFORCED
     pr = res.problem
     if res.controller is None or res.controller not in res.trajectories:
         raise ExportError("export: the plan has no timed trajectory (the plan stopped before timing)")
@@ -155,27 +219,58 @@ def data_from_plan(res: Any) -> ExportData:
     if tr.status.value != "ok" or res.status.value != "ok":
         raise ExportError(f"export: the trajectory is not ok (plan {res.status.value}, {res.controller} "
                           f"{tr.status.value}: {tr.reason}); refusing to export it")
-    r = pr.robot
-    return ExportData(name=_program_name(pr.name), robot=r.name, joint_names=_names(r.joint_names), t=tr.t,
-                      q=tr.q, qd=tr.qd, qdd=tr.qdd, dt=tr.dt, v_max=r.v_max, a_max=r.a_max,
+    r, lim = pr.robot, pr.limits
+    data = ExportData(name=_program_name(pr.name), robot=r.name, joint_names=_names(r.joint_names), t=tr.t,
+                      q=tr.q, qd=tr.qd, qdd=tr.qdd, qddd=tr.qddd, dt=tr.dt, v_max=_vec6(lim.velocity),
+                      a_max=_vec6(lim.acceleration), j_max=_vec6(lim.jerk), q_min=_vec6(r.q_min),
+                      q_max=_vec6(r.q_max), enforced=tuple(ENFORCED.get(res.controller, _DEFAULT_ENFORCED)),
                       sign=np.asarray(r.controller_sign, float), offset=np.asarray(r.controller_offset, float),
                       source=f"problem {pr.name}")
+    verify_limits(data, f"export of problem {pr.name} ({res.controller})")
+    return data
+
+
+def _vec6(v: Any) -> np.ndarray:
+    return np.asarray(v, dtype=float).reshape(6)
 
 
 def _names(names: Any) -> tuple[str, ...]:
-    return tuple(names) if names else tuple(f"joint_{i}" for i in range(1, 7))
+    return tuple(str(n) for n in names) if names else tuple(f"joint_{i}" for i in range(1, 7))
+
+
+def _summary(folder: Path) -> dict[str, Any]:
+    summary = folder / "summary.json"
+    if not folder.is_dir():
+        raise ExportError(f"RUN_DIR {folder}: no such folder; expected the output folder of compplan plan or demo")
+    if not summary.is_file():
+        raise ExportError(f"RUN_DIR {folder}: no summary.json; expected the output folder of compplan plan or demo")
+    try:
+        s = json.loads(summary.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ExportError(f"{summary}: not readable JSON ({exc})") from None
+    if not isinstance(s, dict) or s.get("command") not in (None, "plan", "demo"):
+        raise ExportError(f"{summary}: not the summary of a plan (key 'command' = {s.get('command')!r} "
+                          "if a dict); expected the output folder of compplan plan or demo")
+    return s
+
+
+def _limit(summary: Path, lim: dict[str, Any], key: str) -> np.ndarray:
+    v = lim.get(key)
+    try:
+        a = np.asarray(v, dtype=float).reshape(6)
+    except (TypeError, ValueError):
+        raise ExportError(f"{summary}: limits.{key} = {v!r}; expected 6 numbers") from None
+    if np.any(np.isnan(a)):
+        raise ExportError(f"{summary}: limits.{key} = {v!r}; expected 6 numbers")
+    return a
 
 
 def data_from_run(folder: str | Path) -> ExportData:
-    """The controller's trajectory of a run folder (``summary.json`` and its ``trajectory.csv``)."""
+    """The controller's trajectory of a run folder (``summary.json`` and its ``trajectory.csv``),
+    checked by :func:`verify_limits`."""
     folder = Path(folder)
+    s = _summary(folder)
     summary = folder / "summary.json"
-    if not summary.is_file():
-        raise ExportError(f"{folder}: no summary.json; expected the output folder of compplan plan or demo")
-    try:
-        s = json.loads(summary.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ExportError(f"{summary}: not readable JSON ({exc})") from None
     ctrl = s.get("controller_trajectory")
     timing = (s.get("timing") or {}).get(ctrl or "", {})
     if not ctrl or not timing:
@@ -183,37 +278,50 @@ def data_from_run(folder: str | Path) -> ExportData:
     if s.get("plan_status") != "ok" or timing.get("status") != "ok":
         raise ExportError(f"{summary}: the trajectory is not ok (plan_status {s.get('plan_status')!r}, {ctrl} "
                           f"status {timing.get('status')!r}: {timing.get('reason', '')}); refusing to export it")
-    path = folder / timing.get("file", "trajectory.csv")
-    t, q, qd, qdd = _read_trajectory(path)
+    path = folder / str(timing.get("file", "trajectory.csv"))
+    t, q, qd, qdd, qddd = _read_trajectory(path)
     rf = s.get("robot_file") or {}
     ctrl_map = rf.get("controller") or {}
     lim = s.get("limits") or {}
-    v_max = np.asarray(lim.get("velocity") or [math.inf] * 6, float)
-    a_max = np.asarray(lim.get("acceleration") or [math.inf] * 6, float)
-    return ExportData(name=_program_name((s.get("problem") or {}).get("name", folder.name)),
-                      robot=str(rf.get("name", "robot")), joint_names=_names(rf.get("joint_names")),
-                      t=t, q=q, qd=qd, qdd=qdd, dt=float(timing.get("dt") or (t[1] - t[0])),
-                      v_max=v_max, a_max=a_max, sign=np.asarray(ctrl_map.get("joint_sign", [1] * 6), float),
+    data = ExportData(name=_program_name(str((s.get("problem") or {}).get("name", folder.name))),
+                      robot=str(rf.get("name", s.get("robot", "robot"))), joint_names=_names(rf.get("joint_names")),
+                      t=t, q=q, qd=qd, qdd=qdd, qddd=qddd, dt=float(timing.get("dt") or (t[1] - t[0])),
+                      v_max=_limit(summary, lim, "velocity"), a_max=_limit(summary, lim, "acceleration"),
+                      j_max=_limit(summary, lim, "jerk"), q_min=_limit(summary, lim, "q_min"),
+                      q_max=_limit(summary, lim, "q_max"),
+                      enforced=tuple(timing.get("limits_enforced") or _DEFAULT_ENFORCED),
+                      sign=np.asarray(ctrl_map.get("joint_sign", [1] * 6), float),
                       offset=np.asarray(ctrl_map.get("joint_offset", [0.0] * 6), float), source=f"run {folder}")
+    verify_limits(data, str(path))
+    return data
 
 
 def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
+    """``t, q, qd, qdd, qddd`` of a ``trajectory*.csv`` (columns by name, any order)."""
     if not path.is_file():
         raise ExportError(f"{path}: no such trajectory file")
-    with path.open(newline="", encoding="utf-8") as f:
-        rows = [r for r in csv.reader(f) if r and not r[0].startswith("#")]
-    head = rows[0]
-    need = ["t"] + [f"{c}{i}" for c in ("q", "qd", "qdd") for i in range(1, 7)]
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            rows = [r for r in csv.reader(f) if r and not r[0].startswith("#")]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ExportError(f"{path}: not a readable CSV file ({exc})") from None
+    if not rows:
+        raise ExportError(f"{path}: empty; expected a header row and samples")
+    head = [h.strip() for h in rows[0]]
+    need = ["t"] + [f"{c}{i}" for c in ("q", "qd", "qdd", "qddd") for i in range(1, 7)]
     missing = [c for c in need if c not in head]
     if missing:
-        raise ExportError(f"{path}: missing column(s) {missing}")
-    try:
-        a = np.array([[float(r[head.index(c)]) for c in need] for r in rows[1:]])
-    except (ValueError, IndexError) as exc:
-        raise ExportError(f"{path}: a row is not numeric ({exc})") from None
+        raise ExportError(f"{path}: missing column(s) {', '.join(missing)}")
+    cols = [head.index(c) for c in need]
+    a = np.empty((len(rows) - 1, len(need)))
+    for n, r in enumerate(rows[1:]):
+        try:
+            a[n] = [float(r[c]) for c in cols]
+        except (ValueError, IndexError):
+            raise ExportError(f"{path}: row {n + 2} is not {len(head)} numbers: {','.join(r)[:80]!r}") from None
     if a.shape[0] < 2 or not np.all(np.isfinite(a)):
-        raise ExportError(f"{path}: expected at least 2 finite rows")
-    return a[:, 0], a[:, 1:7], a[:, 7:13], a[:, 13:19]
+        raise ExportError(f"{path}: expected at least 2 rows of finite numbers")
+    return a[:, 0], a[:, 1:7], a[:, 7:13], a[:, 13:19], a[:, 19:25]
 
 
 # --------------------------------------------------------------------------------------

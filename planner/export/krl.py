@@ -2,7 +2,7 @@
 
 The ``.dat`` declares one ``E6AXIS`` per decimated sample (every ``step_s`` s; degrees, the
 controller's convention, external axes 0); the ``.src`` moves ``PTP`` to the first one, then
-``PTP ... C_PTP`` through the others.  Before each motion ``$VEL_AXIS[i]`` and ``$ACC_AXIS[i]``
+``PTP ... C_PTP`` through the others (approximated by ``$APO.CPTP``, an option).  Before each motion ``$VEL_AXIS[i]`` and ``$ACC_AXIS[i]``
 are set to the percentage of the robot file's velocity and acceleration limits that the
 planned trajectory uses on that segment (rounded up, 1 to 100): KUKA's PTP then plans its own
 profile within those, so the timing is reproduced approximately, not sample by sample
@@ -30,8 +30,8 @@ def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
     idx = data.decimated(float(o["step_s"]))
     qd = np.degrees(data.controller_q()[idx])
     name = stem[:24]
-    src = ["&ACCESS RVP", "&REL 1"] + header_lines(data, "kuka krl", ";") + [f"DEF {name}( )",
-                                                                               "  BAS(#INITMOV, 0)"]
+    src = ["&ACCESS RVP", "&REL 1", f"DEF {name}( )"] + ["  " + ln for ln in header_lines(data, "kuka krl", ";")]
+    src += ["  BAS(#INITMOV, 0)", f"  $APO.CPTP={int(o['approximation_percent'])}"]
     dat = ["&ACCESS RVP", "&REL 1", f"DEFDAT {name} PUBLIC"]
     for k, q in enumerate(qd):
         axes = ",".join(f"A{i + 1} {v:.{ANGLE_DECIMALS}f}" for i, v in enumerate(q))
@@ -48,12 +48,14 @@ def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
     return {f"{name}.src": "\n".join(src), f"{name}.dat": "\n".join(dat)}
 
 
-def _percent(v: Any) -> int:
-    return int(ranged("approach_percent", 1, 100)(v))
+def _percent(name: str) -> Any:
+    return lambda v: int(ranged(name, 1, 100)(v))
 
 
 register_format(ExportFormat(
     "krl", (".src", ".dat"), write,
     {"step_s": (0.1, "time between the E6AXIS points, s", ranged("step_s", 0.012, 10.0)),
-     "approach_percent": (10, "$VEL_AXIS / $ACC_AXIS of the PTP to the start, %", _percent)},
+     "approach_percent": (10, "$VEL_AXIS / $ACC_AXIS of the PTP to the start, %", _percent("approach_percent")),
+     "approximation_percent": (50, "$APO.CPTP of the C_PTP approximation, % (1-100)",
+                               _percent("approximation_percent"))},
     "KUKA KRL .src/.dat pair: E6AXIS points (deg), PTP with $VEL_AXIS/$ACC_AXIS percentages"))

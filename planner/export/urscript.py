@@ -5,7 +5,7 @@
 acceleration ``approach_acceleration`` rad/s^2), then one ``servoj(q, t=period,
 lookahead_time=..., gain=...)`` per controller period (the trajectory is resampled to
 ``period`` by cubic Hermite interpolation of its positions and velocities when its own
-sample period differs): e-series 0.002 s, CB3 0.008 s.  UR's documented ranges:
+sample period differs; the default is the trajectory's own dt): e-series 0.002 s, CB3 0.008 s.  UR's documented ranges:
 ``lookahead_time`` 0.03 to 0.2 s, ``gain`` 100 to 2000.
 ``urscript_movej``: one ``movej(q, t=..., r=...)`` per decimated sample (every ``step_s`` s),
 ``t`` the time the trajectory takes between them, ``r`` the blend radius (m, 0 at the end).
@@ -18,8 +18,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from planner.export import ExportData, ExportFormat, header_lines, ranged, register_format
+from planner.export import ExportData, ExportError, ExportFormat, header_lines, ranged, register_format
 
+#: servoj periods a UR controller runs (e-series 500 Hz, CB3 125 Hz), s.
+PERIOD_MIN_S = 0.002
+PERIOD_MAX_S = 0.008
 #: Printed decimals of joint angles (rad) and times (s).
 ANGLE_DECIMALS = 9
 TIME_DECIMALS = 6
@@ -47,7 +50,7 @@ def resample(data: ExportData, period: float) -> np.ndarray:
 
 
 def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
-    period = float(o["period"])
+    period = float(o["period"]) if o["period"] is not None else _period_of(data)
     q = data.controller_q(resample(data, period))
     lines = [f"def {stem}():"] + ["  " + ln for ln in header_lines(data, "urscript (servoj)", "#")]
     lines.append(f"  # servoj every {period:g} s, lookahead_time {o['lookahead_time']:g} s, gain {o['gain']:g}")
@@ -55,8 +58,17 @@ def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str,
     for qi in q[1:]:
         lines.append(f"  servoj({_vec(qi)}, t={period:.{TIME_DECIMALS}f}, "
                      f"lookahead_time={o['lookahead_time']:g}, gain={o['gain']:g})")
-    lines += ["  stopj(2.0)", "end", f"{stem}()", ""]
+    lines += ["  stopj(2.0)", "end", ""]
     return {f"{stem}.script": "\n".join(lines)}
+
+
+def _period_of(data: ExportData) -> float:
+    """The trajectory's own sample period as the servoj period, if UR accepts it."""
+    if not PERIOD_MIN_S - 1e-12 <= data.dt <= PERIOD_MAX_S + 1e-12:
+        raise ExportError(f"urscript: the trajectory's period {data.dt:g} s is outside the servoj periods "
+                          f"[{PERIOD_MIN_S:g}, {PERIOD_MAX_S:g}] s; give one with --set period=0.002 (e-series) "
+                          "or 0.008 (CB3)")
+    return data.dt
 
 
 def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
@@ -70,7 +82,7 @@ def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, 
     for k in range(1, len(idx)):
         r = 0.0 if k == len(idx) - 1 else float(o["blend_radius"])
         lines.append(f"  movej({_vec(q[k])}, t={t[k] - t[k - 1]:.{TIME_DECIMALS}f}, r={r:g})")
-    lines += ["end", f"{stem}()", ""]
+    lines += ["end", ""]
     return {f"{stem}.script": "\n".join(lines)}
 
 
@@ -80,7 +92,8 @@ _COMMON = {"approach_speed": (0.5, "joint speed of the movej to the start, rad/s
 
 register_format(ExportFormat(
     "urscript", (".script",), write_servoj,
-    {"period": (0.002, "controller period, s (e-series 0.002, CB3 0.008)", ranged("period", 0.002, 0.008)),
+    {"period": (None, "servoj period, s (e-series 0.002, CB3 0.008)",
+                ranged("period", PERIOD_MIN_S, PERIOD_MAX_S)),
      "lookahead_time": (0.1, "servoj lookahead_time, s (UR: 0.03-0.2)", ranged("lookahead_time", 0.03, 0.2)),
      "gain": (300.0, "servoj gain (UR: 100-2000)", ranged("gain", 100.0, 2000.0)), **_COMMON},
     "URScript program streaming the trajectory by servoj at the controller period"))

@@ -109,6 +109,9 @@ class TimingMethod:
         ``OK`` status (the other ratios are reported only).
     description : str
         One line for listings.
+    underuse_cause : str
+        Why a trajectory of this method can stay under half of every limit (quoted by
+        :func:`planner.timing.verification.limit_use` when it does).
     """
 
     name: str
@@ -117,6 +120,7 @@ class TimingMethod:
     validate_options: OptionValidator
     checked_limits: tuple[str, ...]
     description: str = ""
+    underuse_cause: str = ""
 
 
 _METHODS: dict[str, TimingMethod] = {}

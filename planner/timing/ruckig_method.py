@@ -456,5 +456,9 @@ RUCKIG_METHOD: TimingMethod = register_method(
         validate_options=_validate_ruckig_options,
         checked_limits=LIMIT_KEYS,
         description="jerk-limited on the path parameter (Ruckig, global bound set)",
+        underuse_cause=("Ruckig times the path parameter under one bound per derivative for the whole path, set "
+                        "by the joint and point where the path is most demanding (its largest |dq/ds|, "
+                        "|d2q/ds2|, |d3q/ds3| at once), so everywhere else and on the other joints the limits "
+                        "are not reached; method jerk_optimal times the path point by point"),
     )
 )

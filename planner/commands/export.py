@@ -1,0 +1,127 @@
+"""``compplan export RUN_DIR --format FORMAT --out FILE``: a run's trajectory for a controller.
+
+Reads the run folder of ``compplan plan`` / ``demo`` (``summary.json`` and the controller's
+``trajectory.csv``), refuses a trajectory that is not ok or leaves its limits, and writes
+the format's file(s) whole or not at all (KRL: the ``.src`` and its ``.dat``).  Format
+options are ``--set KEY=VALUE`` (``compplan export --list`` prints formats and options).
+Conventions: ``docs/export.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from planner.commands.common import check_output, releases_outputs
+
+
+def _format_names() -> list[str]:
+    from planner.export import EXPORT_FORMATS
+    return list(EXPORT_FORMATS)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``compplan export``."""
+    e = sub.add_parser("export", help="write a run's controller trajectory as URScript, ROS 2 YAML, ABB RAPID "
+                                      "or KUKA KRL",
+                       description="Export the controller trajectory of a plan or demo run folder "
+                                   "(docs/export.md). Example: compplan export out/demo --format urscript "
+                                   "--out out/demo.script")
+    e.add_argument("run_dir", nargs="?", metavar="RUN_DIR", help="output folder of compplan plan or demo")
+    e.add_argument("--format", choices=_format_names(), help="export format")
+    e.add_argument("--out", help="file to write (its suffix is added when missing; KRL also writes the .dat)")
+    e.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="format option, repeatable (e.g. --set period=0.008 --set gain=500)")
+    e.add_argument("--list", action="store_true", help="print the formats and their options, and exit")
+    e.set_defaults(func=run)
+
+
+def parse_options(items: list[str]) -> dict[str, str]:
+    """``KEY=VALUE`` strings to a dict (values checked by the format)."""
+    from planner.export import ExportError
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ExportError(f"export: --set {item!r}: expected KEY=VALUE (compplan export --list shows the keys)")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def print_formats() -> None:
+    """The formats, their files and options (defaults and help)."""
+    from planner.export import formats
+    for name, f in formats().items():
+        print(f"{name} ({', '.join(f.suffixes)}): {f.description}")
+        for key, (default, text, _check) in f.options.items():
+            shown = "the trajectory's dt" if default is None else f"{default:g}" if isinstance(default, float) else default
+            print(f"  --set {key}=...  {text} (default {shown})")
+
+
+def out_path(out: str, fmt: str) -> Path:
+    """``--out`` with the format's suffix when it has none; another suffix is refused."""
+    from planner.export import ExportError, formats
+    p = Path(out)
+    suffixes = formats()[fmt].suffixes
+    if not p.suffix:
+        return p.with_name(p.name + suffixes[0])
+    if p.suffix.lower() not in suffixes:
+        raise ExportError(f"export: --out {out}: a {fmt} file ends in {' or '.join(suffixes)}, not {p.suffix!r}")
+    return p
+
+
+@releases_outputs
+def run(args: argparse.Namespace) -> int:
+    from models.errors import InputError
+    from planner.export import data_from_run, export_files
+    from planner.output import atomic_write_files
+
+    if args.list:
+        print_formats()
+        return 0
+    missing = [n for n, v in (("RUN_DIR", args.run_dir), ("--format", args.format), ("--out", args.out)) if not v]
+    if missing:
+        raise InputError(f"export: {', '.join(missing)} required (compplan export RUN_DIR --format FORMAT "
+                         "--out FILE; compplan export --list)")
+    options = parse_options(args.set)
+    out = out_path(args.out, args.format)
+    run_dir = Path(args.run_dir)
+    data = data_from_run(run_dir)
+    files = export_files(data, args.format, out, options)
+    inputs = {"RUN_DIR summary.json": run_dir / "summary.json", "RUN_DIR trajectory": _trajectory_file(run_dir)}
+    for path in files:
+        check_output(path, inputs, kind="file")
+    atomic_write_files({p: text.encode() for p, text in files.items()})
+    print(f"{args.format}: {len(data.t)} samples, {data.t[-1]:.4f} s at {data.dt * 1e3:g} ms from {run_dir} "
+          f"(robot {data.robot}) -> {', '.join(str(p) for p in files)}")
+    return 0
+
+
+def _trajectory_file(run_dir: Path) -> Path:
+    import json
+    s: Any = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+    ctrl = s.get("controller_trajectory", "")
+    return run_dir / str((s.get("timing") or {}).get(ctrl, {}).get("file", "trajectory.csv"))
+
+
+# ------------------------------------------------------------------ plan / demo --export
+def add_export_argument(parser: argparse.ArgumentParser) -> None:
+    """``--export FORMAT`` (repeatable) of ``plan`` and ``demo``."""
+    parser.add_argument("--export", action="append", default=[], choices=_format_names(), metavar="FORMAT",
+                        help="also write the controller trajectory in this format into the output folder "
+                             f"(repeatable; {', '.join(_format_names())}; default options, see compplan export)")
+
+
+def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
+    """The files of ``plan --export``: ``<problem>_<format>.<suffix>`` by name, from the plan in
+    memory (refused, before anything is written, if the trajectory is not ok or leaves its limits)."""
+    from planner.export import data_from_plan, export_files
+    if not fmts:
+        return {}
+    data = data_from_plan(res)
+    out: dict[str, bytes] = {}
+    for fmt in dict.fromkeys(fmts):
+        for path, text in export_files(data, fmt, Path(f"{data.name}_{fmt}")).items():
+            out[path.name] = text.encode()
+    return out
