@@ -377,15 +377,30 @@ def _timing_table(s: Mapping[str, Any], absent: Mapping[str, str]) -> Table:
         name = METHOD_NAMES.get(m, m) + (" (controller)" if s.get("controller_trajectory") == m else "")
         rows.append([Cell(name), dcell]
                     + [value_cell(s, f"{prefix}.{k}", agg="max") for k in RATIO_KINDS]
-                    + [value_cell(s, f"timing.{m}.status")])
+                    + [value_cell(s, f"timing.{m}.status"), _binding_cell(s, m)])
     note = ("Limit ratio: peak |value| / limit, maximum over the joints (1 = at the limit). "
             "TOPP-RA limits velocity and acceleration only; its jerk ratio is reported, not "
-            "enforced.")
+            "enforced. Binds: the limit and joint at ≥ 98 % of its limit for the largest share of "
+            "the motion.")
     if not rows:
-        rows = [[Cell(absent.get("trajectory", "no trajectory in this run"))] + [Cell("—")] * 5]
+        rows = [[Cell(absent.get("trajectory", "no trajectory in this run"))] + [Cell("—")] * 6]
         note = "No trajectory in this run: durations and limit ratios are not available."
     return Table("Timing", ["method", "duration [s]", "velocity ratio", "acceleration ratio",
-                            "jerk ratio", "status"], rows, note)
+                            "jerk ratio", "status", "binds"], rows, note)
+
+
+def _binding_cell(s: Mapping[str, Any], method: str) -> Cell:
+    """The most often binding limit of a method's trajectory (``timing.<m>.limit_use``)."""
+    use = ((s.get("timing") or {}).get(method) or {}).get("limit_use")
+    if not isinstance(use, Mapping):
+        return Cell("—")
+    if use.get("under_half"):
+        return Cell(f"none: under half of every limit (peak {use.get('peak')})")
+    b = use.get("binding") or []
+    if not b or not isinstance(b[0], Mapping):
+        return Cell("—")
+    return Cell(f"{b[0].get('limit')} of joint {b[0].get('joint')} "
+                f"({100 * float(b[0].get('fraction_of_time', 0)):.0f} % of the time)")
 
 
 def _branch_table(s: Mapping[str, Any]) -> Table | None:
