@@ -421,3 +421,40 @@ def test_krl_pair_is_written_whole_or_not_at_all(run_folder, tmp_path, monkeypat
 
 def test_formats_are_registered():
     assert set(FORMATS) <= set(EXPORT_FORMATS)
+
+
+# ------------------------------------------------------------------ rosbag2
+def test_rosbag2_round_trip(run_folder, tmp_path, capsys):
+    """The bag read back by rosbags' reader, and its metadata by PyYAML, against trajectory.csv."""
+    rosbag2 = pytest.importorskip("rosbags.rosbag2")
+    from rosbags.typesys import Stores, get_typestore
+    bag = tmp_path / "bag"
+    assert main(["export", str(run_folder), "--format", "rosbag2", "--out", str(bag), "--set", "start_time_s=100"]) == 0
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in meta["topics_with_message_count"]}
+    t, qc = _csv_controller_q(run_folder)
+    assert counts == {"/joint_trajectory": 1, "/joint_states": len(t)}
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    states, stamps = [], []
+    with rosbag2.Reader(bag) as reader:
+        for con, stamp, raw in reader.messages():
+            msg = store.deserialize_cdr(raw, con.msgtype)
+            if con.topic == "/joint_trajectory":
+                np.testing.assert_allclose([p.positions for p in msg.points], qc, atol=1e-12)
+                assert msg.joint_names[0] == "shoulder_pan_joint"
+            else:
+                states.append(msg.position)
+                stamps.append(stamp)
+    np.testing.assert_allclose(states, qc, atol=1e-12)
+    np.testing.assert_allclose((np.array(stamps) - 100e9) * 1e-9, t, atol=TIME_TOL_S)
+    # a second export into the same folder is refused (a bag folder is written whole, never merged)
+    assert main(["export", str(run_folder), "--format", "rosbag2", "--out", str(bag)]) == 2
+    assert "give a new or empty folder" in capsys.readouterr().err
+
+
+def test_plan_export_rosbag2_is_a_folder_of_the_run(tmp_path):
+    pytest.importorskip("rosbags")
+    out = tmp_path / "run"
+    assert main(["demo", "--points", "12", "--out", str(out), "--no-report", "--export", "rosbag2"]) == 0
+    bag = out / "paper_4_4_rosbag2"
+    assert (bag / "metadata.yaml").is_file() and any(bag.glob("*.db3"))

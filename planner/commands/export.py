@@ -30,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "--out out/demo.script")
     e.add_argument("run_dir", nargs="?", metavar="RUN_DIR", help="output folder of compplan plan or demo")
     e.add_argument("--format", choices=_format_names(), help="export format")
-    e.add_argument("--out", help="file to write (its suffix is added when missing; KRL also writes the .dat)")
+    e.add_argument("--out", help="file to write (its suffix is added when missing; KRL also writes the .dat; "
+                                 "rosbag2: the bag folder)")
     e.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="format option, repeatable (e.g. --set period=0.008 --set gain=500)")
     e.add_argument("--list", action="store_true", help="print the formats and their options, and exit")
@@ -64,6 +65,8 @@ def out_path(out: str, fmt: str) -> Path:
     from planner.export import ExportError, formats
     p = Path(out)
     suffixes = formats()[fmt].suffixes
+    if formats()[fmt].folder:
+        return p
     if not p.suffix:
         return p.with_name(p.name + suffixes[0])
     if p.suffix.lower() not in suffixes:
@@ -74,8 +77,8 @@ def out_path(out: str, fmt: str) -> Path:
 @releases_outputs
 def run(args: argparse.Namespace) -> int:
     from models.errors import InputError
-    from planner.export import data_from_run, export_files
-    from planner.output import atomic_write_files
+    from planner.export import data_from_run, export_files, formats
+    from planner.output import OutputSet, atomic_write_files
 
     if args.list:
         print_formats()
@@ -90,12 +93,23 @@ def run(args: argparse.Namespace) -> int:
     data = data_from_run(run_dir)
     files = export_files(data, args.format, out, options)
     inputs = {"RUN_DIR summary.json": run_dir / "summary.json", "RUN_DIR trajectory": _trajectory_file(run_dir)}
-    for path in files:
-        check_output(path, inputs, kind="file")
-    atomic_write_files({p: text.encode() for p, text in files.items()})
+    if formats()[args.format].folder:
+        check_output(out, inputs, kind="folder")
+        folder = OutputSet(out)
+        for path, content in files.items():
+            folder.add_bytes(path.relative_to(out).as_posix(), _bytes(content))
+        folder.publish()
+    else:
+        for path in files:
+            check_output(path, inputs, kind="file")
+        atomic_write_files({p: _bytes(content) for p, content in files.items()})
     print(f"{args.format}: {len(data.t)} samples, {data.t[-1]:.4f} s at {data.dt * 1e3:g} ms from {run_dir} "
           f"(robot {data.robot}) -> {', '.join(str(p) for p in files)}")
     return 0
+
+
+def _bytes(content: str | bytes) -> bytes:
+    return content if isinstance(content, bytes) else content.encode()
 
 
 def _trajectory_file(run_dir: Path) -> Path:
@@ -114,7 +128,7 @@ def add_export_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
-    """The files of ``plan --export``: ``<problem>_<format>.<suffix>`` by name, from the plan in
+    """The files of ``plan --export``: ``<problem>_<format>.<suffix>`` (a folder for rosbag2) by name, from the plan in
     memory (refused, before anything is written, if the trajectory is not ok or leaves its limits)."""
     from planner.export import data_from_plan, export_files
     if not fmts:
@@ -122,6 +136,6 @@ def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
     data = data_from_plan(res)
     out: dict[str, bytes] = {}
     for fmt in dict.fromkeys(fmts):
-        for path, text in export_files(data, fmt, Path(f"{data.name}_{fmt}")).items():
-            out[path.name] = text.encode()
+        for path, content in export_files(data, fmt, Path(f"{data.name}_{fmt}")).items():
+            out[path.as_posix()] = _bytes(content)
     return out

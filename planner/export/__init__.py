@@ -1,4 +1,4 @@
-"""Trajectories a controller can run: URScript, ROS 2, ABB RAPID, KUKA KRL.
+"""Trajectories a controller can run: URScript, ROS 2 (YAML, rosbag2), ABB RAPID, KUKA KRL.
 
 One module per format registers an :class:`ExportFormat` (extend by adding a file). Every
 format reads an :class:`ExportData`: the controller's trajectory of a plan (``trajectory.csv``:
@@ -153,17 +153,21 @@ class ExportFormat:
     suffixes : tuple of str
         File suffixes it writes (the first is the ``--out`` file's; KRL adds ``.dat``).
     write : callable
-        ``write(data, stem, options) -> {file name: text}``.
+        ``write(data, stem, options) -> {file name: text or bytes}``.
     options : mapping
         Option name -> (default, one-line help, validator returning the value or raising).
     description : str
+    folder : bool
+        The format writes a folder (``--out`` names it; the file names are inside it), e.g. a
+        rosbag2; otherwise files beside ``--out``.
     """
 
     name: str
     suffixes: tuple[str, ...]
-    write: Callable[[ExportData, str, Mapping[str, Any]], dict[str, str]]
+    write: Callable[[ExportData, str, Mapping[str, Any]], Mapping[str, str | bytes]]
     options: Mapping[str, tuple[Any, str, Callable[[Any], Any]]]
     description: str
+    folder: bool = False
 
 
 _FORMATS: dict[str, ExportFormat] = {}
@@ -329,8 +333,9 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
 # --------------------------------------------------------------------------------------
 
 def export_files(data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None
-                 ) -> dict[Path, str]:
-    """The files (path -> text) of ``data`` in format ``fmt`` for output file ``out``.
+                 ) -> dict[Path, str | bytes]:
+    """The files (path -> text, or bytes for binary formats) of ``data`` in format ``fmt`` for
+    output ``out`` (a file, or the folder of a folder format such as ``rosbag2``).
 
     Options not given take the format's defaults; unknown options and bad values raise
     :class:`ExportError` naming them.  Nothing is written here (the caller writes the set
@@ -347,6 +352,8 @@ def export_files(data: ExportData, fmt: str, out: str | Path, options: Mapping[s
     out = Path(out)
     stem = out.stem if out.suffix else out.name
     texts = f.write(data, _program_name(stem), values)
+    if f.folder:
+        return {out / name: text for name, text in texts.items()}
     return {out.with_name(name): text for name, text in texts.items()}
 
 
@@ -362,6 +369,6 @@ def header_lines(data: ExportData, fmt: str, comment: str) -> list[str]:
 
 EXPORT_FORMATS: tuple[str, ...] = ()
 
-from planner.export import krl, rapid, ros2, urscript  # noqa: E402,F401  (register the formats)
+from planner.export import krl, rapid, ros2, rosbag2, urscript  # noqa: E402,F401  (register the formats)
 
 EXPORT_FORMATS = tuple(sorted(_FORMATS))
