@@ -83,8 +83,18 @@ def parse_krl(src: str, dat: str) -> dict:
     for pname, body in re.findall(r"DECL E6AXIS (\w+)=\{([^}]*)\}", dat):
         kv = dict((k, float(v)) for k, v in re.findall(r"([AE]\d) (" + NUM + ")", body))
         points[pname] = np.array([kv[f"A{i}"] for i in range(1, 7)])
-    moves, vel = [], {}
+    moves, vel, parts, end = [], {}, [], None
+    depth = 0
     for ln in s:
+        depth += ln == "PTP_SPLINE"
+        depth -= ln == "ENDSPLINE"
+        assert depth in (0, 1), ln
+        m = re.fullmatch(r"TIME_BLOCK PART = (" + NUM + ")", ln)
+        if m:
+            parts.append(float(m.group(1)))
+        m = re.fullmatch(r"TIME_BLOCK END = (" + NUM + ")", ln)
+        if m:
+            end = float(m.group(1))
         m = re.fullmatch(r"\$(VEL|ACC)_AXIS\[(\d)\]=(\d+)", ln)
         if m:
             vel[(m.group(1), int(m.group(2)))] = int(m.group(3))
@@ -92,10 +102,16 @@ def parse_krl(src: str, dat: str) -> dict:
         m = re.fullmatch(r"\$APO.CPTP=(\d+)", ln)
         if m:
             assert 1 <= int(m.group(1)) <= 100
-        m = re.fullmatch(r"PTP (\w+)( C_PTP)?", ln)
+        m = re.fullmatch(r"S?PTP (\w+)( C_PTP)?", ln)
         if m:
             moves.append(m.group(1))
-    return {"name": name, "points": points, "moves": moves, "axis_percent": vel}
+            assert m.group(1) in points
+    assert depth == 0
+    times = None
+    if parts:
+        assert end is not None and abs(sum(parts) - end) < 1e-5 and len(parts) == len(moves) - 1
+        times = np.cumsum([0.0] + parts)
+    return {"name": name, "points": points, "moves": moves, "axis_percent": vel, "times": times}
 
 
 # ------------------------------------------------------------------ a small trajectory
@@ -212,10 +228,18 @@ def test_krl_round_trip(fixed_version):
     idx = data.decimated(0.024)
     q = np.radians([parsed["points"][n] for n in parsed["moves"]])
     np.testing.assert_allclose(q, _ctrl(data)[idx], atol=POS_TOL_RAD)
-    # the velocity percentages cover the segment's peak: ceil(100 |qd| / v_max)
-    peak = np.abs(data.qd).max(axis=0) / data.v_max
-    assert max(parsed["axis_percent"][("VEL", j + 1)] for j in range(6)) >= 1
-    assert all(parsed["axis_percent"][("VEL", j + 1)] >= 1 for j in range(6)) and peak.max() < 1
+    np.testing.assert_allclose(parsed["times"], data.t[idx], atol=TIME_TOL_S * len(idx))
+    # motion ptp: the velocity percentages cover each segment's peak, ceil(100 |qd| / v_max)
+    files = export_files(data, "krl", Path("out/p.src"), {"step_s": 0.024, "motion": "ptp"})
+    by = {p.suffix: t for p, t in files.items()}
+    parsed = parse_krl(by[".src"], by[".dat"])
+    assert parsed["times"] is None
+    np.testing.assert_allclose(np.radians([parsed["points"][n] for n in parsed["moves"]]), _ctrl(data)[idx],
+                               atol=POS_TOL_RAD)
+    last = int(np.ceil(100 * np.abs(data.qd[idx[-2]:idx[-1] + 1]).max(axis=0)[2] / data.v_max[2] - 1e-9))
+    assert parsed["axis_percent"][("VEL", 3)] == max(1, last)
+    with pytest.raises(ExportError, match="motion = 'lin'"):
+        export_files(data, "krl", Path("p.src"), {"motion": "lin"})
 
 
 def test_verify_limits_names_the_joint_sample_and_limit():
@@ -321,7 +345,7 @@ def test_export_of_a_run_matches_trajectory_csv(fmt, run_folder, tmp_path, capsy
         else:
             p = parse_krl(texts[".src"], texts[".dat"])
             q = np.radians([p["points"][n] for n in p["moves"]])
-            steps = None
+            steps = list(np.diff(p["times"]))
         if steps is not None:
             times = np.cumsum([0.0] + steps)
             k = np.rint(times / (t[1] - t[0])).astype(int)
