@@ -1,29 +1,41 @@
 """``method="jerk_optimal"``: time-optimal under joint velocity, acceleration *and jerk* limits.
 
 The path-velocity profile is optimised directly: on a grid ``s_0 = 0 < s_1 < ... < s_K = 1``
-of the path parameter, the variables are the path velocity ``x_k = ds/dt`` (1/s) and the
-path acceleration ``u_k = d2s/dt2`` (1/s^2) at every gridpoint, and IPOPT (through CasADi,
-exact derivatives) minimises the motion time ``T = sum_k 2 ds_k / (x_k + x_{k+1})`` subject to
+of the path parameter (every waypoint knot plus points spread in proportion to the knot
+intervals, :func:`profile_grid`), the variables are the path velocity ``x_k = ds/dt`` (1/s) and
+the path acceleration ``u_k = d2s/dt2`` (1/s^2) at every gridpoint.  Inside, ``u`` is linear in
+``s`` on each interval (``c_k = du/ds``, so the path jerk is ``d3s/dt3 = x c_k``); the two end
+intervals are constant-jerk cubics in time from and to rest.  IPOPT (through CasADi, exact
+derivatives) minimises the motion time ``T = sum_k 2 ds_k / (x_k + x_{k+1})`` (``3 ds / x`` on the
+end intervals) plus a tiny penalty on the change of ``c_k`` (:data:`JERK_SMOOTHING`), subject to
 
-* consistency of the two: ``x_{k+1}^2 - x_k^2 = (u_k + u_{k+1}) ds_k`` (``d(x^2)/ds = 2u``);
+* consistency: ``x_{k+1}^2 - x_k^2 = (u_k + u_{k+1}) ds_k`` (``d(x^2)/ds = 2u``), and
+  ``x^2 = 1.5 |u| ds`` at the inner gridpoint of each end interval;
 * rest at both ends: ``x_0 = x_K = u_0 = u_K = 0``;
-* per joint ``j`` at every gridpoint: ``|P'_j x| <= v_j`` and ``|P''_j x^2 + P'_j u| <= a_j``;
-* per joint at every interval's midpoint ``m``: the jerk
-  ``x_m (P'''_j x_m^2 + 3 P''_j u_m + P'_j (u_{k+1} - u_k) / ds_k)`` within ``+-jerk_j``
-  (``d3s/dt3 = x du/ds``).
+* velocity: ``x_k <= min_j v_j / |P'_j(s_k)|`` (variable bounds);
+* per interval, for the :data:`JERK_SLOTS` joints most loaded there ("slots"): the acceleration
+  ``P''_j x^2 + P'_j u`` at the left gridpoint (and, for the first :data:`JERK_MID_ACC_SLOTS`
+  slots, at the midpoint, ``x^2`` and ``u`` from the model) within ``+-a_j``, and the jerk
+  ``x (P'''_j x^2 + 3 P''_j u + P'_j c_k)`` at both ends within ``+-jerk_j``.  ``P'''`` is the
+  midpoint value, or on a dense path (knots inside the interval) the largest-magnitude value of
+  the knot segments the interval overlaps (:func:`_third_derivative`), so that the jerk between
+  gridpoints is represented.
 
-The NLP is parametric (the path derivatives, the grid steps and the limits are parameters),
-so it is built once per grid size and joint count and reused (:data:`JERK_GRIDPOINTS`). It
-is warm-started from TOPP-RA's time-optimal velocity/acceleration profile on the same grid.
+The slots are chosen from the warm start's model ratios; after a solve any other joint above its
+limit replaces the slot of smallest ratio on that interval and the NLP is solved again (at most
+:data:`JERK_SLOT_ROUNDS` solves), warm-started from the previous primal-dual optimum
+(:data:`JERK_WARM_IPOPT`).  The NLP is parametric (the path derivatives, grid steps and limits of
+the slot joints are parameters), so it is built once per grid size and reused
+(:data:`JERK_GRIDPOINTS`).  The first solve is warm-started from TOPP-RA's time-optimal
+velocity/acceleration profile on the same grid, scaled by :data:`JERK_WARM_FRACTION`.
 
-The optimum is turned into a time law ``s(t)``: gridpoint times from the trapezoid rule, a
-quintic Hermite polynomial per interval matching ``s``, ``ds/dt``, ``d2s/dt2`` at both ends
-(so the law is C2 and its jerk bounded). The constraints hold at the gridpoints and
-midpoints only, so the sampled trajectory is checked on the fine grid like every method's,
-and when a ratio exceeds 1 (discretisation) the law is slowed uniformly in time by
-``k = max(r_v, sqrt(r_a), cbrt(r_j))`` (times ``1 + JERK_SCALE_MARGIN``), which divides
-every velocity by k, acceleration by k^2 and jerk by k^3 on the same path: the result is
-always within every limit, at the price of that factor in duration (reported).
+The optimum is turned into the exact time law of that model, :class:`JerkLaw` (C2 in ``s(t)``,
+jerk bounded, gridpoint times by quadrature).  The constraints hold on the model at the
+gridpoints (and midpoints) only, so the sampled trajectory is checked on the fine grid like every
+method's, and when a ratio exceeds 1 (discretisation) the law is slowed uniformly in time by
+``k = max(r_v, sqrt(r_a), cbrt(r_j))`` (times ``1 + JERK_SCALE_MARGIN``), which divides every
+velocity by k, acceleration by k^2 and jerk by k^3 on the same path: the result is always within
+every limit, at the price of that factor in duration (reported).
 
 Why this method (``docs/cli.md``, "Timing"; ``benchmarks/bench_timing.py`` compares them):
 Ruckig (community version) has no intermediate waypoints, so ``method="ruckig"`` times the
@@ -62,10 +74,13 @@ from planner.timing.verification import (
 __all__ = ["JERK_GRIDPOINTS", "JERK_MAX_ITER", "JERK_OPTIONS", "JERK_OPTIMAL_METHOD", "JerkLaw",
            "default_gridpoints", "run_jerk_optimal"]
 
-#: Grid sizes the NLP is built for (the smallest >= 4 gridpoints per waypoint is used, capped).
-JERK_GRIDPOINTS: tuple[int, ...] = (120, 240, 480, 960)
-#: Gridpoints per waypoint wanted before capping at the largest size.
-JERK_GRIDPOINTS_PER_WAYPOINT: int = 4
+#: Grid sizes the NLP is built for by default (the smallest with >= JERK_GRIDPOINTS_PER_WAYPOINT
+#: gridpoints per waypoint, capped at the largest: on denser paths the interval data cover the
+#: knots in between, :func:`_third_derivative`; 960 points cost ~3x the time for ~1 %).
+JERK_GRIDPOINTS: tuple[int, ...] = (160, 240, 480)
+#: Gridpoints per waypoint wanted before capping at the largest size (halving it lengthens the
+#: motion by ~1 % on the shipped problems).
+JERK_GRIDPOINTS_PER_WAYPOINT: int = 6
 #: IPOPT iteration limit and tolerance.
 JERK_MAX_ITER: int = 300
 JERK_TOL: float = 1e-7
@@ -85,18 +100,31 @@ JERK_WARM_FRACTION: float = 0.8
 JERK_SLOTS: int = 3
 JERK_SLOT_ROUNDS: int = 4
 JERK_SLOT_TOL: float = 1e-6
+#: Slots (the most loaded first) that also constrain the acceleration at every interval's midpoint
+#: (1: the most loaded joint only -- the others bind at the gridpoints; fewer rows, same durations).
+JERK_MID_ACC_SLOTS: int = 1
+#: IPOPT's barrier parameter target: the optimum stays this far inside the constraints (and the
+#: last few barrier iterations are skipped).
+JERK_MU_TARGET: float = 1e-7
+#: IPOPT options of the re-solves after a slot swap: started from the previous primal-dual optimum
+#: (the swapped rows' multipliers zeroed) with a small barrier parameter and small pushes away
+#: from the bounds, they take 5-10 iterations instead of 20-30.
+JERK_WARM_IPOPT: dict[str, Any] = {
+    "warm_start_init_point": "yes", "mu_init": 1e-4, "warm_start_bound_push": 1e-6,
+    "warm_start_bound_frac": 1e-6, "warm_start_mult_bound_push": 1e-6,
+    "warm_start_slack_bound_push": 1e-6, "warm_start_slack_bound_frac": 1e-6}
 #: Option names accepted by ``method="jerk_optimal"``.
 JERK_OPTIONS: tuple[str, ...] = ("gridpoints", "max_iterations")
 
 _CHECKED: tuple[str, ...] = ("velocity", "acceleration", "jerk")
-_NLP_CACHE: dict[tuple[int, int, int], ca.Function] = {}
+_NLP_CACHE: dict[tuple[int, int, int, bool, int], ca.Function] = {}
 _NLP_LOCK = threading.Lock()
 
 
 def profile_grid(knots: np.ndarray, n_grid: int) -> np.ndarray:
     """Exactly ``n_grid`` gridpoints in s: every waypoint knot and the rest spread over the
     intervals in proportion to their length; a uniform grid when there are more knots than
-    gridpoints (the fine check then covers what lies between)."""
+    gridpoints (the interval data then cover the knots in between, :func:`_third_derivative`)."""
     N = knots.size
     if N >= n_grid:
         return np.linspace(0.0, 1.0, n_grid)
@@ -120,16 +148,18 @@ def default_gridpoints(n_waypoints: int) -> int:
 # The parametric NLP
 # --------------------------------------------------------------------------- #
 
-def _solver(n_grid: int, n_slots: int, max_iter: int) -> ca.Function:
-    """IPOPT solver of the profile NLP for ``n_grid`` gridpoints and ``n_slots`` joint slots (cached).
+def _solver(n_grid: int, n_slots: int, max_iter: int, warm: bool = False) -> ca.Function:
+    """IPOPT solver of the profile NLP for ``n_grid`` gridpoints and ``n_slots`` joint slots (cached);
+    ``warm``: the variant for re-solves from a primal-dual point (:data:`JERK_WARM_IPOPT`).
 
     Each interval constrains the ``n_slots`` joints most likely to bind there (chosen per call,
     :func:`_slots`; the others are checked after the solve and swapped in if they exceed).
     Variables ``[x (K+1); u (K+1)]``; parameters ``[ds (K); then per slot a (K, 9) block:
-    first and second path derivatives at the interval's left and right gridpoints, the first
-    three at its midpoint, and the slot joint's acceleration and jerk limits]``.
+    first and second path derivatives at the interval's left and right gridpoints, the first two
+    at its midpoint, the third representing it (:func:`_third_derivative`), and the slot joint's
+    acceleration and jerk limits]``; the rows per slot are listed in :func:`_rows`.
     """
-    key = (n_grid, n_slots, max_iter)
+    key = (n_grid, n_slots, max_iter, warm, JERK_MID_ACC_SLOTS)
     with _NLP_LOCK:
         if key in _NLP_CACHE:
             return _NLP_CACHE[key]
@@ -154,10 +184,11 @@ def _solver(n_grid: int, n_slots: int, max_iter: int) -> ca.Function:
         cons[K - 1] = x[K - 1] ** 2 + 1.5 * u[K - 1] * ds[K - 1]
         g = [cons]
         xl, xr, ul, ur = x[:-1], x[1:], u[:-1], u[1:]
-        for S in slots:                       # (velocity: bounds on x, see _bounds)
+        for r, S in enumerate(slots):         # (velocity: bounds on x, see _bounds)
             L1, L2, R1, R2, M1, M2, M3, alim, jlim = (S[:, c] for c in range(9))
             g.append((L2 * xl ** 2 + L1 * ul) / alim)
-            g.append((M2 * xm2 + M1 * um) / alim)
+            if _rows(r) == 4:                 # the acceleration at the midpoint
+                g.append((M2 * xm2 + M1 * um) / alim)
             # jerk at both ends of every interval (x changes fastest near rest)
             g.append(xl * (M3 * xl ** 2 + 3.0 * L2 * ul + L1 * dul) / jlim)
             g.append(xr * (M3 * xr ** 2 + 3.0 * R2 * ur + R1 * dur) / jlim)
@@ -169,7 +200,8 @@ def _solver(n_grid: int, n_slots: int, max_iter: int) -> ca.Function:
         p = ca.vertcat(ds, *[ca.vec(S) for S in slots])
         opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": int(max_iter),
                                               "tol": JERK_TOL, "constr_viol_tol": JERK_CONSTR_TOL,
-                                              "mu_strategy": "adaptive"}}
+                                              "mu_strategy": "adaptive", "mu_target": JERK_MU_TARGET,
+                                              **(JERK_WARM_IPOPT if warm else {})}}
         solver = ca.nlpsol("jerk_optimal", "ipopt", {"x": ca.vertcat(x, u), "p": p, "f": T,
                                                     "g": ca.vertcat(*g)}, opts)
         _NLP_CACHE[key] = solver
@@ -182,7 +214,8 @@ class _Terms:
     def __init__(self, path: SplinePath, grid: np.ndarray, limits: JointLimits) -> None:
         m = 0.5 * (grid[:-1] + grid[1:])
         self.P1, self.P2 = path._d1(grid), path._d2(grid)                  # (K+1, n)
-        self.M1, self.M2, self.M3 = path._d1(m), path._d2(m), path._d3(m)  # (K, n)
+        self.M1, self.M2 = path._d1(m), path._d2(m)                        # (K, n)
+        self.M3 = _third_derivative(path, grid)                           # (K, n)
         self.a, self.j = np.asarray(limits.acceleration), np.asarray(limits.jerk)
         self.ds = np.diff(grid)
 
@@ -215,6 +248,36 @@ class _Terms:
         return np.concatenate(blocks)
 
 
+def _rows(slot: int) -> int:
+    """Constraint rows per interval of slot ``slot``: acceleration at the left gridpoint, jerk at
+    both ends, and for the first :data:`JERK_MID_ACC_SLOTS` slots the midpoint acceleration."""
+    return 4 if slot < JERK_MID_ACC_SLOTS else 3
+
+
+def _row_offset(slot: int, K: int) -> int:
+    """Index of slot ``slot``'s first row in the constraint vector (after the K consistency rows)."""
+    return K + K * sum(_rows(i) for i in range(slot))
+
+
+def _third_derivative(path: SplinePath, grid: np.ndarray) -> np.ndarray:
+    """The third path derivative representing each grid interval, (K, n): its midpoint value, or
+    where knots lie inside the interval (a dense path; the derivative is constant on every knot
+    segment) the value of largest magnitude among the segments the interval overlaps, signed."""
+    p3 = path._d3(0.5 * (grid[:-1] + grid[1:]))
+    knots = path.knots
+    first = np.searchsorted(knots, grid[:-1], side="right") - 1
+    inside = np.searchsorted(knots, grid[1:], side="left") - 1 - first   # knots strictly inside
+    if not np.any(inside > 0):
+        return p3
+    seg = 6.0 * np.asarray(path.spline.c[0])                         # (N-1, n) per knot segment
+    first = np.clip(first, 0, seg.shape[0] - 1)
+    cols = np.arange(seg.shape[1])
+    for k in np.flatnonzero(inside > 0):
+        block = seg[first[k]:first[k] + inside[k] + 1]
+        p3[k] = block[np.argmax(np.abs(block), axis=0), cols]
+    return p3
+
+
 def _slots(ratio: np.ndarray, n_slots: int) -> np.ndarray:
     """The ``n_slots`` joints of largest model ratio on every interval, (K, n_slots) int."""
     return np.argsort(-ratio, axis=1, kind="stable")[:, :n_slots]
@@ -243,7 +306,7 @@ def _bounds(n_grid: int, n_slots: int, x_max: np.ndarray) -> tuple[np.ndarray, n
     ubx = np.r_[x_max, np.full(K1, np.inf)]
     for i in (0, K1 - 1, K1, 2 * K1 - 1):
         lbx[i] = ubx[i] = 0.0
-    ub = np.r_[np.zeros(K1 - 1), np.ones(4 * (K1 - 1) * n_slots)]
+    ub = np.r_[np.zeros(K1 - 1), np.ones(sum(_rows(r) for r in range(n_slots)) * (K1 - 1))]
     return lbx, ubx, -ub, ub
 
 
@@ -358,16 +421,17 @@ def _fine_check(path: SplinePath, limits: JointLimits, dt: float, law: JerkLaw) 
 
 def _optimise(terms: _Terms, z0: np.ndarray, x_max: np.ndarray, max_iter: int) -> tuple[np.ndarray, dict, int]:
     """Solve the slot NLP, swapping in any joint the solution shows above its limits (at most
-    JERK_SLOT_ROUNDS solves, each warm-started from the last).  Returns the solution, IPOPT's
-    stats of the last solve and the number of solves."""
-    K1 = terms.ds.size + 1
+    JERK_SLOT_ROUNDS solves; each re-solve starts from the last primal-dual optimum, the swapped
+    rows' multipliers zeroed).  Returns the solution, IPOPT's stats of the last solve and the
+    number of solves."""
+    K1, K = terms.ds.size + 1, terms.ds.size
     n_slots = min(JERK_SLOTS, terms.a.size)
     slots = _slots(terms.ratios(z0[:K1], z0[K1:]), n_slots)
-    solver = _solver(K1, n_slots, max_iter)
-    lbx, ubx, lbg, ubg = _bounds(K1, n_slots, x_max)
-    z, st, rounds = z0, {}, 0
+    bounds = dict(zip(("lbx", "ubx", "lbg", "ubg"), _bounds(K1, n_slots, x_max)))
+    z, st, rounds, warm = z0, {}, 0, {}
     for rounds in range(1, JERK_SLOT_ROUNDS + 1):
-        res = solver(x0=z, p=terms.parameters(slots), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        solver = _solver(K1, n_slots, max_iter, warm=bool(warm))
+        res = solver(x0=z, p=terms.parameters(slots), **bounds, **warm)
         st, z = solver.stats(), np.asarray(res["x"]).ravel()
         if not st.get("success", False):
             break
@@ -376,8 +440,11 @@ def _optimise(terms: _Terms, z0: np.ndarray, x_max: np.ndarray, max_iter: int) -
         outside = [(k, j) for k, j in zip(k_bad, j_bad) if j not in slots[k]]
         if not outside:
             break
+        warm = {"lam_x0": np.asarray(res["lam_x"]).ravel(), "lam_g0": np.asarray(res["lam_g"]).ravel()}
         for k, j in outside:                  # the joint replaces the slot of smallest ratio there
-            slots[k, int(np.argmin(ratio[k, slots[k]]))] = j
+            r = int(np.argmin(ratio[k, slots[k]]))
+            slots[k, r] = j
+            warm["lam_g0"][_row_offset(r, K) + np.arange(_rows(r)) * K + k] = 0.0
     return z, st, rounds
 
 
