@@ -64,6 +64,20 @@ def _ratios(tr) -> str:
     return " ".join(f"{k[0]} {float(tr.limit_ratio[k].max()):.3f}" for k in ("velocity", "acceleration", "jerk"))
 
 
+def _binding(tr, lim) -> str:
+    """Why the jerk-limited motion cannot be shorter: the share of samples at >= 95 % of a jerk
+    limit and of any limit, and the constraints most often at their limit."""
+    import numpy as np
+
+    from planner.timing.limit_use import describe_binding, limit_use
+    r = {k: np.abs(getattr(tr, a)) / np.asarray(getattr(lim, k)) for k, a in
+         (("velocity", "qd"), ("acceleration", "qdd"), ("jerk", "qddd"))}
+    at_jerk = float(np.mean(r["jerk"].max(axis=1) >= 0.95))
+    at_any = float(np.mean(np.max([v.max(axis=1) for v in r.values()], axis=0) >= 0.95))
+    return (f"at >= 95 % of a jerk limit {100 * at_jerk:.0f} % of the time, of any limit {100 * at_any:.0f} %; "
+            + describe_binding(limit_use(tr, lim, ("velocity", "acceleration", "jerk"))))
+
+
 def bench_problems(repeat: int) -> None:
     from planner.plan import plan
     from planner.timing import JointLimits, time_parametrize
@@ -90,7 +104,10 @@ def bench_problems(repeat: int) -> None:
             if label == "jerk_optimal":
                 worst = max(worst, r)
             rows.append(f"{label} {r:.3f} ({tr.status.value}; {_ratios(tr)}; {t * 1e3:.0f} ms)")
+            if label == "jerk_optimal":
+                binds = _binding(tr, lim)
         print(f"{name:<24}{len(q):>4}  {opt.duration_s:>11.3f}  " + " | ".join(rows))
+        print(f"{'':<30}jerk_optimal {binds}")
     print(f"jerk_optimal: worst duration ratio {worst:.3f} (target <= {TARGET_RATIO})")
 
 
