@@ -286,6 +286,21 @@ class ArmModel:
         km = self.kinematics
         return km.batch(km.fn["load_deflection"], q, load_rows(load, len(q)))[0]
 
+    def joint_torques(self, q: np.ndarray, load: Load | np.ndarray) -> np.ndarray:
+        """Joint torques the load (and, with ``gravity``, the arm's weight) applies at the pose
+        ``q`` (N, 6), N*m: a joint yields in the direction of its torque."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        km = self.kinematics
+        return km.batch(km.fn["joint_torques"], q, load_rows(load, len(q)))[0]
+
+    def torque_deflection(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Joint deflection under the applied joint torques ``tau`` (N, 6) N*m at the pose ``q``
+        (N, 6) rad: the model's deflection law (springs, hardening, lost motion), rad."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        tau = np.broadcast_to(np.asarray(tau, dtype=float), q.shape)
+        km = self.kinematics
+        return km.batch(km.fn["torque_deflection"], q, np.ascontiguousarray(tau))[0]
+
     def loaded_tcp(self, q: np.ndarray, load: Load | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """TCP of the loaded arm whose joints sit at ``q``: positions (N, 3) m and rotations
         (N, 3, 3), base frame (link compliance included)."""

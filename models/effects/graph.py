@@ -446,6 +446,8 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
     te, to = graph.torques(ctx)
     tau = te + to
     dq = graph.joint_deflection(ctx, tau)
+    tau_in = ca.SX.sym("tau", 6)
+    dq_of_tau = graph.joint_deflection(ctx, tau_in)
     dp = graph.point_displacement(ctx, ctx.p_tcp)
     err = ca.vertcat(ca.mtimes(J[:3, :], dq) + dp, ca.mtimes(J[3:, :], dq))
     # the linear-spring compliance C = J diag(c) J^T with the model's spring compliances
@@ -467,6 +469,7 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
         "tcp_wrench": ca.Function("tcp_wrench", [q, L], [ctx.wrench], ["q", "L"], ["W"]),
         "joint_torques": ca.Function("joint_torques", [q, L], [tau], ["q", "L"], ["tau"]),
         "load_deflection": ca.Function("load_deflection", [q, L], [dq], ["q", "L"], ["dq"]),
+        "torque_deflection": ca.Function("torque_deflection", [q, tau_in], [dq_of_tau], ["q", "tau"], ["dq"]),
         "loaded_tcp": ca.Function("loaded_tcp", [q, L], [tcp[:3, 3] + dp, tcp[:3, :3]],
                                   ["q", "L"], ["p_tcp", "R_tcp"]),
         "load_error": ca.Function("load_error", [q, L], [err], ["q", "L"], ["e"]),

@@ -1,0 +1,152 @@
+"""Motor-side commands that make the elastic joints' link side follow a timed trajectory.
+
+Physics (``docs/conventions.md``, "Link inertias and rigid-body dynamics"): the link side of
+an arm with elastic joints obeys
+
+    M(q) q'' + c(q, q') = K (theta - q) + tau_s(q, L)
+
+with ``theta`` the motor-side position (what the servo loop holds; on harmonic-drive arms the
+position loop closes on the motor encoder, before the elastic element), ``tau_s`` the joint
+torques the load and the arm's weight apply (the static model's :meth:`ArmModel.joint_torques`)
+and ``M q'' + c`` the rigid-body inertial torques (:func:`models.dynamics.rnea_function` with
+gravity and process wrench off, the payload's mass and inertia on).  For the link side to run
+the planned ``q(t)`` exactly, the elastic element must carry ``tau_s - (M q'' + c)`` as an
+*applied* torque, so
+
+    theta(t) = q(t) - dq(q(t), tau_s(q(t)) - (M q'' + c)(q(t), q'(t), q''(t)))
+
+with ``dq(q, tau)`` the model's deflection law (:meth:`ArmModel.torque_deflection`: linear
+springs ``K^-1 tau``, and hardening / lost motion when the model has them).  At rest
+(``q' = q'' = 0``) this is the static exact compensation ``q_c = q - dq(q, L)``, unchanged.
+
+Assumptions: the joint's elastic element sits between the motor-side position the servo
+holds and the link (if the loop closed on a link-side encoder, the controller itself would
+hold the link and no command correction of this kind would apply); joint damping is not
+modelled (a damper ``D (theta' - q')`` in parallel adds ``D K^-1 tau'`` to the needed torque: the
+residual it leaves is reported by the elastic-joint simulation); link compliance (beams) is
+compensated statically only.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from models.arm import ArmModel
+from models.dynamics import payload_vector, rnea_function
+from models.load import Load, load_rows
+from models.robot import Robot
+
+__all__ = ["DynamicCommand", "DynamicStatus", "inertial_torques", "motor_command"]
+
+
+class DynamicStatus(enum.Enum):
+    OK = "ok"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class DynamicCommand:
+    """Motor-side command of a timed link-side trajectory.
+
+    Attributes
+    ----------
+    status : DynamicStatus
+    reason : str
+    theta : ndarray, shape (M, 6)
+        Motor-side command, rad (what the controller runs).
+    q_link : ndarray, shape (M, 6)
+        The planned link side, rad.
+    tau_inertial : ndarray, shape (M, 6)
+        Rigid-body inertial torques ``M q'' + c`` the drives deliver, N*m.
+    tau_static : ndarray, shape (M, 6)
+        Joint torques of the load and the arm's weight (applied), N*m.
+    """
+
+    status: DynamicStatus
+    reason: str
+    theta: np.ndarray
+    q_link: np.ndarray
+    tau_inertial: np.ndarray
+    tau_static: np.ndarray
+
+
+_FN_CACHE: dict[str, ca.Function] = {}
+#: Inertial-torque functions kept (by the robot's description).
+FN_CACHE_SIZE = 16
+
+
+def _inertial_fn(robot: Robot) -> ca.Function:
+    """``tau(q, qd, qdd, payload)`` without gravity and wrench (cached by the robot's content)."""
+    key = json.dumps(robot.to_dict(), sort_keys=True, default=lambda o: np.asarray(o).tolist())
+    if key in _FN_CACHE:
+        return _FN_CACHE[key]
+    f = rnea_function(robot, gravity_input=True)
+    q, qd, qdd = ca.SX.sym("q", 6), ca.SX.sym("qd", 6), ca.SX.sym("qdd", 6)
+    pl = ca.SX.sym("payload", f.size1_in(3))
+    tau = f(q, qd, qdd, pl, ca.SX.zeros(f.size1_in(4)), ca.SX.zeros(3))
+    fn = ca.Function("inertial_torques", [q, qd, qdd, pl], [tau], ["q", "qd", "qdd", "payload"], ["tau"])
+    if len(_FN_CACHE) >= FN_CACHE_SIZE:
+        _FN_CACHE.pop(next(iter(_FN_CACHE)))
+    _FN_CACHE[key] = fn
+    return fn
+
+
+def inertial_torques(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                     payload: np.ndarray | None = None) -> np.ndarray:
+    """Rigid-body inertial joint torques ``M(q) q'' + c(q, q')`` (N, 6), N*m (gravity excluded).
+
+    Parameters
+    ----------
+    robot : Robot
+        Masses, centres of mass and inertias (DH link frames).
+    q, qd, qdd : ndarray, shape (N, 6)
+        rad, rad/s, rad/s^2.
+    payload : ndarray, shape (10,), optional
+        ``models.dynamics.payload_vector`` (mass, centre of mass in the TCP frame, inertia).
+    """
+    f = _inertial_fn(robot)
+    n = len(q)
+    pl = np.zeros(f.size1_in(3)) if payload is None else np.asarray(payload, dtype=float)
+    out = f.map(n)(np.asarray(q, float).T, np.asarray(qd, float).T, np.asarray(qdd, float).T,
+                   np.repeat(pl[:, None], n, axis=1))
+    return np.asarray(out).T
+
+
+def motor_command(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, load: Load,
+                  payload_inertia: np.ndarray | None = None) -> DynamicCommand:
+    """Motor-side command ``theta(t)`` that makes the link side run ``q(t)`` (see module doc).
+
+    Parameters
+    ----------
+    arm : ArmModel
+        The arm model (deflection law, static torques); its ``robot()`` gives the inertias.
+    q, qd, qdd : ndarray, shape (M, 6)
+        Planned link side sampled at the controller period: rad, rad/s, rad/s^2.
+    load : Load
+        The process wrench and payload (mass, centre of mass in the TCP frame).
+    payload_inertia : ndarray, shape (3, 3), optional
+        The payload's inertia about its centre of mass, TCP axes, kg*m^2 (default: a point mass).
+
+    Returns
+    -------
+    DynamicCommand
+        FAILED (with the reason) when the arm has no link masses.
+    """
+    robot = arm.robot()
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    empty = np.zeros((0, 6))
+    if not robot.has_masses:
+        return DynamicCommand(DynamicStatus.FAILED, f"robot {robot.name}: no link masses, no inertial torques",
+                              empty, q, empty, empty)
+    pl = payload_vector(load.payload_mass_kg, load.payload_com_m, payload_inertia)
+    tau_i = inertial_torques(robot, q, qd, qdd, pl)
+    tau_s = arm.joint_torques(q, load_rows(load, len(q)))
+    theta = q - arm.torque_deflection(q, tau_s - tau_i)
+    reason = (f"ok: motor-side command of {len(q)} samples; peak inertial torque "
+              f"{np.max(np.abs(tau_i)):.3g} N*m (joint {int(np.argmax(np.abs(tau_i).max(axis=0))) + 1})")
+    return DynamicCommand(DynamicStatus.OK, reason, theta, q, tau_i, tau_s)
