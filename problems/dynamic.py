@@ -7,7 +7,9 @@ an arm with elastic joints obeys
 
 with ``theta`` the motor-side position (what the servo loop holds; on harmonic-drive arms the
 position loop closes on the motor encoder, before the elastic element), ``tau_s`` the joint
-torques the load and the arm's weight apply (the static model's :meth:`ArmModel.joint_torques`)
+torques the load and the arm's weight apply (the static model's :meth:`ArmModel.joint_torques`;
+the links' weight from the rigid-body model when the arm model has no ``gravity`` effect, so
+that statics and dynamics describe one body)
 and ``M q'' + c`` the rigid-body inertial torques (:func:`models.dynamics.rnea_function` with
 gravity and process wrench off, the payload's mass and inertia on).  For the link side to run
 the planned ``q(t)`` exactly, the elastic element must carry ``tau_s - (M q'' + c)`` as an
@@ -17,7 +19,8 @@ the planned ``q(t)`` exactly, the elastic element must carry ``tau_s - (M q'' + 
 
 with ``dq(q, tau)`` the model's deflection law (:meth:`ArmModel.torque_deflection`: linear
 springs ``K^-1 tau``, and hardening / lost motion when the model has them).  At rest
-(``q' = q'' = 0``) this is the static exact compensation ``q_c = q - dq(q, L)``, unchanged.
+(``q' = q'' = 0``) this is the static exact compensation ``q_c = q - dq(q, L)`` with the arm's
+weight included.
 
 Assumptions: the joint's elastic element sits between the motor-side position the servo
 holds and the link (if the loop closed on a link-side encoder, the controller itself would
@@ -37,7 +40,7 @@ import casadi as ca
 import numpy as np
 
 from models.arm import ArmModel
-from models.dynamics import payload_vector, rnea_function
+from models.dynamics import gravity_torque_function, payload_vector, rnea_function
 from models.load import Load, load_rows
 from models.robot import Robot
 
@@ -117,6 +120,22 @@ def inertial_torques(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarra
     return np.asarray(out).T
 
 
+def link_weight_torques(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Joint torques the links' own weight applies at ``q`` (N, 6), N*m (``-rnea(q, 0, 0)`` without
+    payload and wrench, ``robot.gravity``)."""
+    f = _static_fn(robot)
+    return -np.asarray(f.map(len(q))(np.asarray(q, float).T, np.zeros((f.size1_in(1), len(q))))).T
+
+
+def _static_fn(robot: Robot) -> ca.Function:
+    key = "static:" + json.dumps(robot.to_dict(), sort_keys=True, default=lambda o: np.asarray(o).tolist())
+    if key not in _FN_CACHE:
+        if len(_FN_CACHE) >= FN_CACHE_SIZE:
+            _FN_CACHE.pop(next(iter(_FN_CACHE)))
+        _FN_CACHE[key] = gravity_torque_function(robot)
+    return _FN_CACHE[key]
+
+
 def motor_command(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, load: Load,
                   payload_inertia: np.ndarray | None = None) -> DynamicCommand:
     """Motor-side command ``theta(t)`` that makes the link side run ``q(t)`` (see module doc).
@@ -146,6 +165,8 @@ def motor_command(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     pl = payload_vector(load.payload_mass_kg, load.payload_com_m, payload_inertia)
     tau_i = inertial_torques(robot, q, qd, qdd, pl)
     tau_s = arm.joint_torques(q, load_rows(load, len(q)))
+    if not arm.gravity_on:              # the arm's own weight: the rigid-body model's, not the effect's
+        tau_s = tau_s + link_weight_torques(robot, q)
     theta = q - arm.torque_deflection(q, tau_s - tau_i)
     reason = (f"ok: motor-side command of {len(q)} samples; peak inertial torque "
               f"{np.max(np.abs(tau_i)):.3g} N*m (joint {int(np.argmax(np.abs(tau_i).max(axis=0))) + 1})")
