@@ -56,6 +56,7 @@ from planner.output import OutputSet
 from planner.provenance import invocation, problem_input, provenance, robot_input
 from planner.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
 from planner.timing.limit_use import limit_use
+from problems.dynamic import DYNAMIC_SMOOTHING_S
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
@@ -110,6 +111,9 @@ class PlanResult:
         The method whose trajectory the controller runs (``trajectory.csv``).
     warnings : list of str
     stage_times_s : dict
+    dynamic : planner.dynamic.DynamicStage or None
+        The dynamic-compensation stage (``[timing] dynamic = true``): the motor-side command is
+        then the controller's trajectory, its link side and predicted TCP errors are here.
         Wall time of each stage, s.
     made : dict
         When and by which command line the result was made (``command_line``, ``argv``,
@@ -128,6 +132,7 @@ class PlanResult:
     warnings: list[str] = field(default_factory=list)
     stage_times_s: dict[str, float] = field(default_factory=dict)
     made: dict[str, Any] = field(default_factory=invocation)
+    dynamic: Any = None
 
     @property
     def ok(self) -> bool:
@@ -276,6 +281,8 @@ class PlanResult:
                                "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
                            for m, tr in self.trajectories.items()}
             s["controller_trajectory"] = self.controller
+            if self.dynamic is not None:
+                s["dynamic_compensation"] = _dynamic_entry(self.dynamic)
             s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items()
                               if t["limit_use"]["why"]]
         head = {"headline": _headline(s), "provenance": self.provenance()}
@@ -430,7 +437,37 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     t0 = time.perf_counter()
     _time(res)
     times["timing_s"] = time.perf_counter() - t0
+    if res.ok and problem.timing.dynamic:
+        t0 = time.perf_counter()
+        _dynamic(res)
+        times["dynamic_compensation_s"] = time.perf_counter() - t0
     return res
+
+
+def _dynamic(res: PlanResult) -> None:
+    """Motor-side commands for the inertial torques (``[timing] dynamic = true``): the controller's
+    trajectory becomes the command of :func:`planner.dynamic.dynamic_stage`; the link side is kept."""
+    from planner.dynamic import DynamicStageStatus, dynamic_stage
+    problem = res.problem
+    assert res.exact is not None and res.controller is not None
+    m = res.controller
+    if "jerk" not in ENFORCED[m]:
+        res.status, res.reason = PlanStatus.TIMING_FAILED, (
+            f"timing.dynamic needs a jerk-limited controller trajectory (the motor-side command follows "
+            f"the accelerations), but the controller's method is {m}; add 'jerk_optimal' to timing.methods")
+        return
+    if not problem.robot.has_masses:
+        res.status, res.reason = PlanStatus.TIMING_FAILED, (
+            f"timing.dynamic: robot {problem.robot.name} has no link masses (robot file keys mass, com, inertia)")
+        return
+    lim = JointLimits(problem.limits.velocity, problem.limits.acceleration, problem.limits.jerk)
+    stage = dynamic_stage(problem.model, res.exact.q_deflected, lim, problem.timing.dt, m,
+                          problem.timing.options(m), problem.load)
+    res.dynamic = stage
+    if stage.status is not DynamicStageStatus.OK or stage.command is None:
+        res.status, res.reason = PlanStatus.TIMING_FAILED, f"dynamic compensation: {stage.reason}"
+        return
+    res.trajectories[m] = stage.command
 
 
 def _posture_warnings(ps: PostureResult) -> list[str]:
@@ -590,8 +627,26 @@ def figures(res: PlanResult) -> dict[str, bytes]:
 
 
 #: Files a plan may write; those a new run in the same folder does not produce are removed.
+#: Extra columns of ``trajectory.csv`` with dynamic compensation: the planned link side, rad.
+LINK_COLUMNS = [f"ql{i}" for i in range(1, 7)]
+
 STALE_OUTPUTS = ("trajectory.csv", "trajectory_toppra.csv", "trajectory_ruckig.csv",
                  "branches.png", "trajectory.png", "waypoints.csv", "branches.csv", "path.csv")
+
+
+def _dynamic_entry(stage: Any) -> dict[str, Any]:
+    """The ``dynamic_compensation`` block of the summary."""
+    return {"status": stage.status.value, "reason": stage.reason, "passes": stage.passes,
+            "limit_scale": stage.limit_scale, "smoothing_s": DYNAMIC_SMOOTHING_S,
+            "predicted_tcp_error": stage.error_stats_mm(),
+            "definition": ("predicted (quasi-static) TCP position error against the planned link side, mm, during "
+                           "the motion and at rest, for the link plan commanded as is (none), the static compensation "
+                           "only (static) and the motor-side command (static+dynamic); vibrations excluded "
+                           "(docs/elastic-simulation.md)"),
+            "assumptions": ("elastic joints between the motor-side position the servo holds and the link; joint "
+                            "damping and link compliance not compensated dynamically; payload a point mass"),
+            "link_columns": "trajectory.csv ql1..ql6: the planned link side",
+            "file": "dynamic.csv"}
 
 
 def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True,
@@ -620,10 +675,17 @@ def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True
     out.add_csv("branches.csv", cols, rows)
     for m, tr in res.trajectories.items():
         name = "trajectory.csv" if m == res.controller else f"trajectory_{m}.csv"
-        out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
+        if m == res.controller and res.dynamic is not None and res.dynamic.link is not None:
+            out.add_csv(name, TRAJECTORY_COLUMNS + LINK_COLUMNS,
+                        np.hstack([_trajectory_rows(tr), res.dynamic.link.q]))
+        else:
+            out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
     if with_figures:
         for name, data in figures(res).items():
             out.add_bytes(name, data)
+    if res.dynamic is not None and res.dynamic.link is not None:
+        cols, rows = res.dynamic.series(res.problem.model)
+        out.add_csv("dynamic.csv", cols, rows)
     for name, data in (extra or {}).items():
         out.add_bytes(name, data)
     out.publish(stale=STALE_OUTPUTS)
@@ -634,6 +696,7 @@ def output_names(res: PlanResult, with_figures: bool = True) -> list[str]:
     """Names of the files :func:`write_outputs` writes for ``res``."""
     names = ["summary.json", "path.csv", "waypoints.csv", "branches.csv"]
     names += ["trajectory.csv" if m == res.controller else f"trajectory_{m}.csv" for m in res.trajectories]
+    names += ["dynamic.csv"] if res.dynamic is not None and res.dynamic.link is not None else []
     if with_figures:
         names += ["branches.png"] + (["trajectory.png"] if res.trajectories else [])
     return names

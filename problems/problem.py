@@ -210,7 +210,8 @@ class Problem:
         d["timing"] = {"methods": list(self.timing.methods), "dt": self.timing.dt,
                        "toppra_gridpoints": self.timing.toppra_gridpoints,
                        "toppra_max_iterations": self.timing.toppra_max_iterations,
-                       "ruckig_max_iterations": self.timing.ruckig_max_iterations}
+                       "ruckig_max_iterations": self.timing.ruckig_max_iterations,
+                       "dynamic": self.timing.dynamic}
         return d
 
 

@@ -63,7 +63,7 @@ _TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "solver": ("name", "max_iter", "tol", "codegen"),
     "branch": ("home", "home_deg"),
     "timing": ("methods", "dt", "toppra_gridpoints", "toppra_max_iterations",
-               "ruckig_max_iterations"),
+               "ruckig_max_iterations", "dynamic"),
 }
 
 
@@ -102,6 +102,7 @@ class TimingSettings:
     toppra_gridpoints: int = 0          # 0: the timing module's default
     toppra_max_iterations: int = 0      # 0: default
     ruckig_max_iterations: int = 0      # 0: default
+    dynamic: bool = False               # motor-side commands for the inertial torques (problems/dynamic.py)
 
     def options(self, method: str) -> dict[str, int]:
         """Keyword options for ``planner.timing.time_parametrize``."""
@@ -722,7 +723,10 @@ def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
         toppra_max_iterations=_integer(where, "timing.toppra_max_iterations",
                                        tt.get("toppra_max_iterations", 0), 0),
         ruckig_max_iterations=_integer(where, "timing.ruckig_max_iterations",
-                                       tt.get("ruckig_max_iterations", 0), 0))
+                                       tt.get("ruckig_max_iterations", 0), 0),
+        dynamic=tt.get("dynamic", False))
+    if not isinstance(timing.dynamic, bool):
+        raise _err(where, "timing.dynamic", f"must be true or false, got {timing.dynamic!r}")
     if timing.toppra_gridpoints == 1:
         raise _err(where, "timing.toppra_gridpoints", "must be 0 (default) or >= 2, got 1")
     check_timing(where, timing)

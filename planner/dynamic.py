@@ -1,0 +1,171 @@
+"""The dynamic-compensation stage of a plan: motor-side commands for the timed trajectory.
+
+After timing, with ``[timing] dynamic = true``: the *link-side* path (the deflected configuration
+the exact compensation makes the arm take at every waypoint) is timed by the controller's
+jerk-limited method; :func:`problems.dynamic.motor_command` turns it into the motor-side command
+that makes the elastic joints carry the static and the inertial torques; the command's dynamic
+part (command minus static compensation) is smoothed by two moving averages of
+:data:`~problems.dynamic.DYNAMIC_SMOOTHING_S`, and the link trajectory is padded with that much
+rest at both ends so that the command starts and ends exactly at the static compensation.  The
+command's velocity, acceleration and jerk (central differences of the samples) are checked
+against the limits; where the command exceeds one, the link side is re-timed with that limit
+scaled by ``(1 - DYNAMIC_RETIME_MARGIN) / ratio`` and the command rebuilt, at most
+:data:`DYNAMIC_MAX_PASSES` times.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from models.arm import ArmModel
+from models.load import Load
+from planner.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
+from problems.dynamic import (DYNAMIC_SMOOTHING_S, DynamicStatus, finite_derivatives, motor_command, padded,
+                              predicted_tcp_errors, smooth)
+
+__all__ = ["DYNAMIC_MAX_PASSES", "DYNAMIC_RETIME_MARGIN", "DynamicStage", "DynamicStageStatus", "dynamic_stage"]
+
+#: Re-timing passes at most, and the margin kept below a limit the command exceeded.
+DYNAMIC_MAX_PASSES: int = 6
+DYNAMIC_RETIME_MARGIN: float = 0.02
+#: A command ratio above 1 + this fails the check (the timing's own tolerance).
+DYNAMIC_RATIO_TOL: float = 1e-9
+_KEYS = ("velocity", "acceleration", "jerk")
+
+
+class DynamicStageStatus(enum.Enum):
+    OK = "ok"
+    LIMIT_EXCEEDED = "limit_exceeded"
+    FAILED = "failed"
+
+
+@dataclass
+class DynamicStage:
+    """Result of :func:`dynamic_stage`.
+
+    Attributes
+    ----------
+    status : DynamicStageStatus
+    reason : str
+    command : Trajectory or None
+        The motor-side command (what the controller runs): ``q``, ``qd``, ``qdd``, ``qddd`` (rad,
+        rad/s, rad/s^2, rad/s^3) at ``dt``, derivatives by central differences, limit ratios
+        against the plan's limits.
+    link : Trajectory or None
+        The planned link side on the same samples (rest padding included).
+    passes : int
+        Timings of the link side it took.
+    limit_scale : dict
+        Factor on each limit the link side was timed with in the last pass.
+    errors_m : dict of str to ndarray (M,)
+        Predicted (quasi-static) TCP position error along the command for ``none`` (the link plan
+        commanded as is), ``static`` (static compensation only) and ``static+dynamic``, m.
+    moving : ndarray (M,) of bool
+        Samples during the motion (the others are at rest).
+    """
+
+    status: DynamicStageStatus
+    reason: str
+    command: Trajectory | None = None
+    link: Trajectory | None = None
+    passes: int = 0
+    limit_scale: dict[str, float] = field(default_factory=dict)
+    errors_m: dict[str, np.ndarray] = field(default_factory=dict)
+    moving: np.ndarray | None = None
+
+    def series(self, arm: ArmModel) -> tuple[list[str], np.ndarray]:
+        """Columns and rows of ``dynamic.csv``: time (s), moving (0/1), the predicted TCP errors
+        (m) and the planned TCP speed (m/s, base frame) at every command sample."""
+        assert self.link is not None and self.moving is not None
+        J = arm.kinematics.J(self.link.q)
+        speed = np.linalg.norm(np.einsum("nij,nj->ni", J[:, :3, :], self.link.qd), axis=1)
+        cols = ["t", "moving", "e_none_m", "e_static_m", "e_static_dynamic_m", "tcp_speed_m_s"]
+        rows = np.column_stack([self.link.t, self.moving.astype(float), self.errors_m["none"],
+                                self.errors_m["static"], self.errors_m["static+dynamic"], speed])
+        return cols, rows
+
+    def error_stats_mm(self) -> dict[str, dict[str, float]]:
+        """Max and RMS of each predicted error during the motion and at rest, mm."""
+        out: dict[str, dict[str, float]] = {}
+        mv = self.moving if self.moving is not None else np.ones(0, bool)
+        for name, e in self.errors_m.items():
+            em, er = e[mv] * 1e3, e[~mv] * 1e3
+            out[name] = {"motion_max_mm": float(em.max(initial=0.0)),
+                         "motion_rms_mm": float(np.sqrt(np.mean(em ** 2))) if em.size else 0.0,
+                         "rest_max_mm": float(er.max(initial=0.0))}
+        return out
+
+
+def _sample_rows(load: Load, path_q: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Load rows (M, 19) of the samples ``q``: those of the nearest waypoint of ``path_q`` (a load
+    given per waypoint changes between waypoints at the nearest one)."""
+    rows = load.rows(len(path_q))
+    if np.all(rows == rows[:1]):
+        return np.repeat(rows[:1], len(q), axis=0)
+    near = np.argmin(np.linalg.norm(q[:, None, :] - path_q[None, :, :], axis=2), axis=1)
+    return rows[near]
+
+
+def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_smooth: int, n_pad: int
+             ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """Padded link samples, the smoothed command, the predicted errors and the moving mask."""
+    q, qd, qdd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd))
+    rows = _sample_rows(load, path_q, q)
+    dyn = motor_command(arm, q, qd, qdd, load, rows=rows)
+    if dyn.status is not DynamicStatus.OK:
+        raise ValueError(dyn.reason)
+    static = motor_command(arm, q, np.zeros_like(q), np.zeros_like(q), load, rows=rows).theta
+    theta = static + smooth(dyn.theta - static, n_smooth)
+    needed = q - dyn.theta                         # the deflection the plan's torques cause
+    errors = predicted_tcp_errors(arm, q, needed, {"none": q, "static": static, "static+dynamic": theta})
+    moving = np.zeros(len(q), dtype=bool)
+    moving[n_pad:n_pad + len(link.q)] = np.linalg.norm(link.qd, axis=1) > 0.0
+    return q, theta, errors, moving
+
+
+def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: float, method: str,
+                  options: dict[str, Any], load: Load) -> DynamicStage:
+    """Time the link-side path ``path_q`` (N, 6) rad and build the motor-side command (see module doc)."""
+    n_smooth = max(1, int(round(DYNAMIC_SMOOTHING_S / dt)))
+    n_pad = n_smooth
+    scale = dict.fromkeys(_KEYS, 1.0)
+    lim = {k: np.asarray(getattr(limits, k), float) for k in _KEYS}
+    ratio: dict[str, np.ndarray] = {}
+    for p in range(1, DYNAMIC_MAX_PASSES + 1):
+        link = time_parametrize(path_q, JointLimits(*(lim[k] * scale[k] for k in _KEYS)), method, dt, **options)
+        if link.status is not TimingStatus.OK:
+            return DynamicStage(DynamicStageStatus.FAILED, f"pass {p}: the link side's {method} timing: "
+                                f"{link.reason}", passes=p, limit_scale=dict(scale))
+        try:
+            q, theta, errors, moving = _command(arm, link, load, path_q, n_smooth, n_pad)
+        except ValueError as exc:
+            return DynamicStage(DynamicStageStatus.FAILED, str(exc), passes=p)
+        d = finite_derivatives(theta, dt)
+        ratio = {k: np.abs(x).max(axis=0) / lim[k] for k, x in zip(_KEYS, d)}
+        worst = {k: float(r.max()) for k, r in ratio.items()}
+        if all(v <= 1.0 + DYNAMIC_RATIO_TOL for v in worst.values()):
+            break
+        for k, v in worst.items():
+            if v > 1.0:
+                scale[k] *= (1.0 - DYNAMIC_RETIME_MARGIN) / v
+    t = np.arange(len(q)) * dt
+    ok = all(float(r.max()) <= 1.0 + DYNAMIC_RATIO_TOL for r in ratio.values())
+    text = ", ".join(f"{k} {float(r.max()):.3f}" for k, r in ratio.items())
+    scaled = ", ".join(f"{k} x{v:.3f}" for k, v in scale.items() if v != 1.0) or "none"
+    reason = (f"{'ok' if ok else 'limit_exceeded'}: motor-side command after {p} timing pass(es) of the link side "
+              f"(limits scaled: {scaled}); command peak ratios {text}; dynamic part smoothed over 2 x "
+              f"{n_smooth * dt * 1e3:g} ms, {n_pad * dt * 1e3:g} ms rest added at both ends")
+    status = TimingStatus.OK if ok else TimingStatus.LIMIT_EXCEEDED
+    d1, d2, d3 = finite_derivatives(theta, dt)
+    command = Trajectory(method=method, status=status, reason=reason, t=t, q=theta, qd=d1, qdd=d2, qddd=d3,
+                         duration_s=float(t[-1]), limit_ratio=ratio, dt=dt, iterations=p)
+    lq, lqd, lqdd, lqddd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd, link.qddd))
+    link_tr = Trajectory(method=f"{method} (link side)", status=link.status, reason=link.reason, t=t, q=lq, qd=lqd,
+                         qdd=lqdd, qddd=lqddd, duration_s=float(t[-1]), limit_ratio=link.limit_ratio, dt=dt,
+                         iterations=link.iterations)
+    return DynamicStage(DynamicStageStatus.OK if ok else DynamicStageStatus.LIMIT_EXCEEDED, reason, command,
+                        link_tr, p, dict(scale), errors, moving)
