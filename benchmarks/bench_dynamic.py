@@ -64,8 +64,7 @@ def main() -> None:
     _command(arm, link, pr.load, path_q, n, n)                          # build the functions once
 
     def stage_per_pass():
-        q, theta, errors, moving = _command(arm, link, pr.load, path_q, n, n)
-        return finite_derivatives(theta, dt)
+        return finite_derivatives(_command(arm, link, pr.load, path_q, n, n).theta, dt)
 
     _, best, med = _best(stage_per_pass, args.repeat)
     print(f"link-side trajectory: {link.duration_s:.3f} s, {len(link.t)} samples at {dt * 1e3:g} ms")

@@ -24,8 +24,8 @@ import numpy as np
 from models.arm import ArmModel
 from models.load import Load
 from planner.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
-from problems.dynamic import (DYNAMIC_SMOOTHING_S, DynamicStatus, finite_derivatives, motor_command, padded,
-                              predicted_tcp_errors, smooth)
+from problems.dynamic import (DYNAMIC_SMOOTHING_S, MISMATCH_CASES, DynamicStatus, finite_derivatives, mismatch_errors,
+                              motor_command, padded, predicted_tcp_errors, smooth)
 
 __all__ = ["DYNAMIC_MAX_PASSES", "DYNAMIC_RETIME_MARGIN", "DynamicStage", "DynamicStageStatus", "dynamic_stage"]
 
@@ -66,6 +66,9 @@ class DynamicStage:
         commanded as is), ``static`` (static compensation only) and ``static+dynamic``, m.
     moving : ndarray (M,) of bool
         Samples during the motion (the others are at rest).
+    mismatch : list of dict
+        The predicted gain during the motion on arms whose stiffness and payload differ from the
+        model's (``stiffness_factor``, ``payload_factor``, both max errors in mm, ``gain``).
     """
 
     status: DynamicStageStatus
@@ -76,6 +79,7 @@ class DynamicStage:
     limit_scale: dict[str, float] = field(default_factory=dict)
     errors_m: dict[str, np.ndarray] = field(default_factory=dict)
     moving: np.ndarray | None = None
+    mismatch: list[dict[str, float]] = field(default_factory=list)
 
     def series(self, arm: ArmModel) -> tuple[list[str], np.ndarray]:
         """Columns and rows of ``dynamic.csv``: time (s), moving (0/1), the predicted TCP errors
@@ -110,8 +114,21 @@ def _sample_rows(load: Load, path_q: np.ndarray, q: np.ndarray) -> np.ndarray:
     return rows[near]
 
 
-def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_smooth: int, n_pad: int
-             ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
+@dataclass
+class _Pass:
+    """One pass's padded link samples, load rows, commands, predicted errors and moving mask."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    rows: np.ndarray
+    theta: np.ndarray
+    static: np.ndarray
+    errors: dict[str, np.ndarray]
+    moving: np.ndarray
+
+
+def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_smooth: int, n_pad: int) -> _Pass:
     """Padded link samples, the smoothed command, the predicted errors and the moving mask."""
     q, qd, qdd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd))
     rows = _sample_rows(load, path_q, q)
@@ -124,7 +141,20 @@ def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_
     errors = predicted_tcp_errors(arm, q, needed, {"none": q, "static": static, "static+dynamic": theta})
     moving = np.zeros(len(q), dtype=bool)
     moving[n_pad:n_pad + len(link.q)] = np.linalg.norm(link.qd, axis=1) > 0.0
-    return q, theta, errors, moving
+    return _Pass(q, qd, qdd, rows, theta, static, errors, moving)
+
+
+def _mismatch(arm: ArmModel, ps: _Pass, load: Load) -> list[dict[str, float]]:
+    """The gain (static-only over static+dynamic max TCP error during the motion) on arms whose
+    stiffness and payload differ from the model's (:data:`~problems.dynamic.MISMATCH_CASES`)."""
+    out = []
+    for kf, pf in MISMATCH_CASES:
+        e = mismatch_errors(arm, ps.q, ps.qd, ps.qdd, load, ps.rows, {"static": ps.static, "dynamic": ps.theta},
+                            kf, pf)
+        st, dy = float(e["static"][ps.moving].max(initial=0.0)), float(e["dynamic"][ps.moving].max(initial=0.0))
+        out.append({"stiffness_factor": kf, "payload_factor": pf, "static_motion_max_mm": st * 1e3,
+                    "static_dynamic_motion_max_mm": dy * 1e3, "gain": st / dy if dy > 0 else float("inf")})
+    return out
 
 
 def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: float, method: str,
@@ -141,9 +171,10 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
             return DynamicStage(DynamicStageStatus.FAILED, f"pass {p}: the link side's {method} timing: "
                                 f"{link.reason}", passes=p, limit_scale=dict(scale))
         try:
-            q, theta, errors, moving = _command(arm, link, load, path_q, n_smooth, n_pad)
+            ps = _command(arm, link, load, path_q, n_smooth, n_pad)
         except ValueError as exc:
             return DynamicStage(DynamicStageStatus.FAILED, str(exc), passes=p)
+        q, theta = ps.q, ps.theta
         d = finite_derivatives(theta, dt)
         ratio = {k: np.abs(x).max(axis=0) / lim[k] for k, x in zip(_KEYS, d)}
         worst = {k: float(r.max()) for k, r in ratio.items()}
@@ -168,4 +199,4 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
                          qdd=lqdd, qddd=lqddd, duration_s=float(t[-1]), limit_ratio=link.limit_ratio, dt=dt,
                          iterations=link.iterations)
     return DynamicStage(DynamicStageStatus.OK if ok else DynamicStageStatus.LIMIT_EXCEEDED, reason, command,
-                        link_tr, p, dict(scale), errors, moving)
+                        link_tr, p, dict(scale), ps.errors, ps.moving, _mismatch(arm, ps, load))

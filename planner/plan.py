@@ -639,10 +639,12 @@ def _dynamic_entry(stage: Any) -> dict[str, Any]:
     return {"status": stage.status.value, "reason": stage.reason, "passes": stage.passes,
             "limit_scale": stage.limit_scale, "smoothing_s": DYNAMIC_SMOOTHING_S,
             "predicted_tcp_error": stage.error_stats_mm(),
+            "mismatch": stage.mismatch,
             "definition": ("predicted (quasi-static) TCP position error against the planned link side, mm, during "
                            "the motion and at rest, for the link plan commanded as is (none), the static compensation "
                            "only (static) and the motor-side command (static+dynamic); vibrations excluded "
-                           "(docs/elastic-simulation.md)"),
+                           "(docs/elastic-simulation.md); mismatch: the same during the motion on an arm whose joint stiffness and "
+                           "payload mass are the factors times the model's (the command unchanged)"),
             "assumptions": ("elastic joints between the motor-side position the servo holds and the link; joint "
                             "damping and link compliance not compensated dynamically; payload a point mass"),
             "link_columns": "trajectory.csv ql1..ql6: the planned link side",

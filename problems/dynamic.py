@@ -229,3 +229,29 @@ def predicted_tcp_errors(arm: ArmModel, q: np.ndarray, dq_needed: np.ndarray,
     p_plan = km.tcp(q)[:, :3, 3]
     return {name: np.linalg.norm(km.tcp(theta + dq_needed)[:, :3, 3] - p_plan, axis=1)
             for name, theta in commands.items()}
+
+
+#: Mismatches between the model and the arm the summary reports the gain under:
+#: (stiffness factor, payload-mass factor) of the real arm against the model.
+MISMATCH_CASES: tuple[tuple[float, float], ...] = ((0.8, 1.2), (1.2, 0.8), (0.8, 0.8), (1.2, 1.2))
+#: Column of the payload mass in a load row (``models.load.Load.rows``).
+PAYLOAD_MASS_COLUMN = 12
+
+
+def mismatch_errors(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, load: Load, rows: np.ndarray,
+                    commands: dict[str, np.ndarray], stiffness_factor: float, payload_factor: float
+                    ) -> dict[str, np.ndarray]:
+    """Predicted TCP errors (M,) m of ``commands`` on an arm whose joints are ``stiffness_factor``
+    times as stiff and whose payload is ``payload_factor`` times as heavy as the model's.
+
+    Quasi-static like :func:`predicted_tcp_errors`; the deflection law is divided by the stiffness
+    factor (exact for linear springs).
+    """
+    rows_m = np.array(rows, dtype=float)
+    rows_m[:, PAYLOAD_MASS_COLUMN] *= payload_factor
+    load_m = Load(wrench_base=load.wrench_base, wrench_tool=load.wrench_tool,
+                  payload_mass_kg=load.payload_mass_kg * payload_factor, payload_com_m=load.payload_com_m,
+                  gravity=load.gravity)
+    real = motor_command(arm, q, qd, qdd, load_m, rows=rows_m)
+    needed = (q - real.theta) / stiffness_factor
+    return predicted_tcp_errors(arm, q, needed, commands)

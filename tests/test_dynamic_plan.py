@@ -42,6 +42,11 @@ def test_trajectory_csv_is_the_command_with_the_link_side_beside_it(fast_run):
     pe = d["predicted_tcp_error"]
     assert pe["static"]["motion_max_mm"] > MOTION_GAIN_MIN * pe["static+dynamic"]["motion_max_mm"]
     assert pe["static"]["rest_max_mm"] == 0.0
+    # the gain on arms 20 % off in stiffness and payload is reported (smaller: the static mismatch dominates)
+    mm = {(c["stiffness_factor"], c["payload_factor"]): c for c in d["mismatch"]}
+    assert set(mm) == {(0.8, 1.2), (1.2, 0.8), (0.8, 0.8), (1.2, 1.2)}
+    assert all(0.5 < c["gain"] < pe["static"]["motion_max_mm"] / pe["static+dynamic"]["motion_max_mm"]
+               for c in mm.values())
     tr = _csv(fast_run / "trajectory.csv")
     t = tr["t"]
     dt = s["dt"]
