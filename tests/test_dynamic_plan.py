@@ -98,3 +98,25 @@ def test_dynamic_needs_a_jerk_limited_controller_and_a_boolean(edit, needle, tmp
 def test_dynamic_needs_link_masses(tmp_path, capsys):
     assert main(["plan", "ur5_fast_payload", "--robot", "ar5", "--out", str(tmp_path / "o"), "--no-report"]) == 2
     assert "no link masses" in capsys.readouterr().err
+
+
+def test_track_command_simulates_a_run(fast_run, tmp_path, capsys):
+    out = tmp_path / "track.csv"
+    assert main(["track", str(fast_run), "--out", str(out), "--settle", "0.2"]) == 0
+    text = capsys.readouterr().out
+    motion = float(text.split("during the motion: max ")[1].split(" mm")[0])
+    assert 0 < motion < 0.05                                   # mm: the command's residual, not the 0.3 mm sag
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert rows.shape[1] == 2 and rows[-1, 0] > 1.0
+    # an arm 20 % softer than the model: the error grows
+    assert main(["track", str(fast_run), "--stiffness-scale", "0.8", "--settle", "0.2"]) == 0
+    soft = float(capsys.readouterr().out.split("during the motion: max ")[1].split(" mm")[0])
+    assert soft > 2 * motion
+
+
+def test_track_refuses_an_arm_without_masses(tmp_path, capsys):
+    run = tmp_path / "demo"
+    assert main(["demo", "--points", "12", "--out", str(run), "--no-report"]) == 0
+    capsys.readouterr()
+    assert main(["track", str(run)]) == 2
+    assert "no link masses" in capsys.readouterr().err

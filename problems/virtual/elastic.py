@@ -178,10 +178,6 @@ class TrackingError:
     final: float
 
 
-# --------------------------------------------------------------------------------------
-# Rigid-body dynamics (NumPy, vectorised over N states)
-# --------------------------------------------------------------------------------------
-
 def _command(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray | None, interpolation: str):
     """Piecewise cubic of the command (see :data:`INTERPOLATIONS`)."""
     if interpolation == "hermite":
