@@ -225,7 +225,10 @@ class PlanResult:
             "wrench": {"frame": pr.wrench_frame, "point": "TCP", "F_N": w[0, :3], "M_Nm": w[0, 3:],
                        "per_waypoint": bool(pr.wrench_per_waypoint)},
             "payload": ({"mass_kg": float(pr.payload_mass_kg), "com_m_tcp_frame": pr.payload_com_m,
-                         "gravity_m_s2": pr.load.gravity} if pr.payload_mass_kg else None),
+                         "gravity_m_s2": pr.load.gravity,
+                         "inertia_kg_m2_about_com_tcp_axes": [0.0] * 6,
+                         "inertia_note": "a point mass (ixx, iyy, izz, ixy, ixz, iyz = 0)"}
+                        if pr.payload_mass_kg else None),
             "model": pr.model.describe(),
             "n_waypoints": pr.n,
             "limits": {"velocity": pr.limits.velocity, "acceleration": pr.limits.acceleration,
