@@ -17,7 +17,14 @@ the in-memory :class:`~planner.plan.PlanResult` of the run that just planned
 (``write_report(folder, result=res)``: ``compplan plan``/``demo``) or from the
 folder's files (``summary.json``, ``waypoints.csv``, ``branches.csv`` and,
 when a plan was timed, ``trajectory.csv`` (Ruckig) and
-``trajectory_toppra.csv``: ``compplan report DIR``).  Both give the same view.
+``trajectory_toppra.csv``, and with dynamic compensation ``dynamic.csv``:
+``compplan report DIR``).  Both give the same view.
+
+A plan with dynamic compensation (``[timing] dynamic = true``, summary.json key
+``dynamic_compensation``) adds figure 8 (``figures/fig8_dynamic_compensation``:
+the TCP deviation from the planned path against time without, with static and
+with static + dynamic compensation, and the TCP speed) and the "Dynamic
+compensation" tables; a run without it has neither.
 
 Whatever piece of a run is absent (no trajectory, no branch table, no robot
 description) is stated in the report in place of its figure; it never fails
@@ -41,7 +48,7 @@ Modules: :mod:`~planner.report.run` (the view), :mod:`~planner.report.tables`,
 
 from __future__ import annotations
 
-from planner.report.figures import ARM_POSES, FIGURE_NAMES, build_figures
+from planner.report.figures import ARM_POSES, DYNAMIC_FIGURE, FIGURE_NAMES, build_figures
 from planner.report.maps import _map_cache_key, map_job, write_map
 from planner.report.rendering import (MAX_WORKERS, FigureItem, default_workers, render_html,
                                       render_items, render_markdown)
@@ -50,7 +57,7 @@ from planner.report.tables import (Cell, Table, fmt, headline_table, load_words,
                                    summary_tables, value_cell)
 from planner.report.writer import publish_report, write_report
 
-__all__ = ["ARM_POSES", "Cell", "FIGURE_NAMES", "FigureItem", "MAX_WORKERS", "METHOD_NAMES", "Run",
+__all__ = ["ARM_POSES", "Cell", "DYNAMIC_FIGURE", "FIGURE_NAMES", "FigureItem", "MAX_WORKERS", "METHOD_NAMES", "Run",
            "TRAJECTORY_FILES", "Table", "build_figures", "default_workers", "fmt", "headline_table",
            "load_run", "load_words", "lookup", "map_job", "provenance_table", "publish_report", "render_html",
            "render_items", "render_markdown", "run_from_plan", "summary_tables", "value_cell", "write_map",

@@ -5,7 +5,8 @@ per figure, in report order: its drawing job (a function of
 :mod:`planner.report.plots` and its arrays) or, when the run lacks what the
 figure needs, the reason it is absent.  Path figures are drawn from the run's
 data, not recomputed; only the compliance map (:mod:`planner.report.maps`) and
-the 3-D arm need the robot.
+the 3-D arm need the robot.  Figure 8 (:data:`DYNAMIC_FIGURE`) exists only in the report
+of a run with dynamic compensation (summary.json key ``dynamic_compensation``).
 """
 
 from __future__ import annotations
@@ -26,12 +27,16 @@ from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
 from planner.report import plots
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job
-from planner.report.run import METHOD_NAMES, Run
+from planner.report.run import DYNAMIC_KEY, METHOD_NAMES, Run
 from planner.report.tables import RATIO_KINDS, flat_numbers, load_words
 
 #: File names of the figures, in report order.
 FIGURE_NAMES = (MAP_FIGURE, "fig2_stiffness_error", "fig3_compensation_angles",
                 "fig4_error_before_after", "fig5_branches", "fig6_trajectory", "fig7_arm_3d")
+
+#: File name of the figure of the dynamic compensation (figure 8), drawn only for a run that has
+#: it (``[timing] dynamic = true``); runs without it have no such figure, not an absent one.
+DYNAMIC_FIGURE = "fig8_dynamic_compensation"
 
 #: Number of poses drawn in figure 7 (start, middle, end).
 ARM_POSES = 3
@@ -84,9 +89,12 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
     """
     files = {} if files is None else files
     ctx = _context(run)
-    return [map_item(run, map_options, progress, files, map_cache), _stiffness_item(ctx),
-            _compensation_item(ctx), _error_item(ctx), _branch_item(ctx), _trajectory_item(ctx),
-            _arm_item(ctx)]
+    items = [map_item(run, map_options, progress, files, map_cache), _stiffness_item(ctx),
+             _compensation_item(ctx), _error_item(ctx), _branch_item(ctx), _trajectory_item(ctx),
+             _arm_item(ctx)]
+    if isinstance(run.summary.get(DYNAMIC_KEY), Mapping):
+        items.append(_dynamic_item(ctx))
+    return items
 
 
 def _context(run: Run) -> _Context:
@@ -398,3 +406,39 @@ def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tupl
                f"under the load without compensation (dashed), their joint deflection q_target − q_command "
                f"exaggerated ×{factor:g}.")
     return jb, caption
+
+
+# ------------------------------------------------------------------ 8. dynamic compensation
+def _dynamic_item(ctx: _Context) -> FigureItem:
+    """Figure 8: the predicted TCP error against time with no, static and static + dynamic
+    compensation, and the planned TCP speed (``dynamic.csv``)."""
+    run, s = ctx.run, ctx.run.summary
+    entry = s.get(DYNAMIC_KEY) or {}
+    item = FigureItem(DYNAMIC_FIGURE, "TCP deviation from the planned path against time (dynamic compensation)",
+                      "Predicted (quasi-static) TCP position error against the planned link side at every "
+                      "command sample, in µm on a log axis: the link plan commanded as is (none), with the "
+                      "static compensation only, and with the motor-side command of the dynamic compensation "
+                      "(static + dynamic), which also makes the joints carry the inertial torques; below, the "
+                      "planned TCP speed (m/s) on the same time axis. Grey: the arm at rest. Vibrations are "
+                      f"not included. Data: {entry.get('file') or 'dynamic.csv'}; max and RMS in the table "
+                      "'Dynamic compensation'.")
+    d = run.dynamic
+    if d is None:
+        item.absent = run.absent.get("dynamic", "dynamic compensation: dynamic.csv absent in this run")
+        return item
+    if len(d["t"]) == 0:
+        item.absent = "dynamic compensation: dynamic.csv has no samples"
+        return item
+    passes = entry.get("passes")
+    scale = entry.get("limit_scale") if isinstance(entry.get("limit_scale"), Mapping) else {}
+    parts = [f"{passes} timing pass{'' if passes == 1 else 'es'}" if passes is not None else "",
+             ("limits scaled " + ", ".join(f"{k} ×{format_number(float(v), 3)}" for k, v in scale.items()
+                                           if isinstance(v, (int, float))) if scale else ""),
+             (f"dynamic part smoothed over {format_number(1e3 * float(entry['smoothing_s']))} ms"
+              if isinstance(entry.get("smoothing_s"), (int, float)) else "")]
+    sub = "; ".join(p for p in parts if p)
+    title = _wrap(f"{ctx.robot_name}, branch {ctx.branch}: TCP deviation from the planned path; load: {ctx.load}",
+                  130) + (f"\n{sub}" if sub else "")
+    item.job = job(plots.dynamic_figure, d["t"], d["moving"],
+                   (d["e_none_m"], d["e_static_m"], d["e_static_dynamic_m"]), d["tcp_speed_m_s"], title=title)
+    return item

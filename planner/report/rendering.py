@@ -26,7 +26,7 @@ MAX_WORKERS = 2
 #: Relative rendering cost of each figure (longest first when rendering in parallel).
 _COST = {"fig1_compliance_map": 3.0, "fig3_compensation_angles": 2.8, "fig6_trajectory": 2.7,
          "fig4_error_before_after": 1.9, "fig2_stiffness_error": 1.0, "fig7_arm_3d": 1.0,
-         "fig5_branches": 0.9}
+         "fig5_branches": 0.9, "fig8_dynamic_compensation": 1.2}
 
 #: A figure to draw: ``(drawing function, args, kwargs)``.
 Job = tuple[Callable[..., Any], tuple, dict]

@@ -6,7 +6,8 @@ after planning) or from the files of an output folder (:func:`load_run`, what
 ``compplan report DIR`` uses).  Both give the same view: ``summary`` is the
 content of ``summary.json`` as JSON values (non-finite numbers are None), the
 waypoint, branch and trajectory tables hold the columns of ``waypoints.csv``,
-``branches.csv`` and ``trajectory*.csv``.
+``branches.csv`` and ``trajectory*.csv``, and a plan with dynamic compensation
+(``[timing] dynamic = true``) the series of ``dynamic.csv``.
 """
 
 from __future__ import annotations
@@ -38,6 +39,12 @@ METHOD_NAMES = {"toppra": "TOPP-RA", "jerk_optimal": "jerk-optimal", "ruckig": "
 #: Jerk columns of ``trajectory*.csv`` (absent in files written before they were recorded).
 _JERK_COLUMNS = [c for c in TRAJECTORY_COLUMNS if c.startswith("qddd")]
 _NO_TRAJECTORY = "no trajectory in this run (trajectory.csv and trajectory_toppra.csv absent)"
+#: Columns of ``dynamic.csv`` (dynamic compensation): time (s), moving (0/1), the predicted TCP
+#: error along the command without compensation, with the static one and with static + dynamic
+#: (m), and the planned TCP speed (m/s).
+DYNAMIC_COLUMNS = ("t", "moving", "e_none_m", "e_static_m", "e_static_dynamic_m", "tcp_speed_m_s")
+#: The summary.json key of the dynamic-compensation stage.
+DYNAMIC_KEY = "dynamic_compensation"
 
 
 @dataclass
@@ -59,6 +66,9 @@ class Run:
     trajectory_files : dict method -> file name
     robot : Robot or None
         From ``summary["robot_file"]`` (or the plan's robot).
+    dynamic : dict of column -> ndarray, or None
+        The columns of ``dynamic.csv`` (:data:`DYNAMIC_COLUMNS`) of a run with dynamic
+        compensation (summary.json key ``dynamic_compensation``); None otherwise.
     absent : dict of piece -> reason
         What the report could not show and why.
     """
@@ -70,6 +80,7 @@ class Run:
     trajectories: dict[str, dict[str, np.ndarray | None]] = field(default_factory=dict)
     trajectory_files: dict[str, str] = field(default_factory=dict)
     robot: Robot | None = None
+    dynamic: dict[str, np.ndarray] | None = None
     absent: dict[str, str] = field(default_factory=dict)
 
 
@@ -100,7 +111,26 @@ def run_from_plan(res: "PlanResult", folder: str | Path) -> Run:
             _add_trajectory(run, method, name, _trajectory_arrays(tr))
     if not run.trajectories:
         run.absent.setdefault("trajectory", _NO_TRAJECTORY)
+    stage = getattr(res, "dynamic", None)
+    if stage is not None and getattr(stage, "link", None) is not None:
+        cols, rows = stage.series(res.problem.model)
+        run.dynamic = {c: np.asarray(rows[:, j], float) for j, c in enumerate(cols)}
+    elif isinstance(summary.get(DYNAMIC_KEY), Mapping):
+        run.absent["dynamic"] = _no_dynamic(summary)
     return run
+
+
+def _dynamic_file(summary: Mapping[str, Any]) -> str:
+    entry = summary.get(DYNAMIC_KEY)
+    name = entry.get("file") if isinstance(entry, Mapping) else None
+    return Path(name).name if isinstance(name, str) and name else "dynamic.csv"
+
+
+def _no_dynamic(summary: Mapping[str, Any]) -> str:
+    entry = summary.get(DYNAMIC_KEY)
+    status = entry.get("status") if isinstance(entry, Mapping) else None
+    return (f"dynamic compensation: {_dynamic_file(summary)} absent in this run"
+            + (f" (stage status {status})" if status not in (None, "ok") else ""))
 
 
 def _trajectory_arrays(tr: "Trajectory") -> dict[str, np.ndarray | None]:
@@ -236,6 +266,15 @@ def load_run(folder: str | Path) -> Run:
             _add_trajectory(run, method, name, _read_trajectory(folder / name))
     if not run.trajectories:
         run.absent["trajectory"] = _NO_TRAJECTORY
+
+    if isinstance(summary.get(DYNAMIC_KEY), Mapping):
+        dp = folder / _dynamic_file(summary)
+        if dp.is_file():
+            cols = _read_csv(dp)
+            _require(dp, cols, list(DYNAMIC_COLUMNS))
+            run.dynamic = {c: cols[c] for c in DYNAMIC_COLUMNS}
+        else:
+            run.absent["dynamic"] = _no_dynamic(summary)
 
     rf = summary.get("robot_file")
     if isinstance(rf, dict):

@@ -25,7 +25,7 @@ import numpy as np
 
 from planner import branches as branch_words
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, format_value
-from planner.report.run import METHOD_NAMES
+from planner.report.run import DYNAMIC_KEY, METHOD_NAMES
 
 #: Kinds of limit ratio, in table order.
 RATIO_KINDS = ("velocity", "acceleration", "jerk")
@@ -173,6 +173,7 @@ def summary_tables(summary: Mapping[str, Any], absent: Mapping[str, str]) -> lis
     summary.json)."""
     tables = [headline_table(summary), _run_table(summary), _error_table(summary),
               _timing_table(summary, absent)]
+    tables += dynamic_tables(summary)
     branches = _branch_table(summary)
     if branches is not None:
         tables.append(branches)
@@ -438,3 +439,53 @@ def _branch_table(s: Mapping[str, Any]) -> Table | None:
             "not a failure: six equations fix the six joints and only the branch is chosen.")
     return Table("IK branches", ["branch", "posture", "status"]
                  + [_BRANCH_HEADERS.get(k, k) for k in keys], rows, note)
+
+
+#: The cases of the dynamic compensation: (summary.json key, row label).
+DYNAMIC_CASES = (("none", "none (link plan commanded as is)"), ("static", "static compensation only"),
+                 ("static+dynamic", "static + dynamic (motor-side command)"))
+
+
+def dynamic_tables(s: Mapping[str, Any]) -> list[Table]:
+    """The predicted TCP error without, with static and with static + dynamic compensation, and
+    the command's timing passes, limit scale and smoothing; no table when the run has no
+    dynamic compensation (summary.json key ``dynamic_compensation``)."""
+    d = s.get(DYNAMIC_KEY)
+    if not isinstance(d, Mapping):
+        return []
+    k = f"{DYNAMIC_KEY}.predicted_tcp_error"
+    rows = [[Cell(label)] + [value_cell(s, f"{k}.{case}.{m}") for m in ("motion_max_mm", "motion_rms_mm",
+                                                                         "rest_max_mm")]
+            for case, label in DYNAMIC_CASES]
+    note = " ".join(p for p in (
+        f"Definition: {d['definition']}." if d.get("definition") else "",
+        f"Assumptions: {d['assumptions']}." if d.get("assumptions") else "",
+        f"Series against time: {d.get('file') or 'dynamic.csv'} (figure "
+        "'TCP deviation from the planned path against time').",
+        f"Below {format_number(NUMERICAL_FLOOR_MM)} mm: 0 (numerical).") if p)
+    errors = Table("Dynamic compensation: predicted TCP error [mm]",
+                   ["case", "max during motion [mm]", "RMS during motion [mm]", "max at rest [mm]"], rows,
+                   note.replace("..", "."), anchor="dynamic")
+    scale = d.get("limit_scale") if isinstance(d.get("limit_scale"), Mapping) else {}
+    kinds = [kd for kd in RATIO_KINDS if kd in scale] + [kd for kd in scale if kd not in RATIO_KINDS]
+    command = Table("Dynamic compensation: command",
+                    ["status", "timing passes"] + [f"limit scale: {kd} [×]" for kd in kinds] + ["smoothing [s]"],
+                    [[value_cell(s, f"{DYNAMIC_KEY}.status"), value_cell(s, f"{DYNAMIC_KEY}.passes")]
+                     + [value_cell(s, f"{DYNAMIC_KEY}.limit_scale.{kd}") for kd in kinds]
+                     + [value_cell(s, f"{DYNAMIC_KEY}.smoothing_s")]],
+                    str(d.get("reason") or ""), anchor="dynamic-command")
+    tables = [errors, command]
+    mismatch = d.get("mismatch")
+    if isinstance(mismatch, list) and mismatch:
+        m = f"{DYNAMIC_KEY}.mismatch"
+        cols = ("stiffness_factor", "payload_factor", "static_motion_max_mm", "static_dynamic_motion_max_mm", "gain")
+        rows = [[value_cell(s, f"{m}.{i}.{c}") for c in cols]
+                for i, e in enumerate(mismatch) if isinstance(e, Mapping)]
+        tables.append(Table("Dynamic compensation: model mismatch",
+                            ["joint stiffness [× model]", "payload mass [× model]",
+                             "static only: max during motion [mm]", "static + dynamic: max during motion [mm]",
+                             "gain [×]"], rows,
+                            "The same command (planned on the model) run on an arm whose joint stiffness and "
+                            "payload mass are the factors times the model's: predicted TCP error during the "
+                            "motion; gain = static only / static + dynamic.", anchor="dynamic-mismatch"))
+    return tables
