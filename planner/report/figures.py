@@ -24,7 +24,7 @@ from models.ik import BRANCH_LABELS
 from planner.branches import legend
 from planner.compliance_map import ProgressFn
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
-from planner.report import plots
+from planner.report import dynamic_plot, plots
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job
 from planner.report.run import DYNAMIC_KEY, METHOD_NAMES, Run
@@ -439,6 +439,6 @@ def _dynamic_item(ctx: _Context) -> FigureItem:
     sub = "; ".join(p for p in parts if p)
     title = _wrap(f"{ctx.robot_name}, branch {ctx.branch}: TCP deviation from the planned path; load: {ctx.load}",
                   130) + (f"\n{sub}" if sub else "")
-    item.job = job(plots.dynamic_figure, d["t"], d["moving"],
+    item.job = job(dynamic_plot.dynamic_figure, d["t"], d["moving"],
                    (d["e_none_m"], d["e_static_m"], d["e_static_dynamic_m"]), d["tcp_speed_m_s"], title=title)
     return item
