@@ -273,23 +273,29 @@ class PlanResult:
             s["status"] = {"closed_form": self.closed.status.value, "exact": self.exact.status.value}
             s["warnings"] += list(self.closed.warnings)
         if self.trajectories:
-            s["duration_s"] = {m: tr.duration_s for m, tr in self.trajectories.items()}
-            s["limit_ratio"] = {m: {k: v for k, v in tr.limit_ratio.items()}
-                                for m, tr in self.trajectories.items()}
-            s["timing"] = {m: {"status": tr.status.value, "reason": tr.reason,
-                               "limits_enforced": list(ENFORCED[m]),
-                               "within_all_limits": _within(tr, ("velocity", "acceleration", "jerk")),
-                               "iterations": tr.iterations, "dt": tr.dt,
-                               "limit_use": limit_use(tr, pr.limits, ENFORCED[m]),
-                               "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
-                           for m, tr in self.trajectories.items()}
-            s["controller_trajectory"] = self.controller
-            if self.dynamic is not None:
-                s["dynamic_compensation"] = _dynamic_entry(self.dynamic)
+            s.update(self._timing_summary())
             s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items()
                               if t["limit_use"]["why"]]
         head = {"headline": _headline(s), "provenance": self.provenance()}
         return {**head, **s}
+
+    def _timing_summary(self) -> dict[str, Any]:
+        """The timing keys of the summary: durations, limit ratios, per-method status and limit use,
+        the controller's method and (with dynamic compensation) its block."""
+        pr = self.problem
+        out: dict[str, Any] = {
+            "duration_s": {m: tr.duration_s for m, tr in self.trajectories.items()},
+            "limit_ratio": {m: dict(tr.limit_ratio.items()) for m, tr in self.trajectories.items()},
+            "timing": {m: {"status": tr.status.value, "reason": tr.reason, "limits_enforced": list(ENFORCED[m]),
+                           "within_all_limits": _within(tr, ("velocity", "acceleration", "jerk")),
+                           "iterations": tr.iterations, "dt": tr.dt,
+                           "limit_use": limit_use(tr, pr.limits, ENFORCED[m]),
+                           "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
+                       for m, tr in self.trajectories.items()},
+            "controller_trajectory": self.controller}
+        if self.dynamic is not None:
+            out["dynamic_compensation"] = _dynamic_entry(self.dynamic)
+        return out
 
     def provenance(self) -> dict[str, Any]:
         """The ``provenance`` block: version, command line and date (when the result was made),
