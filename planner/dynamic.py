@@ -35,6 +35,14 @@ DYNAMIC_RETIME_MARGIN: float = 0.02
 #: A command ratio above 1 + this fails the check (the timing's own tolerance).
 DYNAMIC_RATIO_TOL: float = 1e-9
 _KEYS = ("velocity", "acceleration", "jerk")
+#: What the summary's predicted errors are, and the stage's assumptions (``summary.json``).
+SUMMARY_DEFINITION = (
+    "predicted (quasi-static) TCP position error against the planned link side, mm, during the motion and at rest, "
+    "for the link plan commanded as is (none), the static compensation only (static) and the motor-side command "
+    "(static+dynamic); vibrations excluded (docs/elastic-simulation.md); mismatch: the same during the motion on an "
+    "arm whose joint stiffness and payload mass are the factors times the model's (the command unchanged)")
+SUMMARY_ASSUMPTIONS = ("elastic joints between the motor-side position the servo holds and the link; joint damping "
+                       "and link compliance not compensated dynamically; payload a point mass")
 
 
 class DynamicStageStatus(enum.Enum):
@@ -92,6 +100,14 @@ class DynamicStage:
                                 self.errors_m["static"], self.errors_m["static+dynamic"], speed])
         return cols, rows
 
+    def summary(self) -> dict[str, Any]:
+        """The ``dynamic_compensation`` block of ``summary.json``."""
+        return {"status": self.status.value, "reason": self.reason, "passes": self.passes,
+                "limit_scale": self.limit_scale, "smoothing_s": DYNAMIC_SMOOTHING_S,
+                "predicted_tcp_error": self.error_stats_mm(), "mismatch": self.mismatch,
+                "definition": SUMMARY_DEFINITION, "assumptions": SUMMARY_ASSUMPTIONS,
+                "link_columns": "trajectory.csv ql1..ql6: the planned link side", "file": "dynamic.csv"}
+
     def error_stats_mm(self) -> dict[str, dict[str, float]]:
         """Max and RMS of each predicted error during the motion and at rest, mm."""
         out: dict[str, dict[str, float]] = {}
@@ -135,7 +151,7 @@ def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_
     dyn = motor_command(arm, q, qd, qdd, load, rows=rows)
     if dyn.status is not DynamicStatus.OK:
         raise ValueError(dyn.reason)
-    static = motor_command(arm, q, np.zeros_like(q), np.zeros_like(q), load, rows=rows).theta
+    static = q - arm.torque_deflection(q, dyn.tau_static)     # the same command without the inertial torques
     theta = static + smooth(dyn.theta - static, n_smooth)
     needed = q - dyn.theta                         # the deflection the plan's torques cause
     errors = predicted_tcp_errors(arm, q, needed, {"none": q, "static": static, "static+dynamic": theta})
@@ -175,8 +191,8 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
         except ValueError as exc:
             return DynamicStage(DynamicStageStatus.FAILED, str(exc), passes=p)
         q, theta = ps.q, ps.theta
-        d = finite_derivatives(theta, dt)
-        ratio = {k: np.abs(x).max(axis=0) / lim[k] for k, x in zip(_KEYS, d)}
+        derivs = finite_derivatives(theta, dt)
+        ratio = {k: np.abs(x).max(axis=0) / lim[k] for k, x in zip(_KEYS, derivs)}
         worst = {k: float(r.max()) for k, r in ratio.items()}
         if all(v <= 1.0 + DYNAMIC_RATIO_TOL for v in worst.values()):
             break
@@ -191,7 +207,7 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
               f"(limits scaled: {scaled}); command peak ratios {text}; dynamic part smoothed over 2 x "
               f"{n_smooth * dt * 1e3:g} ms, {n_pad * dt * 1e3:g} ms rest added at both ends")
     status = TimingStatus.OK if ok else TimingStatus.LIMIT_EXCEEDED
-    d1, d2, d3 = finite_derivatives(theta, dt)
+    d1, d2, d3 = derivs
     command = Trajectory(method=method, status=status, reason=reason, t=t, q=theta, qd=d1, qdd=d2, qddd=d3,
                          duration_s=float(t[-1]), limit_ratio=ratio, dt=dt, iterations=p)
     lq, lqd, lqdd, lqddd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd, link.qddd))

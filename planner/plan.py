@@ -56,7 +56,6 @@ from planner.output import OutputSet
 from planner.provenance import invocation, problem_input, provenance, robot_input
 from planner.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
 from planner.timing.limit_use import limit_use
-from problems.dynamic import DYNAMIC_SMOOTHING_S
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
@@ -294,7 +293,7 @@ class PlanResult:
                        for m, tr in self.trajectories.items()},
             "controller_trajectory": self.controller}
         if self.dynamic is not None:
-            out["dynamic_compensation"] = _dynamic_entry(self.dynamic)
+            out["dynamic_compensation"] = self.dynamic.summary()
         return out
 
     def provenance(self) -> dict[str, Any]:
@@ -641,23 +640,6 @@ LINK_COLUMNS = [f"ql{i}" for i in range(1, 7)]
 
 STALE_OUTPUTS = ("trajectory.csv", "trajectory_toppra.csv", "trajectory_ruckig.csv",
                  "branches.png", "trajectory.png", "waypoints.csv", "branches.csv", "path.csv")
-
-
-def _dynamic_entry(stage: Any) -> dict[str, Any]:
-    """The ``dynamic_compensation`` block of the summary."""
-    return {"status": stage.status.value, "reason": stage.reason, "passes": stage.passes,
-            "limit_scale": stage.limit_scale, "smoothing_s": DYNAMIC_SMOOTHING_S,
-            "predicted_tcp_error": stage.error_stats_mm(),
-            "mismatch": stage.mismatch,
-            "definition": ("predicted (quasi-static) TCP position error against the planned link side, mm, during "
-                           "the motion and at rest, for the link plan commanded as is (none), the static compensation "
-                           "only (static) and the motor-side command (static+dynamic); vibrations excluded "
-                           "(docs/elastic-simulation.md); mismatch: the same during the motion on an arm whose joint stiffness and "
-                           "payload mass are the factors times the model's (the command unchanged)"),
-            "assumptions": ("elastic joints between the motor-side position the servo holds and the link; joint "
-                            "damping and link compliance not compensated dynamically; payload a point mass"),
-            "link_columns": "trajectory.csv ql1..ql6: the planned link side",
-            "file": "dynamic.csv"}
 
 
 def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True,

@@ -36,6 +36,8 @@ import enum
 import json
 from dataclasses import dataclass
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 
@@ -79,24 +81,31 @@ class DynamicCommand:
 
 
 _FN_CACHE: dict[str, ca.Function] = {}
-#: Inertial-torque functions kept (by the robot's description).
+#: CasADi functions kept (by kind and the robot's description).
 FN_CACHE_SIZE = 16
+
+
+def _cached(kind: str, robot: Robot, build: Any) -> ca.Function:
+    """A CasADi function of ``robot`` built by ``build(robot)``, cached by kind and the robot's content."""
+    key = kind + json.dumps(robot.to_dict(), sort_keys=True, default=lambda o: np.asarray(o).tolist())
+    if key not in _FN_CACHE:
+        if len(_FN_CACHE) >= FN_CACHE_SIZE:
+            _FN_CACHE.pop(next(iter(_FN_CACHE)))
+        _FN_CACHE[key] = build(robot)
+    return _FN_CACHE[key]
 
 
 def _inertial_fn(robot: Robot) -> ca.Function:
     """``tau(q, qd, qdd, payload)`` without gravity and wrench (cached by the robot's content)."""
-    key = json.dumps(robot.to_dict(), sort_keys=True, default=lambda o: np.asarray(o).tolist())
-    if key in _FN_CACHE:
-        return _FN_CACHE[key]
+    return _cached("inertial:", robot, _build_inertial)
+
+
+def _build_inertial(robot: Robot) -> ca.Function:
     f = rnea_function(robot, gravity_input=True)
     q, qd, qdd = ca.SX.sym("q", 6), ca.SX.sym("qd", 6), ca.SX.sym("qdd", 6)
     pl = ca.SX.sym("payload", f.size1_in(3))
     tau = f(q, qd, qdd, pl, ca.SX.zeros(f.size1_in(4)), ca.SX.zeros(3))
-    fn = ca.Function("inertial_torques", [q, qd, qdd, pl], [tau], ["q", "qd", "qdd", "payload"], ["tau"])
-    if len(_FN_CACHE) >= FN_CACHE_SIZE:
-        _FN_CACHE.pop(next(iter(_FN_CACHE)))
-    _FN_CACHE[key] = fn
-    return fn
+    return ca.Function("inertial_torques", [q, qd, qdd, pl], [tau], ["q", "qd", "qdd", "payload"], ["tau"])
 
 
 def inertial_torques(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -128,12 +137,7 @@ def link_weight_torques(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 
 def _static_fn(robot: Robot) -> ca.Function:
-    key = "static:" + json.dumps(robot.to_dict(), sort_keys=True, default=lambda o: np.asarray(o).tolist())
-    if key not in _FN_CACHE:
-        if len(_FN_CACHE) >= FN_CACHE_SIZE:
-            _FN_CACHE.pop(next(iter(_FN_CACHE)))
-        _FN_CACHE[key] = gravity_torque_function(robot)
-    return _FN_CACHE[key]
+    return _cached("static:", robot, gravity_torque_function)
 
 
 def motor_command(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, load: Load,
@@ -195,7 +199,7 @@ def smooth(x: np.ndarray, n: int) -> np.ndarray:
     if n <= 1:
         return x.copy()
     for _ in range(2):
-        pad = np.concatenate([np.repeat(x[:1], n, axis=0), x, np.repeat(x[-1:], n, axis=0)])
+        pad = padded(x, n)
         c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(pad, axis=0)])
         y = (c[n:] - c[:-n]) / n                     # y[i] = mean(pad[i:i+n])
         off = n - (n - 1) // 2                        # window centred on pad[i + n]

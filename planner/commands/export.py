@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     run_dir = Path(args.run_dir)
     data = data_from_run(run_dir)
     files = export_files(data, args.format, out, options)
-    inputs = {"RUN_DIR summary.json": run_dir / "summary.json", "RUN_DIR trajectory": _trajectory_file(run_dir)}
+    inputs = {f"RUN_DIR {p.name}": p for p in data.inputs}
     if formats()[args.format].folder:
         check_output(out, inputs, kind="folder")
         folder = OutputSet(out)
@@ -110,13 +110,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _bytes(content: str | bytes) -> bytes:
     return content if isinstance(content, bytes) else content.encode()
-
-
-def _trajectory_file(run_dir: Path) -> Path:
-    import json
-    s: Any = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
-    ctrl = s.get("controller_trajectory", "")
-    return run_dir / str((s.get("timing") or {}).get(ctrl, {}).get("file", "trajectory.csv"))
 
 
 # ------------------------------------------------------------------ plan / demo --export

@@ -86,8 +86,7 @@ def run(args: argparse.Namespace) -> int:
     payload = payload_vector(float(pl.get("mass_kg", 0.0)) * args.payload_scale, pl.get("com_m_tcp_frame", [0, 0, 0]))
     wrench = _wrench(summary)
     K = np.array([j.stiffness for j in robot.joints]) * args.stiffness_scale
-    timing = summary["timing"][summary["controller_trajectory"]]
-    ql = _link_side(run_dir / timing.get("file", "trajectory.csv"))
+    ql = data.link_q
     if ql is None:                                       # no dynamic compensation: the static equilibria
         arm = ElasticArm(robot, payload, wrench)
         ql = np.array([arm.equilibrium(th, K)[0] for th in data.q])
@@ -105,15 +104,3 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_bytes(args.out, csv_bytes(["t", "error_m"], np.column_stack([e.t, e.error])))
         print(f"wrote {args.out}")
     return 0
-
-
-def _link_side(path: Path) -> np.ndarray | None:
-    """``ql1..ql6`` of a trajectory file, or None without them."""
-    import csv
-    with path.open(newline="", encoding="utf-8") as f:
-        rows = [r for r in csv.reader(f) if r and not r[0].startswith("#")]
-    head = rows[0]
-    if "ql1" not in head:
-        return None
-    idx = [head.index(f"ql{i}") for i in range(1, 7)]
-    return np.array([[float(r[i]) for i in idx] for r in rows[1:]])

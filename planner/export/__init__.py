@@ -60,6 +60,10 @@ class ExportData:
         Controller angle = ``sign * q + offset`` (rad).
     source : str
         Where it came from (run folder, problem), for the file header.
+    inputs : tuple of Path
+        The files it was read from (none for a plan in memory).
+    link_q : ndarray, shape (M, 6), or None
+        The planned link side (``ql1..ql6``) of a run with dynamic compensation, rad.
     """
 
     name: str
@@ -80,6 +84,8 @@ class ExportData:
     sign: np.ndarray = field(default_factory=lambda: np.ones(6))
     offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
     source: str = ""
+    inputs: tuple[Path, ...] = ()
+    link_q: np.ndarray | None = None
 
     def controller_q(self, q: np.ndarray | None = None) -> np.ndarray:
         """Joint positions in the controller's convention (rad), (M, 6)."""
@@ -283,7 +289,7 @@ def data_from_run(folder: str | Path) -> ExportData:
         raise ExportError(f"{summary}: the trajectory is not ok (plan_status {s.get('plan_status')!r}, {ctrl} "
                           f"status {timing.get('status')!r}: {timing.get('reason', '')}); refusing to export it")
     path = folder / str(timing.get("file", "trajectory.csv"))
-    t, q, qd, qdd, qddd = _read_trajectory(path)
+    t, q, qd, qdd, qddd, link_q = _read_trajectory(path)
     rf = s.get("robot_file") or {}
     ctrl_map = rf.get("controller") or {}
     lim = s.get("limits") or {}
@@ -295,13 +301,15 @@ def data_from_run(folder: str | Path) -> ExportData:
                       q_max=_limit(summary, lim, "q_max"),
                       enforced=tuple(timing.get("limits_enforced") or _DEFAULT_ENFORCED),
                       sign=np.asarray(ctrl_map.get("joint_sign", [1] * 6), float),
-                      offset=np.asarray(ctrl_map.get("joint_offset", [0.0] * 6), float), source=f"run {folder}")
+                      offset=np.asarray(ctrl_map.get("joint_offset", [0.0] * 6), float), source=f"run {folder}",
+                      inputs=(summary, path), link_q=link_q)
     verify_limits(data, str(path))
     return data
 
 
 def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
-    """``t, q, qd, qdd, qddd`` of a ``trajectory*.csv`` (columns by name, any order)."""
+    """``t, q, qd, qdd, qddd`` of a ``trajectory*.csv`` (columns by name, any order), and the link
+    side ``ql1..ql6`` when the file has it (else None)."""
     if not path.is_file():
         raise ExportError(f"{path}: no such trajectory file")
     try:
@@ -316,6 +324,9 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
     missing = [c for c in need if c not in head]
     if missing:
         raise ExportError(f"{path}: missing column(s) {', '.join(missing)}")
+    link = [f"ql{i}" for i in range(1, 7)]
+    has_link = all(c in head for c in link)
+    need = need + (link if has_link else [])
     cols = [head.index(c) for c in need]
     a = np.empty((len(rows) - 1, len(need)))
     for n, r in enumerate(rows[1:]):
@@ -325,7 +336,7 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
             raise ExportError(f"{path}: row {n + 2} is not {len(head)} numbers: {','.join(r)[:80]!r}") from None
     if a.shape[0] < 2 or not np.all(np.isfinite(a)):
         raise ExportError(f"{path}: expected at least 2 rows of finite numbers")
-    return a[:, 0], a[:, 1:7], a[:, 7:13], a[:, 13:19], a[:, 19:25]
+    return a[:, 0], a[:, 1:7], a[:, 7:13], a[:, 13:19], a[:, 19:25], (a[:, 25:31] if has_link else None)
 
 
 # --------------------------------------------------------------------------------------
