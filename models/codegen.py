@@ -516,12 +516,17 @@ class BatchFunction:
         src += f"\nstatic const long long {self.name}_out_nnz[{self.n_out}] = {{{nnz}}};\n"
         src += _WRAPPER % {"name": self.name, "n_in": self.n_in, "n_out": self.n_out,
                            "out_nnz": f"{self.name}_out_nnz", "min_batch": PARALLEL_MIN_BATCH}
-        lib = compile_shared_library(src, self.name)
+        self._load(compile_shared_library(src, self.name))
+
+    def _load(self, lib: Path) -> None:
+        """Load the compiled library ``lib`` (its ``compplan_batch`` entry point)."""
         try:
             self._lib = ctypes.CDLL(str(lib))
             fn = self._lib.compplan_batch
         except (OSError, AttributeError) as exc:
             _fail(f"cannot load compiled library {lib} ({_one_line(str(exc))})")
+        #: The shared library this evaluator runs.
+        self.library = Path(lib)
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_longlong, ctypes.POINTER(ctypes.c_void_p),
                        ctypes.POINTER(ctypes.c_longlong), ctypes.POINTER(ctypes.c_void_p), ctypes.c_int]
@@ -589,6 +594,73 @@ class VMBatchFunction:
             arr = np.asarray(x, dtype=float).reshape(r, n, c)       # (r, c*N) -> pose-major rows
             outs.append(np.ascontiguousarray(arr.transpose(1, 2, 0)).reshape(n, c * r))
         return _batch_outputs(outs, self.out_sizes)
+
+
+def portable_state(f: ca.Function, evaluator: "BatchFunction | VMBatchFunction") -> dict:
+    """What rebuilds ``evaluator`` in another process, on a machine without a compiler.
+
+    The state carries the function serialised by CasADi and, for a compiled evaluator, the
+    bytes of its shared library with the identity of the CPU it was built for
+    (``-march=native``).  :func:`evaluator_from_state` loads that library on a machine with
+    the same CPU identity and falls back to CasADi's virtual machine elsewhere, so a worker
+    (e.g. a Dask worker) needs no compiler of its own.
+
+    Parameters
+    ----------
+    f : casadi.Function
+        The function ``evaluator`` evaluates.
+    evaluator : BatchFunction or VMBatchFunction
+
+    Returns
+    -------
+    dict
+        Plain data (bytes, str, int, lists): picklable.
+    """
+    state: dict = {"function": f.serialize(), "threads": int(evaluator.threads), "library": None,
+                   "host": None, "name": evaluator.name}
+    if isinstance(evaluator, BatchFunction):
+        state["library"] = evaluator.library.read_bytes()
+        state["host"] = _host_id()
+        state["in_sizes"] = [tuple(s) for s in evaluator.in_sizes]
+        state["out_sizes"] = [tuple(s) for s in evaluator.out_sizes]
+    return state
+
+
+def evaluator_from_state(state: dict, threads: int | None = None) -> "BatchFunction | VMBatchFunction":
+    """The evaluator described by :func:`portable_state`: the shipped compiled library when
+    this machine's CPU identity matches the builder's (written once into a private temporary
+    folder, named by its SHA-256), else CasADi's virtual machine on the serialised function.
+
+    Parameters
+    ----------
+    state : dict
+        From :func:`portable_state`.
+    threads : int, optional
+        Threads of the evaluation (default: the state's).
+    """
+    th = int(state["threads"] if threads is None else threads)
+    f = ca.Function.deserialize(state["function"])
+    lib = state.get("library")
+    if lib is not None and state.get("host") == _host_id():
+        digest = hashlib.sha256(lib).hexdigest()[:24]
+        path = _private_folder() / f"{state['name']}_shipped_{digest}.so"
+        with _LOCK:
+            if not path.exists():
+                tmp = path.with_suffix(f".tmp{os.getpid()}")
+                tmp.write_bytes(lib)
+                os.replace(tmp, path)
+        ev = BatchFunction.__new__(BatchFunction)
+        ev.name = state["name"]
+        ev.in_sizes = [tuple(s) for s in state["in_sizes"]]
+        ev.out_sizes = [tuple(s) for s in state["out_sizes"]]
+        ev.n_in, ev.n_out = len(ev.in_sizes), len(ev.out_sizes)
+        ev.threads = th
+        try:
+            ev._load(path)
+            return ev
+        except CompileError:
+            pass
+    return VMBatchFunction(f, th)
 
 
 def compile_batch(f: ca.Function, threads: int = 2) -> BatchFunction:

@@ -28,7 +28,7 @@ import numpy as np
 from . import effects as fx
 from .codegen import BatchFunction, VMBatchFunction, batch_function
 from .effects.graph import (arm_functions, compliance_from_jacobian, geometric_jacobian, joint_axes,
-                            link_transform)
+                            link_transform, load_error_gravity_function)
 from .robot import Robot
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -97,6 +97,20 @@ class KinematicModel:
         self.joint_deflection = self.fn["joint_deflection"]
         self.kinetostatics = self.fn["kinetostatics"]
         self._evaluators: dict[str, BatchFunction | VMBatchFunction] = {}
+        self._load_error_g: ca.Function | None = None
+
+    @property
+    def load_error_gravity(self) -> ca.Function:
+        """``load_error_g(q (6), L (LOAD_SIZE), g (3)) -> e (6)``: ``fn["load_error"]`` with the
+        robot's gravity constant (m/s^2, base frame; the arm's self-weight) as the input ``g``,
+        for the same arm mounted another way (placement studies).  Built on first use."""
+        if self._load_error_g is None:
+            arm = self.arm
+            el = fx.make_layout(arm.nominal, arm.const).eligible
+            self._load_error_g = load_error_gravity_function(
+                arm.nominal.convention, arm.active_effects, arm.theta, arm.planning_const, el,
+                arm.temperature_ref - fx.THERMAL_REFERENCE_C)
+        return self._load_error_g
 
     # ------------------------------------------------------------------ batch helpers
     def batch(self, f: ca.Function, *args: np.ndarray) -> list[np.ndarray]:

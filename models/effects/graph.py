@@ -422,6 +422,32 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
 # Planning: parameters fixed
 # --------------------------------------------------------------------------------------
 
+def _planning_graph(convention: str, active: Sequence[str], const: np.ndarray,
+                    eligible: np.ndarray) -> Graph:
+    """The graph of a planning model: the effects that act on the arm and are active (the
+    measurement effects, registration and drift, do not)."""
+    effs = [e for e in registry() if e.acts_on == base.ARM and (e.declared or e.name in active)]
+    lay = layouts()
+    general = any(not np.array_equal(np.asarray(const)[lay.const_slices[k]], np.eye(4).reshape(-1))
+                  for k in ("chain.frame02base", "chain.flange2frame6"))
+    return Graph(convention, effs, np.asarray(eligible, dtype=bool), general)
+
+
+def _loaded_arm(graph: Graph, theta: np.ndarray, const: Any, dT: float, q: Any, L: Any) -> dict[str, Any]:
+    """The loaded arm at ``q`` under the load vector ``L``: context, Jacobian, torques, joint
+    deflection and the load-induced TCP error ``err`` = [position (3) m; rotation (3) rad]."""
+    ctx = graph.context(ca.SX(ca.DM(theta)), const, float(dT), 0.0, q)
+    dh = graph.geometry(ctx)
+    ctx.at(chain(q, dh, graph.convention), lambda c: load_wrench(c.R_tcp, L))
+    J = geometric_jacobian(ctx.frames, ctx.p_tcp, graph.convention, ctx.frame02base())
+    te, to = graph.torques(ctx)
+    tau = te + to
+    dq = graph.joint_deflection(ctx, tau)
+    dp = graph.point_displacement(ctx, ctx.p_tcp)
+    err = ca.vertcat(ca.mtimes(J[:3, :], dq) + dp, ca.mtimes(J[3:, :], dq))
+    return {"ctx": ctx, "J": J, "tau": tau, "dq": dq, "dp": dp, "err": err}
+
+
 def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, const: np.ndarray,
                   eligible: np.ndarray, dT: float = 0.0) -> dict[str, ca.Function]:
     """Named CasADi functions of an arm model with fixed parameters (see :class:`models.arm.ArmModel`).
@@ -430,26 +456,15 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
     measurement effects, registration and drift, do not).  Inputs: ``q`` (6, rad) and,
     for the load functions, the load vector ``L`` (:data:`LOAD_SIZE`).
     """
-    effs = [e for e in registry() if e.acts_on == base.ARM and (e.declared or e.name in active)]
-    lay = layouts()
-    general = any(not np.array_equal(np.asarray(const)[lay.const_slices[k]], np.eye(4).reshape(-1))
-                  for k in ("chain.frame02base", "chain.flange2frame6"))
-    graph = Graph(convention, effs, np.asarray(eligible, dtype=bool), general)
+    graph = _planning_graph(convention, active, const, eligible)
     q = ca.SX.sym("q", 6)
     L = ca.SX.sym("L", LOAD_SIZE)
     F = ca.SX.sym("F", 6)
-    ctx = graph.context(ca.SX(ca.DM(theta)), ca.SX(ca.DM(const)), float(dT), 0.0, q)
-    dh = graph.geometry(ctx)
-    ctx.at(chain(q, dh, convention), lambda c: load_wrench(c.R_tcp, L))
+    arm = _loaded_arm(graph, theta, ca.SX(ca.DM(const)), dT, q, L)
+    ctx, J, tau, dq, dp, err = arm["ctx"], arm["J"], arm["tau"], arm["dq"], arm["dp"], arm["err"]
     frames, tcp = ctx.frames, ctx.tcp
-    J = geometric_jacobian(frames, ctx.p_tcp, convention, ctx.frame02base())
-    te, to = graph.torques(ctx)
-    tau = te + to
-    dq = graph.joint_deflection(ctx, tau)
     tau_in = ca.SX.sym("tau", 6)
     dq_of_tau = graph.joint_deflection(ctx, tau_in)
-    dp = graph.point_displacement(ctx, ctx.p_tcp)
-    err = ca.vertcat(ca.mtimes(J[:3, :], dq) + dp, ca.mtimes(J[3:, :], dq))
     # the linear-spring compliance C = J diag(c) J^T with the model's spring compliances
     springs = base.effect("joint_springs")
     c = springs.compliance(ctx)
@@ -481,6 +496,26 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
     out["loaded_pose_error"] = ca.Function("loaded_pose_error", [q, L, p_t, R_t], [e, ca.jacobian(e, q)],
                                            ["q", "L", "p_t", "R_t"], ["e", "de_dq"])
     return out
+
+
+def load_error_gravity_function(convention: str, active: Sequence[str], theta: np.ndarray, const: np.ndarray,
+                                 eligible: np.ndarray, dT: float = 0.0) -> ca.Function:
+    """``load_error_g(q, L, g) -> e``: the model's ``load_error`` with its gravity constant as an
+    input.
+
+    ``g`` (3, m/s^2, base frame) replaces the robot's ``gravity`` (the arm's self-weight, when
+    the model has the ``gravity`` effect); ``L`` carries the payload's own gravity as always.  The
+    same arm on a base mounted another way (a placement study's tilts and yaws) is one function
+    with ``g`` turned into its base frame, instead of one model per mounting.  With
+    ``g = robot.gravity`` it equals ``load_error``.
+    """
+    graph = _planning_graph(convention, active, const, eligible)
+    q, L, g = ca.SX.sym("q", 6), ca.SX.sym("L", LOAD_SIZE), ca.SX.sym("g", 3)
+    cs = ca.SX(ca.DM(const))
+    s = layouts().const_slices["gravity"]
+    cs[s.start:s.stop] = g
+    err = _loaded_arm(graph, theta, cs, dT, q, L)["err"]
+    return ca.Function("load_error_g", [q, L, g], [err], ["q", "L", "g"], ["e"])
 
 
 def compliance_from_jacobian(J: Any, kinv: Any) -> Any:

@@ -174,9 +174,27 @@ class IKSolver(abc.ABC):
     #: labels follow continuity within one call and :meth:`solve_like` matches them to a reference.
     labels_stable: bool = True
 
+    #: The family's batch CasADi function (closed forms: poses -> every branch), or None
+    #: (numeric families); closed forms evaluate it through :attr:`evaluator`.
+    function: Any = None
+
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
         self.q_min, self.q_max = robot.q_min, robot.q_max
+
+    def use_evaluator(self, evaluator: Any) -> None:
+        """Evaluate :attr:`function` with ``evaluator`` from now on: a batch evaluator of it built
+        elsewhere, e.g. the compiled library another process shipped
+        (:func:`models.codegen.evaluator_from_state`), so this process needs no compiler.
+
+        Raises
+        ------
+        TypeError
+            The family has no batch function (a numeric family).
+        """
+        if self.function is None:
+            raise TypeError(f"IK family {self.family!r} has no batch function to evaluate")
+        self._evaluator = evaluator
 
     @property
     def n_branches(self) -> int:
