@@ -34,7 +34,7 @@ from problems.problem_file import (DEFAULT_DT, DEFAULT_RPY, DEFAULT_TIMING_METHO
                                    TIMING_METHODS,
                                    WRENCH_FRAMES, Limits, ProblemFileError, TimingSettings, check_timing,
                                    parse_branch, parse_cost, parse_header, parse_limits,
-                                   parse_orientation, parse_path, parse_payload, parse_robot,
+                                   parse_orientation, parse_path, parse_payload, parse_placement, parse_robot,
                                    parse_solver, parse_timing, parse_wrench)
 
 
@@ -112,6 +112,9 @@ class Problem:
     #: The file's own ``source`` text (where the task comes from); ``source`` above is
     #: where the file was read from.
     source_text: str = ""
+    #: The ``[placement]`` grid of ``compplan place`` (a
+    #: :class:`~problems.placement.grid.PlacementGrid`), or None.
+    placement: Any = None
 
     @property
     def n(self) -> int:
@@ -212,6 +215,9 @@ class Problem:
                        "toppra_max_iterations": self.timing.toppra_max_iterations,
                        "ruckig_max_iterations": self.timing.ruckig_max_iterations,
                        "dynamic": self.timing.dynamic}
+        if self.placement is not None:
+            g = self.placement.describe()
+            d["placement"] = {k: v for k, v in g.items() if k != "placements"}
         return d
 
 
@@ -251,6 +257,7 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
     solver = parse_solver(where, data)
     home = parse_branch(where, data)
     timing = parse_timing(where, data)
+    placement = parse_placement(where, data)
     return Problem(name=head.name, description=head.description, source=where, source_text=head.source_text,
                    robot_spec=spec, robot=arm.nominal, path_kind=path.kind, line=path.line,
                    positions=path.positions, rotations=path.rotations, rule=orient.rule,
@@ -258,7 +265,7 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
                    wrench_per_waypoint=wrench.per_waypoint, limits=limits, smoothness=smoothness,
                    solver=solver, home_q=home, timing=timing, nominal_rpy=orient.nominal_rpy,
                    wrench_frame=wrench.frame, payload_mass_kg=payload.mass_kg, payload_com_m=payload.com_m,
-                   gravity=payload.gravity, arm=arm)
+                   gravity=payload.gravity, arm=arm, placement=placement)
 
 
 def shipped_problems() -> tuple[str, ...]:

@@ -47,7 +47,7 @@ MAX_WAYPOINTS = 2000
 DEFAULT_RPY = np.array([math.pi, 0.0, 0.0])
 
 _TOP = ("name", "description", "source", "robot", "path", "orientation", "wrench", "payload", "limits",
-        "cost", "solver", "branch", "timing")
+        "cost", "solver", "branch", "timing", "placement")
 #: Frames a wrench may be given in.
 WRENCH_FRAMES = ("base", "tool")
 _TABLE_KEYS: dict[str, tuple[str, ...]] = {
@@ -732,3 +732,22 @@ def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
     check_timing(where, timing)
     return timing
 
+
+def parse_placement(where: str, data: Mapping[str, Any]) -> Any:
+    """The optional ``[placement]`` table: the grid of ``compplan place`` (keys ``x_m``, ``y_m``,
+    ``z_m``, ``yaw_deg``, ``tilt_deg``: a number or ``[start, stop, count]``; ``top``), or None.
+
+    Returns
+    -------
+    problems.placement.grid.PlacementGrid or None
+    """
+    from problems.placement.grid import PlacementGridError, grid_from_table
+    if "placement" not in data:
+        return None
+    tab = data["placement"]
+    if not isinstance(tab, Mapping):
+        raise _err(where, "placement", f"must be a table, got {tab!r}")
+    try:
+        return grid_from_table(tab, f"{where}: [placement]")
+    except PlacementGridError as exc:
+        raise ProblemFileError(str(exc)) from None

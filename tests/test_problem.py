@@ -23,7 +23,8 @@ SHIPPED = {"paper_4_4": (OrientationRule.FIXED, 40), "paper_5_2_points": (Orient
            "drilling_cone": (OrientationRule.CONE, 9),
            "measuring_position_only": (OrientationRule.POSITION_ONLY, 30),
            "ur10_payload_tilt": (OrientationRule.FIXED, 11), "ur5_tool_thrust": (OrientationRule.CONE, 20),
-           "kr6_milling": (OrientationRule.CONE, 30), "ur5_fast_payload": (OrientationRule.FIXED, 24)}
+           "kr6_milling": (OrientationRule.CONE, 30), "ur5_fast_payload": (OrientationRule.FIXED, 24),
+           "placement_milling": (OrientationRule.FREE_TOOL_AXIS, 30)}
 
 MINIMAL = """
 name = "t"

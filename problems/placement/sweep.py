@@ -1,0 +1,198 @@
+"""A placement sweep: the grid cut into chunks, each scored by the kernel, serially or on Dask.
+
+The chunks are the same in every mode (:func:`chunk_bounds`: consecutive placements, a fixed
+number per chunk) and every chunk runs the same :meth:`PlacementKernel.evaluate
+<problems.placement.kernel.PlacementKernel.evaluate>` with one thread, so a sweep on a Dask
+cluster gives the serial sweep's scores bit for bit (same chunking, same compiled code;
+``tests/test_placement_dask.py`` checks it).
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from models.errors import InputError
+from problems.placement.kernel import PlacementKernel
+from problems.placement.scores import ChunkScores, PlacementStatus
+
+#: Target TCP poses per chunk (one Dask task): large enough that Dask's per-task overhead
+#: (about 1 ms) is negligible against the kernel's cost, small enough to spread a sweep over
+#: many workers and to keep a chunk's arrays (~1 kB per pose) in cache-friendly memory.
+CHUNK_POSES = 32_768
+#: Fewest and most placements in one chunk.
+CHUNK_MIN_PLACEMENTS, CHUNK_MAX_PLACEMENTS = 1, 100_000
+#: Progress stage name (``progress(stage, done, total)``, poses).
+PROGRESS_STAGE = "placement sweep"
+
+Progress = Callable[[str, int, int], None]
+
+
+class SweepStatus(enum.Enum):
+    """Outcome of a sweep."""
+
+    OK = "ok"
+    #: every chunk was scored, but no placement is feasible
+    NO_FEASIBLE = "no feasible placement"
+
+
+@dataclass
+class SweepResult:
+    """Scores of every placement of a sweep.
+
+    Attributes
+    ----------
+    status : SweepStatus
+    reason : str
+        One line; empty when ``OK``.
+    placements : ndarray, shape (P, 5)
+        ``[x, y, z, yaw, tilt]`` (m, rad), grid order.
+    scores : ChunkScores
+        One row per placement.
+    poses : int
+        TCP poses evaluated (placements x waypoints x scanned orientations), each on every branch.
+    chunk_placements : int
+        Placements per chunk.
+    n_chunks : int
+    scheduler : str
+        ``serial``, ``local:N`` or the scheduler address.
+    workers : int
+        Workers that ran chunks (1 for serial).
+    elapsed_s : float
+        Wall time of scoring (cluster start-up excluded), s.
+    compiled : bool
+        The model's functions ran compiled C (else CasADi's virtual machine).
+    """
+
+    status: SweepStatus
+    reason: str
+    placements: np.ndarray
+    scores: ChunkScores
+    poses: int
+    chunk_placements: int
+    n_chunks: int
+    scheduler: str
+    workers: int
+    elapsed_s: float
+    compiled: bool
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status is SweepStatus.OK
+
+    @property
+    def poses_per_second(self) -> float:
+        return self.poses / self.elapsed_s if self.elapsed_s > 0 else float("nan")
+
+
+def chunk_placements_for(kernel: PlacementKernel, target_poses: int = CHUNK_POSES) -> int:
+    """Placements per chunk giving about ``target_poses`` poses per chunk."""
+    n = max(1, int(target_poses) // max(1, kernel.poses_per_placement))
+    return int(min(max(n, CHUNK_MIN_PLACEMENTS), CHUNK_MAX_PLACEMENTS))
+
+
+def chunk_bounds(n_placements: int, per_chunk: int) -> list[tuple[int, int]]:
+    """``(start, stop)`` of consecutive chunks of ``per_chunk`` placements."""
+    return [(a, min(a + per_chunk, n_placements)) for a in range(0, n_placements, per_chunk)]
+
+
+def parse_scheduler(spec: str | None) -> str:
+    """Check a ``--scheduler`` value: ``serial`` (or None), ``local:N`` (N workers, 1 to 256)
+    or a Dask scheduler address ``tcp://HOST:PORT``.  Returns the normalised spec.
+
+    Raises
+    ------
+    InputError
+        Naming the value and what was expected.
+    """
+    if spec is None or spec == "serial":
+        return "serial"
+    s = str(spec).strip()
+    if s.startswith("local:"):
+        n = s[len("local:"):]
+        if not n.isdigit() or not 1 <= int(n) <= 256:
+            raise InputError(f"--scheduler {spec!r}: local:N needs a whole number of workers N in [1, 256]")
+        return f"local:{int(n)}"
+    if s.startswith(("tcp://", "tls://", "ucx://")):
+        host, _, port = s.split("://", 1)[1].rpartition(":")
+        if not host or not port.isdigit():
+            raise InputError(f"--scheduler {spec!r}: an address must be tcp://HOST:PORT")
+        return s
+    raise InputError(f"--scheduler {spec!r}: expected 'serial', 'local:N' (a LocalCluster of N workers) "
+                     "or a Dask scheduler address tcp://HOST:PORT")
+
+
+def _no_feasible_reason(scores: ChunkScores) -> str:
+    """One line: why no placement is feasible, with the count of each status."""
+    counts = ", ".join(f"{PlacementStatus(c).name.lower().replace('_', ' ')} {int((scores.status == c).sum())}"
+                       for c in PlacementStatus if c != PlacementStatus.OK and (scores.status == c).any())
+    return (f"none of the {len(scores)} placements reaches the whole path on one branch without a flip, "
+            f"inside the joint limits and outside the singularity guards ({counts}); move or widen the grid")
+
+
+def run_sweep(kernel: PlacementKernel, placements: np.ndarray, scheduler: str | None = None,
+              chunk_placements: int | None = None, progress: Progress | None = None,
+              on_chunk: Callable[[int], None] | None = None) -> SweepResult:
+    """Score every placement.
+
+    Parameters
+    ----------
+    kernel : PlacementKernel
+    placements : ndarray, shape (P, 5)
+        ``[x, y, z, yaw, tilt]`` (m, rad).
+    scheduler : str, optional
+        ``serial`` (default), ``local:N`` or ``tcp://HOST:PORT`` (see :func:`parse_scheduler`).
+    chunk_placements : int, optional
+        Placements per chunk (default :func:`chunk_placements_for`).
+    progress : callable, optional
+        ``progress(PROGRESS_STAGE, poses_done, poses_total)`` after each chunk.
+    on_chunk : callable, optional
+        Called with the number of chunks done after each chunk (tests use it to kill a worker).
+
+    Returns
+    -------
+    SweepResult
+
+    Raises
+    ------
+    InputError
+        A bad scheduler spec, Dask missing for a cluster, or no connection to the scheduler.
+    """
+    spec = parse_scheduler(scheduler)
+    pl = np.atleast_2d(np.asarray(placements, dtype=float))
+    per = int(chunk_placements) if chunk_placements else chunk_placements_for(kernel)
+    if not CHUNK_MIN_PLACEMENTS <= per <= CHUNK_MAX_PLACEMENTS:
+        raise InputError(f"chunk of {per} placements: expected {CHUNK_MIN_PLACEMENTS} to {CHUNK_MAX_PLACEMENTS}")
+    bounds = chunk_bounds(len(pl), per)
+    chunks = [pl[a:b] for a, b in bounds]
+    ppp = kernel.poses_per_placement
+    total = len(pl) * ppp
+    extra: dict[str, Any] = {}
+    if spec == "serial":
+        t0 = time.perf_counter()
+        parts, done = [], 0
+        for i, c in enumerate(chunks):
+            parts.append(kernel.evaluate(c))
+            done += len(c) * ppp
+            if progress is not None:
+                progress(PROGRESS_STAGE, done, total)
+            if on_chunk is not None:
+                on_chunk(i + 1)
+        elapsed, workers = time.perf_counter() - t0, 1
+    else:
+        from problems.placement.cluster import run_on_dask
+        parts, elapsed, workers, extra = run_on_dask(kernel, chunks, spec, progress, on_chunk)
+    scores = ChunkScores.concatenate(parts) if parts else ChunkScores.empty(0, kernel.n_branches)
+    n_ok = int(scores.feasible.sum())
+    status, reason = (SweepStatus.OK, "") if n_ok else (SweepStatus.NO_FEASIBLE, _no_feasible_reason(scores))
+    return SweepResult(status, reason, pl, scores, total, per, len(chunks), spec, workers, elapsed,
+                       kernel.compiled, extra)
+
+
+__all__ = ["CHUNK_POSES", "PROGRESS_STAGE", "SweepResult", "SweepStatus", "chunk_bounds", "chunk_placements_for",
+           "parse_scheduler", "run_sweep"]
