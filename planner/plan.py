@@ -53,7 +53,7 @@ from planner import branches as branch_words
 from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, round_sig
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
-from planner.provenance import invocation, problem_input, provenance, robot_input
+from planner.provenance import invocation, problem_provenance
 from planner.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
 from planner.timing.limit_use import limit_use
 
@@ -299,10 +299,7 @@ class PlanResult:
     def provenance(self) -> dict[str, Any]:
         """The ``provenance`` block: version, command line and date (when the result was made),
         and the input files (problem, arm model) with their SHA-256."""
-        pr = self.problem
-        md = pr.model.describe()
-        return provenance([problem_input(pr.source), robot_input(md.get("file") or pr.robot_spec,
-                                                                 sha256=md.get("sha256"))], self.made)
+        return problem_provenance(self.problem, self.made)
 
 
 #: What the headline's errors are (``summary.json`` ``headline.definition``).

@@ -187,6 +187,21 @@ def provenance(inputs: Sequence[dict[str, Any]] = (), made: dict[str, Any] | Non
             "argv": inv.get("argv"), "date_utc": inv.get("date_utc"), "inputs": [dict(e) for e in inputs]}
 
 
+def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The ``provenance`` block of a result made from one problem: its file and its arm model's
+    (a built-in robot, a robot file or a model file) with their SHA-256.
+
+    Parameters
+    ----------
+    problem : problems.problem.Problem
+    made : dict, optional
+        As for :func:`provenance`.
+    """
+    md = problem.model.describe()
+    return provenance([problem_input(problem.source),
+                       robot_input(md.get("file") or problem.robot_spec, sha256=md.get("sha256"))], made)
+
+
 __all__ = ["DISTRIBUTION", "builtin_robot_file", "command_line_scope", "current_command_line", "input_file",
-           "invocation", "problem_input", "provenance", "robot_input", "sha256_file", "shipped_problem_file",
-           "utc_now", "version"]
+           "invocation", "problem_input", "problem_provenance", "provenance", "robot_input", "sha256_file",
+           "shipped_problem_file", "utc_now", "version"]

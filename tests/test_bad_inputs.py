@@ -655,7 +655,50 @@ ARGS = [
     C("args-global-unknown-option", "--quiet plan x --out y", {}, [], ["--quiet"]),
 ]
 
-CASES = PLAN + POSE + DEMO + MAP + ROBOT_FILE + REPORT + SIMULATE + IDENTIFY + PREDICT + COMPENSATE + ARGS
+PLACEMENT = resources.files("problems").joinpath("files/placement_milling.toml").read_text(encoding="utf-8")
+
+
+def placement(*pairs: tuple[str, str]) -> str:
+    return sub(PLACEMENT, *pairs)
+
+
+#: A small grid (fast cases that get past the grid checks).
+PL = "place placement_milling --out {t}/out --no-report --no-optimise --grid x_m=0.8:0.9:2,y_m=0,yaw_deg=0"
+PLF = "place {t}/p.toml --out {t}/out --no-report --no-optimise"
+
+PLACE = [
+    C("place-no-such-problem", "place nosuch_problem --out {t}/out", {}, ["out"], ["nosuch_problem"]),
+    C("place-grid-unknown-key", PL + " --grid foo_m=1", {}, ["out"], ["foo_m", "x_m"]),
+    C("place-grid-count-0", PL + " --grid x_m=0:1:0", {}, ["out"], ["x_m", "count", "0"]),
+    C("place-grid-start-above-stop", PL + " --grid x_m=1:0:3", {}, ["out"], ["x_m", "start 1", "stop 0"]),
+    C("place-grid-not-a-number", PL + " --grid x_m=abc", {}, ["out"], ["x_m=abc", "number"]),
+    C("place-grid-no-equals", PL + " --grid x_m", {}, ["out"], ["x_m", "KEY=VALUE"]),
+    C("place-grid-too-many", PL + " --grid x_m=0:1:100000,y_m=0:1:1000", {}, ["out"],
+      ["100000000 placements", "10000000"]),
+    C("place-grid-nan", PL + " --grid y_m=nan", {}, ["out"], ["y_m", "nan", "finite"]),
+    C("place-top-11", PL + " --top 11", {}, ["out"], ["--top 11", "[0, 10]"]),
+    C("place-chunk-0", PL + " --chunk 0", {}, ["out"], ["--chunk 0", "positive"]),
+    C("place-scheduler-local-0", PL + " --scheduler local:0", {}, ["out"], ["--scheduler", "local:0"]),
+    C("place-scheduler-nonsense", PL + " --scheduler somewhere", {}, ["out"], ["--scheduler", "somewhere",
+                                                                                 "tcp://HOST:PORT"]),
+    C("place-table-start-above-stop", PLF, {"p.toml": placement(("x_m = [-0.6, 1.0, 17]", "x_m = [1.0, -0.6, 17]"))},
+      ["out"], ["p.toml", "placement", "x_m", "start 1", "stop -0.6"]),
+    C("place-table-unknown-key", PLF, {"p.toml": placement(("top = 3", "top = 3\nyaw = 90"))}, ["out"],
+      ["p.toml", "placement", "yaw", "yaw_deg"]),
+    C("place-table-not-a-table", PLF, {"p.toml": placement(("\n[placement] ", "\n[placementx] "))}, ["out"],
+      ["p.toml", "placementx"]),
+    C("place-table-top-string", PLF, {"p.toml": placement(("top = 3", 'top = "3"'))}, ["out"],
+      ["p.toml", "top", "'3'"]),
+    C("place-nothing-feasible", "place placement_milling --out {t}/out --no-report --grid x_m=3:4:2,y_m=3:4:2",
+      {}, ["out"], ["none of the 16 placements", "unreachable 16", "widen the grid"]),
+    C("place-report-of-a-study", "report {t}/study", {"study/summary.json": '{"command": "place"}'}, [],
+      ["placement study", "compplan place"]),
+    C("place-out-is-the-problem", "place {t}/p.toml --out {t}/p.toml --no-report", {"p.toml": PLACEMENT},
+      ["p.toml"], ["p.toml"]),
+]
+
+CASES = (PLAN + POSE + DEMO + MAP + ROBOT_FILE + REPORT + SIMULATE + IDENTIFY + PREDICT + COMPENSATE + PLACE
+         + ARGS)
 
 
 # --------------------------------------------------------------------------------------
@@ -745,7 +788,7 @@ def test_campaign_size() -> None:
     """The campaign covers every command with at least 80 cases."""
     assert len(CASES) >= 80
     assert len({c.id for c in CASES}) == len(CASES)
-    for cmd in ("plan", "pose", "demo", "map", "report", "simulate", "identify", "predict", "compensate"):
+    for cmd in ("plan", "pose", "demo", "map", "report", "simulate", "identify", "predict", "compensate", "place"):
         assert any(c.argv and c.argv[0] == cmd for c in CASES), cmd
 
 

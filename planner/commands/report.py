@@ -16,6 +16,10 @@ from models.errors import InputError
 from planner.commands.common import check_output, releases_outputs
 
 
+#: Progress units of the stages that do not count figures: (unit, scale to k/M).
+_UNITS = {"compliance map": ("pt", True), "placement sweep": ("pose", True), "full plans": ("plan", False)}
+
+
 class TqdmProgress:
     """``progress(stage, done, total)`` callback driving one tqdm bar per stage (stderr).
 
@@ -29,8 +33,8 @@ class TqdmProgress:
         from tqdm import tqdm
         bar = self._bars.get(stage)
         if bar is None:
-            bar = tqdm(total=total, desc=stage, unit="pt" if stage == "compliance map" else "fig",
-                       unit_scale=stage == "compliance map", file=sys.stderr, disable=None,
+            unit, scale = _UNITS.get(stage, ("fig", False))
+            bar = tqdm(total=total, desc=stage, unit=unit, unit_scale=scale, file=sys.stderr, disable=None,
                        leave=False)
             self._bars[stage] = bar
         bar.update(done - bar.n)

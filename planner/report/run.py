@@ -226,6 +226,9 @@ def _read_summary(folder: Path) -> dict[str, Any]:
     if not isinstance(summary, dict):
         raise InputError(f"report: {sp}: top level is {type(summary).__name__}; expected an object")
     command = summary.get("command")
+    if command == "place":
+        raise InputError(f"report: {sp} is a placement study's summary: compplan place writes its report itself "
+                         "(run it again without --no-report)")
     if command not in RUN_COMMANDS:
         raise InputError(f"report: {sp}: 'command' is {command!r}, not one of {list(RUN_COMMANDS)}: this is not the "
                          "summary of a compplan plan or demo run (compplan report writes the report of such a folder)")

@@ -1,0 +1,364 @@
+"""The placement study pipeline (``compplan place``): sweep the grid, rank, plan the best in full.
+
+1. :func:`~problems.placement.sweep.run_sweep` scores every placement of the grid (serial or on
+   Dask) with the per-pose kernel; the problem as written (the robot at the cell origin, the
+   *baseline*) is scored by the same kernel.
+2. The feasible placements are ranked (:func:`~problems.placement.scores.ranking`: smallest RMS
+   load-induced error of the best branch first).
+3. The best ``top`` placements and the baseline are planned in full (posture NLP, exact
+   compensation, timing: :func:`planner.plan.plan` on :func:`~problems.placement.placed.problem_at`).
+
+The report and the files (:func:`write_study`) are built from the :class:`PlacementStudy` in
+memory.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from planner.plan import PlanResult, plan
+from planner.numbers import headline_mm, round_sig
+from planner.provenance import invocation, problem_provenance
+from problems.placement.grid import GRID_AXES, PlacementGrid, describe_placement, placement_label
+from problems.placement.kernel import PlacementKernel
+from problems.placement.placed import problem_at
+from problems.placement.scores import STATUS_REASONS, ChunkScores, PlacementStatus, ranking
+from problems.placement.sweep import SweepResult, run_sweep
+from problems.problem import Problem
+
+#: Columns of ``scores.csv`` (one row per placement, grid order; edge units in the names; ``status``
+#: a :class:`PlacementStatus` name, ``best_branch`` an IK branch label; empty cells where a value
+#: does not exist).
+SCORE_COLUMNS = ("index", "x_m", "y_m", "z_m", "yaw_deg", "tilt_deg", "status", "best_branch",
+                 "feasible_branches", "rms_error_mm", "max_error_mm", "joint_margin_deg", "singular_margin",
+                 "blocked_waypoint")
+#: Decimals of the grid coordinates in the CSV files (m, deg): the grid's own values, without the
+#: round-off of ``linspace`` (-0.19999999999999996 -> -0.2).
+GRID_DIGITS = 12
+#: Progress stage of the full plans.
+PLAN_STAGE = "full plans"
+
+
+class StudyStatus(enum.Enum):
+    """Outcome of a placement study."""
+
+    OK = "ok"
+    #: no placement of the grid is feasible
+    NO_FEASIBLE = "no feasible placement"
+
+
+@dataclass
+class PlacementPlan:
+    """A full plan of one placement.
+
+    Attributes
+    ----------
+    label : str
+        ``best 1`` .. ``best N`` or ``as written``.
+    rank : int or None
+        1-based rank in the sweep (None for the baseline).
+    index : int or None
+        Grid index (None for the baseline, which is not necessarily on the grid).
+    placement : ndarray, shape (5,)
+        ``[x, y, z, yaw, tilt]`` (m, rad).
+    sweep : dict
+        The sweep's scores of this placement (edge units).
+    result : PlanResult
+    elapsed_s : float
+    """
+
+    label: str
+    rank: int | None
+    index: int | None
+    placement: np.ndarray
+    sweep: dict[str, Any]
+    result: PlanResult
+    elapsed_s: float
+
+    def headline(self) -> dict[str, Any]:
+        """The plan's headline (branch, errors before and after compensation in mm, duration)."""
+        if not self.result.ok:
+            return {"status": self.result.status.value, "reason": self.result.reason}
+        return self.result.summary()["headline"]
+
+
+@dataclass
+class PlacementStudy:
+    """Everything a placement study produced (see the module docstring).
+
+    Attributes
+    ----------
+    status : StudyStatus
+    reason : str
+    problem : Problem
+        As written (cell frame).
+    grid : PlacementGrid
+    sweep : SweepResult
+    baseline : ChunkScores
+        The kernel's scores of the problem as written (one row).
+    ranked : ndarray of int
+        Grid indices of the feasible placements, best first.
+    plans : list of PlacementPlan
+        The best ``grid.top`` placements at distinct base positions (:func:`distinct_positions`),
+        then the baseline; none when no placement is feasible.
+    branch_labels : tuple of str
+    """
+
+    status: StudyStatus
+    reason: str
+    problem: Problem
+    grid: PlacementGrid
+    sweep: SweepResult
+    baseline: ChunkScores
+    ranked: np.ndarray
+    plans: list[PlacementPlan] = field(default_factory=list)
+    branch_labels: tuple[str, ...] = ()
+    made: dict[str, Any] = field(default_factory=invocation)
+
+    @property
+    def ok(self) -> bool:
+        return self.status is StudyStatus.OK
+
+    def scores_of(self, i: int) -> dict[str, Any]:
+        """The sweep's scores of grid placement ``i`` (edge units: mm, deg)."""
+        return _scores_dict(self.sweep.scores, i, self.branch_labels)
+
+    @property
+    def improvement(self) -> float | None:
+        """Baseline RMS error / best placement's RMS error (sweep), or None when either is infeasible."""
+        if not len(self.ranked) or self.baseline.status[0] != PlacementStatus.OK:
+            return None
+        return float(self.baseline.rms_error_m[0] / self.sweep.scores.rms_error_m[self.ranked[0]])
+
+    def warnings(self) -> list[str]:
+        """What the engineer should know before trusting the ranking: the best placement on the
+        edge of the grid (the optimum may lie outside it), failed full plans."""
+        out: list[str] = []
+        if len(self.ranked):
+            best = self.sweep.placements[self.ranked[0]]
+            edge = [k for i, k in enumerate(GRID_AXES) if len(self.grid.axes[k]) > 1 and k not in ("yaw_deg",)
+                    and (np.isclose(best[i], self.grid.axes[k][0]) or np.isclose(best[i], self.grid.axes[k][-1]))]
+            if edge:
+                out.append(f"the best placement lies on the edge of the grid in {', '.join(edge)}: a better one may "
+                           "lie outside it (widen the grid)")
+        out += [f"full plan '{p.label}' failed: {p.result.reason}" for p in self.plans if not p.result.ok]
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """``summary.json``: the grid, the sweep's figures, the ranking, the baseline and the plans."""
+        sc = self.sweep.scores
+        counts = {PlacementStatus(s).name.lower(): int((sc.status == s).sum()) for s in PlacementStatus}
+        out: dict[str, Any] = {
+            "command": "place",
+            "headline": self.headline(),
+            "status": self.status.value, "reason": self.reason or None,
+            "problem": self.problem.name, "robot": self.problem.robot.name,
+            "frames": "placement = base origin (m) and yaw, tilt (deg) in the cell frame (the problem's own frame); "
+                      "base2cell = Trans(x, y, z) Rot_z(yaw) Rot_x(tilt)",
+            "grid": self.grid.describe(),
+            "sweep": {"placements": int(len(self.sweep.placements)), "poses": int(self.sweep.poses),
+                      "poses_per_placement": int(self.sweep.poses // max(1, len(self.sweep.placements))),
+                      "chunk_placements": self.sweep.chunk_placements, "chunks": self.sweep.n_chunks,
+                      "scheduler": self.sweep.scheduler, "workers": self.sweep.workers,
+                      "elapsed_s": round(self.sweep.elapsed_s, 3),
+                      "poses_per_second": round(self.sweep.poses_per_second, 1),
+                      "compiled": self.sweep.compiled, "status_counts": counts},
+            "baseline": {"label": "as written", **_scores_dict(self.baseline, 0, self.branch_labels)},
+            "ranking": [{"rank": r + 1, "index": int(i), **self.scores_of(int(i))}
+                        for r, i in enumerate(self.ranked[:max(10, self.grid.top)])],
+            "improvement_rms_factor": None if self.improvement is None else round(self.improvement, 4),
+            "warnings": self.warnings(),
+            "plans": [_plan_entry(p) for p in self.plans],
+            "definitions": {
+                "rms_error_mm": "RMS over the waypoints of the load-induced TCP position error of the best branch "
+                                "(arm model load_error, analytic posture at the cheapest scanned orientations)",
+                "joint_margin_deg": "smallest distance of a joint to its limit along the path",
+                "singular_margin": "smallest ratio of a singularity guard factor to its guard bound along the path "
+                                   "(1 = at the posture NLP's guard)"},
+            "provenance": problem_provenance(self.problem, self.made),
+        }
+        return out
+
+    def headline(self) -> dict[str, Any]:
+        """What the engineer reads first (``summary.json`` ``headline``): the best placement (edge
+        units), its branch and sweep errors against the problem as written, the improvement factor,
+        and the full plans of both (errors before and after compensation, cycle time); lengths in mm
+        to 4 significant digits."""
+        h: dict[str, Any] = {"status": self.status.value, "reason": self.reason or None}
+        best = int(self.ranked[0]) if len(self.ranked) else None
+        sc = self.sweep.scores
+        h["best_placement"] = None if best is None else describe_placement(self.sweep.placements[best])
+        h["best_placement_text"] = None if best is None else placement_label(self.sweep.placements[best])
+        h["best_branch"] = None if best is None else self.branch_labels[int(sc.best_branch[best])]
+        h["best_rms_error_mm"] = None if best is None else headline_mm(float(sc.rms_error_m[best] * 1e3))
+        h["best_max_error_mm"] = None if best is None else headline_mm(float(sc.max_error_m[best] * 1e3))
+        ok0 = self.baseline.status[0] == PlacementStatus.OK
+        h["as_written_status"] = PlacementStatus(int(self.baseline.status[0])).name.lower()
+        h["as_written_rms_error_mm"] = headline_mm(float(self.baseline.rms_error_m[0] * 1e3)) if ok0 else None
+        h["improvement_rms_factor"] = None if self.improvement is None else round_sig(self.improvement)
+        for key, p in (("best_plan", next((p for p in self.plans if p.rank == 1), None)),
+                       ("as_written_plan", next((p for p in self.plans if p.rank is None), None))):
+            if p is None:
+                h[key] = None
+                continue
+            ph = p.headline()
+            h[key] = {k: ph.get(k) for k in ("status", "reason", "branch", "error_before_rms_mm",
+                                             "error_before_max_mm", "error_after_max_mm", "duration_s")
+                      if k in ph}
+            h[key]["status"] = p.result.status.value
+        h["definition"] = ("errors: load-induced TCP position error of the best IK branch; best_* and "
+                           "as_written_rms_error_mm from the sweep (first order, analytic postures), *_plan from "
+                           "the full plans (posture optimisation, exact equilibrium, before and after exact "
+                           "compensation); improvement_rms_factor = as written / best (sweep)")
+        return h
+
+
+def _scores_dict(sc: ChunkScores, i: int, labels: tuple[str, ...]) -> dict[str, Any]:
+    st = PlacementStatus(int(sc.status[i]))
+    b = int(sc.best_branch[i])
+    d: dict[str, Any] = {"status": st.name.lower(), "status_reason": STATUS_REASONS[st],
+                         "best_branch": labels[b] if 0 <= b < len(labels) else None,
+                         "feasible_branches": int(sc.feasible_branches[i])}
+    for k, v, s in (("rms_error_mm", sc.rms_error_m, 1e3), ("max_error_mm", sc.max_error_m, 1e3),
+                    ("joint_margin_deg", sc.joint_margin_rad, 180.0 / np.pi),
+                    ("singular_margin", sc.singular_margin, 1.0)):
+        d[k] = None if not np.isfinite(v[i]) else float(v[i] * s)
+    d["blocked_waypoint"] = int(sc.blocked_waypoint[i]) if sc.blocked_waypoint[i] >= 0 else None
+    return d
+
+
+def _plan_entry(p: PlacementPlan) -> dict[str, Any]:
+    return {"label": p.label, "rank": p.rank, "index": p.index, "placement": describe_placement(p.placement),
+            "placement_text": placement_label(p.placement), "sweep": p.sweep, "plan": p.headline(),
+            "plan_status": p.result.status.value, "elapsed_s": round(p.elapsed_s, 3)}
+
+
+def study(problem: Problem, grid: PlacementGrid, scheduler: str | None = None,
+          chunk_placements: int | None = None, progress: Callable[[str, int, int], None] | None = None,
+          optimise: bool = True) -> PlacementStudy:
+    """Run a placement study (see the module docstring).
+
+    Parameters
+    ----------
+    problem : Problem
+        The task, in the cell frame.
+    grid : PlacementGrid
+    scheduler : str, optional
+        ``serial`` (default), ``local:N`` or ``tcp://HOST:PORT``.
+    chunk_placements : int, optional
+        Placements per chunk (default: about :data:`~problems.placement.sweep.CHUNK_POSES` poses).
+    progress : callable, optional
+        ``progress(stage, done, total)``.
+    optimise : bool
+        False: the full plans use analytic postures (no NLP).
+
+    Returns
+    -------
+    PlacementStudy
+    """
+    kernel = PlacementKernel(problem)
+    sw = run_sweep(kernel, grid.placements(), scheduler, chunk_placements, progress)
+    base = kernel.evaluate(np.zeros((1, 5)))
+    ranked = ranking(sw.scores)
+    labels = tuple(kernel.ik.labels)
+    status, reason = (StudyStatus.OK, "") if sw.ok else (StudyStatus.NO_FEASIBLE, sw.reason)
+    st = PlacementStudy(status, reason, problem, grid, sw, base, ranked, branch_labels=labels)
+    if not st.ok:
+        return st                                   # nothing to compare the problem as written with
+    rank_of = {int(i): r + 1 for r, i in enumerate(ranked)}
+    todo: list[tuple[str, int | None, int | None, np.ndarray, dict[str, Any]]] = [
+        (f"best {n + 1}", rank_of[i], i, sw.placements[i], st.scores_of(i))
+        for n, i in enumerate(distinct_positions(ranked, sw.placements, grid.top))]
+    todo.append(("as written", None, None, np.zeros(5), _scores_dict(base, 0, labels)))
+    for n, (label, rank, idx, pl, sc) in enumerate(todo):
+        t0 = time.perf_counter()
+        res = plan(problem_at(problem, pl), optimise=optimise)
+        st.plans.append(PlacementPlan(label, rank, idx, np.asarray(pl, dtype=float), sc, res,
+                                      time.perf_counter() - t0))
+        if progress is not None:
+            progress(PLAN_STAGE, n + 1, len(todo))
+    return st
+
+
+def distinct_positions(ranked: np.ndarray, placements: np.ndarray, n: int) -> list[int]:
+    """The first ``n`` ranked placements at distinct base positions (x, y, z, tilt): the full plans
+    compare different places to put the robot, not yaws of one place (on an arm whose first
+    joint has room, a yaw changes only joint 1's angle, not the error)."""
+    out: list[int] = []
+    seen: set[tuple[float, ...]] = set()
+    for i in ranked:
+        key = tuple(np.round(placements[i, [0, 1, 2, 4]], 12))
+        if key in seen:
+            continue
+        seen.add(key)
+        out.append(int(i))
+        if len(out) >= n:
+            break
+    return out
+
+
+def _text(values: np.ndarray, finite: np.ndarray | None = None) -> np.ndarray:
+    """Numbers as CSV text (shortest round-trip form); empty where ``finite`` is False."""
+    out = np.asarray(values).astype(str)
+    if finite is not None:
+        out[~finite] = ""
+    return out
+
+
+def scores_csv(st: PlacementStudy, rows: np.ndarray | None = None, rank: bool = False) -> bytes:
+    """``scores.csv`` (every placement, grid order) or, with ``rows`` and ``rank``, ``ranking.csv``
+    (the feasible placements best first, with a ``rank`` column): the columns of
+    :data:`SCORE_COLUMNS`, edge units in the names (m, deg, mm), ``status`` and ``best_branch`` by
+    name, empty cells where a value does not exist (an infeasible placement's errors and margins,
+    no blocked waypoint).  Built column by column (a sweep may hold millions of placements)."""
+    sc, pl = st.sweep.scores, st.sweep.placements
+    idx = np.arange(len(pl)) if rows is None else np.asarray(rows, dtype=int)
+    scale = np.array([GRID_AXES[k][0] for k in GRID_AXES])
+    grid = np.round(pl[idx] / scale, GRID_DIGITS) + 0.0                          # -0.0 -> 0.0
+    labels = np.array(list(st.branch_labels) + [""])
+    names = np.array([PlacementStatus(c).name.lower() for c in sorted(int(c) for c in PlacementStatus)])
+    cols = [_text(idx)] + [_text(grid[:, j]) for j in range(grid.shape[1])]
+    cols += [names[sc.status[idx].astype(int)], labels[sc.best_branch[idx].astype(int)],
+             _text(sc.feasible_branches[idx])]
+    for v, f in ((sc.rms_error_m, 1e3), (sc.max_error_m, 1e3), (sc.joint_margin_rad, 180.0 / np.pi),
+                 (sc.singular_margin, 1.0)):
+        x = v[idx] * f
+        cols.append(_text(x, np.isfinite(x)))
+    bw = sc.blocked_waypoint[idx]
+    cols.append(_text(bw, bw >= 0))
+    header = list(SCORE_COLUMNS)
+    if rank:
+        cols.insert(0, _text(np.arange(1, len(idx) + 1)))
+        header.insert(0, "rank")
+    body = cols[0]
+    for c in cols[1:]:
+        body = np.char.add(np.char.add(body, ","), c)
+    lines = [",".join(header)] + body.tolist()
+    return ("\n".join(lines) + "\n").encode()
+
+
+def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True) -> list[Path]:
+    """Write ``summary.json``, ``scores.csv``, ``ranking.csv`` and, with ``with_report``, the report
+    (``report.html`` and ``figures/``), whole or not at all."""
+    from planner.output import OutputSet
+    out = OutputSet(folder)
+    out.add_json("summary.json", st.summary())
+    out.add_bytes("scores.csv", scores_csv(st))
+    out.add_bytes("ranking.csv", scores_csv(st, st.ranked, rank=True))
+    if with_report:
+        from planner.report.placement import figures, html
+        figs = figures(st)
+        for name, data in figs.items():
+            out.add_bytes(f"figures/{name}", data)
+        out.add_bytes("report.html", html(st, sorted(figs)).encode("utf-8"))
+    return out.publish()
+
+
+__all__ = ["PLAN_STAGE", "PlacementPlan", "PlacementStudy", "SCORE_COLUMNS", "StudyStatus", "distinct_positions",
+           "scores_csv", "study", "write_study"]
