@@ -165,7 +165,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help=f"a small grid ({QUICK_GRID}) for development")
     ap.add_argument("--grid", default=None, help=f"grid spec over the problem's [placement] (default {DEFAULT_GRID})")
-    ap.add_argument("--chunk", type=int, default=None, help="placements per chunk (default: about CHUNK_POSES poses)")
+    ap.add_argument("--chunk", type=int, default=None, help="placements per chunk (default: compplan's, chunk_placements_for)")
     ap.add_argument("--tasks", type=int, default=TRIVIAL_TASKS, help="trivial tasks for Dask's per-task overhead")
     ap.add_argument("--skip-dask", action="store_true", help="serial figures only")
     ap.add_argument("--nanny-default", action="store_true",
@@ -191,7 +191,7 @@ def main() -> None:
     t_build = time.perf_counter() - t0
     pl = grid.placements()
     ppp, B = kernel.poses_per_placement, kernel.n_branches
-    per = args.chunk or chunk_placements_for(kernel)
+    per = args.chunk or chunk_placements_for(kernel, len(pl))
     bounds = chunk_bounds(len(pl), per)
     chunks = [pl[a:b] for a, b in bounds]
     poses = len(pl) * ppp
@@ -321,7 +321,6 @@ def main() -> None:
     min_chunk = math.ceil(o / (OVERHEAD_SHARE * us_pose_1 * 1e-6))
     print(f"chunk size for overhead < {OVERHEAD_SHARE:.0%}: chunk poses >= overhead / ({OVERHEAD_SHARE:g} x per-pose "
           f"cost) = {min_chunk:,} poses = {math.ceil(min_chunk / ppp):,} placements of this problem")
-    default_chunk = per * ppp if args.chunk is None else chunk_placements_for(kernel) * ppp
     o_sched = o_task_wall or o / 2
     sched_chunk = math.ceil(WORKERS_ESTIMATE * o_sched / (SCHEDULER_SHARE * us_pose_1 * 1e-6))
     print(f"chunk size for the scheduler floor < {SCHEDULER_SHARE:.0%} of the time on {WORKERS_ESTIMATE} workers: "
@@ -330,12 +329,13 @@ def main() -> None:
     print(f"  {'poses':>8}{'chunk poses':>13}{'chunks':>10}{'time':>11}{'overhead':>10}{'sched. floor':>14}"
           f"{'MiB/chunk':>11}")
     for P in ESTIMATE_POSES:
+        default_chunk = chunk_placements_for(kernel, math.ceil(P / ppp)) * ppp      # compplan's default
         for cp in sorted({default_chunk, min_chunk, sched_chunk}):
             t, nch = estimate(P, us_pose_1, cp, o)
             floor = nch * (o_task_wall or o / 2)
             share = nch * o / WORKERS_ESTIMATE / t
             print(f"  {P:>8.0e}{cp:>13,}{nch:>10,}{_fmt_s(t):>11}{share:>10.2%}{_fmt_s(floor):>14}"
-                  f"{cp * bpp / 2 ** 20:>11.0f}")
+                  f"{cp * bpp / 2 ** 20:>11.0f}{'  (default)' if cp == default_chunk else ''}")
     la1 = os.getloadavg()
     print(f"\nload average at the end {la1[0]:.2f} {la1[1]:.2f} {la1[2]:.2f}")
 

@@ -39,7 +39,7 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Literal, Sequence
+from typing import Any, Callable, Iterable, Iterator, Literal, Sequence
 
 import numpy as np
 
@@ -476,13 +476,18 @@ def check_output_folder(folder: str | Path, create: bool = False) -> Path:
 
 
 # ------------------------------------------------------------------------------ writing
-def _write_new_file(path: Path, data: bytes) -> None:
-    """Create ``path`` (which must not exist; mode ``FILE_MODE`` less the umask) holding ``data``.
+def _write_new_file(path: Path, data: bytes | Iterable[bytes]) -> None:
+    """Create ``path`` (which must not exist; mode ``FILE_MODE`` less the umask) holding ``data``
+    (bytes, or the parts of a file written piece by piece).
 
     Every file of an output goes through here (tests replace it to simulate a full disk).
     """
     with open(path, "xb") as fh:
-        fh.write(data)
+        if isinstance(data, (bytes, bytearray)):
+            fh.write(data)
+        else:
+            for part in data:
+                fh.write(part)
         if FSYNC_FILES:
             fh.flush()
             os.fsync(fh.fileno())
@@ -623,7 +628,7 @@ class OutputSet:
     def __init__(self, folder: str | Path, owns: Iterable[str] | None = None) -> None:
         self.folder = Path(folder)
         self.owns = None if owns is None else frozenset(owns)
-        self.files: dict[str, bytes] = {}
+        self.files: dict[str, bytes | Callable[[], Iterable[bytes]]] = {}
 
     def add_bytes(self, name: str, data: bytes) -> None:
         """Add a file; ``name`` is relative to the folder (``figures/a.png`` makes ``figures/``)."""
@@ -631,6 +636,12 @@ class OutputSet:
         if not parts or Path(name).is_absolute() or ".." in parts:
             raise ValueError(f"output name {name!r}: expected a relative path inside the folder")
         self.files[name] = data
+
+    def add_parts(self, name: str, parts: Callable[[], Iterable[bytes]]) -> None:
+        """Add a file written piece by piece when the set is published: ``parts()`` yields its
+        bytes in order (a large table is never held in memory whole)."""
+        self.add_bytes(name, b"")
+        self.files[name] = parts
 
     def add_json(self, name: str, obj: Any) -> None:
         """Add a JSON file (see :func:`json_bytes`)."""
@@ -674,7 +685,7 @@ class OutputSet:
                     doing = f"write {name}"
                     dest = staging / name
                     dest.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
-                    _write_new_file(dest, data)
+                    _write_new_file(dest, data() if callable(data) else data)
                 if self.owns is not None and target.is_dir():
                     owned = self.owns | {Path(n).parts[0] for n in self.files}
                     for entry in sorted(os.listdir(target)):

@@ -18,7 +18,7 @@ import enum
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -131,10 +131,12 @@ class PlacementStudy:
 
     @property
     def improvement(self) -> float | None:
-        """Baseline RMS error / best placement's RMS error (sweep), or None when either is infeasible."""
+        """Baseline RMS error / best placement's RMS error (sweep), or None when either is infeasible
+        or the best placement's error is 0 (no load)."""
         if not len(self.ranked) or self.baseline.status[0] != PlacementStatus.OK:
             return None
-        return float(self.baseline.rms_error_m[0] / self.sweep.scores.rms_error_m[self.ranked[0]])
+        best = float(self.sweep.scores.rms_error_m[self.ranked[0]])
+        return float(self.baseline.rms_error_m[0]) / best if best > 0.0 else None    # no load: no factor
 
     def warnings(self) -> list[str]:
         """What the engineer should know before trusting the ranking: the best placement on the
@@ -252,7 +254,7 @@ def study(problem: Problem, grid: PlacementGrid, scheduler: str | None = None,
     scheduler : str, optional
         ``serial`` (default), ``local:N`` or ``tcp://HOST:PORT``.
     chunk_placements : int, optional
-        Placements per chunk (default: about :data:`~problems.placement.sweep.CHUNK_POSES` poses).
+        Placements per chunk (default: :func:`~problems.placement.sweep.chunk_placements_for`).
     progress : callable, optional
         ``progress(stage, done, total)``.
     optimise : bool
@@ -292,6 +294,8 @@ def distinct_positions(ranked: np.ndarray, placements: np.ndarray, n: int) -> li
     joint has room, a yaw changes only joint 1's angle, not the error)."""
     out: list[int] = []
     seen: set[tuple[float, ...]] = set()
+    if n <= 0:
+        return out
     for i in ranked:
         key = tuple(np.round(placements[i, [0, 1, 2, 4]], 12))
         if key in seen:
@@ -304,43 +308,47 @@ def distinct_positions(ranked: np.ndarray, placements: np.ndarray, n: int) -> li
 
 
 def _text(values: np.ndarray, finite: np.ndarray | None = None) -> np.ndarray:
-    """Numbers as CSV text (shortest round-trip form); empty where ``finite`` is False."""
-    out = np.asarray(values).astype(str)
+    """Numbers as CSV text (shortest round-trip form), an object array; empty where ``finite`` is
+    False."""
+    out = np.asarray(values).astype(str).astype(object)
     if finite is not None:
         out[~finite] = ""
     return out
 
 
-def scores_csv(st: PlacementStudy, rows: np.ndarray | None = None, rank: bool = False) -> bytes:
+#: Rows of the CSV files formatted at a time (about 40 MB of text objects in memory).
+CSV_BLOCK_ROWS = 50_000
+
+
+def scores_csv(st: PlacementStudy, rows: np.ndarray | None = None, rank: bool = False) -> Iterator[bytes]:
     """``scores.csv`` (every placement, grid order) or, with ``rows`` and ``rank``, ``ranking.csv``
-    (the feasible placements best first, with a ``rank`` column): the columns of
-    :data:`SCORE_COLUMNS`, edge units in the names (m, deg, mm), ``status`` and ``best_branch`` by
-    name, empty cells where a value does not exist (an infeasible placement's errors and margins,
-    no blocked waypoint).  Built column by column (a sweep may hold millions of placements)."""
+    (the feasible placements best first, with a ``rank`` column), in parts of
+    :data:`CSV_BLOCK_ROWS` rows: the columns of :data:`SCORE_COLUMNS`, edge units in the names (m,
+    deg, mm), ``status`` and ``best_branch`` by name, empty cells where a value does not exist (an
+    infeasible placement's errors and margins, no blocked waypoint).  A sweep may hold millions of
+    placements: only one block is formatted at a time."""
     sc, pl = st.sweep.scores, st.sweep.placements
-    idx = np.arange(len(pl)) if rows is None else np.asarray(rows, dtype=int)
+    idx_all = np.arange(len(pl)) if rows is None else np.asarray(rows, dtype=int)
     scale = np.array([GRID_AXES[k][0] for k in GRID_AXES])
-    grid = np.round(pl[idx] / scale, GRID_DIGITS) + 0.0                          # -0.0 -> 0.0
-    labels = np.array(list(st.branch_labels) + [""])
-    names = np.array([PlacementStatus(c).name.lower() for c in sorted(int(c) for c in PlacementStatus)])
-    cols = [_text(idx)] + [_text(grid[:, j]) for j in range(grid.shape[1])]
-    cols += [names[sc.status[idx].astype(int)], labels[sc.best_branch[idx].astype(int)],
-             _text(sc.feasible_branches[idx])]
-    for v, f in ((sc.rms_error_m, 1e3), (sc.max_error_m, 1e3), (sc.joint_margin_rad, 180.0 / np.pi),
-                 (sc.singular_margin, 1.0)):
-        x = v[idx] * f
-        cols.append(_text(x, np.isfinite(x)))
-    bw = sc.blocked_waypoint[idx]
-    cols.append(_text(bw, bw >= 0))
-    header = list(SCORE_COLUMNS)
-    if rank:
-        cols.insert(0, _text(np.arange(1, len(idx) + 1)))
-        header.insert(0, "rank")
-    body = cols[0]
-    for c in cols[1:]:
-        body = np.char.add(np.char.add(body, ","), c)
-    lines = [",".join(header)] + body.tolist()
-    return ("\n".join(lines) + "\n").encode()
+    labels = np.array(list(st.branch_labels) + [""], dtype=object)
+    names = np.array([PlacementStatus(c).name.lower() for c in sorted(int(c) for c in PlacementStatus)], dtype=object)
+    yield (",".join((["rank"] if rank else []) + list(SCORE_COLUMNS)) + "\n").encode()
+    for a in range(0, len(idx_all), CSV_BLOCK_ROWS):
+        idx = idx_all[a:a + CSV_BLOCK_ROWS]
+        grid = np.round(pl[idx] / scale, GRID_DIGITS) + 0.0                      # -0.0 -> 0.0
+        cols = [_text(idx)] + [_text(grid[:, j]) for j in range(grid.shape[1])]
+        cols += [names[sc.status[idx].astype(int)], labels[sc.best_branch[idx].astype(int)],
+                 _text(sc.feasible_branches[idx])]
+        for v, f in ((sc.rms_error_m, 1e3), (sc.max_error_m, 1e3), (sc.joint_margin_rad, 180.0 / np.pi),
+                     (sc.singular_margin, 1.0)):
+            x = v[idx] * f
+            cols.append(_text(x, np.isfinite(x)))
+        bw = sc.blocked_waypoint[idx]
+        cols.append(_text(bw, bw >= 0))
+        if rank:
+            cols.insert(0, _text(np.arange(a + 1, a + len(idx) + 1)))
+        lines = map(",".join, zip(*(c.tolist() for c in cols)))
+        yield ("\n".join(lines) + "\n").encode()
 
 
 def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True) -> list[Path]:
@@ -349,8 +357,8 @@ def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True
     from planner.output import OutputSet
     out = OutputSet(folder)
     out.add_json("summary.json", st.summary())
-    out.add_bytes("scores.csv", scores_csv(st))
-    out.add_bytes("ranking.csv", scores_csv(st, st.ranked, rank=True))
+    out.add_parts("scores.csv", lambda: scores_csv(st))
+    out.add_parts("ranking.csv", lambda: scores_csv(st, st.ranked, rank=True))
     if with_report:
         from planner.report.placement import figures, html
         figs = figures(st)

@@ -137,6 +137,9 @@ def test_place_prints_the_result_and_writes_whole(tmp_path, capsys):
     code, _, err = _run(argv[:4] + ["--grid", "x_m=0.8,y_m=0,yaw_deg=0", "--top", "0", "--no-report"], capsys)
     assert code == 0, err
     assert sorted(p.name for p in out.iterdir()) == ["ranking.csv", "scores.csv", "summary.json"]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["grid"]["top"] == 0 and [p["label"] for p in s["plans"]] == ["as written"]      # --top 0
+    assert s["headline"]["best_plan"] is None and s["headline"]["as_written_plan"]["status"] == "ok"
 
 
 def test_grid_option_over_the_file(capsys, tmp_path):

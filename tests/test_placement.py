@@ -495,14 +495,18 @@ WARM_PLACEMENTS = np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [0.1, -0.2, 0.05, 30 * DE
                             [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG]])
 
 
-@pytest.mark.parametrize("name", ["placement_milling", "machining_offaxis"])
+def _scan60():
+    return replace(shipped("machining_offaxis"), scan=60)
+
+
+@pytest.mark.parametrize("name", ["placement_milling", "machining_offaxis", "machining_offaxis_scan60"])
 def test_kernel_agrees_with_the_warm_starts(name):
     """The warm starts' cost of a branch is the node-cost sum of its programme's sequence,
     sum_k ||e_k||^2 (m^2); the kernel reports the same sequence's RMS, so N * rms^2 must be it.
-    placement_milling (scan 12) runs the kernel's dense programme, machining_offaxis (scan 36) its
-    neighbour-restricted one (the warm starts run their dense one up to 48 candidates)."""
-    p = shipped(name)
-    kern = kernel_of(name)
+    placement_milling (scan 12) and machining_offaxis (scan 36) run the dense programme (as the
+    warm starts do up to 48 candidates), scan 60 the neighbour-restricted one (both)."""
+    p = _scan60() if name.endswith("scan60") else shipped(name)
+    kern = PlacementKernel(p) if name.endswith("scan60") else kernel_of(name)
     assert kern.n_candidates == p.scan
     sc = kern.evaluate(WARM_PLACEMENTS)
     compared = 0
@@ -517,6 +521,61 @@ def test_kernel_agrees_with_the_warm_starts(name):
         if ws.warm:
             assert int(sc.best_branch[i]) == min(ws.warm, key=lambda b: ws.warm[b][2])
     assert compared >= 8
+
+
+YAW_JUMP = """
+name = "yaw_jump"
+[robot]
+model = "ur10"
+tool = { xyz = [0.0, 0.09, 0.16], rpy_deg = [0.0, 0.0, 0.0] }
+[path]
+kind = "waypoints"
+positions = [[0.65, -0.10, 0.10], [0.65, -0.05, 0.10], [0.65, 0.0, 0.10], [0.65, 0.05, 0.10]]
+rpy_deg = [[180.0, 0.0, 0.0], [180.0, 0.0, 0.0], [180.0, 0.0, 90.0], [180.0, 0.0, 90.0]]
+[orientation]
+rule = "free_tool_axis"
+scan = 60
+[wrench]
+force = [40.0, -80.0, 60.0]
+[limits]
+max_joint_step = 0.3
+"""
+
+
+def test_a_blocked_restricted_programme_falls_back_to_the_dense_one():
+    """The nominal orientation turns 90 deg between waypoints 1 and 2: with 60 candidates the
+    neighbour-restricted programme (35 deg) has no flip-free sequence, the dense one has (the
+    candidate 90 deg away keeps the tool still); as the warm starts, the kernel finds it."""
+    import tomllib
+    from problems.problem import problem_from_dict
+    p = problem_from_dict(tomllib.loads(YAW_JUMP), "yaw_jump")
+    kern = PlacementKernel(p)
+    assert kern._nbr.shape[1] < kern.n_candidates == 60
+    sc = kern.evaluate(np.zeros((1, 5)))
+    ws = warm_starts(ik_solver(p.robot), p.model.kinematics, p.task())
+    assert sc.status[0] == PlacementStatus.OK and len(ws.warm) >= 4
+    assert set(np.flatnonzero(np.isfinite(sc.branch_rms_m[0])).tolist()) == set(ws.warm)
+    for b, (_, _, cost) in ws.warm.items():
+        assert p.n * sc.branch_rms_m[0, b] ** 2 <= cost * (1 + WARM_COST_RTOL)
+
+
+def test_a_waypoint_excluded_only_by_joint_limits_is_joint_limit(tmp_path):
+    """Joint 6 limited to +-40 deg: at (0.2, -1.0) a waypoint's IK solutions all lie outside the
+    limits (JOINT_LIMIT, that waypoint named), where the +-360 deg arm is feasible; at (0.9, -0.2)
+    the orientation scan still finds solutions inside them; far away it stays UNREACHABLE."""
+    from importlib import resources
+    text = resources.files("models").joinpath("robots/ur10.toml").read_text(encoding="utf-8")
+    k = text.rfind("[[joints]]")
+    old = "q_min_deg = -360.0\nq_max_deg = 360.0"
+    assert old in text[k:]
+    (tmp_path / "ur10_j6.toml").write_text(text[:k] + text[k:].replace(old, "q_min_deg = -40.0\nq_max_deg = 40.0", 1))
+    p = shipped("placement_milling").with_robot(str(tmp_path / "ur10_j6.toml"))
+    pls = np.array([[0.9, -0.2, 0.0, 0.0, 0.0], [0.2, -1.0, 0.0, 0.0, 0.0], [5.0, 0.0, 0.0, 0.0, 0.0]])
+    sc = PlacementKernel(p).evaluate(pls)
+    free = kernel_of("placement_milling").evaluate(pls)
+    assert free.status.tolist() == [PlacementStatus.OK, PlacementStatus.OK, PlacementStatus.UNREACHABLE]
+    assert sc.status.tolist() == [PlacementStatus.OK, PlacementStatus.JOINT_LIMIT, PlacementStatus.UNREACHABLE]
+    assert sc.blocked_waypoint[1] > 0 and free.blocked_waypoint[1] == -1
 
 
 # ======================================================================================
@@ -719,6 +778,21 @@ def test_a_worker_without_a_compiler_runs_the_shipped_libraries(tmp_path):
     assert compiled and ik_compiled
     assert not own_compiled                          # the process really has no compiler
     assert scores.equal(ref)
+
+
+def test_default_chunks_grow_with_the_sweep():
+    """Small sweeps: CHUNK_POSES per chunk; large ones: at most DEFAULT_MAX_CHUNKS chunks, but no
+    chunk above CHUNK_MAX_POSES."""
+    from problems.placement.sweep import (CHUNK_MAX_POSES, CHUNK_POSES, DEFAULT_MAX_CHUNKS, chunk_placements_for,
+                                          default_chunk_poses)
+    assert default_chunk_poses(10) == default_chunk_poses(CHUNK_POSES * DEFAULT_MAX_CHUNKS) == CHUNK_POSES
+    assert default_chunk_poses(10 ** 8) == 10 ** 5
+    assert default_chunk_poses(10 ** 9) == default_chunk_poses(10 ** 12) == CHUNK_MAX_POSES
+    kern = kernel_of("placement_milling")
+    ppp = kern.poses_per_placement
+    assert chunk_placements_for(kern, 1428) == CHUNK_POSES // ppp
+    assert chunk_placements_for(kern, 10 ** 8 // ppp) == 10 ** 5 // ppp
+    assert chunk_placements_for(kern, 10, target_poses=5 * ppp) == 5
 
 
 # ======================================================================================

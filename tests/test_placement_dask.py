@@ -211,3 +211,67 @@ def test_place_command_on_a_local_cluster_writes_the_serial_scores(tmp_path, cap
     import json
     s = json.loads((tmp_path / "dask" / "summary.json").read_text())
     assert s["sweep"]["scheduler"] == "local:2" and s["sweep"]["workers"] == 2 and s["sweep"]["chunks"] == 8
+
+
+def _free_port() -> int:
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def test_a_scheduler_lost_mid_run_is_one_cluster_error(tmp_path, capfd):
+    """A remote scheduler (``dask scheduler``, its own process) killed after the first chunk: the
+    sweep ends with one ClusterError naming the address, and nothing of Dask's logging reaches
+    stderr (the library is silent)."""
+    import subprocess
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")]))
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                              "--port", str(port), "--no-dashboard"], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL, env=env)
+    worker = None
+    try:
+        deadline = time.monotonic() + RESTART_WAIT_S
+        while True:                                        # wait until it listens
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert time.monotonic() < deadline and sched.poll() is None, "the scheduler did not start"
+                time.sleep(0.2)
+        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                                   "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        with distributed.Client(address, timeout=30) as c:
+            c.wait_for_workers(1, timeout=RESTART_WAIT_S)
+        capfd.readouterr()
+
+        def kill_scheduler(n_done: int) -> None:
+            if sched.poll() is None:
+                sched.kill()
+                sched.wait()
+
+        records: list[logging.LogRecord] = []
+        collect = logging.Handler(logging.DEBUG)
+        collect.emit = records.append                      # type: ignore[method-assign]
+        loggers = [logging.getLogger(n) for n in ("distributed", "distributed.client", "distributed.core")]
+        for lg in loggers:
+            lg.addHandler(collect)
+        try:
+            with pytest.raises(cluster_mod.ClusterError) as ei:
+                run_sweep(_kernel(), _placements(KILL_GRID), address, chunk_placements=2, on_chunk=kill_scheduler)
+        finally:
+            for lg in loggers:
+                lg.removeHandler(collect)
+        assert address in str(ei.value) and "went away" in str(ei.value)
+        assert "\n" not in str(ei.value)
+        assert not [r for r in records if r.levelno >= logging.WARNING], [r.getMessage() for r in records][:3]
+        err = capfd.readouterr().err
+        assert "Traceback" not in err and "CommClosedError" not in err, err
+    finally:
+        for p in (worker, sched):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait()

@@ -26,7 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="serial (default), local:N (a Dask LocalCluster of N workers) or tcp://HOST:PORT "
                         "(an existing Dask scheduler); Dask is the extra: pip install \"compplan[dask]\"")
     p.add_argument("--chunk", type=int, default=None, metavar="N",
-                   help="placements per chunk (one task); default: about 32768 poses per chunk")
+                   help="placements per chunk (one task); default: about 32,768 poses per chunk, larger for a "
+                        "sweep that would need over 1,000 chunks (at most 262,144 poses)")
     p.add_argument("--top", type=int, default=None, metavar="N",
                    help="how many of the best placements to plan in full (0..10; default: the grid's top, 3)")
     p.add_argument("--robot", default=None,
@@ -79,8 +80,10 @@ def run(args: argparse.Namespace) -> int:
     if spec != "serial":
         from problems.placement.cluster import require_dask
         require_dask()
-    if args.chunk is not None and args.chunk < 1:
-        raise InputError(f"--chunk {args.chunk}: expected a positive number of placements per chunk")
+    from problems.placement.sweep import CHUNK_MAX_PLACEMENTS
+    if args.chunk is not None and not 1 <= args.chunk <= CHUNK_MAX_PLACEMENTS:
+        raise InputError(f"--chunk {args.chunk}: expected a positive number of placements per chunk, "
+                         f"at most {CHUNK_MAX_PLACEMENTS}")
     problem = load_problem(args.problem)
     if args.robot is not None:
         problem = problem.with_robot(args.robot)
@@ -100,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
 
 def print_study(st: Any) -> None:
     """The sweep's figures, the ranking head, the full plans and the improvement."""
+    from planner.placement import distinct_positions
     from problems.placement.grid import placement_label
     s = st.summary()
     sw = s["sweep"]
@@ -107,9 +111,12 @@ def print_study(st: Any) -> None:
           f"{sw['poses_per_second']:,.0f} poses/s on {sw['workers']} worker(s), {sw['chunks']} chunk(s) of "
           f"{sw['chunk_placements']} placements{'' if sw['compiled'] else ' (CasADi virtual machine)'}")
     print("  placements: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in sw["status_counts"].items()))
-    print("  best placements (sweep: RMS / max load-induced TCP error of the best branch):")
-    for e in s["ranking"][:max(3, st.grid.top)]:
-        print(f"    {e['rank']:>2}. {placement_label(st.sweep.placements[e['index']])}: branch {e['best_branch']}, "
+    print("  best base positions (sweep: RMS / max load-induced TCP error of the best branch; rank among all "
+          "placements):")
+    rank_of = {int(i): r + 1 for r, i in enumerate(st.ranked)}
+    for i in distinct_positions(st.ranked, st.sweep.placements, max(3, st.grid.top)):
+        e = st.scores_of(i)
+        print(f"    {rank_of[i]:>3}. {placement_label(st.sweep.placements[i])}: branch {e['best_branch']}, "
               f"{e['rms_error_mm']:.4g} / {e['max_error_mm']:.4g} mm, joint margin {e['joint_margin_deg']:.3g} deg, "
               f"singular margin {e['singular_margin']:.3g}")
     b = s["baseline"]
@@ -128,5 +135,6 @@ def print_study(st: Any) -> None:
         if p["plan_status"] != "ok":
             print(f"    {p['label']:<10} {p['placement_text']}: {p['plan_status']}: {h.get('reason')}")
             continue
+        dur = "not timed" if h.get("duration_s") is None else f"{h['duration_s']} s"
         print(f"    {p['label']:<10} {p['placement_text']}: branch {h['branch']}, {h['error_before_max_mm']} / "
-              f"{h['error_before_rms_mm']} mm -> {h['error_after_max_mm']} mm, {h['duration_s']} s")
+              f"{h['error_before_rms_mm']} mm -> {h['error_after_max_mm']} mm, {dur}")

@@ -418,7 +418,7 @@ def _error_bars(ax: Any, bars: Sequence[PlanBar]) -> None:
             _bar_text(ax, i + dx, v)
     base = next((b for b in bars if b.baseline and b.rms_mm is not None and not b.failed), None)
     if base is not None and len(bars) > 1:
-        ax.axhline(base.rms_mm, color="0.3", ls="--", lw=0.9, zorder=0)
+        ax.axhline(base.rms_mm, color="0.15", ls="--", lw=1.2, zorder=1.5)
     ax.set_ylabel("load-induced TCP error, mm")
     ax.set_title("TCP error before compensation (exact equilibrium, full plan)")
     hs = [Patch(facecolor=BAR_COLOURS["max"], edgecolor="black", lw=0.5, label="max"),
@@ -426,7 +426,7 @@ def _error_bars(ax: Any, bars: Sequence[PlanBar]) -> None:
           Patch(facecolor=BASELINE_BAR_COLOURS["max"], edgecolor="black", lw=0.5, label="max, as written"),
           Patch(facecolor=BASELINE_BAR_COLOURS["rms"], edgecolor="black", lw=0.5, label="RMS, as written")]
     if base is not None and len(bars) > 1:
-        hs.append(Line2D([], [], color="0.3", ls="--", lw=0.9, label="RMS as written"))
+        hs.append(Line2D([], [], color="0.15", ls="--", lw=1.2, label="RMS as written"))
     ax.legend(handles=hs, loc="upper left", ncol=3, fontsize=7, framealpha=0.9)
 
 

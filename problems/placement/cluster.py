@@ -11,6 +11,8 @@ more than ``distributed.scheduler.allowed-failures`` times (default 3) fails the
 
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
 import logging
 import os
 import time
@@ -83,11 +85,33 @@ def dask_client(spec: str) -> Iterator[Any]:
             client = distributed.Client(spec, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as exc:
             raise InputError(f"--scheduler {spec}: cannot connect to a Dask scheduler there "
-                             f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'timed out'})") from None
+                             f"({type(exc).__name__}: {_first_line(exc) if str(exc) else 'timed out'})") from None
         try:
             yield client
         finally:
             client.close()
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else "no message"
+
+
+@contextmanager
+def _quiet(prefix: str = "distributed") -> Iterator[None]:
+    """Dask's own log records (e.g. the tracebacks of a lost connection) are not printed while a
+    sweep runs: the library is silent, and the sweep's outcome is its result or one exception.
+    Dask's configuration gives some of its loggers levels of their own (``distributed.client``),
+    so each is raised, and restored afterwards."""
+    names = [prefix] + [n for n in list(logging.root.manager.loggerDict) if n.startswith(prefix + ".")]
+    saved = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for n, level in saved.items():
+            logging.getLogger(n).setLevel(level)
 
 
 def _kernel(k: PlacementKernel) -> PlacementKernel:
@@ -165,7 +189,7 @@ def run_on_dask(kernel: PlacementKernel, chunks: list[np.ndarray], spec: str,
     ppp = kernel.poses_per_placement
     total = sum(len(c) for c in chunks) * ppp
     token = uuid.uuid4().hex[:12]
-    with dask_client(spec) as client:
+    with _quiet(), dask_client(spec) as client:
         at_start = check_workers(client, spec)
         t0 = time.perf_counter()
         kf = client.submit(_kernel, kernel, key=f"placement-kernel-{token}", pure=False)
@@ -186,6 +210,9 @@ def run_on_dask(kernel: PlacementKernel, chunks: list[np.ndarray], spec: str,
                     on_chunk(n_done)
         except distributed.KilledWorker as exc:
             raise ClusterError(f"Dask sweep failed: a chunk's workers died repeatedly ({exc})") from None
+        except (OSError, concurrent.futures.CancelledError, asyncio.CancelledError) as exc:
+            raise ClusterError(f"Dask sweep failed: the cluster at {spec} went away during the sweep "
+                               f"({type(exc).__name__}: {_first_line(exc)})") from None
         elapsed = time.perf_counter() - t0
         try:
             for ws in client.who_has(futs).values():

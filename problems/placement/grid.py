@@ -72,7 +72,7 @@ class PlacementGrid:
     @property
     def size(self) -> int:
         """Number of placements."""
-        return int(np.prod(self.shape))
+        return math.prod(self.shape)                 # Python integers: no overflow
 
     def placements(self) -> np.ndarray:
         """Every placement ``[x, y, z, yaw, tilt]`` (m, rad), shape (P, 5), x fastest.
@@ -228,10 +228,14 @@ def parse_grid_text(text: str, base: PlacementGrid | None = None, where: str = "
             raise PlacementGridError(f"{where}: item {item!r} must be KEY=VALUE or KEY=START:STOP:COUNT "
                                      f"with KEY one of {list(GRID_AXES) + list(OTHER_KEYS)}")
         parts = val.split(":")
+        if key == "top":
+            if not val.isdecimal():
+                raise PlacementGridError(f"{where}: item {item!r}: top must be a whole number in "
+                                         f"[0, {MAX_TOP}], got {val!r}")
+            tab[key] = int(val)
+            continue
         try:
-            if key == "top":
-                tab[key] = int(val)
-            elif len(parts) == 3:
+            if len(parts) == 3:
                 cnt = float(parts[2])
                 tab[key] = [float(parts[0]), float(parts[1]), int(cnt) if cnt.is_integer() else cnt]
             elif len(parts) == 1:

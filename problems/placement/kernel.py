@@ -43,16 +43,17 @@ from models.ik import IKStatus, ik_solver
 from models.robot import Robot
 from problems.placement.grid import cell2base
 from problems.placement.scores import ChunkScores, PlacementStatus
-from problems.posture.task import COST_SCALE, DP_NEIGHBOUR_ANGLE_RAD
+from problems.posture.task import COST_SCALE, DP_MAX_STATES, DP_NEIGHBOUR_ANGLE_RAD
 from problems.posture.verification import guard_bounds
 from problems.posture.warm_start import candidates
 
 #: Threads of the kernel's compiled evaluation (parallelism comes from chunks, not threads).
 KERNEL_THREADS = 1
-#: With at most this many candidate orientations every candidate may follow every other
-#: one; with more, only candidates within ``DP_NEIGHBOUR_ANGLE_RAD`` of each other (the warm
-#: starts' restricted programme), which keeps the programme's cost near the IK's.
-DENSE_CANDIDATES = 12
+#: With at most this many candidate orientations every candidate may follow every other one
+#: (the warm starts' dense programme, ``DP_MAX_STATES``); with more, only candidates within
+#: ``DP_NEIGHBOUR_ANGLE_RAD`` of each other (the warm starts' restricted programme), and the
+#: rows that restricted programme finds blocked run the dense one, as the warm starts do.
+DENSE_CANDIDATES = DP_MAX_STATES
 #: Round-off allowance of the joint-limit shift (as the warm starts), in units of 2 pi.
 _SHIFT_EPS = 1e-12
 
@@ -186,6 +187,8 @@ class PlacementKernel:
         ratio = ratio.reshape(P, S, N, B)
         valid = ratio >= 1.0                                                        # (P, S, N, B)
         reach_any = valid.any(axis=(1, 3))                                           # (P, N)
+        # a solution that only the joint limits exclude (no 2 pi k puts it inside them)
+        outside = (sol.status == IKStatus.JOINT_LIMIT).reshape(P, S, N, B).any(axis=(1, 3))   # (P, N)
         # only branches reaching every waypoint can be feasible: the model is evaluated there only
         valid &= valid.any(axis=1).all(axis=1)[:, None, None, :]
         vf = valid.ravel()
@@ -198,18 +201,21 @@ class PlacementKernel:
             D = self._model(Qf[vf], L[p_of * N + n_of], G[p_of])[0][:, :3]
             err[vf] = np.sqrt(np.einsum("ij,ij->i", D, D))
         err = err.reshape(P, S, N, B)
-        return self._score(Q, err, ratio, reach_any)
+        return self._score(Q, err, ratio, reach_any, outside)
 
-    def _score(self, Q: np.ndarray, err: np.ndarray, ratio: np.ndarray, any_reach: np.ndarray) -> ChunkScores:
+    def _score(self, Q: np.ndarray, err: np.ndarray, ratio: np.ndarray, any_reach: np.ndarray,
+               outside: np.ndarray) -> ChunkScores:
         """Per placement and branch: the cheapest flip-free sequence, its limits, its errors.
 
         ``err`` (P, S, N, B) m, inf where a node is invalid or its branch misses a waypoint;
-        ``any_reach`` (P, N): the waypoint has a valid node on some branch."""
+        ``any_reach`` (P, N): the waypoint has a valid node on some branch; ``outside`` (P, N):
+        it has an IK solution outside the joint limits."""
         P, S, N, B = err.shape
         reach_all = np.isfinite(err).any(axis=1).all(axis=1)                         # (P, B)
         out = ChunkScores.empty(P, B)
         first_gap = np.where(~any_reach.all(axis=1), np.argmin(any_reach, axis=1), -1)
         out.blocked_waypoint[:] = first_gap
+        gap_limit = (first_gap >= 0) & outside[np.arange(P), np.maximum(first_gap, 0)]
         pb = np.argwhere(reach_all)                                                 # (M, 2)
         flip = np.zeros((P, B), dtype=bool)
         limit = np.zeros((P, B), dtype=bool)
@@ -219,15 +225,24 @@ class PlacementKernel:
             # float32 halves the programme's memory traffic; it only picks the sequence, whose
             # errors and joint angles are then read in float64.  Joint-major (6, N, M, S).
             qj = np.nan_to_num(qm.transpose(3, 2, 0, 1).astype(np.float32), copy=False, nan=0.0)
-            seq, blocked = _viterbi((COST_SCALE * node ** 2).astype(np.float32), qj,
-                                    self.smoothness, self.max_joint_step, self._nbr)
+            cost = (COST_SCALE * node ** 2).astype(np.float32)
+            seq, blocked = _viterbi(cost, qj, self.smoothness, self.max_joint_step, self._nbr)
+            if blocked.any() and self._nbr.shape[1] < S:
+                # the restricted graph is blocked: every candidate may follow every other
+                rb = np.flatnonzero(blocked)
+                seq[rb], blocked[rb] = _viterbi(cost[rb], qj[:, :, rb], self.smoothness, self.max_joint_step,
+                                                np.tile(np.arange(S), (S, 1)))
             flip[pb[blocked, 0], pb[blocked, 1]] = True
             good = ~blocked
             pbg, seqg = pb[good], seq[good]
             if len(pbg):
                 qpath = _unwrap(qm, np.flatnonzero(good), seqg)                      # (M', N, 6)
+                # the float32 programme's step test, again in float64 (a step at the bound)
+                smooth = (np.abs(np.diff(qpath, axis=1)) <= self.max_joint_step).all(axis=(1, 2))
+                flip[pbg[~smooth, 0], pbg[~smooth, 1]] = True
                 shifted, inside = _into_limits(qpath, self.ik.q_min, self.ik.q_max)
-                limit[pbg[~inside, 0], pbg[~inside, 1]] = True
+                limit[pbg[smooth & ~inside, 0], pbg[smooth & ~inside, 1]] = True
+                inside &= smooth
                 n_idx = np.arange(N)
                 e = err[pbg[:, 0][:, None], seqg, n_idx[None, :], pbg[:, 1][:, None]]   # (M', N)
                 r = ratio[pbg[:, 0][:, None], seqg, n_idx[None, :], pbg[:, 1][:, None]]
@@ -238,7 +253,7 @@ class PlacementKernel:
                 out.branch_max_m[pbg[f, 0], pbg[f, 1]] = e.max(axis=1)[f]
                 out.branch_joint_margin_rad[pbg[f, 0], pbg[f, 1]] = margin[f]
                 out.branch_singular_margin[pbg[f, 0], pbg[f, 1]] = r.min(axis=1)[f]
-        out.finish(flip, limit)
+        out.finish(flip, limit, gap_limit)
         return out
 
 

@@ -30,11 +30,12 @@ class PlacementStatus(enum.IntEnum):
 
     OK = 0
     #: some waypoint has no IK solution outside the singularity guards on any branch at any
-    #: scanned orientation
+    #: scanned orientation (or no single branch reaches every waypoint)
     UNREACHABLE = 1
     #: every branch reaching all waypoints must flip (a joint step above ``max_joint_step``)
     FLIP = 2
-    #: every flip-free branch leaves a joint's limits along the path
+    #: every flip-free branch leaves a joint's limits along the path, or the first waypoint out of
+    #: reach has solutions that only the joint limits exclude
     JOINT_LIMIT = 3
 
 
@@ -43,7 +44,8 @@ STATUS_REASONS = {
     PlacementStatus.OK: "feasible",
     PlacementStatus.UNREACHABLE: "a waypoint is out of reach (or inside a singularity guard) on every branch",
     PlacementStatus.FLIP: "every branch reaching the whole path flips (joint step above max_joint_step)",
-    PlacementStatus.JOINT_LIMIT: "every flip-free branch leaves the joint limits",
+    PlacementStatus.JOINT_LIMIT: "the joint limits exclude every branch (along the path, or at a waypoint whose "
+                                 "solutions all lie outside them)",
 }
 
 
@@ -91,11 +93,12 @@ class ChunkScores:
     def __len__(self) -> int:
         return int(len(self.status))
 
-    def finish(self, flip: np.ndarray, limit: np.ndarray) -> None:
+    def finish(self, flip: np.ndarray, limit: np.ndarray, gap_limit: np.ndarray | None = None) -> None:
         """Pick the best branch of each placement and set its status.
 
         ``flip``, ``limit`` (P, B): branches that reach every waypoint but flip, or leave the
-        joint limits."""
+        joint limits; ``gap_limit`` (P,): the first waypoint out of reach has an IK solution that
+        only the joint limits exclude (the placement is then ``JOINT_LIMIT``, not ``UNREACHABLE``)."""
         feas = np.isfinite(self.branch_rms_m)
         self.feasible_branches[:] = feas.sum(axis=1)
         anyf = feas.any(axis=1)
@@ -114,6 +117,8 @@ class ChunkScores:
         st[~anyf & unreach] = PlacementStatus.UNREACHABLE
         # reach on no single branch although every waypoint is reached on some branch
         st[~anyf & ~unreach & ~flip.any(axis=1) & ~limit.any(axis=1)] = PlacementStatus.UNREACHABLE
+        if gap_limit is not None:
+            st[~anyf & unreach & gap_limit] = PlacementStatus.JOINT_LIMIT
         self.status[:] = st
 
     @property

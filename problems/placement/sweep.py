@@ -10,6 +10,8 @@ cluster gives the serial sweep's scores bit for bit (same chunking, same compile
 from __future__ import annotations
 
 import enum
+import math
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -20,10 +22,16 @@ from models.errors import InputError
 from problems.placement.kernel import PlacementKernel
 from problems.placement.scores import ChunkScores, PlacementStatus
 
-#: Target TCP poses per chunk (one Dask task): large enough that Dask's per-task overhead
-#: (about 1 ms) is negligible against the kernel's cost, small enough to spread a sweep over
-#: many workers and to keep a chunk's arrays (~1 kB per pose) in cache-friendly memory.
+#: Fewest TCP poses per chunk (one Dask task) by default: Dask's per-task overhead (a few ms,
+#: ``benchmarks/bench_placement.py``) stays a few per cent of a chunk's cost (about 5 us per pose),
+#: and a sweep of a few thousand placements still spreads over a few workers.
 CHUNK_POSES = 32_768
+#: Most chunks of a default chunking: a large sweep gets larger chunks, so the per-task overhead
+#: and the scheduler's serial handling of tasks stay small against the work (docs/placement.md).
+DEFAULT_MAX_CHUNKS = 1000
+#: Most TCP poses per chunk by default: a chunk's memory (about 2.5 kB per pose at its peak,
+#: about 650 MiB here) bounds it.
+CHUNK_MAX_POSES = 262_144
 #: Fewest and most placements in one chunk.
 CHUNK_MIN_PLACEMENTS, CHUNK_MAX_PLACEMENTS = 1, 100_000
 #: Progress stage name (``progress(stage, done, total)``, poses).
@@ -90,9 +98,19 @@ class SweepResult:
         return self.poses / self.elapsed_s if self.elapsed_s > 0 else float("nan")
 
 
-def chunk_placements_for(kernel: PlacementKernel, target_poses: int = CHUNK_POSES) -> int:
-    """Placements per chunk giving about ``target_poses`` poses per chunk."""
-    n = max(1, int(target_poses) // max(1, kernel.poses_per_placement))
+def default_chunk_poses(total_poses: int) -> int:
+    """Poses per chunk of a default chunking of ``total_poses``: :data:`CHUNK_POSES`, or more for a
+    sweep that would need more than :data:`DEFAULT_MAX_CHUNKS` chunks, at most
+    :data:`CHUNK_MAX_POSES`."""
+    return int(min(max(CHUNK_POSES, math.ceil(total_poses / DEFAULT_MAX_CHUNKS)), CHUNK_MAX_POSES))
+
+
+def chunk_placements_for(kernel: PlacementKernel, n_placements: int = 0, target_poses: int | None = None) -> int:
+    """Placements per chunk: about ``target_poses`` poses per chunk (default
+    :func:`default_chunk_poses` of a sweep of ``n_placements``)."""
+    ppp = max(1, kernel.poses_per_placement)
+    target = default_chunk_poses(n_placements * ppp) if target_poses is None else int(target_poses)
+    n = max(1, target // ppp)
     return int(min(max(n, CHUNK_MIN_PLACEMENTS), CHUNK_MAX_PLACEMENTS))
 
 
@@ -115,13 +133,13 @@ def parse_scheduler(spec: str | None) -> str:
     s = str(spec).strip()
     if s.startswith("local:"):
         n = s[len("local:"):]
-        if not n.isdigit() or not 1 <= int(n) <= 256:
+        if not re.fullmatch(r"[0-9]{1,4}", n) or not 1 <= int(n) <= 256:
             raise InputError(f"--scheduler {spec!r}: local:N needs a whole number of workers N in [1, 256]")
         return f"local:{int(n)}"
     if s.startswith(("tcp://", "tls://", "ucx://")):
         host, _, port = s.split("://", 1)[1].rpartition(":")
-        if not host or not port.isdigit():
-            raise InputError(f"--scheduler {spec!r}: an address must be tcp://HOST:PORT")
+        if not host or not re.fullmatch(r"[0-9]{1,5}", port) or not 1 <= int(port) <= 65535:
+            raise InputError(f"--scheduler {spec!r}: an address must be tcp://HOST:PORT with PORT in [1, 65535]")
         return s
     raise InputError(f"--scheduler {spec!r}: expected 'serial', 'local:N' (a LocalCluster of N workers) "
                      "or a Dask scheduler address tcp://HOST:PORT")
@@ -148,7 +166,7 @@ def run_sweep(kernel: PlacementKernel, placements: np.ndarray, scheduler: str | 
     scheduler : str, optional
         ``serial`` (default), ``local:N`` or ``tcp://HOST:PORT`` (see :func:`parse_scheduler`).
     chunk_placements : int, optional
-        Placements per chunk (default :func:`chunk_placements_for`).
+        Placements per chunk (default :func:`chunk_placements_for` of the sweep's size).
     progress : callable, optional
         ``progress(PROGRESS_STAGE, poses_done, poses_total)`` after each chunk.
     on_chunk : callable, optional
@@ -165,9 +183,10 @@ def run_sweep(kernel: PlacementKernel, placements: np.ndarray, scheduler: str | 
     """
     spec = parse_scheduler(scheduler)
     pl = np.atleast_2d(np.asarray(placements, dtype=float))
-    per = int(chunk_placements) if chunk_placements else chunk_placements_for(kernel)
+    per = int(chunk_placements) if chunk_placements else chunk_placements_for(kernel, len(pl))
     if not CHUNK_MIN_PLACEMENTS <= per <= CHUNK_MAX_PLACEMENTS:
         raise InputError(f"chunk of {per} placements: expected {CHUNK_MIN_PLACEMENTS} to {CHUNK_MAX_PLACEMENTS}")
+    per = min(per, max(1, len(pl)))
     bounds = chunk_bounds(len(pl), per)
     chunks = [pl[a:b] for a, b in bounds]
     ppp = kernel.poses_per_placement
@@ -194,5 +213,5 @@ def run_sweep(kernel: PlacementKernel, placements: np.ndarray, scheduler: str | 
                        kernel.compiled, extra)
 
 
-__all__ = ["CHUNK_POSES", "PROGRESS_STAGE", "SweepResult", "SweepStatus", "chunk_bounds", "chunk_placements_for",
-           "parse_scheduler", "run_sweep"]
+__all__ = ["CHUNK_MAX_POSES", "CHUNK_POSES", "DEFAULT_MAX_CHUNKS", "PROGRESS_STAGE", "SweepResult", "SweepStatus",
+           "chunk_bounds", "chunk_placements_for", "default_chunk_poses", "parse_scheduler", "run_sweep"]
