@@ -46,7 +46,9 @@ import platform
 import sys
 import time
 import tracemalloc
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
@@ -161,22 +163,40 @@ def _fmt_s(s: float) -> str:
     return f"{s:.3g} s" if s < 120 else (f"{s / 60:.3g} min" if s < 7200 else f"{s / 3600:.3g} h")
 
 
-def main() -> None:
+@dataclass
+class Run:
+    """What the parts of the benchmark share."""
+
+    args: argparse.Namespace
+    kernel: Any
+    placements: Any
+    chunks: list
+    per: int
+    poses: int
+    serial: Any = None
+    us_pose: float = 0.0            # serial cost per pose, us
+    us_pose_1: float = 0.0          # the same with the IK on one thread (one core), us
+    bytes_per_pose: float = 0.0
+
+
+def _parse() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help=f"a small grid ({QUICK_GRID}) for development")
     ap.add_argument("--grid", default=None, help=f"grid spec over the problem's [placement] (default {DEFAULT_GRID})")
-    ap.add_argument("--chunk", type=int, default=None, help="placements per chunk (default: compplan's, chunk_placements_for)")
+    ap.add_argument("--chunk", type=int, default=None,
+                    help="placements per chunk (default: compplan's, chunk_placements_for)")
     ap.add_argument("--tasks", type=int, default=TRIVIAL_TASKS, help="trivial tasks for Dask's per-task overhead")
     ap.add_argument("--skip-dask", action="store_true", help="serial figures only")
     ap.add_argument("--nanny-default", action="store_true",
                     help="also run local:1 with the Dask nanny's default MALLOC_TRIM_THRESHOLD_ (row local:1*)")
-    args = ap.parse_args()
+    return ap.parse_args()
 
-    import numpy as np
 
+def setup(args: argparse.Namespace) -> Run:
+    """The problem, grid, kernel and chunks; prints what is measured."""
     from problems.placement.grid import parse_grid_text
     from problems.placement.kernel import PlacementKernel
-    from problems.placement.sweep import CHUNK_POSES, chunk_bounds, chunk_placements_for, run_sweep
+    from problems.placement.sweep import CHUNK_POSES, chunk_bounds, chunk_placements_for
     from problems.problem import load_problem
 
     la0 = os.getloadavg()
@@ -192,35 +212,37 @@ def main() -> None:
     pl = grid.placements()
     ppp, B = kernel.poses_per_placement, kernel.n_branches
     per = args.chunk or chunk_placements_for(kernel, len(pl))
-    bounds = chunk_bounds(len(pl), per)
-    chunks = [pl[a:b] for a, b in bounds]
-    poses = len(pl) * ppp
+    chunks = [pl[a:b] for a, b in chunk_bounds(len(pl), per)]
     blob = pickle.dumps(kernel)
     print(f"problem {PROBLEM} (robot {pr.robot.name}, {kernel.n_waypoints} waypoints x {kernel.n_candidates} "
           f"scanned orientations = {ppp} poses per placement, {B} branches); grid {grid.describe()} "
           f"(spec {spec!r} over the file's [placement])")
-    print(f"{len(pl)} placements, {poses:,} poses; chunks of {per} placements = {per * ppp:,} poses "
+    print(f"{len(pl)} placements, {len(pl) * ppp:,} poses; chunks of {per} placements = {per * ppp:,} poses "
           f"(CHUNK_POSES = {CHUNK_POSES:,}), {len(chunks)} chunks; load_error_g and IK compiled: {kernel.compiled}; "
           f"kernel built in {t_build:.2f} s, pickled {len(blob) / 1024:.0f} KiB")
-
     kernel.evaluate(chunks[0])                                            # warm-up (loads, first calls)
     t_unpickle = _best(lambda: pickle.loads(blob), 3)
     print(f"kernel unpickled (what each worker does once: library written and loaded, IK built): "
           f"{t_unpickle * 1e3:.0f} ms")
+    return Run(args, kernel, pl, chunks, per, len(pl) * ppp)
 
-    # ---------------------------------------------------------------- serial sweep
-    ser = run_sweep(kernel, pl, "serial", per)
-    us_pose = ser.elapsed_s / poses * 1e6
-    print(f"\nserial sweep: {ser.elapsed_s:.2f} s, {ser.poses_per_second:,.0f} poses/s = {us_pose:.2f} us per pose "
-          f"= {us_pose / B:.3f} us per pose and branch; feasible placements {int(ser.scores.feasible.sum())} "
-          f"of {len(pl)}")
 
-    # ---------------------------------------------------------------- breakdown and anchors
-    step = max(1, len(chunks) // 8)
-    sub = chunks[::step]
+def serial_and_anchors(run: Run) -> None:
+    """The serial sweep, where a pose's cost goes, the IK and model anchors, a chunk's memory."""
+    import numpy as np
+
+    from problems.placement.sweep import run_sweep
+    kernel, B = run.kernel, run.kernel.n_branches
+    ser = run.serial = run_sweep(kernel, run.placements, "serial", run.per)
+    run.us_pose = ser.elapsed_s / run.poses * 1e6
+    print(f"\nserial sweep: {ser.elapsed_s:.2f} s, {ser.poses_per_second:,.0f} poses/s = {run.us_pose:.2f} us per "
+          f"pose = {run.us_pose / B:.3f} us per pose and branch; feasible placements "
+          f"{int(ser.scores.feasible.sum())} of {len(run.placements)}")
+
+    sub = run.chunks[::max(1, len(run.chunks) // 8)]
     bd = breakdown(kernel, sub)
-    sub_poses = sum(len(c) for c in sub) * ppp
-    print(f"\nwhere a pose's cost goes ({len(sub)} of the {len(chunks)} chunks, {sub_poses:,} poses, "
+    sub_poses = sum(len(c) for c in sub) * kernel.poses_per_placement
+    print(f"\nwhere a pose's cost goes ({len(sub)} of the {len(run.chunks)} chunks, {sub_poses:,} poses, "
           f"timers around the calls):")
     print(f"  {'part':<44}{'us/pose':>9}{'share':>8}")
     for key, label in (("ik", "IK, all branches (ik.solve)"), ("guard", "singularity guard factors"),
@@ -234,18 +256,17 @@ def main() -> None:
     T = bd["ik_arg"]
     t_ik = _best(lambda: kernel.ik.solve(T))
     ik_line = f"  batch IK alone, {len(T):,} poses (one chunk), all {B} branches: {t_ik / len(T) * 1e6:.3f} us per pose"
-    us_pose_1 = us_pose                       # single-core per-pose cost (IK on one thread)
-    ev = getattr(kernel.ik, "evaluator", None)
-    if ev is not None and getattr(ev, "compiled", False) and hasattr(kernel.ik, "function"):
+    run.us_pose_1 = run.us_pose
+    ev = kernel.ik.evaluator if kernel.ik.function is not None else None
+    if ev is not None and ev.compiled:
         from models.codegen import batch_function
-        one = batch_function(kernel.ik.function, 1)
-        saved, kernel.ik._evaluator = kernel.ik._evaluator, one
+        kernel.ik.use_evaluator(batch_function(kernel.ik.function, 1))
         try:
             t_ik1 = _best(lambda: kernel.ik.solve(T))
         finally:
-            kernel.ik._evaluator = saved
+            kernel.ik.use_evaluator(ev)
         ik_line += f" ({ev.threads} OpenMP threads as shipped; {t_ik1 / len(T) * 1e6:.3f} with 1 thread)"
-        us_pose_1 = us_pose + max(0.0, t_ik1 - t_ik) / len(T) * 1e6
+        run.us_pose_1 = run.us_pose + max(0.0, t_ik1 - t_ik) / len(T) * 1e6
     print("\nanchors (same run):")
     print(ik_line)
     if bd["le_args"] is not None:
@@ -257,18 +278,23 @@ def main() -> None:
         t_le = _best(lambda: evl(qa, La, Ga))
         print(f"  model load_error alone, {n_rows:,} evaluations (one chunk's poses x {B} branches): "
               f"{t_le / n_rows * 1e6:.3f} us per evaluation = {t_le / len(T) * 1e6:.3f} us per pose")
-        print(f"  kernel / (IK + load_error on every branch) = {us_pose / ((t_ik + t_le) / len(T) * 1e6):.2f}")
-    print(f"  single-core per-pose cost (the serial cost with the IK on one thread): {us_pose_1:.2f} us")
+        print(f"  kernel / (IK + load_error on every branch) = {run.us_pose / ((t_ik + t_le) / len(T) * 1e6):.2f}")
+    print(f"  single-core per-pose cost (the serial cost with the IK on one thread): {run.us_pose_1:.2f} us")
 
-    probe = [chunks[0], chunks[len(chunks) // 2], chunks[-1]]
-    mems = [(chunk_memory(kernel, c), len(c) * ppp) for c in probe]
-    bpp = max(m / n for m, n in mems)
+    probe = [run.chunks[0], run.chunks[len(run.chunks) // 2], run.chunks[-1]]
+    mems = [(chunk_memory(kernel, c), len(c) * kernel.poses_per_placement) for c in probe]
+    run.bytes_per_pose = max(m / n for m, n in mems)
     print(f"\nmemory of a chunk (peak of the allocations while it is scored; first, middle and last chunk): "
-          f"{', '.join(f'{m / 2 ** 20:.0f} MiB' for m, _ in mems)}; at most {bpp:,.0f} bytes per pose "
-          f"(IK q (P,S,N,B,6) float64 is {8 * 6 * B} B/pose and its masked copy as much; T 128 B/pose; "
-          "per valid node and branch its q, load row, index and output)")
+          f"{', '.join(f'{m / 2 ** 20:.0f} MiB' for m, _ in mems)}; at most {run.bytes_per_pose:,.0f} bytes per pose "
+          f"(IK q (P,S,N,B,6) float64 is {8 * 6 * B} B/pose; T 128 B/pose; per valid node and branch its q, "
+          "load row, index and output)")
 
-    # ---------------------------------------------------------------- Dask
+
+def dask_modes(run: Run) -> tuple[float | None, float | None]:
+    """The sweep on local:1 and local:2 (and local:1 with the nanny's defaults), beside the serial
+    one; returns Dask's per-task overhead (wall per task, per task x workers), s, or Nones."""
+    from problems.placement.sweep import run_sweep
+    args, ser = run.args, run.serial
     rows = [("serial", ser)]
     o_task = o_task_wall = None
     if args.skip_dask:
@@ -280,13 +306,13 @@ def main() -> None:
             print('\nDask: not installed (pip install "compplan[dask]"); serial figures only')
         else:
             for spec_s in ("local:1", "local:2"):
-                rows.append((spec_s, run_sweep(kernel, pl, spec_s, per)))
+                rows.append((spec_s, run_sweep(run.kernel, run.placements, spec_s, run.per)))
             o_task_wall, o_task = trivial_task_overhead(args.tasks, 2)
             if args.nanny_default:
                 import problems.placement.cluster as cluster
                 saved, cluster.LOCAL_ENV_DROPPED = cluster.LOCAL_ENV_DROPPED, ()
                 try:
-                    rows.append(("local:1*", run_sweep(kernel, pl, "local:1", per)))
+                    rows.append(("local:1*", run_sweep(run.kernel, run.placements, "local:1", run.per)))
                 finally:
                     cluster.LOCAL_ENV_DROPPED = saved
 
@@ -294,48 +320,54 @@ def main() -> None:
     for name, r in rows:
         eq = "-" if name == "serial" else ("yes" if r.scores.equal(ser.scores) else
                                            f"NO (max diff {r.scores.max_difference(ser.scores):.3g})")
-        print(f"{name:<9}{r.elapsed_s:>10.2f}{r.poses_per_second:>12,.0f}{r.elapsed_s / poses * 1e6:>9.2f}"
+        print(f"{name:<9}{r.elapsed_s:>10.2f}{r.poses_per_second:>12,.0f}{r.elapsed_s / run.poses * 1e6:>9.2f}"
               f"{r.workers:>8}{eq:>21}")
-    o_sweep = None
     if len(rows) >= 3:
-        t1, t2 = rows[1][1].elapsed_s, rows[2][1].elapsed_s
-        n = len(chunks)
-        scale = t1 / t2
-        o1 = (t1 - ser.elapsed_s) / n
-        o_sweep = (t2 - ser.elapsed_s / 2) * 2 / n
-        print(f"scaling 1 -> 2 workers: {scale:.2f}x (target >= {TARGET_SCALING}x); serial / 1 worker: "
+        t1, t2, n = rows[1][1].elapsed_s, rows[2][1].elapsed_s, len(run.chunks)
+        print(f"scaling 1 -> 2 workers: {t1 / t2:.2f}x (target >= {TARGET_SCALING}x); serial / 1 worker: "
               f"{ser.elapsed_s / t1:.2f}")
-        print(f"Dask per-task overhead: {args.tasks} trivial tasks on local:2: {o_task_wall * 1e3:.2f} ms wall per task, "
-              f"{o_task * 1e3:.2f} ms per task x workers")
-        print(f"overhead implied by the sweeps, per chunk: local:1 (wall - serial) / chunks = {o1 * 1e3:.1f} ms; "
-              f"local:2 (wall - serial/2) x 2 / chunks = {o_sweep * 1e3:.1f} ms "
-              "(on a 2-core machine the client and scheduler share the workers' cores)")
+        print(f"Dask per-task overhead: {args.tasks} trivial tasks on local:2: {o_task_wall * 1e3:.2f} ms wall per "
+              f"task, {o_task * 1e3:.2f} ms per task x workers")
+        print(f"overhead implied by the sweeps, per chunk: local:1 (wall - serial) / chunks = "
+              f"{(t1 - ser.elapsed_s) / n * 1e3:.1f} ms; local:2 (wall - serial/2) x 2 / chunks = "
+              f"{(t2 - ser.elapsed_s / 2) * 2 / n * 1e3:.1f} ms (on a 2-core machine the client and scheduler "
+              "share the workers' cores)")
+    return o_task_wall, o_task
 
-    # ---------------------------------------------------------------- estimate
+
+def large_sweep_estimate(run: Run, o_task_wall: float | None, o_task: float | None) -> None:
+    """Time of 1e8 and 1e9 poses on WORKERS_ESTIMATE workers for compplan's default chunk and the
+    chunks that keep the overhead under OVERHEAD_SHARE and the scheduler under SCHEDULER_SHARE."""
+    from problems.placement.sweep import chunk_placements_for
+    c, ppp = run.us_pose_1, run.kernel.poses_per_placement
     o = o_task if o_task is not None else 1e-3
+    o_sched = o_task_wall or o / 2
     src = "measured" if o_task is not None else "assumed, Dask not run"
-    print(f"\nestimate on {WORKERS_ESTIMATE} single-core workers: time = poses x {us_pose_1:.2f} us (single-core "
-          f"per-pose cost) / {WORKERS_ESTIMATE} + "
-          f"chunks x {o * 1e3:.2f} ms ({src} per-task overhead) / {WORKERS_ESTIMATE}; "
-          f"the scheduler handles tasks one at a time: chunks x {((o_task_wall or o / 2) * 1e3):.2f} ms is a floor")
-    min_chunk = math.ceil(o / (OVERHEAD_SHARE * us_pose_1 * 1e-6))
+    print(f"\nestimate on {WORKERS_ESTIMATE} single-core workers: time = poses x {c:.2f} us (single-core "
+          f"per-pose cost) / {WORKERS_ESTIMATE} + chunks x {o * 1e3:.2f} ms ({src} per-task overhead) / "
+          f"{WORKERS_ESTIMATE}; the scheduler handles tasks one at a time: chunks x {o_sched * 1e3:.2f} ms is a floor")
+    min_chunk = math.ceil(o / (OVERHEAD_SHARE * c * 1e-6))
     print(f"chunk size for overhead < {OVERHEAD_SHARE:.0%}: chunk poses >= overhead / ({OVERHEAD_SHARE:g} x per-pose "
           f"cost) = {min_chunk:,} poses = {math.ceil(min_chunk / ppp):,} placements of this problem")
-    o_sched = o_task_wall or o / 2
-    sched_chunk = math.ceil(WORKERS_ESTIMATE * o_sched / (SCHEDULER_SHARE * us_pose_1 * 1e-6))
+    sched_chunk = math.ceil(WORKERS_ESTIMATE * o_sched / (SCHEDULER_SHARE * c * 1e-6))
     print(f"chunk size for the scheduler floor < {SCHEDULER_SHARE:.0%} of the time on {WORKERS_ESTIMATE} workers: "
           f"chunk poses >= {WORKERS_ESTIMATE} x {o_sched * 1e3:.2f} ms / ({SCHEDULER_SHARE:g} x per-pose cost) = "
           f"{sched_chunk:,} poses")
     print(f"  {'poses':>8}{'chunk poses':>13}{'chunks':>10}{'time':>11}{'overhead':>10}{'sched. floor':>14}"
           f"{'MiB/chunk':>11}")
     for P in ESTIMATE_POSES:
-        default_chunk = chunk_placements_for(kernel, math.ceil(P / ppp)) * ppp      # compplan's default
+        default_chunk = chunk_placements_for(run.kernel, math.ceil(P / ppp)) * ppp      # compplan's default
         for cp in sorted({default_chunk, min_chunk, sched_chunk}):
-            t, nch = estimate(P, us_pose_1, cp, o)
-            floor = nch * (o_task_wall or o / 2)
-            share = nch * o / WORKERS_ESTIMATE / t
-            print(f"  {P:>8.0e}{cp:>13,}{nch:>10,}{_fmt_s(t):>11}{share:>10.2%}{_fmt_s(floor):>14}"
-                  f"{cp * bpp / 2 ** 20:>11.0f}{'  (default)' if cp == default_chunk else ''}")
+            t, nch = estimate(P, c, cp, o)
+            print(f"  {P:>8.0e}{cp:>13,}{nch:>10,}{_fmt_s(t):>11}{nch * o / WORKERS_ESTIMATE / t:>10.2%}"
+                  f"{_fmt_s(nch * o_sched):>14}{cp * run.bytes_per_pose / 2 ** 20:>11.0f}"
+                  f"{'  (default)' if cp == default_chunk else ''}")
+
+
+def main() -> None:
+    run = setup(_parse())
+    serial_and_anchors(run)
+    large_sweep_estimate(run, *dask_modes(run))
     la1 = os.getloadavg()
     print(f"\nload average at the end {la1[0]:.2f} {la1[1]:.2f} {la1[2]:.2f}")
 

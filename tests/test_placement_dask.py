@@ -32,9 +32,8 @@ from problems.problem import load_problem  # noqa: E402
 HEADLINE_CHUNK = 5
 #: Chunks of the worker-kill run: enough that work remains when the first result arrives.
 KILL_MIN_CHUNKS = 20
-#: Seconds allowed for a connection to a closed port to fail (the timeout is patched to 2 s).
+#: The client's connection timeout in these tests (a closed port, a scheduler without workers), s.
 CONNECT_TIMEOUT_PATCHED_S = 2
-CONNECT_FAIL_WITHIN_S = 15.0
 #: Seconds to wait for a killed worker's nanny to bring up a replacement.
 RESTART_WAIT_S = 60
 
@@ -149,10 +148,8 @@ def test_no_scheduler_at_the_address_is_an_input_error(monkeypatch):
     s.close()                                                     # nothing listens there now
     monkeypatch.setattr(cluster_mod, "CONNECT_TIMEOUT_S", CONNECT_TIMEOUT_PATCHED_S)
     spec = f"tcp://127.0.0.1:{port}"
-    t0 = time.monotonic()
     with pytest.raises(InputError) as ei:
         run_sweep(_kernel(), _placements("x_m=0"), spec)
-    assert time.monotonic() - t0 < CONNECT_FAIL_WITHIN_S
     assert spec in str(ei.value) and "cannot connect" in str(ei.value)
 
 
@@ -221,6 +218,19 @@ def _free_port() -> int:
     return port
 
 
+def _wait_listening(port: int, proc) -> None:
+    """Until something listens on ``port`` (at most RESTART_WAIT_S); RuntimeError if ``proc`` exits
+    or the time runs out first."""
+    deadline = time.monotonic() + RESTART_WAIT_S
+    while proc.poll() is None and time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            time.sleep(0.2)
+    raise RuntimeError(f"no Dask scheduler listens on port {port}")
+
+
 def test_a_scheduler_lost_mid_run_is_one_cluster_error(tmp_path, capfd):
     """A remote scheduler (``dask scheduler``, its own process) killed after the first chunk: the
     sweep ends with one ClusterError naming the address, and nothing of Dask's logging reaches
@@ -234,14 +244,7 @@ def test_a_scheduler_lost_mid_run_is_one_cluster_error(tmp_path, capfd):
                              stderr=subprocess.DEVNULL, env=env)
     worker = None
     try:
-        deadline = time.monotonic() + RESTART_WAIT_S
-        while True:                                        # wait until it listens
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=1).close()
-                break
-            except OSError:
-                assert time.monotonic() < deadline and sched.poll() is None, "the scheduler did not start"
-                time.sleep(0.2)
+        _wait_listening(port, sched)
         worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
                                    "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
         with distributed.Client(address, timeout=30) as c:
