@@ -503,11 +503,7 @@ class BatchFunction:
         if disabled is not None:          # before generating code that will not be compiled
             _fail(disabled)
         fd = _dense(f)
-        self.name = fd.name()
-        self.n_in, self.n_out = fd.n_in(), fd.n_out()
-        self.in_sizes = [fd.size_in(k) for k in range(self.n_in)]
-        self.out_sizes = [fd.size_out(k) for k in range(self.n_out)]
-        self.threads = threads
+        self._describe(fd, threads)
         cg = ca.CodeGenerator(f"{self.name}_cg.c", {"with_header": False, "casadi_real": "double",
                                                      "casadi_int": "long long int"})
         cg.add(fd)
@@ -517,6 +513,29 @@ class BatchFunction:
         src += _WRAPPER % {"name": self.name, "n_in": self.n_in, "n_out": self.n_out,
                            "out_nnz": f"{self.name}_out_nnz", "min_batch": PARALLEL_MIN_BATCH}
         self._load(compile_shared_library(src, self.name))
+
+    @classmethod
+    def from_library(cls, f: ca.Function, lib: Path, threads: int = 2) -> "BatchFunction":
+        """The evaluator of ``f`` running a library compiled from it before (e.g. by another
+        process, :mod:`models.portable`), without generating or compiling code.
+
+        Raises
+        ------
+        CompileError
+            The library cannot be loaded.
+        """
+        ev = cls.__new__(cls)
+        ev._describe(_dense(f), threads)
+        ev._load(Path(lib))
+        return ev
+
+    def _describe(self, fd: ca.Function, threads: int) -> None:
+        """Name, input and output sizes of the dense function ``fd``; threads of the evaluation."""
+        self.name = fd.name()
+        self.n_in, self.n_out = fd.n_in(), fd.n_out()
+        self.in_sizes = [fd.size_in(k) for k in range(self.n_in)]
+        self.out_sizes = [fd.size_out(k) for k in range(self.n_out)]
+        self.threads = threads
 
     def _load(self, lib: Path) -> None:
         """Load the compiled library ``lib`` (its ``compplan_batch`` entry point)."""
@@ -594,73 +613,6 @@ class VMBatchFunction:
             arr = np.asarray(x, dtype=float).reshape(r, n, c)       # (r, c*N) -> pose-major rows
             outs.append(np.ascontiguousarray(arr.transpose(1, 2, 0)).reshape(n, c * r))
         return _batch_outputs(outs, self.out_sizes)
-
-
-def portable_state(f: ca.Function, evaluator: "BatchFunction | VMBatchFunction") -> dict:
-    """What rebuilds ``evaluator`` in another process, on a machine without a compiler.
-
-    The state carries the function serialised by CasADi and, for a compiled evaluator, the
-    bytes of its shared library with the identity of the CPU it was built for
-    (``-march=native``).  :func:`evaluator_from_state` loads that library on a machine with
-    the same CPU identity and falls back to CasADi's virtual machine elsewhere, so a worker
-    (e.g. a Dask worker) needs no compiler of its own.
-
-    Parameters
-    ----------
-    f : casadi.Function
-        The function ``evaluator`` evaluates.
-    evaluator : BatchFunction or VMBatchFunction
-
-    Returns
-    -------
-    dict
-        Plain data (bytes, str, int, lists): picklable.
-    """
-    state: dict = {"function": f.serialize(), "threads": int(evaluator.threads), "library": None,
-                   "host": None, "name": evaluator.name}
-    if isinstance(evaluator, BatchFunction):
-        state["library"] = evaluator.library.read_bytes()
-        state["host"] = _host_id()
-        state["in_sizes"] = [tuple(s) for s in evaluator.in_sizes]
-        state["out_sizes"] = [tuple(s) for s in evaluator.out_sizes]
-    return state
-
-
-def evaluator_from_state(state: dict, threads: int | None = None) -> "BatchFunction | VMBatchFunction":
-    """The evaluator described by :func:`portable_state`: the shipped compiled library when
-    this machine's CPU identity matches the builder's (written once into a private temporary
-    folder, named by its SHA-256), else CasADi's virtual machine on the serialised function.
-
-    Parameters
-    ----------
-    state : dict
-        From :func:`portable_state`.
-    threads : int, optional
-        Threads of the evaluation (default: the state's).
-    """
-    th = int(state["threads"] if threads is None else threads)
-    f = ca.Function.deserialize(state["function"])
-    lib = state.get("library")
-    if lib is not None and state.get("host") == _host_id():
-        digest = hashlib.sha256(lib).hexdigest()[:24]
-        path = _private_folder() / f"{state['name']}_shipped_{digest}.so"
-        with _LOCK:
-            if not path.exists():
-                tmp = path.with_suffix(f".tmp{os.getpid()}")
-                tmp.write_bytes(lib)
-                os.replace(tmp, path)
-        ev = BatchFunction.__new__(BatchFunction)
-        ev.name = state["name"]
-        ev.in_sizes = [tuple(s) for s in state["in_sizes"]]
-        ev.out_sizes = [tuple(s) for s in state["out_sizes"]]
-        ev.n_in, ev.n_out = len(ev.in_sizes), len(ev.out_sizes)
-        ev.threads = th
-        try:
-            ev._load(path)
-            return ev
-        except CompileError:
-            pass
-    return VMBatchFunction(f, th)
 
 
 def compile_batch(f: ca.Function, threads: int = 2) -> BatchFunction:

@@ -85,9 +85,10 @@ class KinematicModel:
         self.robot = arm.nominal
         el = fx.make_layout(arm.nominal, arm.const).eligible
         dT = arm.temperature_ref - fx.THERMAL_REFERENCE_C
+        # what builds the model graph: convention, effects, parameters, constants, eligibility, dT
+        self._graph_args = (arm.nominal.convention, arm.active_effects, arm.theta, arm.planning_const, el, dT)
         #: Every named function of the model (see :func:`models.effects.graph.arm_functions`).
-        self.fn: dict[str, ca.Function] = arm_functions(arm.nominal.convention, arm.active_effects, arm.theta,
-                                                        arm.planning_const, el, dT)
+        self.fn: dict[str, ca.Function] = arm_functions(*self._graph_args)
         self.fk_frames = self.fn["fk_frames"]
         self.fk_tcp = self.fn["fk_tcp"]
         self.fk_position = self.fn["fk_position"]
@@ -105,11 +106,7 @@ class KinematicModel:
         robot's gravity constant (m/s^2, base frame; the arm's self-weight) as the input ``g``,
         for the same arm mounted another way (placement studies).  Built on first use."""
         if self._load_error_g is None:
-            arm = self.arm
-            el = fx.make_layout(arm.nominal, arm.const).eligible
-            self._load_error_g = load_error_gravity_function(
-                arm.nominal.convention, arm.active_effects, arm.theta, arm.planning_const, el,
-                arm.temperature_ref - fx.THERMAL_REFERENCE_C)
+            self._load_error_g = load_error_gravity_function(*self._graph_args)
         return self._load_error_g
 
     # ------------------------------------------------------------------ batch helpers

@@ -630,18 +630,14 @@ class OutputSet:
         self.owns = None if owns is None else frozenset(owns)
         self.files: dict[str, bytes | Callable[[], Iterable[bytes]]] = {}
 
-    def add_bytes(self, name: str, data: bytes) -> None:
-        """Add a file; ``name`` is relative to the folder (``figures/a.png`` makes ``figures/``)."""
+    def add_bytes(self, name: str, data: bytes | Callable[[], Iterable[bytes]]) -> None:
+        """Add a file; ``name`` is relative to the folder (``figures/a.png`` makes ``figures/``).
+        ``data`` is its bytes, or a callable yielding them piece by piece when the set is published
+        (a large table is then never held in memory whole)."""
         parts = Path(name).parts
         if not parts or Path(name).is_absolute() or ".." in parts:
             raise ValueError(f"output name {name!r}: expected a relative path inside the folder")
         self.files[name] = data
-
-    def add_parts(self, name: str, parts: Callable[[], Iterable[bytes]]) -> None:
-        """Add a file written piece by piece when the set is published: ``parts()`` yields its
-        bytes in order (a large table is never held in memory whole)."""
-        self.add_bytes(name, b"")
-        self.files[name] = parts
 
     def add_json(self, name: str, obj: Any) -> None:
         """Add a JSON file (see :func:`json_bytes`)."""

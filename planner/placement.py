@@ -15,6 +15,7 @@ memory.
 from __future__ import annotations
 
 import enum
+import functools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -82,7 +83,13 @@ class PlacementPlan:
     elapsed_s: float
 
     def headline(self) -> dict[str, Any]:
-        """The plan's headline (branch, errors before and after compensation in mm, duration)."""
+        """The plan's headline (branch, errors before and after compensation in mm, duration).
+
+        Built once from the plan's summary: the study's summary, figures and page all read it."""
+        return self._headline
+
+    @functools.cached_property
+    def _headline(self) -> dict[str, Any]:
         if not self.result.ok:
             return {"status": self.result.status.value, "reason": self.result.reason}
         return self.result.summary()["headline"]
@@ -356,15 +363,16 @@ def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True
     (``report.html`` and ``figures/``), whole or not at all."""
     from planner.output import OutputSet
     out = OutputSet(folder)
-    out.add_json("summary.json", st.summary())
-    out.add_parts("scores.csv", lambda: scores_csv(st))
-    out.add_parts("ranking.csv", lambda: scores_csv(st, st.ranked, rank=True))
+    summary = st.summary()
+    out.add_json("summary.json", summary)
+    out.add_bytes("scores.csv", lambda: scores_csv(st))
+    out.add_bytes("ranking.csv", lambda: scores_csv(st, st.ranked, rank=True))
     if with_report:
         from planner.report.placement import figures, html
         figs = figures(st)
         for name, data in figs.items():
             out.add_bytes(f"figures/{name}", data)
-        out.add_bytes("report.html", html(st, sorted(figs)).encode("utf-8"))
+        out.add_bytes("report.html", html(st, sorted(figs), summary).encode("utf-8"))
     return out.publish()
 
 

@@ -185,7 +185,7 @@ class IKSolver(abc.ABC):
     def use_evaluator(self, evaluator: Any) -> None:
         """Evaluate :attr:`function` with ``evaluator`` from now on: a batch evaluator of it built
         elsewhere, e.g. the compiled library another process shipped
-        (:func:`models.codegen.evaluator_from_state`), so this process needs no compiler.
+        (:func:`models.portable.evaluator_from_state`), so this process needs no compiler.
 
         Raises
         ------

@@ -489,7 +489,7 @@ def _figures_section(names: Sequence[str]) -> list[str]:
     return out
 
 
-def html(study: "PlacementStudy", figure_names: list[str]) -> str:
+def html(study: "PlacementStudy", figure_names: list[str], summary: dict[str, Any] | None = None) -> str:
     """``report.html`` of a placement study (figures referenced as ``figures/<name>``).
 
     Parameters
@@ -497,13 +497,15 @@ def html(study: "PlacementStudy", figure_names: list[str]) -> str:
     study : PlacementStudy
     figure_names : list of str
         File names under ``figures/`` (from :func:`figures`).
+    summary : dict, optional
+        ``study.summary()`` when the caller has it already.
 
     Returns
     -------
     str
         The page: headline, full plans, figures, ranking, sweep, definitions and frames.
     """
-    st, s = study, study.summary()
+    st, s = study, study.summary() if summary is None else summary
     title = f"compplan placement study: {s['robot']}, {s['problem']}"
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            f"<title>{_esc(title)}</title><style>{_CSS}{_EXTRA_CSS}</style></head><body>",

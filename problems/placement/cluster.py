@@ -3,7 +3,7 @@
 ``local:N`` starts a ``dask.distributed.LocalCluster`` of N single-threaded worker processes
 (each under a nanny that restarts it if it dies); ``tcp://HOST:PORT`` connects to an existing
 cluster.  The kernel is submitted once as a task whose argument is the pickled kernel (it
-carries its compiled library, :func:`models.codegen.portable_state`), and every chunk is a
+carries its compiled library, :func:`models.portable.portable_state`), and every chunk is a
 task depending on it.  If a worker is lost mid-run, the scheduler re-runs its chunks (and, if
 needed, the kernel task) on the remaining or restarted workers; only a chunk whose workers die
 more than ``distributed.scheduler.allowed-failures`` times (default 3) fails the sweep.

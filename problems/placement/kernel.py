@@ -26,7 +26,7 @@ yaw, tilt and placement.
 
 The kernel is picklable: it ships the compiled libraries of the model's ``load_error_g`` and of
 the IK's closed form (or, where the CPU differs or nothing was compiled, CasADi's serialised
-functions for its virtual machine) with itself (:func:`models.codegen.portable_state`), so a
+functions for its virtual machine) with itself (:func:`models.portable.portable_state`), so a
 Dask worker needs no compiler.
 """
 
@@ -37,7 +37,8 @@ from typing import Any
 import numpy as np
 
 from models.arm import ArmModel
-from models.codegen import BatchFunction, VMBatchFunction, batch_function, evaluator_from_state, portable_state
+from models.codegen import BatchFunction, VMBatchFunction, batch_function
+from models.portable import evaluator_from_state, portable_state
 from models.errors import InputError
 from models.ik import IKStatus, ik_solver
 from models.robot import Robot
@@ -89,9 +90,7 @@ class PlacementKernel:
         task = problem.task()
         self.robot: Robot = problem.robot
         self.positions = np.asarray(task.positions, dtype=float)                   # (N, 3) cell
-        cands = candidates(task)
-        self.candidate_names = [c[0] for c in cands]
-        self.rotations = np.stack([c[1] for c in cands])                           # (S, N, 3, 3) cell
+        self.rotations = np.stack([R for _, R in candidates(task)])                # (S, N, 3, 3) cell
         self.load_cell = np.asarray(task.load, dtype=float)                       # (N, 19) cell
         self.smoothness = float(task.smoothness)
         self.max_joint_step = float(task.max_joint_step)
@@ -101,10 +100,11 @@ class PlacementKernel:
         #: of the problem as written (the placement at the origin).
         self.gravity_cell = np.asarray(arm.nominal.gravity, dtype=float).reshape(3)
         f = arm.kinematics.load_error_gravity
-        self._model_state = portable_state(f, batch_function(f, self.threads))
+        model = batch_function(f, self.threads)
+        self._model_state = portable_state(f, model)
         ik = ik_solver(self.robot)
         self._ik_state = None if ik.function is None else portable_state(ik.function, ik.evaluator)
-        self._setup(ik)
+        self._setup(ik, model)
 
     # -------------------------------------------------------------- pickling (shipping)
     def __getstate__(self) -> dict[str, Any]:
@@ -118,16 +118,16 @@ class PlacementKernel:
         ik = ik_solver(self.robot)
         if self._ik_state is not None:
             ik.use_evaluator(evaluator_from_state(self._ik_state, self.threads))
-        self._setup(ik)
+        self._setup(ik, evaluator_from_state(self._model_state, self.threads))
 
-    def _setup(self, ik: Any) -> None:
+    def _setup(self, ik: Any, model: BatchFunction | VMBatchFunction) -> None:
         if not ik.labels_stable:
             raise InputError(f"robot '{self.robot.name}': its IK family ({type(ik).__name__}) does not keep "
                              "branch labels from one call to the next; a placement sweep needs a family that "
                              "does (UR-type or OPW arms)")
         self.ik = ik
         self._bounds = guard_bounds(ik)
-        self._model: BatchFunction | VMBatchFunction = evaluator_from_state(self._model_state, self.threads)
+        self._model = model
         self._nbr = _neighbour_table(self.rotations)
 
     # ------------------------------------------------------------------ properties

@@ -20,7 +20,7 @@ from problems.placement.grid import cell2base, placement_label
 from problems.problem import Problem
 
 
-def problem_at(problem: Problem, placement: np.ndarray, name_suffix: str | None = None) -> Problem:
+def problem_at(problem: Problem, placement: np.ndarray) -> Problem:
     """``problem`` with its robot placed at ``placement`` ``[x, y, z, yaw, tilt]`` (m, rad).
 
     Parameters
@@ -28,8 +28,6 @@ def problem_at(problem: Problem, placement: np.ndarray, name_suffix: str | None 
     problem : Problem
         Written in the cell frame.
     placement : ndarray, shape (5,)
-    name_suffix : str, optional
-        Appended to the problem's name (default: none); the description records the placement.
 
     Returns
     -------
@@ -51,8 +49,7 @@ def problem_at(problem: Problem, placement: np.ndarray, name_suffix: str | None 
                                                  gravity=R @ np.asarray(problem.model.nominal.gravity, dtype=float)))
     rpy = matrix_to_rpy(R @ rpy_to_matrix(problem.nominal_rpy))
     label = placement_label(np.asarray(placement, dtype=float))
-    return replace(problem, name=problem.name + (name_suffix or ""),
-                   description=f"{problem.description} (base placed at {label})",
+    return replace(problem, description=f"{problem.description} (base placed at {label})",
                    positions=P, rotations=Rot, line=line, wrench=W, gravity=R @ np.asarray(g_payload, dtype=float),
                    robot=robot, arm=arm, nominal_rpy=rpy)
 
