@@ -46,7 +46,7 @@ def main() -> None:
 
     from planner.dynamic import _command, dynamic_stage
     from planner.plan import plan
-    from planner.timing import JointLimits, time_parametrize
+    from problems.timing import JointLimits, time_parametrize
     from problems.dynamic import DYNAMIC_SMOOTHING_S, finite_derivatives
     from problems.problem import load_problem
 

@@ -84,7 +84,7 @@ def bench_problem(name: str, n_points: int | None, repeat: int) -> None:
 
 def bench_timing(repeat: int) -> None:
     from planner.plan import plan
-    from planner.timing import JointLimits, time_parametrize
+    from problems.timing import JointLimits, time_parametrize
     from problems.problem import load_problem
 
     print("\ntime parametrisation of the commanded path (best / median, ms):")

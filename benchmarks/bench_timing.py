@@ -49,7 +49,7 @@ def _smoothed_toppra(q, lim, dt):
     """TOPP-RA's smoothed law with the moving-average width grown until the jerk limit holds."""
     import numpy as np
 
-    from planner.timing import time_parametrize
+    from problems.timing import time_parametrize
     w, tr = 0.05, None
     for _ in range(10):
         tr = time_parametrize(q, lim, "toppra", dt, smoothing_s=min(w, 1.0))
@@ -69,7 +69,7 @@ def _binding(tr, lim) -> str:
     limit and of any limit, and the constraints most often at their limit."""
     import numpy as np
 
-    from planner.timing.limit_use import describe_binding, limit_use
+    from problems.timing.limit_use import describe_binding, limit_use
     r = {k: np.abs(getattr(tr, a)) / np.asarray(getattr(lim, k)) for k, a in
          (("velocity", "qd"), ("acceleration", "qdd"), ("jerk", "qddd"))}
     at_jerk = float(np.mean(r["jerk"].max(axis=1) >= 0.95))
@@ -80,7 +80,7 @@ def _binding(tr, lim) -> str:
 
 def bench_problems(repeat: int) -> None:
     from planner.plan import plan
-    from planner.timing import JointLimits, time_parametrize
+    from problems.timing import JointLimits, time_parametrize
     from problems.problem import load_problem, shipped_problems
 
     print(f"{'problem':<24}{'N':>4}  {'TOPP-RA [s]':>11}  candidate: duration / TOPP-RA (peak ratios v a j; compute)")
@@ -115,7 +115,7 @@ def bench_sizes(repeat: int) -> None:
     import numpy as np
 
     from planner.plan import plan
-    from planner.timing import JointLimits, time_parametrize
+    from problems.timing import JointLimits, time_parametrize
     from problems.problem import load_problem
 
     pr = load_problem("machining_offaxis")
@@ -150,7 +150,7 @@ def curved_path(seed: int = 1, n_way: int = 40):
 def bench_periods(repeat: int) -> None:
     import numpy as np
 
-    from planner.timing import JointLimits, time_parametrize
+    from problems.timing import JointLimits, time_parametrize
     q_path = curved_path()
     limits = JointLimits(np.full(6, 3.15), np.full(6, 5.0), np.full(6, 50.0))
     print(f"\nevery method on a seeded 40-waypoint curved path (median of {repeat} runs, 1 warm-up):")

@@ -23,7 +23,7 @@ import numpy as np
 
 from models.arm import ArmModel
 from models.load import Load
-from planner.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
+from problems.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
 from problems.dynamic import (DYNAMIC_SMOOTHING_S, MISMATCH_CASES, DynamicStatus, finite_derivatives, mismatch_errors,
                               motor_command, padded, predicted_tcp_errors, smooth)
 

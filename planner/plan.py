@@ -13,11 +13,11 @@ turns it into the matching :class:`~models.errors.CompplanError`):
    checked to put the TCP on every waypoint (residual below
    :data:`models.constants.EXACT_COMPENSATION_TOL`).  The uncompensated and
    closed-form (paper) errors of the same posture are reported alongside.
-3. **Timing** (:func:`planner.timing.time_parametrize`) of the *commanded* path
+3. **Timing** (:func:`problems.timing.time_parametrize`) of the *commanded* path
    ``q_c`` at the controller period, by default with TOPP-RA (time-optimal under
    velocity and acceleration limits) and ``jerk_optimal`` (time-optimal under
    velocity, acceleration *and* jerk limits: an NLP over the path-velocity
-   profile, :mod:`planner.timing.jerk_optimal`); Ruckig (jerk-limited, global
+   profile, :mod:`problems.timing.jerk_optimal`); Ruckig (jerk-limited, global
    bounds on the path parameter) on request.  All time the same geometric path
    (a cubic spline through the commanded waypoints): TOPP-RA's jerk is not
    limited, so it is reported and written to ``trajectory_toppra.csv`` as the
@@ -54,8 +54,8 @@ from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, round_sig
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
 from planner.provenance import invocation, problem_provenance
-from planner.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
-from planner.timing.limit_use import limit_use
+from problems.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
+from problems.timing.limit_use import limit_use
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors

@@ -32,7 +32,7 @@ from problems.path import MAX_JOINT_STEP, line_positions
 from problems.posture import (DEFAULT_MAX_ITER, DEFAULT_SCAN, DEFAULT_SMOOTHNESS, DEFAULT_TOL,
                               OrientationRule, SolverSettings)
 
-#: Time-parametrisation methods a problem may name (see planner.timing).
+#: Time-parametrisation methods a problem may name (see problems.timing).
 TIMING_METHODS = ("toppra", "jerk_optimal", "ruckig")
 #: The methods run when a problem names none: the time-optimal reference (jerk not limited) and
 #: the jerk-limited trajectory the controller runs.
@@ -105,7 +105,7 @@ class TimingSettings:
     dynamic: bool = False               # motor-side commands for the inertial torques (problems/dynamic.py)
 
     def options(self, method: str) -> dict[str, int]:
-        """Keyword options for ``planner.timing.time_parametrize``."""
+        """Keyword options for ``problems.timing.time_parametrize``."""
         out: dict[str, int] = {}
         if method == "toppra":
             if self.toppra_gridpoints:

@@ -812,8 +812,8 @@ def test_sample_cap_refuses_before_sampling() -> None:
     """A velocity limit of 1e-9 rad/s asks for ~1e11 samples: refused at once, naming the number of
     samples, the duration, dt and the cap (MAX_TRAJECTORY_SAMPLES)."""
     from models.errors import InputError
-    from planner.timing import JointLimits, time_parametrize
-    from planner.timing.registry import MAX_TRAJECTORY_SAMPLES, check_sample_count
+    from problems.timing import JointLimits, time_parametrize
+    from problems.timing.registry import MAX_TRAJECTORY_SAMPLES, check_sample_count
 
     q = np.array([[0.0] * 6, [0.5, -0.3, 0.2, 0.1, 0.0, 0.4]])
     lim = JointLimits(velocity=np.full(6, 1e-9), acceleration=np.full(6, 5.0), jerk=np.full(6, 50.0))

@@ -84,7 +84,7 @@ def test_motor_command_makes_the_simulated_elastic_arm_follow_the_plan():
     simulation (problems/virtual/elastic.py: NumPy dynamics, Radau): static compensation only vs the
     motor-side command."""
     from models.dynamics import payload_vector
-    from planner.timing import JointLimits, time_parametrize
+    from problems.timing import JointLimits, time_parametrize
     from problems.virtual.elastic import simulate_elastic, tracking_error
     arm = load_arm("ur5")
     robot = arm.robot()

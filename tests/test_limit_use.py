@@ -1,4 +1,4 @@
-"""Which constraint binds, and why a trajectory stays under half of every limit (planner/timing/limit_use)."""
+"""Which constraint binds, and why a trajectory stays under half of every limit (problems/timing/limit_use)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from planner.timing import JointLimits, time_parametrize
-from planner.timing.limit_use import ACTIVE_RATIO, describe_binding, limit_use
+from problems.timing import JointLimits, time_parametrize
+from problems.timing.limit_use import ACTIVE_RATIO, describe_binding, limit_use
 
 LIMITS = JointLimits(np.full(6, 2.0), np.full(6, 4.0), np.full(6, 40.0))
 

@@ -1,4 +1,4 @@
-"""Tests for :mod:`planner.timing` (TOPP-RA and Ruckig time parametrisation).
+"""Tests for :mod:`problems.timing` (TOPP-RA and Ruckig time parametrisation).
 
 Covers the package split too: the method registry, the re-exported names and
 the Ruckig result codes kept on failed results.
@@ -20,8 +20,8 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from models.errors import InputError
-from planner import timing
-from planner.timing import (
+from problems import timing
+from problems.timing import (
     LIMIT_RATIO_TOL,
     JointLimits,
     TimingStatus,
@@ -31,7 +31,7 @@ from planner.timing import (
     time_parametrize,
     toppra_method,
 )
-from planner.timing import trajectory as trajectory_module
+from problems.timing import trajectory as trajectory_module
 
 N_JOINTS = 6
 N_WAYPOINTS = 40

@@ -18,7 +18,7 @@ def _dt(text: str) -> float:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"--dt must be a number of seconds, got {text!r}") from None
-    from planner.timing import DT_MAX_S
+    from problems.timing import DT_MAX_S
     if not (0.0 < v <= DT_MAX_S) or not math.isfinite(v):
         raise argparse.ArgumentTypeError(
             f"--dt must be in (0, {DT_MAX_S:g}] s (e.g. 0.002, 0.004, 0.008), got {text!r}")
@@ -57,7 +57,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
     """Print the branch table, the gains, the error table and the timing of a plan."""
     from planner.numbers import format_number, mm_text
     from planner.report.tables import load_words
-    from planner.timing.limit_use import describe_binding
+    from problems.timing.limit_use import describe_binding
 
     s = res.summary()
     pr = res.problem

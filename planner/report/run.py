@@ -27,7 +27,7 @@ from planner.output import TRAJECTORY_COLUMNS, jsonable
 
 if TYPE_CHECKING:
     from planner.plan import PlanResult
-    from planner.timing import Trajectory
+    from problems.timing import Trajectory
 
 #: Default trajectory files and the method each one holds, used when summary.json has no
 #: ``timing.<method>.file`` (a plan names the file of each method there; the controller's

@@ -23,7 +23,7 @@ LIMIT_KEYS: tuple[str, ...] = ("velocity", "acceleration", "jerk")
 
 
 class TimingStatus(enum.Enum):
-    """Outcome of :func:`planner.timing.time_parametrize`."""
+    """Outcome of :func:`problems.timing.time_parametrize`."""
 
     OK = "ok"
     LIMIT_EXCEEDED = "limit_exceeded"
@@ -137,7 +137,7 @@ class Trajectory:
     limit_ratio : dict[str, np.ndarray]
         Keys ``"velocity"``, ``"acceleration"``, ``"jerk"``; each shape
         ``(n,)``, dimensionless: peak ``|value| / limit`` over the samples and
-        the finer check grid (see :mod:`planner.timing.verification`). NaN if
+        the finer check grid (see :mod:`problems.timing.verification`). NaN if
         unavailable.
     dt : float
         Controller period (s).

@@ -9,21 +9,21 @@ velocity, acceleration and jerk ratios are checked on a finer grid.
 
 Modules, one job each:
 
-:mod:`~planner.timing.trajectory`
+:mod:`~problems.timing.trajectory`
     The data types: :class:`JointLimits`, :class:`TimingStatus`,
     :class:`Trajectory` (with CSV export).
-:mod:`~planner.timing.path`
+:mod:`~problems.timing.path`
     The geometric path: waypoint checks, the spline, its derivatives and the
     path parameter.
-:mod:`~planner.timing.verification`
+:mod:`~problems.timing.verification`
     Sampling on the controller grid and the limit checks (peak ratios).
-:mod:`~planner.timing.registry`
+:mod:`~problems.timing.registry`
     The method registry, the shared tolerances (``LIMIT_RATIO_TOL``...), the
     dt bounds (``DT_MAX_S``) and :func:`time_parametrize`, which dispatches
     by method name.
-:mod:`~planner.timing.toppra_method` (with :mod:`~planner.timing.toppra_law`)
+:mod:`~problems.timing.toppra_method` (with :mod:`~problems.timing.toppra_law`)
     ``method="toppra"``: time-optimal under velocity and acceleration limits.
-:mod:`~planner.timing.ruckig_method`
+:mod:`~problems.timing.ruckig_method`
     ``method="ruckig"``: jerk-limited.
 
 Each backend registers itself when imported (this package imports the
@@ -34,8 +34,8 @@ here. The package prints nothing.
 
 from __future__ import annotations
 
-from planner.timing.path import SplinePath
-from planner.timing.registry import (
+from problems.timing.path import SplinePath
+from problems.timing.registry import (
     DT_DEFAULT_S,
     DT_MAX_S,
     LIMIT_RATIO_TOL,
@@ -48,21 +48,21 @@ from planner.timing.registry import (
     time_parametrize,
     unregister_method,
 )
-from planner.timing.trajectory import JointLimits, TimingStatus, Trajectory
-from planner.timing.verification import VERIFY_OVERSAMPLE
+from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory
+from problems.timing.verification import VERIFY_OVERSAMPLE
 
 # Built-in backends: importing them registers "toppra" and then "ruckig"; the
 # order is the order of VALID_METHODS and of the error messages.
-from planner.timing import toppra_method  # isort: skip
-from planner.timing import ruckig_method  # isort: skip
-from planner.timing import jerk_optimal  # isort: skip
-from planner.timing.ruckig_method import (
+from problems.timing import toppra_method  # isort: skip
+from problems.timing import ruckig_method  # isort: skip
+from problems.timing import jerk_optimal  # isort: skip
+from problems.timing.ruckig_method import (
     RUCKIG_BUDGET_FRACTIONS,
     RUCKIG_CONSISTENCY_TOL,
     RUCKIG_MAX_ITERATIONS,
     RUCKIG_SHRINK_MARGIN,
 )
-from planner.timing.toppra_method import (
+from problems.timing.toppra_method import (
     SHRINK_MARGIN_FLOOR,
     TOPPRA_GRIDPOINTS_PER_WAYPOINT,
     TOPPRA_MAX_GRIDPOINTS,
@@ -82,7 +82,7 @@ from planner.timing.toppra_method import (
 VALID_METHODS: tuple[str, ...] = available_methods()
 
 __all__ = [
-    # public API (as exported by the former planner/timing.py)
+    # public API (as exported by the former problems/timing.py)
     "LIMIT_RATIO_TOL",
     "JointLimits",
     "Trajectory",

@@ -13,8 +13,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from planner.timing.registry import get_method
-from planner.timing.trajectory import Trajectory
+from problems.timing.registry import get_method
+from problems.timing.trajectory import Trajectory
 
 __all__ = ["ACTIVE_RATIO", "UNDERUSE_RATIO", "describe_binding", "limit_use"]
 

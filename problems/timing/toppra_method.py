@@ -2,7 +2,7 @@
 
 TOPP-RA (``toppra.algorithm.TOPPRA`` with ``JointVelocityConstraint`` and
 ``JointAccelerationConstraint``, interpolation discretisation, ``seidel``
-solver) times the geometric path of :mod:`planner.timing.path` on a grid in
+solver) times the geometric path of :mod:`problems.timing.path` on a grid in
 ``s`` that always contains the waypoint knots. TOPP-RA returns ``sd`` (1/s)
 at the gridpoints, i.e. a law with constant path acceleration between
 gridpoints (piecewise-quadratic ``s(t)``, acceleration jumps). Two ways to
@@ -21,7 +21,7 @@ turn that into a C2 time law are offered (option ``time_law``):
   overshoot, whatever the grid density, and large jerk.
 
 Either way, TOPP-RA only enforces the constraints at the gridpoints, so the
-result is checked on a fine time grid (:mod:`planner.timing.verification`).
+result is checked on a fine time grid (:mod:`problems.timing.verification`).
 While a velocity or acceleration ratio exceeds 1 (+ ``LIMIT_RATIO_TOL``),
 TOPP-RA is re-run, at most ``max_iterations`` runs in all:
 
@@ -68,17 +68,17 @@ import toppra
 import toppra.algorithm
 import toppra.constraint
 
-from planner.timing.path import SplinePath
-from planner.timing.registry import (
+from problems.timing.path import SplinePath
+from problems.timing.registry import (
     LIMIT_RATIO_TOL,
     TimingMethod,
     check_integer_options,
     check_shrink_margin,
     register_method,
 )
-from planner.timing.toppra_law import ToppraLaw
-from planner.timing.trajectory import JointLimits, TimingStatus, Trajectory
-from planner.timing.verification import (
+from problems.timing.toppra_law import ToppraLaw
+from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory
+from problems.timing.verification import (
     build_trajectory,
     check_times,
     empty_trajectory,

@@ -57,11 +57,11 @@ from typing import Any, Mapping
 import casadi as ca
 import numpy as np
 
-from planner.timing.path import SplinePath
-from planner.timing.registry import LIMIT_RATIO_TOL, TimingMethod, check_integer_options, register_method
-from planner.timing.toppra_method import toppra_once
-from planner.timing.trajectory import JointLimits, TimingStatus, Trajectory
-from planner.timing.verification import (
+from problems.timing.path import SplinePath
+from problems.timing.registry import LIMIT_RATIO_TOL, TimingMethod, check_integer_options, register_method
+from problems.timing.toppra_method import toppra_once
+from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory
+from problems.timing.verification import (
     build_trajectory,
     check_times,
     empty_trajectory,

@@ -1,7 +1,7 @@
 """``method="ruckig"``: jerk-limited timing of the geometric path.
 
 Ruckig (community version) has no intermediate waypoints, so Ruckig plans
-the 1-DOF path parameter ``s`` (of :mod:`planner.timing.path`) rest-to-rest
+the 1-DOF path parameter ``s`` (of :mod:`problems.timing.path`) rest-to-rest
 from 0 to 1 under global bounds ``sd <= sd_max``, ``|sdd| <= sdd_max``,
 ``|sddd| <= sddd_max`` (1/s, 1/s^2, 1/s^3). With ``A1, A2, A3`` the *exact*
 maxima over ``s`` of ``|P'|, |P''|, |P'''|`` per joint (computed from the
@@ -15,7 +15,7 @@ rule gives sufficient conditions, per joint ``j``::
 
 A small search over how the acceleration and jerk budgets are split between
 the terms picks the admissible bound set with the shortest Ruckig duration.
-The sampled trajectory is then verified (:mod:`planner.timing.verification`);
+The sampled trajectory is then verified (:mod:`problems.timing.verification`);
 if a ratio still exceeds 1 (numerical edge cases only) the bounds are
 time-scaled by the measured ratio and Ruckig is re-run (bounded iterations).
 This global scheme is conservative on strongly curved paths (the slowest part
@@ -28,7 +28,7 @@ jerk of ``s`` and the fine check grid are evaluated from Ruckig's jerk profile
 every sample.
 
 When a Ruckig calculation fails, its own code is kept: ``solver_code`` of the
-returned :class:`~planner.timing.trajectory.Trajectory` holds
+returned :class:`~problems.timing.trajectory.Trajectory` holds
 ``"ruckig.Result.<name>"`` (or ``"ruckig.RuckigError"`` when the binding
 raised instead of returning a code) and the reason quotes it.
 
@@ -47,15 +47,15 @@ from typing import Any, Mapping
 import numpy as np
 import ruckig
 
-from planner.timing.path import SplinePath
-from planner.timing.registry import (
+from problems.timing.path import SplinePath
+from problems.timing.registry import (
     TimingMethod,
     check_integer_options,
     check_shrink_margin,
     register_method,
 )
-from planner.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
-from planner.timing.verification import (
+from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
+from problems.timing.verification import (
     build_trajectory,
     check_times,
     empty_trajectory,

@@ -16,7 +16,7 @@ from the time law (``ds/dt = 0``), not from the path.
 
 Consecutive waypoints that are *exactly* identical are dropped (they add no
 geometry); if that leaves a single waypoint the path has zero length and
-:func:`planner.timing.time_parametrize` returns status ``INFEASIBLE``.
+:func:`problems.timing.time_parametrize` returns status ``INFEASIBLE``.
 Distinct but nearly identical neighbours are kept unless their chord is too
 small to give strictly increasing knots, which raises ``ValueError``.
 

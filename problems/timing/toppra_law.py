@@ -1,8 +1,8 @@
 """Scalar time law ``s(t)`` built from TOPP-RA's gridpoint path velocities.
 
-Used by :mod:`planner.timing.toppra_method`; see there for the two kinds
+Used by :mod:`problems.timing.toppra_method`; see there for the two kinds
 (``"smoothed"`` and ``"spline"``). ``s`` is the dimensionless path parameter
-of :mod:`planner.timing.path`, ``t`` the time in s.
+of :mod:`problems.timing.path`, ``t`` the time in s.
 """
 
 from __future__ import annotations

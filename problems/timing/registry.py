@@ -1,11 +1,11 @@
 """Registry of the timing methods, their tolerances and the controller-period bounds.
 
 A method is a :class:`TimingMethod`: a name, a runner that times a
-:class:`~planner.timing.path.SplinePath` under :class:`JointLimits`, the
+:class:`~problems.timing.path.SplinePath` under :class:`JointLimits`, the
 names of its keyword options with their validator, and the limits its
 ``OK`` status depends on. Each backend module (``toppra_method``,
 ``ruckig_method``) builds one and passes it to :func:`register_method` when
-it is imported; :mod:`planner.timing` imports the built-in backends, so
+it is imported; :mod:`problems.timing` imports the built-in backends, so
 adding a method means adding a module that registers itself (and importing
 it). :func:`time_parametrize` validates the common inputs and dispatches by
 name through the registry.
@@ -25,8 +25,8 @@ from typing import Any, Callable, Iterable, Mapping
 import numpy as np
 
 from models.errors import InputError
-from planner.timing.path import SplinePath, validate_path
-from planner.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
+from problems.timing.path import SplinePath, validate_path
+from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
 
 __all__ = [
     "DT_DEFAULT_S",
@@ -105,13 +105,13 @@ class TimingMethod:
     validate_options : OptionValidator
         Value check of those options.
     checked_limits : tuple of str
-        Keys of :data:`~planner.timing.trajectory.LIMIT_KEYS` that decide the
+        Keys of :data:`~problems.timing.trajectory.LIMIT_KEYS` that decide the
         ``OK`` status (the other ratios are reported only).
     description : str
         One line for listings.
     underuse_cause : str
         Why a trajectory of this method can stay under half of every limit (quoted by
-        :func:`planner.timing.verification.limit_use` when it does).
+        :func:`problems.timing.verification.limit_use` when it does).
     """
 
     name: str

@@ -13,7 +13,7 @@ limit when it is ``<= 1 + LIMIT_RATIO_TOL``; only the limits a method
 checks decide its ``OK`` status.
 
 The limits checked are the joint velocity (rad/s), acceleration (rad/s^2)
-and jerk (rad/s^3) of :class:`~planner.timing.trajectory.JointLimits`; the
+and jerk (rad/s^3) of :class:`~problems.timing.trajectory.JointLimits`; the
 position follows the geometric path exactly (first and last samples are the
 first and last waypoints) and has no limit of its own here.
 """
@@ -25,9 +25,9 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from planner.timing.path import SplinePath
-from planner.timing.registry import LIMIT_RATIO_TOL, MONOTONE_TOL, check_sample_count
-from planner.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
+from problems.timing.path import SplinePath
+from problems.timing.registry import LIMIT_RATIO_TOL, MONOTONE_TOL, check_sample_count
+from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
 
 __all__ = [
     "VERIFY_OVERSAMPLE",
