@@ -8,9 +8,8 @@ built-in modules are imported.
 
 from __future__ import annotations
 
-import importlib
-import os
-import pkgutil
+
+from models.plugins import import_plugins
 
 from . import base
 from .base import (ARM, MEASUREMENT, PARALLEL_AXIS_TOL, TORQUE_SCALE_FLOOR_NM, ConstGroup, Effect, ModelLayout,
@@ -22,11 +21,7 @@ from .base import (ARM, MEASUREMENT, PARALLEL_AXIS_TOL, TORQUE_SCALE_FLOOR_NM, C
 #: ``models.effects.<name>`` and registers its effect (relative imports such as
 #: ``from .base import Effect`` work as for the built-in modules).
 EFFECT_PATH_VARIABLE = "COMPPLAN_EFFECT_PATH"
-__path__.extend(p for p in os.environ.get(EFFECT_PATH_VARIABLE, "").split(os.pathsep) if p)
-
-for _m in pkgutil.iter_modules(__path__):
-    if _m.name not in ("base", "graph"):
-        importlib.import_module(f"{__name__}.{_m.name}")
+import_plugins(__name__, __path__, EFFECT_PATH_VARIABLE, skip=("base", "graph"))
 
 from .graph import (EQUILIBRIUM_UNROLL, JACOBIAN_UNROLL, LOAD_SIZE, ROW_SIZE, arm_functions,  # noqa: E402
                     identification_functions)
