@@ -80,7 +80,8 @@ def main() -> int:
     sys.path.insert(0, str(here))
 
     from planner.cli import main as cli
-    from problems.identify import load_model, predict
+    from models.arm_file import load_model
+    from problems.identify import predict
     from problems.measurements import read_measurements
 
     data, out = Path(args.data), Path(args.out)

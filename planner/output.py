@@ -647,14 +647,11 @@ class OutputSet:
         """Add a CSV file (see :func:`csv_bytes`)."""
         self.add_bytes(name, csv_bytes(header, rows))
 
-    def publish(self, stale: Iterable[str] = ()) -> list[Path]:
+    def publish(self) -> list[Path]:
         """Write the set: built in a temporary sibling folder, then moved into place in one step.
 
-        Parameters
-        ----------
-        stale : iterable of str
-            Accepted for callers of earlier versions and not needed: the folder is replaced
-            whole (or, with ``owns``, every owned entry), so no earlier file survives.
+        The folder is replaced whole (or, with ``owns``, every owned entry), so no earlier
+        file survives.
 
         Returns
         -------
@@ -668,7 +665,6 @@ class OutputSet:
             an output folder, or another run is writing it; it is unchanged and no
             temporary folder is left.
         """
-        del stale
         kind: OutputKind = "folder" if self.owns is None else "update"
         check_output_path(self.folder, kind, "output folder", writes={Path(n).parts[0] for n in self.files})
         with output_lock(self.folder, "output folder"):

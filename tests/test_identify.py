@@ -27,13 +27,11 @@ from problems.identify import (
     compensation_check,
     evaluator,
     identify,
-    load_model,
-    make_layout,
-    model_from_robot,
-    model_to_dict,
     predict,
     validate_on,
 )
+from models.arm_file import load_model, model_from_robot, model_to_dict
+from models.effects import make_layout
 from problems.compensation import CompensationStatus
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot

@@ -15,9 +15,12 @@ import pytest
 
 from models import load_robot
 from planner.identify_report import (REPORT_DIAGNOSTIC_PLOTS, REPORT_DIAGNOSTIC_ROWS, REPORT_MAP_PANELS,
-                                     VARIABLE_LABELS, VARIABLE_UNITS, _diag_groups, _figures, _maps_drawn,
-                                     _md_block, _x_of, report_dict, report_html, report_markdown,
+                                     VARIABLE_LABELS, VARIABLE_UNITS, report_dict, report_html, report_markdown,
                                      structure_sentence, write_report)
+from planner.identify_report.diagnostics import _diag_groups
+from planner.identify_report.figures import _figures, _x_of
+from planner.identify_report.html import _md_block
+from planner.identify_report.maps import _maps_drawn
 from problems.identify import Diagnostic, identify
 from problems.virtual import VirtualRobot
 

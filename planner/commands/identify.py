@@ -233,11 +233,11 @@ def run_identify(args: argparse.Namespace) -> int:
     from models.errors import InputError
     from planner.identify_report import write_report
     from planner.output import atomic_write_bytes
+    from models.arm_file import model_toml
     from problems.identify import (
         CV_FOLDS,
         compensation_check,
         identify,
-        model_toml,
         validate_on,
     )
 
@@ -301,7 +301,8 @@ def run_predict(args: argparse.Namespace) -> int:
     from planner.output import atomic_write_bytes
     from models.effects import effect as fx_effect
     from models.effects import get_const
-    from problems.identify import check_command_limits, load_model, predict
+    from models.arm_file import load_model
+    from problems.identify import check_command_limits, predict
     from problems.measurements import commands_csv
 
     model = load_model(args.model)
@@ -325,7 +326,8 @@ def run_compensate(args: argparse.Namespace) -> int:
     from models.errors import InfeasibleError
     from planner.output import atomic_write_bytes
     from problems.compensation import CompensationStatus
-    from problems.identify import compensate_targets, load_model
+    from models.arm_file import load_model
+    from problems.identify import compensate_targets
     from problems.measurements import commands_csv
 
     model = load_model(args.model)

@@ -30,22 +30,13 @@ and diagnostic figures), :mod:`~planner.identify_report.markdown`,
 
 from __future__ import annotations
 
-from planner.identify_report.canvas import REPORT_DPI, _figure, _png, _rms
-from planner.identify_report.data import (_aliases, _headline, _inputs, _mm, _structure_value, compensation_sentence,
-                                          report_dict, structure_sentence)
-from planner.identify_report.diagnostics import (REPORT_DIAGNOSTIC_PLOTS, REPORT_DIAGNOSTIC_ROWS, VARIABLE_LABELS,
-                                                 VARIABLE_UNITS, _axis_diag, _diag_groups, _is_angle,
-                                                 _shown_diagnostics, _var_name)
-from planner.identify_report.figures import (AXIS_COLOURS, REPORT_ANGLE_BINS_MAX, REPORT_BINS, RESIDUAL_UM_BELOW_M,
-                                             _axes_png, _bin_edges, _compensation_png, _diag_png, _figures,
-                                             _history_png, _length_scale, _residual_png, _scatter_panel, _x_of)
-from planner.identify_report.html import FIGURE_TEXT, _diag_figure_text, _html_table, _md_block, _md_cells, report_html
-from planner.identify_report.maps import (MAP_COMPONENT_WORDS, MAP_TABLE_NOTE, REPORT_MAP_HARMONICS, REPORT_MAP_PANELS,
-                                          _harmonic_freqs, _harmonic_text, _map_name, _map_rows, _maps_drawn,
-                                          _maps_markdown, _maps_png)
-from planner.identify_report.markdown import (_headline_rows, _provenance_rows, _setup_note, _unexplained_markdown,
-                                              report_markdown)
-from planner.identify_report.text import _fmt, _md_cell
+from planner.identify_report.canvas import REPORT_DPI
+from planner.identify_report.data import compensation_sentence, report_dict, structure_sentence
+from planner.identify_report.diagnostics import REPORT_DIAGNOSTIC_PLOTS, REPORT_DIAGNOSTIC_ROWS, VARIABLE_LABELS, VARIABLE_UNITS
+from planner.identify_report.figures import AXIS_COLOURS, REPORT_ANGLE_BINS_MAX, REPORT_BINS, RESIDUAL_UM_BELOW_M
+from planner.identify_report.html import FIGURE_TEXT, report_html
+from planner.identify_report.maps import MAP_COMPONENT_WORDS, MAP_TABLE_NOTE, REPORT_MAP_HARMONICS, REPORT_MAP_PANELS
+from planner.identify_report.markdown import report_markdown
 from planner.identify_report.writer import write_report
 
 __all__ = ["AXIS_COLOURS", "FIGURE_TEXT", "MAP_COMPONENT_WORDS", "MAP_TABLE_NOTE", "REPORT_ANGLE_BINS_MAX",

@@ -55,118 +55,14 @@ callback ``progress(message, done, total)``.
 
 from __future__ import annotations
 
-from models.arm import ArmModel
-from models.arm_file import MODEL_FORMAT, load_model, model_from_robot, model_to_dict, model_toml
-from models.effects import (
-    EFFECTS,
-    GROUP_SLICES,
-    LIBRARY,
-    N_PARAMS,
-    PARAM_NAMES,
-    ModelLayout,
-    get_const,
-    make_const,
-    make_layout,
-    set_const,
-)
-from models.errors import InputError
 
-from ..compensation import CompensationStatus
-from ..compensation import exact as exact_compensation
-from ..measurements import Measurements
-from .apply import (
-    COMPENSATION_CHECK_MAX_COND,
-    COMPENSATION_MAX_ITER,
-    COMPENSATION_RESIDUAL_TOL,
-    COMPENSATION_STEP_TOL,
-    REGISTRATION_ALIAS_MARKERS,
-    TARGET_SEED_MAX_M,
-    _at_temperature,
-    alias_effect_m,
-    base_frame_warning,
-    compensate,
-    check_command_limits,
-    compensate_targets,
-    compensation_check,
-    measured_point_model,
-    predict,
-    unobservable_in_base,
-    validate_on,
-)
-from .diagnostics import (
-    DIAG_ALPHA,
-    DIAG_MIN_FRACTION,
-    UNEXPLAINED_MIN_FRACTION,
-    UNEXPLAINED_RMS_RATIO,
-    _diagnose,
-    _joint_design,
-    _poly,
-    _pose_anova,
-    _regress_cv,
-    _scalar_design,
-    diagnostic_variables,
-    run_diagnostics,
-    structure_left,
-)
-from .engine import SATURATED_MAX_ITER, _effect_of, _parameter_table, identify
-from .evaluation import (
-    _EVALUATORS,
-    Evaluator,
-    _ev_for,
-    _gravity_problem,
-    _knots_from,
-    _nominal_gravity_torque,
-    _nominal_points,
-    _nominal_tcp,
-    _Problem,
-    _torque_scale,
-    _update_knots,
-    evaluator,
-    make_rows,
-    time_reference,
-)
-from .identifiability import (
-    IDENT_MAX_STD_RATIO,
-    IDENT_REL_TOL,
-    LAST_AXIS_ROTATION,
-    STRUCTURAL_DESIGN_ROWS,
-    _order_for,
-    _structural_held,
-    select_identifiable,
-)
-from .lsq import (
-    LM_COST_RTOL,
-    LM_COST_SIGMA_TOL,
-    LM_LAMBDA0,
-    LM_MAX_ITER,
-    LM_STEP_STD_TOL,
-    NORMAL_RIDGE,
-    _evaluate,
-    _Fit,
-    _fit_model,
-    _jac,
-    _lm,
-    _rms,
-    _solve_normal,
-    _wjac,
-    _wres,
-    kabsch,
-)
-from .outliers import (
-    OUTLIER_FALSE_ALARM,
-    OUTLIER_GROSS_SIGMAS,
-    OUTLIER_MAX_FRACTION,
-    OUTLIER_MAX_ROUNDS,
-    OUTLIER_MIN_POSE_ROWS,
-    OUTLIER_MIN_SIGMAS,
-    OUTLIER_SCALE_QUANTILE,
-    OUTLIER_SEPARATION,
-    OUTLIER_TAIL_FACTOR,
-    OUTLIER_TAIL_QUANTILE,
-    OUTLIER_TAIL_SLACK,
-    _outlier_mask,
-    _robust_d2,
-)
+from .apply import (COMPENSATION_CHECK_MAX_COND, COMPENSATION_MAX_ITER, COMPENSATION_RESIDUAL_TOL, COMPENSATION_STEP_TOL, REGISTRATION_ALIAS_MARKERS, TARGET_SEED_MAX_M, alias_effect_m, base_frame_warning, compensate, check_command_limits, compensate_targets, compensation_check, measured_point_model, predict, unobservable_in_base, validate_on)
+from .diagnostics import (DIAG_ALPHA, DIAG_MIN_FRACTION, UNEXPLAINED_MIN_FRACTION, UNEXPLAINED_RMS_RATIO, diagnostic_variables, run_diagnostics, structure_left)
+from .engine import SATURATED_MAX_ITER, identify
+from .evaluation import Evaluator, evaluator, make_rows, time_reference
+from .identifiability import (IDENT_MAX_STD_RATIO, IDENT_REL_TOL, LAST_AXIS_ROTATION, STRUCTURAL_DESIGN_ROWS, select_identifiable)
+from .lsq import (LM_COST_RTOL, LM_COST_SIGMA_TOL, LM_LAMBDA0, LM_MAX_ITER, LM_STEP_STD_TOL, NORMAL_RIDGE, kabsch)
+from .outliers import (OUTLIER_FALSE_ALARM, OUTLIER_GROSS_SIGMAS, OUTLIER_MAX_FRACTION, OUTLIER_MAX_ROUNDS, OUTLIER_MIN_POSE_ROWS, OUTLIER_MIN_SIGMAS, OUTLIER_SCALE_QUANTILE, OUTLIER_SEPARATION, OUTLIER_TAIL_FACTOR, OUTLIER_TAIL_QUANTILE, OUTLIER_TAIL_SLACK)
 from .results import (
     CandidateScore,
     CompensationOutcome,
@@ -182,27 +78,7 @@ from .results import (
     TargetsError,
     TargetsFrame,
 )
-from .selection import (
-    CV_FOLDS,
-    CV_MIN_REL_GAIN,
-    CV_SEED,
-    F_TEST_ALPHA,
-    MIN_EXPLAINED_SHARE,
-    NOISE_FLOOR_STOP_RATIO,
-    PARSIMONY_REL_TOL,
-    REFINE_TOP,
-    THERMAL_MIN_RANGE_K,
-    _assign_folds,
-    _candidate_applicable,
-    _candidate_score,
-    _linear_scores,
-    _Score,
-    _score_p,
-    _significance,
-    backward_pass,
-    forward_selection,
-    noise_floor,
-)
+from .selection import (CV_FOLDS, CV_MIN_REL_GAIN, CV_SEED, F_TEST_ALPHA, MIN_EXPLAINED_SHARE, NOISE_FLOOR_STOP_RATIO, PARSIMONY_REL_TOL, REFINE_TOP, THERMAL_MIN_RANGE_K, backward_pass, forward_selection, noise_floor)
 
 __all__ = [
     # results and statuses
@@ -233,19 +109,5 @@ __all__ = [
     "check_command_limits", "compensate_targets", "compensation_check", "measured_point_model", "predict",
     "unobservable_in_base",
     "validate_on",
-    # re-exported for code that imported them from here (model files, layout, model)
-    "MODEL_FORMAT", "load_model", "model_from_robot", "model_to_dict", "model_toml",
-    "EFFECTS", "GROUP_SLICES", "LIBRARY", "N_PARAMS", "PARAM_NAMES", "ModelLayout", "get_const", "make_const",
-    "make_layout", "set_const", "ArmModel", "InputError", "CompensationStatus", "exact_compensation", "Measurements",
 ]
 
-#: Private helpers kept importable from here (tests and tools imported them from the single
-#: module this package replaces); not part of the API.
-_COMPAT = (
-    _at_temperature, _diagnose, _joint_design, _poly, _pose_anova, _regress_cv, _scalar_design,
-    _effect_of, _parameter_table, _EVALUATORS, _ev_for, _gravity_problem, _knots_from,
-    _nominal_gravity_torque, _nominal_points, _nominal_tcp, _Problem, _torque_scale, _update_knots,
-    _order_for, _structural_held, _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _solve_normal, _wjac, _wres,
-    _outlier_mask, _robust_d2, _assign_folds, _candidate_applicable, _candidate_score, _linear_scores,
-    _Score, _score_p, _significance,
-)

@@ -42,50 +42,11 @@ uses all but ``write``.
 
 from __future__ import annotations
 
-from models.constants import PLAUSIBLE_POSITION_MAX_M
-from models.errors import InputError
 
-from .cells import _DATETIME, _NUMBER, _Cells, _parse_datetime, _parse_float, _time_column
-from .columns import (
-    _UNITS,
-    COLUMNS,
-    DIALECT_CHOICES,
-    DIALECTS,
-    IGNORED_PREFIXES,
-    JOINT_NAME_PRESETS,
-    LABEL_COLUMNS,
-    POSITION_COLUMNS,
-    Q_COLUMNS,
-    ROTATION_COLUMNS,
-    SIGMA_ROT_COLUMNS,
-    SIGMA_XYZ_COLUMNS,
-    WRENCH_COLUMNS,
-)
-from .parse import (
-    _OTHER_SEPARATORS,
-    _check_dialect,
-    _check_separator,
-    _detect_dialect,
-    _header_text,
-    _joint_map,
-    _ros_hint,
-    _split_unit,
-    parse_measurements,
-    read_measurements,
-    resolve_joint_names,
-)
+from .columns import (COLUMNS, DIALECT_CHOICES, DIALECTS, IGNORED_PREFIXES, JOINT_NAME_PRESETS, LABEL_COLUMNS, POSITION_COLUMNS, Q_COLUMNS, ROTATION_COLUMNS, SIGMA_ROT_COLUMNS, SIGMA_XYZ_COLUMNS, WRENCH_COLUMNS)
+from .parse import parse_measurements, read_measurements, resolve_joint_names
 from .table import Measurements, sigma_rms
-from .validation import (
-    _UNIT_HINT,
-    PLAUSIBLE_ANGLE_MAX_RAD,
-    PLAUSIBLE_FORCE_MAX_N,
-    PLAUSIBLE_MOMENT_MAX_NM,
-    PLAUSIBLE_SIGMA_MAX_M,
-    PLAUSIBLE_SIGMA_ROT_MAX_RAD,
-    PLAUSIBLE_TEMPERATURE_C,
-    _first_bad,
-    validate,
-)
+from .validation import (PLAUSIBLE_ANGLE_MAX_RAD, PLAUSIBLE_FORCE_MAX_N, PLAUSIBLE_MOMENT_MAX_NM, PLAUSIBLE_SIGMA_MAX_M, PLAUSIBLE_SIGMA_ROT_MAX_RAD, PLAUSIBLE_TEMPERATURE_C, validate)
 from .write import commands_csv, measurements_to_csv
 
 __all__ = [
@@ -101,14 +62,5 @@ __all__ = [
     # the format's vocabulary
     "COLUMNS", "Q_COLUMNS", "WRENCH_COLUMNS", "POSITION_COLUMNS", "ROTATION_COLUMNS", "SIGMA_XYZ_COLUMNS",
     "SIGMA_ROT_COLUMNS", "LABEL_COLUMNS", "IGNORED_PREFIXES", "DIALECTS", "DIALECT_CHOICES", "JOINT_NAME_PRESETS",
-    # re-exported for code that imported them from here (the single module this package replaces)
-    "InputError", "PLAUSIBLE_POSITION_MAX_M",
 ]
 
-#: Private helpers kept importable from here (the single module this package replaces
-#: defined them); not part of the API.
-_COMPAT = (
-    _UNITS, _UNIT_HINT, _NUMBER, _DATETIME, _OTHER_SEPARATORS, _Cells, _parse_float, _parse_datetime,
-    _time_column, _joint_map, _ros_hint, _split_unit, _check_dialect, _check_separator, _header_text,
-    _detect_dialect, _first_bad,
-)

@@ -57,30 +57,9 @@ from models.robot import Robot, load_robot
 from models.transforms import matrix_to_rotvec, rotvec_to_matrix
 
 from ..measurements import Measurements
-from .campaign import SIM_MAX_JACOBIAN_COND, SIM_POSE_OVERSAMPLING, _CampaignPlan
-from .config import (
-    _EFFECT_KEYS,
-    _TOP_KEYS,
-    DEFAULT_CAMPAIGN,
-    DEFAULT_NOISE,
-    JOINT_ERROR_EFFECTS,
-    OUT_OF_LIBRARY,
-    SIM_EFFECTS,
-    SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD,
-    SIM_JOINT_ERROR_MAX_HARMONIC,
-    SIM_MAX_ROWS,
-    SimConfigError,
-    _at_least,
-    _bool,
-    _int,
-    _joint_list,
-    _magnitudes,
-    _num,
-    _table,
-    _vec,
-    load_config,
-)
-from .geometry import _axes, _frames, _Geometry, _link, _tau_point, rotvecs
+from .campaign import SIM_MAX_JACOBIAN_COND, SIM_POSE_OVERSAMPLING
+from .config import (DEFAULT_CAMPAIGN, DEFAULT_NOISE, JOINT_ERROR_EFFECTS, OUT_OF_LIBRARY, SIM_EFFECTS, SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD, SIM_JOINT_ERROR_MAX_HARMONIC, SIM_MAX_ROWS, SimConfigError, load_config)
+from .geometry import rotvecs
 from .physics import SIM_EQUILIBRIUM_MAX_ITER, SIM_EQUILIBRIUM_TOL
 from .robot import VirtualRobot, simulator
 from .truth import from_truth, load_truth
@@ -100,11 +79,3 @@ __all__ = [
     "simulator",
 ]
 
-#: Names kept importable from here (the single module this package replaces defined or
-#: imported them); not part of the API.
-_COMPAT = (
-    InputError, Robot, load_robot, Measurements, DEFAULT_CAMPAIGN, DEFAULT_NOISE, SIM_EQUILIBRIUM_TOL,
-    SIM_EQUILIBRIUM_MAX_ITER, SIM_POSE_OVERSAMPLING, SIM_MAX_JACOBIAN_COND, SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD,
-    SIM_JOINT_ERROR_MAX_HARMONIC, SIM_MAX_ROWS, _TOP_KEYS, _EFFECT_KEYS, _CampaignPlan, _Geometry, _link, _frames,
-    _axes, _tau_point, _num, _vec, _at_least, _int, _bool, _magnitudes, _table, _joint_list,
-)
