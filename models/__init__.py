@@ -1,10 +1,40 @@
 """Robot descriptions and the symbolic CasADi model built from them (FK, Jacobian,
 compliance, analytic IK).  Depends on nothing else in the project."""
 
-from .errors import CompplanError, InfeasibleError, InputError, SingularityError, UnreachableError
-from .ik import BRANCH_LABELS, AnalyticIK, IKSolution, IKSolver, IKStatus, IKStructureError, ik_solver
-from .robot import BUILTIN_ROBOTS, Joint, Robot, RobotFileError, load_robot, robot_from_dict
-from .symbolic import KinematicModel, cartesian_stiffness, directional_stiffness
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .errors import CompplanError, InfeasibleError, InputError, SingularityError, UnreachableError
+    from .ik import BRANCH_LABELS, AnalyticIK, IKSolution, IKSolver, IKStatus, IKStructureError, ik_solver
+    from .robot import BUILTIN_ROBOTS, Joint, Robot, RobotFileError, load_robot, robot_from_dict
+    from .symbolic import KinematicModel, cartesian_stiffness, directional_stiffness
+
+#: The submodule defining each name re-exported here.  Imported on first use (PEP 562), so that
+#: importing one light submodule (``models.errors``) does not import CasADi, SciPy and the IK
+#: families: ``compplan --version`` and every command's start-up stay fast.
+_LAZY = {
+    **dict.fromkeys(("CompplanError", "InfeasibleError", "InputError", "SingularityError", "UnreachableError"),
+                    "errors"),
+    **dict.fromkeys(("BRANCH_LABELS", "AnalyticIK", "IKSolution", "IKSolver", "IKStatus", "IKStructureError",
+                     "ik_solver"), "ik"),
+    **dict.fromkeys(("BUILTIN_ROBOTS", "Joint", "Robot", "RobotFileError", "load_robot", "robot_from_dict"), "robot"),
+    **dict.fromkeys(("KinematicModel", "cartesian_stiffness", "directional_stiffness"), "symbolic"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    """A re-exported name, importing its submodule on first use."""
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "AnalyticIK", "BRANCH_LABELS", "BUILTIN_ROBOTS", "CompplanError", "IKSolution", "IKSolver", "IKStatus",

@@ -189,8 +189,10 @@ class ArmModel:
 
     @property
     def geometry_is_nominal(self) -> bool:
-        """The chain is the robot file's DH table (no geometric, offset or thermal effect)."""
-        return not any(e in self.active_effects for e in ("joint_offset", "geometric", "thermal"))
+        """The chain is the robot file's DH table: no effect acting on the arm implements the
+        ``geometry`` hook (:meth:`models.effects.Effect.overrides`; in the library joint offsets,
+        DH errors, thermal expansion and joint error maps, and any plug-in that changes the chain)."""
+        return not any(fx.effect(e).overrides("geometry") for e in self.arm_effects)
 
     @property
     def is_nominal(self) -> bool:
@@ -279,6 +281,13 @@ class ArmModel:
         """Named CasADi functions of this model with its parameters fixed (compiled batches)."""
         from .symbolic import KinematicModel
         return KinematicModel(self)
+
+    @cached_property
+    def ik(self) -> "IKSolver":
+        """The all-branch IK of the nominal chain with this model's tool (built once per model;
+        :func:`models.ik.ik_solver`)."""
+        from .ik import ik_solver
+        return ik_solver(self.nominal)
 
     def load_deflection(self, q: np.ndarray, load: Load | np.ndarray) -> np.ndarray:
         """Joint deflection ``dq(q, L)`` of the arm whose joints sit at ``q`` (N, 6), rad."""

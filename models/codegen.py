@@ -46,6 +46,8 @@ from typing import NoReturn
 import casadi as ca
 import numpy as np
 
+from .errors import InputError
+
 #: Batches smaller than this run on the calling thread: waking an OpenMP team
 #: costs more than it saves, and idle spinning threads slow down IPOPT and NumPy.
 PARALLEL_MIN_BATCH = 4096
@@ -448,7 +450,7 @@ def _batch_rows(name: str, in_sizes: list[tuple[int, int]],
         Whether each input has one row per pose (False: broadcast).
     """
     if len(args) != len(in_sizes):
-        raise ValueError(f"{name}: expected {len(in_sizes)} inputs, got {len(args)}")
+        raise InputError(f"{name}: expected {len(in_sizes)} inputs, got {len(args)}")
     n = 1
     arrays, batched = [], []
     for k, a in enumerate(args):
@@ -456,16 +458,17 @@ def _batch_rows(name: str, in_sizes: list[tuple[int, int]],
         arr = np.asarray(a, dtype=float)
         if arr.ndim == 1:
             if arr.size != r * c:
-                raise ValueError(f"{name}: input {k} must have {r * c} values, got {arr.size}")
+                raise InputError(f"{name}: input {k} has {arr.size} values, expected {r * c}")
             arr = np.ascontiguousarray(arr)
             batched.append(False)
         else:
             arr = np.ascontiguousarray(arr.reshape(arr.shape[0], int(np.prod(arr.shape[1:]))))
             if arr.shape[1] != r * c:
-                raise ValueError(f"{name}: input {k} must have {r * c} columns, got {arr.shape[1]}")
+                raise InputError(f"{name}: input {k} has {arr.shape[1]} columns, expected {r * c}")
             if arr.shape[0] != 1:
                 if n not in (1, arr.shape[0]):
-                    raise ValueError(f"{name}: inputs have {n} and {arr.shape[0]} rows")
+                    raise InputError(f"{name}: input {k} has {arr.shape[0]} rows, expected 1 or {n} "
+                                     "(the other inputs' rows)")
                 n = arr.shape[0]
             batched.append(True)
         arrays.append(arr)

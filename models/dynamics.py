@@ -38,6 +38,7 @@ import casadi as ca
 import numpy as np
 
 from .effects.graph import chain, joint_axes
+from .errors import InputError
 from .robot import Robot, RobotFileError
 
 #: Length of the payload vector ``[m, c (3), ixx, iyy, izz, ixy, ixz, iyz]``.
@@ -102,7 +103,8 @@ def payload_vector(mass_kg: float, com_m: Any = (0.0, 0.0, 0.0), inertia: Any = 
     if I.shape == (3, 3):
         I = np.array([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
     if I.shape != (6,):
-        raise ValueError(f"payload inertia must be 3x3 or 6 values, got shape {I.shape}")
+        raise InputError(f"payload inertia: expected a 3x3 matrix or 6 values [ixx, iyy, izz, ixy, ixz, iyz] "
+                         f"(kg*m^2), got shape {I.shape}")
     return np.r_[float(mass_kg), np.asarray(com_m, dtype=float).reshape(3), I]
 
 

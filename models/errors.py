@@ -22,3 +22,9 @@ class SingularityError(CompplanError):
 
 class InfeasibleError(CompplanError):
     """A planning problem has no solution under its constraints (status and reason attached)."""
+
+
+class PluginError(CompplanError, TypeError):
+    """A plug-in (effect, IK family, timing method, export format) is declared wrongly: no name,
+    registered twice, a clash with another plug-in's names, a missing hook; the message names the
+    plug-in and what it lacks.  A ``TypeError`` too, as before it had its own class."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .constants import STANDARD_GRAVITY
+from .errors import InputError
 from .effects.graph import LOAD_SIZE
 
 
@@ -31,7 +32,7 @@ def _rows6(x: np.ndarray | None, n: int, name: str) -> np.ndarray:
     if a.ndim == 1:
         a = a[None, :]
     if a.shape[1] != 6 or a.shape[0] not in (1, n):
-        raise ValueError(f"{name} must have shape (6,) or ({n}, 6), got {a.shape}")
+        raise InputError(f"{name}: expected shape (6,) or ({n}, 6), got {a.shape}")
     return np.broadcast_to(a, (n, 6)).copy()
 
 
@@ -109,5 +110,5 @@ def load_rows(load: "Load | np.ndarray", n: int) -> np.ndarray:
         return Load.base(a).rows(n)
     if a.shape[-1] == LOAD_SIZE:
         return np.broadcast_to(np.atleast_2d(a), (n, LOAD_SIZE)).copy()
-    raise ValueError(f"a load must be a Load, a wrench (6 or (N, 6)) or load rows (N, {LOAD_SIZE}); "
+    raise InputError(f"load: expected a Load, a wrench (6 or (N, 6)) or load rows (N, {LOAD_SIZE}); "
                      f"got shape {a.shape}")

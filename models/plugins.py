@@ -17,7 +17,11 @@ export formats         ``planner.export``             ``COMPPLAN_EXPORT_PATH``
 =====================  =============================  ===========================
 
 A folder that does not exist is an error naming the variable and the folder (a typo would
-otherwise drop the plug-in silently).
+otherwise drop the plug-in silently); so is a plug-in module named like a module of the package
+or of an earlier plug-in folder (one of the two would be ignored).  A plug-in module that fails
+to import (a syntax error, a missing name, a registration refused) is an :class:`InputError`
+naming the variable and the module's file, with the original error chained: the command line
+prints it as one line.
 """
 
 from __future__ import annotations
@@ -25,8 +29,8 @@ from __future__ import annotations
 import importlib
 import os
 import pkgutil
+from collections.abc import Iterable, MutableSequence
 from pathlib import Path
-from typing import Iterable, MutableSequence
 
 from models.errors import InputError
 
@@ -78,14 +82,34 @@ def import_plugins(package: str, path: MutableSequence[str], variable: str,
     -------
     list of str
         The names of the modules imported, in import order.
+
+    Raises
+    ------
+    InputError
+        A folder of ``$variable`` is not a folder; a plug-in module has the name of a module
+        of the package or of an earlier folder's; a plug-in module fails to import (the
+        message names the variable and the file; the original error is its ``__cause__``).
     """
-    for folder in plugin_folders(variable):
+    skip, first = set(skip), tuple(first)
+    own = [m.name for m in pkgutil.iter_modules(list(path))]
+    names = list(first) + [n for n in own if n not in skip and n not in first]
+    plugins: dict[str, Path] = {}
+    for folder in dict.fromkeys(plugin_folders(variable)):
+        for m in pkgutil.iter_modules([folder]):
+            where = Path(folder) / (m.name if m.ispkg else f"{m.name}.py")
+            if m.name in own or m.name in plugins:
+                other = "a module of " + package if m.name in own else str(plugins[m.name])
+                raise InputError(f"${variable}: plug-in module {where} has the name of {other}; rename it")
+            plugins[m.name] = where
+            names.append(m.name)
         if folder not in path:
             path.append(folder)
-    names = list(first)
-    for m in pkgutil.iter_modules(path):
-        if m.name not in names and m.name not in set(skip):
-            names.append(m.name)
     for name in names:
-        importlib.import_module(f"{package}.{name}")
+        try:
+            importlib.import_module(f"{package}.{name}")
+        except Exception as exc:
+            if name not in plugins:
+                raise
+            raise InputError(f"${variable}: plug-in module {plugins[name]} failed to import "
+                             f"({type(exc).__name__}: {exc})") from exc
     return names

@@ -26,6 +26,7 @@ import casadi as ca
 import numpy as np
 
 from . import effects as fx
+from .errors import InputError
 from .codegen import BatchFunction, VMBatchFunction, batch_function
 from .effects.graph import (arm_functions, compliance_from_jacobian, geometric_jacobian, joint_axes,
                             link_transform, load_error_gravity_function)
@@ -132,7 +133,8 @@ class KinematicModel:
         n = max(a.shape[0] for a in arrs)
         for a in arrs:
             if a.shape[0] not in (1, n):
-                raise ValueError(f"batch arguments have {a.shape[0]} and {n} rows")
+                raise InputError(f"{f.name()}: batch arguments have {a.shape[0]} and {n} rows; expected 1 or {n} "
+                                 "rows each")
         return self.evaluator(f)(*[a if a.shape[0] == n else a.reshape(-1) for a in arrs])
 
     def evaluator(self, f: ca.Function) -> BatchFunction | VMBatchFunction:

@@ -15,8 +15,6 @@ import sys
 import traceback
 from typing import Callable, NoReturn
 
-from models.codegen import clear_codegen_notes, codegen_notes
-from models.errors import CompplanError
 from planner.provenance import command_line_scope
 from planner.provenance import version as _version
 
@@ -61,11 +59,28 @@ def _os_error_message(exc: OSError) -> str:
     return f"{' -> '.join(paths)}: {reason}" if paths else f"{reason} (a file-system error)"
 
 
+def version_line() -> str:
+    """What ``compplan --version`` prints."""
+    return f"compplan {_version()}"
+
+
+def _asks_version(argv: list[str]) -> bool:
+    """Whether the parser would stop at ``--version``: it comes before any help option and before
+    the command (the top-level options are handled left to right).  Answered without building the
+    parser, which imports every command module (and with them NumPy and CasADi)."""
+    for token in argv:
+        if token == "--version":
+            return True
+        if token in ("-h", "--help", "--") or not token.startswith("-"):
+            return False
+    return False
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="compplan",
                                 description="Plan, compensate and time 6R arm paths under load.")
     p.add_argument("-v", "--verbose", action="store_true", help="verbose solver output and tracebacks")
-    p.add_argument("--version", action="version", version=f"compplan {_version()}",
+    p.add_argument("--version", action="version", version=version_line(),
                    help="print the compplan version and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -74,8 +89,27 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _is_user_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is a :class:`~models.errors.CompplanError`.  Read from ``sys.modules``: the
+    import that raised it (a bad plug-in folder or module, found when a registry package is first
+    imported) may have left the ``models`` package itself unimported."""
+    errors = sys.modules.get("models.errors")
+    return errors is not None and isinstance(exc, errors.CompplanError)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    if _asks_version(sys.argv[1:] if argv is None else argv):   # imports nothing more
+        print(version_line())
+        raise SystemExit(EXIT_OK)               # as argparse's version action does
+    try:
+        parser = build_parser()   # imports the command modules, and registries find their plug-ins
+    except Exception as exc:
+        if not _is_user_error(exc):
+            raise
+        print(f"compplan: error: {one_line(exc)}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    from models.codegen import clear_codegen_notes
+    from models.errors import CompplanError
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
     clear_codegen_notes()
@@ -114,6 +148,7 @@ def _print_codegen_notes() -> None:
     """One line per note the library recorded in this run (e.g. no C compiler: evaluating
     with CasADi's virtual machine; a compile cache rebuilt or bypassed).  Printed after a
     run that completed or failed internally, not after a user error (its one line stands alone)."""
+    from models.codegen import codegen_notes
     for note in codegen_notes():
         print(f"compplan: note: {note}", file=sys.stderr)
 

@@ -40,7 +40,7 @@ from models import Robot
 from models.arm import ArmModel
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
-from models.ik import IK_REASONS, IKStatus, ik_solver
+from models.ik import IK_REASONS, IKStatus
 from models.transforms import rpy_to_matrix
 from problems import paper
 
@@ -247,7 +247,7 @@ def _evaluate_grid(arm: "ArmModel", P: np.ndarray, R: np.ndarray, b_fixed: int |
 
     Returns q (N, 6) rad, the chosen branch (N,) (-1: none), diag C (N, 6) SI, and the IK status
     of the reference branch (N,)."""
-    ik = ik_solver(arm.nominal)
+    ik = arm.ik
     model = arm.kinematics
     n = len(P)
     q = np.full((n, 6), np.nan)
@@ -323,7 +323,7 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
     from models.arm import load_arm
     arm = load_arm(robot)           # a Robot (nominal model) or an ArmModel (identified)
     robot = arm.nominal
-    labels = ik_solver(robot).labels
+    labels = arm.ik.labels
     b_fixed = _branch_index(branch, labels)
     u = np.linspace(u_lo, u_hi, int(nu))
     v = np.linspace(v_lo, v_hi, int(nv))
@@ -340,7 +340,7 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
     if bad.any():
         codes, counts = np.unique(status_ref[bad], return_counts=True)
         for c, k in zip(codes, counts):
-            reasons[IK_REASONS[IKStatus(int(c))]] = int(k)
+            reasons[IK_REASONS[IKStatus.from_code(c)]] = int(k)
     return ComplianceMap(robot=robot.name, plane=plane, offset_m=off, u_m=u, v_m=v, rpy_rad=rpy,
                          branch_rule=branch, branch=chosen.reshape(U.shape),
                          q=q.reshape(U.shape + (6,)), diag=diag.reshape(U.shape + (6,)),

@@ -42,9 +42,9 @@ def demo_problem(robot: Robot | str | None = None, n_points: int | None = None) 
     replaced by the problem's: the TCP at the flange).
     """
     pr = load_problem(DEMO_PROBLEM)
-    if isinstance(robot, Robot):
-        from dataclasses import replace
-        pr = replace(pr, robot=robot.with_tool(pr.robot.tcp2flange), robot_spec=robot.name)
+    if isinstance(robot, Robot):        # its arm model too (not the problem's robot's)
+        from models.arm import load_arm
+        pr = pr.with_robot(load_arm(robot))
     elif robot is not None:
         pr = pr.with_robot(str(robot))
     if n_points is not None and n_points != pr.n:
@@ -69,8 +69,9 @@ def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = Fals
     With ``report`` the report is written too, from ``res`` (keyword arguments of
     :func:`planner.report.write_report` in ``report_options``).  Returns the summary.
     """
-    summary = _write_plan_outputs(res, folder, with_figures=with_figures)
+    view = res.view()
+    _write_plan_outputs(res, folder, with_figures=with_figures, view=view)
     if report:
         from planner.report import write_report
-        write_report(folder, result=res, **report_options)
-    return summary
+        write_report(folder, result=res, view=view, **report_options)
+    return view.summary

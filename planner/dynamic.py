@@ -15,14 +15,15 @@ scaled by ``(1 - DYNAMIC_RETIME_MARGIN) / ratio`` and the command rebuilt, at mo
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from models.arm import ArmModel
+from models.errors import InfeasibleError
 from models.load import Load
+from models.status import Status
 from problems.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
 from problems.dynamic import (DYNAMIC_SMOOTHING_S, MISMATCH_CASES, DynamicStatus, finite_derivatives, mismatch_errors,
                               motor_command, padded, predicted_tcp_errors, smooth)
@@ -45,7 +46,9 @@ SUMMARY_ASSUMPTIONS = ("elastic joints between the motor-side position the servo
                        "and link compliance not compensated dynamically; payload a point mass")
 
 
-class DynamicStageStatus(enum.Enum):
+class DynamicStageStatus(Status):
+    """Outcome of :func:`dynamic_stage`."""
+
     OK = "ok"
     LIMIT_EXCEEDED = "limit_exceeded"
     FAILED = "failed"
@@ -145,12 +148,18 @@ class _Pass:
 
 
 def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_smooth: int, n_pad: int) -> _Pass:
-    """Padded link samples, the smoothed command, the predicted errors and the moving mask."""
+    """Padded link samples, the smoothed command, the predicted errors and the moving mask.
+
+    Raises
+    ------
+    InfeasibleError
+        No motor-side command (the robot has no link masses); the message is the reason.
+    """
     q, qd, qdd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd))
     rows = _sample_rows(load, path_q, q)
     dyn = motor_command(arm, q, qd, qdd, load, rows=rows)
     if dyn.status is not DynamicStatus.OK:
-        raise ValueError(dyn.reason)
+        raise InfeasibleError(dyn.reason)
     static = q - arm.torque_deflection(q, dyn.tau_static)     # the same command without the inertial torques
     theta = static + smooth(dyn.theta - static, n_smooth)
     needed = q - dyn.theta                         # the deflection the plan's torques cause
@@ -185,10 +194,10 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
         link = time_parametrize(path_q, JointLimits(*(lim[k] * scale[k] for k in _KEYS)), method, dt, **options)
         if link.status is not TimingStatus.OK:
             return DynamicStage(DynamicStageStatus.FAILED, f"pass {p}: the link side's {method} timing: "
-                                f"{link.reason}", passes=p, limit_scale=dict(scale))
+                                f"{link.status.value}: {link.reason}", passes=p, limit_scale=dict(scale))
         try:
             ps = _command(arm, link, load, path_q, n_smooth, n_pad)
-        except ValueError as exc:
+        except InfeasibleError as exc:
             return DynamicStage(DynamicStageStatus.FAILED, str(exc), passes=p)
         q, theta = ps.q, ps.theta
         derivs = finite_derivatives(theta, dt)
@@ -203,7 +212,7 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
     ok = all(float(r.max()) <= 1.0 + DYNAMIC_RATIO_TOL for r in ratio.values())
     text = ", ".join(f"{k} {float(r.max()):.3f}" for k, r in ratio.items())
     scaled = ", ".join(f"{k} x{v:.3f}" for k, v in scale.items() if v != 1.0) or "none"
-    reason = (f"{'ok' if ok else 'limit_exceeded'}: motor-side command after {p} timing pass(es) of the link side "
+    reason = (f"motor-side command after {p} timing pass(es) of the link side "
               f"(limits scaled: {scaled}); command peak ratios {text}; dynamic part smoothed over 2 x "
               f"{n_smooth * dt * 1e3:g} ms, {n_pad * dt * 1e3:g} ms rest added at both ends")
     status = TimingStatus.OK if ok else TimingStatus.LIMIT_EXCEEDED

@@ -636,7 +636,7 @@ class OutputSet:
         (a large table is then never held in memory whole)."""
         parts = Path(name).parts
         if not parts or Path(name).is_absolute() or ".." in parts:
-            raise ValueError(f"output name {name!r}: expected a relative path inside the folder")
+            raise InputError(f"output name {name!r}: expected a relative path inside the folder")
         self.files[name] = data
 
     def add_json(self, name: str, obj: Any) -> None:

@@ -14,7 +14,6 @@ memory.
 
 from __future__ import annotations
 
-import enum
 import functools
 import time
 from dataclasses import dataclass, field
@@ -23,6 +22,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from models.status import Status
 from planner.plan import PlanResult, plan
 from planner.numbers import headline_mm, round_sig
 from planner.provenance import invocation, problem_provenance
@@ -34,7 +34,7 @@ from problems.placement.sweep import SweepResult, run_sweep
 from problems.problem import Problem
 
 #: Columns of ``scores.csv`` (one row per placement, grid order; edge units in the names; ``status``
-#: a :class:`PlacementStatus` name, ``best_branch`` an IK branch label; empty cells where a value
+#: a :class:`PlacementStatus` value, ``best_branch`` an IK branch label; empty cells where a value
 #: does not exist).
 SCORE_COLUMNS = ("index", "x_m", "y_m", "z_m", "yaw_deg", "tilt_deg", "status", "best_branch",
                  "feasible_branches", "rms_error_mm", "max_error_mm", "joint_margin_deg", "singular_margin",
@@ -46,7 +46,7 @@ GRID_DIGITS = 12
 PLAN_STAGE = "full plans"
 
 
-class StudyStatus(enum.Enum):
+class StudyStatus(Status):
     """Outcome of a placement study."""
 
     OK = "ok"
@@ -140,7 +140,7 @@ class PlacementStudy:
     def improvement(self) -> float | None:
         """Baseline RMS error / best placement's RMS error (sweep), or None when either is infeasible
         or the best placement's error is 0 (no load)."""
-        if not len(self.ranked) or self.baseline.status[0] != PlacementStatus.OK:
+        if not len(self.ranked) or not self.baseline.status_of(0).ok:
             return None
         best = float(self.sweep.scores.rms_error_m[self.ranked[0]])
         return float(self.baseline.rms_error_m[0]) / best if best > 0.0 else None    # no load: no factor
@@ -162,7 +162,7 @@ class PlacementStudy:
     def summary(self) -> dict[str, Any]:
         """``summary.json``: the grid, the sweep's figures, the ranking, the baseline and the plans."""
         sc = self.sweep.scores
-        counts = {PlacementStatus(s).name.lower(): int((sc.status == s).sum()) for s in PlacementStatus}
+        counts = {s.value: int((sc.status == s.code).sum()) for s in PlacementStatus}
         out: dict[str, Any] = {
             "command": "place",
             "headline": self.headline(),
@@ -207,8 +207,8 @@ class PlacementStudy:
         h["best_branch"] = None if best is None else self.branch_labels[int(sc.best_branch[best])]
         h["best_rms_error_mm"] = None if best is None else headline_mm(float(sc.rms_error_m[best] * 1e3))
         h["best_max_error_mm"] = None if best is None else headline_mm(float(sc.max_error_m[best] * 1e3))
-        ok0 = self.baseline.status[0] == PlacementStatus.OK
-        h["as_written_status"] = PlacementStatus(int(self.baseline.status[0])).name.lower()
+        ok0 = self.baseline.status_of(0).ok
+        h["as_written_status"] = self.baseline.status_of(0).value
         h["as_written_rms_error_mm"] = headline_mm(float(self.baseline.rms_error_m[0] * 1e3)) if ok0 else None
         h["improvement_rms_factor"] = None if self.improvement is None else round_sig(self.improvement)
         for key, p in (("best_plan", next((p for p in self.plans if p.rank == 1), None)),
@@ -229,9 +229,9 @@ class PlacementStudy:
 
 
 def _scores_dict(sc: ChunkScores, i: int, labels: tuple[str, ...]) -> dict[str, Any]:
-    st = PlacementStatus(int(sc.status[i]))
+    st = sc.status_of(i)
     b = int(sc.best_branch[i])
-    d: dict[str, Any] = {"status": st.name.lower(), "status_reason": STATUS_REASONS[st],
+    d: dict[str, Any] = {"status": st.value, "status_reason": STATUS_REASONS[st],
                          "best_branch": labels[b] if 0 <= b < len(labels) else None,
                          "feasible_branches": int(sc.feasible_branches[i])}
     for k, v, s in (("rms_error_mm", sc.rms_error_m, 1e3), ("max_error_mm", sc.max_error_m, 1e3),
@@ -338,7 +338,7 @@ def scores_csv(st: PlacementStudy, rows: np.ndarray | None = None, rank: bool = 
     idx_all = np.arange(len(pl)) if rows is None else np.asarray(rows, dtype=int)
     scale = np.array([GRID_AXES[k][0] for k in GRID_AXES])
     labels = np.array(list(st.branch_labels) + [""], dtype=object)
-    names = np.array([PlacementStatus(c).name.lower() for c in sorted(int(c) for c in PlacementStatus)], dtype=object)
+    names = np.array([PlacementStatus.from_code(c).value for c in range(len(PlacementStatus))], dtype=object)
     yield (",".join((["rank"] if rank else []) + list(SCORE_COLUMNS)) + "\n").encode()
     for a in range(0, len(idx_all), CSV_BLOCK_ROWS):
         idx = idx_all[a:a + CSV_BLOCK_ROWS]

@@ -31,10 +31,8 @@ The module prints nothing.
 
 from __future__ import annotations
 
-import enum
-import io
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -43,6 +41,7 @@ import numpy as np
 from models.arm import ArmModel
 from models.errors import InfeasibleError, UnreachableError
 from models.ik import ik_solver
+from models.status import Status
 from models.symbolic import directional_stiffness
 from problems.compensation import (CompensationResult, CompensationStatus, closed_form, exact,
                                    uncompensated)
@@ -54,7 +53,9 @@ from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, round_sig
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
 from planner.provenance import invocation, problem_provenance
-from problems.timing import LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, time_parametrize
+from problems.timing import (LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, controller_methods, get_method,
+                             time_parametrize)
+from problems.timing.trajectory import LIMIT_KEYS
 from problems.timing.limit_use import limit_use
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
@@ -68,16 +69,11 @@ WAYPOINT_COLUMNS = (["k", "s", "x", "y", "z"]
 PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
 #: Columns of ``trajectory*.csv``.
 TRAJECTORY_COLUMNS = OUTPUT_TRAJECTORY_COLUMNS
-#: The method whose trajectory the controller runs (``trajectory.csv``), in order of preference.
-CONTROLLER_METHODS = ("jerk_optimal", "ruckig", "toppra")
-#: Limits each timing method enforces.
-ENFORCED = {"toppra": ("velocity", "acceleration"), "ruckig": ("velocity", "acceleration", "jerk"),
-            "jerk_optimal": ("velocity", "acceleration", "jerk")}
 #: Slack on the commanded joints' position limits (rad).
 COMMAND_LIMIT_TOL = 1e-9
 
 
-class PlanStatus(enum.Enum):
+class PlanStatus(Status):
     """Outcome of :func:`plan`."""
 
     OK = "ok"
@@ -179,33 +175,61 @@ class PlanResult:
                           self.closed.q_command, self.before.error_m, self.closed.error_m,
                           self.exact.error_m, k])
 
-    def branch_table(self) -> tuple[list[str], np.ndarray]:
+    def branch_errors(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """Per branch index: the load-induced TCP error norm (m, shape (N,)) at its analytic
+        posture (NaN where the branch has none) and at its optimised one, from the deflected
+        equilibrium of the arm model (``branches.csv``; the summary's equilibrium errors)."""
+        assert self.posture is not None
+        arm, n = self.problem.model, self.problem.n
+        L = self.problem.load.rows(n)
+        out = {}
+        for b, r in self.posture.branches.items():
+            ana = (uncompensated(arm, r.q_analytic, L).error_norm_m if r.q_analytic is not None
+                   else np.full(n, np.nan))
+            out[b] = (ana, uncompensated(arm, r.q, L).error_norm_m)
+        return out
+
+    def branch_table(self, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
+                     ) -> tuple[list[str], np.ndarray]:
         """``branches.csv``: per feasible branch, the load-induced TCP error norm (m) per
         waypoint at the analytic posture (NaN where the branch has none) and at the optimised
-        one, from the deflected equilibrium of the joint-compliance model."""
+        one, from the deflected equilibrium of the joint-compliance model (``errors``: those of
+        :meth:`branch_errors`, when the caller has them)."""
         assert self.posture is not None
-        arm = self.problem.model
-        L = self.problem.load.rows(self.problem.n)
-        n = self.problem.n
-        cols, data = ["k"], [np.arange(n, dtype=float)]
+        errors = self.branch_errors() if errors is None else errors
+        cols, data = ["k"], [np.arange(self.problem.n, dtype=float)]
         for b in sorted(self.posture.branches):
             r = self.posture.branches[b]
-            if r.q_analytic is not None:
-                ana = uncompensated(arm, r.q_analytic, L).error_norm_m
-            else:
-                ana = np.full(n, np.nan)
-            opt = uncompensated(arm, r.q, L).error_norm_m
             cols += [f"{r.label}_analytic_m", f"{r.label}_optimised_m"]
-            data += [ana, opt]
+            data += list(errors[b])
         return cols, np.stack(data, axis=1)
 
+    def view(self) -> "RunView":
+        """The plan's summary and tables, computed once: what ``summary.json``, the CSV files,
+        the command line's printout and the report show (:class:`RunView`).
+
+        Raises
+        ------
+        CompplanError
+            If the plan failed (as :meth:`raise_for_status`).
+        """
+        self.raise_for_status()
+        errors = self.branch_errors()
+        cols, rows = self.branch_table(errors)
+        stage = self.dynamic
+        dyn = stage.series(self.problem.model) if stage is not None and stage.link is not None else None
+        return RunView(self, self.summary(errors), self.waypoint_table(), cols, rows, dyn)
+
     # ------------------------------------------------------------------ summary
-    def summary(self) -> dict[str, Any]:
+    def summary(self, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> dict[str, Any]:
         """The content of ``summary.json`` (SI units unless a key says otherwise).
 
         It opens with ``headline`` (status, branch, TCP error before and after, duration:
         rounded to what they mean, units in the keys; see :func:`_headline`) and
         ``provenance`` (compplan version, command line, date, input files with SHA-256).
+        ``errors``: the branches' equilibrium errors of :meth:`branch_errors`, when the caller
+        has them (else those the summary needs are computed).  Each call hashes the inputs and
+        solves the equilibria again: build a plan's summary once (:meth:`view`).
         """
         pr = self.problem
         R = pr.robot.tcp2flange
@@ -250,7 +274,7 @@ class PlanResult:
                                           "S = [I3 0] (translational TCP deflection, m); costs reported "
                                           "in m^2 without the smoothness term")}
             s["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
-            _add_branch_postures(self, s["branches"])
+            _add_branch_postures(self, s["branches"], errors)
             s["ik_family"] = ps.ik_family
             s["branch_labels"] = list(ps.labels)
             s["rejected_branches"] = {ps.labels[b]: r for b, r in ps.rejected.items()}
@@ -285,10 +309,12 @@ class PlanResult:
         out: dict[str, Any] = {
             "duration_s": {m: tr.duration_s for m, tr in self.trajectories.items()},
             "limit_ratio": {m: dict(tr.limit_ratio.items()) for m, tr in self.trajectories.items()},
-            "timing": {m: {"status": tr.status.value, "reason": tr.reason, "limits_enforced": list(ENFORCED[m]),
-                           "within_all_limits": _within(tr, ("velocity", "acceleration", "jerk")),
+            "timing": {m: {"status": tr.status.value, "reason": tr.reason,
+                           "limits_enforced": list(get_method(m).checked_limits),
+                           "within_all_limits": _within(tr, LIMIT_KEYS),
                            "iterations": tr.iterations, "dt": tr.dt,
-                           "limit_use": limit_use(tr, pr.limits, ENFORCED[m]),
+                           "limit_use": limit_use(tr, pr.limits, get_method(m).checked_limits),
+                           "display_name": get_method(m).display_name,
                            "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
                        for m, tr in self.trajectories.items()},
             "controller_trajectory": self.controller}
@@ -300,6 +326,39 @@ class PlanResult:
         """The ``provenance`` block: version, command line and date (when the result was made),
         and the input files (problem, arm model) with their SHA-256."""
         return problem_provenance(self.problem, self.made)
+
+
+@dataclass(frozen=True)
+class RunView:
+    """A successful plan's outputs, computed once (:meth:`PlanResult.view`) and passed to
+    everything that shows the run: ``write_outputs``, the command line's printout and the
+    report (:func:`planner.report.run_from_plan`).
+
+    Attributes
+    ----------
+    result : PlanResult
+    summary : dict
+        The content of ``summary.json`` (:meth:`PlanResult.summary`).
+    waypoints : ndarray, shape (N, len(WAYPOINT_COLUMNS))
+        Rows of ``waypoints.csv``.
+    branch_columns : list of str
+    branches : ndarray, shape (N, len(branch_columns))
+        Columns and rows of ``branches.csv`` (m).
+    dynamic : (list of str, ndarray) or None
+        Columns and rows of ``dynamic.csv`` (a plan with dynamic compensation), else None.
+    """
+
+    result: PlanResult
+    summary: dict[str, Any]
+    waypoints: np.ndarray
+    branch_columns: list[str]
+    branches: np.ndarray
+    dynamic: tuple[list[str], np.ndarray] | None = None
+
+    @property
+    def model(self) -> ArmModel:
+        """The arm model the plan was made with (its ``kinematics`` built once)."""
+        return self.result.problem.model
 
 
 #: What the headline's errors are (``summary.json`` ``headline.definition``).
@@ -339,27 +398,25 @@ def _headline(s: dict[str, Any]) -> dict[str, Any]:
     dur = s.get("duration_s") or {}
     h["duration_s"] = round_sig(dur[ctrl]) if ctrl in dur else None
     h["duration_method"] = ctrl
-    h["duration_note"] = ({"jerk_optimal": "time-optimal under velocity, acceleration and jerk limits: the "
-                                           "trajectory the controller runs (trajectory.csv)",
-                           "ruckig": "Ruckig, jerk-limited: the trajectory the controller runs (trajectory.csv)",
-                           "toppra": "TOPP-RA, time-optimal, jerk not limited (trajectory.csv)"}.get(ctrl, ctrl)
-                          if ctrl else "not timed")
+    h["duration_note"] = f"{get_method(ctrl).duration_note} (trajectory.csv)" if ctrl else "not timed"
     if "toppra" in dur and ctrl != "toppra":
         h["duration_time_optimal_s"] = round_sig(dur["toppra"])
     h["definition"] = HEADLINE_DEFINITION
     return h
 
 
-def _add_branch_postures(res: "PlanResult", entries: dict[str, dict[str, Any]]) -> None:
+def _add_branch_postures(res: "PlanResult", entries: dict[str, dict[str, Any]],
+                         errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
     """Add to each branch entry its meaning, its posture in words (at waypoint 0) and its
     load-induced TCP error at the exact deflected equilibrium (RMS and max, mm): the same
-    measure as ``error_before``, where ``rms_error_mm`` is the NLP's first-order one."""
+    measure as ``error_before``, where ``rms_error_mm`` is the NLP's first-order one
+    (``errors``: :meth:`PlanResult.branch_errors`, when the caller has them)."""
     assert res.posture is not None
     pr = res.problem
     arm = pr.model
     km = arm.kinematics
     L = pr.load.rows(pr.n)
-    for r in res.posture.branches.values():
+    for b, r in res.posture.branches.items():
         e = entries[r.label]
         e["meaning"] = branch_words.decode(r.label)
         e["status_meaning"] = branch_words.status_text(r.status.value)
@@ -369,7 +426,7 @@ def _add_branch_postures(res: "PlanResult", entries: dict[str, dict[str, Any]]) 
         frames = [f[0] for f in km.batch(km.fk_frames, r.q[:1])]
         e["posture"] = branch_words.posture_words(frames, r.q[0], r.label, pr.robot.convention,
                                                   pr.robot.frame02base)
-        err = uncompensated(arm, r.q, L).error_norm_m
+        err = errors[b][1] if errors is not None else uncompensated(arm, r.q, L).error_norm_m
         e["rms_error_equilibrium_mm"] = float(np.sqrt(np.mean(err ** 2)) * 1e3)
         e["max_error_equilibrium_mm"] = float(err.max() * 1e3)
 
@@ -419,7 +476,9 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     arm = problem.model
-    ik = ik_solver(problem.robot)
+    if problem.arm is None:         # one model object for the whole run (its kinematics built once)
+        problem = replace(problem, arm=arm)
+    ik = arm.ik if arm.nominal is problem.robot else ik_solver(problem.robot)
     times["model_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -456,10 +515,10 @@ def _dynamic(res: PlanResult) -> None:
     problem = res.problem
     assert res.exact is not None and res.controller is not None
     m = res.controller
-    if "jerk" not in ENFORCED[m]:
+    if not get_method(m).enforces_jerk:
         res.status, res.reason = PlanStatus.TIMING_FAILED, (
             f"timing.dynamic needs a jerk-limited controller trajectory (the motor-side command follows "
-            f"the accelerations), but the controller's method is {m}; add 'jerk_optimal' to timing.methods")
+            f"the accelerations), but the controller's method is {m}; add '{_jerk_limited()}' to timing.methods")
         return
     if not problem.robot.has_masses:
         res.status, res.reason = PlanStatus.TIMING_FAILED, (
@@ -538,17 +597,22 @@ def _time(res: PlanResult) -> None:
         t1 = time.perf_counter()
         res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
         res.stage_times_s[f"timing_{m}_s"] = time.perf_counter() - t1
-    res.controller = next(m for m in CONTROLLER_METHODS if m in res.trajectories)
+    res.controller = controller_methods(res.trajectories)[0]      # the problem names one (check_timing)
     for m, tr in res.trajectories.items():
         failure = _trajectory_failure(res, m, tr)
         if failure:
             res.status, res.reason = PlanStatus.TIMING_FAILED, failure
             return
-        if not _within(tr, ("velocity", "acceleration", "jerk")):
+        if not _within(tr, LIMIT_KEYS):
             j = float(np.max(tr.limit_ratio["jerk"]))
             res.warnings.append(f"{m} does not limit jerk: peak jerk ratio {j:.3g} > 1"
-                                + ("" if m != res.controller else "; add 'jerk_optimal' to timing.methods "
+                                + ("" if m != res.controller else f"; add '{_jerk_limited()}' to timing.methods "
                                    "for a jerk-limited controller trajectory"))
+
+
+def _jerk_limited() -> str:
+    """The registered jerk-limited method the controller prefers (for advice in messages)."""
+    return next((m for m in controller_methods() if get_method(m).enforces_jerk), "a jerk-limited method")
 
 
 def _trajectory_failure(res: PlanResult, m: str, tr: Trajectory) -> str:
@@ -562,8 +626,12 @@ def _trajectory_failure(res: PlanResult, m: str, tr: Trajectory) -> str:
             return (f"{m}: joint {j + 1} reaches {tr.q[i, j]:.6g} rad at t = {tr.t[i]:.4g} s, "
                     f"outside its position limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad "
                     "(the interpolating spline overshoots between waypoints)")
-    if tr.status is not TimingStatus.OK or not _within(tr, ENFORCED[m]):
-        return f"{m}: {tr.reason}" if tr.reason.startswith(tr.status.value) else f"{m}: {tr.status.value}: {tr.reason}"
+    if tr.status is not TimingStatus.OK:
+        return f"{m}: {tr.status.value}: {tr.reason}"
+    bad = [k for k in get_method(m).checked_limits if not _within(tr, (k,))]
+    if bad:
+        return (f"{m}: {TimingStatus.LIMIT_EXCEEDED.value}: {' and '.join(bad)} ratio above 1 although the "
+                f"method reported {tr.status.value} ({tr.reason})")
     return ""
 
 
@@ -578,91 +646,44 @@ def _trajectory_rows(tr: Trajectory) -> np.ndarray:
     return np.column_stack([tr.t, tr.q, tr.qd, tr.qdd, tr.qddd])
 
 
-def figures(res: PlanResult) -> dict[str, bytes]:
-    """PNG figures: ``branches.png`` (error per branch) and ``trajectory.png`` (timed joints)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    out: dict[str, bytes] = {}
-    cols, data = res.branch_table()
-    fig = Figure(figsize=(8.0, 4.5))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    chosen = res.branch.label
-    for i, c in enumerate(cols[1:]):
-        label = c.rsplit("_", 2)[0]
-        kind = c.rsplit("_", 2)[1]
-        colour = f"C{(i // 2) % 10}"
-        thick = 2.5 if label == chosen else 1.0
-        ax.plot(data[:, 0], data[:, i + 1] * 1e3, color=colour, lw=thick,
-                ls="-" if kind == "analytic" else "--", label=f"{label} {kind}")
-    ax.set_xlabel("waypoint k [-]")
-    ax.set_ylabel("load-induced TCP error [mm]")
-    ax.set_title(f"{res.problem.name}: chosen {chosen} (thick); analytic solid, optimised dashed", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
-    out["branches.png"] = buf.getvalue()
-
-    if res.trajectories:
-        fig = Figure(figsize=(4.5 * len(res.trajectories) + 1.0, 8.0))
-        FigureCanvasAgg(fig)
-        axs = fig.subplots(4, len(res.trajectories), squeeze=False, sharex="col")
-        lim = res.problem.limits
-        for c, (m, tr) in enumerate(res.trajectories.items()):
-            for r, (y, name, L) in enumerate(((tr.q, "q [rad]", None), (tr.qd, "qd [rad/s]", lim.velocity),
-                                              (tr.qdd, "qdd [rad/s^2]", lim.acceleration),
-                                              (tr.qddd, "jerk [rad/s^3]", lim.jerk))):
-                ax = axs[r, c]
-                for j in range(6):
-                    ax.plot(tr.t, y[:, j], lw=0.9, label=f"joint {j + 1}")
-                if L is not None:
-                    for sgn in (1, -1):
-                        ax.axhline(sgn * float(np.min(L)), color="k", ls="--", lw=0.8)
-                ax.set_ylabel(name, fontsize=8)
-                ax.grid(alpha=0.3)
-            axs[0, c].set_title(f"{m}: {tr.duration_s:.3f} s", fontsize=9)
-            axs[-1, c].set_xlabel("t [s]")
-        axs[0, 0].legend(fontsize=6, ncol=3)
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=80, metadata={"Software": None})
-        out["trajectory.png"] = buf.getvalue()
-    return out
+def figures(res: PlanResult, view: RunView | None = None) -> dict[str, bytes]:
+    """PNG figures ``branches.png`` (error per branch) and ``trajectory.png`` (timed joints): the
+    report's figures 5 and 6, drawn by the same functions
+    (:func:`planner.report.figures.quick_figures`); ``view``: the plan's, when the caller has it."""
+    from planner.report.figures import quick_figures
+    from planner.report.run import run_from_plan
+    return quick_figures(run_from_plan(res, Path("."), view))
 
 
-#: Files a plan may write; those a new run in the same folder does not produce are removed.
 #: Extra columns of ``trajectory.csv`` with dynamic compensation: the planned link side, rad.
 LINK_COLUMNS = [f"ql{i}" for i in range(1, 7)]
 
-STALE_OUTPUTS = ("trajectory.csv", "trajectory_toppra.csv", "trajectory_ruckig.csv",
-                 "branches.png", "trajectory.png", "waypoints.csv", "branches.csv", "path.csv")
 
 
 def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True,
-                  extra: Mapping[str, bytes] | None = None) -> dict[str, Any]:
+                  extra: Mapping[str, bytes] | None = None, view: RunView | None = None) -> dict[str, Any]:
     """Write the plan's files, all or nothing.
 
     ``summary.json``, ``path.csv`` (x, y, z, q1..q6: the exact commands),
     ``waypoints.csv``, ``branches.csv``, ``trajectory.csv`` (the controller's,
     Ruckig when available), ``trajectory_<method>.csv`` for the other methods,
-    and with ``with_figures`` ``branches.png`` and ``trajectory.png``; ``extra`` adds files by
-    name (the exports of ``plan --export``), in the same set.
+    and with ``with_figures`` ``branches.png`` and ``trajectory.png`` (the report's figures 5
+    and 6); ``extra`` adds files by name (the exports of ``plan --export``), in the same set.
+    ``view``: the plan's :class:`RunView` when the caller has it (else it is built here).
 
     Raises
     ------
     CompplanError
         If the plan failed (nothing is written).
     """
-    res.raise_for_status()
-    assert res.exact is not None
-    summary = res.summary()
+    view = res.view() if view is None else view
+    assert res.exact is not None and view.result is res
+    summary = view.summary
     out = OutputSet(folder)
     out.add_json("summary.json", summary)
     out.add_csv("path.csv", PATH_COLUMNS, np.hstack([res.positions, res.exact.q_command]))
-    out.add_csv("waypoints.csv", WAYPOINT_COLUMNS, res.waypoint_table())
-    cols, rows = res.branch_table()
-    out.add_csv("branches.csv", cols, rows)
+    out.add_csv("waypoints.csv", WAYPOINT_COLUMNS, view.waypoints)
+    out.add_csv("branches.csv", view.branch_columns, view.branches)
     for m, tr in res.trajectories.items():
         name = "trajectory.csv" if m == res.controller else f"trajectory_{m}.csv"
         if m == res.controller and res.dynamic is not None and res.dynamic.link is not None:
@@ -671,14 +692,13 @@ def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True
         else:
             out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
     if with_figures:
-        for name, data in figures(res).items():
+        for name, data in figures(res, view).items():
             out.add_bytes(name, data)
-    if res.dynamic is not None and res.dynamic.link is not None:
-        cols, rows = res.dynamic.series(res.problem.model)
-        out.add_csv("dynamic.csv", cols, rows)
+    if view.dynamic is not None:
+        out.add_csv("dynamic.csv", *view.dynamic)
     for name, data in (extra or {}).items():
         out.add_bytes(name, data)
-    out.publish(stale=STALE_OUTPUTS)
+    out.publish()
     return summary
 
 
@@ -692,5 +712,5 @@ def output_names(res: PlanResult, with_figures: bool = True) -> list[str]:
     return names
 
 
-__all__ = ["PlanResult", "PlanStatus", "WAYPOINT_COLUMNS", "figures", "output_names", "plan",
+__all__ = ["PlanResult", "PlanStatus", "RunView", "WAYPOINT_COLUMNS", "figures", "output_names", "plan",
            "write_outputs"]

@@ -26,15 +26,16 @@ report and the identification's checks use it).
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from models.arm import ArmModel, EquilibriumResult
 from models.constants import DLS_DAMPING, EXACT_COMPENSATION_TOL, JACOBIAN_COND_WARN
+from models.errors import InputError
 from models.load import Load, load_rows
 from models.robot import Robot
+from models.status import Status
 from models.transforms import rotation_angle
 
 #: Damped-Newton iterations of the exact compensation's pose solve.
@@ -46,11 +47,18 @@ __all__ = ["CompensationResult", "CompensationStatus", "EquilibriumResult", "clo
            "exact", "rigid_pose_solve", "uncompensated"]
 
 
-class CompensationStatus(enum.Enum):
+class CompensationStatus(Status):
+    """Outcome of a compensation; ``usable``: ``OK`` or ``WARNING`` (the commands may be run)."""
+
     OK = "ok"
     WARNING = "warning"          # succeeded with a caveat (e.g. DLS near a singularity)
     NOT_CONVERGED = "not_converged"
     FAILED = "failed"
+
+    @property
+    def usable(self) -> bool:
+        """True if the commands may be run (``OK``, or ``WARNING`` with its caveat)."""
+        return self in (CompensationStatus.OK, CompensationStatus.WARNING)
 
 
 @dataclass
@@ -105,7 +113,7 @@ def _arm(model: ArmModel | Robot | object) -> ArmModel:
     arm = getattr(model, "arm", None)           # a KinematicModel
     if isinstance(arm, ArmModel):
         return arm
-    raise TypeError(f"expected an ArmModel, Robot or KinematicModel, got {type(model).__name__}")
+    raise InputError(f"model: expected an ArmModel, Robot or KinematicModel, got {type(model).__name__}")
 
 
 def equilibrium(model: ArmModel | Robot, q_command: np.ndarray, load: Load | np.ndarray) -> EquilibriumResult:
@@ -156,7 +164,7 @@ def closed_form(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.n
     elif linearize_at == "target":
         q_lin = qt
     else:
-        raise ValueError(f"linearize_at must be 'deflected' or 'target', got {linearize_at!r}")
+        raise InputError(f"linearize_at: expected 'deflected' or 'target', got {linearize_at!r}")
     J = arm.kinematics.J(q_lin).reshape(-1, 6, 6)
     ds = arm.load_error(q_lin, L)                    # (N, 6) [m; rad]
     cond = np.linalg.cond(J)

@@ -32,7 +32,6 @@ compensated statically only.
 
 from __future__ import annotations
 
-import enum
 import json
 from dataclasses import dataclass
 
@@ -45,11 +44,14 @@ from models.arm import ArmModel
 from models.dynamics import gravity_torque_function, payload_vector, rnea_function
 from models.load import Load, load_rows
 from models.robot import Robot
+from models.status import Status
 
 __all__ = ["DynamicCommand", "DynamicStatus", "inertial_torques", "motor_command"]
 
 
-class DynamicStatus(enum.Enum):
+class DynamicStatus(Status):
+    """Outcome of :func:`motor_command`."""
+
     OK = "ok"
     FAILED = "failed"
 
@@ -175,7 +177,7 @@ def motor_command(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     if not arm.gravity_on:              # the arm's own weight: the rigid-body model's, not the effect's
         tau_s = tau_s + link_weight_torques(robot, q)
     theta = q - arm.torque_deflection(q, tau_s - tau_i)
-    reason = (f"ok: motor-side command of {len(q)} samples; peak inertial torque "
+    reason = (f"motor-side command of {len(q)} samples; peak inertial torque "
               f"{np.max(np.abs(tau_i)):.3g} N*m (joint {int(np.argmax(np.abs(tau_i).max(axis=0))) + 1})")
     return DynamicCommand(DynamicStatus.OK, reason, theta, q, tau_i, tau_s)
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.errors import InputError, UnreachableError
-from models.ik import IK_REASONS, IKSolver, IKStatus
+from models.ik import IKSolver, IKStatus
 
 #: Largest joint step (rad) allowed between neighbouring waypoints before the
 #: path is declared to flip (a configuration change between two samples).
@@ -69,10 +69,10 @@ def branch_paths(ik: IKSolver, tcp2base: np.ndarray,
     feasible: dict[int, BranchPath] = {}
     rejected: dict[int, str] = {}
     for b in range(ik.n_branches):
-        bad = np.where(sol.status[:, b] != IKStatus.OK)[0]
+        bad = np.where(sol.status[:, b] != IKStatus.OK.code)[0]
         if bad.size:
             k = int(bad[0])
-            rejected[b] = f"waypoint {k}: {IK_REASONS[IKStatus(int(sol.status[k, b]))]}"
+            rejected[b] = f"waypoint {k}: {sol.reason(k, b)}"
             continue
         q = np.unwrap(sol.q[:, b, :], axis=0)
         # Keep the unwrapped path inside the limits if a common 2*pi shift allows it.

@@ -30,10 +30,8 @@ from models.robot import Robot
 from models.transforms import matrix_to_rpy
 from problems.path import line_positions
 from problems.posture import OrientationRule, PostureTask, SolverSettings
-from problems.problem_file import (DEFAULT_DT, DEFAULT_RPY, DEFAULT_TIMING_METHODS, DT_MAX, MAX_WAYPOINTS,
-                                   TIMING_METHODS,
-                                   WRENCH_FRAMES, Limits, ProblemFileError, TimingSettings, check_timing,
-                                   parse_branch, parse_cost, parse_header, parse_limits,
+from problems.problem_file import (DEFAULT_RPY, MAX_WAYPOINTS, WRENCH_FRAMES, Limits, ProblemFileError,
+                                   TimingSettings, check_timing, parse_branch, parse_cost, parse_header, parse_limits,
                                    parse_orientation, parse_path, parse_payload, parse_placement, parse_robot,
                                    parse_solver, parse_timing, parse_wrench)
 
@@ -215,6 +213,8 @@ class Problem:
                        "toppra_max_iterations": self.timing.toppra_max_iterations,
                        "ruckig_max_iterations": self.timing.ruckig_max_iterations,
                        "dynamic": self.timing.dynamic}
+        for m, opts in self.timing.method_options.items():       # [timing.<method>] tables
+            d["timing"][m] = dict(opts)
         if self.placement is not None:
             g = self.placement.describe()
             d["placement"] = {k: v for k, v in g.items() if k != "placements"}
@@ -303,11 +303,8 @@ def load_problem(spec: str | Path) -> Problem:
 
 
 __all__ = [
-    "DEFAULT_DT",
     "DEFAULT_RPY",
-    "DT_MAX",
     "MAX_WAYPOINTS",
-    "DEFAULT_TIMING_METHODS", "TIMING_METHODS",
     "WRENCH_FRAMES",
     "Limits",
     "Problem",

@@ -16,7 +16,7 @@ what was expected.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, NamedTuple
 
@@ -31,16 +31,19 @@ from problems import paper
 from problems.path import MAX_JOINT_STEP, line_positions
 from problems.posture import (DEFAULT_MAX_ITER, DEFAULT_SCAN, DEFAULT_SMOOTHNESS, DEFAULT_TOL,
                               OrientationRule, SolverSettings)
+from problems.timing import DT_DEFAULT_S, available_methods, controller_methods, default_methods, get_method
+from problems.timing.registry import validate_options
 
-#: Time-parametrisation methods a problem may name (see problems.timing).
-TIMING_METHODS = ("toppra", "jerk_optimal", "ruckig")
-#: The methods run when a problem names none: the time-optimal reference (jerk not limited) and
-#: the jerk-limited trajectory the controller runs.
-DEFAULT_TIMING_METHODS = ("toppra", "jerk_optimal")
-#: Default controller period, s.
-DEFAULT_DT = 0.008
-#: Largest accepted controller period, s.
-DT_MAX = 0.1
+# The timing methods a problem may name, those run when it names none, the default and largest
+# controller period and each method's options are the registry's (problems.timing.registry).
+
+#: ``[timing]`` keys that set a method's option (kept from before the ``[timing.<method>]``
+#: tables): key -> (method, option).
+TIMING_OPTION_KEYS: dict[str, tuple[str, str]] = {
+    "toppra_gridpoints": ("toppra", "gridpoints"),
+    "toppra_max_iterations": ("toppra", "max_iterations"),
+    "ruckig_max_iterations": ("ruckig", "max_iterations"),
+}
 #: Largest accepted number of waypoints (keeps an NLP at a sane size).
 MAX_WAYPOINTS = 2000
 #: Default nominal TCP orientation: tool z axis pointing down (roll = 180 deg).
@@ -95,25 +98,27 @@ class Limits:
 
 @dataclass(frozen=True)
 class TimingSettings:
-    """Time parametrisation: methods by name, controller period and method options."""
+    """Time parametrisation: methods by name (registered in :mod:`problems.timing`), controller
+    period (s) and method options.
 
-    methods: tuple[str, ...] = DEFAULT_TIMING_METHODS
-    dt: float = DEFAULT_DT
+    ``method_options`` holds the ``[timing.<method>]`` tables (option name -> value, as the
+    method's ``options`` name them); ``toppra_gridpoints``, ``toppra_max_iterations`` and
+    ``ruckig_max_iterations`` are the older flat keys of two of them (0: the method's default).
+    """
+
+    methods: tuple[str, ...] = field(default_factory=default_methods)
+    dt: float = DT_DEFAULT_S
     toppra_gridpoints: int = 0          # 0: the timing module's default
     toppra_max_iterations: int = 0      # 0: default
     ruckig_max_iterations: int = 0      # 0: default
     dynamic: bool = False               # motor-side commands for the inertial torques (problems/dynamic.py)
+    method_options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
-    def options(self, method: str) -> dict[str, int]:
-        """Keyword options for ``problems.timing.time_parametrize``."""
-        out: dict[str, int] = {}
-        if method == "toppra":
-            if self.toppra_gridpoints:
-                out["gridpoints"] = self.toppra_gridpoints
-            if self.toppra_max_iterations:
-                out["max_iterations"] = self.toppra_max_iterations
-        elif method == "ruckig" and self.ruckig_max_iterations:
-            out["max_iterations"] = self.ruckig_max_iterations
+    def options(self, method: str) -> dict[str, Any]:
+        """Keyword options of ``method`` for ``problems.timing.time_parametrize``."""
+        out: dict[str, Any] = {opt: getattr(self, key) for key, (m, opt) in TIMING_OPTION_KEYS.items()
+                               if m == method and getattr(self, key)}
+        out.update(self.method_options.get(method, {}))
         return out
 
 
@@ -294,10 +299,11 @@ def _table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
         cur = cur.get(p, {}) if isinstance(cur, Mapping) else None
         if not isinstance(cur, Mapping):
             raise _err(where, key, f"must be a table, got {cur!r}")
-    unknown = sorted(set(cur) - set(_TABLE_KEYS[key]))
+    allowed = _TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
+    unknown = sorted(set(cur) - set(allowed))
     if unknown:
         raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: "
-                               f"{list(_TABLE_KEYS[key])}")
+                               f"{list(allowed)}")
     return cur
 
 
@@ -365,7 +371,9 @@ def _check_radians(where: str, key: str, values: np.ndarray, limit: float, deg_k
 
 
 def check_timing(where: str, t: TimingSettings) -> None:
-    """Validate timing settings (methods known and non-empty, ``dt`` in (0, DT_MAX] s).
+    """Validate timing settings against the registry of timing methods: methods registered and
+    non-empty, one the controller can run among them, ``dt`` in (0, the smallest ``dt_max_s`` of
+    the methods] s, each method's options known to it and valid.
 
     Parameters
     ----------
@@ -376,15 +384,28 @@ def check_timing(where: str, t: TimingSettings) -> None:
     Raises
     ------
     ProblemFileError
-        Naming ``timing.methods`` or ``timing.dt``.
+        Naming ``timing.methods``, ``timing.dt`` or the option's key; an unknown method's message
+        lists the registered ones.
     """
+    valid = list(available_methods())
     if not t.methods:
-        raise _err(where, "timing.methods", f"must name at least one of {list(TIMING_METHODS)}")
+        raise _err(where, "timing.methods", f"must name at least one of {valid}")
     for m in t.methods:
-        if m not in TIMING_METHODS:
-            raise _err(where, "timing.methods", f"has unknown method {m!r}; valid: {list(TIMING_METHODS)}")
-    if not (0.0 < t.dt <= DT_MAX) or not math.isfinite(t.dt):
-        raise _err(where, "timing.dt", f"must be in (0, {DT_MAX}] s, got {t.dt!r}")
+        if m not in valid:
+            raise _err(where, "timing.methods", f"has unknown method {m!r}; valid: {valid}")
+    if not controller_methods(t.methods):
+        raise _err(where, "timing.methods", f"= {list(t.methods)} has no method whose trajectory the controller "
+                                            f"can run; add one of {list(controller_methods())}")
+    dt_max = min(get_method(m).dt_max_s for m in t.methods)
+    if not (0.0 < t.dt <= dt_max) or not math.isfinite(t.dt):
+        raise _err(where, "timing.dt", f"must be in (0, {dt_max}] s, got {t.dt!r}")
+    for m in dict.fromkeys([*t.methods, *t.method_options]):
+        if m not in valid:
+            raise ProblemFileError(f"{where}: [timing.{m}]: unknown method {m!r}; valid: {valid}")
+        try:
+            validate_options(get_method(m), t.options(m))
+        except InputError as exc:
+            raise ProblemFileError(f"{where}: [timing.{m}]: {exc}") from None
 
 
 # --------------------------------------------------------------------------------------
@@ -709,22 +730,44 @@ def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:
     return np.radians(home) if deg else home
 
 
+def _method_tables(where: str, tt: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """The ``[timing.<method>]`` tables of ``[timing]``: method -> option -> value, each name
+    known to the method (values are checked by :func:`check_timing`)."""
+    out: dict[str, dict[str, Any]] = {}
+    for m in available_methods():
+        if m not in tt:
+            continue
+        tab, spec = tt[m], get_method(m)
+        if not isinstance(tab, Mapping):
+            raise _err(where, f"timing.{m}", f"must be a table of {m}'s options {list(spec.options)}, got {tab!r}")
+        unknown = sorted(set(tab) - set(spec.options))
+        if unknown:
+            raise ProblemFileError(f"{where}: [timing.{m}]: unknown key(s) {unknown}; allowed: {list(spec.options)}")
+        for key, (method, opt) in TIMING_OPTION_KEYS.items():
+            if method == m and opt in tab and tt.get(key):
+                raise ProblemFileError(f"{where}: give either 'timing.{key}' or 'timing.{m}.{opt}', not both")
+        out[m] = dict(tab)
+    return out
+
+
 def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
-    """The ``[timing]`` section: methods, controller period (s) and method options."""
+    """The ``[timing]`` section: methods (registered in :mod:`problems.timing`), controller period
+    (s), method options (``[timing.<method>]`` tables and the older flat keys)."""
     tt = _table(where, data, "timing")
-    methods = tt.get("methods", list(DEFAULT_TIMING_METHODS))
+    methods = tt.get("methods", list(default_methods()))
     if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
-        raise _err(where, "timing.methods", f"must be a list of method names {list(TIMING_METHODS)}, "
+        raise _err(where, "timing.methods", f"must be a list of method names {list(available_methods())}, "
                                             f"got {methods!r}")
     timing = TimingSettings(
         methods=tuple(methods),
-        dt=_positive(where, "timing.dt", tt.get("dt", DEFAULT_DT)),
+        dt=_positive(where, "timing.dt", tt.get("dt", DT_DEFAULT_S)),
         toppra_gridpoints=_integer(where, "timing.toppra_gridpoints", tt.get("toppra_gridpoints", 0), 0),
         toppra_max_iterations=_integer(where, "timing.toppra_max_iterations",
                                        tt.get("toppra_max_iterations", 0), 0),
         ruckig_max_iterations=_integer(where, "timing.ruckig_max_iterations",
                                        tt.get("ruckig_max_iterations", 0), 0),
-        dynamic=tt.get("dynamic", False))
+        dynamic=tt.get("dynamic", False),
+        method_options=_method_tables(where, tt))
     if not isinstance(timing.dynamic, bool):
         raise _err(where, "timing.dynamic", f"must be true or false, got {timing.dynamic!r}")
     if timing.toppra_gridpoints == 1:

@@ -915,6 +915,7 @@ def ur10_data(tmp_path_factory) -> Path:
     return d / "ur10.csv"
 
 
+@pytest.mark.slow
 def test_identify_with_the_wrong_robot_file_is_not_ok(ur10_data: Path, tmp_path: Path, capsys) -> None:
     """UR10 data identified with the UR5 robot file: ~187 mm DH "corrections" fit the data, but the
     status is implausible_geometry and a warning names the parameters and the robot file."""
@@ -934,6 +935,7 @@ def test_identify_with_the_wrong_robot_file_is_not_ok(ur10_data: Path, tmp_path:
     assert json.loads((rep / "report.json").read_text())["status"] == "implausible_geometry"
 
 
+@pytest.mark.slow
 def test_identify_with_the_right_robot_file_is_plausible(ur10_data: Path) -> None:
     """The same data with the UR10 file: sub-millimetre corrections, no implausibility."""
     from models import load_robot

@@ -10,7 +10,6 @@ import numpy as np
 from models import KinematicModel, load_robot
 from models.constants import EXACT_COMPENSATION_TOL
 from models.transforms import tool_down_rotation
-from planner.cli import main
 from problems import paper
 from problems.compensation import CompensationStatus, closed_form, exact, uncompensated
 from problems.path import branch_paths, line_positions, poses
@@ -114,11 +113,10 @@ def _independent_physics(robot, q_command, F, iters=200):
     return km.tcp(q)[:3, 3]
 
 
-def test_demo_path_csv_lands_on_target_under_independent_physics(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path)]) == 0
-    out = capsys.readouterr().out
-    assert "after exact" in out
-    with open(tmp_path / "path.csv") as fh:
+def test_demo_path_csv_lands_on_target_under_independent_physics(paper_run, paper_run_output):
+    """``compplan plan paper_4_4`` (the demo's problem; once per session, conftest.py)."""
+    assert "after exact" in paper_run_output
+    with open(paper_run / "path.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 40
     robot = load_robot("ar5")

@@ -79,6 +79,7 @@ MOTION_GAIN_MIN = 10.0
 REST_ERROR_MAX_M = 2e-6
 
 
+@pytest.mark.slow
 def test_motor_command_makes_the_simulated_elastic_arm_follow_the_plan():
     """A fast UR5 move with 5 kg (jerk-limited timing at 4 ms) through the independent elastic-joint
     simulation (problems/virtual/elastic.py: NumPy dynamics, Radau): static compensation only vs the

@@ -22,11 +22,10 @@ REST_FINAL_MAX_M = 1e-6
 RATIO_TOL = 1e-9
 
 
-@pytest.fixture(scope="module")
-def fast_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dyn") / "run"
-    assert main(["plan", "ur5_fast_payload", "--out", str(out), "--no-report"]) == 0
-    return out
+@pytest.fixture
+def fast_run(fast_payload_run):
+    """``compplan plan ur5_fast_payload`` (once per session, with its report: conftest.py)."""
+    return fast_payload_run
 
 
 def _csv(path):
@@ -35,6 +34,7 @@ def _csv(path):
     return {h: a[:, i] for i, h in enumerate(rows[0])}
 
 
+@pytest.mark.slow
 def test_trajectory_csv_is_the_command_with_the_link_side_beside_it(fast_run):
     s = json.loads((fast_run / "summary.json").read_text())
     d = s["dynamic_compensation"]
@@ -63,6 +63,7 @@ def test_trajectory_csv_is_the_command_with_the_link_side_beside_it(fast_run):
         assert np.all(np.abs(x).max(axis=0) <= np.asarray(lim[name]) * (1 + RATIO_TOL)), name
 
 
+@pytest.mark.slow
 def test_the_simulated_arm_follows_the_link_plan(fast_run):
     """trajectory.csv's command through the elastic-joint simulation vs the static compensation."""
     from problems.dynamic import motor_command
@@ -100,6 +101,7 @@ def test_dynamic_needs_link_masses(tmp_path, capsys):
     assert "no link masses" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_track_command_simulates_a_run(fast_run, tmp_path, capsys):
     out = tmp_path / "track.csv"
     assert main(["track", str(fast_run), "--out", str(out), "--settle", "0.2"]) == 0
@@ -114,9 +116,6 @@ def test_track_command_simulates_a_run(fast_run, tmp_path, capsys):
     assert soft > 2 * motion
 
 
-def test_track_refuses_an_arm_without_masses(tmp_path, capsys):
-    run = tmp_path / "demo"
-    assert main(["demo", "--points", "12", "--out", str(run), "--no-report"]) == 0
-    capsys.readouterr()
-    assert main(["track", str(run)]) == 2
+def test_track_refuses_an_arm_without_masses(paper_folder, capsys):
+    assert main(["track", str(paper_folder)]) == 2          # the demo's ar5 has no link masses
     assert "no link masses" in capsys.readouterr().err

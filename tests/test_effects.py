@@ -2,9 +2,10 @@
 physics (an independent NumPy implementation, problems/virtual/), and its derivatives
 against finite differences.
 
-For each effect the simulator is configured with that effect alone; its realised physical
-parameters are mapped to the plug-in's parameters (``SIMULATION_MAP``, by hand from the
-physics: beam formulas, dead band, barycentre, ...), and the model's noise-free prediction
+For each effect the simulator is configured with that effect alone (its table, which the effect
+names: ``Effect.simulation``); its realised physical parameters are mapped to the plug-in's
+parameters (``SIMULATION_MAP``, by hand from the physics: beam formulas, dead band, barycentre,
+...), and the model's noise-free prediction
 of the measured point must equal the simulator's measurement.  Stiffness hardening has no
 exact mapping (the simulator's two-slope and smooth curves are not splines): its spline is
 fitted to the simulated curve and must match it to a few % of the curve's nonlinear part.
@@ -40,9 +41,16 @@ FD_EQUILIBRIUM_REL_TOL = 1e-2
 FD_EQUILIBRIUM_ABS_REL = 1e-7
 
 
-def _vr(robot_name: str, effects: dict, registered: bool = True, extra: dict | None = None) -> VirtualRobot:
-    cfg = {"campaign": {"poses": 20}, "noise": {"sigma_m": 0.0}, "registration": {"registered": registered},
-           "effects": effects, **(extra or {})}
+def _vr(robot_name: str, effect: str, table: dict, registered: bool = True) -> VirtualRobot:
+    """The virtual robot with the physics of ``effect`` alone, given by ``table``: its table of the
+    configuration is the one the effect declares (``[effects.<simulation>]``, or the top-level
+    ``[<simulation>]`` of a declared effect)."""
+    e = fx.effect(effect)
+    cfg = {"campaign": {"poses": 20}, "noise": {"sigma_m": 0.0}, "registration": {"registered": registered}}
+    if e.declared:
+        cfg[e.simulation] = {**cfg.get(e.simulation, {}), **table}
+    else:
+        cfg["effects"] = {e.simulation: table}
     return VirtualRobot(load_robot(robot_name), cfg, seed=5)
 
 
@@ -118,32 +126,28 @@ def _map_springs(vr: VirtualRobot, th: dict, c: dict) -> None:
     th["stiffness.s"] = vr.robot.stiffness / vr.k_true - 1.0
 
 
-#: effect -> (robot, simulator effects, extra simulator config, registered, mapping)
+#: effect -> (robot, its simulator table, registered, mapping).  The table's name is the effect's
+#: declaration (``Effect.simulation``), not repeated here: only the test's own knowledge is (which
+#: values excite the physics, and how the realised physics maps onto the effect's parameters).
 SIMULATION_MAP = {
-    "joint_springs": ("ur5", {}, {"stiffness": {"scale": [1.3, 0.8, 1.1, 0.7, 1.2, 0.9]}}, True, _map_springs),
-    "registration": ("ur10", {}, {}, False, _map_registration),
-    "measured_point": ("ur10", {}, {}, False, _map_registration),
-    "joint_offset": ("ur5", {"joint_offset": {"dtheta_rad": [1e-3, -2e-3, 5e-4, 1e-3, -1e-3, 2e-3]}}, {}, True,
-                     _map_geometric),
-    "geometric": ("ur10", {"geometric": {}}, {}, True, _map_geometric),
-    "gravity": ("ur10", {"gravity": {"payload_kg": 3.0, "payload_com_m": [0.01, 0.02, 0.05]}}, {}, True,
-                _map_gravity),
+    "joint_springs": ("ur5", {"scale": [1.3, 0.8, 1.1, 0.7, 1.2, 0.9]}, True, _map_springs),
+    "registration": ("ur10", {}, False, _map_registration),
+    "measured_point": ("ur10", {}, False, _map_registration),
+    "joint_offset": ("ur5", {"dtheta_rad": [1e-3, -2e-3, 5e-4, 1e-3, -1e-3, 2e-3]}, True, _map_geometric),
+    "geometric": ("ur10", {}, True, _map_geometric),
+    "gravity": ("ur10", {"payload_kg": 3.0, "payload_com_m": [0.01, 0.02, 0.05]}, True, _map_gravity),
     # ur5, not the paper's ar5: the ar5's joints are so compliant that 60 N loads leave the
     # identification graph's EQUILIBRIUM_UNROLL-times unrolled fixed point ~1e-7 m short of
     # convergence, which would hide the term under the truncation (the planning model iterates)
-    "lost_motion": ("ur5", {"lost_motion": {"backlash_rad": 3e-4, "smoothing_Nm": 2.0}}, {}, True,
-                    _map_lost_motion),
-    "load_offset": ("ur5", {"load_offset": {"r_tool_m": [0.01, 0.04, 0.07]}}, {}, True,
+    "lost_motion": ("ur5", {"backlash_rad": 3e-4, "smoothing_Nm": 2.0}, True, _map_lost_motion),
+    "load_offset": ("ur5", {"r_tool_m": [0.01, 0.04, 0.07]}, True,
                     lambda vr, th, c: th.__setitem__("load_offset.r_tool", vr.r_tool)),
-    "link_compliance": ("ur10", {"link_compliance": {"EI_Nm2": 1.5e5, "GJ_Nm2": 1.0e5}}, {}, True,
-                        _map_link_compliance),
-    "drift": ("ur5", {"drift": {"rate_m_per_h": [2e-4, -1e-4, 1.5e-4], "accel_m_per_h2": [1e-4, 0, -2e-4]}},
-              {}, True, _map_drift),
-    "thermal": ("ur5", {"thermal": {"alpha_per_K": 2.3e-5, "links": [2, 3]}}, {}, True, _map_thermal),
+    "link_compliance": ("ur10", {"EI_Nm2": 1.5e5, "GJ_Nm2": 1.0e5}, True, _map_link_compliance),
+    "drift": ("ur5", {"rate_m_per_h": [2e-4, -1e-4, 1.5e-4], "accel_m_per_h2": [1e-4, 0, -2e-4]}, True, _map_drift),
+    "thermal": ("ur5", {"alpha_per_K": 2.3e-5, "links": [2, 3]}, True, _map_thermal),
     "stiffness_hardening": None,       # no exact mapping: see test_hardening_spline_fits_the_simulated_curves
-    "joint_error_map": ("ur5", {"joint_error_map": {"joint": [1, 1, 3], "amplitude_rad": [1e-3, 2e-4, 4e-4],
-                                                    "harmonic": [2, 13.4, 5.5], "phase_rad": [0.3, -1.2, 1.1]}},
-                        {}, True, _map_error_map),
+    "joint_error_map": ("ur5", {"joint": [1, 1, 3], "amplitude_rad": [1e-3, 2e-4, 4e-4], "harmonic": [2, 13.4, 5.5],
+                                "phase_rad": [0.3, -1.2, 1.1]}, True, _map_error_map),
 }
 
 
@@ -162,6 +166,9 @@ def test_every_module_of_the_package_registers_an_effect():
 
 def test_every_effect_has_a_simulation_check():
     assert set(SIMULATION_MAP) == {e.name for e in fx.registry()}
+    # ... and the virtual robot simulates each (the agreement itself: test_virtual_extensions.py)
+    from problems.virtual import realisation
+    assert all(realisation(name) is not None for name in SIMULATION_MAP)
 
 
 def _rows(vr: VirtualRobot, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -177,8 +184,9 @@ def _rows(vr: VirtualRobot, n: int, rng: np.random.Generator) -> tuple[np.ndarra
 
 @pytest.mark.parametrize("name", sorted(k for k, v in SIMULATION_MAP.items() if v is not None))
 def test_symbolic_term_equals_the_virtual_robot(name, rng):
-    robot_name, effects, extra, registered, mapping = SIMULATION_MAP[name]
-    vr = _vr(robot_name, effects, registered, extra)
+    robot_name, table, registered, mapping = SIMULATION_MAP[name]
+    vr = _vr(robot_name, name, table, registered)
+    assert vr.simulated(name)
     robot = vr.robot
     th: dict = {}
     c: dict = {}
@@ -207,8 +215,8 @@ def test_symbolic_term_equals_the_virtual_robot(name, rng):
 
 @pytest.mark.parametrize("model", ["two_slope", "smooth"])
 def test_hardening_spline_fits_the_simulated_curves(model):
-    vr = _vr("ur5", {"stiffness_hardening": {"model": model, "knee_torque_Nm": 30.0, "stiffness_ratio": 2.0,
-                                             "beta_per_Nm": 0.01}})
+    vr = _vr("ur5", "stiffness_hardening", {"model": model, "knee_torque_Nm": 30.0, "stiffness_ratio": 2.0,
+                                            "beta_per_Nm": 0.01})
     from models.effects.stiffness_hardening import HARDENING_KNOT_QUANTILES, N_HARDENING, StiffnessHardening
     k0 = vr.robot.stiffness
     tau_max = 120.0

@@ -149,6 +149,7 @@ def test_constant_command_rests_at_the_static_deflected_pose(name):
 # Motion
 # --------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_fast_move_leaves_the_path_and_settles():
     robot = load_robot("ur5")
     t, q, qd = _move()
@@ -175,6 +176,7 @@ def _energy(arm: ElasticArm, res, K: np.ndarray) -> np.ndarray:
     return 0.5 * np.einsum("ni,nij,nj->n", res.qd, M, res.qd) + 0.5 * np.einsum("ni,i,ni->n", d, K, d)
 
 
+@pytest.mark.slow
 def test_energy_without_gravity_and_damping():
     robot = replace(load_robot("ur5"), gravity=np.zeros(3))
     arm, K = ElasticArm(robot, MOVE_PAYLOAD), robot.stiffness
@@ -191,6 +193,7 @@ def test_energy_without_gravity_and_damping():
     assert np.all(np.diff(Ed) <= ENERGY_REL_TOL * E[0]) and Ed[-1] < 0.5 * E[0]
 
 
+@pytest.mark.slow
 def test_pid_motor_settles_on_the_command_and_tracks_like_the_exact_motor():
     robot = load_robot("ur5")
     t, q, qd = _move(T=0.6, dq=0.3 * MOVE_DQ)

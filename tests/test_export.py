@@ -4,7 +4,8 @@ Every format is read back by a parser written here, independently of the writers
 expressions, PyYAML), and compared with the trajectory: positions to the printed precision
 (:data:`POS_TOL_RAD`), times to :data:`TIME_TOL_S`, joint order, units (degrees for RAPID
 and KRL) and the controller's sign and offset.  Golden files (``tests/golden/export``) pin
-the text of each format for a small trajectory; ``COMPPLAN_UPDATE_GOLDEN=1`` rewrites them.
+the text of each format for a small trajectory; ``COMPPLAN_UPDATE_GOLDEN=1`` rewrites them and
+fails those tests (a run with it set never passes: review the diff, run again without it).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ from planner.cli import main
 from planner.export import EXPORT_FORMATS, ExportData, ExportError, export_files, verify_limits
 
 GOLDEN = Path(__file__).parent / "golden" / "export"
+#: Set to rewrite the golden files: the tests that do so fail (the run cannot pass with it set).
+UPDATE_GOLDEN_ENV = "COMPPLAN_UPDATE_GOLDEN"
 #: Positions: URScript prints 9 decimals of rad, ROS 2 12 significant digits, RAPID/KRL 6 of deg.
 POS_TOL_RAD = 1e-8
 #: Times: servoj's t and RAPID's \T print 6 decimals; ROS 2 nanoseconds.
@@ -144,13 +147,24 @@ def fixed_version(monkeypatch):
 
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_golden_files(fmt, fixed_version):
+    """The text of each format equals its golden file.  ``COMPPLAN_UPDATE_GOLDEN=1`` rewrites the
+    files instead and fails the test, naming them: review the diff, then run again without it (a
+    run with the variable set never passes)."""
     data = small_data()
     files = export_files(data, fmt, Path(f"golden_{fmt}"))
+    if os.environ.get(UPDATE_GOLDEN_ENV):
+        written = []
+        for path, text in files.items():
+            golden = GOLDEN / path.name
+            if not golden.is_file() or golden.read_text(encoding="utf-8") != text:
+                golden.write_text(text, encoding="utf-8")
+                written.append(golden.name)
+        pytest.fail(f"{UPDATE_GOLDEN_ENV} is set: golden files of {fmt} "
+                    + (f"rewritten: {', '.join(written)}" if written else "unchanged")
+                    + f"; check them (git diff {GOLDEN}) and run the tests without {UPDATE_GOLDEN_ENV}")
     for path, text in files.items():
         golden = GOLDEN / path.name
-        if os.environ.get("COMPPLAN_UPDATE_GOLDEN"):
-            golden.write_text(text, encoding="utf-8")
-        assert golden.is_file(), f"missing golden file {golden} (COMPPLAN_UPDATE_GOLDEN=1 writes it)"
+        assert golden.is_file(), f"missing golden file {golden} ({UPDATE_GOLDEN_ENV}=1 writes it)"
         assert text == golden.read_text(encoding="utf-8"), f"{path.name} differs from {golden}"
 
 

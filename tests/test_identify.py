@@ -13,6 +13,7 @@ effect added.
 from __future__ import annotations
 
 import copy
+import functools
 import json
 
 import numpy as np
@@ -82,15 +83,21 @@ def _heldout(robot: str, cfg: dict, seed: int) -> Measurements:
     return VirtualRobot(load_robot(robot), c, seed=seed).campaign(seed=seed + 1000)
 
 
-@pytest.fixture(scope="module", params=sorted(CASES))
-def effect_case(request):
-    name = request.param
-    robot, effects, extra, registered, metric = CASES[name]
+@functools.lru_cache(maxsize=None)
+def _identified(name: str):
+    """The campaign of case ``name`` (seed 11) and its identification, once per session."""
+    robot, effects, extra, registered, _metric = CASES[name]
     cfg = _config(effects, extra, registered)
     vr = VirtualRobot(load_robot(robot), cfg, seed=11)
     m = vr.campaign()
-    res = identify(load_robot(robot), m, registered=registered)
-    return name, vr, cfg, res, metric
+    return vr, cfg, m, identify(load_robot(robot), m, registered=registered)
+
+
+@pytest.fixture(scope="module", params=sorted(CASES))
+def effect_case(request):
+    name = request.param
+    vr, cfg, _m, res = _identified(name)
+    return name, vr, cfg, res, CASES[name][4]
 
 
 def test_library_effect_is_found(effect_case) -> None:
@@ -118,11 +125,9 @@ def test_compensation_leaves_at_most_two_percent(effect_case) -> None:
     assert cc["meas_frame_fraction_left"] <= COMPENSATION_MAX_LEFT, (name, cc)
 
 
+@pytest.mark.slow
 def test_outliers_are_listed_by_row() -> None:
-    robot, effects, extra, registered, _m = CASES["outliers"]
-    vr = VirtualRobot(load_robot(robot), _config(effects, extra, registered), seed=11)
-    m = vr.campaign()
-    res = identify(load_robot(robot), m)
+    vr, _cfg, m, res = _identified("outliers")           # unregistered, as identify's default
     excluded = {e["row"] for e in res.excluded}
     assert set(vr.outlier_rows) <= excluded
     assert len(excluded - set(vr.outlier_rows)) <= 1
@@ -130,6 +135,7 @@ def test_outliers_are_listed_by_row() -> None:
         assert e["line"] == m.line[e["row"]] and e["residual_mm"] > 1.0
 
 
+@pytest.mark.slow
 def test_unregistered_geometric_is_compensated_in_the_measurement_frame() -> None:
     """Without registration, base-side and flange-side DH errors alias with the frame and
     the measured point; what is observable -- the measured point in the measurement
@@ -144,6 +150,7 @@ def test_unregistered_geometric_is_compensated_in_the_measurement_frame() -> Non
     assert cc["meas_frame_fraction_left"] <= COMPENSATION_MAX_LEFT
 
 
+@pytest.mark.slow
 def test_out_of_library_effect_is_reported_and_nothing_wrong_is_added() -> None:
     """A TCP error that depends on joints 1 and 2 together (no single-joint map, no library effect
     describes it; 120 um): reported as unexplained, nothing added."""
@@ -165,6 +172,7 @@ def test_clean_data_adds_nothing() -> None:
     assert res.rms_after_mm == pytest.approx(SIGMA * 1e3, rel=0.2)
 
 
+@pytest.mark.slow
 def test_effects_together_with_noise_floor_from_sigma_column() -> None:
     cfg = _config({"gravity": {}, "lost_motion": {"backlash_rad": 2e-4}, "drift": {}}, {}, False, poses=100)
     cfg["noise"]["sigma_column"] = True
@@ -207,6 +215,7 @@ def test_jacobian_matches_finite_differences() -> None:
     assert err.max() < 1e-3 * max(np.abs(Jn * layout.scale[idx]).max(), 1e-9)
 
 
+@pytest.mark.slow
 def test_model_file_round_trip_and_predict(tmp_path) -> None:
     cfg = _config({"gravity": {}, "thermal": {}}, {"temperature": {"start_C": 20, "end_C": 30}}, False)
     vr = VirtualRobot(load_robot("ur5"), cfg, seed=8)
@@ -231,6 +240,7 @@ def test_plain_robot_file_predicts_the_nominal_tcp() -> None:
     assert np.allclose(predict(model, m)[0], p_nom, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_compensation_is_exact_under_the_identified_model() -> None:
     cfg = _config({"lost_motion": {"backlash_rad": 3e-4}, "gravity": {}}, {}, False)
     vr = VirtualRobot(load_robot("ur5"), cfg, seed=9)
@@ -246,6 +256,7 @@ def test_compensation_is_exact_under_the_identified_model() -> None:
 # Command line: simulate -> identify -> predict -> compensate
 # ----------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_cli_end_to_end(tmp_path, capsys) -> None:
     cfg = tmp_path / "sim.toml"
     cfg.write_text('seed = 3\nunits = "mm"\n[campaign]\nposes = 60\n[noise]\nsigma_m = 2e-5\n'

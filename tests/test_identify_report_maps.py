@@ -121,6 +121,7 @@ def test_report_without_maps_has_no_maps_section(plain_run) -> None:
     assert "joint error maps" not in md                     # no headline row either
 
 
+@pytest.mark.slow
 def test_many_maps_are_drawn_in_at_most_the_panel_limit(maps_run) -> None:
     res, _rep, _folder = maps_run
     base = res.error_maps[0]
@@ -180,6 +181,7 @@ def test_joint_angle_diagnostic_labels_are_in_degrees() -> None:
     assert np.allclose(x, q) and label.endswith("[°C]")
 
 
+@pytest.mark.slow
 def test_many_diagnostics_stay_in_a_few_figures_and_a_short_table(maps_run) -> None:
     res, _rep, _folder = maps_run
     inl = res.inliers

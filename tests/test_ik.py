@@ -11,6 +11,7 @@ import ur_analytic_ik
 
 from models import AnalyticIK, IKStatus, IKStructureError, KinematicModel, load_robot
 from models.constants import IK_ROUNDTRIP_TOL, IK_WRIST_SINGULAR_TOL
+from models.errors import InputError
 from models.ik import BRANCH_LABELS
 from models.robot import robot_from_dict
 from models.transforms import rotation_angle
@@ -53,7 +54,7 @@ def test_fk_ik_roundtrip_every_branch(name):
     # singularity, where theta6 is undetermined and the pose must be flagged, not solved
     wrist = np.abs(np.sin(q[:, 4] + robot.theta_offset[4])) < IK_WRIST_SINGULAR_TOL
     assert found[~wrist].all(), f"{(~found[~wrist]).sum()} poses lost their generating configuration"
-    assert (sol.status[wrist] == IKStatus.WRIST_SINGULAR).any(axis=1).all()
+    assert (sol.status[wrist] == IKStatus.WRIST_SINGULAR.code).any(axis=1).all()
     # most random poses have all 8 branches (sanity: the solver is not trivially rejecting)
     assert sol.valid.sum(axis=1).mean() > 6.0
 
@@ -99,12 +100,12 @@ def test_unreachable_and_singular_poses_give_reasons():
     # wrist singular: q5 = 0 -> theta6 undetermined, those branches flagged, no NaN passed on
     q = np.array([0.3, -1.0, 1.2, 0.4, 0.0, 0.2])
     sol = ik.solve(km.tcp(q))
-    assert (sol.status[0] == IKStatus.WRIST_SINGULAR).any()
-    assert "singular" in sol.reason(0, int(np.argmax(sol.status[0] == IKStatus.WRIST_SINGULAR)))
+    assert (sol.status[0] == IKStatus.WRIST_SINGULAR.code).any()
+    assert "singular" in sol.reason(0, int(np.argmax(sol.status[0] == IKStatus.WRIST_SINGULAR.code)))
     # non-finite input
     bad = np.eye(4)
     bad[0, 3] = np.nan
-    with pytest.raises(ValueError, match="not finite"):
+    with pytest.raises(InputError, match="not finite"):
         ik.solve(bad)
 
 
@@ -127,7 +128,7 @@ def test_nearest_branch_helper_and_joint_limits():
         row["q_min"], row["q_max"] = -1.6, 1.6
     tight = AnalyticIK(robot_from_dict(d))
     sol = tight.solve(T)
-    assert (sol.status[0] == IKStatus.JOINT_LIMIT).any()
+    assert (sol.status[0] == IKStatus.JOINT_LIMIT.code).any()
     assert np.all(np.abs(sol.q[0][sol.valid[0]]) <= 1.6 + 1e-12)
 
 

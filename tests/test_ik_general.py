@@ -132,7 +132,7 @@ def test_roundtrip_and_generating_configuration(name):
     K = ik.n_branches
     assert res.q.shape == (n, K, 6) and res.status.shape == (n, K) and res.labels == ik.labels
     present = ~np.isnan(res.q[..., 0])
-    assert np.array_equal(present, res.status != GeneralIKStatus.UNREACHABLE)
+    assert np.array_equal(present, res.status != GeneralIKStatus.UNREACHABLE.code)
     assert np.all(res.q[present] > -np.pi) and np.all(res.q[present] <= np.pi)
     # every returned branch reproduces the target
     Tq = poe_fk(w, p, M0, res.q[present])
@@ -145,7 +145,7 @@ def test_roundtrip_and_generating_configuration(name):
     # distinct branches; a generic pose has an even number of real solutions
     count = present.sum(axis=1)
     assert np.all(count >= 1) and np.all(count <= K)
-    assert np.all(count[~np.any(res.status == GeneralIKStatus.SINGULAR, axis=1)] % 2 == 0)
+    assert np.all(count[~np.any(res.status == GeneralIKStatus.SINGULAR.code, axis=1)] % 2 == 0)
     for i in range(n):
         qi = res.q[i, present[i]]
         dd = np.max(_wrapdiff(qi[:, None], qi[None]), axis=2) + np.eye(len(qi))
@@ -168,8 +168,8 @@ def test_eaik_branch_set_equals_numeric_multistart(name):
     numeric = GeneralIK(w, p, M0, method="numeric").solve(T, track=False)
     assert numeric.method == "numeric"
     for i in range(len(T)):
-        A = exact.q[i][exact.status[i] != GeneralIKStatus.UNREACHABLE]
-        B = numeric.q[i][numeric.status[i] != GeneralIKStatus.UNREACHABLE]
+        A = exact.q[i][exact.status[i] != GeneralIKStatus.UNREACHABLE.code]
+        B = numeric.q[i][numeric.status[i] != GeneralIKStatus.UNREACHABLE.code]
         d = np.max(_wrapdiff(A[:, None], B[None]), axis=2)
         assert len(A) == len(B) and np.all(d.min(axis=1) < SAME_CONFIG_TOL)
 
@@ -181,7 +181,7 @@ def test_labels_continuous_and_guard_sign_constant_along_path(name, seed):
     n = 300 if ik.method == "eaik" else 40
     q = _smooth_path(seed, n, 0.6)
     res = ik.solve(poe_fk(w, p, M0, q))
-    regular = (res.status == GeneralIKStatus.OK) & (np.abs(res.guard) > GUARD_MARGIN)
+    regular = (res.status == GeneralIKStatus.OK.code) & (np.abs(res.guard) > GUARD_MARGIN)
     both = regular[1:] & regular[:-1]
     assert both.sum() >= n                                   # the check is not vacuous
     step = np.max(_wrapdiff(res.q[1:], res.q[:-1]), axis=2)
@@ -228,9 +228,9 @@ def test_singular_wrist_reported_singular():
     q = np.array([0.3, -0.5, 0.8, 0.4, 0.0, -0.2])
     assert abs(general_guard_factors(w, p, M0, q)[0]) < 1e-15
     res = _ik("a").solve(poe_fk(w, p, M0, q))
-    singular = res.status[0] == GeneralIKStatus.SINGULAR
+    singular = res.status[0] == GeneralIKStatus.SINGULAR.code
     assert singular.sum() == 1
-    assert np.all(np.abs(res.guard[0][res.status[0] == GeneralIKStatus.OK]) > GUARD_MARGIN)
+    assert np.all(np.abs(res.guard[0][res.status[0] == GeneralIKStatus.OK.code]) > GUARD_MARGIN)
     assert res.valid.sum() == 6
 
 

@@ -10,6 +10,7 @@ import pytest
 from scipy.spatial.transform import RigidTransform, Rotation
 
 from models.errors import InputError
+from models.ik import IKStatus
 from models.ik.opw_closed_form import (
     OPW_BRANCH_LABELS, NotOPW, OPWGeometry, OPWStatus, opw_branch_signs, opw_canonical_fk, opw_from_axes,
     opw_guard_factors, opw_ik, opw_ik_function, poe_fk,
@@ -210,7 +211,7 @@ def test_roundtrip_every_branch(name):
     assert Q.shape == (N_ROUNDTRIP, 8, 6) and st.shape == (N_ROUNDTRIP, 8)
     assert np.all(np.isfinite(Q))
     assert np.all((Q > -np.pi) & (Q <= np.pi))
-    ok = st == OPWStatus.OK
+    ok = st == OPWStatus.OK.code
     assert ok.sum() > MIN_OK_FRACTION * ok.size
     Tb = poe_fk(*chain, Q[ok])
     Tt = np.broadcast_to(T[:, None], (N_ROUNDTRIP, 8, 4, 4))[ok]
@@ -231,7 +232,7 @@ def test_branch_set_matches_py_opw_kinematics():
     theirs = robot.reach(RigidTransform.from_matrix(T)).joints       # (n, 8, 6), NaN = none
     counts = []
     for i in range(N_PYOPW):
-        mine = Q[i][st[i] == OPWStatus.OK]
+        mine = Q[i][st[i] == OPWStatus.OK.code]
         other = theirs[i][~np.isnan(theirs[i]).any(axis=1)]
         assert len(mine) == len(other) >= 4
         counts.append(len(mine))
@@ -243,12 +244,12 @@ def test_branch_set_matches_py_opw_kinematics():
 def test_guard_signs_identify_branches():
     chain, g, q, T, Q, st = _solve("irb2400", 500, 13)
     f = opw_guard_factors(g, Q)                                        # (n, 8, 3)
-    clear = (st == OPWStatus.OK)[..., None] & (np.abs(f) > GUARD_MARGIN)
+    clear = (st == OPWStatus.OK.code)[..., None] & (np.abs(f) > GUARD_MARGIN)
     expected = np.broadcast_to(opw_branch_signs()[None], f.shape)
     assert clear.mean() > MIN_OK_FRACTION
     assert np.all(np.sign(f)[clear] == expected[clear])
     # The generating configuration's signs name the branch it is found in.
-    d = np.where(st == OPWStatus.OK, _wrapdiff(Q, q[:, None, :]).max(axis=-1), np.inf)
+    d = np.where(st == OPWStatus.OK.code, _wrapdiff(Q, q[:, None, :]).max(axis=-1), np.inf)
     branch = d.argmin(axis=1)
     fq = opw_guard_factors(g, q)
     sure = (np.abs(fq) > GUARD_MARGIN).all(axis=1)
@@ -267,7 +268,7 @@ def test_elbow_up_is_above_the_shoulder_wrist_line():
     ex, ez = sx + g.c2 * np.sin(p2), sz + g.c2 * np.cos(p2)             # elbow
     wx = ex + g.c3 * np.sin(p23) + g.a2 * np.cos(p23)                   # wrist centre
     wz = ez + g.c3 * np.cos(p23) - g.a2 * np.sin(p23)
-    usable = (st == OPWStatus.OK) & (np.abs(wx - sx) > LINE_MIN_DX)
+    usable = (st == OPWStatus.OK.code) & (np.abs(wx - sx) > LINE_MIN_DX)
     front = np.arange(8)[None, :] < 4
     usable &= ~front | (wx > sx)                                         # front: wrist ahead of the shoulder
     above = ez > sz + (wz - sz) * (ex - sx) / np.where(usable, wx - sx, 1.0)
@@ -284,7 +285,7 @@ def test_far_target_elbow_unreachable():
     T = np.eye(4)
     T[:3, 3] = (5.0, 1.0, 2.0)
     Q, st = opw_ik(opw_ik_function(g), T)
-    assert np.all(st == OPWStatus.ELBOW_UNREACHABLE)
+    assert np.all(st == OPWStatus.ELBOW_UNREACHABLE.code)
     assert np.all(np.isfinite(Q))
 
 
@@ -295,7 +296,7 @@ def test_wrist_singular_pose():
     q[4] = -g.offsets[4] * g.signs[4]                                   # phi5 = 0
     T = poe_fk(*chain, q)
     Q, st = opw_ik(opw_ik_function(g), T)
-    singular = np.flatnonzero(st[0] == OPWStatus.WRIST_SINGULAR)
+    singular = np.flatnonzero(st[0] == OPWStatus.WRIST_SINGULAR.code)
     assert len(singular) >= 2
     # Still a valid solution: it reproduces the pose, with joint 4 at 0 on "noflip".
     assert np.abs(poe_fk(*chain, Q[0, singular]) - T).max() < ROUNDTRIP_TOL
@@ -308,7 +309,7 @@ def test_shoulder_singular_and_unreachable():
     Tc[:3, 3] = (0.0, 0.0, 1.0 + g.c4)                                  # wrist centre on axis 1
     T = g.canon2base @ Tc @ g.flange2canon_flange
     Q, st = opw_ik(opw_ik_function(g), T)
-    assert np.all(st == OPWStatus.SHOULDER_SINGULAR)
+    assert np.all(st == OPWStatus.SHOULDER_SINGULAR.code)
     assert np.abs(g.fk(Q[0]) - T).max() < ROUNDTRIP_TOL
     offset = dict(IRB2400_PARAMS, b=0.1)
     chain = _canonical_chain(offset, (1,) * 6, IRB2400_OFFSETS_OPW)
@@ -316,7 +317,7 @@ def test_shoulder_singular_and_unreachable():
     assert abs(g.b - 0.1) < PARAM_TOL
     Tc[:3, 3] = (0.05, 0.0, 1.0 + g.c4)                                 # 5 cm from axis 1 < |b|
     Q, st = opw_ik(opw_ik_function(g), g.canon2base @ Tc @ g.flange2canon_flange)
-    assert np.all(st == OPWStatus.SHOULDER_UNREACHABLE)
+    assert np.all(st == OPWStatus.SHOULDER_UNREACHABLE.code)
     assert np.all(np.isfinite(Q))
 
 
@@ -330,4 +331,5 @@ def test_function_interface():
     cg = ca.CodeGenerator("opw_ik_check.c")
     cg.add(f)
     assert "opw_ik" in cg.dump()
-    assert [s.value for s in OPWStatus] == [0, 1, 3, 4, 6]
+    assert [s.code for s in OPWStatus] == [0, 1, 3, 4, 6]
+    assert all(IKStatus(s.value).code == s.code for s in OPWStatus)      # the OPW family stores IK codes

@@ -23,6 +23,7 @@ def _installed() -> bool:
 pytestmark = pytest.mark.skipif(not _installed(), reason="compplan is not installed (pip install .)")
 
 
+@pytest.mark.slow
 def test_installed_package_has_every_module_and_data_file(tmp_path):
     code = (
         "import importlib, pkgutil, planner, problems, models\n"
@@ -44,6 +45,7 @@ def test_installed_package_has_every_module_and_data_file(tmp_path):
     assert "paper_4_4.toml" in r.stdout
 
 
+@pytest.mark.slow
 def test_installed_console_script_runs_the_demo(tmp_path):
     exe = shutil.which("compplan")
     if exe is None:

@@ -23,7 +23,7 @@ import pytest
 from models import load_robot
 from models.arm_file import load_model, model_toml
 from models.ik import AnalyticIK
-from problems.identify import DataError, IdentifyStatus, identify, predict
+from problems.identify import DataError, IdentifyStatus, ParameterStatus, identify, predict
 from problems.measurements import Measurements
 from problems.virtual import VirtualRobot
 
@@ -51,6 +51,7 @@ def _config(effects: dict, registered: bool, poses: int = 60, **campaign) -> dic
             "registration": {"registered": registered}, "effects": copy.deepcopy(effects)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(FALSE_ATTRIBUTION_SEEDS))
 def test_no_map_is_added_without_a_periodic_joint_error(seed: int) -> None:
     robot, effects, registered = NO_MAP_CASES[seed % len(NO_MAP_CASES)]
@@ -160,6 +161,7 @@ def test_no_structure_claim_holds_against_an_independent_smoother(map_case) -> N
     assert max(shares) < INDEPENDENT_SMOOTHER_MAX_SHARE, shares
 
 
+@pytest.mark.slow
 def test_structure_the_fourier_order_3_diagnostic_missed_is_reported() -> None:
     """A smooth, non-periodic error of the TCP along x that depends on joint 1 alone (not a joint
     error motion: no map describes it): the per-axis smoother sees it."""
@@ -176,6 +178,7 @@ def test_structure_the_fourier_order_3_diagnostic_missed_is_reported() -> None:
 # 6-D data and known parts of the set-up
 # ----------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_orientation_data_identify_more_parameters() -> None:
     cfg = _config({"geometric": {}}, True, poses=80, orientation=True)
     cfg["noise"].update({"sigma_rad": SIGMA_RAD, "sigma_rot_column": True, "sigma_column": True})
@@ -220,9 +223,9 @@ def test_single_tool_orientation_needs_the_measured_point_declared() -> None:
     res = identify(load_robot("ur5"), m, known=["measured_point"], candidates=[])
     assert res.identifiability["known"] == "measured point"
     assert res.status in (IdentifyStatus.OK, IdentifyStatus.UNEXPLAINED)
-    held = {p.name for p in res.parameters if p.status == "held"}
+    held = {p.name for p in res.parameters if p.status is ParameterStatus.HELD}
     assert {"measured_point.x", "measured_point.y", "measured_point.z"} <= held
-    free = {p.name for p in res.parameters if p.status == "free"}
+    free = {p.name for p in res.parameters if p.status is ParameterStatus.FREE}
     assert {"registration.t.x", "registration.t.y", "registration.t.z"} <= free
 
 

@@ -77,18 +77,37 @@ def _write_commands_csv(path: Path) -> Path:
 
 
 # ------------------------------------------------------------------------------ umask
-@pytest.mark.parametrize("umask", [0o022, 0o002])
-def test_files_and_folders_get_the_users_umask(tmp_path, umask):
-    """A colleague or a web server can read what compplan wrote: no temporary file's 0600."""
-    _write_commands_csv(tmp_path / "in.csv")
+#: The umasks of the umask test: the usual one and a group-writable one.
+UMASKS = (0o022, 0o002)
+
+
+@pytest.fixture(scope="module")
+def umask_runs(tmp_path_factory) -> Path:
+    """``map`` and ``predict`` under each of :data:`UMASKS`, in one fresh interpreter (a process
+    has one umask at a time: set before each command), into ``umask_<octal>/``."""
+    base = tmp_path_factory.mktemp("umask")
+    for umask in UMASKS:
+        (base / f"umask_{umask:o}").mkdir()
+        _write_commands_csv(base / f"umask_{umask:o}" / "in.csv")
     r = _python("""
         import os, sys
-        os.umask(int(sys.argv[1], 8))
         from planner.cli import main
-        assert main(["map", "--points", sys.argv[2], "--out", "map"]) == 0
-        sys.exit(main(["predict", "--model", "ur5", "--input", "in.csv", "--out", "sub/pred.csv"]))
-        """, oct(umask), MAP_POINTS, cwd=tmp_path)
+        for umask in sys.argv[2:]:
+            os.chdir(f"umask_{umask}")
+            os.umask(int(umask, 8))
+            assert main(["map", "--points", sys.argv[1], "--out", "map"]) == 0
+            assert main(["predict", "--model", "ur5", "--input", "in.csv", "--out", "sub/pred.csv"]) == 0
+            os.chdir("..")
+        """, MAP_POINTS, *(f"{u:o}" for u in UMASKS), cwd=base)
     assert r.returncode == 0, r.stderr
+    return base
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("umask", UMASKS)
+def test_files_and_folders_get_the_users_umask(umask_runs, umask):
+    """A colleague or a web server can read what compplan wrote: no temporary file's 0600."""
+    tmp_path = umask_runs / f"umask_{umask:o}"
     file_mode, folder_mode = 0o666 & ~umask, 0o777 & ~umask
     folders = [tmp_path / "map", tmp_path / "map" / "figures", tmp_path / "sub"]
     files = [p for p in (tmp_path / "map").rglob("*") if p.is_file()] + [tmp_path / "sub" / "pred.csv"]
@@ -101,6 +120,7 @@ def test_files_and_folders_get_the_users_umask(tmp_path, umask):
 
 
 # ------------------------------------------------------------------------------ disk full
+@pytest.mark.slow
 def test_disk_full_mid_write_keeps_the_previous_set(tmp_path, capsys, monkeypatch):
     """ENOSPC after some files: exit 2, one line, the previous set intact, no temporary folder."""
     out = tmp_path / "map"
@@ -160,6 +180,7 @@ def test_disk_full_while_adding_a_report_keeps_the_run_and_its_earlier_report(tm
 
 
 # ------------------------------------------------------------------------------ file-size limit
+@pytest.mark.slow
 def test_file_size_limit_keeps_the_previous_set(tmp_path, capsys):
     """RLIMIT_FSIZE (SIGXFSZ ignored: write fails with EFBIG) part-way: the previous set intact."""
     out = tmp_path / "map"
@@ -183,6 +204,7 @@ def test_file_size_limit_keeps_the_previous_set(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------------------ stale files
+@pytest.mark.slow
 def test_a_new_run_leaves_no_file_of_an_earlier_run(tmp_path, capsys):
     """Report, figures, maps and trajectories of an earlier run never sit beside a new summary."""
     out = tmp_path / "run"
@@ -230,6 +252,7 @@ def test_a_folder_of_other_files_is_refused(tmp_path, capsys, monkeypatch):
 
 
 # ------------------------------------------------------------------------------ one writer
+@pytest.mark.slow
 def test_two_runs_into_one_out(tmp_path):
     """The second run is refused with one line while the first holds the folder; one 'wrote'."""
     cmd = [sys.executable, "-m", "planner", "demo", "--out", "run"]
@@ -259,6 +282,7 @@ def test_two_runs_into_one_out(tmp_path):
     assert _siblings(tmp_path / "run") == []
 
 
+@pytest.mark.slow
 def test_a_locked_output_is_refused_in_process_and_released_after(tmp_path, capsys):
     out = tmp_path / "pred.csv"
     inp = _write_commands_csv(tmp_path / "in.csv")

@@ -369,7 +369,7 @@ def test_kernel_matches_independent_ik_and_load_error(name, placements):
         feasible, _ = branch_paths(ik, T_base, p.limits.max_joint_step)
         raw = ik.solve(T_base)
         load = _base_frame_load(p, c2b)
-        assert sc.status[i] == PlacementStatus.OK, f"placement {i} should be feasible (test set-up)"
+        assert sc.status[i] == PlacementStatus.OK.code, f"placement {i} should be feasible (test set-up)"
         for b in range(kern.n_branches):
             kern_ok = np.isfinite(sc.branch_rms_m[i, b])
             if b not in feasible:
@@ -421,9 +421,9 @@ def test_moving_the_robot_equals_moving_the_task(name):
         assert one.status[0] == moved.status[0] and one.best_branch[0] == moved.best_branch[0], i
         np.testing.assert_array_equal(np.isnan(one.branch_rms_m), np.isnan(moved.branch_rms_m))
         assert one.max_difference(moved) <= EQUIVALENCE_ATOL_M, (i, one.max_difference(moved))
-        n_ok += int(one.status[0] == PlacementStatus.OK)
+        n_ok += int(one.status[0] == PlacementStatus.OK.code)
     assert n_ok >= 4                                  # the comparison is not vacuous
-    assert sc.status[-1] != PlacementStatus.OK
+    assert sc.status[-1] != PlacementStatus.OK.code
 
 
 def sc_row(sc: ChunkScores, i: int) -> ChunkScores:
@@ -451,7 +451,7 @@ def test_self_weight_turns_with_the_tilt():
     sc = kern.evaluate(pls)
     for i, pl in enumerate(pls):
         moved = PlacementKernel(problem_at(p, pl)).evaluate(np.zeros((1, 5)))
-        assert sc.status[i] == PlacementStatus.OK == moved.status[0]
+        assert sc.status[i] == PlacementStatus.OK.code == moved.status[0]
         assert sc_row(sc, i).max_difference(moved) <= EQUIVALENCE_ATOL_M
     # and the self-weight matters here (else the test above proves nothing about its rotation)
     flat = PlacementKernel(shipped("placement_milling").with_points(10)).evaluate(pls)
@@ -483,7 +483,7 @@ def test_self_weight_with_non_vertical_robot_gravity_and_a_yaw():
     pl = np.array([[0.0, 0.0, 0.0, 90 * DEG, 0.0]])
     sc = PlacementKernel(p).evaluate(pl)
     moved = PlacementKernel(problem_at(p, pl[0])).evaluate(np.zeros((1, 5)))
-    assert moved.status[0] == PlacementStatus.OK
+    assert moved.status[0] == PlacementStatus.OK.code
     assert sc.max_difference(moved) <= EQUIVALENCE_ATOL_M
 
 
@@ -553,7 +553,7 @@ def test_a_blocked_restricted_programme_falls_back_to_the_dense_one():
     assert kern._nbr.shape[1] < kern.n_candidates == 60
     sc = kern.evaluate(np.zeros((1, 5)))
     ws = warm_starts(ik_solver(p.robot), p.model.kinematics, p.task())
-    assert sc.status[0] == PlacementStatus.OK and len(ws.warm) >= 4
+    assert sc.status[0] == PlacementStatus.OK.code and len(ws.warm) >= 4
     assert set(np.flatnonzero(np.isfinite(sc.branch_rms_m[0])).tolist()) == set(ws.warm)
     for b, (_, _, cost) in ws.warm.items():
         assert p.n * sc.branch_rms_m[0, b] ** 2 <= cost * (1 + WARM_COST_RTOL)
@@ -573,8 +573,9 @@ def test_a_waypoint_excluded_only_by_joint_limits_is_joint_limit(tmp_path):
     pls = np.array([[0.9, -0.2, 0.0, 0.0, 0.0], [0.2, -1.0, 0.0, 0.0, 0.0], [5.0, 0.0, 0.0, 0.0, 0.0]])
     sc = PlacementKernel(p).evaluate(pls)
     free = kernel_of("placement_milling").evaluate(pls)
-    assert free.status.tolist() == [PlacementStatus.OK, PlacementStatus.OK, PlacementStatus.UNREACHABLE]
-    assert sc.status.tolist() == [PlacementStatus.OK, PlacementStatus.JOINT_LIMIT, PlacementStatus.UNREACHABLE]
+    assert free.status.tolist() == [PlacementStatus.OK.code, PlacementStatus.OK.code, PlacementStatus.UNREACHABLE.code]
+    assert [sc.status_of(i) for i in range(3)] == [PlacementStatus.OK, PlacementStatus.JOINT_LIMIT,
+                                                   PlacementStatus.UNREACHABLE]
     assert sc.blocked_waypoint[1] > 0 and free.blocked_waypoint[1] == -1
 
 
@@ -586,7 +587,7 @@ def test_far_placement_is_unreachable_at_waypoint_0():
     p = shipped("placement_milling")
     far = parse_grid_text("x_m=5, y_m=0, yaw_deg=0").placements()
     sc = kernel_of("placement_milling").evaluate(far)
-    assert sc.status[0] == PlacementStatus.UNREACHABLE
+    assert sc.status[0] == PlacementStatus.UNREACHABLE.code
     assert sc.blocked_waypoint[0] == 0
     assert sc.best_branch[0] == -1 and sc.feasible_branches[0] == 0
     assert np.isnan(sc.rms_error_m[0]) and np.isnan(sc.branch_rms_m[0]).all()
@@ -596,6 +597,7 @@ def test_far_placement_is_unreachable_at_waypoint_0():
     assert np.linalg.norm(p.positions[0] - far[0, :3]) > reach
 
 
+@pytest.mark.slow
 def test_partial_reach_names_the_first_unreachable_waypoint():
     """Placements across the shipped grid, some too far for part of the path: the kernel's blocked
     waypoint is the first one without an IK solution outside the singularity guards on any branch
@@ -615,23 +617,23 @@ def test_partial_reach_names_the_first_unreachable_waypoint():
     partial = 0
     for i, pl in enumerate(pls):
         sol = ik.solve(np.einsum("ij,snjk->snik", my_cell2base(pl), T_cell).reshape(-1, 4, 4))
-        ok = sol.status == IKStatus.OK                                            # (S*N, B)
+        ok = sol.status == IKStatus.OK.code                                            # (S*N, B)
         ratio = (np.abs(ik.guard_factors(np.where(ok[..., None], sol.q, 0.0))) / guard_bounds(ik)).min(-1)
         reach = (ok & (ratio >= 1.0)).reshape(len(cands), p.n, -1).any(axis=(0, 2))   # (N,)
         expected = -1 if reach.all() else int(np.argmin(reach))
         assert sc.blocked_waypoint[i] == expected, (i, pl)
         if expected >= 0:
-            assert sc.status[i] == PlacementStatus.UNREACHABLE
+            assert sc.status[i] == PlacementStatus.UNREACHABLE.code
             partial += int(reach.any())
     assert partial >= 1                     # some placement reaches part of the path only
-    assert (sc.blocked_waypoint >= 0).sum() >= 3 and (sc.status == PlacementStatus.OK).sum() >= 3
+    assert (sc.blocked_waypoint >= 0).sum() >= 3 and (sc.status == PlacementStatus.OK.code).sum() >= 3
 
 
 def test_flip_status_when_no_step_fits():
     p = shipped("placement_milling").with_points(8)
     p = replace(p, limits=replace(p.limits, max_joint_step=1e-4))   # 0.086 m between waypoints
     sc = PlacementKernel(p).evaluate(np.zeros((1, 5)))
-    assert sc.status[0] == PlacementStatus.FLIP
+    assert sc.status[0] == PlacementStatus.FLIP.code
     assert sc.blocked_waypoint[0] == -1 and sc.best_branch[0] == -1
 
 
@@ -646,8 +648,8 @@ def test_status_precedence_of_finish():
     flip = np.array([[False, False], [False, False], [True, True], [True, False], [False, False]])
     limit = np.array([[False, False], [True, False], [False, False], [False, True], [False, False]])
     sc.finish(flip, limit)
-    assert list(sc.status) == [PlacementStatus.OK, PlacementStatus.JOINT_LIMIT, PlacementStatus.FLIP,
-                               PlacementStatus.JOINT_LIMIT, PlacementStatus.UNREACHABLE]
+    assert list(sc.status) == [PlacementStatus.OK.code, PlacementStatus.JOINT_LIMIT.code, PlacementStatus.FLIP.code,
+                               PlacementStatus.JOINT_LIMIT.code, PlacementStatus.UNREACHABLE.code]
     assert sc.best_branch[0] == 1 and sc.feasible_branches[0] == 2
     assert sc.rms_error_m[0] == 1e-3 and sc.max_error_m[0] == 4e-3
     assert sc.joint_margin_rad[0] == 0.2 and sc.singular_margin[0] == 2.0
@@ -658,7 +660,7 @@ def test_ranking_is_feasible_only_and_sorted_by_rms():
     p = shipped("placement_milling")
     sc = kernel_of("placement_milling").evaluate(small_grid(p).placements())
     r = ranking(sc)
-    assert set(r.tolist()) == set(np.flatnonzero(sc.status == PlacementStatus.OK).tolist())
+    assert set(r.tolist()) == set(np.flatnonzero(sc.status == PlacementStatus.OK.code).tolist())
     assert 0 < len(r) < len(sc)                      # some feasible, some not (x = -0.4 m, y = +-0.6 m)
     q = np.round(sc.rms_error_m[r] / RANK_RESOLUTION_M)
     assert (np.diff(q) >= 0).all()
@@ -674,7 +676,7 @@ def test_ranking_ties_broken_by_margins_not_by_round_off():
     """Three placements with the same errors (one posture turned by yaws, round-off apart): the
     singularity margin counts only beyond RANK_RESOLUTION_SINGULAR, then the larger joint margin wins."""
     sc = ChunkScores.empty(4, 8)
-    sc.status[:] = [PlacementStatus.OK, PlacementStatus.OK, PlacementStatus.OK, PlacementStatus.UNREACHABLE]
+    sc.status[:] = [PlacementStatus.OK.code] * 3 + [PlacementStatus.UNREACHABLE.code]
     sc.rms_error_m[:3] = [2.0e-4, 2.0e-4 + 1e-17, 2.0e-4 - 1e-17]
     sc.max_error_m[:3] = 3.0e-4
     sc.singular_margin[:3] = [7.63, 7.63 + 4e-15, 7.63 - 4e-15]
@@ -703,7 +705,7 @@ def test_chunk_scores_concatenate_equal_and_max_difference():
     other.rms_error_m[i] = np.nan                   # NaN where the other has a number
     assert not other.equal(whole) and other.max_difference(whole) == math.inf
     other = ChunkScores.concatenate([whole])
-    other.status[i] = PlacementStatus.FLIP          # an integer array differs
+    other.status[i] = PlacementStatus.FLIP.code          # an integer array differs
     assert not other.equal(whole) and other.max_difference(whole) == math.inf
 
 
@@ -755,6 +757,7 @@ sys.stdout.buffer.write(pickle.dumps((kernel.compiled, isinstance(kernel.ik.eval
 """
 
 
+@pytest.mark.slow
 def test_a_worker_without_a_compiler_runs_the_shipped_libraries(tmp_path):
     """A process with no C compiler and an empty compile cache (a bare Dask worker) unpickles the
     kernel and runs the model's and the IK's compiled libraries it carries: the same scores, bit for

@@ -56,6 +56,7 @@ HEADLINE_GRID = "x_m=-0.4:0.4:5,y_m=-0.6:0.6:5,yaw_deg=0:90:2"       # 50 placem
 KILL_GRID = "x_m=-0.4:0.4:9,y_m=-0.6:0.6:5,yaw_deg=0:90:2"          # 90 placements
 
 
+@pytest.mark.slow
 def test_local_cluster_equals_serial_bit_for_bit():
     pls = _placements(HEADLINE_GRID)
     kern = _kernel()
@@ -88,6 +89,7 @@ def own_cluster():
         c.close()
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_run_does_not_change_the_scores(own_cluster):
     pls = _placements(KILL_GRID)
     kern = _kernel()
@@ -141,6 +143,7 @@ def test_run_sweep_refuses_a_bad_spec_before_any_work():
         run_sweep(_kernel(), _placements("x_m=0"), "local:0")
 
 
+@pytest.mark.slow
 def test_no_scheduler_at_the_address_is_an_input_error(monkeypatch):
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
@@ -166,6 +169,7 @@ def test_missing_dask_says_how_to_install_it(monkeypatch):
     assert run_sweep(_kernel(), _placements("x_m=0"), "serial").n_chunks == 1
 
 
+@pytest.mark.slow
 def test_local_cluster_workers_keep_glibcs_dynamic_mmap_threshold():
     """Our LocalCluster's workers run without the nanny's MALLOC_TRIM_THRESHOLD_ (it made every
     chunk fault its large arrays in afresh) and keep the nanny's other settings (one BLAS/OpenMP
@@ -177,6 +181,7 @@ def test_local_cluster_workers_keep_glibcs_dynamic_mmap_threshold():
     assert got["OMP_NUM_THREADS"] == "1"
 
 
+@pytest.mark.slow
 def test_a_scheduler_without_workers_is_an_input_error(monkeypatch):
     monkeypatch.setattr(cluster_mod, "CONNECT_TIMEOUT_S", CONNECT_TIMEOUT_PATCHED_S)
     with distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=None,
@@ -186,6 +191,7 @@ def test_a_scheduler_without_workers_is_an_input_error(monkeypatch):
     assert "no workers" in str(ei.value) and empty.scheduler_address in str(ei.value)
 
 
+@pytest.mark.slow
 def test_workers_with_another_compplan_are_refused(monkeypatch):
     """The client compares its compplan version with every worker's before sending work."""
     monkeypatch.setattr(cluster_mod, "_installed_version", lambda: "0.0.0-not-this-one")
@@ -194,6 +200,7 @@ def test_workers_with_another_compplan_are_refused(monkeypatch):
     assert "another compplan" in str(ei.value) and "0.0.0-not-this-one" in str(ei.value)
 
 
+@pytest.mark.slow
 def test_place_command_on_a_local_cluster_writes_the_serial_scores(tmp_path, capsys):
     """``compplan place --scheduler local:2`` writes the serial run's scores.csv byte for byte and
     says where it ran."""
@@ -231,6 +238,7 @@ def _wait_listening(port: int, proc) -> None:
     raise RuntimeError(f"no Dask scheduler listens on port {port}")
 
 
+@pytest.mark.slow
 def test_a_scheduler_lost_mid_run_is_one_cluster_error(tmp_path, capfd):
     """A remote scheduler (``dask scheduler``, its own process) killed after the first chunk: the
     sweep ends with one ClusterError naming the address, and nothing of Dask's logging reaches

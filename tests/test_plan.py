@@ -86,11 +86,7 @@ def _run(capsys, *argv: str) -> tuple[int, str, str]:
     return code, out, err
 
 
-@pytest.fixture(scope="module")
-def paper_run(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("paper")
-    assert main(["plan", "paper_4_4", "--out", str(out), "--no-figures", "--no-report"]) == 0
-    return out
+# paper_run (compplan plan paper_4_4 --out DIR --no-figures --no-report): once per session, conftest.py
 
 
 @pytest.fixture(scope="module")
@@ -283,3 +279,48 @@ def test_single_pose_command(tmp_path, capsys):
     assert len(e) == 8 and d["chosen_branch"] == min(d["branches"], key=lambda k: d["branches"][k]["error_m"])
     code, _, err = _run(capsys, "pose", "paper_4_4", "--waypoint", "40")
     assert code == EXIT_USER_ERROR and "--waypoint 40" in err
+
+
+# ------------------------------------------------------------------------------ a run is computed once
+def test_a_plan_is_computed_once(tmp_path, monkeypatch, capsys):
+    """One ``compplan plan`` with its report (here ``demo``, the same pipeline, on fewer waypoints):
+    the summary (input hashes, every branch's equilibrium), the tables and the arm model's
+    kinematics are built once and shared by summary.json, the CSV files, the printout and the
+    report, whose compliance map (drawn here, not cached) uses them."""
+    import collections
+
+    from models.symbolic import KinematicModel
+    from planner.plan import PlanResult
+    from planner.report import maps
+
+    calls: collections.Counter = collections.Counter()
+
+    def count(owner: type, name: str, key: str) -> None:
+        f = getattr(owner, name)
+
+        def counted(*args, **kwargs):
+            calls[key] += 1
+            return f(*args, **kwargs)
+        monkeypatch.setattr(owner, name, counted)
+    for name in ("summary", "waypoint_table", "branch_table", "branch_errors"):
+        count(PlanResult, name, name)
+    count(KinematicModel, "__init__", "KinematicModel")
+    monkeypatch.setattr(maps, "_map_cache_dir", lambda key: tmp_path / "cache" / key)
+    code, _, err = _run(capsys, "demo", "--points", "12", "--out", str(tmp_path / "run"))
+    assert code == 0 and err == "", err
+    assert (tmp_path / "run" / "report.html").is_file() and (tmp_path / "run" / "compliance_map.csv").is_file()
+    assert dict(calls) == {"summary": 1, "waypoint_table": 1, "branch_table": 1, "branch_errors": 1,
+                           "KinematicModel": 1}
+
+
+def test_the_quick_figures_are_the_reports(machining_run, tmp_path):
+    """``--no-report`` writes the report's figures 5 and 6, drawn by the same functions: one drawing
+    of each figure."""
+    import shutil
+
+    from planner.report import write_report
+    folder = tmp_path / "run"
+    shutil.copytree(machining_run, folder)
+    write_report(folder, map_options=False, workers=1)
+    for quick, figure in (("branches.png", "fig5_branches"), ("trajectory.png", "fig6_trajectory")):
+        assert (folder / quick).read_bytes() == (folder / "figures" / f"{figure}.png").read_bytes(), quick

@@ -65,13 +65,13 @@ def test_singular_factors_multiply_to_det_J(name, rng):
 def test_branch_signs_are_the_branch_label():
     robot, model, ik = _tooled((0.0, 0.0, 0.0))
     sol = ik.solve(transform(tool_down_rotation(), [0.35, 0.1, 0.3]))
-    for b in np.where(sol.status[0] == IKStatus.OK)[0]:
+    for b in np.where(sol.status[0] == IKStatus.OK.code)[0]:
         s = branch_signs(ik, sol.q[0, b][None])
         label = BRANCH_LABELS[b]
         # shoulder sign flips between s+ and s-; wrist and elbow signs are those of the label
         assert s[1] == (1.0 if label[3] == "+" else -1.0) and s[2] == (1.0 if label[5] == "+" else -1.0)
     shoulders = {BRANCH_LABELS[b][1]: branch_signs(ik, sol.q[0, b][None])[0]
-                 for b in np.where(sol.status[0] == IKStatus.OK)[0]}
+                 for b in np.where(sol.status[0] == IKStatus.OK.code)[0]}
     assert shoulders["+"] == -shoulders["-"]
 
 
@@ -169,7 +169,7 @@ def test_optimum_beats_the_analytic_posture_and_meets_every_constraint(rule):
         assert np.abs(np.diff(r.q, axis=0)).max() <= task.max_joint_step + STEP_SLACK_RAD
         # the branch label is right: the analytic IK of the reached pose on that branch is q
         sol = ik.solve(T)
-        assert np.all(sol.status[:, b] == IKStatus.OK), r.label
+        assert np.all(sol.status[:, b] == IKStatus.OK.code), r.label
         d = (sol.q[:, b] - r.q + np.pi) % (2 * np.pi) - np.pi
         assert np.abs(d).max() < 1e-7, r.label
         f = singular_factors(ik, r.q) * branch_signs(ik, r.q)

@@ -15,8 +15,8 @@ from models import load_robot
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from problems import paper
 from problems.posture import OrientationRule
-from problems.problem import (DEFAULT_DT, ProblemFileError, load_problem, problem_from_dict,
-                              shipped_problems)
+from problems.problem import ProblemFileError, load_problem, problem_from_dict, shipped_problems
+from problems.timing import DT_DEFAULT_S, default_methods
 
 SHIPPED = {"paper_4_4": (OrientationRule.FIXED, 40), "paper_5_2_points": (OrientationRule.FIXED, 11),
            "machining_offaxis": (OrientationRule.FREE_TOOL_AXIS, 40),
@@ -92,7 +92,7 @@ def test_defaults_come_from_the_robot_and_the_paper(tmp_path):
     pr = load_problem(_write(tmp_path, MINIMAL))
     robot = load_robot("ar5")
     assert np.allclose(pr.limits.velocity, robot.v_max) and np.allclose(pr.limits.jerk, robot.j_max)
-    assert pr.timing.dt == DEFAULT_DT and pr.timing.methods == ("toppra", "jerk_optimal")
+    assert pr.timing.dt == DT_DEFAULT_S and pr.timing.methods == default_methods()
     assert np.allclose(pr.home_q, paper.HOME_Q)
     assert np.allclose(pr.rotations[:, :, 2], [0.0, 0.0, -1.0])      # default: tool down
     assert np.allclose(pr.wrench[:, 2], -10.0) and np.allclose(pr.wrench[:, 3:], 0.0)

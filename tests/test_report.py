@@ -17,7 +17,6 @@ from models.errors import CompplanError, InputError
 from models.ik import BRANCH_LABELS
 from planner.cli import main
 from planner.compliance_map import compliance_map
-from planner.demo import run_demo, write_outputs
 from planner.output import TRAJECTORY_COLUMNS, csv_bytes
 from planner.numbers import (DISPLAY_DIGITS, NUMERICAL_FLOOR_MM, NUMERICAL_ZERO_TEXT, format_value,
                              is_error_key, round_sig)
@@ -140,26 +139,22 @@ def check_figures_embedded(folder: Path, rep: _ReportParser, expected_present: s
 
 
 # --------------------------------------------------------------------------------- fixtures
-@pytest.fixture(scope="module")
-def demo_result():
-    """The plan of the demo (paper section 4.4 on ar5), in memory."""
-    return run_demo(load_robot("ar5"))
+@pytest.fixture
+def demo_result(paper_result):
+    """The plan of the demo (paper section 4.4 on ar5), in memory (once per session: conftest.py)."""
+    return paper_result
 
 
-@pytest.fixture(scope="module")
-def demo_run(demo_result, tmp_path_factory) -> Path:
-    """A demo output folder (paper section 4.4 on ar5), without report."""
-    folder = tmp_path_factory.mktemp("demo")
-    write_outputs(demo_result, folder)
-    return folder
+@pytest.fixture
+def demo_run(paper_folder) -> Path:
+    """A demo output folder (paper section 4.4 on ar5), without report.  Shared: copy to change."""
+    return paper_folder
 
 
-@pytest.fixture(scope="module")
-def demo_report(demo_result, tmp_path_factory) -> Path:
-    """The demo's files and report, the report built from the result (as compplan demo)."""
-    folder = tmp_path_factory.mktemp("demo_report") / "run"
-    write_outputs(demo_result, folder, report=True)        # report defaults, as the CLI runs it
-    return folder
+@pytest.fixture
+def demo_report(paper_report) -> Path:
+    """The demo's files and report, the report built from the result (as compplan demo).  Shared."""
+    return paper_report
 
 
 def _has_trajectory(folder: Path) -> bool:
@@ -273,6 +268,9 @@ def test_view_from_the_plan_equals_the_view_from_its_folder(demo_result, demo_ru
     for piece in ("waypoints", "branches", "trajectories"):
         assert _same(getattr(mem, piece), getattr(disk, piece)), piece
     assert mem.robot.to_dict() == disk.robot.to_dict()
+    assert mem.model is demo_result.problem.model               # the plan's model (its kinematics built once)
+    assert np.array_equal(mem.model.theta, disk.model.theta)
+    assert mem.model.nominal.to_dict() == disk.model.nominal.to_dict()
 
     t_mem, t_disk = summary_tables(mem.summary, mem.absent), summary_tables(disk.summary, disk.absent)
     assert [t.html() for t in t_mem] == [t.html() for t in t_disk]
@@ -356,12 +354,11 @@ def test_serial_and_parallel_rendering_give_the_same_files(demo_run, tmp_path):
     shutil.copytree(demo_run, b)
     write_report(a, map_options=SMALL_MAP, workers=1, map_cache=False)
     write_report(b, map_options=SMALL_MAP, workers=2, map_cache=False)
-    for name in FIGURE_NAMES:
+    for name in FIGURE_NAMES:                  # the demo run has every figure: none may be missing
         for ext in ("png", "pdf"):
             fa, fb = a / "figures" / f"{name}.{ext}", b / "figures" / f"{name}.{ext}"
-            assert fa.exists() == fb.exists()
-            if fa.exists():
-                assert fa.read_bytes() == fb.read_bytes(), f"{name}.{ext}"
+            assert fa.is_file() and fb.is_file(), f"{name}.{ext} not drawn"
+            assert fa.read_bytes() == fb.read_bytes(), f"{name}.{ext}"
 
 
 def test_compliance_map_is_cached_per_robot_and_options(demo_run, tmp_path, monkeypatch):

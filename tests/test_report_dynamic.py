@@ -24,20 +24,17 @@ CASES = ("none", "static", "static+dynamic")
 MEASURES = ("motion_max_mm", "motion_rms_mm", "rest_max_mm")
 
 
-@pytest.fixture(scope="module")
-def dynamic_run(tmp_path_factory) -> Path:
-    """``compplan plan ur5_fast_payload``: the report built from the plan in memory."""
-    folder = tmp_path_factory.mktemp("dyn") / "run"
-    assert main(["plan", "ur5_fast_payload", "--out", str(folder)]) == 0
-    return folder
+@pytest.fixture
+def dynamic_run(fast_payload_run) -> Path:
+    """``compplan plan ur5_fast_payload``: the report built from the plan in memory (once per
+    session: conftest.py; copy to change)."""
+    return fast_payload_run
 
 
-@pytest.fixture(scope="module")
-def static_run(tmp_path_factory) -> Path:
-    """A plan without dynamic compensation."""
-    folder = tmp_path_factory.mktemp("static") / "run"
-    assert main(["plan", "paper_4_4", "--no-optimise", "--out", str(folder)]) == 0
-    return folder
+@pytest.fixture
+def static_run(paper_report) -> Path:
+    """A plan without dynamic compensation, with its report (the demo's; shared)."""
+    return paper_report
 
 
 def _dynamic_cells(folder: Path) -> dict[str, dict]:

@@ -64,6 +64,7 @@ def _check_html(page: str, st, names) -> None:
     assert len(rows) == min(rp.RANKING_ROWS, len(st.ranked))
 
 
+@pytest.mark.slow
 def test_figures_and_html(small, capsys):
     figs = rp.figures(small)
     _check_pngs(figs)
@@ -76,12 +77,14 @@ def test_figures_and_html(small, capsys):
     assert capsys.readouterr() == ("", "")                      # the library is silent
 
 
+@pytest.mark.slow
 def test_html_escapes_text(small):
     st = dataclasses.replace(small, problem=dataclasses.replace(small.problem, name="<b>slot & co</b>"))
     page = rp.html(st, [rp.ERROR_MAP])
     assert "&lt;b&gt;slot &amp; co&lt;/b&gt;" in page and "<b>slot" not in page
 
 
+@pytest.mark.slow
 def test_infeasible_placements(wide):
     counts = wide.summary()["sweep"]["status_counts"]
     assert counts["unreachable"] > 0 and counts["ok"] > 0
@@ -93,6 +96,7 @@ def test_infeasible_placements(wide):
     assert f'data-key="sweep.status_counts.unreachable" data-value="{counts["unreachable"]}"' in page
 
 
+@pytest.mark.slow
 def test_no_best_plans_renders(small):
     """top = 0: only the problem as written is planned in full."""
     st = dataclasses.replace(small, grid=dataclasses.replace(small.grid, top=0),
@@ -104,6 +108,7 @@ def test_no_best_plans_renders(small):
     assert "no placement was planned in full (top = 0)" in page
 
 
+@pytest.mark.slow
 def test_top_zero_study_renders(problem, tmp_path):
     st = _study(problem, "x_m=-0.4:0.4:2,y_m=-0.6:0.6:2,top=0")
     written = write_study(st, tmp_path / "out")
@@ -113,6 +118,7 @@ def test_top_zero_study_renders(problem, tmp_path):
     assert written
 
 
+@pytest.mark.slow
 def test_failed_plan_shown_with_reason(small):
     p0 = small.plans[0]
     reason = "posture NLP failed on every branch <at waypoint 3>"
@@ -125,6 +131,7 @@ def test_failed_plan_shown_with_reason(small):
     assert "failed (solver_failed): posture NLP failed on every branch &lt;at waypoint 3&gt;" in page
 
 
+@pytest.mark.slow
 def test_nothing_feasible(problem):
     st = _study(problem, FAR)
     assert not len(st.ranked) and st.improvement is None
@@ -154,6 +161,7 @@ def _tiled(small, n_yaws: int, step_m: float):
                                plans=[p for p in small.plans if p.rank is None])
 
 
+@pytest.mark.slow
 def test_panels_capped(small):
     """More distinct (yaw, z, tilt) maps than MAX_PANELS: the best placement's panel is kept."""
     st = _tiled(small, 18, 1e-4)
@@ -164,6 +172,7 @@ def test_panels_capped(small):
     assert rp.error_map(st).startswith(PNG_SIGNATURE)
 
 
+@pytest.mark.slow
 def test_yaws_with_the_same_map_share_a_panel(small):
     """Yaws whose maps agree to RANK_RESOLUTION_M share one panel titled with all of them; a yaw
     whose map differs gets its own."""

@@ -81,6 +81,7 @@ def _write_variants(tmp_path):
     return out
 
 
+@pytest.mark.slow
 def test_cli_bad_robot_file_one_line_no_traceback(tmp_path, capsys):
     for path, match in _write_variants(tmp_path).items():
         rc = main(["demo", "--out", str(tmp_path / "o"), "--robot", str(path)])

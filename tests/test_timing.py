@@ -30,6 +30,7 @@ from problems.timing import (
     ruckig_method,
     time_parametrize,
     toppra_method,
+    verification,
 )
 from problems.timing import trajectory as trajectory_module
 
@@ -128,11 +129,9 @@ def test_status_ok_and_ratios_within_limits(path_name, limits_name, method):
     assert traj.status is TimingStatus.OK, traj.reason
     assert traj.ok
     assert traj.method == method
-    assert traj.reason.startswith("ok")
+    assert "within limits" in traj.reason and not traj.reason.startswith(traj.status.value)
     assert set(traj.limit_ratio) == {"velocity", "acceleration", "jerk"}
-    checked = ("velocity", "acceleration")
-    if method == "ruckig":
-        checked += ("jerk",)
+    checked = registry.get_method(method).checked_limits
     for key in checked:
         assert traj.limit_ratio[key].shape == (N_JOINTS,)
         assert np.all(traj.limit_ratio[key] <= 1.0 + LIMIT_RATIO_TOL), (key, traj.limit_ratio[key])
@@ -260,7 +259,8 @@ def test_ruckig_verification_loop_shrinks_too_fast_bounds(monkeypatch):
         assert np.all(traj.limit_ratio[key] <= 1.0 + LIMIT_RATIO_TOL)
     single = time_parametrize(curved_path(), limits, "ruckig", max_iterations=1)
     assert single.status is TimingStatus.LIMIT_EXCEEDED
-    assert single.reason.startswith("limit_exceeded")
+    assert not single.reason.startswith(single.status.value)
+    assert "ratio above 1 after 1 run(s) (max_iterations=1)" in single.reason
 
 
 @pytest.mark.parametrize("path_name", list(PATHS))
@@ -311,7 +311,7 @@ def test_toppra_never_ok_while_exceeding():
     )
     assert traj.iterations == 1
     assert traj.status is TimingStatus.LIMIT_EXCEEDED
-    assert traj.reason.startswith("limit_exceeded")
+    assert traj.reason.startswith("acceleration ratio above 1 after 1 run(s)")
     assert traj.limit_ratio["acceleration"].max() > 1.0 + LIMIT_RATIO_TOL
     # the independent finite-difference check sees the violation too
     assert fd_ratios(traj, limits)[1] > 1.0 + FD_RATIO_TOL
@@ -417,10 +417,10 @@ def test_two_waypoints_and_one_moving_joint():
 def test_nan_waypoint_names_row_and_joint():
     q = curved_path()
     q[3, 1] = np.nan
-    with pytest.raises(ValueError, match=r"waypoint row 3, joint 2\).*nan"):
+    with pytest.raises(InputError, match=r"waypoint row 3, joint 2\).*nan"):
         time_parametrize(q, LIMIT_SETS["uniform"])
     q[3, 1] = np.inf
-    with pytest.raises(ValueError, match="finite"):
+    with pytest.raises(InputError, match="finite"):
         time_parametrize(q, LIMIT_SETS["uniform"], "ruckig")
 
 
@@ -434,7 +434,7 @@ def test_nan_waypoint_names_row_and_joint():
     ],
 )
 def test_bad_path_shape(q):
-    with pytest.raises(ValueError, match="q_path"):
+    with pytest.raises(InputError, match="q_path"):
         time_parametrize(q, LIMIT_SETS["uniform"])
 
 
@@ -445,16 +445,16 @@ def test_bad_path_shape(q):
 def test_bad_limits_name_quantity_joint_value(field, joint, value):
     kwargs = {k: np.ones(N_JOINTS) for k in ("velocity", "acceleration", "jerk")}
     kwargs[field][joint - 1] = value
-    with pytest.raises(ValueError) as err:
+    with pytest.raises(InputError) as err:
         JointLimits(**kwargs)
     msg = str(err.value)
     assert field in msg and f"joint {joint}" in msg and repr(float(value)) in msg
 
 
 def test_limits_shape_mismatch_and_read_only():
-    with pytest.raises(ValueError, match="shape"):
+    with pytest.raises(InputError, match="shape"):
         JointLimits(np.ones(6), np.ones(5), np.ones(6))
-    with pytest.raises(ValueError, match="1-D"):
+    with pytest.raises(InputError, match="1-D"):
         JointLimits(np.ones((2, 3)), np.ones((2, 3)), np.ones((2, 3)))
     lim = JointLimits([1.0] * 6, [2.0] * 6, [3.0] * 6)
     assert lim.velocity.dtype == float and lim.n_joints == 6
@@ -466,24 +466,24 @@ def test_unknown_method_lists_valid_names():
     with pytest.raises(InputError) as err:
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], method="totg")
     msg = str(err.value)
-    assert "'totg'" in msg and "toppra" in msg and "ruckig" in msg
+    assert "'totg'" in msg and all(repr(m) in msg for m in registry.available_methods())
     assert isinstance(err.value, ValueError)  # InputError stays a ValueError
 
 
 @pytest.mark.parametrize("dt", [0.0, -0.008, 0.2, float("nan"), float("inf")])
 def test_bad_dt(dt):
-    with pytest.raises(ValueError, match="dt"):
+    with pytest.raises(InputError, match="dt"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], dt=dt)
 
 
 def test_bad_options_and_limits_type():
-    with pytest.raises(TypeError, match="gridpoints"):
+    with pytest.raises(InputError, match="gridpoints.*valid options"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], "ruckig", gridpoints=100)
-    with pytest.raises(ValueError, match="gridpoints"):
+    with pytest.raises(InputError, match="gridpoints must be an integer >= 2, got 1"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], "toppra", gridpoints=1)
-    with pytest.raises(ValueError, match="time_law"):
+    with pytest.raises(InputError, match="time_law.*'linear'"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], "toppra", time_law="linear")
-    with pytest.raises(TypeError, match="JointLimits"):
+    with pytest.raises(InputError, match="JointLimits"):
         time_parametrize(curved_path(), {"velocity": np.ones(6)})
 
 
@@ -538,7 +538,7 @@ def test_to_csv_failure_on_replace_leaves_nothing(tmp_path, monkeypatch):
 def test_to_csv_rejects_inconsistent_arrays(tmp_path):
     traj = run("line", "uniform", "toppra")
     broken = replace(traj, qd=traj.qd[:-1])
-    with pytest.raises(ValueError, match="inconsistent"):
+    with pytest.raises(InputError, match="inconsistent"):
         broken.to_csv(tmp_path / "x.csv")
     assert os.listdir(tmp_path) == []
 
@@ -552,27 +552,45 @@ def test_names_imported_elsewhere_are_reexported():
     # planner/plan.py, planner/commands/plan.py, benchmarks/*: keep working
     for name in (
         "JointLimits", "Trajectory", "TimingStatus", "time_parametrize", "DT_MAX_S",
-        "LIMIT_RATIO_TOL", "VALID_METHODS",
+        "LIMIT_RATIO_TOL", "VALID_METHODS", "available_methods", "default_methods",
+        "controller_methods", "display_name", "get_method",
     ):
         assert hasattr(timing, name), name
         assert name in timing.__all__, name
-    assert timing.DT_MAX_S == registry.DT_MAX_S == 0.1
-    assert timing.VALID_METHODS == registry.available_methods() == ("toppra", "ruckig", "jerk_optimal")
+    assert timing.DT_MAX_S == registry.DT_MAX_S
+    assert timing.VALID_METHODS == registry.available_methods()
+    assert set(METHODS) <= set(registry.available_methods())
 
 
 def test_registry_records_of_builtin_methods():
     tp = registry.get_method("toppra")
     rk = registry.get_method("ruckig")
-    assert tp.checked_limits == ("velocity", "acceleration")
-    assert rk.checked_limits == ("velocity", "acceleration", "jerk")
+    jo = registry.get_method("jerk_optimal")
+    assert tp.checked_limits == ("velocity", "acceleration") and not tp.enforces_jerk
+    assert rk.checked_limits == jo.checked_limits == ("velocity", "acceleration", "jerk")
     assert "time_law" in tp.options and "time_law" not in rk.options
-    with pytest.raises(ValueError, match="already registered"):
+    assert (tp.display_name, jo.display_name, rk.display_name) == ("TOPP-RA", "jerk-optimal", "Ruckig")
+    # the controller runs the jerk-limited optimum, else Ruckig, else TOPP-RA
+    assert registry.controller_methods(METHODS) == ("jerk_optimal", "ruckig", "toppra")
+    assert registry.controller_methods(("toppra", "ruckig")) == ("ruckig", "toppra")
+    # a problem that names no method runs the time-optimal reference and the controller's
+    assert registry.default_methods() == ("toppra", "jerk_optimal")
+    assert all(registry.get_method(m).dt_max_s == registry.DT_MAX_S for m in METHODS)
+    assert all(registry.get_method(m).description for m in METHODS)
+    assert registry.display_name("not_registered") == "not_registered"
+    with pytest.raises(InputError, match="already registered"):
         registry.register_method(tp)
+    with pytest.raises(InputError, match="unknown checked limit"):
+        registry.register_method(replace(tp, name="bad", checked_limits=("speed",)))
+    with pytest.raises(InputError, match="dt_max_s"):
+        registry.register_method(replace(tp, name="bad", dt_max_s=1.0))
+    assert "bad" not in registry.available_methods()
 
 
 def test_a_new_method_is_a_registered_module():
     """Adding a method = registering a TimingMethod; dispatch goes through the registry."""
     calls = []
+    builtin = registry.available_methods()
 
     def run_rest(path, limits, dt, opts):
         calls.append((path.q_path.shape, dt, dict(opts)))
@@ -587,21 +605,85 @@ def test_a_new_method_is_a_registered_module():
         registry.check_integer_options(out, (("level", 0),))
         return out
 
-    method = registry.TimingMethod("rest", run_rest, ("level",), validate, ("velocity",))
+    method = registry.TimingMethod("rest", run_rest, ("level",), validate, ("velocity",), dt_max_s=0.01)
     registry.register_method(method)
     try:
-        assert "rest" in registry.available_methods()
+        assert registry.available_methods() == (*builtin, "rest")
+        assert method.display_name == "rest" and method.controller_rank is None
+        assert "rest" not in registry.controller_methods() and "rest" not in registry.default_methods()
         traj = time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.004, level=2)
         assert traj.method == "rest" and calls == [((N_WAYPOINTS, N_JOINTS), 0.004, {"level": 2})]
-        with pytest.raises(ValueError, match="level"):
-            time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", level=-1)
-        with pytest.raises(TypeError, match="valid options"):
-            time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", gridpoints=5)
+        with pytest.raises(InputError, match="level"):
+            time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.004, level=-1)
+        with pytest.raises(InputError, match="valid options"):
+            time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.004, gridpoints=5)
+        with pytest.raises(InputError, match=r"<= 0.01 s of timing method 'rest'"):   # its own dt bound
+            time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.02)
     finally:
         registry.unregister_method("rest")
-    assert registry.available_methods() == ("toppra", "ruckig", "jerk_optimal")
+    assert registry.available_methods() == builtin
     with pytest.raises(InputError, match="rest"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest")
+
+
+# --------------------------------------------------------------------------- #
+# One status decision for every method; reasons do not repeat the status
+# --------------------------------------------------------------------------- #
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_reasons_never_repeat_the_status(method):
+    zero = time_parametrize(np.zeros((3, N_JOINTS)), LIMIT_SETS["uniform"], method)
+    for traj in (run("curved", "uniform", method), zero):
+        assert traj.reason and not traj.reason.startswith(traj.status.value), traj.reason
+    assert zero.status is TimingStatus.INFEASIBLE and zero.reason.startswith("path has zero length")
+
+
+def test_the_plan_names_a_failed_trajectory_status_once():
+    """planner.plan composes "<method>: <status>: <reason>" without reading the reason."""
+    from planner.plan import PlanStatus, plan
+    from problems.problem import load_problem
+    pr = load_problem("paper_4_4").with_timing(methods=("toppra",), toppra_max_iterations=1)
+    res = plan(pr)
+    tr = res.trajectories["toppra"]
+    assert res.status is PlanStatus.TIMING_FAILED and tr.status is TimingStatus.LIMIT_EXCEEDED
+    assert res.reason == f"toppra: limit_exceeded: {tr.reason}"
+    assert "limit_exceeded" not in tr.reason
+
+
+def test_finish_trajectory_decides_status_from_the_registry():
+    """Every backend ends in verification.finish_trajectory: a law that moves backwards fails,
+    an exceeded limit the method checks is LIMIT_EXCEEDED, an unchecked one (TOPP-RA's jerk) is not."""
+    path = timing.SplinePath(curved_path())
+    limits = LIMIT_SETS["uniform"]
+    good = run("curved", "uniform", "toppra")
+    duration = float(good.duration_s)
+
+    def law(t):          # a slow, monotone law: s = (t / T)^2 (3 - 2 t / T)
+        u = np.clip(t / duration, 0.0, 1.0)
+        return (u**2 * (3 - 2 * u), 6 * u * (1 - u) / duration, (6 - 12 * u) / duration**2,
+                np.full_like(u, -12.0 / duration**3))
+
+    tc = verification.check_times(duration, good.dt)
+    s, sd, sdd, sddd = law(tc)
+    _, qd, qdd, qddd = path.evaluate(s, sd, sdd, sddd)
+    ratio = verification.limit_ratios(qd, qdd, qddd, limits)
+    common = {"check_sd": sd, "sd_scale": float(sd.max()), "iterations": 1}
+    traj = verification.finish_trajectory("toppra", path, limits, good.dt, law, duration, ratio, "test", **common)
+    exceeded = verification.exceeded_limits(traj.limit_ratio, ("velocity", "acceleration"))
+    assert traj.status is (TimingStatus.LIMIT_EXCEEDED if exceeded else TimingStatus.OK)
+    assert traj.reason.endswith("; test") and not traj.reason.startswith(traj.status.value)
+    # the same law with every limit 100x tighter: over the limits the method checks
+    tight = JointLimits(limits.velocity / 100, limits.acceleration / 100, limits.jerk / 100)
+    tight_ratio = verification.limit_ratios(qd, qdd, qddd, tight)
+    over = verification.finish_trajectory("toppra", path, tight, good.dt, law, duration, tight_ratio, "x",
+                                          **common, runs=" after 1 run(s)")
+    assert over.status is TimingStatus.LIMIT_EXCEEDED
+    assert over.reason.startswith("velocity and acceleration ratio above 1 after 1 run(s); x")
+    # a backwards path velocity fails, whatever the ratios
+    back = verification.finish_trajectory("ruckig", path, limits, good.dt, law, duration, ratio, "y",
+                                          check_sd=-sd, sd_scale=float(sd.max()), iterations=1)
+    assert back.status is TimingStatus.FAILED and back.reason.startswith("the Ruckig time law moves backwards")
 
 
 # --------------------------------------------------------------------------- #
@@ -675,9 +757,9 @@ def test_jerk_optimal_is_close_to_time_optimal_and_limits_jerk(path_name):
 
 
 def test_jerk_optimal_options_are_checked():
-    with pytest.raises(ValueError, match="gridpoints"):
+    with pytest.raises(InputError, match="gridpoints"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], "jerk_optimal", gridpoints=5)
-    with pytest.raises(ValueError, match="max_iterations"):
+    with pytest.raises(InputError, match="max_iterations"):
         time_parametrize(curved_path(), LIMIT_SETS["uniform"], "jerk_optimal", max_iterations=0)
 
 

@@ -1,4 +1,5 @@
-"""Virtual robot: periodic joint errors with several terms, and 6-D (orientation) campaigns.
+"""Virtual robot: which effects it simulates, periodic joint errors with several terms, and 6-D
+(orientation) campaigns.
 
 The references are computed here by hand (the old single-term formula, a sum of sines, the
 nominal forward kinematics of :class:`models.symbolic.KinematicModel`), not by the
@@ -8,6 +9,9 @@ simulator's own code paths.
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -16,12 +20,15 @@ import pytest
 import tomli_w
 from scipy.spatial.transform import Rotation
 
+import models.effects as fx
 from models import load_robot
 from models.robot import robot_from_dict
 from models.symbolic import KinematicModel
 from models.transforms import rpy_to_matrix, transform
 from problems.measurements import measurements_to_csv, parse_measurements
-from problems.virtual import SimConfigError, VirtualRobot, from_truth, load_config, rotvecs
+from problems.virtual import (SIM_EFFECTS, SimConfigError, VirtualRobot, effect_tables, from_truth, load_config,
+                              not_simulated, realisation, realisations, rotvecs)
+from problems.virtual.registry import top_level_tables
 from tests.conftest import as_modified_dh
 
 #: Default registration of an unregistered simulated campaign (docs/identification.md, section 9).
@@ -42,6 +49,137 @@ def _q(n: int = 40) -> np.ndarray:
 def _angle_between(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     """Rotation angle of Ra^T Rb per row, rad."""
     return np.linalg.norm(Rotation.from_matrix(np.swapaxes(Ra, -1, -2) @ Rb).as_rotvec(), axis=-1)
+
+
+# ----------------------------------------------------------------------------------
+# Which effects the virtual robot simulates
+# ----------------------------------------------------------------------------------
+
+#: Smallest change of the measured point (m) a table's physics must make in
+#: test_each_effect_table_changes_the_measurement (its defaults give 1e-5 m and more).
+EFFECT_VISIBLE_M = 1e-6
+
+#: A plug-in module of two effects the virtual robot does not simulate: one declares no table,
+#: the other a table with no realisation.
+UNSIMULATED_PLUGIN = """
+from .base import Effect, ParamGroup, register
+
+
+@register
+class WristOffset(Effect):
+    name = "wrist_offset"
+    order = 50
+    groups = (ParamGroup("wrist_offset.d", ("wrist_offset.d",), "m", scale=1e-3),)
+    formula = "d_4 += d (test plug-in, no simulation)"
+
+
+@register
+class Wobble(Effect):
+    name = "wobble"
+    order = 51
+    groups = (ParamGroup("wobble.a", ("wobble.a",), "m", scale=1e-3),)
+    formula = "test plug-in, a table the virtual robot does not realise"
+    simulation = "wobble_sim"
+"""
+
+
+def test_the_effects_and_the_virtual_robot_agree_on_what_is_simulated() -> None:
+    """Every effect that declares a table (``simulation``) has a realisation under its name, and every
+    realisation realises effects that declare its table; the valid tables follow from the declarations."""
+    for e in fx.registry():
+        r = realisation(e.name)
+        assert (r is not None) == bool(e.simulation), e.name
+        if r is not None:
+            assert r.table == e.simulation and r.top_level == e.declared, e.name
+    for r in realisations():
+        assert all(fx.effect(n).simulation == r.table for n in r.effects), r
+        assert r.effects or r.table == "outliers"        # the one table of no model term
+    assert not_simulated() == {}                         # every built-in effect is simulated
+    library = [e for e in fx.registry() if e.simulation and not e.declared]
+    assert set(effect_tables()) == {n for e in library for n in (e.simulation, e.name)} | {"outliers"}
+    assert set(SIM_EFFECTS) == set(effect_tables())
+    assert set(top_level_tables()) == {e.simulation for e in fx.registry() if e.declared}
+    assert set(top_level_tables()) == {"stiffness", "registration"}
+    # a table may be named by the declaration or by the effect (joint_error_map: [effects.eccentricity])
+    assert effect_tables()["eccentricity"] is effect_tables()["joint_error_map"] is realisation("joint_error_map")
+
+
+@pytest.mark.parametrize("name", [n for n in SIM_EFFECTS if n != "outliers"])
+def test_each_effect_table_changes_the_measurement(name: str) -> None:
+    """Each ``[effects.NAME]`` table, with its defaults, reaches the physics: the robot says it simulates
+    the effects of that table and the noise-free measurement moves."""
+    robot = load_robot("ur5")
+    rng = _rng()
+    q = rng.uniform(-2.0, 2.0, (12, 6))
+    F = np.hstack([rng.normal(0.0, 120.0, (12, 3)), rng.normal(0.0, 5.0, (12, 3))])
+    t, temp = np.linspace(0.0, 7200.0, 12), np.linspace(15.0, 35.0, 12)
+    plain = VirtualRobot(robot, {})
+    vr = VirtualRobot(robot, {"effects": {name: {}}})
+    assert all(vr.simulated(n) for n in effect_tables()[name].effects)
+    assert not any(plain.simulated(n) for n in effect_tables()[name].effects)
+    moved = np.linalg.norm(vr.measure(q, F, t, temp) - plain.measure(q, F, t, temp), axis=1).max()
+    assert moved > EFFECT_VISIBLE_M, (name, moved)
+
+
+def test_outliers_are_a_simulated_table_of_no_model_effect() -> None:
+    cfg = {"campaign": {"poses": 10}, "noise": {"sigma_m": 0.0}}
+    vr = VirtualRobot(load_robot("ur5"), {**cfg, "effects": {"outliers": {"fraction": 0.1}}})
+    assert vr.simulated("outliers") and realisation("outliers") is None
+    m, m0 = vr.campaign(), VirtualRobot(load_robot("ur5"), cfg).campaign()
+    moved = np.flatnonzero(np.linalg.norm(m.p - m0.p, axis=1) > 0)
+    assert moved.tolist() == vr.outlier_rows.tolist() and len(moved) == 4       # 10 % of 40 rows
+
+
+@pytest.mark.parametrize("name, words", [
+    ("wobble", ["'wobble'", "known: ['joint_offset'", "'eccentricity', 'joint_error_map', 'outliers']"]),
+    ("stiffness", ["'stiffness'", "[stiffness] is a top-level table"]),
+    ("joint_springs", ["'joint_springs'", "declared model", "top-level table [stiffness]"]),
+    ("measured_point", ["'measured_point'", "declared model", "top-level table [registration]"]),
+])
+def test_an_unknown_effect_table_lists_the_known_ones(name: str, words: list[str]) -> None:
+    with pytest.raises(SimConfigError) as exc:
+        VirtualRobot(load_robot("ur5"), {"effects": {name: {}}}, where="s.toml")
+    msg = str(exc.value)
+    assert msg.startswith("s.toml: unknown effect(s)"), msg
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_a_plug_in_effect_the_virtual_robot_does_not_simulate_is_reported(tmp_path) -> None:
+    """A plug-in effect (``$COMPPLAN_EFFECT_PATH``) that declares no table, or one the virtual robot
+    does not realise, is listed by ``not_simulated`` with the reason, a configuration naming it is an
+    error saying so, and the virtual robot simulates everything else as before."""
+    (tmp_path / "unsimulated.py").write_text(UNSIMULATED_PLUGIN)
+    code = """
+from models import load_robot
+from problems.virtual import SIM_EFFECTS, SimConfigError, VirtualRobot, not_simulated
+ns = not_simulated()
+assert sorted(ns) == ["wobble", "wrist_offset"], ns
+assert "wobble_sim" not in SIM_EFFECTS and "wrist_offset" not in SIM_EFFECTS, SIM_EFFECTS
+print(ns["wrist_offset"])
+print(ns["wobble"])
+for name in ("wrist_offset", "wobble_sim", "wobble"):
+    try:
+        VirtualRobot(load_robot("ur5"), {"effects": {name: {}}}, where="s.toml")
+    except SimConfigError as exc:
+        print(exc)
+    else:
+        raise AssertionError(name)
+vr = VirtualRobot(load_robot("ur5"), {"campaign": {"poses": 3}, "effects": {"gravity": {}}}, seed=2)
+print(vr.campaign().n)
+"""
+    env = {**os.environ, "COMPPLAN_EFFECT_PATH": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env,
+                         check=False)
+    assert out.returncode == 0, out.stderr[-2000:]
+    why_none, why_table, plug_in, table, effect, rows = out.stdout.strip().splitlines()[-6:]
+    assert "declares no table of the virtual robot" in why_none
+    assert "[effects.wobble_sim]" in why_table and "does not realise" in why_table
+    assert "unknown effect(s) ['wrist_offset']" in plug_in and why_none in plug_in
+    assert "unknown effect(s) ['wobble_sim']" in table and "known: ['joint_offset'" in table
+    assert "[effects.wobble_sim] is the table of effect(s) wobble" in table and "does not realise" in table
+    assert "unknown effect(s) ['wobble']" in effect and why_table in effect
+    assert rows == "12"
 
 
 # ----------------------------------------------------------------------------------

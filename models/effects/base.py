@@ -17,9 +17,10 @@ An *effect* is one module of :mod:`models.effects` that defines a subclass of
   6. ``measurement(ctx, p)``     -- from the base frame to the measuring instrument;
 
 * which data excite it (``needs``: ``"load"``, ``"time"``, ``"temperature"``),
-* which section of the virtual robot's configuration simulates it
-  (``simulation``; the virtual robot, :mod:`problems.virtual`, is written
-  independently of these formulas so that a test compares two implementations).
+* which table of the virtual robot's configuration simulates its physics
+  (``simulation``: the one place that names it; the virtual robot,
+  :mod:`problems.virtual`, registers its realisation under the effect's name and reads
+  only this declaration, never the formulas, so that a test compares two implementations).
 
 Every parameter of every registered effect lives in one flat vector ``theta``
 whose layout (:data:`PARAMETER_GROUPS`, built from the registry) does not depend
@@ -38,6 +39,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from models.errors import InputError, PluginError
 from models.robot import Robot
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -170,8 +172,12 @@ class Effect:
     formula : str
         One line stating the addition to the model (reports, docs).
     simulation : str
-        The virtual robot's ``[effects.<key>]`` section that simulates the physics it
-        models (empty: none; the declared model is simulated by the base simulator).
+        The table of the virtual robot's configuration that simulates the physics it models:
+        ``[effects.<simulation>]`` for a library effect (which may also be named as the effect),
+        the top-level ``[<simulation>]`` table for a declared one.  The virtual robot's NumPy
+        realisation of it is registered under the effect's name
+        (``problems/virtual/effects.py``, ``@simulates``; ``problems.virtual.not_simulated()``
+        lists the effects without one).  Empty: the virtual robot does not simulate it.
     """
 
     name: str = ""
@@ -255,13 +261,15 @@ def register(cls: type[Effect]) -> type[Effect]:
     """Class decorator: register an effect plug-in (one instance per class)."""
     inst = cls()
     if not inst.name:
-        raise TypeError(f"effect class {cls.__name__} has no name")
+        raise PluginError(f"effect class {cls.__name__}: no name (expected a non-empty class attribute 'name')")
     if inst.name in _REGISTRY and type(_REGISTRY[inst.name]) is not cls:
-        raise TypeError(f"effect '{inst.name}' is registered twice")
+        raise PluginError(f"effect '{inst.name}' is registered twice (by {type(_REGISTRY[inst.name]).__name__} "
+                          f"and {cls.__name__}); expected one class per effect name")
     keys = {g.key for e in _REGISTRY.values() if e.name != inst.name for g in e.groups}
     clash = keys & {g.key for g in inst.groups}
     if clash:
-        raise TypeError(f"effect '{inst.name}': parameter group(s) {sorted(clash)} already declared")
+        raise PluginError(f"effect '{inst.name}': parameter group(s) {sorted(clash)} already declared by another "
+                          "effect; expected keys of its own")
     _REGISTRY[inst.name] = inst
     _invalidate()
     return cls
@@ -336,7 +344,7 @@ def layouts() -> _Layouts:
     cslices, kc = {}, 0
     for c in consts:
         if c.key in cslices:
-            raise TypeError(f"constant '{c.key}' declared twice")
+            raise PluginError(f"constant '{c.key}' declared twice (by two effects); expected keys of its own")
         cslices[c.key] = slice(kc, kc + c.size)
         kc += c.size
     lay = _Layouts(tuple(groups), slices, tuple(names), k, tuple(consts), cslices, kc)
@@ -364,10 +372,11 @@ def set_const(const: np.ndarray, key: str, value: Any) -> np.ndarray:
     out = np.array(const, dtype=float, copy=True)
     v = np.asarray(value, dtype=float)
     if v.ndim > 1 and v.shape not in ((3, 3), (4, 4)):
-        raise ValueError(f"constant '{key}': give a flat array (got shape {v.shape})")
+        raise InputError(f"constant '{key}': expected a flat array of {s.stop - s.start} values or a 3x3 or 4x4 "
+                         f"matrix, got shape {v.shape}")
     flat = v.reshape(-1, order="F") if v.ndim > 1 else v.reshape(-1)
     if flat.size != s.stop - s.start:
-        raise ValueError(f"constant '{key}' has {s.stop - s.start} values, got {flat.size}")
+        raise InputError(f"constant '{key}': expected {s.stop - s.start} values, got {flat.size}")
     out[s] = flat
     return out
 

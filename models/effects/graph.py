@@ -26,6 +26,8 @@ from typing import Any, Callable, Sequence
 import casadi as ca
 import numpy as np
 
+from models.errors import InputError
+
 from . import base
 from .base import Effect, layouts, registry
 from .registration import cayley
@@ -73,7 +75,7 @@ def link_transform(theta: Any, d: Any, a: Any, alpha: Any, convention: str) -> A
             ca.horzcat(st * sa, ct * sa, ca_, ca_ * d),
             ca.horzcat(0, 0, 0, 1),
         )
-    raise ValueError(f"unknown DH convention {convention!r}")
+    raise InputError(f"DH convention {convention!r}: expected 'standard_dh' or 'modified_dh'")
 
 
 def _ry4(b: Any) -> Any:

@@ -30,6 +30,7 @@ class MeasuredPoint(Effect):
                             "rotation measured frame -> flange the correction r is applied to (3x3, column-major)"),
                  ConstGroup("measured_frame.on", 1, 0.0, "1 when the data measure orientation (tool.r in use)"))
     formula = "the measured point (and, with orientation data, the measured frame), flange frame"
+    simulation = "registration"
 
     def in_use(self, const: Any) -> dict[str, np.ndarray]:
         """The frame correction only with orientation data."""

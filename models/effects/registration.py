@@ -40,6 +40,7 @@ class Registration(Effect):
     constants = (ConstGroup("registration.R0", 9, lambda r: np.eye(3).reshape(-1),
                             "rotation the correction w is applied to (3x3, column-major)"),)
     formula = "p_meas = R(w) R0 p_base + t (measurement frame)"
+    simulation = "registration"
 
     def measurement(self, ctx: Any, p: Any) -> Any:
         R = ca.mtimes(cayley(ctx.p("reg.w")), ca.reshape(ctx.c("registration.R0"), 3, 3))

@@ -3,15 +3,26 @@
 One module per family registers an :class:`~models.ik.base.IKSolver` (extend by adding a
 file): :mod:`models.ik.ur` (UR-type closed form, 8 branches), :mod:`models.ik.opw`
 (ortho-parallel arms with a spherical wrist, closed form, 8 branches), :mod:`models.ik.general`
-(any other 6R: EAIK's subproblem decomposition, else a numeric multi-start).
-:func:`ik_solver` returns the first family that accepts a robot's chain.
+(any other 6R: EAIK's subproblem decomposition, else a numeric multi-start; the fallback).
+:func:`ik_solver` returns the first family, in increasing ``order``, that accepts a robot's chain.
+
+Every module of this package other than the helpers ``base``, ``general_solver`` and
+``opw_closed_form`` is imported here (``ur``, ``opw``, ``general`` first, in that order), and so
+is every module in the folders named by ``$COMPPLAN_IK_PATH`` (``os.pathsep``-separated), as
+``models.ik.<name>`` (:func:`models.plugins.import_plugins`): a new family is one module that
+defines and registers it, in this package or in such a folder.
 """
+
+from models.plugins import import_plugins
 
 from .base import (IK_REASONS, IKSolution, IKSolver, IKStatus, IKStructureError, families, ik_solver,
                    into_limits, register_family)
 from .ur import BRANCH_LABELS, AnalyticIK
-from . import opw as _opw  # noqa: F401  (registers the family)
-from . import general as _general  # noqa: F401  (registers the family)
 
-__all__ = ["AnalyticIK", "BRANCH_LABELS", "IK_REASONS", "IKSolution", "IKSolver", "IKStatus", "IKStructureError",
-           "families", "ik_solver", "into_limits", "register_family"]
+#: Extra folders searched for IK family modules (``os.pathsep``-separated).
+IK_PATH_VARIABLE = "COMPPLAN_IK_PATH"
+import_plugins(__name__, __path__, IK_PATH_VARIABLE, skip=("base", "general_solver", "opw_closed_form"),
+               first=("ur", "opw", "general"))
+
+__all__ = ["BRANCH_LABELS", "IK_PATH_VARIABLE", "IK_REASONS", "AnalyticIK", "IKSolution", "IKSolver", "IKStatus",
+           "IKStructureError", "families", "ik_solver", "into_limits", "register_family"]

@@ -1,7 +1,8 @@
 """What every IK family shares: statuses, the solution object, the solver interface, the registry.
 
 An IK family is a module of :mod:`models.ik` with one :class:`IKSolver` subclass decorated
-with :func:`register_family`.  :func:`ik_solver` tries the families in their ``order`` and
+with :func:`register_family` (or such a module in a folder of ``$COMPPLAN_IK_PATH``).
+:func:`ik_solver` tries the families in increasing ``order`` (:attr:`IKSolver.order`) and
 returns the first whose structure check accepts the robot's chain, so the family is
 detected from the chain itself (joint axes and offsets), never from a name.
 
@@ -16,29 +17,29 @@ branch (``docs/conventions.md``, "IK branches").
 from __future__ import annotations
 
 import abc
-import enum
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, PluginError
 from ..robot import Robot
+from ..status import CodedStatus
 from ..transforms import dh_chain_frames
 
 
-class IKStatus(enum.IntEnum):
-    """Why a branch has (or has no) solution."""
+class IKStatus(CodedStatus):
+    """Why a branch has (or has no) solution; ``code`` is the integer of :attr:`IKSolution.status`."""
 
-    OK = 0
-    SHOULDER_UNREACHABLE = 1   # wrist centre inside the lateral-offset cylinder
-    WRIST_UNREACHABLE = 2      # |cos(theta5)| > 1
-    WRIST_SINGULAR = 3         # sin(theta5) ~ 0: theta6 undetermined (joints 4, 6 aligned)
-    ELBOW_UNREACHABLE = 4      # target beyond the reach of links 2-3
-    JOINT_LIMIT = 5            # a solution exists but no 2*pi shift puts it in the limits
-    SHOULDER_SINGULAR = 6      # wrist centre on the joint-1 axis: theta1 undetermined
-    UNREACHABLE = 7            # general arms: this branch has no solution for the pose
-    SINGULAR = 8               # general arms: the solution is at a singular Jacobian
+    OK = "ok", 0
+    SHOULDER_UNREACHABLE = "shoulder_unreachable", 1   # wrist centre inside the lateral-offset cylinder
+    WRIST_UNREACHABLE = "wrist_unreachable", 2         # |cos(theta5)| > 1
+    WRIST_SINGULAR = "wrist_singular", 3               # sin(theta5) ~ 0: theta6 undetermined (joints 4, 6 aligned)
+    ELBOW_UNREACHABLE = "elbow_unreachable", 4         # target beyond the reach of links 2-3
+    JOINT_LIMIT = "joint_limit", 5                     # a solution exists but no 2*pi shift puts it in the limits
+    SHOULDER_SINGULAR = "shoulder_singular", 6         # wrist centre on the joint-1 axis: theta1 undetermined
+    UNREACHABLE = "unreachable", 7                     # general arms: this branch has no solution for the pose
+    SINGULAR = "singular", 8                           # general arms: the solution is at a singular Jacobian
 
 
 IK_REASONS = {
@@ -67,7 +68,7 @@ class IKSolution:
     q : ndarray, shape (N, B, 6)
         Joint angles (rad); NaN where the branch has no solution.
     status : ndarray of int, shape (N, B)
-        :class:`IKStatus` per branch.
+        :attr:`IKStatus.code` per branch (:meth:`status_of` gives the enum).
     labels : tuple of str, length B
         The family's branch labels.
     """
@@ -79,18 +80,22 @@ class IKSolution:
     @property
     def valid(self) -> np.ndarray:
         """(N, B) bool: branch has a solution within the limits."""
-        return self.status == IKStatus.OK
+        return self.status == IKStatus.OK.code
+
+    def status_of(self, i: int, branch: int) -> IKStatus:
+        """The :class:`IKStatus` of pose ``i``, branch ``branch``."""
+        return IKStatus.from_code(self.status[i, branch])
 
     def reason(self, i: int, branch: int) -> str:
         """Human-readable reason for pose ``i``, branch ``branch``."""
-        return IK_REASONS[IKStatus(int(self.status[i, branch]))]
+        return IK_REASONS[self.status_of(i, branch)]
 
     def summary(self, i: int) -> str:
         """One line per pose: the worst reason if no branch is valid."""
         if self.valid[i].any():
             return f"{int(self.valid[i].sum())} branch(es)"
         codes = sorted({int(c) for c in self.status[i]})
-        return "; ".join(IK_REASONS[IKStatus(c)] for c in codes)
+        return "; ".join(IK_REASONS[IKStatus.from_code(c)] for c in codes)
 
 
 def into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
@@ -135,11 +140,11 @@ def check_poses(tcp2base: np.ndarray) -> np.ndarray:
     """Target poses as (N, 4, 4), refusing wrong shapes and non-finite entries."""
     T = np.asarray(tcp2base, dtype=float)
     if T.shape[-2:] != (4, 4):
-        raise ValueError(f"target poses must have shape (N, 4, 4), got {T.shape}")
+        raise InputError(f"target poses: expected shape (4, 4) or (N, 4, 4), got {T.shape}")
     T = T.reshape(-1, 4, 4)
     if not np.all(np.isfinite(T)):
         bad = int(np.where(~np.isfinite(T).all(axis=(1, 2)))[0][0])
-        raise ValueError(f"target pose {bad} is not finite")
+        raise InputError(f"target pose {bad} is not finite: {T[bad].tolist()}; expected finite entries")
     return T
 
 
@@ -149,7 +154,7 @@ class IKSolver(abc.ABC):
     Attributes
     ----------
     family : str
-        ``"ur"``, ``"opw"``, ``"general"``.
+        ``"ur"``, ``"opw"``, ``"general"``, or a plug-in family's name (``$COMPPLAN_IK_PATH``).
     labels : tuple of str
         Branch labels (stable along a path).
     guard_names : tuple of str
@@ -162,8 +167,13 @@ class IKSolver(abc.ABC):
     """
 
     family: ClassVar[str] = ""
-    #: Families are tried in increasing order (closed forms first).
-    order: ClassVar[int] = 100
+    #: Priority: :func:`ik_solver` tries the families in increasing ``order``, ties in
+    #: registration order (built-in modules, then plug-in modules by folder and name).  The
+    #: built-ins: ``ur`` 10, ``opw`` 20 (closed forms), ``general`` :data:`FALLBACK_ORDER` (it
+    #: accepts any 6R chain, so it is tried last).  A family that does not set it gets
+    #: :data:`DEFAULT_ORDER`: after the closed forms, before the fallback; one that specialises a
+    #: built-in for some arms (e.g. a subclass of the UR family) sets an order below that family's.
+    order: ClassVar[float] = 50
     #: One line: which arms the family serves.
     description: ClassVar[str] = ""
     labels: tuple[str, ...] = ()
@@ -193,6 +203,7 @@ class IKSolver(abc.ABC):
             The family has no batch function (a numeric family).
         """
         if self.function is None:
+            # A caller's error, not a user's: callers ship an evaluator only for families with a function.
             raise TypeError(f"IK family {self.family!r} has no batch function to evaluate")
         self._evaluator = evaluator
 
@@ -264,14 +275,32 @@ class IKSolver(abc.ABC):
 
 
 _FAMILIES: list[type[IKSolver]] = []
+#: ``order`` of a family that does not set it (after the closed forms, before the fallback).
+DEFAULT_ORDER: float = IKSolver.order
+#: ``order`` of the general 6R family, which accepts any 6R chain: the last one tried.
+FALLBACK_ORDER: float = 90
 
 
 def register_family(cls: type[IKSolver]) -> type[IKSolver]:
-    """Class decorator: add an IK family to the registry (tried in ``order``)."""
+    """Class decorator: add an IK family to the registry.
+
+    :func:`ik_solver` tries the registered families in increasing :attr:`IKSolver.order`, ties
+    in registration order; a family with an order above :data:`FALLBACK_ORDER` would never be
+    tried (the general family accepts every 6R chain) and is refused.
+
+    Raises
+    ------
+    PluginError
+        (a ``TypeError``) No ``family`` name, a name registered twice, or an ``order`` that is
+        not a number at most :data:`FALLBACK_ORDER`.
+    """
     if not cls.family:
-        raise TypeError(f"{cls.__name__}: an IK family needs a 'family' name")
+        raise PluginError(f"{cls.__name__}: an IK family needs a 'family' name (a non-empty class attribute)")
+    if isinstance(cls.order, bool) or not isinstance(cls.order, (int, float)) or not cls.order <= FALLBACK_ORDER:
+        raise PluginError(f"IK family '{cls.family}': order {cls.order!r}; expected a number <= {FALLBACK_ORDER:g} "
+                        "(the general family, tried last, accepts every 6R chain)")
     if any(c.family == cls.family for c in _FAMILIES):
-        raise TypeError(f"IK family '{cls.family}' registered twice")
+        raise PluginError(f"IK family '{cls.family}' registered twice; expected one class per family name")
     _FAMILIES.append(cls)
     _FAMILIES.sort(key=lambda c: c.order)
     return cls
@@ -289,7 +318,7 @@ def ik_solver(robot: Robot, family: str | None = None) -> IKSolver:
     ----------
     robot : Robot
     family : str, optional
-        Force one family (``"ur"``, ``"opw"``, ``"general"``).
+        Force one family (``"ur"``, ``"opw"``, ``"general"``, or a plug-in's name).
 
     Raises
     ------

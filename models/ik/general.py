@@ -17,13 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from .general_solver import GeneralIK, general_guard_factors
+from .general_solver import GeneralIK, GeneralIKStatus, general_guard_factors
 from ..robot import Robot
 from ..transforms import invert
-from .base import IKSolution, IKSolver, IKStatus, check_poses, into_limits, register_family, zero_axes
+from .base import (FALLBACK_ORDER, IKSolution, IKSolver, IKStatus, check_poses, into_limits, register_family,
+                   zero_axes)
 
 #: The helper's status codes -> IKStatus.
-_CODES = {0: IKStatus.OK, 4: IKStatus.UNREACHABLE, 3: IKStatus.SINGULAR}
+_CODES = {GeneralIKStatus.OK.code: IKStatus.OK, GeneralIKStatus.UNREACHABLE.code: IKStatus.UNREACHABLE,
+          GeneralIKStatus.SINGULAR.code: IKStatus.SINGULAR}
 
 
 @register_family
@@ -31,7 +33,7 @@ class GeneralSixR(IKSolver):
     """All branches of a 6R arm that is neither UR-type nor OPW."""
 
     family = "general"
-    order = 90
+    order = FALLBACK_ORDER   # accepts any 6R chain: tried last
     description = "any other 6R (EAIK subproblem decomposition, else numeric multi-start)"
     guard_names = ("det J",)
     guard_kinds = ("det",)
@@ -53,10 +55,10 @@ class GeneralSixR(IKSolver):
     def solve(self, tcp2base: np.ndarray) -> IKSolution:
         """Every branch found for target TCP pose(s) ((4, 4) or (N, 4, 4), base frame)."""
         res = self.backend.solve(check_poses(tcp2base) @ self._flange2tcp)
-        status = np.vectorize(lambda c: int(_CODES.get(int(c), IKStatus.UNREACHABLE)))(res.status)
+        status = np.vectorize(lambda c: _CODES.get(int(c), IKStatus.UNREACHABLE).code)(res.status)
         q, fits = into_limits(np.asarray(res.q, dtype=float), self.q_min, self.q_max)
-        status = np.where((status == IKStatus.OK) & ~fits, int(IKStatus.JOINT_LIMIT), status)
-        q[status != IKStatus.OK] = np.nan
+        status = np.where((status == IKStatus.OK.code) & ~fits, IKStatus.JOINT_LIMIT.code, status)
+        q[status != IKStatus.OK.code] = np.nan
         self.complete = bool(res.complete)
         self.note = res.note
         return IKSolution(q=q, status=status.astype(int), labels=self.labels)

@@ -70,17 +70,14 @@ reproduces the target to ``IK_ROUNDTRIP_TOL``.
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import linear_sum_assignment
-from scipy.spatial.transform import Rotation
-from scipy.stats import qmc
 
 from ..constants import IK_ROUNDTRIP_TOL
 from ..errors import InputError
+from ..status import CodedStatus
 from ..transforms import poe_fk, wrap_angle
 
 #: A chain ``(w (6, 3), p (6, 3) m, M0 (4, 4))`` (see the module docstring).
@@ -127,12 +124,12 @@ NEW_SLOT_COST = 100.0
 JACOBIAN_CHUNK = 64
 
 
-class GeneralIKStatus(enum.IntEnum):
-    """Per-slot status of :class:`GeneralIKResult`."""
+class GeneralIKStatus(CodedStatus):
+    """Per-slot status of :class:`GeneralIKResult` (``code`` is the integer of its array)."""
 
-    OK = 0
-    SINGULAR = 3      # solution at |det J| / L^3 < SINGULAR_DET_TOL
-    UNREACHABLE = 4   # no solution in this slot (q is NaN)
+    OK = "ok", 0
+    SINGULAR = "singular", 3        # solution at |det J| / L^3 < SINGULAR_DET_TOL
+    UNREACHABLE = "unreachable", 4  # no solution in this slot (q is NaN)
 
 
 @dataclass(frozen=True)
@@ -144,7 +141,7 @@ class GeneralIKResult:
     q : ndarray, shape (N, K, 6)
         Joint variables (rad) wrapped to (-pi, pi]; NaN where the slot has no solution.
     status : ndarray of int, shape (N, K)
-        :class:`GeneralIKStatus` codes.
+        :attr:`GeneralIKStatus.code` per slot.
     guard : ndarray, shape (N, K)
         :func:`general_guard_factors` at each solution (dimensionless); NaN where absent.
     method : str
@@ -171,7 +168,7 @@ class GeneralIKResult:
     @property
     def valid(self) -> np.ndarray:
         """(N, K) bool: the slot holds a regular solution."""
-        return self.status == GeneralIKStatus.OK
+        return self.status == GeneralIKStatus.OK.code
 
 
 # ----------------------------------------------------------------------------- POE kinematics
@@ -271,6 +268,7 @@ def general_guard_factors(w: np.ndarray, p: np.ndarray, M0: np.ndarray,
 
 def _pose_error(T: np.ndarray, Tt: np.ndarray) -> np.ndarray:
     """(n, 6) ``[p_t - p (m); rotvec(R_t R^T) (rad)]``, base frame."""
+    from scipy.spatial.transform import Rotation   # imported on demand (scipy.spatial costs ~0.4 s)
     dR = Tt[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2)
     return np.hstack([Tt[:, :3, 3] - T[:, :3, 3], Rotation.from_matrix(dR).as_rotvec()])
 
@@ -371,6 +369,7 @@ def _track(solutions: list[np.ndarray], K: int) -> list[np.ndarray]:
 
     ``solutions[i]`` is (m_i, 6), m_i <= K; returns a list of (m_i,) int slot indices.
     """
+    from scipy.optimize import linear_sum_assignment   # imported on demand (as scipy.stats below)
     last, used, out = np.zeros((K, 6)), np.zeros(K, dtype=bool), []
     for S in solutions:
         if len(S) == 0:
@@ -477,6 +476,7 @@ class GeneralIK:
             self.method = self.kind = "numeric"
         self.n_branches = EAIK_MAX_BRANCHES if self.method == "eaik" else NUMERIC_MAX_BRANCHES
         self.labels = tuple(f"b{k + 1}" for k in range(self.n_branches))
+        from scipy.stats import qmc   # imported on demand: scipy.stats costs ~0.6 s at import
         u = qmc.Sobol(6, scramble=False).random(NUMERIC_N_STARTS) + 0.5 / NUMERIC_N_STARTS
         self.starts = wrap_angle(2.0 * np.pi * (u % 1.0) - np.pi)
 
@@ -568,8 +568,8 @@ class GeneralIK:
             note = (f"numeric multi-start ({NUMERIC_N_STARTS} Sobol starts, Levenberg-Marquardt): "
                     f"may have missed a branch; a 6R arm has up to {NUMERIC_MAX_BRANCHES} solutions "
                     "and fewer found cannot be proven complete")
-            regular = np.sum(status == GeneralIKStatus.OK, axis=1)
-            singular = np.any(status == GeneralIKStatus.SINGULAR, axis=1)
+            regular = np.sum(status == GeneralIKStatus.OK.code, axis=1)
+            singular = np.any(status == GeneralIKStatus.SINGULAR.code, axis=1)
             odd = int(np.sum((regular % 2 == 1) & ~singular))
             if odd:
                 note += (f"; {odd} pose(s) have an odd number of regular solutions, so a branch "
@@ -593,9 +593,9 @@ class GeneralIK:
         present = ~np.isnan(q[..., 0])
         guard = np.full((N, K), np.nan)
         guard[present] = general_guard_factors(*self._chain, q[present])[:, 0]
-        status = np.full((N, K), int(GeneralIKStatus.UNREACHABLE))
+        status = np.full((N, K), GeneralIKStatus.UNREACHABLE.code)
         status[present] = np.where(np.abs(guard[present]) < SINGULAR_DET_TOL,
-                                   int(GeneralIKStatus.SINGULAR), int(GeneralIKStatus.OK))
+                                   GeneralIKStatus.SINGULAR.code, GeneralIKStatus.OK.code)
         return GeneralIKResult(q=q, status=status, guard=guard, method=self.method,
                                complete=not numeric, note=self._note(status, found),
                                labels=self.labels, n_starts=n_starts if numeric else None)

@@ -86,6 +86,6 @@ class OPWIK(IKSolver):
         q = qc.transpose(0, 2, 1).copy()
         status = st.astype(int)
         q, fits = into_limits(q, self.q_min, self.q_max)
-        status = np.where((status == IKStatus.OK) & ~fits, int(IKStatus.JOINT_LIMIT), status)
-        q[status != IKStatus.OK] = np.nan
+        status = np.where((status == IKStatus.OK.code) & ~fits, IKStatus.JOINT_LIMIT.code, status)
+        q[status != IKStatus.OK.code] = np.nan
         return IKSolution(q=q, status=status, labels=self.labels)

@@ -42,7 +42,6 @@ Branches (index ``4*shoulder + 2*elbow + wrist``, :data:`OPW_BRANCH_LABELS`):
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -50,6 +49,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import InputError
+from ..status import CodedStatus
 from ..transforms import poe_fk as _poe_fk, rotations_about
 
 #: Structure checks: largest deviation of an axis angle from 0 or pi/2 (rad).
@@ -82,14 +82,15 @@ OPW_BRANCH_LABELS: tuple[str, ...] = tuple(
 _TWO_PI = 2.0 * np.pi
 
 
-class OPWStatus(enum.IntEnum):
-    """Why a branch has (or has no) solution; values shared with :class:`models.ik.IKStatus`."""
+class OPWStatus(CodedStatus):
+    """Why a branch has (or has no) solution; values and codes shared with :class:`models.ik.IKStatus`
+    (the OPW family stores these codes as IK codes)."""
 
-    OK = 0
-    SHOULDER_UNREACHABLE = 1   # wrist centre closer to axis 1 than |b|
-    WRIST_SINGULAR = 3         # sin(phi5) ~ 0: phi4 and phi6 not separable
-    ELBOW_UNREACHABLE = 4      # wrist centre beyond the reach of links 2-3
-    SHOULDER_SINGULAR = 6      # wrist centre on axis 1 with b = 0: phi1 undetermined
+    OK = "ok", 0
+    SHOULDER_UNREACHABLE = "shoulder_unreachable", 1   # wrist centre closer to axis 1 than |b|
+    WRIST_SINGULAR = "wrist_singular", 3               # sin(phi5) ~ 0: phi4 and phi6 not separable
+    ELBOW_UNREACHABLE = "elbow_unreachable", 4         # wrist centre beyond the reach of links 2-3
+    SHOULDER_SINGULAR = "shoulder_singular", 6         # wrist centre on axis 1 with b = 0: phi1 undetermined
 
 
 class NotOPW(InputError):
@@ -488,7 +489,7 @@ def opw_ik_function(geom: OPWGeometry) -> ca.Function:
     casadi.Function
         ``flange2base`` (4x4, m) -> ``q`` (6 x 8, rad, column = branch in
         :data:`OPW_BRANCH_LABELS` order, joint values wrapped to (-pi, pi]) and
-        ``status`` (8,, :class:`OPWStatus` codes).  ``q`` is finite for finite input;
+        ``status`` (8,, :attr:`OPWStatus.code` values).  ``q`` is finite for finite input;
         mask it by status.  Precedence: SHOULDER_UNREACHABLE, ELBOW_UNREACHABLE,
         SHOULDER_SINGULAR, WRIST_SINGULAR.  Singular branches still carry a solution that
         reproduces the pose (shoulder: phi1 = polar angle of the wrist centre; wrist:
@@ -506,11 +507,12 @@ def opw_ik_function(geom: OPWGeometry) -> ca.Function:
             phi = ca.vertcat(*phi123, phi456)
             q = (phi - ca.DM(geom.offsets)) * ca.DM(geom.signs)
             qs.append(q - _TWO_PI * ca.ceil((q - np.pi) / _TWO_PI))
-            code = ca.if_else(s5 < OPW_WRIST_SINGULAR_TOL, float(OPWStatus.WRIST_SINGULAR), float(OPWStatus.OK))
-            code = ca.if_else(sh_sing, float(OPWStatus.SHOULDER_SINGULAR), code)
+            code = ca.if_else(s5 < OPW_WRIST_SINGULAR_TOL, float(OPWStatus.WRIST_SINGULAR.code),
+                              float(OPWStatus.OK.code))
+            code = ca.if_else(sh_sing, float(OPWStatus.SHOULDER_SINGULAR.code), code)
             code = ca.if_else(ca.fabs(cosines[k // 2]) > 1.0 + OPW_CLIP_TOL,
-                              float(OPWStatus.ELBOW_UNREACHABLE), code)
-            code = ca.if_else(sh_unreach, float(OPWStatus.SHOULDER_UNREACHABLE), code)
+                              float(OPWStatus.ELBOW_UNREACHABLE.code), code)
+            code = ca.if_else(sh_unreach, float(OPWStatus.SHOULDER_UNREACHABLE.code), code)
             codes.append(code)
     return ca.Function("opw_ik", [T], [ca.horzcat(*qs), ca.vertcat(*codes)], ["flange2base"], ["q", "status"])
 
@@ -530,7 +532,7 @@ def opw_ik(fun: ca.Function, flange2base: Any) -> tuple[np.ndarray, np.ndarray]:
     q : ndarray, shape (N, 8, 6)
         Joint values (rad) per branch; not masked (see ``status``).
     status : ndarray of int, shape (N, 8)
-        :class:`OPWStatus` codes.
+        :attr:`OPWStatus.code` values.
     """
     T = np.asarray(flange2base, dtype=float).reshape(-1, 4, 4)
     n = T.shape[0]

@@ -202,12 +202,13 @@ class AnalyticIK(IKSolver):
         codes = []
         for b in range(8):
             sh, w = b // 4, (b // 2) % 2
-            code = ca.if_else(oks[b], float(IKStatus.OK), float(IKStatus.JOINT_LIMIT))
-            code = ca.if_else(ca.fabs(c3s[2 * sh + w]) > 1 + IK_CLIP_TOL, float(IKStatus.ELBOW_UNREACHABLE), code)
-            code = ca.if_else(ca.fabs(s5s[2 * sh + w]) < IK_WRIST_SINGULAR_TOL, float(IKStatus.WRIST_SINGULAR), code)
-            code = ca.if_else(ca.fabs(c5s[sh]) > 1 + IK_CLIP_TOL, float(IKStatus.WRIST_UNREACHABLE), code)
-            code = ca.if_else(r < IK_SHOULDER_SINGULAR_TOL, float(IKStatus.SHOULDER_SINGULAR), code)
-            code = ca.if_else(ca.fabs(ratio) > 1 + IK_CLIP_TOL, float(IKStatus.SHOULDER_UNREACHABLE), code)
+            code = ca.if_else(oks[b], float(IKStatus.OK.code), float(IKStatus.JOINT_LIMIT.code))
+            code = ca.if_else(ca.fabs(c3s[2 * sh + w]) > 1 + IK_CLIP_TOL, float(IKStatus.ELBOW_UNREACHABLE.code), code)
+            code = ca.if_else(ca.fabs(s5s[2 * sh + w]) < IK_WRIST_SINGULAR_TOL, float(IKStatus.WRIST_SINGULAR.code),
+                              code)
+            code = ca.if_else(ca.fabs(c5s[sh]) > 1 + IK_CLIP_TOL, float(IKStatus.WRIST_UNREACHABLE.code), code)
+            code = ca.if_else(r < IK_SHOULDER_SINGULAR_TOL, float(IKStatus.SHOULDER_SINGULAR.code), code)
+            code = ca.if_else(ca.fabs(ratio) > 1 + IK_CLIP_TOL, float(IKStatus.SHOULDER_UNREACHABLE.code), code)
             codes.append(code)
         return ca.Function("ik_branches", [Tt], [ca.horzcat(*qs), ca.vertcat(*codes)],
                            ["tcp2base"], ["q", "status"])
@@ -243,7 +244,7 @@ class AnalyticIK(IKSolver):
         qc, st = self._batch(T.transpose(0, 2, 1).reshape(n, 16))
         q = qc.transpose(0, 2, 1)   # (n, 8, 6), contiguous (the C output is branch-major)
         status = st.astype(int)
-        q[status != IKStatus.OK] = np.nan
+        q[status != IKStatus.OK.code] = np.nan
         return IKSolution(q=q, status=status, labels=self.labels)
 
 

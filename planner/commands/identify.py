@@ -236,6 +236,7 @@ def run_identify(args: argparse.Namespace) -> int:
     from models.arm_file import model_toml
     from problems.identify import (
         CV_FOLDS,
+        IdentifyStatus,
         compensation_check,
         identify,
         validate_on,
@@ -288,7 +289,7 @@ def run_identify(args: argparse.Namespace) -> int:
     for n in res.notes:
         print(f"  note: {n}")
     _print_notes(data, val)
-    if res.status.value == "implausible_geometry":
+    if res.status is IdentifyStatus.IMPLAUSIBLE:
         print(f"compplan: warning: {res.reason}", file=sys.stderr)
     print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html")
     return 0
@@ -325,7 +326,6 @@ def run_compensate(args: argparse.Namespace) -> int:
     check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
     from models.errors import InfeasibleError
     from planner.output import atomic_write_bytes
-    from problems.compensation import CompensationStatus
     from models.arm_file import load_model
     from problems.identify import compensate_targets
     from problems.measurements import commands_csv
@@ -333,7 +333,7 @@ def run_compensate(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     m = _read(args, args.input, require_position=False)
     out = compensate_targets(model, m, args.targets_frame)
-    failed = out.status not in (CompensationStatus.OK, CompensationStatus.WARNING)
+    failed = not out.status.usable
     if failed and args.strict:
         raise InfeasibleError(f"{args.input}: {out.reason}; nothing written")
     atomic_write_bytes(args.out, commands_csv([f"q{i}" for i in range(1, 7)], out.q_command).encode())

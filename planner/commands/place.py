@@ -120,7 +120,7 @@ def print_study(st: Any) -> None:
               f"{e['rms_error_mm']:.4g} / {e['max_error_mm']:.4g} mm, joint margin {e['joint_margin_deg']:.3g} deg, "
               f"singular margin {e['singular_margin']:.3g}")
     b = s["baseline"]
-    if b["status"] == "ok":
+    if st.baseline.status_of(0).ok:
         print(f"  as written (x=0, y=0): branch {b['best_branch']}, {b['rms_error_mm']:.4g} / {b['max_error_mm']:.4g} mm")
     else:
         print(f"  as written (x=0, y=0): infeasible ({b['status_reason']})")
@@ -130,9 +130,9 @@ def print_study(st: Any) -> None:
     for w in s["warnings"]:
         print(f"  warning: {w}")
     print("  full plans (error before compensation max / RMS, after compensation max, duration):")
-    for p in s["plans"]:
+    for plan, p in zip(st.plans, s["plans"]):
         h = p["plan"]
-        if p["plan_status"] != "ok":
+        if not plan.result.ok:
             print(f"    {p['label']:<10} {p['placement_text']}: {p['plan_status']}: {h.get('reason')}")
             continue
         dur = "not timed" if h.get("duration_s") is None else f"{h['duration_s']} s"

@@ -53,16 +53,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.set_defaults(func=run_pose)
 
 
-def print_plan(res: Any, out: str | Path | None, names: list[str]) -> None:
-    """Print the branch table, the gains, the error table and the timing of a plan."""
+def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = None) -> None:
+    """Print the branch table, the gains, the error table and the timing of a plan
+    (``view``: its :class:`~planner.plan.RunView`, when the caller has it)."""
     from planner.numbers import format_number, mm_text
     from planner.report.tables import load_words
     from problems.timing.limit_use import describe_binding
 
-    s = res.summary()
+    s = (res.view() if view is None else view).summary
     pr = res.problem
     ps = res.posture
-    md = pr.model.describe()
+    md = s["model"]
     print(f"problem {pr.name} ({pr.source}): robot {pr.robot.name}, {pr.n} waypoints, "
           f"rule {pr.rule.value}; {ps.freedom_note}")
     print(f"arm model: {md['file'] or pr.robot.name}; effects: {', '.join(md['effects'])}")
@@ -122,18 +123,20 @@ def run(args: argparse.Namespace) -> int:
 
 
 def finish_run(res: Any, args: argparse.Namespace) -> int:
-    """Write a successful plan's outputs, print its summary and write the report (plan, demo)."""
+    """Write a successful plan's outputs, print its summary and write the report (plan, demo),
+    all from one view of the run (summary and tables computed once)."""
     from planner.plan import output_names, write_outputs
 
     # The report draws the same figures (5 and 6) and more: the quick PNGs are only
     # worth their time when no report is written.
     quick_figures = args.no_report and not args.no_figures
+    view = res.view()
     exports = plan_exports(res, getattr(args, "export", []))
-    write_outputs(res, args.out, with_figures=quick_figures, extra=exports)
-    print_plan(res, args.out, output_names(res, quick_figures) + list(exports))
+    write_outputs(res, args.out, with_figures=quick_figures, extra=exports, view=view)
+    print_plan(res, args.out, output_names(res, quick_figures) + list(exports), view)
     if not args.no_report:
         from planner.commands.report import write_run_report
-        write_run_report(args.out, result=res)      # the report's view is built from res
+        write_run_report(args.out, result=res, view=view)      # the report's view is built from res
     return 0
 
 
@@ -141,7 +144,7 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
 def run_pose(args: argparse.Namespace) -> int:
     from models.errors import InputError
     from planner.output import OutputSet
-    from problems.posture import optimal_pose
+    from problems.posture import PostureStatus, optimal_pose
     from problems.problem import load_problem
 
     if args.out:
@@ -157,7 +160,7 @@ def run_pose(args: argparse.Namespace) -> int:
                        scan=pr.scan, verbose=args.verbose)
     if not res.ok:
         from models.errors import InfeasibleError, UnreachableError
-        cls = UnreachableError if res.status.value == "unreachable" else InfeasibleError
+        cls = UnreachableError if res.status is PostureStatus.UNREACHABLE else InfeasibleError
         raise cls(f"pose: waypoint {k} of '{pr.name}': {res.status.value}: {res.reason}")
     p = pr.positions[k]
     print(f"waypoint {k} of {pr.name}: TCP ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, rule {pr.rule.value}, "

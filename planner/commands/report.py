@@ -147,8 +147,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("folder", help="output folder of compplan demo / plan")
     r.add_argument("--no-map", action="store_true", help="leave out the compliance map (figure 1)")
     r.add_argument("--no-map-cache", action="store_true",
-                   help="draw the compliance map again even if it is cached for this robot and "
-                        "these options ($COMPPLAN_CACHE/maps, default ~/.cache/compplan/maps)")
+                   help="draw the compliance map and the figures again even if they are cached for "
+                        "this robot and these options or data ($COMPPLAN_CACHE/maps and /figures, "
+                        "default ~/.cache/compplan)")
     r.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="processes that render the figures (default: up to 2)")
     add_map_arguments(r, prefix="map-", optional=True)

@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         ql = np.array([arm.equilibrium(th, K)[0] for th in data.q])
     sim = simulate_elastic(robot, data.t, data.q, payload=payload, wrench=wrench, stiffness=K,
                            damping_ratio=args.damping_ratio, settle_s=args.settle)
-    if sim.status.value != "ok":
+    if not sim.ok:
         raise InputError(f"track: the simulation failed: {sim.reason}")
     e = tracking_error(sim, robot, data.t, ql)
     print(f"track {run_dir}: robot {robot.name}, {len(data.t)} command samples ({data.t[-1]:.3f} s) + {args.settle:g} s "

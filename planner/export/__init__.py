@@ -1,6 +1,8 @@
 """Trajectories a controller can run: URScript, ROS 2 (YAML, rosbag2), ABB RAPID, KUKA KRL.
 
-One module per format registers an :class:`ExportFormat` (extend by adding a file). Every
+One module per format registers an :class:`ExportFormat` with :func:`register_format` (extend by
+adding a file: every module of this package, and every module in the folders named by
+``$COMPPLAN_EXPORT_PATH``, is imported at the end of this module). Every
 format reads an :class:`ExportData`: the controller's trajectory of a plan (``trajectory.csv``:
 joint positions, velocities and accelerations at the controller period), the robot's joint
 names and the mapping from the model's joint angles to the controller's
@@ -21,10 +23,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from models.errors import InputError
+from models.errors import InputError, PluginError
+from models.plugins import import_plugins
 
-__all__ = ["EXPORT_FORMATS", "EXPORT_LIMIT_TOL", "ExportData", "ExportError", "ExportFormat", "data_from_plan",
-           "data_from_run", "export_files", "formats", "register_format", "verify_limits"]
+__all__ = ["EXPORT_FORMATS", "EXPORT_LIMIT_TOL", "EXPORT_PATH_VARIABLE", "ExportData", "ExportError", "ExportFormat",
+           "data_from_plan", "data_from_run", "export_files", "formats", "register_format", "verify_limits"]
 
 
 class ExportError(InputError):
@@ -182,7 +185,7 @@ _FORMATS: dict[str, ExportFormat] = {}
 def register_format(fmt: ExportFormat) -> ExportFormat:
     """Add an export format (a module calls this when imported)."""
     if fmt.name in _FORMATS:
-        raise TypeError(f"export format '{fmt.name}' registered twice")
+        raise PluginError(f"export format '{fmt.name}' registered twice; expected one format per name")
     _FORMATS[fmt.name] = fmt
     return fmt
 
@@ -221,19 +224,19 @@ _DEFAULT_ENFORCED = ("velocity", "acceleration", "jerk")
 def data_from_plan(res: Any) -> ExportData:
     """The controller's trajectory of a :class:`~planner.plan.PlanResult` (in memory), checked
     by :func:`verify_limits`."""
-    from planner.plan import ENFORCED
+    from problems.timing import get_method
     pr = res.problem
     if res.controller is None or res.controller not in res.trajectories:
         raise ExportError("export: the plan has no timed trajectory (the plan stopped before timing)")
     tr = res.trajectories[res.controller]
-    if tr.status.value != "ok" or res.status.value != "ok":
+    if not tr.status.ok or not res.ok:
         raise ExportError(f"export: the trajectory is not ok (plan {res.status.value}, {res.controller} "
                           f"{tr.status.value}: {tr.reason}); refusing to export it")
     r, lim = pr.robot, pr.limits
     data = ExportData(name=_program_name(pr.name), robot=r.name, joint_names=_names(r.joint_names), t=tr.t,
                       q=tr.q, qd=tr.qd, qdd=tr.qdd, qddd=tr.qddd, dt=tr.dt, v_max=_vec6(lim.velocity),
                       a_max=_vec6(lim.acceleration), j_max=_vec6(lim.jerk), q_min=_vec6(r.q_min),
-                      q_max=_vec6(r.q_max), enforced=tuple(ENFORCED.get(res.controller, _DEFAULT_ENFORCED)),
+                      q_max=_vec6(r.q_max), enforced=tuple(get_method(res.controller).checked_limits),
                       sign=np.asarray(r.controller_sign, float), offset=np.asarray(r.controller_offset, float),
                       source=f"problem {pr.name}")
     verify_limits(data, f"export of problem {pr.name} ({res.controller})")
@@ -378,8 +381,11 @@ def header_lines(data: ExportData, fmt: str, comment: str) -> list[str]:
             "(docs/export.md)"]
 
 
-EXPORT_FORMATS: tuple[str, ...] = ()
+#: Extra folders searched for export format modules (``os.pathsep``-separated): each ``*.py``
+#: there is imported as ``planner.export.<name>`` and registers its format(s) with
+#: :func:`register_format`, as the built-in modules do.
+EXPORT_PATH_VARIABLE = "COMPPLAN_EXPORT_PATH"
+import_plugins(__name__, __path__, EXPORT_PATH_VARIABLE)
 
-from planner.export import krl, rapid, ros2, rosbag2, urscript  # noqa: E402,F401  (register the formats)
-
-EXPORT_FORMATS = tuple(sorted(_FORMATS))
+#: The ``--format`` names, built-in and plug-in, sorted.
+EXPORT_FORMATS: tuple[str, ...] = tuple(sorted(_FORMATS))

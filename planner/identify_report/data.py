@@ -49,7 +49,7 @@ def report_dict(res: IdentificationResult, model_path: str | None = None,
         "unexplained": {**res.unexplained, "weak": bool(res.unexplained.get("weak", False))},
         "excluded_rows": res.excluded,
         "parameters": [{"name": p.name, "effect": p.effect, "value": p.value, "std": p.std, "unit": p.unit,
-                        "status": p.status, "reason": p.reason} for p in res.parameters],
+                        "status": p.status.value, "reason": p.reason} for p in res.parameters],
         "identifiability": res.identifiability,
         "diagnostics": [{"variable": d.variable, "explained_fraction": d.explained_fraction,
                          "p_value": d.p_value, "significant": d.significant, "description": d.description}

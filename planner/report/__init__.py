@@ -32,7 +32,8 @@ the report.  The run's own ``summary.json`` is never rewritten.  Every number
 in the HTML tables is machine-checkable (see :mod:`planner.report.tables`).
 
 Path figures are drawn from the run's data, not recomputed; only the
-compliance map and the 3-D arm need the robot.  The compliance map is cached
+compliance map and the 3-D arm need the run's arm model (the plan's; from a folder,
+the identified model file its summary records, checked against its SHA-256).  The compliance map is cached
 (:mod:`planner.report.maps`).  Figures are rendered in up to two forked
 processes where the platform allows it.  Everything is built in memory and
 published at the end (all or nothing).  The library prints nothing; progress
@@ -48,17 +49,47 @@ Modules: :mod:`~planner.report.run` (the view), :mod:`~planner.report.tables`,
 
 from __future__ import annotations
 
-from planner.report.figures import ARM_POSES, DYNAMIC_FIGURE, FIGURE_NAMES, build_figures
-from planner.report.maps import _map_cache_key, map_job, write_map
-from planner.report.rendering import (MAX_WORKERS, FigureItem, default_workers, render_html,
-                                      render_items, render_markdown)
-from planner.report.run import METHOD_NAMES, TRAJECTORY_FILES, Run, load_run, run_from_plan
-from planner.report.tables import (Cell, Table, fmt, headline_table, load_words, lookup, provenance_table,
-                                   summary_tables, value_cell)
-from planner.report.writer import publish_report, write_report
+import importlib
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["ARM_POSES", "Cell", "DYNAMIC_FIGURE", "FIGURE_NAMES", "FigureItem", "MAX_WORKERS", "METHOD_NAMES", "Run",
+if TYPE_CHECKING:
+    from planner.report.figures import ARM_POSES, DYNAMIC_FIGURE, FIGURE_NAMES, build_figures
+    from planner.report.maps import _map_cache_key, map_job, write_map
+    from planner.report.rendering import (MAX_WORKERS, FigureItem, default_workers, render_html,
+                                          render_items, render_markdown)
+    from planner.report.run import TRAJECTORY_FILES, Run, load_run, method_name, method_order, run_from_plan
+    from planner.report.tables import (Cell, Table, fmt, headline_table, load_words, lookup, provenance_table,
+                                       summary_tables, value_cell)
+    from planner.report.writer import publish_report, write_report
+
+#: The submodule defining each name re-exported here, imported on first use (PEP 562): a command
+#: that reads only the tables (``compplan plan --no-report``) does not import matplotlib.
+_LAZY = {name: module for module, names in {
+    "figures": ("ARM_POSES", "DYNAMIC_FIGURE", "FIGURE_NAMES", "build_figures"),
+    "maps": ("_map_cache_key", "map_job", "write_map"),
+    "rendering": ("MAX_WORKERS", "FigureItem", "default_workers", "render_html", "render_items", "render_markdown"),
+    "run": ("TRAJECTORY_FILES", "Run", "load_run", "method_name", "method_order", "run_from_plan"),
+    "tables": ("Cell", "Table", "fmt", "headline_table", "load_words", "lookup", "provenance_table",
+               "summary_tables", "value_cell"),
+    "writer": ("publish_report", "write_report"),
+}.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    """A re-exported name, importing its submodule on first use."""
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
+
+__all__ = ["ARM_POSES", "Cell", "DYNAMIC_FIGURE", "FIGURE_NAMES", "FigureItem", "MAX_WORKERS", "Run",
            "TRAJECTORY_FILES", "Table", "build_figures", "default_workers", "fmt", "headline_table",
-           "load_run", "load_words", "lookup", "map_job", "provenance_table", "publish_report", "render_html",
+           "load_run", "load_words", "lookup", "map_job", "method_name", "method_order", "provenance_table", "publish_report", "render_html",
            "render_items", "render_markdown", "run_from_plan", "summary_tables", "value_cell", "write_map",
            "write_report"]

@@ -5,8 +5,10 @@ per figure, in report order: its drawing job (a function of
 :mod:`planner.report.plots` and its arrays) or, when the run lacks what the
 figure needs, the reason it is absent.  Path figures are drawn from the run's
 data, not recomputed; only the compliance map (:mod:`planner.report.maps`) and
-the 3-D arm need the robot.  Figure 8 (:data:`DYNAMIC_FIGURE`) exists only in the report
-of a run with dynamic compensation (summary.json key ``dynamic_compensation``).
+the 3-D arm need the run's arm model (``Run.model``).  Figure 8 (:data:`DYNAMIC_FIGURE`)
+exists only in the report of a run with dynamic compensation (summary.json key
+``dynamic_compensation``).  ``compplan plan --no-report`` writes figures 5 and 6 as
+``branches.png`` and ``trajectory.png`` (:func:`quick_figures`).
 """
 
 from __future__ import annotations
@@ -26,8 +28,8 @@ from planner.compliance_map import ProgressFn
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
 from planner.report import dynamic_plot, plots
 from planner.report.maps import MAP_FIGURE, map_item
-from planner.report.rendering import FigureItem, Job, job
-from planner.report.run import DYNAMIC_KEY, METHOD_NAMES, Run
+from planner.report.rendering import FigureItem, Job, job, render_items
+from planner.report.run import DYNAMIC_KEY, Run, method_name, method_order
 from planner.report.tables import RATIO_KINDS, flat_numbers, load_words
 
 #: File names of the figures, in report order.
@@ -95,6 +97,23 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
     if isinstance(run.summary.get(DYNAMIC_KEY), Mapping):
         items.append(_dynamic_item(ctx))
     return items
+
+
+#: The report's figures that ``compplan plan --no-report`` writes as PNG beside the run's files
+#: (:func:`quick_figures`): file name -> figure.
+QUICK_FIGURES = {"branches.png": FIGURE_NAMES[4], "trajectory.png": FIGURE_NAMES[5]}
+
+
+def quick_figures(run: Run, workers: int | None = 1) -> dict[str, bytes]:
+    """PNG bytes of the report's figures 5 (branch comparison) and 6 (trajectory) of ``run``,
+    by the file names of :data:`QUICK_FIGURES`: the same drawings as the report's, without the
+    rest of it (a figure the run does not allow is left out).  ``workers``: as for
+    :func:`~planner.report.rendering.render_items` (default: in this process; for two figures
+    a pool of forked processes costs about what it saves)."""
+    ctx = _context(run)
+    items = dict(zip(QUICK_FIGURES, (_branch_item(ctx), _trajectory_item(ctx))))
+    render_items(list(items.values()), workers=workers, pdf=False)
+    return {name: it.png for name, it in items.items() if it.png is not None}
 
 
 def _context(run: Run) -> _Context:
@@ -272,13 +291,13 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
     item.caption += f" Limits: {src}."
     trajs, headers = {}, {}
     for method, tr in run.trajectories.items():
-        pretty = METHOD_NAMES.get(method, method)
+        pretty = method_name(s, method)
         trajs[pretty] = tr
         headers[pretty] = _traj_header(s, method, pretty, run.trajectory_files[method], tr)
     no_jerk = [run.trajectory_files[m] for m, tr in run.trajectories.items() if tr.get("qddd") is None]
     if no_jerk:
         item.caption += f" Jerk not recorded in {', '.join(no_jerk)} (no qddd columns)."
-    missing = [METHOD_NAMES.get(m, m) for m in METHOD_NAMES if m not in run.trajectories]
+    missing = [method_name(s, m) for m in method_order() if m not in run.trajectories]
     if missing:
         item.caption += f" No {', '.join(missing)} trajectory in this run."
     item.job = job(plots.trajectory_figure, trajs, limits,
@@ -341,8 +360,8 @@ def _traj_header(s: Mapping[str, Any], method: str, pretty: str, fname: str,
 def _arm_item(ctx: _Context) -> FigureItem:
     item = FigureItem(FIGURE_NAMES[6], "The arm in 3-D, planned and deflected", "")
     run = ctx.run
-    if run.robot is None:
-        item.absent = f"arm not drawn: {run.absent.get('robot')}"
+    if run.model is None:
+        item.absent = f"arm not drawn: {run.absent.get('model') or run.absent.get('robot')}"
     elif ctx.wp is None:
         item.absent = f"arm not drawn: {ctx.no_waypoints}"
     else:
@@ -384,7 +403,7 @@ def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tupl
     equilibrium reached from ``q_command`` is ``q_target``): the deflection the whole load
     (wrench in its frame, payload) causes at ``q_target``, whatever the load's kind.
     """
-    model = KinematicModel(run.robot)                  # type: ignore[arg-type]
+    model = run.model.kinematics                       # type: ignore[union-attr]
     qt, qc = _joints(wp, "qt"), _joints(wp, "qc")
     n = len(qt)
     idx = np.unique(np.round(np.linspace(0, n - 1, min(ARM_POSES, n))).astype(int))

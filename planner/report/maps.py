@@ -8,13 +8,14 @@ reach at that attitude are hatched and counted.  With explicit map options the
 requested axis-aligned plane is drawn (paper section 4.3 style) and the path is
 projected onto it, its distance from the plane stated.
 
-The compliance map depends only on the robot, the plane and the options, and it
+The map is the run's arm model's (an identified model's compliance, not its robot
+file's).  It depends only on that model, the plane and the options, and it
 is the most expensive figure.  Its PNG, PDF, CSV and caption are
 kept in a small on-disk cache (next to the compiled kernels: ``$COMPPLAN_CACHE``,
-default ``~/.cache/compplan``, under ``maps/``) keyed by a hash of the robot
-description, the options and the source of the code that draws it.  The cache
-is best effort: any failure to read or write it just means the map is computed
-again.
+default ``~/.cache/compplan``, under ``maps/``) keyed by a hash of the arm model
+(description, parameters, constants, effects), the options and the source of the code
+that draws it.  The cache is best effort: any failure to read or write it just means the
+map is computed again.
 """
 
 from __future__ import annotations
@@ -27,9 +28,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from models import KinematicModel, Robot
+from models import Robot
+from models.arm import ArmModel
 from models.errors import CompplanError
-from models.ik import IK_REASONS, IKStatus, ik_solver
+from models.ik import IK_REASONS, IKStatus
 
 from planner.compliance_map import (DEFAULT_POINTS, PLANE_AXES, ComplianceMap, GridCounts, ProgressFn,
                                     compliance_map)
@@ -200,13 +202,14 @@ def _grid(lo: float, hi: float, n: int) -> np.ndarray:
     return np.linspace(lo, hi, max(2, int(n)))
 
 
-def path_plane_map(robot: Robot, P: np.ndarray, R: np.ndarray, branch: str,
+def path_plane_map(robot: "Robot | ArmModel", P: np.ndarray, R: np.ndarray, branch: str,
                    points: int = DEFAULT_POINTS, progress: ProgressFn | None = None) -> PlaneMap:
     """Diagonal compliance over the plane of the path ``P`` (N, 3), at attitude ``R``, on one branch.
 
-    The grid covers the path with a margin (:data:`PATH_MAP_MARGIN`, at least
-    :data:`PATH_MAP_MIN_MARGIN_M`), ``points`` along the longer in-plane side and the
-    same spacing along the other.
+    ``robot``: the arm model whose compliance is mapped (a :class:`Robot` stands for its nominal
+    model); its ``kinematics`` are used as they are.  The grid covers the path with a margin
+    (:data:`PATH_MAP_MARGIN`, at least :data:`PATH_MAP_MIN_MARGIN_M`), ``points`` along the
+    longer in-plane side and the same spacing along the other.
     """
     from models.arm import load_arm
     from planner.compliance_map import _evaluate_grid
@@ -227,7 +230,7 @@ def path_plane_map(robot: Robot, P: np.ndarray, R: np.ndarray, branch: str,
     nu, nv = (int(round(size[i] / step)) + 1 for i in (0, 1))
     u, v = _grid(lo[0], hi[0], nu), _grid(lo[1], hi[1], nv)
     arm = load_arm(robot)
-    labels = ik_solver(arm.nominal).labels
+    labels = arm.ik.labels
     b = labels.index(branch) if branch in labels else None
     q, chosen, diag, status_ref = _evaluate_grid(arm, plane.points(u, v), np.asarray(R, float), b,
                                                  max(1, len(u) * len(v)), progress)
@@ -236,7 +239,7 @@ def path_plane_map(robot: Robot, P: np.ndarray, R: np.ndarray, branch: str,
     if bad.any():
         codes, counts = np.unique(status_ref[bad], return_counts=True)
         for c_, k in zip(codes, counts):
-            reasons[IK_REASONS[IKStatus(int(c_))]] = int(k)
+            reasons[IK_REASONS[IKStatus.from_code(c_)]] = int(k)
     shape = (len(u), len(v))
     return PlaneMap(arm.nominal.name, plane, u, v, np.asarray(R, float), branch if b is not None else "home",
                     chosen.reshape(shape), diag.reshape(shape + (6,)), reasons, labels)
@@ -313,15 +316,15 @@ def map_job(cm: ComplianceMap, path: np.ndarray | None = None) -> tuple[Job, str
 
 
 def _run_path(run: Run) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """The run's waypoints (N, 3), the TCP attitude of its middle waypoint and that waypoint's
-    index, or None without waypoints."""
+    """The run's waypoints (N, 3), the TCP attitude of its middle waypoint (on the run's arm
+    model) and that waypoint's index, or None without waypoints."""
     wp = run.waypoints
-    if wp is None or run.robot is None:
+    if wp is None or run.model is None:
         return None
     P = np.column_stack([wp[a] for a in "xyz"])
     k = len(P) // 2
     qt = np.array([wp[f"qt{i}"][k] for i in range(1, 7)])
-    R = KinematicModel(run.robot).tcp(qt)[:3, :3]
+    R = run.model.kinematics.tcp(qt)[:3, :3]
     return P, R, int(wp["k"][k])
 
 
@@ -329,8 +332,9 @@ def map_item(run: Run, map_options: Mapping[str, Any] | None | bool,
              progress: ProgressFn | None, files: dict[str, bytes], map_cache: bool) -> FigureItem:
     """Figure 1 of a report: from the cache, or computed here (its job still to render).
 
-    ``map_options`` None: over the plane of the run's path, at the attitude of its middle
-    waypoint, on its IK branch (without waypoints: the paper's section-4.3 plane); a
+    The map is the run's arm model's (``run.model``: an identified model's, not its robot
+    file's).  ``map_options`` None: over the plane of the run's path, at the attitude of its
+    middle waypoint, on its IK branch (without waypoints: the paper's section-4.3 plane); a
     mapping: that axis-aligned plane (:func:`planner.compliance_map.compliance_map`) with
     the path projected onto it; ``False``: absent.  ``compliance_map.csv`` is added to ``files``.
     """
@@ -338,8 +342,10 @@ def map_item(run: Run, map_options: Mapping[str, Any] | None | bool,
     if map_options is False:
         item.absent = "compliance map not requested (--no-map)"
         return item
-    if run.robot is None:
-        item.absent = f"compliance map not computed: {run.absent.get('robot', 'no robot')}"
+    model = run.model
+    if model is None:
+        why = run.absent.get("model") or run.absent.get("robot", "no robot")
+        item.absent = f"compliance map not computed: {why}"
         return item
     path = _run_path(run)
     branch = run.summary.get("chosen_branch", run.summary.get("branch"))
@@ -352,7 +358,7 @@ def map_item(run: Run, map_options: Mapping[str, Any] | None | bool,
         opts = dict(map_options or {})
         item.title = "Compliance maps C11…C66 over a plane (paper §4.3)"
         key_opts = {**opts, "path": None if path is None else path[0]}
-    key = _map_cache_key(run.robot, key_opts) if map_cache else None
+    key = _map_cache_key(model, key_opts) if map_cache else None
     hit = _map_cache_get(key) if key else None
     if hit is not None:
         item.png, item.pdf, files["compliance_map.csv"], item.caption = hit
@@ -361,11 +367,11 @@ def map_item(run: Run, map_options: Mapping[str, Any] | None | bool,
         return item
     try:
         if path_mode:
-            pm = path_plane_map(run.robot, P, R, branch, progress=progress)
+            pm = path_plane_map(model, P, R, branch, progress=progress)
             files["compliance_map.csv"] = pm.csv_bytes()
             item.job, item.caption = _path_map_job(pm, P, k_mid)
         else:
-            cm = compliance_map(run.robot, progress=progress, **opts)
+            cm = compliance_map(model, progress=progress, **opts)
             files["compliance_map.csv"] = cm.csv_bytes()
             item.job, item.caption = map_job(cm, None if path is None else path[0])
     except CompplanError as exc:
@@ -389,23 +395,27 @@ def _map_cache_dir(key: str) -> Path:
     return Path(root) / "maps" / key
 
 
-def _map_cache_key(robot: Robot, map_options: Mapping[str, Any]) -> str:
-    """Hash of the robot, the map options (defaults filled in), the drawing code and matplotlib."""
+def _model_description(arm: ArmModel) -> dict[str, Any]:
+    """Everything of an arm model its kinematic functions are built from (the cache key's part)."""
+    return arm.nominal.to_dict() | {"theta": arm.theta, "const": arm.planning_const,
+                                    "effects": list(arm.arm_effects), "temperature_C": arm.temperature_ref}
+
+
+def _map_cache_key(robot: "Robot | ArmModel", map_options: Mapping[str, Any]) -> str:
+    """Hash of the arm model (a :class:`Robot`: its nominal one), the map options (defaults
+    filled in), the drawing code and matplotlib."""
     import hashlib
     import inspect
 
     import matplotlib
 
-    from models.arm import ArmModel
     from planner import compliance_map as cmod
     from planner import numbers
     sig = inspect.signature(cmod.compliance_map)
     opts = {k: p.default for k, p in sig.parameters.items()
             if p.default is not inspect.Parameter.empty and k not in ("progress", "chunk")}
     opts.update({k: v for k, v in map_options.items() if k not in ("progress", "chunk")})
-    desc = (robot.nominal.to_dict() | {"theta": robot.theta, "const": robot.const,
-                                       "effects": list(robot.active_effects)}
-            if isinstance(robot, ArmModel) else robot.to_dict())
+    desc = _model_description(robot if isinstance(robot, ArmModel) else ArmModel.from_robot(robot))
     blob = json.dumps({"robot": desc, "options": opts}, sort_keys=True,
                       default=lambda o: np.asarray(o, float).tolist())
     h = hashlib.sha256(blob.encode())

@@ -162,18 +162,18 @@ def _panel(st: "PlacementStudy", key: tuple[int, int, int], values_si: np.ndarra
 def _frame(st: "PlacementStudy") -> pp.MapFrame:
     """What the map panels share: grid axes (m), path footprint (cell frame, m), as-written label."""
     b = st.baseline
-    if b.status[0] == PlacementStatus.OK:
+    if b.status_of(0).ok:
         text = f"as written (x=0, y=0, yaw=0): {format_mm(float(b.rms_error_m[0] * 1e3), DIGITS)} mm RMS"
     else:
-        text = f"as written (x=0, y=0, yaw=0): {PlacementStatus(int(b.status[0])).name.lower().replace('_', ' ')}"
+        text = f"as written (x=0, y=0, yaw=0): {b.status_of(0).value.replace('_', ' ')}"
     return pp.MapFrame(np.asarray(st.grid.axes["x_m"], float), np.asarray(st.grid.axes["y_m"], float),
                        np.asarray(st.problem.positions, float)[:, :2], text)
 
 
 def _counts(st: "PlacementStudy") -> dict[int, int]:
-    """Placements per status value over the whole grid."""
+    """Placements per status code over the whole grid."""
     s = st.sweep.scores.status
-    return {int(c): int((s == c).sum()) for c in PlacementStatus}
+    return {c.code: int((s == c.code).sum()) for c in PlacementStatus}
 
 
 def _feasible_text(st: "PlacementStudy") -> str:
@@ -192,7 +192,7 @@ def error_map(st: "PlacementStudy") -> bytes:
         title += (f"; {len(keys)} of {len(groups)} (yaw, z, tilt) maps shown (those with the best placements "
                   "and the smallest errors; all in scores.csv)")
     base = st.baseline
-    bval = float(base.rms_error_m[0] * 1e3) if base.status[0] == PlacementStatus.OK else None
+    bval = float(base.rms_error_m[0] * 1e3) if base.status_of(0).ok else None
     fig = pp.error_map_figure(_frame(st), panels, title=title, cbar_label="RMS load-induced error, mm",
                               counts=_counts(st), marks_label=_marks_label(st), baseline_value=bval)
     return pp.png(fig)
@@ -305,14 +305,14 @@ def _factor_text(f: float) -> str:
 
 def _sweep_headline(st: "PlacementStudy", s: dict[str, Any]) -> str:
     """The sweep's sentence: best placement vs the problem as written, and the factor (or why none)."""
-    base = s["baseline"]
+    base, base_ok = s["baseline"], st.baseline.status_of(0).ok
     base_txt = (f"{_mm(base['rms_error_mm'])} mm for the problem as written (x=0, y=0, yaw=0)"
-                if base["status"] == "ok" else
+                if base_ok else
                 f"the problem as written (x=0, y=0, yaw=0) is infeasible ({base['status_reason']})")
     if not len(st.ranked):
         why = st.reason or "no placement of the grid is feasible"
         return (f"No placement of the grid is feasible: {why}. No improvement factor; "
-                f"{base_txt if base['status'] != 'ok' else 'RMS error ' + base_txt}.")
+                f"{'RMS error ' + base_txt if base_ok else base_txt}.")
     best = s["ranking"][0]
     head = (f"Best placement: <b>{_esc(placement_label(st.sweep.placements[st.ranked[0]]))}</b> "
             f"(IK branch {_esc(best['best_branch'])}): RMS load-induced TCP error {_mm(best['rms_error_mm'])} mm")
@@ -430,9 +430,9 @@ def _sweep_section(s: dict[str, Any]) -> list[str]:
              ("model functions", "compiled C" if w["compiled"] else "CasADi virtual machine (no compiler)", None)]
     rows = [[_txt(name), _num(text, key, _lookup(s, key)) if key else _txt(text)] for name, text, key in facts]
     counts = w["status_counts"]
-    srows = [[_txt(st.name.lower().replace("_", " ")),
-              _num(str(counts.get(st.name.lower(), 0)), f"sweep.status_counts.{st.name.lower()}",
-                   counts.get(st.name.lower(), 0)), _txt(STATUS_REASONS[st])] for st in PlacementStatus]
+    srows = [[_txt(st.value.replace("_", " ")),
+              _num(str(counts.get(st.value, 0)), f"sweep.status_counts.{st.value}",
+                   counts.get(st.value, 0)), _txt(STATUS_REASONS[st])] for st in PlacementStatus]
     return ['<h2 id="sweep">Sweep</h2>', _table(["", "value"], rows, "sweep-table"),
             "<h3>Placements by status</h3>", _table(["status", "placements", "meaning"], srows, "status-table")]
 

@@ -30,7 +30,7 @@ from matplotlib.patches import Patch, Rectangle
 
 from planner.report.plots import PNG_COMPRESS_LEVEL, PNG_DPI, STYLE
 
-#: Infeasible cells by status value (:class:`problems.placement.scores.PlacementStatus`):
+#: Infeasible cells by status code (:attr:`problems.placement.scores.PlacementStatus.code`):
 #: face grey, hatch, legend text.
 STATUS_STYLES: dict[int, tuple[str, str, str]] = {
     1: ("0.86", "///", "unreachable"),
@@ -64,7 +64,7 @@ class MapPanel:
     values : ndarray, shape (ny, nx)
         In the unit shown; NaN where infeasible.
     status : ndarray of int, shape (ny, nx)
-        Placement status value (0 feasible).
+        :attr:`PlacementStatus.code` per cell (0 feasible).
     marks : list of (int, float, float)
         ``(rank, x_m, y_m)`` of the ranked placements on this panel.
     """
@@ -294,7 +294,7 @@ def error_map_figure(frame: MapFrame, panels: Sequence[MapPanel], *, title: str,
         Figure title (says when panels were left out).
     cbar_label : str
     counts : dict int -> int
-        Placements per status value over the whole grid (legend).
+        Placements per status code over the whole grid (legend).
     marks_label : str
         Legend text of the numbered circles (empty: none).
     baseline_value : float, optional

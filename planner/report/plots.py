@@ -86,13 +86,20 @@ def _figure(width_in: float, height_in: float, **adjust: float) -> Figure:
 
 def render(fig: Figure, dpi: int = PNG_DPI) -> tuple[bytes, bytes]:
     """PNG and PDF bytes of ``fig`` (metadata fixed so output is reproducible)."""
-    png, pdf = io.BytesIO(), io.BytesIO()
+    png, pdf = render_png(fig, dpi), io.BytesIO()
+    with matplotlib.rc_context(STYLE):
+        fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None,
+                                                 "Producer": None})
+    return png, pdf.getvalue()
+
+
+def render_png(fig: Figure, dpi: int = PNG_DPI) -> bytes:
+    """PNG bytes of ``fig``, as :func:`render` writes them."""
+    png = io.BytesIO()
     with matplotlib.rc_context(STYLE):
         fig.savefig(png, format="png", dpi=dpi, metadata={"Software": None},
                     pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
-        fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None,
-                                                 "Producer": None})
-    return png.getvalue(), pdf.getvalue()
+    return png.getvalue()
 
 
 def _angle_unit(values_rad: np.ndarray) -> tuple[str, float]:

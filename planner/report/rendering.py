@@ -17,6 +17,7 @@ from typing import Any, Callable
 
 from planner.compliance_map import ProgressFn
 from planner.report import plots
+from planner.report.figure_cache import keep_rendered, take_cached
 from planner.report.run import Run
 from planner.report.tables import Table, report_title
 
@@ -59,6 +60,12 @@ def render_job(jb: Job) -> tuple[bytes, bytes]:
     return plots.render(fn(*args, **kwargs))
 
 
+def render_png(jb: Job) -> tuple[bytes, None]:
+    """Build one figure from its arrays and render it to PNG bytes only (no PDF)."""
+    fn, args, kwargs = jb
+    return plots.render_png(fn(*args, **kwargs)), None
+
+
 def _fork_available() -> bool:
     import multiprocessing
     return "fork" in multiprocessing.get_all_start_methods()
@@ -71,14 +78,35 @@ def default_workers() -> int:
 
 
 def render_items(items: list[FigureItem], progress: ProgressFn | None = None,
-                 workers: int | None = None) -> None:
-    """Render every item that has a job, filling ``png`` and ``pdf``.
+                 workers: int | None = None, pdf: bool = True, cache: bool = True) -> None:
+    """Render every item that has a job, as :func:`render_fresh`; with ``cache``, a figure drawn
+    before from the same data by the same code is read from the figure cache instead
+    (:mod:`planner.report.figure_cache`), and the others are kept there."""
+    todo = [it for it in items if it.job is not None]
+    unrendered = take_cached(todo, pdf) if cache else {}
+    cached = sum(it.job is None for it in todo)
+    for i in range(1, cached + 1):
+        if progress is not None:
+            progress("figures", i, len(todo))
+
+    def shifted(stage: str, done: int, total: int) -> None:
+        progress(stage, cached + done, cached + total)  # type: ignore[misc]
+    render_fresh(todo, shifted if progress is not None else None, workers, pdf)
+    if cache:
+        keep_rendered(todo, unrendered)
+
+
+def render_fresh(items: list[FigureItem], progress: ProgressFn | None = None,
+                 workers: int | None = None, pdf: bool = True) -> None:
+    """Render every item that has a job, filling ``png`` and ``pdf`` (``pdf`` False: PNG only,
+    ``pdf`` stays None).
 
     With ``workers > 1`` the figures are rendered in forked processes (they
     inherit the imported matplotlib, so start-up is cheap); the jobs hold only
     arrays and strings.  Without ``fork`` (Windows) or with ``workers=1`` they
     are rendered here, one after the other.
     """
+    render = render_job if pdf else render_png
     todo = [it for it in items if it.job is not None]
     total = len(todo)
     n = default_workers() if workers is None else max(1, int(workers))
@@ -90,7 +118,7 @@ def render_items(items: list[FigureItem], progress: ProgressFn | None = None,
 
     if n <= 1 or not _fork_available():
         for i, it in enumerate(todo, start=1):
-            it.png, it.pdf = render_job(it.job)  # type: ignore[arg-type]
+            it.png, it.pdf = render(it.job)  # type: ignore[arg-type]
             tick(i)
         return
     import multiprocessing
@@ -98,9 +126,9 @@ def render_items(items: list[FigureItem], progress: ProgressFn | None = None,
     order = sorted(todo, key=lambda it: -_COST.get(it.name, 1.0))
     ctx = multiprocessing.get_context("fork")
     with ctx.Pool(processes=n) as pool:
-        results = pool.imap(render_job, [it.job for it in order], chunksize=1)
-        for i, (it, (png, pdf)) in enumerate(zip(order, results), start=1):
-            it.png, it.pdf = png, pdf
+        results = pool.imap(render, [it.job for it in order], chunksize=1)
+        for i, (it, (png, pdf_bytes)) in enumerate(zip(order, results), start=1):
+            it.png, it.pdf = png, pdf_bytes
             tick(i)
 
 

@@ -7,7 +7,9 @@ after planning) or from the files of an output folder (:func:`load_run`, what
 content of ``summary.json`` as JSON values (non-finite numbers are None), the
 waypoint, branch and trajectory tables hold the columns of ``waypoints.csv``,
 ``branches.csv`` and ``trajectory*.csv``, and a plan with dynamic compensation
-(``[timing] dynamic = true``) the series of ``dynamic.csv``.
+(``[timing] dynamic = true``) the series of ``dynamic.csv``.  ``model`` is the arm model the
+run was planned with (an identified model's, not its robot file's): the plan's own object, or
+from a folder the model file its summary records, read again after checking its SHA-256.
 """
 
 from __future__ import annotations
@@ -21,20 +23,36 @@ from typing import TYPE_CHECKING, Any, Mapping
 import numpy as np
 
 from models import Robot, robot_from_dict
+from models.arm import ArmModel
 from models.errors import CompplanError, InputError
 
 from planner.output import TRAJECTORY_COLUMNS, jsonable
 
 if TYPE_CHECKING:
-    from planner.plan import PlanResult
+    from planner.plan import PlanResult, RunView
     from problems.timing import Trajectory
 
-#: Default trajectory files and the method each one holds, used when summary.json has no
-#: ``timing.<method>.file`` (a plan names the file of each method there; the controller's
-#: trajectory is ``trajectory.csv``, Ruckig when available).
+#: The trajectory files of runs whose summary.json has no ``timing.<method>.file`` (made before
+#: a plan named the file of each method there; their ``trajectory.csv`` was Ruckig's).
 TRAJECTORY_FILES = (("trajectory_toppra.csv", "toppra"), ("trajectory.csv", "ruckig"))
-#: Display names of the timing methods (column order of figure 6).
-METHOD_NAMES = {"toppra": "TOPP-RA", "jerk_optimal": "jerk-optimal", "ruckig": "Ruckig"}
+
+
+def method_order() -> tuple[str, ...]:
+    """The registered timing methods, in registration order (the column order of figure 6;
+    :func:`problems.timing.available_methods`)."""
+    from problems.timing import available_methods
+    return available_methods()
+
+
+def method_name(summary: Mapping[str, Any], method: str) -> str:
+    """The display name of timing method ``method`` (``"TOPP-RA"``): the run's
+    ``timing.<method>.display_name``, else the registered method's, else ``method``."""
+    info = (summary.get("timing") or {}).get(method) if isinstance(summary.get("timing"), Mapping) else None
+    if isinstance(info, Mapping) and isinstance(info.get("display_name"), str):
+        return info["display_name"]
+    from problems.timing import display_name
+    return display_name(method)
+
 
 #: Jerk columns of ``trajectory*.csv`` (absent in files written before they were recorded).
 _JERK_COLUMNS = [c for c in TRAJECTORY_COLUMNS if c.startswith("qddd")]
@@ -66,6 +84,12 @@ class Run:
     trajectory_files : dict method -> file name
     robot : Robot or None
         From ``summary["robot_file"]`` (or the plan's robot).
+    model : ArmModel or None
+        The arm model the run was planned with, which the compliance map and the arm figure
+        draw: the plan's own (:func:`run_from_plan`), or from a folder the identified model
+        file ``summary["model"]`` records, read again and checked against its SHA-256
+        (:func:`recorded_model`), else the nominal model of ``robot``.  None when it cannot be
+        known (``absent["model"]`` or ``absent["robot"]`` says why).
     dynamic : dict of column -> ndarray, or None
         The columns of ``dynamic.csv`` (:data:`DYNAMIC_COLUMNS`) of a run with dynamic
         compensation (summary.json key ``dynamic_compensation``); None otherwise.
@@ -80,40 +104,44 @@ class Run:
     trajectories: dict[str, dict[str, np.ndarray | None]] = field(default_factory=dict)
     trajectory_files: dict[str, str] = field(default_factory=dict)
     robot: Robot | None = None
+    model: ArmModel | None = None
     dynamic: dict[str, np.ndarray] | None = None
     absent: dict[str, str] = field(default_factory=dict)
 
 
 # ------------------------------------------------------------------------- from a plan result
-def run_from_plan(res: "PlanResult", folder: str | Path) -> Run:
+def run_from_plan(res: "PlanResult", folder: str | Path, view: "RunView | None" = None) -> Run:
     """The view of a successful plan, from its in-memory result.
 
     Gives the same :class:`Run` as :func:`load_run` on the folder that
-    :func:`planner.plan.write_outputs` writes from ``res``, without reading it.
+    :func:`planner.plan.write_outputs` writes from ``res``, without reading it, with the
+    plan's own arm model (``res.problem.model``).
 
     Parameters
     ----------
     res : PlanResult
     folder : str or Path
         The run's output folder (where the report goes).
+    view : RunView, optional
+        The plan's summary and tables (:meth:`~planner.plan.PlanResult.view`) when the caller
+        has them; else they are computed here.
     """
     from planner.plan import WAYPOINT_COLUMNS
 
-    res.raise_for_status()
-    summary = jsonable(res.summary())
-    run = Run(Path(folder), summary, robot=res.problem.robot)
-    run.waypoints = dict(zip(WAYPOINT_COLUMNS, res.waypoint_table().T))
-    cols, data = res.branch_table()
-    run.branches = dict(zip(cols, data.T))
+    view = res.view() if view is None else view
+    assert view.result is res, "the view of another plan"
+    summary = jsonable(view.summary)
+    run = Run(Path(folder), summary, robot=res.problem.robot, model=view.model)
+    run.waypoints = dict(zip(WAYPOINT_COLUMNS, view.waypoints.T))
+    run.branches = dict(zip(view.branch_columns, view.branches.T))
     for name, method in _trajectory_files(summary):
         tr = res.trajectories.get(method)
         if tr is not None:
             _add_trajectory(run, method, name, _trajectory_arrays(tr))
     if not run.trajectories:
         run.absent.setdefault("trajectory", _NO_TRAJECTORY)
-    stage = getattr(res, "dynamic", None)
-    if stage is not None and getattr(stage, "link", None) is not None:
-        cols, rows = stage.series(res.problem.model)
+    if view.dynamic is not None:
+        cols, rows = view.dynamic
         run.dynamic = {c: np.asarray(rows[:, j], float) for j, c in enumerate(cols)}
     elif isinstance(summary.get(DYNAMIC_KEY), Mapping):
         run.absent["dynamic"] = _no_dynamic(summary)
@@ -193,7 +221,7 @@ def _trajectory_files(summary: Mapping[str, Any], folder: Path | None = None) ->
         for p in sorted(folder.glob("trajectory_*.csv")) if folder is not None else ():
             if p.name not in known:
                 pairs.append((p.name, p.stem[len("trajectory_"):]))
-    order = {m: i for i, m in enumerate(METHOD_NAMES)}
+    order = {m: i for i, m in enumerate(method_order())}
     return sorted(pairs, key=lambda fm: (order.get(fm[1], len(order)), fm[1]))
 
 
@@ -287,4 +315,47 @@ def load_run(folder: str | Path) -> Run:
             run.absent["robot"] = f"robot_file in summary.json is unusable: {exc}"
     else:
         run.absent["robot"] = "summary.json has no robot_file"
+    if run.robot is not None:
+        run.model = recorded_model(summary, run.robot, folder / "summary.json", run.absent)
     return run
+
+
+def recorded_model(summary: Mapping[str, Any], robot: Robot, where: Path,
+                   absent: dict[str, str]) -> ArmModel | None:
+    """The arm model a run was planned with, from its ``summary.json`` (``where``).
+
+    A nominal model (``summary["model"]["identified"]`` false) is the one of the recorded
+    ``robot`` (``robot_file``).  An identified model is read again from the model file the
+    summary records (``model.file``), after checking the file's SHA-256 against ``model.sha256``,
+    and given the run's tool.  An identified model without a recorded file (built in memory) is
+    None, with the reason in ``absent["model"]``: its maps cannot be drawn from the nominal robot.
+
+    Raises
+    ------
+    InputError
+        The recorded model file is missing or no longer the file the run was planned with
+        (the message names the file, both SHA-256 and what to do).
+    """
+    md = summary.get("model")
+    if not isinstance(md, Mapping) or not md.get("identified"):
+        return ArmModel.from_robot(robot)
+    path, sha = md.get("file"), md.get("sha256")
+    if not isinstance(path, str) or not path or not isinstance(sha, str) or not sha:
+        absent["model"] = ("the run was planned with an identified arm model that has no file (model.file in "
+                           "summary.json is empty: built in memory), so the compliance map and the arm are not "
+                           "drawn (the nominal robot is not the model the run used)")
+        return None
+    import hashlib
+
+    from models.arm_file import load_model
+    again = (f"restore the model file the run was planned with at {path}, or plan again with the model as it "
+             f"is now (compplan plan PROBLEM --robot MODEL --out {where.parent}) and report on that run")
+    try:
+        actual = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError as exc:
+        raise InputError(f"report: {where}: model.file {path!r} (SHA-256 {sha}), the identified arm model the run "
+                         f"was planned with, cannot be read ({exc.strerror}: moved or deleted?); {again}") from None
+    if actual != sha:
+        raise InputError(f"report: {where}: the identified arm model file {path} has changed since the run was "
+                         f"planned: SHA-256 recorded in model.sha256 {sha}, the file's now {actual}; {again}")
+    return load_model(path).with_tool(robot.tcp2flange)

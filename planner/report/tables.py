@@ -25,7 +25,7 @@ import numpy as np
 
 from planner import branches as branch_words
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, format_value
-from planner.report.run import DYNAMIC_KEY, METHOD_NAMES
+from planner.report.run import DYNAMIC_KEY, method_name
 
 #: Kinds of limit ratio, in table order.
 RATIO_KINDS = ("velocity", "acceleration", "jerk")
@@ -375,19 +375,37 @@ def _timing_table(s: Mapping[str, Any], absent: Mapping[str, str]) -> Table:
             dcell = value_cell(s, "duration_s")
         else:
             dcell = Cell("absent")
-        name = METHOD_NAMES.get(m, m) + (" (controller)" if s.get("controller_trajectory") == m else "")
+        name = method_name(s, m) + (" (controller)" if s.get("controller_trajectory") == m else "")
         rows.append([Cell(name), dcell]
                     + [value_cell(s, f"{prefix}.{k}", agg="max") for k in RATIO_KINDS]
                     + [value_cell(s, f"timing.{m}.status"), _binding_cell(s, m)])
     note = ("Limit ratio: peak |value| / limit, maximum over the joints (1 = at the limit). "
-            "TOPP-RA limits velocity and acceleration only; its jerk ratio is reported, not "
-            "enforced. Binds: the limit and joint at ≥ 98 % of its limit for the largest share of "
-            "the motion.")
+            + "".join(_partial_limits(s, m) for m in methods)
+            + "Binds: the limit and joint at ≥ 98 % of its limit for the largest share of the motion.")
     if not rows:
         rows = [[Cell(absent.get("trajectory", "no trajectory in this run"))] + [Cell("—")] * 6]
         note = "No trajectory in this run: durations and limit ratios are not available."
     return Table("Timing", ["method", "duration [s]", "velocity ratio", "acceleration ratio",
                             "jerk ratio", "status", "binds"], rows, note)
+
+
+def _words(keys: list[str]) -> str:
+    return keys[0] if len(keys) == 1 else ", ".join(keys[:-1]) + " and " + keys[-1]
+
+
+def _partial_limits(s: Mapping[str, Any], method: str) -> str:
+    """``"TOPP-RA limits velocity and acceleration only; its jerk ratio is reported, not enforced. "``
+    for a method that does not enforce every limit (``timing.<m>.limits_enforced``), else ``""``."""
+    info = (s.get("timing") or {}).get(method) if isinstance(s.get("timing"), Mapping) else None
+    enforced = info.get("limits_enforced") if isinstance(info, Mapping) else None
+    if not isinstance(enforced, list) or not enforced:
+        return ""
+    free = [k for k in RATIO_KINDS if k not in enforced]
+    if not free:
+        return ""
+    verb = "is" if len(free) == 1 else "are"
+    return (f"{method_name(s, method)} limits {_words([k for k in RATIO_KINDS if k in enforced])} only; its "
+            f"{_words(free)} ratio{'' if len(free) == 1 else 's'} {verb} reported, not enforced. ")
 
 
 def _binding_cell(s: Mapping[str, Any], method: str) -> Cell:

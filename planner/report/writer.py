@@ -14,7 +14,7 @@ from planner.report.run import Run, load_run, run_from_plan
 from planner.report.tables import summary_tables
 
 if TYPE_CHECKING:
-    from planner.plan import PlanResult
+    from planner.plan import PlanResult, RunView
 
 #: The entries of a run folder that its report owns (replaced together by each report).
 REPORT_OUTPUTS = ("report.html", "report.md", "figures", "compliance_map.csv")
@@ -23,7 +23,8 @@ REPORT_OUTPUTS = ("report.html", "report.md", "figures", "compliance_map.csv")
 def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
                  result: "PlanResult | None" = None,
                  map_options: Mapping[str, Any] | None | bool = None,
-                 workers: int | None = None, map_cache: bool = True) -> Path:
+                 workers: int | None = None, map_cache: bool = True,
+                 view: "RunView | None" = None) -> Path:
     """Write ``report.html``, ``report.md`` and ``figures/*.png|pdf`` into a run folder.
 
     Parameters
@@ -36,7 +37,8 @@ def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
     result : PlanResult, optional
         The plan whose outputs the folder holds, still in memory: the report is
         built from it (:func:`~planner.report.run.run_from_plan`) instead of
-        from the folder's files (:func:`~planner.report.run.load_run`).
+        from the folder's files (:func:`~planner.report.run.load_run`).  Its arm model is the
+        one the report draws (compliance map, arm).
     map_options : mapping, None or False
         Options of :func:`planner.compliance_map.compliance_map` for figure 1
         (default: the paper's section-4.3 plane with the run's robot);
@@ -46,7 +48,11 @@ def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
         :func:`~planner.report.rendering.default_workers`; 1 renders in this process).
     map_cache : bool
         Reuse the compliance map drawn earlier for the same robot and options
-        (kept under ``$COMPPLAN_CACHE/maps``, default ``~/.cache/compplan``).
+        (kept under ``$COMPPLAN_CACHE/maps``, default ``~/.cache/compplan``), and every figure
+        drawn earlier from the same data (``$COMPPLAN_CACHE/figures``).
+    view : RunView, optional
+        With ``result``: its summary and tables, already computed
+        (:meth:`~planner.plan.PlanResult.view`).
 
     Returns
     -------
@@ -56,9 +62,10 @@ def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
     Raises
     ------
     InputError
-        The folder is not a run folder or one of its files is malformed.
+        The folder is not a run folder or one of its files is malformed, or the identified
+        model file its summary records is missing or changed (SHA-256).
     """
-    run = run_from_plan(result, folder) if result is not None else load_run(folder)
+    run = run_from_plan(result, folder, view) if result is not None else load_run(folder)
     return publish_report(run, progress, map_options=map_options, workers=workers,
                           map_cache=map_cache)
 
@@ -76,7 +83,7 @@ def publish_report(run: Run, progress: ProgressFn | None = None, *,
     """
     files: dict[str, bytes] = {}
     items = build_figures(run, progress, map_options, files, map_cache)
-    render_items(items, progress, workers)
+    render_items(items, progress, workers, cache=map_cache)
     cache_rendered_maps(items, files)
     tables = summary_tables(run.summary, run.absent)
     out = OutputSet(run.folder, owns=REPORT_OUTPUTS)

@@ -16,6 +16,7 @@ import numpy as np
 
 from models.arm import ArmModel
 from models.errors import InputError
+from models.status import Status
 
 from ..compensation import CompensationStatus
 from ..measurements import Measurements
@@ -24,7 +25,7 @@ from ..measurements import Measurements
 Progress = Callable[[str, int, int], None]
 
 
-class IdentifyStatus(enum.Enum):
+class IdentifyStatus(Status):
     """Outcome of an identification (``.value`` is the ``report.json`` string)."""
 
     OK = "ok"                       # the model explains the data (noise floor or no structure left)
@@ -33,22 +34,16 @@ class IdentifyStatus(enum.Enum):
     IMPLAUSIBLE = "implausible_geometry"  # DH corrections too large for the declared robot: wrong robot file?
 
 
-class ParameterStatus(str, enum.Enum):
+class ParameterStatus(Status):
     """Status of one model parameter after identification.
 
-    A ``str`` enum: ``.value`` (and the member itself, in JSON and f-strings) is the
-    string of ``report.json`` (``"free"``, ``"held"``, ``"inactive"``).
+    ``.value`` (and ``str``/f-strings of the member) is the string of ``report.json``
+    (``"free"``, ``"held"``, ``"inactive"``).
     """
 
     FREE = "free"           # identified
     HELD = "held"           # kept at its value (see the reason)
     INACTIVE = "inactive"   # its effect was not added
-
-    def __str__(self) -> str:
-        return self.value
-
-    def __format__(self, spec: str) -> str:
-        return format(self.value, spec)
 
 
 class TargetsFrame(enum.Enum):

@@ -234,17 +234,18 @@ def parse_grid_text(text: str, base: PlacementGrid | None = None, where: str = "
                                          f"[0, {MAX_TOP}], got {val!r}")
             tab[key] = int(val)
             continue
+        bad = PlacementGridError(f"{where}: item {item!r}: value {val!r} must be a number or "
+                                 "START:STOP:COUNT")
+        if len(parts) not in (1, 3):
+            raise bad
         try:
             if len(parts) == 3:
                 cnt = float(parts[2])
                 tab[key] = [float(parts[0]), float(parts[1]), int(cnt) if cnt.is_integer() else cnt]
-            elif len(parts) == 1:
-                tab[key] = float(val)
             else:
-                raise ValueError
+                tab[key] = float(val)
         except ValueError:
-            raise PlacementGridError(f"{where}: item {item!r}: value {val!r} must be a number or "
-                                     "START:STOP:COUNT") from None
+            raise bad from None
     return grid_from_table(tab, where, base)
 
 

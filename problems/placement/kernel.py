@@ -180,7 +180,7 @@ class PlacementKernel:
         sol = self.ik.solve(T.reshape(-1, 4, 4))
         Q = sol.q.reshape(P, S, N, B, 6)
         # flat boolean masks over (P, S, N, B) (cheaper than index tuples); NaN rows are never read
-        ok = (sol.status == IKStatus.OK).ravel()
+        ok = (sol.status == IKStatus.OK.code).ravel()
         Qf = Q.reshape(-1, 6)
         ratio = np.zeros(P * S * N * B)
         ratio[ok] = (np.abs(self.ik.guard_factors(Qf[ok])) / self._bounds).min(axis=-1)
@@ -188,7 +188,7 @@ class PlacementKernel:
         valid = ratio >= 1.0                                                        # (P, S, N, B)
         reach_any = valid.any(axis=(1, 3))                                           # (P, N)
         # a solution that only the joint limits exclude (no 2 pi k puts it inside them)
-        outside = (sol.status == IKStatus.JOINT_LIMIT).reshape(P, S, N, B).any(axis=(1, 3))   # (P, N)
+        outside = (sol.status == IKStatus.JOINT_LIMIT.code).reshape(P, S, N, B).any(axis=(1, 3))   # (P, N)
         # only branches reaching every waypoint can be feasible: the model is evaluated there only
         valid &= valid.any(axis=1).all(axis=1)[:, None, None, :]
         vf = valid.ravel()

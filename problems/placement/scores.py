@@ -19,24 +19,25 @@ placement's scores are that branch's.  An infeasible placement has a
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, fields
 
 import numpy as np
 
+from models.status import CodedStatus
 
-class PlacementStatus(enum.IntEnum):
-    """Why a placement is (in)feasible."""
 
-    OK = 0
+class PlacementStatus(CodedStatus):
+    """Why a placement is (in)feasible; ``code`` is the integer of :attr:`ChunkScores.status`."""
+
+    OK = "ok", 0
     #: some waypoint has no IK solution outside the singularity guards on any branch at any
     #: scanned orientation (or no single branch reaches every waypoint)
-    UNREACHABLE = 1
+    UNREACHABLE = "unreachable", 1
     #: every branch reaching all waypoints must flip (a joint step above ``max_joint_step``)
-    FLIP = 2
+    FLIP = "flip", 2
     #: every flip-free branch leaves a joint's limits along the path, or the first waypoint out of
     #: reach has solutions that only the joint limits exclude
-    JOINT_LIMIT = 3
+    JOINT_LIMIT = "joint_limit", 3
 
 
 #: One line per status, for reports and summaries.
@@ -56,7 +57,7 @@ class ChunkScores:
     Attributes
     ----------
     status : ndarray of int8, shape (P,)
-        :class:`PlacementStatus`.
+        :attr:`PlacementStatus.code` per placement (``PlacementStatus.from_code`` gives the enum).
     best_branch : ndarray of int8, shape (P,)
         -1 where infeasible.
     feasible_branches : ndarray of int8, shape (P,)
@@ -110,21 +111,25 @@ class ChunkScores:
                          (self.joint_margin_rad, self.branch_joint_margin_rad),
                          (self.singular_margin, self.branch_singular_margin)):
             dst[rows] = src[rows, b]
-        st = np.full(len(self.status), PlacementStatus.OK, dtype=np.int8)
+        st = np.full(len(self.status), PlacementStatus.OK.code, dtype=np.int8)
         unreach = self.blocked_waypoint >= 0
-        st[~anyf & limit.any(axis=1)] = PlacementStatus.JOINT_LIMIT
-        st[~anyf & ~limit.any(axis=1) & flip.any(axis=1)] = PlacementStatus.FLIP
-        st[~anyf & unreach] = PlacementStatus.UNREACHABLE
+        st[~anyf & limit.any(axis=1)] = PlacementStatus.JOINT_LIMIT.code
+        st[~anyf & ~limit.any(axis=1) & flip.any(axis=1)] = PlacementStatus.FLIP.code
+        st[~anyf & unreach] = PlacementStatus.UNREACHABLE.code
         # reach on no single branch although every waypoint is reached on some branch
-        st[~anyf & ~unreach & ~flip.any(axis=1) & ~limit.any(axis=1)] = PlacementStatus.UNREACHABLE
+        st[~anyf & ~unreach & ~flip.any(axis=1) & ~limit.any(axis=1)] = PlacementStatus.UNREACHABLE.code
         if gap_limit is not None:
-            st[~anyf & unreach & gap_limit] = PlacementStatus.JOINT_LIMIT
+            st[~anyf & unreach & gap_limit] = PlacementStatus.JOINT_LIMIT.code
         self.status[:] = st
 
     @property
     def feasible(self) -> np.ndarray:
         """(P,) bool."""
-        return self.status == PlacementStatus.OK
+        return self.status == PlacementStatus.OK.code
+
+    def status_of(self, i: int) -> PlacementStatus:
+        """The :class:`PlacementStatus` of placement ``i``."""
+        return PlacementStatus.from_code(self.status[i])
 
     @classmethod
     def concatenate(cls, parts: list["ChunkScores"]) -> "ChunkScores":

@@ -9,7 +9,6 @@ cluster gives the serial sweep's scores bit for bit (same chunking, same compile
 
 from __future__ import annotations
 
-import enum
 import math
 import re
 import time
@@ -19,6 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from models.errors import InputError
+from models.status import Status
 from problems.placement.kernel import PlacementKernel
 from problems.placement.scores import ChunkScores, PlacementStatus
 
@@ -40,7 +40,7 @@ PROGRESS_STAGE = "placement sweep"
 Progress = Callable[[str, int, int], None]
 
 
-class SweepStatus(enum.Enum):
+class SweepStatus(Status):
     """Outcome of a sweep."""
 
     OK = "ok"
@@ -147,8 +147,8 @@ def parse_scheduler(spec: str | None) -> str:
 
 def _no_feasible_reason(scores: ChunkScores) -> str:
     """One line: why no placement is feasible, with the count of each status."""
-    counts = ", ".join(f"{PlacementStatus(c).name.lower().replace('_', ' ')} {int((scores.status == c).sum())}"
-                       for c in PlacementStatus if c != PlacementStatus.OK and (scores.status == c).any())
+    counts = ", ".join(f"{s.value.replace('_', ' ')} {int((scores.status == s.code).sum())}"
+                       for s in PlacementStatus if not s.ok and (scores.status == s.code).any())
     return (f"none of the {len(scores)} placements reaches the whole path on one branch without a flip, "
             f"inside the joint limits and outside the singularity guards ({counts}); move or widen the grid")
 

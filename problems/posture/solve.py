@@ -57,7 +57,7 @@ def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
     tilt = float(np.arccos(np.clip(abs(T[2, 2]), 0.0, 1.0)))
     on_axis = off <= DEGENERATE_OFFSET_TOL_M and tilt <= DEGENERATE_ANGLE_TOL_RAD
     if rule is OrientationRule.FREE_TOOL_AXIS and on_axis:
-        return "degenerate", ("degenerate: the TCP lies on the joint-6 axis and the tool axis is "
+        return "degenerate", ("the TCP lies on the joint-6 axis and the tool axis is "
                               "along it, so rotation about the tool axis only turns joint 6 and "
                               "leaves C(q) unchanged (zero gradient); only the branch is chosen")
     if on_axis and rule in (OrientationRule.CONE, OrientationRule.POSITION_ONLY):
@@ -148,7 +148,7 @@ def _infeasible_result(ik: IKSolver, task: PostureTask, ws: WarmStarts, default:
         k = ws.unreachable[0]
         p = task.positions[k]
         sol = ik.solve(poses(task.positions[k:k + 1], task.rotations[k]))
-        why = "; ".join(sorted({IK_REASONS[IKStatus(int(c))] for c in sol.status[0]}))
+        why = "; ".join(sorted({IK_REASONS[IKStatus.from_code(c)] for c in sol.status[0]}))
         reason = (f"no IK branch reaches waypoint {k} at ({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}) m "
                   f"({why})")
         if len(ws.unreachable) > 1:

@@ -20,6 +20,7 @@ import numpy as np
 from models.effects import LOAD_SIZE
 from models.errors import InputError
 from models.load import load_rows
+from models.status import Status
 from problems.path import MAX_JOINT_STEP
 
 # --------------------------------------------------------------------------------------
@@ -100,7 +101,7 @@ N_ORIENTATION = {OrientationRule.FIXED: 3, OrientationRule.FREE_TOOL_AXIS: 2,
                  OrientationRule.CONE: 1, OrientationRule.POSITION_ONLY: 0}
 
 
-class BranchStatus(enum.Enum):
+class BranchStatus(Status):
     """Outcome of one branch's posture optimisation."""
 
     OPTIMISED = "optimised"                  # IPOPT converged, every constraint verified
@@ -117,7 +118,7 @@ class BranchStatus(enum.Enum):
                         BranchStatus.ANALYTIC)
 
 
-class PostureStatus(enum.Enum):
+class PostureStatus(Status):
     """Outcome of the whole posture stage."""
 
     OK = "ok"

@@ -28,7 +28,7 @@ from models.arm import ArmModel
 from models.codegen import CompileError, compile_shared_library, note_virtual_machine
 from models.effects import LOAD_SIZE
 from models.errors import InputError
-from models.ik import IKSolver, ik_solver
+from models.ik import IKSolver
 from models.robot import Robot
 from problems.posture.task import (AXIS_SCALE, COST_SCALE, IPOPT_DEFAULTS, N_ORIENTATION, N_THETA,
                                    OBJECTIVE_WEIGHT_MAX, OBJECTIVE_WEIGHT_MIN,
@@ -70,7 +70,7 @@ def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule, ik: IKSolver | None 
         and symmetric.  ``n_g = 3 + N_ORIENTATION[rule] + G`` constraints (G: the IK family's guard factors).
     """
     arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
-    ik = ik or ik_solver(arm.nominal)
+    ik = ik or arm.ik
     n_guards = len(ik.guard_kinds)
     q = ca.SX.sym("q", 6)
     th = ca.SX.sym("theta", N_THETA)
@@ -204,7 +204,7 @@ class PostureNLP:
         t0 = time.perf_counter()
         arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
         self.arm, self.robot, self.rule, self.n, self.settings = arm, arm.nominal, rule, n, settings
-        self.ik = ik_solver(arm.nominal)
+        self.ik = arm.ik
         sx = _stage_sx(arm, rule, self.ik)
         self.compiled = False
         funcs = sx

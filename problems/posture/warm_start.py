@@ -213,7 +213,7 @@ def _solve_candidates(ik: IKSolver, task: PostureTask,
     else:
         sol = _continued_solutions(ik, task, cands)
     Q = sol.q.reshape(S, n, ik.n_branches, 6)
-    ok = sol.status.reshape(S, n, ik.n_branches) == IKStatus.OK
+    ok = sol.status.reshape(S, n, ik.n_branches) == IKStatus.OK.code
     return sol, Q, ok
 
 
@@ -323,7 +323,7 @@ def _branch_warm_start(ik: IKSolver, task: PostureTask, cands: list[tuple[str, n
     if not reachable.all():
         k = int(np.argmin(reachable))
         st = first_status[k]
-        why = IK_REASONS[IKStatus(int(st))] if st != IKStatus.OK else "inside a singularity guard"
+        why = IK_REASONS[IKStatus.from_code(st)] if st != IKStatus.OK.code else "inside a singularity guard"
         return f"waypoint {k}: {why} (at the nominal orientation and every scanned one)"
     found = _dense_sequence(node, qb, task) if seq is None else seq
     if isinstance(found, int):

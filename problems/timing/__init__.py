@@ -1,4 +1,4 @@
-"""Time parametrisation of a joint-space path (TOPP-RA or Ruckig).
+"""Time parametrisation of a joint-space path (TOPP-RA, jerk-optimal, Ruckig, plug-ins).
 
 The input is a geometric path given as joint waypoints ``q_path`` (shape
 ``(N, n)``, rad, joint space). Every method times the *same* geometric path,
@@ -16,24 +16,37 @@ Modules, one job each:
     The geometric path: waypoint checks, the spline, its derivatives and the
     path parameter.
 :mod:`~problems.timing.verification`
-    Sampling on the controller grid and the limit checks (peak ratios).
+    Sampling on the controller grid, the limit checks (peak ratios) and
+    :func:`~problems.timing.verification.finish_trajectory`, the status and
+    reason every method ends with.
 :mod:`~problems.timing.registry`
-    The method registry, the shared tolerances (``LIMIT_RATIO_TOL``...), the
-    dt bounds (``DT_MAX_S``) and :func:`time_parametrize`, which dispatches
-    by method name.
+    The method registry (:class:`TimingMethod`: name, options, checked limits,
+    dt bound, default, controller preference, display name and texts), the
+    shared tolerances (``LIMIT_RATIO_TOL``...), the dt bounds (``DT_MAX_S``,
+    ``DT_DEFAULT_S``) and :func:`time_parametrize`, which dispatches by
+    method name.
+:mod:`~problems.timing.limit_use`
+    Which limit binds, and why a trajectory stays under half of every limit.
 :mod:`~problems.timing.toppra_method` (with :mod:`~problems.timing.toppra_law`)
     ``method="toppra"``: time-optimal under velocity and acceleration limits.
 :mod:`~problems.timing.ruckig_method`
     ``method="ruckig"``: jerk-limited.
+:mod:`~problems.timing.jerk_optimal`
+    ``method="jerk_optimal"``: time-optimal under velocity, acceleration and
+    jerk limits.
 
-Each backend registers itself when imported (this package imports the
-built-in ones), so adding a method means adding a module that builds a
-:class:`TimingMethod` and calls :func:`register_method`, and importing it
-here. The package prints nothing.
+Each backend registers itself when imported. This package imports every
+module it contains and every ``*.py`` module in the folders named by
+``$COMPPLAN_TIMING_PATH`` (as ``problems.timing.<name>``, through
+:func:`models.plugins.import_plugins`), so adding a method is adding one
+module that builds a :class:`TimingMethod` and calls
+:func:`register_method`: problem files, plans, summaries, reports and exports
+pick it up. The package prints nothing.
 """
 
 from __future__ import annotations
 
+from models.plugins import import_plugins
 from problems.timing.path import SplinePath
 from problems.timing.registry import (
     DT_DEFAULT_S,
@@ -43,6 +56,9 @@ from problems.timing.registry import (
     SHRINK_MARGIN_MAX,
     TimingMethod,
     available_methods,
+    controller_methods,
+    default_methods,
+    display_name,
     get_method,
     register_method,
     time_parametrize,
@@ -51,11 +67,17 @@ from problems.timing.registry import (
 from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory
 from problems.timing.verification import VERIFY_OVERSAMPLE
 
-# Built-in backends: importing them registers "toppra" and then "ruckig"; the
-# order is the order of VALID_METHODS and of the error messages.
-from problems.timing import toppra_method  # isort: skip
-from problems.timing import ruckig_method  # isort: skip
-from problems.timing import jerk_optimal  # isort: skip
+#: The environment variable naming folders of timing-method plug-in modules.
+TIMING_PATH_VARIABLE = "COMPPLAN_TIMING_PATH"
+
+# Backends and plug-ins: importing them registers them; the built-in ones first, in this order
+# (the order of available_methods() and of the error messages).
+import_plugins(__name__, __path__, TIMING_PATH_VARIABLE,
+               skip=("path", "registry", "trajectory", "verification", "limit_use", "toppra_law"),
+               first=("toppra_method", "ruckig_method", "jerk_optimal"))
+
+# Re-exports of the backends' constants: after import_plugins, which fixes the registration order.
+from problems.timing import jerk_optimal, ruckig_method, toppra_method
 from problems.timing.ruckig_method import (
     RUCKIG_BUDGET_FRACTIONS,
     RUCKIG_CONSISTENCY_TOL,
@@ -77,8 +99,9 @@ from problems.timing.toppra_method import (
     TOPPRA_TIME_LAWS,
 )
 
-#: Names of the built-in methods, in registration order (a snapshot taken at
-#: import; :func:`available_methods` also lists methods registered later).
+#: Names of the methods registered at import (built-in and ``$COMPPLAN_TIMING_PATH``
+#: plug-ins), in registration order: a snapshot; :func:`available_methods` also lists
+#: methods registered later.
 VALID_METHODS: tuple[str, ...] = available_methods()
 
 __all__ = [
@@ -92,8 +115,12 @@ __all__ = [
     # registry and dt bounds
     "DT_DEFAULT_S",
     "DT_MAX_S",
+    "TIMING_PATH_VARIABLE",
     "TimingMethod",
     "available_methods",
+    "controller_methods",
+    "default_methods",
+    "display_name",
     "get_method",
     "register_method",
     "unregister_method",
@@ -119,6 +146,7 @@ __all__ = [
     "RUCKIG_BUDGET_FRACTIONS",
     "RUCKIG_CONSISTENCY_TOL",
     # backend modules
+    "jerk_optimal",
     "ruckig_method",
     "toppra_method",
 ]

@@ -25,9 +25,10 @@ The slots are chosen from the warm start's model ratios; after a solve any other
 limit replaces the slot of smallest ratio on that interval and the NLP is solved again (at most
 :data:`JERK_SLOT_ROUNDS` solves), warm-started from the previous primal-dual optimum
 (:data:`JERK_WARM_IPOPT`).  The NLP is parametric (the path derivatives, grid steps and limits of
-the slot joints are parameters), so it is built once per grid size and reused
-(:data:`JERK_GRIDPOINTS`).  The first solve is warm-started from TOPP-RA's time-optimal
-velocity/acceleration profile on the same grid, scaled by :data:`JERK_WARM_FRACTION`.
+the slot joints are parameters), so it is built once per grid size and process and reused
+(:data:`JERK_GRIDPOINTS`; the re-solves' solver shares its derivatives, :func:`_solver`).  The
+first solve is warm-started from TOPP-RA's time-optimal velocity/acceleration profile on the same
+grid, scaled by :data:`JERK_WARM_FRACTION`.
 
 The optimum is turned into the exact time law of that model, :class:`JerkLaw` (C2 in ``s(t)``,
 jerk bounded, gridpoint times by quadrature).  The constraints hold on the model at the
@@ -58,21 +59,32 @@ import casadi as ca
 import numpy as np
 
 from problems.timing.path import SplinePath
-from problems.timing.registry import LIMIT_RATIO_TOL, TimingMethod, check_integer_options, register_method
+from problems.timing.registry import (
+    LIMIT_RATIO_TOL,
+    TimingMethod,
+    check_integer_options,
+    register_method,
+)
+from problems.timing.toppra_import import import_toppra
 from problems.timing.toppra_method import toppra_once
 from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory
 from problems.timing.verification import (
-    build_trajectory,
     check_times,
     empty_trajectory,
-    exceeded_limits,
+    finish_trajectory,
     format_ratios,
     limit_ratios,
-    moves_backwards,
 )
 
-__all__ = ["JERK_GRIDPOINTS", "JERK_MAX_ITER", "JERK_OPTIONS", "JERK_OPTIMAL_METHOD", "JerkLaw",
-           "default_gridpoints", "run_jerk_optimal"]
+__all__ = [
+    "JERK_GRIDPOINTS",
+    "JERK_MAX_ITER",
+    "JERK_OPTIMAL_METHOD",
+    "JERK_OPTIONS",
+    "JerkLaw",
+    "default_gridpoints",
+    "run_jerk_optimal",
+]
 
 #: Grid sizes the NLP is built for by default (the smallest with >= JERK_GRIDPOINTS_PER_WAYPOINT
 #: gridpoints per waypoint, capped at the largest: on denser paths the interval data cover the
@@ -117,8 +129,27 @@ JERK_WARM_IPOPT: dict[str, Any] = {
 JERK_OPTIONS: tuple[str, ...] = ("gridpoints", "max_iterations")
 
 _CHECKED: tuple[str, ...] = ("velocity", "acceleration", "jerk")
+#: IPOPT solvers by (grid size, slots, iteration limit, warm variant, midpoint slots).
 _NLP_CACHE: dict[tuple[int, int, int, bool, int], ca.Function] = {}
+#: The NLP (its symbolic dict) and its derivative functions by (grid size, slots, midpoint slots):
+#: built with the first solver of an NLP and given to the others (the warm variant, another
+#: iteration limit), which then skip CasADi's symbolic differentiation (most of the build).
+_NLP_PARTS: dict[tuple[int, int, int], tuple[dict[str, ca.SX], dict[str, ca.Function]]] = {}
 _NLP_LOCK = threading.Lock()
+#: The solver's derivative functions and the options that hand them to another solver of the NLP.
+_DERIVATIVE_OPTIONS: tuple[tuple[str, str], ...] = (("nlp_grad_f", "grad_f"), ("nlp_jac_g", "jac_g"),
+                                                    ("nlp_hess_l", "hess_lag"))
+def _no_nlp_grad() -> dict[str, bool]:
+    """``no_nlp_grad`` where this CasADi has it: the Lagrangian's gradient function (for ``lam_p``,
+    not computed) is then not built at all."""
+    try:
+        ca.nlpsol_option_type("ipopt", "no_nlp_grad")
+    except RuntimeError:                        # an older CasADi: the function is built, not used
+        return {}
+    return {"no_nlp_grad": True}
+
+
+_NO_NLP_GRAD: dict[str, bool] = _no_nlp_grad()
 
 
 def profile_grid(knots: np.ndarray, n_grid: int) -> np.ndarray:
@@ -149,8 +180,35 @@ def default_gridpoints(n_waypoints: int) -> int:
 # --------------------------------------------------------------------------- #
 
 def _solver(n_grid: int, n_slots: int, max_iter: int, warm: bool = False) -> ca.Function:
-    """IPOPT solver of the profile NLP for ``n_grid`` gridpoints and ``n_slots`` joint slots (cached);
-    ``warm``: the variant for re-solves from a primal-dual point (:data:`JERK_WARM_IPOPT`).
+    """IPOPT solver of the profile NLP (:func:`_nlp`) for ``n_grid`` gridpoints and ``n_slots``
+    joint slots (cached); ``warm``: the variant for re-solves from a primal-dual point
+    (:data:`JERK_WARM_IPOPT`).
+
+    The solvers of one NLP share its derivative functions (gradient, constraint Jacobian,
+    Hessian of the Lagrangian: built once, by the first).  The multipliers of the parameters
+    (``lam_p``) are not computed: nothing reads them, and their function (the Lagrangian's
+    gradient over the thousands of parameters) costs as much to build as the Hessian.
+    """
+    key = (n_grid, n_slots, max_iter, warm, JERK_MID_ACC_SLOTS)
+    with _NLP_LOCK:
+        if key in _NLP_CACHE:
+            return _NLP_CACHE[key]
+        nlp_key = (n_grid, n_slots, JERK_MID_ACC_SLOTS)
+        nlp, derivatives = _NLP_PARTS.get(nlp_key) or (_nlp(n_grid, n_slots), {})
+        opts = {"print_time": False, "calc_lam_p": False, **_NO_NLP_GRAD, **derivatives,
+                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": int(max_iter),
+                          "tol": JERK_TOL, "constr_viol_tol": JERK_CONSTR_TOL,
+                          "mu_strategy": "adaptive", "mu_target": JERK_MU_TARGET,
+                          **(JERK_WARM_IPOPT if warm else {})}}
+        solver = ca.nlpsol("jerk_optimal", "ipopt", nlp, opts)
+        if nlp_key not in _NLP_PARTS:
+            _NLP_PARTS[nlp_key] = nlp, {opt: solver.get_function(name) for name, opt in _DERIVATIVE_OPTIONS}
+        _NLP_CACHE[key] = solver
+        return solver
+
+
+def _nlp(n_grid: int, n_slots: int) -> dict[str, ca.SX]:
+    """The profile NLP for ``n_grid`` gridpoints and ``n_slots`` joint slots, as ``nlpsol``'s dict.
 
     Each interval constrains the ``n_slots`` joints most likely to bind there (chosen per call,
     :func:`_slots`; the others are checked after the solve and swapped in if they exceed).
@@ -159,53 +217,42 @@ def _solver(n_grid: int, n_slots: int, max_iter: int, warm: bool = False) -> ca.
     at its midpoint, the third representing it (:func:`_third_derivative`), and the slot joint's
     acceleration and jerk limits]``; the rows per slot are listed in :func:`_rows`.
     """
-    key = (n_grid, n_slots, max_iter, warm, JERK_MID_ACC_SLOTS)
-    with _NLP_LOCK:
-        if key in _NLP_CACHE:
-            return _NLP_CACHE[key]
-        K1, K = n_grid, n_grid - 1
-        x, u = ca.SX.sym("x", K1), ca.SX.sym("u", K1)
-        ds = ca.SX.sym("ds", K)
-        slots = [ca.SX.sym(f"slot{r}", K, 9) for r in range(n_slots)]
-        du = (u[1:] - u[:-1]) / ds
-        # the end intervals start (end) at rest with constant jerk: s = J t^3 / 6, so at their
-        # inner gridpoint J = x1 u1 / (3 ds) (the linear-in-s model would say x1 u1 / ds)
-        w_end = ca.DM.ones(K)
-        w_end[0] = w_end[K - 1] = 1.0 / 3.0
-        dul, dur = du * w_end, du * w_end
-        dul[0] = 0.0                                   # at rest: no jerk term from x = 0
-        dur[K - 1] = 0.0
-        xm2 = x[:-1] ** 2 + u[:-1] * ds + 0.25 * (u[1:] - u[:-1]) * ds   # x^2 at the midpoint (model)
-        um = 0.5 * (u[:-1] + u[1:])
-        # consistency: u linear in s inside (d(x^2)/ds = 2u); the end intervals are constant-jerk
-        # cubics in time from / to rest (x^2 = 1.5 |u| ds at their inner gridpoint)
-        cons = x[1:] ** 2 - x[:-1] ** 2 - (u[:-1] + u[1:]) * ds
-        cons[0] = x[1] ** 2 - 1.5 * u[1] * ds[0]
-        cons[K - 1] = x[K - 1] ** 2 + 1.5 * u[K - 1] * ds[K - 1]
-        g = [cons]
-        xl, xr, ul, ur = x[:-1], x[1:], u[:-1], u[1:]
-        for r, S in enumerate(slots):         # (velocity: bounds on x, see _bounds)
-            L1, L2, R1, R2, M1, M2, M3, alim, jlim = (S[:, c] for c in range(9))
-            g.append((L2 * xl ** 2 + L1 * ul) / alim)
-            if _rows(r) == 4:                 # the acceleration at the midpoint
-                g.append((M2 * xm2 + M1 * um) / alim)
-            # jerk at both ends of every interval (x changes fastest near rest)
-            g.append(xl * (M3 * xl ** 2 + 3.0 * L2 * ul + L1 * dul) / jlim)
-            g.append(xr * (M3 * xr ** 2 + 3.0 * R2 * ur + R1 * dur) / jlim)
-        T = ca.sum1(_interval_times(ds, x, ca))
-        # a small penalty on the change of du/ds between neighbouring intervals keeps the jerk from
-        # chattering at the grid's period (IPOPT otherwise alternates between equivalent optima)
-        dc = du[1:] - du[:-1]
-        T = T + JERK_SMOOTHING * ca.sum1(dc ** 2 * 0.5 * (ds[1:] + ds[:-1]))
-        p = ca.vertcat(ds, *[ca.vec(S) for S in slots])
-        opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": int(max_iter),
-                                              "tol": JERK_TOL, "constr_viol_tol": JERK_CONSTR_TOL,
-                                              "mu_strategy": "adaptive", "mu_target": JERK_MU_TARGET,
-                                              **(JERK_WARM_IPOPT if warm else {})}}
-        solver = ca.nlpsol("jerk_optimal", "ipopt", {"x": ca.vertcat(x, u), "p": p, "f": T,
-                                                    "g": ca.vertcat(*g)}, opts)
-        _NLP_CACHE[key] = solver
-        return solver
+    K1, K = n_grid, n_grid - 1
+    x, u = ca.SX.sym("x", K1), ca.SX.sym("u", K1)
+    ds = ca.SX.sym("ds", K)
+    slots = [ca.SX.sym(f"slot{r}", K, 9) for r in range(n_slots)]
+    du = (u[1:] - u[:-1]) / ds
+    # the end intervals start (end) at rest with constant jerk: s = J t^3 / 6, so at their
+    # inner gridpoint J = x1 u1 / (3 ds) (the linear-in-s model would say x1 u1 / ds)
+    w_end = ca.DM.ones(K)
+    w_end[0] = w_end[K - 1] = 1.0 / 3.0
+    dul, dur = du * w_end, du * w_end
+    dul[0] = 0.0                                   # at rest: no jerk term from x = 0
+    dur[K - 1] = 0.0
+    xm2 = x[:-1] ** 2 + u[:-1] * ds + 0.25 * (u[1:] - u[:-1]) * ds   # x^2 at the midpoint (model)
+    um = 0.5 * (u[:-1] + u[1:])
+    # consistency: u linear in s inside (d(x^2)/ds = 2u); the end intervals are constant-jerk
+    # cubics in time from / to rest (x^2 = 1.5 |u| ds at their inner gridpoint)
+    cons = x[1:] ** 2 - x[:-1] ** 2 - (u[:-1] + u[1:]) * ds
+    cons[0] = x[1] ** 2 - 1.5 * u[1] * ds[0]
+    cons[K - 1] = x[K - 1] ** 2 + 1.5 * u[K - 1] * ds[K - 1]
+    g = [cons]
+    xl, xr, ul, ur = x[:-1], x[1:], u[:-1], u[1:]
+    for r, S in enumerate(slots):         # (velocity: bounds on x, see _bounds)
+        L1, L2, R1, R2, M1, M2, M3, alim, jlim = (S[:, c] for c in range(9))
+        g.append((L2 * xl ** 2 + L1 * ul) / alim)
+        if _rows(r) == 4:                 # the acceleration at the midpoint
+            g.append((M2 * xm2 + M1 * um) / alim)
+        # jerk at both ends of every interval (x changes fastest near rest)
+        g.append(xl * (M3 * xl ** 2 + 3.0 * L2 * ul + L1 * dul) / jlim)
+        g.append(xr * (M3 * xr ** 2 + 3.0 * R2 * ur + R1 * dur) / jlim)
+    T = ca.sum1(_interval_times(ds, x, ca))
+    # a small penalty on the change of du/ds between neighbouring intervals keeps the jerk from
+    # chattering at the grid's period (IPOPT otherwise alternates between equivalent optima)
+    dc = du[1:] - du[:-1]
+    T = T + JERK_SMOOTHING * ca.sum1(dc ** 2 * 0.5 * (ds[1:] + ds[:-1]))
+    p = ca.vertcat(ds, *[ca.vec(S) for S in slots])
+    return {"x": ca.vertcat(x, u), "p": p, "f": T, "g": ca.vertcat(*g)}
 
 
 class _Terms:
@@ -399,8 +446,7 @@ class JerkLaw:
 
 def _warm_start(path: SplinePath, grid: np.ndarray, limits: JointLimits) -> np.ndarray | None:
     """TOPP-RA's velocity/acceleration-optimal profile on the grid, scaled inside (x, u)."""
-    import toppra
-    tp = toppra.SplineInterpolator(path.knots, path.q_path, bc_type="natural")
+    tp = import_toppra().SplineInterpolator(path.knots, path.q_path, bc_type="natural")
     sd, _msg, _inf = toppra_once(tp, grid, limits.velocity, limits.acceleration)
     if sd is None:
         return None
@@ -475,7 +521,7 @@ def run_jerk_optimal(path: SplinePath, limits: JointLimits, dt: float, opts: Map
     x[0] = x[-1] = u[0] = u[-1] = 0.0
     if not st.get("success", False) or np.any(x[1:-1] <= 0.0):
         return empty_trajectory("jerk_optimal", TimingStatus.FAILED,
-                                f"failed: IPOPT ({ip}) after {st.get('iter_count', 0)} iterations on "
+                                f"IPOPT ({ip}) after {st.get('iter_count', 0)} iterations on "
                                 f"{n_grid} gridpoints", n, dt, rounds)
     law, scale = JerkLaw(grid, x, u), 1.0
     ratio = _fine_check(path, limits, dt, law)
@@ -492,17 +538,9 @@ def run_jerk_optimal(path: SplinePath, limits: JointLimits, dt: float, opts: Map
                f"gridpoints with the {min(JERK_SLOTS, n)} most loaded joints of every interval, warm start "
                f"TOPP-RA; optimal profile {t_nlp:.4f} s, slowed x{scale:.4f} after the fine check; "
                f"motion {law.duration:.4f} s; {format_ratios(ratio)}")
-    backwards = moves_backwards(law(check_times(law.duration, dt, law.breaks))[1], float(x.max()))
-    if backwards is not None:
-        return build_trajectory("jerk_optimal", path, limits, dt, law, law.duration, ratio, TimingStatus.FAILED,
-                                f"failed: the time law moves backwards (min ds/dt = {backwards:.3g} 1/s); "
-                                f"{summary}", 1, {}, _CHECKED)
-    bad = exceeded_limits(ratio, _CHECKED)
-    status = TimingStatus.OK if not bad else TimingStatus.LIMIT_EXCEEDED
-    reason = (f"ok: velocity, acceleration and jerk within limits; {summary}" if not bad
-              else f"limit_exceeded: {' and '.join(bad)} ratio above 1; {summary}")
-    return build_trajectory("jerk_optimal", path, limits, dt, law, law.duration, ratio, status, reason, 1, {},
-                            _CHECKED)
+    check_sd = law(check_times(law.duration, dt, law.breaks))[1]
+    return finish_trajectory("jerk_optimal", path, limits, dt, law, law.duration, ratio, summary,
+                             check_sd=check_sd, sd_scale=float(x.max()), iterations=1)
 
 
 def _validate(out: dict[str, Any]) -> dict[str, Any]:
@@ -520,5 +558,10 @@ JERK_OPTIMAL_METHOD: TimingMethod = register_method(
         checked_limits=_CHECKED,
         description="time-optimal under joint velocity, acceleration and jerk limits (NLP over the "
                     "path-velocity profile, IPOPT, warm-started from TOPP-RA)",
+        display_name="jerk-optimal",
+        controller_rank=10,
+        default=True,
+        duration_note="time-optimal under velocity, acceleration and jerk limits: the trajectory the "
+                      "controller runs",
     )
 )

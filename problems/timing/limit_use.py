@@ -13,6 +13,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from models.errors import InputError
 from problems.timing.registry import get_method
 from problems.timing.trajectory import Trajectory
 
@@ -67,7 +68,7 @@ def limit_use(tr: Trajectory, limits: Any, enforced: tuple[str, ...]) -> dict[st
     if under:
         try:
             cause = get_method(tr.method).underuse_cause
-        except (KeyError, ValueError):
+        except InputError:          # a method not registered here (a plug-in not loaded)
             cause = ""
         why = (f"uses under half of every limit (peak {peak:.2f}: {peak_name} of joint {peak_joint + 1}); "
                + (cause or "no limit binds; see the method's reason"))

@@ -18,7 +18,8 @@ Consecutive waypoints that are *exactly* identical are dropped (they add no
 geometry); if that leaves a single waypoint the path has zero length and
 :func:`problems.timing.time_parametrize` returns status ``INFEASIBLE``.
 Distinct but nearly identical neighbours are kept unless their chord is too
-small to give strictly increasing knots, which raises ``ValueError``.
+small to give strictly increasing knots, which raises
+:class:`~models.errors.InputError` (a ``ValueError``).
 
 Every trajectory is ``q(t) = P(s(t))`` with a monotone scalar time law
 ``s(t)`` from ``s = 0`` at rest to ``s = 1`` at rest, so it follows the path
@@ -35,6 +36,8 @@ from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+
+from models.errors import InputError
 
 __all__ = ["SplinePath", "validate_path"]
 
@@ -58,27 +61,27 @@ def validate_path(q_path: Any, n: int) -> tuple[np.ndarray, int]:
 
     Raises
     ------
-    ValueError
+    InputError
         Not numeric, wrong shape or joint count, fewer than 2 waypoints, or a
         non-finite value (the message names the waypoint row and joint).
     """
     try:
         q = np.array(q_path, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"q_path must be a numeric (N, n) array: {exc}") from exc
+        raise InputError(f"q_path must be a numeric (N, n) array (rad): {exc}") from exc
     if q.ndim != 2:
-        raise ValueError(f"q_path must have shape (N, n) with N >= 2, got shape {q.shape}")
+        raise InputError(f"q_path must have shape (N, n) with N >= 2, got shape {q.shape}")
     if q.shape[0] < 2:
-        raise ValueError(f"q_path needs at least 2 waypoints, got {q.shape[0]}")
+        raise InputError(f"q_path needs at least 2 waypoints, got {q.shape[0]}")
     if q.shape[1] != n:
-        raise ValueError(
+        raise InputError(
             f"q_path has {q.shape[1]} joints (shape {q.shape}) but the limits "
             f"have {n}"
         )
     bad = np.argwhere(~np.isfinite(q))
     if bad.size:
         row, col = (int(x) for x in bad[0])
-        raise ValueError(
+        raise InputError(
             f"q_path[{row}, {col}] (waypoint row {row}, joint {col + 1}) is "
             f"{float(q[row, col])!r}; all waypoint values must be finite"
         )
@@ -112,7 +115,7 @@ class SplinePath:
 
     Raises
     ------
-    ValueError
+    InputError
         If two distinct neighbours are too close to give strictly increasing
         knots.
     """
@@ -125,7 +128,7 @@ class SplinePath:
         steps = np.diff(s)
         if np.any(steps <= 0.0):
             k = int(np.flatnonzero(steps <= 0.0)[0])
-            raise ValueError(
+            raise InputError(
                 f"waypoints {k} and {k + 1} are distinct but too close "
                 f"(joint-space distance {chord[k]:.3g} rad on a path of length "
                 f"{total:.3g} rad) to give increasing path parameters; remove one"

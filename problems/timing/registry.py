@@ -4,16 +4,28 @@ A method is a :class:`TimingMethod`: a name, a runner that times a
 :class:`~problems.timing.path.SplinePath` under :class:`JointLimits`, the
 names of its keyword options with their validator, and the limits its
 ``OK`` status depends on. Each backend module (``toppra_method``,
-``ruckig_method``) builds one and passes it to :func:`register_method` when
-it is imported; :mod:`problems.timing` imports the built-in backends, so
-adding a method means adding a module that registers itself (and importing
-it). :func:`time_parametrize` validates the common inputs and dispatches by
-name through the registry.
+``ruckig_method``, ``jerk_optimal``) builds one and passes it to
+:func:`register_method` when it is imported; :mod:`problems.timing` imports
+every module of the package and of the folders named by
+``$COMPPLAN_TIMING_PATH`` (:func:`models.plugins.import_plugins`), so adding
+a method means adding one module that registers itself, in the package or in
+such a folder. :func:`time_parametrize` validates the common inputs and
+dispatches by name through the registry.
 
 The registry also owns the tolerances shared by all methods
 (:data:`LIMIT_RATIO_TOL`, :data:`MONOTONE_TOL`, :data:`SHRINK_MARGIN_MAX`)
 and the bounds of the controller period (:data:`DT_MAX_S`,
 :data:`DT_DEFAULT_S`).
+
+A method's record is the one place for everything the rest of the product says about it:
+its display name and one-line description (reports, summaries), the limits its ``OK``
+status checks (``summary.json`` ``limits_enforced``, exports), its largest controller period,
+whether a problem runs it by default (:func:`default_methods`), whether and with which
+preference the controller may run its trajectory (:func:`controller_methods`), and the
+sentences the summary quotes. A problem file validates ``[timing]`` against the registry.
+Every check of the sampled trajectory and the status and reason it earns are made by one
+function, :func:`problems.timing.verification.finish_trajectory`, which every backend calls.
+A reason never repeats the status (callers show ``f"{status.value}: {reason}"``).
 """
 
 from __future__ import annotations
@@ -29,6 +41,7 @@ from problems.timing.path import SplinePath, validate_path
 from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
 
 __all__ = [
+    "CONTROLLER_RANK_NEVER",
     "DT_DEFAULT_S",
     "DT_MAX_S",
     "LIMIT_RATIO_TOL",
@@ -42,11 +55,15 @@ __all__ = [
     "check_integer_options",
     "check_sample_count",
     "check_shrink_margin",
+    "controller_methods",
+    "default_methods",
+    "display_name",
     "get_method",
     "register_method",
     "time_parametrize",
     "unregister_method",
     "validate_dt",
+    "validate_options",
 ]
 
 # --------------------------------------------------------------------------- #
@@ -86,32 +103,51 @@ MethodRunner = Callable[[SplinePath, JointLimits, float, Mapping[str, Any]], Tra
 
 #: ``validate(options) -> options``: checks and normalises the values of the
 #: method's keyword options (names are already known to be valid); raises
-#: ``ValueError`` naming the option.
+#: :class:`~models.errors.InputError` naming the option, its value and what is expected.
 OptionValidator = Callable[[dict[str, Any]], dict[str, Any]]
+
+#: ``controller_rank`` of a method whose trajectory the controller never runs.
+CONTROLLER_RANK_NEVER: None = None
 
 
 @dataclass(frozen=True)
 class TimingMethod:
-    """A registered time-parametrisation method.
+    """A registered time-parametrisation method: everything the product says about it.
 
     Attributes
     ----------
     name : str
-        The ``method`` argument of :func:`time_parametrize`.
+        The ``method`` argument of :func:`time_parametrize` and the name a problem file's
+        ``[timing] methods`` uses.
     run : MethodRunner
         The backend.
     options : tuple of str
-        Names of the keyword options the method accepts.
+        Names of the keyword options the method accepts (also the keys of the problem
+        file's ``[timing.<name>]`` table).
     validate_options : OptionValidator
         Value check of those options.
     checked_limits : tuple of str
         Keys of :data:`~problems.timing.trajectory.LIMIT_KEYS` that decide the
-        ``OK`` status (the other ratios are reported only).
+        ``OK`` status (the other ratios are reported only): the limits it enforces.
     description : str
         One line for listings.
     underuse_cause : str
         Why a trajectory of this method can stay under half of every limit (quoted by
-        :func:`problems.timing.verification.limit_use` when it does).
+        :func:`problems.timing.limit_use.limit_use` when it does).
+    display_name : str
+        The name reports and figures show (``"TOPP-RA"``); ``name`` if empty.
+    controller_rank : int or None
+        Preference for the trajectory the controller runs (``trajectory.csv``): among the
+        methods a problem runs, the one of lowest rank is the controller's; None
+        (:data:`CONTROLLER_RANK_NEVER`): never the controller's.
+    default : bool
+        Run when a problem names no methods (:func:`default_methods`).
+    dt_max_s : float
+        Largest controller period the method accepts (s), at most :data:`DT_MAX_S`.
+    duration_note : str
+        What the duration of its trajectory is when the controller runs it (the summary
+        headline's ``duration_note``, followed by `` (trajectory.csv)``); default
+        ``"<display_name>: the trajectory the controller runs"``.
     """
 
     name: str
@@ -121,6 +157,22 @@ class TimingMethod:
     checked_limits: tuple[str, ...]
     description: str = ""
     underuse_cause: str = ""
+    display_name: str = ""
+    controller_rank: int | None = CONTROLLER_RANK_NEVER
+    default: bool = False
+    dt_max_s: float = DT_MAX_S
+    duration_note: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.display_name:
+            object.__setattr__(self, "display_name", self.name)
+        if not self.duration_note:
+            object.__setattr__(self, "duration_note", f"{self.display_name}: the trajectory the controller runs")
+
+    @property
+    def enforces_jerk(self) -> bool:
+        """Whether the jerk limit decides its status (a jerk-limited trajectory)."""
+        return "jerk" in self.checked_limits
 
 
 _METHODS: dict[str, TimingMethod] = {}
@@ -131,17 +183,25 @@ def register_method(method: TimingMethod, *, replace: bool = False) -> TimingMet
 
     Raises
     ------
-    ValueError
-        If the name is empty, a checked limit is unknown, or the name is
+    InputError
+        If the name is empty, a checked limit is unknown, ``dt_max_s`` is not in
+        ``(0, DT_MAX_S]``, the controller rank is not an int (or None), or the name is
         already registered and ``replace`` is false.
     """
-    if not method.name:
-        raise ValueError("a timing method needs a non-empty name")
+    if not isinstance(method.name, str) or not method.name:
+        raise InputError(f"a timing method needs a non-empty name, got {method.name!r}")
     unknown = [k for k in method.checked_limits if k not in LIMIT_KEYS]
     if unknown:
-        raise ValueError(f"method {method.name!r}: unknown checked limit(s) {unknown}")
+        raise InputError(f"timing method {method.name!r}: unknown checked limit(s) {unknown}; "
+                         f"valid: {list(LIMIT_KEYS)}")
+    if not (0.0 < method.dt_max_s <= DT_MAX_S):
+        raise InputError(f"timing method {method.name!r}: dt_max_s = {method.dt_max_s!r} s must be in "
+                         f"(0, {DT_MAX_S}] s")
+    rank = method.controller_rank
+    if rank is not None and (isinstance(rank, bool) or not isinstance(rank, int)):
+        raise InputError(f"timing method {method.name!r}: controller_rank must be an int or None, got {rank!r}")
     if method.name in _METHODS and not replace:
-        raise ValueError(f"timing method {method.name!r} is already registered")
+        raise InputError(f"timing method {method.name!r} is already registered")
     _METHODS[method.name] = method
     return method
 
@@ -154,6 +214,39 @@ def unregister_method(name: str) -> None:
 def available_methods() -> tuple[str, ...]:
     """Names of the registered methods, in registration order."""
     return tuple(_METHODS)
+
+
+def default_methods() -> tuple[str, ...]:
+    """The methods a problem runs when it names none (registered with ``default=True``), in
+    registration order."""
+    return tuple(m.name for m in _METHODS.values() if m.default)
+
+
+def controller_methods(names: Iterable[str] | None = None) -> tuple[str, ...]:
+    """The methods whose trajectory the controller may run, most preferred first.
+
+    Parameters
+    ----------
+    names : iterable of str, optional
+        Restrict to these (e.g. a problem's methods); unregistered names are left out.
+        Default: every registered method.
+
+    Returns
+    -------
+    tuple of str
+        By ``controller_rank`` (ties in registration order); methods without a rank are
+        left out.
+    """
+    chosen = set(_METHODS) if names is None else set(names)
+    ranked = [(m.controller_rank, i, m.name) for i, m in enumerate(_METHODS.values())
+              if m.name in chosen and m.controller_rank is not None]
+    return tuple(name for _, _, name in sorted(ranked))
+
+
+def display_name(name: str) -> str:
+    """The display name of method ``name`` (``name`` itself if it is not registered)."""
+    m = _METHODS.get(name)
+    return m.display_name if m is not None else name
 
 
 def get_method(name: str) -> TimingMethod:
@@ -175,20 +268,30 @@ def get_method(name: str) -> TimingMethod:
 # --------------------------------------------------------------------------- #
 
 
-def validate_dt(dt: float) -> float:
+def validate_dt(dt: float, dt_max: float = DT_MAX_S, method: str = "") -> float:
     """Controller period as float (s).
+
+    Parameters
+    ----------
+    dt : float
+        The controller period, s.
+    dt_max : float
+        Its largest accepted value, s (a method's ``dt_max_s``).
+    method : str
+        The timing method, for the message.
 
     Raises
     ------
-    ValueError
-        Not a number, not finite, ``<= 0`` or ``> DT_MAX_S``.
+    InputError
+        Not a number, not finite, ``<= 0`` or ``> dt_max``.
     """
+    who = f" of timing method {method!r}" if method and dt_max < DT_MAX_S else ""
     try:
         value = float(dt)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"dt must be a number (s), got {dt!r}") from exc
-    if not math.isfinite(value) or value <= 0.0 or value > DT_MAX_S:
-        raise ValueError(f"dt must be finite, > 0 and <= {DT_MAX_S} s, got {dt!r}")
+        raise InputError(f"dt must be a number (s), got {dt!r}") from exc
+    if not math.isfinite(value) or value <= 0.0 or value > dt_max:
+        raise InputError(f"dt must be finite, > 0 and <= {dt_max} s{who}, got {dt!r}")
     return value
 
 
@@ -261,7 +364,7 @@ def check_integer_options(out: dict[str, Any], bounds: Iterable[tuple[str, int]]
         if key in out:
             val = out[key]
             if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val < lo:
-                raise ValueError(f"option {key} must be an integer >= {lo}, got {val!r}")
+                raise InputError(f"option {key} must be an integer >= {lo}, got {val!r}")
             out[key] = int(val)
 
 
@@ -274,18 +377,24 @@ def check_shrink_margin(out: dict[str, Any]) -> None:
         except (TypeError, ValueError):
             fval = math.nan
         if not (0.0 <= fval <= SHRINK_MARGIN_MAX):
-            raise ValueError(
+            raise InputError(
                 f"option shrink_margin must be in [0, {SHRINK_MARGIN_MAX}], got {val!r}"
             )
         out["shrink_margin"] = fval
 
 
-def _validate_options(method: TimingMethod, options: Mapping[str, Any]) -> dict[str, Any]:
-    """Reject unknown option names (``TypeError``), then check the values."""
+def validate_options(method: TimingMethod, options: Mapping[str, Any]) -> dict[str, Any]:
+    """Reject unknown option names, then check the values (the method's validator).
+
+    Raises
+    ------
+    InputError
+        An unknown option name (the message lists the valid ones) or a bad value.
+    """
     allowed = method.options
     unknown = sorted(set(options) - set(allowed))
     if unknown:
-        raise TypeError(
+        raise InputError(
             f"unknown option(s) {unknown} for method {method.name!r}; valid options: "
             f"{list(allowed)}"
         )
@@ -310,7 +419,7 @@ def _zero_length_trajectory(
         method=method,
         status=TimingStatus.INFEASIBLE,
         reason=(
-            f"infeasible: path has zero length (all {n_input} waypoints are "
+            f"path has zero length (all {n_input} waypoints are "
             "identical); nothing to time-parametrise, the single sample holds "
             "the start configuration at rest"
         ),
@@ -344,16 +453,19 @@ def time_parametrize(
     limits : JointLimits
         Per-joint velocity (rad/s), acceleration (rad/s^2), jerk (rad/s^3).
     method : str
-        A registered method (:func:`available_methods`): ``"toppra"``
-        (time-optimal, velocity and acceleration limits) or ``"ruckig"``
-        (jerk-limited).
+        A registered method (:func:`available_methods`), e.g. ``"toppra"``
+        (time-optimal, velocity and acceleration limits), ``"jerk_optimal"``
+        (time-optimal, jerk limited too) or ``"ruckig"`` (jerk-limited).
     dt : float
-        Controller period (s), ``0 < dt <= DT_MAX_S``.
+        Controller period (s), ``0 < dt <=`` the method's ``dt_max_s``
+        (:data:`DT_MAX_S` for the built-in ones).
     **options
-        Method options. ``toppra`` (:mod:`.toppra_method`): ``gridpoints``,
-        ``max_iterations``, ``shrink_margin``, ``time_law``, ``smoothing_s``,
-        ``refinements``. ``ruckig`` (:mod:`.ruckig_method`):
-        ``max_iterations``, ``shrink_margin``.
+        Method options (the method's ``options``). ``toppra``
+        (:mod:`.toppra_method`): ``gridpoints``, ``max_iterations``,
+        ``shrink_margin``, ``time_law``, ``smoothing_s``, ``refinements``.
+        ``ruckig`` (:mod:`.ruckig_method`): ``max_iterations``,
+        ``shrink_margin``. ``jerk_optimal`` (:mod:`.jerk_optimal`):
+        ``gridpoints``, ``max_iterations``.
 
     Returns
     -------
@@ -368,20 +480,18 @@ def time_parametrize(
     Raises
     ------
     InputError
-        Unknown ``method`` (the message names it and lists the registered
-        ones). A subclass of ``ValueError``.
-    ValueError
-        Malformed ``q_path`` (shape, joint count, non-finite value: the
-        message names the waypoint row and joint), bad ``dt``, or bad option
-        values.
-    TypeError
-        ``limits`` is not a :class:`JointLimits`, or an unknown option name.
+        (a subclass of ``ValueError``) Unknown ``method`` (the message names it
+        and lists the registered ones); ``limits`` not a :class:`JointLimits`;
+        an unknown option name or a bad option value; malformed ``q_path``
+        (shape, joint count, non-finite value: the message names the waypoint
+        row and joint); bad ``dt``.
     """
     spec = get_method(method)
     if not isinstance(limits, JointLimits):
-        raise TypeError(f"limits must be a JointLimits, got {type(limits).__name__}")
-    opts = _validate_options(spec, options)
-    dt = validate_dt(dt)
+        raise InputError(f"limits must be a JointLimits (velocity, acceleration, jerk per joint), "
+                         f"got {type(limits).__name__}")
+    opts = validate_options(spec, options)
+    dt = validate_dt(dt, spec.dt_max_s, spec.name)
     q, n_input = validate_path(q_path, limits.n_joints)
     if q.shape[0] < 2:
         return _zero_length_trajectory(spec.name, q, n_input, dt)

@@ -56,10 +56,10 @@ from problems.timing.registry import (
 )
 from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
 from problems.timing.verification import (
-    build_trajectory,
     check_times,
     empty_trajectory,
     exceeded_limits,
+    finish_trajectory,
     format_ratios,
     limit_ratios,
     moves_backwards,
@@ -327,26 +327,31 @@ class _RuckigLoop:
         return states[:, 0], states[:, 1], states[:, 2], js
 
     def run(self) -> Trajectory:
-        """Iterate, then sample the last law at dt."""
-        status, reason, it = TimingStatus.FAILED, "", 0
+        """Iterate until a run passes the check or the runs are used up; sample it at dt."""
         for it in range(1, self.max_iter + 1):
             step = self._iteration(it)
             if isinstance(step, Trajectory):
                 return step
-            status, reason, stop = step
-            if stop:
-                break
+            csd, summary = step
+            if (
+                it == self.max_iter
+                or not exceeded_limits(self.ratio, LIMIT_KEYS)
+                or moves_backwards(csd, self.sd_max) is not None
+            ):
+                try:
+                    return finish_trajectory(
+                        "ruckig", self.path, self.limits, self.dt, self.sampled_law, self.duration,
+                        self.ratio, summary, check_sd=csd, sd_scale=self.sd_max, iterations=it,
+                        first=self.first, runs=f" after {it} run(s) (max_iterations={self.max_iter})",
+                    )
+                except RuntimeError as exc:
+                    return self._failed(f"Ruckig sampling failed: {exc}", it)
             self._rescale()
-        try:
-            return build_trajectory(
-                "ruckig", self.path, self.limits, self.dt, self.sampled_law, self.duration,
-                self.ratio, status, reason, it, self.first, LIMIT_KEYS,
-            )
-        except RuntimeError as exc:
-            return self._failed(f"Ruckig sampling failed: {exc}", it)
+        raise AssertionError("the last Ruckig run always returns")  # pragma: no cover
 
-    def _iteration(self, it: int) -> Trajectory | tuple[TimingStatus, str, bool]:
-        """Run ``it``: a failed result, or ``(status, reason, stop)``."""
+    def _iteration(self, it: int) -> Trajectory | tuple[np.ndarray, str]:
+        """Run ``it``: a failed result, or the path velocity on the check grid (1/s) and the
+        summary of the run (its ratios are in :attr:`ratio`)."""
         sd_max, sdd_max, sddd_max = self.sd_max, self.sdd_max, self.sddd_max
         attempt = self.law.solve(sd_max, sdd_max, sddd_max)
         if attempt.duration is None:
@@ -371,26 +376,7 @@ class _RuckigLoop:
             f"|sdd|<={sdd_max:.6g} 1/s^2, |sddd|<={sddd_max:.6g} 1/s^3, {it} run(s); "
             f"motion {duration:.4f} s; {format_ratios(ratio)}"
         )
-        backwards = moves_backwards(csd, sd_max)
-        if backwards is not None:
-            return (
-                TimingStatus.FAILED,
-                f"failed: Ruckig time law moves backwards (min ds/dt {backwards:.3g}); "
-                f"{summary}",
-                True,
-            )
-        bad = exceeded_limits(ratio, LIMIT_KEYS)
-        if not bad:
-            return (
-                TimingStatus.OK,
-                f"ok: velocity, acceleration and jerk within limits; {summary}",
-                True,
-            )
-        reason = (
-            f"limit_exceeded: {' and '.join(bad)} ratio above 1 after {it} run(s) "
-            f"(max_iterations={self.max_iter}); {summary}"
-        )
-        return TimingStatus.LIMIT_EXCEEDED, reason, it == self.max_iter
+        return csd, summary
 
     def _rescale(self) -> None:
         """Uniform time scaling of the bound set by the measured ratios."""
@@ -456,6 +442,9 @@ RUCKIG_METHOD: TimingMethod = register_method(
         validate_options=_validate_ruckig_options,
         checked_limits=LIMIT_KEYS,
         description="jerk-limited on the path parameter (Ruckig, global bound set)",
+        display_name="Ruckig",
+        controller_rank=20,
+        duration_note="Ruckig, jerk-limited: the trajectory the controller runs",
         underuse_cause=("Ruckig times the path parameter under one bound per derivative for the whole path, set "
                         "by the joint and point where the path is most demanding (its largest |dq/ds|, "
                         "|d2q/ds2|, |d3q/ds3| at once), so everywhere else and on the other joints the limits "

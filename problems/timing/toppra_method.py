@@ -60,14 +60,12 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Iterator, Mapping
 
 import numpy as np
-import toppra
-import toppra.algorithm
-import toppra.constraint
 
+from models.errors import InputError
 from problems.timing.path import SplinePath
 from problems.timing.registry import (
     LIMIT_RATIO_TOL,
@@ -76,13 +74,14 @@ from problems.timing.registry import (
     check_shrink_margin,
     register_method,
 )
+from problems.timing.toppra_import import import_toppra
 from problems.timing.toppra_law import ToppraLaw
 from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory
 from problems.timing.verification import (
-    build_trajectory,
     check_times,
     empty_trajectory,
     exceeded_limits,
+    finish_trajectory,
     format_ratios,
     limit_ratios,
     moves_backwards,
@@ -250,6 +249,8 @@ def toppra_once(
     infeasible : bool
         True if toppra reported the instance uncontrollable.
     """
+    toppra = import_toppra()   # on demand (with toppra.algorithm and toppra.constraint)
+
     constraints = [
         toppra.constraint.JointVelocityConstraint(vlim),
         toppra.constraint.JointAccelerationConstraint(
@@ -295,7 +296,7 @@ def _validate_toppra_options(out: dict[str, Any]) -> dict[str, Any]:
     check_integer_options(out, (("gridpoints", 2), ("max_iterations", 1), ("refinements", 0)))
     check_shrink_margin(out)
     if "time_law" in out and out["time_law"] not in TOPPRA_TIME_LAWS:
-        raise ValueError(
+        raise InputError(
             f"option time_law must be one of {list(TOPPRA_TIME_LAWS)}, got {out['time_law']!r}"
         )
     if "smoothing_s" in out:
@@ -305,7 +306,7 @@ def _validate_toppra_options(out: dict[str, Any]) -> dict[str, Any]:
         except (TypeError, ValueError):
             fval = math.nan
         if not (0.0 < fval <= 1.0):
-            raise ValueError(f"option smoothing_s must be in (0, 1] s, got {val!r}")
+            raise InputError(f"option smoothing_s must be in (0, 1] s, got {val!r}")
         out["smoothing_s"] = fval
     return out
 
@@ -389,6 +390,8 @@ class _ToppraLoop:
     def __init__(
         self, path: SplinePath, limits: JointLimits, dt: float, cfg: ToppraSettings
     ) -> None:
+        toppra = import_toppra()   # on demand
+
         self.path, self.limits, self.dt, self.cfg = path, limits, dt, cfg
         self.n_way = path.knots.shape[0]
         self.grid = toppra_grid(path.knots, cfg.gridpoints)
@@ -399,37 +402,31 @@ class _ToppraLoop:
         self.vlim = limits.velocity.astype(float).copy()
         self.alim = limits.acceleration.astype(float).copy()
         self.first: dict[str, np.ndarray] = {}
-        #: (law, ratio, reason, iteration) of the last limit-exceeding run.
-        self.last: tuple[ToppraLaw, dict[str, np.ndarray], str, int] | None = None
+        #: (checked run, its summary, peak sd, iteration) of the last limit-exceeding run.
+        self.last: tuple[_Checked, str, float, int] | None = None
 
     def run(self) -> Trajectory:
-        """Iterate; the last limit-exceeding run is returned if none passes."""
+        """Iterate until a run passes the check or the runs are used up."""
         for it in range(1, self.cfg.max_iterations + 1):
             done = self._iteration(it)
             if done is not None:
                 return done
-        assert self.last is not None
-        law, ratio, reason, it = self.last
-        return self._build(law, ratio, TimingStatus.LIMIT_EXCEEDED, reason, it)
+        raise AssertionError("the last TOPP-RA run always returns")  # pragma: no cover
 
-    def _build(
-        self, law: ToppraLaw, ratio: dict[str, np.ndarray], status: TimingStatus,
-        reason: str, it: int,
-    ) -> Trajectory:
-        return build_trajectory(
-            "toppra", self.path, self.limits, self.dt, law, law.duration, ratio, status,
-            reason, it, self.first, _CHECKED,
+    def _finish(self, chk: _Checked, summary: str, sd_max: float, it: int) -> Trajectory:
+        """The trajectory of run ``it`` (status and reason by :func:`finish_trajectory`)."""
+        return finish_trajectory(
+            "toppra", self.path, self.limits, self.dt, chk.law, chk.law.duration, chk.ratio,
+            summary, check_sd=chk.csd, sd_scale=sd_max, iterations=it, first=self.first,
+            runs=f" after {it} run(s) (max_iterations={self.cfg.max_iterations})",
         )
 
     def _solver_failed(self, it: int, msg: str, infeasible: bool) -> Trajectory:
         """Result when run ``it`` gave no parametrisation."""
         reason = f"TOPP-RA run {it} on {self.grid.size} gridpoints failed: {msg}"
         if self.last is not None:  # return the previous (limit-exceeding) run
-            law, ratio, prev_reason, prev_it = self.last
-            return self._build(
-                law, ratio, TimingStatus.LIMIT_EXCEEDED, f"{prev_reason}; then {reason}",
-                prev_it,
-            )
+            tr = self._finish(*self.last)
+            return replace(tr, reason=f"{tr.reason}; then {reason}")
         status = TimingStatus.INFEASIBLE if infeasible else TimingStatus.FAILED
         return empty_trajectory("toppra", status, reason, self.limits.n_joints, self.dt, it)
 
@@ -476,27 +473,14 @@ class _ToppraLoop:
         if not self.first:
             self.first = chk.ratio
         summary = self._summary(it, chk.law.duration, chk.ratio)
-        backwards = moves_backwards(chk.csd, float(sd.max()))
-        if backwards is not None:
-            return self._build(
-                chk.law,
-                chk.ratio,
-                TimingStatus.FAILED,
-                f"failed: TOPP-RA time law moves backwards along the path (min "
-                f"ds/dt = {backwards:.3g} 1/s); {summary}",
-                it,
-            )
-        bad = exceeded_limits(chk.ratio, _CHECKED)
-        if not bad:
-            ok_reason = f"ok: velocity and acceleration within limits; {summary}"
-            return self._build(chk.law, chk.ratio, TimingStatus.OK, ok_reason, it)
-        self.last = (
-            chk.law,
-            chk.ratio,
-            f"limit_exceeded: {' and '.join(bad)} ratio above 1 after {it} run(s) "
-            f"(max_iterations={self.cfg.max_iterations}); {summary}",
-            it,
-        )
+        sd_max = float(sd.max())
+        if (
+            it == self.cfg.max_iterations
+            or not exceeded_limits(chk.ratio, _CHECKED)
+            or moves_backwards(chk.csd, sd_max) is not None
+        ):
+            return self._finish(chk, summary, sd_max, it)
+        self.last = (chk, summary, sd_max, it)
         self._adapt(it, chk)
         return None
 
@@ -570,5 +554,9 @@ TOPPRA_METHOD: TimingMethod = register_method(
         validate_options=_validate_toppra_options,
         checked_limits=_CHECKED,
         description="time-optimal under joint velocity and acceleration limits (TOPP-RA)",
+        display_name="TOPP-RA",
+        controller_rank=30,
+        default=True,
+        duration_note="TOPP-RA, time-optimal, jerk not limited",
     )
 )

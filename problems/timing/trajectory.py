@@ -8,12 +8,14 @@ rad/s^2, jerks in rad/s^3, times in s.
 from __future__ import annotations
 
 import contextlib
-import enum
 import os
 import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from models.errors import InputError
+from models.status import Status
 
 __all__ = ["LIMIT_KEYS", "JointLimits", "TimingStatus", "Trajectory"]
 
@@ -22,7 +24,7 @@ __all__ = ["LIMIT_KEYS", "JointLimits", "TimingStatus", "Trajectory"]
 LIMIT_KEYS: tuple[str, ...] = ("velocity", "acceleration", "jerk")
 
 
-class TimingStatus(enum.Enum):
+class TimingStatus(Status):
     """Outcome of :func:`problems.timing.time_parametrize`."""
 
     OK = "ok"
@@ -36,15 +38,15 @@ def _limit_array(name: str, raw: object) -> np.ndarray:
 
     Raises
     ------
-    ValueError
+    InputError
         If it is not numeric or not a non-empty 1-D array.
     """
     try:
         arr = np.array(raw, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"JointLimits.{name} must be a numeric array, got {raw!r}") from exc
+        raise InputError(f"JointLimits.{name} must be a numeric array, got {raw!r}") from exc
     if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(
+        raise InputError(
             f"JointLimits.{name} must be a non-empty 1-D array (n,), got shape {arr.shape}"
         )
     return arr
@@ -65,7 +67,7 @@ class JointLimits:
 
     Raises
     ------
-    ValueError
+    InputError
         If an array is not 1-D, is empty, the shapes differ, or a value is not
         finite or not > 0. The message names the quantity, the joint (1-based)
         and the value.
@@ -86,7 +88,7 @@ class JointLimits:
             if shape is None:
                 shape = arr.shape
             elif arr.shape != shape:
-                raise ValueError(
+                raise InputError(
                     f"JointLimits.{name} has shape {arr.shape} but "
                     f"JointLimits.velocity has shape {shape}; all limits need "
                     "one value per joint"
@@ -94,7 +96,7 @@ class JointLimits:
             bad = np.flatnonzero(~(np.isfinite(arr) & (arr > 0.0)))
             if bad.size:
                 j = int(bad[0])
-                raise ValueError(
+                raise InputError(
                     f"JointLimits.{name}: joint {j + 1} has value {float(arr[j])!r}; "
                     "limits must be finite and > 0"
                 )
@@ -118,13 +120,13 @@ class Trajectory:
     Attributes
     ----------
     method : str
-        Name of the registered method that produced it (``"toppra"`` or
-        ``"ruckig"`` for the built-in ones).
+        Name of the registered method that produced it (e.g. ``"toppra"``).
     status : TimingStatus
         ``OK`` only if every checked ratio is ``<= 1 + LIMIT_RATIO_TOL``
         (velocity and acceleration for TOPP-RA; all three for Ruckig).
     reason : str
-        Human-readable explanation, always non-empty (also for ``OK``).
+        Human-readable explanation, always non-empty (also for ``OK``); it does not
+        repeat the status (show ``f"{status.value}: {reason}"``).
     t : np.ndarray
         Shape ``(M,)``, s. Uniform at ``dt`` from ``t[0] = 0``; ``t[-1]`` is
         the end time (a multiple of ``dt``) where the arm is at rest.
@@ -184,14 +186,15 @@ class Trajectory:
         m = t.shape[0] if t.ndim == 1 else -1
         blocks = [np.asarray(self.q), np.asarray(self.qd), np.asarray(self.qdd), np.asarray(self.qddd)]
         if m < 0 or any(b.ndim != 2 or b.shape[0] != m for b in blocks):
-            raise ValueError(
+            raise InputError(
                 "inconsistent trajectory arrays: t "
                 f"{t.shape}, q {blocks[0].shape}, qd {blocks[1].shape}, "
                 f"qdd {blocks[2].shape}, qddd {blocks[3].shape}"
             )
         n = blocks[0].shape[1]
         if any(b.shape[1] != n for b in blocks):
-            raise ValueError("q, qd, qdd and qddd must have the same number of joints")
+            raise InputError(f"q, qd, qdd and qddd must have the same number of joints, got "
+                             f"{[b.shape[1] for b in blocks]}")
         header = ",".join(["t"] + [f"{p}{j}" for p in ("q", "qd", "qdd", "qddd") for j in range(1, n + 1)])
         data = np.column_stack([t] + blocks) if m else np.empty((0, 1 + 4 * n))
         return header, data
@@ -212,7 +215,7 @@ class Trajectory:
 
         Raises
         ------
-        ValueError
+        InputError
             If the sample arrays have inconsistent shapes.
         OSError
             If the file cannot be written (nothing is left behind).

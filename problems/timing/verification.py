@@ -12,6 +12,11 @@ see, up to the variation between check points. A ratio counts as within its
 limit when it is ``<= 1 + LIMIT_RATIO_TOL``; only the limits a method
 checks decide its ``OK`` status.
 
+:func:`finish_trajectory` is the end of every method: it samples the method's time law at
+``dt``, verifies every limit, and decides the status (``OK``, ``LIMIT_EXCEEDED``, or ``FAILED``
+when the law moves backwards) and its reason, from the limits the method's registry record
+says it checks. A reason never repeats the status.
+
 The limits checked are the joint velocity (rad/s), acceleration (rad/s^2)
 and jerk (rad/s^3) of :class:`~problems.timing.trajectory.JointLimits`; the
 position follows the geometric path exactly (first and last samples are the
@@ -26,16 +31,22 @@ from typing import Callable, Mapping
 import numpy as np
 
 from problems.timing.path import SplinePath
-from problems.timing.registry import LIMIT_RATIO_TOL, MONOTONE_TOL, check_sample_count
+from problems.timing.registry import (
+    LIMIT_RATIO_TOL,
+    MONOTONE_TOL,
+    check_sample_count,
+    display_name,
+    get_method,
+)
 from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
 
 __all__ = [
     "VERIFY_OVERSAMPLE",
     "TimeLaw",
-    "build_trajectory",
     "check_times",
     "empty_trajectory",
     "exceeded_limits",
+    "finish_trajectory",
     "format_ratios",
     "limit_ratios",
     "max_ratios",
@@ -229,7 +240,12 @@ def sample_path(
     return q, qd, qdd, qddd
 
 
-def build_trajectory(
+def _limit_words(keys: tuple[str, ...]) -> str:
+    """``"velocity, acceleration and jerk"`` for the keys given."""
+    return keys[0] if len(keys) == 1 else ", ".join(keys[:-1]) + " and " + keys[-1]
+
+
+def finish_trajectory(
     method: str,
     path: SplinePath,
     limits: JointLimits,
@@ -237,33 +253,75 @@ def build_trajectory(
     law: TimeLaw,
     duration: float,
     check_ratio: Mapping[str, np.ndarray],
-    status: TimingStatus,
-    reason: str,
+    summary: str,
+    *,
+    check_sd: np.ndarray,
+    sd_scale: float,
     iterations: int,
-    first: dict[str, np.ndarray],
-    checked: tuple[str, ...],
+    first: Mapping[str, np.ndarray] | None = None,
+    runs: str = "",
 ) -> Trajectory:
-    """Sample ``law`` at ``dt`` and assemble the :class:`Trajectory`.
+    """Sample a method's time law at ``dt``, verify it and decide its status and reason.
 
-    ``law(t)`` returns ``(s, sd, sdd, sddd)`` for ``t < duration`` (s). The
-    reported ratio is the maximum of ``check_ratio`` (the fine check grid)
-    and the ratio over the returned samples; an ``OK`` status is downgraded
-    to ``LIMIT_EXCEEDED`` if the samples exceed a ``checked`` limit (so OK
-    can never coexist with a ratio above ``1 + LIMIT_RATIO_TOL``). ``first``
-    are the first-pass ratios (the final ones if empty).
+    The one end of every method: the limits checked are those of the method's registry
+    record (:attr:`~problems.timing.registry.TimingMethod.checked_limits`).
+
+    Parameters
+    ----------
+    method : str
+        The registered method that made the law.
+    path : SplinePath
+        The geometric path (rad).
+    limits : JointLimits
+        The limits (SI).
+    dt : float
+        Controller period, s.
+    law : TimeLaw
+        ``law(t) -> (s, sd, sdd, sddd)`` for ``t < duration`` (s).
+    duration : float
+        End of the motion, s.
+    check_ratio : Mapping
+        Peak ratios on the fine check grid (:func:`check_times`), each shape ``(n,)``.
+    summary : str
+        What the method did (solver, runs, motion, ratios): the reason's tail.
+    check_sd : np.ndarray
+        Shape ``(C,)``, 1/s, the law's path velocity on the check grid (monotonicity).
+    sd_scale : float
+        The law's peak path velocity, 1/s (scale of :func:`moves_backwards`).
+    iterations : int
+        Runs of the method's verification loop.
+    first : Mapping, optional
+        First-pass ratios (the final ones if empty or None).
+    runs : str
+        Appended to the limit-exceeded reason, e.g. ``" after 6 run(s) (max_iterations=6)"``.
+
+    Returns
+    -------
+    Trajectory
+        ``FAILED`` if the law moves backwards along the path; else ``OK`` if every checked
+        ratio (the maximum of ``check_ratio`` and the ratio over the samples) is
+        ``<= 1 + LIMIT_RATIO_TOL``, otherwise ``LIMIT_EXCEEDED``. The reason says which
+        (without repeating the status), then ``summary``.
     """
+    checked = get_method(method).checked_limits
     t = sample_times(duration, dt)
     tm = t[t < duration]
     q, qd, qdd, qddd = sample_path(path, t, duration, *law(tm))
     ratio = max_ratios(limit_ratios(qd, qdd, qddd, limits), check_ratio)
+    backwards = moves_backwards(check_sd, sd_scale)
     bad = exceeded_limits(ratio, checked)
-    if status is TimingStatus.OK and bad:
-        status = TimingStatus.LIMIT_EXCEEDED
-        reason = f"limit_exceeded: {' and '.join(bad)} ratio above 1 on the samples; {reason}"
+    if backwards is not None:
+        status = TimingStatus.FAILED
+        what = (f"the {display_name(method)} time law moves backwards along the path "
+                f"(min ds/dt = {backwards:.3g} 1/s)")
+    elif bad:
+        status, what = TimingStatus.LIMIT_EXCEEDED, f"{' and '.join(bad)} ratio above 1{runs}"
+    else:
+        status, what = TimingStatus.OK, f"{_limit_words(checked)} within limits"
     return Trajectory(
         method=method,
         status=status,
-        reason=reason,
+        reason=f"{what}; {summary}",
         t=t,
         q=q,
         qd=qd,
@@ -273,5 +331,5 @@ def build_trajectory(
         limit_ratio=ratio,
         dt=dt,
         iterations=iterations,
-        first_pass_limit_ratio=first if first else dict(ratio),
+        first_pass_limit_ratio=dict(first) if first else dict(ratio),
     )

@@ -21,13 +21,19 @@ on the TCP, a joint yields in the direction of the torque applied to it.
 Modules
 -------
 :mod:`~problems.virtual.config`
-    The configuration's key tables, defaults and limits, :class:`SimConfigError`,
-    :func:`load_config` and the checks of values.
+    The configuration's top-level and campaign keys, defaults and limits,
+    :class:`SimConfigError`, :func:`load_config` and the checks of values.
+:mod:`~problems.virtual.registry`
+    Which physics the virtual robot simulates: its realisations (:func:`simulates`), keyed by
+    the model effects' declarations (``Effect.simulation`` names each effect's table), the
+    valid tables, the effects it does not simulate (:func:`not_simulated`) and the check of
+    the ``[effects.NAME]`` tables.
 :mod:`~problems.virtual.geometry`
     NumPy kinematics of the true arm: link transforms, frames, joint axes, torques of
     a force at a point, :func:`rotvecs`.
 :mod:`~problems.virtual.effects`
-    Realising each ``[effects.NAME]`` table: the true parameters of the arm.
+    Realising each simulated table (the declared model's ``[stiffness]`` and
+    ``[registration]``, each ``[effects.NAME]``): the true parameters of the arm.
 :mod:`~problems.virtual.physics`
     Joint errors, torques (loads and gravity), joint deflection (hardening, lost
     motion), the deflected equilibrium, the link beams.
@@ -45,37 +51,41 @@ Modules
     Truth records: :func:`from_truth`, :func:`load_truth`.
 
 Dependencies run one way: ``config`` and ``geometry`` import nothing of the package;
-``effects`` uses ``config``; ``physics`` and ``measure`` use ``geometry``; ``campaign``
-uses ``config`` and ``geometry``; ``robot`` uses ``config`` and the four parts; ``truth``
+``registry`` uses ``config`` and reads the effects' declarations (never their formulas);
+``effects`` uses ``config`` and ``registry``; ``physics`` and ``measure`` use ``geometry``; ``campaign``
+uses ``config`` and ``geometry``; ``robot`` uses ``config``, ``registry`` and the four parts; ``truth``
 uses ``config`` and ``robot``.
 """
 
 from __future__ import annotations
 
-from models.errors import InputError
-from models.robot import Robot, load_robot
 from models.transforms import matrix_to_rotvec, rotvec_to_matrix
 
-from ..measurements import Measurements
-from .campaign import SIM_MAX_JACOBIAN_COND, SIM_POSE_OVERSAMPLING
-from .config import (DEFAULT_CAMPAIGN, DEFAULT_NOISE, JOINT_ERROR_EFFECTS, OUT_OF_LIBRARY, SIM_EFFECTS, SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD, SIM_JOINT_ERROR_MAX_HARMONIC, SIM_MAX_ROWS, SimConfigError, load_config)
+from .config import SimConfigError, load_config
 from .geometry import rotvecs
-from .physics import SIM_EQUILIBRIUM_MAX_ITER, SIM_EQUILIBRIUM_TOL
+from .registry import Realisation, effect_tables, not_simulated, realisation, realisations, simulates
 from .robot import VirtualRobot, simulator
 from .truth import from_truth, load_truth
 
+#: The valid ``[effects.NAME]`` tables, in the order they are realised (from the effects'
+#: declarations and the realisations registered when the package is imported).
+SIM_EFFECTS: tuple[str, ...] = tuple(effect_tables())
+
 __all__ = [
-    "JOINT_ERROR_EFFECTS",
-    "OUT_OF_LIBRARY",
     "SIM_EFFECTS",
+    "Realisation",
     "SimConfigError",
     "VirtualRobot",
+    "effect_tables",
     "from_truth",
     "load_config",
     "load_truth",
     "matrix_to_rotvec",
+    "not_simulated",
+    "realisation",
+    "realisations",
     "rotvec_to_matrix",
     "rotvecs",
+    "simulates",
     "simulator",
 ]
-

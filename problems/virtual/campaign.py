@@ -1,7 +1,7 @@
 """Simulating a measurement campaign: poses, loads, times and temperatures, noise, outliers.
 
 :class:`_Campaign` is a part of :class:`~problems.virtual.robot.VirtualRobot`: it reads
-the ``[campaign]``, ``[noise]`` and ``[temperature]`` tables and the ``outliers`` effect,
+the ``[campaign]``, ``[noise]`` and ``[temperature]`` tables, draws the outliers of ``[effects.outliers]``,
 measures the rows with the robot's noise-free measurement and returns them as
 :class:`~problems.measurements.Measurements`.
 """
@@ -323,10 +323,11 @@ class _Campaign:
         return p, sig_col
 
     def _campaign_outliers(self, p: np.ndarray, rng: np.random.Generator) -> None:
-        """Effect ``outliers``: add gross errors to some rows of ``p`` in place.
+        """``[effects.outliers]``: add gross errors to some rows of ``p`` in place.
 
-        Sets :attr:`outlier_rows` (sorted row indices; empty without the effect).  Each
-        outlier is a random direction times ``magnitude_m`` times a factor in [1, 2).
+        Sets :attr:`outlier_rows` (sorted row indices; empty without the table).  Each
+        outlier is a random direction times ``magnitude_m`` times a factor in [1, 2)
+        (:attr:`outlier_fraction` and :attr:`outlier_magnitude`, realised and checked with the robot).
 
         Parameters
         ----------
@@ -336,16 +337,10 @@ class _Campaign:
             Draws the rows, then K x 3 normals (directions), then K uniforms (factors).
         """
         self.outlier_rows = np.zeros(0, dtype=int)
-        if "outliers" not in self.effects:
+        if not self.simulated("outliers"):
             return
         n = len(p)
-        e = self.effects["outliers"]
-        ow = f"{self.where}: [effects.outliers]"
-        frac = _num(ow, "fraction", e.get("fraction", 0.03))
-        mag = _num(ow, "magnitude_m", e.get("magnitude_m", 2e-3))
-        if not 0.0 <= frac <= 1.0:
-            raise SimConfigError(f"{ow}: key 'fraction' must be in [0, 1] (a fraction of the rows), got {frac:g}")
-        _at_least(ow, "magnitude_m", mag, 0.0)
+        frac, mag = self.outlier_fraction, self.outlier_magnitude
         k = max(1, round(frac * n))
         idx = np.sort(rng.choice(n, size=k, replace=False))
         u = rng.normal(size=(k, 3))

@@ -1,4 +1,4 @@
-"""The simulation configuration: its key tables, defaults and limits, the checks of its values.
+"""The simulation configuration: its top-level and campaign keys, defaults and limits, the checks of values.
 
 The schema is in ``docs/identification.md``; every check raises :class:`SimConfigError`
 with a message naming the source, the table, the key and the value.  Nothing here
@@ -18,33 +18,11 @@ import numpy as np
 from models.errors import InputError
 
 
-#: Top-level keys of a configuration.
-_TOP_KEYS = {"seed", "campaign", "noise", "registration", "temperature", "stiffness", "effects", "units"}
-#: Effects the simulator knows: the library ones and some outside the library.
-#: ``joint_error_map`` is the same simulated physics as ``eccentricity`` (periodic joint
-#: transmission errors), spelled as the library effect that models it; give one of the two.
-SIM_EFFECTS = ("gravity", "stiffness_hardening", "lost_motion", "joint_offset", "geometric",
-               "load_offset", "link_compliance", "drift", "thermal", "eccentricity", "joint_error_map",
-               "outliers")
-#: Effects the identification library does not contain (for negative tests).
-OUT_OF_LIBRARY = ("eccentricity",)
-#: The two spellings of the periodic joint-error effect (``[effects.NAME]``).
-JOINT_ERROR_EFFECTS = ("eccentricity", "joint_error_map")
-#: Keys of each ``[effects.NAME]`` table.
-_EFFECT_KEYS: dict[str, set[str]] = {
-    "gravity": {"masses_kg", "coms_m", "mass_scale", "payload_kg", "payload_com_m"},
-    "stiffness_hardening": {"model", "knee_torque_Nm", "stiffness_ratio", "beta_per_Nm"},
-    "lost_motion": {"backlash_rad", "smoothing_Nm"},
-    "joint_offset": {"dtheta_rad"},
-    "geometric": {"sigma_length_m", "sigma_angle_rad", "da_m", "dalpha_rad", "dd_m", "dtheta_rad", "dbeta_rad"},
-    "load_offset": {"r_tool_m"},
-    "link_compliance": {"links", "EI_Nm2", "GJ_Nm2"},
-    "drift": {"rate_m_per_h", "accel_m_per_h2"},
-    "thermal": {"alpha_per_K", "links", "reference_C"},
-    "eccentricity": {"joint", "amplitude_rad", "harmonic", "phase_rad"},
-    "joint_error_map": {"joint", "amplitude_rad", "harmonic", "phase_rad"},
-    "outliers": {"fraction", "magnitude_m"},
-}
+#: Top-level keys of a configuration besides the declared model's tables (``[stiffness]``,
+#: ``[registration]``: :func:`~problems.virtual.registry.top_level_tables`).  The keys of those and
+#: of each ``[effects.NAME]`` table are declared with their realisation
+#: (:mod:`~problems.virtual.effects`, :func:`~problems.virtual.registry.simulates`).
+_TOP_KEYS = {"seed", "campaign", "noise", "temperature", "effects", "units"}
 #: Keys of the ``[campaign]`` table and their defaults.
 DEFAULT_CAMPAIGN = {
     "poses": 100, "unloaded_rows": 1, "loaded_rows": 3, "force_magnitudes_N": [50.0, 100.0, 150.0],

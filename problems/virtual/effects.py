@@ -1,74 +1,119 @@
-"""Realising the simulated effects: the true parameters of each ``[effects.NAME]`` table.
+"""Realising the simulated effects: the true parameters of each simulated table.
 
-:class:`_EffectRealisation` is a part of :class:`~problems.virtual.robot.VirtualRobot`:
-its methods read ``self.robot``, ``self.where`` and ``self.effects`` (the checked
-``[effects.NAME]`` tables) and set the realised parameters as attributes of the robot
-(geometric errors, masses, hardening curve, dead band, beams, drift, thermal
-expansion, periodic joint-error terms).
+:class:`_EffectRealisation` is a part of :class:`~problems.virtual.robot.VirtualRobot`.
+Each of its ``_realise_*`` methods realises the physics of the model effects it names in its
+:func:`~problems.virtual.registry.simulates` decorator, from that table of the configuration
+(which table is the effects' declaration, ``Effect.simulation``; the decorator lists the
+table's keys).  A method receives the checked table (``None`` when an ``[effects.NAME]``
+table is not given), the source and table for messages and the realisation's random
+generator, and sets the realised parameters as attributes of the robot (stiffness,
+registration and measured point, geometric errors, masses, hardening curve, dead band,
+beams, drift, thermal expansion, periodic joint-error terms, outliers).  The tables are
+realised in the order of the methods below (the order of the checks and the random draws).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from models.transforms import rotvec_to_matrix
+
 from .config import (
-    JOINT_ERROR_EFFECTS,
     SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD,
     SIM_JOINT_ERROR_MAX_HARMONIC,
     SimConfigError,
     _at_least,
+    _bool,
     _joint_list,
     _num,
+    _table,
     _vec,
 )
+from .registry import realisations, simulates
+
+#: A table as a realisation receives it (None: an ``[effects.NAME]`` table not given).
+Table = Mapping[str, Any] | None
 
 
 class _EffectRealisation:
     """The realisation of every configured effect (a part of :class:`VirtualRobot`)."""
 
-    def _realise(self, rng: np.random.Generator) -> None:
-        """Realise the true parameters of every configured effect (in this fixed order).
+    def _realise_declared(self, cfg: Mapping[str, Any], rng: np.random.Generator) -> None:
+        """Realise the declared model from its top-level tables (always; defaults when absent)."""
+        for r in realisations(top_level=True):
+            t = _table(self.where, cfg, r.table, set(r.keys))
+            getattr(self, r.method)(t, f"{self.where}: [{r.table}]", rng)
+        self._simulated = {name for r in realisations(top_level=True) for name in r.effects}
 
-        Only the geometric errors draw random numbers; the order below is the order of
-        the checks (the first malformed effect is the one reported).
+    def _realise(self, rng: np.random.Generator) -> None:
+        """Realise the true parameters of every ``[effects.NAME]`` table (in the registry's order).
+
+        Only the geometric errors draw random numbers; the order is the order of the checks
+        (the first malformed effect is the one reported).
         """
         self.da = np.zeros(6)
         self.dalpha = np.zeros(6)
         self.dd = np.zeros(6)
         self.dtheta = np.zeros(6)
         self.dbeta = np.zeros(6)
-        self._realise_joint_offset()
-        self._realise_geometric(rng)
-        self._realise_gravity()
-        self._realise_lost_motion()
-        self._realise_stiffness_hardening()
-        self._realise_load_offset()
-        self._realise_link_compliance()
-        self._realise_drift()
-        self._realise_thermal()
-        self._realise_joint_error()
+        for r in realisations(top_level=False):
+            name = next((s for s in r.spellings if s in self.effects), None)
+            if name is not None:
+                self._simulated |= set(r.effects or (r.table,))
+            getattr(self, r.method)(None if name is None else self.effects[name],
+                                    f"{self.where}: [effects.{name or r.table}]", rng)
 
-    def _realise_joint_offset(self) -> None:
-        """Effect ``joint_offset``: add the zero offsets to :attr:`dtheta`, shape (6,), rad."""
-        if "joint_offset" in self.effects:
-            e = self.effects["joint_offset"]
-            self.dtheta += _vec(f"{self.where}: [effects.joint_offset]", "dtheta_rad",
-                                e.get("dtheta_rad", 1e-3), 6)
+    def simulated(self, name: str) -> bool:
+        """Whether the physics of model effect ``name`` (or the disturbance ``outliers``) is simulated:
+        its table is configured (the declared model's always is)."""
+        return name in self._simulated
 
-    def _realise_geometric(self, rng: np.random.Generator) -> None:
-        """Effect ``geometric``: DH errors, given or drawn from ``rng``.
+    @simulates("joint_springs", keys={"scale"})
+    def _realise_stiffness(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """The declared joint springs: :attr:`k_true` (6,) N*m/rad, the robot file's stiffness times
+        ``scale`` (a number or 6)."""
+        scale = _vec(ew, "scale", e.get("scale", 1.0), 6)
+        _at_least(ew, "scale", scale if isinstance(e.get("scale"), list) else scale[0], 0.0, strict=True)
+        self.k_true = self.robot.stiffness * scale
+
+    @simulates("registration", "measured_point",
+               keys={"registered", "base2meas_xyz_m", "base2meas_rotvec_rad", "measured_point_m"})
+    def _realise_registration(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """The declared registration and measured point: :attr:`registered`, :attr:`R_reg` (3, 3) and
+        :attr:`t_reg` (3,) m (base frame -> measurement frame), :attr:`p_tool` (3,) m, flange frame
+        (registered data: identity, zero and the robot file's TCP)."""
+        robot = self.robot
+        self.registered = _bool(ew, "registered", e.get("registered", False))
+        if self.registered:
+            self.R_reg, self.t_reg = np.eye(3), np.zeros(3)
+            self.p_tool = robot.tcp2flange[:3, 3].copy()
+        else:
+            self.R_reg = rotvec_to_matrix(_vec(ew, "base2meas_rotvec_rad",
+                                               e.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False))
+            self.t_reg = _vec(ew, "base2meas_xyz_m", e.get("base2meas_xyz_m", [1.5, -0.5, 0.2]), 3, False)
+            self.p_tool = _vec(ew, "measured_point_m", e.get("measured_point_m", [0.02, -0.015, 0.06]), 3, False)
+
+    @simulates("joint_offset", keys={"dtheta_rad"})
+    def _realise_joint_offset(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Joint offsets: add the zero offsets to :attr:`dtheta`, shape (6,), rad."""
+        if e is not None:
+            self.dtheta += _vec(ew, "dtheta_rad", e.get("dtheta_rad", 1e-3), 6)
+
+    @simulates("geometric", keys={"sigma_length_m", "sigma_angle_rad", "da_m", "dalpha_rad", "dd_m", "dtheta_rad",
+                                  "dbeta_rad"})
+    def _realise_geometric(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Geometric errors: DH errors, given or drawn from ``rng``.
 
         Adds to :attr:`da`, :attr:`dd` (m), :attr:`dalpha`, :attr:`dtheta` and :attr:`dbeta`
         (rad), each shape (6,); ``dbeta`` (Hayati) only on joints with a parallel next axis
         (not joint 6).  Draws, in this order, da, dd, dalpha, dtheta, dbeta (6 normals each,
         for every one not given).
         """
-        if "geometric" not in self.effects:
+        if e is None:
             return
-        e = self.effects["geometric"]
-        ew = f"{self.where}: [effects.geometric]"
         sl = _num(ew, "sigma_length_m", e.get("sigma_length_m", 5e-4))
         sa = _num(ew, "sigma_angle_rad", e.get("sigma_angle_rad", 1e-3))
         _at_least(ew, "sigma_length_m", sl, 0.0, what="(a standard deviation, m)")
@@ -82,8 +127,9 @@ class _EffectRealisation:
         beta = _vec(ew, "dbeta_rad", e["dbeta_rad"], 6) if "dbeta_rad" in e else rng.normal(0, sa, 6)
         self.dbeta += np.where(par, beta, 0.0)
 
-    def _realise_gravity(self) -> None:
-        """Effect ``gravity``: link masses and COMs (robot file, overrides, or a generic set).
+    @simulates("gravity", keys={"masses_kg", "coms_m", "mass_scale", "payload_kg", "payload_com_m"})
+    def _realise_gravity(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Self-weight: link masses and COMs (robot file, overrides, or a generic set).
 
         Sets :attr:`masses` (6,) kg, :attr:`coms` (6, 3) m in link frame i, :attr:`payload`
         kg and :attr:`payload_com` (3,) m in the flange frame; zeros without the effect.
@@ -91,11 +137,9 @@ class _EffectRealisation:
         r = self.robot
         self.masses = np.zeros(6)
         self.coms = np.zeros((6, 3))
-        if "gravity" not in self.effects:
+        if e is None:
             self.payload, self.payload_com = 0.0, np.zeros(3)
             return
-        e = self.effects["gravity"]
-        ew = f"{self.where}: [effects.gravity]"
         if "masses_kg" in e:
             self.masses = _vec(ew, "masses_kg", e["masses_kg"], 6)
             _at_least(ew, "masses_kg", self.masses, 0.0)
@@ -119,24 +163,22 @@ class _EffectRealisation:
         _at_least(ew, "payload_kg", self.payload, 0.0)
         self.payload_com = _vec(ew, "payload_com_m", e.get("payload_com_m", [0.0, 0.0, 0.05]), 3, False)
 
-    def _realise_lost_motion(self) -> None:
-        """Effect ``lost_motion``: :attr:`backlash` (6,) rad (half dead band) and
+    @simulates("lost_motion", keys={"backlash_rad", "smoothing_Nm"})
+    def _realise_lost_motion(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Lost motion: :attr:`backlash` (6,) rad (half dead band) and
         :attr:`backlash_smoothing` N*m (0: a hard sign)."""
-        if "lost_motion" in self.effects:
-            e = self.effects["lost_motion"]
-            ew = f"{self.where}: [effects.lost_motion]"
+        if e is not None:
             self.backlash = _vec(ew, "backlash_rad", e.get("backlash_rad", 2e-4), 6)
             _at_least(ew, "backlash_rad", self.backlash, 0.0, what="(half the dead band)")
             self.backlash_smoothing = _num(ew, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
             _at_least(ew, "smoothing_Nm", self.backlash_smoothing, 0.0)
 
-    def _realise_stiffness_hardening(self) -> None:
-        """Effect ``stiffness_hardening``: :attr:`hard_model`, :attr:`knee` (6,) N*m,
+    @simulates("stiffness_hardening", keys={"model", "knee_torque_Nm", "stiffness_ratio", "beta_per_Nm"})
+    def _realise_stiffness_hardening(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Stiffness hardening: :attr:`hard_model`, :attr:`knee` (6,) N*m,
         :attr:`hard_ratio` (6,) and :attr:`hard_beta` (6,) 1/(N*m)."""
-        if "stiffness_hardening" not in self.effects:
+        if e is None:
             return
-        e = self.effects["stiffness_hardening"]
-        ew = f"{self.where}: [effects.stiffness_hardening]"
         self.hard_model = e.get("model", "two_slope")
         if self.hard_model not in ("two_slope", "smooth"):
             raise SimConfigError(f"{ew}: key 'model' must be 'two_slope' or 'smooth', got {self.hard_model!r}")
@@ -147,20 +189,19 @@ class _EffectRealisation:
         _at_least(ew, "stiffness_ratio", self.hard_ratio, 0.0, strict=True)
         _at_least(ew, "beta_per_Nm", self.hard_beta, 0.0)
 
-    def _realise_load_offset(self) -> None:
-        """Effect ``load_offset``: :attr:`r_tool` (3,) m, TCP frame, where the wrench's force
-        acts (zeros without the effect)."""
-        self.r_tool = (_vec(self.where, "r_tool_m", self.effects["load_offset"].get("r_tool_m", [0.0, 0.03, 0.05]),
-                            3, False)
-                       if "load_offset" in self.effects else np.zeros(3))
+    @simulates("load_offset", keys={"r_tool_m"})
+    def _realise_load_offset(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Load offset: :attr:`r_tool` (3,) m, TCP frame, where the wrench's force acts (zeros
+        without the effect)."""
+        self.r_tool = np.zeros(3) if e is None else _vec(ew, "r_tool_m", e.get("r_tool_m", [0.0, 0.03, 0.05]), 3,
+                                                           False)
 
-    def _realise_link_compliance(self) -> None:
-        """Effect ``link_compliance``: :attr:`beam_links` (0-based joints), :attr:`EI` and
-        :attr:`GJ` (one per link), N*m^2."""
-        if "link_compliance" not in self.effects:
+    @simulates("link_compliance", keys={"links", "EI_Nm2", "GJ_Nm2"})
+    def _realise_link_compliance(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Link compliance: :attr:`beam_links` (0-based joints), :attr:`EI` and :attr:`GJ` (one per
+        link), N*m^2."""
+        if e is None:
             return
-        e = self.effects["link_compliance"]
-        ew = f"{self.where}: [effects.link_compliance]"
         links = _joint_list(ew, e.get("links", [2, 3]))
         self.beam_links = [x - 1 for x in links]
         self.EI = _vec(ew, "EI_Nm2", e.get("EI_Nm2", 2.0e5), len(links))
@@ -168,30 +209,30 @@ class _EffectRealisation:
         _at_least(ew, "EI_Nm2", self.EI, 0.0, strict=True)
         _at_least(ew, "GJ_Nm2", self.GJ, 0.0, strict=True)
 
-    def _realise_drift(self) -> None:
-        """Effect ``drift``: :attr:`drift_rate` (3,) m/s and :attr:`drift_acc` (3,) m/s^2,
+    @simulates("drift", keys={"rate_m_per_h", "accel_m_per_h2"})
+    def _realise_drift(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Drift of the instrument: :attr:`drift_rate` (3,) m/s and :attr:`drift_acc` (3,) m/s^2,
         measurement frame."""
-        if "drift" in self.effects:
-            e = self.effects["drift"]
-            w = self.where
-            self.drift_rate = _vec(w, "rate_m_per_h", e.get("rate_m_per_h", [1e-4, -5e-5, 8e-5]), 3, False) / 3600.0
-            self.drift_acc = _vec(w, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3, False) / 3600.0 ** 2
+        if e is not None:
+            self.drift_rate = _vec(ew, "rate_m_per_h", e.get("rate_m_per_h", [1e-4, -5e-5, 8e-5]), 3, False) / 3600.0
+            self.drift_acc = _vec(ew, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3,
+                                  False) / 3600.0 ** 2
 
-    def _realise_thermal(self) -> None:
-        """Effect ``thermal``: :attr:`th_alpha` 1/K, :attr:`th_links` (0-based joints whose
-        a and d expand) and :attr:`th_ref` deg C."""
-        if "thermal" not in self.effects:
+    @simulates("thermal", keys={"alpha_per_K", "links", "reference_C"})
+    def _realise_thermal(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Thermal expansion: :attr:`th_alpha` 1/K, :attr:`th_links` (0-based joints whose a and d
+        expand) and :attr:`th_ref` deg C."""
+        if e is None:
             return
-        e = self.effects["thermal"]
-        ew = f"{self.where}: [effects.thermal]"
         self.th_alpha = _num(ew, "alpha_per_K", e.get("alpha_per_K", 2.3e-5))
         links = _joint_list(ew, e.get("links", [2, 3]))
         self.th_links = [x - 1 for x in links]
         self.th_ref = _num(ew, "reference_C", e.get("reference_C", 20.0))
 
-    def _realise_joint_error(self) -> None:
-        """Effect ``eccentricity`` (or its spelling ``joint_error_map``): periodic joint
-        transmission errors, a sum of terms ``amplitude sin(harmonic q_c[joint] + phase)``.
+    @simulates("joint_error_map", keys={"joint", "amplitude_rad", "harmonic", "phase_rad"})
+    def _realise_joint_error(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Periodic joint transmission errors (``[effects.eccentricity]``, or its spelling
+        ``[effects.joint_error_map]``), a sum of terms ``amplitude sin(harmonic q_c[joint] + phase)``.
 
         Sets, one entry per term (K terms; K = 0 without the effect): :attr:`ecc_joint`
         (K,) int, 0-based joint; :attr:`ecc_amp` (K,) rad; :attr:`ecc_harm` (K,) cycles per
@@ -202,11 +243,8 @@ class _EffectRealisation:
         self.ecc_amp = np.zeros(0)
         self.ecc_harm = np.zeros(0)
         self.ecc_phase = np.zeros(0)
-        name = next((n for n in JOINT_ERROR_EFFECTS if n in self.effects), None)
-        if name is None:
+        if e is None:
             return
-        e = self.effects[name]
-        ew = f"{self.where}: [effects.{name}]"
         raw = {"joint": e.get("joint", 1), "amplitude_rad": e.get("amplitude_rad", 1e-3),
                "harmonic": e.get("harmonic", 2), "phase_rad": e.get("phase_rad", 0.3)}
         for key, v in raw.items():
@@ -245,6 +283,20 @@ class _EffectRealisation:
                                      f"joint), got {h:g}")
         self.ecc_joint = np.array(joints, dtype=int)
         self.ecc_amp, self.ecc_harm, self.ecc_phase = amp, harm, phase
+
+    @simulates(keys={"fraction", "magnitude_m"}, disturbance="outliers")
+    def _realise_outliers(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Gross measurement errors (no model term: the identification's robust fit): :attr:`outlier_fraction`
+        (a fraction of the rows) and :attr:`outlier_magnitude` m; the campaign draws them."""
+        self.outlier_fraction, self.outlier_magnitude = 0.0, 0.0
+        if e is None:
+            return
+        self.outlier_fraction = _num(ew, "fraction", e.get("fraction", 0.03))
+        self.outlier_magnitude = _num(ew, "magnitude_m", e.get("magnitude_m", 2e-3))
+        if not 0.0 <= self.outlier_fraction <= 1.0:
+            raise SimConfigError(f"{ew}: key 'fraction' must be in [0, 1] (a fraction of the rows), got "
+                                 f"{self.outlier_fraction:g}")
+        _at_least(ew, "magnitude_m", self.outlier_magnitude, 0.0)
 
     def joint_error_terms(self) -> list[dict[str, Any]]:
         """The periodic joint-error terms applied (empty without the effect).

@@ -35,7 +35,6 @@ propagated from the tip) for ``c + g - J^T W``, and the mass matrix summed from 
 from __future__ import annotations
 
 import csv
-import enum
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +45,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from models.errors import InputError
 from models.robot import Robot
+from models.status import Status
 
 from .rigid_body import EQUILIBRIUM_MAX_ITER, ElasticArm, _vector, static_command
 
@@ -91,7 +91,7 @@ SETTLE_MIN_SAMPLES = 50
 INTERPOLATIONS = ("spline", "hermite")
 
 
-class ElasticStatus(str, enum.Enum):
+class ElasticStatus(Status):
     """Outcome of :func:`simulate_elastic`."""
 
     OK = "ok"

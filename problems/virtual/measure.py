@@ -37,7 +37,7 @@ class _Measuring:
         fl = self._flange(fr)
         p_point = fl[:, :3, 3] + np.einsum("nij,j->ni", fl[:, :3, :3], pt)
         tcp = fl @ self._tool()
-        if "link_compliance" in self.effects:
+        if self.simulated("link_compliance"):
             p_point = p_point + self._beam_displacement(fr, F, p_point)
             tcp = tcp.copy()
             tcp[:, :3, 3] += self._beam_displacement(fr, F, tcp[:, :3, 3].copy())
@@ -59,7 +59,7 @@ class _Measuring:
     def _orientations_from_frames(self, fr: np.ndarray, F: np.ndarray) -> np.ndarray:
         """:meth:`orientations` from the deflected frames of :meth:`_deflected_frames`."""
         R = self._flange(fr)[:, :3, :3] @ self._tool()[:3, :3]
-        if "link_compliance" in self.effects:
+        if self.simulated("link_compliance"):
             from scipy.spatial.transform import Rotation
             R = Rotation.from_rotvec(self._beam_rotation(fr, F)).as_matrix() @ R
         return R
@@ -67,7 +67,7 @@ class _Measuring:
     def _to_measurement_frame(self, p: np.ndarray, t: np.ndarray | None) -> np.ndarray:
         """Base-frame positions (N, 3) to the measurement frame, with drift at times ``t``, m."""
         pm = p @ self.R_reg.T + self.t_reg
-        if "drift" in self.effects and t is not None:
+        if self.simulated("drift") and t is not None:
             tt = np.asarray(t, dtype=float)[:, None]
             pm = pm + self.drift_rate * tt + self.drift_acc * tt ** 2
         return pm

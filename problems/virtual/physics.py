@@ -13,6 +13,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from models.errors import InputError
+
 from .geometry import _axes, _frames, _Geometry, _tau_point
 
 #: Fixed-point tolerance of the simulator's deflected equilibrium (rad).
@@ -42,7 +44,7 @@ class _Physics:
         """
         q_c = np.atleast_2d(np.asarray(q_c, dtype=float))
         if q_c.ndim != 2 or q_c.shape[1] != 6:
-            raise ValueError(f"joint_error: q_c must have shape (N, 6), got {q_c.shape}")
+            raise InputError(f"joint_error: q_c: expected shape (N, 6), got {q_c.shape}")
         err = np.zeros(q_c.shape)
         for j, a, h, ph in zip(self.ecc_joint, self.ecc_amp, self.ecc_harm, self.ecc_phase):
             err[:, j] += float(a) * np.sin(float(h) * q_c[:, j] + float(ph))
@@ -53,7 +55,7 @@ class _Physics:
         n = len(temperature)
         a = np.tile(r.a + self.da, (n, 1))
         d = np.tile(r.d + self.dd, (n, 1))
-        if "thermal" in self.effects:
+        if self.simulated("thermal"):
             s = 1.0 + self.th_alpha * (temperature - self.th_ref)
             for i in self.th_links:
                 a[:, i] *= s
@@ -77,7 +79,7 @@ class _Physics:
         f, m = F[:, :3], F[:, 3:]
         point = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
         tau = _tau_point(z, p, point, f, m)
-        if "gravity" in self.effects:
+        if self.simulated("gravity"):
             g = self.robot.gravity
             for j in range(6):
                 c = fr[:, j, :3, 3] + np.einsum("nij,j->ni", fr[:, j, :3, :3], self.coms[j])
@@ -90,7 +92,7 @@ class _Physics:
 
     def _deflection(self, tau: np.ndarray) -> np.ndarray:
         k = self.k_true
-        if "stiffness_hardening" in self.effects:
+        if self.simulated("stiffness_hardening"):
             if self.hard_model == "two_slope":
                 a = np.abs(tau)
                 lo = np.minimum(a, self.knee) / k
@@ -100,7 +102,7 @@ class _Physics:
                 dq = tau / (k * (1.0 + self.hard_beta * np.abs(tau)))
         else:
             dq = tau / k
-        if "lost_motion" in self.effects:
+        if self.simulated("lost_motion"):
             if self.backlash_smoothing > 0:
                 dq = dq + self.backlash * np.tanh(tau / self.backlash_smoothing)
             else:

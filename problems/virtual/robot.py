@@ -17,24 +17,14 @@ from typing import Any
 import numpy as np
 
 from models.robot import Robot, load_robot
-from models.transforms import matrix_to_rotvec, rotvec_to_matrix
+from models.transforms import matrix_to_rotvec
 
 from .campaign import _Campaign
-from .config import (
-    _EFFECT_KEYS,
-    _TOP_KEYS,
-    JOINT_ERROR_EFFECTS,
-    SIM_EFFECTS,
-    SimConfigError,
-    _at_least,
-    _bool,
-    _int,
-    _table,
-    _vec,
-)
+from .config import _TOP_KEYS, SimConfigError, _int
 from .effects import _EffectRealisation
 from .measure import _Measuring
 from .physics import _Physics
+from .registry import checked_effect_tables, top_level_tables
 
 
 class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
@@ -56,9 +46,10 @@ class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
     def __init__(self, robot: Robot, config: Mapping[str, Any], seed: int | None = None,
                  where: str = "simulation config") -> None:
         cfg = dict(config)
-        unknown = sorted(set(cfg) - _TOP_KEYS)
+        top_keys = _TOP_KEYS | set(top_level_tables())
+        unknown = sorted(set(cfg) - top_keys)
         if unknown:
-            raise SimConfigError(f"{where}: unknown top-level key(s) {unknown}; allowed: {sorted(_TOP_KEYS)}")
+            raise SimConfigError(f"{where}: unknown top-level key(s) {unknown}; allowed: {sorted(top_keys)}")
         self.robot = robot
         self.where = where
         self.config = copy.deepcopy(cfg)
@@ -73,46 +64,10 @@ class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
             raise SimConfigError(f"{where}: key 'units' must be 'SI' or 'mm', got {units!r}")
         rng = np.random.default_rng(self.seed)
         self.convention = robot.convention
-        # --- stiffness (true joint stiffness of the "declared" model)
-        st = _table(where, cfg, "stiffness", {"scale"})
-        scale = _vec(f"{where}: [stiffness]", "scale", st.get("scale", 1.0), 6)
-        _at_least(f"{where}: [stiffness]", "scale", scale if isinstance(st.get("scale"), list) else scale[0],
-                  0.0, strict=True)
-        self.k_true = robot.stiffness * scale
-        # --- registration and measured point
-        reg = _table(where, cfg, "registration", {"registered", "base2meas_xyz_m", "base2meas_rotvec_rad",
-                                                  "measured_point_m"})
-        self.registered = _bool(f"{where}: [registration]", "registered", reg.get("registered", False))
-        if self.registered:
-            self.R_reg, self.t_reg = np.eye(3), np.zeros(3)
-            self.p_tool = robot.tcp2flange[:3, 3].copy()
-        else:
-            self.R_reg = rotvec_to_matrix(_vec(where, "base2meas_rotvec_rad",
-                                               reg.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False))
-            self.t_reg = _vec(where, "base2meas_xyz_m", reg.get("base2meas_xyz_m", [1.5, -0.5, 0.2]), 3, False)
-            self.p_tool = _vec(where, "measured_point_m", reg.get("measured_point_m", [0.02, -0.015, 0.06]),
-                               3, False)
-        # --- effects
-        eff = cfg.get("effects", {})
-        if not isinstance(eff, Mapping):
-            raise SimConfigError(f"{where}: 'effects' must be a table of [effects.NAME] tables")
-        unknown = sorted(set(eff) - set(SIM_EFFECTS))
-        if unknown:
-            raise SimConfigError(f"{where}: unknown effect(s) {unknown}; known: {list(SIM_EFFECTS)}")
-        self.effects: dict[str, dict[str, Any]] = {}
-        for name, t in eff.items():
-            if not isinstance(t, Mapping):
-                raise SimConfigError(f"{where}: [effects.{name}] must be a table")
-            bad = sorted(set(t) - _EFFECT_KEYS[name])
-            if bad:
-                raise SimConfigError(f"{where}: [effects.{name}]: unknown key(s) {bad}; "
-                                     f"allowed: {sorted(_EFFECT_KEYS[name])}")
-            self.effects[name] = dict(t)
-        both = [name for name in JOINT_ERROR_EFFECTS if name in self.effects]
-        if len(both) > 1:
-            raise SimConfigError(f"{where}: [effects.eccentricity] and [effects.joint_error_map] are two spellings "
-                                 "of the same effect (periodic joint errors); give one of them, with all its "
-                                 "terms as lists")
+        # the declared model (true stiffness, registration and measured point), then the effects
+        self._realise_declared(cfg, rng)
+        #: The ``[effects.NAME]`` tables as given (checked), by the name given.
+        self.effects: dict[str, dict[str, Any]] = checked_effect_tables(where, cfg)
         self._realise(rng)
 
     def truth(self) -> dict[str, Any]:
