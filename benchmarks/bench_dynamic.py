@@ -61,18 +61,22 @@ def main() -> None:
     link, t_timing, _ = _best(lambda: time_parametrize(path_q, lim, "jerk_optimal", dt), args.repeat)
     n = int(round(DYNAMIC_SMOOTHING_S / dt))
     arm = pr.model
-    _command(arm, link, pr.load, path_q, n, n)                          # build the functions once
+    _command(arm, link, pr.load, path_q, n, n)  # build the functions once
 
     def stage_per_pass():
         return finite_derivatives(_command(arm, link, pr.load, path_q, n, n).theta, dt)
 
     _, best, med = _best(stage_per_pass, args.repeat)
     print(f"link-side trajectory: {link.duration_s:.3f} s, {len(link.t)} samples at {dt * 1e3:g} ms")
-    print(f"  motor-side command + check (per pass): best {best * 1e3:.1f} ms, median {med * 1e3:.1f} ms "
-          f"(target <= {TARGET_S * 1e3:.0f} ms)")
+    print(
+        f"  motor-side command + check (per pass): best {best * 1e3:.1f} ms, median {med * 1e3:.1f} ms "
+        f"(target <= {TARGET_S * 1e3:.0f} ms)"
+    )
     full, fb, fm = _best(lambda: dynamic_stage(arm, path_q, lim, dt, "jerk_optimal", {}, pr.load), args.repeat)
-    print(f"  whole stage ({full.passes} timing pass(es) of the link side included): best {fb * 1e3:.0f} ms, "
-          f"median {fm * 1e3:.0f} ms; {full.status.value}")
+    print(
+        f"  whole stage ({full.passes} timing pass(es) of the link side included): best {fb * 1e3:.0f} ms, "
+        f"median {fm * 1e3:.0f} ms; {full.status.value}"
+    )
     print(f"  anchor: jerk_optimal timing of the same path: best {t_timing * 1e3:.0f} ms")
     try:
         import pinocchio as pin

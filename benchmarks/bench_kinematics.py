@@ -42,14 +42,16 @@ def main() -> None:
     ik = AnalyticIK(robot)
     rng = np.random.default_rng(0)
     q = rng.uniform(-np.pi, np.pi, (args.n, 6))
-    km.batch(km.kinetostatics, q[:10])          # build / load the compiled code
+    km.batch(km.kinetostatics, q[:10])  # build / load the compiled code
     fkjc = best_rate(lambda: km.batch(km.kinetostatics, q), args.n)
 
     # pinocchio reference: same DH table, Python loop over poses, FK + frame Jacobian + C
     import sys
     from pathlib import Path
+
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from tests.test_kinematics import pinocchio_from_dh
+
     pm, fid = pinocchio_from_dh(robot)
     pd = pm.createData()
     kinv = np.diag(1.0 / robot.stiffness)
@@ -99,11 +101,22 @@ def bench_opw(n: int) -> None:
     rng = np.random.default_rng(1)
     q = rng.uniform(np.maximum(robot.q_min, -np.pi), np.minimum(robot.q_max, np.pi), (n, 6))
     T = km.tcp(q)
-    ik.solve(T[:10])                            # build / load the compiled code
+    ik.solve(T[:10])  # build / load the compiled code
     ours = best_rate(lambda: ik.solve(T), n)
-    ref = pko.Robot(pko.KinematicModel(a1=0.025, a2=-0.035, b=0.0, c1=0.400, c2=0.455, c3=0.420, c4=0.080,
-                                       offsets=(0.0, -math.pi / 2, 0.0, 0.0, 0.0, 0.0),
-                                       flip_axes=(True, False, False, True, False, True)), degrees=False)
+    ref = pko.Robot(
+        pko.KinematicModel(
+            a1=0.025,
+            a2=-0.035,
+            b=0.0,
+            c1=0.400,
+            c2=0.455,
+            c3=0.420,
+            c4=0.080,
+            offsets=(0.0, -math.pi / 2, 0.0, 0.0, 0.0, 0.0),
+            flip_axes=(True, False, False, True, False, True),
+        ),
+        degrees=False,
+    )
     RT = RigidTransform.from_matrix(T)
     theirs = best_rate(lambda: ref.reach(RT).joints, n)
     print(f"OPW IK all 8 branches, KR 6 R900 ({n} poses):   {ours / 1e6:8.3f} M poses/s")

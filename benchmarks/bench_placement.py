@@ -121,9 +121,17 @@ def breakdown(kernel, chunks: list) -> dict:
         del ik.solve, ik.guard_factors, kernel._score
         kernel._model = saved
         kmod._viterbi = t_vi.fn
-    return {"total": total, "ik": t_ik.s, "guard": t_gf.s, "load_error": t_le.s, "viterbi": t_vi.s,
-            "score_rest": t_sc.s - t_vi.s, "glue": total - t_ik.s - t_gf.s - t_le.s - t_sc.s,
-            "ik_arg": t_ik.first[0], "le_args": t_le.first}
+    return {
+        "total": total,
+        "ik": t_ik.s,
+        "guard": t_gf.s,
+        "load_error": t_le.s,
+        "viterbi": t_vi.s,
+        "score_rest": t_sc.s - t_vi.s,
+        "glue": total - t_ik.s - t_gf.s - t_le.s - t_sc.s,
+        "ik_arg": t_ik.first[0],
+        "le_args": t_le.first,
+    }
 
 
 def chunk_memory(kernel, chunk) -> int:
@@ -142,8 +150,9 @@ def chunk_memory(kernel, chunk) -> int:
 def trivial_task_overhead(n: int, workers: int = 2) -> tuple[float, float]:
     """(wall per task, wall per task x workers), s, of ``n`` trivial tasks on ``local:workers``."""
     from problems.placement.cluster import dask_client
+
     with dask_client(f"local:{workers}") as client:
-        client.gather([client.submit(_identity, i, pure=False) for i in range(50)])      # warm-up
+        client.gather([client.submit(_identity, i, pure=False) for i in range(50)])  # warm-up
         t0 = time.perf_counter()
         futs = [client.submit(_identity, i, pure=False) for i in range(n)]
         client.gather(futs)
@@ -151,8 +160,9 @@ def trivial_task_overhead(n: int, workers: int = 2) -> tuple[float, float]:
     return wall / n, wall / n * workers
 
 
-def estimate(poses: float, us_per_pose: float, chunk_poses: int, overhead_s: float,
-             workers: int = WORKERS_ESTIMATE) -> tuple[float, int]:
+def estimate(
+    poses: float, us_per_pose: float, chunk_poses: int, overhead_s: float, workers: int = WORKERS_ESTIMATE
+) -> tuple[float, int]:
     """The model: time = poses x per-pose cost / workers + chunks x per-task overhead / workers,
     chunks = ceil(poses / chunk poses).  Returns (seconds, chunks)."""
     chunks = math.ceil(poses / chunk_poses)
@@ -174,8 +184,8 @@ class Run:
     per: int
     poses: int
     serial: Any = None
-    us_pose: float = 0.0            # serial cost per pose, us
-    us_pose_1: float = 0.0          # the same with the IK on one thread (one core), us
+    us_pose: float = 0.0  # serial cost per pose, us
+    us_pose_1: float = 0.0  # the same with the IK on one thread (one core), us
     bytes_per_pose: float = 0.0
 
 
@@ -183,12 +193,16 @@ def _parse() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help=f"a small grid ({QUICK_GRID}) for development")
     ap.add_argument("--grid", default=None, help=f"grid spec over the problem's [placement] (default {DEFAULT_GRID})")
-    ap.add_argument("--chunk", type=int, default=None,
-                    help="placements per chunk (default: compplan's, chunk_placements_for)")
+    ap.add_argument(
+        "--chunk", type=int, default=None, help="placements per chunk (default: compplan's, chunk_placements_for)"
+    )
     ap.add_argument("--tasks", type=int, default=TRIVIAL_TASKS, help="trivial tasks for Dask's per-task overhead")
     ap.add_argument("--skip-dask", action="store_true", help="serial figures only")
-    ap.add_argument("--nanny-default", action="store_true",
-                    help="also run local:1 with the Dask nanny's default MALLOC_TRIM_THRESHOLD_ (row local:1*)")
+    ap.add_argument(
+        "--nanny-default",
+        action="store_true",
+        help="also run local:1 with the Dask nanny's default MALLOC_TRIM_THRESHOLD_ (row local:1*)",
+    )
     return ap.parse_args()
 
 
@@ -200,9 +214,11 @@ def setup(args: argparse.Namespace) -> Run:
     from problems.problem import load_problem
 
     la0 = os.getloadavg()
-    print(f"bench_placement {datetime.date.today().isoformat()}, {os.cpu_count()} CPUs "
-          f"({platform.processor() or platform.machine()}), load average {la0[0]:.2f} {la0[1]:.2f} {la0[2]:.2f} "
-          "(timings on a shared machine vary with it)")
+    print(
+        f"bench_placement {datetime.date.today().isoformat()}, {os.cpu_count()} CPUs "
+        f"({platform.processor() or platform.machine()}), load average {la0[0]:.2f} {la0[1]:.2f} {la0[2]:.2f} "
+        "(timings on a shared machine vary with it)"
+    )
     pr = load_problem(PROBLEM)
     spec = args.grid if args.grid is not None else (QUICK_GRID if args.quick else DEFAULT_GRID)
     grid = parse_grid_text(spec, base=pr.placement, where="--grid") if spec else pr.placement
@@ -214,16 +230,22 @@ def setup(args: argparse.Namespace) -> Run:
     per = args.chunk or chunk_placements_for(kernel, len(pl))
     chunks = [pl[a:b] for a, b in chunk_bounds(len(pl), per)]
     blob = pickle.dumps(kernel)
-    print(f"problem {PROBLEM} (robot {pr.robot.name}, {kernel.n_waypoints} waypoints x {kernel.n_candidates} "
-          f"scanned orientations = {ppp} poses per placement, {B} branches); grid {grid.describe()} "
-          f"(spec {spec!r} over the file's [placement])")
-    print(f"{len(pl)} placements, {len(pl) * ppp:,} poses; chunks of {per} placements = {per * ppp:,} poses "
-          f"(CHUNK_POSES = {CHUNK_POSES:,}), {len(chunks)} chunks; load_error_g and IK compiled: {kernel.compiled}; "
-          f"kernel built in {t_build:.2f} s, pickled {len(blob) / 1024:.0f} KiB")
-    kernel.evaluate(chunks[0])                                            # warm-up (loads, first calls)
+    print(
+        f"problem {PROBLEM} (robot {pr.robot.name}, {kernel.n_waypoints} waypoints x {kernel.n_candidates} "
+        f"scanned orientations = {ppp} poses per placement, {B} branches); grid {grid.describe()} "
+        f"(spec {spec!r} over the file's [placement])"
+    )
+    print(
+        f"{len(pl)} placements, {len(pl) * ppp:,} poses; chunks of {per} placements = {per * ppp:,} poses "
+        f"(CHUNK_POSES = {CHUNK_POSES:,}), {len(chunks)} chunks; load_error_g and IK compiled: {kernel.compiled}; "
+        f"kernel built in {t_build:.2f} s, pickled {len(blob) / 1024:.0f} KiB"
+    )
+    kernel.evaluate(chunks[0])  # warm-up (loads, first calls)
     t_unpickle = _best(lambda: pickle.loads(blob), 3)
-    print(f"kernel unpickled (what each worker does once: library written and loaded, IK built): "
-          f"{t_unpickle * 1e3:.0f} ms")
+    print(
+        f"kernel unpickled (what each worker does once: library written and loaded, IK built): "
+        f"{t_unpickle * 1e3:.0f} ms"
+    )
     return Run(args, kernel, pl, chunks, per, len(pl) * ppp)
 
 
@@ -232,24 +254,32 @@ def serial_and_anchors(run: Run) -> None:
     import numpy as np
 
     from problems.placement.sweep import run_sweep
+
     kernel, B = run.kernel, run.kernel.n_branches
     ser = run.serial = run_sweep(kernel, run.placements, "serial", run.per)
     run.us_pose = ser.elapsed_s / run.poses * 1e6
-    print(f"\nserial sweep: {ser.elapsed_s:.2f} s, {ser.poses_per_second:,.0f} poses/s = {run.us_pose:.2f} us per "
-          f"pose = {run.us_pose / B:.3f} us per pose and branch; feasible placements "
-          f"{int(ser.scores.feasible.sum())} of {len(run.placements)}")
+    print(
+        f"\nserial sweep: {ser.elapsed_s:.2f} s, {ser.poses_per_second:,.0f} poses/s = {run.us_pose:.2f} us per "
+        f"pose = {run.us_pose / B:.3f} us per pose and branch; feasible placements "
+        f"{int(ser.scores.feasible.sum())} of {len(run.placements)}"
+    )
 
-    sub = run.chunks[::max(1, len(run.chunks) // 8)]
+    sub = run.chunks[:: max(1, len(run.chunks) // 8)]
     bd = breakdown(kernel, sub)
     sub_poses = sum(len(c) for c in sub) * kernel.poses_per_placement
-    print(f"\nwhere a pose's cost goes ({len(sub)} of the {len(run.chunks)} chunks, {sub_poses:,} poses, "
-          f"timers around the calls):")
+    print(
+        f"\nwhere a pose's cost goes ({len(sub)} of the {len(run.chunks)} chunks, {sub_poses:,} poses, "
+        f"timers around the calls):"
+    )
     print(f"  {'part':<44}{'us/pose':>9}{'share':>8}")
-    for key, label in (("ik", "IK, all branches (ik.solve)"), ("guard", "singularity guard factors"),
-                       ("load_error", "model load_error (valid nodes only)"),
-                       ("viterbi", "Viterbi programme over the waypoints"),
-                       ("score_rest", "rest of scoring (unwrap, limits, gather)"),
-                       ("glue", "NumPy glue (transforms, masks, gathers)")):
+    for key, label in (
+        ("ik", "IK, all branches (ik.solve)"),
+        ("guard", "singularity guard factors"),
+        ("load_error", "model load_error (valid nodes only)"),
+        ("viterbi", "Viterbi programme over the waypoints"),
+        ("score_rest", "rest of scoring (unwrap, limits, gather)"),
+        ("glue", "NumPy glue (transforms, masks, gathers)"),
+    ):
         print(f"  {label:<44}{bd[key] / sub_poses * 1e6:>9.3f}{bd[key] / bd['total']:>8.1%}")
     print(f"  {'total (instrumented)':<44}{bd['total'] / sub_poses * 1e6:>9.3f}")
 
@@ -260,6 +290,7 @@ def serial_and_anchors(run: Run) -> None:
     ev = kernel.ik.evaluator if kernel.ik.function is not None else None
     if ev is not None and ev.compiled:
         from models.codegen import batch_function
+
         kernel.ik.use_evaluator(batch_function(kernel.ik.function, 1))
         try:
             t_ik1 = _best(lambda: kernel.ik.solve(T))
@@ -276,24 +307,29 @@ def serial_and_anchors(run: Run) -> None:
         qa, La, Ga = (np.tile(a, (reps, 1))[:n_rows] for a in (q, L, G))
         evl = kernel._model
         t_le = _best(lambda: evl(qa, La, Ga))
-        print(f"  model load_error alone, {n_rows:,} evaluations (one chunk's poses x {B} branches): "
-              f"{t_le / n_rows * 1e6:.3f} us per evaluation = {t_le / len(T) * 1e6:.3f} us per pose")
+        print(
+            f"  model load_error alone, {n_rows:,} evaluations (one chunk's poses x {B} branches): "
+            f"{t_le / n_rows * 1e6:.3f} us per evaluation = {t_le / len(T) * 1e6:.3f} us per pose"
+        )
         print(f"  kernel / (IK + load_error on every branch) = {run.us_pose / ((t_ik + t_le) / len(T) * 1e6):.2f}")
     print(f"  single-core per-pose cost (the serial cost with the IK on one thread): {run.us_pose_1:.2f} us")
 
     probe = [run.chunks[0], run.chunks[len(run.chunks) // 2], run.chunks[-1]]
     mems = [(chunk_memory(kernel, c), len(c) * kernel.poses_per_placement) for c in probe]
     run.bytes_per_pose = max(m / n for m, n in mems)
-    print(f"\nmemory of a chunk (peak of the allocations while it is scored; first, middle and last chunk): "
-          f"{', '.join(f'{m / 2 ** 20:.0f} MiB' for m, _ in mems)}; at most {run.bytes_per_pose:,.0f} bytes per pose "
-          f"(IK q (P,S,N,B,6) float64 is {8 * 6 * B} B/pose; T 128 B/pose; per valid node and branch its q, "
-          "load row, index and output)")
+    print(
+        f"\nmemory of a chunk (peak of the allocations while it is scored; first, middle and last chunk): "
+        f"{', '.join(f'{m / 2**20:.0f} MiB' for m, _ in mems)}; at most {run.bytes_per_pose:,.0f} bytes per pose "
+        f"(IK q (P,S,N,B,6) float64 is {8 * 6 * B} B/pose; T 128 B/pose; per valid node and branch its q, "
+        "load row, index and output)"
+    )
 
 
 def dask_modes(run: Run) -> tuple[float | None, float | None]:
     """The sweep on local:1 and local:2 (and local:1 with the nanny's defaults), beside the serial
     one; returns Dask's per-task overhead (wall per task, per task x workers), s, or Nones."""
     from problems.placement.sweep import run_sweep
+
     args, ser = run.args, run.serial
     rows = [("serial", ser)]
     o_task = o_task_wall = None
@@ -301,7 +337,7 @@ def dask_modes(run: Run) -> tuple[float | None, float | None]:
         print("\nDask: skipped (--skip-dask)")
     else:
         try:
-            import distributed  # noqa: F401
+            import distributed  # noqa: F401 - is the dask extra installed?
         except ImportError:
             print('\nDask: not installed (pip install "compplan[dask]"); serial figures only')
         else:
@@ -310,6 +346,7 @@ def dask_modes(run: Run) -> tuple[float | None, float | None]:
             o_task_wall, o_task = trivial_task_overhead(args.tasks, 2)
             if args.nanny_default:
                 import problems.placement.cluster as cluster
+
                 saved, cluster.LOCAL_ENV_DROPPED = cluster.LOCAL_ENV_DROPPED, ()
                 try:
                     rows.append(("local:1*", run_sweep(run.kernel, run.placements, "local:1", run.per)))
@@ -318,20 +355,31 @@ def dask_modes(run: Run) -> tuple[float | None, float | None]:
 
     print(f"\n{'mode':<9}{'wall [s]':>10}{'poses/s':>12}{'us/pose':>9}{'workers':>8}{'bit-equal to serial':>21}")
     for name, r in rows:
-        eq = "-" if name == "serial" else ("yes" if r.scores.equal(ser.scores) else
-                                           f"NO (max diff {r.scores.max_difference(ser.scores):.3g})")
-        print(f"{name:<9}{r.elapsed_s:>10.2f}{r.poses_per_second:>12,.0f}{r.elapsed_s / run.poses * 1e6:>9.2f}"
-              f"{r.workers:>8}{eq:>21}")
+        eq = (
+            "-"
+            if name == "serial"
+            else ("yes" if r.scores.equal(ser.scores) else f"NO (max diff {r.scores.max_difference(ser.scores):.3g})")
+        )
+        print(
+            f"{name:<9}{r.elapsed_s:>10.2f}{r.poses_per_second:>12,.0f}{r.elapsed_s / run.poses * 1e6:>9.2f}"
+            f"{r.workers:>8}{eq:>21}"
+        )
     if len(rows) >= 3:
         t1, t2, n = rows[1][1].elapsed_s, rows[2][1].elapsed_s, len(run.chunks)
-        print(f"scaling 1 -> 2 workers: {t1 / t2:.2f}x (target >= {TARGET_SCALING}x); serial / 1 worker: "
-              f"{ser.elapsed_s / t1:.2f}")
-        print(f"Dask per-task overhead: {args.tasks} trivial tasks on local:2: {o_task_wall * 1e3:.2f} ms wall per "
-              f"task, {o_task * 1e3:.2f} ms per task x workers")
-        print(f"overhead implied by the sweeps, per chunk: local:1 (wall - serial) / chunks = "
-              f"{(t1 - ser.elapsed_s) / n * 1e3:.1f} ms; local:2 (wall - serial/2) x 2 / chunks = "
-              f"{(t2 - ser.elapsed_s / 2) * 2 / n * 1e3:.1f} ms (on a 2-core machine the client and scheduler "
-              "share the workers' cores)")
+        print(
+            f"scaling 1 -> 2 workers: {t1 / t2:.2f}x (target >= {TARGET_SCALING}x); serial / 1 worker: "
+            f"{ser.elapsed_s / t1:.2f}"
+        )
+        print(
+            f"Dask per-task overhead: {args.tasks} trivial tasks on local:2: {o_task_wall * 1e3:.2f} ms wall per "
+            f"task, {o_task * 1e3:.2f} ms per task x workers"
+        )
+        print(
+            f"overhead implied by the sweeps, per chunk: local:1 (wall - serial) / chunks = "
+            f"{(t1 - ser.elapsed_s) / n * 1e3:.1f} ms; local:2 (wall - serial/2) x 2 / chunks = "
+            f"{(t2 - ser.elapsed_s / 2) * 2 / n * 1e3:.1f} ms (on a 2-core machine the client and scheduler "
+            "share the workers' cores)"
+        )
     return o_task_wall, o_task
 
 
@@ -339,29 +387,40 @@ def large_sweep_estimate(run: Run, o_task_wall: float | None, o_task: float | No
     """Time of 1e8 and 1e9 poses on WORKERS_ESTIMATE workers for compplan's default chunk and the
     chunks that keep the overhead under OVERHEAD_SHARE and the scheduler under SCHEDULER_SHARE."""
     from problems.placement.sweep import chunk_placements_for
+
     c, ppp = run.us_pose_1, run.kernel.poses_per_placement
     o = o_task if o_task is not None else 1e-3
     o_sched = o_task_wall or o / 2
     src = "measured" if o_task is not None else "assumed, Dask not run"
-    print(f"\nestimate on {WORKERS_ESTIMATE} single-core workers: time = poses x {c:.2f} us (single-core "
-          f"per-pose cost) / {WORKERS_ESTIMATE} + chunks x {o * 1e3:.2f} ms ({src} per-task overhead) / "
-          f"{WORKERS_ESTIMATE}; the scheduler handles tasks one at a time: chunks x {o_sched * 1e3:.2f} ms is a floor")
+    print(
+        f"\nestimate on {WORKERS_ESTIMATE} single-core workers: time = poses x {c:.2f} us (single-core "
+        f"per-pose cost) / {WORKERS_ESTIMATE} + chunks x {o * 1e3:.2f} ms ({src} per-task overhead) / "
+        f"{WORKERS_ESTIMATE}; the scheduler handles tasks one at a time: chunks x {o_sched * 1e3:.2f} ms is a floor"
+    )
     min_chunk = math.ceil(o / (OVERHEAD_SHARE * c * 1e-6))
-    print(f"chunk size for overhead < {OVERHEAD_SHARE:.0%}: chunk poses >= overhead / ({OVERHEAD_SHARE:g} x per-pose "
-          f"cost) = {min_chunk:,} poses = {math.ceil(min_chunk / ppp):,} placements of this problem")
+    print(
+        f"chunk size for overhead < {OVERHEAD_SHARE:.0%}: chunk poses >= overhead / ({OVERHEAD_SHARE:g} x per-pose "
+        f"cost) = {min_chunk:,} poses = {math.ceil(min_chunk / ppp):,} placements of this problem"
+    )
     sched_chunk = math.ceil(WORKERS_ESTIMATE * o_sched / (SCHEDULER_SHARE * c * 1e-6))
-    print(f"chunk size for the scheduler floor < {SCHEDULER_SHARE:.0%} of the time on {WORKERS_ESTIMATE} workers: "
-          f"chunk poses >= {WORKERS_ESTIMATE} x {o_sched * 1e3:.2f} ms / ({SCHEDULER_SHARE:g} x per-pose cost) = "
-          f"{sched_chunk:,} poses")
-    print(f"  {'poses':>8}{'chunk poses':>13}{'chunks':>10}{'time':>11}{'overhead':>10}{'sched. floor':>14}"
-          f"{'MiB/chunk':>11}")
+    print(
+        f"chunk size for the scheduler floor < {SCHEDULER_SHARE:.0%} of the time on {WORKERS_ESTIMATE} workers: "
+        f"chunk poses >= {WORKERS_ESTIMATE} x {o_sched * 1e3:.2f} ms / ({SCHEDULER_SHARE:g} x per-pose cost) = "
+        f"{sched_chunk:,} poses"
+    )
+    print(
+        f"  {'poses':>8}{'chunk poses':>13}{'chunks':>10}{'time':>11}{'overhead':>10}{'sched. floor':>14}"
+        f"{'MiB/chunk':>11}"
+    )
     for P in ESTIMATE_POSES:
-        default_chunk = chunk_placements_for(run.kernel, math.ceil(P / ppp)) * ppp      # compplan's default
+        default_chunk = chunk_placements_for(run.kernel, math.ceil(P / ppp)) * ppp  # compplan's default
         for cp in sorted({default_chunk, min_chunk, sched_chunk}):
             t, nch = estimate(P, c, cp, o)
-            print(f"  {P:>8.0e}{cp:>13,}{nch:>10,}{_fmt_s(t):>11}{nch * o / WORKERS_ESTIMATE / t:>10.2%}"
-                  f"{_fmt_s(nch * o_sched):>14}{cp * run.bytes_per_pose / 2 ** 20:>11.0f}"
-                  f"{'  (default)' if cp == default_chunk else ''}")
+            print(
+                f"  {P:>8.0e}{cp:>13,}{nch:>10,}{_fmt_s(t):>11}{nch * o / WORKERS_ESTIMATE / t:>10.2%}"
+                f"{_fmt_s(nch * o_sched):>14}{cp * run.bytes_per_pose / 2**20:>11.0f}"
+                f"{'  (default)' if cp == default_chunk else ''}"
+            )
 
 
 def main() -> None:

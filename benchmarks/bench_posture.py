@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")   # as planner.plan does (see there)
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as planner.plan does (see there)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -53,8 +53,10 @@ def bench_problem(name: str, n_points: int | None, repeat: int) -> None:
     t0 = time.perf_counter()
     res = optimise_postures(pr.robot, task, pr.home_q, pr.solver, model=model, ik=ik)
     first = time.perf_counter() - t0
-    print(f"\n{name} ({pr.n} waypoints, rule {pr.rule.value}, freedom {res.freedom}): first call "
-          f"{first:.3f} s incl. solver build {res.build_time_s:.3f} s")
+    print(
+        f"\n{name} ({pr.n} waypoints, rule {pr.rule.value}, freedom {res.freedom}): first call "
+        f"{first:.3f} s incl. solver build {res.build_time_s:.3f} s"
+    )
     if res.freedom == "free":
         nlp = get_nlp(pr.robot, pr.rule, pr.n, pr.solver)
         ws = warm_starts(ik, model, task)
@@ -70,16 +72,20 @@ def bench_problem(name: str, n_points: int | None, repeat: int) -> None:
             best, med = _stats(times)
             per.append(med)
             print(f"  {ik.labels[b]:<18}{it:>6}{best * 1e3:>11.1f}{med * 1e3:>13.1f}")
-        print(f"  per branch: median of medians {statistics.median(per) * 1e3:.1f} ms, worst median "
-              f"{max(per) * 1e3:.1f} ms, sum of medians {sum(per) * 1e3:.1f} ms")
+        print(
+            f"  per branch: median of medians {statistics.median(per) * 1e3:.1f} ms, worst median "
+            f"{max(per) * 1e3:.1f} ms, sum of medians {sum(per) * 1e3:.1f} ms"
+        )
     totals = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         optimise_postures(pr.robot, task, pr.home_q, pr.solver, model=model, ik=ik)
         totals.append(time.perf_counter() - t0)
     best, med = _stats(totals)
-    print(f"  all branches (warm starts + every NLP + verification): best {best * 1e3:.0f} ms, median "
-          f"{med * 1e3:.0f} ms (target <= {TARGET_ALL_BRANCHES_S * 1e3:.0f} ms)")
+    print(
+        f"  all branches (warm starts + every NLP + verification): best {best * 1e3:.0f} ms, median "
+        f"{med * 1e3:.0f} ms (target <= {TARGET_ALL_BRANCHES_S * 1e3:.0f} ms)"
+    )
 
 
 def bench_timing(repeat: int) -> None:
@@ -102,23 +108,26 @@ def bench_timing(repeat: int) -> None:
                     tr = time_parametrize(q, lim, m, dt)
                     times.append(time.perf_counter() - t0)
                 best, med = _stats(times)
-                row.append(f"{m} {best * 1e3:6.1f} / {med * 1e3:6.1f} ({tr.status.value}, "
-                           f"{tr.duration_s:.3f} s, max ratio v {max(tr.limit_ratio['velocity']):.3f} "
-                           f"a {max(tr.limit_ratio['acceleration']):.3f} j {max(tr.limit_ratio['jerk']):.3f})")
+                row.append(
+                    f"{m} {best * 1e3:6.1f} / {med * 1e3:6.1f} ({tr.status.value}, "
+                    f"{tr.duration_s:.3f} s, max ratio v {max(tr.limit_ratio['velocity']):.3f} "
+                    f"a {max(tr.limit_ratio['acceleration']):.3f} j {max(tr.limit_ratio['jerk']):.3f})"
+                )
             print(f"  {name:<18} dt {dt * 1e3:g} ms: " + ";  ".join(row))
 
 
 def bench_cli(repeat: int) -> None:
-    print("\ncompplan demo end to end (subprocess, wall time; --no-report: plan, outputs and figures "
-          "only; with the report: plus report.html and its figures, issue 3):")
+    print(
+        "\ncompplan demo end to end (subprocess, wall time; --no-report: plan, outputs and figures "
+        "only; with the report: plus report.html and its figures, issue 3):"
+    )
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     with tempfile.TemporaryDirectory() as tmp:
         env_cold = dict(env, COMPPLAN_CACHE=str(Path(tmp) / "cache"))
 
         def run(*argv: str) -> float:
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "planner", *argv], env=env_cold, check=True,
-                           capture_output=True)
+            subprocess.run([sys.executable, "-m", "planner", *argv], env=env_cold, check=True, capture_output=True)
             return time.perf_counter() - t0
 
         cold = run("demo", "--out", str(Path(tmp) / "cold"), "--no-report")
@@ -146,7 +155,7 @@ def main() -> None:
     bench_problem("measuring_position_only", None, args.repeat)
     bench_problem("drilling_cone", None, args.repeat)
     bench_problem("paper_4_4", None, args.repeat)
-    bench_problem("kr6_milling", None, args.repeat)      # an OPW industrial arm (issue 11: <= 20 ms/branch)
+    bench_problem("kr6_milling", None, args.repeat)  # an OPW industrial arm (issue 11: <= 20 ms/branch)
     bench_timing(args.repeat)
     if not args.skip_cli:
         bench_cli(max(1, args.repeat // 2))

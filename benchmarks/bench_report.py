@@ -69,7 +69,9 @@ class Case:
 
 CASES = (
     Case("version", "compplan --version", ("--version",), False),
-    Case("plan_bare", f"plan {PROBLEM} --no-report --no-figures", ("plan", PROBLEM, "--no-report", "--no-figures"), True),
+    Case(
+        "plan_bare", f"plan {PROBLEM} --no-report --no-figures", ("plan", PROBLEM, "--no-report", "--no-figures"), True
+    ),
     Case("plan_report", f"plan {PROBLEM} (report)", ("plan", PROBLEM), True),
     Case("demo", "demo (report)", ("demo",), True),
     Case("report_fresh", "report RUN --no-map-cache (all drawn)", ("report", "--no-map-cache"), False, True),
@@ -99,15 +101,23 @@ def run_case(code: Path, case: Case, out: Path, run: Path | None = None) -> tupl
     """Run ``case`` with the package tree ``code`` (``run``: the folder a ``on_run`` case reads);
     (wall s, CPU s of the children, stages s or None)."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (str(code), os.environ.get("PYTHONPATH")) if p)}
-    cmd = [sys.executable, "-m", "planner", *case.args, *(("--out", str(out)) if case.out else ()),
-           *((str(run),) if case.on_run else ())]
+    cmd = [
+        sys.executable,
+        "-m",
+        "planner",
+        *case.args,
+        *(("--out", str(out)) if case.out else ()),
+        *((str(run),) if case.on_run else ()),
+    ]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, env=env, cwd=out.parent, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} (PYTHONPATH={code}) exited {proc.returncode}: {proc.stderr.strip()[-500:]}")
+        raise RuntimeError(
+            f"{' '.join(cmd)} (PYTHONPATH={code}) exited {proc.returncode}: {proc.stderr.strip()[-500:]}"
+        )
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     stages = stage_sum(json.loads((out / "summary.json").read_text())) if case.out else None
     return wall, cpu, stages
@@ -142,13 +152,17 @@ def _target(case: Case, runs: dict[str, Runs], version: str) -> str:
         return f"wall {value:.2f} s, target <= {VERSION_MAX_S} s: {'met' if ok else 'not met'}"
     if case.key == "plan_bare":
         value = _median(r.overhead())
-        return f"overhead {value:.2f} s, target <= {OVERHEAD_MAX_S} s: {'met' if value <= OVERHEAD_MAX_S else 'not met'}"
+        return (
+            f"overhead {value:.2f} s, target <= {OVERHEAD_MAX_S} s: {'met' if value <= OVERHEAD_MAX_S else 'not met'}"
+        )
     if case.key == "report_fresh":
         return "(no target: the cost of a report's figures when none is cached)"
     if case.key == "plan_report":
         ratio = _median(r.wall) / _median(runs[f"{version}:plan_bare"].wall)
-        return (f"x{ratio:.2f} the run without report, target <= x{REPORT_RATIO_MAX}: "
-                f"{'met' if ratio <= REPORT_RATIO_MAX else 'not met'}")
+        return (
+            f"x{ratio:.2f} the run without report, target <= x{REPORT_RATIO_MAX}: "
+            f"{'met' if ratio <= REPORT_RATIO_MAX else 'not met'}"
+        )
     value = _median(r.wall)
     return f"wall {value:.2f} s, target <= {DEMO_MAX_S} s: {'met' if value <= DEMO_MAX_S else 'not met'}"
 
@@ -168,7 +182,7 @@ def measure(versions: dict[str, Path], repeat: int, tmp: Path) -> dict[str, Runs
                 if case.key == "plan_report":
                     last_plan[version] = folder / "out"
                 if rnd == 0:
-                    continue                      # the warm-up run
+                    continue  # the warm-up run
                 r = runs[f"{version}:{case.key}"]
                 r.wall.append(wall)
                 r.cpu.append(cpu)
@@ -181,9 +195,11 @@ def print_table(versions: dict[str, Path], runs: dict[str, Runs]) -> None:
     for case in CASES:
         for version in versions:
             r = runs[f"{version}:{case.key}"]
-            print(f"{case.label:<42}{version:<9}{_fmt(min(r.wall))}{_fmt(_median(r.wall))}"
-                  f"{_fmt(_median(r.stages) if case.out else None)}{_fmt(_median(r.overhead()) if case.out else None)}"
-                  f"{_fmt(_median(r.cpu))}   {_target(case, runs, version)}")
+            print(
+                f"{case.label:<42}{version:<9}{_fmt(min(r.wall))}{_fmt(_median(r.wall))}"
+                f"{_fmt(_median(r.stages) if case.out else None)}{_fmt(_median(r.overhead()) if case.out else None)}"
+                f"{_fmt(_median(r.cpu))}   {_target(case, runs, version)}"
+            )
 
 
 def run_tests(versions: dict[str, Path]) -> None:
@@ -193,8 +209,14 @@ def run_tests(versions: dict[str, Path]) -> None:
         env = {**os.environ, "PYTHONPATH": str(code)}
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"], cwd=code, env=env,
-                              capture_output=True, text=True, check=False)
+        proc = subprocess.run(
+            [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
+            cwd=code,
+            env=env,
+            capture_output=True,
+            text=True,
+            check=False,
+        )
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -205,8 +227,12 @@ def run_tests(versions: dict[str, Path]) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per case and version (default 3)")
-    ap.add_argument("--before", default=None, metavar="REV",
-                    help=f"the earlier revision (default: the parent of the commit '{FIRST_COMMIT_SUBJECT}...')")
+    ap.add_argument(
+        "--before",
+        default=None,
+        metavar="REV",
+        help=f"the earlier revision (default: the parent of the commit '{FIRST_COMMIT_SUBJECT}...')",
+    )
     ap.add_argument("--no-before", action="store_true", help="time the current checkout only")
     ap.add_argument("--tests", action="store_true", help="also time the test suite of each version (many minutes)")
     args = ap.parse_args()
@@ -225,12 +251,16 @@ def main() -> None:
         versions["after"] = ROOT
         try:
             label = f"before = {_git('rev-parse', '--short', rev).strip()}, " if rev else ""
-            print(f"compplan speed, warm, {args.repeat} timed runs per case ({label}after = the working tree "
-                  f"of {ROOT}); {cpus} CPUs, load average {load0:.2f} at the start")
+            print(
+                f"compplan speed, warm, {args.repeat} timed runs per case ({label}after = the working tree "
+                f"of {ROOT}); {cpus} CPUs, load average {load0:.2f} at the start"
+            )
             runs = measure(versions, args.repeat, tmp)
             print_table(versions, runs)
-            print(f"load average {os.getloadavg()[0]:.2f} at the end (wall times on a shared machine vary with it; "
-                  "CPU times less)")
+            print(
+                f"load average {os.getloadavg()[0]:.2f} at the end (wall times on a shared machine vary with it; "
+                "CPU times less)"
+            )
             if args.tests:
                 run_tests(versions)
         finally:

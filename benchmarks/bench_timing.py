@@ -50,6 +50,7 @@ def _smoothed_toppra(q, lim, dt):
     import numpy as np
 
     from problems.timing import time_parametrize
+
     w, tr = 0.05, None
     for _ in range(10):
         tr = time_parametrize(q, lim, "toppra", dt, smoothing_s=min(w, 1.0))
@@ -70,12 +71,17 @@ def _binding(tr, lim) -> str:
     import numpy as np
 
     from problems.timing.limit_use import describe_binding, limit_use
-    r = {k: np.abs(getattr(tr, a)) / np.asarray(getattr(lim, k)) for k, a in
-         (("velocity", "qd"), ("acceleration", "qdd"), ("jerk", "qddd"))}
+
+    r = {
+        k: np.abs(getattr(tr, a)) / np.asarray(getattr(lim, k))
+        for k, a in (("velocity", "qd"), ("acceleration", "qdd"), ("jerk", "qddd"))
+    }
     at_jerk = float(np.mean(r["jerk"].max(axis=1) >= 0.95))
     at_any = float(np.mean(np.max([v.max(axis=1) for v in r.values()], axis=0) >= 0.95))
-    return (f"at >= 95 % of a jerk limit {100 * at_jerk:.0f} % of the time, of any limit {100 * at_any:.0f} %; "
-            + describe_binding(limit_use(tr, lim, ("velocity", "acceleration", "jerk"))))
+    return (
+        f"at >= 95 % of a jerk limit {100 * at_jerk:.0f} % of the time, of any limit {100 * at_any:.0f} %; "
+        + describe_binding(limit_use(tr, lim, ("velocity", "acceleration", "jerk")))
+    )
 
 
 def bench_problems(repeat: int) -> None:
@@ -93,12 +99,14 @@ def bench_problems(repeat: int) -> None:
             continue
         q, dt = res.exact.q_command, pr.timing.dt
         lim = JointLimits(pr.limits.velocity, pr.limits.acceleration, pr.limits.jerk)
-        opt, _ = _timed(lambda: time_parametrize(q, lim, "toppra", dt), 1)
-        time_parametrize(q, lim, "jerk_optimal", dt)                       # build the NLP once
+        opt, _ = _timed(lambda q=q, lim=lim, dt=dt: time_parametrize(q, lim, "toppra", dt), 1)
+        time_parametrize(q, lim, "jerk_optimal", dt)  # build the NLP once
         rows = []
-        for label, fn in (("jerk_optimal", lambda: time_parametrize(q, lim, "jerk_optimal", dt)),
-                          ("ruckig", lambda: time_parametrize(q, lim, "ruckig", dt)),
-                          ("toppra smoothed", lambda: _smoothed_toppra(q, lim, dt))):
+        for label, fn in (
+            ("jerk_optimal", lambda q=q, lim=lim, dt=dt: time_parametrize(q, lim, "jerk_optimal", dt)),
+            ("ruckig", lambda q=q, lim=lim, dt=dt: time_parametrize(q, lim, "ruckig", dt)),
+            ("toppra smoothed", lambda q=q, lim=lim, dt=dt: _smoothed_toppra(q, lim, dt)),
+        ):
             tr, t = _timed(fn, repeat)
             r = tr.duration_s / opt.duration_s
             if label == "jerk_optimal":
@@ -122,6 +130,7 @@ def bench_sizes(repeat: int) -> None:
     q40 = plan(pr.with_points(40)).exact.q_command
     lim = JointLimits(pr.limits.velocity, pr.limits.acceleration, pr.limits.jerk)
     from scipy.interpolate import CubicSpline
+
     # the same motion sampled densely: a cubic spline through the 40 commanded waypoints, at 2000 points
     q2000 = CubicSpline(np.linspace(0.0, 1.0, len(q40)), q40, axis=0)(np.linspace(0.0, 1.0, 2000))
     print("\njerk_optimal compute time at dt = 2 ms (best of the runs; the NLP built once before):")
@@ -133,14 +142,17 @@ def bench_sizes(repeat: int) -> None:
             tr = time_parametrize(q, lim, "jerk_optimal", 0.002)
             times.append(time.perf_counter() - t0)
         opt = time_parametrize(q, lim, "toppra", 0.002)
-        print(f"  {len(q):>5} waypoints: best {min(times) * 1e3:.0f} ms, median {statistics.median(times) * 1e3:.0f} ms "
-              f"(target <= {target * 1e3:.0f} ms); duration {tr.duration_s:.3f} s = "
-              f"{tr.duration_s / opt.duration_s:.3f} x TOPP-RA, {tr.status.value}")
+        print(
+            f"  {len(q):>5} waypoints: best {min(times) * 1e3:.0f} ms, median {statistics.median(times) * 1e3:.0f} ms "
+            f"(target <= {target * 1e3:.0f} ms); duration {tr.duration_s:.3f} s = "
+            f"{tr.duration_s / opt.duration_s:.3f} x TOPP-RA, {tr.status.value}"
+        )
 
 
 def curved_path(seed: int = 1, n_way: int = 40):
     """(n_way, 6) rad, waypoints on a random smooth curve."""
     import numpy as np
+
     rng = np.random.default_rng(seed)
     u = np.linspace(0.0, 1.0, n_way)[:, None]
     c = rng.uniform(-1.0, 1.0, (4, 6))
@@ -151,6 +163,7 @@ def bench_periods(repeat: int) -> None:
     import numpy as np
 
     from problems.timing import JointLimits, time_parametrize
+
     q_path = curved_path()
     limits = JointLimits(np.full(6, 3.15), np.full(6, 5.0), np.full(6, 50.0))
     print(f"\nevery method on a seeded 40-waypoint curved path (median of {repeat} runs, 1 warm-up):")
@@ -163,8 +176,10 @@ def bench_periods(repeat: int) -> None:
                 t0 = time.perf_counter()
                 traj = time_parametrize(q_path, limits, method=method, dt=dt)
                 times.append(time.perf_counter() - t0)
-            print(f"  {method:<13}{dt * 1e3:>8.0f}{statistics.median(times) * 1e3:>13.1f}{traj.t.size:>9d}"
-                  f"{traj.duration_s:>10.3f}  {traj.status.value}")
+            print(
+                f"  {method:<13}{dt * 1e3:>8.0f}{statistics.median(times) * 1e3:>13.1f}{traj.t.size:>9d}"
+                f"{traj.duration_s:>10.3f}  {traj.status.value}"
+            )
 
 
 def main() -> None:

@@ -47,8 +47,23 @@ def convert(src: Path, dst: Path) -> np.ndarray:
         rows = list(csv.DictReader(fh))
     if not rows:
         raise SystemExit(f"{src}: no rows")
-    header = ["q1_deg", "q2_deg", "q3_deg", "q4_deg", "q5_deg", "q6_deg",
-              "fx", "fy", "fz", "mx", "my", "mz", "x_mm", "y_mm", "z_mm"]
+    header = [
+        "q1_deg",
+        "q2_deg",
+        "q3_deg",
+        "q4_deg",
+        "q5_deg",
+        "q6_deg",
+        "fx",
+        "fy",
+        "fz",
+        "mx",
+        "my",
+        "mz",
+        "x_mm",
+        "y_mm",
+        "z_mm",
+    ]
     meas = []
     with open(dst, "w", newline="") as fh:
         fh.write(f"# converted from {src.name} (Jacobi 2025, MIT); measured = target + dif\n")
@@ -66,6 +81,7 @@ def robot_file(dst: Path) -> None:
     from models import load_robot
     from models.robot import robot_to_toml
     from models.transforms import transform
+
     r = load_robot("ur5").with_tool(transform(np.eye(3), np.array(TRACKER_TCP_M)))
     dst.write_text(robot_to_toml(r))
 
@@ -92,9 +108,19 @@ def main() -> int:
     robot_file(out / "ur5_tracker.toml")
 
     t0 = time.perf_counter()
-    argv = ["identify", "--robot", str(out / "ur5_tracker.toml"), "--data", str(grid_csv),
-            "--out", str(out / "ur5_identified.toml"), "--report", str(out / "report"),
-            "--validation", str(rand_csv)]
+    argv = [
+        "identify",
+        "--robot",
+        str(out / "ur5_tracker.toml"),
+        "--data",
+        str(grid_csv),
+        "--out",
+        str(out / "ur5_identified.toml"),
+        "--report",
+        str(out / "report"),
+        "--validation",
+        str(rand_csv),
+    ]
     if args.candidates:
         argv += ["--candidates", args.candidates]
     rc = cli(argv)
@@ -107,37 +133,51 @@ def main() -> int:
     m = read_measurements(rand_csv)
     e_after = np.linalg.norm(predict(model, m) * 1e3 - p_rand_mm, axis=1)
     from models import KinematicModel, load_robot
+
     km = KinematicModel(load_robot(str(out / "ur5_tracker.toml")))
     e_before = np.linalg.norm(km.tcp(m.q)[:, :3, 3] * 1e3 - p_rand_mm, axis=1)
     report = json.loads((out / "report" / "report.json").read_text())
 
     def row(name: str, e: np.ndarray) -> str:
-        return f"  {name:<34}{e.mean():>10.4f}{np.sqrt(np.mean(e ** 2)):>10.4f}{e.max():>10.4f}"
+        return f"  {name:<34}{e.mean():>10.4f}{np.sqrt(np.mean(e**2)):>10.4f}{e.max():>10.4f}"
 
     print(f"\nrandom.csv (held out, {len(e_after)} poses): Euclidean error [mm]")
     print(f"  {'model':<34}{'mean':>10}{'RMS':>10}{'max':>10}")
     print(row("nominal (uncalibrated)", e_before))
     print(row("identified (" + ", ".join(report.get("effects_added", [])) + ")", e_after))
-    print(f"  published: uncalibrated {PUBLISHED_UNCALIBRATED_MEAN_MM} mm mean, "
-          f"hybrid MDH + neural network {PUBLISHED_BEST_MEAN_MM} mm mean")
+    print(
+        f"  published: uncalibrated {PUBLISHED_UNCALIBRATED_MEAN_MM} mm mean, "
+        f"hybrid MDH + neural network {PUBLISHED_BEST_MEAN_MM} mm mean"
+    )
     verdict = "below" if e_after.mean() < PUBLISHED_BEST_MEAN_MM else "NOT below"
     print(f"  -> {verdict} the published best; identification took {elapsed:.1f} s")
-    print(f"  target of issue 10: held-out mean <= {TARGET_MEAN_MM} mm: "
-          f"{'met' if e_after.mean() <= TARGET_MEAN_MM else 'NOT met'}")
+    print(
+        f"  target of issue 10: held-out mean <= {TARGET_MEAN_MM} mm: "
+        f"{'met' if e_after.mean() <= TARGET_MEAN_MM else 'NOT met'}"
+    )
     maps = report.get("error_maps") or []
     if maps:
         print("\njoint error maps (harmonic cycles/rev: amplitude, at the TCP):")
         for e in maps:
             unit = "urad" if e["unit"] == "rad" else "um"
-            terms = ", ".join(f"{h['freq_cpr']:.2f}: {h['amplitude_' + unit]:.0f} {unit} ({h['amplitude_tcp_um']:.0f} um)"
-                              for h in e["harmonics"])
-            print(f"  joint {e['joint']} {e['component']:<5} range {e['range_deg'][0]:.0f}..{e['range_deg'][1]:.0f} deg, "
-                  f"RMS at TCP {e['rms_tcp_um']:.0f} um: {terms}")
-    summary = {"random_mean_mm_before": float(e_before.mean()), "random_mean_mm_after": float(e_after.mean()),
-               "random_rms_mm_after": float(np.sqrt(np.mean(e_after ** 2))),
-               "random_max_mm_after": float(e_after.max()), "effects_added": report.get("effects_added"),
-               "unexplained": report.get("unexplained"), "identify_seconds": elapsed,
-               "error_maps": report.get("error_maps")}
+            terms = ", ".join(
+                f"{h['freq_cpr']:.2f}: {h['amplitude_' + unit]:.0f} {unit} ({h['amplitude_tcp_um']:.0f} um)"
+                for h in e["harmonics"]
+            )
+            print(
+                f"  joint {e['joint']} {e['component']:<5} range {e['range_deg'][0]:.0f}..{e['range_deg'][1]:.0f} deg, "
+                f"RMS at TCP {e['rms_tcp_um']:.0f} um: {terms}"
+            )
+    summary = {
+        "random_mean_mm_before": float(e_before.mean()),
+        "random_mean_mm_after": float(e_after.mean()),
+        "random_rms_mm_after": float(np.sqrt(np.mean(e_after**2))),
+        "random_max_mm_after": float(e_after.max()),
+        "effects_added": report.get("effects_added"),
+        "unexplained": report.get("unexplained"),
+        "identify_seconds": elapsed,
+        "error_maps": report.get("error_maps"),
+    }
     (out / "real_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return 0
 

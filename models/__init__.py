@@ -14,10 +14,12 @@ if TYPE_CHECKING:
 #: importing one light submodule (``models.errors``) does not import CasADi, SciPy and the IK
 #: families: ``compplan --version`` and every command's start-up stay fast.
 _LAZY = {
-    **dict.fromkeys(("CompplanError", "InfeasibleError", "InputError", "SingularityError", "UnreachableError"),
-                    "errors"),
-    **dict.fromkeys(("BRANCH_LABELS", "AnalyticIK", "IKSolution", "IKSolver", "IKStatus", "IKStructureError",
-                     "ik_solver"), "ik"),
+    **dict.fromkeys(
+        ("CompplanError", "InfeasibleError", "InputError", "SingularityError", "UnreachableError"), "errors"
+    ),
+    **dict.fromkeys(
+        ("BRANCH_LABELS", "AnalyticIK", "IKSolution", "IKSolver", "IKStatus", "IKStructureError", "ik_solver"), "ik"
+    ),
     **dict.fromkeys(("BUILTIN_ROBOTS", "Joint", "Robot", "RobotFileError", "load_robot", "robot_from_dict"), "robot"),
     **dict.fromkeys(("KinematicModel", "cartesian_stiffness", "directional_stiffness"), "symbolic"),
 }
@@ -37,9 +39,25 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
-    "AnalyticIK", "BRANCH_LABELS", "BUILTIN_ROBOTS", "CompplanError", "IKSolution", "IKSolver", "IKStatus",
+    "AnalyticIK",
+    "BRANCH_LABELS",
+    "BUILTIN_ROBOTS",
+    "CompplanError",
+    "IKSolution",
+    "IKSolver",
+    "IKStatus",
     "ik_solver",
-    "IKStructureError", "InfeasibleError", "InputError", "Joint", "KinematicModel", "Robot",
-    "RobotFileError", "SingularityError", "UnreachableError", "cartesian_stiffness",
-    "directional_stiffness", "load_robot", "robot_from_dict",
+    "IKStructureError",
+    "InfeasibleError",
+    "InputError",
+    "Joint",
+    "KinematicModel",
+    "Robot",
+    "RobotFileError",
+    "SingularityError",
+    "UnreachableError",
+    "cartesian_stiffness",
+    "directional_stiffness",
+    "load_robot",
+    "robot_from_dict",
 ]

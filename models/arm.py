@@ -32,6 +32,7 @@ from .load import Load, load_rows
 from .robot import Robot
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .ik import IKSolver
     from .symbolic import KinematicModel
 
 
@@ -132,7 +133,7 @@ class ArmModel:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_robot(cls, robot: Robot) -> "ArmModel":
+    def from_robot(cls, robot: Robot) -> ArmModel:
         """The nominal model of a description: its DH chain and linear joint springs."""
         return cls(nominal=robot, theta=fx.make_layout(robot).nominal.copy())
 
@@ -141,13 +142,14 @@ class ArmModel:
         everything else in the ``[identified]`` table (see :mod:`models.arm_file`)."""
         from .arm_file import model_to_dict
         from .robot import robot_from_dict
+
         return robot_from_dict(model_to_dict(self), "identified model")
 
     @property
     def name(self) -> str:
         return self.nominal.name
 
-    def with_tool(self, tcp2flange: np.ndarray) -> "ArmModel":
+    def with_tool(self, tcp2flange: np.ndarray) -> ArmModel:
         """The same model with another TCP (4x4, TCP -> flange)."""
         return replace(self, nominal=self.nominal.with_tool(tcp2flange))
 
@@ -155,8 +157,9 @@ class ArmModel:
     @property
     def const(self) -> np.ndarray:
         """The constant vector of the model graph (identification, prediction)."""
-        return fx.make_const(self.nominal, self.R0, self.tau_scale, self.gravity_on, self.beams, self.knots,
-                             self.effect_const)
+        return fx.make_const(
+            self.nominal, self.R0, self.tau_scale, self.gravity_on, self.beams, self.knots, self.effect_const
+        )
 
     @property
     def planning_const(self) -> np.ndarray:
@@ -184,8 +187,9 @@ class ArmModel:
     @property
     def arm_effects(self) -> tuple[str, ...]:
         """Effects that act on the arm (planning): declared ones and active library ones."""
-        return tuple(e.name for e in fx.registry() if e.acts_on == fx.ARM
-                     and (e.declared or e.name in self.active_effects))
+        return tuple(
+            e.name for e in fx.registry() if e.acts_on == fx.ARM and (e.declared or e.name in self.active_effects)
+        )
 
     @property
     def geometry_is_nominal(self) -> bool:
@@ -197,8 +201,7 @@ class ArmModel:
     @property
     def is_nominal(self) -> bool:
         """Nothing but the robot file's chain and springs."""
-        return not self.active_effects and np.allclose(
-            self.theta[fx.GROUP_SLICES["stiffness.s"]], 0.0)
+        return not self.active_effects and np.allclose(self.theta[fx.GROUP_SLICES["stiffness.s"]], 0.0)
 
     def joint_compliance(self) -> np.ndarray:
         """Linear joint-spring compliances ``c0 (1 + s)``, rad/(N*m), (6,)."""
@@ -218,12 +221,16 @@ class ArmModel:
 
     def describe(self) -> dict[str, Any]:
         """What the summaries record about the model used."""
-        return {"robot": self.nominal.name, "file": self.source or None, "sha256": self.sha256 or None,
-                "identified": bool(self.effects) or not self.is_nominal,
-                "effects": ["joint_springs"] + list(self.active_effects),
-                "registered": bool(self.registered),
-                "tcp_correction_m": [float(v) for v in self.tcp_correction_m],
-                "temperature_C": float(self.temperature_ref)}
+        return {
+            "robot": self.nominal.name,
+            "file": self.source or None,
+            "sha256": self.sha256 or None,
+            "identified": bool(self.effects) or not self.is_nominal,
+            "effects": ["joint_springs"] + list(self.active_effects),
+            "registered": bool(self.registered),
+            "tcp_correction_m": [float(v) for v in self.tcp_correction_m],
+            "temperature_C": float(self.temperature_ref),
+        }
 
     def extrapolation(self, q: np.ndarray, load: Load | np.ndarray) -> list[str]:
         """Where joint torques at the poses ``q`` (N, 6) exceed the identification data's range
@@ -245,9 +252,11 @@ class ArmModel:
             k = int(np.argmax(tau[:, j]))
             lim = float(self.torque_range_Nm[j])
             if names and tau[k, j] > lim * (1.0 + TORQUE_RANGE_SLACK):
-                out.append(f"joint {j + 1}: torque {tau[k, j]:.4g} N*m at waypoint {k} exceeds the identification "
-                           f"data's range ({lim:.4g} N*m): the identified {', '.join(names)} "
-                           "is extrapolated there")
+                out.append(
+                    f"joint {j + 1}: torque {tau[k, j]:.4g} N*m at waypoint {k} exceeds the identification "
+                    f"data's range ({lim:.4g} N*m): the identified {', '.join(names)} "
+                    "is extrapolated there"
+                )
         return out
 
     def caveats(self, q: np.ndarray, load: Load | np.ndarray) -> list[str]:
@@ -258,6 +267,7 @@ class ArmModel:
         out = self.extrapolation(q, load)
         if not self.geometry_is_nominal:
             from .plausibility import implausible_geometry
+
             held = [fx.PARAM_NAMES.index(n) for n in self.held if n in fx.PARAM_NAMES]
             msg = implausible_geometry(self.nominal, self.theta, held)
             if msg:
@@ -270,6 +280,7 @@ class ArmModel:
 
         def c(key: str) -> np.ndarray:
             return fx.get_const(const, key)
+
         for name in self.active_effects:
             out += fx.effect(name).caveats(self.parameter, c, tau, lever)
             out += fx.effect(name).angle_caveats(self.parameter, c, q)
@@ -277,16 +288,18 @@ class ArmModel:
 
     # ------------------------------------------------------------------ evaluation
     @cached_property
-    def kinematics(self) -> "KinematicModel":
+    def kinematics(self) -> KinematicModel:
         """Named CasADi functions of this model with its parameters fixed (compiled batches)."""
         from .symbolic import KinematicModel
+
         return KinematicModel(self)
 
     @cached_property
-    def ik(self) -> "IKSolver":
+    def ik(self) -> IKSolver:
         """The all-branch IK of the nominal chain with this model's tool (built once per model;
         :func:`models.ik.ik_solver`)."""
         from .ik import ik_solver
+
         return ik_solver(self.nominal)
 
     def load_deflection(self, q: np.ndarray, load: Load | np.ndarray) -> np.ndarray:
@@ -331,8 +344,13 @@ class ArmModel:
         km = self.kinematics
         return km.batch(km.fn["load_error"], q, load_rows(load, len(q)))[0]
 
-    def equilibrium(self, q_command: np.ndarray, load: Load | np.ndarray,
-                    max_iter: int = EQUILIBRIUM_MAX_ITER, tol: float = EQUILIBRIUM_STEP_TOL) -> EquilibriumResult:
+    def equilibrium(
+        self,
+        q_command: np.ndarray,
+        load: Load | np.ndarray,
+        max_iter: int = EQUILIBRIUM_MAX_ITER,
+        tol: float = EQUILIBRIUM_STEP_TOL,
+    ) -> EquilibriumResult:
         """Solve ``q = q_c + dq(q, L)`` by fixed-point iteration (vectorised over N).
 
         The map contracts by about ``|d dq / dq|`` (1e-3 .. 1e-1 for real arms and loads),
@@ -349,7 +367,7 @@ class ArmModel:
         q = qc + self.load_deflection(qc, L)
         converged = np.zeros(len(qc), dtype=bool)
         it = 0
-        for it in range(1, max_iter + 1):
+        for it in range(1, max_iter + 1):  # noqa: B007 - the count is reported after the loop
             q_new = qc + self.load_deflection(q, L)
             step = np.max(np.abs(q_new - q), axis=1)
             q = q_new
@@ -366,6 +384,8 @@ def load_arm(spec: str | Robot | ArmModel) -> ArmModel:
         return spec
     if isinstance(spec, Robot):
         from .arm_file import model_from_robot
+
         return model_from_robot(spec, spec.name)
     from .arm_file import load_model
+
     return load_model(str(spec))

@@ -40,8 +40,10 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
     th = model.theta
     d = r.to_dict()
     d.pop("identified", None)
+
     def g(name: str) -> np.ndarray:
         return th[GROUP_SLICES[name]]
+
     for i, j in enumerate(d["joints"]):
         j["a"] = float(r.a[i] + g("geometric.da")[i])
         j["alpha"] = float(r.alpha[i] + g("geometric.dalpha")[i])
@@ -50,7 +52,7 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
         j["stiffness"] = float(r.stiffness[i] / (1.0 + g("stiffness.s")[i]))
     b2m = model.base2meas()
     params: dict[str, Any] = {}
-    for grp, eff, names, unit in fx.PARAMETER_GROUPS:
+    for grp, eff, _names, _unit in fx.PARAMETER_GROUPS:
         if grp in _FOLDED or grp.startswith("reg.") or grp == "tool.p":
             continue
         if eff not in model.effects and not (grp == "geometric.dbeta" and "geometric" in model.effects):
@@ -59,26 +61,47 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
     ident = {
         "format": MODEL_FORMAT,
         "registered": bool(model.registered),
-        "base2meas": {"xyz": [float(v) for v in b2m[:3, 3]],
-                      "rotvec": [float(v) for v in matrix_to_rotvec(b2m[:3, :3])]},
+        "base2meas": {
+            "xyz": [float(v) for v in b2m[:3, 3]],
+            "rotvec": [float(v) for v in matrix_to_rotvec(b2m[:3, :3])],
+        },
         "measured_point": [float(v) for v in model.measured_point],
         "tcp_correction_m": [float(v) for v in model.tcp_correction_m],
-        **({"torque_range_Nm": [float(v) for v in model.torque_range_Nm]}
-           if model.torque_range_Nm is not None else {}),
+        **({"torque_range_Nm": [float(v) for v in model.torque_range_Nm]} if model.torque_range_Nm is not None else {}),
         "effects": list(model.effects),
         "parameters": params,
         "std": {k: float(v) for k, v in model.std.items() if np.isfinite(v)},
         "held": dict(model.held),
-        "constants": {"tau_scale_Nm": [float(v) for v in model.tau_scale], "gravity_on": bool(model.gravity_on),
-                      "beam_frames": [[float(v) for v in model.beams[i].reshape(-1)] for i in range(6)],
-                      "hardening_knots_Nm": [float(v) for v in (model.knots if model.knots is not None else
-                                             np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)).reshape(-1)],
-                      "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
-                      "temperature_ref_C": float(model.temperature_ref),
-                      **({"effect": {k: [float(v) for v in np.asarray(a, dtype=float).reshape(-1)]
-                                     for k, a in model.effect_const.items()}} if model.effect_const else {})},
-        "nominal": {"a": r.a.tolist(), "alpha": r.alpha.tolist(), "d": r.d.tolist(),
-                    "theta_offset": r.theta_offset.tolist(), "stiffness": r.stiffness.tolist()},
+        "constants": {
+            "tau_scale_Nm": [float(v) for v in model.tau_scale],
+            "gravity_on": bool(model.gravity_on),
+            "beam_frames": [[float(v) for v in model.beams[i].reshape(-1)] for i in range(6)],
+            "hardening_knots_Nm": [
+                float(v)
+                for v in (
+                    model.knots if model.knots is not None else np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)
+                ).reshape(-1)
+            ],
+            "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
+            "temperature_ref_C": float(model.temperature_ref),
+            **(
+                {
+                    "effect": {
+                        k: [float(v) for v in np.asarray(a, dtype=float).reshape(-1)]
+                        for k, a in model.effect_const.items()
+                    }
+                }
+                if model.effect_const
+                else {}
+            ),
+        },
+        "nominal": {
+            "a": r.a.tolist(),
+            "alpha": r.alpha.tolist(),
+            "d": r.d.tolist(),
+            "theta_offset": r.theta_offset.tolist(),
+            "stiffness": r.stiffness.tolist(),
+        },
     }
     if model.noise_sigma_m is not None:
         ident["noise_sigma_m"] = float(model.noise_sigma_m)
@@ -87,8 +110,11 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
 
 
 def _nums(where: str, key: str, v: Any, n: int) -> np.ndarray:
-    if not isinstance(v, list) or len(v) != n or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                         for x in v):
+    if (
+        not isinstance(v, list)
+        or len(v) != n
+        or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+    ):
         raise RobotFileError(f"{where}: [identified] key '{key}' must be a list of {n} numbers")
     a = np.array(v, dtype=float)
     if not np.all(np.isfinite(a)):
@@ -101,8 +127,15 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
     ident = robot.identified
     if ident is None:
         layout = make_layout(robot)
-        return ArmModel(nominal=robot, theta=layout.nominal.copy(), R0=np.eye(3), tau_scale=np.ones(6),
-                        gravity_on=False, beams=fx.beam_frames(robot), registered=True)
+        return ArmModel(
+            nominal=robot,
+            theta=layout.nominal.copy(),
+            R0=np.eye(3),
+            tau_scale=np.ones(6),
+            gravity_on=False,
+            beams=fx.beam_frames(robot),
+            registered=True,
+        )
     try:
         fmt = ident.get("format")
         if fmt != MODEL_FORMAT:
@@ -138,30 +171,40 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
             theta[s] = _nums(where, f"parameters.{grp}", vals, s.stop - s.start)
         c = ident["constants"]
         tau_s = _nums(where, "constants.tau_scale_Nm", c["tau_scale_Nm"], 6)
-        beams = np.array([_nums(where, "constants.beam_frames", b, 9).reshape(3, 3)
-                          for b in c["beam_frames"]])
+        beams = np.array([_nums(where, "constants.beam_frames", b, 9).reshape(3, 3) for b in c["beam_frames"]])
         if beams.shape != (6, 3, 3):
             raise RobotFileError(f"{where}: [identified] key 'constants.beam_frames' must hold 6 lists of 9")
         tr = _nums(where, "constants.time_ref_s", c["time_ref_s"], 2)
-        knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"],
-                      6 * fx.N_KNOTS).reshape(6, fx.N_KNOTS)
+        knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"], 6 * fx.N_KNOTS).reshape(
+            6, fx.N_KNOTS
+        )
         effect_const = {}
         for key, vals in dict(c.get("effect", {})).items():
             if key not in fx.CONST_SLICES or key.split(".")[0] in ("dh", "tool", "gravity", "compliance0", "tau_scale"):
                 raise RobotFileError(f"{where}: [identified.constants.effect] unknown constant block '{key}'")
             sl = fx.CONST_SLICES[key]
             effect_const[key] = _nums(where, f"constants.effect.{key}", vals, sl.stop - sl.start)
-        return ArmModel(nominal=nominal, theta=theta, R0=R0, tau_scale=tau_s,
-                        gravity_on=bool(c.get("gravity_on", False)), beams=beams, knots=knots,
-                        time_ref=(float(tr[0]), float(tr[1])),
-                        temperature_ref=float(c.get("temperature_ref_C", fx.THERMAL_REFERENCE_C)),
-                        effects=effects, registered=bool(ident.get("registered", False)),
-                        std=dict(ident.get("std", {})), noise_sigma_m=ident.get("noise_sigma_m"),
-                        held=dict(ident.get("held", {})),
-                        tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3),
-                        torque_range_Nm=(_nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6)
-                                         if "torque_range_Nm" in ident else None),
-                        effect_const=effect_const)
+        return ArmModel(
+            nominal=nominal,
+            theta=theta,
+            R0=R0,
+            tau_scale=tau_s,
+            gravity_on=bool(c.get("gravity_on", False)),
+            beams=beams,
+            knots=knots,
+            time_ref=(float(tr[0]), float(tr[1])),
+            temperature_ref=float(c.get("temperature_ref_C", fx.THERMAL_REFERENCE_C)),
+            effects=effects,
+            registered=bool(ident.get("registered", False)),
+            std=dict(ident.get("std", {})),
+            noise_sigma_m=ident.get("noise_sigma_m"),
+            held=dict(ident.get("held", {})),
+            tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3),
+            torque_range_Nm=(
+                _nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6) if "torque_range_Nm" in ident else None
+            ),
+            effect_const=effect_const,
+        )
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
     except (TypeError, AttributeError, ValueError) as exc:
@@ -183,6 +226,5 @@ def load_model(spec: str | Path) -> ArmModel:
 
 def model_toml(model: ArmModel) -> str:
     import tomli_w
+
     return tomli_w.dumps(model_to_dict(model))
-
-

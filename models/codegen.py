@@ -186,7 +186,7 @@ def _os_reason(exc: OSError) -> str:
 def _one_line(text: str) -> str:
     """The first non-empty line of a (compiler) message, shortened to :data:`NOTE_MESSAGE_MAX`."""
     line = next((ln.strip() for ln in text.splitlines() if ln.strip()), "")
-    return line if len(line) <= NOTE_MESSAGE_MAX else line[:NOTE_MESSAGE_MAX - 3] + "..."
+    return line if len(line) <= NOTE_MESSAGE_MAX else line[: NOTE_MESSAGE_MAX - 3] + "..."
 
 
 # ------------------------------------------------------------------------------ compiler
@@ -242,8 +242,7 @@ def _build(src: str, cmd: list[str], label: str) -> bytes:
     try:
         with tempfile.TemporaryDirectory(prefix="compplan-cc-") as tmp:
             (Path(tmp) / "f.c").write_text(src)
-            proc = subprocess.run([*cmd, *CFLAGS, "f.c", "-o", "f.so", "-lm"], cwd=tmp,
-                                  capture_output=True, text=True)
+            proc = subprocess.run([*cmd, *CFLAGS, "f.c", "-o", "f.so", "-lm"], cwd=tmp, capture_output=True, text=True)
             if proc.returncode == 0:
                 data = (Path(tmp) / "f.so").read_bytes()
             else:
@@ -431,13 +430,18 @@ def compile_shared_library(src: str, prefix: str) -> Path:
 def _dense(f: ca.Function) -> ca.Function:
     ins = [ca.SX.sym(f.name_in(k), f.size_in(k)) for k in range(f.n_in())]
     outs = f.call(ins)
-    return ca.Function(f.name(), ins, [ca.densify(o) for o in outs],
-                       [f.name_in(k) for k in range(f.n_in())],
-                       [f.name_out(k) for k in range(f.n_out())])
+    return ca.Function(
+        f.name(),
+        ins,
+        [ca.densify(o) for o in outs],
+        [f.name_in(k) for k in range(f.n_in())],
+        [f.name_out(k) for k in range(f.n_out())],
+    )
 
 
-def _batch_rows(name: str, in_sizes: list[tuple[int, int]],
-                args: tuple[np.ndarray, ...]) -> tuple[int, list[np.ndarray], list[bool]]:
+def _batch_rows(
+    name: str, in_sizes: list[tuple[int, int]], args: tuple[np.ndarray, ...]
+) -> tuple[int, list[np.ndarray], list[bool]]:
     """Check and flatten batch inputs.
 
     Returns
@@ -467,12 +471,13 @@ def _batch_rows(name: str, in_sizes: list[tuple[int, int]],
                 raise InputError(f"{name}: input {k} has {arr.shape[1]} columns, expected {r * c}")
             if arr.shape[0] != 1:
                 if n not in (1, arr.shape[0]):
-                    raise InputError(f"{name}: input {k} has {arr.shape[0]} rows, expected 1 or {n} "
-                                     "(the other inputs' rows)")
+                    raise InputError(
+                        f"{name}: input {k} has {arr.shape[0]} rows, expected 1 or {n} (the other inputs' rows)"
+                    )
                 n = arr.shape[0]
             batched.append(True)
         arrays.append(arr)
-    if n != 1:      # a one-row input against a larger batch is broadcast (never read past its row)
+    if n != 1:  # a one-row input against a larger batch is broadcast (never read past its row)
         for k, arr in enumerate(arrays):
             if batched[k] and arr.shape[0] == 1:
                 arrays[k], batched[k] = arr.reshape(-1), False
@@ -503,22 +508,28 @@ class BatchFunction:
 
     def __init__(self, f: ca.Function, threads: int = 2) -> None:
         disabled = compiler_disabled()
-        if disabled is not None:          # before generating code that will not be compiled
+        if disabled is not None:  # before generating code that will not be compiled
             _fail(disabled)
         fd = _dense(f)
         self._describe(fd, threads)
-        cg = ca.CodeGenerator(f"{self.name}_cg.c", {"with_header": False, "casadi_real": "double",
-                                                     "casadi_int": "long long int"})
+        cg = ca.CodeGenerator(
+            f"{self.name}_cg.c", {"with_header": False, "casadi_real": "double", "casadi_int": "long long int"}
+        )
         cg.add(fd)
         src = cg.dump()
         nnz = ", ".join(str(r * c) for r, c in self.out_sizes)
         src += f"\nstatic const long long {self.name}_out_nnz[{self.n_out}] = {{{nnz}}};\n"
-        src += _WRAPPER % {"name": self.name, "n_in": self.n_in, "n_out": self.n_out,
-                           "out_nnz": f"{self.name}_out_nnz", "min_batch": PARALLEL_MIN_BATCH}
+        src += _WRAPPER % {
+            "name": self.name,
+            "n_in": self.n_in,
+            "n_out": self.n_out,
+            "out_nnz": f"{self.name}_out_nnz",
+            "min_batch": PARALLEL_MIN_BATCH,
+        }
         self._load(compile_shared_library(src, self.name))
 
     @classmethod
-    def from_library(cls, f: ca.Function, lib: Path, threads: int = 2) -> "BatchFunction":
+    def from_library(cls, f: ca.Function, lib: Path, threads: int = 2) -> BatchFunction:
         """The evaluator of ``f`` running a library compiled from it before (e.g. by another
         process, :mod:`models.portable`), without generating or compiling code.
 
@@ -550,8 +561,13 @@ class BatchFunction:
         #: The shared library this evaluator runs.
         self.library = Path(lib)
         fn.restype = ctypes.c_int
-        fn.argtypes = [ctypes.c_longlong, ctypes.POINTER(ctypes.c_void_p),
-                       ctypes.POINTER(ctypes.c_longlong), ctypes.POINTER(ctypes.c_void_p), ctypes.c_int]
+        fn.argtypes = [
+            ctypes.c_longlong,
+            ctypes.POINTER(ctypes.c_void_p),
+            ctypes.POINTER(ctypes.c_longlong),
+            ctypes.POINTER(ctypes.c_void_p),
+            ctypes.c_int,
+        ]
         self._fn = fn
 
     def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
@@ -613,7 +629,7 @@ class VMBatchFunction:
         res = self._mapped(n).call(cols)
         outs = []
         for x, (r, c) in zip(res, self.out_sizes):
-            arr = np.asarray(x, dtype=float).reshape(r, n, c)       # (r, c*N) -> pose-major rows
+            arr = np.asarray(x, dtype=float).reshape(r, n, c)  # (r, c*N) -> pose-major rows
             outs.append(np.ascontiguousarray(arr.transpose(1, 2, 0)).reshape(n, c * r))
         return _batch_outputs(outs, self.out_sizes)
 

@@ -71,9 +71,11 @@ def link_inertials(robot: Robot, strict: bool = False) -> list[tuple[float, np.n
     out = []
     for i, j in enumerate(robot.joints):
         if strict and (j.mass is None or j.inertia is None):
-            raise RobotFileError(f"robot '{robot.name}': joints[{i + 1}] has no "
-                                 f"{'mass/com' if j.mass is None else 'inertia'}; the rigid-body "
-                                 "dynamics needs mass, com and inertia of every link")
+            raise RobotFileError(
+                f"robot '{robot.name}': joints[{i + 1}] has no "
+                f"{'mass/com' if j.mass is None else 'inertia'}; the rigid-body "
+                "dynamics needs mass, com and inertia of every link"
+            )
         m = 0.0 if j.mass is None else float(j.mass)
         c = np.zeros(3) if j.com is None else np.asarray(j.com, dtype=float)
         I = np.zeros((3, 3)) if j.inertia is None or j.mass is None else np.asarray(j.inertia, dtype=float)
@@ -83,8 +85,7 @@ def link_inertials(robot: Robot, strict: bool = False) -> list[tuple[float, np.n
 
 def inertia_from_vector(v: Any) -> Any:
     """Symmetric 3x3 inertia (CasADi) from ``[ixx, iyy, izz, ixy, ixz, iyz]`` (kg*m^2)."""
-    return ca.vertcat(ca.horzcat(v[0], v[3], v[4]), ca.horzcat(v[3], v[1], v[5]),
-                      ca.horzcat(v[4], v[5], v[2]))
+    return ca.vertcat(ca.horzcat(v[0], v[3], v[4]), ca.horzcat(v[3], v[1], v[5]), ca.horzcat(v[4], v[5], v[2]))
 
 
 def payload_vector(mass_kg: float, com_m: Any = (0.0, 0.0, 0.0), inertia: Any = None) -> np.ndarray:
@@ -103,24 +104,31 @@ def payload_vector(mass_kg: float, com_m: Any = (0.0, 0.0, 0.0), inertia: Any = 
     if I.shape == (3, 3):
         I = np.array([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
     if I.shape != (6,):
-        raise InputError(f"payload inertia: expected a 3x3 matrix or 6 values [ixx, iyy, izz, ixy, ixz, iyz] "
-                         f"(kg*m^2), got shape {I.shape}")
+        raise InputError(
+            f"payload inertia: expected a 3x3 matrix or 6 values [ixx, iyy, izz, ixy, ixz, iyz] "
+            f"(kg*m^2), got shape {I.shape}"
+        )
     return np.r_[float(mass_kg), np.asarray(com_m, dtype=float).reshape(3), I]
 
 
 def _kinematics(robot: Robot, q: Any) -> tuple[list[Any], list[Any], list[Any], Any]:
     """DH frames 1..6 (base frame), joint axes and points, and ``tcp2base`` as SX."""
     f0 = None if np.array_equal(robot.frame02base, np.eye(4)) else ca.DM(robot.frame02base)
-    dh = {"a": robot.a, "alpha": robot.alpha, "d": robot.d, "theta_offset": robot.theta_offset,
-          "beta": np.zeros(6), "frame02base": f0}
+    dh = {
+        "a": robot.a,
+        "alpha": robot.alpha,
+        "d": robot.d,
+        "theta_offset": robot.theta_offset,
+        "beta": np.zeros(6),
+        "frame02base": f0,
+    }
     frames = chain(q, dh, robot.convention)
     zs, ps = joint_axes(frames, robot.convention, f0)
     tcp = ca.mtimes(frames[-1], ca.DM(robot.flange2frame6 @ robot.tcp2flange))
     return frames, zs, ps, tcp
 
 
-def _bodies(robot: Robot, frames: list[Any], tcp: Any, payload: Any,
-            strict: bool) -> list[list[tuple[Any, Any, Any]]]:
+def _bodies(robot: Robot, frames: list[Any], tcp: Any, payload: Any, strict: bool) -> list[list[tuple[Any, Any, Any]]]:
     """Per link, its bodies ``(m, c, I)``: mass (kg), centre of mass (m) and inertia about it
     (kg*m^2), all in the base frame; the payload is a second body of link 6."""
     out: list[list[tuple[Any, Any, Any]]] = []
@@ -136,17 +144,16 @@ def _bodies(robot: Robot, frames: list[Any], tcp: Any, payload: Any,
     return out
 
 
-def _rnea_expr(robot: Robot, q: Any, qd: Any, qdd: Any, payload: Any, wrench: Any, g: Any,
-               strict: bool = False) -> Any:
+def _rnea_expr(robot: Robot, q: Any, qd: Any, qdd: Any, payload: Any, wrench: Any, g: Any, strict: bool = False) -> Any:
     """Joint torques (N*m, SX (6,)) of the rigid arm; see :func:`rnea_function`."""
     frames, zs, ps, tcp = _kinematics(robot, q)
     bodies = _bodies(robot, frames, tcp, payload, strict)
-    w = ca.SX.zeros(3)                      # angular velocity of the previous link, rad/s
-    dw = ca.SX.zeros(3)                     # its angular acceleration, rad/s^2
-    a_p, p_prev = -g, ps[0]                 # acceleration (m/s^2) of a point of the previous link
-    forces, moments = [], []                # per link: inertial force (N), moment about the base origin
+    w = ca.SX.zeros(3)  # angular velocity of the previous link, rad/s
+    dw = ca.SX.zeros(3)  # its angular acceleration, rad/s^2
+    a_p, p_prev = -g, ps[0]  # acceleration (m/s^2) of a point of the previous link
+    forces, moments = [], []  # per link: inertial force (N), moment about the base origin
     for i in range(6):
-        r = ps[i] - p_prev                  # the axis point of joint i is fixed in links i-1 and i
+        r = ps[i] - p_prev  # the axis point of joint i is fixed in links i-1 and i
         a_p = a_p + ca.cross(dw, r) + ca.cross(w, ca.cross(w, r))
         p_prev = ps[i]
         dw = dw + zs[i] * qdd[i] + ca.cross(w, zs[i] * qd[i])
@@ -161,7 +168,7 @@ def _rnea_expr(robot: Robot, q: Any, qd: Any, qdd: Any, payload: Any, wrench: An
         forces.append(f)
         moments.append(n)
     f_e, m_e = wrench[0:3], wrench[3:6]
-    F = -f_e                                # the process wrench carries part of the load
+    F = -f_e  # the process wrench carries part of the load
     N = -(m_e + ca.cross(tcp[:3, 3], f_e))
     tau: list[Any] = [None] * 6
     for i in range(5, -1, -1):
@@ -171,8 +178,9 @@ def _rnea_expr(robot: Robot, q: Any, qd: Any, qdd: Any, payload: Any, wrench: An
     return ca.vertcat(*tau)
 
 
-def rnea_function(robot: Robot, *, name: str = "rnea", gravity_input: bool = False,
-                  strict: bool = False) -> ca.Function:
+def rnea_function(
+    robot: Robot, *, name: str = "rnea", gravity_input: bool = False, strict: bool = False
+) -> ca.Function:
     """Inverse dynamics ``tau(q, qd, qdd, payload, wrench)`` by recursive Newton-Euler.
 
     Parameters

@@ -60,7 +60,7 @@ class Load:
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -STANDARD_GRAVITY]))
 
     @classmethod
-    def base(cls, wrench: np.ndarray) -> "Load":
+    def base(cls, wrench: np.ndarray) -> Load:
         """A base-frame wrench only (shape (6,) or (N, 6))."""
         return cls(wrench_base=np.asarray(wrench, dtype=float))
 
@@ -100,7 +100,7 @@ class Load:
         return np.hstack([f, m])
 
 
-def load_rows(load: "Load | np.ndarray", n: int) -> np.ndarray:
+def load_rows(load: Load | np.ndarray, n: int) -> np.ndarray:
     """Load vectors (n, LOAD_SIZE) from a :class:`Load`, load rows, or a base-frame wrench
     of shape (6,) or (n, 6)."""
     if isinstance(load, Load):
@@ -110,5 +110,6 @@ def load_rows(load: "Load | np.ndarray", n: int) -> np.ndarray:
         return Load.base(a).rows(n)
     if a.shape[-1] == LOAD_SIZE:
         return np.broadcast_to(np.atleast_2d(a), (n, LOAD_SIZE)).copy()
-    raise InputError(f"load: expected a Load, a wrench (6 or (N, 6)) or load rows (N, {LOAD_SIZE}); "
-                     f"got shape {a.shape}")
+    raise InputError(
+        f"load: expected a Load, a wrench (6 or (N, 6)) or load rows (N, {LOAD_SIZE}); got shape {a.shape}"
+    )

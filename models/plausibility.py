@@ -52,7 +52,9 @@ def implausible_geometry(robot: Robot, theta: np.ndarray, held: Sequence[int] = 
         return None
     found.sort(key=lambda x: -x[0])
     names = ", ".join(t for _r, t in found[:6]) + (f" and {len(found) - 6} more" if len(found) > 6 else "")
-    return (f"implausible geometry for robot '{robot.name}': the identified corrections {names} exceed "
-            f"{IMPLAUSIBLE_LENGTH_ERROR_M * 1e3:g} mm (lengths) / {np.degrees(IMPLAUSIBLE_ANGLE_ERROR_RAD):g} deg "
-            "(angles), far more than a real arm differs from its drawing; the data probably come from another arm "
-            "than the robot file describes: check --robot (the robot file) before using this model")
+    return (
+        f"implausible geometry for robot '{robot.name}': the identified corrections {names} exceed "
+        f"{IMPLAUSIBLE_LENGTH_ERROR_M * 1e3:g} mm (lengths) / {np.degrees(IMPLAUSIBLE_ANGLE_ERROR_RAD):g} deg "
+        "(angles), far more than a real arm differs from its drawing; the data probably come from another arm "
+        "than the robot file describes: check --robot (the robot file) before using this model"
+    )

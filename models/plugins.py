@@ -51,14 +51,16 @@ def plugin_folders(variable: str) -> list[str]:
         if not p:
             continue
         if not Path(p).is_dir():
-            raise InputError(f"${variable}: {p!r} is not a folder (expected folders of plug-in modules, "
-                             f"separated by {os.pathsep!r})")
+            raise InputError(
+                f"${variable}: {p!r} is not a folder (expected folders of plug-in modules, separated by {os.pathsep!r})"
+            )
         out.append(p)
     return out
 
 
-def import_plugins(package: str, path: MutableSequence[str], variable: str,
-                   skip: Iterable[str] = (), first: Iterable[str] = ()) -> list[str]:
+def import_plugins(
+    package: str, path: MutableSequence[str], variable: str, skip: Iterable[str] = (), first: Iterable[str] = ()
+) -> list[str]:
     """Import the modules of a registry package and of its plug-in folders.
 
     Parameters
@@ -110,6 +112,7 @@ def import_plugins(package: str, path: MutableSequence[str], variable: str,
         except Exception as exc:
             if name not in plugins:
                 raise
-            raise InputError(f"${variable}: plug-in module {plugins[name]} failed to import "
-                             f"({type(exc).__name__}: {exc})") from exc
+            raise InputError(
+                f"${variable}: plug-in module {plugins[name]} failed to import ({type(exc).__name__}: {exc})"
+            ) from exc
     return names

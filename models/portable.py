@@ -33,9 +33,13 @@ def portable_state(f: ca.Function, evaluator: BatchFunction | VMBatchFunction) -
         Plain data (bytes, str, int): picklable.
     """
     compiled = isinstance(evaluator, BatchFunction)
-    return {"function": f.serialize(), "threads": int(evaluator.threads), "name": evaluator.name,
-            "library": evaluator.library.read_bytes() if compiled else None,
-            "host": _host_id() if compiled else None}
+    return {
+        "function": f.serialize(),
+        "threads": int(evaluator.threads),
+        "name": evaluator.name,
+        "library": evaluator.library.read_bytes() if compiled else None,
+        "host": _host_id() if compiled else None,
+    }
 
 
 def evaluator_from_state(state: dict[str, Any], threads: int | None = None) -> BatchFunction | VMBatchFunction:

@@ -22,7 +22,8 @@ import tomllib
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -35,11 +36,22 @@ BUILTIN_ROBOTS = ("ar5", "ur5", "ur10", "ur5e", "kr6_r900")
 
 # Keys that may be given in radians (plain name) or degrees (``_deg`` suffix).
 _ANGLE_KEYS = ("alpha", "theta_offset", "q_min", "q_max")
-_JOINT_REQUIRED = ("a", "alpha", "d", "theta_offset", "q_min", "q_max",
-                   "v_max", "a_max", "j_max", "stiffness")
+_JOINT_REQUIRED = ("a", "alpha", "d", "theta_offset", "q_min", "q_max", "v_max", "a_max", "j_max", "stiffness")
 _JOINT_OPTIONAL = ("mass", "com", "inertia")
-_TOP_KEYS = ("name", "convention", "description", "joints", "tool", "gravity",
-             "source", "identified", "joint_names", "frame0_in_base", "flange_in_frame6", "controller")
+_TOP_KEYS = (
+    "name",
+    "convention",
+    "description",
+    "joints",
+    "tool",
+    "gravity",
+    "source",
+    "identified",
+    "joint_names",
+    "frame0_in_base",
+    "flange_in_frame6",
+    "controller",
+)
 #: Keys of the ``[controller]`` table: the controller's joint angle is ``sign * q + offset``.
 _CONTROLLER_KEYS = ("joint_sign", "joint_offset", "joint_offset_deg")
 #: Keys of a transform table (``[tool]``, ``[frame0_in_base]``, ``[flange_in_frame6]``).
@@ -54,19 +66,23 @@ class RobotFileError(InputError):
 # Reading a user's text file (robot, problem, measurement, simulation files)
 # --------------------------------------------------------------------------------------
 
+
 def _not_utf8(where: str, raw: bytes, exc: UnicodeDecodeError) -> str:
     """One line for text that is not UTF-8: line and column of the first bad byte, a hint."""
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        return (f"{where}: the file is UTF-16 encoded; save the file as UTF-8 (a plain text file, "
-                "e.g. 'Save as... UTF-8' in the editor or spreadsheet)")
+        return (
+            f"{where}: the file is UTF-16 encoded; save the file as UTF-8 (a plain text file, "
+            "e.g. 'Save as... UTF-8' in the editor or spreadsheet)"
+        )
     start = exc.start
     line = raw.count(b"\n", 0, start) + 1
     if b"\x00" in raw[:4096]:
-        return (f"{where}: not a text file (binary content, byte 0x{raw[start]:02x} at line {line}); "
-                "expected UTF-8 text")
+        return f"{where}: not a text file (binary content, byte 0x{raw[start]:02x} at line {line}); expected UTF-8 text"
     col = start - (raw.rfind(b"\n", 0, start) + 1) + 1
-    return (f"{where}: line {line}, column {col}: byte 0x{raw[start]:02x} is not UTF-8 text (the file is "
-            "probably Latin-1 / Windows-1252); save the file as UTF-8")
+    return (
+        f"{where}: line {line}, column {col}: byte 0x{raw[start]:02x} is not UTF-8 text (the file is "
+        "probably Latin-1 / Windows-1252); save the file as UTF-8"
+    )
 
 
 def read_text_file(path: str | Path, what: str = "file", error: type[InputError] = InputError) -> str:
@@ -291,14 +307,14 @@ class Robot:
             raise RobotFileError(f"robot '{self.name}': link masses/com are not given")
         return np.array([j.com for j in self.joints], dtype=float)
 
-    def with_tool(self, tcp2flange: np.ndarray) -> "Robot":
+    def with_tool(self, tcp2flange: np.ndarray) -> Robot:
         """Return a copy with another tool transform (4x4, TCP -> flange)."""
         t = np.asarray(tcp2flange, dtype=float)
         if t.shape != (4, 4) or not np.all(np.isfinite(t)):
             raise RobotFileError("tool transform must be a finite 4x4 matrix")
         return replace(self, tcp2flange=t)
 
-    def with_stiffness(self, stiffness: np.ndarray) -> "Robot":
+    def with_stiffness(self, stiffness: np.ndarray) -> Robot:
         """Return a copy with other joint stiffnesses (N*m/rad, shape (6,))."""
         k = np.asarray(stiffness, dtype=float).reshape(-1)
         if k.shape != (self.n_joints,) or not np.all(np.isfinite(k)) or np.any(k <= 0):
@@ -317,8 +333,14 @@ class Robot:
                 row["com"] = [float(c) for c in j.com]
             if j.inertia is not None:
                 I = np.asarray(j.inertia, dtype=float)
-                row["inertia"] = [float(I[0, 0]), float(I[1, 1]), float(I[2, 2]),
-                                  float(I[0, 1]), float(I[0, 2]), float(I[1, 2])]
+                row["inertia"] = [
+                    float(I[0, 0]),
+                    float(I[1, 1]),
+                    float(I[2, 2]),
+                    float(I[0, 1]),
+                    float(I[0, 2]),
+                    float(I[1, 2]),
+                ]
             joints.append(row)
         out: dict[str, Any] = {
             "name": self.name,
@@ -335,8 +357,10 @@ class Robot:
         if not np.array_equal(self.flange2frame6, np.eye(4)):
             out["flange_in_frame6"] = _frame_dict(self.flange2frame6)
         if np.any(self.controller_sign != 1.0) or np.any(self.controller_offset != 0.0):
-            out["controller"] = {"joint_sign": [int(v) for v in self.controller_sign],
-                                 "joint_offset": [float(v) for v in self.controller_offset]}
+            out["controller"] = {
+                "joint_sign": [int(v) for v in self.controller_sign],
+                "joint_offset": [float(v) for v in self.controller_offset],
+            }
         out["joints"] = joints
         if self.identified is not None:
             out["identified"] = self.identified
@@ -346,12 +370,14 @@ class Robot:
 def _frame_dict(T: np.ndarray) -> dict[str, list[float]]:
     """A transform as a robot-file table ``{xyz (m), rpy (rad)}``."""
     from .transforms import matrix_to_rpy
+
     return {"xyz": [float(v) for v in T[:3, 3]], "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]}
 
 
 # --------------------------------------------------------------------------------------
 # Loading and validation
 # --------------------------------------------------------------------------------------
+
 
 def _finite(where: str, key: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -375,13 +401,16 @@ PLAUSIBLE_ANGLE_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
 PLAUSIBLE_LIMIT_MAX_RAD = 4.0 * math.pi * (1.0 + 1e-9)
 
 
-def _check_radians(where: str, key: str, value: float, limit: float = PLAUSIBLE_ANGLE_MAX_RAD,
-                   deg_key: str | None = None) -> float:
+def _check_radians(
+    where: str, key: str, value: float, limit: float = PLAUSIBLE_ANGLE_MAX_RAD, deg_key: str | None = None
+) -> float:
     """Refuse a radian value that is almost certainly degrees (|value| > ``limit``); the
     message suggests ``deg_key`` (default ``key + "_deg"``)."""
     if abs(value) > limit:
-        raise RobotFileError(f"{where}: key '{key}' = {value:g} rad is implausible (|value| > {limit:.4g} rad); "
-                             f"a key without '_deg' is in radians: degrees given? use '{deg_key or key + '_deg'}'")
+        raise RobotFileError(
+            f"{where}: key '{key}' = {value:g} rad is implausible (|value| > {limit:.4g} rad); "
+            f"a key without '_deg' is in radians: degrees given? use '{deg_key or key + '_deg'}'"
+        )
     return value
 
 
@@ -422,13 +451,14 @@ def _parse_joint(where: str, row: Any) -> Joint:
             vals[key] = _finite(where, key, row[key])
     for key in ("a", "d"):
         if abs(vals[key]) > PLAUSIBLE_POSITION_MAX_M:
-            raise RobotFileError(f"{where}: key '{key}' = {vals[key]:g} m is implausible for a link "
-                                 f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
-                                 "(millimetres given?)")
+            raise RobotFileError(
+                f"{where}: key '{key}' = {vals[key]:g} m is implausible for a link "
+                f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
+                "(millimetres given?)"
+            )
     if vals["q_min"] >= vals["q_max"]:
         (kmin, vmin), (kmax, vmax) = _as_written(row, "q_min"), _as_written(row, "q_max")
-        raise RobotFileError(f"{where}: key '{kmin}' ({vmin}) must be below '{kmax}' ({vmax}); "
-                             "limits inverted?")
+        raise RobotFileError(f"{where}: key '{kmin}' ({vmin}) must be below '{kmax}' ({vmax}); limits inverted?")
     for key in ("v_max", "a_max", "j_max", "stiffness"):
         if vals[key] <= 0:
             raise RobotFileError(f"{where}: key '{key}' must be > 0, got {vals[key]}")
@@ -459,9 +489,11 @@ def inertia_matrix(where: str, v: np.ndarray) -> np.ndarray:
     ev = np.linalg.eigvalsh(I)
     scale = max(float(np.max(np.abs(ev))), 1e-300)
     if ev[0] < -INERTIA_TRIANGLE_RTOL * scale or ev[2] > ev[0] + ev[1] + INERTIA_TRIANGLE_RTOL * scale:
-        raise RobotFileError(f"{where}: key 'inertia' = {[float(x) for x in v]} kg*m^2 is not a physical inertia "
-                             f"(principal moments {[float(e) for e in ev]}: each must be >= 0 and at most "
-                             "the sum of the other two); order is [ixx, iyy, izz, ixy, ixz, iyz]")
+        raise RobotFileError(
+            f"{where}: key 'inertia' = {[float(x) for x in v]} kg*m^2 is not a physical inertia "
+            f"(principal moments {[float(e) for e in ev]}: each must be >= 0 and at most "
+            "the sum of the other two); order is [ixx, iyy, izz, ixy, ixz, iyz]"
+        )
     return I
 
 
@@ -487,11 +519,15 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Pat
         raise RobotFileError(f"{where}: expected a table at top level")
     if "urdf" in data:
         from .urdf import robot_from_urdf_dict
+
         return robot_from_urdf_dict(data, where, base_dir)
     unknown = sorted(set(data) - set(_TOP_KEYS))
     if unknown:
-        hint = ("; this looks like a problem file (compplan plan PROBLEM), not a robot file"
-                if {"path", "wrench", "orientation"} & set(unknown) else "")
+        hint = (
+            "; this looks like a problem file (compplan plan PROBLEM), not a robot file"
+            if {"path", "wrench", "orientation"} & set(unknown)
+            else ""
+        )
         raise RobotFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP_KEYS)}{hint}")
     name = data.get("name")
     if not isinstance(name, str) or not name:
@@ -515,15 +551,23 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Pat
     identified = data.get("identified")
     if identified is not None and not isinstance(identified, Mapping):
         raise RobotFileError(f"{where}: key 'identified' must be a table")
-    frames = {key: parse_frame_table(where, key, data[key]) for key in ("frame0_in_base", "flange_in_frame6")
-              if key in data}
-    return Robot(name=name, convention=conv, joints=joints, tcp2flange=tcp2flange, gravity=gravity,
-                 description=desc, source=src,
-                 identified=dict(identified) if identified is not None else None,
-                 frame02base=frames.get("frame0_in_base", np.eye(4)),
-                 flange2frame6=frames.get("flange_in_frame6", np.eye(4)),
-                 joint_names=parse_joint_names(where, data.get("joint_names")),
-                 **parse_controller(where, data.get("controller")))
+    frames = {
+        key: parse_frame_table(where, key, data[key]) for key in ("frame0_in_base", "flange_in_frame6") if key in data
+    }
+    return Robot(
+        name=name,
+        convention=conv,
+        joints=joints,
+        tcp2flange=tcp2flange,
+        gravity=gravity,
+        description=desc,
+        source=src,
+        identified=dict(identified) if identified is not None else None,
+        frame02base=frames.get("frame0_in_base", np.eye(4)),
+        flange2frame6=frames.get("flange_in_frame6", np.eye(4)),
+        joint_names=parse_joint_names(where, data.get("joint_names")),
+        **parse_controller(where, data.get("controller")),
+    )
 
 
 def parse_frame_table(where: str, key: str, table: Any) -> np.ndarray:
@@ -540,8 +584,10 @@ def parse_frame_table(where: str, key: str, table: Any) -> np.ndarray:
         raise RobotFileError(f"{w}: unknown key(s) {unknown}; allowed: {list(_FRAME_KEYS)}")
     xyz = _vector(w, "xyz", table.get("xyz", [0.0, 0.0, 0.0]), 3)
     if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-        raise RobotFileError(f"{w}: key 'xyz' = {[float(v) for v in xyz]} is implausible (> "
-                             f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres (millimetres given?)")
+        raise RobotFileError(
+            f"{w}: key 'xyz' = {[float(v) for v in xyz]} is implausible (> "
+            f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres (millimetres given?)"
+        )
     if "rpy" in table and "rpy_deg" in table:
         raise RobotFileError(f"{w}: give either 'rpy' (rad) or 'rpy_deg', not both")
     if "rpy_deg" in table:
@@ -569,8 +615,9 @@ def parse_controller(where: str, table: Any) -> dict[str, np.ndarray]:
         sign = _vector(w, "joint_sign", table["joint_sign"], 6)
         bad = [i for i, v in enumerate(sign) if v not in (1.0, -1.0)]
         if bad:
-            raise RobotFileError(f"{w}: key 'joint_sign'[{bad[0]}] (joint {bad[0] + 1}) = {sign[bad[0]]:g}; "
-                                 "expected +1 or -1")
+            raise RobotFileError(
+                f"{w}: key 'joint_sign'[{bad[0]}] (joint {bad[0] + 1}) = {sign[bad[0]]:g}; expected +1 or -1"
+            )
         out["controller_sign"] = sign
     if "joint_offset" in table and "joint_offset_deg" in table:
         raise RobotFileError(f"{w}: give either 'joint_offset' (rad) or 'joint_offset_deg', not both")
@@ -588,10 +635,15 @@ def parse_joint_names(where: str, names: Any) -> tuple[str, ...] | None:
     """The optional ``joint_names`` (6 distinct non-empty strings, base to tip)."""
     if names is None:
         return None
-    if (not isinstance(names, list) or len(names) != 6 or not all(isinstance(n, str) and n for n in names)
-            or len(set(names)) != 6):
-        raise RobotFileError(f"{where}: key 'joint_names' must be a list of 6 distinct non-empty strings, "
-                             f"got {names!r}")
+    if (
+        not isinstance(names, list)
+        or len(names) != 6
+        or not all(isinstance(n, str) and n for n in names)
+        or len(set(names)) != 6
+    ):
+        raise RobotFileError(
+            f"{where}: key 'joint_names' must be a list of 6 distinct non-empty strings, got {names!r}"
+        )
     return tuple(names)
 
 
@@ -613,7 +665,8 @@ def load_robot(spec: str | Path) -> Robot:
         path = Path(s)
         if not path.exists():
             raise RobotFileError(
-                f"robot '{s}': no such file, and not a built-in robot (built-ins: {', '.join(BUILTIN_ROBOTS)})")
+                f"robot '{s}': no such file, and not a built-in robot (built-ins: {', '.join(BUILTIN_ROBOTS)})"
+            )
         text = read_text_file(path, "robot file (TOML)", RobotFileError)
         where = str(path)
         base_dir = path.parent
@@ -627,4 +680,5 @@ def load_robot(spec: str | Path) -> Robot:
 def robot_to_toml(robot: Robot) -> str:
     """Serialise a robot to robot-file TOML text (SI units, radians)."""
     import tomli_w
+
     return tomli_w.dumps(robot.to_dict())

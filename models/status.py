@@ -75,5 +75,4 @@ class CodedStatus(Status):
             if member._code == c:
                 return member
         # Not user input: the arrays are filled with members' codes only.
-        raise ValueError(f"{cls.__name__}: no status with code {c}; codes are "
-                         f"{sorted(m._code for m in cls)}")
+        raise ValueError(f"{cls.__name__}: no status with code {c}; codes are {sorted(m._code for m in cls)}")

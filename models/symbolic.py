@@ -28,8 +28,14 @@ import numpy as np
 from . import effects as fx
 from .errors import InputError
 from .codegen import BatchFunction, VMBatchFunction, batch_function
-from .effects.graph import (arm_functions, compliance_from_jacobian, geometric_jacobian, joint_axes,
-                            link_transform, load_error_gravity_function)
+from .effects.graph import (
+    arm_functions,
+    compliance_from_jacobian,
+    geometric_jacobian,
+    joint_axes,
+    link_transform,
+    load_error_gravity_function,
+)
 from .robot import Robot
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -40,8 +46,15 @@ BATCH_THREADS = 2
 
 
 # The chain, its joint axes and the Jacobian are the model graph's (one FK chain in the product).
-__all__ = ["KinematicModel", "cartesian_stiffness", "compliance_from_jacobian", "directional_stiffness",
-           "geometric_jacobian", "joint_axes", "link_transform"]
+__all__ = [
+    "KinematicModel",
+    "cartesian_stiffness",
+    "compliance_from_jacobian",
+    "directional_stiffness",
+    "geometric_jacobian",
+    "joint_axes",
+    "link_transform",
+]
 
 
 class KinematicModel:
@@ -79,8 +92,9 @@ class KinematicModel:
     identified spring compliances); the load functions include every active effect.
     """
 
-    def __init__(self, source: "Robot | ArmModel") -> None:
+    def __init__(self, source: Robot | ArmModel) -> None:
         from .arm import ArmModel
+
         arm = source if isinstance(source, ArmModel) else ArmModel.from_robot(source)
         self.arm = arm
         self.robot = arm.nominal
@@ -133,8 +147,9 @@ class KinematicModel:
         n = max(a.shape[0] for a in arrs)
         for a in arrs:
             if a.shape[0] not in (1, n):
-                raise InputError(f"{f.name()}: batch arguments have {a.shape[0]} and {n} rows; expected 1 or {n} "
-                                 "rows each")
+                raise InputError(
+                    f"{f.name()}: batch arguments have {a.shape[0]} and {n} rows; expected 1 or {n} rows each"
+                )
         return self.evaluator(f)(*[a if a.shape[0] == n else a.reshape(-1) for a in arrs])
 
     def evaluator(self, f: ca.Function) -> BatchFunction | VMBatchFunction:
@@ -211,5 +226,6 @@ def cartesian_stiffness(C: np.ndarray, max_cond: float = 1e12) -> np.ndarray:
     if np.any(~np.isfinite(cond)) or np.any(cond > max_cond):
         raise np.linalg.LinAlgError(
             f"compliance is singular (condition number {np.max(cond):.3g} > {max_cond:.1g}): "
-            "the Cartesian stiffness does not exist at this pose")
+            "the Cartesian stiffness does not exist at this pose"
+        )
     return np.linalg.inv(C)

@@ -72,8 +72,9 @@ def rotation_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     Rd = np.einsum("...ji,...jk->...ik", Ra, Rb)
     tr = np.trace(Rd, axis1=-2, axis2=-1)
     # Robust for small angles: use the skew part too.
-    skew = np.stack([Rd[..., 2, 1] - Rd[..., 1, 2], Rd[..., 0, 2] - Rd[..., 2, 0],
-                     Rd[..., 1, 0] - Rd[..., 0, 1]], axis=-1)
+    skew = np.stack(
+        [Rd[..., 2, 1] - Rd[..., 1, 2], Rd[..., 0, 2] - Rd[..., 2, 0], Rd[..., 1, 0] - Rd[..., 0, 1]], axis=-1
+    )
     return np.arctan2(0.5 * np.linalg.norm(skew, axis=-1), 0.5 * (tr - 1.0))
 
 
@@ -162,8 +163,15 @@ def poe_fk(w: np.ndarray, p: np.ndarray, M0: np.ndarray, q: np.ndarray) -> np.nd
     return T[0] if qa.ndim == 1 else T
 
 
-def dh_chain_frames(convention: str, a: np.ndarray, alpha: np.ndarray, d: np.ndarray, theta_offset: np.ndarray,
-                    q: np.ndarray, frame02base: np.ndarray | None = None) -> np.ndarray:
+def dh_chain_frames(
+    convention: str,
+    a: np.ndarray,
+    alpha: np.ndarray,
+    d: np.ndarray,
+    theta_offset: np.ndarray,
+    q: np.ndarray,
+    frame02base: np.ndarray | None = None,
+) -> np.ndarray:
     """DH frames 0..6 of a chain at ``q`` (6,), base frame, shape (7, 4, 4) (NumPy twin of the
     model graph's chain; frame 0 is ``frame02base``, default the base frame).
 
@@ -176,11 +184,23 @@ def dh_chain_frames(convention: str, a: np.ndarray, alpha: np.ndarray, d: np.nda
     for ai, al, di, off, qi in zip(a, alpha, d, theta_offset, np.asarray(q, dtype=float)):
         ct, st, ca_, sa = np.cos(qi + off), np.sin(qi + off), np.cos(al), np.sin(al)
         if convention == "standard_dh":
-            A = np.array([[ct, -st * ca_, st * sa, ai * ct], [st, ct * ca_, -ct * sa, ai * st],
-                          [0.0, sa, ca_, di], [0.0, 0.0, 0.0, 1.0]])
+            A = np.array(
+                [
+                    [ct, -st * ca_, st * sa, ai * ct],
+                    [st, ct * ca_, -ct * sa, ai * st],
+                    [0.0, sa, ca_, di],
+                    [0.0, 0.0, 0.0, 1.0],
+                ]
+            )
         else:
-            A = np.array([[ct, -st, 0.0, ai], [st * ca_, ct * ca_, -sa, -sa * di],
-                          [st * sa, ct * sa, ca_, ca_ * di], [0.0, 0.0, 0.0, 1.0]])
+            A = np.array(
+                [
+                    [ct, -st, 0.0, ai],
+                    [st * ca_, ct * ca_, -sa, -sa * di],
+                    [st * sa, ct * sa, ca_, ca_ * di],
+                    [0.0, 0.0, 0.0, 1.0],
+                ]
+            )
         T = T @ A
         out.append(T)
     return np.array(out)

@@ -34,18 +34,43 @@ import math
 from dataclasses import dataclass, field
 from xml.etree import ElementTree
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
-from .robot import (Joint, Robot, RobotFileError, _angle, _finite, _vector, inertia_matrix, parse_controller,
-                    parse_frame_table, read_text_file)
+from .robot import (
+    Joint,
+    Robot,
+    RobotFileError,
+    _angle,
+    _finite,
+    _vector,
+    inertia_matrix,
+    parse_controller,
+    parse_frame_table,
+    read_text_file,
+)
 from .constants import STANDARD_GRAVITY
 from .transforms import dh_chain_frames, poe_fk
 
 #: Keys of a URDF-based robot file.
-URDF_TOP_KEYS = ("name", "description", "source", "urdf", "base_link", "tip_link", "stiffness", "a_max",
-                 "j_max", "gravity", "tool", "joints", "identified", "controller")
+URDF_TOP_KEYS = (
+    "name",
+    "description",
+    "source",
+    "urdf",
+    "base_link",
+    "tip_link",
+    "stiffness",
+    "a_max",
+    "j_max",
+    "gravity",
+    "tool",
+    "joints",
+    "identified",
+    "controller",
+)
 #: Per-joint override keys (``[joints.<urdf joint name>]``).
 URDF_JOINT_KEYS = ("q_min", "q_max", "q_min_deg", "q_max_deg", "v_max", "a_max", "j_max")
 #: A joint axis shorter than this (URDF ``<axis xyz>``) is refused as zero.
@@ -70,6 +95,7 @@ DEFAULT_TIME_TO_ACCEL_S = 0.1
 # --------------------------------------------------------------------------------------
 # The chain read from the URDF
 # --------------------------------------------------------------------------------------
+
 
 @dataclass
 class Body:
@@ -154,9 +180,10 @@ def _load_urdf(where: str, path: Path) -> Any:
         line, col = exc.position
         raise RobotFileError(f"{path}: not well-formed XML at line {line}, column {col + 1}: {exc}") from None
     try:
-        return yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
-                                  load_collision_meshes=False).robot
-    except Exception as exc:  # noqa: BLE001 - the parser's own error, reported with the file
+        return yourdfpy.URDF.load(
+            str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False
+        ).robot
+    except Exception as exc:
         raise RobotFileError(f"{path}: not a readable URDF: {exc}") from None
 
 
@@ -175,31 +202,38 @@ def _chain_joints(where: str, model: Any, base_link: str, tip_link: str) -> tupl
             out.append(parent_joint[link])
             link = parent_joint[link].parent
         return out
+
     tip_up, base_up = up(tip_link), up(base_link)
     tip_links = [tip_link] + [j.parent for j in tip_up]
     base_links = [base_link] + [j.parent for j in base_up]
     common = next((lk for lk in base_links if lk in tip_links), None)
     if common is None:
         raise RobotFileError(f"{where}: base_link {base_link!r} and tip_link {tip_link!r} are in different trees")
-    rise = base_up[:base_links.index(common)]
+    rise = base_up[: base_links.index(common)]
     moving = [j.name for j in rise if j.type != "fixed"]
     if moving:
-        raise RobotFileError(f"{where}: tip_link {tip_link!r} is not below base_link {base_link!r} in the URDF tree: "
-                             f"the path from the base goes up through the moving joint(s) {moving} to {common!r}; "
-                             "the chain must run from base_link down to tip_link")
+        raise RobotFileError(
+            f"{where}: tip_link {tip_link!r} is not below base_link {base_link!r} in the URDF tree: "
+            f"the path from the base goes up through the moving joint(s) {moving} to {common!r}; "
+            "the chain must run from base_link down to tip_link"
+        )
     base2common = np.eye(4)
-    for j in rise:                               # base_link -> ... -> common, all fixed
+    for j in rise:  # base_link -> ... -> common, all fixed
         base2common = _origin(where, j) @ base2common
-    return np.linalg.inv(base2common), tip_up[:tip_links.index(common)][::-1]
+    return np.linalg.inv(base2common), tip_up[: tip_links.index(common)][::-1]
 
 
 def _check_joint(where: str, j: Any) -> None:
     if j.mimic is not None:
-        raise RobotFileError(f"{where}: joint '{j.name}' mimics joint '{j.mimic.joint}': mimic joints are not "
-                             "supported in the chain (every chain joint must be driven)")
+        raise RobotFileError(
+            f"{where}: joint '{j.name}' mimics joint '{j.mimic.joint}': mimic joints are not "
+            "supported in the chain (every chain joint must be driven)"
+        )
     if j.type in ("prismatic", "planar", "floating"):
-        raise RobotFileError(f"{where}: joint '{j.name}' is {j.type}: only revolute (and fixed) joints may be in "
-                             "the chain between base_link and tip_link")
+        raise RobotFileError(
+            f"{where}: joint '{j.name}' is {j.type}: only revolute (and fixed) joints may be in "
+            "the chain between base_link and tip_link"
+        )
     if j.type not in ("revolute", "continuous", "fixed"):
         raise RobotFileError(f"{where}: joint '{j.name}' has unknown type {j.type!r}")
 
@@ -218,8 +252,10 @@ def read_chain(where: str, urdf_path: Path, base_link: str, tip_link: str) -> Ur
         _check_joint(where, j)
     moving = [j for j in joints if j.type != "fixed"]
     if len(moving) != 6:
-        raise RobotFileError(f"{where}: {len(moving)} moving joint(s) between {base_link!r} and {tip_link!r} "
-                             f"({[j.name for j in moving]}); expected 6 revolute joints")
+        raise RobotFileError(
+            f"{where}: {len(moving)} moving joint(s) between {base_link!r} and {tip_link!r} "
+            f"({[j.name for j in moving]}); expected 6 revolute joints"
+        )
     T = common2base.copy()
     frames, axes, limits = [], [], []
     for j in joints:
@@ -231,16 +267,25 @@ def read_chain(where: str, urdf_path: Path, base_link: str, tip_link: str) -> Ur
             raise RobotFileError(f"{where}: joint '{j.name}': <axis xyz> = {[float(x) for x in ax]} is not finite")
         n = float(np.linalg.norm(ax))
         if n < AXIS_MIN_NORM:
-            raise RobotFileError(f"{where}: joint '{j.name}': <axis xyz> = {[float(x) for x in ax]} is zero; "
-                                 "expected a direction")
+            raise RobotFileError(
+                f"{where}: joint '{j.name}': <axis xyz> = {[float(x) for x in ax]} is zero; expected a direction"
+            )
         frames.append(T.copy())
         axes.append(ax / n)
         lim = j.limit
         limits.append((None, None, None) if lim is None else (lim.lower, lim.upper, lim.velocity))
     notes: list[str] = []
     bodies = _bodies(where, model, moving, notes)
-    return UrdfChain(joint_names=[j.name for j in moving], frames=np.array(frames), axes=np.array(axes), tip=T,
-                     limits=limits, continuous=[j.type == "continuous" for j in moving], bodies=bodies, notes=notes)
+    return UrdfChain(
+        joint_names=[j.name for j in moving],
+        frames=np.array(frames),
+        axes=np.array(axes),
+        tip=T,
+        limits=limits,
+        continuous=[j.type == "continuous" for j in moving],
+        bodies=bodies,
+        notes=notes,
+    )
 
 
 def _check_inertial(where: str, link: str, mass: float, origin: np.ndarray, inertia: np.ndarray) -> None:
@@ -281,8 +326,10 @@ def _bodies(where: str, model: Any, moving: list[Any], notes: list[str]) -> list
                 if cj.type == "fixed":
                     stack.append((cj.child, T @ (np.eye(4) if cj.origin is None else np.asarray(cj.origin, float))))
                 elif cj.name not in chain_names:
-                    notes.append(f"link '{cj.child}' (joint '{cj.name}', {cj.type}) hangs off the chain by a moving "
-                                 "joint: its mass is left out")
+                    notes.append(
+                        f"link '{cj.child}' (joint '{cj.name}', {cj.type}) hangs off the chain by a moving "
+                        "joint: its mass is left out"
+                    )
         bodies.append(body)
     return bodies
 
@@ -290,6 +337,7 @@ def _bodies(where: str, model: Any, moving: list[Any], notes: list[str]) -> list
 # --------------------------------------------------------------------------------------
 # The chain as modified DH
 # --------------------------------------------------------------------------------------
+
 
 @dataclass
 class DHChain:
@@ -301,7 +349,7 @@ class DHChain:
     theta_offset: np.ndarray
     frame02base: np.ndarray
     flange2frame6: np.ndarray
-    frames0: np.ndarray   # (7, 4, 4): DH frames 0..6 in the base frame at q = 0
+    frames0: np.ndarray  # (7, 4, 4): DH frames 0..6 in the base frame at q = 0
 
 
 def _frame(x: np.ndarray, z: np.ndarray, o: np.ndarray) -> np.ndarray:
@@ -319,13 +367,14 @@ def _first_frame(w1: np.ndarray, p1: np.ndarray) -> np.ndarray:
     ez = np.array([0.0, 0.0, 1.0])
     if np.linalg.norm(w1 - ez) < DH_PARALLEL_TOL and np.linalg.norm(p1[:2]) < DH_INTERSECT_TOL_M:
         return np.eye(4)
-    o = p1 - float(p1 @ w1) * w1          # foot of the perpendicular from the base origin
+    o = p1 - float(p1 @ w1) * w1  # foot of the perpendicular from the base origin
     ref = np.array([1.0, 0.0, 0.0]) if abs(w1[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     return _frame(_unit(ref - float(ref @ w1) * w1), w1, o)
 
 
-def _normal(where: str, k: int, entry: np.ndarray, wk: np.ndarray, wn: np.ndarray,
-            pn: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray, float]:
+def _normal(
+    where: str, k: int, entry: np.ndarray, wk: np.ndarray, wn: np.ndarray, pn: np.ndarray, scale: float
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Origin and x axis of the DH frame on axis ``k`` (1-based, through ``entry``, direction
     ``wk``) towards axis ``k + 1`` (``wn`` through ``pn``), and the length ``a`` of that normal.
 
@@ -335,16 +384,18 @@ def _normal(where: str, k: int, entry: np.ndarray, wk: np.ndarray, wn: np.ndarra
     n = np.cross(wk, wn)
     sin_a = float(np.linalg.norm(n))
     if sin_a > DH_PARALLEL_TOL:
-        nh = n / sin_a                                 # the common normal's direction
+        nh = n / sin_a  # the common normal's direction
         r = pn - entry
-        dist = float(r @ nh)                           # signed length along nh
+        dist = float(r @ nh)  # signed length along nh
         # foot on axis k: entry + s wk with (r - s wk + t wn) perpendicular to both axes
-        s = float(np.cross(r, wn) @ n) / sin_a ** 2
+        s = float(np.cross(r, wn) @ n) / sin_a**2
         if abs(s) > DH_NEAR_PARALLEL_REACH * scale:
-            raise RobotFileError(f"{where}: joints {k} and {k + 1} are nearly but not exactly parallel (angle "
-                                 f"{math.asin(min(sin_a, 1.0)):.3g} rad): their common normal lies {abs(s):.3g} m "
-                                 "away and the DH form is ill-conditioned; give the nominal geometry (exactly "
-                                 "parallel axes) and identify small errors with compplan identify")
+            raise RobotFileError(
+                f"{where}: joints {k} and {k + 1} are nearly but not exactly parallel (angle "
+                f"{math.asin(min(sin_a, 1.0)):.3g} rad): their common normal lies {abs(s):.3g} m "
+                "away and the DH form is ill-conditioned; give the nominal geometry (exactly "
+                "parallel axes) and identify small errors with compplan identify"
+            )
         fk = entry + s * wk
         if abs(dist) > DH_INTERSECT_TOL_M:
             return fk, nh * math.copysign(1.0, dist), abs(dist)
@@ -353,8 +404,9 @@ def _normal(where: str, k: int, entry: np.ndarray, wk: np.ndarray, wn: np.ndarra
     v = v - float(v @ wk) * wk
     dist = float(np.linalg.norm(v))
     if dist <= DH_INTERSECT_TOL_M:
-        raise RobotFileError(f"{where}: joints {k} and {k + 1} turn about one and the same axis: the chain "
-                             "has only 5 independent joints")
+        raise RobotFileError(
+            f"{where}: joints {k} and {k + 1} turn about one and the same axis: the chain has only 5 independent joints"
+        )
     return entry, v / dist, dist
 
 
@@ -377,9 +429,9 @@ def dh_from_axes(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray) -> D
         frame's ``a``, ``alpha``), ``flange2base(q) = frame02base A_1 ... A_6 flange2frame6``.
     """
     F = [_first_frame(w[0], p[0])]
-    scale = max(1.0, float(np.max(np.abs(p))), float(np.max(np.abs(tip[:3, 3]))))   # arm size, m
+    scale = max(1.0, float(np.max(np.abs(p))), float(np.max(np.abs(tip[:3, 3]))))  # arm size, m
     a, alpha, d, off = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
-    entry, a_prev = F[0][:3, 3], 0.0      # where the previous frame's x axis meets this axis
+    entry, a_prev = F[0][:3, 3], 0.0  # where the previous frame's x axis meets this axis
     for k in range(6):
         entry = _on_axis(entry, w[k], p[k])
         if k < 5:
@@ -394,8 +446,15 @@ def dh_from_axes(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray) -> D
         off[k] = math.atan2(float(np.cross(xp, x) @ w[k]), float(xp @ x))
         F.append(_frame(x, w[k], o))
         entry, a_prev = o + dist * x, dist
-    return DHChain(a=a, alpha=alpha, d=d, theta_offset=off, frame02base=F[0],
-                   flange2frame6=np.linalg.inv(F[6]) @ tip, frames0=np.array(F))
+    return DHChain(
+        a=a,
+        alpha=alpha,
+        d=d,
+        theta_offset=off,
+        frame02base=F[0],
+        flange2frame6=np.linalg.inv(F[6]) @ tip,
+        frames0=np.array(F),
+    )
 
 
 def _on_axis(point: np.ndarray, w: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -407,6 +466,7 @@ def _on_axis(point: np.ndarray, w: np.ndarray, p: np.ndarray) -> np.ndarray:
 # Checks: the DH model reproduces the URDF chain
 # --------------------------------------------------------------------------------------
 
+
 def check_dh(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray, ch: DHChain, n: int = 16) -> None:
     """Raise if the DH form misses the chain's flange pose at ``n`` fixed pseudo-random q."""
     rng = np.random.default_rng(0)
@@ -415,13 +475,16 @@ def check_dh(where: str, w: np.ndarray, p: np.ndarray, tip: np.ndarray, ch: DHCh
         F6 = dh_chain_frames("modified_dh", ch.a, ch.alpha, ch.d, ch.theta_offset, q, ch.frame02base)[6]
         err = np.abs(poe_fk(w, p, tip, q) - F6 @ ch.flange2frame6)
         if err[:3, :3].max() > DH_CHECK_TOL or err[:3, 3].max() > DH_CHECK_TOL * scale:
-            raise RobotFileError(f"{where}: internal error: the DH form of the URDF chain misses its flange "
-                                 f"pose by {err.max():.3g} at q = {[round(float(x), 4) for x in q]}")
+            raise RobotFileError(
+                f"{where}: internal error: the DH form of the URDF chain misses its flange "
+                f"pose by {err.max():.3g} at q = {[round(float(x), 4) for x in q]}"
+            )
 
 
 # --------------------------------------------------------------------------------------
 # The robot file
 # --------------------------------------------------------------------------------------
+
 
 def _six(where: str, data: Mapping[str, Any], key: str, positive: bool = True) -> np.ndarray | None:
     if key not in data:
@@ -444,26 +507,37 @@ def _joint_limits(where: str, chain: UrdfChain, overrides: Mapping[str, Any], i:
         if key in ov or f"{key}_deg" in ov:
             out[key] = _angle(w, ov, key)
         elif chain.continuous[i]:
-            raise RobotFileError(f"{where}: joint '{name}' is continuous (no position limits in the URDF); give "
-                                 f"its limits in the robot file: [joints.{name}] q_min_deg = ..., q_max_deg = ...")
+            raise RobotFileError(
+                f"{where}: joint '{name}' is continuous (no position limits in the URDF); give "
+                f"its limits in the robot file: [joints.{name}] q_min_deg = ..., q_max_deg = ..."
+            )
         elif urdf_val is None or not math.isfinite(float(urdf_val)):
-            raise RobotFileError(f"{where}: joint '{name}': the URDF gives no finite <limit {key.replace('q_min', 'lower').replace('q_max', 'upper')}>; "
-                                 f"give it in the robot file: [joints.{name}] {key}_deg = ...")
+            raise RobotFileError(
+                f"{where}: joint '{name}': the URDF gives no finite "
+                f"<limit {key.replace('q_min', 'lower').replace('q_max', 'upper')}>; "
+                f"give it in the robot file: [joints.{name}] {key}_deg = ..."
+            )
         elif abs(float(urdf_val)) > PLAUSIBLE_URDF_LIMIT_RAD:
             tag = "lower" if key == "q_min" else "upper"
-            raise RobotFileError(f"{where}: URDF joint '{name}': <limit {tag}=\"{float(urdf_val):g}\"> rad is implausible "
-                                 f"(|value| > {PLAUSIBLE_URDF_LIMIT_RAD:.4g} rad, two turns; URDF limits are in radians); "
-                                 f"override it in the robot file: [joints.{name}] {key}_deg = ...")
+            raise RobotFileError(
+                f"{where}: URDF joint '{name}': <limit {tag}=\"{float(urdf_val):g}\"> rad is implausible "
+                f"(|value| > {PLAUSIBLE_URDF_LIMIT_RAD:.4g} rad, two turns; URDF limits are in radians); "
+                f"override it in the robot file: [joints.{name}] {key}_deg = ..."
+            )
         else:
             out[key] = float(urdf_val)
     if out["q_min"] >= out["q_max"]:
-        raise RobotFileError(f"{where}: joint '{name}': lower limit {out['q_min']:g} rad must be below the upper "
-                             f"limit {out['q_max']:g} rad")
+        raise RobotFileError(
+            f"{where}: joint '{name}': lower limit {out['q_min']:g} rad must be below the upper "
+            f"limit {out['q_max']:g} rad"
+        )
     if "v_max" in ov:
         out["v_max"] = _positive(where, name, ov, "v_max")
     elif vel is None or not math.isfinite(float(vel)) or float(vel) <= 0:
-        raise RobotFileError(f"{where}: joint '{name}': the URDF gives no positive <limit velocity> ({vel!r}); "
-                             f"give it in the robot file: [joints.{name}] v_max = ... (rad/s)")
+        raise RobotFileError(
+            f"{where}: joint '{name}': the URDF gives no positive <limit velocity> ({vel!r}); "
+            f"give it in the robot file: [joints.{name}] v_max = ... (rad/s)"
+        )
     else:
         out["v_max"] = float(vel)
     if out["v_max"] <= 0:
@@ -482,12 +556,15 @@ def _positive(where: str, joint: str, row: Mapping[str, Any], key: str) -> float
 def _overrides(where: str, data: Mapping[str, Any], chain: UrdfChain) -> Mapping[str, Any]:
     ov = data.get("joints", {})
     if not isinstance(ov, Mapping):
-        raise RobotFileError(f"{where}: key 'joints' of a URDF-based robot file is a table of per-joint overrides "
-                             "([joints.<URDF joint name>]), not an array of DH rows")
+        raise RobotFileError(
+            f"{where}: key 'joints' of a URDF-based robot file is a table of per-joint overrides "
+            "([joints.<URDF joint name>]), not an array of DH rows"
+        )
     for name, row in ov.items():
         if name not in chain.joint_names:
-            raise RobotFileError(f"{where}: joints.{name}: no such moving joint in the chain; joints: "
-                                 f"{chain.joint_names}")
+            raise RobotFileError(
+                f"{where}: joints.{name}: no such moving joint in the chain; joints: {chain.joint_names}"
+            )
         if not isinstance(row, Mapping):
             raise RobotFileError(f"{where}: joints.{name}: expected a table of overrides")
         bad = sorted(set(row) - set(URDF_JOINT_KEYS))
@@ -518,8 +595,9 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
     unknown = sorted(set(data) - set(URDF_TOP_KEYS))
     if unknown:
         hint = "; 'convention' and [[joints]] DH rows belong to DH robot files" if "convention" in unknown else ""
-        raise RobotFileError(f"{where}: unknown key(s) {unknown} for a URDF-based robot file; allowed: "
-                             f"{list(URDF_TOP_KEYS)}{hint}")
+        raise RobotFileError(
+            f"{where}: unknown key(s) {unknown} for a URDF-based robot file; allowed: {list(URDF_TOP_KEYS)}{hint}"
+        )
     name = _str_key(where, data, "name")
     urdf_rel = _str_key(where, data, "urdf")
     path = Path(urdf_rel) if base_dir is None or Path(urdf_rel).is_absolute() else base_dir / urdf_rel
@@ -539,23 +617,43 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
     for i in range(6):
         lim = _joint_limits(where, chain, ov, i)
         row_ov = ov.get(chain.joint_names[i], {})
-        am = _positive(where, chain.joint_names[i], row_ov, "a_max") if "a_max" in row_ov else (
-            float(a_max[i]) if a_max is not None else lim["v_max"] / DEFAULT_TIME_TO_SPEED_S)
-        jm = _positive(where, chain.joint_names[i], row_ov, "j_max") if "j_max" in row_ov else (
-            float(j_max[i]) if j_max is not None else am / DEFAULT_TIME_TO_ACCEL_S)
+        am = (
+            _positive(where, chain.joint_names[i], row_ov, "a_max")
+            if "a_max" in row_ov
+            else (float(a_max[i]) if a_max is not None else lim["v_max"] / DEFAULT_TIME_TO_SPEED_S)
+        )
+        jm = (
+            _positive(where, chain.joint_names[i], row_ov, "j_max")
+            if "j_max" in row_ov
+            else (float(j_max[i]) if j_max is not None else am / DEFAULT_TIME_TO_ACCEL_S)
+        )
         mass_kw: dict[str, Any] = {}
         if has_mass:
             b = chain.bodies[i]
-            D2J = np.linalg.inv(chain.frames[i]) @ ch.frames0[i + 1]     # DH frame i+1 -> joint frame
+            D2J = np.linalg.inv(chain.frames[i]) @ ch.frames0[i + 1]  # DH frame i+1 -> joint frame
             R = D2J[:3, :3]
             com = R.T @ (b.com - D2J[:3, 3])
             mass_kw = {"mass": b.mass, "com": com, "inertia": R.T @ b.inertia @ R}
-        joints.append(Joint(a=float(ch.a[i]), alpha=float(ch.alpha[i]), d=float(ch.d[i]),
-                            theta_offset=float(ch.theta_offset[i]), q_min=lim["q_min"], q_max=lim["q_max"],
-                            v_max=lim["v_max"], a_max=am, j_max=jm, stiffness=float(stiffness[i]), **mass_kw))
+        joints.append(
+            Joint(
+                a=float(ch.a[i]),
+                alpha=float(ch.alpha[i]),
+                d=float(ch.d[i]),
+                theta_offset=float(ch.theta_offset[i]),
+                q_min=lim["q_min"],
+                q_max=lim["q_max"],
+                v_max=lim["v_max"],
+                a_max=am,
+                j_max=jm,
+                stiffness=float(stiffness[i]),
+                **mass_kw,
+            )
+        )
     if a_max is None:
-        notes.append(f"a_max not given: v_max / {DEFAULT_TIME_TO_SPEED_S:g} s assumed (full speed in "
-                     f"{DEFAULT_TIME_TO_SPEED_S:g} s)")
+        notes.append(
+            f"a_max not given: v_max / {DEFAULT_TIME_TO_SPEED_S:g} s assumed (full speed in "
+            f"{DEFAULT_TIME_TO_SPEED_S:g} s)"
+        )
     if j_max is None:
         notes.append(f"j_max not given: a_max / {DEFAULT_TIME_TO_ACCEL_S:g} s assumed")
     if not has_mass:
@@ -568,10 +666,19 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
     identified = data.get("identified")
     if identified is not None and not isinstance(identified, Mapping):
         raise RobotFileError(f"{where}: key 'identified' must be a table")
-    return Robot(name=name, convention="modified_dh", joints=tuple(joints), tcp2flange=tcp2flange, gravity=gravity,
-                 description=data.get("description", ""), source=data.get("source", ""),
-                 identified=dict(identified) if identified is not None else None,
-                 frame02base=ch.frame02base, flange2frame6=ch.flange2frame6,
-                 joint_names=tuple(chain.joint_names),
-                 urdf={"path": str(path), "base_link": base_link, "tip_link": tip_link}, notes=tuple(notes),
-                 **parse_controller(where, data.get("controller")))
+    return Robot(
+        name=name,
+        convention="modified_dh",
+        joints=tuple(joints),
+        tcp2flange=tcp2flange,
+        gravity=gravity,
+        description=data.get("description", ""),
+        source=data.get("source", ""),
+        identified=dict(identified) if identified is not None else None,
+        frame02base=ch.frame02base,
+        flange2frame6=ch.flange2frame6,
+        joint_names=tuple(chain.joint_names),
+        urdf={"path": str(path), "base_link": base_link, "tip_link": tip_link},
+        notes=tuple(notes),
+        **parse_controller(where, data.get("controller")),
+    )

@@ -13,7 +13,8 @@ import importlib
 import re
 import sys
 import traceback
-from typing import Callable, NoReturn
+from typing import NoReturn
+from collections.abc import Callable
 
 from planner.provenance import command_line_scope
 from planner.provenance import version as _version
@@ -35,7 +36,7 @@ class _Parser(argparse.ArgumentParser):
     the sub-command, the option and the value, and where the usage is.
     """
 
-    def error(self, message: str) -> "NoReturn":  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:  # type: ignore[override]
         cmd = self.prog.removeprefix("compplan").strip()
         where = f"{cmd}: " if cmd else ""
         self.exit(EXIT_USER_ERROR, f"compplan: error: {where}{one_line(message)} (usage: {self.prog} --help)\n")
@@ -77,11 +78,9 @@ def _asks_version(argv: list[str]) -> bool:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="compplan",
-                                description="Plan, compensate and time 6R arm paths under load.")
+    p = _Parser(prog="compplan", description="Plan, compensate and time 6R arm paths under load.")
     p.add_argument("-v", "--verbose", action="store_true", help="verbose solver output and tracebacks")
-    p.add_argument("--version", action="version", version=version_line(),
-                   help="print the compplan version and exit")
+    p.add_argument("--version", action="version", version=version_line(), help="print the compplan version and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
     for name in COMMAND_MODULES:
@@ -98,11 +97,11 @@ def _is_user_error(exc: BaseException) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    if _asks_version(sys.argv[1:] if argv is None else argv):   # imports nothing more
+    if _asks_version(sys.argv[1:] if argv is None else argv):  # imports nothing more
         print(version_line())
-        raise SystemExit(EXIT_OK)               # as argparse's version action does
+        raise SystemExit(EXIT_OK)  # as argparse's version action does
     try:
-        parser = build_parser()   # imports the command modules, and registries find their plug-ins
+        parser = build_parser()  # imports the command modules, and registries find their plug-ins
     except Exception as exc:
         if not _is_user_error(exc):
             raise
@@ -110,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USER_ERROR
     from models.codegen import clear_codegen_notes
     from models.errors import CompplanError
+
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
     clear_codegen_notes()
@@ -123,23 +123,28 @@ def main(argv: list[str] | None = None) -> int:
     except CompplanError as exc:
         print(f"compplan: error: {one_line(exc)}", file=sys.stderr)
         return EXIT_USER_ERROR
-    except OSError as exc:          # the environment: permissions, a full disk, a vanished file
+    except OSError as exc:  # the environment: permissions, a full disk, a vanished file
         if args.verbose:
             traceback.print_exc()
         print(f"compplan: error: {one_line(_os_error_message(exc))}", file=sys.stderr)
         return EXIT_USER_ERROR
-    except MemoryError as exc:      # an input asking for more than the machine has
-        print(f"compplan: error: not enough memory for this input ({one_line(exc) or 'MemoryError'}); "
-              "reduce its size (points, samples, rows)", file=sys.stderr)
+    except MemoryError as exc:  # an input asking for more than the machine has
+        print(
+            f"compplan: error: not enough memory for this input ({one_line(exc) or 'MemoryError'}); "
+            "reduce its size (points, samples, rows)",
+            file=sys.stderr,
+        )
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("compplan: interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # noqa: BLE001 - last-resort guard at the boundary
+    except Exception as exc:
         if args.verbose:
             traceback.print_exc()
-        print(f"compplan: internal error: {type(exc).__name__}: {one_line(exc)} (run with -v for details)",
-              file=sys.stderr)
+        print(
+            f"compplan: internal error: {type(exc).__name__}: {one_line(exc)} (run with -v for details)",
+            file=sys.stderr,
+        )
         _print_codegen_notes()
         return EXIT_INTERNAL
 
@@ -149,6 +154,7 @@ def _print_codegen_notes() -> None:
     with CasADi's virtual machine; a compile cache rebuilt or bypassed).  Printed after a
     run that completed or failed internally, not after a user error (its one line stands alone)."""
     from models.codegen import codegen_notes
+
     for note in codegen_notes():
         print(f"compplan: note: {note}", file=sys.stderr)
 

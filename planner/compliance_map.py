@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import io
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 
@@ -129,7 +130,6 @@ class ComplianceMap(GridCounts):
     def v_axis(self) -> str:
         return AXIS_NAMES[PLANE_AXES[self.plane][2]]
 
-
     def branches_used(self) -> dict[str, int]:
         """Branch label -> number of grid points that use it."""
         idx, counts = np.unique(self.branch[self.branch >= 0], return_counts=True)
@@ -139,9 +139,9 @@ class ComplianceMap(GridCounts):
         """Rows of ``compliance_map.csv``: u, v (m), branch index (-1 none), C11..C66 (SI)."""
         U, V = np.meshgrid(self.u_m, self.v_m, indexing="ij")
         cols = [f"{self.u_axis}_m", f"{self.v_axis}_m", "branch"] + [
-            f"{n}_{'m_per_N' if i < 3 else 'rad_per_Nm'}" for i, n in enumerate(ELEMENT_NAMES)]
-        rows = np.column_stack([U.ravel(), V.ravel(), self.branch.ravel(),
-                                self.diag.reshape(-1, 6)])
+            f"{n}_{'m_per_N' if i < 3 else 'rad_per_Nm'}" for i, n in enumerate(ELEMENT_NAMES)
+        ]
+        rows = np.column_stack([U.ravel(), V.ravel(), self.branch.ravel(), self.diag.reshape(-1, 6)])
         return cols, rows
 
     def csv_bytes(self) -> bytes:
@@ -162,7 +162,7 @@ class ComplianceMap(GridCounts):
         rng = {}
         for i, n in enumerate(ELEMENT_NAMES):
             vals = self.diag[..., i][finite]
-            rng[n] = ([float(vals.min()), float(vals.max())] if vals.size else [None, None])
+            rng[n] = [float(vals.min()), float(vals.max())] if vals.size else [None, None]
         return {
             "robot": self.robot,
             "plane": f"{self.plane} = {self.offset_m:g} m",
@@ -188,8 +188,9 @@ def _check_range(key: str, rng: tuple[float, float]) -> tuple[float, float]:
     if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
         raise InputError(f"compliance map: {key} = ({lo:g}, {hi:g}); expected finite lo < hi (m)")
     if max(abs(lo), abs(hi)) > PLAUSIBLE_POSITION_MAX_M:
-        raise InputError(f"compliance map: {key} = ({lo:g}, {hi:g}) m is implausibly large; "
-                         "expected metres (millimetres given?)")
+        raise InputError(
+            f"compliance map: {key} = ({lo:g}, {hi:g}) m is implausibly large; expected metres (millimetres given?)"
+        )
     return lo, hi
 
 
@@ -202,13 +203,20 @@ def _branch_index(rule: str, labels: tuple[str, ...] | None = None) -> int | Non
         return None
     if rule in labels:
         return labels.index(rule)
-    raise InputError(f"compliance map: branch = {rule!r}; expected 'home' or one of the robot's branch "
-                     f"labels {', '.join(labels)}")
+    raise InputError(
+        f"compliance map: branch = {rule!r}; expected 'home' or one of the robot's branch labels {', '.join(labels)}"
+    )
 
 
-def validate_map_options(plane: str, offset_m: float, u_range_m: tuple[float, float],
-                         v_range_m: tuple[float, float], points: int | tuple[int, int],
-                         rpy_rad: np.ndarray, branch: str) -> tuple:
+def validate_map_options(
+    plane: str,
+    offset_m: float,
+    u_range_m: tuple[float, float],
+    v_range_m: tuple[float, float],
+    points: int | tuple[int, int],
+    rpy_rad: np.ndarray,
+    branch: str,
+) -> tuple:
     """Check the options of :func:`compliance_map` (same meaning) and return them normalised:
     ``(offset, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy (3,), branch index or None)``.
 
@@ -230,8 +238,7 @@ def validate_map_options(plane: str, offset_m: float, u_range_m: tuple[float, fl
     nu, nv = (points, points) if np.isscalar(points) else tuple(points)  # type: ignore[misc]
     for name, n in (("points (u)", nu), ("points (v)", nv)):
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= MAX_POINTS_PER_AXIS:
-            raise InputError(f"compliance map: {name} = {n!r}; expected an integer in "
-                             f"[2, {MAX_POINTS_PER_AXIS}]")
+            raise InputError(f"compliance map: {name} = {n!r}; expected an integer in [2, {MAX_POINTS_PER_AXIS}]")
     rpy = np.asarray(rpy_rad, dtype=float).reshape(-1)
     if rpy.shape != (3,) or not np.all(np.isfinite(rpy)):
         raise InputError(f"compliance map: rpy = {rpy_rad!r}; expected three finite angles (rad)")
@@ -239,9 +246,9 @@ def validate_map_options(plane: str, offset_m: float, u_range_m: tuple[float, fl
     return off, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy, b_fixed
 
 
-
-def _evaluate_grid(arm: "ArmModel", P: np.ndarray, R: np.ndarray, b_fixed: int | None, chunk: int,
-                   progress: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _evaluate_grid(
+    arm: ArmModel, P: np.ndarray, R: np.ndarray, b_fixed: int | None, chunk: int, progress: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """IK branch and compliance diagonal at every TCP position of ``P`` (N, 3), base frame, at the
     attitude ``R`` (TCP -> base rotation), in batches of ``chunk`` points.
 
@@ -255,7 +262,7 @@ def _evaluate_grid(arm: "ArmModel", P: np.ndarray, R: np.ndarray, b_fixed: int |
     diag = np.full((n, 6), np.nan)
     status_ref = np.zeros(n, dtype=int)
     step = max(1, int(chunk))
-    for start in range(0, n, step):          # one batch per chunk, not per point
+    for start in range(0, n, step):  # one batch per chunk, not per point
         sl = slice(start, min(n, start + step))
         T = np.zeros((sl.stop - sl.start, 4, 4))
         T[:, :3, :3] = R
@@ -265,6 +272,7 @@ def _evaluate_grid(arm: "ArmModel", P: np.ndarray, R: np.ndarray, b_fixed: int |
         if not arm.geometry_is_nominal and (ch >= 0).any():
             # the closed form solves the nominal chain: move onto the model's (identified) geometry
             from problems.compensation import rigid_pose_solve
+
             qc = qc.copy()
             qc[ch >= 0] = rigid_pose_solve(arm, qc[ch >= 0], T[ch >= 0])
         q[sl], chosen[sl] = qc, ch
@@ -278,13 +286,19 @@ def _evaluate_grid(arm: "ArmModel", P: np.ndarray, R: np.ndarray, b_fixed: int |
     return q, chosen, diag, status_ref
 
 
-def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: float = paper.SECTION_4_3_X_M,
-                   u_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
-                   v_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
-                   points: int | tuple[int, int] = DEFAULT_POINTS,
-                   rpy_rad: np.ndarray = paper.SECTION_4_3_RPY, branch: str = "home",
-                   progress: ProgressFn | None = None,
-                   chunk: int = CHUNK_POINTS) -> ComplianceMap:
+def compliance_map(
+    robot: Robot | ArmModel,
+    *,
+    plane: str = "x",
+    offset_m: float = paper.SECTION_4_3_X_M,
+    u_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
+    v_range_m: tuple[float, float] = paper.SECTION_4_3_RANGE_M,
+    points: int | tuple[int, int] = DEFAULT_POINTS,
+    rpy_rad: np.ndarray = paper.SECTION_4_3_RPY,
+    branch: str = "home",
+    progress: ProgressFn | None = None,
+    chunk: int = CHUNK_POINTS,
+) -> ComplianceMap:
     """Diagonal compliance ``C11..C66`` over a plane of TCP positions (paper section 4.3).
 
     Parameters
@@ -318,10 +332,12 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
         Bad plane, range, grid size, attitude or branch (the message names the key).
     """
     off, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy, b_fixed = validate_map_options(
-        plane, offset_m, u_range_m, v_range_m, points, rpy_rad, branch)
+        plane, offset_m, u_range_m, v_range_m, points, rpy_rad, branch
+    )
 
     from models.arm import load_arm
-    arm = load_arm(robot)           # a Robot (nominal model) or an ArmModel (identified)
+
+    arm = load_arm(robot)  # a Robot (nominal model) or an ArmModel (identified)
     robot = arm.nominal
     labels = arm.ik.labels
     b_fixed = _branch_index(branch, labels)
@@ -341,7 +357,17 @@ def compliance_map(robot: "Robot | ArmModel", *, plane: str = "x", offset_m: flo
         codes, counts = np.unique(status_ref[bad], return_counts=True)
         for c, k in zip(codes, counts):
             reasons[IK_REASONS[IKStatus.from_code(c)]] = int(k)
-    return ComplianceMap(robot=robot.name, plane=plane, offset_m=off, u_m=u, v_m=v, rpy_rad=rpy,
-                         branch_rule=branch, branch=chosen.reshape(U.shape),
-                         q=q.reshape(U.shape + (6,)), diag=diag.reshape(U.shape + (6,)),
-                         unreachable_reasons=reasons, labels=labels)
+    return ComplianceMap(
+        robot=robot.name,
+        plane=plane,
+        offset_m=off,
+        u_m=u,
+        v_m=v,
+        rpy_rad=rpy,
+        branch_rule=branch,
+        branch=chosen.reshape(U.shape),
+        q=q.reshape(U.shape + (6,)),
+        diag=diag.reshape(U.shape + (6,)),
+        unreachable_reasons=reasons,
+        labels=labels,
+    )

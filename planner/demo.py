@@ -26,8 +26,7 @@ DEMO_PROBLEM = "paper_4_4"
 #: Alias kept for existing callers: the demo result *is* a plan result.
 DemoResult = PlanResult
 
-__all__ = ["DEMO_PROBLEM", "DemoResult", "WAYPOINT_COLUMNS", "demo_problem", "error_stats", "run_demo",
-           "write_outputs"]
+__all__ = ["DEMO_PROBLEM", "DemoResult", "WAYPOINT_COLUMNS", "demo_problem", "error_stats", "run_demo", "write_outputs"]
 
 
 def error_stats(res: Any) -> dict[str, float]:
@@ -42,8 +41,9 @@ def demo_problem(robot: Robot | str | None = None, n_points: int | None = None) 
     replaced by the problem's: the TCP at the flange).
     """
     pr = load_problem(DEMO_PROBLEM)
-    if isinstance(robot, Robot):        # its arm model too (not the problem's robot's)
+    if isinstance(robot, Robot):  # its arm model too (not the problem's robot's)
         from models.arm import load_arm
+
         pr = pr.with_robot(load_arm(robot))
     elif robot is not None:
         pr = pr.with_robot(str(robot))
@@ -52,18 +52,24 @@ def demo_problem(robot: Robot | str | None = None, n_points: int | None = None) 
     return pr
 
 
-def run_demo(robot: Robot | str | None = None, n_points: int = paper.SECTION_4_4_POINTS,
-             wrench: np.ndarray | None = None, verbose: bool = False) -> PlanResult:
+def run_demo(
+    robot: Robot | str | None = None,
+    n_points: int = paper.SECTION_4_4_POINTS,
+    wrench: np.ndarray | None = None,
+    verbose: bool = False,
+) -> PlanResult:
     """Plan the paper's section-4.4 problem (raises CompplanError if it is infeasible)."""
     pr = demo_problem(robot, n_points)
     if wrench is not None:
         from dataclasses import replace
+
         pr = replace(pr, wrench=np.broadcast_to(np.asarray(wrench, float), (pr.n, 6)).copy())
     return plan(pr, verbose=verbose).raise_for_status()
 
 
-def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = False,
-                  report: bool = False, **report_options: Any) -> dict[str, Any]:
+def write_outputs(
+    res: PlanResult, folder: str | Path, with_figures: bool = False, report: bool = False, **report_options: Any
+) -> dict[str, Any]:
     """Write the demo's files (see :func:`planner.plan.write_outputs`); figures off by default.
 
     With ``report`` the report is written too, from ``res`` (keyword arguments of
@@ -73,5 +79,6 @@ def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = Fals
     _write_plan_outputs(res, folder, with_figures=with_figures, view=view)
     if report:
         from planner.report import write_report
+
         write_report(folder, result=res, view=view, **report_options)
     return view.summary

@@ -25,8 +25,17 @@ from models.errors import InfeasibleError
 from models.load import Load
 from models.status import Status
 from problems.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
-from problems.dynamic import (DYNAMIC_SMOOTHING_S, MISMATCH_CASES, DynamicStatus, finite_derivatives, mismatch_errors,
-                              motor_command, padded, predicted_tcp_errors, smooth)
+from problems.dynamic import (
+    DYNAMIC_SMOOTHING_S,
+    MISMATCH_CASES,
+    DynamicStatus,
+    finite_derivatives,
+    mismatch_errors,
+    motor_command,
+    padded,
+    predicted_tcp_errors,
+    smooth,
+)
 
 __all__ = ["DYNAMIC_MAX_PASSES", "DYNAMIC_RETIME_MARGIN", "DynamicStage", "DynamicStageStatus", "dynamic_stage"]
 
@@ -41,9 +50,12 @@ SUMMARY_DEFINITION = (
     "predicted (quasi-static) TCP position error against the planned link side, mm, during the motion and at rest, "
     "for the link plan commanded as is (none), the static compensation only (static) and the motor-side command "
     "(static+dynamic); vibrations excluded (docs/elastic-simulation.md); mismatch: the same during the motion on an "
-    "arm whose joint stiffness and payload mass are the factors times the model's (the command unchanged)")
-SUMMARY_ASSUMPTIONS = ("elastic joints between the motor-side position the servo holds and the link; joint damping "
-                       "and link compliance not compensated dynamically; payload a point mass")
+    "arm whose joint stiffness and payload mass are the factors times the model's (the command unchanged)"
+)
+SUMMARY_ASSUMPTIONS = (
+    "elastic joints between the motor-side position the servo holds and the link; joint damping "
+    "and link compliance not compensated dynamically; payload a point mass"
+)
 
 
 class DynamicStageStatus(Status):
@@ -99,17 +111,33 @@ class DynamicStage:
         J = arm.kinematics.J(self.link.q)
         speed = np.linalg.norm(np.einsum("nij,nj->ni", J[:, :3, :], self.link.qd), axis=1)
         cols = ["t", "moving", "e_none_m", "e_static_m", "e_static_dynamic_m", "tcp_speed_m_s"]
-        rows = np.column_stack([self.link.t, self.moving.astype(float), self.errors_m["none"],
-                                self.errors_m["static"], self.errors_m["static+dynamic"], speed])
+        rows = np.column_stack(
+            [
+                self.link.t,
+                self.moving.astype(float),
+                self.errors_m["none"],
+                self.errors_m["static"],
+                self.errors_m["static+dynamic"],
+                speed,
+            ]
+        )
         return cols, rows
 
     def summary(self) -> dict[str, Any]:
         """The ``dynamic_compensation`` block of ``summary.json``."""
-        return {"status": self.status.value, "reason": self.reason, "passes": self.passes,
-                "limit_scale": self.limit_scale, "smoothing_s": DYNAMIC_SMOOTHING_S,
-                "predicted_tcp_error": self.error_stats_mm(), "mismatch": self.mismatch,
-                "definition": SUMMARY_DEFINITION, "assumptions": SUMMARY_ASSUMPTIONS,
-                "link_columns": "trajectory.csv ql1..ql6: the planned link side", "file": "dynamic.csv"}
+        return {
+            "status": self.status.value,
+            "reason": self.reason,
+            "passes": self.passes,
+            "limit_scale": self.limit_scale,
+            "smoothing_s": DYNAMIC_SMOOTHING_S,
+            "predicted_tcp_error": self.error_stats_mm(),
+            "mismatch": self.mismatch,
+            "definition": SUMMARY_DEFINITION,
+            "assumptions": SUMMARY_ASSUMPTIONS,
+            "link_columns": "trajectory.csv ql1..ql6: the planned link side",
+            "file": "dynamic.csv",
+        }
 
     def error_stats_mm(self) -> dict[str, dict[str, float]]:
         """Max and RMS of each predicted error during the motion and at rest, mm."""
@@ -117,9 +145,11 @@ class DynamicStage:
         mv = self.moving if self.moving is not None else np.ones(0, bool)
         for name, e in self.errors_m.items():
             em, er = e[mv] * 1e3, e[~mv] * 1e3
-            out[name] = {"motion_max_mm": float(em.max(initial=0.0)),
-                         "motion_rms_mm": float(np.sqrt(np.mean(em ** 2))) if em.size else 0.0,
-                         "rest_max_mm": float(er.max(initial=0.0))}
+            out[name] = {
+                "motion_max_mm": float(em.max(initial=0.0)),
+                "motion_rms_mm": float(np.sqrt(np.mean(em**2))) if em.size else 0.0,
+                "rest_max_mm": float(er.max(initial=0.0)),
+            }
         return out
 
 
@@ -160,12 +190,12 @@ def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_
     dyn = motor_command(arm, q, qd, qdd, load, rows=rows)
     if dyn.status is not DynamicStatus.OK:
         raise InfeasibleError(dyn.reason)
-    static = q - arm.torque_deflection(q, dyn.tau_static)     # the same command without the inertial torques
+    static = q - arm.torque_deflection(q, dyn.tau_static)  # the same command without the inertial torques
     theta = static + smooth(dyn.theta - static, n_smooth)
-    needed = q - dyn.theta                         # the deflection the plan's torques cause
+    needed = q - dyn.theta  # the deflection the plan's torques cause
     errors = predicted_tcp_errors(arm, q, needed, {"none": q, "static": static, "static+dynamic": theta})
     moving = np.zeros(len(q), dtype=bool)
-    moving[n_pad:n_pad + len(link.q)] = np.linalg.norm(link.qd, axis=1) > 0.0
+    moving[n_pad : n_pad + len(link.q)] = np.linalg.norm(link.qd, axis=1) > 0.0
     return _Pass(q, qd, qdd, rows, theta, static, errors, moving)
 
 
@@ -174,16 +204,23 @@ def _mismatch(arm: ArmModel, ps: _Pass, load: Load) -> list[dict[str, float]]:
     stiffness and payload differ from the model's (:data:`~problems.dynamic.MISMATCH_CASES`)."""
     out = []
     for kf, pf in MISMATCH_CASES:
-        e = mismatch_errors(arm, ps.q, ps.qd, ps.qdd, load, ps.rows, {"static": ps.static, "dynamic": ps.theta},
-                            kf, pf)
+        e = mismatch_errors(arm, ps.q, ps.qd, ps.qdd, load, ps.rows, {"static": ps.static, "dynamic": ps.theta}, kf, pf)
         st, dy = float(e["static"][ps.moving].max(initial=0.0)), float(e["dynamic"][ps.moving].max(initial=0.0))
-        out.append({"stiffness_factor": kf, "payload_factor": pf, "static_motion_max_mm": st * 1e3,
-                    "static_dynamic_motion_max_mm": dy * 1e3, "gain": st / dy if dy > 0 else float("inf")})
+        out.append(
+            {
+                "stiffness_factor": kf,
+                "payload_factor": pf,
+                "static_motion_max_mm": st * 1e3,
+                "static_dynamic_motion_max_mm": dy * 1e3,
+                "gain": st / dy if dy > 0 else float("inf"),
+            }
+        )
     return out
 
 
-def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: float, method: str,
-                  options: dict[str, Any], load: Load) -> DynamicStage:
+def dynamic_stage(
+    arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: float, method: str, options: dict[str, Any], load: Load
+) -> DynamicStage:
     """Time the link-side path ``path_q`` (N, 6) rad and build the motor-side command (see module doc)."""
     n_smooth = max(1, int(round(DYNAMIC_SMOOTHING_S / dt)))
     n_pad = n_smooth
@@ -193,8 +230,12 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
     for p in range(1, DYNAMIC_MAX_PASSES + 1):
         link = time_parametrize(path_q, JointLimits(*(lim[k] * scale[k] for k in _KEYS)), method, dt, **options)
         if link.status is not TimingStatus.OK:
-            return DynamicStage(DynamicStageStatus.FAILED, f"pass {p}: the link side's {method} timing: "
-                                f"{link.status.value}: {link.reason}", passes=p, limit_scale=dict(scale))
+            return DynamicStage(
+                DynamicStageStatus.FAILED,
+                f"pass {p}: the link side's {method} timing: {link.status.value}: {link.reason}",
+                passes=p,
+                limit_scale=dict(scale),
+            )
         try:
             ps = _command(arm, link, load, path_q, n_smooth, n_pad)
         except InfeasibleError as exc:
@@ -212,16 +253,50 @@ def dynamic_stage(arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: fl
     ok = all(float(r.max()) <= 1.0 + DYNAMIC_RATIO_TOL for r in ratio.values())
     text = ", ".join(f"{k} {float(r.max()):.3f}" for k, r in ratio.items())
     scaled = ", ".join(f"{k} x{v:.3f}" for k, v in scale.items() if v != 1.0) or "none"
-    reason = (f"motor-side command after {p} timing pass(es) of the link side "
-              f"(limits scaled: {scaled}); command peak ratios {text}; dynamic part smoothed over 2 x "
-              f"{n_smooth * dt * 1e3:g} ms, {n_pad * dt * 1e3:g} ms rest added at both ends")
+    reason = (
+        f"motor-side command after {p} timing pass(es) of the link side "
+        f"(limits scaled: {scaled}); command peak ratios {text}; dynamic part smoothed over 2 x "
+        f"{n_smooth * dt * 1e3:g} ms, {n_pad * dt * 1e3:g} ms rest added at both ends"
+    )
     status = TimingStatus.OK if ok else TimingStatus.LIMIT_EXCEEDED
     d1, d2, d3 = derivs
-    command = Trajectory(method=method, status=status, reason=reason, t=t, q=theta, qd=d1, qdd=d2, qddd=d3,
-                         duration_s=float(t[-1]), limit_ratio=ratio, dt=dt, iterations=p)
+    command = Trajectory(
+        method=method,
+        status=status,
+        reason=reason,
+        t=t,
+        q=theta,
+        qd=d1,
+        qdd=d2,
+        qddd=d3,
+        duration_s=float(t[-1]),
+        limit_ratio=ratio,
+        dt=dt,
+        iterations=p,
+    )
     lq, lqd, lqdd, lqddd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd, link.qddd))
-    link_tr = Trajectory(method=f"{method} (link side)", status=link.status, reason=link.reason, t=t, q=lq, qd=lqd,
-                         qdd=lqdd, qddd=lqddd, duration_s=float(t[-1]), limit_ratio=link.limit_ratio, dt=dt,
-                         iterations=link.iterations)
-    return DynamicStage(DynamicStageStatus.OK if ok else DynamicStageStatus.LIMIT_EXCEEDED, reason, command,
-                        link_tr, p, dict(scale), ps.errors, ps.moving, _mismatch(arm, ps, load))
+    link_tr = Trajectory(
+        method=f"{method} (link side)",
+        status=link.status,
+        reason=link.reason,
+        t=t,
+        q=lq,
+        qd=lqd,
+        qdd=lqdd,
+        qddd=lqddd,
+        duration_s=float(t[-1]),
+        limit_ratio=link.limit_ratio,
+        dt=dt,
+        iterations=link.iterations,
+    )
+    return DynamicStage(
+        DynamicStageStatus.OK if ok else DynamicStageStatus.LIMIT_EXCEEDED,
+        reason,
+        command,
+        link_tr,
+        p,
+        dict(scale),
+        ps.errors,
+        ps.moving,
+        _mismatch(arm, ps, load),
+    )

@@ -63,7 +63,7 @@ def format_number(v: float, digits: int = DISPLAY_DIGITS) -> str:
     if not math.isfinite(v):
         return "n/a"
     text = f"{v:.{digits}g}"
-    if "e" in text:                                    # 1e-06 -> 1e-6, 6.8e+05 -> 6.8e5
+    if "e" in text:  # 1e-06 -> 1e-6, 6.8e+05 -> 6.8e5
         mant, exp = text.split("e")
         text = f"{mant}e{int(exp)}"
     return text
@@ -99,9 +99,9 @@ def format_value(v: Any, key: str = "") -> str:
         return "n/a"
     if isinstance(v, bool):
         return str(v).lower()
-    if isinstance(v, int) or (hasattr(v, "dtype") and getattr(v, "dtype").kind in "iu"):
+    if isinstance(v, int) or (hasattr(v, "dtype") and v.dtype.kind in "iu"):
         return str(int(v))
-    if isinstance(v, float) or (hasattr(v, "dtype") and getattr(v, "dtype").kind == "f"):
+    if isinstance(v, float) or (hasattr(v, "dtype") and v.dtype.kind == "f"):
         f = float(v)
         if key and is_error_key(key) and math.isfinite(f):
             mm = f if key.endswith("_mm") else f * 1e3
@@ -113,6 +113,18 @@ def format_value(v: Any, key: str = "") -> str:
     return str(v)
 
 
-__all__ = ["DISPLAY_DIGITS", "NUMERICAL_FLOOR_M", "NUMERICAL_FLOOR_MM", "NUMERICAL_FLOOR_RAD",
-           "NUMERICAL_ZERO_TEXT", "below_floor", "format_mm", "format_number", "format_value",
-           "headline_mm", "is_error_key", "mm_text", "round_sig"]
+__all__ = [
+    "DISPLAY_DIGITS",
+    "NUMERICAL_FLOOR_M",
+    "NUMERICAL_FLOOR_MM",
+    "NUMERICAL_FLOOR_RAD",
+    "NUMERICAL_ZERO_TEXT",
+    "below_floor",
+    "format_mm",
+    "format_number",
+    "format_value",
+    "headline_mm",
+    "is_error_key",
+    "mm_text",
+    "round_sig",
+]

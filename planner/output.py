@@ -39,7 +39,8 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator, Literal, Sequence
+from typing import Any, Literal
+from collections.abc import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -47,12 +48,17 @@ from models.errors import InputError
 
 try:
     import fcntl
-except ImportError:                     # not POSIX: outputs are written whole but not locked
+except ImportError:  # not POSIX: outputs are written whole but not locked
     fcntl = None  # type: ignore[assignment]
 
 #: Columns of ``trajectory*.csv`` (SI): time, positions, velocities, accelerations, jerks.
-TRAJECTORY_COLUMNS = (["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)]
-                      + [f"qdd{i}" for i in range(1, 7)] + [f"qddd{i}" for i in range(1, 7)])
+TRAJECTORY_COLUMNS = (
+    ["t"]
+    + [f"q{i}" for i in range(1, 7)]
+    + [f"qd{i}" for i in range(1, 7)]
+    + [f"qdd{i}" for i in range(1, 7)]
+    + [f"qddd{i}" for i in range(1, 7)]
+)
 
 #: Mode of a created file and of a created folder before the process umask is applied.
 FILE_MODE = 0o666
@@ -156,7 +162,7 @@ def _stem(name: str) -> str:
     if len(name) <= SIBLING_NAME_MAX:
         return name
     digest = hashlib.sha256(name.encode("utf-8", "surrogateescape")).hexdigest()[:12]
-    return f"{name[:SIBLING_NAME_MAX - 13]}-{digest}"
+    return f"{name[: SIBLING_NAME_MAX - 13]}-{digest}"
 
 
 def sibling_prefix(target: str | Path, kind: str) -> Path:
@@ -279,9 +285,11 @@ def _lock_attempt(path: Path, created: list[Path], target: str | Path, what: str
         holder = _holder(fd)
         os.close(fd)
         _remove_if_empty(created)
-        raise OutputError(f"{what} {target}: another compplan run is writing it "
-                          f"({holder + ', ' if holder else ''}lock {path}); wait for it to finish "
-                          "or choose another path") from None
+        raise OutputError(
+            f"{what} {target}: another compplan run is writing it "
+            f"({holder + ', ' if holder else ''}lock {path}); wait for it to finish "
+            "or choose another path"
+        ) from None
     except OSError as exc:
         os.close(fd)
         if exc.errno in _NO_LOCKING:
@@ -344,7 +352,7 @@ def acquire_output_lock(target: str | Path, what: str = "output") -> Path:
         raise OutputError(f"{what} {target}: cannot create the folder {path.parent} ({_cause(exc)})") from None
     for _ in range(LOCK_ATTEMPTS):
         fd, locked = _lock_attempt(path, created, target, what)
-        if locked and fd is None:               # a file system without locks: write unlocked
+        if locked and fd is None:  # a file system without locks: write unlocked
             return path
         if locked:
             break
@@ -373,7 +381,7 @@ def release_output_lock(target: str | Path) -> None:
         del _HELD[real]
     try:
         if os.path.samestat(os.fstat(held.fd), os.stat(held.path)):
-            held.path.unlink()                    # while still locked: no one can hold this inode
+            held.path.unlink()  # while still locked: no one can hold this inode
     except OSError:
         pass
     os.close(held.fd)
@@ -391,8 +399,9 @@ def output_lock(target: str | Path, what: str = "output") -> Iterator[Path]:
 
 
 # ------------------------------------------------------------------------------ checks
-def check_output_path(path: str | Path, kind: OutputKind = "folder", what: str = "--out",
-                      writes: Iterable[str] = ()) -> Path:
+def check_output_path(
+    path: str | Path, kind: OutputKind = "folder", what: str = "--out", writes: Iterable[str] = ()
+) -> Path:
     """Check that ``path`` can be written as an output of the given kind; nothing is created.
 
     Call it before long computations so that a bad output path fails at once.
@@ -434,8 +443,10 @@ def check_output_path(path: str | Path, kind: OutputKind = "folder", what: str =
             raise OutputError(f"{what} {p}: exists and is not a folder; give a folder path")
         cwd = _real(os.getcwd())
         if cwd == real or real in cwd.parents:
-            raise OutputError(f"{what} {p}: is the current folder or contains it, and it is replaced whole "
-                              "when written; run from outside it (e.g. its parent)")
+            raise OutputError(
+                f"{what} {p}: is the current folder or contains it, and it is replaced whole "
+                "when written; run from outside it (e.g. its parent)"
+            )
         if kind == "folder" and p.is_dir():
             try:
                 entries = sorted(os.listdir(p))
@@ -444,8 +455,10 @@ def check_output_path(path: str | Path, kind: OutputKind = "folder", what: str =
             ours = set(writes)
             if entries and not any(m in entries for m in OUTPUT_FOLDER_MARKERS) and not set(entries) <= ours:
                 shown = ", ".join(entries[:FOREIGN_SHOWN]) + (", ..." if len(entries) > FOREIGN_SHOWN else "")
-                raise OutputError(f"{what} {p}: holds files compplan did not write ({shown}), and an output "
-                                  "folder is replaced whole; give a new or empty folder")
+                raise OutputError(
+                    f"{what} {p}: holds files compplan did not write ({shown}), and an output "
+                    "folder is replaced whole; give a new or empty folder"
+                )
     parent = real.parent
     while not parent.exists():
         parent = parent.parent
@@ -505,7 +518,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
         temporary file is left.
     """
     path = Path(path)
-    real = _real(path)                  # a symbolic link is written through, not replaced
+    real = _real(path)  # a symbolic link is written through, not replaced
     try:
         real.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
     except OSError as exc:
@@ -688,8 +701,9 @@ class OutputSet:
                 retired = _move_into_place(staging, target)
             except OSError as exc:
                 _remove(staging)
-                raise OutputError(f"output folder {self.folder}: cannot {doing} ({_cause(exc)}); "
-                                  "nothing was changed") from None
+                raise OutputError(
+                    f"output folder {self.folder}: cannot {doing} ({_cause(exc)}); nothing was changed"
+                ) from None
             except BaseException:
                 _remove(staging)
                 raise
@@ -698,7 +712,22 @@ class OutputSet:
         return [self.folder / name for name in self.files]
 
 
-__all__ = ["FILE_MODE", "FOLDER_MODE", "OUTPUT_FOLDER_MARKERS", "OutputError", "OutputSet",
-           "TRAJECTORY_COLUMNS", "acquire_output_lock", "atomic_write_bytes", "check_output_folder",
-           "check_output_path", "csv_bytes", "holds_output_lock", "json_bytes", "jsonable", "lock_path",
-           "output_lock", "release_output_lock"]
+__all__ = [
+    "FILE_MODE",
+    "FOLDER_MODE",
+    "OUTPUT_FOLDER_MARKERS",
+    "OutputError",
+    "OutputSet",
+    "TRAJECTORY_COLUMNS",
+    "acquire_output_lock",
+    "atomic_write_bytes",
+    "check_output_folder",
+    "check_output_path",
+    "csv_bytes",
+    "holds_output_lock",
+    "json_bytes",
+    "jsonable",
+    "lock_path",
+    "output_lock",
+    "release_output_lock",
+]

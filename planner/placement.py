@@ -18,7 +18,8 @@ import functools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -36,9 +37,22 @@ from problems.problem import Problem
 #: Columns of ``scores.csv`` (one row per placement, grid order; edge units in the names; ``status``
 #: a :class:`PlacementStatus` value, ``best_branch`` an IK branch label; empty cells where a value
 #: does not exist).
-SCORE_COLUMNS = ("index", "x_m", "y_m", "z_m", "yaw_deg", "tilt_deg", "status", "best_branch",
-                 "feasible_branches", "rms_error_mm", "max_error_mm", "joint_margin_deg", "singular_margin",
-                 "blocked_waypoint")
+SCORE_COLUMNS = (
+    "index",
+    "x_m",
+    "y_m",
+    "z_m",
+    "yaw_deg",
+    "tilt_deg",
+    "status",
+    "best_branch",
+    "feasible_branches",
+    "rms_error_mm",
+    "max_error_mm",
+    "joint_margin_deg",
+    "singular_margin",
+    "blocked_waypoint",
+)
 #: Decimals of the grid coordinates in the CSV files (m, deg): the grid's own values, without the
 #: round-off of ``linspace`` (-0.19999999999999996 -> -0.2).
 GRID_DIGITS = 12
@@ -143,7 +157,7 @@ class PlacementStudy:
         if not len(self.ranked) or not self.baseline.status_of(0).ok:
             return None
         best = float(self.sweep.scores.rms_error_m[self.ranked[0]])
-        return float(self.baseline.rms_error_m[0]) / best if best > 0.0 else None    # no load: no factor
+        return float(self.baseline.rms_error_m[0]) / best if best > 0.0 else None  # no load: no factor
 
     def warnings(self) -> list[str]:
         """What the engineer should know before trusting the ranking: the best placement on the
@@ -151,11 +165,18 @@ class PlacementStudy:
         out: list[str] = []
         if len(self.ranked):
             best = self.sweep.placements[self.ranked[0]]
-            edge = [k for i, k in enumerate(GRID_AXES) if len(self.grid.axes[k]) > 1 and k not in ("yaw_deg",)
-                    and (np.isclose(best[i], self.grid.axes[k][0]) or np.isclose(best[i], self.grid.axes[k][-1]))]
+            edge = [
+                k
+                for i, k in enumerate(GRID_AXES)
+                if len(self.grid.axes[k]) > 1
+                and k not in ("yaw_deg",)
+                and (np.isclose(best[i], self.grid.axes[k][0]) or np.isclose(best[i], self.grid.axes[k][-1]))
+            ]
             if edge:
-                out.append(f"the best placement lies on the edge of the grid in {', '.join(edge)}: a better one may "
-                           "lie outside it (widen the grid)")
+                out.append(
+                    f"the best placement lies on the edge of the grid in {', '.join(edge)}: a better one may "
+                    "lie outside it (widen the grid)"
+                )
         out += [f"full plan '{p.label}' failed: {p.result.reason}" for p in self.plans if not p.result.ok]
         return out
 
@@ -166,30 +187,41 @@ class PlacementStudy:
         out: dict[str, Any] = {
             "command": "place",
             "headline": self.headline(),
-            "status": self.status.value, "reason": self.reason or None,
-            "problem": self.problem.name, "robot": self.problem.robot.name,
+            "status": self.status.value,
+            "reason": self.reason or None,
+            "problem": self.problem.name,
+            "robot": self.problem.robot.name,
             "frames": "placement = base origin (m) and yaw, tilt (deg) in the cell frame (the problem's own frame); "
-                      "base2cell = Trans(x, y, z) Rot_z(yaw) Rot_x(tilt)",
+            "base2cell = Trans(x, y, z) Rot_z(yaw) Rot_x(tilt)",
             "grid": self.grid.describe(),
-            "sweep": {"placements": int(len(self.sweep.placements)), "poses": int(self.sweep.poses),
-                      "poses_per_placement": int(self.sweep.poses // max(1, len(self.sweep.placements))),
-                      "chunk_placements": self.sweep.chunk_placements, "chunks": self.sweep.n_chunks,
-                      "scheduler": self.sweep.scheduler, "workers": self.sweep.workers,
-                      "elapsed_s": round(self.sweep.elapsed_s, 3),
-                      "poses_per_second": round(self.sweep.poses_per_second, 1),
-                      "compiled": self.sweep.compiled, "status_counts": counts},
+            "sweep": {
+                "placements": int(len(self.sweep.placements)),
+                "poses": int(self.sweep.poses),
+                "poses_per_placement": int(self.sweep.poses // max(1, len(self.sweep.placements))),
+                "chunk_placements": self.sweep.chunk_placements,
+                "chunks": self.sweep.n_chunks,
+                "scheduler": self.sweep.scheduler,
+                "workers": self.sweep.workers,
+                "elapsed_s": round(self.sweep.elapsed_s, 3),
+                "poses_per_second": round(self.sweep.poses_per_second, 1),
+                "compiled": self.sweep.compiled,
+                "status_counts": counts,
+            },
             "baseline": {"label": "as written", **_scores_dict(self.baseline, 0, self.branch_labels)},
-            "ranking": [{"rank": r + 1, "index": int(i), **self.scores_of(int(i))}
-                        for r, i in enumerate(self.ranked[:max(10, self.grid.top)])],
+            "ranking": [
+                {"rank": r + 1, "index": int(i), **self.scores_of(int(i))}
+                for r, i in enumerate(self.ranked[: max(10, self.grid.top)])
+            ],
             "improvement_rms_factor": None if self.improvement is None else round(self.improvement, 4),
             "warnings": self.warnings(),
             "plans": [_plan_entry(p) for p in self.plans],
             "definitions": {
                 "rms_error_mm": "RMS over the waypoints of the load-induced TCP position error of the best branch "
-                                "(arm model load_error, analytic posture at the cheapest scanned orientations)",
+                "(arm model load_error, analytic posture at the cheapest scanned orientations)",
                 "joint_margin_deg": "smallest distance of a joint to its limit along the path",
                 "singular_margin": "smallest ratio of a singularity guard factor to its guard bound along the path "
-                                   "(1 = at the posture NLP's guard)"},
+                "(1 = at the posture NLP's guard)",
+            },
             "provenance": problem_provenance(self.problem, self.made),
         }
         return out
@@ -211,46 +243,79 @@ class PlacementStudy:
         h["as_written_status"] = self.baseline.status_of(0).value
         h["as_written_rms_error_mm"] = headline_mm(float(self.baseline.rms_error_m[0] * 1e3)) if ok0 else None
         h["improvement_rms_factor"] = None if self.improvement is None else round_sig(self.improvement)
-        for key, p in (("best_plan", next((p for p in self.plans if p.rank == 1), None)),
-                       ("as_written_plan", next((p for p in self.plans if p.rank is None), None))):
+        for key, p in (
+            ("best_plan", next((p for p in self.plans if p.rank == 1), None)),
+            ("as_written_plan", next((p for p in self.plans if p.rank is None), None)),
+        ):
             if p is None:
                 h[key] = None
                 continue
             ph = p.headline()
-            h[key] = {k: ph.get(k) for k in ("status", "reason", "branch", "error_before_rms_mm",
-                                             "error_before_max_mm", "error_after_max_mm", "duration_s")
-                      if k in ph}
+            h[key] = {
+                k: ph.get(k)
+                for k in (
+                    "status",
+                    "reason",
+                    "branch",
+                    "error_before_rms_mm",
+                    "error_before_max_mm",
+                    "error_after_max_mm",
+                    "duration_s",
+                )
+                if k in ph
+            }
             h[key]["status"] = p.result.status.value
-        h["definition"] = ("errors: load-induced TCP position error of the best IK branch; best_* and "
-                           "as_written_rms_error_mm from the sweep (first order, analytic postures), *_plan from "
-                           "the full plans (posture optimisation, exact equilibrium, before and after exact "
-                           "compensation); improvement_rms_factor = as written / best (sweep)")
+        h["definition"] = (
+            "errors: load-induced TCP position error of the best IK branch; best_* and "
+            "as_written_rms_error_mm from the sweep (first order, analytic postures), *_plan from "
+            "the full plans (posture optimisation, exact equilibrium, before and after exact "
+            "compensation); improvement_rms_factor = as written / best (sweep)"
+        )
         return h
 
 
 def _scores_dict(sc: ChunkScores, i: int, labels: tuple[str, ...]) -> dict[str, Any]:
     st = sc.status_of(i)
     b = int(sc.best_branch[i])
-    d: dict[str, Any] = {"status": st.value, "status_reason": STATUS_REASONS[st],
-                         "best_branch": labels[b] if 0 <= b < len(labels) else None,
-                         "feasible_branches": int(sc.feasible_branches[i])}
-    for k, v, s in (("rms_error_mm", sc.rms_error_m, 1e3), ("max_error_mm", sc.max_error_m, 1e3),
-                    ("joint_margin_deg", sc.joint_margin_rad, 180.0 / np.pi),
-                    ("singular_margin", sc.singular_margin, 1.0)):
+    d: dict[str, Any] = {
+        "status": st.value,
+        "status_reason": STATUS_REASONS[st],
+        "best_branch": labels[b] if 0 <= b < len(labels) else None,
+        "feasible_branches": int(sc.feasible_branches[i]),
+    }
+    for k, v, s in (
+        ("rms_error_mm", sc.rms_error_m, 1e3),
+        ("max_error_mm", sc.max_error_m, 1e3),
+        ("joint_margin_deg", sc.joint_margin_rad, 180.0 / np.pi),
+        ("singular_margin", sc.singular_margin, 1.0),
+    ):
         d[k] = None if not np.isfinite(v[i]) else float(v[i] * s)
     d["blocked_waypoint"] = int(sc.blocked_waypoint[i]) if sc.blocked_waypoint[i] >= 0 else None
     return d
 
 
 def _plan_entry(p: PlacementPlan) -> dict[str, Any]:
-    return {"label": p.label, "rank": p.rank, "index": p.index, "placement": describe_placement(p.placement),
-            "placement_text": placement_label(p.placement), "sweep": p.sweep, "plan": p.headline(),
-            "plan_status": p.result.status.value, "elapsed_s": round(p.elapsed_s, 3)}
+    return {
+        "label": p.label,
+        "rank": p.rank,
+        "index": p.index,
+        "placement": describe_placement(p.placement),
+        "placement_text": placement_label(p.placement),
+        "sweep": p.sweep,
+        "plan": p.headline(),
+        "plan_status": p.result.status.value,
+        "elapsed_s": round(p.elapsed_s, 3),
+    }
 
 
-def study(problem: Problem, grid: PlacementGrid, scheduler: str | None = None,
-          chunk_placements: int | None = None, progress: Callable[[str, int, int], None] | None = None,
-          optimise: bool = True) -> PlacementStudy:
+def study(
+    problem: Problem,
+    grid: PlacementGrid,
+    scheduler: str | None = None,
+    chunk_placements: int | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+    optimise: bool = True,
+) -> PlacementStudy:
     """Run a placement study (see the module docstring).
 
     Parameters
@@ -279,17 +344,17 @@ def study(problem: Problem, grid: PlacementGrid, scheduler: str | None = None,
     status, reason = (StudyStatus.OK, "") if sw.ok else (StudyStatus.NO_FEASIBLE, sw.reason)
     st = PlacementStudy(status, reason, problem, grid, sw, base, ranked, branch_labels=labels)
     if not st.ok:
-        return st                                   # nothing to compare the problem as written with
+        return st  # nothing to compare the problem as written with
     rank_of = {int(i): r + 1 for r, i in enumerate(ranked)}
     todo: list[tuple[str, int | None, int | None, np.ndarray, dict[str, Any]]] = [
         (f"best {n + 1}", rank_of[i], i, sw.placements[i], st.scores_of(i))
-        for n, i in enumerate(distinct_positions(ranked, sw.placements, grid.top))]
+        for n, i in enumerate(distinct_positions(ranked, sw.placements, grid.top))
+    ]
     todo.append(("as written", None, None, np.zeros(5), _scores_dict(base, 0, labels)))
     for n, (label, rank, idx, pl, sc) in enumerate(todo):
         t0 = time.perf_counter()
         res = plan(problem_at(problem, pl), optimise=optimise)
-        st.plans.append(PlacementPlan(label, rank, idx, np.asarray(pl, dtype=float), sc, res,
-                                      time.perf_counter() - t0))
+        st.plans.append(PlacementPlan(label, rank, idx, np.asarray(pl, dtype=float), sc, res, time.perf_counter() - t0))
         if progress is not None:
             progress(PLAN_STAGE, n + 1, len(todo))
     return st
@@ -341,13 +406,20 @@ def scores_csv(st: PlacementStudy, rows: np.ndarray | None = None, rank: bool = 
     names = np.array([PlacementStatus.from_code(c).value for c in range(len(PlacementStatus))], dtype=object)
     yield (",".join((["rank"] if rank else []) + list(SCORE_COLUMNS)) + "\n").encode()
     for a in range(0, len(idx_all), CSV_BLOCK_ROWS):
-        idx = idx_all[a:a + CSV_BLOCK_ROWS]
-        grid = np.round(pl[idx] / scale, GRID_DIGITS) + 0.0                      # -0.0 -> 0.0
+        idx = idx_all[a : a + CSV_BLOCK_ROWS]
+        grid = np.round(pl[idx] / scale, GRID_DIGITS) + 0.0  # -0.0 -> 0.0
         cols = [_text(idx)] + [_text(grid[:, j]) for j in range(grid.shape[1])]
-        cols += [names[sc.status[idx].astype(int)], labels[sc.best_branch[idx].astype(int)],
-                 _text(sc.feasible_branches[idx])]
-        for v, f in ((sc.rms_error_m, 1e3), (sc.max_error_m, 1e3), (sc.joint_margin_rad, 180.0 / np.pi),
-                     (sc.singular_margin, 1.0)):
+        cols += [
+            names[sc.status[idx].astype(int)],
+            labels[sc.best_branch[idx].astype(int)],
+            _text(sc.feasible_branches[idx]),
+        ]
+        for v, f in (
+            (sc.rms_error_m, 1e3),
+            (sc.max_error_m, 1e3),
+            (sc.joint_margin_rad, 180.0 / np.pi),
+            (sc.singular_margin, 1.0),
+        ):
             x = v[idx] * f
             cols.append(_text(x, np.isfinite(x)))
         bw = sc.blocked_waypoint[idx]
@@ -362,6 +434,7 @@ def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True
     """Write ``summary.json``, ``scores.csv``, ``ranking.csv`` and, with ``with_report``, the report
     (``report.html`` and ``figures/``), whole or not at all."""
     from planner.output import OutputSet
+
     out = OutputSet(folder)
     summary = st.summary()
     out.add_json("summary.json", summary)
@@ -369,6 +442,7 @@ def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True
     out.add_bytes("ranking.csv", lambda: scores_csv(st, st.ranked, rank=True))
     if with_report:
         from planner.report.placement import figures, html
+
         figs = figures(st)
         for name, data in figs.items():
             out.add_bytes(f"figures/{name}", data)
@@ -376,5 +450,14 @@ def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True
     return out.publish()
 
 
-__all__ = ["PLAN_STAGE", "PlacementPlan", "PlacementStudy", "SCORE_COLUMNS", "StudyStatus", "distinct_positions",
-           "scores_csv", "study", "write_study"]
+__all__ = [
+    "PLAN_STAGE",
+    "PlacementPlan",
+    "PlacementStudy",
+    "SCORE_COLUMNS",
+    "StudyStatus",
+    "distinct_positions",
+    "scores_csv",
+    "study",
+    "write_study",
+]

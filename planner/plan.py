@@ -34,7 +34,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -43,9 +44,8 @@ from models.errors import InfeasibleError, UnreachableError
 from models.ik import ik_solver
 from models.status import Status
 from models.symbolic import directional_stiffness
-from problems.compensation import (CompensationResult, CompensationStatus, closed_form, exact,
-                                   uncompensated)
-from problems.posture import (BranchResult, PostureResult, PostureStatus, optimise_postures)
+from problems.compensation import CompensationResult, CompensationStatus, closed_form, exact, uncompensated
+from problems.posture import BranchResult, PostureResult, PostureStatus, optimise_postures
 from problems.problem import Problem
 
 from planner import branches as branch_words
@@ -53,18 +53,28 @@ from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, round_sig
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
 from planner.provenance import invocation, problem_provenance
-from problems.timing import (LIMIT_RATIO_TOL, JointLimits, Trajectory, TimingStatus, controller_methods, get_method,
-                             time_parametrize)
+from problems.timing import (
+    LIMIT_RATIO_TOL,
+    JointLimits,
+    Trajectory,
+    TimingStatus,
+    controller_methods,
+    get_method,
+    time_parametrize,
+)
 from problems.timing.trajectory import LIMIT_KEYS
 from problems.timing.limit_use import limit_use
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
 #: before / after closed form / after exact (m, base frame), directional stiffness (N/m).
-WAYPOINT_COLUMNS = (["k", "s", "x", "y", "z"]
-                    + [f"qt{i}" for i in range(1, 7)] + [f"qc{i}" for i in range(1, 7)]
-                    + [f"qf{i}" for i in range(1, 7)]
-                    + ["ebx", "eby", "ebz", "efx", "efy", "efz", "eex", "eey", "eez", "kx", "ky", "kz"])
+WAYPOINT_COLUMNS = (
+    ["k", "s", "x", "y", "z"]
+    + [f"qt{i}" for i in range(1, 7)]
+    + [f"qc{i}" for i in range(1, 7)]
+    + [f"qf{i}" for i in range(1, 7)]
+    + ["ebx", "eby", "ebz", "efx", "efy", "efz", "eex", "eey", "eez", "kx", "ky", "kz"]
+)
 #: Columns of ``path.csv``.
 PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
 #: Columns of ``trajectory*.csv``.
@@ -77,11 +87,11 @@ class PlanStatus(Status):
     """Outcome of :func:`plan`."""
 
     OK = "ok"
-    UNREACHABLE = "unreachable"                  # a waypoint has no IK solution
-    NO_BRANCH = "no_branch"                      # no branch along the whole path (flip, limits)
-    SOLVER_FAILED = "solver_failed"              # the posture NLP failed on every branch
+    UNREACHABLE = "unreachable"  # a waypoint has no IK solution
+    NO_BRANCH = "no_branch"  # no branch along the whole path (flip, limits)
+    SOLVER_FAILED = "solver_failed"  # the posture NLP failed on every branch
     COMPENSATION_FAILED = "compensation_failed"  # exact compensation failed or leaves the limits
-    TIMING_FAILED = "timing_failed"              # a time parametrisation failed or breaks a limit
+    TIMING_FAILED = "timing_failed"  # a time parametrisation failed or breaks a limit
 
 
 _ERROR_CLASS = {PlanStatus.UNREACHABLE: UnreachableError}
@@ -149,10 +159,10 @@ class PlanResult:
         return self.problem.wrench
 
     @property
-    def robot(self):  # noqa: ANN201 - Robot
+    def robot(self):
         return self.problem.robot
 
-    def raise_for_status(self) -> "PlanResult":
+    def raise_for_status(self) -> PlanResult:
         """Raise the matching CompplanError unless the plan succeeded; returns self."""
         if self.ok:
             return self
@@ -171,9 +181,20 @@ class PlanResult:
         q = self.branch.q
         Cs = model.C(q) if n > 1 else model.C(q[0])[None]
         k = np.stack([directional_stiffness(Cs, np.eye(3)[i]) for i in range(3)], axis=1)
-        return np.hstack([np.arange(n)[:, None], s[:, None], P, q, self.exact.q_command,
-                          self.closed.q_command, self.before.error_m, self.closed.error_m,
-                          self.exact.error_m, k])
+        return np.hstack(
+            [
+                np.arange(n)[:, None],
+                s[:, None],
+                P,
+                q,
+                self.exact.q_command,
+                self.closed.q_command,
+                self.before.error_m,
+                self.closed.error_m,
+                self.exact.error_m,
+                k,
+            ]
+        )
 
     def branch_errors(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """Per branch index: the load-induced TCP error norm (m, shape (N,)) at its analytic
@@ -184,13 +205,14 @@ class PlanResult:
         L = self.problem.load.rows(n)
         out = {}
         for b, r in self.posture.branches.items():
-            ana = (uncompensated(arm, r.q_analytic, L).error_norm_m if r.q_analytic is not None
-                   else np.full(n, np.nan))
+            ana = uncompensated(arm, r.q_analytic, L).error_norm_m if r.q_analytic is not None else np.full(n, np.nan)
             out[b] = (ana, uncompensated(arm, r.q, L).error_norm_m)
         return out
 
-    def branch_table(self, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
-                     ) -> tuple[list[str], np.ndarray]:
+    def branch_table(
+        self,
+        errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
+    ) -> tuple[list[str], np.ndarray]:
         """``branches.csv``: per feasible branch, the load-induced TCP error norm (m) per
         waypoint at the analytic posture (NaN where the branch has none) and at the optimised
         one, from the deflected equilibrium of the joint-compliance model (``errors``: those of
@@ -204,7 +226,7 @@ class PlanResult:
             data += list(errors[b])
         return cols, np.stack(data, axis=1)
 
-    def view(self) -> "RunView":
+    def view(self) -> RunView:
         """The plan's summary and tables, computed once: what ``summary.json``, the CSV files,
         the command line's printout and the report show (:class:`RunView`).
 
@@ -242,21 +264,40 @@ class PlanResult:
             "problem": pr.to_dict(),
             "robot": pr.robot.name,
             "robot_file": pr.robot.to_dict(),
-            "tcp": ("flange" if np.allclose(R, np.eye(4)) else
-                    f"tool: xyz {[float(v) for v in R[:3, 3]]} m in the flange frame"),
+            "tcp": (
+                "flange"
+                if np.allclose(R, np.eye(4))
+                else f"tool: xyz {[float(v) for v in R[:3, 3]]} m in the flange frame"
+            ),
             "orientation": pr.rule.value,
-            "wrench": {"frame": pr.wrench_frame, "point": "TCP", "F_N": w[0, :3], "M_Nm": w[0, 3:],
-                       "per_waypoint": bool(pr.wrench_per_waypoint)},
-            "payload": ({"mass_kg": float(pr.payload_mass_kg), "com_m_tcp_frame": pr.payload_com_m,
-                         "gravity_m_s2": pr.load.gravity,
-                         "inertia_kg_m2_about_com_tcp_axes": [0.0] * 6,
-                         "inertia_note": "a point mass (ixx, iyy, izz, ixy, ixz, iyz = 0)"}
-                        if pr.payload_mass_kg else None),
+            "wrench": {
+                "frame": pr.wrench_frame,
+                "point": "TCP",
+                "F_N": w[0, :3],
+                "M_Nm": w[0, 3:],
+                "per_waypoint": bool(pr.wrench_per_waypoint),
+            },
+            "payload": (
+                {
+                    "mass_kg": float(pr.payload_mass_kg),
+                    "com_m_tcp_frame": pr.payload_com_m,
+                    "gravity_m_s2": pr.load.gravity,
+                    "inertia_kg_m2_about_com_tcp_axes": [0.0] * 6,
+                    "inertia_note": "a point mass (ixx, iyy, izz, ixy, ixz, iyz = 0)",
+                }
+                if pr.payload_mass_kg
+                else None
+            ),
             "model": pr.model.describe(),
             "n_waypoints": pr.n,
-            "limits": {"velocity": pr.limits.velocity, "acceleration": pr.limits.acceleration,
-                       "jerk": pr.limits.jerk, "max_joint_step": pr.limits.max_joint_step,
-                       "q_min": pr.robot.q_min, "q_max": pr.robot.q_max},
+            "limits": {
+                "velocity": pr.limits.velocity,
+                "acceleration": pr.limits.acceleration,
+                "jerk": pr.limits.jerk,
+                "max_joint_step": pr.limits.max_joint_step,
+                "q_min": pr.robot.q_min,
+                "q_max": pr.robot.q_max,
+            },
             "dt": pr.timing.dt,
             "warnings": list(self.warnings),
             "stage_times_s": dict(self.stage_times_s),
@@ -266,13 +307,21 @@ class PlanResult:
             s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; rows holds every waypoint's wrench"
         ps = self.posture
         if ps is not None:
-            s["posture"] = {"status": ps.status.value, "reason": ps.reason, "rule": pr.rule.value,
-                            "freedom": ps.freedom, "note": ps.freedom_note,
-                            "solver": pr.solver.name, "build_time_s": ps.build_time_s,
-                            "solve_time_s": float(sum(r.solve_time_s for r in ps.branches.values())),
-                            "objective": ("sum_k ||S C(q_k) F_k||^2 + smoothness * sum_k ||q_{k+1} - q_k||^2, "
-                                          "S = [I3 0] (translational TCP deflection, m); costs reported "
-                                          "in m^2 without the smoothness term")}
+            s["posture"] = {
+                "status": ps.status.value,
+                "reason": ps.reason,
+                "rule": pr.rule.value,
+                "freedom": ps.freedom,
+                "note": ps.freedom_note,
+                "solver": pr.solver.name,
+                "build_time_s": ps.build_time_s,
+                "solve_time_s": float(sum(r.solve_time_s for r in ps.branches.values())),
+                "objective": (
+                    "sum_k ||S C(q_k) F_k||^2 + smoothness * sum_k ||q_{k+1} - q_k||^2, "
+                    "S = [I3 0] (translational TCP deflection, m); costs reported "
+                    "in m^2 without the smoothness term"
+                ),
+            }
             s["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
             _add_branch_postures(self, s["branches"], errors)
             s["ik_family"] = ps.ik_family
@@ -283,11 +332,15 @@ class PlanResult:
                 s["chosen_branch"] = ps.best.label
                 s["branch"] = ps.best.label
                 g = ps.gains()
-                s["gain"] = {**g, "definition": (
-                    "ratio of RMS load-induced TCP error (the *_cost keys: of summed squared error): "
-                    "vs_default = default branch (nearest branch.home) at its analytic posture over the "
-                    "chosen optimised posture; vs_best_analytic = best branch at its analytic posture "
-                    "over the chosen optimised posture (what the continuous freedom buys)")}
+                s["gain"] = {
+                    **g,
+                    "definition": (
+                        "ratio of RMS load-induced TCP error (the *_cost keys: of summed squared error): "
+                        "vs_default = default branch (nearest branch.home) at its analytic posture over the "
+                        "chosen optimised posture; vs_best_analytic = best branch at its analytic posture "
+                        "over the chosen optimised posture (what the continuous freedom buys)"
+                    ),
+                }
         if self.exact is not None:
             assert self.before is not None and self.closed is not None
             s["error_before"] = self.before.stats_mm()
@@ -297,8 +350,7 @@ class PlanResult:
             s["warnings"] += list(self.closed.warnings)
         if self.trajectories:
             s.update(self._timing_summary())
-            s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items()
-                              if t["limit_use"]["why"]]
+            s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items() if t["limit_use"]["why"]]
         head = {"headline": _headline(s), "provenance": self.provenance()}
         return {**head, **s}
 
@@ -309,15 +361,22 @@ class PlanResult:
         out: dict[str, Any] = {
             "duration_s": {m: tr.duration_s for m, tr in self.trajectories.items()},
             "limit_ratio": {m: dict(tr.limit_ratio.items()) for m, tr in self.trajectories.items()},
-            "timing": {m: {"status": tr.status.value, "reason": tr.reason,
-                           "limits_enforced": list(get_method(m).checked_limits),
-                           "within_all_limits": _within(tr, LIMIT_KEYS),
-                           "iterations": tr.iterations, "dt": tr.dt,
-                           "limit_use": limit_use(tr, pr.limits, get_method(m).checked_limits),
-                           "display_name": get_method(m).display_name,
-                           "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv"}
-                       for m, tr in self.trajectories.items()},
-            "controller_trajectory": self.controller}
+            "timing": {
+                m: {
+                    "status": tr.status.value,
+                    "reason": tr.reason,
+                    "limits_enforced": list(get_method(m).checked_limits),
+                    "within_all_limits": _within(tr, LIMIT_KEYS),
+                    "iterations": tr.iterations,
+                    "dt": tr.dt,
+                    "limit_use": limit_use(tr, pr.limits, get_method(m).checked_limits),
+                    "display_name": get_method(m).display_name,
+                    "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv",
+                }
+                for m, tr in self.trajectories.items()
+            },
+            "controller_trajectory": self.controller,
+        }
         if self.dynamic is not None:
             out["dynamic_compensation"] = self.dynamic.summary()
         return out
@@ -368,7 +427,8 @@ HEADLINE_DEFINITION = (
     "before = the chosen posture commanded as is, after = with exact compensation. Rounded to 4 significant "
     "digits; an error below numerical_floor_mm (the exact-compensation contract, 1e-9 m) is 0: the accuracy "
     "of the equilibrium solve, not an error of the arm. The IK branch table's RMS errors are first order "
-    "(|S C(q) F|, the posture NLP's objective), its rms_error_equilibrium_mm the exact equilibrium.")
+    "(|S C(q) F|, the posture NLP's objective), its rms_error_equilibrium_mm the exact equilibrium."
+)
 
 
 def _headline(s: dict[str, Any]) -> dict[str, Any]:
@@ -388,8 +448,11 @@ def _headline(s: dict[str, Any]) -> dict[str, Any]:
     g = s.get("gain") or {}
     h["gain_vs_default"] = round_sig(g["vs_default"]) if np.isfinite(g.get("vs_default", np.nan)) else None
     eb, ea = s.get("error_before"), (s.get("error_after") or {})
-    for tag, st in (("error_before", eb), ("error_after", ea.get("exact")),
-                    ("error_after_closed_form", ea.get("closed_form"))):
+    for tag, st in (
+        ("error_before", eb),
+        ("error_after", ea.get("exact")),
+        ("error_after_closed_form", ea.get("closed_form")),
+    ):
         for k in ("max", "rms"):
             h[f"{tag}_{k}_mm"] = headline_mm(st[f"{k}_mm"]) if st else None
     h["numerical_floor_mm"] = NUMERICAL_FLOOR_MM
@@ -405,8 +468,11 @@ def _headline(s: dict[str, Any]) -> dict[str, Any]:
     return h
 
 
-def _add_branch_postures(res: "PlanResult", entries: dict[str, dict[str, Any]],
-                         errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
+def _add_branch_postures(
+    res: PlanResult,
+    entries: dict[str, dict[str, Any]],
+    errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
+) -> None:
     """Add to each branch entry its meaning, its posture in words (at waypoint 0) and its
     load-induced TCP error at the exact deflected equilibrium (RMS and max, mm): the same
     measure as ``error_before``, where ``rms_error_mm`` is the NLP's first-order one
@@ -421,38 +487,48 @@ def _add_branch_postures(res: "PlanResult", entries: dict[str, dict[str, Any]],
         e["meaning"] = branch_words.decode(r.label)
         e["status_meaning"] = branch_words.status_text(r.status.value)
         e["posture"] = e["rms_error_equilibrium_mm"] = e["max_error_equilibrium_mm"] = None
-        if not np.all(np.isfinite(r.q)):          # a branch without a posture along the whole path
+        if not np.all(np.isfinite(r.q)):  # a branch without a posture along the whole path
             continue
         frames = [f[0] for f in km.batch(km.fk_frames, r.q[:1])]
-        e["posture"] = branch_words.posture_words(frames, r.q[0], r.label, pr.robot.convention,
-                                                  pr.robot.frame02base)
+        e["posture"] = branch_words.posture_words(frames, r.q[0], r.label, pr.robot.convention, pr.robot.frame02base)
         err = errors[b][1] if errors is not None else uncompensated(arm, r.q, L).error_norm_m
-        e["rms_error_equilibrium_mm"] = float(np.sqrt(np.mean(err ** 2)) * 1e3)
+        e["rms_error_equilibrium_mm"] = float(np.sqrt(np.mean(err**2)) * 1e3)
         e["max_error_equilibrium_mm"] = float(err.max() * 1e3)
 
 
 def _branch_entry(r: BranchResult) -> dict[str, Any]:
-    return {"status": r.status.value, "cost": r.cost, "cost_analytic": r.cost_analytic,
-            "cost_warm_start": r.cost_warm, "rms_error_mm": r.rms_error_m * 1e3,
-            "rms_error_analytic_mm": r.rms_error_analytic_m * 1e3,
-            "max_error_mm": float(r.error_m.max() * 1e3), "iterations": r.iterations,
-            "solve_time_s": r.solve_time_s, "warm_start": r.warm_offset, "reason": r.reason,
-            "active_singularity_guards": (", ".join(f"{k}: {v} waypoint(s)" for k, v in r.active_guards.items())
-                                          or "none")}
+    return {
+        "status": r.status.value,
+        "cost": r.cost,
+        "cost_analytic": r.cost_analytic,
+        "cost_warm_start": r.cost_warm,
+        "rms_error_mm": r.rms_error_m * 1e3,
+        "rms_error_analytic_mm": r.rms_error_analytic_m * 1e3,
+        "max_error_mm": float(r.error_m.max() * 1e3),
+        "iterations": r.iterations,
+        "solve_time_s": r.solve_time_s,
+        "warm_start": r.warm_offset,
+        "reason": r.reason,
+        "active_singularity_guards": (", ".join(f"{k}: {v} waypoint(s)" for k, v in r.active_guards.items()) or "none"),
+    }
 
 
 def _within(tr: Trajectory, keys: tuple[str, ...]) -> bool:
-    return all(np.all(np.isfinite(tr.limit_ratio[k])) and float(np.max(tr.limit_ratio[k])) <= 1.0 + LIMIT_RATIO_TOL
-               for k in keys)
+    return all(
+        np.all(np.isfinite(tr.limit_ratio[k])) and float(np.max(tr.limit_ratio[k])) <= 1.0 + LIMIT_RATIO_TOL
+        for k in keys
+    )
 
 
 # --------------------------------------------------------------------------------------
 # The pipeline
 # --------------------------------------------------------------------------------------
 
-_POSTURE_TO_PLAN = {PostureStatus.UNREACHABLE: PlanStatus.UNREACHABLE,
-                    PostureStatus.NO_BRANCH: PlanStatus.NO_BRANCH,
-                    PostureStatus.SOLVER_FAILED: PlanStatus.SOLVER_FAILED}
+_POSTURE_TO_PLAN = {
+    PostureStatus.UNREACHABLE: PlanStatus.UNREACHABLE,
+    PostureStatus.NO_BRANCH: PlanStatus.NO_BRANCH,
+    PostureStatus.SOLVER_FAILED: PlanStatus.SOLVER_FAILED,
+}
 
 
 def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> PlanResult:
@@ -476,14 +552,15 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     arm = problem.model
-    if problem.arm is None:         # one model object for the whole run (its kinematics built once)
+    if problem.arm is None:  # one model object for the whole run (its kinematics built once)
         problem = replace(problem, arm=arm)
     ik = arm.ik if arm.nominal is problem.robot else ik_solver(problem.robot)
     times["model_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    ps = optimise_postures(arm, problem.task(), problem.home_q, problem.solver, verbose,
-                           model=arm.kinematics, ik=ik, optimise=optimise)
+    ps = optimise_postures(
+        arm, problem.task(), problem.home_q, problem.solver, verbose, model=arm.kinematics, ik=ik, optimise=optimise
+    )
     times["posture_s"] = time.perf_counter() - t0
     res = PlanResult(PlanStatus.OK, "", problem, ps, stage_times_s=times)
     if not ps.ok:
@@ -512,21 +589,29 @@ def _dynamic(res: PlanResult) -> None:
     """Motor-side commands for the inertial torques (``[timing] dynamic = true``): the controller's
     trajectory becomes the command of :func:`planner.dynamic.dynamic_stage`; the link side is kept."""
     from planner.dynamic import DynamicStageStatus, dynamic_stage
+
     problem = res.problem
     assert res.exact is not None and res.controller is not None
     m = res.controller
     if not get_method(m).enforces_jerk:
-        res.status, res.reason = PlanStatus.TIMING_FAILED, (
-            f"timing.dynamic needs a jerk-limited controller trajectory (the motor-side command follows "
-            f"the accelerations), but the controller's method is {m}; add '{_jerk_limited()}' to timing.methods")
+        res.status, res.reason = (
+            PlanStatus.TIMING_FAILED,
+            (
+                f"timing.dynamic needs a jerk-limited controller trajectory (the motor-side command follows "
+                f"the accelerations), but the controller's method is {m}; add '{_jerk_limited()}' to timing.methods"
+            ),
+        )
         return
     if not problem.robot.has_masses:
-        res.status, res.reason = PlanStatus.TIMING_FAILED, (
-            f"timing.dynamic: robot {problem.robot.name} has no link masses (robot file keys mass, com, inertia)")
+        res.status, res.reason = (
+            PlanStatus.TIMING_FAILED,
+            (f"timing.dynamic: robot {problem.robot.name} has no link masses (robot file keys mass, com, inertia)"),
+        )
         return
     lim = JointLimits(problem.limits.velocity, problem.limits.acceleration, problem.limits.jerk)
-    stage = dynamic_stage(problem.model, res.exact.q_deflected, lim, problem.timing.dt, m,
-                          problem.timing.options(m), problem.load)
+    stage = dynamic_stage(
+        problem.model, res.exact.q_deflected, lim, problem.timing.dt, m, problem.timing.options(m), problem.load
+    )
     res.dynamic = stage
     if stage.status is not DynamicStageStatus.OK or stage.command is None:
         res.status, res.reason = PlanStatus.TIMING_FAILED, f"dynamic compensation: {stage.reason}"
@@ -538,9 +623,11 @@ def _posture_warnings(ps: PostureResult) -> list[str]:
     """Failed branches, and a chosen optimum that rests on a singularity guard."""
     out = [f"branch {r.label}: {r.status.value}: {r.reason}" for r in ps.branches.values() if not r.status.usable]
     if ps.best.active_guards:
-        out.append(f"chosen branch {ps.best.label}: the optimum rests on its singularity guard ("
-                   + ", ".join(f"{k} at {v} waypoint(s)" for k, v in ps.best.active_guards.items())
-                   + "): the model's load error keeps falling towards the singularity, where it is not credible")
+        out.append(
+            f"chosen branch {ps.best.label}: the optimum rests on its singularity guard ("
+            + ", ".join(f"{k} at {v} waypoint(s)" for k, v in ps.best.active_guards.items())
+            + "): the model's load error keeps falling towards the singularity, where it is not credible"
+        )
     return out
 
 
@@ -565,26 +652,32 @@ def _compensate(res: PlanResult) -> None:
     if lo.any() or hi.any():
         k, j = (int(v) for v in np.argwhere(lo | hi)[0])
         res.status = PlanStatus.COMPENSATION_FAILED
-        res.reason = (f"the compensated command of joint {j + 1} at waypoint {k} is {qc[k, j]:.6g} rad, "
-                      f"outside its limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad")
+        res.reason = (
+            f"the compensated command of joint {j + 1} at waypoint {k} is {qc[k, j]:.6g} rad, "
+            f"outside its limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad"
+        )
 
 
 def _base_frame_caveat(arm: ArmModel, q: np.ndarray, L: np.ndarray) -> list[str]:
     """A model identified from unregistered data leaves the parameters that alias with the
     registration and the measured point at zero: the plan is not exact in the base frame there."""
-    if arm.registered:                   # nothing aliases (and problems.identify, with scipy.stats, is not imported)
+    if arm.registered:  # nothing aliases (and problems.identify, with scipy.stats, is not imported)
         return []
     from problems.identify import alias_effect_m, unobservable_in_base
+
     names = unobservable_in_base(arm)
     if not names:
         return []
     size = alias_effect_m(arm, names, q, arm.tcp_wrench(q, L))
     worst = max(names, key=lambda n: size[n])
-    return [f"the arm model was identified from unregistered data: {', '.join(names)} cannot be told apart from "
-            "the registration or the measured point and are held at their nominal values (zero for DH errors), so the commands are exact in the "
-            f"measurement frame, not in the base frame (the largest, {worst}, moves the TCP by up to "
-            f"{size[worst] * 1e3:.3g} mm per typical magnitude on this path); identify from registered data "
-            "(--registered) to plan exactly in the base frame"]
+    return [
+        f"the arm model was identified from unregistered data: {', '.join(names)} cannot be told apart from "
+        "the registration or the measured point and are held at their nominal values (zero for DH errors), "
+        "so the commands are exact in the "
+        f"measurement frame, not in the base frame (the largest, {worst}, moves the TCP by up to "
+        f"{size[worst] * 1e3:.3g} mm per typical magnitude on this path); identify from registered data "
+        "(--registered) to plan exactly in the base frame"
+    ]
 
 
 def _time(res: PlanResult) -> None:
@@ -597,7 +690,7 @@ def _time(res: PlanResult) -> None:
         t1 = time.perf_counter()
         res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
         res.stage_times_s[f"timing_{m}_s"] = time.perf_counter() - t1
-    res.controller = controller_methods(res.trajectories)[0]      # the problem names one (check_timing)
+    res.controller = controller_methods(res.trajectories)[0]  # the problem names one (check_timing)
     for m, tr in res.trajectories.items():
         failure = _trajectory_failure(res, m, tr)
         if failure:
@@ -605,9 +698,14 @@ def _time(res: PlanResult) -> None:
             return
         if not _within(tr, LIMIT_KEYS):
             j = float(np.max(tr.limit_ratio["jerk"]))
-            res.warnings.append(f"{m} does not limit jerk: peak jerk ratio {j:.3g} > 1"
-                                + ("" if m != res.controller else f"; add '{_jerk_limited()}' to timing.methods "
-                                   "for a jerk-limited controller trajectory"))
+            res.warnings.append(
+                f"{m} does not limit jerk: peak jerk ratio {j:.3g} > 1"
+                + (
+                    ""
+                    if m != res.controller
+                    else f"; add '{_jerk_limited()}' to timing.methods for a jerk-limited controller trajectory"
+                )
+            )
 
 
 def _jerk_limited() -> str:
@@ -623,21 +721,26 @@ def _trajectory_failure(res: PlanResult, m: str, tr: Trajectory) -> str:
         out = (tr.q < robot.q_min - COMMAND_LIMIT_TOL) | (tr.q > robot.q_max + COMMAND_LIMIT_TOL)
         if out.any():
             i, j = (int(v) for v in np.argwhere(out)[0])
-            return (f"{m}: joint {j + 1} reaches {tr.q[i, j]:.6g} rad at t = {tr.t[i]:.4g} s, "
-                    f"outside its position limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad "
-                    "(the interpolating spline overshoots between waypoints)")
+            return (
+                f"{m}: joint {j + 1} reaches {tr.q[i, j]:.6g} rad at t = {tr.t[i]:.4g} s, "
+                f"outside its position limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad "
+                "(the interpolating spline overshoots between waypoints)"
+            )
     if tr.status is not TimingStatus.OK:
         return f"{m}: {tr.status.value}: {tr.reason}"
     bad = [k for k in get_method(m).checked_limits if not _within(tr, (k,))]
     if bad:
-        return (f"{m}: {TimingStatus.LIMIT_EXCEEDED.value}: {' and '.join(bad)} ratio above 1 although the "
-                f"method reported {tr.status.value} ({tr.reason})")
+        return (
+            f"{m}: {TimingStatus.LIMIT_EXCEEDED.value}: {' and '.join(bad)} ratio above 1 although the "
+            f"method reported {tr.status.value} ({tr.reason})"
+        )
     return ""
 
 
 # --------------------------------------------------------------------------------------
 # Outputs
 # --------------------------------------------------------------------------------------
+
 
 def _trajectory_rows(tr: Trajectory) -> np.ndarray:
     """Rows of ``trajectory*.csv`` (see :data:`TRAJECTORY_COLUMNS`): t, q, qd, qdd, qddd."""
@@ -652,6 +755,7 @@ def figures(res: PlanResult, view: RunView | None = None) -> dict[str, bytes]:
     (:func:`planner.report.figures.quick_figures`); ``view``: the plan's, when the caller has it."""
     from planner.report.figures import quick_figures
     from planner.report.run import run_from_plan
+
     return quick_figures(run_from_plan(res, Path("."), view))
 
 
@@ -659,9 +763,13 @@ def figures(res: PlanResult, view: RunView | None = None) -> dict[str, bytes]:
 LINK_COLUMNS = [f"ql{i}" for i in range(1, 7)]
 
 
-
-def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True,
-                  extra: Mapping[str, bytes] | None = None, view: RunView | None = None) -> dict[str, Any]:
+def write_outputs(
+    res: PlanResult,
+    folder: str | Path,
+    with_figures: bool = True,
+    extra: Mapping[str, bytes] | None = None,
+    view: RunView | None = None,
+) -> dict[str, Any]:
     """Write the plan's files, all or nothing.
 
     ``summary.json``, ``path.csv`` (x, y, z, q1..q6: the exact commands),
@@ -687,8 +795,7 @@ def write_outputs(res: PlanResult, folder: str | Path, with_figures: bool = True
     for m, tr in res.trajectories.items():
         name = "trajectory.csv" if m == res.controller else f"trajectory_{m}.csv"
         if m == res.controller and res.dynamic is not None and res.dynamic.link is not None:
-            out.add_csv(name, TRAJECTORY_COLUMNS + LINK_COLUMNS,
-                        np.hstack([_trajectory_rows(tr), res.dynamic.link.q]))
+            out.add_csv(name, TRAJECTORY_COLUMNS + LINK_COLUMNS, np.hstack([_trajectory_rows(tr), res.dynamic.link.q]))
         else:
             out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
     if with_figures:
@@ -712,5 +819,13 @@ def output_names(res: PlanResult, with_figures: bool = True) -> list[str]:
     return names
 
 
-__all__ = ["PlanResult", "PlanStatus", "RunView", "WAYPOINT_COLUMNS", "figures", "output_names", "plan",
-           "write_outputs"]
+__all__ = [
+    "PlanResult",
+    "PlanStatus",
+    "RunView",
+    "WAYPOINT_COLUMNS",
+    "figures",
+    "output_names",
+    "plan",
+    "write_outputs",
+]

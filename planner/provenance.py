@@ -28,7 +28,8 @@ import hashlib
 import shlex
 from importlib import resources
 from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any
+from collections.abc import Iterator, Sequence
 
 #: Distribution name (``pip show compplan``).
 DISTRIBUTION = "compplan"
@@ -36,12 +37,14 @@ DISTRIBUTION = "compplan"
 _HASH_CHUNK = 1 << 20
 
 _COMMAND_LINE: contextvars.ContextVar[tuple[str, ...] | None] = contextvars.ContextVar(
-    "compplan_command_line", default=None)
+    "compplan_command_line", default=None
+)
 
 
 def version() -> str:
     """The installed compplan version (``importlib.metadata``), else ``"unknown"``."""
     from importlib import metadata
+
     try:
         return metadata.version(DISTRIBUTION)
     except metadata.PackageNotFoundError:
@@ -72,7 +75,7 @@ def current_command_line() -> list[str] | None:
 
 def utc_now() -> str:
     """The current time, UTC, ISO 8601 to the second (``2026-11-23T04:42:21Z``)."""
-    now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
+    now = _dt.datetime.now(_dt.UTC).replace(microsecond=0)
     return now.isoformat().replace("+00:00", "Z")
 
 
@@ -104,6 +107,7 @@ def _packaged(package: str, relative: str) -> Path | None:
 def builtin_robot_file(name: str) -> Path | None:
     """The packaged file of a built-in robot (``ar5`` -> ``models/robots/ar5.toml``), or None."""
     from models import BUILTIN_ROBOTS
+
     return _packaged("models", f"robots/{name}.toml") if name in BUILTIN_ROBOTS else None
 
 
@@ -112,8 +116,9 @@ def shipped_problem_file(name: str) -> Path | None:
     return _packaged("problems", f"files/{name}.toml") if name and "/" not in name else None
 
 
-def input_file(role: str, path: str | Path | None, name: str | None = None,
-               sha256: str | None = None) -> dict[str, Any]:
+def input_file(
+    role: str, path: str | Path | None, name: str | None = None, sha256: str | None = None
+) -> dict[str, Any]:
     """One entry of ``provenance.inputs``: role, name, absolute path, SHA-256 and size.
 
     Parameters
@@ -141,8 +146,11 @@ def input_file(role: str, path: str | Path | None, name: str | None = None,
         entry["size_bytes"] = p.stat().st_size
     except OSError as exc:
         entry["sha256"] = sha256
-        entry["note"] = f"cannot read the file now ({exc.strerror}); hash as loaded" if sha256 else \
-            f"cannot read the file ({exc.strerror})"
+        entry["note"] = (
+            f"cannot read the file now ({exc.strerror}); hash as loaded"
+            if sha256
+            else f"cannot read the file ({exc.strerror})"
+        )
         return entry
     if sha256 and sha256 != entry["sha256"]:
         entry["note"] = f"the file changed after it was loaded (hash then: {sha256})"
@@ -157,15 +165,14 @@ def robot_input(spec: str | None, role: str = "robot model", sha256: str | None 
     if f is not None:
         return input_file(role, f, name=spec)
     p = Path(spec)
-    return input_file(role, p if p.is_file() else None, name=p.name if p.is_file() else spec,
-                      sha256=sha256)
+    return input_file(role, p if p.is_file() else None, name=p.name if p.is_file() else spec, sha256=sha256)
 
 
 def problem_input(source: str) -> dict[str, Any]:
     """The input entry of a problem's ``source`` (a file path or ``shipped problem 'NAME'``)."""
     prefix = "shipped problem '"
     if source.startswith(prefix) and source.endswith("'"):
-        name = source[len(prefix):-1]
+        name = source[len(prefix) : -1]
         return input_file("problem", shipped_problem_file(name), name=name)
     p = Path(source)
     return input_file("problem", p if p.is_file() else None, name=p.name)
@@ -183,8 +190,13 @@ def provenance(inputs: Sequence[dict[str, Any]] = (), made: dict[str, Any] | Non
         (:func:`invocation`); default: now.
     """
     inv = dict(made) if made is not None else invocation()
-    return {"compplan_version": version(), "command_line": inv.get("command_line"),
-            "argv": inv.get("argv"), "date_utc": inv.get("date_utc"), "inputs": [dict(e) for e in inputs]}
+    return {
+        "compplan_version": version(),
+        "command_line": inv.get("command_line"),
+        "argv": inv.get("argv"),
+        "date_utc": inv.get("date_utc"),
+        "inputs": [dict(e) for e in inputs],
+    }
 
 
 def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -198,10 +210,25 @@ def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict
         As for :func:`provenance`.
     """
     md = problem.model.describe()
-    return provenance([problem_input(problem.source),
-                       robot_input(md.get("file") or problem.robot_spec, sha256=md.get("sha256"))], made)
+    return provenance(
+        [problem_input(problem.source), robot_input(md.get("file") or problem.robot_spec, sha256=md.get("sha256"))],
+        made,
+    )
 
 
-__all__ = ["DISTRIBUTION", "builtin_robot_file", "command_line_scope", "current_command_line", "input_file",
-           "invocation", "problem_input", "problem_provenance", "provenance", "robot_input", "sha256_file",
-           "shipped_problem_file", "utc_now", "version"]
+__all__ = [
+    "DISTRIBUTION",
+    "builtin_robot_file",
+    "command_line_scope",
+    "current_command_line",
+    "input_file",
+    "invocation",
+    "problem_input",
+    "problem_provenance",
+    "provenance",
+    "robot_input",
+    "sha256_file",
+    "shipped_problem_file",
+    "utc_now",
+    "version",
+]

@@ -43,15 +43,23 @@ NEWTON_MAX_ITER = 50
 #: Newton stops when every joint step is below this (rad).
 NEWTON_STEP_TOL = 1e-13
 
-__all__ = ["CompensationResult", "CompensationStatus", "EquilibriumResult", "closed_form", "equilibrium",
-           "exact", "rigid_pose_solve", "uncompensated"]
+__all__ = [
+    "CompensationResult",
+    "CompensationStatus",
+    "EquilibriumResult",
+    "closed_form",
+    "equilibrium",
+    "exact",
+    "rigid_pose_solve",
+    "uncompensated",
+]
 
 
 class CompensationStatus(Status):
     """Outcome of a compensation; ``usable``: ``OK`` or ``WARNING`` (the commands may be run)."""
 
     OK = "ok"
-    WARNING = "warning"          # succeeded with a caveat (e.g. DLS near a singularity)
+    WARNING = "warning"  # succeeded with a caveat (e.g. DLS near a singularity)
     NOT_CONVERGED = "not_converged"
     FAILED = "failed"
 
@@ -102,7 +110,7 @@ class CompensationResult:
     def stats_mm(self) -> dict[str, float]:
         """Max and RMS of the Euclidean TCP position error, mm (the summary.json form)."""
         e = self.error_norm_m * 1e3
-        return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e ** 2)))}
+        return {"max_mm": float(e.max()), "rms_mm": float(np.sqrt(np.mean(e**2)))}
 
 
 def _arm(model: ArmModel | Robot | object) -> ArmModel:
@@ -110,7 +118,7 @@ def _arm(model: ArmModel | Robot | object) -> ArmModel:
         return model
     if isinstance(model, Robot):
         return ArmModel.from_robot(model)
-    arm = getattr(model, "arm", None)           # a KinematicModel
+    arm = getattr(model, "arm", None)  # a KinematicModel
     if isinstance(arm, ArmModel):
         return arm
     raise InputError(f"model: expected an ArmModel, Robot or KinematicModel, got {type(model).__name__}")
@@ -125,8 +133,9 @@ def _targets(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     return arm.kinematics.tcp(np.atleast_2d(q)).reshape(-1, 4, 4)
 
 
-def _errors(arm: ArmModel, q_reached: np.ndarray, L: np.ndarray,
-            target2base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _errors(
+    arm: ArmModel, q_reached: np.ndarray, L: np.ndarray, target2base: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     p, R = arm.loaded_tcp(q_reached, L)
     return p - target2base[:, :3, 3], rotation_angle(R, target2base[:, :3, :3])
 
@@ -139,12 +148,20 @@ def uncompensated(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np
     eq = arm.equilibrium(qt, L)
     e, r = _errors(arm, eq.q, L, _targets(arm, qt))
     status = CompensationStatus.OK if eq.converged.all() else CompensationStatus.NOT_CONVERGED
-    return CompensationResult("none", qt.copy(), eq.q, e, r, status,
-                              "no compensation" if eq.converged.all() else "equilibrium did not converge")
+    return CompensationResult(
+        "none",
+        qt.copy(),
+        eq.q,
+        e,
+        r,
+        status,
+        "no compensation" if eq.converged.all() else "equilibrium did not converge",
+    )
 
 
-def closed_form(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray,
-                linearize_at: str = "deflected") -> CompensationResult:
+def closed_form(
+    model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray, linearize_at: str = "deflected"
+) -> CompensationResult:
     """First-order compensation ``q_c = q_t - J^-1 ds`` (paper eqs. 32/47, sign corrected).
 
     Parameters
@@ -166,16 +183,18 @@ def closed_form(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.n
     else:
         raise InputError(f"linearize_at: expected 'deflected' or 'target', got {linearize_at!r}")
     J = arm.kinematics.J(q_lin).reshape(-1, 6, 6)
-    ds = arm.load_error(q_lin, L)                    # (N, 6) [m; rad]
+    ds = arm.load_error(q_lin, L)  # (N, 6) [m; rad]
     cond = np.linalg.cond(J)
     warnings: list[str] = []
     dq = np.empty_like(qt)
     for i in range(len(qt)):
         if cond[i] > JACOBIAN_COND_WARN or not np.isfinite(cond[i]):
             Ji = J[i]
-            dq[i] = Ji.T @ np.linalg.solve(Ji @ Ji.T + DLS_DAMPING ** 2 * np.eye(6), ds[i])
-            warnings.append(f"waypoint {i}: Jacobian condition number {cond[i]:.3g} > "
-                            f"{JACOBIAN_COND_WARN:.0e}; damped least squares used (damping {DLS_DAMPING:g})")
+            dq[i] = Ji.T @ np.linalg.solve(Ji @ Ji.T + DLS_DAMPING**2 * np.eye(6), ds[i])
+            warnings.append(
+                f"waypoint {i}: Jacobian condition number {cond[i]:.3g} > "
+                f"{JACOBIAN_COND_WARN:.0e}; damped least squares used (damping {DLS_DAMPING:g})"
+            )
         else:
             dq[i] = np.linalg.solve(J[i], ds[i])
     qc = qt - dq
@@ -212,15 +231,17 @@ def _pose_solve(arm: ArmModel, q0: np.ndarray, L: np.ndarray, target: np.ndarray
     for _ in range(NEWTON_MAX_ITER):
         JtJ = np.einsum("nki,nkj->nij", J, J)
         Jte = np.einsum("nki,nk->ni", J, e)
-        step = -np.linalg.solve(JtJ + (mu ** 2)[:, None, None] * np.eye(6), Jte[:, :, None])[:, :, 0]
+        step = -np.linalg.solve(JtJ + (mu**2)[:, None, None] * np.eye(6), Jte[:, :, None])[:, :, 0]
         e_t, J_t = err(q + step)
         better = np.linalg.norm(e_t, axis=1) < np.linalg.norm(e, axis=1)
         q[better] += step[better]
         e[better], J[better] = e_t[better], J_t[better]
         mu = np.where(better, mu / 10.0, np.maximum(mu * 10.0, 1e-6))
         mu[mu < 1e-9] = 0.0
-        if np.max(np.abs(step[better]), initial=0.0) < NEWTON_STEP_TOL and \
-                (better | (np.linalg.norm(e, axis=1) < 1e-12)).all():
+        if (
+            np.max(np.abs(step[better]), initial=0.0) < NEWTON_STEP_TOL
+            and (better | (np.linalg.norm(e, axis=1) < 1e-12)).all()
+        ):
             break
     return q
 
@@ -230,12 +251,21 @@ def rigid_pose_solve(model: ArmModel | Robot, q0: np.ndarray, target2base: np.nd
     by damped Newton from ``q0`` (an IK solution of a nearby chain, e.g. the nominal one)."""
     arm = _arm(model)
     q0 = np.atleast_2d(np.asarray(q0, dtype=float))
-    return _pose_solve(arm, q0, np.zeros((len(q0), load_rows(np.zeros(6), 1).shape[1])),
-                       np.asarray(target2base, dtype=float).reshape(-1, 4, 4))
+    return _pose_solve(
+        arm,
+        q0,
+        np.zeros((len(q0), load_rows(np.zeros(6), 1).shape[1])),
+        np.asarray(target2base, dtype=float).reshape(-1, 4, 4),
+    )
 
 
-def exact(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray,
-          tol_m: float = EXACT_COMPENSATION_TOL, target2base: np.ndarray | None = None) -> CompensationResult:
+def exact(
+    model: ArmModel | Robot,
+    q_target: np.ndarray,
+    load: Load | np.ndarray,
+    tol_m: float = EXACT_COMPENSATION_TOL,
+    target2base: np.ndarray | None = None,
+) -> CompensationResult:
     """Exact compensation: commands whose deflected, loaded TCP is on the target.
 
     Parameters
@@ -267,13 +297,31 @@ def exact(model: ArmModel | Robot, q_target: np.ndarray, load: Load | np.ndarray
     cond = np.linalg.cond(arm.kinematics.J(q_star).reshape(-1, 6, 6))
     if not eq.converged.all():
         bad = int(np.argmin(eq.converged))
-        return CompensationResult("exact", qc, eq.q, e, r, CompensationStatus.NOT_CONVERGED,
-                                  f"waypoint {bad}: deflected equilibrium did not converge "
-                                  "(load too large for the joint stiffness?)", [], cond)
+        return CompensationResult(
+            "exact",
+            qc,
+            eq.q,
+            e,
+            r,
+            CompensationStatus.NOT_CONVERGED,
+            f"waypoint {bad}: deflected equilibrium did not converge (load too large for the joint stiffness?)",
+            [],
+            cond,
+        )
     if not np.all(np.isfinite(en)) or np.any(en > tol_m):
         bad = int(np.argmax(np.where(np.isfinite(en), en, np.inf)))
-        return CompensationResult("exact", qc, eq.q, e, r, CompensationStatus.FAILED,
-                                  f"waypoint {bad}: residual {en[bad]:.3g} m > {tol_m:g} m (target at the edge "
-                                  "of the model's reach or near a singularity)", [], cond)
-    return CompensationResult("exact", qc, eq.q, e, r, CompensationStatus.OK,
-                              f"max residual {en.max():.3g} m", [], cond)
+        return CompensationResult(
+            "exact",
+            qc,
+            eq.q,
+            e,
+            r,
+            CompensationStatus.FAILED,
+            f"waypoint {bad}: residual {en[bad]:.3g} m > {tol_m:g} m (target at the edge "
+            "of the model's reach or near a singularity)",
+            [],
+            cond,
+        )
+    return CompensationResult(
+        "exact", qc, eq.q, e, r, CompensationStatus.OK, f"max residual {en.max():.3g} m", [], cond
+    )

@@ -110,8 +110,9 @@ def _build_inertial(robot: Robot) -> ca.Function:
     return ca.Function("inertial_torques", [q, qd, qdd, pl], [tau], ["q", "qd", "qdd", "payload"], ["tau"])
 
 
-def inertial_torques(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                     payload: np.ndarray | None = None) -> np.ndarray:
+def inertial_torques(
+    robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, payload: np.ndarray | None = None
+) -> np.ndarray:
     """Rigid-body inertial joint torques ``M(q) q'' + c(q, q')`` (N, 6), N*m (gravity excluded).
 
     Parameters
@@ -126,8 +127,9 @@ def inertial_torques(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarra
     f = _inertial_fn(robot)
     n = len(q)
     pl = np.zeros(f.size1_in(3)) if payload is None else np.asarray(payload, dtype=float)
-    out = f.map(n)(np.asarray(q, float).T, np.asarray(qd, float).T, np.asarray(qdd, float).T,
-                   np.repeat(pl[:, None], n, axis=1))
+    out = f.map(n)(
+        np.asarray(q, float).T, np.asarray(qd, float).T, np.asarray(qdd, float).T, np.repeat(pl[:, None], n, axis=1)
+    )
     return np.asarray(out).T
 
 
@@ -142,8 +144,15 @@ def _static_fn(robot: Robot) -> ca.Function:
     return _cached("static:", robot, gravity_torque_function)
 
 
-def motor_command(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, load: Load,
-                  payload_inertia: np.ndarray | None = None, rows: np.ndarray | None = None) -> DynamicCommand:
+def motor_command(
+    arm: ArmModel,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    load: Load,
+    payload_inertia: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
+) -> DynamicCommand:
     """Motor-side command ``theta(t)`` that makes the link side run ``q(t)`` (see module doc).
 
     Parameters
@@ -169,16 +178,19 @@ def motor_command(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     q = np.atleast_2d(np.asarray(q, dtype=float))
     empty = np.zeros((0, 6))
     if not robot.has_masses:
-        return DynamicCommand(DynamicStatus.FAILED, f"robot {robot.name}: no link masses, no inertial torques",
-                              empty, q, empty, empty)
+        return DynamicCommand(
+            DynamicStatus.FAILED, f"robot {robot.name}: no link masses, no inertial torques", empty, q, empty, empty
+        )
     pl = payload_vector(load.payload_mass_kg, load.payload_com_m, payload_inertia)
     tau_i = inertial_torques(robot, q, qd, qdd, pl)
     tau_s = arm.joint_torques(q, load_rows(load, len(q)) if rows is None else rows)
-    if not arm.gravity_on:              # the arm's own weight: the rigid-body model's, not the effect's
+    if not arm.gravity_on:  # the arm's own weight: the rigid-body model's, not the effect's
         tau_s = tau_s + link_weight_torques(robot, q)
     theta = q - arm.torque_deflection(q, tau_s - tau_i)
-    reason = (f"motor-side command of {len(q)} samples; peak inertial torque "
-              f"{np.max(np.abs(tau_i)):.3g} N*m (joint {int(np.argmax(np.abs(tau_i).max(axis=0))) + 1})")
+    reason = (
+        f"motor-side command of {len(q)} samples; peak inertial torque "
+        f"{np.max(np.abs(tau_i)):.3g} N*m (joint {int(np.argmax(np.abs(tau_i).max(axis=0))) + 1})"
+    )
     return DynamicCommand(DynamicStatus.OK, reason, theta, q, tau_i, tau_s)
 
 
@@ -203,9 +215,9 @@ def smooth(x: np.ndarray, n: int) -> np.ndarray:
     for _ in range(2):
         pad = padded(x, n)
         c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(pad, axis=0)])
-        y = (c[n:] - c[:-n]) / n                     # y[i] = mean(pad[i:i+n])
-        off = n - (n - 1) // 2                        # window centred on pad[i + n]
-        x = y[off:off + len(x)]
+        y = (c[n:] - c[:-n]) / n  # y[i] = mean(pad[i:i+n])
+        off = n - (n - 1) // 2  # window centred on pad[i + n]
+        x = y[off : off + len(x)]
     return x
 
 
@@ -222,8 +234,9 @@ def finite_derivatives(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
     return d1, d2, np.gradient(d2, dt, axis=0)
 
 
-def predicted_tcp_errors(arm: ArmModel, q: np.ndarray, dq_needed: np.ndarray,
-                         commands: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def predicted_tcp_errors(
+    arm: ArmModel, q: np.ndarray, dq_needed: np.ndarray, commands: dict[str, np.ndarray]
+) -> dict[str, np.ndarray]:
     """Quasi-static TCP position error along the motion (M,), m, for each command.
 
     A command ``theta`` puts the link at ``theta + dq_needed`` to first order (the joints wind up by
@@ -233,8 +246,9 @@ def predicted_tcp_errors(arm: ArmModel, q: np.ndarray, dq_needed: np.ndarray,
     """
     km = arm.kinematics
     p_plan = km.tcp(q)[:, :3, 3]
-    return {name: np.linalg.norm(km.tcp(theta + dq_needed)[:, :3, 3] - p_plan, axis=1)
-            for name, theta in commands.items()}
+    return {
+        name: np.linalg.norm(km.tcp(theta + dq_needed)[:, :3, 3] - p_plan, axis=1) for name, theta in commands.items()
+    }
 
 
 #: Mismatches between the model and the arm the summary reports the gain under:
@@ -244,9 +258,17 @@ MISMATCH_CASES: tuple[tuple[float, float], ...] = ((0.8, 1.2), (1.2, 0.8), (0.8,
 PAYLOAD_MASS_COLUMN = 12
 
 
-def mismatch_errors(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, load: Load, rows: np.ndarray,
-                    commands: dict[str, np.ndarray], stiffness_factor: float, payload_factor: float
-                    ) -> dict[str, np.ndarray]:
+def mismatch_errors(
+    arm: ArmModel,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    load: Load,
+    rows: np.ndarray,
+    commands: dict[str, np.ndarray],
+    stiffness_factor: float,
+    payload_factor: float,
+) -> dict[str, np.ndarray]:
     """Predicted TCP errors (M,) m of ``commands`` on an arm whose joints are ``stiffness_factor``
     times as stiff and whose payload is ``payload_factor`` times as heavy as the model's.
 
@@ -255,9 +277,13 @@ def mismatch_errors(arm: ArmModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarra
     """
     rows_m = np.array(rows, dtype=float)
     rows_m[:, PAYLOAD_MASS_COLUMN] *= payload_factor
-    load_m = Load(wrench_base=load.wrench_base, wrench_tool=load.wrench_tool,
-                  payload_mass_kg=load.payload_mass_kg * payload_factor, payload_com_m=load.payload_com_m,
-                  gravity=load.gravity)
+    load_m = Load(
+        wrench_base=load.wrench_base,
+        wrench_tool=load.wrench_tool,
+        payload_mass_kg=load.payload_mass_kg * payload_factor,
+        payload_com_m=load.payload_com_m,
+        gravity=load.gravity,
+    )
     real = motor_command(arm, q, qd, qdd, load_m, rows=rows_m)
     needed = (q - real.theta) / stiffness_factor
     return predicted_tcp_errors(arm, q, needed, commands)

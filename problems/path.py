@@ -54,8 +54,9 @@ class BranchPath:
     label: str = ""
 
 
-def branch_paths(ik: IKSolver, tcp2base: np.ndarray,
-                 max_step: float = MAX_JOINT_STEP) -> tuple[dict[int, BranchPath], dict[int, str]]:
+def branch_paths(
+    ik: IKSolver, tcp2base: np.ndarray, max_step: float = MAX_JOINT_STEP
+) -> tuple[dict[int, BranchPath], dict[int, str]]:
     """IK of every waypoint on every branch, unwrapped into continuous joint paths.
 
     Returns
@@ -85,15 +86,18 @@ def branch_paths(ik: IKSolver, tcp2base: np.ndarray,
         steps = np.abs(np.diff(q, axis=0)).max(axis=1) if len(q) > 1 else np.zeros(1)
         if steps.max() > max_step:
             k = int(np.argmax(steps))
-            rejected[b] = (f"flip between waypoints {k} and {k + 1}: joint step "
-                           f"{steps[k]:.3g} rad > {max_step:g} rad")
+            rejected[b] = f"flip between waypoints {k} and {k + 1}: joint step {steps[k]:.3g} rad > {max_step:g} rad"
             continue
         feasible[b] = BranchPath(b, q, float(steps.max()), ik.labels[b])
     return feasible, rejected
 
 
-def default_branch(feasible: dict[int, BranchPath], q_home: np.ndarray,
-                   rejected: dict[int, str] | None = None, labels: tuple[str, ...] = ()) -> int:
+def default_branch(
+    feasible: dict[int, BranchPath],
+    q_home: np.ndarray,
+    rejected: dict[int, str] | None = None,
+    labels: tuple[str, ...] = (),
+) -> int:
     """The feasible branch whose first waypoint is nearest the home configuration.
 
     Raises
@@ -103,11 +107,11 @@ def default_branch(feasible: dict[int, BranchPath], q_home: np.ndarray,
     """
     if not feasible:
         why = "; ".join(f"{labels[b] if b < len(labels) else b}: {r}" for b, r in sorted((rejected or {}).items()))
-        raise UnreachableError("no IK branch is feasible along the whole path"
-                               + (f" ({why})" if why else ""))
+        raise UnreachableError("no IK branch is feasible along the whole path" + (f" ({why})" if why else ""))
     home = np.asarray(q_home, float)
 
     def dist(bp: BranchPath) -> float:
         d = (bp.q[0] - home + np.pi) % (2 * np.pi) - np.pi
         return float(np.linalg.norm(d))
+
     return min(feasible, key=lambda b: dist(feasible[b]))

@@ -20,7 +20,8 @@ import tomllib
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -30,10 +31,27 @@ from models.robot import Robot
 from models.transforms import matrix_to_rpy
 from problems.path import line_positions
 from problems.posture import OrientationRule, PostureTask, SolverSettings
-from problems.problem_file import (DEFAULT_RPY, MAX_WAYPOINTS, WRENCH_FRAMES, Limits, ProblemFileError,
-                                   TimingSettings, check_timing, parse_branch, parse_cost, parse_header, parse_limits,
-                                   parse_orientation, parse_path, parse_payload, parse_placement, parse_robot,
-                                   parse_solver, parse_timing, parse_wrench)
+from problems.problem_file import (
+    DEFAULT_RPY,
+    MAX_WAYPOINTS,
+    WRENCH_FRAMES,
+    Limits,
+    ProblemFileError,
+    TimingSettings,
+    check_timing,
+    parse_branch,
+    parse_cost,
+    parse_header,
+    parse_limits,
+    parse_orientation,
+    parse_path,
+    parse_payload,
+    parse_placement,
+    parse_robot,
+    parse_solver,
+    parse_timing,
+    parse_wrench,
+)
 
 
 @dataclass(frozen=True)
@@ -130,40 +148,51 @@ class Problem:
         """The load on the TCP: the wrench (in its frame) plus the payload."""
         g = self.robot.gravity if self.gravity is None else self.gravity
         W = self.wrench
-        return Load(wrench_base=W if self.wrench_frame == "base" else np.zeros(6),
-                    wrench_tool=W if self.wrench_frame == "tool" else np.zeros(6),
-                    payload_mass_kg=self.payload_mass_kg, payload_com_m=self.payload_com_m, gravity=g)
+        return Load(
+            wrench_base=W if self.wrench_frame == "base" else np.zeros(6),
+            wrench_tool=W if self.wrench_frame == "tool" else np.zeros(6),
+            payload_mass_kg=self.payload_mass_kg,
+            payload_com_m=self.payload_com_m,
+            gravity=g,
+        )
 
     def task(self) -> PostureTask:
         """The posture task of this problem."""
-        return PostureTask(self.positions, self.rotations, self.rule, self.load.rows(self.n),
-                           cone_half_angle=self.cone_half_angle,
-                           max_joint_step=self.limits.max_joint_step,
-                           smoothness=self.smoothness, scan=self.scan)
+        return PostureTask(
+            self.positions,
+            self.rotations,
+            self.rule,
+            self.load.rows(self.n),
+            cone_half_angle=self.cone_half_angle,
+            max_joint_step=self.limits.max_joint_step,
+            smoothness=self.smoothness,
+            scan=self.scan,
+        )
 
-    def with_points(self, n: int) -> "Problem":
+    def with_points(self, n: int) -> Problem:
         """The same line path re-sampled with ``n`` points (line paths only)."""
         if self.path_kind != "line" or self.line is None:
-            raise ProblemFileError(f"{self.source}: key 'path.points' can only be changed for a line path "
-                                   f"(this path is '{self.path_kind}')")
+            raise ProblemFileError(
+                f"{self.source}: key 'path.points' can only be changed for a line path "
+                f"(this path is '{self.path_kind}')"
+            )
         if self.wrench_per_waypoint:
             raise ProblemFileError(f"{self.source}: cannot re-sample a path with a per-waypoint wrench")
         if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= MAX_WAYPOINTS:
-            raise ProblemFileError(f"{self.source}: path.points must be an integer in [2, {MAX_WAYPOINTS}], "
-                                   f"got {n!r}")
+            raise ProblemFileError(f"{self.source}: path.points must be an integer in [2, {MAX_WAYPOINTS}], got {n!r}")
         P = line_positions(self.line[0], self.line[1], n)
         R = np.broadcast_to(self.rotations[0], (n, 3, 3)).copy()
         W = np.broadcast_to(self.wrench[0], (n, 6)).copy()
         return replace(self, positions=P, rotations=R, wrench=W)
 
-    def with_robot(self, robot_spec: "str | ArmModel") -> "Problem":
+    def with_robot(self, robot_spec: str | ArmModel) -> Problem:
         """The same problem on another arm model (built-in name, robot file, identified model
         file, or an :class:`ArmModel`), keeping the problem's tool."""
         arm = load_arm(robot_spec).with_tool(self.robot.tcp2flange)
         spec = robot_spec if isinstance(robot_spec, str) else (arm.source or arm.name)
         return replace(self, robot_spec=str(spec), robot=arm.nominal, arm=arm)
 
-    def with_timing(self, **changes: Any) -> "Problem":
+    def with_timing(self, **changes: Any) -> Problem:
         """The same problem with other timing settings (e.g. ``dt=0.002``)."""
         t = replace(self.timing, **changes)
         check_timing(self.source, t)
@@ -176,44 +205,63 @@ class Problem:
             "name": self.name,
             "description": self.description,
             "source": self.source_text,
-            "robot": {"model": self.robot_spec,
-                      "tool": {"xyz": [float(v) for v in T[:3, 3]],
-                               "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]}},
+            "robot": {
+                "model": self.robot_spec,
+                "tool": {"xyz": [float(v) for v in T[:3, 3]], "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]},
+            },
         }
         if self.path_kind == "line" and self.line is not None:
-            d["path"] = {"kind": "line", "start": [float(v) for v in self.line[0]],
-                         "end": [float(v) for v in self.line[1]], "points": self.n}
+            d["path"] = {
+                "kind": "line",
+                "start": [float(v) for v in self.line[0]],
+                "end": [float(v) for v in self.line[1]],
+                "points": self.n,
+            }
         else:
-            d["path"] = {"kind": "waypoints", "positions": self.positions.tolist(),
-                         "rpy": [matrix_to_rpy(R).tolist() for R in self.rotations]}
-        o: dict[str, Any] = {"rule": self.rule.value, "rpy": [float(v) for v in self.nominal_rpy],
-                             "scan": self.scan}
+            d["path"] = {
+                "kind": "waypoints",
+                "positions": self.positions.tolist(),
+                "rpy": [matrix_to_rpy(R).tolist() for R in self.rotations],
+            }
+        o: dict[str, Any] = {"rule": self.rule.value, "rpy": [float(v) for v in self.nominal_rpy], "scan": self.scan}
         if self.rule is OrientationRule.CONE:
             o["half_angle"] = self.cone_half_angle
         d["orientation"] = o
         if self.wrench_per_waypoint:
             d["wrench"] = {"frame": self.wrench_frame, "per_waypoint": self.wrench.tolist()}
         else:
-            d["wrench"] = {"frame": self.wrench_frame, "force": self.wrench[0, :3].tolist(),
-                           "moment": self.wrench[0, 3:].tolist()}
+            d["wrench"] = {
+                "frame": self.wrench_frame,
+                "force": self.wrench[0, :3].tolist(),
+                "moment": self.wrench[0, 3:].tolist(),
+            }
         if self.payload_mass_kg:
-            d["payload"] = {"mass_kg": float(self.payload_mass_kg),
-                            "com_m": [float(v) for v in self.payload_com_m]}
+            d["payload"] = {"mass_kg": float(self.payload_mass_kg), "com_m": [float(v) for v in self.payload_com_m]}
             if self.gravity is not None:
                 d["payload"]["gravity_m_s2"] = [float(v) for v in self.gravity]
-        d["limits"] = {"velocity": self.limits.velocity.tolist(),
-                       "acceleration": self.limits.acceleration.tolist(),
-                       "jerk": self.limits.jerk.tolist(), "max_joint_step": self.limits.max_joint_step}
+        d["limits"] = {
+            "velocity": self.limits.velocity.tolist(),
+            "acceleration": self.limits.acceleration.tolist(),
+            "jerk": self.limits.jerk.tolist(),
+            "max_joint_step": self.limits.max_joint_step,
+        }
         d["cost"] = {"smoothness": self.smoothness}
-        d["solver"] = {"name": self.solver.name, "max_iter": self.solver.max_iter, "tol": self.solver.tol,
-                       "codegen": self.solver.codegen}
+        d["solver"] = {
+            "name": self.solver.name,
+            "max_iter": self.solver.max_iter,
+            "tol": self.solver.tol,
+            "codegen": self.solver.codegen,
+        }
         d["branch"] = {"home": self.home_q.tolist()}
-        d["timing"] = {"methods": list(self.timing.methods), "dt": self.timing.dt,
-                       "toppra_gridpoints": self.timing.toppra_gridpoints,
-                       "toppra_max_iterations": self.timing.toppra_max_iterations,
-                       "ruckig_max_iterations": self.timing.ruckig_max_iterations,
-                       "dynamic": self.timing.dynamic}
-        for m, opts in self.timing.method_options.items():       # [timing.<method>] tables
+        d["timing"] = {
+            "methods": list(self.timing.methods),
+            "dt": self.timing.dt,
+            "toppra_gridpoints": self.timing.toppra_gridpoints,
+            "toppra_max_iterations": self.timing.toppra_max_iterations,
+            "ruckig_max_iterations": self.timing.ruckig_max_iterations,
+            "dynamic": self.timing.dynamic,
+        }
+        for m, opts in self.timing.method_options.items():  # [timing.<method>] tables
             d["timing"][m] = dict(opts)
         if self.placement is not None:
             g = self.placement.describe()
@@ -225,8 +273,8 @@ class Problem:
 # The loader
 # --------------------------------------------------------------------------------------
 
-def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
-                      base_dir: Path | None = None) -> Problem:
+
+def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir: Path | None = None) -> Problem:
     """Build and validate a :class:`Problem` from a parsed problem file.
 
     The sections are parsed in file order (see :mod:`problems.problem_file`), so the
@@ -258,14 +306,35 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem",
     home = parse_branch(where, data)
     timing = parse_timing(where, data)
     placement = parse_placement(where, data)
-    return Problem(name=head.name, description=head.description, source=where, source_text=head.source_text,
-                   robot_spec=spec, robot=arm.nominal, path_kind=path.kind, line=path.line,
-                   positions=path.positions, rotations=path.rotations, rule=orient.rule,
-                   cone_half_angle=orient.cone_half_angle, scan=orient.scan, wrench=wrench.wrench,
-                   wrench_per_waypoint=wrench.per_waypoint, limits=limits, smoothness=smoothness,
-                   solver=solver, home_q=home, timing=timing, nominal_rpy=orient.nominal_rpy,
-                   wrench_frame=wrench.frame, payload_mass_kg=payload.mass_kg, payload_com_m=payload.com_m,
-                   gravity=payload.gravity, arm=arm, placement=placement)
+    return Problem(
+        name=head.name,
+        description=head.description,
+        source=where,
+        source_text=head.source_text,
+        robot_spec=spec,
+        robot=arm.nominal,
+        path_kind=path.kind,
+        line=path.line,
+        positions=path.positions,
+        rotations=path.rotations,
+        rule=orient.rule,
+        cone_half_angle=orient.cone_half_angle,
+        scan=orient.scan,
+        wrench=wrench.wrench,
+        wrench_per_waypoint=wrench.per_waypoint,
+        limits=limits,
+        smoothness=smoothness,
+        solver=solver,
+        home_q=home,
+        timing=timing,
+        nominal_rpy=orient.nominal_rpy,
+        wrench_frame=wrench.frame,
+        payload_mass_kg=payload.mass_kg,
+        payload_com_m=payload.com_m,
+        gravity=payload.gravity,
+        arm=arm,
+        placement=placement,
+    )
 
 
 def shipped_problems() -> tuple[str, ...]:
@@ -286,6 +355,7 @@ def load_problem(spec: str | Path) -> Problem:
     path = Path(s)
     if path.is_file() or (path.exists() and s not in shipped_problems()):
         from models.robot import read_text_file
+
         text = read_text_file(path, "problem file (TOML)", ProblemFileError)
         where, base = str(path), path.parent
     elif s in shipped_problems():
@@ -293,8 +363,9 @@ def load_problem(spec: str | Path) -> Problem:
         text = res.read_text(encoding="utf-8")
         where, base = f"shipped problem '{s}'", None
     else:
-        raise ProblemFileError(f"problem '{s}': no such file, and not a shipped problem "
-                               f"(shipped: {', '.join(shipped_problems())})")
+        raise ProblemFileError(
+            f"problem '{s}': no such file, and not a shipped problem (shipped: {', '.join(shipped_problems())})"
+        )
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

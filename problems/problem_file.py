@@ -18,7 +18,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, NamedTuple
+from typing import Any, NamedTuple
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -29,8 +30,14 @@ from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError
 from models.transforms import matrix_to_rpy, rpy_to_matrix, transform
 from problems import paper
 from problems.path import MAX_JOINT_STEP, line_positions
-from problems.posture import (DEFAULT_MAX_ITER, DEFAULT_SCAN, DEFAULT_SMOOTHNESS, DEFAULT_TOL,
-                              OrientationRule, SolverSettings)
+from problems.posture import (
+    DEFAULT_MAX_ITER,
+    DEFAULT_SCAN,
+    DEFAULT_SMOOTHNESS,
+    DEFAULT_TOL,
+    OrientationRule,
+    SolverSettings,
+)
 from problems.timing import DT_DEFAULT_S, available_methods, controller_methods, default_methods, get_method
 from problems.timing.registry import validate_options
 
@@ -49,8 +56,22 @@ MAX_WAYPOINTS = 2000
 #: Default nominal TCP orientation: tool z axis pointing down (roll = 180 deg).
 DEFAULT_RPY = np.array([math.pi, 0.0, 0.0])
 
-_TOP = ("name", "description", "source", "robot", "path", "orientation", "wrench", "payload", "limits",
-        "cost", "solver", "branch", "timing", "placement")
+_TOP = (
+    "name",
+    "description",
+    "source",
+    "robot",
+    "path",
+    "orientation",
+    "wrench",
+    "payload",
+    "limits",
+    "cost",
+    "solver",
+    "branch",
+    "timing",
+    "placement",
+)
 #: Frames a wrench may be given in.
 WRENCH_FRAMES = ("base", "tool")
 _TABLE_KEYS: dict[str, tuple[str, ...]] = {
@@ -60,13 +81,20 @@ _TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
     "wrench": ("frame", "force", "moment", "per_waypoint"),
     "payload": ("mass_kg", "com_m", "gravity_m_s2"),
-    "limits": ("velocity", "acceleration", "jerk", "velocity_scale", "acceleration_scale",
-               "jerk_scale", "max_joint_step", "max_joint_step_deg"),
+    "limits": (
+        "velocity",
+        "acceleration",
+        "jerk",
+        "velocity_scale",
+        "acceleration_scale",
+        "jerk_scale",
+        "max_joint_step",
+        "max_joint_step_deg",
+    ),
     "cost": ("smoothness",),
     "solver": ("name", "max_iter", "tol", "codegen"),
     "branch": ("home", "home_deg"),
-    "timing": ("methods", "dt", "toppra_gridpoints", "toppra_max_iterations",
-               "ruckig_max_iterations", "dynamic"),
+    "timing": ("methods", "dt", "toppra_gridpoints", "toppra_max_iterations", "ruckig_max_iterations", "dynamic"),
 }
 
 
@@ -77,6 +105,7 @@ class ProblemFileError(InputError):
 # --------------------------------------------------------------------------------------
 # Settings and parsed sections
 # --------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Limits:
@@ -108,16 +137,19 @@ class TimingSettings:
 
     methods: tuple[str, ...] = field(default_factory=default_methods)
     dt: float = DT_DEFAULT_S
-    toppra_gridpoints: int = 0          # 0: the timing module's default
-    toppra_max_iterations: int = 0      # 0: default
-    ruckig_max_iterations: int = 0      # 0: default
-    dynamic: bool = False               # motor-side commands for the inertial torques (problems/dynamic.py)
+    toppra_gridpoints: int = 0  # 0: the timing module's default
+    toppra_max_iterations: int = 0  # 0: default
+    ruckig_max_iterations: int = 0  # 0: default
+    dynamic: bool = False  # motor-side commands for the inertial torques (problems/dynamic.py)
     method_options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def options(self, method: str) -> dict[str, Any]:
         """Keyword options of ``method`` for ``problems.timing.time_parametrize``."""
-        out: dict[str, Any] = {opt: getattr(self, key) for key, (m, opt) in TIMING_OPTION_KEYS.items()
-                               if m == method and getattr(self, key)}
+        out: dict[str, Any] = {
+            opt: getattr(self, key)
+            for key, (m, opt) in TIMING_OPTION_KEYS.items()
+            if m == method and getattr(self, key)
+        }
         out.update(self.method_options.get(method, {}))
         return out
 
@@ -240,6 +272,7 @@ class PayloadSection(NamedTuple):
 # Value helpers (every message: "<file>: key '<key>' ...")
 # --------------------------------------------------------------------------------------
 
+
 def _err(where: str, key: str, msg: str) -> ProblemFileError:
     return ProblemFileError(f"{where}: key '{key}' {msg}")
 
@@ -285,8 +318,7 @@ def _rows(where: str, key: str, v: Any, width: int) -> np.ndarray:
     out = np.empty((len(v), width))
     for i, row in enumerate(v):
         if not isinstance(row, list) or len(row) != width:
-            raise ProblemFileError(f"{where}: key '{key}' row {i}: must be a list of {width} numbers, "
-                                   f"got {row!r}")
+            raise ProblemFileError(f"{where}: key '{key}' row {i}: must be a list of {width} numbers, got {row!r}")
         for j, x in enumerate(row):
             out[i, j] = _number(where, f"{key}[{i}][{j}]", x)
     return out
@@ -302,8 +334,7 @@ def _table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
     allowed = _TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
     unknown = sorted(set(cur) - set(allowed))
     if unknown:
-        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: "
-                               f"{list(allowed)}")
+        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(allowed)}")
     return cur
 
 
@@ -346,7 +377,8 @@ def _check_positions(where: str, key: str, P: np.ndarray) -> None:
         k = int(np.argmax(r))
         raise ProblemFileError(
             f"{where}: key '{key}' row {k}: position {P[k].tolist()} is {r[k]:.4g} m from the base "
-            f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); positions are in metres (millimetres given?)")
+            f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); positions are in metres (millimetres given?)"
+        )
 
 
 #: An orientation angle (rpy) in radians beyond this magnitude is implausible: degrees given
@@ -365,9 +397,13 @@ def _check_radians(where: str, key: str, values: np.ndarray, limit: float, deg_k
     bad = np.flatnonzero(np.abs(v) > limit)
     if bad.size:
         i = int(bad[0])
-        raise _err(where, key, f"= {v.tolist() if v.size > 1 else float(v[0])} rad is implausible "
-                               f"(|{float(v[i]):g}| > {limit:.4g} rad): a key without '_deg' is in radians; "
-                               f"degrees given? use '{deg_key}'")
+        raise _err(
+            where,
+            key,
+            f"= {v.tolist() if v.size > 1 else float(v[0])} rad is implausible "
+            f"(|{float(v[i]):g}| > {limit:.4g} rad): a key without '_deg' is in radians; "
+            f"degrees given? use '{deg_key}'",
+        )
 
 
 def check_timing(where: str, t: TimingSettings) -> None:
@@ -394,8 +430,12 @@ def check_timing(where: str, t: TimingSettings) -> None:
         if m not in valid:
             raise _err(where, "timing.methods", f"has unknown method {m!r}; valid: {valid}")
     if not controller_methods(t.methods):
-        raise _err(where, "timing.methods", f"= {list(t.methods)} has no method whose trajectory the controller "
-                                            f"can run; add one of {list(controller_methods())}")
+        raise _err(
+            where,
+            "timing.methods",
+            f"= {list(t.methods)} has no method whose trajectory the controller "
+            f"can run; add one of {list(controller_methods())}",
+        )
     dt_max = min(get_method(m).dt_max_s for m in t.methods)
     if not (0.0 < t.dt <= dt_max) or not math.isfinite(t.dt):
         raise _err(where, "timing.dt", f"must be in (0, {dt_max}] s, got {t.dt!r}")
@@ -412,6 +452,7 @@ def check_timing(where: str, t: TimingSettings) -> None:
 # Section parsers, in file order (each: where = the source for messages, data = the document)
 # --------------------------------------------------------------------------------------
 
+
 def parse_header(where: str, data: Any) -> Header:
     """Check the document is a table with known top-level keys; read name, description, source.
 
@@ -425,8 +466,11 @@ def parse_header(where: str, data: Any) -> Header:
         raise ProblemFileError(f"{where}: expected a table at top level")
     unknown = sorted(set(data) - set(_TOP))
     if unknown:
-        hint = ("; this looks like a robot file (give it as [robot] model = \"FILE\" or --robot), not a "
-                "problem file" if {"joints", "convention"} & set(unknown) else "")
+        hint = (
+            '; this looks like a robot file (give it as [robot] model = "FILE" or --robot), not a problem file'
+            if {"joints", "convention"} & set(unknown)
+            else ""
+        )
         raise ProblemFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP)}{hint}")
     name = data.get("name")
     if not isinstance(name, str) or not name.strip():
@@ -450,8 +494,11 @@ def parse_robot(where: str, data: Mapping[str, Any], base_dir: Path | None) -> R
     rt = _table(where, data, "robot")
     spec = rt.get("model")
     if not isinstance(spec, str) or not spec:
-        raise _err(where, "robot.model", f"must be a built-in robot name {list(BUILTIN_ROBOTS)} or a "
-                                         f"robot file path, got {spec!r}")
+        raise _err(
+            where,
+            "robot.model",
+            f"must be a built-in robot name {list(BUILTIN_ROBOTS)} or a robot file path, got {spec!r}",
+        )
     if spec not in BUILTIN_ROBOTS and base_dir is not None and not Path(spec).is_absolute():
         spec = str((base_dir / spec).resolve())
     try:
@@ -462,9 +509,13 @@ def parse_robot(where: str, data: Mapping[str, Any], base_dir: Path | None) -> R
         tt = _table(where, data, "robot.tool")
         xyz = _vector(where, "robot.tool.xyz", tt.get("xyz", [0.0, 0.0, 0.0]), 3)
         if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-            raise _err(where, "robot.tool.xyz", f"= {xyz.tolist()} m is implausible for a tool (> "
-                                                f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
-                                                "(millimetres given?)")
+            raise _err(
+                where,
+                "robot.tool.xyz",
+                f"= {xyz.tolist()} m is implausible for a tool (> "
+                f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
+                "(millimetres given?)",
+            )
         rpy = _rpy(where, tt, "robot.tool.")
         arm = arm.with_tool(transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz))
     return RobotSection(spec, arm)
@@ -477,16 +528,20 @@ def parse_orientation(where: str, data: Mapping[str, Any]) -> OrientationSection
     try:
         rule = OrientationRule(rule_raw)
     except ValueError:
-        raise _err(where, "orientation.rule", f"must be one of {[r.value for r in OrientationRule]}, "
-                                              f"got {rule_raw!r}") from None
+        raise _err(
+            where, "orientation.rule", f"must be one of {[r.value for r in OrientationRule]}, got {rule_raw!r}"
+        ) from None
     rpy = _rpy(where, ot, "orientation.")
     if "axis" in ot:
         if rpy is not None:
-            raise ProblemFileError(f"{where}: give either 'orientation.axis' or 'orientation.rpy'/'rpy_deg', "
-                                   "not both")
+            raise ProblemFileError(f"{where}: give either 'orientation.axis' or 'orientation.rpy'/'rpy_deg', not both")
         if rule is OrientationRule.FIXED:
-            raise _err(where, "orientation.axis", "cannot define a fixed orientation (an axis leaves the "
-                                                  "rotation about it open); give orientation.rpy_deg")
+            raise _err(
+                where,
+                "orientation.axis",
+                "cannot define a fixed orientation (an axis leaves the "
+                "rotation about it open); give orientation.rpy_deg",
+            )
         ax = _vector(where, "orientation.axis", ot["axis"], 3)
         if np.linalg.norm(ax) < 1e-12:
             raise _err(where, "orientation.axis", f"must be a non-zero vector, got {ax.tolist()}")
@@ -595,12 +650,14 @@ def parse_wrench(where: str, data: Mapping[str, Any], n: int) -> WrenchSection:
     wt = _table(where, data, "wrench")
     frame = wt.get("frame", "base")
     if frame not in WRENCH_FRAMES:
-        raise _err(where, "wrench.frame", f"must be one of {list(WRENCH_FRAMES)} (base frame, or the TCP frame "
-                                          f"turning with the tool), got {frame!r}")
+        raise _err(
+            where,
+            "wrench.frame",
+            f"must be one of {list(WRENCH_FRAMES)} (base frame, or the TCP frame turning with the tool), got {frame!r}",
+        )
     if "per_waypoint" in wt:
         if "force" in wt or "moment" in wt:
-            raise ProblemFileError(f"{where}: give either 'wrench.per_waypoint' or 'wrench.force'/'moment', "
-                                   "not both")
+            raise ProblemFileError(f"{where}: give either 'wrench.per_waypoint' or 'wrench.force'/'moment', not both")
         W = _rows(where, "wrench.per_waypoint", wt["per_waypoint"], 6)
         if len(W) != n:
             raise _err(where, "wrench.per_waypoint", f"has {len(W)} rows but the path has {n} waypoints")
@@ -620,14 +677,20 @@ def _check_wrench(where: str, key: str, W: np.ndarray) -> None:
     with the limits of the measurement files."""
     from problems.measurements import PLAUSIBLE_FORCE_MAX_N, PLAUSIBLE_MOMENT_MAX_NM
 
-    for cols, limit, name, unit in ((slice(0, 3), PLAUSIBLE_FORCE_MAX_N, "force", "N"),
-                                    (slice(3, 6), PLAUSIBLE_MOMENT_MAX_NM, "moment", "N*m")):
+    for cols, limit, name, unit in (
+        (slice(0, 3), PLAUSIBLE_FORCE_MAX_N, "force", "N"),
+        (slice(3, 6), PLAUSIBLE_MOMENT_MAX_NM, "moment", "N*m"),
+    ):
         part = np.abs(W[:, cols])
         if np.any(part > limit):
             i, j = np.unravel_index(int(np.argmax(part)), part.shape)
-            k = (f"{key}[{i}][{j + cols.start}]" if key.endswith("per_waypoint") else f"{key}.{name}[{j}]")
-            raise _err(where, k, f"= {float(W[i, j + cols.start]):g} {unit} is implausible (|value| above "
-                                 f"{limit:g} {unit}); the {name} is in {unit}")
+            k = f"{key}[{i}][{j + cols.start}]" if key.endswith("per_waypoint") else f"{key}.{name}[{j}]"
+            raise _err(
+                where,
+                k,
+                f"= {float(W[i, j + cols.start]):g} {unit} is implausible (|value| above "
+                f"{limit:g} {unit}); the {name} is in {unit}",
+            )
 
 
 def parse_payload(where: str, data: Mapping[str, Any]) -> PayloadSection:
@@ -642,8 +705,11 @@ def parse_payload(where: str, data: Mapping[str, Any]) -> PayloadSection:
             raise _err(where, "payload.mass_kg", f"must be >= 0 kg, got {p_mass!r}")
         p_com = _vector(where, "payload.com_m", pt.get("com_m", [0.0, 0.0, 0.0]), 3)
         if np.max(np.abs(p_com)) > PLAUSIBLE_POSITION_MAX_M:
-            raise _err(where, "payload.com_m", f"= {p_com.tolist()} m is implausible (> "
-                                               f"{PLAUSIBLE_POSITION_MAX_M:g} m; millimetres given?)")
+            raise _err(
+                where,
+                "payload.com_m",
+                f"= {p_com.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m; millimetres given?)",
+            )
         if "gravity_m_s2" in pt:
             p_grav = _vector(where, "payload.gravity_m_s2", pt["gravity_m_s2"], 3)
     return PayloadSection(p_mass, p_com, p_grav)
@@ -666,8 +732,9 @@ def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
             v = _vector_or_scalar(where, f"limits.{key}", lt[key], 6)
             bad = np.where(v <= 0)[0]
             if bad.size:
-                raise ProblemFileError(f"{where}: key 'limits.{key}' joint {int(bad[0]) + 1}: must be > 0, "
-                                       f"got {float(v[bad[0]]):g}")
+                raise ProblemFileError(
+                    f"{where}: key 'limits.{key}' joint {int(bad[0]) + 1}: must be > 0, got {float(v[bad[0]]):g}"
+                )
         elif f"{key}_scale" in lt:
             s = _positive(where, f"limits.{key}_scale", lt[f"{key}_scale"])
             v = base * s
@@ -681,8 +748,13 @@ def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
         raw, deg = got
         step = _positive(where, f"limits.max_joint_step{'_deg' if deg else ''}", raw)
         if not deg:
-            _check_radians(where, "limits.max_joint_step", np.array([step]), PLAUSIBLE_JOINT_STEP_MAX_RAD,
-                           "limits.max_joint_step_deg")
+            _check_radians(
+                where,
+                "limits.max_joint_step",
+                np.array([step]),
+                PLAUSIBLE_JOINT_STEP_MAX_RAD,
+                "limits.max_joint_step_deg",
+            )
         step = math.radians(step) if deg else step
     return Limits(lims["velocity"], lims["acceleration"], lims["jerk"], step)
 
@@ -705,10 +777,12 @@ def parse_solver(where: str, data: Mapping[str, Any]) -> SolverSettings:
     codegen = st.get("codegen", True)
     if not isinstance(codegen, bool):
         raise _err(where, "solver.codegen", f"must be true or false, got {codegen!r}")
-    return SolverSettings(name=sname,
-                          max_iter=_integer(where, "solver.max_iter", st.get("max_iter", DEFAULT_MAX_ITER), 0),
-                          tol=_positive(where, "solver.tol", st.get("tol", DEFAULT_TOL)),
-                          codegen=codegen)
+    return SolverSettings(
+        name=sname,
+        max_iter=_integer(where, "solver.max_iter", st.get("max_iter", DEFAULT_MAX_ITER), 0),
+        tol=_positive(where, "solver.tol", st.get("tol", DEFAULT_TOL)),
+        codegen=codegen,
+    )
 
 
 def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:
@@ -756,18 +830,18 @@ def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
     tt = _table(where, data, "timing")
     methods = tt.get("methods", list(default_methods()))
     if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
-        raise _err(where, "timing.methods", f"must be a list of method names {list(available_methods())}, "
-                                            f"got {methods!r}")
+        raise _err(
+            where, "timing.methods", f"must be a list of method names {list(available_methods())}, got {methods!r}"
+        )
     timing = TimingSettings(
         methods=tuple(methods),
         dt=_positive(where, "timing.dt", tt.get("dt", DT_DEFAULT_S)),
         toppra_gridpoints=_integer(where, "timing.toppra_gridpoints", tt.get("toppra_gridpoints", 0), 0),
-        toppra_max_iterations=_integer(where, "timing.toppra_max_iterations",
-                                       tt.get("toppra_max_iterations", 0), 0),
-        ruckig_max_iterations=_integer(where, "timing.ruckig_max_iterations",
-                                       tt.get("ruckig_max_iterations", 0), 0),
+        toppra_max_iterations=_integer(where, "timing.toppra_max_iterations", tt.get("toppra_max_iterations", 0), 0),
+        ruckig_max_iterations=_integer(where, "timing.ruckig_max_iterations", tt.get("ruckig_max_iterations", 0), 0),
         dynamic=tt.get("dynamic", False),
-        method_options=_method_tables(where, tt))
+        method_options=_method_tables(where, tt),
+    )
     if not isinstance(timing.dynamic, bool):
         raise _err(where, "timing.dynamic", f"must be true or false, got {timing.dynamic!r}")
     if timing.toppra_gridpoints == 1:
@@ -785,6 +859,7 @@ def parse_placement(where: str, data: Mapping[str, Any]) -> Any:
     problems.placement.grid.PlacementGrid or None
     """
     from problems.placement.grid import PlacementGridError, grid_from_table
+
     if "placement" not in data:
         return None
     tab = data["placement"]

@@ -49,32 +49,48 @@ OUT = "{out}"
 # ------------------------------------------------------------------------------ the slow marker
 #: A test that reads one of these fixtures is slow (each costs seconds: a plan with its report,
 #: identification campaigns, the shipped placement study).
-SLOW_FIXTURES = frozenset({"paper_report", "fast_payload_run", "effect_case", "map_case", "identified_ur10",
-                           "shipped_run", "maps_run", "plain_run"})
+SLOW_FIXTURES = frozenset(
+    {
+        "paper_report",
+        "fast_payload_run",
+        "effect_case",
+        "map_case",
+        "identified_ur10",
+        "shipped_run",
+        "maps_run",
+        "plain_run",
+    }
+)
 
 #: Slow tests of modules that carry no ``@pytest.mark.slow`` of their own: module file name ->
 #: test function names (each measured above about one CPU-second).  The other modules mark
 #: their slow tests where they are defined.
 SLOW_TESTS: dict[str, frozenset[str]] = {
-    "test_report.py": frozenset({
-        "test_trajectory_file_without_jerk_columns_is_stated",
-        "test_run_without_trajectory_says_so",
-        "test_other_timing_shapes_are_rendered",
-        "test_serial_and_parallel_rendering_give_the_same_files",
-        "test_compliance_map_is_cached_per_robot_and_options",
-        "test_stale_figures_of_an_earlier_report_are_removed",
-        "test_cli_report_and_map",
-        "test_payload_and_tool_frame_loads_are_named_not_a_zero_base_force",
-        "test_command_outputs_record_their_command_line",
-        "test_identification_report_is_styled_and_explains_itself",
-    }),
-    "test_one_model.py": frozenset({
-        "test_tool_frame_wrench_plan_lands_on_the_truth_robot",
-        "test_plan_with_a_model_from_unregistered_data_says_the_base_frame_is_not_exact",
-    }),
-    "test_plan.py": frozenset({
-        "test_machining_gain_and_figures",
-    }),
+    "test_report.py": frozenset(
+        {
+            "test_trajectory_file_without_jerk_columns_is_stated",
+            "test_run_without_trajectory_says_so",
+            "test_other_timing_shapes_are_rendered",
+            "test_serial_and_parallel_rendering_give_the_same_files",
+            "test_compliance_map_is_cached_per_robot_and_options",
+            "test_stale_figures_of_an_earlier_report_are_removed",
+            "test_cli_report_and_map",
+            "test_payload_and_tool_frame_loads_are_named_not_a_zero_base_force",
+            "test_command_outputs_record_their_command_line",
+            "test_identification_report_is_styled_and_explains_itself",
+        }
+    ),
+    "test_one_model.py": frozenset(
+        {
+            "test_tool_frame_wrench_plan_lands_on_the_truth_robot",
+            "test_plan_with_a_model_from_unregistered_data_says_the_base_frame_is_not_exact",
+        }
+    ),
+    "test_plan.py": frozenset(
+        {
+            "test_machining_gain_and_figures",
+        }
+    ),
 }
 
 
@@ -93,16 +109,18 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             checked.add(module.__name__)
             missing = sorted(n for n in names if not callable(getattr(module, n, None)))
             if missing:
-                raise pytest.UsageError(f"tests/conftest.py SLOW_TESTS names tests {module.__name__} "
-                                        f"does not define: {', '.join(missing)}")
+                raise pytest.UsageError(
+                    f"tests/conftest.py SLOW_TESTS names tests {module.__name__} does not define: {', '.join(missing)}"
+                )
         if getattr(item, "originalname", item.name) in names:
             item.add_marker(pytest.mark.slow)
 
 
 # ------------------------------------------------------------------------------ built-in arms
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _model(name: str) -> tuple:
     from models import AnalyticIK, KinematicModel, load_robot
+
     robot = load_robot(name)
     return robot, KinematicModel(robot), AnalyticIK(robot)
 
@@ -120,6 +138,7 @@ def get_model(name: str) -> tuple:
 @pytest.fixture
 def rng() -> np.random.Generator:
     import numpy as np
+
     return np.random.default_rng(20261121)
 
 
@@ -139,8 +158,11 @@ def as_modified_dh(robot_dict: dict) -> dict:
 # ------------------------------------------------------------------------------ shared folders
 def _digest(folder: Path) -> dict[str, str]:
     """SHA-256 of every file below ``folder`` (relative name -> hex digest)."""
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 class SharedFolders:
@@ -196,6 +218,7 @@ class SharedCli:
         ``argv``); fails the test that asked if the command fails."""
         if argv not in self._runs:
             from planner.cli import main
+
             folder = self._factory.mktemp("shared_" + "_".join(a for a in argv[:2] if a.isidentifier())) / "out"
             out, err = io.StringIO(), io.StringIO()
             with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -222,6 +245,7 @@ def paper_result() -> Any:
     """The demo's plan (paper section 4.4 on ar5, ``run_demo``) in memory.  Read-only."""
     from models import load_robot
     from planner.demo import run_demo
+
     return run_demo(load_robot("ar5"))
 
 
@@ -229,6 +253,7 @@ def paper_result() -> Any:
 def paper_folder(paper_result, tmp_path_factory, shared_folders) -> Path:
     """``paper_result``'s files (``planner.demo.write_outputs``: no figures, no report)."""
     from planner.demo import write_outputs
+
     folder = tmp_path_factory.mktemp("paper_folder") / "run"
     write_outputs(paper_result, folder)
     return shared_folders.add(folder)
@@ -239,6 +264,7 @@ def paper_report(paper_result, tmp_path_factory, shared_folders) -> Path:
     """``paper_result``'s files and report, the report built from the result with the report
     defaults (as ``compplan demo``)."""
     from planner.demo import write_outputs
+
     folder = tmp_path_factory.mktemp("paper_report") / "run"
     write_outputs(paper_result, folder, report=True)
     return shared_folders.add(folder)
@@ -260,4 +286,3 @@ def paper_run_output(shared_cli) -> str:
 def fast_payload_run(shared_cli) -> Path:
     """The folder of ``compplan plan ur5_fast_payload --out DIR`` (with its report)."""
     return shared_cli.run(*FAST_PAYLOAD_ARGV).folder
-

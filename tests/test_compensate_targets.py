@@ -45,8 +45,12 @@ N_TARGETS = 6
 
 
 def _campaign(registered: bool, seed: int) -> tuple[VirtualRobot, object]:
-    cfg = {"campaign": {"poses": 30}, "noise": {"sigma_m": SIGMA_M}, "registration": {"registered": registered},
-           "effects": {"geometric": dict(GEOMETRIC)}}
+    cfg = {
+        "campaign": {"poses": 30},
+        "noise": {"sigma_m": SIGMA_M},
+        "registration": {"registered": registered},
+        "effects": {"geometric": dict(GEOMETRIC)},
+    }
     vr = VirtualRobot(load_robot("ur5"), cfg, seed=seed)
     res = identify(load_robot("ur5"), vr.campaign(), registered=registered, candidates=["geometric"])
     assert "geometric" in res.model.effects
@@ -88,7 +92,7 @@ def test_base_frame_targets_land_on_the_truth_robot(registered) -> None:
     q, F = _commands(vr)
     rng = np.random.default_rng(8)
     T_nom = model_from_robot(vr.robot).kinematics.tcp(q)
-    target = T_nom[:, :3, 3] + rng.normal(0.0, 3e-3, (N_TARGETS, 3))      # not the nominal TCP
+    target = T_nom[:, :3, 3] + rng.normal(0.0, 3e-3, (N_TARGETS, 3))  # not the nominal TCP
     m = Measurements(q=q, wrench=F, p=target)
     out = compensate_targets(res.model, m, "base")
     assert out.status is CompensationStatus.OK and not out.warnings, out.reason
@@ -128,9 +132,8 @@ def test_unregistered_model_with_base_frame_targets_warns(unregistered) -> None:
         assert out.status is CompensationStatus.WARNING, (frame, out.reason)
         assert out.warnings == [out.reason]
         assert "dtheta[1]" in out.reason and "dd[1]" in out.reason
-        assert "dd[3]" not in out.reason          # carried by dd[2]: compensated in the base frame
-        assert " mm" in out.reason and "exact in the measurement frame (use --targets-frame measurement)" \
-            in out.reason
+        assert "dd[3]" not in out.reason  # carried by dd[2]: compensated in the base frame
+        assert " mm" in out.reason and "exact in the measurement frame (use --targets-frame measurement)" in out.reason
         assert np.all(np.isfinite(out.q_command)) and out.residual_m.max() < 1e-6
 
 
@@ -149,8 +152,22 @@ def test_missing_target_columns_is_an_input_error_naming_them(unregistered, tmp_
     inp.write_text(_csv(q, F, None))
     out = tmp_path / "comp.csv"
     capsys.readouterr()
-    assert cli_main(["compensate", "--model", str(model), "--input", str(inp), "--out", str(out),
-                     "--targets-frame", "measurement"]) == 2
+    assert (
+        cli_main(
+            [
+                "compensate",
+                "--model",
+                str(model),
+                "--input",
+                str(inp),
+                "--out",
+                str(out),
+                "--targets-frame",
+                "measurement",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "error" in err and str(inp) in err and "x, y, z" in err
     assert not out.exists()
@@ -160,7 +177,7 @@ def test_target_far_from_its_commands_is_an_input_error(registered) -> None:
     vr, res = registered
     q, F = _commands(vr)
     p = model_from_robot(vr.robot).kinematics.tcp(q)[:, :3, 3] * 1e3
-    p[2, 0] += 400.0                                          # 0.4 m off: another frame?
+    p[2, 0] += 400.0  # 0.4 m off: another frame?
     m = parse_measurements(_csv(q, F, p), "cmd.csv", require_position=False)
     with pytest.raises(TargetsError) as ei:
         compensate_targets(res.model, m, "base")
@@ -178,8 +195,12 @@ def test_cli_targets_frames(unregistered, tmp_path, capsys) -> None:
     inp.write_text(_csv(q, F, model_from_robot(vr.robot).kinematics.tcp(q)[:, :3, 3] * 1e3))
     out = tmp_path / "comp_base.csv"
     capsys.readouterr()
-    assert cli_main(["compensate", "--model", str(model), "--input", str(inp), "--out", str(out),
-                     "--targets-frame", "base"]) == 0
+    assert (
+        cli_main(
+            ["compensate", "--model", str(model), "--input", str(inp), "--out", str(out), "--targets-frame", "base"]
+        )
+        == 0
+    )
     cap = capsys.readouterr()
     assert cap.err.count("\n") == 1 and cap.err.startswith("compplan: warning: ") and "dtheta[1]" in cap.err
     assert np.loadtxt(out, delimiter=",", skiprows=1).shape == (N_TARGETS, 6)
@@ -188,8 +209,22 @@ def test_cli_targets_frames(unregistered, tmp_path, capsys) -> None:
     inp = tmp_path / "meas.csv"
     inp.write_text(_csv(q, F, target * 1e3))
     out = tmp_path / "comp_meas.csv"
-    assert cli_main(["compensate", "--model", str(model), "--input", str(inp), "--out", str(out),
-                     "--targets-frame", "measurement"]) == 0
+    assert (
+        cli_main(
+            [
+                "compensate",
+                "--model",
+                str(model),
+                "--input",
+                str(inp),
+                "--out",
+                str(out),
+                "--targets-frame",
+                "measurement",
+            ]
+        )
+        == 0
+    )
     cap = capsys.readouterr()
     assert cap.err == "" and "targets measurement frame, status ok" in cap.out
     qc = np.loadtxt(out, delimiter=",", skiprows=1)

@@ -32,7 +32,7 @@ def test_paper_path_before_closed_exact():
     robot, km, T, feasible = _paper_branches()
     F = paper.SECTION_4_4_WRENCH
     assert len(feasible) >= 2
-    for b, bp in feasible.items():
+    for bp in feasible.values():
         before = uncompensated(km, bp.q, F)
         cf = closed_form(km, bp.q, F)
         ex = exact(km, bp.q, F)
@@ -82,7 +82,7 @@ def test_exact_with_per_waypoint_wrench_and_moment():
 
 def test_closed_form_near_singularity_uses_dls_and_warns():
     robot, km, _ = get_model("ur5")
-    q = np.array([[0.3, -1.0, 1.2, 0.4, 1e-9, 0.2]])   # wrist singular
+    q = np.array([[0.3, -1.0, 1.2, 0.4, 1e-9, 0.2]])  # wrist singular
     cf = closed_form(km, q, np.array([0.0, 0.0, -50.0, 0.0, 0.0, 0.0]), linearize_at="target")
     assert cf.status is CompensationStatus.WARNING
     assert "condition number" in cf.warnings[0]

@@ -14,8 +14,11 @@ from problems.dynamic import DynamicStatus, inertial_torques, motor_command
 TORQUE_TOL = 1e-9
 ANGLE_TOL = 1e-12
 
-LOAD = Load(wrench_base=np.array([5.0, -10.0, -20.0, 0.5, 0.0, 0.2]), payload_mass_kg=4.0,
-            payload_com_m=np.array([0.01, 0.0, 0.06]))
+LOAD = Load(
+    wrench_base=np.array([5.0, -10.0, -20.0, 0.5, 0.0, 0.2]),
+    payload_mass_kg=4.0,
+    payload_com_m=np.array([0.01, 0.0, 0.06]),
+)
 
 
 def _states(rng, n=20):
@@ -28,11 +31,13 @@ def test_at_rest_the_command_is_the_static_exact_compensation(rng):
     cmd = motor_command(arm, q, np.zeros_like(q), np.zeros_like(q), LOAD)
     assert cmd.status is DynamicStatus.OK
     from problems.dynamic import link_weight_torques
+
     static = q - arm.torque_deflection(q, arm.joint_torques(q, LOAD) + link_weight_torques(arm.robot(), q))
     np.testing.assert_allclose(cmd.theta, static, atol=ANGLE_TOL)
     # without the weight of the links it is exactly the static exact compensation of the load
-    np.testing.assert_allclose(q - arm.torque_deflection(q, arm.joint_torques(q, LOAD)), exact(arm, q, LOAD).q_command,
-                               atol=ANGLE_TOL)
+    np.testing.assert_allclose(
+        q - arm.torque_deflection(q, arm.joint_torques(q, LOAD)), exact(arm, q, LOAD).q_command, atol=ANGLE_TOL
+    )
     assert np.abs(cmd.tau_inertial).max() == 0.0
 
 
@@ -49,6 +54,7 @@ def test_the_elastic_joints_carry_the_inertial_and_static_torques(rng):
     # the inertial torques against pinocchio (gravity off, payload as a body at the TCP)
     from models.dynamics import payload_vector
     from tests.test_dynamics import pinocchio_from_dh  # the pinocchio model built from the DH rows
+
     model, _jid, _tcp = pinocchio_from_dh(robot, payload_vector(LOAD.payload_mass_kg, LOAD.payload_com_m))
     model.gravity.linear = np.zeros(3)
     data = model.createData()
@@ -87,13 +93,18 @@ def test_motor_command_makes_the_simulated_elastic_arm_follow_the_plan():
     from models.dynamics import payload_vector
     from problems.timing import JointLimits, time_parametrize
     from problems.virtual.elastic import simulate_elastic, tracking_error
+
     arm = load_arm("ur5")
     robot = arm.robot()
     load = Load(payload_mass_kg=5.0, payload_com_m=np.array([0.0, 0.0, 0.05]))
     u = np.linspace(0.0, 1.0, 12)[:, None]
     q0, q1 = np.array([0.0, -1.6, 1.6, -1.5, -1.57, 0.0]), np.array([1.2, -1.0, 1.0, -1.2, -1.2, 0.6])
-    tr = time_parametrize(q0 + u * (q1 - q0) + 0.1 * np.sin(np.pi * u), JointLimits(robot.v_max, robot.a_max,
-                                                                                     robot.j_max), "jerk_optimal", 0.004)
+    tr = time_parametrize(
+        q0 + u * (q1 - q0) + 0.1 * np.sin(np.pi * u),
+        JointLimits(robot.v_max, robot.a_max, robot.j_max),
+        "jerk_optimal",
+        0.004,
+    )
     dyn = motor_command(arm, tr.q, tr.qd, tr.qdd, load)
     static = motor_command(arm, tr.q, np.zeros_like(tr.q), np.zeros_like(tr.q), load)
     err = {}
@@ -101,6 +112,6 @@ def test_motor_command_makes_the_simulated_elastic_arm_follow_the_plan():
         sim = simulate_elastic(robot, tr.t, cmd.theta, payload=payload_vector(5.0, [0.0, 0.0, 0.05]))
         assert sim.status.value == "ok", sim.reason
         err[name] = tracking_error(sim, robot, tr.t, tr.q)
-    assert err["static"].max_motion > 1e-4                      # the inertial deflection is real (0.4 mm)
+    assert err["static"].max_motion > 1e-4  # the inertial deflection is real (0.4 mm)
     assert err["static"].max_motion >= MOTION_GAIN_MIN * err["dynamic"].max_motion
     assert err["dynamic"].final <= REST_ERROR_MAX_M

@@ -19,8 +19,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from models.dynamics import (PAYLOAD_SIZE, gravity_torque_function, mass_matrix_function, payload_vector,
-                             rnea_function)
+from models.dynamics import PAYLOAD_SIZE, gravity_torque_function, mass_matrix_function, payload_vector, rnea_function
 from models.load import Load
 from models.robot import RobotFileError, load_robot
 from models.transforms import rot_x, rot_y, rot_z, rpy_to_matrix, transform
@@ -43,9 +42,9 @@ N_STATES = 25
 SHIPPED = ("ur5", "ur10", "ur5e", "kr6_r900")
 URDF_ROBOTS = ("ur5e", "kr6_r900")
 TOOL = transform(rot_z(0.3) @ rot_x(-0.4), np.array([0.1, -0.02, 0.15]))
-PAYLOAD = payload_vector(3.5, [0.02, -0.03, 0.09], np.array([[0.021, 0.002, -0.003],
-                                                              [0.002, 0.018, 0.001],
-                                                              [-0.003, 0.001, 0.012]]))
+PAYLOAD = payload_vector(
+    3.5, [0.02, -0.03, 0.09], np.array([[0.021, 0.002, -0.003], [0.002, 0.018, 0.001], [-0.003, 0.001, 0.012]])
+)
 
 
 def _states(rng: np.random.Generator, n: int = N_STATES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -58,8 +57,14 @@ def _with_masses(robot):
     joints = []
     for j in robot.joints:
         A = rng.normal(size=(3, 3))
-        joints.append(replace(j, mass=float(rng.uniform(0.5, 8.0)), com=rng.uniform(-0.1, 0.1, 3),
-                              inertia=0.01 * np.eye(3) + 1e-3 * (A @ A.T) / 3.0))
+        joints.append(
+            replace(
+                j,
+                mass=float(rng.uniform(0.5, 8.0)),
+                com=rng.uniform(-0.1, 0.1, 3),
+                inertia=0.01 * np.eye(3) + 1e-3 * (A @ A.T) / 3.0,
+            )
+        )
     return replace(robot, joints=tuple(joints))
 
 
@@ -81,12 +86,13 @@ def _close(ours: np.ndarray, ref: np.ndarray, tol: float) -> float:
 # pinocchio models: from the DH rows (the test's own construction), from URDF files
 # --------------------------------------------------------------------------------------
 
-def _se3(T: np.ndarray) -> "pin.SE3":
+
+def _se3(T: np.ndarray) -> pin.SE3:
     return pin.SE3(np.array(T[:3, :3]), np.array(T[:3, 3]))
 
 
-def _tf(R: np.ndarray = np.eye(3), p=(0.0, 0.0, 0.0)) -> np.ndarray:
-    return transform(R, np.asarray(p, dtype=float))
+def _tf(R: np.ndarray | None = None, p=(0.0, 0.0, 0.0)) -> np.ndarray:
+    return transform(np.eye(3) if R is None else R, np.asarray(p, dtype=float))
 
 
 def _inertia3(v: np.ndarray) -> np.ndarray:
@@ -106,13 +112,15 @@ def pinocchio_from_dh(robot, payload: np.ndarray | None = None):
             left, rgt = np.eye(4), _tf(p=(0, 0, j.d)) @ _tf(p=(j.a, 0, 0)) @ _tf(rot_x(j.alpha))
         else:
             left, rgt = _tf(rot_x(j.alpha)) @ _tf(p=(j.a, 0, 0)), _tf(p=(0, 0, j.d))
-        parent = model.addJoint(parent, pin.JointModelRZ(), _se3(right @ left @ _tf(rot_z(j.theta_offset))),
-                                f"joint{i + 1}")
+        parent = model.addJoint(
+            parent, pin.JointModelRZ(), _se3(right @ left @ _tf(rot_z(j.theta_offset))), f"joint{i + 1}"
+        )
         m = 0.0 if j.mass is None else j.mass
         c = np.zeros(3) if j.com is None else j.com
         I = np.zeros((3, 3)) if j.inertia is None else j.inertia
-        model.appendBodyToJoint(parent, pin.Inertia(m, np.asarray(c, dtype=float), np.asarray(I, dtype=float)),
-                                _se3(rgt))
+        model.appendBodyToJoint(
+            parent, pin.Inertia(m, np.asarray(c, dtype=float), np.asarray(I, dtype=float)), _se3(rgt)
+        )
         right = rgt
     tcp = right @ robot.flange2frame6 @ robot.tcp2flange
     if payload is not None:
@@ -144,7 +152,7 @@ def _fext(model, data, jid: int, tcp: np.ndarray, wrench: np.ndarray, base2world
     R = base2world[:3, :3]
     p = (data.oMi[jid].homogeneous @ tcp)[:3, 3]
     f, m = R @ wrench[:3], R @ wrench[3:]
-    fw = pin.Force(f, m + np.cross(p, f))                          # world frame, about its origin
+    fw = pin.Force(f, m + np.cross(p, f))  # world frame, about its origin
     fext = [pin.Force.Zero() for _ in range(model.njoints)]
     fext[jid] = data.oMi[jid].actInv(fw)
     return fext
@@ -153,6 +161,7 @@ def _fext(model, data, jid: int, tcp: np.ndarray, wrench: np.ndarray, base2world
 # --------------------------------------------------------------------------------------
 # RNEA against pinocchio
 # --------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", SHIPPED + ("ar5+masses",))
 @pytest.mark.parametrize("loaded", [False, True])
@@ -170,7 +179,7 @@ def test_rnea_equals_pinocchio_of_the_dh_rows(name, loaded, rng):
         pin.forwardKinematics(model, data, q)
         ref = pin.rnea(model, data, q, v, a, _fext(model, data, jid, tcp, w, np.eye(4)))
         worst = max(worst, _close(_tau(f, q, v, a, payload, w), ref, PINOCCHIO_TOL))
-    assert np.abs(ref).max() > 1.0                                 # real torques: the check can fail
+    assert np.abs(ref).max() > 1.0  # real torques: the check can fail
 
 
 @pytest.mark.parametrize("name", URDF_ROBOTS)
@@ -181,7 +190,7 @@ def test_rnea_of_urdf_arms_equals_pinocchio_of_their_urdf(name, loaded, rng):
     payload = PAYLOAD if loaded else np.zeros(PAYLOAD_SIZE)
     f = rnea_function(robot)
     model, jid, tcp, idx, b2w = pinocchio_from_urdf(robot, payload if loaded else None)
-    assert not np.allclose(b2w, np.eye(4)) or name != "ur5e"      # ur5e: base = Rz(pi) of the URDF root
+    assert not np.allclose(b2w, np.eye(4)) or name != "ur5e"  # ur5e: base = Rz(pi) of the URDF root
     data = model.createData()
     Q, V, A = _states(rng)
     for q, v, a in zip(Q, V, A):
@@ -226,12 +235,22 @@ HALF_PI = math.pi / 2
 #: joint origins (xyz m, rpy rad) shoulder_pan .. wrist_3; the ~2e-11 m / 2e-10 rad residues of
 #: the yaml written as 0 / pi/2 (as models/robots/ur5e.urdf does).
 UR_KINEMATICS = {
-    "ur5": [((0, 0, 0.089159), (0, 0, 0)), ((0, 0, 0), (HALF_PI, 0, 0)), ((-0.425, 0, 0), (0, 0, 0)),
-            ((-0.39225, 0, 0.10915), (0, 0, 0)), ((0, -0.09465, 0), (HALF_PI, 0, 0)),
-            ((0, 0.0823, 0), (HALF_PI, math.pi, math.pi))],
-    "ur10": [((0, 0, 0.1273), (0, 0, 0)), ((0, 0, 0), (HALF_PI, 0, 0)), ((-0.612, 0, 0), (0, 0, 0)),
-             ((-0.5723, 0, 0.163941), (0, 0, 0)), ((0, -0.1157, 0), (HALF_PI, 0, 0)),
-             ((0, 0.0922, 0), (HALF_PI, math.pi, math.pi))],
+    "ur5": [
+        ((0, 0, 0.089159), (0, 0, 0)),
+        ((0, 0, 0), (HALF_PI, 0, 0)),
+        ((-0.425, 0, 0), (0, 0, 0)),
+        ((-0.39225, 0, 0.10915), (0, 0, 0)),
+        ((0, -0.09465, 0), (HALF_PI, 0, 0)),
+        ((0, 0.0823, 0), (HALF_PI, math.pi, math.pi)),
+    ],
+    "ur10": [
+        ((0, 0, 0.1273), (0, 0, 0)),
+        ((0, 0, 0), (HALF_PI, 0, 0)),
+        ((-0.612, 0, 0), (0, 0, 0)),
+        ((-0.5723, 0, 0.163941), (0, 0, 0)),
+        ((0, -0.1157, 0), (HALF_PI, 0, 0)),
+        ((0, 0.0922, 0), (HALF_PI, math.pi, math.pi)),
+    ],
 }
 #: config/urX/physical_parameters.yaml: per link mass (kg), centre of mass (m, URDF link frame),
 #: inertia frame rpy (rad, in the link frame) and tensor [ixx, iyy, izz, ixy, ixz, iyz] (kg*m^2).
@@ -241,15 +260,21 @@ UR_KINEMATICS = {
 UR_INERTIALS = {
     "ur5": [
         (3.7, (0, -0.00193, -0.02561), (0, 0, 0), (0.014972358333333331, 0.014972358333333331, 0.01040625, 0, 0, 0)),
-        (8.393, (-0.2125, 0, 0.11336), (0, HALF_PI, 0),
-         (0.13388583541666665, 0.13388583541666665, 0.0151074, 0, 0, 0)),
-        (2.275, (-0.24225, 0, 0.0265), (0, HALF_PI, 0),
-         (0.031216803515624995, 0.031216803515624995, 0.004095, 0, 0, 0)),
+        (8.393, (-0.2125, 0, 0.11336), (0, HALF_PI, 0), (0.13388583541666665, 0.13388583541666665, 0.0151074, 0, 0, 0)),
+        (
+            2.275,
+            (-0.24225, 0, 0.0265),
+            (0, HALF_PI, 0),
+            (0.031216803515624995, 0.031216803515624995, 0.004095, 0, 0, 0),
+        ),
         (1.219, (0, -0.01634, -0.0018), (0, 0, 0), (0.002013889583333333, 0.002013889583333333, 0.0021942, 0, 0, 0)),
-        (1.219, (0, 0.01634, -0.0018), (0, 0, 0),
-         (0.0018310395833333333, 0.0018310395833333333, 0.0021942, 0, 0, 0)),
-        (0.1879, (0, 0, -0.001159), (0, 0, 0),
-         (8.062475833333332e-05, 8.062475833333332e-05, 0.0001321171875, 0, 0, 0)),
+        (1.219, (0, 0.01634, -0.0018), (0, 0, 0), (0.0018310395833333333, 0.0018310395833333333, 0.0021942, 0, 0, 0)),
+        (
+            0.1879,
+            (0, 0, -0.001159),
+            (0, 0, 0),
+            (8.062475833333332e-05, 8.062475833333332e-05, 0.0001321171875, 0, 0, 0),
+        ),
     ],
     "ur10": [
         (7.1, (0.021, -0.027, 0), (HALF_PI, 0, 0), (0.03408, 0.03529, 0.02156, 0.00002, -0.00425, 0.00008)),
@@ -266,18 +291,22 @@ UR_LINKS = ("shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "
 def ur_description_urdf(name: str) -> str:
     """A URDF of UR's ROS 2 description (chain and inertials as its xacro writes them), rooted
     at UR's base frame (``base_link_inertia`` = DH frame 0)."""
-    f = lambda v: " ".join(repr(float(x)) for x in v)  # noqa: E731
+    f = lambda v: " ".join(repr(float(x)) for x in v)  # noqa: E731 - a one-line helper local to this test
     parts = ['<?xml version="1.0"?>', f'<robot name="{name}">', '<link name="base"/>']
     for link, (m, c, rpy, t) in zip(UR_LINKS, UR_INERTIALS[name]):
-        parts.append(f'<link name="{link}"><inertial><origin xyz="{f(c)}" rpy="{f(rpy)}"/><mass value="{m!r}"/>'
-                     f'<inertia ixx="{t[0]!r}" iyy="{t[1]!r}" izz="{t[2]!r}" ixy="{t[3]!r}" ixz="{t[4]!r}" '
-                     f'iyz="{t[5]!r}"/></inertial></link>')
+        parts.append(
+            f'<link name="{link}"><inertial><origin xyz="{f(c)}" rpy="{f(rpy)}"/><mass value="{m!r}"/>'
+            f'<inertia ixx="{t[0]!r}" iyy="{t[1]!r}" izz="{t[2]!r}" ixy="{t[3]!r}" ixz="{t[4]!r}" '
+            f'iyz="{t[5]!r}"/></inertial></link>'
+        )
     parents = ("base",) + UR_LINKS[:-1]
     names = load_robot(name).joint_names
     for jn, parent, child, (xyz, rpy) in zip(names, parents, UR_LINKS, UR_KINEMATICS[name]):
-        parts.append(f'<joint name="{jn}" type="revolute"><parent link="{parent}"/><child link="{child}"/>'
-                     f'<origin xyz="{f(xyz)}" rpy="{f(rpy)}"/><axis xyz="0 0 1"/>'
-                     '<limit lower="-6.2832" upper="6.2832" effort="150" velocity="3.14"/></joint>')
+        parts.append(
+            f'<joint name="{jn}" type="revolute"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="{f(xyz)}" rpy="{f(rpy)}"/><axis xyz="0 0 1"/>'
+            '<limit lower="-6.2832" upper="6.2832" effort="150" velocity="3.14"/></joint>'
+        )
     return "\n".join(parts + ["</robot>"])
 
 
@@ -315,6 +344,7 @@ def test_ur_inertias_equal_urs_ros2_description(name, tmp_path, rng):
 # Mass matrix, static case
 # --------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("name", ["ur10", "kr6_r900"])
 def test_mass_matrix_is_d_tau_d_qdd_symmetric_positive_definite(name, rng):
     robot = load_robot(name).with_tool(TOOL)
@@ -326,9 +356,16 @@ def test_mass_matrix_is_d_tau_d_qdd_symmetric_positive_definite(name, rng):
     data = model.createData()
     for q, v, a in zip(*_states(rng, 8)):
         M = np.asarray(fM(q, PAYLOAD))
-        fd = np.column_stack([(_tau(f, q, v, a + FD_STEP * e, PAYLOAD, np.zeros(6))
-                               - _tau(f, q, v, a - FD_STEP * e, PAYLOAD, np.zeros(6))) / (2 * FD_STEP)
-                              for e in np.eye(6)])
+        fd = np.column_stack(
+            [
+                (
+                    _tau(f, q, v, a + FD_STEP * e, PAYLOAD, np.zeros(6))
+                    - _tau(f, q, v, a - FD_STEP * e, PAYLOAD, np.zeros(6))
+                )
+                / (2 * FD_STEP)
+                for e in np.eye(6)
+            ]
+        )
         assert np.abs(fd - M).max() < FD_REL_TOL * np.abs(M).max(), np.abs(fd - M).max()
         P = pin.crba(model, data, q)
         _close(M, np.triu(P) + np.triu(P, 1).T, CRBA_TOL)
@@ -346,6 +383,7 @@ def test_static_rnea_equals_the_static_models_torques(name, rng):
     the drives hold what the static model's loads apply to the joints."""
     from models.arm import ArmModel
     from models.symbolic import KinematicModel
+
     robot = load_robot(name).with_tool(TOOL)
     km = KinematicModel(replace(ArmModel.from_robot(robot), gravity_on=True))
     f, fg = rnea_function(robot), gravity_torque_function(robot)
@@ -355,8 +393,9 @@ def test_static_rnea_equals_the_static_models_torques(name, rng):
     tg = km.batch(km.fn["joint_torques"], Q, Lg)[0]
     W = np.c_[rng.normal(0, 40, (N_STATES, 3)), rng.normal(0, 4, (N_STATES, 3))]
     pl = payload_vector(PAYLOAD[0], PAYLOAD[1:4])
-    L = np.array([Load(wrench_base=w, payload_mass_kg=pl[0], payload_com_m=pl[1:4], gravity=robot.gravity).rows(1)[0]
-                  for w in W])
+    L = np.array(
+        [Load(wrench_base=w, payload_mass_kg=pl[0], payload_com_m=pl[1:4], gravity=robot.gravity).rows(1)[0] for w in W]
+    )
     tl = km.batch(km.fn["joint_torques"], Q, L)[0]
     assert np.abs(tg).max() > 1.0
     for k, q in enumerate(Q):
@@ -364,14 +403,13 @@ def test_static_rnea_equals_the_static_models_torques(name, rng):
         _close(_tau(fg, q, np.zeros(PAYLOAD_SIZE)), -tg[k], STATIC_TOL)
         # a payload's inertia tensor does not matter at rest; its mass and centre of mass do
         _close(_tau(f, q, zero, zero, PAYLOAD, W[k]), -tl[k], STATIC_TOL)
-        _close(_tau(fg, q, PAYLOAD), -km.batch(km.fn["joint_torques"], q, np.r_[zero, L[k, 6:]])[0][0],
-               STATIC_TOL)
+        _close(_tau(fg, q, PAYLOAD), -km.batch(km.fn["joint_torques"], q, np.r_[zero, L[k, 6:]])[0][0], STATIC_TOL)
 
 
 def test_payload_vector():
     R = rpy_to_matrix([0.1, 0.2, 0.3])
     I = R @ np.diag([0.01, 0.02, 0.025]) @ R.T
-    I = np.triu(I) + np.triu(I, 1).T                                # exactly symmetric
+    I = np.triu(I) + np.triu(I, 1).T  # exactly symmetric
     v = payload_vector(2.0, [0.0, 0.01, 0.1], I)
     assert v.shape == (PAYLOAD_SIZE,) and v[0] == 2.0
     assert np.array_equal(_inertia3(v[4:]), I)

@@ -13,7 +13,6 @@ fitted to the simulated curve and must match it to a few % of the curve's nonlin
 
 from __future__ import annotations
 
-import importlib
 import pkgutil
 
 import casadi as ca
@@ -61,7 +60,7 @@ def _map_geometric(vr: VirtualRobot, th: dict, c: dict) -> None:
 
 def _map_gravity(vr: VirtualRobot, th: dict, c: dict) -> None:
     m, h = vr.masses.copy(), vr.masses[:, None] * vr.coms
-    m[5] += vr.payload                                 # the payload rides on link 6 (flange frame)
+    m[5] += vr.payload  # the payload rides on link 6 (flange frame)
     h[5] += vr.payload * vr.payload_com
     th["gravity.m"], th["gravity.h"] = m, h.reshape(-1)
     c["gravity.on"] = [1.0]
@@ -70,7 +69,7 @@ def _map_gravity(vr: VirtualRobot, th: dict, c: dict) -> None:
 def _map_lost_motion(vr: VirtualRobot, th: dict, c: dict) -> None:
     th["lost_motion.b"] = vr.backlash
     c["tau_scale"] = np.ones(6)
-    th["lost_motion.rho"] = [np.log(vr.backlash_smoothing)]   # tau_0 = exp(rho) * 1 N*m
+    th["lost_motion.rho"] = [np.log(vr.backlash_smoothing)]  # tau_0 = exp(rho) * 1 N*m
 
 
 def _map_link_compliance(vr: VirtualRobot, th: dict, c: dict) -> None:
@@ -83,8 +82,8 @@ def _map_link_compliance(vr: VirtualRobot, th: dict, c: dict) -> None:
     for k, i in enumerate(vr.beam_links):
         L = np.linalg.norm(pts[i + 1] - pts[i])
         EI, GJ = vr.EI[k], vr.GJ[k]
-        lc[i, 0:6] = [0.0, L ** 3 / (3 * EI), L ** 3 / (3 * EI), L / GJ, L / EI, L / EI]
-        lc[i, 9], lc[i, 11] = L ** 2 / (2 * EI), -L ** 2 / (2 * EI)     # tr_yz, tr_zy
+        lc[i, 0:6] = [0.0, L**3 / (3 * EI), L**3 / (3 * EI), L / GJ, L / EI, L / EI]
+        lc[i, 9], lc[i, 11] = L**2 / (2 * EI), -(L**2) / (2 * EI)  # tr_yz, tr_zy
     th["link_compliance.link"] = lc.reshape(-1)
 
 
@@ -93,7 +92,7 @@ SPAN_S = 7200.0
 
 
 def _map_drift(vr: VirtualRobot, th: dict, c: dict) -> None:
-    th["drift.v"], th["drift.a"] = vr.drift_rate * SPAN_S, vr.drift_acc * SPAN_S ** 2   # at tn = 1
+    th["drift.v"], th["drift.a"] = vr.drift_rate * SPAN_S, vr.drift_acc * SPAN_S**2  # at tn = 1
 
 
 def _map_thermal(vr: VirtualRobot, th: dict, c: dict) -> None:
@@ -111,6 +110,7 @@ def _map_error_map(vr: VirtualRobot, th: dict, c: dict) -> None:
     """Each simulated term ``A sin(h q + phi)`` of joint j is a theta-component slot with frequency
     h: ``a cos(h q) + b sin(h q)``, a = A sin(phi), b = A cos(phi); the range is left open."""
     from models.effects.joint_error_map import COEF_SHAPE, FREQ_SHAPE
+
     coef, freq = np.zeros(COEF_SHAPE), np.zeros(FREQ_SHAPE)
     used = np.zeros(6, dtype=int)
     for t in vr.joint_error_terms():
@@ -140,14 +140,27 @@ SIMULATION_MAP = {
     # identification graph's EQUILIBRIUM_UNROLL-times unrolled fixed point ~1e-7 m short of
     # convergence, which would hide the term under the truncation (the planning model iterates)
     "lost_motion": ("ur5", {"backlash_rad": 3e-4, "smoothing_Nm": 2.0}, True, _map_lost_motion),
-    "load_offset": ("ur5", {"r_tool_m": [0.01, 0.04, 0.07]}, True,
-                    lambda vr, th, c: th.__setitem__("load_offset.r_tool", vr.r_tool)),
+    "load_offset": (
+        "ur5",
+        {"r_tool_m": [0.01, 0.04, 0.07]},
+        True,
+        lambda vr, th, c: th.__setitem__("load_offset.r_tool", vr.r_tool),
+    ),
     "link_compliance": ("ur10", {"EI_Nm2": 1.5e5, "GJ_Nm2": 1.0e5}, True, _map_link_compliance),
     "drift": ("ur5", {"rate_m_per_h": [2e-4, -1e-4, 1.5e-4], "accel_m_per_h2": [1e-4, 0, -2e-4]}, True, _map_drift),
     "thermal": ("ur5", {"alpha_per_K": 2.3e-5, "links": [2, 3]}, True, _map_thermal),
-    "stiffness_hardening": None,       # no exact mapping: see test_hardening_spline_fits_the_simulated_curves
-    "joint_error_map": ("ur5", {"joint": [1, 1, 3], "amplitude_rad": [1e-3, 2e-4, 4e-4], "harmonic": [2, 13.4, 5.5],
-                                "phase_rad": [0.3, -1.2, 1.1]}, True, _map_error_map),
+    "stiffness_hardening": None,  # no exact mapping: see test_hardening_spline_fits_the_simulated_curves
+    "joint_error_map": (
+        "ur5",
+        {
+            "joint": [1, 1, 3],
+            "amplitude_rad": [1e-3, 2e-4, 4e-4],
+            "harmonic": [2, 13.4, 5.5],
+            "phase_rad": [0.3, -1.2, 1.1],
+        },
+        True,
+        _map_error_map,
+    ),
 }
 
 
@@ -168,6 +181,7 @@ def test_every_effect_has_a_simulation_check():
     assert set(SIMULATION_MAP) == {e.name for e in fx.registry()}
     # ... and the virtual robot simulates each (the agreement itself: test_virtual_extensions.py)
     from problems.virtual import realisation
+
     assert all(realisation(name) is not None for name in SIMULATION_MAP)
 
 
@@ -215,13 +229,17 @@ def test_symbolic_term_equals_the_virtual_robot(name, rng):
 
 @pytest.mark.parametrize("model", ["two_slope", "smooth"])
 def test_hardening_spline_fits_the_simulated_curves(model):
-    vr = _vr("ur5", "stiffness_hardening", {"model": model, "knee_torque_Nm": 30.0, "stiffness_ratio": 2.0,
-                                            "beta_per_Nm": 0.01})
+    vr = _vr(
+        "ur5",
+        "stiffness_hardening",
+        {"model": model, "knee_torque_Nm": 30.0, "stiffness_ratio": 2.0, "beta_per_Nm": 0.01},
+    )
     from models.effects.stiffness_hardening import HARDENING_KNOT_QUANTILES, N_HARDENING, StiffnessHardening
+
     k0 = vr.robot.stiffness
     tau_max = 120.0
     tau = np.linspace(-tau_max, tau_max, 241)
-    truth = vr._deflection(np.tile(tau[:, None], (1, 6)))          # (M, 6) rad
+    truth = vr._deflection(np.tile(tau[:, None], (1, 6)))  # (M, 6) rad
     ts = np.full(6, tau_max)
     knots = np.outer(ts, HARDENING_KNOT_QUANTILES)
     eff = StiffnessHardening()
@@ -233,8 +251,11 @@ def test_hardening_spline_fits_the_simulated_curves(model):
             return b_sym if key == "hardening.b" else s_sym
 
         def c(self, key):
-            return {"tau_scale": ca.DM(ts), "hardening.knots": ca.DM(knots.reshape(-1)),
-                    "compliance0": ca.DM(1.0 / k0)}[key]
+            return {
+                "tau_scale": ca.DM(ts),
+                "hardening.knots": ca.DM(knots.reshape(-1)),
+                "compliance0": ca.DM(1.0 / k0),
+            }[key]
 
     ctx = Ctx()
     dq = eff.joint_deflection(ctx, t_sym) + ctx.c("compliance0") * (1 + s_sym) * t_sym
@@ -256,10 +277,11 @@ def _random_model(robot_name: str, rng: np.random.Generator) -> tuple[ArmModel, 
     robot = load_robot(robot_name)
     lay = fx.make_layout(robot)
     theta = lay.nominal + rng.normal(0, 0.5, fx.N_PARAMS) * lay.scale * lay.eligible
-    theta[fx.GROUP_SLICES["lost_motion.rho"]] = np.log(0.2)   # smooth enough for differences
+    theta[fx.GROUP_SLICES["lost_motion.rho"]] = np.log(0.2)  # smooth enough for differences
     effects = [e for e in fx.LIBRARY if e not in ("outliers",)]
-    arm = ArmModel(nominal=robot, theta=theta, tau_scale=np.full(6, 40.0), gravity_on=True, effects=effects,
-                   temperature_ref=27.0)
+    arm = ArmModel(
+        nominal=robot, theta=theta, tau_scale=np.full(6, 40.0), gravity_on=True, effects=effects, temperature_ref=27.0
+    )
     return arm, theta
 
 
@@ -270,14 +292,22 @@ def test_planning_functions_with_every_effect_match_finite_differences(fname, rn
     q = ca.SX.sym("q", 6)
     L = ca.SX.sym("L", fx.LOAD_SIZE)
     jf = ca.Function("j", [q, L], [ca.jacobian(f(q, L), q)])
-    load = Load(wrench_base=[30, -20, -60, 1, 2, 0], wrench_tool=[0, 5, -20, 0, 0, 1], payload_mass_kg=3.0,
-                payload_com_m=[0.02, 0.0, 0.08]).rows(1)[0]
+    load = Load(
+        wrench_base=[30, -20, -60, 1, 2, 0],
+        wrench_tool=[0, 5, -20, 0, 0, 1],
+        payload_mass_kg=3.0,
+        payload_com_m=[0.02, 0.0, 0.08],
+    ).rows(1)[0]
     for _ in range(4):
         q0 = rng.uniform(-2.5, 2.5, 6)
         J = np.asarray(jf(q0, load))
         h = 1e-6
-        fd = np.column_stack([(np.asarray(f(q0 + h * e, load)) - np.asarray(f(q0 - h * e, load))).reshape(-1)
-                              / (2 * h) for e in np.eye(6)])
+        fd = np.column_stack(
+            [
+                (np.asarray(f(q0 + h * e, load)) - np.asarray(f(q0 - h * e, load))).reshape(-1) / (2 * h)
+                for e in np.eye(6)
+            ]
+        )
         scale = max(np.abs(J).max(), 1e-12)
         assert np.abs(J - fd).max() < FD_REL_TOL * scale * 10, (fname, np.abs(J - fd).max(), scale)
 
@@ -286,8 +316,9 @@ def test_planning_functions_with_every_effect_match_finite_differences(fname, rn
 def test_identification_derivatives_of_each_effect_match_finite_differences(effect, rng):
     robot = load_robot("ur10")
     const = fx.make_const(robot, np.eye(3), np.full(6, 40.0), True)
-    if effect == "joint_error_map":      # two slots of every joint and component in use
+    if effect == "joint_error_map":  # two slots of every joint and component in use
         from models.effects.joint_error_map import FREQ_SHAPE
+
         freq = np.zeros(FREQ_SHAPE)
         freq[:, :, 0], freq[:, :, 1] = 3.0, 7.5
         const = fx.set_const(const, "error_map.freq", freq.reshape(-1))
@@ -296,8 +327,11 @@ def test_identification_derivatives_of_each_effect_match_finite_differences(effe
     theta = lay.nominal + rng.normal(0, 0.3, fx.N_PARAMS) * lay.scale * lay.eligible
     theta[fx.GROUP_SLICES["lost_motion.rho"]] = np.log(0.2)
     fns = fx.identification_functions(robot.convention, tuple(bool(x) for x in lay.eligible))
-    idx = lay.effect_indices(effect) if not fx.effect(effect).declared else \
-        lay.indices([g.key for g in fx.effect(effect).groups])
+    idx = (
+        lay.effect_indices(effect)
+        if not fx.effect(effect).declared
+        else lay.indices([g.key for g in fx.effect(effect).groups])
+    )
     assert len(idx)
     for _ in range(3):
         row = np.r_[rng.uniform(-2.5, 2.5, 6), rng.normal(0, 15.0, 3), rng.normal(0, 1.0, 3), 0.4, 6.0, 0, 0, 0, 0]
@@ -312,12 +346,15 @@ def test_identification_derivatives_of_each_effect_match_finite_differences(effe
             tp, tm = theta.copy(), theta.copy()
             tp[i] += h
             tm[i] -= h
-            fd = (np.asarray(fns["measure"](row, tp, const)[0]) - np.asarray(fns["measure"](row, tm, const)[0]))
+            fd = np.asarray(fns["measure"](row, tp, const)[0]) - np.asarray(fns["measure"](row, tm, const)[0])
             fd = fd.reshape(3) / (2 * h)
             scale = max(np.abs(fd).max(), np.abs(Jfull[:, i]).max(), 1e-15)
             floor = FD_EQUILIBRIUM_ABS_REL * np.abs(Jfull * lay.scale[None, :]).max() / lay.scale[i]
-            assert np.abs(Jfull[:, i] - fd).max() <= FD_EQUILIBRIUM_REL_TOL * scale + floor, \
-                (fx.PARAM_NAMES[i], Jfull[:, i], fd)
+            assert np.abs(Jfull[:, i] - fd).max() <= FD_EQUILIBRIUM_REL_TOL * scale + floor, (
+                fx.PARAM_NAMES[i],
+                Jfull[:, i],
+                fd,
+            )
 
 
 def test_arm_model_with_every_effect_equals_the_identification_graph(rng):
@@ -329,8 +366,9 @@ def test_arm_model_with_every_effect_equals_the_identification_graph(rng):
     theta[fx.GROUP_SLICES["tool.p"]] = robot.tcp2flange[:3, 3]
     for g in ("reg.w", "reg.t", "drift.v", "drift.a"):
         theta[fx.GROUP_SLICES[g]] = 0.0
-    arm = ArmModel(nominal=robot, theta=theta, tau_scale=arm.tau_scale, gravity_on=True, effects=arm.effects,
-                   temperature_ref=27.0)
+    arm = ArmModel(
+        nominal=robot, theta=theta, tau_scale=arm.tau_scale, gravity_on=True, effects=arm.effects, temperature_ref=27.0
+    )
     lay = fx.make_layout(robot)
     f = fx.identification_functions(robot.convention, tuple(bool(x) for x in lay.eligible))["measure"]
     for _ in range(5):
@@ -349,6 +387,7 @@ def test_a_new_effect_module_is_all_it_takes(tmp_path):
     import os
     import subprocess
     import sys
+
     plugin = """
 import casadi as ca
 from .base import Effect, ParamGroup, register

@@ -23,11 +23,19 @@ from models.errors import InputError
 from models.robot import load_robot
 from models.transforms import rot_x, rot_z, transform
 from problems.virtual import VirtualRobot
-from problems.virtual.elastic import (SIM_ATOL_ANGLE_RAD, SIM_RTOL, ElasticArm, ElasticStatus, read_trajectory_csv,
-                                      simulate_elastic, static_command, tracking_error)
+from problems.virtual.elastic import (
+    SIM_ATOL_ANGLE_RAD,
+    SIM_RTOL,
+    ElasticArm,
+    ElasticStatus,
+    read_trajectory_csv,
+    simulate_elastic,
+    static_command,
+    tracking_error,
+)
 
 pin = pytest.importorskip("pinocchio")
-from tests.test_dynamics import _fext, pinocchio_from_dh, pinocchio_from_urdf  # noqa: E402
+from tests.test_dynamics import _fext, pinocchio_from_dh, pinocchio_from_urdf  # noqa: E402 - after the importorskip above
 
 #: NumPy dynamics against pinocchio / CasADi, relative to max(1, largest |value|).
 DYNAMICS_TOL = 1e-10
@@ -44,9 +52,9 @@ ENERGY_REL_TOL = 20 * SIM_RTOL
 ENERGY_T = 0.05
 
 TOOL = transform(rot_z(0.3) @ rot_x(-0.4), np.array([0.05, -0.02, 0.12]))
-PAYLOAD = payload_vector(3.5, [0.02, -0.03, 0.09], np.array([[0.021, 0.002, -0.003],
-                                                              [0.002, 0.018, 0.001],
-                                                              [-0.003, 0.001, 0.012]]))
+PAYLOAD = payload_vector(
+    3.5, [0.02, -0.03, 0.09], np.array([[0.021, 0.002, -0.003], [0.002, 0.018, 0.001], [-0.003, 0.001, 0.012]])
+)
 WRENCH = np.array([30.0, -20.0, -45.0, 2.0, -1.5, 0.8])
 #: UR5 move: quintic rest to rest in MOVE_T s; 0.8 rad gives 4.6 rad/s^2 (a_max 5) and 48 rad/s^3 (j_max 50).
 MOVE_T = 1.0
@@ -70,6 +78,7 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
 # --------------------------------------------------------------------------------------
 # Rigid-body dynamics
 # --------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", ["ur5", "kr6_r900"])
 def test_numpy_dynamics_equal_pinocchio(name, rng):
@@ -105,8 +114,9 @@ def test_numpy_dynamics_equal_the_casadi_model(name, rng):
         assert _rel(tau[k], np.asarray(f(Q[k], V[k], A[k], PAYLOAD, WRENCH)).ravel()) < DYNAMICS_TOL
     # the mass matrix is the columns of the inverse dynamics
     zero = np.zeros_like(Q)
-    cols = np.stack([arm.inverse_dynamics(Q, zero, np.eye(6)[j][None].repeat(len(Q), 0), gravity=False)
-                     for j in range(6)], axis=2)
+    cols = np.stack(
+        [arm.inverse_dynamics(Q, zero, np.eye(6)[j][None].repeat(len(Q), 0), gravity=False) for j in range(6)], axis=2
+    )
     assert _rel(arm.mass_matrix(Q), cols) < DYNAMICS_TOL
 
 
@@ -114,12 +124,15 @@ def test_numpy_dynamics_equal_the_casadi_model(name, rng):
 # Rest
 # --------------------------------------------------------------------------------------
 
+
 def _virtual(robot, payload):
     """The virtual robot with the robot file's link masses, the payload as a point mass (its COM
     in the flange frame) and the base-frame wrench at the TCP."""
     com_flange = robot.tcp2flange[:3, :3] @ payload[1:4] + robot.tcp2flange[:3, 3]
-    cfg = {"registration": {"registered": True},
-           "effects": {"gravity": {"payload_kg": float(payload[0]), "payload_com_m": com_flange.tolist()}}}
+    cfg = {
+        "registration": {"registered": True},
+        "effects": {"gravity": {"payload_kg": float(payload[0]), "payload_com_m": com_flange.tolist()}},
+    }
     return VirtualRobot(robot, cfg)
 
 
@@ -128,7 +141,7 @@ def test_constant_command_rests_at_the_static_deflected_pose(name):
     robot = load_robot(name).with_tool(TOOL)
     q_star = np.array([0.3, -1.1, 1.4, -0.9, 1.2, 0.4])
     hold = np.asarray(rnea_function(robot)(q_star, np.zeros(6), np.zeros(6), PAYLOAD, WRENCH)).ravel()
-    theta = q_star + hold / robot.stiffness                       # the model's exact static compensation
+    theta = q_star + hold / robot.stiffness  # the model's exact static compensation
     assert np.allclose(theta, static_command(robot, q_star, payload=PAYLOAD, wrench=WRENCH)[0], atol=1e-14)
     t = np.array([0.0, 0.1, 0.2])
     res = simulate_elastic(robot, t, np.tile(theta, (3, 1)), payload=PAYLOAD, wrench=WRENCH, settle_s=0.2)
@@ -137,10 +150,11 @@ def test_constant_command_rests_at_the_static_deflected_pose(name):
     assert np.linalg.norm(res.p_tcp - p_star, axis=1).max() < REST_TCP_TOL
     q_virtual = _virtual(robot, PAYLOAD).equilibrium(theta[None], WRENCH)[0]
     assert np.linalg.norm(ElasticArm(robot).tcp_position(q_virtual)[0] - p_star) < REST_TCP_TOL
-    assert np.linalg.norm(p_star - ElasticArm(robot).tcp_position(theta)[0]) > 1e-4     # a real deflection
+    assert np.linalg.norm(p_star - ElasticArm(robot).tcp_position(theta)[0]) > 1e-4  # a real deflection
     # released from the undeflected pose, the arm settles at the same equilibrium
-    free = simulate_elastic(robot, t, np.tile(theta, (3, 1)), payload=PAYLOAD, wrench=WRENCH, q0=theta,
-                            damping_ratio=0.7, settle_s=1.5)
+    free = simulate_elastic(
+        robot, t, np.tile(theta, (3, 1)), payload=PAYLOAD, wrench=WRENCH, q0=theta, damping_ratio=0.7, settle_s=1.5
+    )
     assert free.ok and np.linalg.norm(free.p_tcp[-1] - p_star) < SETTLED_TCP_TOL
     assert np.linalg.norm(free.p_tcp - p_star, axis=1).max() > 1e-4
 
@@ -149,19 +163,20 @@ def test_constant_command_rests_at_the_static_deflected_pose(name):
 # Motion
 # --------------------------------------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_fast_move_leaves_the_path_and_settles():
     robot = load_robot("ur5")
     t, q, qd = _move()
     assert np.abs(np.gradient(qd, t, axis=0)).max() > 0.9 * robot.a_max.max()
-    theta = static_command(robot, q, payload=MOVE_PAYLOAD)        # static compensation, no dynamics
+    theta = static_command(robot, q, payload=MOVE_PAYLOAD)  # static compensation, no dynamics
     res = simulate_elastic(robot, t, theta, qd, payload=MOVE_PAYLOAD, settle_s=0.5)
     assert res.ok, res.reason
     err = tracking_error(res, robot, t, q, qd)
-    assert err.error[0] < REST_TCP_TOL                            # starts at rest on the path
-    assert err.max_motion > 5e-5 and err.rms_motion > 1e-5        # the dynamic deflection
+    assert err.error[0] < REST_TCP_TOL  # starts at rest on the path
+    assert err.max_motion > 5e-5 and err.rms_motion > 1e-5  # the dynamic deflection
     late = err.error[res.t > res.t[-1] - 0.1]
-    assert late.max() < 0.1 * err.max_motion                      # damped after the stop
+    assert late.max() < 0.1 * err.max_motion  # damped after the stop
     assert np.all(np.isfinite(err.error)) and err.max_rest < err.max_motion
     # the link-side plan itself: the arm comes to rest at the static deflection of the final pose
     raw = simulate_elastic(robot, t, q, qd, payload=MOVE_PAYLOAD, settle_s=0.5, damping_ratio=0.7)
@@ -187,7 +202,7 @@ def test_energy_without_gravity_and_damping():
     assert res.ok, res.reason
     E = _energy(arm, res, K)
     assert np.abs(E - E[0]).max() < ENERGY_REL_TOL * E[0]
-    assert np.ptp(0.5 * np.einsum("ni,ni->n", res.qd, res.qd)) > 1e-6        # it does move
+    assert np.ptp(0.5 * np.einsum("ni,ni->n", res.qd, res.qd)) > 1e-6  # it does move
     damped = simulate_elastic(robot, t, theta, payload=MOVE_PAYLOAD, q0=q0, settle_s=0.0)
     Ed = _energy(arm, damped, K)
     assert np.all(np.diff(Ed) <= ENERGY_REL_TOL * E[0]) and Ed[-1] < 0.5 * E[0]
@@ -210,6 +225,7 @@ def test_pid_motor_settles_on_the_command_and_tracks_like_the_exact_motor():
 # Input
 # --------------------------------------------------------------------------------------
 
+
 def test_trajectory_csv_and_bad_inputs(tmp_path):
     t, q, qd = _move(T=0.2)
     head = ["t"] + [f"q{i}" for i in range(1, 7)] + [f"qd{i}" for i in range(1, 7)] + ["qdd1"]
@@ -228,5 +244,5 @@ def test_trajectory_csv_and_bad_inputs(tmp_path):
         simulate_elastic(robot, t[::-1], q)
     with pytest.raises(InputError, match="motor"):
         simulate_elastic(robot, t, q, motor="ideal")
-    soft = simulate_elastic(robot, t, q, stiffness=np.full(6, 1.0))          # cannot hold its weight
+    soft = simulate_elastic(robot, t, q, stiffness=np.full(6, 1.0))  # cannot hold its weight
     assert soft.status is ElasticStatus.NO_EQUILIBRIUM and "equilibrium" in soft.reason and soft.t.size == 0

@@ -130,11 +130,25 @@ def small_data(**kw) -> ExportData:
     pddd = (60 - 360 * s + 360 * s**2) / T**3
     q0 = np.array([0.1, -1.2, 1.3, -0.4, 1.5707963, 0.2])
     dq = np.array([0.02, -0.03, 0.05, 0.01, -0.02, 0.04])
-    args = dict(name="small", robot="ur5", joint_names=tuple(f"j{i}" for i in range(1, 7)), t=t,
-                q=q0 + np.outer(p, dq), qd=np.outer(pd, dq), qdd=np.outer(pdd, dq), qddd=np.outer(pddd, dq), dt=dt,
-                v_max=np.full(6, 3.14), a_max=np.full(6, 20.0), j_max=np.full(6, 2000.0),
-                q_min=np.full(6, -2 * math.pi), q_max=np.full(6, 2 * math.pi),
-                sign=np.array([1, -1, 1, 1, 1, 1.0]), offset=np.radians([0, 0, 90, 0, 0, -180.0]), source="test")
+    args = dict(
+        name="small",
+        robot="ur5",
+        joint_names=tuple(f"j{i}" for i in range(1, 7)),
+        t=t,
+        q=q0 + np.outer(p, dq),
+        qd=np.outer(pd, dq),
+        qdd=np.outer(pdd, dq),
+        qddd=np.outer(pddd, dq),
+        dt=dt,
+        v_max=np.full(6, 3.14),
+        a_max=np.full(6, 20.0),
+        j_max=np.full(6, 2000.0),
+        q_min=np.full(6, -2 * math.pi),
+        q_max=np.full(6, 2 * math.pi),
+        sign=np.array([1, -1, 1, 1, 1, 1.0]),
+        offset=np.radians([0, 0, 90, 0, 0, -180.0]),
+        source="test",
+    )
     args.update(kw)
     return ExportData(**args)
 
@@ -142,6 +156,7 @@ def small_data(**kw) -> ExportData:
 @pytest.fixture
 def fixed_version(monkeypatch):
     import planner.provenance as prov
+
     monkeypatch.setattr(prov, "version", lambda: "0.0.0-golden")
 
 
@@ -159,9 +174,11 @@ def test_golden_files(fmt, fixed_version):
             if not golden.is_file() or golden.read_text(encoding="utf-8") != text:
                 golden.write_text(text, encoding="utf-8")
                 written.append(golden.name)
-        pytest.fail(f"{UPDATE_GOLDEN_ENV} is set: golden files of {fmt} "
-                    + (f"rewritten: {', '.join(written)}" if written else "unchanged")
-                    + f"; check them (git diff {GOLDEN}) and run the tests without {UPDATE_GOLDEN_ENV}")
+        pytest.fail(
+            f"{UPDATE_GOLDEN_ENV} is set: golden files of {fmt} "
+            + (f"rewritten: {', '.join(written)}" if written else "unchanged")
+            + f"; check them (git diff {GOLDEN}) and run the tests without {UPDATE_GOLDEN_ENV}"
+        )
     for path, text in files.items():
         golden = GOLDEN / path.name
         assert golden.is_file(), f"missing golden file {golden} ({UPDATE_GOLDEN_ENV}=1 writes it)"
@@ -189,8 +206,14 @@ def test_urscript_round_trip(fixed_version):
     pos = 10 * t**3 - 15 * t**4 + 6 * t**5
     dq = np.array([0.02, -0.03, 0.05, 0.01, -0.02, 0.04])
     vel = (30 * t**2 - 60 * t**3 + 30 * t**4) / fine.t[-1]
-    fine = small_data(dt=0.002, t=np.arange(61) * 0.002, q=fine.q[0] + np.outer(pos, dq), qd=np.outer(vel, dq),
-                      qdd=np.zeros((61, 6)), qddd=np.zeros((61, 6)))
+    fine = small_data(
+        dt=0.002,
+        t=np.arange(61) * 0.002,
+        q=fine.q[0] + np.outer(pos, dq),
+        qd=np.outer(vel, dq),
+        qdd=np.zeros((61, 6)),
+        qddd=np.zeros((61, 6)),
+    )
     text = next(iter(export_files(fine, "urscript", Path("p"), {"period": 0.008}).values()))
     moves = parse_urscript(text)["moves"]
     q = np.array([m[1] for m in moves])
@@ -248,9 +271,10 @@ def test_krl_round_trip(fixed_version):
     by = {p.suffix: t for p, t in files.items()}
     parsed = parse_krl(by[".src"], by[".dat"])
     assert parsed["times"] is None
-    np.testing.assert_allclose(np.radians([parsed["points"][n] for n in parsed["moves"]]), _ctrl(data)[idx],
-                               atol=POS_TOL_RAD)
-    last = int(np.ceil(100 * np.abs(data.qd[idx[-2]:idx[-1] + 1]).max(axis=0)[2] / data.v_max[2] - 1e-9))
+    np.testing.assert_allclose(
+        np.radians([parsed["points"][n] for n in parsed["moves"]]), _ctrl(data)[idx], atol=POS_TOL_RAD
+    )
+    last = int(np.ceil(100 * np.abs(data.qd[idx[-2] : idx[-1] + 1]).max(axis=0)[2] / data.v_max[2] - 1e-9))
     assert parsed["axis_percent"][("VEL", 3)] == max(1, last)
     with pytest.raises(ExportError, match="motion = 'lin'"):
         export_files(data, "krl", Path("p.src"), {"motion": "lin"})
@@ -303,9 +327,11 @@ def run_folder(tmp_path_factory):
     with plan --export of every format."""
     base = tmp_path_factory.mktemp("export")
     from planner.provenance import builtin_robot_file
+
     robot = base / "ur5_ctrl.toml"
-    robot.write_text(Path(builtin_robot_file("ur5")).read_text(encoding="utf-8") + ROBOT_WITH_CONTROLLER,
-                     encoding="utf-8")
+    robot.write_text(
+        Path(builtin_robot_file("ur5")).read_text(encoding="utf-8") + ROBOT_WITH_CONTROLLER, encoding="utf-8"
+    )
     out = base / "run"
     argv = ["demo", "--points", "12", "--robot", str(robot), "--out", str(out), "--no-report"]
     for f in FORMATS:
@@ -343,8 +369,14 @@ def test_export_of_a_run_matches_trajectory_csv(fmt, run_folder, tmp_path, capsy
         assert all(abs(m[2]["t"] - dt) <= TIME_TOL_S for m in moves[1:])
     elif fmt == "ros2":
         msg = yaml.safe_load(texts[".yaml"])
-        assert msg["joint_names"] == ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
-                                      "wrist_2_joint", "wrist_3_joint"]
+        assert msg["joint_names"] == [
+            "shoulder_pan_joint",
+            "shoulder_lift_joint",
+            "elbow_joint",
+            "wrist_1_joint",
+            "wrist_2_joint",
+            "wrist_3_joint",
+        ]
         np.testing.assert_allclose([p["positions"] for p in msg["points"]], qc, atol=POS_TOL_RAD)
         ts = [p["time_from_start"]["sec"] + 1e-9 * p["time_from_start"]["nanosec"] for p in msg["points"]]
         np.testing.assert_allclose(ts, t, atol=TIME_TOL_S)
@@ -412,14 +444,17 @@ def test_a_trajectory_not_ok_is_refused(run_folder, tmp_path, capsys):
     assert "not ok" in capsys.readouterr().err and not out.exists()
 
 
-@pytest.mark.parametrize("argv,needle", [
-    (["--format", "ros2", "--out", "{tmp}/x.yaml"], "RUN_DIR required"),
-    (["{tmp}/nope", "--format", "ros2", "--out", "{tmp}/x.yaml"], "no such folder"),
-    (["{run}", "--format", "ros2", "--out", "{tmp}/x.json"], "ends in .yaml, not '.json'"),
-    (["{run}", "--format", "rapid", "--out", "{run}/trajectory.csv"], "ends in .mod"),
-    (["{run}", "--format", "urscript", "--out", "{tmp}/x", "--set", "gain"], "expected KEY=VALUE"),
-    (["{run}", "--format", "krl", "--out", "{tmp}/x", "--set", "step_s=0"], "step_s = 0"),
-])
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["--format", "ros2", "--out", "{tmp}/x.yaml"], "RUN_DIR required"),
+        (["{tmp}/nope", "--format", "ros2", "--out", "{tmp}/x.yaml"], "no such folder"),
+        (["{run}", "--format", "ros2", "--out", "{tmp}/x.json"], "ends in .yaml, not '.json'"),
+        (["{run}", "--format", "rapid", "--out", "{run}/trajectory.csv"], "ends in .mod"),
+        (["{run}", "--format", "urscript", "--out", "{tmp}/x", "--set", "gain"], "expected KEY=VALUE"),
+        (["{run}", "--format", "krl", "--out", "{tmp}/x", "--set", "step_s=0"], "step_s = 0"),
+    ],
+)
 def test_export_command_errors(argv, needle, run_folder, tmp_path, capsys):
     argv = [a.format(tmp=tmp_path, run=run_folder) for a in argv]
     assert main(["export", *argv]) == 2
@@ -442,6 +477,7 @@ def test_export_refuses_to_overwrite_its_input(run_folder, tmp_path, capsys):
 
 def test_krl_pair_is_written_whole_or_not_at_all(run_folder, tmp_path, monkeypatch, capsys):
     import planner.output as output
+
     real = output._write_new_file
     calls = []
 
@@ -466,6 +502,7 @@ def test_rosbag2_round_trip(run_folder, tmp_path, capsys):
     """The bag read back by rosbags' reader, and its metadata by PyYAML, against trajectory.csv."""
     rosbag2 = pytest.importorskip("rosbags.rosbag2")
     from rosbags.typesys import Stores, get_typestore
+
     bag = tmp_path / "bag"
     assert main(["export", str(run_folder), "--format", "rosbag2", "--out", str(bag), "--set", "start_time_s=100"]) == 0
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]

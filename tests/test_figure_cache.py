@@ -16,6 +16,7 @@ from planner.report.rendering import FigureItem, job
 def line_figure(y: np.ndarray, title: str = ""):
     """A small figure job for these tests (module level: jobs are pickled)."""
     from planner.report.plots import _figure
+
     fig = _figure(3.0, 2.0)
     ax = fig.add_subplot(1, 1, 1)
     ax.plot(np.asarray(y))
@@ -38,13 +39,16 @@ def counted(monkeypatch):
     def counting(items, *args, **kwargs):
         calls.extend(it.name for it in items if it.job is not None)
         return fresh(items, *args, **kwargs)
+
     monkeypatch.setattr(rendering, "render_fresh", counting)
     return calls
 
 
 def _items(y=(0.0, 1.0, 0.5), title="a") -> list[FigureItem]:
-    return [FigureItem("f1", "t", "c", job=job(line_figure, np.asarray(y), title=title)),
-            FigureItem("f2", "t", "c", absent="not in this run")]
+    return [
+        FigureItem("f1", "t", "c", job=job(line_figure, np.asarray(y), title=title)),
+        FigureItem("f2", "t", "c", absent="not in this run"),
+    ]
 
 
 def test_a_figure_drawn_again_is_read_back_byte_for_byte(cache, counted):
@@ -53,7 +57,7 @@ def test_a_figure_drawn_again_is_read_back_byte_for_byte(cache, counted):
     assert counted == ["f1"] and len(list(cache.iterdir())) == 1
     ticks: list[tuple] = []
     rendering.render_items(second, progress=lambda *a: ticks.append(a), workers=1)
-    assert counted == ["f1"]                                   # not rendered again
+    assert counted == ["f1"]  # not rendered again
     assert (second[0].png, second[0].pdf) == (first[0].png, first[0].pdf) and first[0].pdf
     assert second[1].png is None and ticks == [("figures", 1, 1)]
     assert (second[0].png, second[0].pdf) == rendering.render_job(_items()[0].job)
@@ -78,11 +82,11 @@ def test_a_damaged_entry_is_rendered_again_and_replaced(cache, counted):
     rendering.render_items(good, workers=1)
     (entry,) = cache.iterdir()
     data = entry.read_bytes()
-    entry.write_bytes(data[:-10] + bytes(10))                  # same length, other bytes
+    entry.write_bytes(data[:-10] + bytes(10))  # same length, other bytes
     again = _items()
     rendering.render_items(again, workers=1)
     assert counted == ["f1", "f1"] and again[0].png == good[0].png and entry.read_bytes() == data
-    entry.write_bytes(data[:100])                              # truncated
+    entry.write_bytes(data[:100])  # truncated
     rendering.render_items(_items(), workers=1)
     assert counted == ["f1"] * 3
 
@@ -97,12 +101,12 @@ def test_the_cache_is_kept_under_its_size(cache, counted, monkeypatch):
     rendering.render_items(_items(title="a"), workers=1)
     (first,) = cache.iterdir()
     old = first.stat().st_mtime - 60.0
-    os.utime(first, (old, old))                                # used a minute ago
+    os.utime(first, (old, old))  # used a minute ago
     monkeypatch.setattr(figure_cache, "FIGURE_CACHE_MAX_BYTES", first.stat().st_size * 2 + 1)
     for title in ("b", "c"):
         rendering.render_items(_items(title=title), workers=1)
     left = list(cache.iterdir())
-    assert len(left) == 2 and first not in left                # the least recently used went first
+    assert len(left) == 2 and first not in left  # the least recently used went first
 
 
 def test_an_unusable_cache_folder_only_costs_the_rendering(tmp_path, monkeypatch, counted):

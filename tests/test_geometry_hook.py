@@ -34,7 +34,7 @@ def test_an_effect_changes_the_geometry_when_it_implements_the_hook(name):
     assert fx.effect(name).overrides("geometry") is (name in GEOMETRY_EFFECTS)
 
 
-PLUGINS = '''
+PLUGINS = """
 import casadi as ca
 from .base import Effect, ParamGroup, register
 
@@ -59,7 +59,7 @@ class ExtraTorque(Effect):
 
     def joint_torque(self, ctx):
         return ca.vertcat(ctx.p("extra_torque.t"), 0, 0, 0, 0, 0)
-'''
+"""
 
 
 def test_a_plug_in_with_a_geometry_hook_changes_the_geometry(tmp_path):
@@ -73,7 +73,8 @@ for name in ("wrist_shift", "extra_torque"):
     print(name, ArmModel(nominal=r, theta=fx.make_layout(r).nominal.copy(), effects=[name]).geometry_is_nominal)
 """
     env = {**os.environ, "COMPPLAN_EFFECT_PATH": str(tmp_path)}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env,
-                         check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env, check=False
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["wrist_shift", "False", "extra_torque", "True"]

@@ -37,9 +37,9 @@ from problems.compensation import CompensationStatus
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
 
-SIGMA = 2e-5                   # per-axis measurement noise of the campaigns, m
-HELDOUT_MAX_RATIO = 1.5        # held-out RMS / sigma
-COMPENSATION_MAX_LEFT = 0.02   # fraction of the error left after compensation
+SIGMA = 2e-5  # per-axis measurement noise of the campaigns, m
+HELDOUT_MAX_RATIO = 1.5  # held-out RMS / sigma
+COMPENSATION_MAX_LEFT = 0.02  # fraction of the error left after compensation
 
 AR5_LOADS = {"force_magnitudes_N": [5.0, 10.0, 20.0]}
 
@@ -49,28 +49,58 @@ AR5_LOADS = {"force_magnitudes_N": [5.0, 10.0, 20.0]}
 #: campaigns are registered and compensation is judged in the true base frame.
 CASES = {
     "gravity": ("ur10", {"gravity": {"payload_kg": 2.0}}, {}, False, "base"),
-    "stiffness_hardening": ("ur5", {"stiffness_hardening": {"knee_torque_Nm": 30.0, "stiffness_ratio": 2.0}},
-                            {}, False, "base"),
+    "stiffness_hardening": (
+        "ur5",
+        {"stiffness_hardening": {"knee_torque_Nm": 30.0, "stiffness_ratio": 2.0}},
+        {},
+        False,
+        "base",
+    ),
     "lost_motion": ("ar5", {"lost_motion": {"backlash_rad": 3e-4}}, {"campaign": AR5_LOADS}, False, "base"),
-    "joint_offset": ("ur5", {"joint_offset": {"dtheta_rad": [1e-3, -1.5e-3, 2e-3, -1e-3, 1.5e-3, 1e-3]}}, {},
-                     True, "base"),
+    "joint_offset": (
+        "ur5",
+        {"joint_offset": {"dtheta_rad": [1e-3, -1.5e-3, 2e-3, -1e-3, 1.5e-3, 1e-3]}},
+        {},
+        True,
+        "base",
+    ),
     "geometric": ("ur10", {"geometric": {}}, {}, True, "base"),
     "load_offset": ("ur5", {"load_offset": {"r_tool_m": [0.0, 0.05, 0.08]}}, {}, False, "base"),
     "link_compliance": ("ur10", {"link_compliance": {"EI_Nm2": 1.5e5, "GJ_Nm2": 1.0e5}}, {}, False, "base"),
     "drift": ("ar5", {"drift": {"rate_m_per_h": [2e-4, -1e-4, 1.5e-4]}}, {"campaign": AR5_LOADS}, False, "base"),
-    "thermal": ("ur5", {"thermal": {"alpha_per_K": 2.3e-5, "links": [2, 3]}},
-                {"temperature": {"start_C": 19.0, "end_C": 31.0}}, False, "base"),
+    "thermal": (
+        "ur5",
+        {"thermal": {"alpha_per_K": 2.3e-5, "links": [2, 3]}},
+        {"temperature": {"start_C": 19.0, "end_C": 31.0}},
+        False,
+        "base",
+    ),
     "outliers": ("ur10", {"outliers": {"fraction": 0.03, "magnitude_m": 2e-3}}, {}, False, "base"),
     # periodic joint errors with a few harmonics (one not a whole number of cycles per revolution)
-    "joint_error_map": ("ur5", {"joint_error_map": {"joint": [1, 1, 3], "amplitude_rad": [6e-4, 1.5e-4, 2e-4],
-                                                    "harmonic": [2, 13.4, 5], "phase_rad": [0.3, -1.2, 0.8]}},
-                        {"campaign": {"poses": 160}}, True, "base"),
+    "joint_error_map": (
+        "ur5",
+        {
+            "joint_error_map": {
+                "joint": [1, 1, 3],
+                "amplitude_rad": [6e-4, 1.5e-4, 2e-4],
+                "harmonic": [2, 13.4, 5],
+                "phase_rad": [0.3, -1.2, 0.8],
+            }
+        },
+        {"campaign": {"poses": 160}},
+        True,
+        "base",
+    ),
 }
 
 
 def _config(effects: dict, extra: dict, registered: bool, poses: int = 80) -> dict:
-    cfg = {"campaign": {"poses": poses}, "noise": {"sigma_m": SIGMA}, "registration": {"registered": registered},
-           "effects": copy.deepcopy(effects)}
+    cfg = {
+        "campaign": {"poses": poses},
+        "noise": {"sigma_m": SIGMA},
+        "registration": {"registered": registered},
+        "effects": copy.deepcopy(effects),
+    }
     for k, v in extra.items():
         cfg.setdefault(k, {}).update(copy.deepcopy(v))
     return cfg
@@ -83,7 +113,7 @@ def _heldout(robot: str, cfg: dict, seed: int) -> Measurements:
     return VirtualRobot(load_robot(robot), c, seed=seed).campaign(seed=seed + 1000)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _identified(name: str):
     """The campaign of case ``name`` (seed 11) and its identification, once per session."""
     robot, effects, extra, registered, _metric = CASES[name]
@@ -127,7 +157,7 @@ def test_compensation_leaves_at_most_two_percent(effect_case) -> None:
 
 @pytest.mark.slow
 def test_outliers_are_listed_by_row() -> None:
-    vr, _cfg, m, res = _identified("outliers")           # unregistered, as identify's default
+    vr, _cfg, m, res = _identified("outliers")  # unregistered, as identify's default
     excluded = {e["row"] for e in res.excluded}
     assert set(vr.outlier_rows) <= excluded
     assert len(excluded - set(vr.outlier_rows)) <= 1
@@ -187,6 +217,7 @@ def test_effects_together_with_noise_floor_from_sigma_column() -> None:
 # Engine pieces
 # ----------------------------------------------------------------------------------
 
+
 def test_jacobian_matches_finite_differences() -> None:
     robot = load_robot("ur5")
     layout = make_layout(robot)
@@ -211,7 +242,7 @@ def test_jacobian_matches_finite_differences() -> None:
         tp[i] += h
         tm[i] -= h
         Jn[:, k] = ((ev.measure(rows, tp, const)[0] - ev.measure(rows, tm, const)[0]) / (2 * h)).reshape(-1)
-    err = np.abs(J[:, idx] - Jn) * layout.scale[idx]          # m per typical parameter change
+    err = np.abs(J[:, idx] - Jn) * layout.scale[idx]  # m per typical parameter change
     assert err.max() < 1e-3 * max(np.abs(Jn * layout.scale[idx]).max(), 1e-9)
 
 
@@ -236,6 +267,7 @@ def test_plain_robot_file_predicts_the_nominal_tcp() -> None:
     q = np.array([[0.1, -1.0, 1.2, -0.3, 1.5, 0.2]])
     m = Measurements(q=q, wrench=np.zeros((1, 6)))
     from models import KinematicModel
+
     p_nom = np.asarray(KinematicModel(load_robot("ur10")).fk_position(q[0])).ravel()
     assert np.allclose(predict(model, m)[0], p_nom, atol=1e-12)
 
@@ -256,22 +288,53 @@ def test_compensation_is_exact_under_the_identified_model() -> None:
 # Command line: simulate -> identify -> predict -> compensate
 # ----------------------------------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_cli_end_to_end(tmp_path, capsys) -> None:
     cfg = tmp_path / "sim.toml"
-    cfg.write_text('seed = 3\nunits = "mm"\n[campaign]\nposes = 60\n[noise]\nsigma_m = 2e-5\n'
-                   '[effects.gravity]\n[effects.outliers]\nfraction = 0.02\n')
+    cfg.write_text(
+        'seed = 3\nunits = "mm"\n[campaign]\nposes = 60\n[noise]\nsigma_m = 2e-5\n'
+        "[effects.gravity]\n[effects.outliers]\nfraction = 0.02\n"
+    )
     data = tmp_path / "data.csv"
     assert cli_main(["simulate", "--robot", "ur5", "--config", str(cfg), "--out", str(data)]) == 0
     truth = tmp_path / "data.truth.toml"
     assert truth.is_file() and "x_mm" in data.read_text().splitlines()[0]
     model = tmp_path / "model.toml"
     rep = tmp_path / "report"
-    assert cli_main(["identify", "--robot", "ur5", "--data", str(data), "--out", str(model), "--report", str(rep),
-                     "--truth", str(truth), "--validation", str(data), "--no-progress"]) == 0
+    assert (
+        cli_main(
+            [
+                "identify",
+                "--robot",
+                "ur5",
+                "--data",
+                str(data),
+                "--out",
+                str(model),
+                "--report",
+                str(rep),
+                "--truth",
+                str(truth),
+                "--validation",
+                str(data),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     r = json.loads((rep / "report.json").read_text())
-    for key in ("rms_before_mm", "rms_after_mm", "effects_added", "parameters", "excluded_rows", "unexplained",
-                "history", "compensation_check", "validation"):
+    for key in (
+        "rms_before_mm",
+        "rms_after_mm",
+        "effects_added",
+        "parameters",
+        "excluded_rows",
+        "unexplained",
+        "history",
+        "compensation_check",
+        "validation",
+    ):
         assert key in r
     assert r["effects_added"][:1] == ["gravity"] and "outliers" in r["effects_added"]
     assert r["rms_after_mm"] < r["rms_before_mm"]
@@ -296,8 +359,23 @@ def test_cli_end_to_end(tmp_path, capsys) -> None:
     bad = tmp_path / "bad.csv"
     bad.write_text(lines[0] + "\n" + lines[1].replace(lines[1].split(",")[-3], "nan", 1) + "\n")
     capsys.readouterr()
-    assert cli_main(["identify", "--robot", "ur5", "--data", str(bad), "--out", str(tmp_path / "m2.toml"),
-                     "--report", str(tmp_path / "r2"), "--no-progress"]) == 2
+    assert (
+        cli_main(
+            [
+                "identify",
+                "--robot",
+                "ur5",
+                "--data",
+                str(bad),
+                "--out",
+                str(tmp_path / "m2.toml"),
+                "--report",
+                str(tmp_path / "r2"),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert "not finite" in err and err.count("\n") == 1
     assert not (tmp_path / "m2.toml").exists()
@@ -316,5 +394,6 @@ def test_measurement_csv_written_by_the_simulator_is_readable(tmp_path) -> None:
     p = tmp_path / "d.csv"
     p.write_text(measurements_to_csv(m))
     from problems.measurements import read_measurements
+
     m2 = read_measurements(p)
     assert np.allclose(m2.p, m.p) and list(m2.point) == list(m.point)

@@ -14,9 +14,18 @@ import numpy as np
 import pytest
 
 from models import load_robot
-from planner.identify_report import (REPORT_DIAGNOSTIC_PLOTS, REPORT_DIAGNOSTIC_ROWS, REPORT_MAP_PANELS,
-                                     VARIABLE_LABELS, VARIABLE_UNITS, report_dict, report_html, report_markdown,
-                                     structure_sentence, write_report)
+from planner.identify_report import (
+    REPORT_DIAGNOSTIC_PLOTS,
+    REPORT_DIAGNOSTIC_ROWS,
+    REPORT_MAP_PANELS,
+    VARIABLE_LABELS,
+    VARIABLE_UNITS,
+    report_dict,
+    report_html,
+    report_markdown,
+    structure_sentence,
+    write_report,
+)
 from planner.identify_report.diagnostics import _diag_groups
 from planner.identify_report.figures import _figures, _x_of
 from planner.identify_report.html import _md_block
@@ -30,15 +39,25 @@ TRUE_JOINT, TRUE_CPR, TRUE_AMP_URAD = 1, 2.0, 1000.0
 
 
 def _cfg(effects: dict, poses: int) -> dict:
-    return {"campaign": {"poses": poses}, "noise": {"sigma_m": 2e-5}, "registration": {"registered": False},
-            "effects": effects}
+    return {
+        "campaign": {"poses": poses},
+        "noise": {"sigma_m": 2e-5},
+        "registration": {"registered": False},
+        "effects": effects,
+    }
 
 
 @pytest.fixture(scope="module")
 def maps_run(tmp_path_factory):
     """A small campaign with a periodic error of joint 1, identified with the map candidate."""
-    effects = {"eccentricity": {"joint": [TRUE_JOINT], "amplitude_rad": [TRUE_AMP_URAD * 1e-6],
-                                "harmonic": [TRUE_CPR], "phase_rad": [0.3]}}
+    effects = {
+        "eccentricity": {
+            "joint": [TRUE_JOINT],
+            "amplitude_rad": [TRUE_AMP_URAD * 1e-6],
+            "harmonic": [TRUE_CPR],
+            "phase_rad": [0.3],
+        }
+    }
     vr = VirtualRobot(load_robot("ur5"), _cfg(effects, 60), seed=3)
     res = identify(load_robot("ur5"), vr.campaign(), candidates=["joint_error_map"])
     folder = tmp_path_factory.mktemp("maps") / "rep"
@@ -68,7 +87,7 @@ def test_json_holds_the_maps_with_the_true_harmonic(maps_run) -> None:
     assert on_disk["error_maps"] == json.loads(json.dumps(rep["error_maps"]))
     assert len(rep["error_maps"]) == len(res.error_maps) >= 1
     m = _true_map(rep)
-    h = m["harmonics"][0]                                   # the largest first
+    h = m["harmonics"][0]  # the largest first
     assert h["freq_cpr"] == pytest.approx(TRUE_CPR, abs=0.05)
     assert h["amplitude_urad"] == pytest.approx(TRUE_AMP_URAD, rel=0.1)
     assert 0 < h["amplitude_std_urad"] < 0.1 * h["amplitude_urad"]
@@ -76,8 +95,9 @@ def test_json_holds_the_maps_with_the_true_harmonic(maps_run) -> None:
     lo, hi = m["range_deg"]
     assert -180.0 <= lo < hi <= 180.0
     # the headline names every map; the candidates carry their detail; 'weak' is always there
-    assert {(x["joint"], x["component"]) for x in rep["headline"]["error_maps"]} == \
-        {(x["joint"], x["component"]) for x in rep["error_maps"]}
+    assert {(x["joint"], x["component"]) for x in rep["headline"]["error_maps"]} == {
+        (x["joint"], x["component"]) for x in rep["error_maps"]
+    }
     cands = [c for st in rep["history"] for c in st["candidates"]]
     assert cands and all(isinstance(c["detail"], str) for c in cands)
     assert any(c["effect"] == "joint_error_map" and c["detail"] for c in cands)
@@ -90,19 +110,23 @@ def test_markdown_and_html_show_the_maps_near_the_top(maps_run) -> None:
     assert md.index("## Joint error maps") < md.index("## Unexplained structure") < md.index("## Selection history")
     row = next(ln for ln in md.splitlines() if ln.startswith(f"| {TRUE_JOINT} | θ (theta): angular positioning"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert len(cells) == 5, row                             # joint, component, range, harmonics, RMS
+    assert len(cells) == 5, row  # joint, component, range, harmonics, RMS
     assert re.match(r"2 cycles/rev: \d+(\.\d+)? ± \d+(\.\d+)? µrad → \d+(\.\d+)? µm at the TCP", cells[3]), cells
     lo, hi = _true_map(rep)["range_deg"]
     assert cells[2].startswith(f"{lo:.3g}") and "…" in cells[2]
     assert float(cells[4]) == pytest.approx(_true_map(rep)["rms_tcp_um"], rel=0.01)
     assert "held at its end value (not extrapolated)" in md
     detail = next(c["detail"] for st in rep["history"] for c in st["candidates"] if c["detail"])
-    assert detail in md                                     # the candidate's detail under its table
+    assert detail in md  # the candidate's detail under its table
 
     html_text = (folder / "report.html").read_text()
-    assert (html_text.index('class="summary headline"') < html_text.index('<h2 id="error_maps">Joint error maps</h2>')
-            < html_text.index('data-figure="error_maps"') < html_text.index("<h2>Figures</h2>"))
-    assert html_text.count("Joint error maps</h2>") == 1    # not repeated with the other sections
+    assert (
+        html_text.index('class="summary headline"')
+        < html_text.index('<h2 id="error_maps">Joint error maps</h2>')
+        < html_text.index('data-figure="error_maps"')
+        < html_text.index("<h2>Figures</h2>")
+    )
+    assert html_text.count("Joint error maps</h2>") == 1  # not repeated with the other sections
     assert "±2 standard deviations" in html_text and "not extrapolated" in html_text
     src = re.search(r'data-figure="error_maps" [^>]*src="data:image/png;base64,([^"]+)"', html_text).group(1)
     assert base64.b64decode(src).startswith(PNG_MAGIC)
@@ -118,19 +142,26 @@ def test_report_without_maps_has_no_maps_section(plain_run) -> None:
     html_text = (folder / "report.html").read_text()
     assert "Joint error maps" not in md and "Joint error maps" not in html_text
     assert 'data-figure="error_maps"' not in html_text
-    assert "joint error maps" not in md                     # no headline row either
+    assert "joint error maps" not in md  # no headline row either
 
 
 @pytest.mark.slow
 def test_many_maps_are_drawn_in_at_most_the_panel_limit(maps_run) -> None:
     res, _rep, _folder = maps_run
     base = res.error_maps[0]
-    many = [dataclasses.replace(base, joint=1 + i % 6, component=("theta", "d", "a")[i % 3],
-                                unit="rad" if i % 3 == 0 else "m", rms_tcp_m=1e-6 * (i + 1))
-            for i in range(REPORT_MAP_PANELS + 3)]
+    many = [
+        dataclasses.replace(
+            base,
+            joint=1 + i % 6,
+            component=("theta", "d", "a")[i % 3],
+            unit="rad" if i % 3 == 0 else "m",
+            rms_tcp_m=1e-6 * (i + 1),
+        )
+        for i in range(REPORT_MAP_PANELS + 3)
+    ]
     drawn = _maps_drawn(many)
     assert len(drawn) == REPORT_MAP_PANELS
-    assert {m.rms_tcp_m for m in drawn} == {m.rms_tcp_m for m in many[-REPORT_MAP_PANELS:]}   # the largest
+    assert {m.rms_tcp_m for m in drawn} == {m.rms_tcp_m for m in many[-REPORT_MAP_PANELS:]}  # the largest
     res_many = dataclasses.replace(res, error_maps=many)
     figs = _figures(res_many, report_dict(res_many))
     assert base64.b64decode(figs["error_maps"]).startswith(PNG_MAGIC)
@@ -141,10 +172,19 @@ def test_many_maps_are_drawn_in_at_most_the_panel_limit(maps_run) -> None:
 @pytest.mark.parametrize("weak", [True, False])
 def test_weak_structure_is_called_weak(maps_run, weak) -> None:
     res, _rep, _folder = maps_run
-    msg = ("weak " if weak else "") + ("structure remains that no library effect explains: the residual depends on "
-                                       "q3 (cross-validated regression explains 7 % of its variance, p = 1e-9)")
-    unexplained = {"present": True, "variable": "q3", "diagnostic": "residual vs q3", "weak": weak,
-                   "explained_fraction": 0.07, "p_value": 1e-9, "message": msg}
+    msg = ("weak " if weak else "") + (
+        "structure remains that no library effect explains: the residual depends on "
+        "q3 (cross-validated regression explains 7 % of its variance, p = 1e-9)"
+    )
+    unexplained = {
+        "present": True,
+        "variable": "q3",
+        "diagnostic": "residual vs q3",
+        "weak": weak,
+        "explained_fraction": 0.07,
+        "p_value": 1e-9,
+        "message": msg,
+    }
     r = dataclasses.replace(res, unexplained=unexplained)
     rep = report_dict(r)
     assert rep["unexplained"]["weak"] is weak
@@ -160,8 +200,15 @@ def test_weak_structure_is_called_weak(maps_run, weak) -> None:
 
 def test_no_structure_is_said_as_none(plain_run) -> None:
     res, _rep, _folder = plain_run
-    r = dataclasses.replace(res, unexplained={"present": False, "weak": False, "variable": None,
-                                              "message": "no diagnostic shows structure the model leaves unexplained"})
+    r = dataclasses.replace(
+        res,
+        unexplained={
+            "present": False,
+            "weak": False,
+            "variable": None,
+            "message": "no diagnostic shows structure the model leaves unexplained",
+        },
+    )
     rep = report_dict(r)
     assert rep["headline"]["unexplained"].startswith("no diagnostic shows structure")
     assert "| structure left in the residual | none |" in report_markdown(rep)
@@ -188,20 +235,38 @@ def test_many_diagnostics_stay_in_a_few_figures_and_a_short_table(maps_run) -> N
     q = np.asarray(res.data.q, dtype=float)[inl]
     R = np.asarray(res.residual_after, dtype=float)[inl]
     diags = []
-    for j in range(6):                                      # every joint significant on x and z
+    for j in range(6):  # every joint significant on x and z
         for k, a in enumerate("xyz"):
-            diags.append(Diagnostic(f"q{j + 1}.{a}", 0.3 - 0.01 * (3 * j + k), 1e-12, a != "y", q[:, j],
-                                    y=R[:, k], y_label=f"weighted residual {a}"))
-        diags.append(Diagnostic(f"q{j + 1}", 0.02, 0.5, False, q[:, j], y=np.zeros(len(q)),
-                                y_label=f"equivalent joint-{j + 1} error (mrad)"))
+            diags.append(
+                Diagnostic(
+                    f"q{j + 1}.{a}",
+                    0.3 - 0.01 * (3 * j + k),
+                    1e-12,
+                    a != "y",
+                    q[:, j],
+                    y=R[:, k],
+                    y_label=f"weighted residual {a}",
+                )
+            )
+        diags.append(
+            Diagnostic(
+                f"q{j + 1}",
+                0.02,
+                0.5,
+                False,
+                q[:, j],
+                y=np.zeros(len(q)),
+                y_label=f"equivalent joint-{j + 1} error (mrad)",
+            )
+        )
     diags.append(Diagnostic("time", 0.01, 0.3, False, np.arange(len(q), dtype=float)))
     diags.sort(key=lambda d: -d.explained_fraction)
     want = "q5.z"
     r = dataclasses.replace(res, diagnostics=diags, unexplained={**res.unexplained, "variable": want})
     groups = _diag_groups(r)
     assert len(groups) == REPORT_DIAGNOSTIC_PLOTS
-    assert groups[0][0] == "q5.xyz"                         # the unexplained structure's variable first
-    assert all(any(d.significant for d in g) for _k, g in groups)      # significant ones before the rest
+    assert groups[0][0] == "q5.xyz"  # the unexplained structure's variable first
+    assert all(any(d.significant for d in g) for _k, g in groups)  # significant ones before the rest
     figs = _figures(r, report_dict(r))
     assert len([k for k in figs if k.startswith("diag_")]) == REPORT_DIAGNOSTIC_PLOTS
     md = report_markdown(report_dict(r))

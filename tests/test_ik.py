@@ -32,7 +32,7 @@ def _wrapdiff(a, b):
 @pytest.mark.parametrize("name", ROBOTS)
 def test_fk_ik_roundtrip_every_branch(name):
     robot, km, ik = get_model(name)
-    rng = np.random.default_rng(zlib.crc32(name.encode()))   # stable across processes (hash() is salted)
+    rng = np.random.default_rng(zlib.crc32(name.encode()))  # stable across processes (hash() is salted)
     q = rng.uniform(robot.q_min / 2, robot.q_max / 2, (N_RANDOM, 6))
     T = km.tcp(q)
     sol = ik.solve(T)

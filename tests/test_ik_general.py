@@ -21,9 +21,17 @@ import pytest
 
 from models.constants import IK_ROUNDTRIP_TOL
 from models.errors import InputError
-from models.ik.general_solver import (EAIK_MAX_BRANCHES, NUMERIC_MAX_BRANCHES, NUMERIC_N_STARTS,
-                               GeneralIK, GeneralIKStatus, arm_length_scale,
-                               general_guard_factors, poe_fk, poe_jacobian_sx)
+from models.ik.general_solver import (
+    EAIK_MAX_BRANCHES,
+    NUMERIC_MAX_BRANCHES,
+    NUMERIC_N_STARTS,
+    GeneralIK,
+    GeneralIKStatus,
+    arm_length_scale,
+    general_guard_factors,
+    poe_fk,
+    poe_jacobian_sx,
+)
 from models.transforms import rotation_angle, rotvec_to_matrix
 
 #: The generating configuration is "among the branches" when some branch is within this (rad).
@@ -45,11 +53,13 @@ def _unit(v) -> np.ndarray:
 
 def _arm_a() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     tilt = np.deg2rad(20.0)
-    w = np.array([[0, 0, 1], [0, np.cos(tilt), np.sin(tilt)], _unit([0.2, 1, -0.1]),
-                  [1, 0, 0], [0, 1, 0], [1, 0, 0]], dtype=float)
-    c = np.array([0.55, 0.05, 0.7])                          # wrist centre
+    w = np.array(
+        [[0, 0, 1], [0, np.cos(tilt), np.sin(tilt)], _unit([0.2, 1, -0.1]), [1, 0, 0], [0, 1, 0], [1, 0, 0]],
+        dtype=float,
+    )
+    c = np.array([0.55, 0.05, 0.7])  # wrist centre
     p = np.array([[0, 0, 0], [0.1, 0, 0.4], [0, 0, 0], c, c, c], dtype=float)
-    p[2] = p[1] + 0.3 * w[1]                                 # axis 3 meets axis 2
+    p[2] = p[1] + 0.3 * w[1]  # axis 3 meets axis 2
     M0 = np.eye(4)
     M0[:3, :3] = rotvec_to_matrix(0.3 * _unit([1, 1, 0]))
     M0[:3, 3] = c + [0.1, 0.0, 0.0]
@@ -60,8 +70,9 @@ def _arm_b() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     tilt = np.deg2rad(15.0)
     y = [0.0, 1.0, 0.0]
     w = np.array([[0, np.sin(tilt), np.cos(tilt)], y, y, y, [0, 0, 1], _unit([1, 0.3, 0])])
-    p = np.array([[0, 0, 0], [0.05, 0.02, 0.35], [0.05, 0.1, 0.85], [0.45, -0.05, 0.85],
-                  [0.45, 0.1, 0.85], [0.5, 0.1, 0.7]])
+    p = np.array(
+        [[0, 0, 0], [0.05, 0.02, 0.35], [0.05, 0.1, 0.85], [0.45, -0.05, 0.85], [0.45, 0.1, 0.85], [0.5, 0.1, 0.7]]
+    )
     M0 = np.eye(4)
     M0[:3, :3] = rotvec_to_matrix(0.5 * _unit([0, 1, 1]))
     M0[:3, 3] = [0.6, 0.15, 0.65]
@@ -69,10 +80,12 @@ def _arm_b() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _arm_c() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    w = np.array([_unit(v) for v in ([0, 0, 1], [0.1, 1, 0.2], [0.05, 1, -0.15], [1, 0.1, 0.2],
-                                     [0.2, 1, 0.1], [1, -0.2, 0.3])])
-    p = np.array([[0, 0, 0], [0.08, 0.0, 0.4], [0.1, 0.05, 0.85], [0.3, -0.04, 0.9],
-                  [0.62, 0.06, 0.88], [0.7, -0.02, 0.8]])
+    w = np.array(
+        [_unit(v) for v in ([0, 0, 1], [0.1, 1, 0.2], [0.05, 1, -0.15], [1, 0.1, 0.2], [0.2, 1, 0.1], [1, -0.2, 0.3])]
+    )
+    p = np.array(
+        [[0, 0, 0], [0.08, 0.0, 0.4], [0.1, 0.05, 0.85], [0.3, -0.04, 0.9], [0.62, 0.06, 0.88], [0.7, -0.02, 0.8]]
+    )
     M0 = np.eye(4)
     M0[:3, :3] = rotvec_to_matrix([0.2, -0.3, 0.4])
     M0[:3, 3] = [0.8, 0.03, 0.78]
@@ -82,7 +95,7 @@ def _arm_c() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 ARMS = {"a": _arm_a, "b": _arm_b, "c": _arm_c}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _ik(name: str) -> GeneralIK:
     return GeneralIK(*ARMS[name]())
 
@@ -140,7 +153,7 @@ def test_roundtrip_and_generating_configuration(name):
     assert np.linalg.norm(Tq[:, :3, 3] - Tt[:, :3, 3], axis=1).max() <= IK_ROUNDTRIP_TOL
     assert rotation_angle(Tq[:, :3, :3], Tt[:, :3, :3]).max() <= IK_ROUNDTRIP_TOL
     # the configuration that made T is one of the branches (mod 2 pi)
-    d = np.max(_wrapdiff(res.q, q[:, None, :]), axis=2)        # NaN where absent
+    d = np.max(_wrapdiff(res.q, q[:, None, :]), axis=2)  # NaN where absent
     assert np.all(np.nanmin(d, axis=1) < SAME_CONFIG_TOL)
     # distinct branches; a generic pose has an even number of real solutions
     count = present.sum(axis=1)
@@ -183,7 +196,7 @@ def test_labels_continuous_and_guard_sign_constant_along_path(name, seed):
     res = ik.solve(poe_fk(w, p, M0, q))
     regular = (res.status == GeneralIKStatus.OK.code) & (np.abs(res.guard) > GUARD_MARGIN)
     both = regular[1:] & regular[:-1]
-    assert both.sum() >= n                                   # the check is not vacuous
+    assert both.sum() >= n  # the check is not vacuous
     step = np.max(_wrapdiff(res.q[1:], res.q[:-1]), axis=2)
     assert step[both].max() < STEP_TOL
     assert np.all(np.sign(res.guard[1:])[both] == np.sign(res.guard[:-1])[both])

@@ -12,8 +12,17 @@ from scipy.spatial.transform import RigidTransform, Rotation
 from models.errors import InputError
 from models.ik import IKStatus
 from models.ik.opw_closed_form import (
-    OPW_BRANCH_LABELS, NotOPW, OPWGeometry, OPWStatus, opw_branch_signs, opw_canonical_fk, opw_from_axes,
-    opw_guard_factors, opw_ik, opw_ik_function, poe_fk,
+    OPW_BRANCH_LABELS,
+    NotOPW,
+    OPWGeometry,
+    OPWStatus,
+    opw_branch_signs,
+    opw_canonical_fk,
+    opw_from_axes,
+    opw_guard_factors,
+    opw_ik,
+    opw_ik_function,
+    poe_fk,
 )
 
 #: Extracted parameters vs published ones (m, rad).
@@ -40,20 +49,32 @@ N_ROUNDTRIP = 2000
 N_PYOPW = 500
 
 # URDF joints (origin relative to the previous link frame, axis), zero rotations.
-KR6_URDF = [((0, 0, 0.400), (0, 0, -1)), ((0.025, 0, 0), (0, 1, 0)), ((0.455, 0, 0), (0, 1, 0)),
-            ((0, 0, 0.035), (-1, 0, 0)), ((0.420, 0, 0), (0, 1, 0)), ((0.080, 0, 0), (-1, 0, 0))]
-IRB2400_URDF = [((0, 0, 0), (0, 0, 1)), ((0.1, 0, 0.615), (0, 1, 0)), ((0, 0, 0.705), (0, 1, 0)),
-                ((0.258, 0, 0.135), (1, 0, 0)), ((0.497, 0, 0), (0, 1, 0)), ((0.085, 0, 0), (1, 0, 0))]
+KR6_URDF = [
+    ((0, 0, 0.400), (0, 0, -1)),
+    ((0.025, 0, 0), (0, 1, 0)),
+    ((0.455, 0, 0), (0, 1, 0)),
+    ((0, 0, 0.035), (-1, 0, 0)),
+    ((0.420, 0, 0), (0, 1, 0)),
+    ((0.080, 0, 0), (-1, 0, 0)),
+]
+IRB2400_URDF = [
+    ((0, 0, 0), (0, 0, 1)),
+    ((0.1, 0, 0.615), (0, 1, 0)),
+    ((0, 0, 0.705), (0, 1, 0)),
+    ((0.258, 0, 0.135), (1, 0, 0)),
+    ((0.497, 0, 0), (0, 1, 0)),
+    ((0.085, 0, 0), (1, 0, 0)),
+]
 KR6_PARAMS = dict(a1=0.025, a2=-0.035, b=0.0, c1=0.400, c2=0.455, c3=0.420, c4=0.080)
 KR6_SIGNS = (-1, 1, 1, -1, 1, -1)
-KR6_OFFSETS_OPW = (0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0)      # phi = sign * q - offset
+KR6_OFFSETS_OPW = (0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0)  # phi = sign * q - offset
 IRB2400_PARAMS = dict(a1=0.100, a2=-0.135, b=0.0, c1=0.615, c2=0.705, c3=0.755, c4=0.085)
 IRB2400_OFFSETS_OPW = (0.0, 0.0, -np.pi / 2, 0.0, 0.0, 0.0)
 #: KUKA tool0 ($FLANGE) is link_6 turned by Ry(90 deg).
 KR6_TOOL0 = Rotation.from_euler("y", 90, degrees=True).as_matrix()
 
 
-def _urdf_chain(joints, flange_rot=np.eye(3)):
+def _urdf_chain(joints, flange_rot=None):
     """PoE data (w, p, M0) of a URDF chain with zero joint rotations."""
     T, w, p = np.eye(4), [], []
     for xyz, axis in joints:
@@ -63,15 +84,15 @@ def _urdf_chain(joints, flange_rot=np.eye(3)):
         w.append(T[:3, :3] @ np.asarray(axis, float))
         p.append(T[:3, 3].copy())
     M0 = T.copy()
-    M0[:3, :3] = T[:3, :3] @ flange_rot
+    M0[:3, :3] = T[:3, :3] @ (np.eye(3) if flange_rot is None else flange_rot)
     return np.array(w), np.array(p), M0
 
 
 def _canonical_chain(params, signs, offsets_opw):
     """PoE data of a canonical OPW arm whose q = 0 is phi = -offsets_opw (opw convention)."""
     o = -np.asarray(offsets_opw, float)
-    Rz = lambda a: Rotation.from_rotvec([0, 0, a]).as_matrix()   # noqa: E731
-    Ry = lambda a: Rotation.from_rotvec([0, a, 0]).as_matrix()   # noqa: E731
+    Rz = lambda a: Rotation.from_rotvec([0, 0, a]).as_matrix()  # noqa: E731 - a one-line helper local to this test
+    Ry = lambda a: Rotation.from_rotvec([0, a, 0]).as_matrix()  # noqa: E731 - a one-line helper local to this test
     a1, a2, b, c1, c2, c3 = (params[k] for k in ("a1", "a2", "b", "c1", "c2", "c3"))
     R1 = Rz(o[0])
     s2p = R1 @ np.array([a1, 0, c1])
@@ -83,8 +104,9 @@ def _canonical_chain(params, signs, offsets_opw):
     ez, ey = np.array([0, 0, 1.0]), np.array([0, 1.0, 0])
     w = np.array([ez, R1 @ ey, R1 @ ey, R3 @ ez, R4 @ ey, R5 @ ez]) * np.asarray(signs, float)[:, None]
     p = np.array([np.zeros(3), s2p, s3p, C, C, C])
-    g = OPWGeometry(**params, signs=np.ones(6), offsets=np.zeros(6), canon2base=np.eye(4),
-                    flange2canon_flange=np.eye(4), scale=1.0)
+    g = OPWGeometry(
+        **params, signs=np.ones(6), offsets=np.zeros(6), canon2base=np.eye(4), flange2canon_flange=np.eye(4), scale=1.0
+    )
     return w, p, opw_canonical_fk(g, o[None])[0]
 
 
@@ -115,6 +137,7 @@ CHAINS = {
 
 # ----------------------------------------------------------------------------- extraction
 
+
 @pytest.mark.parametrize("name", ["kr6", "irb2400"])
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_canonical_fk_matches_poe(name, seed):
@@ -128,27 +151,30 @@ def test_canonical_fk_matches_poe(name, seed):
     assert np.abs(Tc - T).max() < FK_TOL
     assert np.abs(g.fk(q) - T).max() < FK_TOL
     assert g.a1 >= 0 and g.c2 > 0 and g.c3 > 0 and g.c4 >= 0
-    assert g.canon2base[2, 2] >= 0                            # canonical z not pointing down
+    assert g.canon2base[2, 2] >= 0  # canonical z not pointing down
     assert np.all(np.abs(g.offsets[3:5]) <= np.pi / 2 + PARAM_TOL)
 
 
-@pytest.mark.parametrize("name, params, signs, offsets", [
-    ("kr6", KR6_PARAMS, KR6_SIGNS, KR6_OFFSETS_OPW),
-    ("irb2400", IRB2400_PARAMS, (1,) * 6, IRB2400_OFFSETS_OPW),
-    ("irb2400_canonical", IRB2400_PARAMS, (1,) * 6, IRB2400_OFFSETS_OPW),
-])
+@pytest.mark.parametrize(
+    "name, params, signs, offsets",
+    [
+        ("kr6", KR6_PARAMS, KR6_SIGNS, KR6_OFFSETS_OPW),
+        ("irb2400", IRB2400_PARAMS, (1,) * 6, IRB2400_OFFSETS_OPW),
+        ("irb2400_canonical", IRB2400_PARAMS, (1,) * 6, IRB2400_OFFSETS_OPW),
+    ],
+)
 @pytest.mark.parametrize("flip", [None, 0, 1, 2, 3, 4, 5])
 def test_published_parameters(name, params, signs, offsets, flip):
     flips = np.zeros(6, bool)
     if flip is not None:
-        flips[flip] = True                  # a reversed axis only reverses that joint's sign
+        flips[flip] = True  # a reversed axis only reverses that joint's sign
     g = opw_from_axes(*_transformed(CHAINS[name](), np.eye(4), flips))
     got = g.opw_parameters()
     for key, value in params.items():
         assert abs(got[key] - value) < PARAM_TOL, key
     assert got["sign_corrections"] == tuple(int(s) for s in np.where(flips, -1, 1) * signs)
     assert np.abs(_wrapdiff(np.array(got["offsets"]), np.array(offsets))).max() < PARAM_TOL
-    assert np.abs(g.offsets + np.array(offsets)).max() < PARAM_TOL    # ours: phi = s q + o
+    assert np.abs(g.offsets + np.array(offsets)).max() < PARAM_TOL  # ours: phi = s q + o
 
 
 def test_kr6_flange_is_canonical_flange():
@@ -160,8 +186,9 @@ def test_kr6_flange_is_canonical_flange():
 def test_not_opw_ur5_like():
     # UR5 at q = 0: axes 2, 3, 4 parallel.
     w = np.array([[0, 0, 1], [0, 1, 0], [0, 1, 0], [0, 1, 0], [0, 0, -1], [0, 1, 0]], float)
-    p = np.array([[0, 0, 0], [0, 0, 0.0892], [-0.425, 0, 0.0892], [-0.817, 0, 0.0892],
-                  [-0.817, 0.109, 0], [-0.817, 0, -0.0055]])
+    p = np.array(
+        [[0, 0, 0], [0, 0, 0.0892], [-0.425, 0, 0.0892], [-0.817, 0, 0.0892], [-0.817, 0.109, 0], [-0.817, 0, -0.0055]]
+    )
     M0 = np.eye(4)
     M0[:3, 3] = (-0.817, 0.191, -0.0055)
     with pytest.raises(NotOPW, match=r"axes 3 and 4 are not perpendicular \(angle 0 rad") as err:
@@ -173,7 +200,7 @@ def test_not_opw_ur5_like():
 def test_not_opw_wrist_axes_do_not_meet(joint, match):
     w, p, M0 = CHAINS["kr6"]()
     p = p.copy()
-    p[joint] += (0.0, 0.0, 0.001)          # 1 mm off the wrist centre
+    p[joint] += (0.0, 0.0, 0.001)  # 1 mm off the wrist centre
     with pytest.raises(NotOPW, match=match + r".*0\.001 m"):
         opw_from_axes(w, p, M0)
 
@@ -191,6 +218,7 @@ def test_not_opw_parallel_and_coincident():
 
 
 # ----------------------------------------------------------------------------- closed form
+
 
 def _solve(name, n, seed, base=None):
     rng = np.random.default_rng(seed)
@@ -223,13 +251,13 @@ def test_roundtrip_every_branch(name):
 
 def test_branch_set_matches_py_opw_kinematics():
     from py_opw_kinematics import KinematicModel, Robot
-    km = KinematicModel(**KR6_PARAMS, offsets=KR6_OFFSETS_OPW,
-                        flip_axes=tuple(s < 0 for s in KR6_SIGNS))
+
+    km = KinematicModel(**KR6_PARAMS, offsets=KR6_OFFSETS_OPW, flip_axes=tuple(s < 0 for s in KR6_SIGNS))
     robot = Robot(km, degrees=False)
     chain, g, q, T, Q, st = _solve("kr6", N_PYOPW, 5)
     # Same robot, same flange frame: its FK is the URDF chain's.
     assert np.abs(robot.batch_forward(q).as_matrix() - T).max() < FK_TOL
-    theirs = robot.reach(RigidTransform.from_matrix(T)).joints       # (n, 8, 6), NaN = none
+    theirs = robot.reach(RigidTransform.from_matrix(T)).joints  # (n, 8, 6), NaN = none
     counts = []
     for i in range(N_PYOPW):
         mine = Q[i][st[i] == OPWStatus.OK.code]
@@ -238,12 +266,12 @@ def test_branch_set_matches_py_opw_kinematics():
         counts.append(len(mine))
         d = _wrapdiff(mine[:, None, :], other[None, :, :]).max(axis=-1)
         assert d.min(axis=1).max() < PYOPW_TOL and d.min(axis=0).max() < PYOPW_TOL
-    assert set(counts) == {4, 8}          # the back branches are out of reach for some poses
+    assert set(counts) == {4, 8}  # the back branches are out of reach for some poses
 
 
 def test_guard_signs_identify_branches():
     chain, g, q, T, Q, st = _solve("irb2400", 500, 13)
-    f = opw_guard_factors(g, Q)                                        # (n, 8, 3)
+    f = opw_guard_factors(g, Q)  # (n, 8, 3)
     clear = (st == OPWStatus.OK.code)[..., None] & (np.abs(f) > GUARD_MARGIN)
     expected = np.broadcast_to(opw_branch_signs()[None], f.shape)
     assert clear.mean() > MIN_OK_FRACTION
@@ -264,13 +292,13 @@ def test_elbow_up_is_above_the_shoulder_wrist_line():
     chain, g, q, T, Q, st = _solve("kr6", 500, 17)
     phi = Q * g.signs + g.offsets
     p2, p23 = phi[..., 1], phi[..., 1] + phi[..., 2]
-    sx, sz = g.a1, g.c1                                                  # shoulder, arm plane
-    ex, ez = sx + g.c2 * np.sin(p2), sz + g.c2 * np.cos(p2)             # elbow
-    wx = ex + g.c3 * np.sin(p23) + g.a2 * np.cos(p23)                   # wrist centre
+    sx, sz = g.a1, g.c1  # shoulder, arm plane
+    ex, ez = sx + g.c2 * np.sin(p2), sz + g.c2 * np.cos(p2)  # elbow
+    wx = ex + g.c3 * np.sin(p23) + g.a2 * np.cos(p23)  # wrist centre
     wz = ez + g.c3 * np.cos(p23) - g.a2 * np.sin(p23)
     usable = (st == OPWStatus.OK.code) & (np.abs(wx - sx) > LINE_MIN_DX)
     front = np.arange(8)[None, :] < 4
-    usable &= ~front | (wx > sx)                                         # front: wrist ahead of the shoulder
+    usable &= ~front | (wx > sx)  # front: wrist ahead of the shoulder
     above = ez > sz + (wz - sz) * (ex - sx) / np.where(usable, wx - sx, 1.0)
     up = np.isin(np.arange(8), [0, 1, 4, 5])[None, :].repeat(len(q), 0)
     assert usable.sum() > 1000
@@ -279,6 +307,7 @@ def test_elbow_up_is_above_the_shoulder_wrist_line():
 
 
 # ----------------------------------------------------------------------------- statuses
+
 
 def test_far_target_elbow_unreachable():
     g = opw_from_axes(*CHAINS["kr6"]())
@@ -293,7 +322,7 @@ def test_wrist_singular_pose():
     chain = CHAINS["kr6"]()
     g = opw_from_axes(*chain)
     q = np.array([0.3, -0.9, 0.4, 0.7, 0.0, -0.2])
-    q[4] = -g.offsets[4] * g.signs[4]                                   # phi5 = 0
+    q[4] = -g.offsets[4] * g.signs[4]  # phi5 = 0
     T = poe_fk(*chain, q)
     Q, st = opw_ik(opw_ik_function(g), T)
     singular = np.flatnonzero(st[0] == OPWStatus.WRIST_SINGULAR.code)
@@ -306,7 +335,7 @@ def test_wrist_singular_pose():
 def test_shoulder_singular_and_unreachable():
     g = opw_from_axes(*CHAINS["kr6"]())
     Tc = np.eye(4)
-    Tc[:3, 3] = (0.0, 0.0, 1.0 + g.c4)                                  # wrist centre on axis 1
+    Tc[:3, 3] = (0.0, 0.0, 1.0 + g.c4)  # wrist centre on axis 1
     T = g.canon2base @ Tc @ g.flange2canon_flange
     Q, st = opw_ik(opw_ik_function(g), T)
     assert np.all(st == OPWStatus.SHOULDER_SINGULAR.code)
@@ -315,7 +344,7 @@ def test_shoulder_singular_and_unreachable():
     chain = _canonical_chain(offset, (1,) * 6, IRB2400_OFFSETS_OPW)
     g = opw_from_axes(*chain)
     assert abs(g.b - 0.1) < PARAM_TOL
-    Tc[:3, 3] = (0.05, 0.0, 1.0 + g.c4)                                 # 5 cm from axis 1 < |b|
+    Tc[:3, 3] = (0.05, 0.0, 1.0 + g.c4)  # 5 cm from axis 1 < |b|
     Q, st = opw_ik(opw_ik_function(g), g.canon2base @ Tc @ g.flange2canon_flange)
     assert np.all(st == OPWStatus.SHOULDER_UNREACHABLE.code)
     assert np.all(np.isfinite(Q))
@@ -332,4 +361,4 @@ def test_function_interface():
     cg.add(f)
     assert "opw_ik" in cg.dump()
     assert [s.code for s in OPWStatus] == [0, 1, 3, 4, 6]
-    assert all(IKStatus(s.value).code == s.code for s in OPWStatus)      # the OPW family stores IK codes
+    assert all(IKStatus(s.value).code == s.code for s in OPWStatus)  # the OPW family stores IK codes

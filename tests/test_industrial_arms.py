@@ -51,7 +51,7 @@ def test_fk_of_ik_over_random_poses_of_every_shipped_arm(name, family):
     T = km.tcp(q)
     sol = ik.solve(T)
     ok = sol.valid
-    assert ok.any(axis=1).mean() > 0.999                    # (a pose exactly at a singularity may fail)
+    assert ok.any(axis=1).mean() > 0.999  # (a pose exactly at a singularity may fail)
     Tq = km.tcp(np.nan_to_num(sol.q.reshape(-1, 6))).reshape(N_POSES, ik.n_branches, 4, 4)
     err = np.abs(Tq - T[:, None])[ok]
     assert err.max() < FK_IK_TOL
@@ -64,24 +64,36 @@ def test_fk_of_ik_over_random_poses_of_every_shipped_arm(name, family):
 def test_shipped_kuka_branch_set_equals_an_independent_opw_solver():
     pko = pytest.importorskip("py_opw_kinematics")
     from scipy.spatial.transform import RigidTransform
+
     robot = load_robot("kr6_r900")
     ik = ik_solver(robot)
     # KUKA KR 6 R900 sixx as published for OPW solvers (not extracted by compplan)
-    model = pko.KinematicModel(a1=0.025, a2=-0.035, b=0.0, c1=0.400, c2=0.455, c3=0.420, c4=0.080,
-                               offsets=(0.0, -math.pi / 2, 0.0, 0.0, 0.0, 0.0),
-                               flip_axes=(True, False, False, True, False, True))
+    model = pko.KinematicModel(
+        a1=0.025,
+        a2=-0.035,
+        b=0.0,
+        c1=0.400,
+        c2=0.455,
+        c3=0.420,
+        c4=0.080,
+        offsets=(0.0, -math.pi / 2, 0.0, 0.0, 0.0, 0.0),
+        flip_axes=(True, False, False, True, False, True),
+    )
     ref = pko.Robot(model, degrees=False)
     km = KinematicModel(robot)
     rng = np.random.default_rng(3)
     q = rng.uniform(np.maximum(robot.q_min, -np.pi), np.minimum(robot.q_max, np.pi), (500, 6))
-    T = km.tcp(q)                               # tool0 in base_link: the OPW solver's flange frame
-    theirs = np.asarray(ref.reach(RigidTransform.from_matrix(T)).joints)     # (N, 8, 6), NaN: none
+    T = km.tcp(q)  # tool0 in base_link: the OPW solver's flange frame
+    theirs = np.asarray(ref.reach(RigidTransform.from_matrix(T)).joints)  # (N, 8, 6), NaN: none
     ours = ik.solve(T)
     for k in range(len(T)):
         # every branch either solver finds (ours: all solutions, before joint limits)
         a = [_wrap(x) for x in theirs[k] if np.all(np.isfinite(x))]
-        b = [_wrap(x) for x, s in zip(ours.q[k], ours.status[k]) if s in (IKStatus.OK.code, IKStatus.JOINT_LIMIT.code)
-             and np.all(np.isfinite(x))]
+        b = [
+            _wrap(x)
+            for x, s in zip(ours.q[k], ours.status[k])
+            if s in (IKStatus.OK.code, IKStatus.JOINT_LIMIT.code) and np.all(np.isfinite(x))
+        ]
         b += [_wrap(x) for x, s in zip(_raw_solutions(ik, T[k]), ours.status[k]) if s == IKStatus.JOINT_LIMIT.code]
         b = [x for x in b if np.all(np.isfinite(x))]
         for x in a:
@@ -170,8 +182,15 @@ max_joint_step = 0.3
 """
 
 
-def _pinocchio_landing(urdf: Path, names: tuple[str, ...], stiffness: np.ndarray, tool: np.ndarray,
-                       q_cmd: np.ndarray, f_tool: np.ndarray, m_tool: np.ndarray) -> np.ndarray:
+def _pinocchio_landing(
+    urdf: Path,
+    names: tuple[str, ...],
+    stiffness: np.ndarray,
+    tool: np.ndarray,
+    q_cmd: np.ndarray,
+    f_tool: np.ndarray,
+    m_tool: np.ndarray,
+) -> np.ndarray:
     """TCP positions (N, 3) of the elastic arm commanded to ``q_cmd``: the equilibrium
     ``K (q - q_cmd) = J(q)^T W(q)`` with the tool-frame wrench turned by the TCP's rotation,
     by fixed-point iteration on pinocchio's kinematics (independent of compplan's model)."""
@@ -190,8 +209,8 @@ def _pinocchio_landing(urdf: Path, names: tuple[str, ...], stiffness: np.ndarray
             pin.updateFramePlacements(model, data)
             M = data.oMf[fid].homogeneous @ tool
             Jf = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:, idx]
-            r = M[:3, 3] - data.oMf[fid].translation            # flange -> TCP, base frame
-            Jv = Jf[:3] + np.cross(Jf[3:].T, r).T               # TCP linear velocity: v + w x r
+            r = M[:3, 3] - data.oMf[fid].translation  # flange -> TCP, base frame
+            Jv = Jf[:3] + np.cross(Jf[3:].T, r).T  # TCP linear velocity: v + w x r
             f, m = M[:3, :3] @ f_tool, M[:3, :3] @ m_tool
             tau = Jv.T @ f + Jf[3:].T @ m
             q_new = qc + tau / stiffness
@@ -226,19 +245,34 @@ def test_a_plan_on_an_unshipped_industrial_arm_lands_on_the_path(tmp_path, monke
     (tmp_path / "problem.toml").write_text(IRB2400_PROBLEM, encoding="utf-8")
     from planner.plan import plan
     from problems.problem import load_problem
+
     pr = load_problem(str(tmp_path / "problem.toml"))
     res = plan(pr).raise_for_status()
     assert res.posture.ik_family == family
-    assert len(res.posture.branches) >= 2                   # the branch choice is a real one
+    assert len(res.posture.branches) >= 2  # the branch choice is a real one
     q_cmd = res.exact.q_command
     robot = pr.robot
-    tcp = _pinocchio_landing(tmp_path / "irb2400.urdf", robot.joint_names, robot.stiffness, robot.tcp2flange,
-                             q_cmd, np.array([20.0, -10.0, -250.0]), np.array([0.0, 0.0, 6.0]))
+    tcp = _pinocchio_landing(
+        tmp_path / "irb2400.urdf",
+        robot.joint_names,
+        robot.stiffness,
+        robot.tcp2flange,
+        q_cmd,
+        np.array([20.0, -10.0, -250.0]),
+        np.array([0.0, 0.0, 6.0]),
+    )
     err = np.linalg.norm(tcp - pr.positions, axis=1)
     assert err.max() < LANDING_TOL_M, err.max()
     # and without compensation it would not have landed (the check can fail)
-    tcp0 = _pinocchio_landing(tmp_path / "irb2400.urdf", robot.joint_names, robot.stiffness, robot.tcp2flange,
-                              res.posture.best.q, np.array([20.0, -10.0, -250.0]), np.array([0.0, 0.0, 6.0]))
+    tcp0 = _pinocchio_landing(
+        tmp_path / "irb2400.urdf",
+        robot.joint_names,
+        robot.stiffness,
+        robot.tcp2flange,
+        res.posture.best.q,
+        np.array([20.0, -10.0, -250.0]),
+        np.array([0.0, 0.0, 6.0]),
+    )
     assert np.linalg.norm(tcp0 - pr.positions, axis=1).max() > 100 * LANDING_TOL_M
 
 
@@ -246,6 +280,7 @@ def test_a_ur_arm_with_reversed_axes_is_solved_completely_by_the_general_family(
     """A UR5 whose URDF turns joints 2 and 5 the other way is not UR-type (anti-parallel axes);
     EAIK solves it once its parallel axes are made to agree, every branch found."""
     from tests.test_urdf import _robot_file, _with_masses, urdf_from_dh
+
     urdf_from_dh(_with_masses(load_robot("ur5")), tmp_path / "arm.urdf", (1, 4))
     robot = load_robot(_robot_file(tmp_path, load_robot("ur5")))
     ik = ik_solver(robot)
@@ -254,7 +289,7 @@ def test_a_ur_arm_with_reversed_axes_is_solved_completely_by_the_general_family(
     q = np.random.default_rng(4).uniform(-np.pi, np.pi, (300, 6))
     T = km.tcp(q)
     sol = ik.solve(T)
-    assert sol.valid.sum(axis=1).mean() > 6.5                 # a UR pose has 8 solutions, few fewer
+    assert sol.valid.sum(axis=1).mean() > 6.5  # a UR pose has 8 solutions, few fewer
     Tq = km.tcp(np.nan_to_num(sol.q.reshape(-1, 6))).reshape(len(q), ik.n_branches, 4, 4)
     assert np.abs(Tq - T[:, None])[sol.valid].max() < FK_IK_TOL
     d = np.abs(_wrap(sol.q - q[:, None])).max(axis=2)
@@ -265,6 +300,7 @@ def test_general_branch_labels_follow_a_reference():
     """The general family's labels hold within one call; solve_like puts another call's branches
     in the reference's slots (the posture warm starts rely on it)."""
     import tempfile
+
     with tempfile.TemporaryDirectory() as d:
         (Path(d) / "irb2400.urdf").write_text(_tilted_irb2400(20.0), encoding="utf-8")
         (Path(d) / "irb2400.toml").write_text(IRB2400_ROBOT, encoding="utf-8")
@@ -277,6 +313,7 @@ def test_general_branch_labels_follow_a_reference():
     ref = ik.solve(T)
     mixed = ik.solve(np.concatenate([km.tcp(np.random.default_rng(7).uniform(-1, 1, (5, 6))), T]))
     from models.ik.base import IKSolution, match_branches
+
     tail = IKSolution(q=mixed.q[5:], status=mixed.status[5:], labels=mixed.labels)
     matched = match_branches(tail, ref.q)
     assert np.array_equal(np.isnan(matched.q), np.isnan(ref.q))

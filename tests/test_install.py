@@ -15,8 +15,13 @@ CLEAN_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
 
 
 def _installed() -> bool:
-    probe = subprocess.run([sys.executable, "-c", "import planner, sys; print(planner.__file__)"],
-                           cwd="/", env=CLEAN_ENV, capture_output=True, text=True)
+    probe = subprocess.run(
+        [sys.executable, "-c", "import planner, sys; print(planner.__file__)"],
+        cwd="/",
+        env=CLEAN_ENV,
+        capture_output=True,
+        text=True,
+    )
     return probe.returncode == 0
 
 
@@ -39,8 +44,7 @@ def test_installed_package_has_every_module_and_data_file(tmp_path):
         "names += [p.name for p in resources.files('problems').joinpath('files/sim').iterdir()]\n"
         "print(sorted(names))\n"
     )
-    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=CLEAN_ENV,
-                       capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=CLEAN_ENV, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "paper_4_4.toml" in r.stdout
 
@@ -50,8 +54,13 @@ def test_installed_console_script_runs_the_demo(tmp_path):
     exe = shutil.which("compplan")
     if exe is None:
         pytest.skip("the compplan console script is not on PATH")
-    r = subprocess.run([exe, "demo", "--out", str(tmp_path / "demo"), "--no-report"], cwd=tmp_path,
-                       env=CLEAN_ENV, capture_output=True, text=True)
+    r = subprocess.run(
+        [exe, "demo", "--out", str(tmp_path / "demo"), "--no-report"],
+        cwd=tmp_path,
+        env=CLEAN_ENV,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
     assert summary["error_after"]["exact"]["max_mm"] < 1e-6

@@ -27,8 +27,8 @@ from problems.identify import DataError, IdentifyStatus, ParameterStatus, identi
 from problems.measurements import Measurements
 from problems.virtual import VirtualRobot
 
-SIGMA = 2e-5                         # per-axis position noise of the campaigns, m
-SIGMA_RAD = 2e-5                     # per-component orientation noise, rad
+SIGMA = 2e-5  # per-axis position noise of the campaigns, m
+SIGMA_RAD = 2e-5  # per-component orientation noise, rad
 #: Virtual robots without a periodic joint error on which the map must not be added.
 FALSE_ATTRIBUTION_SEEDS = 20
 #: An independent smoother may explain at most this share of a residual called structure-free.
@@ -47,8 +47,12 @@ NO_MAP_CASES = [
 
 
 def _config(effects: dict, registered: bool, poses: int = 60, **campaign) -> dict:
-    return {"campaign": {"poses": poses, **campaign}, "noise": {"sigma_m": SIGMA},
-            "registration": {"registered": registered}, "effects": copy.deepcopy(effects)}
+    return {
+        "campaign": {"poses": poses, **campaign},
+        "noise": {"sigma_m": SIGMA},
+        "registration": {"registered": registered},
+        "effects": copy.deepcopy(effects),
+    }
 
 
 @pytest.mark.slow
@@ -57,16 +61,20 @@ def test_no_map_is_added_without_a_periodic_joint_error(seed: int) -> None:
     robot, effects, registered = NO_MAP_CASES[seed % len(NO_MAP_CASES)]
     vr = VirtualRobot(load_robot(robot), _config(effects, registered), seed=100 + seed)
     res = identify(load_robot(robot), vr.campaign(), registered=registered)
-    assert "joint_error_map" not in res.effects_added, (seed, res.effects_added,
-                                                         [c.detail for h in res.history for c in h.candidates])
+    assert "joint_error_map" not in res.effects_added, (
+        seed,
+        res.effects_added,
+        [c.detail for h in res.history for c in h.candidates],
+    )
 
 
 # ----------------------------------------------------------------------------------
 # A model with a map
 # ----------------------------------------------------------------------------------
 
-MAP_EFFECTS = {"joint_error_map": {"joint": [1, 4], "amplitude_rad": [5e-4, 2e-4], "harmonic": [3, 6],
-                                   "phase_rad": [0.4, -0.7]}}
+MAP_EFFECTS = {
+    "joint_error_map": {"joint": [1, 4], "amplitude_rad": [5e-4, 2e-4], "harmonic": [3, 6], "phase_rad": [0.4, -0.7]}
+}
 
 
 @pytest.fixture(scope="module")
@@ -135,11 +143,12 @@ def test_map_beyond_its_angle_range_is_a_caveat(map_case) -> None:
 # "No unexplained structure" against an independent nonparametric fit
 # ----------------------------------------------------------------------------------
 
+
 def _kernel_cv_share(x: np.ndarray, y: np.ndarray, bandwidths: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2)) -> float:
     """Leave-one-out explained share of ``y`` (n, 3) by a Gaussian kernel (Nadaraya-Watson)
     smoother on ``x`` (n,): the best over a few bandwidths (rad)."""
     yc = y - y.mean(axis=0)
-    tot = float(np.sum(yc ** 2))
+    tot = float(np.sum(yc**2))
     best = -np.inf
     d = x[:, None] - x[None, :]
     for h in bandwidths:
@@ -178,6 +187,7 @@ def test_structure_the_fourier_order_3_diagnostic_missed_is_reported() -> None:
 # 6-D data and known parts of the set-up
 # ----------------------------------------------------------------------------------
 
+
 @pytest.mark.slow
 def test_orientation_data_identify_more_parameters() -> None:
     cfg = _config({"geometric": {}}, True, poses=80, orientation=True)
@@ -201,7 +211,7 @@ def _cube_campaign(vr: VirtualRobot, n_side: int = 4) -> Measurements:
     """An ISO 9283-like cube: TCP positions on a grid, one tool orientation (pointing down)."""
     R = np.diag([1.0, -1.0, -1.0])
     g = np.linspace(-0.15, 0.15, n_side)
-    T = np.tile(np.eye(4), (n_side ** 3, 1, 1))
+    T = np.tile(np.eye(4), (n_side**3, 1, 1))
     T[:, :3, :3] = R
     T[:, :3, 3] = np.array([[0.45 + x, 0.1 + y, 0.35 + z] for x in g for y in g for z in g])
     sol = AnalyticIK(vr.robot).solve(T)
@@ -240,8 +250,9 @@ def test_map_components_are_checked_and_runout_is_searched_on_request() -> None:
     m = vr.campaign()
     with pytest.raises(Exception, match="map component"):
         identify(load_robot("ur5"), m, registered=True, map_components=["wobble"])
-    res = identify(load_robot("ur5"), m, registered=True, map_components=["theta", "d", "a"],
-                   candidates=["joint_error_map"])
+    res = identify(
+        load_robot("ur5"), m, registered=True, map_components=["theta", "d", "a"], candidates=["joint_error_map"]
+    )
     assert res.effects_added == ["joint_error_map"]
     assert {(e.joint, e.component) for e in res.error_maps} >= {(1, "theta")}
 
@@ -249,6 +260,7 @@ def test_map_components_are_checked_and_runout_is_searched_on_request() -> None:
 def test_predict_warns_beyond_the_map_range(map_case, tmp_path, capsys) -> None:
     from planner.cli import main as cli_main
     from problems.measurements import measurements_to_csv
+
     _vr, m, res = map_case
     model = tmp_path / "model.toml"
     model.write_text(model_toml(res.model))
@@ -257,8 +269,9 @@ def test_predict_warns_beyond_the_map_range(map_case, tmp_path, capsys) -> None:
     cmd.q = cmd.q.copy()
     cmd.q[1, j] = res.error_maps[0].range_rad[1] + 0.2
     (tmp_path / "cmd.csv").write_text(measurements_to_csv(cmd))
-    rc = cli_main(["predict", "--model", str(model), "--input", str(tmp_path / "cmd.csv"),
-                   "--out", str(tmp_path / "pred.csv")])
+    rc = cli_main(
+        ["predict", "--model", str(model), "--input", str(tmp_path / "cmd.csv"), "--out", str(tmp_path / "pred.csv")]
+    )
     err = capsys.readouterr().err
     assert rc == 0 and f"joint {j + 1}" in err and "error map" in err and "at row 1" in err, err
 
@@ -267,12 +280,14 @@ def test_per_axis_sigmas_weight_each_residual_component() -> None:
     """Position rows weigh each axis by 1/sigma_x, 1/sigma_y, 1/sigma_z; orientation rows by
     1/sigma_rx.. (rad); without orientation sigmas, by the balancing weight given."""
     from problems.identify.evaluation import row_weights, with_orientation_rows
+
     n = 4
     q = np.zeros((n, 6))
     sx = np.tile([1e-5, 2e-5, 4e-5], (n, 1))
     sr = np.tile([1e-5, 1e-5, 5e-5], (n, 1))
-    m = Measurements(q=q, wrench=np.zeros((n, 6)), p=np.zeros((n, 3)), rotation=np.zeros((n, 3)),
-                     sigma_xyz=sx, sigma_rot=sr)
+    m = Measurements(
+        q=q, wrench=np.zeros((n, 6)), p=np.zeros((n, 3)), rotation=np.zeros((n, 3)), sigma_xyz=sx, sigma_rot=sr
+    )
     mx, is_pos = with_orientation_rows(m)
     w = row_weights(mx, is_pos)
     assert w.shape == (2 * n, 3) and is_pos.sum() == n

@@ -33,8 +33,7 @@ def pinocchio_from_dh(robot) -> tuple[pin.Model, int]:
         parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
         model.appendBodyToJoint(parent, pin.Inertia.Random(), pin.SE3.Identity())
         # Tz(d) Tx(a) Rx(alpha) of this link
-        static_prev = pin.SE3(np.eye(3), np.array([0.0, 0.0, j.d])) * \
-            pin.SE3(rot_x(j.alpha), np.array([j.a, 0.0, 0.0]))
+        static_prev = pin.SE3(np.eye(3), np.array([0.0, 0.0, j.d])) * pin.SE3(rot_x(j.alpha), np.array([j.a, 0.0, 0.0]))
     tcp = static_prev * pin.SE3(robot.tcp2flange[:3, :3], robot.tcp2flange[:3, 3])
     fid = model.addFrame(pin.Frame("tcp", parent, 0, tcp, pin.FrameType.OP_FRAME))
     return model, fid
@@ -107,7 +106,7 @@ def test_compliance_definition_and_deflection(name, rng):
     assert np.allclose(D, C @ F, rtol=1e-12, atol=1e-18)
     # Physical meaning: small wrench -> FK displacement of the deflected joints equals C F to 2nd order.
     eps = 1e-3
-    dq = (Kinv @ np.swapaxes(J, 1, 2) @ (eps * F))
+    dq = Kinv @ np.swapaxes(J, 1, 2) @ (eps * F)
     dp = km.tcp(q + dq)[:, :3, 3] - km.tcp(q)[:, :3, 3]
     assert np.max(np.abs(dp - eps * D[:, :3])) < 1e-3 * np.max(np.abs(eps * D[:, :3]))
 

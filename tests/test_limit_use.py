@@ -14,7 +14,9 @@ LIMITS = JointLimits(np.full(6, 2.0), np.full(6, 4.0), np.full(6, 40.0))
 
 def _path() -> np.ndarray:
     u = np.linspace(0.0, 1.0, 12)[:, None]
-    return np.array([0.3, -1.0, 1.2, -0.5, 1.4, 0.1]) + np.outer(np.sin(0.5 * np.pi * u[:, 0]), [0.6, 0.2, -0.4, 0.3, 0.1, 0.5])
+    return np.array([0.3, -1.0, 1.2, -0.5, 1.4, 0.1]) + np.outer(
+        np.sin(0.5 * np.pi * u[:, 0]), [0.6, 0.2, -0.4, 0.3, 0.1, 0.5]
+    )
 
 
 def test_time_optimal_trajectory_names_its_binding_acceleration():
@@ -22,8 +24,11 @@ def test_time_optimal_trajectory_names_its_binding_acceleration():
     use = limit_use(tr, LIMITS, get_method("toppra").checked_limits)
     assert use["peak_ratio"] >= ACTIVE_RATIO and not use["under_half"] and use["why"] is None
     top = use["binding"][0]
-    r = np.abs(tr.qdd[:, top["joint"] - 1]) / LIMITS.acceleration[top["joint"] - 1] if top["limit"] == "acceleration" \
+    r = (
+        np.abs(tr.qdd[:, top["joint"] - 1]) / LIMITS.acceleration[top["joint"] - 1]
+        if top["limit"] == "acceleration"
         else np.abs(tr.qd[:, top["joint"] - 1]) / LIMITS.velocity[top["joint"] - 1]
+    )
     assert top["fraction_of_time"] == np.mean(r >= ACTIVE_RATIO) > 0
     assert describe_binding(use).startswith("binds: ")
 
@@ -37,8 +42,10 @@ def test_under_half_of_every_limit_says_why():
     assert describe_binding(use) == use["why"]
     # a limit that is not enforced does not count
     jerk_only = replace(tr, qd=0.1 * tr.qd, qdd=0.1 * tr.qdd)
-    assert not limit_use(jerk_only, LIMITS, ("velocity", "acceleration", "jerk"))["under_half"] or \
-        np.max(np.abs(tr.qddd) / LIMITS.jerk) < 0.5
+    assert (
+        not limit_use(jerk_only, LIMITS, ("velocity", "acceleration", "jerk"))["under_half"]
+        or np.max(np.abs(tr.qddd) / LIMITS.jerk) < 0.5
+    )
     assert limit_use(jerk_only, LIMITS, ("velocity", "acceleration"))["under_half"]
 
 

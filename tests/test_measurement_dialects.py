@@ -24,9 +24,11 @@ from problems.measurements import (
 )
 
 HEADER = "q1,q2,q3,q4,q5,q6,fx,fy,fz,mx,my,mz,x_mm,y_mm,z_mm"
-ROWS = ["0.1,-1.2,1.3,-0.5,-1.5,0.2,0,0,-50,0,0,0,400.125,110.5,520.25",
-        "0.2,-1.1,1.2,-0.6,-1.4,0.3,10,0,0,0,0,0,410.3,120.7,510.1",
-        "0.3,-1.0,1.1,-0.7,-1.3,0.4,0,10,0,0,0,0,420.9,130.2,500.4"]
+ROWS = [
+    "0.1,-1.2,1.3,-0.5,-1.5,0.2,0,0,-50,0,0,0,400.125,110.5,520.25",
+    "0.2,-1.1,1.2,-0.6,-1.4,0.3,10,0,0,0,0,0,410.3,120.7,510.1",
+    "0.3,-1.0,1.1,-0.7,-1.3,0.4,0,10,0,0,0,0,420.9,130.2,500.4",
+]
 ROS_UR = JOINT_NAME_PRESETS["ros-ur"]
 
 
@@ -61,9 +63,11 @@ def raises(text: str, *needles: str, **kw) -> str:
 # 1. per-axis standard deviations
 # ------------------------------------------------------------------------------------------
 
+
 def test_sigma_per_axis_with_units_and_rms() -> None:
-    m = parse_measurements(table(HEADER, ROWS, "sigma_x_um,sigma_y_um,sigma_z_mm",
-                                 ["10,20,0.03", "10,10,0.01", "5,5,0.005"]), "f.csv")
+    m = parse_measurements(
+        table(HEADER, ROWS, "sigma_x_um,sigma_y_um,sigma_z_mm", ["10,20,0.03", "10,10,0.01", "5,5,0.005"]), "f.csv"
+    )
     assert m.sigma_xyz.shape == (3, 3)
     assert m.sigma_xyz[0] == pytest.approx([1e-5, 2e-5, 3e-5])
     assert m.sigma.shape == (3,)
@@ -86,8 +90,10 @@ def test_single_sigma_is_broadcast_to_the_axes() -> None:
 
 def test_rotation_sigmas() -> None:
     rot = ["0.01,0.02,0.03", "0.02,0.03,0.04", "0.03,0.04,0.05"]
-    m = parse_measurements(table(HEADER, ROWS, "rx,ry,rz,sigma_rx_urad,sigma_ry_mrad,sigma_rz_deg",
-                                 [r + ",50,0.05,0.01" for r in rot]), "f.csv")
+    m = parse_measurements(
+        table(HEADER, ROWS, "rx,ry,rz,sigma_rx_urad,sigma_ry_mrad,sigma_rz_deg", [r + ",50,0.05,0.01" for r in rot]),
+        "f.csv",
+    )
     assert m.sigma_rot[0] == pytest.approx([5e-5, 5e-5, math.radians(0.01)])
     m = parse_measurements(table(HEADER, ROWS, "rx,ry,rz,sigma_r", [r + ",1e-4" for r in rot]), "f.csv")
     assert np.array_equal(m.sigma_rot, np.full((3, 3), 1e-4))
@@ -98,41 +104,64 @@ ROT = "rx,ry,rz"
 ROTV = ["0.01,0.02,0.03", "0.02,0.03,0.04", "0.03,0.04,0.05"]
 
 
-@pytest.mark.parametrize("extra_header, extra, needles", [
-    ("sigma,sigma_x,sigma_y,sigma_z", ["1e-5,1e-5,1e-5,1e-5"] * 3, ["'sigma'", "'sigma_x'", "both"]),
-    ("sigma_mm,sigma_x_um,sigma_y_um,sigma_z_um", ["0.01,1,1,1"] * 3, ["'sigma_mm'", "'sigma_x_um'"]),
-    ("sigma_x,sigma_y", ["1e-5,1e-5"] * 3, ["sigma_x, sigma_y, sigma_z", "go together"]),
-    ("sigma_x,sigma_y,sigma_z", ["1e-5,0,1e-5", "1e-5,1e-5,1e-5", "1e-5,1e-5,1e-5"],
-     ["line 2", "column 'sigma_y'", "value 0", "> 0"]),
-    ("sigma_x_mm,sigma_y_mm,sigma_z_mm", ["0.01,0.01,0.01", "0.01,0.01,-0.02", "0.01,0.01,0.01"],
-     ["line 3", "column 'sigma_z_mm'", "-0.02", "> 0"]),
-    ("sigma_x,sigma_y,sigma_z", ["1e-5,1e-5,1e-5", "1e-5,1e-5,1e-5", "0.02,1e-5,1e-5"],
-     ["line 4", "column 'sigma_x'", "0.02", "implausible", "sigma_x_mm"]),
-    ("sigma_r", ["1e-4"] * 3, ["sigma_r", "rx, ry, rz"]),
-    ("sigma_rx,sigma_ry,sigma_rz", ["1e-4,1e-4,1e-4"] * 3, ["sigma_rx, sigma_ry, sigma_rz", "rx, ry, rz"]),
-    (ROT + ",sigma_r,sigma_rx,sigma_ry,sigma_rz", [r + ",1e-4,1e-4,1e-4,1e-4" for r in ROTV],
-     ["'sigma_r'", "'sigma_rx'", "both"]),
-    (ROT + ",sigma_rx,sigma_ry", [r + ",1e-4,1e-4" for r in ROTV], ["go together"]),
-    (ROT + ",sigma_r_deg", [r + ",10" for r in ROTV], ["line 2", "column 'sigma_r_deg'", "10", "implausible"]),
-    (ROT + ",sigma_rx,sigma_ry,sigma_rz", [r + ",1e-4,1e-4,0.5" for r in ROTV],
-     ["line 2", "column 'sigma_rz'", "0.5", "implausible"]),
-    (ROT + ",sigma_r_urad", [r + ",-3" for r in ROTV], ["line 2", "column 'sigma_r_urad'", "-3", "> 0"]),
-])
+@pytest.mark.parametrize(
+    "extra_header, extra, needles",
+    [
+        ("sigma,sigma_x,sigma_y,sigma_z", ["1e-5,1e-5,1e-5,1e-5"] * 3, ["'sigma'", "'sigma_x'", "both"]),
+        ("sigma_mm,sigma_x_um,sigma_y_um,sigma_z_um", ["0.01,1,1,1"] * 3, ["'sigma_mm'", "'sigma_x_um'"]),
+        ("sigma_x,sigma_y", ["1e-5,1e-5"] * 3, ["sigma_x, sigma_y, sigma_z", "go together"]),
+        (
+            "sigma_x,sigma_y,sigma_z",
+            ["1e-5,0,1e-5", "1e-5,1e-5,1e-5", "1e-5,1e-5,1e-5"],
+            ["line 2", "column 'sigma_y'", "value 0", "> 0"],
+        ),
+        (
+            "sigma_x_mm,sigma_y_mm,sigma_z_mm",
+            ["0.01,0.01,0.01", "0.01,0.01,-0.02", "0.01,0.01,0.01"],
+            ["line 3", "column 'sigma_z_mm'", "-0.02", "> 0"],
+        ),
+        (
+            "sigma_x,sigma_y,sigma_z",
+            ["1e-5,1e-5,1e-5", "1e-5,1e-5,1e-5", "0.02,1e-5,1e-5"],
+            ["line 4", "column 'sigma_x'", "0.02", "implausible", "sigma_x_mm"],
+        ),
+        ("sigma_r", ["1e-4"] * 3, ["sigma_r", "rx, ry, rz"]),
+        ("sigma_rx,sigma_ry,sigma_rz", ["1e-4,1e-4,1e-4"] * 3, ["sigma_rx, sigma_ry, sigma_rz", "rx, ry, rz"]),
+        (
+            ROT + ",sigma_r,sigma_rx,sigma_ry,sigma_rz",
+            [r + ",1e-4,1e-4,1e-4,1e-4" for r in ROTV],
+            ["'sigma_r'", "'sigma_rx'", "both"],
+        ),
+        (ROT + ",sigma_rx,sigma_ry", [r + ",1e-4,1e-4" for r in ROTV], ["go together"]),
+        (ROT + ",sigma_r_deg", [r + ",10" for r in ROTV], ["line 2", "column 'sigma_r_deg'", "10", "implausible"]),
+        (
+            ROT + ",sigma_rx,sigma_ry,sigma_rz",
+            [r + ",1e-4,1e-4,0.5" for r in ROTV],
+            ["line 2", "column 'sigma_rz'", "0.5", "implausible"],
+        ),
+        (ROT + ",sigma_r_urad", [r + ",-3" for r in ROTV], ["line 2", "column 'sigma_r_urad'", "-3", "> 0"]),
+    ],
+)
 def test_sigma_errors(extra_header: str, extra: list[str], needles: list[str]) -> None:
     raises(table(HEADER, ROWS, extra_header, extra), *needles)
 
 
 def test_small_angle_units_are_not_joint_units() -> None:
     # q-columns keep their units (messages elsewhere quote them as deg or rad)
-    m = parse_measurements(table(HEADER.replace("q1,", "q1_deg,"), [r.replace("0.1,", "5.7,", 1) for r in ROWS]),
-                           "f.csv")
+    m = parse_measurements(
+        table(HEADER.replace("q1,", "q1_deg,"), [r.replace("0.1,", "5.7,", 1) for r in ROWS]), "f.csv"
+    )
     assert m.q[0, 0] == pytest.approx(math.radians(5.7))
     raises(table(HEADER.replace("q1,", "q1_mrad,"), ROWS), "unknown column 'q1_mrad'")
 
 
 def test_subset_and_csv_round_trip_carry_the_sigmas(tmp_path: Path) -> None:
-    text = table(HEADER, ROWS, "rx,ry,rz,t,sigma_x,sigma_y,sigma_z,sigma_rx,sigma_ry,sigma_rz",
-                 [r + f",{i},1e-5,2e-5,3.5e-5,1e-4,2e-4,3e-4" for i, r in enumerate(ROTV)])
+    text = table(
+        HEADER,
+        ROWS,
+        "rx,ry,rz,t,sigma_x,sigma_y,sigma_z,sigma_rx,sigma_ry,sigma_rz",
+        [r + f",{i},1e-5,2e-5,3.5e-5,1e-4,2e-4,3e-4" for i, r in enumerate(ROTV)],
+    )
     m = parse_measurements(text, "f.csv")
     s = m.subset(np.array([0, 2]))
     assert np.array_equal(s.sigma_xyz, m.sigma_xyz[[0, 2]])
@@ -155,8 +184,9 @@ def test_subset_and_csv_round_trip_carry_the_sigmas(tmp_path: Path) -> None:
 # 2. dialects
 # ------------------------------------------------------------------------------------------
 
-COMMA = "# exported by the tracker\n" + table(HEADER, ROWS, "t_ms,sigma_um,temperature",
-                                               ["0,12.5,21.25", "1500.5,12.5,21.3", "3000.25,7.75,21.375"])
+COMMA = "# exported by the tracker\n" + table(
+    HEADER, ROWS, "t_ms,sigma_um,temperature", ["0,12.5,21.25", "1500.5,12.5,21.3", "3000.25,7.75,21.375"]
+)
 
 
 def test_semicolon_export_reads_bit_identical_to_the_comma_file() -> None:
@@ -168,8 +198,9 @@ def test_semicolon_export_reads_bit_identical_to_the_comma_file() -> None:
         assert va.tobytes() == vb.tobytes() == vc.tobytes(), name
     assert a.notes == [] and c.notes == []
     assert len(b.notes) == 1
-    assert b.notes[0].startswith("b.csv: read as ';'-separated with decimal commas (detected from the header "
-                                 "line; declare --csv-dialect")
+    assert b.notes[0].startswith(
+        "b.csv: read as ';'-separated with decimal commas (detected from the header line; declare --csv-dialect"
+    )
 
 
 def test_semicolon_dialect_reads_plain_points_and_notes_a_mix() -> None:
@@ -181,26 +212,35 @@ def test_semicolon_dialect_reads_plain_points_and_notes_a_mix() -> None:
     assert "1 cell(s) written with a decimal point" in auto.notes[0]
 
 
-@pytest.mark.parametrize("old, new, needles", [
-    ("400,125", "1.400,125", ["line 3", "column 'x_mm'", "'1.400,125'", "both '.' and ','", "thousands"]),
-    ("400,125", "1,400,125", ["line 3", "column 'x_mm'", "'1,400,125'", "more than one ','"]),
-    ("400,125", "1 400,125", ["line 3", "column 'x_mm'", "'1 400,125'", "not a number", "thousands",
-                              "decimal comma"]),
-    ("410,3", "vier", ["line 4", "column 'x_mm'", "'vier'", "not a number", "expected a decimal number"]),
-    ("410,3", "", ["line 4", "column 'x_mm'", "empty cell"]),
-    ("410,3", "nan", ["line 4", "column 'x_mm'", "nan", "not finite"]),
-])
+@pytest.mark.parametrize(
+    "old, new, needles",
+    [
+        ("400,125", "1.400,125", ["line 3", "column 'x_mm'", "'1.400,125'", "both '.' and ','", "thousands"]),
+        ("400,125", "1,400,125", ["line 3", "column 'x_mm'", "'1,400,125'", "more than one ','"]),
+        (
+            "400,125",
+            "1 400,125",
+            ["line 3", "column 'x_mm'", "'1 400,125'", "not a number", "thousands", "decimal comma"],
+        ),
+        ("410,3", "vier", ["line 4", "column 'x_mm'", "'vier'", "not a number", "expected a decimal number"]),
+        ("410,3", "", ["line 4", "column 'x_mm'", "empty cell"]),
+        ("410,3", "nan", ["line 4", "column 'x_mm'", "nan", "not finite"]),
+    ],
+)
 def test_semicolon_bad_cells(old: str, new: str, needles: list[str]) -> None:
     text = to_semicolon(COMMA)
     assert old in text
     raises(text.replace(old, new, 1), *needles)
 
 
-@pytest.mark.parametrize("old, new, needles", [
-    ("400.125", "1_400.125", ["line 3", "column 'x_mm'", "'1_400.125'", "not a number", "thousands"]),
-    ("400.125", '"400,125"', ["line 3", "column 'x_mm'", "'400,125'", "decimal comma"]),
-    ("400.125", "0x1f", ["line 3", "column 'x_mm'", "'0x1f'", "not a number", "expected a decimal number"]),
-])
+@pytest.mark.parametrize(
+    "old, new, needles",
+    [
+        ("400.125", "1_400.125", ["line 3", "column 'x_mm'", "'1_400.125'", "not a number", "thousands"]),
+        ("400.125", '"400,125"', ["line 3", "column 'x_mm'", "'400,125'", "decimal comma"]),
+        ("400.125", "0x1f", ["line 3", "column 'x_mm'", "'0x1f'", "not a number", "expected a decimal number"]),
+    ],
+)
 def test_comma_bad_cells(old: str, new: str, needles: list[str]) -> None:
     raises(COMMA.replace(old, new, 1), *needles)
 
@@ -221,16 +261,20 @@ def test_dialect_mismatch_and_ambiguity() -> None:
 # 3. date-times in t
 # ------------------------------------------------------------------------------------------
 
+
 def _times(cells: list[str], col: str = "t", **kw) -> Measurements:
     return parse_measurements(table(HEADER, ROWS, col, cells), "f.csv", **kw)
 
 
-@pytest.mark.parametrize("cells, expect", [
-    (["2024-05-03T10:15:02.125", "2024-05-03T10:15:03", "2024-05-03T10:16:02.5"], [0.0, 0.875, 60.375]),
-    (["2024-05-03 10:15:02", "2024-05-03 10:15:02", "2024-05-04 10:15:02"], [0.0, 0.0, 86400.0]),
-    (["2024-05-03T10:15:02Z", "2024-05-03T12:15:03+02:00", "2024-05-03T10:15:04.25+00:00"], [0.0, 1.0, 2.25]),
-    (["2024-12-31T23:59:59.9", "2025-01-01T00:00:00.1", "2025-01-01 00:00:01"], [0.0, 0.2, 1.1]),
-])
+@pytest.mark.parametrize(
+    "cells, expect",
+    [
+        (["2024-05-03T10:15:02.125", "2024-05-03T10:15:03", "2024-05-03T10:16:02.5"], [0.0, 0.875, 60.375]),
+        (["2024-05-03 10:15:02", "2024-05-03 10:15:02", "2024-05-04 10:15:02"], [0.0, 0.0, 86400.0]),
+        (["2024-05-03T10:15:02Z", "2024-05-03T12:15:03+02:00", "2024-05-03T10:15:04.25+00:00"], [0.0, 1.0, 2.25]),
+        (["2024-12-31T23:59:59.9", "2025-01-01T00:00:00.1", "2025-01-01 00:00:01"], [0.0, 0.2, 1.1]),
+    ],
+)
 def test_date_times_become_seconds_since_the_first_row(cells: list[str], expect: list[float]) -> None:
     m = _times(cells)
     assert m.t == pytest.approx(expect, abs=1e-9)
@@ -239,8 +283,7 @@ def test_date_times_become_seconds_since_the_first_row(cells: list[str], expect:
 
 
 def test_date_times_with_decimal_comma_in_the_semicolon_dialect() -> None:
-    text = to_semicolon(table(HEADER, ROWS, "t", ["2024-05-03 10:15:02", "2024-05-03 10:15:03",
-                                                  "2024-05-03 10:15:04"]))
+    text = to_semicolon(table(HEADER, ROWS, "t", ["2024-05-03 10:15:02", "2024-05-03 10:15:03", "2024-05-03 10:15:04"]))
     text = text.replace("10:15:03", "10:15:03,125")
     m = parse_measurements(text, "f.csv")
     assert m.t == pytest.approx([0.0, 1.125, 2.0])
@@ -248,21 +291,42 @@ def test_date_times_with_decimal_comma_in_the_semicolon_dialect() -> None:
     assert len(m.notes) == 2
 
 
-@pytest.mark.parametrize("col, cells, needles", [
-    ("t", ["2024-05-03T10:15:02", "5", "2024-05-03T10:15:04"], ["line 3", "column 't'", "'5'", "line 2",
-                                                                 "date-time"]),
-    ("t", ["0", "2024-05-03T10:15:03", "7"], ["line 3", "column 't'", "'2024-05-03T10:15:03'", "number"]),
-    ("t_ms", ["2024-05-03T10:15:02", "2024-05-03T10:15:03", "2024-05-03T10:15:04"],
-     ["line 2", "column 't_ms'", "date-time", "'t'"]),
-    ("t", ["2024-05-03T10:15:02", "2024-05-03T10:15:01", "2024-05-03T10:15:04"],
-     ["line 3", "column 't'", "'2024-05-03T10:15:01'", "earlier", "line 2"]),
-    ("t", ["2024-05-03T10:15:02Z", "2024-05-03T10:15:03", "2024-05-03T10:15:04Z"],
-     ["line 3", "column 't'", "time zone"]),
-    ("t", ["2024-05-03T10:15:02", "2024-13-03T10:15:03", "2024-05-03T10:15:04"],
-     ["line 3", "column 't'", "'2024-13-03T10:15:03'", "not a valid date-time"]),
-    ("t", ["2024-05-03T10:15:02", "yesterday", "2024-05-03T10:15:04"],
-     ["line 3", "column 't'", "'yesterday'", "neither a date-time"]),
-])
+@pytest.mark.parametrize(
+    "col, cells, needles",
+    [
+        (
+            "t",
+            ["2024-05-03T10:15:02", "5", "2024-05-03T10:15:04"],
+            ["line 3", "column 't'", "'5'", "line 2", "date-time"],
+        ),
+        ("t", ["0", "2024-05-03T10:15:03", "7"], ["line 3", "column 't'", "'2024-05-03T10:15:03'", "number"]),
+        (
+            "t_ms",
+            ["2024-05-03T10:15:02", "2024-05-03T10:15:03", "2024-05-03T10:15:04"],
+            ["line 2", "column 't_ms'", "date-time", "'t'"],
+        ),
+        (
+            "t",
+            ["2024-05-03T10:15:02", "2024-05-03T10:15:01", "2024-05-03T10:15:04"],
+            ["line 3", "column 't'", "'2024-05-03T10:15:01'", "earlier", "line 2"],
+        ),
+        (
+            "t",
+            ["2024-05-03T10:15:02Z", "2024-05-03T10:15:03", "2024-05-03T10:15:04Z"],
+            ["line 3", "column 't'", "time zone"],
+        ),
+        (
+            "t",
+            ["2024-05-03T10:15:02", "2024-13-03T10:15:03", "2024-05-03T10:15:04"],
+            ["line 3", "column 't'", "'2024-13-03T10:15:03'", "not a valid date-time"],
+        ),
+        (
+            "t",
+            ["2024-05-03T10:15:02", "yesterday", "2024-05-03T10:15:04"],
+            ["line 3", "column 't'", "'yesterday'", "neither a date-time"],
+        ),
+    ],
+)
 def test_date_time_errors(col: str, cells: list[str], needles: list[str]) -> None:
     raises(table(HEADER, ROWS, col, cells), *needles)
 
@@ -276,6 +340,7 @@ def test_numeric_times_keep_their_units() -> None:
 # 4. joint names
 # ------------------------------------------------------------------------------------------
 
+
 def _ros_header(names: tuple[str, ...] | list[str], suffix: str = "") -> str:
     return HEADER.replace("q1,q2,q3,q4,q5,q6", ",".join(n + suffix for n in names))
 
@@ -286,15 +351,16 @@ def test_ros_ur_preset() -> None:
     assert m.q.tobytes() == plain.q.tobytes()
     assert m.columns["q1"] == "shoulder_pan_joint"
     assert len(m.notes) == 1 and "preset 'ros-ur'" in m.notes[0] and "wrist_3_joint = q6" in m.notes[0]
-    deg = [",".join(f"{math.degrees(float(v))!r}" for v in r.split(",")[:6]) + "," + ",".join(r.split(",")[6:])
-           for r in ROWS]
+    deg = [
+        ",".join(f"{math.degrees(float(v))!r}" for v in r.split(",")[:6]) + "," + ",".join(r.split(",")[6:])
+        for r in ROWS
+    ]
     m = parse_measurements(table(_ros_header(ROS_UR, "_deg"), deg), "f.csv", joint_names="ros-ur")
     assert m.q == pytest.approx(plain.q, abs=1e-12)
     assert "shoulder_pan_joint_deg = q1" in m.notes[0]
 
 
-@pytest.mark.parametrize("spec", [["j1", "j2", "j3", "j4", "j5", "j6"], "j1,j2,j3,j4,j5,j6",
-                                  " j1, j2 ,j3,j4,j5,j6 "])
+@pytest.mark.parametrize("spec", [["j1", "j2", "j3", "j4", "j5", "j6"], "j1,j2,j3,j4,j5,j6", " j1, j2 ,j3,j4,j5,j6 "])
 def test_explicit_joint_names(spec) -> None:
     plain = parse_measurements(table(HEADER, ROWS), "f.csv")
     m = parse_measurements(table(_ros_header([f"j{i}" for i in range(1, 7)]), ROWS), "f.csv", joint_names=spec)
@@ -303,7 +369,7 @@ def test_explicit_joint_names(spec) -> None:
 
 
 def test_explicit_joint_names_keep_the_order() -> None:
-    names = ["j6", "j5", "j4", "j3", "j2", "j1"]     # the file's 'j6' is joint 1
+    names = ["j6", "j5", "j4", "j3", "j2", "j1"]  # the file's 'j6' is joint 1
     m = parse_measurements(table(_ros_header([f"j{i}" for i in range(1, 7)]), ROWS), "f.csv", joint_names=names)
     plain = parse_measurements(table(HEADER, ROWS), "f.csv")
     assert np.array_equal(m.q, plain.q[:, ::-1])
@@ -313,35 +379,47 @@ def test_joint_name_errors() -> None:
     ros = table(_ros_header(ROS_UR), ROWS)
     # ROS names without the option: the unknown column suggests the preset
     raises(ros, "unknown column 'shoulder_pan_joint'", "--joint-names ros-ur")
-    raises(table(_ros_header(ROS_UR, "_deg"), ROWS), "unknown column 'shoulder_pan_joint_deg'",
-           "--joint-names ros-ur")
+    raises(table(_ros_header(ROS_UR, "_deg"), ROWS), "unknown column 'shoulder_pan_joint_deg'", "--joint-names ros-ur")
     # a mapped column missing: named, with the header
     missing = table(_ros_header(ROS_UR).replace("elbow_joint", "elbow"), ROWS)
     raises(missing, "unknown column 'elbow'", joint_names="ros-ur")
     short = "\n".join(",".join(ln.split(",")[:2] + ln.split(",")[3:]) for ln in ros.splitlines()) + "\n"
-    raises(short, "missing required column(s) elbow_joint", "header on line 1: shoulder_pan_joint,",
-           joint_names="ros-ur")
-    raises(table(HEADER, ROWS), "missing required column(s) shoulder_pan_joint", "header on line 1: q1, q2",
-           joint_names="ros-ur")
+    raises(
+        short, "missing required column(s) elbow_joint", "header on line 1: shoulder_pan_joint,", joint_names="ros-ur"
+    )
+    raises(
+        table(HEADER, ROWS),
+        "missing required column(s) shoulder_pan_joint",
+        "header on line 1: q1, q2",
+        joint_names="ros-ur",
+    )
     both = table(_ros_header(ROS_UR), ROWS, "q1", ["0.1", "0.2", "0.3"])
-    raises(both, "column(s) q1 besides the joint columns", "shoulder_pan_joint, shoulder_lift_joint",
-           joint_names="ros-ur")
-    raises(table(HEADER, ROWS), "missing required column(s) shoulder_pan_joint", "the file has q1, q2",
-           joint_names="ros-ur")
+    raises(
+        both, "column(s) q1 besides the joint columns", "shoulder_pan_joint, shoulder_lift_joint", joint_names="ros-ur"
+    )
+    raises(
+        table(HEADER, ROWS),
+        "missing required column(s) shoulder_pan_joint",
+        "the file has q1, q2",
+        joint_names="ros-ur",
+    )
 
 
-@pytest.mark.parametrize("spec, needle", [
-    ("ros", "expected a preset (ros-ur)"),
-    ("a,b,c", "3 name(s); expected six"),
-    (["a", "b", "c", "d", "e", "a"], "'a' is given for joints 1 and 6"),
-    ("a,b,,d,e,f", "name 3 is empty"),
-    ("a,b,fx,d,e,f", "'fx' (joint 3) is the name of another column"),
-    ("q2,q1,c,d,e,f", "'q2' (joint 1)"),
-    ("a,b,c,x_mm,e,f", "'x_mm' (joint 4) is the name of another column"),
-    ("q1_deg,b,c,d,e,f", "'q1_deg' (joint 1)"),
-    ("a,b,c,d,e,point", "'point' (joint 6)"),
-    ("a,a_deg,c,d,e,f", "'a_deg' reads as 'a' with a unit suffix"),
-])
+@pytest.mark.parametrize(
+    "spec, needle",
+    [
+        ("ros", "expected a preset (ros-ur)"),
+        ("a,b,c", "3 name(s); expected six"),
+        (["a", "b", "c", "d", "e", "a"], "'a' is given for joints 1 and 6"),
+        ("a,b,,d,e,f", "name 3 is empty"),
+        ("a,b,fx,d,e,f", "'fx' (joint 3) is the name of another column"),
+        ("q2,q1,c,d,e,f", "'q2' (joint 1)"),
+        ("a,b,c,x_mm,e,f", "'x_mm' (joint 4) is the name of another column"),
+        ("q1_deg,b,c,d,e,f", "'q1_deg' (joint 1)"),
+        ("a,b,c,d,e,point", "'point' (joint 6)"),
+        ("a,a_deg,c,d,e,f", "'a_deg' reads as 'a' with a unit suffix"),
+    ],
+)
 def test_bad_joint_name_options(spec, needle: str) -> None:
     with pytest.raises(InputError) as ei:
         resolve_joint_names(spec)
@@ -359,6 +437,7 @@ def test_joint_names_none_means_q() -> None:
 # ------------------------------------------------------------------------------------------
 # 6. the documentation's examples parse
 # ------------------------------------------------------------------------------------------
+
 
 def test_documented_examples_parse() -> None:
     doc = Path(__file__).resolve().parents[1] / "docs" / "measurement-file.md"
@@ -378,15 +457,14 @@ def test_documented_examples_parse() -> None:
 # ------------------------------------------------------------------------------------------
 
 CMD_HEADER = "q1,q2,q3,q4,q5,q6,fx,fy,fz,mx,my,mz"
-CMD_ROWS = ["0.1,-1.2,1.4,-0.5,-1.5,0.3,0,0,-50,0,0,0",
-            "0.2,-1.1,1.3,-0.6,-1.4,0.2,20,0,0,0,0,0"]
+CMD_ROWS = ["0.1,-1.2,1.4,-0.5,-1.5,0.3,0,0,-50,0,0,0", "0.2,-1.1,1.3,-0.6,-1.4,0.2,20,0,0,0,0,0"]
 CMDS = CMD_HEADER + "\n" + "\n".join(CMD_ROWS) + "\n"
 
 
 def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:
     try:
         code = cli_main(argv)
-    except SystemExit as exc:       # argparse
+    except SystemExit as exc:  # argparse
         code = exc.code if isinstance(exc.code, int) else 2
     out, err = capsys.readouterr()
     return code, out, err
@@ -412,28 +490,51 @@ def cli_env(tmp_path: Path, monkeypatch) -> Path:
     return tmp_path
 
 
-@pytest.mark.parametrize("argv, needles", [
-    ("predict --model ur5 --input {t}/c.csv --out {t}/o.csv --csv-dialect excel",
-     ["--csv-dialect", "excel", "auto", "semicolon"]),
-    ("compensate --model ur5 --input {t}/semi.csv --out {t}/o.csv --csv-dialect comma",
-     ["semi.csv", "';'-separated", "--csv-dialect semicolon"]),
-    ("predict --model ur5 --input {t}/c.csv --out {t}/o.csv --csv-dialect semicolon",
-     ["c.csv", "','-separated", "--csv-dialect comma"]),
-    ("predict --model ur5 --input {t}/c.csv --out {t}/o.csv --joint-names a,b",
-     ["--joint-names", "2 name(s)", "six"]),
-    ("compensate --model ur5 --input {t}/c.csv --out {t}/o.csv --joint-names rosur",
-     ["--joint-names", "rosur", "ros-ur"]),
-    ("predict --model ur5 --input {t}/ros.csv --out {t}/o.csv",
-     ["ros.csv", "shoulder_pan_joint", "--joint-names ros-ur"]),
-    ("compensate --model ur5 --input {t}/c.csv --out {t}/o.csv --joint-names ros-ur",
-     ["c.csv", "missing required column(s) shoulder_pan_joint"]),
-    ("identify --robot ur5 --data {t}/d.csv --out {t}/m.toml --report {t}/rep --csv-dialect comma",
-     ["d.csv", "';'"]),
-    ("identify --robot ur5 --data {t}/amb.csv --out {t}/m.toml --report {t}/rep",
-     ["amb.csv", "both ',' and ';'", "--csv-dialect"]),
-    ("identify --robot ur5 --data {t}/pos.csv --out {t}/m.toml --report {t}/rep --joint-names a,b,c,d,e,f",
-     ["pos.csv", "missing required column(s) a, b, c, d, e, f"]),
-])
+@pytest.mark.parametrize(
+    "argv, needles",
+    [
+        (
+            "predict --model ur5 --input {t}/c.csv --out {t}/o.csv --csv-dialect excel",
+            ["--csv-dialect", "excel", "auto", "semicolon"],
+        ),
+        (
+            "compensate --model ur5 --input {t}/semi.csv --out {t}/o.csv --csv-dialect comma",
+            ["semi.csv", "';'-separated", "--csv-dialect semicolon"],
+        ),
+        (
+            "predict --model ur5 --input {t}/c.csv --out {t}/o.csv --csv-dialect semicolon",
+            ["c.csv", "','-separated", "--csv-dialect comma"],
+        ),
+        (
+            "predict --model ur5 --input {t}/c.csv --out {t}/o.csv --joint-names a,b",
+            ["--joint-names", "2 name(s)", "six"],
+        ),
+        (
+            "compensate --model ur5 --input {t}/c.csv --out {t}/o.csv --joint-names rosur",
+            ["--joint-names", "rosur", "ros-ur"],
+        ),
+        (
+            "predict --model ur5 --input {t}/ros.csv --out {t}/o.csv",
+            ["ros.csv", "shoulder_pan_joint", "--joint-names ros-ur"],
+        ),
+        (
+            "compensate --model ur5 --input {t}/c.csv --out {t}/o.csv --joint-names ros-ur",
+            ["c.csv", "missing required column(s) shoulder_pan_joint"],
+        ),
+        (
+            "identify --robot ur5 --data {t}/d.csv --out {t}/m.toml --report {t}/rep --csv-dialect comma",
+            ["d.csv", "';'"],
+        ),
+        (
+            "identify --robot ur5 --data {t}/amb.csv --out {t}/m.toml --report {t}/rep",
+            ["amb.csv", "both ',' and ';'", "--csv-dialect"],
+        ),
+        (
+            "identify --robot ur5 --data {t}/pos.csv --out {t}/m.toml --report {t}/rep --joint-names a,b,c,d,e,f",
+            ["pos.csv", "missing required column(s) a, b, c, d, e, f"],
+        ),
+    ],
+)
 def test_cli_bad_options_and_mismatches(argv: str, needles: list[str], cli_env: Path, capsys) -> None:
     (cli_env / "d.csv").write_text(to_semicolon(table(HEADER, ROWS)))
     (cli_env / "pos.csv").write_text(table(HEADER, ROWS))
@@ -446,18 +547,22 @@ def test_cli_bad_options_and_mismatches(argv: str, needles: list[str], cli_env: 
 def test_cli_reads_a_ros_semicolon_export_like_the_plain_file(cli_env: Path, capsys) -> None:
     code, _out, err = run_cli(f"predict --model ur5 --input {cli_env}/c.csv --out {cli_env}/o1.csv".split(), capsys)
     assert code == 0 and "c.csv" not in err, err
-    code, out, err = run_cli(f"predict --model ur5 --input {cli_env}/ros.csv --out {cli_env}/o2.csv "
-                             "--joint-names ros-ur".split(), capsys)
+    code, out, err = run_cli(
+        f"predict --model ur5 --input {cli_env}/ros.csv --out {cli_env}/o2.csv --joint-names ros-ur".split(), capsys
+    )
     assert code == 0, err
     assert (cli_env / "o1.csv").read_bytes() == (cli_env / "o2.csv").read_bytes()
     assert all(ln.startswith("compplan: note: ") for ln in err.splitlines() if ln.strip()), err
-    notes = [ln for ln in err.splitlines() if "ros.csv" in ln]      # (not the compiler's note)
+    notes = [ln for ln in err.splitlines() if "ros.csv" in ln]  # (not the compiler's note)
     assert len(notes) == 2, err
     assert "read as ';'-separated with decimal commas" in notes[0]
     assert "preset 'ros-ur'" in notes[1]
     assert "note" not in out
-    code, _out, err = run_cli(f"compensate --model ur5 --input {cli_env}/ros.csv --out {cli_env}/o3.csv "
-                              "--joint-names ros-ur --csv-dialect semicolon".split(), capsys)
+    code, _out, err = run_cli(
+        f"compensate --model ur5 --input {cli_env}/ros.csv --out {cli_env}/o3.csv "
+        "--joint-names ros-ur --csv-dialect semicolon".split(),
+        capsys,
+    )
     assert code == 0, err
     notes = [ln for ln in err.splitlines() if ln.startswith("compplan: note: ") and "ros.csv" in ln]
-    assert len(notes) == 1 and "ros-ur" in notes[0]          # declared dialect: no detection note
+    assert len(notes) == 1 and "ros-ur" in notes[0]  # declared dialect: no detection note

@@ -29,10 +29,12 @@ def _one_line(msg: str) -> None:
 
 
 def test_plain_names_are_si_and_suffixes_convert() -> None:
-    text = ("# a comment line\n"
-            "point,q1_deg,q2,q3,q4,q5,q6,fx_N,fy,fz,mx_Nmm,my,mz,x_mm,y_mm,z_mm,t_ms,temperature_C,sigma_um\n"
-            "P1,90,-1.2,1.3,-0.5,-1.5,0.2,0,0,-50,1000,0,0,400,110,520,0,21.5,20\n"
-            "P1,90,-1.2,1.3,-0.5,-1.5,0.2,10,0,-50,0,0,0,401,111,521,1500,21.6,20\n")
+    text = (
+        "# a comment line\n"
+        "point,q1_deg,q2,q3,q4,q5,q6,fx_N,fy,fz,mx_Nmm,my,mz,x_mm,y_mm,z_mm,t_ms,temperature_C,sigma_um\n"
+        "P1,90,-1.2,1.3,-0.5,-1.5,0.2,0,0,-50,1000,0,0,400,110,520,0,21.5,20\n"
+        "P1,90,-1.2,1.3,-0.5,-1.5,0.2,10,0,-50,0,0,0,401,111,521,1500,21.6,20\n"
+    )
     m = parse_measurements(text, "f.csv")
     assert m.n == 2
     assert m.q[0, 0] == pytest.approx(math.pi / 2)
@@ -54,24 +56,27 @@ def test_round_trip(tmp_path) -> None:
         assert np.allclose(m2.p, m.p) and np.allclose(m2.q, m.q) and np.allclose(m2.wrench, m.wrench)
 
 
-@pytest.mark.parametrize("text, needle", [
-    (f"q1,q2,q3,q4,q5,q6,fx,fy,fz,mx,my,mz,x,y\n{ROW[:-5]}", "missing required column(s) z"),
-    (f"{HEADER},x_mm\n{ROW},400", "column 'x' is given twice"),
-    (f"{HEADER}\n{ROW.replace('0.40', 'nan')}", "line 2, column 'x': value nan is not finite"),
-    (f"{HEADER}\n{ROW.replace('0.40', 'inf')}", "column 'x': value inf is not finite"),
-    (f"{HEADER}\n{ROW.replace('0.40', '')}", "line 2, column 'x': empty cell"),
-    (f"{HEADER}\n{ROW.replace('0.40', 'abc')}", "'abc' is not a number"),
-    (f"{HEADER}\n{ROW.replace('0.40', '400')}", "x_mm"),
-    (f"{HEADER}\n{ROW.replace('0.1,', '90,', 1)}", "q1_deg"),
-    (f"{HEADER}\n{ROW}\n{ROW}", "lines 2 and 3 are identical"),
-    (f"{HEADER},t\n{ROW},5\n{ROW2},4", "earlier than the previous row"),
-    (f"{HEADER},temprature\n{ROW},20", "unknown column 'temprature'"),
-    (f"{HEADER},temperature\n{ROW},2000", "outside the plausible range"),
-    (f"{HEADER},sigma\n{ROW},0", "expected a standard deviation > 0"),
-    (f"{HEADER}\n{ROW},1", "16 cells, expected 15"),
-    (f"{HEADER}\n", "no measurement rows"),
-    ("q1,q2,q3,q4,q5,q6,fx,fy,fz,x,y,z\n0,0,0,0,0,0,0,0,0,0.1,0.1,0.1", "missing required column(s) mx, my, mz"),
-])
+@pytest.mark.parametrize(
+    "text, needle",
+    [
+        (f"q1,q2,q3,q4,q5,q6,fx,fy,fz,mx,my,mz,x,y\n{ROW[:-5]}", "missing required column(s) z"),
+        (f"{HEADER},x_mm\n{ROW},400", "column 'x' is given twice"),
+        (f"{HEADER}\n{ROW.replace('0.40', 'nan')}", "line 2, column 'x': value nan is not finite"),
+        (f"{HEADER}\n{ROW.replace('0.40', 'inf')}", "column 'x': value inf is not finite"),
+        (f"{HEADER}\n{ROW.replace('0.40', '')}", "line 2, column 'x': empty cell"),
+        (f"{HEADER}\n{ROW.replace('0.40', 'abc')}", "'abc' is not a number"),
+        (f"{HEADER}\n{ROW.replace('0.40', '400')}", "x_mm"),
+        (f"{HEADER}\n{ROW.replace('0.1,', '90,', 1)}", "q1_deg"),
+        (f"{HEADER}\n{ROW}\n{ROW}", "lines 2 and 3 are identical"),
+        (f"{HEADER},t\n{ROW},5\n{ROW2},4", "earlier than the previous row"),
+        (f"{HEADER},temprature\n{ROW},20", "unknown column 'temprature'"),
+        (f"{HEADER},temperature\n{ROW},2000", "outside the plausible range"),
+        (f"{HEADER},sigma\n{ROW},0", "expected a standard deviation > 0"),
+        (f"{HEADER}\n{ROW},1", "16 cells, expected 15"),
+        (f"{HEADER}\n", "no measurement rows"),
+        ("q1,q2,q3,q4,q5,q6,fx,fy,fz,x,y,z\n0,0,0,0,0,0,0,0,0,0.1,0.1,0.1", "missing required column(s) mx, my, mz"),
+    ],
+)
 def test_bad_files_raise_one_line_input_errors(text: str, needle: str) -> None:
     with pytest.raises(InputError) as ei:
         parse_measurements(text, "bad.csv")
@@ -87,8 +92,9 @@ def test_missing_file() -> None:
 
 
 def test_command_file_without_positions() -> None:
-    m = parse_measurements("q1,q2,q3,q4,q5,q6,fx,fy,fz,mx,my,mz\n0,0,0,0,0,0,0,0,0,0,0,0\n", "in.csv",
-                           require_position=False)
+    m = parse_measurements(
+        "q1,q2,q3,q4,q5,q6,fx,fy,fz,mx,my,mz\n0,0,0,0,0,0,0,0,0,0,0,0\n", "in.csv", require_position=False
+    )
     assert m.p is None and m.n == 1
 
 
@@ -120,8 +126,7 @@ def test_included_effect_the_data_cannot_identify_is_an_error() -> None:
 
 def test_zero_wrench_self_weight_only_runs() -> None:
     """Real-data situation: absolute data, no load varies, self-weight only."""
-    _vr, m = _sim(60, campaign={"poses": 60, "loaded_rows": 0, "unloaded_rows": 1},
-                 effects={"gravity": {}})
+    _vr, m = _sim(60, campaign={"poses": 60, "loaded_rows": 0, "unloaded_rows": 1}, effects={"gravity": {}})
     assert not m.load_varies()
     res = identify(load_robot("ur5"), m)
     assert any("stiffness is held" in n for n in res.notes)

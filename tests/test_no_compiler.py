@@ -23,8 +23,14 @@ import pytest
 
 from models import AnalyticIK, KinematicModel, load_robot
 from models import codegen
-from models.codegen import (NO_COMPILER_ENV, CompileError, batch_function, clear_codegen_notes,
-                            codegen_notes, compile_shared_library)
+from models.codegen import (
+    NO_COMPILER_ENV,
+    CompileError,
+    batch_function,
+    clear_codegen_notes,
+    codegen_notes,
+    compile_shared_library,
+)
 
 from .conftest import OUT, PAPER_RUN_ARGV, ROBOTS
 
@@ -79,8 +85,14 @@ def _env(**changes: str | None) -> dict[str, str]:
 
 
 def _compplan(args: tuple[str, ...] | list[str], env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "planner", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=COMMAND_TIMEOUT_S)
+    return subprocess.run(
+        [sys.executable, "-m", "planner", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=COMMAND_TIMEOUT_S,
+    )
 
 
 def _notes(stderr: str) -> list[str]:
@@ -134,8 +146,9 @@ def _compare_outputs(ref: Path, out: Path) -> None:
         if not (ref / name).exists():
             assert not (out / name).exists(), name
             continue
-        ra, rb = ([row for row in csv.reader((d / name).open()) if row and not row[0].startswith("#")]
-                  for d in (ref, out))
+        ra, rb = (
+            [row for row in csv.reader((d / name).open()) if row and not row[0].startswith("#")] for d in (ref, out)
+        )
         assert ra[0] == rb[0] and len(ra) == len(rb), name
         rtol = TRAJECTORY_RTOL if name.startswith("trajectory") else SAME_RESULT_RTOL
         for i, (x, y) in enumerate(zip(ra[1:], rb[1:])):
@@ -213,7 +226,7 @@ def test_batches_compiled_equal_virtual_machine(name, monkeypatch):
         km, ik = KinematicModel(robot), AnalyticIK(robot)
         T = km.tcp(q)
         p, R, J, C = km.batch(km.kinetostatics, q)
-        D = km.batch(km.deflection, q, F)[0]            # a wrench broadcast to every pose
+        D = km.batch(km.deflection, q, F)[0]  # a wrench broadcast to every pose
         sol = ik.solve(T)
         assert km.evaluator(km.fk_tcp).compiled is (mode == "compiled")
         assert ik.evaluator.compiled is (mode == "compiled")
@@ -232,13 +245,15 @@ def test_batches_compiled_equal_virtual_machine(name, monkeypatch):
     assert np.allclose(sv.q[sv.valid], sc.q[sc.valid], rtol=0.0, atol=IK_ATOL)
     # the virtual machine was noted once, by the library, silently
     assert [n for n in codegen_notes() if "virtual machine" in n] == [
-        f"C compiler disabled ({NO_COMPILER_ENV}=1): {codegen.VM_NOTE}"]
+        f"C compiler disabled ({NO_COMPILER_ENV}=1): {codegen.VM_NOTE}"
+    ]
 
 
 def test_virtual_machine_batch_layout():
     """The VM evaluator takes and returns what the compiled one does: column-major matrix
     rows, broadcast 1-D inputs, (N, rows, cols) outputs, and empty batches."""
     import casadi as ca
+
     x = ca.SX.sym("x", 2)
     M = ca.SX.sym("M", 2, 3)
     f = ca.Function("layout_probe", [x, M], [ca.mtimes(M.T, x), M * x[0]], ["x", "M"], ["y", "N"])
@@ -250,7 +265,7 @@ def test_virtual_machine_batch_layout():
     assert y.shape == (5, 3) and N.shape == (5, 2, 3)
     assert np.allclose(y, np.einsum("kij,ki->kj", Ms, xs))
     assert np.allclose(N, Ms * xs[:, :1, None])
-    y1, _ = ev(xs, Ms[0].reshape(-1, order="F"))    # one matrix for every pose
+    y1, _ = ev(xs, Ms[0].reshape(-1, order="F"))  # one matrix for every pose
     assert np.allclose(y1, xs @ Ms[0])
     y0, N0 = ev(np.empty((0, 2)), np.empty((0, 6)))
     assert y0.shape == (0, 3) and N0.shape == (0, 2, 3)
@@ -321,7 +336,7 @@ def test_cache_that_is_a_file_is_bypassed(monkeypatch, tmp_path):
     (note,) = codegen_notes()
     assert f"compile cache {cache} is not a folder" in note and "for this run only" in note
     clear_codegen_notes()
-    assert compile_shared_library(src, "probe") == lib      # reused, noted again for the new run
+    assert compile_shared_library(src, "probe") == lib  # reused, noted again for the new run
     assert len(codegen_notes()) == 1
     assert cache.read_text() == "not a folder"
 
@@ -334,7 +349,7 @@ def test_unwritable_cache_is_bypassed(monkeypatch, tmp_path):
     monkeypatch.delenv(NO_COMPILER_ENV, raising=False)
     store = codegen._store
 
-    def refuse_cache(lib: Path, data: bytes) -> None:   # root ignores permission bits: refuse here
+    def refuse_cache(lib: Path, data: bytes) -> None:  # root ignores permission bits: refuse here
         if lib.parent == cache:
             raise PermissionError(13, "Permission denied")
         store(lib, data)
@@ -353,9 +368,9 @@ def test_disabled_compiler_ignores_a_valid_cache(monkeypatch, tmp_path):
     monkeypatch.delenv(NO_COMPILER_ENV, raising=False)
     src = PROBE_SRC + "/* valid */\n"
     lib = compile_shared_library(src, "probe")
-    monkeypatch.setenv("CC", "/bin/false")               # a broken compiler: the cache still serves
+    monkeypatch.setenv("CC", "/bin/false")  # a broken compiler: the cache still serves
     assert compile_shared_library(src, "probe") == lib and codegen_notes() == []
-    monkeypatch.setenv(NO_COMPILER_ENV, "1")             # disabled: no compiled code at all
+    monkeypatch.setenv(NO_COMPILER_ENV, "1")  # disabled: no compiled code at all
     with pytest.raises(CompileError):
         compile_shared_library(src, "probe")
 
@@ -392,9 +407,9 @@ def test_command_with_corrupt_cache(tmp_path):
     _assert_clean(_compplan([*MAP_ARGS, *out], env, tmp_path), 0)
     libs = sorted(cache.glob("*.so"))
     assert len(libs) >= 2
-    libs[0].write_bytes(libs[0].read_bytes()[:1000])        # truncated (dlopen would die of SIGBUS)
+    libs[0].write_bytes(libs[0].read_bytes()[:1000])  # truncated (dlopen would die of SIGBUS)
     for lib in libs[1:]:
-        lib.write_bytes(os.urandom(lib.stat().st_size))     # garbage
+        lib.write_bytes(os.urandom(lib.stat().st_size))  # garbage
     _assert_clean(_compplan([*MAP_ARGS, *out], env, tmp_path), 1, "was corrupt", "rebuilt")
     _assert_clean(_compplan([*MAP_ARGS, *out], env, tmp_path), 0)
     for lib in libs:

@@ -51,9 +51,12 @@ TRUTH_EFFECTS = {
 
 def _truth(robot_name: str, tool: np.ndarray, seed: int) -> tuple[VirtualRobot, object]:
     robot = load_robot(robot_name).with_tool(tool)
-    cfg = {"campaign": {"poses": 120, "loaded_rows": 3, "force_magnitudes_N": [40.0, 90.0, 140.0]},
-           "noise": {"sigma_m": NOISE_SIGMA_M}, "registration": {"registered": True},
-           "effects": {k: dict(v) for k, v in TRUTH_EFFECTS.items()}}
+    cfg = {
+        "campaign": {"poses": 120, "loaded_rows": 3, "force_magnitudes_N": [40.0, 90.0, 140.0]},
+        "noise": {"sigma_m": NOISE_SIGMA_M},
+        "registration": {"registered": True},
+        "effects": {k: dict(v) for k, v in TRUTH_EFFECTS.items()},
+    }
     vr = VirtualRobot(robot, cfg, seed=seed)
     return vr, robot
 
@@ -90,8 +93,12 @@ def test_identified_model_plans_commands_that_land_on_the_truth_robot(identified
     problem = load_problem("ur10_payload_tilt")
     if case == "base_wrench":
         from dataclasses import replace
-        problem = replace(problem, payload_mass_kg=0.0,
-                          wrench=np.broadcast_to([20.0, -30.0, -60.0, 0.0, 1.0, 0.0], (problem.n, 6)).copy())
+
+        problem = replace(
+            problem,
+            payload_mass_kg=0.0,
+            wrench=np.broadcast_to([20.0, -30.0, -60.0, 0.0, 1.0, 0.0], (problem.n, 6)).copy(),
+        )
     assert {"geometric", "gravity"} <= set(res.model.effects), res.model.effects
     identified = plan(problem.with_robot(str(model_path)))
     nominal = plan(problem)
@@ -127,8 +134,10 @@ def test_plan_with_identified_model_equals_compensate_on_the_same_commands(ident
     _vr, res, model_path = identified_ur10
     problem = load_problem("ur10_payload_tilt")
     from dataclasses import replace
-    problem = replace(problem, payload_mass_kg=0.0,
-                      wrench=np.broadcast_to([0.0, 0.0, -50.0, 0.0, 0.0, 0.0], (problem.n, 6)).copy())
+
+    problem = replace(
+        problem, payload_mass_kg=0.0, wrench=np.broadcast_to([0.0, 0.0, -50.0, 0.0, 0.0, 0.0], (problem.n, 6)).copy()
+    )
     out = plan(problem.with_robot(str(model_path)))
     model = load_model(model_path).with_tool(problem.robot.tcp2flange)
     targets = model.kinematics.tcp(out.branch.q)
@@ -139,10 +148,12 @@ def test_plan_with_identified_model_equals_compensate_on_the_same_commands(ident
 
 def test_cli_plan_with_robot_model_records_it(identified_ur10, tmp_path, capsys):
     _vr, _res, model_path = identified_ur10
-    rc = cli_main(["plan", "ur10_payload_tilt", "--robot", str(model_path), "--out", str(tmp_path / "run"),
-                   "--no-report"])
+    rc = cli_main(
+        ["plan", "ur10_payload_tilt", "--robot", str(model_path), "--out", str(tmp_path / "run"), "--no-report"]
+    )
     assert rc == 0
     import json
+
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["model"]["file"] == str(model_path.resolve())
     assert s["payload"]["mass_kg"] == 5.0
@@ -153,21 +164,29 @@ def test_cli_plan_with_robot_model_records_it(identified_ur10, tmp_path, capsys)
 # Loads against an independent implementation
 # ----------------------------------------------------------------------------------
 
+
 def test_payload_and_wrench_torques_match_pinocchio(rng):
-    robot = load_robot("ur10").with_tool(np.array([[0, -1, 0, 0.03], [1, 0, 0, -0.02], [0, 0, 1, 0.15],
-                                                   [0, 0, 0, 1.0]]))
+    robot = load_robot("ur10").with_tool(
+        np.array([[0, -1, 0, 0.03], [1, 0, 0, -0.02], [0, 0, 1, 0.15], [0, 0, 0, 1.0]])
+    )
     arm = ArmModel.from_robot(robot)
     pm, fid = pinocchio_from_dh(robot)
     com = np.array([0.02, 0.05, 0.08])
     parent = pm.frames[fid].parentJoint
-    cid = pm.addFrame(pin.Frame("payload_com", parent, 0, pm.frames[fid].placement * pin.SE3(np.eye(3), com),
-                                pin.FrameType.OP_FRAME))
+    cid = pm.addFrame(
+        pin.Frame("payload_com", parent, 0, pm.frames[fid].placement * pin.SE3(np.eye(3), com), pin.FrameType.OP_FRAME)
+    )
     pd = pm.createData()
     g = robot.gravity
     for _ in range(20):
         q = rng.uniform(-np.pi, np.pi, 6)
-        load = Load(wrench_base=rng.normal(0, 30, 6), wrench_tool=rng.normal(0, 30, 6), payload_mass_kg=4.0,
-                    payload_com_m=com, gravity=g)
+        load = Load(
+            wrench_base=rng.normal(0, 30, 6),
+            wrench_tool=rng.normal(0, 30, 6),
+            payload_mass_kg=4.0,
+            payload_com_m=com,
+            gravity=g,
+        )
         tau = np.asarray(arm.kinematics.fn["joint_torques"](q, load.rows(1)[0])).reshape(6)
         pin.forwardKinematics(pm, pd, q)
         pin.updateFramePlacements(pm, pd)
@@ -188,8 +207,11 @@ def test_payload_plan_lands_under_independent_physics():
     robot = problem.robot
     pm, fid = pinocchio_from_dh(robot)
     parent = pm.frames[fid].parentJoint
-    cid = pm.addFrame(pin.Frame("c", parent, 0, pm.frames[fid].placement * pin.SE3(np.eye(3),
-                                problem.payload_com_m), pin.FrameType.OP_FRAME))
+    cid = pm.addFrame(
+        pin.Frame(
+            "c", parent, 0, pm.frames[fid].placement * pin.SE3(np.eye(3), problem.payload_com_m), pin.FrameType.OP_FRAME
+        )
+    )
     pd = pm.createData()
     w = problem.payload_mass_kg * robot.gravity
     worst = 0.0
@@ -218,6 +240,7 @@ def test_exact_compensation_with_link_compliance_solves_the_pose():
     robot = load_robot("ur10")
     arm = ArmModel.from_robot(robot)
     from models import effects as fx
+
     th = arm.theta.copy()
     s = fx.GROUP_SLICES["link_compliance.link"]
     lay = fx.make_layout(robot)
@@ -237,6 +260,7 @@ def test_plan_warns_where_the_identified_torque_curve_is_extrapolated(identified
     _vr, res, model_path = identified_ur10
     assert "stiffness_hardening" in res.model.effects and res.model.torque_range_Nm is not None
     from dataclasses import replace
+
     problem = load_problem("ur10_payload_tilt").with_robot(str(model_path))
     inside = plan(problem)
     assert not [w for w in inside.warnings if "extrapolated" in w]
@@ -248,8 +272,12 @@ def test_plan_warns_where_the_identified_torque_curve_is_extrapolated(identified
 def test_plan_with_a_model_from_unregistered_data_says_the_base_frame_is_not_exact():
     problem = load_problem("ur5_tool_thrust")
     robot = load_robot("ur5").with_tool(problem.robot.tcp2flange)
-    cfg = {"campaign": {"poses": 60}, "noise": {"sigma_m": NOISE_SIGMA_M}, "registration": {"registered": False},
-           "effects": {"geometric": {}}}
+    cfg = {
+        "campaign": {"poses": 60},
+        "noise": {"sigma_m": NOISE_SIGMA_M},
+        "registration": {"registered": False},
+        "effects": {"geometric": {}},
+    }
     res = identify(robot, VirtualRobot(robot, cfg, seed=23).campaign(), candidates=["geometric"])
     out = plan(problem.with_robot(res.model), optimise=False)
     lines = [w for w in out.warnings if "unregistered" in w]
@@ -263,6 +291,7 @@ def test_plan_says_where_a_joint_stays_inside_its_dead_band():
     motion identified there the joint's side of its dead band is not determined, which the plan
     must say (with the size)."""
     from models import effects as fx
+
     problem = load_problem("ur5_tool_thrust")
     lay = fx.make_layout(problem.robot)
     theta = lay.nominal.copy()
@@ -272,7 +301,7 @@ def test_plan_says_where_a_joint_stays_inside_its_dead_band():
     lines = [w for w in out.warnings if "dead band" in w]
     assert out.ok and any(w.startswith("joint 5:") for w in lines), out.warnings
     mm = float(lines[0].split("up to ")[1].split(" mm")[0])
-    assert 0.01 < mm < 0.5          # 2e-4 rad times a lever of 0.05 .. 2.5 m
+    assert 0.01 < mm < 0.5  # 2e-4 rad times a lever of 0.05 .. 2.5 m
     assert not [w for w in plan(problem, optimise=False).warnings if "dead band" in w]
 
 
@@ -280,10 +309,11 @@ def test_plan_with_a_model_of_implausible_geometry_says_so():
     """A model whose DH corrections are centimetres (identified with the wrong robot file) plans
     with a warning naming them, not silently."""
     from models import effects as fx
+
     problem = load_problem("ur5_tool_thrust")
     lay = fx.make_layout(problem.robot)
     theta = lay.nominal.copy()
-    theta[fx.GROUP_SLICES["geometric.da"]][1] = -0.05          # 50 mm on a2
+    theta[fx.GROUP_SLICES["geometric.da"]][1] = -0.05  # 50 mm on a2
     arm = ArmModel(nominal=problem.robot, theta=theta, effects=["geometric"])
     out = plan(problem.with_robot(arm), optimise=False)
     lines = [w for w in out.warnings if "implausible geometry" in w]

@@ -62,8 +62,9 @@ def _siblings(folder: Path) -> list[str]:
 
 def _python(script: str, *args: str, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
     """Run a Python snippet in a fresh interpreter (its own umask or rlimits)."""
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(script), *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(script), *args], cwd=cwd, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def _map(capsys, out: Path, *extra: str) -> None:
@@ -89,7 +90,8 @@ def umask_runs(tmp_path_factory) -> Path:
     for umask in UMASKS:
         (base / f"umask_{umask:o}").mkdir()
         _write_commands_csv(base / f"umask_{umask:o}" / "in.csv")
-    r = _python("""
+    r = _python(
+        """
         import os, sys
         from planner.cli import main
         for umask in sys.argv[2:]:
@@ -98,7 +100,11 @@ def umask_runs(tmp_path_factory) -> Path:
             assert main(["map", "--points", sys.argv[1], "--out", "map"]) == 0
             assert main(["predict", "--model", "ur5", "--input", "in.csv", "--out", "sub/pred.csv"]) == 0
             os.chdir("..")
-        """, MAP_POINTS, *(f"{u:o}" for u in UMASKS), cwd=base)
+        """,
+        MAP_POINTS,
+        *(f"{u:o}" for u in UMASKS),
+        cwd=base,
+    )
     assert r.returncode == 0, r.stderr
     return base
 
@@ -173,10 +179,14 @@ def test_disk_full_while_adding_a_report_keeps_the_run_and_its_earlier_report(tm
         new.publish()
     assert _snapshot(run) == before and _siblings(run) == []
     monkeypatch.undo()
-    new.publish()               # the new report replaces every report entry, the run's files stay
-    assert _snapshot(run) == {"figures/fig1.png": b"new figures/fig1.png", "path.csv": b"x,y,z\n",
-                              "report.html": b"new report.html", "report.md": b"new report.md",
-                              "summary.json": before["summary.json"]}
+    new.publish()  # the new report replaces every report entry, the run's files stay
+    assert _snapshot(run) == {
+        "figures/fig1.png": b"new figures/fig1.png",
+        "path.csv": b"x,y,z\n",
+        "report.html": b"new report.html",
+        "report.md": b"new report.md",
+        "summary.json": before["summary.json"],
+    }
 
 
 # ------------------------------------------------------------------------------ file-size limit
@@ -187,15 +197,20 @@ def test_file_size_limit_keeps_the_previous_set(tmp_path, capsys):
     _map(capsys, out)
     before = _snapshot(out)
     sizes = sorted(len(v) for v in before.values())
-    assert sizes[0] < FSIZE_LIMIT_BYTES < sizes[-1]            # some files fit, one does not
-    r = _python("""
+    assert sizes[0] < FSIZE_LIMIT_BYTES < sizes[-1]  # some files fit, one does not
+    r = _python(
+        """
         import resource, signal, sys
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         limit = int(sys.argv[1])
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
         from planner.cli import main
         sys.exit(main(["map", "--points", sys.argv[2], "--out", "map"]))
-        """, str(FSIZE_LIMIT_BYTES), MAP_POINTS, cwd=tmp_path)
+        """,
+        str(FSIZE_LIMIT_BYTES),
+        MAP_POINTS,
+        cwd=tmp_path,
+    )
     assert r.returncode == EXIT_USER_ERROR, r.stderr
     line = _one_line_error(r.stderr)
     assert "File too large (EFBIG)" in line and "nothing was changed" in line
@@ -210,28 +225,40 @@ def test_a_new_run_leaves_no_file_of_an_earlier_run(tmp_path, capsys):
     out = tmp_path / "run"
     old = OutputSet(out)
     old.add_json("summary.json", {"plan_status": "ok", "problem": {"name": "earlier"}})
-    for name in ("report.html", "report.md", "figures/fig6_trajectory.png", "compliance_map.csv",
-                 "compliance_map.json", "trajectory_ruckig.csv", "trajectory.png", "pose.json"):
+    for name in (
+        "report.html",
+        "report.md",
+        "figures/fig6_trajectory.png",
+        "compliance_map.csv",
+        "compliance_map.json",
+        "trajectory_ruckig.csv",
+        "trajectory.png",
+        "pose.json",
+    ):
         old.add_bytes(name, b"earlier run")
     old.publish()
     code, stdout, err = _main(capsys, "plan", "paper_4_4", "--out", str(out), "--no-report", "--no-figures")
     assert code == 0, err
     names = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
-    assert names == sorted(["summary.json", "path.csv", "waypoints.csv", "branches.csv", "trajectory.csv",
-                            "trajectory_toppra.csv"])
+    assert names == sorted(
+        ["summary.json", "path.csv", "waypoints.csv", "branches.csv", "trajectory.csv", "trajectory_toppra.csv"]
+    )
     assert json.loads((out / "summary.json").read_text())["problem"]["name"] == "paper_4_4"
     assert _siblings(out) == []
     # a map written over it is again only a map
     _map(capsys, out)
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == [
-        "compliance_map.csv", "compliance_map.json", "figures/fig1_compliance_map.pdf",
-        "figures/fig1_compliance_map.png"]
+        "compliance_map.csv",
+        "compliance_map.json",
+        "figures/fig1_compliance_map.pdf",
+        "figures/fig1_compliance_map.png",
+    ]
 
 
 def test_leftovers_of_a_killed_writer_are_removed_and_do_not_block(tmp_path, capsys):
     """A temporary folder and a lock file left by a killed run: the next run cleans up and writes."""
     out = tmp_path / "map"
-    lock_path(out).write_text("12345\n")                          # not held by anyone
+    lock_path(out).write_text("12345\n")  # not held by anyone
     left = Path(f"{output.sibling_prefix(out, output.STAGING_KIND)}12345-abc")
     (left / "figures").mkdir(parents=True)
     _map(capsys, out)
@@ -259,7 +286,7 @@ def test_two_runs_into_one_out(tmp_path):
     first = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         lock = lock_path(tmp_path / "run")
-        for _ in range(int(LOCK_APPEAR_S / LOCK_POLL_S)):     # wait for the first run's lock
+        for _ in range(int(LOCK_APPEAR_S / LOCK_POLL_S)):  # wait for the first run's lock
             if lock.exists() or first.poll() is not None:
                 break
             time.sleep(LOCK_POLL_S)
@@ -286,11 +313,20 @@ def test_two_runs_into_one_out(tmp_path):
 def test_a_locked_output_is_refused_in_process_and_released_after(tmp_path, capsys):
     out = tmp_path / "pred.csv"
     inp = _write_commands_csv(tmp_path / "in.csv")
-    holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent("""
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            textwrap.dedent("""
         import sys, time
         from planner.output import acquire_output_lock
         acquire_output_lock(sys.argv[1]); print("locked", flush=True); time.sleep(600)
-        """), str(out)], stdout=subprocess.PIPE, text=True)
+        """),
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert holder.stdout.readline().strip() == "locked"
         code, _, err = _main(capsys, "predict", "--model", "ur5", "--input", str(inp), "--out", str(out))
@@ -324,30 +360,96 @@ def _inputs(tmp_path: Path) -> dict[str, Path]:
 
 
 OUT_IS_INPUT = [
-    ("identify --out DATA", lambda p: ["identify", "--robot", "ur5", "--data", p["data"], "--out", p["data"],
-                                       "--report", p["data"].parent / "rep"], "--out {data}: is also the input --data"),
-    ("identify --report holds DATA", lambda p: ["identify", "--robot", "ur5", "--data", p["data"], "--out",
-                                                p["data"].parent / "m.toml", "--report", p["data"].parent],
-     "--report {tmp}: contains the input --data"),
-    ("identify --out inside --report", lambda p: ["identify", "--robot", "ur5", "--data", p["data"], "--out",
-                                                  p["data"].parent / "rep" / "m.toml", "--report",
-                                                  p["data"].parent / "rep"],
-     "--report {tmp}/rep: contains the output --out"),
-    ("predict --out INPUT", lambda p: ["predict", "--model", "ur5", "--input", p["input"], "--out", p["input"]],
-     "--out {input}: is also the input --input"),
-    ("compensate --out INPUT", lambda p: ["compensate", "--model", "ur5", "--input", p["input"], "--out",
-                                          p["input"]], "--out {input}: is also the input --input"),
-    ("plan --out PROBLEM", lambda p: ["plan", p["problem"], "--out", p["problem"]],
-     "--out {problem}: is also the input PROBLEM"),
-    ("plan --out the problem's folder", lambda p: ["plan", p["problem"], "--out", p["problem"].parent],
-     "--out {problem_dir}: contains the input PROBLEM"),
-    ("demo --out the robot file", lambda p: ["demo", "--robot", p["problem"], "--out", p["problem"]],
-     "--out {problem}: is also the input --robot"),
-    ("map --out the robot's folder", lambda p: ["map", "--robot", p["problem"], "--out", p["problem"].parent],
-     "--out {problem_dir}: contains the input --robot"),
-    ("simulate --out --truth", lambda p: ["simulate", "--robot", "ur5", "--config", p["problem"], "--out",
-                                          p["data"].parent / "d.csv", "--truth", p["data"].parent / "d.csv"],
-     "--out {tmp}/d.csv: is also the output --truth"),
+    (
+        "identify --out DATA",
+        lambda p: [
+            "identify",
+            "--robot",
+            "ur5",
+            "--data",
+            p["data"],
+            "--out",
+            p["data"],
+            "--report",
+            p["data"].parent / "rep",
+        ],
+        "--out {data}: is also the input --data",
+    ),
+    (
+        "identify --report holds DATA",
+        lambda p: [
+            "identify",
+            "--robot",
+            "ur5",
+            "--data",
+            p["data"],
+            "--out",
+            p["data"].parent / "m.toml",
+            "--report",
+            p["data"].parent,
+        ],
+        "--report {tmp}: contains the input --data",
+    ),
+    (
+        "identify --out inside --report",
+        lambda p: [
+            "identify",
+            "--robot",
+            "ur5",
+            "--data",
+            p["data"],
+            "--out",
+            p["data"].parent / "rep" / "m.toml",
+            "--report",
+            p["data"].parent / "rep",
+        ],
+        "--report {tmp}/rep: contains the output --out",
+    ),
+    (
+        "predict --out INPUT",
+        lambda p: ["predict", "--model", "ur5", "--input", p["input"], "--out", p["input"]],
+        "--out {input}: is also the input --input",
+    ),
+    (
+        "compensate --out INPUT",
+        lambda p: ["compensate", "--model", "ur5", "--input", p["input"], "--out", p["input"]],
+        "--out {input}: is also the input --input",
+    ),
+    (
+        "plan --out PROBLEM",
+        lambda p: ["plan", p["problem"], "--out", p["problem"]],
+        "--out {problem}: is also the input PROBLEM",
+    ),
+    (
+        "plan --out the problem's folder",
+        lambda p: ["plan", p["problem"], "--out", p["problem"].parent],
+        "--out {problem_dir}: contains the input PROBLEM",
+    ),
+    (
+        "demo --out the robot file",
+        lambda p: ["demo", "--robot", p["problem"], "--out", p["problem"]],
+        "--out {problem}: is also the input --robot",
+    ),
+    (
+        "map --out the robot's folder",
+        lambda p: ["map", "--robot", p["problem"], "--out", p["problem"].parent],
+        "--out {problem_dir}: contains the input --robot",
+    ),
+    (
+        "simulate --out --truth",
+        lambda p: [
+            "simulate",
+            "--robot",
+            "ur5",
+            "--config",
+            p["problem"],
+            "--out",
+            p["data"].parent / "d.csv",
+            "--truth",
+            p["data"].parent / "d.csv",
+        ],
+        "--out {tmp}/d.csv: is also the output --truth",
+    ),
 ]
 
 
@@ -365,8 +467,7 @@ def test_out_naming_an_input_is_refused(tmp_path, capsys, case, argv, message):
 def test_predict_out_an_existing_folder_is_refused(tmp_path, capsys):
     inp = _write_commands_csv(tmp_path / "in.csv")
     (tmp_path / "results").mkdir()
-    code, _, err = _main(capsys, "predict", "--model", "ur5", "--input", str(inp), "--out",
-                         str(tmp_path / "results"))
+    code, _, err = _main(capsys, "predict", "--model", "ur5", "--input", str(inp), "--out", str(tmp_path / "results"))
     assert code == EXIT_USER_ERROR
     assert f"--out {tmp_path / 'results'}: is an existing folder; give the path of the file" in _one_line_error(err)
     assert os.listdir(tmp_path / "results") == []
@@ -400,10 +501,22 @@ def test_identify_checks_its_outputs_before_the_fit(tmp_path, capsys, measuremen
 
     def no_fit(*_a, **_k):  # the outputs must be refused before any fitting starts
         raise AssertionError("identify started the fit before checking its outputs")
+
     monkeypatch.setattr(ident, "identify", no_fit)
     monkeypatch.setattr(ident.engine, "identify", no_fit)
-    code, _, err = _main(capsys, "identify", "--robot", "ur5", "--data", str(measurements), "--out", str(out),
-                         "--report", str(rep), "--no-progress")
+    code, _, err = _main(
+        capsys,
+        "identify",
+        "--robot",
+        "ur5",
+        "--data",
+        str(measurements),
+        "--out",
+        str(out),
+        "--report",
+        str(rep),
+        "--no-progress",
+    )
     assert code == EXIT_USER_ERROR and expected in _one_line_error(err)
 
 

@@ -124,28 +124,45 @@ def test_place_prints_the_result_and_writes_whole(tmp_path, capsys):
     """A small grid with analytic full plans: stdout names the best placement and the factor; the
     folder holds exactly the files it says; a second run replaces it whole."""
     out = tmp_path / "o"
-    argv = ["place", "placement_milling", "--out", str(out), "--grid", "x_m=0.7:0.9:3,y_m=-0.3:0.3:3,yaw_deg=0",
-            "--top", "1", "--no-optimise"]
+    argv = [
+        "place",
+        "placement_milling",
+        "--out",
+        str(out),
+        "--grid",
+        "x_m=0.7:0.9:3,y_m=-0.3:0.3:3,yaw_deg=0",
+        "--top",
+        "1",
+        "--no-optimise",
+    ]
     code, text, err = _run(argv, capsys)
     assert code == 0, err
     assert "placement study of placement_milling (robot ur10): 9 placements" in text
     assert "cuts the RMS load-induced error" in text and "as written" in text
     names = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
-    assert names == ["figures/placement_error_map.png", "figures/placement_margins.png",
-                     "figures/placement_plans.png", "ranking.csv", "report.html", "scores.csv", "summary.json"]
+    assert names == [
+        "figures/placement_error_map.png",
+        "figures/placement_margins.png",
+        "figures/placement_plans.png",
+        "ranking.csv",
+        "report.html",
+        "scores.csv",
+        "summary.json",
+    ]
     s = json.loads((out / "summary.json").read_text())
     assert [p["label"] for p in s["plans"]] == ["best 1", "as written"]
     code, _, err = _run(argv[:4] + ["--grid", "x_m=0.8,y_m=0,yaw_deg=0", "--top", "0", "--no-report"], capsys)
     assert code == 0, err
     assert sorted(p.name for p in out.iterdir()) == ["ranking.csv", "scores.csv", "summary.json"]
     s = json.loads((out / "summary.json").read_text())
-    assert s["grid"]["top"] == 0 and [p["label"] for p in s["plans"]] == ["as written"]      # --top 0
+    assert s["grid"]["top"] == 0 and [p["label"] for p in s["plans"]] == ["as written"]  # --top 0
     assert s["headline"]["best_plan"] is None and s["headline"]["as_written_plan"]["status"] == "ok"
 
 
 def test_grid_option_over_the_file(capsys, tmp_path):
     """--grid replaces only the axes it names; --top overrides the file's."""
     from planner.commands.place import grid_for
+
     p = load_problem("placement_milling")
     g = grid_for(p, ["x_m=0.5", "yaw_deg=0:90:2,top=1"], None)
     np.testing.assert_array_equal(g.axes["x_m"], [0.5])
@@ -158,6 +175,7 @@ def test_default_grid_surrounds_the_path():
     """A problem without [placement]: 21 x 21 base positions around the path's centroid within the
     arm's reach, 8 yaws."""
     from planner.commands.place import grid_for
+
     p = load_problem("machining_offaxis")
     assert p.placement is None
     g = grid_for(p, [], None)

@@ -21,12 +21,18 @@ from models.errors import InputError
 from models.ik import IKStatus, ik_solver
 from models.load import Load
 from problems.path import branch_paths
-from problems.placement.grid import (GRID_AXES, PlacementGrid, PlacementGridError, base2cell, cell2base,
-                                     grid_from_table, parse_grid_text)
+from problems.placement.grid import (
+    GRID_AXES,
+    PlacementGrid,
+    PlacementGridError,
+    base2cell,
+    cell2base,
+    grid_from_table,
+    parse_grid_text,
+)
 from problems.placement.kernel import PlacementKernel
 from problems.placement.placed import problem_at
-from problems.placement.scores import (RANK_RESOLUTION_M, RANK_RESOLUTION_SINGULAR, ChunkScores, PlacementStatus,
-                                       ranking)
+from problems.placement.scores import RANK_RESOLUTION_M, RANK_RESOLUTION_SINGULAR, ChunkScores, PlacementStatus, ranking
 from problems.posture import OrientationRule
 from problems.posture.verification import guard_bounds
 from problems.posture.warm_start import warm_starts
@@ -67,6 +73,7 @@ DEG = math.pi / 180.0
 # Helpers built here, independently of the library
 # --------------------------------------------------------------------------------------
 
+
 def rot_x(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
@@ -96,12 +103,12 @@ def my_cell2base(p: np.ndarray) -> np.ndarray:
     return np.linalg.inv(my_base2cell(p))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def shipped(name: str):
     return load_problem(name)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def kernel_of(name: str) -> PlacementKernel:
     return PlacementKernel(shipped(name))
 
@@ -116,11 +123,10 @@ def _variant(name: str):
     if name == "milling_base_moment":
         p = shipped("placement_milling")
         W = p.wrench.copy()
-        W[:, 3:] = [2.0, -1.0, 3.0]                  # N*m, cell frame
+        W[:, 3:] = [2.0, -1.0, 3.0]  # N*m, cell frame
         return replace(p, wrench=W)
     if name == "milling_payload":
-        return replace(shipped("placement_milling"), payload_mass_kg=4.0,
-                       payload_com_m=np.array([0.03, -0.02, 0.06]))
+        return replace(shipped("placement_milling"), payload_mass_kg=4.0, payload_com_m=np.array([0.03, -0.02, 0.06]))
     return shipped(name)
 
 
@@ -128,11 +134,12 @@ def _variant(name: str):
 # 1. Grid
 # ======================================================================================
 
+
 def test_parse_grid_values_are_inclusive_ranges_in_si_units():
     g = parse_grid_text("x_m=-0.4:0.4:3, y_m=0.25, yaw_deg=0:270:4, tilt_deg=90, top=5")
     np.testing.assert_allclose(g.axes["x_m"], [-0.4, 0.0, 0.4], atol=GRID_TOL)
     np.testing.assert_allclose(g.axes["y_m"], [0.25], atol=GRID_TOL)
-    np.testing.assert_allclose(g.axes["z_m"], [0.0], atol=GRID_TOL)          # not given: 0
+    np.testing.assert_allclose(g.axes["z_m"], [0.0], atol=GRID_TOL)  # not given: 0
     np.testing.assert_allclose(g.axes["yaw_deg"], np.array([0.0, 90.0, 180.0, 270.0]) * DEG, atol=GRID_TOL)
     np.testing.assert_allclose(g.axes["tilt_deg"], [math.pi / 2], atol=GRID_TOL)
     assert g.top == 5
@@ -164,8 +171,9 @@ def test_placements_order_is_x_fastest_and_indices_are_stable():
     np.testing.assert_allclose(P, expected, atol=GRID_TOL)
     # the same grid parsed again (and from a table) gives the same indices
     np.testing.assert_array_equal(parse_grid_text(text).placements(), P)
-    t = grid_from_table({"x_m": [0, 2, 3], "y_m": [10, 11, 2], "z_m": 5, "yaw_deg": [0, 90, 2],
-                         "tilt_deg": [0, 180, 2]})
+    t = grid_from_table(
+        {"x_m": [0, 2, 3], "y_m": [10, 11, 2], "z_m": 5, "yaw_deg": [0, 90, 2], "tilt_deg": [0, 180, 2]}
+    )
     np.testing.assert_array_equal(t.placements(), P)
 
 
@@ -182,20 +190,23 @@ def test_describe_gives_edge_units_and_round_trips():
         np.testing.assert_allclose(back.axes[k], g.axes[k], atol=GRID_TOL)
 
 
-@pytest.mark.parametrize("text, must_name", [
-    ("w_m=1", ["w_m"]),                               # unknown key
-    ("x_m=0:1:0", ["x_m", "0"]),                      # count 0
-    ("x_m=0:1:2.5", ["x_m", "2.5"]),                  # count not whole
-    ("x_m=1:0:3", ["x_m", "1", "0"]),                 # start > stop
-    ("x_m=abc", ["x_m", "abc"]),                      # not a number
-    ("yaw_deg=0:90", ["yaw_deg", "0:90"]),            # two parts
-    ("x_m=nan", ["x_m", "nan"]),                      # not finite
-    ("x_m", ["x_m"]),                                 # no '='
-    ("x_m=", ["x_m"]),                                # no value
-    ("top=many", ["top", "many"]),                    # top not an integer
-    ("top=11", ["top", "11"]),                        # top out of range
-    ("x_m=0:1:1", ["x_m", "1"]),                      # count 1 with start != stop
-])
+@pytest.mark.parametrize(
+    "text, must_name",
+    [
+        ("w_m=1", ["w_m"]),  # unknown key
+        ("x_m=0:1:0", ["x_m", "0"]),  # count 0
+        ("x_m=0:1:2.5", ["x_m", "2.5"]),  # count not whole
+        ("x_m=1:0:3", ["x_m", "1", "0"]),  # start > stop
+        ("x_m=abc", ["x_m", "abc"]),  # not a number
+        ("yaw_deg=0:90", ["yaw_deg", "0:90"]),  # two parts
+        ("x_m=nan", ["x_m", "nan"]),  # not finite
+        ("x_m", ["x_m"]),  # no '='
+        ("x_m=", ["x_m"]),  # no value
+        ("top=many", ["top", "many"]),  # top not an integer
+        ("top=11", ["top", "11"]),  # top out of range
+        ("x_m=0:1:1", ["x_m", "1"]),  # count 1 with start != stop
+    ],
+)
 def test_bad_grid_text_names_the_key_and_the_value(text, must_name):
     with pytest.raises(PlacementGridError) as ei:
         parse_grid_text(text)
@@ -206,16 +217,19 @@ def test_bad_grid_text_names_the_key_and_the_value(text, must_name):
         assert s in msg, (s, msg)
 
 
-@pytest.mark.parametrize("tab, must_name", [
-    ({"x_m": [0.0, 1.0, 0]}, ["x_m", "0"]),
-    ({"x_m": [0.0, 1.0]}, ["x_m"]),
-    ({"y_m": "0.3"}, ["y_m", "'0.3'"]),
-    ({"z_m": True}, ["z_m", "True"]),
-    ({"yaw_deg": [0.0, "90", 2]}, ["yaw_deg", "'90'"]),
-    ({"tilt_deg": [0.0, 90.0, True]}, ["tilt_deg", "True"]),
-    ({"x_m": 0.0, "height": 1.0}, ["height"]),
-    ({"top": -1}, ["top", "-1"]),
-])
+@pytest.mark.parametrize(
+    "tab, must_name",
+    [
+        ({"x_m": [0.0, 1.0, 0]}, ["x_m", "0"]),
+        ({"x_m": [0.0, 1.0]}, ["x_m"]),
+        ({"y_m": "0.3"}, ["y_m", "'0.3'"]),
+        ({"z_m": True}, ["z_m", "True"]),
+        ({"yaw_deg": [0.0, "90", 2]}, ["yaw_deg", "'90'"]),
+        ({"tilt_deg": [0.0, 90.0, True]}, ["tilt_deg", "True"]),
+        ({"x_m": 0.0, "height": 1.0}, ["height"]),
+        ({"top": -1}, ["top", "-1"]),
+    ],
+)
 def test_bad_grid_table_names_the_key_and_the_value(tab, must_name):
     with pytest.raises(PlacementGridError) as ei:
         grid_from_table(tab)
@@ -227,6 +241,7 @@ def test_bad_grid_table_names_the_key_and_the_value(tab, must_name):
 
 def _milling_toml_with(placement_table: str) -> str:
     from importlib import resources
+
     text = resources.files("problems").joinpath("files/placement_milling.toml").read_text(encoding="utf-8")
     head, sep, _ = text.partition("\n[placement]")
     assert sep, "placement_milling.toml has a [placement] table"
@@ -235,7 +250,7 @@ def _milling_toml_with(placement_table: str) -> str:
 
 def test_problem_file_placement_table_is_read(tmp_path):
     f = tmp_path / "grid_ok.toml"
-    f.write_text(_milling_toml_with('x_m = [0.2, 0.6, 5]\ny_m = -0.1\nyaw_deg = [0, 180, 3]\ntop = 2\n'))
+    f.write_text(_milling_toml_with("x_m = [0.2, 0.6, 5]\ny_m = -0.1\nyaw_deg = [0, 180, 3]\ntop = 2\n"))
     p = load_problem(f)
     g = p.placement
     np.testing.assert_allclose(g.axes["x_m"], [0.2, 0.3, 0.4, 0.5, 0.6], atol=GRID_TOL)
@@ -248,13 +263,16 @@ def test_problem_file_placement_table_is_read(tmp_path):
     np.testing.assert_allclose(s.axes["yaw_deg"], np.array([0, 90, 180, 270]) * DEG, atol=GRID_TOL)
 
 
-@pytest.mark.parametrize("table, must_name", [
-    ("x_m = [1.0, 0.0, 3]", ["x_m", "start"]),
-    ("x_m = [0.0, 1.0, 0]", ["x_m", "0"]),
-    ("depth_m = 0.3", ["depth_m"]),
-    ('y_m = "left"', ["y_m", "left"]),
-    ("top = 99", ["top", "99"]),
-])
+@pytest.mark.parametrize(
+    "table, must_name",
+    [
+        ("x_m = [1.0, 0.0, 3]", ["x_m", "start"]),
+        ("x_m = [0.0, 1.0, 0]", ["x_m", "0"]),
+        ("depth_m = 0.3", ["depth_m"]),
+        ('y_m = "left"', ["y_m", "left"]),
+        ("top = 99", ["top", "99"]),
+    ],
+)
 def test_problem_file_bad_placement_table(tmp_path, table, must_name):
     f = tmp_path / "grid_bad.toml"
     f.write_text(_milling_toml_with(table))
@@ -270,13 +288,15 @@ def test_problem_file_bad_placement_table(tmp_path, table, must_name):
 # 2. Transforms
 # ======================================================================================
 
-PLACEMENTS_FOR_TRANSFORMS = np.array([
-    [0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.3, -0.2, 0.1, 45 * DEG, 0.0],
-    [-0.5, 0.7, 1.2, -120 * DEG, 90 * DEG],
-    [0.1, 0.2, 2.0, 200 * DEG, 180 * DEG],
-    [1.0, -1.0, 0.4, 33 * DEG, -37 * DEG],
-])
+PLACEMENTS_FOR_TRANSFORMS = np.array(
+    [
+        [0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.3, -0.2, 0.1, 45 * DEG, 0.0],
+        [-0.5, 0.7, 1.2, -120 * DEG, 90 * DEG],
+        [0.1, 0.2, 2.0, 200 * DEG, 180 * DEG],
+        [1.0, -1.0, 0.4, 33 * DEG, -37 * DEG],
+    ]
+)
 
 
 def test_base2cell_is_trans_rz_rx():
@@ -303,6 +323,7 @@ def test_cell2base_is_the_inverse():
 # 3. The kernel's numbers against an independent evaluation (fixed orientation)
 # ======================================================================================
 
+
 def _fixed(name: str):
     p = _variant(name)
     return p if p.rule is OrientationRule.FIXED else replace(p, rule=OrientationRule.FIXED)
@@ -317,12 +338,18 @@ def _base_frame_load(problem, c2b: np.ndarray) -> Load:
     else:
         wb, wt = np.zeros_like(W), W
     g = problem.robot.gravity if problem.gravity is None else problem.gravity
-    return Load(wrench_base=wb, wrench_tool=wt, payload_mass_kg=problem.payload_mass_kg,
-                payload_com_m=problem.payload_com_m, gravity=R @ np.asarray(g, dtype=float))
+    return Load(
+        wrench_base=wb,
+        wrench_tool=wt,
+        payload_mass_kg=problem.payload_mass_kg,
+        payload_com_m=problem.payload_com_m,
+        gravity=R @ np.asarray(g, dtype=float),
+    )
 
 
-def _independent_margin(q_raw_start: np.ndarray, q_path: np.ndarray, q_min: np.ndarray,
-                        q_max: np.ndarray) -> float | None:
+def _independent_margin(
+    q_raw_start: np.ndarray, q_path: np.ndarray, q_min: np.ndarray, q_max: np.ndarray
+) -> float | None:
     """Joint margin of a continuous path after the documented shift: per joint the 2 pi k nearest
     zero (relative to the IK's own start value) that puts the whole path inside the limits."""
     # the same path, started at the IK's own value of waypoint 0
@@ -340,10 +367,21 @@ def _independent_margin(q_raw_start: np.ndarray, q_path: np.ndarray, q_min: np.n
 
 
 FIXED_CASES = [
-    ("placement_milling", np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [0.1, -0.2, 0.05, 30 * DEG, 0.0],
-                                    [0.2, 0.3, 0.0, -60 * DEG, 90 * DEG], [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG]])),
-    ("ur10_payload_tilt", np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [0.1, -0.2, 0.05, 30 * DEG, 0.0],
-                                    [0.0, 0.0, 0.6, 45 * DEG, 180 * DEG]])),
+    (
+        "placement_milling",
+        np.array(
+            [
+                [0.0, 0.0, 0.0, 0.0, 0.0],
+                [0.1, -0.2, 0.05, 30 * DEG, 0.0],
+                [0.2, 0.3, 0.0, -60 * DEG, 90 * DEG],
+                [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG],
+            ]
+        ),
+    ),
+    (
+        "ur10_payload_tilt",
+        np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [0.1, -0.2, 0.05, 30 * DEG, 0.0], [0.0, 0.0, 0.6, 45 * DEG, 180 * DEG]]),
+    ),
     ("milling_base_moment", np.array([[0.1, -0.2, 0.05, 30 * DEG, 0.0], [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG]])),
 ]
 
@@ -354,7 +392,7 @@ def test_kernel_matches_independent_ik_and_load_error(name, placements):
     branch is the IK path's own, evaluated here through ``ArmModel.load_error``."""
     p = _fixed(name)
     arm = p.model
-    assert "gravity" not in arm.active_effects      # the model's gravity constant plays no part
+    assert "gravity" not in arm.active_effects  # the model's gravity constant plays no part
     kern = PlacementKernel(p)
     assert kern.n_candidates == 1
     sc = kern.evaluate(placements)
@@ -383,7 +421,7 @@ def test_kernel_matches_independent_ik_and_load_error(name, placements):
                 continue
             assert kern_ok, f"placement {i}, branch {b}: feasible here (ratio {ratio:.3g}), not in the kernel"
             e = np.linalg.norm(arm.load_error(q, load)[:, :3], axis=1)
-            assert sc.branch_rms_m[i, b] == pytest.approx(np.sqrt(np.mean(e ** 2)), rel=0, abs=ERROR_ATOL_M)
+            assert sc.branch_rms_m[i, b] == pytest.approx(np.sqrt(np.mean(e**2)), rel=0, abs=ERROR_ATOL_M)
             assert sc.branch_max_m[i, b] == pytest.approx(e.max(), rel=0, abs=ERROR_ATOL_M)
             assert sc.branch_singular_margin[i, b] == pytest.approx(ratio, rel=RATIO_RTOL)
             assert sc.branch_joint_margin_rad[i, b] == pytest.approx(margin, abs=JOINT_MARGIN_ATOL_RAD)
@@ -392,25 +430,36 @@ def test_kernel_matches_independent_ik_and_load_error(name, placements):
         b = int(sc.best_branch[i])
         assert sc.rms_error_m[i] == np.nanmin(sc.branch_rms_m[i]) == sc.branch_rms_m[i, b]
         assert sc.max_error_m[i] == sc.branch_max_m[i, b]
-    assert checked >= 2 * len(placements)            # not vacuous
+    assert checked >= 2 * len(placements)  # not vacuous
 
 
 # ======================================================================================
 # 4. Moving the robot == moving the task
 # ======================================================================================
 
-EQUIV_PLACEMENTS = np.array([
-    [0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.1, -0.2, 0.05, 30 * DEG, 0.0],
-    [0.2, 0.3, 0.0, -60 * DEG, 90 * DEG],          # wall
-    [0.0, 0.0, 0.6, 45 * DEG, 180 * DEG],          # ceiling
-    [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG],
-    [5.0, 0.0, 0.0, 0.0, 0.0],                     # out of reach
-])
+EQUIV_PLACEMENTS = np.array(
+    [
+        [0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.1, -0.2, 0.05, 30 * DEG, 0.0],
+        [0.2, 0.3, 0.0, -60 * DEG, 90 * DEG],  # wall
+        [0.0, 0.0, 0.6, 45 * DEG, 180 * DEG],  # ceiling
+        [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG],
+        [5.0, 0.0, 0.0, 0.0, 0.0],  # out of reach
+    ]
+)
 
 
-@pytest.mark.parametrize("name", ["placement_milling", "milling_base_moment", "milling_tool_wrench", "milling_payload",
-                                  "ur10_payload_tilt", "machining_offaxis"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "placement_milling",
+        "milling_base_moment",
+        "milling_tool_wrench",
+        "milling_payload",
+        "ur10_payload_tilt",
+        "machining_offaxis",
+    ],
+)
 def test_moving_the_robot_equals_moving_the_task(name):
     p = _variant(name)
     sc = PlacementKernel(p).evaluate(EQUIV_PLACEMENTS)
@@ -422,13 +471,14 @@ def test_moving_the_robot_equals_moving_the_task(name):
         np.testing.assert_array_equal(np.isnan(one.branch_rms_m), np.isnan(moved.branch_rms_m))
         assert one.max_difference(moved) <= EQUIVALENCE_ATOL_M, (i, one.max_difference(moved))
         n_ok += int(one.status[0] == PlacementStatus.OK.code)
-    assert n_ok >= 4                                  # the comparison is not vacuous
+    assert n_ok >= 4  # the comparison is not vacuous
     assert sc.status[-1] != PlacementStatus.OK.code
 
 
 def sc_row(sc: ChunkScores, i: int) -> ChunkScores:
     from dataclasses import fields
-    return ChunkScores(**{f.name: getattr(sc, f.name)[i:i + 1] for f in fields(ChunkScores)})
+
+    return ChunkScores(**{f.name: getattr(sc, f.name)[i : i + 1] for f in fields(ChunkScores)})
 
 
 def _self_weight(problem, gravity=None):
@@ -436,8 +486,9 @@ def _self_weight(problem, gravity=None):
     a robot-file gravity other than vertical (e.g. a robot file written for a wall mount)."""
     g = problem.robot.gravity if gravity is None else np.asarray(gravity, dtype=float)
     robot = replace(problem.robot, gravity=g)
-    arm = replace(problem.model, nominal=replace(problem.model.nominal, gravity=g), gravity_on=True,
-                  effects=["gravity"])
+    arm = replace(
+        problem.model, nominal=replace(problem.model.nominal, gravity=g), gravity_on=True, effects=["gravity"]
+    )
     assert "gravity" in arm.active_effects and robot.has_masses
     return replace(problem, robot=robot, arm=arm)
 
@@ -445,8 +496,9 @@ def _self_weight(problem, gravity=None):
 def test_self_weight_turns_with_the_tilt():
     """With self-weight the arm's gravity turns into each placement's base frame (one kernel, every tilt)."""
     p = _self_weight(shipped("placement_milling").with_points(10))
-    pls = np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [0.2, 0.3, 0.0, -60 * DEG, 90 * DEG],
-                    [0.0, 0.0, 0.6, 45 * DEG, 180 * DEG]])
+    pls = np.array(
+        [[0.0, 0.0, 0.0, 0.0, 0.0], [0.2, 0.3, 0.0, -60 * DEG, 90 * DEG], [0.0, 0.0, 0.6, 45 * DEG, 180 * DEG]]
+    )
     kern = PlacementKernel(p)
     sc = kern.evaluate(pls)
     for i, pl in enumerate(pls):
@@ -491,8 +543,9 @@ def test_self_weight_with_non_vertical_robot_gravity_and_a_yaw():
 # 5. Agreement with the posture warm starts
 # ======================================================================================
 
-WARM_PLACEMENTS = np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [0.1, -0.2, 0.05, 30 * DEG, 0.0],
-                            [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG]])
+WARM_PLACEMENTS = np.array(
+    [[0.0, 0.0, 0.0, 0.0, 0.0], [0.1, -0.2, 0.05, 30 * DEG, 0.0], [-0.2, 0.1, 0.3, 20 * DEG, 45 * DEG]]
+)
 
 
 def _scan60():
@@ -548,6 +601,7 @@ def test_a_blocked_restricted_programme_falls_back_to_the_dense_one():
     candidate 90 deg away keeps the tool still); as the warm starts, the kernel finds it."""
     import tomllib
     from problems.problem import problem_from_dict
+
     p = problem_from_dict(tomllib.loads(YAW_JUMP), "yaw_jump")
     kern = PlacementKernel(p)
     assert kern._nbr.shape[1] < kern.n_candidates == 60
@@ -564,6 +618,7 @@ def test_a_waypoint_excluded_only_by_joint_limits_is_joint_limit(tmp_path):
     limits (JOINT_LIMIT, that waypoint named), where the +-360 deg arm is feasible; at (0.9, -0.2)
     the orientation scan still finds solutions inside them; far away it stays UNREACHABLE."""
     from importlib import resources
+
     text = resources.files("models").joinpath("robots/ur10.toml").read_text(encoding="utf-8")
     k = text.rfind("[[joints]]")
     old = "q_min_deg = -360.0\nq_max_deg = 360.0"
@@ -574,14 +629,18 @@ def test_a_waypoint_excluded_only_by_joint_limits_is_joint_limit(tmp_path):
     sc = PlacementKernel(p).evaluate(pls)
     free = kernel_of("placement_milling").evaluate(pls)
     assert free.status.tolist() == [PlacementStatus.OK.code, PlacementStatus.OK.code, PlacementStatus.UNREACHABLE.code]
-    assert [sc.status_of(i) for i in range(3)] == [PlacementStatus.OK, PlacementStatus.JOINT_LIMIT,
-                                                   PlacementStatus.UNREACHABLE]
+    assert [sc.status_of(i) for i in range(3)] == [
+        PlacementStatus.OK,
+        PlacementStatus.JOINT_LIMIT,
+        PlacementStatus.UNREACHABLE,
+    ]
     assert sc.blocked_waypoint[1] > 0 and free.blocked_waypoint[1] == -1
 
 
 # ======================================================================================
 # 6. Statuses, ranking, ChunkScores
 # ======================================================================================
+
 
 def test_far_placement_is_unreachable_at_waypoint_0():
     p = shipped("placement_milling")
@@ -604,6 +663,7 @@ def test_partial_reach_names_the_first_unreachable_waypoint():
     at any scanned orientation (checked here against the IK itself), and such a placement is
     UNREACHABLE."""
     from problems.posture.warm_start import candidates
+
     p = shipped("placement_milling")
     kern = kernel_of("placement_milling")
     ik = ik_solver(p.robot)
@@ -617,21 +677,21 @@ def test_partial_reach_names_the_first_unreachable_waypoint():
     partial = 0
     for i, pl in enumerate(pls):
         sol = ik.solve(np.einsum("ij,snjk->snik", my_cell2base(pl), T_cell).reshape(-1, 4, 4))
-        ok = sol.status == IKStatus.OK.code                                            # (S*N, B)
+        ok = sol.status == IKStatus.OK.code  # (S*N, B)
         ratio = (np.abs(ik.guard_factors(np.where(ok[..., None], sol.q, 0.0))) / guard_bounds(ik)).min(-1)
-        reach = (ok & (ratio >= 1.0)).reshape(len(cands), p.n, -1).any(axis=(0, 2))   # (N,)
+        reach = (ok & (ratio >= 1.0)).reshape(len(cands), p.n, -1).any(axis=(0, 2))  # (N,)
         expected = -1 if reach.all() else int(np.argmin(reach))
         assert sc.blocked_waypoint[i] == expected, (i, pl)
         if expected >= 0:
             assert sc.status[i] == PlacementStatus.UNREACHABLE.code
             partial += int(reach.any())
-    assert partial >= 1                     # some placement reaches part of the path only
+    assert partial >= 1  # some placement reaches part of the path only
     assert (sc.blocked_waypoint >= 0).sum() >= 3 and (sc.status == PlacementStatus.OK.code).sum() >= 3
 
 
 def test_flip_status_when_no_step_fits():
     p = shipped("placement_milling").with_points(8)
-    p = replace(p, limits=replace(p.limits, max_joint_step=1e-4))   # 0.086 m between waypoints
+    p = replace(p, limits=replace(p.limits, max_joint_step=1e-4))  # 0.086 m between waypoints
     sc = PlacementKernel(p).evaluate(np.zeros((1, 5)))
     assert sc.status[0] == PlacementStatus.FLIP.code
     assert sc.blocked_waypoint[0] == -1 and sc.best_branch[0] == -1
@@ -648,8 +708,13 @@ def test_status_precedence_of_finish():
     flip = np.array([[False, False], [False, False], [True, True], [True, False], [False, False]])
     limit = np.array([[False, False], [True, False], [False, False], [False, True], [False, False]])
     sc.finish(flip, limit)
-    assert list(sc.status) == [PlacementStatus.OK.code, PlacementStatus.JOINT_LIMIT.code, PlacementStatus.FLIP.code,
-                               PlacementStatus.JOINT_LIMIT.code, PlacementStatus.UNREACHABLE.code]
+    assert list(sc.status) == [
+        PlacementStatus.OK.code,
+        PlacementStatus.JOINT_LIMIT.code,
+        PlacementStatus.FLIP.code,
+        PlacementStatus.JOINT_LIMIT.code,
+        PlacementStatus.UNREACHABLE.code,
+    ]
     assert sc.best_branch[0] == 1 and sc.feasible_branches[0] == 2
     assert sc.rms_error_m[0] == 1e-3 and sc.max_error_m[0] == 4e-3
     assert sc.joint_margin_rad[0] == 0.2 and sc.singular_margin[0] == 2.0
@@ -661,15 +726,17 @@ def test_ranking_is_feasible_only_and_sorted_by_rms():
     sc = kernel_of("placement_milling").evaluate(small_grid(p).placements())
     r = ranking(sc)
     assert set(r.tolist()) == set(np.flatnonzero(sc.status == PlacementStatus.OK.code).tolist())
-    assert 0 < len(r) < len(sc)                      # some feasible, some not (x = -0.4 m, y = +-0.6 m)
+    assert 0 < len(r) < len(sc)  # some feasible, some not (x = -0.4 m, y = +-0.6 m)
     q = np.round(sc.rms_error_m[r] / RANK_RESOLUTION_M)
     assert (np.diff(q) >= 0).all()
     # ties at the resolution (yaws that joint 1 absorbs): the larger singular margin first
     for a, b in zip(r[:-1], r[1:]):
-        if q[list(r).index(a)] == q[list(r).index(b)] and \
-                round(sc.max_error_m[a] / RANK_RESOLUTION_M) == round(sc.max_error_m[b] / RANK_RESOLUTION_M):
-            assert round(sc.singular_margin[a] / RANK_RESOLUTION_SINGULAR) >= \
-                round(sc.singular_margin[b] / RANK_RESOLUTION_SINGULAR)
+        if q[list(r).index(a)] == q[list(r).index(b)] and round(sc.max_error_m[a] / RANK_RESOLUTION_M) == round(
+            sc.max_error_m[b] / RANK_RESOLUTION_M
+        ):
+            assert round(sc.singular_margin[a] / RANK_RESOLUTION_SINGULAR) >= round(
+                sc.singular_margin[b] / RANK_RESOLUTION_SINGULAR
+            )
 
 
 def test_ranking_ties_broken_by_margins_not_by_round_off():
@@ -682,7 +749,7 @@ def test_ranking_ties_broken_by_margins_not_by_round_off():
     sc.singular_margin[:3] = [7.63, 7.63 + 4e-15, 7.63 - 4e-15]
     sc.joint_margin_rad[:3] = [0.18, 0.77, 0.50]
     assert ranking(sc).tolist() == [1, 2, 0]
-    sc.singular_margin[0] = 7.64                           # a real difference in the margin decides first
+    sc.singular_margin[0] = 7.64  # a real difference in the margin decides first
     assert ranking(sc).tolist() == [0, 1, 2]
 
 
@@ -702,16 +769,17 @@ def test_chunk_scores_concatenate_equal_and_max_difference():
     assert not other.equal(whole)
     assert other.max_difference(whole) == pytest.approx(1e-9, rel=1e-6)
     other = ChunkScores.concatenate([whole])
-    other.rms_error_m[i] = np.nan                   # NaN where the other has a number
+    other.rms_error_m[i] = np.nan  # NaN where the other has a number
     assert not other.equal(whole) and other.max_difference(whole) == math.inf
     other = ChunkScores.concatenate([whole])
-    other.status[i] = PlacementStatus.FLIP.code          # an integer array differs
+    other.status[i] = PlacementStatus.FLIP.code  # an integer array differs
     assert not other.equal(whole) and other.max_difference(whole) == math.inf
 
 
 # ======================================================================================
 # 7. Pickling (shipping the kernel to a worker)
 # ======================================================================================
+
 
 def test_pickled_kernel_gives_identical_scores():
     p = shipped("placement_milling")
@@ -730,7 +798,7 @@ def test_pickled_kernel_on_another_cpu_falls_back_to_the_vm():
         pytest.skip("no C compiler here: the kernel already runs on the virtual machine")
     pls = small_grid(p).placements()
     ref = kern.evaluate(pls)
-    moved = pickle.loads(pickle.dumps(kern))        # a copy: the cached kernel stays as it is
+    moved = pickle.loads(pickle.dumps(kern))  # a copy: the cached kernel stays as it is
     for st in (moved._model_state, moved._ik_state):
         assert st["library"] is not None
         st["host"] = "some other CPU"
@@ -740,7 +808,7 @@ def test_pickled_kernel_on_another_cpu_falls_back_to_the_vm():
     np.testing.assert_array_equal(got.status, ref.status)
     np.testing.assert_array_equal(got.best_branch, ref.best_branch)
     assert got.max_difference(ref) <= VM_ATOL_M
-    assert kern.compiled                            # the original is untouched
+    assert kern.compiled  # the original is untouched
 
 
 _NO_COMPILER_WORKER = """
@@ -765,6 +833,7 @@ def test_a_worker_without_a_compiler_runs_the_shipped_libraries(tmp_path):
     import os
     import subprocess
     import sys
+
     kern = kernel_of("placement_milling")
     if not kern.compiled:
         pytest.skip("no C compiler here: nothing compiled to ship")
@@ -774,33 +843,46 @@ def test_a_worker_without_a_compiler_runs_the_shipped_libraries(tmp_path):
     env.pop("COMPPLAN_NO_COMPILER", None)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-    out = subprocess.run([sys.executable, "-c", _NO_COMPILER_WORKER], input=pickle.dumps((kern, pls)),
-                         capture_output=True, env=env, cwd=root, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", _NO_COMPILER_WORKER],
+        input=pickle.dumps((kern, pls)),
+        capture_output=True,
+        env=env,
+        cwd=root,
+        timeout=600,
+    )
     assert out.returncode == 0, out.stderr.decode()[-2000:]
     compiled, ik_compiled, own_compiled, scores = pickle.loads(out.stdout)
     assert compiled and ik_compiled
-    assert not own_compiled                          # the process really has no compiler
+    assert not own_compiled  # the process really has no compiler
     assert scores.equal(ref)
 
 
 def test_default_chunks_grow_with_the_sweep():
     """Small sweeps: CHUNK_POSES per chunk; large ones: at most DEFAULT_MAX_CHUNKS chunks, but no
     chunk above CHUNK_MAX_POSES."""
-    from problems.placement.sweep import (CHUNK_MAX_POSES, CHUNK_POSES, DEFAULT_MAX_CHUNKS, chunk_placements_for,
-                                          default_chunk_poses)
+    from problems.placement.sweep import (
+        CHUNK_MAX_POSES,
+        CHUNK_POSES,
+        DEFAULT_MAX_CHUNKS,
+        chunk_placements_for,
+        default_chunk_poses,
+    )
+
     assert default_chunk_poses(10) == default_chunk_poses(CHUNK_POSES * DEFAULT_MAX_CHUNKS) == CHUNK_POSES
-    assert default_chunk_poses(10 ** 8) == 10 ** 5
-    assert default_chunk_poses(10 ** 9) == default_chunk_poses(10 ** 12) == CHUNK_MAX_POSES
+    assert default_chunk_poses(10**8) == 10**5
+    assert default_chunk_poses(10**9) == default_chunk_poses(10**12) == CHUNK_MAX_POSES
     kern = kernel_of("placement_milling")
     ppp = kern.poses_per_placement
     assert chunk_placements_for(kern, 1428) == CHUNK_POSES // ppp
-    assert chunk_placements_for(kern, 10 ** 8 // ppp) == 10 ** 5 // ppp
+    assert chunk_placements_for(kern, 10**8 // ppp) == 10**5 // ppp
     assert chunk_placements_for(kern, 10, target_poses=5 * ppp) == 5
 
 
 # ======================================================================================
 # 8. problem_at
 # ======================================================================================
+
 
 def test_problem_at_maps_the_task_into_the_placed_base_frame():
     base_w = shipped("placement_milling")
@@ -825,6 +907,7 @@ def test_problem_at_maps_the_task_into_the_placed_base_frame():
     np.testing.assert_allclose(q.gravity, np.array([0.0, -9.80665, 0.0]), atol=1e-12)
     # the nominal orientation in the placed frame
     from models.transforms import rpy_to_matrix
+
     np.testing.assert_allclose(rpy_to_matrix(q.nominal_rpy), R @ rpy_to_matrix(base_w.nominal_rpy), atol=1e-12)
     # the load rows of its task say the same
     L = q.task().load
@@ -835,8 +918,12 @@ def test_problem_at_maps_the_task_into_the_placed_base_frame():
 
 
 def test_problem_at_keeps_a_tool_frame_wrench_and_the_payload_com():
-    p = replace(shipped("placement_milling"), wrench_frame="tool", payload_mass_kg=3.0,
-                payload_com_m=np.array([0.01, 0.02, 0.05]))
+    p = replace(
+        shipped("placement_milling"),
+        wrench_frame="tool",
+        payload_mass_kg=3.0,
+        payload_com_m=np.array([0.01, 0.02, 0.05]),
+    )
     pl = np.array([0.3, -0.4, 0.2, 65 * DEG, 45 * DEG])
     q = problem_at(p, pl)
     np.testing.assert_array_equal(q.wrench, p.wrench)

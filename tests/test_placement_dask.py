@@ -21,12 +21,12 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-import problems.placement.cluster as cluster_mod  # noqa: E402
-from models.errors import InputError  # noqa: E402
-from problems.placement.grid import parse_grid_text  # noqa: E402
-from problems.placement.kernel import PlacementKernel  # noqa: E402
-from problems.placement.sweep import SweepStatus, parse_scheduler, run_sweep  # noqa: E402
-from problems.problem import load_problem  # noqa: E402
+import problems.placement.cluster as cluster_mod  # noqa: E402 - after the importorskip above
+from models.errors import InputError  # noqa: E402 - after the importorskip above
+from problems.placement.grid import parse_grid_text  # noqa: E402 - after the importorskip above
+from problems.placement.kernel import PlacementKernel  # noqa: E402 - after the importorskip above
+from problems.placement.sweep import SweepStatus, parse_scheduler, run_sweep  # noqa: E402 - after the importorskip above
+from problems.problem import load_problem  # noqa: E402 - after the importorskip above
 
 #: Placements per chunk of the headline comparison (50 placements -> 10 chunks).
 HEADLINE_CHUNK = 5
@@ -38,12 +38,12 @@ CONNECT_TIMEOUT_PATCHED_S = 2
 RESTART_WAIT_S = 60
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _problem():
     return load_problem("placement_milling")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _kernel() -> PlacementKernel:
     return PlacementKernel(_problem())
 
@@ -52,8 +52,8 @@ def _placements(text: str) -> np.ndarray:
     return parse_grid_text(text, base=_problem().placement).placements()
 
 
-HEADLINE_GRID = "x_m=-0.4:0.4:5,y_m=-0.6:0.6:5,yaw_deg=0:90:2"       # 50 placements
-KILL_GRID = "x_m=-0.4:0.4:9,y_m=-0.6:0.6:5,yaw_deg=0:90:2"          # 90 placements
+HEADLINE_GRID = "x_m=-0.4:0.4:5,y_m=-0.6:0.6:5,yaw_deg=0:90:2"  # 50 placements
+KILL_GRID = "x_m=-0.4:0.4:9,y_m=-0.6:0.6:5,yaw_deg=0:90:2"  # 90 placements
 
 
 @pytest.mark.slow
@@ -63,13 +63,14 @@ def test_local_cluster_equals_serial_bit_for_bit():
     serial = run_sweep(kern, pls, "serial", chunk_placements=HEADLINE_CHUNK)
     done: list[int] = []
     seen: list[tuple[str, int, int]] = []
-    dask = run_sweep(kern, pls, "local:2", chunk_placements=HEADLINE_CHUNK, on_chunk=done.append,
-                     progress=lambda *a: seen.append(a))
+    dask = run_sweep(
+        kern, pls, "local:2", chunk_placements=HEADLINE_CHUNK, on_chunk=done.append, progress=lambda *a: seen.append(a)
+    )
     assert serial.ok and dask.ok and dask.status is SweepStatus.OK
     assert dask.n_chunks == serial.n_chunks == int(np.ceil(len(pls) / HEADLINE_CHUNK)) > 2
     assert dask.scheduler == "local:2" and dask.workers == 2 and dask.extra["workers_at_start"] == 2
-    assert dask.scores.equal(serial.scores)                       # the headline claim: bit for bit
-    assert 0 < int(dask.scores.feasible.sum()) < len(pls)          # not a trivial all-equal result
+    assert dask.scores.equal(serial.scores)  # the headline claim: bit for bit
+    assert 0 < int(dask.scores.feasible.sum()) < len(pls)  # not a trivial all-equal result
     np.testing.assert_array_equal(dask.placements, pls)
     assert dask.poses == serial.poses == len(pls) * kern.poses_per_placement
     assert dask.compiled == kern.compiled
@@ -81,8 +82,9 @@ def test_local_cluster_equals_serial_bit_for_bit():
 @pytest.fixture
 def own_cluster():
     """A LocalCluster of two single-threaded worker processes (each under a nanny)."""
-    c = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                 silence_logs=logging.ERROR)
+    c = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+    )
     try:
         yield c
     finally:
@@ -98,7 +100,7 @@ def test_a_worker_killed_mid_run_does_not_change_the_scores(own_cluster):
     assert serial.n_chunks >= KILL_MIN_CHUNKS
     with distributed.Client(own_cluster.scheduler_address, timeout=30) as watcher:
         watcher.wait_for_workers(2, timeout=RESTART_WAIT_S)
-        pids = watcher.run(os.getpid)                              # worker address -> worker pid
+        pids = watcher.run(os.getpid)  # worker address -> worker pid
         assert len(pids) == 2 and os.getpid() not in pids.values()
         killed: list[tuple[int, int]] = []
 
@@ -110,7 +112,7 @@ def test_a_worker_killed_mid_run_does_not_change_the_scores(own_cluster):
 
         res = run_sweep(kern, pls, own_cluster.scheduler_address, chunk_placements=per, on_chunk=kill_once)
         assert killed and killed[0][1] == 1
-        assert killed[0][1] < res.n_chunks                         # work remained after the kill
+        assert killed[0][1] < res.n_chunks  # work remained after the kill
         assert res.n_chunks == serial.n_chunks
         assert res.scores.equal(serial.scores)
         # the kill did happen: the worker process is gone and its nanny started another one
@@ -124,8 +126,9 @@ def test_a_worker_killed_mid_run_does_not_change_the_scores(own_cluster):
         assert killed[0][0] not in watcher.run(os.getpid).values()
 
 
-@pytest.mark.parametrize("spec", ["local:0", "local:x", "local:257", "foo", "tcp://nohost", "tcp://host:",
-                                  "tcp://:8786", "local:"])
+@pytest.mark.parametrize(
+    "spec", ["local:0", "local:x", "local:257", "foo", "tcp://nohost", "tcp://host:", "tcp://:8786", "local:"]
+)
 def test_bad_scheduler_specs_name_the_value(spec):
     with pytest.raises(InputError) as ei:
         parse_scheduler(spec)
@@ -148,7 +151,7 @@ def test_no_scheduler_at_the_address_is_an_input_error(monkeypatch):
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
     port = s.getsockname()[1]
-    s.close()                                                     # nothing listens there now
+    s.close()  # nothing listens there now
     monkeypatch.setattr(cluster_mod, "CONNECT_TIMEOUT_S", CONNECT_TIMEOUT_PATCHED_S)
     spec = f"tcp://127.0.0.1:{port}"
     with pytest.raises(InputError) as ei:
@@ -184,8 +187,9 @@ def test_local_cluster_workers_keep_glibcs_dynamic_mmap_threshold():
 @pytest.mark.slow
 def test_a_scheduler_without_workers_is_an_input_error(monkeypatch):
     monkeypatch.setattr(cluster_mod, "CONNECT_TIMEOUT_S", CONNECT_TIMEOUT_PATCHED_S)
-    with distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=None,
-                                  silence_logs=logging.ERROR) as empty:
+    with distributed.LocalCluster(
+        n_workers=0, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+    ) as empty:
         with pytest.raises(InputError) as ei:
             run_sweep(_kernel(), _placements("x_m=0"), empty.scheduler_address)
     assert "no workers" in str(ei.value) and empty.scheduler_address in str(ei.value)
@@ -205,6 +209,7 @@ def test_place_command_on_a_local_cluster_writes_the_serial_scores(tmp_path, cap
     """``compplan place --scheduler local:2`` writes the serial run's scores.csv byte for byte and
     says where it ran."""
     from planner.cli import main as cli_main
+
     base = ["place", "placement_milling", "--grid", HEADLINE_GRID, "--top", "0", "--no-report", "--chunk", "7"]
     assert cli_main(base + ["--out", str(tmp_path / "serial")]) == 0
     assert cli_main(base + ["--out", str(tmp_path / "dask"), "--scheduler", "local:2"]) == 0
@@ -213,6 +218,7 @@ def test_place_command_on_a_local_cluster_writes_the_serial_scores(tmp_path, cap
     a = (tmp_path / "serial" / "scores.csv").read_bytes()
     assert a == (tmp_path / "dask" / "scores.csv").read_bytes() and a.count(b"\n") == 51
     import json
+
     s = json.loads((tmp_path / "dask" / "summary.json").read_text())
     assert s["sweep"]["scheduler"] == "local:2" and s["sweep"]["workers"] == 2 and s["sweep"]["chunks"] == 8
 
@@ -244,17 +250,34 @@ def test_a_scheduler_lost_mid_run_is_one_cluster_error(tmp_path, capfd):
     sweep ends with one ClusterError naming the address, and nothing of Dask's logging reaches
     stderr (the library is silent)."""
     import subprocess
+
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.getcwd(), os.environ.get("PYTHONPATH", "")]))
-    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                              "--port", str(port), "--no-dashboard"], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL, env=env)
+    sched = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "distributed.cli.dask_scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--no-dashboard",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
     worker = None
     try:
         _wait_listening(port, sched)
-        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
-                                   "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        worker = subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1", "--no-dashboard"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
         with distributed.Client(address, timeout=30) as c:
             c.wait_for_workers(1, timeout=RESTART_WAIT_S)
         capfd.readouterr()
@@ -266,7 +289,7 @@ def test_a_scheduler_lost_mid_run_is_one_cluster_error(tmp_path, capfd):
 
         records: list[logging.LogRecord] = []
         collect = logging.Handler(logging.DEBUG)
-        collect.emit = records.append                      # type: ignore[method-assign]
+        collect.emit = records.append  # type: ignore[method-assign]
         loggers = [logging.getLogger(n) for n in ("distributed", "distributed.client", "distributed.core")]
         for lg in loggers:
             lg.addHandler(collect)

@@ -36,8 +36,11 @@ def _cols(d: dict[str, np.ndarray], prefix: str) -> np.ndarray:
 
 def _rpy(r: list[float]) -> np.ndarray:
     cr, sr, cp, sp, cy, sy = np.cos(r[0]), np.sin(r[0]), np.cos(r[1]), np.sin(r[1]), np.cos(r[2]), np.sin(r[2])
-    return (np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]]) @ np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-            @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]]))
+    return (
+        np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+        @ np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+        @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    )
 
 
 def _tcp_and_jacobian(q: np.ndarray, robot: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -49,8 +52,14 @@ def _tcp_and_jacobian(q: np.ndarray, robot: dict) -> tuple[np.ndarray, np.ndarra
     for j, qi in zip(robot["joints"], q):
         th = qi + j["theta_offset"]
         ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(j["alpha"]), np.sin(j["alpha"])
-        T = T @ np.array([[ct, -st * ca, st * sa, j["a"] * ct], [st, ct * ca, -ct * sa, j["a"] * st],
-                          [0.0, sa, ca, j["d"]], [0.0, 0.0, 0.0, 1.0]])
+        T = T @ np.array(
+            [
+                [ct, -st * ca, st * sa, j["a"] * ct],
+                [st, ct * ca, -ct * sa, j["a"] * st],
+                [0.0, sa, ca, j["d"]],
+                [0.0, 0.0, 0.0, 1.0],
+            ]
+        )
         origins.append(T)
     tool = np.eye(4)
     tool[:3, :3] = _rpy(robot["tool"]["rpy"])
@@ -123,25 +132,33 @@ def test_paper_plan_summary(paper_run):
     h = s["headline"]
     assert (h["status"], h["branch"], h["default_branch"]) == ("ok", "s-w-e-", "s-w-e+")
     assert h["error_after_max_mm"] == 0.0 and h["error_before_max_mm"] == pytest.approx(
-        s["error_before"]["max_mm"], rel=5e-4)
+        s["error_before"]["max_mm"], rel=5e-4
+    )
     assert h["duration_s"] == pytest.approx(s["duration_s"]["jerk_optimal"], rel=5e-4)
     p = s["provenance"]
     assert p["argv"] == ["compplan", "plan", "paper_4_4", "--out", str(paper_run), "--no-figures", "--no-report"]
     assert p["command_line"].startswith("compplan plan paper_4_4 --out ") and p["date_utc"].endswith("Z")
     assert [e["role"] for e in p["inputs"]] == ["problem", "robot model"] and all(e["sha256"] for e in p["inputs"])
-    for info in s["branches"].values():      # the exact-equilibrium error beside the NLP's first-order one
+    for info in s["branches"].values():  # the exact-equilibrium error beside the NLP's first-order one
         assert info["rms_error_equilibrium_mm"] == pytest.approx(info["rms_error_mm"], rel=0.02)
 
 
 def test_output_files_and_columns(paper_run):
     names = {p.name for p in paper_run.iterdir()}
-    assert {"summary.json", "path.csv", "waypoints.csv", "branches.csv", "trajectory.csv",
-            "trajectory_toppra.csv"} <= names
+    assert {
+        "summary.json",
+        "path.csv",
+        "waypoints.csv",
+        "branches.csv",
+        "trajectory.csv",
+        "trajectory_toppra.csv",
+    } <= names
     wp = list(csv.reader((paper_run / "waypoints.csv").open()))[0]
     assert wp == list(WAYPOINT_COLUMNS)
     br = list(csv.reader((paper_run / "branches.csv").open()))[0]
-    assert br[0] == "k" and set(br[1:]) == {f"{b}_{k}_m" for b in ("s+w+e+", "s+w+e-", "s-w-e+", "s-w-e-")
-                                            for k in ("analytic", "optimised")}
+    assert br[0] == "k" and set(br[1:]) == {
+        f"{b}_{k}_m" for b in ("s+w+e+", "s+w+e-", "s-w-e+", "s-w-e-") for k in ("analytic", "optimised")
+    }
     assert list(csv.reader((paper_run / "path.csv").open()))[0] == ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
     tr = list(csv.reader((paper_run / "trajectory.csv").open()))[0]
     assert tr == ["t"] + [f"{p}{i}" for p in ("q", "qd", "qdd", "qddd") for i in range(1, 7)]
@@ -160,10 +177,10 @@ def test_path_csv_lands_on_the_line_under_independent_physics(run, request):
     for k in range(len(P)):
         T = _settle(Q[k], W, s["robot_file"])
         d = T[:3, 3] - a
-        assert np.linalg.norm(d - u * (d @ u)) < LINE_TOL_M, k            # on the straight line
-        assert np.linalg.norm(T[:3, 3] - P[k]) < LINE_TOL_M, k            # at its waypoint
+        assert np.linalg.norm(d - u * (d @ u)) < LINE_TOL_M, k  # on the straight line
+        assert np.linalg.norm(T[:3, 3] - P[k]) < LINE_TOL_M, k  # at its waypoint
         if s["problem"]["orientation"]["rule"] in ("fixed", "free_tool_axis"):
-            assert abs(T[2, 2] + 1.0) < 1e-9                                # tool axis still down
+            assert abs(T[2, 2] + 1.0) < 1e-9  # tool axis still down
 
 
 @pytest.mark.parametrize("run", ["paper_run", "machining_run"])
@@ -172,19 +189,24 @@ def test_trajectories_respect_the_limits_by_finite_differences(run, request):
     s = json.loads((folder / "summary.json").read_text())
     lim = {k: np.array(s["limits"][k]) for k in ("velocity", "acceleration", "jerk")}
     path = _cols(_read(folder / "path.csv"), "q")
-    for name, checked in (("trajectory.csv", ("velocity", "acceleration", "jerk")),
-                          ("trajectory_toppra.csv", ("velocity", "acceleration"))):
+    for name, checked in (
+        ("trajectory.csv", ("velocity", "acceleration", "jerk")),
+        ("trajectory_toppra.csv", ("velocity", "acceleration")),
+    ):
         tr = _read(folder / name)
         t, q = tr["t"], _cols(tr, "q")
         dt = s["dt"]
         assert np.allclose(np.diff(t), dt, atol=1e-12)
-        d = {"velocity": np.diff(q, axis=0) / dt, "acceleration": np.diff(q, 2, axis=0) / dt ** 2,
-             "jerk": np.diff(q, 3, axis=0) / dt ** 3}
+        d = {
+            "velocity": np.diff(q, axis=0) / dt,
+            "acceleration": np.diff(q, 2, axis=0) / dt**2,
+            "jerk": np.diff(q, 3, axis=0) / dt**3,
+        }
         for k in checked:
             ratio = np.abs(d[k]).max(axis=0) / lim[k]
             assert ratio.max() <= 1.0 + FD_RATIO_TOL, (name, k, ratio)
         assert np.allclose(q[0], path[0], atol=1e-12) and np.allclose(q[-1], path[-1], atol=1e-12)
-        assert np.allclose(_cols(tr, "qd")[[0, -1]], 0.0, atol=1e-12)     # rest to rest
+        assert np.allclose(_cols(tr, "qd")[[0, -1]], 0.0, atol=1e-12)  # rest to rest
         assert s["duration_s"][name == "trajectory.csv" and "jerk_optimal" or "toppra"] == pytest.approx(t[-1])
 
 
@@ -211,6 +233,7 @@ def test_demo_is_plan_on_the_paper_problem(tmp_path, capsys, paper_run):
 
 def test_demo_api_used_by_the_report(tmp_path):
     from planner.demo import run_demo, write_outputs
+
     res = run_demo(n_points=12)
     assert res.ok and res.branch.label == "s-w-e-" and res.positions.shape == (12, 3)
     summary = write_outputs(res, tmp_path)
@@ -223,7 +246,7 @@ def _problem_file(tmp_path: Path, **sections: str) -> Path:
         "head": 'name = "bad"\n[robot]\nmodel = "ar5"\ntool = { xyz = [0.1, 0.0, 0.05] }\n',
         "path": '[path]\nkind = "line"\nstart = [0.20, 0.40, 0.30]\nend = [0.45, -0.10, 0.30]\npoints = 10\n',
         "orientation": '[orientation]\nrule = "free_tool_axis"\n',
-        "wrench": '[wrench]\nforce = [15.0, -25.0, 30.0]\n',
+        "wrench": "[wrench]\nforce = [15.0, -25.0, 30.0]\n",
         "rest": "",
     }
     base.update(sections)
@@ -233,8 +256,11 @@ def _problem_file(tmp_path: Path, **sections: str) -> Path:
 
 
 FAILURES = [
-    ("unreachable", {"path": '[path]\nkind = "waypoints"\npositions = [[0.3, 0.0, 0.3], [1.5, 0.0, 0.3], '
-                             '[0.3, 0.1, 0.3]]\n'}, ["unreachable", "waypoint 1"]),
+    (
+        "unreachable",
+        {"path": '[path]\nkind = "waypoints"\npositions = [[0.3, 0.0, 0.3], [1.5, 0.0, 0.3], [0.3, 0.1, 0.3]]\n'},
+        ["unreachable", "waypoint 1"],
+    ),
     ("flip", {"rest": "[limits]\nmax_joint_step = 0.01\n"}, ["no_branch", "flip between waypoints"]),
     ("toppra", {"rest": "[timing]\ntoppra_max_iterations = 1\n"}, ["timing_failed", "toppra", "acceleration"]),
     ("ipopt", {"rest": "[solver]\nmax_iter = 1\n"}, ["solver_failed", "IPOPT", "Maximum_Iterations_Exceeded"]),
@@ -251,7 +277,7 @@ def test_infeasible_input_gives_status_one_line_and_nonzero_exit(tmp_path, capsy
     assert len(lines) == 1 and lines[0].startswith("compplan: error: "), err
     for w in words:
         assert w in lines[0], (w, lines[0])
-    assert "Traceback" not in err and not out_dir.exists()       # nothing written
+    assert "Traceback" not in err and not out_dir.exists()  # nothing written
 
 
 def test_missing_problem_and_bad_dt(tmp_path, capsys):
@@ -265,7 +291,7 @@ def test_plan_result_statuses_without_the_cli():
     pr = load_problem("paper_4_4").with_timing(toppra_max_iterations=1)
     res = plan(pr)
     assert res.status is PlanStatus.TIMING_FAILED and "toppra" in res.reason
-    assert res.posture is not None and res.exact is not None          # what ran is kept
+    assert res.posture is not None and res.exact is not None  # what ran is kept
     with pytest.raises(Exception, match="timing_failed"):
         res.raise_for_status()
 
@@ -301,7 +327,9 @@ def test_a_plan_is_computed_once(tmp_path, monkeypatch, capsys):
         def counted(*args, **kwargs):
             calls[key] += 1
             return f(*args, **kwargs)
+
         monkeypatch.setattr(owner, name, counted)
+
     for name in ("summary", "waypoint_table", "branch_table", "branch_errors"):
         count(PlanResult, name, name)
     count(KinematicModel, "__init__", "KinematicModel")
@@ -309,8 +337,13 @@ def test_a_plan_is_computed_once(tmp_path, monkeypatch, capsys):
     code, _, err = _run(capsys, "demo", "--points", "12", "--out", str(tmp_path / "run"))
     assert code == 0 and err == "", err
     assert (tmp_path / "run" / "report.html").is_file() and (tmp_path / "run" / "compliance_map.csv").is_file()
-    assert dict(calls) == {"summary": 1, "waypoint_table": 1, "branch_table": 1, "branch_errors": 1,
-                           "KinematicModel": 1}
+    assert dict(calls) == {
+        "summary": 1,
+        "waypoint_table": 1,
+        "branch_table": 1,
+        "branch_errors": 1,
+        "KinematicModel": 1,
+    }
 
 
 def test_the_quick_figures_are_the_reports(machining_run, tmp_path):
@@ -319,6 +352,7 @@ def test_the_quick_figures_are_the_reports(machining_run, tmp_path):
     import shutil
 
     from planner.report import write_report
+
     folder = tmp_path / "run"
     shutil.copytree(machining_run, folder)
     write_report(folder, map_options=False, workers=1)

@@ -30,8 +30,9 @@ OFFSET_TOL = 1e-9
 def _run(args: list[str], env: dict[str, str], cwd: Path, module: str = "planner") -> subprocess.CompletedProcess:
     """``python -m planner ARGS`` (or ``python -c`` when ``module`` is None) with ``env`` added."""
     cmd = [sys.executable, "-m", module, *args] if module else [sys.executable, "-c", *args]
-    return subprocess.run(cmd, cwd=cwd, env={**os.environ, **env}, capture_output=True, text=True, timeout=900,
-                          check=False)
+    return subprocess.run(
+        cmd, cwd=cwd, env={**os.environ, **env}, capture_output=True, text=True, timeout=900, check=False
+    )
 
 
 def _ok(r: subprocess.CompletedProcess) -> subprocess.CompletedProcess:
@@ -97,15 +98,16 @@ def test_an_ik_family_plugin_plans_and_reports(tmp_path):
     s = json.loads((tmp_path / "run" / "summary.json").read_text(encoding="utf-8"))
     assert s["plan_status"] == "ok", s["reason"]
     assert s["ik_family"] == "marked_ur"
-    assert s["branch_labels"] == ["mk" + lab for lab in
-                                  ("s+w+e+", "s+w+e-", "s+w-e+", "s+w-e-", "s-w+e+", "s-w+e-", "s-w-e+", "s-w-e-")]
+    assert s["branch_labels"] == [
+        "mk" + lab for lab in ("s+w+e+", "s+w+e-", "s+w-e+", "s+w-e-", "s-w+e+", "s-w+e-", "s-w-e+", "s-w-e-")
+    ]
     assert str(s["chosen_branch"]).startswith("mk")
     html = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
-    assert s["chosen_branch"] in html and "mks-w-e-" in html       # the branch table names every branch
+    assert s["chosen_branch"] in html and "mks-w-e-" in html  # the branch table names every branch
     assert "marked_ar5" in log.read_text(encoding="utf-8").split()
 
     check = _ok(_run(["robot", "check", "ur5"], env, tmp_path)).stdout
-    assert "IK family: ur " in check          # an unmarked robot: the built-in family
+    assert "IK family: ur " in check  # an unmarked robot: the built-in family
     marked = _ok(_run(["robot", "check", str(tmp_path / "marked_ar5.toml")], env, tmp_path)).stdout
     assert "IK family: marked_ur " in marked
 
@@ -144,8 +146,11 @@ def test_an_export_format_plugin_is_offered_and_written(tmp_path):
     listed = _ok(_run(["export", "--list"], env, tmp_path)).stdout
     assert "tq_csv (.csv): test plug-in" in listed
     run = tmp_path / "run"
-    _ok(_run(["plan", "paper_4_4", "--out", str(run), "--no-report", "--no-figures", "--export", "tq_csv"],
-             env, tmp_path))
+    _ok(
+        _run(
+            ["plan", "paper_4_4", "--out", str(run), "--no-report", "--no-figures", "--export", "tq_csv"], env, tmp_path
+        )
+    )
     _ok(_run(["export", str(run), "--format", "tq_csv", "--out", str(tmp_path / "again")], env, tmp_path))
 
     names = ["t"] + [f"q{i}" for i in range(1, 7)]
@@ -158,7 +163,7 @@ def test_an_export_format_plugin_is_offered_and_written(tmp_path):
         assert np.max(np.abs(got - reference)) < CSV_ANGLE_TOL, path
 
     unknown = _run(["export", str(run), "--format", "no_such", "--out", str(tmp_path / "x")], env, tmp_path)
-    assert unknown.returncode == 2 and "tq_csv" in unknown.stderr      # the choices name the plug-in
+    assert unknown.returncode == 2 and "tq_csv" in unknown.stderr  # the choices name the plug-in
 
 
 # ------------------------------------------------------------------------------ effect
@@ -180,7 +185,7 @@ class WristOffset(Effect):
         return {**dh, "d": dh["d"] + ca.vertcat(0, 0, 0, ctx.p("wrist_offset.d"), 0, 0)}
 '''
 
-WRITE_MODEL = '''
+WRITE_MODEL = """
 import sys
 import numpy as np
 import models.effects as fx
@@ -196,7 +201,7 @@ q = np.array([0.1, -1.0, 1.2, -1.5, -1.4, 0.3])
 moved = np.linalg.norm(model.kinematics.tcp(q)[:3, 3] - base.kinematics.tcp(q)[:3, 3])
 open(sys.argv[1], "w", encoding="utf-8").write(model_toml(model))
 print(moved)
-'''
+"""
 
 
 def test_an_effect_plugin_reaches_the_plan_and_report(tmp_path):
@@ -208,8 +213,11 @@ def test_an_effect_plugin_reaches_the_plan_and_report(tmp_path):
     (plugins / "wrist_offset.py").write_text(EFFECT_PLUGIN, encoding="utf-8")
     env = {"COMPPLAN_EFFECT_PATH": str(plugins)}
     model = tmp_path / "ar5_offset.toml"
-    moved = float(_ok(_run([textwrap.dedent(WRITE_MODEL), str(model), str(WRIST_OFFSET_M)], env, tmp_path,
-                           module=None)).stdout.split()[-1])
+    moved = float(
+        _ok(
+            _run([textwrap.dedent(WRITE_MODEL), str(model), str(WRIST_OFFSET_M)], env, tmp_path, module=None)
+        ).stdout.split()[-1]
+    )
     assert abs(moved - WRIST_OFFSET_M) < OFFSET_TOL
     assert "wrist_offset" in model.read_text(encoding="utf-8")
     problem = _problem(tmp_path, model.name, "plugin_effect")
@@ -222,7 +230,7 @@ def test_an_effect_plugin_reaches_the_plan_and_report(tmp_path):
     assert (tmp_path / "run" / "report.html").stat().st_size > 0
 
     without = _run(["plan", str(problem), "--out", str(tmp_path / "run2"), "--no-report"], {}, tmp_path)
-    assert without.returncode == 2 and "wrist_offset" in without.stderr     # not found: a clear error
+    assert without.returncode == 2 and "wrist_offset" in without.stderr  # not found: a clear error
 
 
 # ------------------------------------------------------------------------------ errors
@@ -243,13 +251,22 @@ def test_a_missing_plugin_folder_is_one_line(tmp_path, variable):
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.parametrize("variable, text, error", [
-    ("COMPPLAN_IK_PATH", "def broken(:\n", "SyntaxError"),
-    ("COMPPLAN_EXPORT_PATH", "from . import no_such_name\n", "ImportError"),
-    ("COMPPLAN_EFFECT_PATH", "raise RuntimeError('plug-in refuses')\n", "plug-in refuses"),
-    ("COMPPLAN_IK_PATH", ("from .base import register_family\nfrom .ur import AnalyticIK\n"
-                          "register_family(type('Twice', (AnalyticIK,), {}))\n"), "registered twice"),
-])
+@pytest.mark.parametrize(
+    "variable, text, error",
+    [
+        ("COMPPLAN_IK_PATH", "def broken(:\n", "SyntaxError"),
+        ("COMPPLAN_EXPORT_PATH", "from . import no_such_name\n", "ImportError"),
+        ("COMPPLAN_EFFECT_PATH", "raise RuntimeError('plug-in refuses')\n", "plug-in refuses"),
+        (
+            "COMPPLAN_IK_PATH",
+            (
+                "from .base import register_family\nfrom .ur import AnalyticIK\n"
+                "register_family(type('Twice', (AnalyticIK,), {}))\n"
+            ),
+            "registered twice",
+        ),
+    ],
+)
 def test_a_failing_plugin_module_is_one_line(tmp_path, variable, text, error):
     folder = tmp_path / "plugins"
     folder.mkdir()

@@ -15,23 +15,37 @@ from models.ik import BRANCH_LABELS, IKStatus
 from models.transforms import tool_down_rotation, transform
 from problems import paper
 from problems.path import line_positions
-from problems.posture import (BranchStatus, N_THETA, OrientationRule, PostureError,
-                              PostureNLP, PostureStatus, PostureTask, SolverSettings, _stage_sx,
-                              analyse_freedom, branch_signs, guard_bounds, optimal_pose,
-                              optimise_postures, singular_factors, warm_starts)
+from problems.posture import (
+    BranchStatus,
+    N_THETA,
+    OrientationRule,
+    PostureError,
+    PostureNLP,
+    PostureStatus,
+    PostureTask,
+    SolverSettings,
+    analyse_freedom,
+    branch_signs,
+    guard_bounds,
+    optimal_pose,
+    optimise_postures,
+    singular_factors,
+    warm_starts,
+)
+from problems.posture.transcription import _stage_sx
 from problems.problem import load_problem
 
 #: Tolerances of the assertions.
 POSITION_TOL_M = 1e-9
 ANGLE_TOL_RAD = 1e-9
-COST_SLACK = 1e-12          # m^2: optimised may equal the analytic cost
+COST_SLACK = 1e-12  # m^2: optimised may equal the analytic cost
 STEP_SLACK_RAD = 1e-6
 
 OFF_AXIS_TOOL = transform(np.eye(3), [0.1, 0.0, 0.05])
 FORCE = np.array([15.0, -25.0, 30.0, 0.0, 0.0, 0.0])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _tooled(xyz: tuple[float, ...]):
     robot = load_robot("ar5").with_tool(transform(np.eye(3), list(xyz)))
     return robot, KinematicModel(robot), AnalyticIK(robot)
@@ -44,7 +58,7 @@ def _task(rule: OrientationRule, n: int = 12, **kw) -> PostureTask:
     return PostureTask(P, tool_down_rotation(), rule, FORCE, **kw)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _solved(rule_value: str):
     robot, model, ik = _tooled((0.1, 0.0, 0.05))
     task = _task(OrientationRule(rule_value))
@@ -70,8 +84,10 @@ def test_branch_signs_are_the_branch_label():
         label = BRANCH_LABELS[b]
         # shoulder sign flips between s+ and s-; wrist and elbow signs are those of the label
         assert s[1] == (1.0 if label[3] == "+" else -1.0) and s[2] == (1.0 if label[5] == "+" else -1.0)
-    shoulders = {BRANCH_LABELS[b][1]: branch_signs(ik, sol.q[0, b][None])[0]
-                 for b in np.where(sol.status[0] == IKStatus.OK.code)[0]}
+    shoulders = {
+        BRANCH_LABELS[b][1]: branch_signs(ik, sol.q[0, b][None])[0]
+        for b in np.where(sol.status[0] == IKStatus.OK.code)[0]
+    }
     assert shoulders["+"] == -shoulders["-"]
 
 
@@ -97,7 +113,9 @@ def test_hand_assembled_derivatives_equal_automatic_differentiation(rule, rng):
     sigma = 0.37
     ref_grad = np.asarray(ca.Function("g", [x], [ca.gradient(f, x)])(xv)).ravel()
     ref_jac = np.asarray(ca.densify(ca.Function("j", [x], [ca.jacobian(G, x)])(xv)))
-    ref_hess = np.asarray(ca.densify(ca.Function("h", [x], [ca.triu(ca.hessian(sigma * f + ca.dot(ca.DM(lam), G), x)[0])])(xv)))
+    ref_hess = np.asarray(
+        ca.densify(ca.Function("h", [x], [ca.triu(ca.hessian(sigma * f + ca.dot(ca.DM(lam), G), x)[0])])(xv))
+    )
     S = nlp.solver
     got_grad = np.asarray(S.get_function("nlp_grad_f")(xv, p)[1]).ravel()
     got_jac = np.asarray(ca.densify(S.get_function("nlp_jac_g")(xv, p)[1]))
@@ -133,9 +151,13 @@ def test_degenerate_case_is_detected_and_really_degenerate():
 def test_fixed_orientation_has_no_freedom():
     robot, model, ik = _tooled((0.0, 0.0, 0.0))
     P = line_positions(paper.SECTION_4_4_START_M, paper.SECTION_4_4_END_M, 8)
-    res = optimise_postures(robot, PostureTask(P, tool_down_rotation(), OrientationRule.FIXED,
-                                               paper.SECTION_4_4_WRENCH, max_joint_step=2.0), paper.HOME_Q,
-                            model=model, ik=ik)
+    res = optimise_postures(
+        robot,
+        PostureTask(P, tool_down_rotation(), OrientationRule.FIXED, paper.SECTION_4_4_WRENCH, max_joint_step=2.0),
+        paper.HOME_Q,
+        model=model,
+        ik=ik,
+    )
     assert res.ok and res.freedom == "none"
     assert {BRANCH_LABELS[b] for b in res.branches} == {"s+w+e+", "s+w+e-", "s-w-e+", "s-w-e-"}
     for r in res.branches.values():
@@ -183,7 +205,7 @@ def test_cone_solution_uses_the_tilt():
     _, model, _, task, res = _solved("cone")
     T = model.tcp(res.best.q)
     ang = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", T[:, :3, 2], task.axes), -1, 1)))
-    assert ang.max() > 1.0          # it does tilt (the free directions are used)
+    assert ang.max() > 1.0  # it does tilt (the free directions are used)
 
 
 def test_warm_start_dynamic_programme_beats_every_constant_rotation():
@@ -193,6 +215,7 @@ def test_warm_start_dynamic_programme_beats_every_constant_rotation():
     ws = warm_starts(ik, model, task)
     from problems.path import branch_paths, poses
     from problems.posture import candidates, linear_error
+
     lam = task.smoothness
 
     def objective(q):
@@ -218,8 +241,7 @@ def test_compiled_and_virtual_machine_solvers_agree():
 def test_single_pose_query():
     robot = _tooled((0.1, 0.0, 0.05))[0]
     p = np.array([0.35, 0.1, 0.3])
-    res = optimal_pose(robot, p, tool_down_rotation(), OrientationRule.FREE_TOOL_AXIS, FORCE,
-                       home_q=paper.HOME_Q)
+    res = optimal_pose(robot, p, tool_down_rotation(), OrientationRule.FREE_TOOL_AXIS, FORCE, home_q=paper.HOME_Q)
     assert res.ok and res.task.n == 1 and len(res.branches) == 8
     model = KinematicModel(robot)
     for r in res.branches.values():
@@ -235,8 +257,13 @@ def test_single_pose_query():
 def test_unreachable_waypoint_is_named():
     robot, model, ik = _tooled((0.1, 0.0, 0.05))
     P = np.array([[0.35, 0.0, 0.3], [1.6, 0.0, 0.3], [0.35, 0.1, 0.3]])
-    res = optimise_postures(robot, PostureTask(P, tool_down_rotation(), OrientationRule.FREE_TOOL_AXIS, FORCE),
-                            paper.HOME_Q, model=model, ik=ik)
+    res = optimise_postures(
+        robot,
+        PostureTask(P, tool_down_rotation(), OrientationRule.FREE_TOOL_AXIS, FORCE),
+        paper.HOME_Q,
+        model=model,
+        ik=ik,
+    )
     assert res.status is PostureStatus.UNREACHABLE and res.unreachable == [1]
     assert "waypoint 1" in res.reason and "1.6" in res.reason
     with pytest.raises(Exception, match="no branch chosen"):
@@ -253,24 +280,32 @@ def test_unavoidable_flip_is_reported():
 
 def test_solver_failure_is_reported_per_branch():
     robot, model, ik = _tooled((0.1, 0.0, 0.05))
-    res = optimise_postures(robot, _task(OrientationRule.POSITION_ONLY, 8), paper.HOME_Q,
-                            SolverSettings(max_iter=1), model=model, ik=ik)
+    res = optimise_postures(
+        robot, _task(OrientationRule.POSITION_ONLY, 8), paper.HOME_Q, SolverSettings(max_iter=1), model=model, ik=ik
+    )
     assert res.status is PostureStatus.SOLVER_FAILED and res.chosen is None
     for r in res.branches.values():
         assert r.status is BranchStatus.SOLVER_FAILED and "Maximum_Iterations_Exceeded" in r.reason
 
 
-@pytest.mark.parametrize("kw,words", [
-    ({"positions": np.zeros((3, 2))}, "positions"),
-    ({"rotations": np.eye(3) * 2}, "proper rotation"),
-    ({"wrench": np.zeros(5)}, "wrench"),
-    ({"cone_half_angle": 0.0, "rule": OrientationRule.CONE}, "half-angle"),
-    ({"max_joint_step": -1.0}, "max_joint_step"),
-    ({"positions": np.array([[0.3, 0.0, np.nan]])}, "not finite"),
-])
+@pytest.mark.parametrize(
+    "kw,words",
+    [
+        ({"positions": np.zeros((3, 2))}, "positions"),
+        ({"rotations": np.eye(3) * 2}, "proper rotation"),
+        ({"wrench": np.zeros(5)}, "wrench"),
+        ({"cone_half_angle": 0.0, "rule": OrientationRule.CONE}, "half-angle"),
+        ({"max_joint_step": -1.0}, "max_joint_step"),
+        ({"positions": np.array([[0.3, 0.0, np.nan]])}, "not finite"),
+    ],
+)
 def test_task_validation(kw, words):
-    args = dict(positions=np.array([[0.3, 0.0, 0.3]]), rotations=np.eye(3), rule=OrientationRule.POSITION_ONLY,
-                wrench=np.zeros(6))
+    args = dict(
+        positions=np.array([[0.3, 0.0, 0.3]]),
+        rotations=np.eye(3),
+        rule=OrientationRule.POSITION_ONLY,
+        wrench=np.zeros(6),
+    )
     args.update(kw)
     with pytest.raises(PostureError, match=words):
         PostureTask(**args)
@@ -292,7 +327,7 @@ def test_package_reexports_its_modules_names():
     for name in pkg.__all__:
         assert hasattr(pkg, name), name
     assert pkg.PostureTask is task.PostureTask and pkg.N_THETA == task.N_THETA
-    assert pkg._stage_sx is transcription._stage_sx and pkg.get_nlp is transcription.get_nlp
+    assert pkg.get_nlp is transcription.get_nlp
     assert pkg.warm_starts is warm_start.warm_starts and pkg.candidates is warm_start.candidates
     assert pkg.verify is verification.verify and pkg.singular_factors is verification.singular_factors
     assert pkg.optimise_postures is solve.optimise_postures and pkg.optimal_pose is solve.optimal_pose

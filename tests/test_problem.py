@@ -18,13 +18,18 @@ from problems.posture import OrientationRule
 from problems.problem import ProblemFileError, load_problem, problem_from_dict, shipped_problems
 from problems.timing import DT_DEFAULT_S, default_methods
 
-SHIPPED = {"paper_4_4": (OrientationRule.FIXED, 40), "paper_5_2_points": (OrientationRule.FIXED, 11),
-           "machining_offaxis": (OrientationRule.FREE_TOOL_AXIS, 40),
-           "drilling_cone": (OrientationRule.CONE, 9),
-           "measuring_position_only": (OrientationRule.POSITION_ONLY, 30),
-           "ur10_payload_tilt": (OrientationRule.FIXED, 11), "ur5_tool_thrust": (OrientationRule.CONE, 20),
-           "kr6_milling": (OrientationRule.CONE, 30), "ur5_fast_payload": (OrientationRule.FIXED, 24),
-           "placement_milling": (OrientationRule.FREE_TOOL_AXIS, 30)}
+SHIPPED = {
+    "paper_4_4": (OrientationRule.FIXED, 40),
+    "paper_5_2_points": (OrientationRule.FIXED, 11),
+    "machining_offaxis": (OrientationRule.FREE_TOOL_AXIS, 40),
+    "drilling_cone": (OrientationRule.CONE, 9),
+    "measuring_position_only": (OrientationRule.POSITION_ONLY, 30),
+    "ur10_payload_tilt": (OrientationRule.FIXED, 11),
+    "ur5_tool_thrust": (OrientationRule.CONE, 20),
+    "kr6_milling": (OrientationRule.CONE, 30),
+    "ur5_fast_payload": (OrientationRule.FIXED, 24),
+    "placement_milling": (OrientationRule.FREE_TOOL_AXIS, 30),
+}
 
 MINIMAL = """
 name = "t"
@@ -64,7 +69,7 @@ def test_paper_problem_is_the_papers_scenario():
     assert np.allclose(pr.wrench, paper.SECTION_4_4_WRENCH)
     assert np.allclose(pr.home_q, paper.HOME_Q)
     assert np.allclose(pr.robot.tcp2flange, np.eye(4))
-    assert np.allclose(pr.rotations[0][:, 2], [0.0, 0.0, -1.0])      # tool down
+    assert np.allclose(pr.rotations[0][:, 2], [0.0, 0.0, -1.0])  # tool down
 
 
 def test_off_axis_problems_have_their_tool():
@@ -94,14 +99,16 @@ def test_defaults_come_from_the_robot_and_the_paper(tmp_path):
     assert np.allclose(pr.limits.velocity, robot.v_max) and np.allclose(pr.limits.jerk, robot.j_max)
     assert pr.timing.dt == DT_DEFAULT_S and pr.timing.methods == default_methods()
     assert np.allclose(pr.home_q, paper.HOME_Q)
-    assert np.allclose(pr.rotations[:, :, 2], [0.0, 0.0, -1.0])      # default: tool down
+    assert np.allclose(pr.rotations[:, :, 2], [0.0, 0.0, -1.0])  # default: tool down
     assert np.allclose(pr.wrench[:, 2], -10.0) and np.allclose(pr.wrench[:, 3:], 0.0)
 
 
 def test_units_scales_axis_and_relative_robot_path(tmp_path):
     robot_file = tmp_path / "arm.toml"
     shutil.copyfile(resources.files("models").joinpath("robots/ur5.toml"), robot_file)
-    text = MINIMAL.replace('model = "ar5"', 'model = "arm.toml"\ntool = { xyz = [0.0, 0.0, 0.1], rpy_deg = [0, 0, 90] }')
+    text = MINIMAL.replace(
+        'model = "ar5"', 'model = "arm.toml"\ntool = { xyz = [0.0, 0.0, 0.1], rpy_deg = [0, 0, 90] }'
+    )
     text = text.replace('rule = "free_tool_axis"', 'rule = "cone"\naxis = [1.0, 0.0, 0.0]\nhalf_angle_deg = 10')
     text += "[limits]\nvelocity_scale = 0.5\njerk = 20.0\nmax_joint_step_deg = 10\n[timing]\ndt = 0.002\n"
     pr = load_problem(_write(tmp_path / "", text))
@@ -129,8 +136,8 @@ def test_with_points_resamples_a_line_and_refuses_waypoints():
 BAD = [
     # (replace this, by this, expected words in the message)
     ('name = "t"', 'name = "t"\ncolour = "red"', ["unknown top-level key", "colour"]),
-    ('points = 5', 'points = 1', ["path.points", "integer in [2,", "got 1"]),
-    ('points = 5', 'points = 5.5', ["path.points", "5.5"]),
+    ("points = 5", "points = 1", ["path.points", "integer in [2,", "got 1"]),
+    ("points = 5", "points = 5.5", ["path.points", "5.5"]),
     ('kind = "line"', 'kind = "spline"', ["path.kind", "'line' or 'waypoints'", "spline"]),
     ('rule = "free_tool_axis"', 'rule = "free"', ["orientation.rule", "position_only", "'free'"]),
     ('rule = "free_tool_axis"', 'rule = "cone"', ["orientation.half_angle_deg", "required"]),
@@ -138,26 +145,43 @@ BAD = [
     ('rule = "free_tool_axis"', 'rule = "fixed"\naxis = [0, 0, 1]', ["orientation.axis", "fixed"]),
     ('rule = "free_tool_axis"', 'rule = "free_tool_axis"\naxis = [0, 0, 0]', ["orientation.axis", "non-zero"]),
     ('rule = "free_tool_axis"', 'rule = "free_tool_axis"\nrpy = [0,0,0]\nrpy_deg = [0,0,0]', ["either", "rpy"]),
-    ('start = [0.3, -0.1, 0.3]', 'start = [300.0, -100.0, 300.0]', ["path.start/end", "metres", "millimetres"]),
-    ('start = [0.3, -0.1, 0.3]', 'start = [0.3, -0.1]', ["path.start", "list of 3 numbers"]),
-    ('end = [0.3, 0.1, 0.3]', 'end = [0.3, -0.1, 0.3]', ["path.end", "distinct"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0.0, 0.0, "x"]', ["wrench.force[2]", "number"]),
-    ('force = [0.0, 0.0, -10.0]', 'per_waypoint = [[0, 0, 1, 0, 0, 0]]', ["wrench.per_waypoint", "1 rows", "5 waypoints"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0,0,1]\nframe = "world"', ["wrench.frame", "'tool'"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0,0,1]\n[payload]\ncom_m = [0,0,0.1]', ["payload.mass_kg"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0,0,1]\n[payload]\nmass_kg = -2.0', ["payload.mass_kg", ">= 0"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0,0,1]\n[payload]\nmass_kg = 2.0\ncom_m = [0, 0, 120]',
-     ["payload.com_m", "millimetres"]),
+    ("start = [0.3, -0.1, 0.3]", "start = [300.0, -100.0, 300.0]", ["path.start/end", "metres", "millimetres"]),
+    ("start = [0.3, -0.1, 0.3]", "start = [0.3, -0.1]", ["path.start", "list of 3 numbers"]),
+    ("end = [0.3, 0.1, 0.3]", "end = [0.3, -0.1, 0.3]", ["path.end", "distinct"]),
+    ("force = [0.0, 0.0, -10.0]", 'force = [0.0, 0.0, "x"]', ["wrench.force[2]", "number"]),
+    (
+        "force = [0.0, 0.0, -10.0]",
+        "per_waypoint = [[0, 0, 1, 0, 0, 0]]",
+        ["wrench.per_waypoint", "1 rows", "5 waypoints"],
+    ),
+    ("force = [0.0, 0.0, -10.0]", 'force = [0,0,1]\nframe = "world"', ["wrench.frame", "'tool'"]),
+    ("force = [0.0, 0.0, -10.0]", "force = [0,0,1]\n[payload]\ncom_m = [0,0,0.1]", ["payload.mass_kg"]),
+    ("force = [0.0, 0.0, -10.0]", "force = [0,0,1]\n[payload]\nmass_kg = -2.0", ["payload.mass_kg", ">= 0"]),
+    (
+        "force = [0.0, 0.0, -10.0]",
+        "force = [0,0,1]\n[payload]\nmass_kg = 2.0\ncom_m = [0, 0, 120]",
+        ["payload.com_m", "millimetres"],
+    ),
     ('model = "ar5"', 'model = "nosuch.toml"', ["robot.model", "no such file"]),
-    ('model = "ar5"', 'model = 5', ["robot.model", "built-in robot name"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0.0, 0.0, -10.0]\n[limits]\nvelocity = [1, 1, 1, 1, 0, 1]',
-     ["limits.velocity", "joint 5", "> 0"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0.0, 0.0, -10.0]\n[timing]\nmethods = ["toppra", "bang"]',
-     ["timing.methods", "bang"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0.0, 0.0, -10.0]\n[timing]\ndt = 0.5', ["timing.dt", "(0, 0.1]"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0.0, 0.0, -10.0]\n[solver]\nname = "snopt"', ["solver.name", "ipopt"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0.0, 0.0, -10.0]\n[cost]\nsmoothness = -1', ["cost.smoothness", ">= 0"]),
-    ('force = [0.0, 0.0, -10.0]', 'force = [0.0, 0.0, -10.0]\n[branch]\nhome_deg = [0, 1]', ["branch.home_deg", "6 numbers"]),
+    ('model = "ar5"', "model = 5", ["robot.model", "built-in robot name"]),
+    (
+        "force = [0.0, 0.0, -10.0]",
+        "force = [0.0, 0.0, -10.0]\n[limits]\nvelocity = [1, 1, 1, 1, 0, 1]",
+        ["limits.velocity", "joint 5", "> 0"],
+    ),
+    (
+        "force = [0.0, 0.0, -10.0]",
+        'force = [0.0, 0.0, -10.0]\n[timing]\nmethods = ["toppra", "bang"]',
+        ["timing.methods", "bang"],
+    ),
+    ("force = [0.0, 0.0, -10.0]", "force = [0.0, 0.0, -10.0]\n[timing]\ndt = 0.5", ["timing.dt", "(0, 0.1]"]),
+    ("force = [0.0, 0.0, -10.0]", 'force = [0.0, 0.0, -10.0]\n[solver]\nname = "snopt"', ["solver.name", "ipopt"]),
+    ("force = [0.0, 0.0, -10.0]", "force = [0.0, 0.0, -10.0]\n[cost]\nsmoothness = -1", ["cost.smoothness", ">= 0"]),
+    (
+        "force = [0.0, 0.0, -10.0]",
+        "force = [0.0, 0.0, -10.0]\n[branch]\nhome_deg = [0, 1]",
+        ["branch.home_deg", "6 numbers"],
+    ),
 ]
 
 
@@ -174,8 +198,10 @@ def test_malformed_files_are_named(tmp_path, old, new, words):
 
 
 def test_waypoints_kind_rows_are_named(tmp_path):
-    text = MINIMAL.replace('kind = "line"\nstart = [0.3, -0.1, 0.3]\nend = [0.3, 0.1, 0.3]\npoints = 5',
-                           'kind = "waypoints"\npositions = [[0.3, 0.0, 0.3], [0.3, 0.1]]')
+    text = MINIMAL.replace(
+        'kind = "line"\nstart = [0.3, -0.1, 0.3]\nend = [0.3, 0.1, 0.3]\npoints = 5',
+        'kind = "waypoints"\npositions = [[0.3, 0.0, 0.3], [0.3, 0.1]]',
+    )
     with pytest.raises(ProblemFileError, match=r"path.positions' row 1"):
         load_problem(_write(tmp_path, text))
     text = text.replace("[0.3, 0.1]]", "[0.3, 0.1, 0.3]]\nrpy_deg = [[180, 0, 0]]")

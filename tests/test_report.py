@@ -18,10 +18,25 @@ from models.ik import BRANCH_LABELS
 from planner.cli import main
 from planner.compliance_map import compliance_map
 from planner.output import TRAJECTORY_COLUMNS, csv_bytes
-from planner.numbers import (DISPLAY_DIGITS, NUMERICAL_FLOOR_MM, NUMERICAL_ZERO_TEXT, format_value,
-                             is_error_key, round_sig)
-from planner.report import (FIGURE_NAMES, build_figures, load_run, lookup, render_html,
-                            render_markdown, run_from_plan, summary_tables, write_report)
+from planner.numbers import (
+    DISPLAY_DIGITS,
+    NUMERICAL_FLOOR_MM,
+    NUMERICAL_ZERO_TEXT,
+    format_value,
+    is_error_key,
+    round_sig,
+)
+from planner.report import (
+    FIGURE_NAMES,
+    build_figures,
+    load_run,
+    lookup,
+    render_html,
+    render_markdown,
+    run_from_plan,
+    summary_tables,
+    write_report,
+)
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 #: A number shown with DISPLAY_DIGITS significant digits is within this of its value (relative).
@@ -49,8 +64,12 @@ class _ReportParser(HTMLParser):
             if "data-figure" in a:
                 self.images[a["data-figure"]] = a.get("src", "")
         if tag == "td" and "data-key" in a:
-            self._cell = {"key": a["data-key"], "value": json.loads(a["data-value"]),
-                          "agg": a.get("data-agg"), "text": ""}
+            self._cell = {
+                "key": a["data-key"],
+                "value": json.loads(a["data-value"]),
+                "agg": a.get("data-agg"),
+                "text": "",
+            }
         if tag == "p" and "data-absent" in a:
             self._absent = a["data-absent"]
             self.absent[self._absent] = ""
@@ -91,7 +110,7 @@ def _shown_matches(text: str, value: float | int, key: str) -> None:
         assert abs(expected) < floor, (key, expected)
         return
     assert float(text) == pytest.approx(expected, rel=DISPLAY_REL, abs=0), (key, text, expected)
-    if isinstance(value, float) and expected != 0.0:     # rounded to what it means, not more
+    if isinstance(value, float) and expected != 0.0:  # rounded to what it means, not more
         digits = len(text.split("e")[0].replace("-", "").replace(".", "").lstrip("0"))
         assert digits <= DISPLAY_DIGITS, (key, text)
 
@@ -103,7 +122,7 @@ def check_cells_match_summary(folder: Path) -> _ReportParser:
     rep = parse(folder)
     assert rep.cells, "no machine-checkable cells in report.html"
     for c in rep.cells:
-        expected = lookup(summary, c["key"])          # KeyError: cell names a key not in summary
+        expected = lookup(summary, c["key"])  # KeyError: cell names a key not in summary
         if c["agg"] == "max":
             expected = max(x for x in _flat(expected) if x is not None)
         assert c["value"] == expected, c
@@ -185,14 +204,18 @@ def synthetic_timing(src: Path, dst: Path) -> Path:
     t = np.arange(0.0, T + 1e-9, 0.008)
     x = t / T
     d = q1 - q0
-    rows = np.column_stack([t, q0 + np.outer(10 * x**3 - 15 * x**4 + 6 * x**5, d),
-                            np.outer((30 * x**2 - 60 * x**3 + 30 * x**4) / T, d),
-                            np.outer((60 * x - 180 * x**2 + 120 * x**3) / T**2, d),
-                            np.outer((60 - 360 * x + 360 * x**2) / T**3, d)])
+    rows = np.column_stack(
+        [
+            t,
+            q0 + np.outer(10 * x**3 - 15 * x**4 + 6 * x**5, d),
+            np.outer((30 * x**2 - 60 * x**3 + 30 * x**4) / T, d),
+            np.outer((60 * x - 180 * x**2 + 120 * x**3) / T**2, d),
+            np.outer((60 - 360 * x + 360 * x**2) / T**3, d),
+        ]
+    )
     (dst / "trajectory.csv").write_bytes(csv_bytes(TRAJECTORY_COLUMNS, rows))  # default: Ruckig
     s["duration_s"] = T
-    s["limit_ratio"] = {"velocity": [0.4] * 6, "acceleration": [0.7] * 6,
-                        "jerk": [0.1, 0.2, 0.99, 0.3, 0.0, 0.5]}
+    s["limit_ratio"] = {"velocity": [0.4] * 6, "acceleration": [0.7] * 6, "jerk": [0.1, 0.2, 0.99, 0.3, 0.0, 0.5]}
     s["limits"] = {"velocity": [2.0] * 6, "acceleration": [4.0] * 6, "jerk": [40.0] * 6}
     (dst / "summary.json").write_text(json.dumps(s))
     return dst
@@ -212,14 +235,21 @@ def test_demo_report_renders_every_figure_and_embeds_it(demo_report):
 def test_demo_report_table_equals_summary(demo_report):
     rep = check_cells_match_summary(demo_report)
     keys = {c["key"] for c in rep.cells}
-    for k in ("robot", "wrench.F_N", "wrench.M_Nm", "error_before.max_mm",
-              "error_before.rms_mm", "error_after.closed_form.max_mm",
-              "error_after.closed_form.rms_mm", "error_after.exact.max_mm",
-              "error_after.exact.rms_mm"):
+    for k in (
+        "robot",
+        "wrench.F_N",
+        "wrench.M_Nm",
+        "error_before.max_mm",
+        "error_before.rms_mm",
+        "error_after.closed_form.max_mm",
+        "error_after.closed_form.rms_mm",
+        "error_after.exact.max_mm",
+        "error_after.exact.rms_mm",
+    ):
         assert k in keys, f"table lacks {k}"
     assert {"branch", "chosen_branch"} & keys
     summary = json.loads((demo_report / "summary.json").read_text())
-    for m in summary.get("duration_s", {}):                  # a timed run: durations and ratios
+    for m in summary.get("duration_s", {}):  # a timed run: durations and ratios
         assert f"duration_s.{m}" in keys
         for kind in ("velocity", "acceleration", "jerk"):
             assert f"limit_ratio.{m}.{kind}" in keys
@@ -256,7 +286,8 @@ def test_view_from_the_plan_equals_the_view_from_its_folder(demo_result, demo_ru
 
     def no_reading(*args, **kwargs):
         raise AssertionError("the view of a plan result read a file")
-    with monkeypatch.context() as m:                   # from the result: no file is read
+
+    with monkeypatch.context() as m:  # from the result: no file is read
         for name in ("_read_csv", "_read_summary", "_read_trajectory"):
             m.setattr(run_module, name, no_reading)
         mem = run_from_plan(demo_result, demo_run)
@@ -268,7 +299,7 @@ def test_view_from_the_plan_equals_the_view_from_its_folder(demo_result, demo_ru
     for piece in ("waypoints", "branches", "trajectories"):
         assert _same(getattr(mem, piece), getattr(disk, piece)), piece
     assert mem.robot.to_dict() == disk.robot.to_dict()
-    assert mem.model is demo_result.problem.model               # the plan's model (its kinematics built once)
+    assert mem.model is demo_result.problem.model  # the plan's model (its kinematics built once)
     assert np.array_equal(mem.model.theta, disk.model.theta)
     assert mem.model.nominal.to_dict() == disk.model.nominal.to_dict()
 
@@ -276,8 +307,9 @@ def test_view_from_the_plan_equals_the_view_from_its_folder(demo_result, demo_ru
     assert [t.html() for t in t_mem] == [t.html() for t in t_disk]
     assert [t.markdown() for t in t_mem] == [t.markdown() for t in t_disk]
     f_mem, f_disk = build_figures(mem, map_options=False), build_figures(disk, map_options=False)
-    assert [(f.name, f.title, f.caption, f.absent) for f in f_mem] == \
-        [(f.name, f.title, f.caption, f.absent) for f in f_disk]
+    assert [(f.name, f.title, f.caption, f.absent) for f in f_mem] == [
+        (f.name, f.title, f.caption, f.absent) for f in f_disk
+    ]
     assert all(f.job is not None for f in f_mem[1:])
     for a, b in zip(f_mem, f_disk):
         assert _same(a.job, b.job), f"{a.name}: the figure data differ"
@@ -315,7 +347,7 @@ def test_trajectory_file_without_jerk_columns_is_stated(demo_run, tmp_path):
     rep = check_cells_match_summary(folder)
     check_figures_embedded(folder, rep, set(FIGURE_NAMES) - {"fig1_compliance_map"})
     assert "Jerk not recorded in trajectory.csv" in (folder / "report.md").read_text()
-    rows[0][-1] = "qddd1"                                # part of the jerk columns: malformed
+    rows[0][-1] = "qddd1"  # part of the jerk columns: malformed
     p.write_text("\n".join(",".join(r) for r in rows) + "\n")
     with pytest.raises(InputError, match="qddd2"):
         write_report(folder, map_options=False, workers=1)
@@ -326,7 +358,7 @@ def test_run_without_trajectory_says_so(demo_run, tmp_path):
     folder = strip_timing(demo_run, tmp_path / "untimed")
     calls: list[tuple[str, int, int]] = []
     write_report(folder, progress=lambda *a: calls.append(a), map_options=SMALL_MAP, workers=1)
-    assert {c[0] for c in calls} == {"compliance map", "figures"}      # progress reaches the end
+    assert {c[0] for c in calls} == {"compliance map", "figures"}  # progress reaches the end
     for st in ("compliance map", "figures"):
         last = [c for c in calls if c[0] == st][-1]
         assert last[1] == last[2]
@@ -345,7 +377,7 @@ def test_other_timing_shapes_are_rendered(demo_run, tmp_path):
     keys = {c["key"]: c for c in rep.cells}
     assert keys["duration_s"]["value"] == 1.2
     assert keys["limit_ratio.jerk"]["value"] == 0.99 and keys["limit_ratio.jerk"]["agg"] == "max"
-    assert "TOPP-RA" in (folder / "report.md").read_text()      # stated as absent in the caption
+    assert "TOPP-RA" in (folder / "report.md").read_text()  # stated as absent in the caption
 
 
 def test_serial_and_parallel_rendering_give_the_same_files(demo_run, tmp_path):
@@ -354,7 +386,7 @@ def test_serial_and_parallel_rendering_give_the_same_files(demo_run, tmp_path):
     shutil.copytree(demo_run, b)
     write_report(a, map_options=SMALL_MAP, workers=1, map_cache=False)
     write_report(b, map_options=SMALL_MAP, workers=2, map_cache=False)
-    for name in FIGURE_NAMES:                  # the demo run has every figure: none may be missing
+    for name in FIGURE_NAMES:  # the demo run has every figure: none may be missing
         for ext in ("png", "pdf"):
             fa, fb = a / "figures" / f"{name}.{ext}", b / "figures" / f"{name}.{ext}"
             assert fa.is_file() and fb.is_file(), f"{name}.{ext} not drawn"
@@ -363,6 +395,7 @@ def test_serial_and_parallel_rendering_give_the_same_files(demo_run, tmp_path):
 
 def test_compliance_map_is_cached_per_robot_and_options(demo_run, tmp_path, monkeypatch):
     import planner.report.maps as report
+
     monkeypatch.setattr(report, "_map_cache_dir", lambda key: tmp_path / "cache" / key)
     a, b = tmp_path / "a", tmp_path / "b"
     shutil.copytree(demo_run, a)
@@ -372,13 +405,13 @@ def test_compliance_map_is_cached_per_robot_and_options(demo_run, tmp_path, monk
 
     def fail(*args, **kwargs):
         raise AssertionError("the cached map was computed again")
+
     monkeypatch.setattr(report, "compliance_map", fail)
     write_report(b, map_options=SMALL_MAP, workers=1)
-    for name in ("figures/fig1_compliance_map.png", "figures/fig1_compliance_map.pdf",
-                 "compliance_map.csv"):
+    for name in ("figures/fig1_compliance_map.png", "figures/fig1_compliance_map.pdf", "compliance_map.csv"):
         assert (a / name).read_bytes() == (b / name).read_bytes()
     check_cells_match_summary(b)
-    with pytest.raises(AssertionError, match="computed again"):     # other options: a new map
+    with pytest.raises(AssertionError, match="computed again"):  # other options: a new map
         write_report(b, map_options={"points": 9}, workers=1)
 
 
@@ -420,7 +453,7 @@ def test_bad_folders_raise_user_errors(tmp_path, demo_run):
     (folder / "waypoints.csv").write_text("\n".join(text) + "\n")
     with pytest.raises(InputError, match=r"waypoints.csv: line 4, column x: 'abc'"):
         write_report(folder)
-    assert not (folder / "report.html").exists()        # all or nothing
+    assert not (folder / "report.html").exists()  # all or nothing
 
 
 # ------------------------------------------------------------------------------ compliance map
@@ -432,7 +465,7 @@ def test_map_diagonal_equals_model_compliance_at_grid_points():
     for i, j in ((0, 0), (3, 2), (6, 4)):
         C = model.C(cm.q[i, j])
         assert np.allclose(cm.diag[i, j], np.diag(C), rtol=1e-12, atol=0)
-        T = model.tcp(cm.q[i, j])                               # the configuration hits the target
+        T = model.tcp(cm.q[i, j])  # the configuration hits the target
         assert np.allclose(T[:3, 3], [0.3, cm.u_m[i], cm.v_m[j]], atol=1e-9)
 
 
@@ -446,22 +479,32 @@ def test_map_fixed_branch_and_home_rule():
 
 def test_map_marks_unreachable_points(tmp_path):
     robot = load_robot("ar5")
-    cm = compliance_map(robot, plane="z", offset_m=0.2, u_range_m=(-1.2, 1.2),
-                        v_range_m=(-1.2, 1.2), points=9, rpy_rad=(math.pi, 0.0, 0.0))
+    cm = compliance_map(
+        robot,
+        plane="z",
+        offset_m=0.2,
+        u_range_m=(-1.2, 1.2),
+        v_range_m=(-1.2, 1.2),
+        points=9,
+        rpy_rad=(math.pi, 0.0, 0.0),
+    )
     assert 0 < cm.n_unreachable < cm.n_points
     assert np.isnan(cm.diag[cm.branch < 0]).all()
     assert np.isfinite(cm.diag[cm.branch >= 0]).all()
     assert sum(cm.unreachable_reasons.values()) == cm.n_unreachable
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"plane": "w"}, "plane = 'w'"),
-    ({"u_range_m": (0.3, -0.3)}, "u range"),
-    ({"v_range_m": (-300.0, 300.0)}, "millimetres"),
-    ({"points": 1}, "points"),
-    ({"branch": "s+"}, "branch = 's\\+'"),
-    ({"rpy_rad": (0.0, 1.0)}, "rpy"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"plane": "w"}, "plane = 'w'"),
+        ({"u_range_m": (0.3, -0.3)}, "u range"),
+        ({"v_range_m": (-300.0, 300.0)}, "millimetres"),
+        ({"points": 1}, "points"),
+        ({"branch": "s+"}, "branch = 's\\+'"),
+        ({"rpy_rad": (0.0, 1.0)}, "rpy"),
+    ],
+)
 def test_map_bad_input_names_the_key(kwargs, match):
     with pytest.raises(CompplanError, match=match):
         compliance_map(load_robot("ar5"), **kwargs)
@@ -474,8 +517,24 @@ def test_cli_report_and_map(demo_run, tmp_path, capsys):
     assert main(["report", str(folder), "--no-map", "--jobs", "1"]) == 0
     assert (folder / "report.html").is_file()
     assert "no trajectory" not in capsys.readouterr().err
-    assert main(["map", "--out", str(tmp_path / "map"), "--points", "7", "--rpy-deg", "-90", "0",
-                 "90", "--branch", "s+w-e+"]) == 0
+    assert (
+        main(
+            [
+                "map",
+                "--out",
+                str(tmp_path / "map"),
+                "--points",
+                "7",
+                "--rpy-deg",
+                "-90",
+                "0",
+                "90",
+                "--branch",
+                "s+w-e+",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "C11" in out and "mm/N" in out
     assert (tmp_path / "map" / "figures" / "fig1_compliance_map.png").is_file()
@@ -489,6 +548,7 @@ def test_cli_report_and_map(demo_run, tmp_path, capsys):
 # -------------------------------------------------- headline, provenance, figures (issue 9)
 def _sha256(path: Path) -> str:
     import hashlib
+
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
@@ -500,8 +560,11 @@ def test_summary_opens_with_the_headline_in_units_and_rounded(demo_run):
     assert h["branch"] == s["chosen_branch"] == "s-w-e-"
     assert "shoulder −" in h["branch_meaning"] and "elbow −" in h["branch_meaning"]
     assert h["branch_posture"] == s["branches"]["s-w-e-"]["posture"]
-    for tag, full in (("error_before", s["error_before"]), ("error_after", s["error_after"]["exact"]),
-                      ("error_after_closed_form", s["error_after"]["closed_form"])):
+    for tag, full in (
+        ("error_before", s["error_before"]),
+        ("error_after", s["error_after"]["exact"]),
+        ("error_after_closed_form", s["error_after"]["closed_form"]),
+    ):
         for k in ("max", "rms"):
             key, v = f"{tag}_{k}_mm", full[f"{k}_mm"]
             assert h[key] == (0.0 if abs(v) < NUMERICAL_FLOOR_MM else round_sig(v)), key
@@ -514,12 +577,12 @@ def test_summary_opens_with_the_headline_in_units_and_rounded(demo_run):
     for k, v in h.items():
         if isinstance(v, float) and k != "gain_vs_default":
             assert k.endswith(("_mm", "_s")), k
-    assert "first order" in h["definition"]              # the two "before" errors explained
+    assert "first order" in h["definition"]  # the two "before" errors explained
 
 
 def test_branch_entries_say_what_the_branch_is_and_both_errors(demo_result, demo_run):
     s = json.loads((demo_run / "summary.json").read_text())
-    for label, e in s["branches"].items():
+    for e in s["branches"].values():
         assert e["meaning"].startswith("shoulder") and e["status_meaning"].startswith("fixed orientation")
         assert "elbow up" in e["posture"] or "elbow down" in e["posture"]
         assert e["rms_error_equilibrium_mm"] > 0 and e["rms_error_mm"] > 0
@@ -535,9 +598,10 @@ def test_provenance_names_version_date_and_hashed_inputs(demo_run):
     from datetime import datetime
 
     from planner.provenance import version
+
     p = json.loads((demo_run / "summary.json").read_text())["provenance"]
     assert p["compplan_version"] == version() != "unknown"
-    assert p["command_line"] is None and p["argv"] is None       # a library call, not a command
+    assert p["command_line"] is None and p["argv"] is None  # a library call, not a command
     when = datetime.fromisoformat(p["date_utc"].replace("Z", "+00:00"))
     assert p["date_utc"].endswith("Z") and when.utcoffset().total_seconds() == 0
     roles = {e["role"]: e for e in p["inputs"]}
@@ -549,9 +613,13 @@ def test_provenance_names_version_date_and_hashed_inputs(demo_run):
 def test_report_opens_with_the_headline_and_closes_the_summary_with_provenance(demo_report):
     text = (demo_report / "report.html").read_text()
     first_table = text.index("<table")
-    assert 'class="summary headline"' in text[first_table:first_table + 60]
-    assert text.index('id="headline"') < text.index("Run details") < text.index('id="provenance"') \
+    assert 'class="summary headline"' in text[first_table : first_table + 60]
+    assert (
+        text.index('id="headline"')
+        < text.index("Run details")
+        < text.index('id="provenance"')
         < text.index("<h2>Figures</h2>")
+    )
     rep = check_cells_match_summary(demo_report)
     head = [c for c in rep.cells if c["key"].startswith("headline.")]
     assert [c["key"] for c in head][:3] == ["headline.status", "headline.branch", "headline.error_before_max_mm"]
@@ -560,11 +628,15 @@ def test_report_opens_with_the_headline_and_closes_the_summary_with_provenance(d
     assert shown["headline.error_after_max_mm"] == NUMERICAL_ZERO_TEXT
     assert shown["headline.duration_s"] == "1.584"
     keys = {c["key"] for c in rep.cells}
-    assert {"provenance.compplan_version", "provenance.date_utc", "provenance.inputs.0.sha256",
-            "provenance.inputs.1.sha256"} <= keys
-    assert not [c for c in rep.cells if "e-1" in c["text"]]      # no rounding residue shown
+    assert {
+        "provenance.compplan_version",
+        "provenance.date_utc",
+        "provenance.inputs.0.sha256",
+        "provenance.inputs.1.sha256",
+    } <= keys
+    assert not [c for c in rep.cells if "e-1" in c["text"]]  # no rounding residue shown
     assert "fixed orientation: the IK solution, nothing to optimise" in text
-    assert "shoulder left/right" in text                          # the branch labels decoded
+    assert "shoulder left/right" in text  # the branch labels decoded
     md = (demo_report / "report.md").read_text()
     assert md.index("### Headline") < md.index("## Run details") < md.index("### Provenance")
 
@@ -574,7 +646,7 @@ def test_numbers_are_shown_rounded_to_what_they_mean():
     assert format_value(8.8e-15, "exact_residual_max_m") == NUMERICAL_ZERO_TEXT
     assert format_value(1.779017464983031, "error_before.max_mm") == "1.779"
     assert format_value(6.251752085921565e-05, "branches.s-w-e-.cost") == "6.252e-5"
-    assert format_value(5.5e-14, "cost") == "5.5e-14"           # only errors have the floor
+    assert format_value(5.5e-14, "cost") == "5.5e-14"  # only errors have the floor
     assert format_value([5.0, 10.0, 20.0], "wrench.F_N") == "[5, 10, 20]"
     assert round_sig(0.025092427957477882) == 0.02509 and round_sig(2.36) == 2.36
 
@@ -587,7 +659,7 @@ def test_path_figures_are_drawn_against_the_path_length(demo_run):
     for name in ("fig2_stiffness_error", "fig3_compensation_angles", "fig4_error_before_after"):
         fn, args, _ = items[name].job
         assert np.array_equal(args[0], s_mm), name
-    assert s_mm[-1] == pytest.approx(np.linalg.norm(P[-1] - P[0]) * 1e3)    # a line: its length
+    assert s_mm[-1] == pytest.approx(np.linalg.norm(P[-1] - P[0]) * 1e3)  # a line: its length
     # figure 5: a bar per IK branch (infeasible ones marked) plus the chosen and default curves
     fn, args, kw = items["fig5_branches"].job
     labels, r_ana, r_opt, infeasible, x, curves, chosen, default = args
@@ -600,7 +672,7 @@ def test_path_figures_are_drawn_against_the_path_length(demo_run):
         else:
             assert math.isnan(v)
     assert any("(chosen)" in k for k in curves) and any("(default)" in k for k in curves)
-    assert all("optimised" not in k for k in curves)             # no_freedom: the IK solution
+    assert all("optimised" not in k for k in curves)  # no_freedom: the IK solution
     # figure 3: exact and closed form, and their difference drawn per joint
     fn, args, _ = items["fig3_compensation_angles"].job
     assert args[2] is not None and "exact − closed form" in items["fig3_compensation_angles"].caption
@@ -608,6 +680,7 @@ def test_path_figures_are_drawn_against_the_path_length(demo_run):
 
 def test_compliance_map_is_drawn_on_the_plane_of_the_path(demo_run, tmp_path, monkeypatch):
     import planner.report.maps as maps
+
     monkeypatch.setattr(maps, "_map_cache_dir", lambda key: tmp_path / "cache" / key)
     run = load_run(demo_run)
     files: dict[str, bytes] = {}
@@ -615,10 +688,10 @@ def test_compliance_map_is_drawn_on_the_plane_of_the_path(demo_run, tmp_path, mo
     fn, args, kw = item.job
     P = np.column_stack([run.waypoints[a] for a in "xyz"])
     plane = maps.path_plane(P)
-    assert plane.off_plane_m < 1e-12                              # the line lies in its plane
+    assert plane.off_plane_m < 1e-12  # the line lies in its plane
     assert np.allclose(plane.origin + plane.uv(P) @ np.stack([plane.e_u, plane.e_v]), P, atol=1e-12)
     assert np.allclose(kw["path_uv_m"], plane.uv(P), atol=1e-12)
-    assert abs(plane.normal[2]) < 1e-12 and plane.e_v[2] > 0      # a line: the vertical plane through it
+    assert abs(plane.normal[2]) < 1e-12 and plane.e_v[2] > 0  # a line: the vertical plane through it
     assert "plane of this run's path" in item.caption and "outside its reach" in item.caption
     header = files["compliance_map.csv"].decode().splitlines()[0].split(",")
     assert header[:6] == ["u_m", "v_m", "x_m", "y_m", "z_m", "branch"]
@@ -633,6 +706,7 @@ def test_compliance_map_is_drawn_on_the_plane_of_the_path(demo_run, tmp_path, mo
 
 def test_payload_and_tool_frame_loads_are_named_not_a_zero_base_force(demo_run, tmp_path):
     from planner.report.tables import load_words
+
     folder = tmp_path / "payload"
     shutil.copytree(demo_run, folder)
     s = json.loads((folder / "summary.json").read_text())
@@ -645,7 +719,7 @@ def test_payload_and_tool_frame_loads_are_named_not_a_zero_base_force(demo_run, 
     for it in items[1:]:
         title = it.job[2].get("title", "")
         assert "F = [0, 0, 0]" not in title and "F = [0, 0, 0]" not in it.caption, it.name
-        if it.name != "fig6_trajectory":                         # the joint trajectories name no load
+        if it.name != "fig6_trajectory":  # the joint trajectories name no load
             assert "payload 5 kg" in title, it.name
     tool = {**s, "payload": None, "wrench": {**s["wrench"], "frame": "tool", "F_N": [0.0, 0.0, -40.0]}}
     assert load_words(tool).startswith("tool-frame wrench (turns with the tool) F = [0, 0, -40] N")
@@ -662,16 +736,18 @@ def test_arm_figure_draws_the_deflection_the_plan_computed(demo_run):
     nominal, deflected, path, labels, factor = args
     assert fn.__name__ == "arm_figure" and labels == ["k = 0", "k = 20", "k = 39"]
     from planner.report.figures import _polylines
+
     model = KinematicModel(run.robot)
     qt = np.column_stack([run.waypoints[f"qt{i}"] for i in range(1, 7)])[[0, 20, 39]]
     qc = np.column_stack([run.waypoints[f"qc{i}"] for i in range(1, 7)])[[0, 20, 39]]
     expect, joints = _polylines(model, qt + factor * (qt - qc))
     assert np.allclose(deflected, expect) and kw["joint_index"] == joints
-    assert np.allclose(nominal[:, -1], path[[0, 20, 39]], atol=1e-9)   # the TCP on the path
+    assert np.allclose(nominal[:, -1], path[[0, 20, 39]], atol=1e-9)  # the TCP on the path
 
 
 def test_version_and_robot_show(capsys, tmp_path):
     from planner.provenance import builtin_robot_file, version
+
     with pytest.raises(SystemExit) as exc:
         main(["--version"])
     assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"compplan {version()}"
@@ -681,8 +757,7 @@ def test_version_and_robot_show(capsys, tmp_path):
     (tmp_path / "my_ur5.toml").write_text(text)
     assert load_robot(str(tmp_path / "my_ur5.toml")).to_dict() == load_robot("ur5").to_dict()
     assert main(["robot", "list"]) == 0
-    assert [ln.split()[0] for ln in capsys.readouterr().out.splitlines()] == ["ar5", "ur5", "ur10", "ur5e",
-                                                                              "kr6_r900"]
+    assert [ln.split()[0] for ln in capsys.readouterr().out.splitlines()] == ["ar5", "ur5", "ur10", "ur5e", "kr6_r900"]
     assert main(["robot", "show", "ur7"]) == 2
     assert "not a built-in robot" in capsys.readouterr().err
 
@@ -701,11 +776,36 @@ def test_examples_in_the_docs_exist_and_run(tmp_path, capsys):
     cli_doc = (root / "docs" / "cli.md").read_text() + (root / "README.md").read_text()
     for name in ("docs/examples/commands.csv", "docs/examples/my_task.toml"):
         assert name in cli_doc and (root / name).is_file(), name
-    assert main(["predict", "--model", "ur5", "--input", str(root / "docs/examples/commands.csv"),
-                 "--out", str(tmp_path / "p.csv")]) == 0
-    assert main(["compensate", "--model", "ur5", "--input", str(root / "docs/examples/commands.csv"),
-                 "--out", str(tmp_path / "c.csv")]) == 0
+    assert (
+        main(
+            [
+                "predict",
+                "--model",
+                "ur5",
+                "--input",
+                str(root / "docs/examples/commands.csv"),
+                "--out",
+                str(tmp_path / "p.csv"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "compensate",
+                "--model",
+                "ur5",
+                "--input",
+                str(root / "docs/examples/commands.csv"),
+                "--out",
+                str(tmp_path / "c.csv"),
+            ]
+        )
+        == 0
+    )
     from problems.problem import load_problem
+
     assert load_problem(root / "docs/examples/my_task.toml").n == 40
 
 
@@ -719,7 +819,8 @@ def test_robot_file_doc_example_is_a_complete_loadable_file(tmp_path):
     assert robot.name == "my_ur5" and len(robot.d) == 6
     assert np.allclose(robot.a, load_robot("ur5").a) and np.allclose(robot.d, load_robot("ur5").d)
     from models import AnalyticIK
-    AnalyticIK(robot)                                         # UR-type: plan, pose and demo accept it
+
+    AnalyticIK(robot)  # UR-type: plan, pose and demo accept it
 
 
 def test_identification_report_is_styled_and_explains_itself(tmp_path):
@@ -728,14 +829,19 @@ def test_identification_report_is_styled_and_explains_itself(tmp_path):
     from planner.identify_report import VARIABLE_UNITS, compensation_sentence, write_report as write_identify
     from problems.identify import compensation_check, identify
     from problems.virtual import VirtualRobot
-    cfg = {"campaign": {"poses": 40}, "noise": {"sigma_m": 2e-5}, "registration": {"registered": False},
-           "effects": {"gravity": {}}}
+
+    cfg = {
+        "campaign": {"poses": 40},
+        "noise": {"sigma_m": 2e-5},
+        "registration": {"registered": False},
+        "effects": {"gravity": {}},
+    }
     vr = VirtualRobot(load_robot("ur5"), cfg, seed=4)
     data = vr.campaign()
     res = identify(load_robot("ur5"), data, candidates=[])
     res.compensation_check = compensation_check(vr, res.model, n_poses=12)
     csv_file = tmp_path / "data.csv"
-    csv_file.write_text("q1\n")                               # a stand-in file to hash
+    csv_file.write_text("q1\n")  # a stand-in file to hash
     rep = write_identify(res, tmp_path / "rep", model_path=str(tmp_path / "m.toml"), data_path=str(csv_file))
     assert list(rep)[:2] == ["headline", "provenance"]
     h = rep["headline"]
@@ -751,5 +857,5 @@ def test_identification_report_is_styled_and_explains_itself(tmp_path):
     assert html_text.index('class="summary headline"') < html_text.index("<h2>Figures</h2>")
     for key in ("residuals", "history", "compensation"):
         assert f'data-figure="{key}"' in html_text
-    assert "meas_frame_" not in (tmp_path / "rep" / "report.md").read_text()   # no raw keys in prose
+    assert "meas_frame_" not in (tmp_path / "rep" / "report.md").read_text()  # no raw keys in prose
     assert set(VARIABLE_UNITS) >= {"q1", "q6", "load_magnitude", "pose", "time", "position"}

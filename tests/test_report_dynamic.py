@@ -44,7 +44,7 @@ def _dynamic_cells(folder: Path) -> dict[str, dict]:
 def _check_dynamic_report(folder: Path, with_map: bool = True) -> None:
     summary = json.loads((folder / "summary.json").read_text())
     dyn = summary["dynamic_compensation"]
-    rep = check_cells_match_summary(folder)            # every cell equals summary.json, rounded
+    rep = check_cells_match_summary(folder)  # every cell equals summary.json, rounded
     present = (set(FIGURE_NAMES) if with_map else set(FIGURE_NAMES) - {"fig1_compliance_map"}) | {DYNAMIC_FIGURE}
     check_figures_embedded(folder, rep, present)
     png, pdf = folder / "figures" / f"{DYNAMIC_FIGURE}.png", folder / "figures" / f"{DYNAMIC_FIGURE}.pdf"
@@ -60,7 +60,7 @@ def _check_dynamic_report(folder: Path, with_map: bool = True) -> None:
     for key in ("passes", "smoothing_s", "status", *(f"limit_scale.{k}" for k in dyn["limit_scale"])):
         assert f"dynamic_compensation.{key}" in cells, key
     assert "Dynamic compensation: predicted TCP error [mm]" in html
-    for text in (dyn["definition"], dyn["assumptions"]):                  # the table's note
+    for text in (dyn["definition"], dyn["assumptions"]):  # the table's note
         assert html_text.escape(text) in html
     md = (folder / "report.md").read_text()
     assert f"figures/{DYNAMIC_FIGURE}.png" in md
@@ -96,7 +96,7 @@ def test_dynamic_folder_without_its_csv_says_so(dynamic_run, tmp_path):
     rep = parse(folder)
     assert "dynamic.csv absent" in rep.absent[DYNAMIC_FIGURE]
     assert not (folder / "figures" / f"{DYNAMIC_FIGURE}.png").exists()
-    assert _dynamic_cells(folder)                     # the table still comes from summary.json
+    assert _dynamic_cells(folder)  # the table still comes from summary.json
 
 
 def test_run_without_dynamic_compensation_has_neither(static_run):

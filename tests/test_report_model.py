@@ -75,15 +75,29 @@ def model_file(tmp_path_factory) -> Path:
 def model_run(model_file, tmp_path_factory) -> Path:
     """``compplan demo --robot MODEL`` (the paper's problem on the soft model file)."""
     folder = tmp_path_factory.mktemp("model_run") / "run"
-    assert main(["demo", "--robot", str(model_file), "--points", str(POINTS), "--out", str(folder),
-                 "--no-report", "--no-figures"]) == 0
+    assert (
+        main(
+            [
+                "demo",
+                "--robot",
+                str(model_file),
+                "--points",
+                str(POINTS),
+                "--out",
+                str(folder),
+                "--no-report",
+                "--no-figures",
+            ]
+        )
+        == 0
+    )
     return folder
 
 
 def test_the_report_of_a_plan_draws_its_models_map(nominal_result, tmp_path):
     res = plan(demo_problem(n_points=POINTS).with_robot(_soft_ar5())).raise_for_status()
     run = run_from_plan(res, tmp_path)
-    assert run.model is res.problem.model                      # the plan's model, not its robot file
+    assert run.model is res.problem.model  # the plan's model, not its robot file
     nominal = run_from_plan(nominal_result, tmp_path)
     _ratio_is_the_model_s(_c11(run), _c11(nominal))
     # the maps' cache tells the two models apart
@@ -98,7 +112,7 @@ def test_compplan_report_reads_the_model_the_summary_records(model_run, model_fi
     run = load_run(model_run)
     assert run.model is not None and run.model.sha256 == s["model"]["sha256"]
     np.testing.assert_allclose(run.model.joint_compliance(), COMPLIANCE_FACTOR / run.robot.stiffness)
-    nominal = replace(run, model=ArmModel.from_robot(run.robot))      # what the report drew before
+    nominal = replace(run, model=ArmModel.from_robot(run.robot))  # what the report drew before
     _ratio_is_the_model_s(_c11(run), _c11(nominal))
     # the command itself: its compliance_map.csv is the model's
     monkeypatch.setattr(maps, "_map_cache_dir", lambda key: tmp_path / "cache" / key)
@@ -117,14 +131,15 @@ def test_a_changed_or_moved_model_file_is_a_clear_error(model_run, model_file, t
     shutil.copy(model_file, moved)
     s = json.loads((folder / "summary.json").read_text())
     sha = s["model"]["sha256"]
-    s["model"]["file"] = str(moved)                  # the run as if planned with the copy
+    s["model"]["file"] = str(moved)  # the run as if planned with the copy
     (folder / "summary.json").write_text(json.dumps(s))
-    assert load_run(folder).model is not None        # the same bytes: accepted
+    assert load_run(folder).model is not None  # the same bytes: accepted
     moved.write_text(moved.read_text() + "\n# edited after the plan\n")
     with pytest.raises(InputError) as exc:
         load_run(folder)
     msg = str(exc.value)
     import hashlib
+
     now = hashlib.sha256(moved.read_bytes()).hexdigest()
     for part in (str(moved), sha, now, "changed", "restore", "plan again"):
         assert part in msg, (part, msg)
@@ -132,7 +147,7 @@ def test_a_changed_or_moved_model_file_is_a_clear_error(model_run, model_file, t
     with pytest.raises(InputError, match="cannot be read") as exc:
         load_run(folder)
     assert str(moved) in str(exc.value) and sha in str(exc.value) and "restore" in str(exc.value)
-    assert main(["report", str(folder), "--no-map"]) == 2            # the command says so, exit 2
+    assert main(["report", str(folder), "--no-map"]) == 2  # the command says so, exit 2
 
 
 def test_an_identified_model_without_a_file_is_not_drawn_as_the_nominal(tmp_path):

@@ -74,7 +74,7 @@ def test_figures_and_html(small, capsys):
     assert f"{small.improvement:.3g}×" in page
     assert placement_label(small.sweep.placements[small.ranked[0]]) in page
     assert "Definitions and frames" in page and "base2cell" in page
-    assert capsys.readouterr() == ("", "")                      # the library is silent
+    assert capsys.readouterr() == ("", "")  # the library is silent
 
 
 @pytest.mark.slow
@@ -99,8 +99,9 @@ def test_infeasible_placements(wide):
 @pytest.mark.slow
 def test_no_best_plans_renders(small):
     """top = 0: only the problem as written is planned in full."""
-    st = dataclasses.replace(small, grid=dataclasses.replace(small.grid, top=0),
-                             plans=[p for p in small.plans if p.rank is None])
+    st = dataclasses.replace(
+        small, grid=dataclasses.replace(small.grid, top=0), plans=[p for p in small.plans if p.rank is None]
+    )
     figs = rp.figures(st)
     _check_pngs(figs)
     page = rp.html(st, sorted(figs))
@@ -122,8 +123,7 @@ def test_top_zero_study_renders(problem, tmp_path):
 def test_failed_plan_shown_with_reason(small):
     p0 = small.plans[0]
     reason = "posture NLP failed on every branch <at waypoint 3>"
-    bad = dataclasses.replace(p0, result=dataclasses.replace(p0.result, status=PlanStatus.SOLVER_FAILED,
-                                                             reason=reason))
+    bad = dataclasses.replace(p0, result=dataclasses.replace(p0.result, status=PlanStatus.SOLVER_FAILED, reason=reason))
     st = dataclasses.replace(small, plans=[bad] + small.plans[1:])
     figs = rp.figures(st)
     _check_pngs(figs)
@@ -145,8 +145,7 @@ def test_nothing_feasible(problem):
 def _tiled(small, n_yaws: int, step_m: float):
     """``small`` on ``n_yaws`` yaws, the scores of its first yaw repeated, the RMS error of yaw k
     raised by ``k * step_m``."""
-    grid = dataclasses.replace(small.grid, axes={**small.grid.axes,
-                                                 "yaw_deg": np.radians(np.linspace(0, 340, n_yaws))})
+    grid = dataclasses.replace(small.grid, axes={**small.grid.axes, "yaw_deg": np.radians(np.linspace(0, 340, n_yaws))})
     sc = small.sweep.scores
     per = len(sc.status) // len(small.grid.axes["yaw_deg"])
     tiled = {}
@@ -157,8 +156,9 @@ def _tiled(small, n_yaws: int, step_m: float):
     scores = dataclasses.replace(sc, **tiled)
     sweep = dataclasses.replace(small.sweep, placements=grid.placements(), scores=scores)
     ranked = np.flatnonzero(scores.feasible)[np.argsort(scores.rms_error_m[scores.feasible], kind="stable")]
-    return dataclasses.replace(small, grid=grid, sweep=sweep, ranked=ranked,
-                               plans=[p for p in small.plans if p.rank is None])
+    return dataclasses.replace(
+        small, grid=grid, sweep=sweep, ranked=ranked, plans=[p for p in small.plans if p.rank is None]
+    )
 
 
 @pytest.mark.slow
@@ -193,9 +193,15 @@ def test_every_status_drawn():
     status[:, 0], status[0, 3:], status[-1, 3:] = 1, 2, 3
     values = np.where(status == 0, 0.5, np.nan)
     frame = pp.MapFrame(x, y, np.array([[0.6, -0.3], [0.6, 0.3]]))
-    fig = pp.error_map_figure(frame, [pp.MapPanel("yaw 0°", values, status, [(1, 0.1, 0.0)])], title="t",
-                              cbar_label="RMS load-induced error, mm", counts={1: 5, 2: 3, 3: 3},
-                              marks_label="1: best", baseline_value=0.7)
+    fig = pp.error_map_figure(
+        frame,
+        [pp.MapPanel("yaw 0°", values, status, [(1, 0.1, 0.0)])],
+        title="t",
+        cbar_label="RMS load-induced error, mm",
+        counts={1: 5, 2: 3, 3: 3},
+        marks_label="1: best",
+        baseline_value=0.7,
+    )
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
     assert any(lab.startswith("unreachable (5)") for lab in labels)
     assert any(lab.startswith("flips") for lab in labels) and any(lab.startswith("joint limit") for lab in labels)

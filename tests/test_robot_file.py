@@ -40,25 +40,28 @@ def _base() -> dict:
     return load_robot("ur5").to_dict()
 
 
-@pytest.mark.parametrize("mutate, match", [
-    (lambda d: d.pop("name"), "'name'"),
-    (lambda d: d.update(convention="dh"), "convention"),
-    (lambda d: d.update(joints=d["joints"][:5]), "6"),
-    (lambda d: d["joints"][2].pop("stiffness"), r"joints\[3\].*stiffness"),
-    (lambda d: d["joints"][1].update(stiffness=-1.0), r"joints\[2\].*stiffness.*> 0"),
-    (lambda d: d["joints"][0].update(a=math.nan), r"joints\[1\].*'a'.*finite"),
-    (lambda d: d["joints"][0].update(d="0.1"), r"joints\[1\].*'d'.*number"),
-    (lambda d: d["joints"][4].update(q_min=1.0, q_max=0.0), r"joints\[5\].*q_min"),
-    (lambda d: d["joints"][0].update(alpha_deg=90.0), "either 'alpha'"),
-    (lambda d: d["joints"][0].update(colour=1), "unknown key"),
-    (lambda d: d.update(tool={"xyz": [0, 0]}), "xyz"),
-    (lambda d: d["joints"][0].update(com=[0, 0]), "com"),
-    (lambda d: d["joints"][0].pop("com"), "together"),
-    (lambda d: d.update(gravity=[0, 0, math.inf]), "gravity"),
-    (lambda d: d.update(extra=1), "unknown top-level"),
-    (lambda d: d["joints"][1].update(a=-425.0), r"joints\[2\].*'a'.*millimetres"),
-    (lambda d: d.update(tool={"xyz": [0, 0, 31.0]}), "millimetres"),
-])
+@pytest.mark.parametrize(
+    "mutate, match",
+    [
+        (lambda d: d.pop("name"), "'name'"),
+        (lambda d: d.update(convention="dh"), "convention"),
+        (lambda d: d.update(joints=d["joints"][:5]), "6"),
+        (lambda d: d["joints"][2].pop("stiffness"), r"joints\[3\].*stiffness"),
+        (lambda d: d["joints"][1].update(stiffness=-1.0), r"joints\[2\].*stiffness.*> 0"),
+        (lambda d: d["joints"][0].update(a=math.nan), r"joints\[1\].*'a'.*finite"),
+        (lambda d: d["joints"][0].update(d="0.1"), r"joints\[1\].*'d'.*number"),
+        (lambda d: d["joints"][4].update(q_min=1.0, q_max=0.0), r"joints\[5\].*q_min"),
+        (lambda d: d["joints"][0].update(alpha_deg=90.0), "either 'alpha'"),
+        (lambda d: d["joints"][0].update(colour=1), "unknown key"),
+        (lambda d: d.update(tool={"xyz": [0, 0]}), "xyz"),
+        (lambda d: d["joints"][0].update(com=[0, 0]), "com"),
+        (lambda d: d["joints"][0].pop("com"), "together"),
+        (lambda d: d.update(gravity=[0, 0, math.inf]), "gravity"),
+        (lambda d: d.update(extra=1), "unknown top-level"),
+        (lambda d: d["joints"][1].update(a=-425.0), r"joints\[2\].*'a'.*millimetres"),
+        (lambda d: d.update(tool={"xyz": [0, 0, 31.0]}), "millimetres"),
+    ],
+)
 def test_validation_names_the_key(mutate, match):
     d = _base()
     mutate(d)
@@ -90,7 +93,7 @@ def test_cli_bad_robot_file_one_line_no_traceback(tmp_path, capsys):
         assert err.count("\n") == 1 and err.startswith("compplan: error:")
         assert str(path) in err and match in err
         assert "Traceback" not in err
-    assert not (tmp_path / "o").exists()   # nothing written on failure
+    assert not (tmp_path / "o").exists()  # nothing written on failure
 
 
 def test_cli_unknown_robot_and_unreachable_path(tmp_path, capsys):

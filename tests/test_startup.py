@@ -21,32 +21,38 @@ def _modules_after(code: str) -> list[str]:
     probe = code + (
         "\nimport json, sys\n"
         f"print(json.dumps([m for m in {list(HEAVY) + ['matplotlib.pyplot', 'scipy.stats']!r} "
-        "if m in sys.modules]))\n")
+        "if m in sys.modules]))\n"
+    )
     r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=False)
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
 def test_version_imports_no_library():
-    out = _modules_after("from planner.cli import main\ntry:\n    main(['--version'])\n"
-                         "except SystemExit as exc:\n    assert exc.code == 0\n")
+    out = _modules_after(
+        "from planner.cli import main\ntry:\n    main(['--version'])\n"
+        "except SystemExit as exc:\n    assert exc.code == 0\n"
+    )
     assert out == []
 
 
 @pytest.mark.parametrize("argv", [["-v", "--version"], ["--bogus", "--version"], ["--version", "plan"]])
 def test_version_fast_path_answers_as_the_parser_does(argv):
     from planner.cli import _asks_version
+
     assert _asks_version(argv)
 
 
 @pytest.mark.parametrize("argv", [["-h", "--version"], ["plan", "--version"], ["--", "--version"], []])
 def test_version_fast_path_leaves_other_lines_to_the_parser(argv):
     from planner.cli import _asks_version
+
     assert not _asks_version(argv)
 
 
 def test_version_prints_what_the_parser_prints(capsys):
     from planner.cli import build_parser, main, version_line
+
     with pytest.raises(SystemExit) as exc:
         main(["--version"])
     assert exc.value.code == 0
@@ -68,10 +74,11 @@ def test_lazy_package_names_are_the_modules_names():
     from models.robot import load_robot
     from planner import report
     from planner.report.writer import write_report
+
     assert models.load_robot is load_robot and report.write_report is write_report
     assert set(models.__all__) <= set(dir(models)) and set(report.__all__) <= set(dir(report))
     with pytest.raises(AttributeError):
-        models.no_such_name  # noqa: B018
+        models.no_such_name
 
 
 def test_general_ik_solver_imports_scipy_on_demand():
@@ -80,14 +87,18 @@ def test_general_ik_solver_imports_scipy_on_demand():
 
 
 def test_toppra_is_imported_without_pyplot():
-    out = _modules_after("from problems.timing.toppra_import import import_toppra\n"
-                         "tp = import_toppra()\nassert tp.algorithm.TOPPRA and tp.constraint\n")
+    out = _modules_after(
+        "from problems.timing.toppra_import import import_toppra\n"
+        "tp = import_toppra()\nassert tp.algorithm.TOPPRA and tp.constraint\n"
+    )
     assert "toppra" in out and "matplotlib.pyplot" not in out
 
 
 def test_toppras_plotting_still_reaches_pyplot():
-    out = _modules_after("from problems.timing.toppra_import import import_toppra\n"
-                         "import_toppra()\nimport toppra.algorithm.algorithm as a\nassert callable(a.plt.plot)\n")
+    out = _modules_after(
+        "from problems.timing.toppra_import import import_toppra\n"
+        "import_toppra()\nimport toppra.algorithm.algorithm as a\nassert callable(a.plt.plot)\n"
+    )
     assert "matplotlib.pyplot" in out
 
 
@@ -95,10 +106,11 @@ def test_jerk_optimal_solvers_of_one_nlp_share_its_derivatives():
     """The warm-start variant (and another iteration limit) reuses the first solver's gradient,
     Jacobian and Hessian functions instead of differentiating the NLP again."""
     from problems.timing import jerk_optimal as jo
+
     n_grid = min(jo.JERK_GRIDPOINTS)
     cold = jo._solver(n_grid, 2, jo.JERK_MAX_ITER)
     others = [jo._solver(n_grid, 2, jo.JERK_MAX_ITER, warm=True), jo._solver(n_grid, 2, 7)]
     for name, _option in jo._DERIVATIVE_OPTIONS:
         assert {hash(s.get_function(name)) for s in others} == {hash(cold.get_function(name))}, name
-    other_nlp = jo._solver(n_grid, 1, jo.JERK_MAX_ITER)          # another NLP: its own functions
+    other_nlp = jo._solver(n_grid, 1, jo.JERK_MAX_ITER)  # another NLP: its own functions
     assert hash(other_nlp.get_function("nlp_hess_l")) != hash(cold.get_function("nlp_hess_l"))

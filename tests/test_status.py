@@ -25,9 +25,24 @@ from models.robot import robot_from_dict
 from models.status import CodedStatus, Status
 
 #: Status enums that must be among those discovered (a discovery that finds none cannot pass).
-EXPECTED = {"IKStatus", "OPWStatus", "GeneralIKStatus", "IdentifyStatus", "ParameterStatus", "BranchStatus",
-            "PostureStatus", "ElasticStatus", "PlacementStatus", "SweepStatus", "CompensationStatus",
-            "DynamicStatus", "PlanStatus", "TimingStatus", "DynamicStageStatus", "StudyStatus"}
+EXPECTED = {
+    "IKStatus",
+    "OPWStatus",
+    "GeneralIKStatus",
+    "IdentifyStatus",
+    "ParameterStatus",
+    "BranchStatus",
+    "PostureStatus",
+    "ElasticStatus",
+    "PlacementStatus",
+    "SweepStatus",
+    "CompensationStatus",
+    "DynamicStatus",
+    "PlanStatus",
+    "TimingStatus",
+    "DynamicStageStatus",
+    "StudyStatus",
+}
 #: Half-width of the joint limits around a command that the compensation must leave, rad.
 TIGHT_LIMIT_RAD = 1e-7
 
@@ -37,12 +52,17 @@ def _status_enums() -> dict[str, type[enum.Enum]]:
     found: dict[str, type[enum.Enum]] = {}
     for pkg in (models, problems, planner):
         for info in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."):
-            if info.name.rsplit(".", 1)[-1] == "__main__":       # runs the command line
+            if info.name.rsplit(".", 1)[-1] == "__main__":  # runs the command line
                 continue
             mod = importlib.import_module(info.name)
             for obj in vars(mod).values():
-                if (inspect.isclass(obj) and issubclass(obj, enum.Enum) and obj.__name__.endswith("Status")
-                        and obj.__module__ == mod.__name__ and obj not in (Status, CodedStatus)):
+                if (
+                    inspect.isclass(obj)
+                    and issubclass(obj, enum.Enum)
+                    and obj.__name__.endswith("Status")
+                    and obj.__module__ == mod.__name__
+                    and obj not in (Status, CodedStatus)
+                ):
                     found[f"{obj.__module__}.{obj.__qualname__}"] = obj
     return found
 
@@ -66,7 +86,7 @@ def test_status_values_are_strings_and_print_as_their_value(status_enums):
         for member in cls:
             assert isinstance(member.value, str) and member.value, (name, member)
             assert str(member) == member.value and f"{member:>4}" == format(member.value, ">4")
-            assert member != member.value               # compared as members, never as strings
+            assert member != member.value  # compared as members, never as strings
             assert member.ok is (member.name == "OK")
 
 
@@ -90,8 +110,12 @@ def _repeats(status: Status, reason: str) -> bool:
 
 def _problem(tmp_path: Path, path: str, rest: str = "") -> Path:
     p = tmp_path / "status.toml"
-    p.write_text('name = "status"\n[robot]\nmodel = "ar5"\ntool = { xyz = [0.1, 0.0, 0.05] }\n' + path
-                 + '[orientation]\nrule = "free_tool_axis"\n[wrench]\nforce = [15.0, -25.0, 30.0]\n' + rest)
+    p.write_text(
+        'name = "status"\n[robot]\nmodel = "ar5"\ntool = { xyz = [0.1, 0.0, 0.05] }\n'
+        + path
+        + '[orientation]\nrule = "free_tool_axis"\n[wrench]\nforce = [15.0, -25.0, 30.0]\n'
+        + rest
+    )
     return p
 
 
@@ -127,8 +151,7 @@ def test_a_compensation_failure_does_not_repeat_its_status():
     d = load_robot("ur5").to_dict()
     for j, row in enumerate(d["joints"]):
         row["q_min"], row["q_max"] = float(q[0, j] - TIGHT_LIMIT_RAD), float(q[0, j] + TIGHT_LIMIT_RAD)
-    out = compensate(model_from_robot(robot_from_dict(d, "tight.toml")), q,
-                     np.array([0.0, 0.0, -80.0, 0.0, 0.0, 0.0]))
+    out = compensate(model_from_robot(robot_from_dict(d, "tight.toml")), q, np.array([0.0, 0.0, -80.0, 0.0, 0.0, 0.0]))
     assert out.status is CompensationStatus.FAILED and not out.status.usable
     assert "outside the joint limits" in out.reason
     assert not _repeats(out.status, out.reason), out.reason
@@ -138,10 +161,10 @@ def test_dynamic_and_freedom_reasons_do_not_repeat_their_status():
     from problems.dynamic import DynamicStatus, motor_command
     from problems.posture import OrientationRule, analyse_freedom
 
-    robot = load_robot("ar5")                      # no link masses: no inertial torques
+    robot = load_robot("ar5")  # no link masses: no inertial torques
     q = np.zeros((3, 6))
     cmd = motor_command(model_from_robot(robot), q, q, q, Load.base(np.zeros(6)))
     assert cmd.status is DynamicStatus.FAILED and "no link masses" in cmd.reason
     assert not _repeats(cmd.status, cmd.reason), cmd.reason
-    kind, note = analyse_freedom(robot, OrientationRule.FREE_TOOL_AXIS)       # tool on the joint-6 axis
+    kind, note = analyse_freedom(robot, OrientationRule.FREE_TOOL_AXIS)  # tool on the joint-6 axis
     assert kind == "degenerate" and not note.startswith("degenerate"), note

@@ -87,9 +87,7 @@ def curved_path(seed: int = 1, n_way: int = N_WAYPOINTS) -> np.ndarray:
     rng = np.random.default_rng(seed)
     u = np.linspace(0.0, 1.0, n_way)[:, None]
     c = rng.uniform(-1.0, 1.0, (4, N_JOINTS))
-    return c[0] + c[1] * 1.5 * u + 0.6 * c[2] * np.sin(2.0 * np.pi * u) + 0.4 * c[3] * np.cos(
-        np.pi * u
-    )
+    return c[0] + c[1] * 1.5 * u + 0.6 * c[2] * np.sin(2.0 * np.pi * u) + 0.4 * c[3] * np.cos(np.pi * u)
 
 
 PATHS = {"line": line_path, "curved": curved_path}
@@ -100,9 +98,7 @@ _CACHE: dict[tuple, Trajectory] = {}
 def run(path_name: str, limits_name: str, method: str, dt: float = 0.008) -> Trajectory:
     key = (path_name, limits_name, method, dt)
     if key not in _CACHE:
-        _CACHE[key] = time_parametrize(
-            PATHS[path_name](), LIMIT_SETS[limits_name], method=method, dt=dt
-        )
+        _CACHE[key] = time_parametrize(PATHS[path_name](), LIMIT_SETS[limits_name], method=method, dt=dt)
     return _CACHE[key]
 
 
@@ -306,9 +302,7 @@ def test_toppra_coarse_grid_overshoot_is_corrected(time_law):
 
 def test_toppra_never_ok_while_exceeding():
     limits = LIMIT_SETS["uniform"]
-    traj = time_parametrize(
-        curved_path(), limits, "toppra", gridpoints=100, time_law="spline", max_iterations=1
-    )
+    traj = time_parametrize(curved_path(), limits, "toppra", gridpoints=100, time_law="spline", max_iterations=1)
     assert traj.iterations == 1
     assert traj.status is TimingStatus.LIMIT_EXCEEDED
     assert traj.reason.startswith("acceleration ratio above 1 after 1 run(s)")
@@ -355,9 +349,7 @@ def test_library_prints_and_logs_nothing(capsys, caplog):
     time_parametrize(curved_path(), LIMIT_SETS["varied"], "ruckig")
     out = capsys.readouterr()
     assert out.out == "" and out.err == ""
-    noisy = [
-        r for r in caplog.records if r.name.startswith("toppra") and r.levelno >= logging.WARNING
-    ]
+    noisy = [r for r in caplog.records if r.name.startswith("toppra") and r.levelno >= logging.WARNING]
     assert not noisy
     # toppra's own warnings (e.g. "Fail to parametrize path") are muted inside
     # the call and the logger level is restored afterwards
@@ -551,9 +543,18 @@ def test_to_csv_rejects_inconsistent_arrays(tmp_path):
 def test_names_imported_elsewhere_are_reexported():
     # planner/plan.py, planner/commands/plan.py, benchmarks/*: keep working
     for name in (
-        "JointLimits", "Trajectory", "TimingStatus", "time_parametrize", "DT_MAX_S",
-        "LIMIT_RATIO_TOL", "VALID_METHODS", "available_methods", "default_methods",
-        "controller_methods", "display_name", "get_method",
+        "JointLimits",
+        "Trajectory",
+        "TimingStatus",
+        "time_parametrize",
+        "DT_MAX_S",
+        "LIMIT_RATIO_TOL",
+        "VALID_METHODS",
+        "available_methods",
+        "default_methods",
+        "controller_methods",
+        "display_name",
+        "get_method",
     ):
         assert hasattr(timing, name), name
         assert name in timing.__all__, name
@@ -595,10 +596,17 @@ def test_a_new_method_is_a_registered_module():
     def run_rest(path, limits, dt, opts):
         calls.append((path.q_path.shape, dt, dict(opts)))
         return trajectory_module.Trajectory(
-            method="rest", status=TimingStatus.FAILED, reason="stub", t=np.empty(0),
-            q=np.empty((0, N_JOINTS)), qd=np.empty((0, N_JOINTS)),
-            qdd=np.empty((0, N_JOINTS)), qddd=np.empty((0, N_JOINTS)),
-            duration_s=float("nan"), limit_ratio={}, dt=dt,
+            method="rest",
+            status=TimingStatus.FAILED,
+            reason="stub",
+            t=np.empty(0),
+            q=np.empty((0, N_JOINTS)),
+            qd=np.empty((0, N_JOINTS)),
+            qdd=np.empty((0, N_JOINTS)),
+            qddd=np.empty((0, N_JOINTS)),
+            duration_s=float("nan"),
+            limit_ratio={},
+            dt=dt,
         )
 
     def validate(out):
@@ -617,7 +625,7 @@ def test_a_new_method_is_a_registered_module():
             time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.004, level=-1)
         with pytest.raises(InputError, match="valid options"):
             time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.004, gridpoints=5)
-        with pytest.raises(InputError, match=r"<= 0.01 s of timing method 'rest'"):   # its own dt bound
+        with pytest.raises(InputError, match=r"<= 0.01 s of timing method 'rest'"):  # its own dt bound
             time_parametrize(curved_path(), LIMIT_SETS["uniform"], "rest", 0.02)
     finally:
         registry.unregister_method("rest")
@@ -643,6 +651,7 @@ def test_the_plan_names_a_failed_trajectory_status_once():
     """planner.plan composes "<method>: <status>: <reason>" without reading the reason."""
     from planner.plan import PlanStatus, plan
     from problems.problem import load_problem
+
     pr = load_problem("paper_4_4").with_timing(methods=("toppra",), toppra_max_iterations=1)
     res = plan(pr)
     tr = res.trajectories["toppra"]
@@ -659,10 +668,14 @@ def test_finish_trajectory_decides_status_from_the_registry():
     good = run("curved", "uniform", "toppra")
     duration = float(good.duration_s)
 
-    def law(t):          # a slow, monotone law: s = (t / T)^2 (3 - 2 t / T)
+    def law(t):  # a slow, monotone law: s = (t / T)^2 (3 - 2 t / T)
         u = np.clip(t / duration, 0.0, 1.0)
-        return (u**2 * (3 - 2 * u), 6 * u * (1 - u) / duration, (6 - 12 * u) / duration**2,
-                np.full_like(u, -12.0 / duration**3))
+        return (
+            u**2 * (3 - 2 * u),
+            6 * u * (1 - u) / duration,
+            (6 - 12 * u) / duration**2,
+            np.full_like(u, -12.0 / duration**3),
+        )
 
     tc = verification.check_times(duration, good.dt)
     s, sd, sdd, sddd = law(tc)
@@ -676,13 +689,15 @@ def test_finish_trajectory_decides_status_from_the_registry():
     # the same law with every limit 100x tighter: over the limits the method checks
     tight = JointLimits(limits.velocity / 100, limits.acceleration / 100, limits.jerk / 100)
     tight_ratio = verification.limit_ratios(qd, qdd, qddd, tight)
-    over = verification.finish_trajectory("toppra", path, tight, good.dt, law, duration, tight_ratio, "x",
-                                          **common, runs=" after 1 run(s)")
+    over = verification.finish_trajectory(
+        "toppra", path, tight, good.dt, law, duration, tight_ratio, "x", **common, runs=" after 1 run(s)"
+    )
     assert over.status is TimingStatus.LIMIT_EXCEEDED
     assert over.reason.startswith("velocity and acceleration ratio above 1 after 1 run(s); x")
     # a backwards path velocity fails, whatever the ratios
-    back = verification.finish_trajectory("ruckig", path, limits, good.dt, law, duration, ratio, "y",
-                                          check_sd=-sd, sd_scale=float(sd.max()), iterations=1)
+    back = verification.finish_trajectory(
+        "ruckig", path, limits, good.dt, law, duration, ratio, "y", check_sd=-sd, sd_scale=float(sd.max()), iterations=1
+    )
     assert back.status is TimingStatus.FAILED and back.reason.startswith("the Ruckig time law moves backwards")
 
 

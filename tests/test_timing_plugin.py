@@ -37,7 +37,8 @@ LIMIT_TOL = 1e-9
 #: A subprocess that plans (posture, compensation, timing, report) gets this long, s.
 TIMEOUT_S = 600
 
-PLUGIN = '''
+PLUGIN = (
+    '''
 """Septic rest-to-rest law stretched to the slowest joint (a timing plug-in for a test)."""
 import numpy as np
 
@@ -46,7 +47,8 @@ from problems.timing.registry import TimingMethod, register_method
 from problems.timing.verification import check_times, finish_trajectory, format_ratios, limit_ratios
 
 _U = np.linspace(0.0, 1.0, 200001)
-#: Peaks of the septic's first three derivatives |ds/du|, |d2s/du2|, |d3s/du3| over u in [0, 1] (fine grid) and the relative margin
+#: Peaks of the septic's first three derivatives |ds/du|, |d2s/du2|, |d3s/du3| over u in [0, 1]
+#: (fine grid) and the relative margin
 #: that covers the grid's error.
 C1 = float(np.max(140 * _U**3 * (1 - _U)**3))
 C2 = float(np.max(np.abs(420 * _U**2 * (1 - _U)**2 * (1 - 2 * _U))))
@@ -96,7 +98,10 @@ register_method(TimingMethod(
     checked_limits=("velocity", "acceleration", "jerk"),
     description="septic rest-to-rest law stretched to the slowest joint (test plug-in)",
     display_name="@DISPLAY@", controller_rank=@RANK@))
-'''.replace("@NAME@", NAME).replace("@DISPLAY@", DISPLAY).replace("@RANK@", str(RANK))
+'''.replace("@NAME@", NAME)
+    .replace("@DISPLAY@", DISPLAY)
+    .replace("@RANK@", str(RANK))
+)
 
 
 def _problem_text(methods: str, extra: str = "") -> str:
@@ -110,8 +115,14 @@ def _problem_text(methods: str, extra: str = "") -> str:
 def _compplan(args: list[str], plugins: Path) -> subprocess.CompletedProcess:
     """``compplan ARGS`` in a fresh interpreter with ``$COMPPLAN_TIMING_PATH`` = ``plugins``."""
     env = {**os.environ, "COMPPLAN_TIMING_PATH": str(plugins)}
-    return subprocess.run([sys.executable, "-m", "planner", *args], capture_output=True, text=True,
-                          timeout=TIMEOUT_S, env=env, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "planner", *args],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_S,
+        env=env,
+        check=False,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -137,13 +148,13 @@ def test_the_plugin_plans_and_its_trajectory_is_in_the_summary(plugin_run):
     assert t["status"] == "ok" and t["display_name"] == DISPLAY
     assert t["limits_enforced"] == ["velocity", "acceleration", "jerk"] and t["within_all_limits"]
     assert not t["reason"].startswith("ok") and t["reason"].startswith("velocity, acceleration and jerk within")
-    assert s["problem"]["timing"][NAME] == {"stretch": 1.05}            # its [timing.septic] table
+    assert s["problem"]["timing"][NAME] == {"stretch": 1.05}  # its [timing.septic] table
     # its rank puts it before TOPP-RA: the controller runs it, and the headline says so
     assert s["controller_trajectory"] == NAME and t["file"] == "trajectory.csv"
     assert s["headline"]["duration_method"] == NAME
     assert s["headline"]["duration_note"] == f"{DISPLAY}: the trajectory the controller runs (trajectory.csv)"
     assert set(s["timing"]) == {"toppra", NAME} and s["timing"]["toppra"]["file"] == "trajectory_toppra.csv"
-    assert s["duration_s"][NAME] > s["duration_s"]["toppra"]            # TOPP-RA is time-optimal
+    assert s["duration_s"][NAME] > s["duration_s"]["toppra"]  # TOPP-RA is time-optimal
 
 
 def test_the_plugin_trajectory_file_is_within_every_limit(plugin_run):
@@ -161,7 +172,7 @@ def test_the_plugin_trajectory_file_is_within_every_limit(plugin_run):
         peak = np.max(np.abs(np.column_stack([cols[f"{prefix}{j}"] for j in range(1, 7)])), axis=0)
         assert np.all(peak <= lim * (1 + LIMIT_TOL)), (key, peak / lim)
         used.append(float(np.max(peak / lim)))
-    assert max(used) > 0.5, used             # it uses its limits (not stretched to nothing)
+    assert max(used) > 0.5, used  # it uses its limits (not stretched to nothing)
     # rest to rest
     for prefix in ("qd", "qdd"):
         assert np.all(np.abs([cols[f"{prefix}{j}"][[0, -1]] for j in range(1, 7)]) < 1e-12)
@@ -170,15 +181,16 @@ def test_the_plugin_trajectory_file_is_within_every_limit(plugin_run):
 def test_the_report_names_the_plugin(plugin_run):
     out = plugin_run["out"]
     html = (out / "report.html").read_text()
-    assert f"{DISPLAY} (controller)" in html                           # its row of the timing table
+    assert f"{DISPLAY} (controller)" in html  # its row of the timing table
     assert "TOPP-RA" in html
     assert f"  {NAME}" in plugin_run["stdout"] and "-> trajectory.csv" in plugin_run["stdout"]
 
 
 def test_the_plugin_trajectory_exports_for_ros2(plugin_run):
     target = plugin_run["tmp"] / "septic_ros2.yaml"
-    done = _compplan(["export", str(plugin_run["out"]), "--format", "ros2", "--out", str(target)],
-                     plugin_run["plugins"])
+    done = _compplan(
+        ["export", str(plugin_run["out"]), "--format", "ros2", "--out", str(target)], plugin_run["plugins"]
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     msg = yaml.safe_load(target.read_text())
     rows = (plugin_run["out"] / "trajectory.csv").read_text().splitlines()
@@ -197,6 +209,7 @@ def test_an_unknown_method_lists_the_plugin_too(plugin_run):
 
 def test_an_unknown_method_is_an_input_error_listing_the_registered_ones():
     import tomllib
+
     data = tomllib.loads(_problem_text('["toppra", "spline"]'))
     with pytest.raises(ProblemFileError) as err:
         problem_from_dict(data, "p.toml")
@@ -208,13 +221,14 @@ def test_an_unknown_method_is_an_input_error_listing_the_registered_ones():
 
 def test_method_option_tables_are_checked_against_the_method():
     import tomllib
+
     bad = tomllib.loads(_problem_text('["toppra", "jerk_optimal"]', "\n[timing.toppra]\ngridpoints = 1\n"))
     with pytest.raises(ProblemFileError, match=r"\[timing.toppra\]: option gridpoints must be an integer >= 2"):
         problem_from_dict(bad, "p.toml")
     unknown = tomllib.loads(_problem_text('["toppra", "jerk_optimal"]', "\n[timing.toppra]\nstretch = 2\n"))
     with pytest.raises(ProblemFileError, match=r"\[timing.toppra\]: unknown key\(s\) \['stretch'\]"):
         problem_from_dict(unknown, "p.toml")
-    ok = tomllib.loads(_problem_text('["toppra", "jerk_optimal"]', "\n[timing.toppra]\ntime_law = \"spline\"\n"))
+    ok = tomllib.loads(_problem_text('["toppra", "jerk_optimal"]', '\n[timing.toppra]\ntime_law = "spline"\n'))
     pr = problem_from_dict(ok, "p.toml")
     assert pr.timing.options("toppra") == {"time_law": "spline"} and pr.timing.options("jerk_optimal") == {}
     no_controller = tomllib.loads(_problem_text("[]"))

@@ -26,8 +26,18 @@ from models.robot import robot_from_dict
 from models.symbolic import KinematicModel
 from models.transforms import rpy_to_matrix, transform
 from problems.measurements import measurements_to_csv, parse_measurements
-from problems.virtual import (SIM_EFFECTS, SimConfigError, VirtualRobot, effect_tables, from_truth, load_config,
-                              not_simulated, realisation, realisations, rotvecs)
+from problems.virtual import (
+    SIM_EFFECTS,
+    SimConfigError,
+    VirtualRobot,
+    effect_tables,
+    from_truth,
+    load_config,
+    not_simulated,
+    realisation,
+    realisations,
+    rotvecs,
+)
 from problems.virtual.registry import top_level_tables
 from tests.conftest import as_modified_dh
 
@@ -93,8 +103,8 @@ def test_the_effects_and_the_virtual_robot_agree_on_what_is_simulated() -> None:
             assert r.table == e.simulation and r.top_level == e.declared, e.name
     for r in realisations():
         assert all(fx.effect(n).simulation == r.table for n in r.effects), r
-        assert r.effects or r.table == "outliers"        # the one table of no model term
-    assert not_simulated() == {}                         # every built-in effect is simulated
+        assert r.effects or r.table == "outliers"  # the one table of no model term
+    assert not_simulated() == {}  # every built-in effect is simulated
     library = [e for e in fx.registry() if e.simulation and not e.declared]
     assert set(effect_tables()) == {n for e in library for n in (e.simulation, e.name)} | {"outliers"}
     assert set(SIM_EFFECTS) == set(effect_tables())
@@ -127,15 +137,18 @@ def test_outliers_are_a_simulated_table_of_no_model_effect() -> None:
     assert vr.simulated("outliers") and realisation("outliers") is None
     m, m0 = vr.campaign(), VirtualRobot(load_robot("ur5"), cfg).campaign()
     moved = np.flatnonzero(np.linalg.norm(m.p - m0.p, axis=1) > 0)
-    assert moved.tolist() == vr.outlier_rows.tolist() and len(moved) == 4       # 10 % of 40 rows
+    assert moved.tolist() == vr.outlier_rows.tolist() and len(moved) == 4  # 10 % of 40 rows
 
 
-@pytest.mark.parametrize("name, words", [
-    ("wobble", ["'wobble'", "known: ['joint_offset'", "'eccentricity', 'joint_error_map', 'outliers']"]),
-    ("stiffness", ["'stiffness'", "[stiffness] is a top-level table"]),
-    ("joint_springs", ["'joint_springs'", "declared model", "top-level table [stiffness]"]),
-    ("measured_point", ["'measured_point'", "declared model", "top-level table [registration]"]),
-])
+@pytest.mark.parametrize(
+    "name, words",
+    [
+        ("wobble", ["'wobble'", "known: ['joint_offset'", "'eccentricity', 'joint_error_map', 'outliers']"]),
+        ("stiffness", ["'stiffness'", "[stiffness] is a top-level table"]),
+        ("joint_springs", ["'joint_springs'", "declared model", "top-level table [stiffness]"]),
+        ("measured_point", ["'measured_point'", "declared model", "top-level table [registration]"]),
+    ],
+)
 def test_an_unknown_effect_table_lists_the_known_ones(name: str, words: list[str]) -> None:
     with pytest.raises(SimConfigError) as exc:
         VirtualRobot(load_robot("ur5"), {"effects": {name: {}}}, where="s.toml")
@@ -169,8 +182,9 @@ vr = VirtualRobot(load_robot("ur5"), {"campaign": {"poses": 3}, "effects": {"gra
 print(vr.campaign().n)
 """
     env = {**os.environ, "COMPPLAN_EFFECT_PATH": str(tmp_path)}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env,
-                         check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env, check=False
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     why_none, why_table, plug_in, table, effect, rows = out.stdout.strip().splitlines()[-6:]
     assert "declares no table of the virtual robot" in why_none
@@ -185,6 +199,7 @@ print(vr.campaign().n)
 # ----------------------------------------------------------------------------------
 # Periodic joint errors
 # ----------------------------------------------------------------------------------
+
 
 def test_single_term_form_is_bit_identical_to_the_old_formula() -> None:
     """``joint = 1, amplitude_rad, harmonic, phase_rad`` as before: the term
@@ -203,14 +218,15 @@ def test_single_term_form_is_bit_identical_to_the_old_formula() -> None:
         qc[:, 0] += 1e-3 * np.sin(2.0 * qc[:, 0] + 0.3)
         return plain_eq(qc, F, temperature)
 
-    ref.equilibrium = old_equilibrium      # the reference: the old formula, by hand
+    ref.equilibrium = old_equilibrium  # the reference: the old formula, by hand
     m, m_ref = vr.campaign(), ref.campaign()
     for k in ("q", "wrench", "p", "t"):
         assert np.array_equal(getattr(m, k), getattr(m_ref, k)), k
     assert np.array_equal(vr.equilibrium(m.q, m.wrench), old_equilibrium(m.q, m.wrench))
     # the truth lists the one term
     assert vr.truth()["realised"]["joint_error_terms"] == [
-        {"joint": 1, "amplitude_rad": 1e-3, "harmonic": 2.0, "phase_rad": 0.3}]
+        {"joint": 1, "amplitude_rad": 1e-3, "harmonic": 2.0, "phase_rad": 0.3}
+    ]
     # defaults of an empty table are the old ones
     d = VirtualRobot(robot, {"effects": {"eccentricity": {}}})
     assert d.joint_error_terms() == [{"joint": 1, "amplitude_rad": 1e-3, "harmonic": 2.0, "phase_rad": 0.3}]
@@ -218,8 +234,12 @@ def test_single_term_form_is_bit_identical_to_the_old_formula() -> None:
 
 def test_multi_term_joint_errors_are_the_hand_computed_sum() -> None:
     robot = load_robot("ur10")
-    terms = {"joint": [1, 1, 4, 6], "amplitude_rad": [1e-3, -4e-4, 2e-4, 3e-4],
-             "harmonic": [2, 13.4, 1, 3.5], "phase_rad": [0.3, -1.0, 2.0, 0.0]}
+    terms = {
+        "joint": [1, 1, 4, 6],
+        "amplitude_rad": [1e-3, -4e-4, 2e-4, 3e-4],
+        "harmonic": [2, 13.4, 1, 3.5],
+        "phase_rad": [0.3, -1.0, 2.0, 0.0],
+    }
     q = _q()
     expect = np.zeros_like(q)
     expect[:, 0] = 1e-3 * np.sin(2 * q[:, 0] + 0.3) - 4e-4 * np.sin(13.4 * q[:, 0] - 1.0)
@@ -235,8 +255,14 @@ def test_multi_term_joint_errors_are_the_hand_computed_sum() -> None:
     plain = VirtualRobot(robot, {})
     np.testing.assert_allclose(vr.equilibrium(q, F), plain.equilibrium(q + expect, F), rtol=0, atol=1e-15)
     # scalars apply to every term; a single joint number to all of them
-    vr_b = VirtualRobot(robot, {"effects": {"joint_error_map": {"joint": 2, "amplitude_rad": [1e-3, 2e-4],
-                                                                 "harmonic": [1, 7.5], "phase_rad": 0.5}}})
+    vr_b = VirtualRobot(
+        robot,
+        {
+            "effects": {
+                "joint_error_map": {"joint": 2, "amplitude_rad": [1e-3, 2e-4], "harmonic": [1, 7.5], "phase_rad": 0.5}
+            }
+        },
+    )
     e2 = 1e-3 * np.sin(q[:, 1] + 0.5) + 2e-4 * np.sin(7.5 * q[:, 1] + 0.5)
     np.testing.assert_allclose(vr_b.joint_error(q)[:, 1], e2, rtol=0, atol=1e-17)
     assert not np.any(vr_b.joint_error(q)[:, [0, 2, 3, 4, 5]])
@@ -246,13 +272,23 @@ def test_multi_term_joint_errors_are_the_hand_computed_sum() -> None:
 
 
 def test_joint_error_truth_round_trips_through_toml() -> None:
-    cfg = {"seed": 3, "effects": {"joint_error_map": {"joint": [2, 5], "amplitude_rad": [5e-4, 1e-4],
-                                                      "harmonic": [1.5, 40], "phase_rad": [0.1, 0.2]}}}
+    cfg = {
+        "seed": 3,
+        "effects": {
+            "joint_error_map": {
+                "joint": [2, 5],
+                "amplitude_rad": [5e-4, 1e-4],
+                "harmonic": [1.5, 40],
+                "phase_rad": [0.1, 0.2],
+            }
+        },
+    }
     vr = VirtualRobot(load_robot("ur5"), cfg)
     truth = tomllib.loads(tomli_w.dumps(vr.truth()))
     assert truth["realised"]["joint_error_terms"] == [
         {"joint": 2, "amplitude_rad": 5e-4, "harmonic": 1.5, "phase_rad": 0.1},
-        {"joint": 5, "amplitude_rad": 1e-4, "harmonic": 40.0, "phase_rad": 0.2}]
+        {"joint": 5, "amplitude_rad": 1e-4, "harmonic": 40.0, "phase_rad": 0.2},
+    ]
     q = _q(10)
     assert np.array_equal(from_truth(truth).joint_error(q), vr.joint_error(q))
 
@@ -295,6 +331,7 @@ def test_both_spellings_of_the_joint_error_effect_are_refused() -> None:
 # Orientation
 # ----------------------------------------------------------------------------------
 
+
 def _robot(kind: str):
     r = load_robot("ur5")
     if kind == "modified_dh":
@@ -302,12 +339,14 @@ def _robot(kind: str):
     return r.with_tool(TOOL)
 
 
-@pytest.mark.parametrize("kind, registered", [("standard_dh", False), ("standard_dh", True),
-                                              ("modified_dh", False)])
+@pytest.mark.parametrize("kind, registered", [("standard_dh", False), ("standard_dh", True), ("modified_dh", False)])
 def test_noise_free_orientation_is_the_nominal_fk_with_the_registration(kind: str, registered: bool) -> None:
     robot = _robot(kind)
-    cfg = {"campaign": {"poses": 20, "loaded_rows": 2, "orientation": True}, "noise": NO_NOISE,
-           "registration": {"registered": registered}}
+    cfg = {
+        "campaign": {"poses": 20, "loaded_rows": 2, "orientation": True},
+        "noise": NO_NOISE,
+        "registration": {"registered": registered},
+    }
     vr = VirtualRobot(robot, cfg)
     m = vr.campaign()
     assert m.rotation is not None and m.rotation.shape == (m.n, 3)
@@ -333,8 +372,10 @@ def test_noise_free_orientation_is_the_nominal_fk_with_the_registration(kind: st
 
 def test_orientation_noise_has_the_declared_std_and_leaves_positions_alone() -> None:
     sigma = 1e-3
-    cfg = {"campaign": {"poses": 700, "unloaded_rows": 3, "loaded_rows": 0, "orientation": True},
-           "noise": {"sigma_m": 2e-5, "sigma_rad": sigma}}
+    cfg = {
+        "campaign": {"poses": 700, "unloaded_rows": 3, "loaded_rows": 0, "orientation": True},
+        "noise": {"sigma_m": 2e-5, "sigma_rad": sigma},
+    }
     vr = VirtualRobot(load_robot("ur10"), cfg)
     m = vr.campaign()
     assert m.n == 2100
@@ -349,8 +390,12 @@ def test_orientation_noise_has_the_declared_std_and_leaves_positions_alone() -> 
     # the documented form (right-multiplied, in the measured frame), checked with the draws replayed
     R = R_true[:50]
     w50 = np.random.default_rng(9).normal(0.0, sigma, (50, 3))
-    np.testing.assert_allclose(VirtualRobot._campaign_rotation_noise(R, sigma, np.random.default_rng(9)),
-                               R @ Rotation.from_rotvec(w50).as_matrix(), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        VirtualRobot._campaign_rotation_noise(R, sigma, np.random.default_rng(9)),
+        R @ Rotation.from_rotvec(w50).as_matrix(),
+        rtol=0,
+        atol=1e-15,
+    )
     # the orientation noise is drawn last: positions, times, loads are those of a 3-D campaign
     m3 = VirtualRobot(load_robot("ur10"), {**cfg, "campaign": {**cfg["campaign"], "orientation": False}}).campaign()
     assert m3.rotation is None
@@ -366,24 +411,29 @@ def test_a_joint_6_offset_turns_the_frame_about_the_flange_axis_by_that_angle() 
     for registered in (True, False):
         reg = {"registered": registered}
         R0 = VirtualRobot(robot, {"registration": reg}).measure_orientation(q, F)
-        vr1 = VirtualRobot(robot, {"registration": reg,
-                                   "effects": {"joint_offset": {"dtheta_rad": [0, 0, 0, 0, 0, delta]}}})
+        vr1 = VirtualRobot(
+            robot, {"registration": reg, "effects": {"joint_offset": {"dtheta_rad": [0, 0, 0, 0, 0, delta]}}}
+        )
         R1 = vr1.measure_orientation(q, F)
         R_reg = np.eye(3) if registered else Rotation.from_rotvec(REG_ROTVEC).as_matrix()
-        z_flange = (R_reg.T @ R0 @ TOOL[:3, :3].T)[:, :, 2]     # joint-6 axis (alpha6 = 0), base frame
-        np.testing.assert_allclose(rotvecs(R1 @ np.swapaxes(R0, 1, 2)), delta * z_flange @ R_reg.T,
-                                   rtol=0, atol=1e-13)
+        z_flange = (R_reg.T @ R0 @ TOOL[:3, :3].T)[:, :, 2]  # joint-6 axis (alpha6 = 0), base frame
+        np.testing.assert_allclose(rotvecs(R1 @ np.swapaxes(R0, 1, 2)), delta * z_flange @ R_reg.T, rtol=0, atol=1e-13)
         # in the measured frame: about the flange z axis seen from the tool
-        np.testing.assert_allclose(rotvecs(np.swapaxes(R0, 1, 2) @ R1),
-                                   np.broadcast_to(delta * TOOL[:3, :3].T[:, 2], (len(q), 3)), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(
+            rotvecs(np.swapaxes(R0, 1, 2) @ R1),
+            np.broadcast_to(delta * TOOL[:3, :3].T[:, 2], (len(q), 3)),
+            rtol=0,
+            atol=1e-13,
+        )
     # a periodic joint-6 error turns it by the error of each row
     terms = {"joint": 6, "amplitude_rad": 1e-3, "harmonic": 3.5, "phase_rad": 0.2}
     vr_e = VirtualRobot(robot, {"registration": {"registered": True}, "effects": {"joint_error_map": terms}})
     R0 = VirtualRobot(robot, {"registration": {"registered": True}}).measure_orientation(q, F)
     e6 = 1e-3 * np.sin(3.5 * q[:, 5] + 0.2)
     z_flange = (R0 @ TOOL[:3, :3].T)[:, :, 2]
-    np.testing.assert_allclose(rotvecs(vr_e.measure_orientation(q, F) @ np.swapaxes(R0, 1, 2)),
-                               e6[:, None] * z_flange, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        rotvecs(vr_e.measure_orientation(q, F) @ np.swapaxes(R0, 1, 2)), e6[:, None] * z_flange, rtol=0, atol=1e-13
+    )
 
 
 def test_a_moment_turns_the_frame_by_the_joint_compliance() -> None:
@@ -392,13 +442,13 @@ def test_a_moment_turns_the_frame_by_the_joint_compliance() -> None:
     q = _q(20)
     km = KinematicModel(robot)
     z_flange = km.tcp(q)[:, :3, 2]
-    m_vec = 50.0 * z_flange                      # 50 N*m about the flange axis
+    m_vec = 50.0 * z_flange  # 50 N*m about the flange axis
     F = np.hstack([np.zeros_like(m_vec), m_vec])
     vr = VirtualRobot(robot, {"registration": {"registered": True}})
     turn = rotvecs(vr.measure_orientation(q, F) @ np.swapaxes(vr.measure_orientation(q, 0 * F), 1, 2))
     expect = km.D(q, F)[:, 3:]
     np.testing.assert_allclose(turn, expect, rtol=0, atol=1e-3 * np.abs(expect).max())
-    assert np.all(np.sum(turn * m_vec, axis=1) > 0)          # it yields in the direction of the moment
+    assert np.all(np.sum(turn * m_vec, axis=1) > 0)  # it yields in the direction of the moment
 
 
 def test_link_compliance_turns_the_frame_as_it_moves_the_points() -> None:
@@ -431,16 +481,14 @@ BAD_ORIENTATION = [
     ({"campaign": {"orientation": "yes"}}, ["[campaign]", "'orientation'", "yes"]),
     ({"campaign": {"orientation": True}, "noise": {"sigma_rad": -1e-4}}, ["[noise]", "'sigma_rad'", "-0.0001"]),
     ({"noise": {"sigma_rot_column": True}}, ["'sigma_rot_column'", "orientation = true"]),
-    ({"campaign": {"orientation": True}, "noise": {"sigma_rad": 0.0, "sigma_rot_column": True}},
-     ["'sigma_rad'", "0"]),
+    ({"campaign": {"orientation": True}, "noise": {"sigma_rad": 0.0, "sigma_rot_column": True}}, ["'sigma_rad'", "0"]),
     ({"noise": {"sigma_deg": 1.0}}, ["unknown key", "sigma_deg"]),
 ]
 
 
 @pytest.mark.parametrize("cfg, words", BAD_ORIENTATION)
 def test_orientation_config_errors_name_the_key_and_value(cfg: dict, words: list[str]) -> None:
-    vr = VirtualRobot(load_robot("ur5"), {**cfg, "campaign": {"poses": 3, **cfg.get("campaign", {})}},
-                      where="s.toml")
+    vr = VirtualRobot(load_robot("ur5"), {**cfg, "campaign": {"poses": 3, **cfg.get("campaign", {})}}, where="s.toml")
     with pytest.raises(SimConfigError) as exc:
         vr.campaign()
     for w in words:

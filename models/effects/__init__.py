@@ -2,7 +2,8 @@
 
 Every module of this package other than ``base`` and ``graph`` (and every module in the
 folders named by ``$COMPPLAN_EFFECT_PATH``) is imported here, so adding an effect is
-adding a module that defines and registers it (see ``docs/architecture.md``).  The layouts below are built from the registry once all
+adding a module that defines and registers it (see ``docs/architecture.md``).  The layouts below are built
+from the registry once all
 built-in modules are imported.
 """
 
@@ -12,9 +13,24 @@ from __future__ import annotations
 from models.plugins import import_plugins
 
 from . import base
-from .base import (ARM, MEASUREMENT, PARALLEL_AXIS_TOL, TORQUE_SCALE_FLOOR_NM, ConstGroup, Effect, ModelLayout,
-                   ParamGroup, default_constants, effect, get_const, layouts, make_layout, register, registry,
-                   set_const)
+from .base import (
+    ARM,
+    MEASUREMENT,
+    PARALLEL_AXIS_TOL,
+    TORQUE_SCALE_FLOOR_NM,
+    ConstGroup,
+    Effect,
+    ModelLayout,
+    ParamGroup,
+    default_constants,
+    effect,
+    get_const,
+    layouts,
+    make_layout,
+    register,
+    registry,
+    set_const,
+)
 
 #: Extra folders searched for effect modules (``os.pathsep``-separated), so an installed
 #: product can be extended without editing it: each ``*.py`` there is imported as
@@ -23,18 +39,25 @@ from .base import (ARM, MEASUREMENT, PARALLEL_AXIS_TOL, TORQUE_SCALE_FLOOR_NM, C
 EFFECT_PATH_VARIABLE = "COMPPLAN_EFFECT_PATH"
 import_plugins(__name__, __path__, EFFECT_PATH_VARIABLE, skip=("base", "graph"))
 
-from .graph import (EQUILIBRIUM_UNROLL, JACOBIAN_UNROLL, LOAD_SIZE, ROW_SIZE, arm_functions,  # noqa: E402
-                    identification_functions)
-from .link_compliance import LINK_BEAM_MIN_FRACTION, beam_frames  # noqa: E402
-from .lost_motion import LOST_MOTION_RHO_BOUNDS, LOST_MOTION_RHO_INIT  # noqa: E402
-from .registration import cayley, cayley_np  # noqa: E402
-from .stiffness_hardening import HARDENING_KNOT_QUANTILES, N_HARDENING, N_KNOTS  # noqa: E402
-from .thermal import THERMAL_REFERENCE_C  # noqa: E402
+from .graph import (  # noqa: E402 - the layouts need every effect registered first
+    EQUILIBRIUM_UNROLL,
+    JACOBIAN_UNROLL,
+    LOAD_SIZE,
+    ROW_SIZE,
+    arm_functions,
+    identification_functions,
+)
+from .link_compliance import LINK_BEAM_MIN_FRACTION, beam_frames  # noqa: E402 - after the registration above
+from .lost_motion import LOST_MOTION_RHO_BOUNDS, LOST_MOTION_RHO_INIT  # noqa: E402 - after the registration above
+from .registration import cayley, cayley_np  # noqa: E402 - after the registration above
+from .stiffness_hardening import HARDENING_KNOT_QUANTILES, N_HARDENING, N_KNOTS  # noqa: E402 - after the registration above
+from .thermal import THERMAL_REFERENCE_C  # noqa: E402 - after the registration above
 
 _L = layouts()
 #: Parameter groups ``(key, effect, labels, unit)`` in the order of ``theta``.
 PARAMETER_GROUPS: tuple[tuple[str, str, list[str], str], ...] = tuple(
-    (g.key, e.name, list(g.labels), g.unit if isinstance(g.unit, str) else "varies") for g, e in _L.groups)
+    (g.key, e.name, list(g.labels), g.unit if isinstance(g.unit, str) else "varies") for g, e in _L.groups
+)
 GROUP_SLICES: dict[str, slice] = dict(_L.slices)
 N_PARAMS: int = _L.n_params
 PARAM_NAMES: tuple[str, ...] = _L.names
@@ -49,24 +72,26 @@ BASE_GROUPS: tuple[str, ...] = tuple(g.key for e in registry() if e.declared for
 EFFECTS: dict[str, Effect] = {e.name: e for e in registry()}
 
 
-def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=None, knots=None,  # noqa: ANN001, ANN201
-               extra=None):  # noqa: ANN001
+def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=None, knots=None, extra=None):
     """The constant vector of ``robot`` (defaults from the declarations), with the
     data-dependent blocks given: registration ``R0`` (3x3), joint torque scales
     ``tau_scale`` (6, N*m, floored at :data:`TORQUE_SCALE_FLOOR_NM`), ``gravity_on``,
     beam frames (6, 3, 3), hardening knots (6, N_KNOTS, N*m; default: torque-scale
     quantiles) and ``extra``: any other blocks by key (e.g. ``error_map.freq``)."""
     import numpy as np
+
     c = default_constants(robot)
     if R0 is not None:
         c = set_const(c, "registration.R0", np.asarray(R0, dtype=float))
-    ts = np.ones(6) if tau_scale is None else np.maximum(np.asarray(tau_scale, dtype=float),
-                                                         TORQUE_SCALE_FLOOR_NM)
+    ts = np.ones(6) if tau_scale is None else np.maximum(np.asarray(tau_scale, dtype=float), TORQUE_SCALE_FLOOR_NM)
     c = set_const(c, "tau_scale", ts)
     c = set_const(c, "gravity.on", [1.0 if gravity_on else 0.0])
     if beams is not None:
-        c = set_const(c, "link_compliance.beams",
-                      np.concatenate([np.asarray(b, dtype=float).reshape(-1, order="F") for b in beams]))
+        c = set_const(
+            c,
+            "link_compliance.beams",
+            np.concatenate([np.asarray(b, dtype=float).reshape(-1, order="F") for b in beams]),
+        )
     kn = np.outer(ts, HARDENING_KNOT_QUANTILES) if knots is None else np.asarray(knots, dtype=float)
     c = set_const(c, "hardening.knots", kn.reshape(-1))
     for key, value in (extra or {}).items():
@@ -75,11 +100,47 @@ def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=N
 
 
 __all__ = [
-    "ARM", "BASE_GROUPS", "CONST_SIZE", "CONST_SLICES", "ConstGroup", "EFFECTS", "EQUILIBRIUM_UNROLL",
-    "Effect", "GROUP_SLICES", "HARDENING_KNOT_QUANTILES", "JACOBIAN_UNROLL", "LIBRARY", "LINK_BEAM_MIN_FRACTION",
-    "LOAD_SIZE", "LOST_MOTION_RHO_BOUNDS", "LOST_MOTION_RHO_INIT", "MEASUREMENT", "ModelLayout", "N_HARDENING",
-    "N_KNOTS", "N_PARAMS", "PARALLEL_AXIS_TOL", "PARAMETER_GROUPS", "PARAM_NAMES", "ParamGroup", "ROW_SIZE",
-    "THERMAL_REFERENCE_C", "TORQUE_SCALE_FLOOR_NM", "arm_functions", "base", "beam_frames", "cayley", "cayley_np",
-    "default_constants", "effect", "get_const", "identification_functions", "layouts", "make_const",
-    "make_layout", "register", "registry", "set_const",
+    "ARM",
+    "BASE_GROUPS",
+    "CONST_SIZE",
+    "CONST_SLICES",
+    "ConstGroup",
+    "EFFECTS",
+    "EQUILIBRIUM_UNROLL",
+    "Effect",
+    "GROUP_SLICES",
+    "HARDENING_KNOT_QUANTILES",
+    "JACOBIAN_UNROLL",
+    "LIBRARY",
+    "LINK_BEAM_MIN_FRACTION",
+    "LOAD_SIZE",
+    "LOST_MOTION_RHO_BOUNDS",
+    "LOST_MOTION_RHO_INIT",
+    "MEASUREMENT",
+    "ModelLayout",
+    "N_HARDENING",
+    "N_KNOTS",
+    "N_PARAMS",
+    "PARALLEL_AXIS_TOL",
+    "PARAMETER_GROUPS",
+    "PARAM_NAMES",
+    "ParamGroup",
+    "ROW_SIZE",
+    "THERMAL_REFERENCE_C",
+    "TORQUE_SCALE_FLOOR_NM",
+    "arm_functions",
+    "base",
+    "beam_frames",
+    "cayley",
+    "cayley_np",
+    "default_constants",
+    "effect",
+    "get_const",
+    "identification_functions",
+    "layouts",
+    "make_const",
+    "make_layout",
+    "register",
+    "registry",
+    "set_const",
 ]

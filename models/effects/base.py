@@ -35,7 +35,8 @@ Units are SI throughout (see ``docs/conventions.md``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
 
 import numpy as np
 
@@ -193,22 +194,22 @@ class Effect:
     simulation: str = ""
 
     # ---- hooks (override those the effect uses; see the module docstring) --------------
-    def geometry(self, ctx: "Context", dh: dict[str, Any]) -> dict[str, Any]:
+    def geometry(self, ctx: Context, dh: dict[str, Any]) -> dict[str, Any]:
         return dh
 
-    def moment_arm(self, ctx: "Context") -> Any | None:
+    def moment_arm(self, ctx: Context) -> Any | None:
         return None
 
-    def joint_torque(self, ctx: "Context") -> Any | None:
+    def joint_torque(self, ctx: Context) -> Any | None:
         return None
 
-    def joint_deflection(self, ctx: "Context", tau: Any) -> Any | None:
+    def joint_deflection(self, ctx: Context, tau: Any) -> Any | None:
         return None
 
-    def point_displacement(self, ctx: "Context", point: Any) -> Any | None:
+    def point_displacement(self, ctx: Context, point: Any) -> Any | None:
         return None
 
-    def measurement(self, ctx: "Context", p: Any) -> Any:
+    def measurement(self, ctx: Context, p: Any) -> Any:
         return p
 
     def joints_acting(self, param: Callable[[str], np.ndarray]) -> np.ndarray | None:
@@ -217,8 +218,13 @@ class Effect:
         Used to say where a torque-nonlinear term is extrapolated beyond its data."""
         return None
 
-    def caveats(self, param: Callable[[str], np.ndarray], const: Callable[[str], np.ndarray],
-                tau: np.ndarray, lever_m: np.ndarray) -> list[str]:
+    def caveats(
+        self,
+        param: Callable[[str], np.ndarray],
+        const: Callable[[str], np.ndarray],
+        tau: np.ndarray,
+        lever_m: np.ndarray,
+    ) -> list[str]:
         """Where this effect's prediction cannot be trusted along a path (one line each).
 
         Parameters
@@ -238,8 +244,9 @@ class Effect:
         use is not eligible (no Jacobian column; see :func:`make_layout`)."""
         return None
 
-    def angle_caveats(self, param: Callable[[str], np.ndarray], const: Callable[[str], np.ndarray],
-                      q: np.ndarray) -> list[str]:
+    def angle_caveats(
+        self, param: Callable[[str], np.ndarray], const: Callable[[str], np.ndarray], q: np.ndarray
+    ) -> list[str]:
         """Where this effect's prediction cannot be trusted at the joint angles ``q`` (N, 6) rad
         (e.g. beyond the angle range it was identified on), one line each."""
         return []
@@ -263,13 +270,17 @@ def register(cls: type[Effect]) -> type[Effect]:
     if not inst.name:
         raise PluginError(f"effect class {cls.__name__}: no name (expected a non-empty class attribute 'name')")
     if inst.name in _REGISTRY and type(_REGISTRY[inst.name]) is not cls:
-        raise PluginError(f"effect '{inst.name}' is registered twice (by {type(_REGISTRY[inst.name]).__name__} "
-                          f"and {cls.__name__}); expected one class per effect name")
+        raise PluginError(
+            f"effect '{inst.name}' is registered twice (by {type(_REGISTRY[inst.name]).__name__} "
+            f"and {cls.__name__}); expected one class per effect name"
+        )
     keys = {g.key for e in _REGISTRY.values() if e.name != inst.name for g in e.groups}
     clash = keys & {g.key for g in inst.groups}
     if clash:
-        raise PluginError(f"effect '{inst.name}': parameter group(s) {sorted(clash)} already declared by another "
-                          "effect; expected keys of its own")
+        raise PluginError(
+            f"effect '{inst.name}': parameter group(s) {sorted(clash)} already declared by another "
+            "effect; expected keys of its own"
+        )
     _REGISTRY[inst.name] = inst
     _invalidate()
     return cls
@@ -286,6 +297,7 @@ def effect(name: str) -> Effect:
 
 
 # ---- layouts (rebuilt when the registry changes) ----------------------------------------
+
 
 @dataclass
 class _Layouts:
@@ -313,15 +325,28 @@ def _base_consts() -> tuple[ConstGroup, ...]:
         ConstGroup("dh.alpha", 6, lambda r: r.alpha, "nominal DH alpha, rad"),
         ConstGroup("dh.d", 6, lambda r: r.d, "nominal DH d, m"),
         ConstGroup("dh.theta_offset", 6, lambda r: r.theta_offset, "nominal joint-angle offsets, rad"),
-        ConstGroup("tool", 16, lambda r: np.asarray(r.tcp2flange).reshape(-1, order="F"),
-                   "tcp2flange (4x4, column-major): TCP frame -> flange frame"),
-        ConstGroup("chain.frame02base", 16, lambda r: np.asarray(r.frame02base).reshape(-1, order="F"),
-                   "frame02base (4x4, column-major): DH frame 0 -> base frame"),
-        ConstGroup("chain.flange2frame6", 16, lambda r: np.asarray(r.flange2frame6).reshape(-1, order="F"),
-                   "flange2frame6 (4x4, column-major): flange frame -> DH frame 6"),
+        ConstGroup(
+            "tool",
+            16,
+            lambda r: np.asarray(r.tcp2flange).reshape(-1, order="F"),
+            "tcp2flange (4x4, column-major): TCP frame -> flange frame",
+        ),
+        ConstGroup(
+            "chain.frame02base",
+            16,
+            lambda r: np.asarray(r.frame02base).reshape(-1, order="F"),
+            "frame02base (4x4, column-major): DH frame 0 -> base frame",
+        ),
+        ConstGroup(
+            "chain.flange2frame6",
+            16,
+            lambda r: np.asarray(r.flange2frame6).reshape(-1, order="F"),
+            "flange2frame6 (4x4, column-major): flange frame -> DH frame 6",
+        ),
         ConstGroup("gravity", 3, lambda r: r.gravity, "gravity acceleration, base frame, m/s^2"),
-        ConstGroup("compliance0", 6, lambda r: 1.0 / r.stiffness,
-                   "nominal joint compliances 1/k of the robot file, rad/(N*m)"),
+        ConstGroup(
+            "compliance0", 6, lambda r: 1.0 / r.stiffness, "nominal joint compliances 1/k of the robot file, rad/(N*m)"
+        ),
         ConstGroup("tau_scale", 6, 1.0, "joint torque scale of the load-dependent effects, N*m"),
     )
 
@@ -372,8 +397,10 @@ def set_const(const: np.ndarray, key: str, value: Any) -> np.ndarray:
     out = np.array(const, dtype=float, copy=True)
     v = np.asarray(value, dtype=float)
     if v.ndim > 1 and v.shape not in ((3, 3), (4, 4)):
-        raise InputError(f"constant '{key}': expected a flat array of {s.stop - s.start} values or a 3x3 or 4x4 "
-                         f"matrix, got shape {v.shape}")
+        raise InputError(
+            f"constant '{key}': expected a flat array of {s.stop - s.start} values or a 3x3 or 4x4 "
+            f"matrix, got shape {v.shape}"
+        )
     flat = v.reshape(-1, order="F") if v.ndim > 1 else v.reshape(-1)
     if flat.size != s.stop - s.start:
         raise InputError(f"constant '{key}': expected {s.stop - s.start} values, got {flat.size}")
@@ -457,5 +484,6 @@ def make_layout(robot: Robot, const: np.ndarray | None = None) -> ModelLayout:
         use = e.in_use(lambda key: get_const(cv, key))
         for key, mask in (use or {}).items():
             eligible[lay.slices[key]] &= np.asarray(mask, dtype=bool).reshape(-1)
-    return ModelLayout(robot=robot, nominal=nominal, scale=scale, eligible=eligible, lower=lower,
-                       upper=upper, units=units)
+    return ModelLayout(
+        robot=robot, nominal=nominal, scale=scale, eligible=eligible, lower=lower, upper=upper, units=units
+    )

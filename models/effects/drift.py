@@ -13,8 +13,10 @@ class Drift(Effect):
     name = "drift"
     order = 10
     acts_on = MEASUREMENT
-    groups = (ParamGroup("drift.v", xyz_labels("drift.v"), "m", scale=1e-4),
-              ParamGroup("drift.a", xyz_labels("drift.a"), "m", scale=1e-4))
+    groups = (
+        ParamGroup("drift.v", xyz_labels("drift.v"), "m", scale=1e-4),
+        ParamGroup("drift.a", xyz_labels("drift.a"), "m", scale=1e-4),
+    )
     needs = ("time",)
     formula = "measurement drift p_meas += v tn + a tn^2, tn = time since the first row over the campaign span"
     simulation = "drift"

@@ -30,15 +30,22 @@ def _beta_eligible(robot: Robot) -> np.ndarray:
 class Geometric(Effect):
     name = "geometric"
     order = 4
-    groups = (ParamGroup("geometric.da", joint_labels("da"), "m", scale=1e-3),
-              ParamGroup("geometric.dalpha", joint_labels("dalpha"), "rad", scale=1e-3),
-              ParamGroup("geometric.dd", joint_labels("dd"), "m", scale=1e-3),
-              ParamGroup("geometric.dbeta", joint_labels("dbeta"), "rad", scale=1e-3, eligible=_beta_eligible))
+    groups = (
+        ParamGroup("geometric.da", joint_labels("da"), "m", scale=1e-3),
+        ParamGroup("geometric.dalpha", joint_labels("dalpha"), "rad", scale=1e-3),
+        ParamGroup("geometric.dd", joint_labels("dd"), "m", scale=1e-3),
+        ParamGroup("geometric.dbeta", joint_labels("dbeta"), "rad", scale=1e-3, eligible=_beta_eligible),
+    )
     frees = ("joint_offset.dtheta", "geometric.da", "geometric.dalpha", "geometric.dd", "geometric.dbeta")
     subsumes = ("joint_offset",)
     formula = "full DH error set (da, dalpha, dd, dtheta per joint; Hayati dbeta about y for parallel axes)"
     simulation = "geometric"
 
     def geometry(self, ctx: Any, dh: dict[str, Any]) -> dict[str, Any]:
-        return {**dh, "a": dh["a"] + ctx.p("geometric.da"), "alpha": dh["alpha"] + ctx.p("geometric.dalpha"),
-                "d": dh["d"] + ctx.p("geometric.dd"), "beta": dh["beta"] + ctx.p("geometric.dbeta")}
+        return {
+            **dh,
+            "a": dh["a"] + ctx.p("geometric.da"),
+            "alpha": dh["alpha"] + ctx.p("geometric.dalpha"),
+            "d": dh["d"] + ctx.p("geometric.dd"),
+            "beta": dh["beta"] + ctx.p("geometric.dbeta"),
+        }

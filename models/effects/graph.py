@@ -21,7 +21,8 @@ deflection model in the product.
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Any, Callable, Sequence
+from typing import Any
+from collections.abc import Callable, Sequence
 
 import casadi as ca
 import numpy as np
@@ -80,14 +81,13 @@ def link_transform(theta: Any, d: Any, a: Any, alpha: Any, convention: str) -> A
 
 def _ry4(b: Any) -> Any:
     c, s = ca.cos(b), ca.sin(b)
-    return ca.vertcat(ca.horzcat(c, 0, s, 0), ca.horzcat(0, 1, 0, 0),
-                      ca.horzcat(-s, 0, c, 0), ca.horzcat(0, 0, 0, 1))
+    return ca.vertcat(ca.horzcat(c, 0, s, 0), ca.horzcat(0, 1, 0, 0), ca.horzcat(-s, 0, c, 0), ca.horzcat(0, 0, 0, 1))
 
 
 def _is_zero(x: Any) -> bool:
     try:
         return bool(ca.DM(x).is_zero()) if not isinstance(x, (ca.SX, ca.MX)) else bool(x.is_zero())
-    except Exception:  # noqa: BLE001 - symbolic: not known to be zero
+    except Exception:
         return False
 
 
@@ -117,9 +117,9 @@ def joint_axes(frames: Sequence[Any], convention: str, frame02base: Any = None) 
     is DH frame 0 in the base frame (None: the base frame itself)."""
     if convention == "standard_dh":
         first = ca.DM.eye(4) if frame02base is None else frame02base
-        origin = [first] + list(frames[:-1])          # joint i turns about z_{i-1}
+        origin = [first] + list(frames[:-1])  # joint i turns about z_{i-1}
     else:
-        origin = list(frames)                          # joint i turns about z_i
+        origin = list(frames)  # joint i turns about z_i
     return [T[:3, 2] for T in origin], [T[:3, 3] for T in origin]
 
 
@@ -164,8 +164,16 @@ class Context:
         Set by :meth:`at` for the current joint angles (base frame).
     """
 
-    def __init__(self, convention: str, theta: Any, const: Any, eligible: np.ndarray,
-                 dT: Any = 0.0, tn: Any = 0.0, qc: Any = None) -> None:
+    def __init__(
+        self,
+        convention: str,
+        theta: Any,
+        const: Any,
+        eligible: np.ndarray,
+        dT: Any = 0.0,
+        tn: Any = 0.0,
+        qc: Any = None,
+    ) -> None:
         self.convention = convention
         self.theta, self.const = theta, const
         self.eligible = eligible
@@ -178,12 +186,12 @@ class Context:
     def p(self, key: str) -> Any:
         """Parameter group ``key`` of theta."""
         s = self._lay.slices[key]
-        return self.theta[s.start:s.stop]
+        return self.theta[s.start : s.stop]
 
     def c(self, key: str) -> Any:
         """Constant block ``key``."""
         s = self._lay.const_slices[key]
-        return self.const[s.start:s.stop]
+        return self.const[s.start : s.stop]
 
     def load_arm(self) -> Any | None:
         """Sum of the active effects' moment arms (base frame, m), None when there is none."""
@@ -215,13 +223,14 @@ class Context:
         """DH frame 0 in the base frame (4x4), None for a plain DH chain."""
         return ca.reshape(self.c("chain.frame02base"), 4, 4) if self.general else None
 
-    def at(self, frames: list[Any], wrench_fn: Callable[["Context"], Any]) -> "Context":
+    def at(self, frames: list[Any], wrench_fn: Callable[[Context], Any]) -> Context:
         """Set the arm state (frames of the current joint angles) and the wrench on the TCP."""
         self.frames = frames
         self.zs, self.ps = joint_axes(frames, self.convention, self.frame02base())
         #: flange2base of the current joint angles
-        self.flange = (ca.mtimes(frames[-1], ca.reshape(self.c("chain.flange2frame6"), 4, 4)) if self.general
-                       else frames[-1])
+        self.flange = (
+            ca.mtimes(frames[-1], ca.reshape(self.c("chain.flange2frame6"), 4, 4)) if self.general else frames[-1]
+        )
         self.tcp = ca.mtimes(self.flange, self.tool)
         self.p_tcp, self.R_tcp = self.tcp[:3, 3], self.tcp[:3, :3]
         self.wrench = wrench_fn(self)
@@ -231,8 +240,7 @@ class Context:
 class Graph:
     """The model graph of one set of active effects (hooks called in registry order)."""
 
-    def __init__(self, convention: str, active: Sequence[Effect], eligible: np.ndarray,
-                 general: bool = False) -> None:
+    def __init__(self, convention: str, active: Sequence[Effect], eligible: np.ndarray, general: bool = False) -> None:
         self.convention = convention
         self.effects = [e for e in registry() if e in active]
         self.eligible = eligible
@@ -245,9 +253,14 @@ class Graph:
         return ctx
 
     def geometry(self, ctx: Context) -> dict[str, Any]:
-        dh = {"a": ctx.c("dh.a"), "alpha": ctx.c("dh.alpha"), "d": ctx.c("dh.d"),
-              "theta_offset": ctx.c("dh.theta_offset"), "beta": ca.DM.zeros(6),
-              "frame02base": ctx.frame02base()}
+        dh = {
+            "a": ctx.c("dh.a"),
+            "alpha": ctx.c("dh.alpha"),
+            "d": ctx.c("dh.d"),
+            "theta_offset": ctx.c("dh.theta_offset"),
+            "beta": ca.DM.zeros(6),
+            "frame02base": ctx.frame02base(),
+        }
         for e in self.effects:
             dh = e.geometry(ctx, dh)
         return dh
@@ -286,8 +299,15 @@ class Graph:
         te, to = self.torques(ctx)
         return self.joint_deflection(ctx, te + to)
 
-    def equilibrium(self, ctx: Context, dh: dict[str, Any], qc: Any, wrench_fn: Callable[[Context], Any],
-                    q_start: Any = None, n_iter: int = EQUILIBRIUM_UNROLL) -> Any:
+    def equilibrium(
+        self,
+        ctx: Context,
+        dh: dict[str, Any],
+        qc: Any,
+        wrench_fn: Callable[[Context], Any],
+        q_start: Any = None,
+        n_iter: int = EQUILIBRIUM_UNROLL,
+    ) -> Any:
         """Unrolled fixed point ``q = q_c + dq(q)``; leaves ``ctx`` at the final state."""
         q = qc if q_start is None else q_start
         for _ in range(n_iter):
@@ -300,6 +320,7 @@ class Graph:
 # --------------------------------------------------------------------------------------
 # Identification: parameters symbolic
 # --------------------------------------------------------------------------------------
+
 
 def measured_point(graph: Graph, ctx: Context) -> Any:
     """The measured point (``measured_point`` parameters, flange frame) in the base frame,
@@ -335,8 +356,9 @@ def orientation_error(graph: Graph, ctx: Context, rv_meas: Any) -> Any:
 
 
 @lru_cache(maxsize=8)
-def identification_functions(convention: str, eligible: tuple[bool, ...] | None = None,
-                             orientation: bool = False, general: bool = False) -> dict[str, ca.Function]:
+def identification_functions(
+    convention: str, eligible: tuple[bool, ...] | None = None, orientation: bool = False, general: bool = False
+) -> dict[str, ca.Function]:
     """CasADi functions of the identification model (every registered effect in the graph).
 
     ``eligible`` (length N_PARAMS) marks the parameters that exist for the robot: the
@@ -375,8 +397,7 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
     dh = graph.geometry(ctx)
     q = graph.equilibrium(ctx, dh, qc, const_F)
     p_meas = observed(graph, ctx)
-    measure = ca.Function("ident_measure", [row, theta, const], [p_meas, q],
-                          ["row", "theta", "const"], ["p", "q_eq"])
+    measure = ca.Function("ident_measure", [row, theta, const], [p_meas, q], ["row", "theta", "const"], ["p", "q_eq"])
 
     # Jacobian: the fixed point restarted from the converged q_eq (an input), so the value is
     # exact and the derivative carries the implicit-function factor to first order.
@@ -397,26 +418,42 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
     p2 = observed(graph, ctx2)
     jac = ca.jacobian(p2, th_el)
     jf = ca.Function("ident_measure_jac_el", [row, q_in, th_el, th_fx, const], [p2, jac])
-    pj, Jj = jf(row, q_in, theta[idx_el.tolist()] if len(idx_el) else ca.SX(0, 1),
-                theta[idx_fx.tolist()] if len(idx_fx) else ca.SX(0, 1), const)
-    measure_jac = ca.Function("ident_measure_jac", [row, q_in, theta, const], [pj, Jj],
-                              ["row", "q_eq", "theta", "const"], ["p", "J"])
+    pj, Jj = jf(
+        row,
+        q_in,
+        theta[idx_el.tolist()] if len(idx_el) else ca.SX(0, 1),
+        theta[idx_fx.tolist()] if len(idx_fx) else ca.SX(0, 1),
+        const,
+    )
+    measure_jac = ca.Function(
+        "ident_measure_jac", [row, q_in, theta, const], [pj, Jj], ["row", "q_eq", "theta", "const"], ["p", "J"]
+    )
 
     qs, Fs, dTs = ca.SX.sym("q", 6), ca.SX.sym("F", 6), ca.SX.sym("dT", 1)
     ctx3 = graph.context(theta, const, dTs, 0.0, qs)
     dh3 = graph.geometry(ctx3)
     q_eq = graph.equilibrium(ctx3, dh3, qs, lambda _c: Fs)
     te, to = graph.torques(ctx3)
-    torques = ca.Function("ident_torques", [qs, Fs, dTs, theta, const], [te, to, q_eq],
-                          ["q_c", "F", "dT", "theta", "const"], ["tau_ext", "tau_g", "q_eq"])
+    torques = ca.Function(
+        "ident_torques",
+        [qs, Fs, dTs, theta, const],
+        [te, to, q_eq],
+        ["q_c", "F", "dT", "theta", "const"],
+        ["tau_ext", "tau_g", "q_eq"],
+    )
 
     ctx4 = graph.context(theta, const, dTs, 0.0, qs)
     dh4 = graph.geometry(ctx4)
     ctx4.at(chain(qs, dh4, convention), lambda _c: ca.DM.zeros(6))
     p0 = ca.mtimes(ctx4.flange, ca.vertcat(ctx4.p("tool.p"), 1))[:3]
     p0m = graph.measurement(ctx4, p0)
-    point_jac = ca.Function("ident_point_jacobian", [qs, dTs, theta, const], [p0m, ca.jacobian(p0m, qs)],
-                            ["q", "dT", "theta", "const"], ["p", "Jp"])
+    point_jac = ca.Function(
+        "ident_point_jacobian",
+        [qs, dTs, theta, const],
+        [p0m, ca.jacobian(p0m, qs)],
+        ["q", "dT", "theta", "const"],
+        ["p", "Jp"],
+    )
     return {"measure": measure, "measure_jac": measure_jac, "torques": torques, "point_jacobian": point_jac}
 
 
@@ -424,14 +461,16 @@ def identification_functions(convention: str, eligible: tuple[bool, ...] | None 
 # Planning: parameters fixed
 # --------------------------------------------------------------------------------------
 
-def _planning_graph(convention: str, active: Sequence[str], const: np.ndarray,
-                    eligible: np.ndarray) -> Graph:
+
+def _planning_graph(convention: str, active: Sequence[str], const: np.ndarray, eligible: np.ndarray) -> Graph:
     """The graph of a planning model: the effects that act on the arm and are active (the
     measurement effects, registration and drift, do not)."""
     effs = [e for e in registry() if e.acts_on == base.ARM and (e.declared or e.name in active)]
     lay = layouts()
-    general = any(not np.array_equal(np.asarray(const)[lay.const_slices[k]], np.eye(4).reshape(-1))
-                  for k in ("chain.frame02base", "chain.flange2frame6"))
+    general = any(
+        not np.array_equal(np.asarray(const)[lay.const_slices[k]], np.eye(4).reshape(-1))
+        for k in ("chain.frame02base", "chain.flange2frame6")
+    )
     return Graph(convention, effs, np.asarray(eligible, dtype=bool), general)
 
 
@@ -450,8 +489,9 @@ def _loaded_arm(graph: Graph, theta: np.ndarray, const: Any, dT: float, q: Any, 
     return {"ctx": ctx, "J": J, "tau": tau, "dq": dq, "dp": dp, "err": err}
 
 
-def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, const: np.ndarray,
-                  eligible: np.ndarray, dT: float = 0.0) -> dict[str, ca.Function]:
+def arm_functions(
+    convention: str, active: Sequence[str], theta: np.ndarray, const: np.ndarray, eligible: np.ndarray, dT: float = 0.0
+) -> dict[str, ca.Function]:
     """Named CasADi functions of an arm model with fixed parameters (see :class:`models.arm.ArmModel`).
 
     Only the effects that act on the arm and are active enter the graph (the
@@ -479,29 +519,30 @@ def arm_functions(convention: str, active: Sequence[str], theta: np.ndarray, con
         "jacobian": ca.Function("jacobian", [q], [J], ["q"], ["J"]),
         "compliance": ca.Function("compliance", [q], [C], ["q"], ["C"]),
         "deflection": ca.Function("deflection", [q, F], [ca.mtimes(C, F)], ["q", "F"], ["D"]),
-        "joint_deflection": ca.Function("joint_deflection", [q, F], [c * ca.mtimes(J.T, F)],
-                                        ["q", "F"], ["dq"]),
-        "kinetostatics": ca.Function("kinetostatics", [q], [tcp[:3, 3], tcp[:3, :3], J, C],
-                                     ["q"], ["p_tcp", "R_tcp", "J", "C"]),
+        "joint_deflection": ca.Function("joint_deflection", [q, F], [c * ca.mtimes(J.T, F)], ["q", "F"], ["dq"]),
+        "kinetostatics": ca.Function(
+            "kinetostatics", [q], [tcp[:3, 3], tcp[:3, :3], J, C], ["q"], ["p_tcp", "R_tcp", "J", "C"]
+        ),
         "tcp_wrench": ca.Function("tcp_wrench", [q, L], [ctx.wrench], ["q", "L"], ["W"]),
         "joint_torques": ca.Function("joint_torques", [q, L], [tau], ["q", "L"], ["tau"]),
         "load_deflection": ca.Function("load_deflection", [q, L], [dq], ["q", "L"], ["dq"]),
         "torque_deflection": ca.Function("torque_deflection", [q, tau_in], [dq_of_tau], ["q", "tau"], ["dq"]),
-        "loaded_tcp": ca.Function("loaded_tcp", [q, L], [tcp[:3, 3] + dp, tcp[:3, :3]],
-                                  ["q", "L"], ["p_tcp", "R_tcp"]),
+        "loaded_tcp": ca.Function("loaded_tcp", [q, L], [tcp[:3, 3] + dp, tcp[:3, :3]], ["q", "L"], ["p_tcp", "R_tcp"]),
         "load_error": ca.Function("load_error", [q, L], [err], ["q", "L"], ["e"]),
     }
     # pose error of the loaded TCP against a target (position m; rotation vector of R_t^T R, rad)
     p_t, R_t = ca.SX.sym("p_t", 3), ca.SX.sym("R_t", 3, 3)
     E = ca.mtimes(R_t.T, tcp[:3, :3])
     e = ca.vertcat(tcp[:3, 3] + dp - p_t, 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]))
-    out["loaded_pose_error"] = ca.Function("loaded_pose_error", [q, L, p_t, R_t], [e, ca.jacobian(e, q)],
-                                           ["q", "L", "p_t", "R_t"], ["e", "de_dq"])
+    out["loaded_pose_error"] = ca.Function(
+        "loaded_pose_error", [q, L, p_t, R_t], [e, ca.jacobian(e, q)], ["q", "L", "p_t", "R_t"], ["e", "de_dq"]
+    )
     return out
 
 
-def load_error_gravity_function(convention: str, active: Sequence[str], theta: np.ndarray, const: np.ndarray,
-                                 eligible: np.ndarray, dT: float = 0.0) -> ca.Function:
+def load_error_gravity_function(
+    convention: str, active: Sequence[str], theta: np.ndarray, const: np.ndarray, eligible: np.ndarray, dT: float = 0.0
+) -> ca.Function:
     """``load_error_g(q, L, g) -> e``: the model's ``load_error`` with its gravity constant as an
     input.
 
@@ -515,7 +556,7 @@ def load_error_gravity_function(convention: str, active: Sequence[str], theta: n
     q, L, g = ca.SX.sym("q", 6), ca.SX.sym("L", LOAD_SIZE), ca.SX.sym("g", 3)
     cs = ca.SX(ca.DM(const))
     s = layouts().const_slices["gravity"]
-    cs[s.start:s.stop] = g
+    cs[s.start : s.stop] = g
     err = _loaded_arm(graph, theta, cs, dT, q, L)["err"]
     return ca.Function("load_error_g", [q, L, g], [err], ["q", "L", "g"], ["e"])
 

@@ -32,13 +32,27 @@ def _moments(r: Robot) -> np.ndarray:
 class Gravity(Effect):
     name = "gravity"
     order = 5
-    groups = (ParamGroup("gravity.m", joint_labels("gravity.mass"), "kg", default=_masses,
-                         scale=lambda r: max(1.0, float(np.mean(r.masses))) if r.has_masses else 1.0),
-              ParamGroup("gravity.h", tuple(f"gravity.first_moment[{i + 1}].{c}" for i in range(6) for c in "xyz"),
-                         "kg*m", default=_moments, scale=0.1))
+    groups = (
+        ParamGroup(
+            "gravity.m",
+            joint_labels("gravity.mass"),
+            "kg",
+            default=_masses,
+            scale=lambda r: max(1.0, float(np.mean(r.masses))) if r.has_masses else 1.0,
+        ),
+        ParamGroup(
+            "gravity.h",
+            tuple(f"gravity.first_moment[{i + 1}].{c}" for i in range(6) for c in "xyz"),
+            "kg*m",
+            default=_moments,
+            scale=0.1,
+        ),
+    )
     constants = (ConstGroup("gravity.on", 1, 0.0, "1: self-weight torques in the identification graph"),)
-    formula = ("self-weight joint deflection dq += C tau_g(q; m_j, m_j r_j), tau_g from link masses and "
-               "first moments (barycentric, linear), C the joint compliance")
+    formula = (
+        "self-weight joint deflection dq += C tau_g(q; m_j, m_j r_j), tau_g from link masses and "
+        "first moments (barycentric, linear), C the joint compliance"
+    )
     simulation = "gravity"
 
     def joint_torque(self, ctx: Any) -> Any:
@@ -47,7 +61,7 @@ class Gravity(Effect):
         tau = [None] * 6
         for j in range(5, -1, -1):
             Rj, pj = ctx.frames[j][:3, :3], ctx.frames[j][:3, 3]
-            S = S + mass[j] * pj + ca.mtimes(Rj, h[3 * j:3 * j + 3])
+            S = S + mass[j] * pj + ca.mtimes(Rj, h[3 * j : 3 * j + 3])
             M = M + mass[j]
             tau[j] = ca.dot(ctx.zs[j], ca.cross(S - M * ctx.ps[j], g))
         return ctx.c("gravity.on") * ca.vertcat(*tau)

@@ -50,8 +50,13 @@ FREQ_SHAPE = (6, N_COMP, MAP_SLOTS)
 
 
 def _labels() -> tuple[str, ...]:
-    return tuple(f"error_map.q{j + 1}.{c}.s{s + 1}.{f}" for j in range(6) for c in MAP_COMPONENTS
-                 for s in range(MAP_SLOTS) for f in ("cos", "sin"))
+    return tuple(
+        f"error_map.q{j + 1}.{c}.s{s + 1}.{f}"
+        for j in range(6)
+        for c in MAP_COMPONENTS
+        for s in range(MAP_SLOTS)
+        for f in ("cos", "sin")
+    )
 
 
 def slot_index(j: int, c: int, s: int) -> tuple[int, int]:
@@ -65,18 +70,33 @@ def slot_index(j: int, c: int, s: int) -> tuple[int, int]:
 class JointErrorMap(Effect):
     name = "joint_error_map"
     order = 12
-    groups = (ParamGroup("error_map.c", _labels(),
-                         tuple(u for _j in range(6) for u in MAP_UNITS for _s in range(2 * MAP_SLOTS)),
-                         scale=MAP_COEF_SCALE),)
-    constants = (
-        ConstGroup("error_map.freq", int(np.prod(FREQ_SHAPE)), 0.0,
-                   "frequency of each slot (joint, component, slot; row-major), cycles per revolution; 0: unused"),
-        ConstGroup("error_map.range", 12, lambda r: np.tile([-MAP_RANGE_OPEN_RAD, MAP_RANGE_OPEN_RAD], 6),
-                   "angle range of each joint's map (6 x [lo, hi]), rad: held constant beyond it"),
+    groups = (
+        ParamGroup(
+            "error_map.c",
+            _labels(),
+            tuple(u for _j in range(6) for u in MAP_UNITS for _s in range(2 * MAP_SLOTS)),
+            scale=MAP_COEF_SCALE,
+        ),
     )
-    formula = ("per-joint angle error maps: DH entry c of joint j (theta, d, a, alpha, beta) += sum_s a cos(f q_c,j) "
-               "+ b sin(f q_c,j), harmonics f (cycles/rev) chosen by a cross-validated spectrum search with a "
-               "family-wise test, q_c,j clipped to the range the data covered")
+    constants = (
+        ConstGroup(
+            "error_map.freq",
+            int(np.prod(FREQ_SHAPE)),
+            0.0,
+            "frequency of each slot (joint, component, slot; row-major), cycles per revolution; 0: unused",
+        ),
+        ConstGroup(
+            "error_map.range",
+            12,
+            lambda r: np.tile([-MAP_RANGE_OPEN_RAD, MAP_RANGE_OPEN_RAD], 6),
+            "angle range of each joint's map (6 x [lo, hi]), rad: held constant beyond it",
+        ),
+    )
+    formula = (
+        "per-joint angle error maps: DH entry c of joint j (theta, d, a, alpha, beta) += sum_s a cos(f q_c,j) "
+        "+ b sin(f q_c,j), harmonics f (cycles/rev) chosen by a cross-validated spectrum search with a "
+        "family-wise test, q_c,j clipped to the range the data covered"
+    )
     simulation = "eccentricity"
 
     def in_use(self, const: Any) -> dict[str, np.ndarray]:
@@ -136,7 +156,9 @@ class JointErrorMap(Effect):
             bad = (q[:, j] < lo) | (q[:, j] > hi)
             if bad.any():
                 k = int(np.flatnonzero(bad)[0])
-                out.append(f"joint {j + 1}: commanded angle {np.degrees(q[k, j]):.4g} deg at waypoint {k} is outside the "
-                           f"range its error map was identified on ({np.degrees(lo):.4g} .. {np.degrees(hi):.4g} deg, "
-                           f"{int(bad.sum())} waypoint(s)): the map is held at its end value there, not extrapolated")
+                out.append(
+                    f"joint {j + 1}: commanded angle {np.degrees(q[k, j]):.4g} deg at waypoint {k} is outside the "
+                    f"range its error map was identified on ({np.degrees(lo):.4g} .. {np.degrees(hi):.4g} deg, "
+                    f"{int(bad.sum())} waypoint(s)): the map is held at its end value there, not extrapolated"
+                )
         return out

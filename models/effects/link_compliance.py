@@ -35,7 +35,7 @@ def beam_links(robot: Robot) -> list[int]:
 
 def _link_scale(robot: Robot) -> np.ndarray:
     c, lmax = mean_compliance(robot), float(link_lengths(robot).max())
-    s = np.r_[np.full(3, 0.1 * c * lmax ** 2), np.full(3, 0.1 * c), np.full(6, 0.1 * c * lmax)]
+    s = np.r_[np.full(3, 0.1 * c * lmax**2), np.full(3, 0.1 * c), np.full(6, 0.1 * c * lmax)]
     return np.tile(s, 6)
 
 
@@ -56,12 +56,10 @@ def beam_frames(robot: Robot) -> np.ndarray:
     frame i; columns 1, 2 complete a right-handed frame.  From the nominal geometry at q = 0.
     """
     from .graph import chain
-    dh = {"a": robot.a, "alpha": robot.alpha, "d": robot.d, "theta_offset": robot.theta_offset,
-          "beta": np.zeros(6)}
-    fr = [np.asarray(ca.DM(T)) for T in chain(ca.DM.zeros(6), {k: ca.DM(v) for k, v in dh.items()},
-                                               robot.convention)]
-    pts = ([np.zeros(3)] + [T[:3, 3] for T in fr[:5]]) if robot.convention == "standard_dh" \
-        else [T[:3, 3] for T in fr]
+
+    dh = {"a": robot.a, "alpha": robot.alpha, "d": robot.d, "theta_offset": robot.theta_offset, "beta": np.zeros(6)}
+    fr = [np.asarray(ca.DM(T)) for T in chain(ca.DM.zeros(6), {k: ca.DM(v) for k, v in dh.items()}, robot.convention)]
+    pts = ([np.zeros(3)] + [T[:3, 3] for T in fr[:5]]) if robot.convention == "standard_dh" else [T[:3, 3] for T in fr]
     out = np.zeros((6, 3, 3))
     for i in range(6):
         tip = pts[i + 1] if i < 5 else fr[5][:3, 3]
@@ -84,19 +82,30 @@ def _sym3(v: Any) -> Any:
 class LinkCompliance(Effect):
     name = "link_compliance"
     order = 9
-    groups = (ParamGroup("link_compliance.link", tuple(f"link_compliance.link{i + 1}.{k}" for i in range(6)
-                                                       for k in _KEYS), _UNITS * 6,
-                         scale=_link_scale, eligible=_link_eligible),
-              ParamGroup("link_compliance.tool", tuple(f"link_compliance.tool.{k}" for k in _SYM), "m/N",
-                         scale=_point_scale),
-              ParamGroup("link_compliance.base", tuple(f"link_compliance.base.{k}" for k in _SYM), "m/N",
-                         scale=_point_scale))
-    constants = (ConstGroup("link_compliance.beams", 54,
-                            lambda r: np.concatenate([b.reshape(-1, order="F") for b in beam_frames(r)]),
-                            "beam frame of each link in its DH frame (6 x 3x3, column-major)"),)
+    groups = (
+        ParamGroup(
+            "link_compliance.link",
+            tuple(f"link_compliance.link{i + 1}.{k}" for i in range(6) for k in _KEYS),
+            _UNITS * 6,
+            scale=_link_scale,
+            eligible=_link_eligible,
+        ),
+        ParamGroup("link_compliance.tool", tuple(f"link_compliance.tool.{k}" for k in _SYM), "m/N", scale=_point_scale),
+        ParamGroup("link_compliance.base", tuple(f"link_compliance.base.{k}" for k in _SYM), "m/N", scale=_point_scale),
+    )
+    constants = (
+        ConstGroup(
+            "link_compliance.beams",
+            54,
+            lambda r: np.concatenate([b.reshape(-1, order="F") for b in beam_frames(r)]),
+            "beam frame of each link in its DH frame (6 x 3x3, column-major)",
+        ),
+    )
     needs = ("load",)
-    formula = ("beam springs (6x6 compliance, 12 terms) at the distal end of each long link, plus translational "
-               "3x3 compliances at the point in the tool and base frames")
+    formula = (
+        "beam springs (6x6 compliance, 12 terms) at the distal end of each long link, plus translational "
+        "3x3 compliances at the point in the tool and base frames"
+    )
     simulation = "link_compliance"
 
     def point_displacement(self, ctx: Any, point: Any) -> Any:
@@ -109,11 +118,11 @@ class LinkCompliance(Effect):
         for i in range(6):
             if not links[i]:
                 continue
-            R = ca.mtimes(ctx.frames[i][:3, :3], ca.reshape(beams[9 * i:9 * i + 9], 3, 3))
+            R = ca.mtimes(ctx.frames[i][:3, :3], ca.reshape(beams[9 * i : 9 * i + 9], 3, 3))
             p_tip = ctx.ps[i + 1] if i < 5 else ctx.frames[5][:3, 3]
             m_tip = m + ca.cross(p_app - p_tip, f)
             fl, ml = ca.mtimes(R.T, f), ca.mtimes(R.T, m_tip)
-            k = lc[12 * i:12 * i + 12]
+            k = lc[12 * i : 12 * i + 12]
             Ctr = ca.vertcat(ca.horzcat(0, k[6], k[7]), ca.horzcat(k[8], 0, k[9]), ca.horzcat(k[10], k[11], 0))
             delta = k[0:3] * fl + ca.mtimes(Ctr, ml)
             phi = ca.mtimes(Ctr.T, fl) + k[3:6] * ml

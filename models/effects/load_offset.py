@@ -14,8 +14,10 @@ from .base import Effect, ParamGroup, register, xyz_labels
 class LoadOffset(Effect):
     name = "load_offset"
     order = 8
-    groups = (ParamGroup("load_offset.r_tool", xyz_labels("load_offset.r_tool"), "m", scale=1e-2),
-              ParamGroup("load_offset.r_base", xyz_labels("load_offset.r_base"), "m", scale=1e-2))
+    groups = (
+        ParamGroup("load_offset.r_tool", xyz_labels("load_offset.r_tool"), "m", scale=1e-2),
+        ParamGroup("load_offset.r_base", xyz_labels("load_offset.r_base"), "m", scale=1e-2),
+    )
     needs = ("load",)
     formula = "the force acts at TCP + R_tcp r_tool + r_base: extra moment r x f"
     simulation = "load_offset"

@@ -26,9 +26,17 @@ LOST_MOTION_RHO_INIT = float(np.log(0.01))
 class LostMotion(Effect):
     name = "lost_motion"
     order = 7
-    groups = (ParamGroup("lost_motion.b", joint_labels("lost_motion.b"), "rad", scale=1e-4),
-              ParamGroup("lost_motion.rho", ("lost_motion.rho",), "1", scale=1.0, default=LOST_MOTION_RHO_INIT,
-                         bounds=LOST_MOTION_RHO_BOUNDS))
+    groups = (
+        ParamGroup("lost_motion.b", joint_labels("lost_motion.b"), "rad", scale=1e-4),
+        ParamGroup(
+            "lost_motion.rho",
+            ("lost_motion.rho",),
+            "1",
+            scale=1.0,
+            default=LOST_MOTION_RHO_INIT,
+            bounds=LOST_MOTION_RHO_BOUNDS,
+        ),
+    )
     needs = ("load",)
     formula = "smooth dead band dq_i += b_i tanh(tau_i / (exp(rho) tau_s,i)), b = half the lost motion"
     simulation = "lost_motion"
@@ -48,11 +56,13 @@ class LostMotion(Effect):
             if b[j] > 0 and inside.any():
                 k = np.flatnonzero(inside)
                 err = float(np.max(b[j] * lever_m[k, j]))
-                out.append(f"joint {j + 1}: its torque stays within {DEAD_BAND_MARGIN:g} x {tau0[j]:.3g} N*m of zero at "
-                           f"{len(k)} waypoint(s) (first {int(k[0])}), inside its identified lost motion "
-                           f"(+-{b[j] * 1e6:.3g} urad): the joint's side of the dead band is not determined, "
-                           f"up to {err * 1e3:.3g} mm at the TCP; load that joint (a bias force or another "
-                           "posture) to make the compensation hold")
+                out.append(
+                    f"joint {j + 1}: its torque stays within {DEAD_BAND_MARGIN:g} x {tau0[j]:.3g} N*m of zero at "
+                    f"{len(k)} waypoint(s) (first {int(k[0])}), inside its identified lost motion "
+                    f"(+-{b[j] * 1e6:.3g} urad): the joint's side of the dead band is not determined, "
+                    f"up to {err * 1e3:.3g} mm at the TCP; load that joint (a bias force or another "
+                    "posture) to make the compensation hold"
+                )
         return out
 
     def joint_deflection(self, ctx: Any, tau: Any) -> Any:

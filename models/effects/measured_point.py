@@ -23,12 +23,19 @@ class MeasuredPoint(Effect):
     order = 1
     acts_on = MEASUREMENT
     declared = True
-    groups = (ParamGroup("tool.p", xyz_labels("measured_point"), "m", scale=1e-3,
-                         default=lambda r: r.tcp2flange[:3, 3]),
-              ParamGroup("tool.r", xyz_labels("measured_frame.w"), "1", scale=1e-3))
-    constants = (ConstGroup("measured_frame.R0", 9, lambda r: np.asarray(r.tcp2flange)[:3, :3].reshape(-1, order="F"),
-                            "rotation measured frame -> flange the correction r is applied to (3x3, column-major)"),
-                 ConstGroup("measured_frame.on", 1, 0.0, "1 when the data measure orientation (tool.r in use)"))
+    groups = (
+        ParamGroup("tool.p", xyz_labels("measured_point"), "m", scale=1e-3, default=lambda r: r.tcp2flange[:3, 3]),
+        ParamGroup("tool.r", xyz_labels("measured_frame.w"), "1", scale=1e-3),
+    )
+    constants = (
+        ConstGroup(
+            "measured_frame.R0",
+            9,
+            lambda r: np.asarray(r.tcp2flange)[:3, :3].reshape(-1, order="F"),
+            "rotation measured frame -> flange the correction r is applied to (3x3, column-major)",
+        ),
+        ConstGroup("measured_frame.on", 1, 0.0, "1 when the data measure orientation (tool.r in use)"),
+    )
     formula = "the measured point (and, with orientation data, the measured frame), flange frame"
     simulation = "registration"
 

@@ -35,10 +35,18 @@ class Registration(Effect):
     order = 0
     acts_on = MEASUREMENT
     declared = True
-    groups = (ParamGroup("reg.w", xyz_labels("registration.w"), "1", scale=1e-3),
-              ParamGroup("reg.t", xyz_labels("registration.t"), "m", scale=1e-3))
-    constants = (ConstGroup("registration.R0", 9, lambda r: np.eye(3).reshape(-1),
-                            "rotation the correction w is applied to (3x3, column-major)"),)
+    groups = (
+        ParamGroup("reg.w", xyz_labels("registration.w"), "1", scale=1e-3),
+        ParamGroup("reg.t", xyz_labels("registration.t"), "m", scale=1e-3),
+    )
+    constants = (
+        ConstGroup(
+            "registration.R0",
+            9,
+            lambda r: np.eye(3).reshape(-1),
+            "rotation the correction w is applied to (3x3, column-major)",
+        ),
+    )
     formula = "p_meas = R(w) R0 p_base + t (measurement frame)"
     simulation = "registration"
 

@@ -27,14 +27,29 @@ N_HARDENING = 1 + N_KNOTS
 class StiffnessHardening(Effect):
     name = "stiffness_hardening"
     order = 6
-    groups = (ParamGroup("hardening.b", tuple(f"hardening.b[{i + 1}].{'quad' if k == 0 else f'knot{k}'}"
-                                              for i in range(6) for k in range(N_HARDENING)), "1", scale=0.1),)
-    constants = (ConstGroup("hardening.knots", 6 * N_KNOTS,
-                            lambda r: np.outer(np.ones(6), HARDENING_KNOT_QUANTILES).reshape(-1),
-                            "spline knots kappa (6 x N_KNOTS, joint-major), N*m"),)
+    groups = (
+        ParamGroup(
+            "hardening.b",
+            tuple(
+                f"hardening.b[{i + 1}].{'quad' if k == 0 else f'knot{k}'}" for i in range(6) for k in range(N_HARDENING)
+            ),
+            "1",
+            scale=0.1,
+        ),
+    )
+    constants = (
+        ConstGroup(
+            "hardening.knots",
+            6 * N_KNOTS,
+            lambda r: np.outer(np.ones(6), HARDENING_KNOT_QUANTILES).reshape(-1),
+            "spline knots kappa (6 x N_KNOTS, joint-major), N*m",
+        ),
+    )
     needs = ("load",)
-    formula = ("torque-dependent compliance, an odd quadratic spline: dq_i = c_i tau_i + c0_i (b_i0 tau_i|tau_i| "
-               "+ sum_k b_ik sign(tau_i) (|tau_i| - kappa_ik)_+^2) / tau_s,i, knots kappa_ik at torque quantiles")
+    formula = (
+        "torque-dependent compliance, an odd quadratic spline: dq_i = c_i tau_i + c0_i (b_i0 tau_i|tau_i| "
+        "+ sum_k b_ik sign(tau_i) (|tau_i| - kappa_ik)_+^2) / tau_s,i, knots kappa_ik at torque quantiles"
+    )
     simulation = "stiffness_hardening"
 
     def joints_acting(self, param: Any) -> np.ndarray:

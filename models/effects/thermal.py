@@ -24,8 +24,15 @@ def thermal_links(robot: Robot) -> list[int]:
 class Thermal(Effect):
     name = "thermal"
     order = 11
-    groups = (ParamGroup("thermal.alpha", joint_labels("thermal.alpha"), "1/K", scale=1e-5,
-                         eligible=lambda r: link_lengths(r) > THERMAL_MIN_LINK_LENGTH_M),)
+    groups = (
+        ParamGroup(
+            "thermal.alpha",
+            joint_labels("thermal.alpha"),
+            "1/K",
+            scale=1e-5,
+            eligible=lambda r: link_lengths(r) > THERMAL_MIN_LINK_LENGTH_M,
+        ),
+    )
     needs = ("temperature",)
     formula = "link lengths a_i, d_i scaled by (1 + alpha_i (T - 20 C))"
     simulation = "thermal"

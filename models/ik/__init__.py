@@ -15,14 +15,40 @@ defines and registers it, in this package or in such a folder.
 
 from models.plugins import import_plugins
 
-from .base import (IK_REASONS, IKSolution, IKSolver, IKStatus, IKStructureError, families, ik_solver,
-                   into_limits, register_family)
+from .base import (
+    IK_REASONS,
+    IKSolution,
+    IKSolver,
+    IKStatus,
+    IKStructureError,
+    families,
+    ik_solver,
+    into_limits,
+    register_family,
+)
 from .ur import BRANCH_LABELS, AnalyticIK
 
 #: Extra folders searched for IK family modules (``os.pathsep``-separated).
 IK_PATH_VARIABLE = "COMPPLAN_IK_PATH"
-import_plugins(__name__, __path__, IK_PATH_VARIABLE, skip=("base", "general_solver", "opw_closed_form"),
-               first=("ur", "opw", "general"))
+import_plugins(
+    __name__,
+    __path__,
+    IK_PATH_VARIABLE,
+    skip=("base", "general_solver", "opw_closed_form"),
+    first=("ur", "opw", "general"),
+)
 
-__all__ = ["BRANCH_LABELS", "IK_PATH_VARIABLE", "IK_REASONS", "AnalyticIK", "IKSolution", "IKSolver", "IKStatus",
-           "IKStructureError", "families", "ik_solver", "into_limits", "register_family"]
+__all__ = [
+    "BRANCH_LABELS",
+    "IK_PATH_VARIABLE",
+    "IK_REASONS",
+    "AnalyticIK",
+    "IKSolution",
+    "IKSolver",
+    "IKStatus",
+    "IKStructureError",
+    "families",
+    "ik_solver",
+    "into_limits",
+    "register_family",
+]

@@ -32,14 +32,14 @@ class IKStatus(CodedStatus):
     """Why a branch has (or has no) solution; ``code`` is the integer of :attr:`IKSolution.status`."""
 
     OK = "ok", 0
-    SHOULDER_UNREACHABLE = "shoulder_unreachable", 1   # wrist centre inside the lateral-offset cylinder
-    WRIST_UNREACHABLE = "wrist_unreachable", 2         # |cos(theta5)| > 1
-    WRIST_SINGULAR = "wrist_singular", 3               # sin(theta5) ~ 0: theta6 undetermined (joints 4, 6 aligned)
-    ELBOW_UNREACHABLE = "elbow_unreachable", 4         # target beyond the reach of links 2-3
-    JOINT_LIMIT = "joint_limit", 5                     # a solution exists but no 2*pi shift puts it in the limits
-    SHOULDER_SINGULAR = "shoulder_singular", 6         # wrist centre on the joint-1 axis: theta1 undetermined
-    UNREACHABLE = "unreachable", 7                     # general arms: this branch has no solution for the pose
-    SINGULAR = "singular", 8                           # general arms: the solution is at a singular Jacobian
+    SHOULDER_UNREACHABLE = "shoulder_unreachable", 1  # wrist centre inside the lateral-offset cylinder
+    WRIST_UNREACHABLE = "wrist_unreachable", 2  # |cos(theta5)| > 1
+    WRIST_SINGULAR = "wrist_singular", 3  # sin(theta5) ~ 0: theta6 undetermined (joints 4, 6 aligned)
+    ELBOW_UNREACHABLE = "elbow_unreachable", 4  # target beyond the reach of links 2-3
+    JOINT_LIMIT = "joint_limit", 5  # a solution exists but no 2*pi shift puts it in the limits
+    SHOULDER_SINGULAR = "shoulder_singular", 6  # wrist centre on the joint-1 axis: theta1 undetermined
+    UNREACHABLE = "unreachable", 7  # general arms: this branch has no solution for the pose
+    SINGULAR = "singular", 8  # general arms: the solution is at a singular Jacobian
 
 
 IK_REASONS = {
@@ -98,8 +98,9 @@ class IKSolution:
         return "; ".join(IK_REASONS[IKStatus.from_code(c)] for c in codes)
 
 
-def into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
-                seed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def into_limits(
+    q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray, seed: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Shift each angle by 2*pi*k into [q_min, q_max], nearest to ``seed`` (default 0).
 
     Returns the shifted angles (same shape as ``q``) and, per row of the last axis, whether
@@ -126,6 +127,7 @@ def match_branches(sol: IKSolution, reference: np.ndarray) -> IKSolution:
     """``sol`` with each pose's branches permuted onto the slots of the nearest ``reference``
     branches (N, B, 6), rad (wrapped joint distance; linear assignment; NaN never matches)."""
     from scipy.optimize import linear_sum_assignment
+
     q, st = sol.q.copy(), sol.status.copy()
     ref = np.broadcast_to(np.asarray(reference, dtype=float), q.shape)
     for i in range(q.shape[0]):
@@ -233,8 +235,9 @@ class IKSolver(abc.ABC):
         sol = self.solve(tcp2base)
         return sol if self.labels_stable else match_branches(sol, reference)
 
-    def nearest(self, tcp2base: np.ndarray, seed: np.ndarray,
-                branch: int | None = None) -> tuple[np.ndarray, np.ndarray, IKSolution]:
+    def nearest(
+        self, tcp2base: np.ndarray, seed: np.ndarray, branch: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray, IKSolution]:
         """The solution nearest a seed configuration.
 
         Parameters
@@ -297,8 +300,10 @@ def register_family(cls: type[IKSolver]) -> type[IKSolver]:
     if not cls.family:
         raise PluginError(f"{cls.__name__}: an IK family needs a 'family' name (a non-empty class attribute)")
     if isinstance(cls.order, bool) or not isinstance(cls.order, (int, float)) or not cls.order <= FALLBACK_ORDER:
-        raise PluginError(f"IK family '{cls.family}': order {cls.order!r}; expected a number <= {FALLBACK_ORDER:g} "
-                        "(the general family, tried last, accepts every 6R chain)")
+        raise PluginError(
+            f"IK family '{cls.family}': order {cls.order!r}; expected a number <= {FALLBACK_ORDER:g} "
+            "(the general family, tried last, accepts every 6R chain)"
+        )
     if any(c.family == cls.family for c in _FAMILIES):
         raise PluginError(f"IK family '{cls.family}' registered twice; expected one class per family name")
     _FAMILIES.append(cls)
@@ -340,8 +345,7 @@ def ik_solver(robot: Robot, family: str | None = None) -> IKSolver:
 
 def dh_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
     """DH frames 0..6 of the robot's nominal chain at ``q`` (6,), base frame, shape (7, 4, 4)."""
-    return dh_chain_frames(robot.convention, robot.a, robot.alpha, robot.d, robot.theta_offset, q,
-                           robot.frame02base)
+    return dh_chain_frames(robot.convention, robot.a, robot.alpha, robot.d, robot.theta_offset, q, robot.frame02base)
 
 
 def zero_axes(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -358,5 +362,8 @@ def zero_axes(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     F = dh_frames(robot, np.zeros(6))
     axis_frames = F[:6] if robot.convention == "standard_dh" else F[1:7]
-    return (axis_frames[:, :3, 2].copy(), axis_frames[:, :3, 3].copy(),
-            F[6] @ np.asarray(robot.flange2frame6, dtype=float))
+    return (
+        axis_frames[:, :3, 2].copy(),
+        axis_frames[:, :3, 3].copy(),
+        F[6] @ np.asarray(robot.flange2frame6, dtype=float),
+    )

@@ -20,12 +20,14 @@ import numpy as np
 from .general_solver import GeneralIK, GeneralIKStatus, general_guard_factors
 from ..robot import Robot
 from ..transforms import invert
-from .base import (FALLBACK_ORDER, IKSolution, IKSolver, IKStatus, check_poses, into_limits, register_family,
-                   zero_axes)
+from .base import FALLBACK_ORDER, IKSolution, IKSolver, IKStatus, check_poses, into_limits, register_family, zero_axes
 
 #: The helper's status codes -> IKStatus.
-_CODES = {GeneralIKStatus.OK.code: IKStatus.OK, GeneralIKStatus.UNREACHABLE.code: IKStatus.UNREACHABLE,
-          GeneralIKStatus.SINGULAR.code: IKStatus.SINGULAR}
+_CODES = {
+    GeneralIKStatus.OK.code: IKStatus.OK,
+    GeneralIKStatus.UNREACHABLE.code: IKStatus.UNREACHABLE,
+    GeneralIKStatus.SINGULAR.code: IKStatus.SINGULAR,
+}
 
 
 @register_family
@@ -33,7 +35,7 @@ class GeneralSixR(IKSolver):
     """All branches of a 6R arm that is neither UR-type nor OPW."""
 
     family = "general"
-    order = FALLBACK_ORDER   # accepts any 6R chain: tried last
+    order = FALLBACK_ORDER  # accepts any 6R chain: tried last
     description = "any other 6R (EAIK subproblem decomposition, else numeric multi-start)"
     guard_names = ("det J",)
     guard_kinds = ("det",)

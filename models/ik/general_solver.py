@@ -128,7 +128,7 @@ class GeneralIKStatus(CodedStatus):
     """Per-slot status of :class:`GeneralIKResult` (``code`` is the integer of its array)."""
 
     OK = "ok", 0
-    SINGULAR = "singular", 3        # solution at |det J| / L^3 < SINGULAR_DET_TOL
+    SINGULAR = "singular", 3  # solution at |det J| / L^3 < SINGULAR_DET_TOL
     UNREACHABLE = "unreachable", 4  # no solution in this slot (q is NaN)
 
 
@@ -172,6 +172,7 @@ class GeneralIKResult:
 
 
 # ----------------------------------------------------------------------------- POE kinematics
+
 
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
@@ -229,14 +230,13 @@ def poe_jacobians(w: np.ndarray, p: np.ndarray, M0: np.ndarray, q: np.ndarray) -
     out = np.empty((len(q), 6, 6))
     for s in range(0, len(q), JACOBIAN_CHUNK):
         n = min(JACOBIAN_CHUNK, len(q) - s)
-        x[:n] = q[s:s + n]
+        x[:n] = q[s : s + n]
         trigger()
-        out[s:s + n] = np.swapaxes(y[:n], 1, 2)       # column-major (6, 6) blocks
+        out[s : s + n] = np.swapaxes(y[:n], 1, 2)  # column-major (6, 6) blocks
     return out
 
 
-def general_guard_factors(w: np.ndarray, p: np.ndarray, M0: np.ndarray,
-                          q: ca.SX | np.ndarray) -> ca.SX | np.ndarray:
+def general_guard_factors(w: np.ndarray, p: np.ndarray, M0: np.ndarray, q: ca.SX | np.ndarray) -> ca.SX | np.ndarray:
     """``det J(q) / L^3``: dimensionless; its sign is a (partial) branch invariant.
 
     ``J`` is :func:`poe_jacobian_sx` (one CasADi expression for both input types; the
@@ -266,9 +266,11 @@ def general_guard_factors(w: np.ndarray, p: np.ndarray, M0: np.ndarray,
 
 # ----------------------------------------------------------------------------- pose error, LM, labels
 
+
 def _pose_error(T: np.ndarray, Tt: np.ndarray) -> np.ndarray:
     """(n, 6) ``[p_t - p (m); rotvec(R_t R^T) (rad)]``, base frame."""
-    from scipy.spatial.transform import Rotation   # imported on demand (scipy.spatial costs ~0.4 s)
+    from scipy.spatial.transform import Rotation  # imported on demand (scipy.spatial costs ~0.4 s)
+
     dR = Tt[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2)
     return np.hstack([Tt[:, :3, 3] - T[:, :3, 3], Rotation.from_matrix(dR).as_rotvec()])
 
@@ -278,8 +280,9 @@ def _residual(e: np.ndarray) -> np.ndarray:
     return np.maximum(np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1))
 
 
-def _levenberg_marquardt(chain: Chain, L: float, q0: np.ndarray, Tt: np.ndarray,
-                         max_iter: int) -> tuple[np.ndarray, np.ndarray]:
+def _levenberg_marquardt(
+    chain: Chain, L: float, q0: np.ndarray, Tt: np.ndarray, max_iter: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Vectorised LM on the pose error from each start.
 
     Parameters
@@ -369,7 +372,8 @@ def _track(solutions: list[np.ndarray], K: int) -> list[np.ndarray]:
 
     ``solutions[i]`` is (m_i, 6), m_i <= K; returns a list of (m_i,) int slot indices.
     """
-    from scipy.optimize import linear_sum_assignment   # imported on demand (as scipy.stats below)
+    from scipy.optimize import linear_sum_assignment  # imported on demand (as scipy.stats below)
+
     last, used, out = np.zeros((K, 6)), np.zeros(K, dtype=bool), []
     for S in solutions:
         if len(S) == 0:
@@ -388,6 +392,7 @@ def _track(solutions: list[np.ndarray], K: int) -> list[np.ndarray]:
 
 
 # ----------------------------------------------------------------------------- the solver
+
 
 def _hp_parameters(w: np.ndarray, p: np.ndarray, M0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """EAIK's H (6, 3) and P (7, 3) of the POE chain (see the module docstring)."""
@@ -409,8 +414,7 @@ def _parallel_signs(w: np.ndarray) -> np.ndarray:
 def _validated_chain(w: np.ndarray, p: np.ndarray, M0: np.ndarray) -> Chain:
     w, p, M0 = (np.asarray(a, dtype=float) for a in (w, p, M0))
     if w.shape != (6, 3) or p.shape != (6, 3) or M0.shape != (4, 4):
-        raise InputError(f"GeneralIK: expected w (6, 3), p (6, 3), M0 (4, 4); got "
-                         f"{w.shape}, {p.shape}, {M0.shape}")
+        raise InputError(f"GeneralIK: expected w (6, 3), p (6, 3), M0 (4, 4); got {w.shape}, {p.shape}, {M0.shape}")
     if not (np.isfinite(w).all() and np.isfinite(p).all() and np.isfinite(M0).all()):
         raise InputError("GeneralIK: w, p and M0 must be finite")
     if np.abs(np.linalg.norm(w, axis=1) - 1.0).max() > UNIT_TOL:
@@ -467,7 +471,7 @@ class GeneralIK:
             self._eaik = HPRobot(*_hp_parameters(self.w * self._sign[:, None], self.p, self.M0))
             self.family: str = self._eaik.getKinematicFamily()
             known = self._eaik.hasKnownDecomposition()
-        except RuntimeError as exc:              # EAIK refuses some degenerate chains
+        except RuntimeError as exc:  # EAIK refuses some degenerate chains
             self.family, known = f"6R-Unknown Kinematic Class (EAIK: {exc})", False
         self.method = self.kind = "eaik" if known and method == "auto" else "numeric"
         self.n_branches = EAIK_MAX_BRANCHES
@@ -476,7 +480,8 @@ class GeneralIK:
             self.method = self.kind = "numeric"
         self.n_branches = EAIK_MAX_BRANCHES if self.method == "eaik" else NUMERIC_MAX_BRANCHES
         self.labels = tuple(f"b{k + 1}" for k in range(self.n_branches))
-        from scipy.stats import qmc   # imported on demand: scipy.stats costs ~0.6 s at import
+        from scipy.stats import qmc  # imported on demand: scipy.stats costs ~0.6 s at import
+
         u = qmc.Sobol(6, scramble=False).random(NUMERIC_N_STARTS) + 0.5 / NUMERIC_N_STARTS
         self.starts = wrap_angle(2.0 * np.pi * (u % 1.0) - np.pi)
 
@@ -508,11 +513,10 @@ class GeneralIK:
         T = T[None] if T.shape == (4, 4) else T
         if T.ndim != 3 or T.shape[1:] != (4, 4) or not np.isfinite(T).all():
             raise InputError(f"GeneralIK.solve: expected finite (N, 4, 4) poses, got {T.shape}")
-        block, one = ((EAIK_BLOCK, self._solve_eaik) if self.method == "eaik"
-                      else (NUMERIC_BLOCK, self._solve_numeric))
-        sols, counts, found = [], [], []      # per pose: solutions, start counts, number found
+        block, one = (EAIK_BLOCK, self._solve_eaik) if self.method == "eaik" else (NUMERIC_BLOCK, self._solve_numeric)
+        sols, counts, found = [], [], []  # per pose: solutions, start counts, number found
         for b in range(0, len(T), block):
-            s, c, f = one(T[b:b + block])
+            s, c, f = one(T[b : b + block])
             sols, counts, found = sols + s, counts + c, found + f
         return self._assemble(sols, counts, np.array(found, dtype=int), track)
 
@@ -520,14 +524,15 @@ class GeneralIK:
         """Distinct exact solutions (m_i, 6) per pose in EAIK's order, no start counts, and
         how many were found before the cut to ``n_branches``."""
         Tq = T.copy()
-        Tq[:, :3, :3] = T[:, :3, :3] @ self.M0[:3, :3].T      # HPRobot's flange is I at q = 0
+        Tq[:, :3, :3] = T[:, :3, :3] @ self.M0[:3, :3].T  # HPRobot's flange is I at q = 0
         raw = self._eaik.IK_batched(Tq, EAIK_THREADS) if len(T) else []
         cand, mask = _pad([np.asarray(s.Q, dtype=float).reshape(-1, 6) * self._sign for s in raw], len(T))
         owner = np.nonzero(mask)[0]
         flat = cand[mask]
         near = _residual(_pose_error(_fk_np(*self._chain, flat), T[owner])) <= EAIK_CANDIDATE_TOL
-        flat[near], res = _levenberg_marquardt(self._chain, self.length_scale, flat[near],
-                                               T[owner[near]], POLISH_MAX_ITER)
+        flat[near], res = _levenberg_marquardt(
+            self._chain, self.length_scale, flat[near], T[owner[near]], POLISH_MAX_ITER
+        )
         good = np.zeros(len(flat), dtype=bool)
         good[np.flatnonzero(near)[res <= IK_ROUNDTRIP_TOL]] = True
         cand[mask], ok = flat, np.zeros_like(mask)
@@ -544,14 +549,15 @@ class GeneralIK:
         """Distinct converged LM solutions per pose (lexicographic), their start counts and
         how many were found before the cut to ``n_branches``."""
         n, n0 = len(T), len(self.starts)
-        q, res = _levenberg_marquardt(self._chain, self.length_scale, np.tile(self.starts, (n, 1)),
-                                      np.repeat(T, n0, axis=0), LM_MAX_ITER)
+        q, res = _levenberg_marquardt(
+            self._chain, self.length_scale, np.tile(self.starts, (n, 1)), np.repeat(T, n0, axis=0), LM_MAX_ITER
+        )
         q, res = q.reshape(n, n0, 6), res.reshape(n, n0)
         sols, counts, found = [], [], []
         for i in range(n):
             ok = res[i] <= IK_ROUNDTRIP_TOL
             reps, cnt = _merge(q[i, ok], res[i, ok])
-            keep = np.argsort(-cnt, kind="stable")[: self.n_branches]   # most starts if too many
+            keep = np.argsort(-cnt, kind="stable")[: self.n_branches]  # most starts if too many
             order = keep[np.lexsort(reps[keep].T[::-1])]
             sols.append(reps[order])
             counts.append(cnt[order])
@@ -562,24 +568,30 @@ class GeneralIK:
         """What the result guarantees; ``found`` (N,) distinct solutions before any cut."""
         cut = int(np.sum(found > self.n_branches))
         if self.method == "eaik":
-            note = (f"closed form (EAIK, {self.family}): every branch by subproblem decomposition; "
-                    f"solutions verified by FK residual <= {IK_ROUNDTRIP_TOL:g}")
+            note = (
+                f"closed form (EAIK, {self.family}): every branch by subproblem decomposition; "
+                f"solutions verified by FK residual <= {IK_ROUNDTRIP_TOL:g}"
+            )
         else:
-            note = (f"numeric multi-start ({NUMERIC_N_STARTS} Sobol starts, Levenberg-Marquardt): "
-                    f"may have missed a branch; a 6R arm has up to {NUMERIC_MAX_BRANCHES} solutions "
-                    "and fewer found cannot be proven complete")
+            note = (
+                f"numeric multi-start ({NUMERIC_N_STARTS} Sobol starts, Levenberg-Marquardt): "
+                f"may have missed a branch; a 6R arm has up to {NUMERIC_MAX_BRANCHES} solutions "
+                "and fewer found cannot be proven complete"
+            )
             regular = np.sum(status == GeneralIKStatus.OK.code, axis=1)
             singular = np.any(status == GeneralIKStatus.SINGULAR.code, axis=1)
             odd = int(np.sum((regular % 2 == 1) & ~singular))
             if odd:
-                note += (f"; {odd} pose(s) have an odd number of regular solutions, so a branch "
-                         "was certainly missed there")
+                note += (
+                    f"; {odd} pose(s) have an odd number of regular solutions, so a branch was certainly missed there"
+                )
         if cut:
             note += f"; {cut} pose(s) had more than {self.n_branches} distinct solutions (singular?)"
         return note
 
-    def _assemble(self, sols: list[np.ndarray], counts: list[np.ndarray], found: np.ndarray,
-                  track: bool) -> GeneralIKResult:
+    def _assemble(
+        self, sols: list[np.ndarray], counts: list[np.ndarray], found: np.ndarray, track: bool
+    ) -> GeneralIKResult:
         """Place the solutions in slots, add the guard, the status and the note."""
         N, K = len(sols), self.n_branches
         numeric = self.method == "numeric"
@@ -594,8 +606,16 @@ class GeneralIK:
         guard = np.full((N, K), np.nan)
         guard[present] = general_guard_factors(*self._chain, q[present])[:, 0]
         status = np.full((N, K), GeneralIKStatus.UNREACHABLE.code)
-        status[present] = np.where(np.abs(guard[present]) < SINGULAR_DET_TOL,
-                                   GeneralIKStatus.SINGULAR.code, GeneralIKStatus.OK.code)
-        return GeneralIKResult(q=q, status=status, guard=guard, method=self.method,
-                               complete=not numeric, note=self._note(status, found),
-                               labels=self.labels, n_starts=n_starts if numeric else None)
+        status[present] = np.where(
+            np.abs(guard[present]) < SINGULAR_DET_TOL, GeneralIKStatus.SINGULAR.code, GeneralIKStatus.OK.code
+        )
+        return GeneralIKResult(
+            q=q,
+            status=status,
+            guard=guard,
+            method=self.method,
+            complete=not numeric,
+            note=self._note(status, found),
+            labels=self.labels,
+            n_starts=n_starts if numeric else None,
+        )

@@ -43,7 +43,7 @@ class OPWIK(IKSolver):
     order = 20
     description = "ortho-parallel with a spherical wrist (KUKA, ABB, Fanuc, ...; closed form, 8 branches)"
     labels = OPW_BRANCH_LABELS
-    guard_names = ("shoulder", "elbow", "wrist")   # wrist centre from axis 1 (m), sin(bend), sin(theta5)
+    guard_names = ("shoulder", "elbow", "wrist")  # wrist centre from axis 1 (m), sin(bend), sin(theta5)
     guard_kinds = ("length", "sine", "sine")
 
     def __init__(self, robot: Robot) -> None:
@@ -58,9 +58,14 @@ class OPWIK(IKSolver):
         self._evaluator: BatchFunction | VMBatchFunction | None = None
 
     def branch_meaning(self) -> dict[str, str]:
-        part = {"front": "wrist centre in front of axis 1", "back": "wrist centre behind axis 1 (over the top)",
-                "up": "elbow above the shoulder-wrist line", "down": "elbow below it",
-                "noflip": "theta5 > 0", "flip": "theta5 < 0 (wrist flipped)"}
+        part = {
+            "front": "wrist centre in front of axis 1",
+            "back": "wrist centre behind axis 1 (over the top)",
+            "up": "elbow above the shoulder-wrist line",
+            "down": "elbow below it",
+            "noflip": "theta5 > 0",
+            "flip": "theta5 < 0 (wrist flipped)",
+        }
         return {lab: ", ".join(part[x] for x in lab.split("-")) for lab in self.labels}
 
     def guard_factors(self, q: Any) -> Any:

@@ -77,7 +77,8 @@ OPW_WRIST_SINGULAR_TOL = 1e-10
 OPW_SHOULDER_SINGULAR_TOL_REL = 1e-9
 
 OPW_BRANCH_LABELS: tuple[str, ...] = tuple(
-    f"{sh}-{el}-{wr}" for sh in ("front", "back") for el in ("up", "down") for wr in ("noflip", "flip"))
+    f"{sh}-{el}-{wr}" for sh in ("front", "back") for el in ("up", "down") for wr in ("noflip", "flip")
+)
 
 _TWO_PI = 2.0 * np.pi
 
@@ -87,10 +88,10 @@ class OPWStatus(CodedStatus):
     (the OPW family stores these codes as IK codes)."""
 
     OK = "ok", 0
-    SHOULDER_UNREACHABLE = "shoulder_unreachable", 1   # wrist centre closer to axis 1 than |b|
-    WRIST_SINGULAR = "wrist_singular", 3               # sin(phi5) ~ 0: phi4 and phi6 not separable
-    ELBOW_UNREACHABLE = "elbow_unreachable", 4         # wrist centre beyond the reach of links 2-3
-    SHOULDER_SINGULAR = "shoulder_singular", 6         # wrist centre on axis 1 with b = 0: phi1 undetermined
+    SHOULDER_UNREACHABLE = "shoulder_unreachable", 1  # wrist centre closer to axis 1 than |b|
+    WRIST_SINGULAR = "wrist_singular", 3  # sin(phi5) ~ 0: phi4 and phi6 not separable
+    ELBOW_UNREACHABLE = "elbow_unreachable", 4  # wrist centre beyond the reach of links 2-3
+    SHOULDER_SINGULAR = "shoulder_singular", 6  # wrist centre on axis 1 with b = 0: phi1 undetermined
 
 
 class NotOPW(InputError):
@@ -161,8 +162,11 @@ class OPWGeometry:
         off = np.where(np.abs(off) < OPW_PRINT_ZERO, 0.0, off)
         lengths = {k: getattr(self, k) for k in ("a1", "a2", "b", "c1", "c2", "c3", "c4")}
         lengths = {k: (0.0 if abs(v) < OPW_PRINT_ZERO * self.scale else v) for k, v in lengths.items()}
-        return {**lengths, "offsets": tuple(float(v) for v in off),
-                "sign_corrections": tuple(int(s) for s in self.signs)}
+        return {
+            **lengths,
+            "offsets": tuple(float(v) for v in off),
+            "sign_corrections": tuple(int(s) for s in self.signs),
+        }
 
 
 # --------------------------------------------------------------------------- numeric FK
@@ -226,6 +230,7 @@ def opw_canonical_fk(geom: OPWGeometry, phi: Any) -> np.ndarray:
 
 # --------------------------------------------------------------------------- detection
 
+
 def _angle_between(u: np.ndarray, v: np.ndarray) -> float:
     """Angle between two directions (rad, in [0, pi])."""
     return float(np.arctan2(np.linalg.norm(np.cross(u, v)), np.dot(u, v)))
@@ -264,11 +269,15 @@ def _in_half_turn(a: float) -> bool:
 
 def _check_structure(w: np.ndarray, p: np.ndarray, dtol: float) -> np.ndarray:
     """Raise :class:`NotOPW` unless the axes have the OPW structure; return the wrist centre (m)."""
+
     def perp(i: int, j: int) -> None:
         dev = abs(_angle_between(w[i], w[j]) - np.pi / 2)
         if dev > OPW_ANGLE_TOL:
-            raise NotOPW(f"axes {i + 1} and {j + 1} are not perpendicular "
-                         f"(angle {_angle_between(w[i], w[j]):.6g} rad, expected pi/2)")
+            raise NotOPW(
+                f"axes {i + 1} and {j + 1} are not perpendicular "
+                f"(angle {_angle_between(w[i], w[j]):.6g} rad, expected pi/2)"
+            )
+
     perp(0, 1)
     ang = _line_angle(w[1], w[2])
     if ang > OPW_ANGLE_TOL:
@@ -286,8 +295,10 @@ def _check_structure(w: np.ndarray, p: np.ndarray, dtol: float) -> np.ndarray:
     C = 0.5 * (xa + xb)
     d6 = float(np.linalg.norm(_off_line(C, p[5], w[5])))
     if d6 > dtol:
-        raise NotOPW(f"axes 4, 5 and 6 do not meet in one point (axis 6 misses the "
-                     f"intersection of axes 4 and 5 by {d6:.6g} m): no spherical wrist")
+        raise NotOPW(
+            f"axes 4, 5 and 6 do not meet in one point (axis 6 misses the "
+            f"intersection of axes 4 and 5 by {d6:.6g} m): no spherical wrist"
+        )
     if np.linalg.norm(_off_line(C, p[2], w[2])) <= dtol:
         raise NotOPW("the wrist centre (axes 4, 5, 6) lies on axis 3: no forearm")
     return C
@@ -306,7 +317,7 @@ def _shoulder_frame(w: np.ndarray, p: np.ndarray, dtol: float) -> dict[str, Any]
     yc = s2 * y0
     xc = np.cross(yc, zc)
     a1 = float(np.dot(p[1] - p[0], xc))
-    origin = p[0] + np.dot(-p[0], zc) * zc        # foot of the base origin on axis 1
+    origin = p[0] + np.dot(-p[0], zc) * zc  # foot of the base origin on axis 1
     c1 = float(np.dot(p[1] - origin, zc))
     return {"s1": s1, "s2": s2, "a1": a1, "c1": c1, "x": xc, "y": yc, "z": zc, "origin": origin}
 
@@ -330,12 +341,23 @@ def _arm_params(fr: dict[str, Any], w: np.ndarray, p: np.ndarray, C: np.ndarray,
     a2 = vx * np.cos(o23) - vz * np.sin(o23)
     x4 = np.cos(o23) * xc - np.sin(o23) * zc
     z4 = np.sin(o23) * xc + np.cos(o23) * zc
-    return {"c2": c2, "o2": o2, "s3": s3, "b": b, "a2": float(a2), "c3": float(c3), "s4": s4,
-            "o3": _wrap(o23 - o2), "x4": x4, "z4": z4}
+    return {
+        "c2": c2,
+        "o2": o2,
+        "s3": s3,
+        "b": b,
+        "a2": float(a2),
+        "c3": float(c3),
+        "s4": s4,
+        "o3": _wrap(o23 - o2),
+        "x4": x4,
+        "z4": z4,
+    }
 
 
-def _wrist_params(fr: dict[str, Any], arm: dict[str, Any], w: np.ndarray, C: np.ndarray,
-                  flange: np.ndarray, dtol: float) -> dict[str, Any]:
+def _wrist_params(
+    fr: dict[str, Any], arm: dict[str, Any], w: np.ndarray, C: np.ndarray, flange: np.ndarray, dtol: float
+) -> dict[str, Any]:
     """``s5, o4, s6, o5, c4``: offsets of joints 4, 5 in (-pi/2, pi/2] where the signs allow."""
     x4, y4, z4 = arm["x4"], fr["y"], arm["z4"]
     o4 = float(np.arctan2(-np.dot(w[4], x4), np.dot(w[4], y4)))
@@ -395,13 +417,24 @@ def opw_from_axes(w: Any, p: Any, M0: Any) -> OPWGeometry:
     arm = _arm_params(fr, w, p, C, dtol)
     wr = _wrist_params(fr, arm, w, C, flange, dtol)
     signs = np.array([fr["s1"], fr["s2"], arm["s3"], arm["s4"], wr["s5"], wr["s6"]])
-    offsets = np.array([0.0, arm["o2"], arm["o3"], wr["o4"], wr["o5"], 0.0]) + 0.0   # no -0.0
+    offsets = np.array([0.0, arm["o2"], arm["o3"], wr["o4"], wr["o5"], 0.0]) + 0.0  # no -0.0
     canon2base = np.eye(4)
     canon2base[:3, :3] = np.column_stack([fr["x"], fr["y"], fr["z"]])
     canon2base[:3, 3] = fr["origin"]
-    geom = OPWGeometry(a1=fr["a1"], a2=arm["a2"], b=arm["b"], c1=fr["c1"], c2=arm["c2"], c3=arm["c3"],
-                       c4=wr["c4"], signs=signs, offsets=offsets, canon2base=canon2base,
-                       flange2canon_flange=np.eye(4), scale=scale)
+    geom = OPWGeometry(
+        a1=fr["a1"],
+        a2=arm["a2"],
+        b=arm["b"],
+        c1=fr["c1"],
+        c2=arm["c2"],
+        c3=arm["c3"],
+        c4=wr["c4"],
+        signs=signs,
+        offsets=offsets,
+        canon2base=canon2base,
+        flange2canon_flange=np.eye(4),
+        scale=scale,
+    )
     base2canon = np.linalg.inv(canon2base)
     f2cf = np.linalg.inv(opw_canonical_fk(geom, offsets[None])[0]) @ base2canon @ M0
     geom = replace(geom, flange2canon_flange=f2cf)
@@ -409,12 +442,15 @@ def opw_from_axes(w: Any, p: Any, M0: Any) -> OPWGeometry:
     err = np.abs(geom.fk(q) - poe_fk(w, p, M0, q))
     err[:, :3, 3] /= max(scale, 1.0)
     if err.max() > OPW_SELFCHECK_TOL:
-        raise NotOPW(f"the canonical OPW model does not reproduce the chain (largest FK error "
-                     f"{err.max():.3g}); the structure is not OPW")
+        raise NotOPW(
+            f"the canonical OPW model does not reproduce the chain (largest FK error "
+            f"{err.max():.3g}); the structure is not OPW"
+        )
     return geom
 
 
 # --------------------------------------------------------------------------- closed form
+
 
 def _rz_sx(c: ca.SX, s: ca.SX) -> ca.SX:
     return ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))
@@ -432,7 +468,7 @@ def _ik_arm(g: OPWGeometry, Cw: ca.SX) -> tuple[list[tuple[ca.SX, ...]], list[ca
     shoulder-singular flags.
     """
     r = ca.sqrt(Cw[0] ** 2 + Cw[1] ** 2)
-    rho = ca.sqrt(ca.fmax(r ** 2 - g.b ** 2, 0.0))
+    rho = ca.sqrt(ca.fmax(r**2 - g.b**2, 0.0))
     tol = OPW_SHOULDER_SINGULAR_TOL_REL * g.scale
     b_zero = abs(g.b) <= OPW_DIST_TOL_REL * g.scale
     sh_unreach = ca.SX(0) if b_zero else r < abs(g.b) * (1.0 - OPW_CLIP_TOL)
@@ -445,12 +481,12 @@ def _ik_arm(g: OPWGeometry, Cw: ca.SX) -> tuple[list[tuple[ca.SX, ...]], list[ca
     for front in (True, False):
         phi1 = psi - beta if front else psi + beta - np.pi
         dx = (rho if front else -rho) - g.a1
-        c3e = (dx ** 2 + dz ** 2 - g.c2 ** 2 - K ** 2) / (2.0 * g.c2 * K)
+        c3e = (dx**2 + dz**2 - g.c2**2 - K**2) / (2.0 * g.c2 * K)
         cosines.append(c3e)
         cc = ca.fmin(ca.fmax(c3e, -1.0), 1.0)
-        sn = ca.sqrt(1.0 - cc ** 2)
+        sn = ca.sqrt(1.0 - cc**2)
         # "up" is sin(phi3 + gamma) > 0 in front, < 0 at the back (module docstring).
-        for sgn in ((1.0, -1.0) if front else (-1.0, 1.0)):
+        for sgn in (1.0, -1.0) if front else (-1.0, 1.0):
             phi2 = ca.atan2(dx, dz) - ca.atan2(K * sgn * sn, g.c2 + K * cc)
             phi3 = ca.atan2(sgn * sn, cc) - gamma
             sols.append((phi1, phi2, phi3))
@@ -467,8 +503,9 @@ def _ik_wrist(g: OPWGeometry, R: ca.SX, phi123: tuple[ca.SX, ...]) -> tuple[list
     out = []
     for sgn in (1.0, -1.0):
         # Singular: joint 4 held at q4 = 0 (noflip) or its flip partner; phi6 takes the rest.
-        phi4 = ca.if_else(singular, g.offsets[3] + (0.0 if sgn > 0 else np.pi),
-                          ca.atan2(sgn * R36[1, 2], sgn * R36[0, 2]))
+        phi4 = ca.if_else(
+            singular, g.offsets[3] + (0.0 if sgn > 0 else np.pi), ca.atan2(sgn * R36[1, 2], sgn * R36[0, 2])
+        )
         phi5 = ca.atan2(sgn * s5, R36[2, 2])
         Rr = ca.mtimes([_ry_sx(ca.cos(phi5), ca.sin(phi5)).T, _rz_sx(ca.cos(phi4), ca.sin(phi4)).T, R36])
         phi6 = ca.atan2(Rr[1, 0], Rr[0, 0])
@@ -507,11 +544,13 @@ def opw_ik_function(geom: OPWGeometry) -> ca.Function:
             phi = ca.vertcat(*phi123, phi456)
             q = (phi - ca.DM(geom.offsets)) * ca.DM(geom.signs)
             qs.append(q - _TWO_PI * ca.ceil((q - np.pi) / _TWO_PI))
-            code = ca.if_else(s5 < OPW_WRIST_SINGULAR_TOL, float(OPWStatus.WRIST_SINGULAR.code),
-                              float(OPWStatus.OK.code))
+            code = ca.if_else(
+                s5 < OPW_WRIST_SINGULAR_TOL, float(OPWStatus.WRIST_SINGULAR.code), float(OPWStatus.OK.code)
+            )
             code = ca.if_else(sh_sing, float(OPWStatus.SHOULDER_SINGULAR.code), code)
-            code = ca.if_else(ca.fabs(cosines[k // 2]) > 1.0 + OPW_CLIP_TOL,
-                              float(OPWStatus.ELBOW_UNREACHABLE.code), code)
+            code = ca.if_else(
+                ca.fabs(cosines[k // 2]) > 1.0 + OPW_CLIP_TOL, float(OPWStatus.ELBOW_UNREACHABLE.code), code
+            )
             code = ca.if_else(sh_unreach, float(OPWStatus.SHOULDER_UNREACHABLE.code), code)
             codes.append(code)
     return ca.Function("opw_ik", [T], [ca.horzcat(*qs), ca.vertcat(*codes)], ["flange2base"], ["q", "status"])
@@ -543,6 +582,7 @@ def opw_ik(fun: ca.Function, flange2base: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- branch guards
+
 
 def opw_guard_factors(geom: OPWGeometry, q: Any) -> Any:
     """Three smooth functions of q whose signs identify the branch.

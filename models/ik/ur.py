@@ -39,13 +39,15 @@ from ..transforms import invert
 from .base import IKSolution, IKSolver, IKStatus, IKStructureError, check_poses, register_family
 
 BRANCH_LABELS: tuple[str, ...] = tuple(
-    f"s{'+-'[s]}w{'+-'[w]}e{'+-'[e]}" for s in (0, 1) for w in (0, 1) for e in (0, 1))
+    f"s{'+-'[s]}w{'+-'[w]}e{'+-'[e]}" for s in (0, 1) for w in (0, 1) for e in (0, 1)
+)
 
 #: alpha pattern of a UR-type arm in standard DH, rad.
 UR_ALPHA = np.array([np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0])
 _STRUCT_TOL = 1e-9
 #: Threads of the batch evaluation of the closed form (compiled or virtual machine).
 IK_BATCH_THREADS = 2
+
 
 def _sdh_inv_sx(ct: ca.SX, st: ca.SX, d: float, a: float, alpha: float) -> ca.SX:
     """Inverse of a standard-DH link transform, given cos and sin of theta (CasADi)."""
@@ -75,7 +77,7 @@ class AnalyticIK(IKSolver):
     order = 10
     description = "UR-type: joints 2, 3, 4 parallel, offset wrist (closed form, 8 branches)"
     labels = BRANCH_LABELS
-    guard_names = ("shoulder", "wrist", "elbow")   # rho (m), sin(theta5), sin(theta3)
+    guard_names = ("shoulder", "wrist", "elbow")  # rho (m), sin(theta5), sin(theta3)
     guard_kinds = ("length", "sine", "sine")
 
     def __init__(self, robot: Robot) -> None:
@@ -90,15 +92,19 @@ class AnalyticIK(IKSolver):
         else:
             sdh02frame0 = np.eye(4)
         a, alpha, off = _flip_to_pattern(a, alpha, off)
-        bad = [f"alpha{i + 1} = {alpha[i]:.6g} rad (expected {UR_ALPHA[i]:.6g})"
-               for i in range(6) if abs(alpha[i] - UR_ALPHA[i]) > _STRUCT_TOL]
+        bad = [
+            f"alpha{i + 1} = {alpha[i]:.6g} rad (expected {UR_ALPHA[i]:.6g})"
+            for i in range(6)
+            if abs(alpha[i] - UR_ALPHA[i]) > _STRUCT_TOL
+        ]
         bad += [f"a{i + 1} = {a[i]:.6g} m (expected 0)" for i in (0, 3, 4, 5) if abs(a[i]) > _STRUCT_TOL]
         bad += [f"a{i + 1} = 0 (expected non-zero)" for i in (1, 2) if abs(a[i]) <= _STRUCT_TOL]
         if abs(d[5]) <= _STRUCT_TOL:
             bad.append("d6 = 0 (expected non-zero)")
         if bad:
             raise IKStructureError(
-                f"robot '{robot.name}' is not UR-type, analytic IK does not apply: " + "; ".join(bad))
+                f"robot '{robot.name}' is not UR-type, analytic IK does not apply: " + "; ".join(bad)
+            )
         self.a, self.alpha, self.d, self.offset = a, alpha, d, off
         self.D = float(d[1] + d[2] + d[3])
         self._base2sdh0 = invert(robot.frame02base @ sdh02frame0)
@@ -107,8 +113,13 @@ class AnalyticIK(IKSolver):
         self._evaluator: BatchFunction | VMBatchFunction | None = None
 
     def branch_meaning(self) -> dict[str, str]:
-        return {lab: (f"theta1 = psi {'+ asin(D/r)' if lab[1] == '+' else '+ pi - asin(D/r)'}, "
-                      f"theta5 = {lab[3]}acos(c5), theta3 = {lab[5]}acos(c3)") for lab in self.labels}
+        return {
+            lab: (
+                f"theta1 = psi {'+ asin(D/r)' if lab[1] == '+' else '+ pi - asin(D/r)'}, "
+                f"theta5 = {lab[3]}acos(c5), theta3 = {lab[5]}acos(c3)"
+            )
+            for lab in self.labels
+        }
 
     def guard_factors(self, q: Any) -> Any:
         """The three factors of ``det J`` whose signs are the branch.
@@ -131,8 +142,11 @@ class AnalyticIK(IKSolver):
             rho = a[1] * ca.cos(th[1]) + a[2] * ca.cos(th[1] + th[2]) + d[4] * ca.sin(th[1] + th[2] + th[3])
             return ca.vertcat(rho, ca.sin(th[4]), ca.sin(th[2]))
         th = np.asarray(q, dtype=float) + off
-        rho = (a[1] * np.cos(th[..., 1]) + a[2] * np.cos(th[..., 1] + th[..., 2])
-               + d[4] * np.sin(th[..., 1] + th[..., 2] + th[..., 3]))
+        rho = (
+            a[1] * np.cos(th[..., 1])
+            + a[2] * np.cos(th[..., 1] + th[..., 2])
+            + d[4] * np.sin(th[..., 1] + th[..., 2] + th[..., 3])
+        )
         return np.stack([rho, np.sin(th[..., 4]), np.sin(th[..., 2])], axis=-1)
 
     def _build_function(self) -> ca.Function:
@@ -154,17 +168,19 @@ class AnalyticIK(IKSolver):
         # (cos(acos(c)) = c, sin(acos(c)) = sqrt(1 - c^2)): fewer transcendental calls.
         rc = ca.fmin(ca.fmax(ratio, -1), 1)
         asr = ca.asin(rc)
-        cas = ca.sqrt(1 - rc ** 2)
+        cas = ca.sqrt(1 - rc**2)
         spsi, cpsi = p5[1] / r, p5[0] / r
         thetas, c5s, s5s, c3s = [], [], [], []
         # theta1 = psi + asr  or  psi + pi - asr
-        for th1, s1, c1 in ((psi + asr, spsi * cas + cpsi * rc, cpsi * cas - spsi * rc),
-                            (psi + np.pi - asr, -(spsi * cas - cpsi * rc), -(cpsi * cas + spsi * rc))):
+        for th1, s1, c1 in (
+            (psi + asr, spsi * cas + cpsi * rc, cpsi * cas - spsi * rc),
+            (psi + np.pi - asr, -(spsi * cas - cpsi * rc), -(cpsi * cas + spsi * rc)),
+        ):
             c5 = (P[0] * s1 - P[1] * c1 - D) / d[5]
             c5s.append(c5)
             c5c = ca.fmin(ca.fmax(c5, -1), 1)
             a5 = ca.acos(c5c)
-            sa5 = ca.sqrt(1 - c5c ** 2)
+            sa5 = ca.sqrt(1 - c5c**2)
             A1inv = _sdh_inv_sx(c1, s1, d[0], a[0], alpha[0])
             for th5, s5 in ((a5, sa5), (-a5, -sa5)):
                 s5s.append(s5)
@@ -172,16 +188,22 @@ class AnalyticIK(IKSolver):
                 num = -(s1 * Y[0] - c1 * Y[1]) / s5safe
                 den = (s1 * X[0] - c1 * X[1]) / s5safe
                 th6 = ca.atan2(num, den)
-                h6 = ca.sqrt(num ** 2 + den ** 2)
+                h6 = ca.sqrt(num**2 + den**2)
                 h6 = ca.if_else(h6 > 0, h6, 1.0)
-                T14 = ca.mtimes([A1inv, Tf, _sdh_inv_sx(den / h6, num / h6, d[5], a[5], alpha[5]),
-                                 _sdh_inv_sx(c5c, s5, d[4], a[4], alpha[4])])
+                T14 = ca.mtimes(
+                    [
+                        A1inv,
+                        Tf,
+                        _sdh_inv_sx(den / h6, num / h6, d[5], a[5], alpha[5]),
+                        _sdh_inv_sx(c5c, s5, d[4], a[4], alpha[4]),
+                    ]
+                )
                 px, py = T14[0, 3], T14[1, 3]
-                c3 = (px ** 2 + py ** 2 - a[1] ** 2 - a[2] ** 2) / (2.0 * a[1] * a[2])
+                c3 = (px**2 + py**2 - a[1] ** 2 - a[2] ** 2) / (2.0 * a[1] * a[2])
                 c3s.append(c3)
                 c3c = ca.fmin(ca.fmax(c3, -1), 1)
                 a3 = ca.acos(c3c)
-                sa3 = ca.sqrt(1 - c3c ** 2)
+                sa3 = ca.sqrt(1 - c3c**2)
                 phi = ca.atan2(T14[1, 0], T14[0, 0])
                 gamma = ca.atan2(py, px)
                 for th3, s3 in ((a3, sa3), (-a3, -sa3)):
@@ -204,14 +226,14 @@ class AnalyticIK(IKSolver):
             sh, w = b // 4, (b // 2) % 2
             code = ca.if_else(oks[b], float(IKStatus.OK.code), float(IKStatus.JOINT_LIMIT.code))
             code = ca.if_else(ca.fabs(c3s[2 * sh + w]) > 1 + IK_CLIP_TOL, float(IKStatus.ELBOW_UNREACHABLE.code), code)
-            code = ca.if_else(ca.fabs(s5s[2 * sh + w]) < IK_WRIST_SINGULAR_TOL, float(IKStatus.WRIST_SINGULAR.code),
-                              code)
+            code = ca.if_else(
+                ca.fabs(s5s[2 * sh + w]) < IK_WRIST_SINGULAR_TOL, float(IKStatus.WRIST_SINGULAR.code), code
+            )
             code = ca.if_else(ca.fabs(c5s[sh]) > 1 + IK_CLIP_TOL, float(IKStatus.WRIST_UNREACHABLE.code), code)
             code = ca.if_else(r < IK_SHOULDER_SINGULAR_TOL, float(IKStatus.SHOULDER_SINGULAR.code), code)
             code = ca.if_else(ca.fabs(ratio) > 1 + IK_CLIP_TOL, float(IKStatus.SHOULDER_UNREACHABLE.code), code)
             codes.append(code)
-        return ca.Function("ik_branches", [Tt], [ca.horzcat(*qs), ca.vertcat(*codes)],
-                           ["tcp2base"], ["q", "status"])
+        return ca.Function("ik_branches", [Tt], [ca.horzcat(*qs), ca.vertcat(*codes)], ["tcp2base"], ["q", "status"])
 
     @property
     def evaluator(self) -> BatchFunction | VMBatchFunction:
@@ -242,7 +264,7 @@ class AnalyticIK(IKSolver):
         n = T.shape[0]
         # Column-major flattening of each 4x4, as CasADi expects.
         qc, st = self._batch(T.transpose(0, 2, 1).reshape(n, 16))
-        q = qc.transpose(0, 2, 1)   # (n, 8, 6), contiguous (the C output is branch-major)
+        q = qc.transpose(0, 2, 1)  # (n, 8, 6), contiguous (the C output is branch-major)
         status = st.astype(int)
         q[status != IKStatus.OK.code] = np.nan
         return IKSolution(q=q, status=status, labels=self.labels)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 import os
 from pathlib import Path
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 from planner.output import (
     OutputError,
@@ -34,9 +34,13 @@ def _inside(inner: Path, outer: Path) -> bool:
     return Path(os.path.realpath(outer)) in Path(os.path.realpath(inner)).parents
 
 
-def check_output(path: str | Path, inputs: Mapping[str, str | Path | None] | None = None,
-                 kind: OutputKind = "folder", option: str = "--out",
-                 outputs: Mapping[str, str | Path | None] | None = None) -> Path:
+def check_output(
+    path: str | Path,
+    inputs: Mapping[str, str | Path | None] | None = None,
+    kind: OutputKind = "folder",
+    option: str = "--out",
+    outputs: Mapping[str, str | Path | None] | None = None,
+) -> Path:
     """Check an output path before a command's long work, and lock it until the command ends.
 
     Call it at the top of a sub-command's ``run`` (decorated with :func:`releases_outputs`)
@@ -78,7 +82,7 @@ def check_output(path: str | Path, inputs: Mapping[str, str | Path | None] | Non
             _refuse_overlap(p, option, kind, Path(other), opt, "the output")
     check_output_path(p, kind, option)
     if kind == "update" and not p.is_dir():
-        return p                        # the command reports the missing folder itself
+        return p  # the command reports the missing folder itself
     acquire_output_lock(p, option)
     _COMMAND_OUTPUTS.append(p)
     return p
@@ -89,12 +93,15 @@ def _refuse_overlap(out: Path, option: str, kind: str, other: Path, opt: str, ro
     if _same(out, other):
         raise OutputError(f"{option} {out}: is also {role} {opt} ({other}); choose another path for {option}")
     if kind != "file" and _inside(other, out):
-        raise OutputError(f"{option} {out}: contains {role} {opt} ({other}), and an output folder is "
-                          f"replaced whole; choose another folder for {option}")
+        raise OutputError(
+            f"{option} {out}: contains {role} {opt} ({other}), and an output folder is "
+            f"replaced whole; choose another folder for {option}"
+        )
 
 
 def releases_outputs(run: Callable[..., int]) -> Callable[..., int]:
     """Decorator of a sub-command's ``run``: release the outputs :func:`check_output` locked."""
+
     @functools.wraps(run)
     def wrapper(*args: object, **kwargs: object) -> int:
         mark = len(_COMMAND_OUTPUTS)
@@ -103,6 +110,7 @@ def releases_outputs(run: Callable[..., int]) -> Callable[..., int]:
         finally:
             while len(_COMMAND_OUTPUTS) > mark:
                 release_output_lock(_COMMAND_OUTPUTS.pop())
+
     return wrapper
 
 

@@ -13,11 +13,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     d.add_argument("--out", required=True, help="output folder")
     d.add_argument("--robot", default=None, help="built-in robot name or robot file (default: the problem's, ar5)")
     d.add_argument("--points", type=int, default=None, help="number of waypoints (default: the problem's, 40)")
-    d.add_argument("--no-figures", action="store_true",
-                   help="skip branches.png and trajectory.png (written only with --no-report; "
-                        "the report has the same figures)")
-    d.add_argument("--no-report", action="store_true",
-                   help="skip the report (report.html, report.md, figures/) written at the end")
+    d.add_argument(
+        "--no-figures",
+        action="store_true",
+        help="skip branches.png and trajectory.png (written only with --no-report; the report has the same figures)",
+    )
+    d.add_argument(
+        "--no-report", action="store_true", help="skip the report (report.html, report.md, figures/) written at the end"
+    )
     add_export_argument(d)
     d.set_defaults(func=run)
 

@@ -18,22 +18,32 @@ from planner.commands.common import check_output, releases_outputs
 
 def _format_names() -> list[str]:
     from planner.export import EXPORT_FORMATS
+
     return list(EXPORT_FORMATS)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``compplan export``."""
-    e = sub.add_parser("export", help="write a run's controller trajectory as URScript, ROS 2 YAML, ABB RAPID "
-                                      "or KUKA KRL",
-                       description="Export the controller trajectory of a plan or demo run folder "
-                                   "(docs/export.md). Example: compplan export out/demo --format urscript "
-                                   "--out out/demo.script")
+    e = sub.add_parser(
+        "export",
+        help="write a run's controller trajectory as URScript, ROS 2 YAML, ABB RAPID or KUKA KRL",
+        description="Export the controller trajectory of a plan or demo run folder "
+        "(docs/export.md). Example: compplan export out/demo --format urscript "
+        "--out out/demo.script",
+    )
     e.add_argument("run_dir", nargs="?", metavar="RUN_DIR", help="output folder of compplan plan or demo")
     e.add_argument("--format", choices=_format_names(), help="export format")
-    e.add_argument("--out", help="file to write (its suffix is added when missing; KRL also writes the .dat; "
-                                 "rosbag2: the bag folder)")
-    e.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="format option, repeatable (e.g. --set period=0.008 --set gain=500)")
+    e.add_argument(
+        "--out",
+        help="file to write (its suffix is added when missing; KRL also writes the .dat; rosbag2: the bag folder)",
+    )
+    e.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="format option, repeatable (e.g. --set period=0.008 --set gain=500)",
+    )
     e.add_argument("--list", action="store_true", help="print the formats and their options, and exit")
     e.set_defaults(func=run)
 
@@ -41,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def parse_options(items: list[str]) -> dict[str, str]:
     """``KEY=VALUE`` strings to a dict (values checked by the format)."""
     from planner.export import ExportError
+
     out: dict[str, str] = {}
     for item in items:
         key, sep, value = item.partition("=")
@@ -53,16 +64,20 @@ def parse_options(items: list[str]) -> dict[str, str]:
 def print_formats() -> None:
     """The formats, their files and options (defaults and help)."""
     from planner.export import formats
+
     for name, f in formats().items():
         print(f"{name} ({', '.join(f.suffixes)}): {f.description}")
         for key, (default, text, _check) in f.options.items():
-            shown = "the trajectory's dt" if default is None else f"{default:g}" if isinstance(default, float) else default
+            shown = (
+                "the trajectory's dt" if default is None else f"{default:g}" if isinstance(default, float) else default
+            )
             print(f"  --set {key}=...  {text} (default {shown})")
 
 
 def out_path(out: str, fmt: str) -> Path:
     """``--out`` with the format's suffix when it has none; another suffix is refused."""
     from planner.export import ExportError, formats
+
     p = Path(out)
     suffixes = formats()[fmt].suffixes
     if formats()[fmt].folder:
@@ -85,8 +100,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     missing = [n for n, v in (("RUN_DIR", args.run_dir), ("--format", args.format), ("--out", args.out)) if not v]
     if missing:
-        raise InputError(f"export: {', '.join(missing)} required (compplan export RUN_DIR --format FORMAT "
-                         "--out FILE; compplan export --list)")
+        raise InputError(
+            f"export: {', '.join(missing)} required (compplan export RUN_DIR --format FORMAT "
+            "--out FILE; compplan export --list)"
+        )
     options = parse_options(args.set)
     out = out_path(args.out, args.format)
     run_dir = Path(args.run_dir)
@@ -103,8 +120,10 @@ def run(args: argparse.Namespace) -> int:
         for path in files:
             check_output(path, inputs, kind="file")
         atomic_write_files({p: _bytes(content) for p, content in files.items()})
-    print(f"{args.format}: {len(data.t)} samples, {data.t[-1]:.4f} s at {data.dt * 1e3:g} ms from {run_dir} "
-          f"(robot {data.robot}) -> {', '.join(str(p) for p in files)}")
+    print(
+        f"{args.format}: {len(data.t)} samples, {data.t[-1]:.4f} s at {data.dt * 1e3:g} ms from {run_dir} "
+        f"(robot {data.robot}) -> {', '.join(str(p) for p in files)}"
+    )
     return 0
 
 
@@ -115,15 +134,22 @@ def _bytes(content: str | bytes) -> bytes:
 # ------------------------------------------------------------------ plan / demo --export
 def add_export_argument(parser: argparse.ArgumentParser) -> None:
     """``--export FORMAT`` (repeatable) of ``plan`` and ``demo``."""
-    parser.add_argument("--export", action="append", default=[], choices=_format_names(), metavar="FORMAT",
-                        help="also write the controller trajectory in this format into the output folder "
-                             f"(repeatable; {', '.join(_format_names())}; default options, see compplan export)")
+    parser.add_argument(
+        "--export",
+        action="append",
+        default=[],
+        choices=_format_names(),
+        metavar="FORMAT",
+        help="also write the controller trajectory in this format into the output folder "
+        f"(repeatable; {', '.join(_format_names())}; default options, see compplan export)",
+    )
 
 
 def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
     """The files of ``plan --export``: ``<problem>_<format>.<suffix>`` (a folder for rosbag2) by name, from the plan in
     memory (refused, before anything is written, if the trajectory is not ok or leaves its limits)."""
     from planner.export import data_from_plan, export_files
+
     if not fmts:
         return {}
     data = data_from_plan(res)

@@ -35,6 +35,7 @@ def _effects_arg(text: str | None) -> list[str] | None:
         return []
     if t == "all":
         from models.effects import LIBRARY
+
         return list(LIBRARY)
     return [e.strip() for e in t.split(",") if e.strip()]
 
@@ -48,7 +49,8 @@ def _folds(text: str) -> int:
     if k < 2:
         raise argparse.ArgumentTypeError(
             f"--folds {k}: expected an integer >= 2 (the cross-validation holds out one fold of poses at a "
-            "time and fits the others)")
+            "time and fits the others)"
+        )
     return k
 
 
@@ -67,6 +69,7 @@ def _joint_names(text: str) -> tuple[str, ...] | None:
     """``--joint-names``: ``none`` (q1..q6), a preset (``ros-ur``) or six comma-separated column names."""
     from models.errors import InputError
     from problems.measurements import resolve_joint_names
+
     try:
         return resolve_joint_names(text, where="--joint-names")
     except InputError as exc:
@@ -76,21 +79,33 @@ def _joint_names(text: str) -> tuple[str, ...] | None:
 def _add_csv_options(p: argparse.ArgumentParser, files: str) -> None:
     """``--csv-dialect`` and ``--joint-names``: how the measurement/command files ``files`` are read."""
     from problems.measurements import DIALECT_CHOICES, JOINT_NAME_PRESETS
-    p.add_argument("--csv-dialect", choices=DIALECT_CHOICES, default="auto",
-                   help=f"CSV dialect of {files}: 'comma' (',' separator, '.' decimal point), 'semicolon' (';' "
-                        "separator, decimal comma), 'auto' (default: ';' in the header and no ',' means "
-                        "semicolon; a header with both is an error; a detected dialect is noted on stderr)")
-    p.add_argument("--joint-names", type=_joint_names, default=None, metavar="NAMES",
-                   help=f"columns read as q1..q6 in {files}: 'none' (default: q1..q6), a preset "
-                        f"({', '.join(JOINT_NAME_PRESETS)}: the ROS UR names shoulder_pan_joint, ..., "
-                        "wrist_3_joint, rad or with _deg) or six comma-separated names, joint 1 first")
+
+    p.add_argument(
+        "--csv-dialect",
+        choices=DIALECT_CHOICES,
+        default="auto",
+        help=f"CSV dialect of {files}: 'comma' (',' separator, '.' decimal point), 'semicolon' (';' "
+        "separator, decimal comma), 'auto' (default: ';' in the header and no ',' means "
+        "semicolon; a header with both is an error; a detected dialect is noted on stderr)",
+    )
+    p.add_argument(
+        "--joint-names",
+        type=_joint_names,
+        default=None,
+        metavar="NAMES",
+        help=f"columns read as q1..q6 in {files}: 'none' (default: q1..q6), a preset "
+        f"({', '.join(JOINT_NAME_PRESETS)}: the ROS UR names shoulder_pan_joint, ..., "
+        "wrist_3_joint, rad or with _deg) or six comma-separated names, joint 1 first",
+    )
 
 
 def _read(args: argparse.Namespace, path: str, require_position: bool = True) -> Any:
     """A measurement/command file read with the options ``--csv-dialect`` and ``--joint-names``."""
     from problems.measurements import read_measurements
-    return read_measurements(path, require_position=require_position, dialect=args.csv_dialect,
-                             joint_names=args.joint_names)
+
+    return read_measurements(
+        path, require_position=require_position, dialect=args.csv_dialect, joint_names=args.joint_names
+    )
 
 
 def _print_notes(*tables: Any) -> None:
@@ -111,54 +126,80 @@ def _known(text: str) -> tuple[str, ...]:
     words = [w.strip() for w in text.split(",") if w.strip()]
     bad = [w for w in words if w not in KNOWN_WORDS]
     if not words or bad:
-        raise argparse.ArgumentTypeError(f"got {text!r}; expected a comma-separated list of "
-                                         f"{', '.join(KNOWN_WORDS)}")
+        raise argparse.ArgumentTypeError(f"got {text!r}; expected a comma-separated list of {', '.join(KNOWN_WORDS)}")
     return tuple(KNOWN_WORDS[w] for w in words)
 
 
 def _map_components(text: str) -> tuple[str, ...]:
     """``--map-components`` value: comma-separated components of a joint error map."""
     from models.effects.joint_error_map import MAP_COMPONENTS
+
     words = [w.strip() for w in text.split(",") if w.strip()]
     bad = [w for w in words if w not in MAP_COMPONENTS]
     if not words or bad:
-        raise argparse.ArgumentTypeError(f"got {text!r}; expected a comma-separated list of "
-                                         f"{', '.join(MAP_COMPONENTS)}")
+        raise argparse.ArgumentTypeError(
+            f"got {text!r}; expected a comma-separated list of {', '.join(MAP_COMPONENTS)}"
+        )
     return tuple(words)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the sub-commands of this module."""
-    p = sub.add_parser("identify", help="identify the model from measurements and report before/after",
-                       description="Identify joint stiffness (+ registration and measured point for absolute "
-                                   "data) and add library effects while they explain a significant "
-                                   "cross-validated share of the residual.")
+    p = sub.add_parser(
+        "identify",
+        help="identify the model from measurements and report before/after",
+        description="Identify joint stiffness (+ registration and measured point for absolute "
+        "data) and add library effects while they explain a significant "
+        "cross-validated share of the residual.",
+    )
     p.add_argument("--robot", required=True, help="built-in robot name or robot file (the declared model)")
     p.add_argument("--data", required=True, help="measurement CSV (docs/measurement-file.md)")
     p.add_argument("--out", required=True, help="identified model file to write (robot TOML)")
     p.add_argument("--report", required=True, help="report folder (report.json, report.md, report.html)")
-    p.add_argument("--registered", action="store_true",
-                   help="the measurement frame is the base frame and the measured point is the robot's TCP")
-    p.add_argument("--known", type=_known, default=(),
-                   help="comma-separated parts of the set-up known from a calibration and held: 'registration' "
-                        "(measurement frame = base frame, e.g. a tracker base calibration) and/or 'measured-point' "
-                        "(measured point, and frame with orientation data, = the robot file's TCP, e.g. a tool "
-                        "calibration); both = --registered")
-    p.add_argument("--map-components", type=_map_components, default=("theta",),
-                   help="components of the joint error maps the search proposes, comma-separated from "
-                        "theta (angular error; the default), d (axial), a (radial), alpha, beta (tilts): runout "
-                        "and wobble are searched only on request, because from position data their signatures "
-                        "can absorb structure of other origins")
-    p.add_argument("--candidates", default=None,
-                   help="comma-separated library effects the selection may add (default: all; 'none')")
-    p.add_argument("--include", default=None,
-                   help="comma-separated effects added without a test (must be identifiable from the data)")
-    p.add_argument("--folds", type=_folds, default=None,
-                   help="folds of the cross-validation over poses, an integer >= 2 and at most the number "
-                        "of poses (default 5, fewer when the data have fewer poses)")
+    p.add_argument(
+        "--registered",
+        action="store_true",
+        help="the measurement frame is the base frame and the measured point is the robot's TCP",
+    )
+    p.add_argument(
+        "--known",
+        type=_known,
+        default=(),
+        help="comma-separated parts of the set-up known from a calibration and held: 'registration' "
+        "(measurement frame = base frame, e.g. a tracker base calibration) and/or 'measured-point' "
+        "(measured point, and frame with orientation data, = the robot file's TCP, e.g. a tool "
+        "calibration); both = --registered",
+    )
+    p.add_argument(
+        "--map-components",
+        type=_map_components,
+        default=("theta",),
+        help="components of the joint error maps the search proposes, comma-separated from "
+        "theta (angular error; the default), d (axial), a (radial), alpha, beta (tilts): runout "
+        "and wobble are searched only on request, because from position data their signatures "
+        "can absorb structure of other origins",
+    )
+    p.add_argument(
+        "--candidates",
+        default=None,
+        help="comma-separated library effects the selection may add (default: all; 'none')",
+    )
+    p.add_argument(
+        "--include",
+        default=None,
+        help="comma-separated effects added without a test (must be identifiable from the data)",
+    )
+    p.add_argument(
+        "--folds",
+        type=_folds,
+        default=None,
+        help="folds of the cross-validation over poses, an integer >= 2 and at most the number "
+        "of poses (default 5, fewer when the data have fewer poses)",
+    )
     p.add_argument("--validation", default=None, help="held-out measurement CSV to report the RMS on")
-    p.add_argument("--truth", default=None,
-                   help="truth file of a virtual robot (compplan simulate): compensate and re-measure")
+    p.add_argument(
+        "--truth", default=None, help="truth file of a virtual robot (compplan simulate): compensate and re-measure"
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_csv_options(p, "--data and --validation")
     p.set_defaults(func=run_identify)
@@ -172,17 +213,27 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("compensate", help="commands that put the real TCP on its targets under the load")
     p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
-    p.add_argument("--input", required=True,
-                   help="CSV with q1..q6 (commands) and fx..mz; x, y, z for --targets-frame base/measurement")
+    p.add_argument(
+        "--input",
+        required=True,
+        help="CSV with q1..q6 (commands) and fx..mz; x, y, z for --targets-frame base/measurement",
+    )
     p.add_argument("--out", required=True, help="CSV to write: q1..q6 (rad), compensated")
-    p.add_argument("--targets-frame", choices=("nominal", "base", "measurement"), default="nominal",
-                   help="the targets: 'nominal' (default), the nominal-FK TCP poses of q1..q6; 'base', TCP "
-                        "positions x, y, z in the robot base frame; 'measurement', positions x, y, z of the "
-                        "measured point in the measurement frame (exact there even for unregistered data). "
-                        "Orientation: that of the nominal TCP of q1..q6, which also seed the solve")
-    p.add_argument("--strict", action="store_true",
-                   help="fail (nothing written) if any row cannot be compensated; default: write every row "
-                        "(the best command) and warn naming the rows")
+    p.add_argument(
+        "--targets-frame",
+        choices=("nominal", "base", "measurement"),
+        default="nominal",
+        help="the targets: 'nominal' (default), the nominal-FK TCP poses of q1..q6; 'base', TCP "
+        "positions x, y, z in the robot base frame; 'measurement', positions x, y, z of the "
+        "measured point in the measurement frame (exact there even for unregistered data). "
+        "Orientation: that of the nominal TCP of q1..q6, which also seed the solve",
+    )
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="fail (nothing written) if any row cannot be compensated; default: write every row "
+        "(the best command) and warn naming the rows",
+    )
     _add_csv_options(p, "--input")
     p.set_defaults(func=run_compensate)
 
@@ -191,8 +242,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", required=True, help="simulation configuration TOML (docs/identification.md)")
     p.add_argument("--out", required=True, help="measurement CSV to write")
     p.add_argument("--truth", default=None, help="truth file to write (default: OUT with .truth.toml)")
-    p.add_argument("--seed", type=_seed, default=None, help="random seed, an integer >= 0 (default: the config's, "
-                                                             "else 0)")
+    p.add_argument(
+        "--seed", type=_seed, default=None, help="random seed, an integer >= 0 (default: the config's, else 0)"
+    )
     p.set_defaults(func=run_simulate)
 
 
@@ -207,10 +259,10 @@ class _Bar:
         if not self.enabled:
             return
         from tqdm import tqdm
+
         if self.bar is None:
             # on a terminal only (as the other bars): a log or a pipe gets no bar lines
-            self.bar = tqdm(total=total, desc="identify", unit="step", leave=False, file=sys.stderr,
-                            disable=None)
+            self.bar = tqdm(total=total, desc="identify", unit="step", leave=False, file=sys.stderr, disable=None)
         if self.bar.total != total:
             self.bar.total = total
         self.bar.n = min(done, total)
@@ -225,8 +277,7 @@ class _Bar:
 @releases_outputs
 def run_identify(args: argparse.Namespace) -> int:
     """Identify, write the model file and the report, print the summary."""
-    inputs = {"--robot": args.robot, "--data": args.data, "--validation": args.validation,
-              "--truth": args.truth}
+    inputs = {"--robot": args.robot, "--data": args.data, "--validation": args.validation, "--truth": args.truth}
     check_output(args.out, inputs, kind="file", outputs={"--report": args.report})
     check_output(args.report, inputs, kind="folder", option="--report", outputs={"--out": args.out})
     from models import load_robot
@@ -247,18 +298,29 @@ def run_identify(args: argparse.Namespace) -> int:
     if args.folds is not None:
         n_poses = len(set(data.pose_groups().tolist()))
         if args.folds > n_poses:
-            raise InputError(f"--folds {args.folds}: more folds than the {n_poses} poses of {args.data} "
-                             f"(a fold holds whole poses); give --folds between 2 and {n_poses}")
+            raise InputError(
+                f"--folds {args.folds}: more folds than the {n_poses} poses of {args.data} "
+                f"(a fold holds whole poses); give --folds between 2 and {n_poses}"
+            )
     val = _read(args, args.validation) if args.validation else None
     truth = None
     if args.truth:
         from problems.virtual import load_truth
+
         truth = load_truth(args.truth)
     bar = _Bar(not args.no_progress)
     try:
-        res = identify(robot, data, registered=args.registered, candidates=_effects_arg(args.candidates),
-                       include=_effects_arg(args.include) or [], folds=args.folds or CV_FOLDS, progress=bar,
-                       known=args.known, map_components=args.map_components)
+        res = identify(
+            robot,
+            data,
+            registered=args.registered,
+            candidates=_effects_arg(args.candidates),
+            include=_effects_arg(args.include) or [],
+            folds=args.folds or CV_FOLDS,
+            progress=bar,
+            known=args.known,
+            map_components=args.map_components,
+        )
     finally:
         bar.close()
     if val is not None:
@@ -269,8 +331,10 @@ def run_identify(args: argparse.Namespace) -> int:
     rep = write_report(res, args.report, model_path=str(args.out), data_path=str(args.data))
     atomic_write_bytes(args.out, text.encode())
     print(f"identify: {data.n} rows, {rep['data']['n_poses']} poses, status {res.status.value}")
-    print(f"  RMS before {res.rms_before_mm:.4f} mm -> after {res.rms_after_mm:.4f} mm "
-          f"(held-out {rep['heldout_rms_before_mm']:.4f} -> {rep['heldout_rms_after_mm']:.4f} mm, per axis)")
+    print(
+        f"  RMS before {res.rms_before_mm:.4f} mm -> after {res.rms_after_mm:.4f} mm "
+        f"(held-out {rep['heldout_rms_before_mm']:.4f} -> {rep['heldout_rms_after_mm']:.4f} mm, per axis)"
+    )
     if res.noise_sigma_m is not None:
         print(f"  noise floor {res.noise_sigma_m * 1e3:.4f} mm ({res.noise_source})")
     print(f"  effects added: {', '.join(res.effects_added) or 'none'}")
@@ -279,13 +343,17 @@ def run_identify(args: argparse.Namespace) -> int:
     if res.unexplained.get("present"):
         print(f"  unexplained: {res.unexplained['message']}")
     if res.validation is not None:
-        print(f"  validation file: RMS {res.validation['rms_mm']:.4f} mm "
-              f"(nominal {res.validation['rms_nominal_mm']:.4f} mm)")
+        print(
+            f"  validation file: RMS {res.validation['rms_mm']:.4f} mm "
+            f"(nominal {res.validation['rms_nominal_mm']:.4f} mm)"
+        )
     if res.compensation_check is not None:
         c = res.compensation_check
-        print(f"  compensation on the virtual robot: TCP error RMS {c['rms_before_mm']:.4f} -> "
-              f"{c['rms_after_mm']:.4f} mm ({100 * c['fraction_left']:.2f} % left; measurement frame "
-              f"{100 * c['meas_frame_fraction_left']:.2f} % left)")
+        print(
+            f"  compensation on the virtual robot: TCP error RMS {c['rms_before_mm']:.4f} -> "
+            f"{c['rms_after_mm']:.4f} mm ({100 * c['fraction_left']:.2f} % left; measurement frame "
+            f"{100 * c['meas_frame_fraction_left']:.2f} % left)"
+        )
     for n in res.notes:
         print(f"  note: {n}")
     _print_notes(data, val)
@@ -308,15 +376,17 @@ def run_predict(args: argparse.Namespace) -> int:
 
     model = load_model(args.model)
     m = _read(args, args.input, require_position=False)
-    check_command_limits(model, m)          # a command the robot cannot run has no prediction
+    check_command_limits(model, m)  # a command the robot cannot run has no prediction
     p = predict(model, m)
     atomic_write_bytes(args.out, commands_csv(["x", "y", "z"], p).encode())
     _print_notes(m)
-    for name in model.active_effects:       # e.g. a joint error map beyond its identified angle range
+    for name in model.active_effects:  # e.g. a joint error map beyond its identified angle range
         for line in fx_effect(name).angle_caveats(model.parameter, lambda k: get_const(model.const, k), m.q):
             print(f"compplan: warning: {line.replace('waypoint', 'row')}", file=sys.stderr)
-    print(f"predict: {m.n} rows, effects {', '.join(model.effects) or 'none'}; wrote {args.out} (x, y, z in m, "
-          "measurement frame)")
+    print(
+        f"predict: {m.n} rows, effects {', '.join(model.effects) or 'none'}; wrote {args.out} (x, y, z in m, "
+        "measurement frame)"
+    )
     return 0
 
 
@@ -343,8 +413,10 @@ def run_compensate(args: argparse.Namespace) -> int:
     for w in out.warnings:
         print(f"compplan: warning: {w}", file=sys.stderr)
     _print_notes(m)
-    print(f"compensate: {m.n} rows, targets {out.targets_frame.value} frame, status {out.status.value}; "
-          f"wrote {args.out} (q1..q6 in rad)")
+    print(
+        f"compensate: {m.n} rows, targets {out.targets_frame.value} frame, status {out.status.value}; "
+        f"wrote {args.out} (q1..q6 in rad)"
+    )
     return 0
 
 
@@ -376,8 +448,10 @@ def run_simulate(args: argparse.Namespace) -> int:
     truth_text = tomli_w.dumps(_toml_safe(vr.truth())).encode()
     atomic_write_bytes(truth, truth_text)
     atomic_write_bytes(out, data)
-    print(f"simulate: robot {robot.name}, {m.n} rows, {len(set(m.point))} poses, effects "
-          f"{', '.join(sorted(vr.effects)) or 'none'}; wrote {out} and {truth}")
+    print(
+        f"simulate: robot {robot.name}, {m.n} rows, {len(set(m.point))} poses, effects "
+        f"{', '.join(sorted(vr.effects)) or 'none'}; wrote {out} and {truth}"
+    )
     return 0
 
 

@@ -10,13 +10,17 @@ from planner.commands.report import add_map_arguments, map_options, report_progr
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    m = sub.add_parser("map", help="compliance map C11..C66 over a plane (paper Fig. 5)",
-                       description="Diagonal compliance C11..C66 of C = J K^-1 J^T over a plane "
-                                   "of TCP positions at a fixed end attitude. Writes "
-                                   "compliance_map.csv (SI), compliance_map.json and "
-                                   "figures/fig1_compliance_map.png|pdf.")
-    m.add_argument("--robot", default="ar5", help="built-in robot name, robot file or identified model file "
-                                                  "(default ar5)")
+    m = sub.add_parser(
+        "map",
+        help="compliance map C11..C66 over a plane (paper Fig. 5)",
+        description="Diagonal compliance C11..C66 of C = J K^-1 J^T over a plane "
+        "of TCP positions at a fixed end attitude. Writes "
+        "compliance_map.csv (SI), compliance_map.json and "
+        "figures/fig1_compliance_map.png|pdf.",
+    )
+    m.add_argument(
+        "--robot", default="ar5", help="built-in robot name, robot file or identified model file (default ar5)"
+    )
     m.add_argument("--out", required=True, help="output folder")
     add_map_arguments(m)
     m.set_defaults(func=run)
@@ -34,17 +38,18 @@ def run(args: argparse.Namespace) -> int:
     with report_progress() as prog:
         cm, written = write_map(arm, Path(args.out), progress=prog, **map_options(args))
     s = cm.summary()
-    print(f"compliance map, robot {robot.name}, plane {s['plane']}, "
-          f"{s['points'][0]}x{s['points'][1]} points, attitude rpy {s['rpy_rad']} rad "
-          f"({s['rpy_convention']}), branch rule {cm.branch_rule}")
-    print(f"  branches used: {s['branches_used'] or 'none'}; unreachable points: "
-          f"{cm.n_unreachable} of {cm.n_points}")
+    print(
+        f"compliance map, robot {robot.name}, plane {s['plane']}, "
+        f"{s['points'][0]}x{s['points'][1]} points, attitude rpy {s['rpy_rad']} rad "
+        f"({s['rpy_convention']}), branch rule {cm.branch_rule}"
+    )
+    print(f"  branches used: {s['branches_used'] or 'none'}; unreachable points: {cm.n_unreachable} of {cm.n_points}")
     for i, name in enumerate(ELEMENT_NAMES):
         lo, hi = s["diag_range_SI"][name]
         if lo is None:
             print(f"  {name}: no reachable point")
             continue
-        unit, scale = (("mm/N", 1e3) if i < 3 else ("deg/(N*m)", 57.29577951308232))
+        unit, scale = ("mm/N", 1e3) if i < 3 else ("deg/(N*m)", 57.29577951308232)
         print(f"  {name}: {lo * scale:.6g} .. {hi * scale:.6g} {unit}")
     print(f"wrote {', '.join(str(p) for p in written)}")
     return 0

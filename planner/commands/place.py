@@ -10,32 +10,59 @@ from planner.commands.report import report_progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("place", help="base-placement study: sweep base positions and yaws for a task, rank them, "
-                                     "plan the best in full (optionally on a Dask cluster)",
-                       description="Scores every base placement of a grid (reachability on each IK branch, no "
-                                   "flip, joint-limit and singularity margins, the load-induced TCP error of the "
-                                   "best branch), ranks them and plans the best few and the problem as written in "
-                                   "full. Writes summary.json, scores.csv, ranking.csv, report.html and figures/.")
+    p = sub.add_parser(
+        "place",
+        help="base-placement study: sweep base positions and yaws for a task, rank them, "
+        "plan the best in full (optionally on a Dask cluster)",
+        description="Scores every base placement of a grid (reachability on each IK branch, no "
+        "flip, joint-limit and singularity margins, the load-induced TCP error of the "
+        "best branch), ranks them and plans the best few and the problem as written in "
+        "full. Writes summary.json, scores.csv, ranking.csv, report.html and figures/.",
+    )
     p.add_argument("problem", help="problem file (TOML) or the name of a shipped problem (e.g. placement_milling)")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--grid", action="append", default=[], metavar="SPEC",
-                   help="grid axes over the problem's [placement] table (or the default grid): comma-separated "
-                        "KEY=VALUE or KEY=START:STOP:COUNT with KEY in x_m, y_m, z_m, yaw_deg, tilt_deg, top; "
-                        "repeatable (e.g. --grid x_m=-0.4:0.4:9,y_m=-0.6:0.6:13 --grid yaw_deg=0:270:4)")
-    p.add_argument("--scheduler", default="serial",
-                   help="serial (default), local:N (a Dask LocalCluster of N workers) or tcp://HOST:PORT "
-                        "(an existing Dask scheduler); Dask is the extra: pip install \"compplan[dask]\"")
-    p.add_argument("--chunk", type=int, default=None, metavar="N",
-                   help="placements per chunk (one task); default: about 32,768 poses per chunk, larger for a "
-                        "sweep that would need over 1,000 chunks (at most 262,144 poses)")
-    p.add_argument("--top", type=int, default=None, metavar="N",
-                   help="how many of the best placements to plan in full (0..10; default: the grid's top, 3)")
-    p.add_argument("--robot", default=None,
-                   help="arm model to study instead of the problem's robot (built-in name, robot file or "
-                        "identified model file); the problem's tool is kept")
-    p.add_argument("--no-optimise", action="store_true",
-                   help="full plans without the posture NLP: each branch at the problem's nominal orientation "
-                        "(faster; the plans then do not use the orientation freedom the sweep scanned)")
+    p.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help="grid axes over the problem's [placement] table (or the default grid): comma-separated "
+        "KEY=VALUE or KEY=START:STOP:COUNT with KEY in x_m, y_m, z_m, yaw_deg, tilt_deg, top; "
+        "repeatable (e.g. --grid x_m=-0.4:0.4:9,y_m=-0.6:0.6:13 --grid yaw_deg=0:270:4)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default="serial",
+        help="serial (default), local:N (a Dask LocalCluster of N workers) or tcp://HOST:PORT "
+        '(an existing Dask scheduler); Dask is the extra: pip install "compplan[dask]"',
+    )
+    p.add_argument(
+        "--chunk",
+        type=int,
+        default=None,
+        metavar="N",
+        help="placements per chunk (one task); default: about 32,768 poses per chunk, larger for a "
+        "sweep that would need over 1,000 chunks (at most 262,144 poses)",
+    )
+    p.add_argument(
+        "--top",
+        type=int,
+        default=None,
+        metavar="N",
+        help="how many of the best placements to plan in full (0..10; default: the grid's top, 3)",
+    )
+    p.add_argument(
+        "--robot",
+        default=None,
+        help="arm model to study instead of the problem's robot (built-in name, robot file or "
+        "identified model file); the problem's tool is kept",
+    )
+    p.add_argument(
+        "--no-optimise",
+        action="store_true",
+        help="full plans without the posture NLP: each branch at the problem's nominal orientation "
+        "(faster; the plans then do not use the orientation freedom the sweep scanned)",
+    )
     p.add_argument("--no-report", action="store_true", help="skip report.html and figures/")
     p.set_defaults(func=run)
 
@@ -47,6 +74,7 @@ def grid_for(problem: Any, specs: list[str], top: int | None) -> Any:
 
     from models.errors import InputError
     from problems.placement.grid import MAX_TOP, default_grid, parse_grid_text
+
     if problem.placement is not None:
         grid = problem.placement
     else:
@@ -63,6 +91,7 @@ def grid_for(problem: Any, specs: list[str], top: int | None) -> Any:
 def _reach_m(problem: Any) -> float:
     """A generous reach of the arm, m: the sum of its link lengths and offsets plus the tool."""
     import numpy as np
+
     r = problem.robot
     dh = np.abs(np.array([[j.a, j.d] for j in r.joints])).sum()
     return float(dh + np.linalg.norm(r.tcp2flange[:3, 3]))
@@ -79,25 +108,32 @@ def run(args: argparse.Namespace) -> int:
     spec = parse_scheduler(args.scheduler)
     if spec != "serial":
         from problems.placement.cluster import require_dask
+
         require_dask()
     from problems.placement.sweep import CHUNK_MAX_PLACEMENTS
+
     if args.chunk is not None and not 1 <= args.chunk <= CHUNK_MAX_PLACEMENTS:
-        raise InputError(f"--chunk {args.chunk}: expected a positive number of placements per chunk, "
-                         f"at most {CHUNK_MAX_PLACEMENTS}")
+        raise InputError(
+            f"--chunk {args.chunk}: expected a positive number of placements per chunk, at most {CHUNK_MAX_PLACEMENTS}"
+        )
     problem = load_problem(args.problem)
     if args.robot is not None:
         problem = problem.with_robot(args.robot)
     grid = grid_for(problem, args.grid, args.top)
-    print(f"placement study of {problem.name} (robot {problem.robot.name}): {grid.size} placements "
-          f"{dict(zip(('x', 'y', 'z', 'yaw', 'tilt'), grid.shape))}, scheduler {spec}")
+    print(
+        f"placement study of {problem.name} (robot {problem.robot.name}): {grid.size} placements "
+        f"{dict(zip(('x', 'y', 'z', 'yaw', 'tilt'), grid.shape))}, scheduler {spec}"
+    )
     with report_progress() as prog:
         st = study(problem, grid, spec, args.chunk, progress=prog, optimise=not args.no_optimise)
         if not st.ok:
             raise InfeasibleError(f"place: {st.reason}")
         written = write_study(st, args.out, with_report=not args.no_report)
     print_study(st)
-    print(f"wrote {len(written)} files into {args.out} (summary.json, scores.csv, ranking.csv"
-          f"{', report.html, figures/' if not args.no_report else ''})")
+    print(
+        f"wrote {len(written)} files into {args.out} (summary.json, scores.csv, ranking.csv"
+        f"{', report.html, figures/' if not args.no_report else ''})"
+    )
     return 0
 
 
@@ -105,28 +141,38 @@ def print_study(st: Any) -> None:
     """The sweep's figures, the ranking head, the full plans and the improvement."""
     from planner.placement import distinct_positions
     from problems.placement.grid import placement_label
+
     s = st.summary()
     sw = s["sweep"]
-    print(f"  {sw['poses']:,} poses ({sw['poses_per_placement']} per placement) in {sw['elapsed_s']:.3g} s: "
-          f"{sw['poses_per_second']:,.0f} poses/s on {sw['workers']} worker(s), {sw['chunks']} chunk(s) of "
-          f"{sw['chunk_placements']} placements{'' if sw['compiled'] else ' (CasADi virtual machine)'}")
+    print(
+        f"  {sw['poses']:,} poses ({sw['poses_per_placement']} per placement) in {sw['elapsed_s']:.3g} s: "
+        f"{sw['poses_per_second']:,.0f} poses/s on {sw['workers']} worker(s), {sw['chunks']} chunk(s) of "
+        f"{sw['chunk_placements']} placements{'' if sw['compiled'] else ' (CasADi virtual machine)'}"
+    )
     print("  placements: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in sw["status_counts"].items()))
-    print("  best base positions (sweep: RMS / max load-induced TCP error of the best branch; rank among all "
-          "placements):")
+    print(
+        "  best base positions (sweep: RMS / max load-induced TCP error of the best branch; rank among all placements):"
+    )
     rank_of = {int(i): r + 1 for r, i in enumerate(st.ranked)}
     for i in distinct_positions(st.ranked, st.sweep.placements, max(3, st.grid.top)):
         e = st.scores_of(i)
-        print(f"    {rank_of[i]:>3}. {placement_label(st.sweep.placements[i])}: branch {e['best_branch']}, "
-              f"{e['rms_error_mm']:.4g} / {e['max_error_mm']:.4g} mm, joint margin {e['joint_margin_deg']:.3g} deg, "
-              f"singular margin {e['singular_margin']:.3g}")
+        print(
+            f"    {rank_of[i]:>3}. {placement_label(st.sweep.placements[i])}: branch {e['best_branch']}, "
+            f"{e['rms_error_mm']:.4g} / {e['max_error_mm']:.4g} mm, joint margin {e['joint_margin_deg']:.3g} deg, "
+            f"singular margin {e['singular_margin']:.3g}"
+        )
     b = s["baseline"]
     if st.baseline.status_of(0).ok:
-        print(f"  as written (x=0, y=0): branch {b['best_branch']}, {b['rms_error_mm']:.4g} / {b['max_error_mm']:.4g} mm")
+        print(
+            f"  as written (x=0, y=0): branch {b['best_branch']}, {b['rms_error_mm']:.4g} / {b['max_error_mm']:.4g} mm"
+        )
     else:
         print(f"  as written (x=0, y=0): infeasible ({b['status_reason']})")
     if s["improvement_rms_factor"] is not None:
-        print(f"  the best placement cuts the RMS load-induced error {s['improvement_rms_factor']:.3g}x "
-              "against the problem as written (sweep)")
+        print(
+            f"  the best placement cuts the RMS load-induced error {s['improvement_rms_factor']:.3g}x "
+            "against the problem as written (sweep)"
+        )
     for w in s["warnings"]:
         print(f"  warning: {w}")
     print("  full plans (error before compensation max / RMS, after compensation max, duration):")
@@ -136,5 +182,7 @@ def print_study(st: Any) -> None:
             print(f"    {p['label']:<10} {p['placement_text']}: {p['plan_status']}: {h.get('reason')}")
             continue
         dur = "not timed" if h.get("duration_s") is None else f"{h['duration_s']} s"
-        print(f"    {p['label']:<10} {p['placement_text']}: branch {h['branch']}, {h['error_before_max_mm']} / "
-              f"{h['error_before_rms_mm']} mm -> {h['error_after_max_mm']} mm, {dur}")
+        print(
+            f"    {p['label']:<10} {p['placement_text']}: branch {h['branch']}, {h['error_before_max_mm']} / "
+            f"{h['error_before_rms_mm']} mm -> {h['error_after_max_mm']} mm, {dur}"
+        )

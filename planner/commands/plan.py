@@ -19,33 +19,42 @@ def _dt(text: str) -> float:
     except ValueError:
         raise argparse.ArgumentTypeError(f"--dt must be a number of seconds, got {text!r}") from None
     from problems.timing import DT_MAX_S
+
     if not (0.0 < v <= DT_MAX_S) or not math.isfinite(v):
         raise argparse.ArgumentTypeError(
-            f"--dt must be in (0, {DT_MAX_S:g}] s (e.g. 0.002, 0.004, 0.008), got {text!r}")
+            f"--dt must be in (0, {DT_MAX_S:g}] s (e.g. 0.002, 0.004, 0.008), got {text!r}"
+        )
     return v
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("plan", help="stiffness-optimal branch and posture, exact compensation and timing "
-                                    "of a problem file")
+    p = sub.add_parser(
+        "plan", help="stiffness-optimal branch and posture, exact compensation and timing of a problem file"
+    )
     p.add_argument("problem", help="problem file (TOML) or the name of a shipped problem")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--dt", type=_dt, default=None,
-                   help="controller period in s (default: the problem's timing.dt, else 0.008)")
-    p.add_argument("--robot", default=None,
-                   help="arm model to plan with instead of the problem's robot: a built-in name, a robot file or "
-                        "an identified model file (compplan identify --out MODEL); the problem's tool is kept")
-    p.add_argument("--no-optimise", action="store_true",
-                   help="branch choice only: analytic postures, no NLP")
-    p.add_argument("--no-figures", action="store_true", help="skip branches.png and trajectory.png (written only with --no-report; "
-                   "the report has the same figures)")
-    p.add_argument("--no-report", action="store_true",
-                   help="skip the report (report.html, report.md, figures/) written at the end")
+    p.add_argument(
+        "--dt", type=_dt, default=None, help="controller period in s (default: the problem's timing.dt, else 0.008)"
+    )
+    p.add_argument(
+        "--robot",
+        default=None,
+        help="arm model to plan with instead of the problem's robot: a built-in name, a robot file or "
+        "an identified model file (compplan identify --out MODEL); the problem's tool is kept",
+    )
+    p.add_argument("--no-optimise", action="store_true", help="branch choice only: analytic postures, no NLP")
+    p.add_argument(
+        "--no-figures",
+        action="store_true",
+        help="skip branches.png and trajectory.png (written only with --no-report; the report has the same figures)",
+    )
+    p.add_argument(
+        "--no-report", action="store_true", help="skip the report (report.html, report.md, figures/) written at the end"
+    )
     add_export_argument(p)
     p.set_defaults(func=run)
 
-    q = sub.add_parser("pose", help="single-pose query: the stiffness-optimal posture for one "
-                                    "waypoint of a problem")
+    q = sub.add_parser("pose", help="single-pose query: the stiffness-optimal posture for one waypoint of a problem")
     q.add_argument("problem", help="problem file (TOML) or the name of a shipped problem")
     q.add_argument("--waypoint", type=int, default=0, help="waypoint index k (default 0)")
     q.add_argument("--robot", default=None, help="arm model instead of the problem's robot (as for plan)")
@@ -64,45 +73,63 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
     pr = res.problem
     ps = res.posture
     md = s["model"]
-    print(f"problem {pr.name} ({pr.source}): robot {pr.robot.name}, {pr.n} waypoints, "
-          f"rule {pr.rule.value}; {ps.freedom_note}")
+    print(
+        f"problem {pr.name} ({pr.source}): robot {pr.robot.name}, {pr.n} waypoints, "
+        f"rule {pr.rule.value}; {ps.freedom_note}"
+    )
     print(f"arm model: {md['file'] or pr.robot.name}; effects: {', '.join(md['effects'])}")
     w = max([8] + [len(lab) + 2 for lab in ps.labels])
-    print(f"  {'branch':<{w}}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
-          f"{'iter':>6}{'NLP [ms]':>10}")
+    print(
+        f"  {'branch':<{w}}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
+        f"{'iter':>6}{'NLP [ms]':>10}"
+    )
     for r in ps.branches.values():
         mark = " *" if r.branch == ps.chosen else ("  (default)" if r.branch == ps.default else "")
         ana = f"{r.rms_error_analytic_m * 1e3:.4f} mm" if np.isfinite(r.rms_error_analytic_m) else "—"
-        print(f"  {r.label:<{w}}{r.status.value:<21}{ana:>14}{r.rms_error_m * 1e3:>12.4f} mm{r.cost:>13.4g}"
-              f"{r.iterations:>6}{r.solve_time_s * 1e3:>10.1f}{mark}")
+        print(
+            f"  {r.label:<{w}}{r.status.value:<21}{ana:>14}{r.rms_error_m * 1e3:>12.4f} mm{r.cost:>13.4g}"
+            f"{r.iterations:>6}{r.solve_time_s * 1e3:>10.1f}{mark}"
+        )
     for b, why in ps.rejected.items():
         print(f"  {ps.labels[b]:<{w}}rejected: {why}")
     g = s.get("gain", {})
-    print(f"chosen branch {s['chosen_branch']} (default {s['default_branch']}): RMS load-induced error "
-          f"{ps.best.rms_error_m * 1e3:.4f} mm; gain x{g.get('vs_default', float('nan')):.3f} over the default "
-          f"branch at its analytic posture, x{g.get('vs_best_analytic', float('nan')):.3f} over the best "
-          f"analytic posture")
-    print_error_table([
-        ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
-        ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
-        ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
-    ], f"TCP position error of the chosen posture, load: {load_words(s)}")
+    print(
+        f"chosen branch {s['chosen_branch']} (default {s['default_branch']}): RMS load-induced error "
+        f"{ps.best.rms_error_m * 1e3:.4f} mm; gain x{g.get('vs_default', float('nan')):.3f} over the default "
+        f"branch at its analytic posture, x{g.get('vs_best_analytic', float('nan')):.3f} over the best "
+        f"analytic posture"
+    )
+    print_error_table(
+        [
+            ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
+            ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
+            ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
+        ],
+        f"TCP position error of the chosen posture, load: {load_words(s)}",
+    )
     if res.trajectories:
         print(f"timing at dt = {pr.timing.dt * 1e3:g} ms (peak |value|/limit over the joints):")
         for m, tr in res.trajectories.items():
             lr = tr.limit_ratio
-            print(f"  {m:<12} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
-                  f"{np.max(lr['acceleration']):.3f}   jerk {np.max(lr['jerk']):.3f}"
-                  + ("   -> trajectory.csv" if m == res.controller else ""))
+            print(
+                f"  {m:<12} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
+                f"{np.max(lr['acceleration']):.3f}   jerk {np.max(lr['jerk']):.3f}"
+                + ("   -> trajectory.csv" if m == res.controller else "")
+            )
             print(f"  {'':<12} {describe_binding(s['timing'][m]['limit_use'])}")
     for w in s["warnings"]:
         print(f"warning: {w}")
     h = s["headline"]
-    dur = (f", duration {format_number(h['duration_s'])} s ({h['duration_method']})"
-           if h.get("duration_s") is not None else "")
-    print(f"headline: {h['status']}, branch {h['branch']} ({h.get('branch_posture') or ''}), TCP error max "
-          f"{mm_text(h['error_before_max_mm'])} before -> {mm_text(h['error_after_max_mm'])} after exact "
-          f"compensation{dur}")
+    dur = (
+        f", duration {format_number(h['duration_s'])} s ({h['duration_method']})"
+        if h.get("duration_s") is not None
+        else ""
+    )
+    print(
+        f"headline: {h['status']}, branch {h['branch']} ({h.get('branch_posture') or ''}), TCP error max "
+        f"{mm_text(h['error_before_max_mm'])} before -> {mm_text(h['error_after_max_mm'])} after exact "
+        f"compensation{dur}"
+    )
     if out is not None:
         print(f"wrote {Path(out)}/: {', '.join(names)}")
 
@@ -136,7 +163,8 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
     print_plan(res, args.out, output_names(res, quick_figures) + list(exports), view)
     if not args.no_report:
         from planner.commands.report import write_run_report
-        write_run_report(args.out, result=res, view=view)      # the report's view is built from res
+
+        write_run_report(args.out, result=res, view=view)  # the report's view is built from res
     return 0
 
 
@@ -155,35 +183,66 @@ def run_pose(args: argparse.Namespace) -> int:
     k = args.waypoint
     if not 0 <= k < pr.n:
         raise InputError(f"pose: --waypoint {k} is outside the problem's waypoints 0..{pr.n - 1}")
-    res = optimal_pose(pr.model, pr.positions[k], pr.rotations[k], pr.rule, pr.load.rows(pr.n)[k],
-                       cone_half_angle=pr.cone_half_angle, home_q=pr.home_q, settings=pr.solver,
-                       scan=pr.scan, verbose=args.verbose)
+    res = optimal_pose(
+        pr.model,
+        pr.positions[k],
+        pr.rotations[k],
+        pr.rule,
+        pr.load.rows(pr.n)[k],
+        cone_half_angle=pr.cone_half_angle,
+        home_q=pr.home_q,
+        settings=pr.solver,
+        scan=pr.scan,
+        verbose=args.verbose,
+    )
     if not res.ok:
         from models.errors import InfeasibleError, UnreachableError
+
         cls = UnreachableError if res.status is PostureStatus.UNREACHABLE else InfeasibleError
         raise cls(f"pose: waypoint {k} of '{pr.name}': {res.status.value}: {res.reason}")
     p = pr.positions[k]
-    print(f"waypoint {k} of {pr.name}: TCP ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, rule {pr.rule.value}, "
-          f"F = {[float(v) for v in pr.wrench[k]]} (N, N*m, {pr.wrench_frame} frame)"
-          + (f" + payload {pr.payload_mass_kg:g} kg" if pr.payload_mass_kg else ""))
+    print(
+        f"waypoint {k} of {pr.name}: TCP ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, rule {pr.rule.value}, "
+        f"F = {[float(v) for v in pr.wrench[k]]} (N, N*m, {pr.wrench_frame} frame)"
+        + (f" + payload {pr.payload_mass_kg:g} kg" if pr.payload_mass_kg else "")
+    )
     entries = {}
     for r in res.branches.values():
         mark = " *" if r.branch == res.chosen else ""
         ana = f"{r.error_analytic_m[0] * 1e3:.4f}" if np.isfinite(r.error_analytic_m[0]) else "—"
-        print(f"  {r.label:<8}{r.status.value:<12} error analytic {ana:>9} mm, optimised "
-              f"{r.error_m[0] * 1e3:.4f} mm  q = [{', '.join(f'{v:.4f}' for v in r.q[0])}] rad{mark}")
-        entries[r.label] = {"status": r.status.value, "reason": r.reason, "q": r.q[0],
-                            "error_m": float(r.error_m[0]), "error_analytic_m": float(r.error_analytic_m[0])}
+        print(
+            f"  {r.label:<8}{r.status.value:<12} error analytic {ana:>9} mm, optimised "
+            f"{r.error_m[0] * 1e3:.4f} mm  q = [{', '.join(f'{v:.4f}' for v in r.q[0])}] rad{mark}"
+        )
+        entries[r.label] = {
+            "status": r.status.value,
+            "reason": r.reason,
+            "q": r.q[0],
+            "error_m": float(r.error_m[0]),
+            "error_analytic_m": float(r.error_analytic_m[0]),
+        }
     if args.out:
         out = OutputSet(args.out)
         from planner.provenance import problem_input, provenance, robot_input
+
         md = pr.model.describe()
-        prov = provenance([problem_input(pr.source), robot_input(md.get("file") or pr.robot_spec,
-                                                                 sha256=md.get("sha256"))])
-        out.add_json("pose.json", {"provenance": prov, "problem": pr.name, "waypoint": k, "position": p,
-                                   "rule": pr.rule.value,
-                                   "wrench": pr.wrench[k], "chosen_branch": res.best.label,
-                                   "branches": entries, "freedom": res.freedom_note})
+        prov = provenance(
+            [problem_input(pr.source), robot_input(md.get("file") or pr.robot_spec, sha256=md.get("sha256"))]
+        )
+        out.add_json(
+            "pose.json",
+            {
+                "provenance": prov,
+                "problem": pr.name,
+                "waypoint": k,
+                "position": p,
+                "rule": pr.rule.value,
+                "wrench": pr.wrench[k],
+                "chosen_branch": res.best.label,
+                "branches": entries,
+                "freedom": res.freedom_note,
+            },
+        )
         out.publish()
         print(f"wrote {Path(args.out)}/pose.json")
     return 0

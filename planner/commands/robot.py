@@ -17,10 +17,13 @@ import sys
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``compplan robot`` and its actions."""
-    r = sub.add_parser("robot", help="list the built-in robots or print one's robot file (a template)",
-                       description="The built-in robot files (models/robots/*.toml): 'list' names them, "
-                                   "'show NAME' prints one unchanged, e.g. compplan robot show ur5 > my_ur5.toml "
-                                   "(format: docs/robot-file.md).")
+    r = sub.add_parser(
+        "robot",
+        help="list the built-in robots or print one's robot file (a template)",
+        description="The built-in robot files (models/robots/*.toml): 'list' names them, "
+        "'show NAME' prints one unchanged, e.g. compplan robot show ur5 > my_ur5.toml "
+        "(format: docs/robot-file.md).",
+    )
     acts = r.add_subparsers(dest="robot_action", required=True)
     ls = acts.add_parser("list", help="the built-in robots, one a line: name and the first line of its description")
     ls.set_defaults(func=run_list)
@@ -36,6 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_list(args: argparse.Namespace) -> int:
     """Print the built-in robots: name, description."""
     from models import BUILTIN_ROBOTS, load_robot
+
     for name in BUILTIN_ROBOTS:
         lines = load_robot(name).description.strip().splitlines()
         print(f"{name:<9} {lines[0] if lines else ''}")
@@ -50,20 +54,27 @@ def run_show(args: argparse.Namespace) -> int:
 
     path = builtin_robot_file(args.name)
     if path is None:
-        raise InputError(f"robot show: {args.name!r} is not a built-in robot; expected one of "
-                         f"{', '.join(BUILTIN_ROBOTS)} (a robot file of your own is read with --robot FILE)")
+        raise InputError(
+            f"robot show: {args.name!r} is not a built-in robot; expected one of "
+            f"{', '.join(BUILTIN_ROBOTS)} (a robot file of your own is read with --robot FILE)"
+        )
     if args.urdf:
         from models import load_robot
+
         urdf = load_robot(args.name).urdf
         if urdf is None:
             raise InputError(f"robot show --urdf: {args.name!r} is a DH robot file; it names no URDF")
         from pathlib import Path
+
         sys.stdout.write(Path(urdf["path"]).read_text(encoding="utf-8"))
         return 0
     sys.stdout.write(path.read_text(encoding="utf-8"))
     if "\nurdf = " in "\n" + path.read_text(encoding="utf-8"):
-        print(f"compplan: {args.name}.toml names a URDF: save it beside the copy with "
-              f"compplan robot show {args.name} --urdf > {args.name}.urdf", file=sys.stderr)
+        print(
+            f"compplan: {args.name}.toml names a URDF: save it beside the copy with "
+            f"compplan robot show {args.name} --urdf > {args.name}.urdf",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -75,28 +86,41 @@ def run_check(args: argparse.Namespace) -> int:
     from models.ik import IKStructureError, ik_solver
 
     r = load_robot(args.robot)
-    src = (f"URDF {r.urdf['path']} from '{r.urdf['base_link']}' to '{r.urdf['tip_link']}'" if r.urdf
-           else f"DH table ({r.convention})")
+    src = (
+        f"URDF {r.urdf['path']} from '{r.urdf['base_link']}' to '{r.urdf['tip_link']}'"
+        if r.urdf
+        else f"DH table ({r.convention})"
+    )
     print(f"robot {r.name}: {src}")
     names = r.joint_names or tuple(f"joint {i + 1}" for i in range(6))
     w = max(len(n) for n in names) + 2
-    print(f"  {'joint':<{w}}{'q_min':>9}{'q_max':>9}{'v_max':>9}{'a_max':>9}{'j_max':>9}{'k [N*m/rad]':>13}"
-          f"{'mass [kg]':>11}")
+    print(
+        f"  {'joint':<{w}}{'q_min':>9}{'q_max':>9}{'v_max':>9}{'a_max':>9}{'j_max':>9}{'k [N*m/rad]':>13}"
+        f"{'mass [kg]':>11}"
+    )
     for n, j in zip(names, r.joints):
         mass = f"{j.mass:.3f}" if j.mass is not None else "-"
-        print(f"  {n:<{w}}{math.degrees(j.q_min):>8.1f}°{math.degrees(j.q_max):>8.1f}°{j.v_max:>9.3g}"
-              f"{j.a_max:>9.3g}{j.j_max:>9.3g}{j.stiffness:>13.4g}{mass:>11}")
-    print(f"  chain as {r.convention} (m, deg): " + "; ".join(
-        f"{i + 1}: a={j.a:.6g} alpha={math.degrees(j.alpha):.6g} d={j.d:.6g} "
-        f"offset={math.degrees(j.theta_offset):.6g}" for i, j in enumerate(r.joints)))
+        print(
+            f"  {n:<{w}}{math.degrees(j.q_min):>8.1f}°{math.degrees(j.q_max):>8.1f}°{j.v_max:>9.3g}"
+            f"{j.a_max:>9.3g}{j.j_max:>9.3g}{j.stiffness:>13.4g}{mass:>11}"
+        )
+    print(
+        f"  chain as {r.convention} (m, deg): "
+        + "; ".join(
+            f"{i + 1}: a={j.a:.6g} alpha={math.degrees(j.alpha):.6g} d={j.d:.6g} "
+            f"offset={math.degrees(j.theta_offset):.6g}"
+            for i, j in enumerate(r.joints)
+        )
+    )
     try:
         ik = ik_solver(r)
         line = f"  IK family: {ik.family} ({ik.description}); branches: {', '.join(ik.labels)}"
         geom = getattr(ik, "geom", None)
         if geom is not None and hasattr(geom, "opw_parameters"):
             p = geom.opw_parameters()
-            line += "\n  OPW parameters (m): " + ", ".join(f"{k} = {p[k]:.6g}" for k in
-                                                          ("a1", "a2", "b", "c1", "c2", "c3", "c4"))
+            line += "\n  OPW parameters (m): " + ", ".join(
+                f"{k} = {p[k]:.6g}" for k in ("a1", "a2", "b", "c1", "c2", "c3", "c4")
+            )
         print(line)
     except IKStructureError as exc:
         print(f"  IK family: none ({exc})")

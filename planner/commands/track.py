@@ -30,34 +30,53 @@ def _positive(name: str):
         if not (math.isfinite(v) and v > 0):
             raise argparse.ArgumentTypeError(f"{name} must be > 0, got {text!r}")
         return v
+
     return check
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``compplan track``."""
-    p = sub.add_parser("track", help="simulate a run's trajectory on the elastic-joint arm and print the TCP "
-                                     "tracking error (during the motion and at rest)")
+    p = sub.add_parser(
+        "track",
+        help="simulate a run's trajectory on the elastic-joint arm and print the TCP "
+        "tracking error (during the motion and at rest)",
+    )
     p.add_argument("run_dir", metavar="RUN_DIR", help="output folder of compplan plan or demo")
     p.add_argument("--out", default=None, help="CSV of the tracking error per simulated sample (t, error_m)")
     p.add_argument("--settle", type=_positive("--settle"), default=0.5, help="rest simulated after the motion, s")
-    p.add_argument("--damping-ratio", type=_positive("--damping-ratio"), default=0.05,
-                   help="joint damping ratio of the simulated arm (default 0.05)")
-    p.add_argument("--stiffness-scale", type=_positive("--stiffness-scale"), default=1.0,
-                   help="simulated joint stiffness over the robot file's (e.g. 0.8)")
-    p.add_argument("--payload-scale", type=_positive("--payload-scale"), default=1.0,
-                   help="simulated payload mass over the run's (e.g. 1.2)")
+    p.add_argument(
+        "--damping-ratio",
+        type=_positive("--damping-ratio"),
+        default=0.05,
+        help="joint damping ratio of the simulated arm (default 0.05)",
+    )
+    p.add_argument(
+        "--stiffness-scale",
+        type=_positive("--stiffness-scale"),
+        default=1.0,
+        help="simulated joint stiffness over the robot file's (e.g. 0.8)",
+    )
+    p.add_argument(
+        "--payload-scale",
+        type=_positive("--payload-scale"),
+        default=1.0,
+        help="simulated payload mass over the run's (e.g. 1.2)",
+    )
     p.set_defaults(func=run)
 
 
 def _wrench(summary: dict) -> np.ndarray:
     from models.errors import InputError
+
     w = summary.get("wrench") or {}
     F, M = np.asarray(w.get("F_N", [0, 0, 0]), float), np.asarray(w.get("M_Nm", [0, 0, 0]), float)
     if not np.any(F) and not np.any(M):
         return np.zeros(6)
     if w.get("frame") != "base" or w.get("per_waypoint"):
-        raise InputError(f"track: the simulation takes one constant base-frame wrench; this run's wrench is "
-                         f"{'per waypoint' if w.get('per_waypoint') else 'in the ' + str(w.get('frame')) + ' frame'}")
+        raise InputError(
+            f"track: the simulation takes one constant base-frame wrench; this run's wrench is "
+            f"{'per waypoint' if w.get('per_waypoint') else 'in the ' + str(w.get('frame')) + ' frame'}"
+        )
     return np.r_[F, M]
 
 
@@ -74,30 +93,42 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         check_output(args.out, {"RUN_DIR": run_dir}, kind="file")
     try:
-        data = data_from_run(run_dir)                     # checks status, limits and sampling
+        data = data_from_run(run_dir)  # checks status, limits and sampling
     except ExportError as exc:
         raise InputError(str(exc).replace("export", "track")) from None
     summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
     robot = robot_from_dict(summary["robot_file"], where=f"{run_dir}/summary.json robot_file")
     if not robot.has_masses:
-        raise InputError(f"track: robot {robot.name} of {run_dir} has no link masses (robot file keys mass, com, "
-                         "inertia); the elastic-joint simulation needs them")
+        raise InputError(
+            f"track: robot {robot.name} of {run_dir} has no link masses (robot file keys mass, com, "
+            "inertia); the elastic-joint simulation needs them"
+        )
     pl = summary.get("payload") or {}
     payload = payload_vector(float(pl.get("mass_kg", 0.0)) * args.payload_scale, pl.get("com_m_tcp_frame", [0, 0, 0]))
     wrench = _wrench(summary)
     K = np.array([j.stiffness for j in robot.joints]) * args.stiffness_scale
     ql = data.link_q
-    if ql is None:                                       # no dynamic compensation: the static equilibria
+    if ql is None:  # no dynamic compensation: the static equilibria
         arm = ElasticArm(robot, payload, wrench)
         ql = np.array([arm.equilibrium(th, K)[0] for th in data.q])
-    sim = simulate_elastic(robot, data.t, data.q, payload=payload, wrench=wrench, stiffness=K,
-                           damping_ratio=args.damping_ratio, settle_s=args.settle)
+    sim = simulate_elastic(
+        robot,
+        data.t,
+        data.q,
+        payload=payload,
+        wrench=wrench,
+        stiffness=K,
+        damping_ratio=args.damping_ratio,
+        settle_s=args.settle,
+    )
     if not sim.ok:
         raise InputError(f"track: the simulation failed: {sim.reason}")
     e = tracking_error(sim, robot, data.t, ql)
-    print(f"track {run_dir}: robot {robot.name}, {len(data.t)} command samples ({data.t[-1]:.3f} s) + {args.settle:g} s "
-          f"rest; stiffness x{args.stiffness_scale:g}, payload x{args.payload_scale:g}, damping ratio "
-          f"{args.damping_ratio:g}; solver {sim.cpu_s:.1f} s CPU")
+    print(
+        f"track {run_dir}: robot {robot.name}, {len(data.t)} command samples ({data.t[-1]:.3f} s) + {args.settle:g} s "
+        f"rest; stiffness x{args.stiffness_scale:g}, payload x{args.payload_scale:g}, damping ratio "
+        f"{args.damping_ratio:g}; solver {sim.cpu_s:.1f} s CPU"
+    )
     print(f"  TCP tracking error during the motion: max {e.max_motion * 1e3:.4f} mm, RMS {e.rms_motion * 1e3:.4f} mm")
     print(f"  at rest: max {e.max_rest * 1e3:.4f} mm, final {e.final * 1e3:.6f} mm")
     if args.out:

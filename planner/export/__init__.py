@@ -19,15 +19,28 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
 from models.errors import InputError, PluginError
 from models.plugins import import_plugins
 
-__all__ = ["EXPORT_FORMATS", "EXPORT_LIMIT_TOL", "EXPORT_PATH_VARIABLE", "ExportData", "ExportError", "ExportFormat",
-           "data_from_plan", "data_from_run", "export_files", "formats", "register_format", "verify_limits"]
+__all__ = [
+    "EXPORT_FORMATS",
+    "EXPORT_LIMIT_TOL",
+    "EXPORT_PATH_VARIABLE",
+    "ExportData",
+    "ExportError",
+    "ExportFormat",
+    "data_from_plan",
+    "data_from_run",
+    "export_files",
+    "formats",
+    "register_format",
+    "verify_limits",
+]
 
 
 class ExportError(InputError):
@@ -130,16 +143,22 @@ def verify_limits(data: ExportData, where: str) -> None:
     step = np.diff(t)
     k = int(np.argmax(np.abs(step - data.dt)))
     if abs(step[k] - data.dt) > EXPORT_TIME_TOL + 1e-9 * t[-1]:
-        raise ExportError(f"{where}: sample {k + 1} at t = {t[k + 1]:.9g} s is {step[k]:.9g} s after the previous "
-                          f"one; expected the period dt = {data.dt:.9g} s throughout")
+        raise ExportError(
+            f"{where}: sample {k + 1} at t = {t[k + 1]:.9g} s is {step[k]:.9g} s after the previous "
+            f"one; expected the period dt = {data.dt:.9g} s throughout"
+        )
     for arr in (data.q, data.qd, data.qdd, data.qddd):
         if arr.shape != (t.size, 6) or not np.all(np.isfinite(arr)):
             raise ExportError(f"{where}: expected finite (samples, 6) joint arrays")
-    checks = [("position", data.q - data.q_max, data.q_max, "above q_max", "rad"),
-              ("position", data.q_min - data.q, data.q_min, "below q_min", "rad")]
-    for name, arr, lim, unit in (("velocity", data.qd, data.v_max, "rad/s"),
-                                 ("acceleration", data.qdd, data.a_max, "rad/s^2"),
-                                 ("jerk", data.qddd, data.j_max, "rad/s^3")):
+    checks = [
+        ("position", data.q - data.q_max, data.q_max, "above q_max", "rad"),
+        ("position", data.q_min - data.q, data.q_min, "below q_min", "rad"),
+    ]
+    for name, arr, lim, unit in (
+        ("velocity", data.qd, data.v_max, "rad/s"),
+        ("acceleration", data.qdd, data.a_max, "rad/s^2"),
+        ("jerk", data.qddd, data.j_max, "rad/s^3"),
+    ):
         if name in data.enforced:
             checks.append((name, np.abs(arr) - lim * (1.0 + EXPORT_LIMIT_TOL), lim, "above its limit", unit))
     for name, excess, lim, what, unit in checks:
@@ -147,8 +166,10 @@ def verify_limits(data: ExportData, where: str) -> None:
         if np.any(excess > tol):
             i, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
             value = {"position": data.q, "velocity": data.qd, "acceleration": data.qdd, "jerk": data.qddd}[name][i, j]
-            raise ExportError(f"{where}: joint {j + 1} {name} {value:.9g} {unit} at sample {i} (t = {t[i]:.6g} s) is "
-                              f"{what} ({lim[j]:.9g} {unit}); refusing to export a trajectory outside its limits")
+            raise ExportError(
+                f"{where}: joint {j + 1} {name} {value:.9g} {unit} at sample {i} (t = {t[i]:.6g} s) is "
+                f"{what} ({lim[j]:.9g} {unit}); refusing to export a trajectory outside its limits"
+            )
 
 
 @dataclass(frozen=True)
@@ -197,6 +218,7 @@ def formats() -> dict[str, ExportFormat]:
 
 def ranged(name: str, lo: float, hi: float) -> Callable[[Any], float]:
     """Validator: a number in [lo, hi], the message naming the option and the range."""
+
     def check(v: Any) -> float:
         try:
             x = float(v)
@@ -205,6 +227,7 @@ def ranged(name: str, lo: float, hi: float) -> Callable[[Any], float]:
         if not (math.isfinite(x) and lo <= x <= hi):
             raise ExportError(f"export option {name} = {x:g}: expected a number in [{lo:g}, {hi:g}]")
         return x
+
     return check
 
 
@@ -225,20 +248,37 @@ def data_from_plan(res: Any) -> ExportData:
     """The controller's trajectory of a :class:`~planner.plan.PlanResult` (in memory), checked
     by :func:`verify_limits`."""
     from problems.timing import get_method
+
     pr = res.problem
     if res.controller is None or res.controller not in res.trajectories:
         raise ExportError("export: the plan has no timed trajectory (the plan stopped before timing)")
     tr = res.trajectories[res.controller]
     if not tr.status.ok or not res.ok:
-        raise ExportError(f"export: the trajectory is not ok (plan {res.status.value}, {res.controller} "
-                          f"{tr.status.value}: {tr.reason}); refusing to export it")
+        raise ExportError(
+            f"export: the trajectory is not ok (plan {res.status.value}, {res.controller} "
+            f"{tr.status.value}: {tr.reason}); refusing to export it"
+        )
     r, lim = pr.robot, pr.limits
-    data = ExportData(name=_program_name(pr.name), robot=r.name, joint_names=_names(r.joint_names), t=tr.t,
-                      q=tr.q, qd=tr.qd, qdd=tr.qdd, qddd=tr.qddd, dt=tr.dt, v_max=_vec6(lim.velocity),
-                      a_max=_vec6(lim.acceleration), j_max=_vec6(lim.jerk), q_min=_vec6(r.q_min),
-                      q_max=_vec6(r.q_max), enforced=tuple(get_method(res.controller).checked_limits),
-                      sign=np.asarray(r.controller_sign, float), offset=np.asarray(r.controller_offset, float),
-                      source=f"problem {pr.name}")
+    data = ExportData(
+        name=_program_name(pr.name),
+        robot=r.name,
+        joint_names=_names(r.joint_names),
+        t=tr.t,
+        q=tr.q,
+        qd=tr.qd,
+        qdd=tr.qdd,
+        qddd=tr.qddd,
+        dt=tr.dt,
+        v_max=_vec6(lim.velocity),
+        a_max=_vec6(lim.acceleration),
+        j_max=_vec6(lim.jerk),
+        q_min=_vec6(r.q_min),
+        q_max=_vec6(r.q_max),
+        enforced=tuple(get_method(res.controller).checked_limits),
+        sign=np.asarray(r.controller_sign, float),
+        offset=np.asarray(r.controller_offset, float),
+        source=f"problem {pr.name}",
+    )
     verify_limits(data, f"export of problem {pr.name} ({res.controller})")
     return data
 
@@ -262,8 +302,10 @@ def _summary(folder: Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ExportError(f"{summary}: not readable JSON ({exc})") from None
     if not isinstance(s, dict) or s.get("command") not in (None, "plan", "demo"):
-        raise ExportError(f"{summary}: not the summary of a plan (key 'command' = {s.get('command')!r} "
-                          "if a dict); expected the output folder of compplan plan or demo")
+        raise ExportError(
+            f"{summary}: not the summary of a plan (key 'command' = {s.get('command')!r} "
+            "if a dict); expected the output folder of compplan plan or demo"
+        )
     return s
 
 
@@ -289,23 +331,37 @@ def data_from_run(folder: str | Path) -> ExportData:
     if not ctrl or not timing:
         raise ExportError(f"{summary}: the run has no controller trajectory (key 'controller_trajectory')")
     if s.get("plan_status") != "ok" or timing.get("status") != "ok":
-        raise ExportError(f"{summary}: the trajectory is not ok (plan_status {s.get('plan_status')!r}, {ctrl} "
-                          f"status {timing.get('status')!r}: {timing.get('reason', '')}); refusing to export it")
+        raise ExportError(
+            f"{summary}: the trajectory is not ok (plan_status {s.get('plan_status')!r}, {ctrl} "
+            f"status {timing.get('status')!r}: {timing.get('reason', '')}); refusing to export it"
+        )
     path = folder / str(timing.get("file", "trajectory.csv"))
     t, q, qd, qdd, qddd, link_q = _read_trajectory(path)
     rf = s.get("robot_file") or {}
     ctrl_map = rf.get("controller") or {}
     lim = s.get("limits") or {}
-    data = ExportData(name=_program_name(str((s.get("problem") or {}).get("name", folder.name))),
-                      robot=str(rf.get("name", s.get("robot", "robot"))), joint_names=_names(rf.get("joint_names")),
-                      t=t, q=q, qd=qd, qdd=qdd, qddd=qddd, dt=float(timing.get("dt") or (t[1] - t[0])),
-                      v_max=_limit(summary, lim, "velocity"), a_max=_limit(summary, lim, "acceleration"),
-                      j_max=_limit(summary, lim, "jerk"), q_min=_limit(summary, lim, "q_min"),
-                      q_max=_limit(summary, lim, "q_max"),
-                      enforced=tuple(timing.get("limits_enforced") or _DEFAULT_ENFORCED),
-                      sign=np.asarray(ctrl_map.get("joint_sign", [1] * 6), float),
-                      offset=np.asarray(ctrl_map.get("joint_offset", [0.0] * 6), float), source=f"run {folder}",
-                      inputs=(summary, path), link_q=link_q)
+    data = ExportData(
+        name=_program_name(str((s.get("problem") or {}).get("name", folder.name))),
+        robot=str(rf.get("name", s.get("robot", "robot"))),
+        joint_names=_names(rf.get("joint_names")),
+        t=t,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        qddd=qddd,
+        dt=float(timing.get("dt") or (t[1] - t[0])),
+        v_max=_limit(summary, lim, "velocity"),
+        a_max=_limit(summary, lim, "acceleration"),
+        j_max=_limit(summary, lim, "jerk"),
+        q_min=_limit(summary, lim, "q_min"),
+        q_max=_limit(summary, lim, "q_max"),
+        enforced=tuple(timing.get("limits_enforced") or _DEFAULT_ENFORCED),
+        sign=np.asarray(ctrl_map.get("joint_sign", [1] * 6), float),
+        offset=np.asarray(ctrl_map.get("joint_offset", [0.0] * 6), float),
+        source=f"run {folder}",
+        inputs=(summary, path),
+        link_q=link_q,
+    )
     verify_limits(data, str(path))
     return data
 
@@ -346,8 +402,10 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
 # Writing
 # --------------------------------------------------------------------------------------
 
-def export_files(data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None
-                 ) -> dict[Path, str | bytes]:
+
+def export_files(
+    data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None
+) -> dict[Path, str | bytes]:
     """The files (path -> text, or bytes for binary formats) of ``data`` in format ``fmt`` for
     output ``out`` (a file, or the folder of a folder format such as ``rosbag2``).
 
@@ -374,11 +432,14 @@ def export_files(data: ExportData, fmt: str, out: str | Path, options: Mapping[s
 def header_lines(data: ExportData, fmt: str, comment: str) -> list[str]:
     """A few comment lines every file starts with (what, where from, the conventions)."""
     from planner.provenance import version
-    return [f"{comment} generated by compplan {version()} ({fmt}) from {data.source}: robot {data.robot}, "
-            f"{len(data.t)} samples at {data.dt * 1e3:g} ms, {data.t[-1]:.6g} s",
-            f"{comment} joints {', '.join(data.joint_names)}; controller angle = sign * q + offset, "
-            f"sign {[int(v) for v in data.sign]}, offset {[round(math.degrees(v), 6) for v in data.offset]} deg "
-            "(docs/export.md)"]
+
+    return [
+        f"{comment} generated by compplan {version()} ({fmt}) from {data.source}: robot {data.robot}, "
+        f"{len(data.t)} samples at {data.dt * 1e3:g} ms, {data.t[-1]:.6g} s",
+        f"{comment} joints {', '.join(data.joint_names)}; controller angle = sign * q + offset, "
+        f"sign {[int(v) for v in data.sign]}, offset {[round(math.degrees(v), 6) for v in data.offset]} deg "
+        "(docs/export.md)",
+    ]
 
 
 #: Extra folders searched for export format modules (``os.pathsep``-separated): each ``*.py``

@@ -20,7 +20,8 @@ Sample by sample reproduction needs streaming (RSI), not a program.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -54,8 +55,10 @@ def _ptp(data: ExportData, idx: np.ndarray, o: Mapping[str, Any]) -> list[str]:
     src = [f"  $APO.CPTP={int(o['approximation_percent'])}"]
     for k in range(1, len(idx)):
         lo, hi = idx[k - 1], idx[k]
-        src += _axis_lines(_pct(np.abs(data.qd[lo:hi + 1]).max(axis=0) / data.v_max),
-                           _pct(np.abs(data.qdd[lo:hi + 1]).max(axis=0) / data.a_max))
+        src += _axis_lines(
+            _pct(np.abs(data.qd[lo : hi + 1]).max(axis=0) / data.v_max),
+            _pct(np.abs(data.qdd[lo : hi + 1]).max(axis=0) / data.a_max),
+        )
         src.append(f"  PTP XP{k}" + (" C_PTP" if k < len(idx) - 1 else ""))
     return src
 
@@ -92,12 +95,26 @@ def _motion(v: Any) -> str:
     return str(v)
 
 
-register_format(ExportFormat(
-    "krl", (".src", ".dat"), write,
-    {"step_s": (0.1, "time between the E6AXIS points, s", ranged("step_s", 0.012, 10.0)),
-     "motion": ("spline", "spline: PTP_SPLINE with TIME_BLOCK (planned times, KSS 8.3+); ptp: PTP C_PTP with "
-                          "$VEL_AXIS/$ACC_AXIS percentages", _motion),
-     "approach_percent": (10, "$VEL_AXIS / $ACC_AXIS of the PTP to the start, %", _percent("approach_percent")),
-     "approximation_percent": (50, "$APO.CPTP of the C_PTP approximation (motion ptp), % (1-100)",
-                               _percent("approximation_percent"))},
-    "KUKA KRL .src/.dat pair: E6AXIS points (deg), a PTP_SPLINE time block or PTP with axis percentages"))
+register_format(
+    ExportFormat(
+        "krl",
+        (".src", ".dat"),
+        write,
+        {
+            "step_s": (0.1, "time between the E6AXIS points, s", ranged("step_s", 0.012, 10.0)),
+            "motion": (
+                "spline",
+                "spline: PTP_SPLINE with TIME_BLOCK (planned times, KSS 8.3+); ptp: PTP C_PTP with "
+                "$VEL_AXIS/$ACC_AXIS percentages",
+                _motion,
+            ),
+            "approach_percent": (10, "$VEL_AXIS / $ACC_AXIS of the PTP to the start, %", _percent("approach_percent")),
+            "approximation_percent": (
+                50,
+                "$APO.CPTP of the C_PTP approximation (motion ptp), % (1-100)",
+                _percent("approximation_percent"),
+            ),
+        },
+        "KUKA KRL .src/.dat pair: E6AXIS points (deg), a PTP_SPLINE time block or PTP with axis percentages",
+    )
+)

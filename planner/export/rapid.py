@@ -10,7 +10,8 @@ zone ``z1`` between targets and ``fine`` at the ends, tool ``tool0``.  External 
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -34,8 +35,10 @@ def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
     lines.append(f"    MoveAbsJ jt0\\NoEOffs, v{int(o['v_fallback'])}, fine, tool0;")
     for k in range(1, len(idx)):
         zone = "fine" if k == len(idx) - 1 else "z1"
-        lines.append(f"    MoveAbsJ jt{k}\\NoEOffs, v{int(o['v_fallback'])}\\T:={t[k] - t[k - 1]:.{TIME_DECIMALS}f}, "
-                     f"{zone}, tool0;")
+        lines.append(
+            f"    MoveAbsJ jt{k}\\NoEOffs, v{int(o['v_fallback'])}\\T:={t[k] - t[k - 1]:.{TIME_DECIMALS}f}, "
+            f"{zone}, tool0;"
+        )
     lines += ["  ENDPROC", "ENDMODULE", ""]
     return {f"{stem}.mod": "\n".join(lines)}
 
@@ -45,8 +48,15 @@ def _speed(v: Any) -> float:
     return float(math.floor(x))
 
 
-register_format(ExportFormat(
-    "rapid", (".mod",), write,
-    {"step_s": (0.05, "time between the jointtargets, s", ranged("step_s", 0.004, 10.0)),
-     "v_fallback": (1000.0, "speeddata vN used when \\T is removed, mm/s", _speed)},
-    "ABB RAPID module: CONST jointtarget (deg) and MoveAbsJ with \\T from the timing"))
+register_format(
+    ExportFormat(
+        "rapid",
+        (".mod",),
+        write,
+        {
+            "step_s": (0.05, "time between the jointtargets, s", ranged("step_s", 0.004, 10.0)),
+            "v_fallback": (1000.0, "speeddata vN used when \\T is removed, mm/s", _speed),
+        },
+        "ABB RAPID module: CONST jointtarget (deg) and MoveAbsJ with \\T from the timing",
+    )
+)

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -42,8 +43,10 @@ def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, bytes]
         from rosbags.rosbag2 import Writer
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
-        raise ExportError("rosbag2: needs the Python package rosbags (pip install \"compplan[ros]\" or "
-                          "pip install rosbags); the ros2 format writes the same trajectory as YAML") from None
+        raise ExportError(
+            'rosbag2: needs the Python package rosbags (pip install "compplan[ros]" or '
+            "pip install rosbags); the ros2 format writes the same trajectory as YAML"
+        ) from None
     store = get_typestore(getattr(Stores, TYPESTORE))
     T = store.types
     q = data.controller_q()
@@ -51,10 +54,16 @@ def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, bytes]
     t0 = _ns(o["start_time_s"])
     names = list(data.joint_names)
     header = T["std_msgs/msg/Header"](stamp=_stamp(T, "builtin_interfaces/msg/Time", t0), frame_id=str(o["frame_id"]))
-    points = [T["trajectory_msgs/msg/JointTrajectoryPoint"](
-        positions=q[k].astype(np.float64), velocities=qd[k].astype(np.float64),
-        accelerations=qdd[k].astype(np.float64), effort=np.zeros(0),
-        time_from_start=_stamp(T, "builtin_interfaces/msg/Duration", _ns(data.t[k]))) for k in range(len(data.t))]
+    points = [
+        T["trajectory_msgs/msg/JointTrajectoryPoint"](
+            positions=q[k].astype(np.float64),
+            velocities=qd[k].astype(np.float64),
+            accelerations=qdd[k].astype(np.float64),
+            effort=np.zeros(0),
+            time_from_start=_stamp(T, "builtin_interfaces/msg/Duration", _ns(data.t[k])),
+        )
+        for k in range(len(data.t))
+    ]
     traj = T["trajectory_msgs/msg/JointTrajectory"](header=header, joint_names=names, points=points)
     with tempfile.TemporaryDirectory(prefix="compplan-bag-") as tmp:
         bag = Path(tmp) / stem
@@ -65,10 +74,14 @@ def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, bytes]
             for k in range(len(data.t)):
                 ns = t0 + _ns(data.t[k])
                 msg = T["sensor_msgs/msg/JointState"](
-                    header=T["std_msgs/msg/Header"](stamp=_stamp(T, "builtin_interfaces/msg/Time", ns),
-                                                    frame_id=str(o["frame_id"])),
-                    name=names, position=q[k].astype(np.float64), velocity=qd[k].astype(np.float64),
-                    effort=np.zeros(0))
+                    header=T["std_msgs/msg/Header"](
+                        stamp=_stamp(T, "builtin_interfaces/msg/Time", ns), frame_id=str(o["frame_id"])
+                    ),
+                    name=names,
+                    position=q[k].astype(np.float64),
+                    velocity=qd[k].astype(np.float64),
+                    effort=np.zeros(0),
+                )
                 w.write(c_state, ns, store.serialize_cdr(msg, msg.__msgtype__))
         return {p.relative_to(bag).as_posix(): p.read_bytes() for p in sorted(bag.rglob("*")) if p.is_file()}
 
@@ -80,10 +93,21 @@ def _version(v: Any) -> int:
     return x
 
 
-register_format(ExportFormat(
-    "rosbag2", ("",), write,
-    {"start_time_s": (0.0, "bag time of the first sample, s since the epoch", ranged("start_time_s", 0.0, 4.0e9)),
-     "frame_id": ("", "header.frame_id", str),
-     "version": (8, "rosbag2 metadata version (8 or 9)", _version)},
-    "ROS 2 bag folder (rosbags): /joint_trajectory (one JointTrajectory) and /joint_states per sample",
-    folder=True))
+register_format(
+    ExportFormat(
+        "rosbag2",
+        ("",),
+        write,
+        {
+            "start_time_s": (
+                0.0,
+                "bag time of the first sample, s since the epoch",
+                ranged("start_time_s", 0.0, 4.0e9),
+            ),
+            "frame_id": ("", "header.frame_id", str),
+            "version": (8, "rosbag2 metadata version (8 or 9)", _version),
+        },
+        "ROS 2 bag folder (rosbags): /joint_trajectory (one JointTrajectory) and /joint_states per sample",
+        folder=True,
+    )
+)

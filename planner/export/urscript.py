@@ -14,7 +14,8 @@ Angles are radians in the controller's convention (UR: base, shoulder, elbow, wr
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -56,8 +57,10 @@ def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str,
     lines.append(f"  # servoj every {period:g} s, lookahead_time {o['lookahead_time']:g} s, gain {o['gain']:g}")
     lines.append(f"  movej({_vec(q[0])}, a={o['approach_acceleration']:g}, v={o['approach_speed']:g})")
     for qi in q[1:]:
-        lines.append(f"  servoj({_vec(qi)}, t={period:.{TIME_DECIMALS}f}, "
-                     f"lookahead_time={o['lookahead_time']:g}, gain={o['gain']:g})")
+        lines.append(
+            f"  servoj({_vec(qi)}, t={period:.{TIME_DECIMALS}f}, "
+            f"lookahead_time={o['lookahead_time']:g}, gain={o['gain']:g})"
+        )
     lines += ["  stopj(2.0)", "end", ""]
     return {f"{stem}.script": "\n".join(lines)}
 
@@ -65,9 +68,11 @@ def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str,
 def _period_of(data: ExportData) -> float:
     """The trajectory's own sample period as the servoj period, if UR accepts it."""
     if not PERIOD_MIN_S - 1e-12 <= data.dt <= PERIOD_MAX_S + 1e-12:
-        raise ExportError(f"urscript: the trajectory's period {data.dt:g} s is outside the servoj periods "
-                          f"[{PERIOD_MIN_S:g}, {PERIOD_MAX_S:g}] s; give one with --set period=0.002 (e-series) "
-                          "or 0.008 (CB3)")
+        raise ExportError(
+            f"urscript: the trajectory's period {data.dt:g} s is outside the servoj periods "
+            f"[{PERIOD_MIN_S:g}, {PERIOD_MAX_S:g}] s; give one with --set period=0.002 (e-series) "
+            "or 0.008 (CB3)"
+        )
     return data.dt
 
 
@@ -76,8 +81,9 @@ def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, 
     q = data.controller_q()[idx]
     t = data.t[idx]
     lines = [f"def {stem}():"] + ["  " + ln for ln in header_lines(data, "urscript (movej list)", "#")]
-    lines.append(f"  # movej every ~{o['step_s']:g} s, t = the planned time between them, blend r = "
-                 f"{o['blend_radius']:g} m")
+    lines.append(
+        f"  # movej every ~{o['step_s']:g} s, t = the planned time between them, blend r = {o['blend_radius']:g} m"
+    )
     lines.append(f"  movej({_vec(q[0])}, a={o['approach_acceleration']:g}, v={o['approach_speed']:g})")
     for k in range(1, len(idx)):
         r = 0.0 if k == len(idx) - 1 else float(o["blend_radius"])
@@ -86,21 +92,44 @@ def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, 
     return {f"{stem}.script": "\n".join(lines)}
 
 
-_COMMON = {"approach_speed": (0.5, "joint speed of the movej to the start, rad/s", ranged("approach_speed", 0.01, 3.2)),
-           "approach_acceleration": (1.0, "joint acceleration of the movej to the start, rad/s^2",
-                                     ranged("approach_acceleration", 0.01, 40.0))}
+_COMMON = {
+    "approach_speed": (0.5, "joint speed of the movej to the start, rad/s", ranged("approach_speed", 0.01, 3.2)),
+    "approach_acceleration": (
+        1.0,
+        "joint acceleration of the movej to the start, rad/s^2",
+        ranged("approach_acceleration", 0.01, 40.0),
+    ),
+}
 
-register_format(ExportFormat(
-    "urscript", (".script",), write_servoj,
-    {"period": (None, "servoj period, s (e-series 0.002, CB3 0.008)",
-                ranged("period", PERIOD_MIN_S, PERIOD_MAX_S)),
-     "lookahead_time": (0.1, "servoj lookahead_time, s (UR: 0.03-0.2)", ranged("lookahead_time", 0.03, 0.2)),
-     "gain": (300.0, "servoj gain (UR: 100-2000)", ranged("gain", 100.0, 2000.0)), **_COMMON},
-    "URScript program streaming the trajectory by servoj at the controller period"))
+register_format(
+    ExportFormat(
+        "urscript",
+        (".script",),
+        write_servoj,
+        {
+            "period": (
+                None,
+                "servoj period, s (e-series 0.002, CB3 0.008)",
+                ranged("period", PERIOD_MIN_S, PERIOD_MAX_S),
+            ),
+            "lookahead_time": (0.1, "servoj lookahead_time, s (UR: 0.03-0.2)", ranged("lookahead_time", 0.03, 0.2)),
+            "gain": (300.0, "servoj gain (UR: 100-2000)", ranged("gain", 100.0, 2000.0)),
+            **_COMMON,
+        },
+        "URScript program streaming the trajectory by servoj at the controller period",
+    )
+)
 
-register_format(ExportFormat(
-    "urscript_movej", (".script",), write_movej,
-    {"step_s": (0.1, "time between the movej targets, s", ranged("step_s", 0.008, 10.0)),
-     "blend_radius": (0.0, "blend radius of the intermediate moves, m", ranged("blend_radius", 0.0, 0.5)),
-     **_COMMON},
-    "URScript program of movej moves with blend radii (low-rate use)"))
+register_format(
+    ExportFormat(
+        "urscript_movej",
+        (".script",),
+        write_movej,
+        {
+            "step_s": (0.1, "time between the movej targets, s", ranged("step_s", 0.008, 10.0)),
+            "blend_radius": (0.0, "blend radius of the intermediate moves, m", ranged("blend_radius", 0.0, 0.5)),
+            **_COMMON,
+        },
+        "URScript program of movej moves with blend radii (low-rate use)",
+    )
+)

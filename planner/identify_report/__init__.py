@@ -32,14 +32,37 @@ from __future__ import annotations
 
 from planner.identify_report.canvas import REPORT_DPI
 from planner.identify_report.data import compensation_sentence, report_dict, structure_sentence
-from planner.identify_report.diagnostics import REPORT_DIAGNOSTIC_PLOTS, REPORT_DIAGNOSTIC_ROWS, VARIABLE_LABELS, VARIABLE_UNITS
+from planner.identify_report.diagnostics import (
+    REPORT_DIAGNOSTIC_PLOTS,
+    REPORT_DIAGNOSTIC_ROWS,
+    VARIABLE_LABELS,
+    VARIABLE_UNITS,
+)
 from planner.identify_report.figures import AXIS_COLOURS, REPORT_ANGLE_BINS_MAX, REPORT_BINS, RESIDUAL_UM_BELOW_M
 from planner.identify_report.html import FIGURE_TEXT, report_html
 from planner.identify_report.maps import MAP_COMPONENT_WORDS, MAP_TABLE_NOTE, REPORT_MAP_HARMONICS, REPORT_MAP_PANELS
 from planner.identify_report.markdown import report_markdown
 from planner.identify_report.writer import write_report
 
-__all__ = ["AXIS_COLOURS", "FIGURE_TEXT", "MAP_COMPONENT_WORDS", "MAP_TABLE_NOTE", "REPORT_ANGLE_BINS_MAX",
-           "REPORT_BINS", "REPORT_DIAGNOSTIC_PLOTS", "REPORT_DIAGNOSTIC_ROWS", "REPORT_DPI", "REPORT_MAP_HARMONICS",
-           "REPORT_MAP_PANELS", "RESIDUAL_UM_BELOW_M", "VARIABLE_LABELS", "VARIABLE_UNITS", "compensation_sentence",
-           "report_dict", "report_html", "report_markdown", "structure_sentence", "write_report"]
+__all__ = [
+    "AXIS_COLOURS",
+    "FIGURE_TEXT",
+    "MAP_COMPONENT_WORDS",
+    "MAP_TABLE_NOTE",
+    "REPORT_ANGLE_BINS_MAX",
+    "REPORT_BINS",
+    "REPORT_DIAGNOSTIC_PLOTS",
+    "REPORT_DIAGNOSTIC_ROWS",
+    "REPORT_DPI",
+    "REPORT_MAP_HARMONICS",
+    "REPORT_MAP_PANELS",
+    "RESIDUAL_UM_BELOW_M",
+    "VARIABLE_LABELS",
+    "VARIABLE_UNITS",
+    "compensation_sentence",
+    "report_dict",
+    "report_html",
+    "report_markdown",
+    "structure_sentence",
+    "write_report",
+]

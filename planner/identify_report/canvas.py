@@ -16,6 +16,7 @@ def _figure(w: float, h: float, **adjust: float) -> Any:
     """A matplotlib Figure on the Agg canvas (no pyplot state)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
     fig = Figure(figsize=(w, h))
     FigureCanvasAgg(fig)
     if adjust:

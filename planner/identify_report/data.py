@@ -15,23 +15,44 @@ def _mm(v: float | None) -> float | None:
     return None if v is None else float(v) * 1e3
 
 
-def report_dict(res: IdentificationResult, model_path: str | None = None,
-                data_path: str | None = None) -> dict[str, Any]:
+def report_dict(
+    res: IdentificationResult, model_path: str | None = None, data_path: str | None = None
+) -> dict[str, Any]:
     """The content of ``report.json`` (SI inside the library, mm in the report)."""
     m = res.data
     hist = []
     for st in res.history:
-        hist.append({
-            "step": st.index, "effects": st.effects, "n_params": st.n_params,
-            "rms_mm": _mm(st.rms_m), "cv_rms_mm": _mm(st.cv_rms_m), "bic": st.bic,
-            "n_excluded": st.n_excluded, "accepted": st.accepted, "reason": st.reason,
-            "candidates": [{
-                "effect": c.effect, "n_params": c.n_params, "cv_rms_mm": _mm(c.cv_rms_m),
-                "rms_mm": _mm(c.rms_m), "bic": c.bic, "delta_bic": c.delta_bic, "f_pvalue": c.f_pvalue,
-                "explained_share": c.explained_share, "refined": c.refined, "accepted": c.accepted,
-                "reason": c.reason, "detail": getattr(c, "detail", "") or "", "held": c.held}
-                for c in st.candidates],
-        })
+        hist.append(
+            {
+                "step": st.index,
+                "effects": st.effects,
+                "n_params": st.n_params,
+                "rms_mm": _mm(st.rms_m),
+                "cv_rms_mm": _mm(st.cv_rms_m),
+                "bic": st.bic,
+                "n_excluded": st.n_excluded,
+                "accepted": st.accepted,
+                "reason": st.reason,
+                "candidates": [
+                    {
+                        "effect": c.effect,
+                        "n_params": c.n_params,
+                        "cv_rms_mm": _mm(c.cv_rms_m),
+                        "rms_mm": _mm(c.rms_m),
+                        "bic": c.bic,
+                        "delta_bic": c.delta_bic,
+                        "f_pvalue": c.f_pvalue,
+                        "explained_share": c.explained_share,
+                        "refined": c.refined,
+                        "accepted": c.accepted,
+                        "reason": c.reason,
+                        "detail": getattr(c, "detail", "") or "",
+                        "held": c.held,
+                    }
+                    for c in st.candidates
+                ],
+            }
+        )
     out: dict[str, Any] = {
         "status": res.status.value,
         "reason": res.reason,
@@ -39,25 +60,49 @@ def report_dict(res: IdentificationResult, model_path: str | None = None,
         "rms_after_mm": res.rms_after_mm,
         "heldout_rms_before_mm": _mm(res.cv_rms_before_m),
         "heldout_rms_after_mm": _mm(res.cv_rms_after_m),
-        "rms_definition": ("per-axis RMS sqrt(mean over rows and x, y, z of r^2), r = predicted - measured, "
-                           "inlier rows; 'before': nominal robot file with only the registration and the "
-                           "measured point fitted; 'heldout': K-fold cross-validation over whole poses"),
+        "rms_definition": (
+            "per-axis RMS sqrt(mean over rows and x, y, z of r^2), r = predicted - measured, "
+            "inlier rows; 'before': nominal robot file with only the registration and the "
+            "measured point fitted; 'heldout': K-fold cross-validation over whole poses"
+        ),
         "noise_sigma_mm": _mm(res.noise_sigma_m),
         "noise_source": res.noise_source,
         "effects_added": list(res.effects_added),
         "error_maps": [s.to_dict() for s in getattr(res, "error_maps", None) or []],
         "unexplained": {**res.unexplained, "weak": bool(res.unexplained.get("weak", False))},
         "excluded_rows": res.excluded,
-        "parameters": [{"name": p.name, "effect": p.effect, "value": p.value, "std": p.std, "unit": p.unit,
-                        "status": p.status.value, "reason": p.reason} for p in res.parameters],
+        "parameters": [
+            {
+                "name": p.name,
+                "effect": p.effect,
+                "value": p.value,
+                "std": p.std,
+                "unit": p.unit,
+                "status": p.status.value,
+                "reason": p.reason,
+            }
+            for p in res.parameters
+        ],
         "identifiability": res.identifiability,
-        "diagnostics": [{"variable": d.variable, "explained_fraction": d.explained_fraction,
-                         "p_value": d.p_value, "significant": d.significant, "description": d.description}
-                        for d in res.diagnostics],
+        "diagnostics": [
+            {
+                "variable": d.variable,
+                "explained_fraction": d.explained_fraction,
+                "p_value": d.p_value,
+                "significant": d.significant,
+                "description": d.description,
+            }
+            for d in res.diagnostics
+        ],
         "history": hist,
         "notes": res.notes,
-        "data": {"file": data_path or m.source, "n_rows": m.n, "n_poses": res.identifiability.get("n_poses"),
-                 "registered": res.model.registered, "columns": sorted(m.units)},
+        "data": {
+            "file": data_path or m.source,
+            "n_rows": m.n,
+            "n_poses": res.identifiability.get("n_poses"),
+            "registered": res.model.registered,
+            "columns": sorted(m.units),
+        },
         "model_file": model_path,
     }
     if res.validation is not None:
@@ -74,8 +119,9 @@ def _aliases(res: IdentificationResult) -> list[str]:
     measured point (held at nominal): the base frame is not checkable through them."""
     try:
         from problems.identify import unobservable_in_base
+
         return list(unobservable_in_base(res.model))
-    except Exception:  # noqa: BLE001 - a description only
+    except Exception:
         return []
 
 
@@ -83,6 +129,7 @@ def _inputs(res: IdentificationResult, data_path: str | None) -> list[dict[str, 
     """Provenance inputs: the declared robot (its file when it is a built-in one unchanged), the
     measurement file and the validation file."""
     from models import load_robot
+
     nominal = res.model.nominal
     robot_file = builtin_robot_file(nominal.name)
     if robot_file is not None and load_robot(nominal.name).to_dict() != nominal.to_dict():
@@ -90,8 +137,10 @@ def _inputs(res: IdentificationResult, data_path: str | None) -> list[dict[str, 
     entries = [input_file("declared robot", robot_file, name=nominal.name)]
     if robot_file is None:
         entries[0]["note"] = "a robot file of the user's (its path is the command line's --robot)"
-    for role, f in (("measurements", data_path or res.data.source),
-                    ("validation measurements", (res.validation or {}).get("file"))):
+    for role, f in (
+        ("measurements", data_path or res.data.source),
+        ("validation measurements", (res.validation or {}).get("file")),
+    ):
         if not f:
             continue
         path = Path(str(f))
@@ -103,21 +152,29 @@ def compensation_sentence(rep: dict[str, Any]) -> str:
     """The compensation check in one sentence that says what it shows and what it cannot."""
     c = rep.get("compensation_check")
     if not c:
-        return ("compensation not re-measured (no --truth): the held-out RMS is the estimate of what the "
-                "model predicts on new poses")
-    meas = (f"measurement frame {format_number(c['meas_frame_rms_before_mm'])} → "
-            f"{format_number(c['meas_frame_rms_after_mm'])} mm RMS "
-            f"({format_number(100 * c['meas_frame_fraction_left'], 3)} % left)")
+        return (
+            "compensation not re-measured (no --truth): the held-out RMS is the estimate of what the "
+            "model predicts on new poses"
+        )
+    meas = (
+        f"measurement frame {format_number(c['meas_frame_rms_before_mm'])} → "
+        f"{format_number(c['meas_frame_rms_after_mm'])} mm RMS "
+        f"({format_number(100 * c['meas_frame_fraction_left'], 3)} % left)"
+    )
     aliases = rep.get("base_frame_aliases") or []
     if aliases and not rep["data"]["registered"]:
-        return (f"base-frame error cannot be checked with unregistered data: {', '.join(aliases)} cannot be told "
-                "apart from the registration or the measured point and are held at nominal, so the base-frame "
-                f"result ({format_number(c['rms_before_mm'])} → {format_number(c['rms_after_mm'])} mm RMS on the "
-                "virtual robot) reflects their true values, not the data; see the measurement-frame figure: "
-                f"{meas}, {c['n_poses']} new poses")
-    return (f"TCP error in the virtual robot's base frame {format_number(c['rms_before_mm'])} → "
-            f"{format_number(c['rms_after_mm'])} mm RMS ({format_number(100 * c['fraction_left'], 3)} % left), "
-            f"{meas}, {c['n_poses']} new poses")
+        return (
+            f"base-frame error cannot be checked with unregistered data: {', '.join(aliases)} cannot be told "
+            "apart from the registration or the measured point and are held at nominal, so the base-frame "
+            f"result ({format_number(c['rms_before_mm'])} → {format_number(c['rms_after_mm'])} mm RMS on the "
+            "virtual robot) reflects their true values, not the data; see the measurement-frame figure: "
+            f"{meas}, {c['n_poses']} new poses"
+        )
+    return (
+        f"TCP error in the virtual robot's base frame {format_number(c['rms_before_mm'])} → "
+        f"{format_number(c['rms_after_mm'])} mm RMS ({format_number(100 * c['fraction_left'], 3)} % left), "
+        f"{meas}, {c['n_poses']} new poses"
+    )
 
 
 def structure_sentence(rep: dict[str, Any]) -> str:
@@ -128,8 +185,9 @@ def structure_sentence(rep: dict[str, Any]) -> str:
     if not u.get("present"):
         return msg if msg.startswith("no ") else "no structure left" + (f": {msg}" if msg else "")
     if u.get("weak"):
-        return msg if msg.startswith("weak structure remains") else "weak structure remains" + (
-            f": {msg}" if msg else "")
+        return (
+            msg if msg.startswith("weak structure remains") else "weak structure remains" + (f": {msg}" if msg else "")
+        )
     return msg if msg.startswith("structure remains") else "structure remains" + (f": {msg}" if msg else "")
 
 
@@ -144,19 +202,34 @@ def _structure_value(rep: dict[str, Any]) -> str:
 def _headline(rep: dict[str, Any]) -> dict[str, Any]:
     """What an engineer reads first: status, RMS before/after, noise floor, effects, structure left,
     joint error maps, compensation."""
+
     def r4(v: float | None) -> float | None:
         from planner.numbers import round_sig
+
         return None if v is None else round_sig(float(v))
-    maps = [{"joint": m["joint"], "component": m["component"],
-             "main_freq_cpr": r4(m["harmonics"][0]["freq_cpr"]) if m["harmonics"] else None,
-             "rms_tcp_um": r4(m["rms_tcp_um"])} for m in rep.get("error_maps") or []]
-    return {"status": rep["status"], "reason": rep["reason"],
-            "rms_before_mm": r4(rep["rms_before_mm"]), "rms_after_mm": r4(rep["rms_after_mm"]),
-            "heldout_rms_before_mm": r4(rep["heldout_rms_before_mm"]),
-            "heldout_rms_after_mm": r4(rep["heldout_rms_after_mm"]),
-            "noise_sigma_mm": r4(rep["noise_sigma_mm"]), "noise_source": rep["noise_source"],
-            "effects_added": list(rep["effects_added"]), "registered": bool(rep["data"]["registered"]),
-            "unexplained": structure_sentence(rep),
-            "error_maps": maps,
-            "compensation": compensation_sentence(rep),
-            "definition": "per-axis RMS of predicted - measured, measurement frame, mm, 4 significant digits"}
+
+    maps = [
+        {
+            "joint": m["joint"],
+            "component": m["component"],
+            "main_freq_cpr": r4(m["harmonics"][0]["freq_cpr"]) if m["harmonics"] else None,
+            "rms_tcp_um": r4(m["rms_tcp_um"]),
+        }
+        for m in rep.get("error_maps") or []
+    ]
+    return {
+        "status": rep["status"],
+        "reason": rep["reason"],
+        "rms_before_mm": r4(rep["rms_before_mm"]),
+        "rms_after_mm": r4(rep["rms_after_mm"]),
+        "heldout_rms_before_mm": r4(rep["heldout_rms_before_mm"]),
+        "heldout_rms_after_mm": r4(rep["heldout_rms_after_mm"]),
+        "noise_sigma_mm": r4(rep["noise_sigma_mm"]),
+        "noise_source": rep["noise_source"],
+        "effects_added": list(rep["effects_added"]),
+        "registered": bool(rep["data"]["registered"]),
+        "unexplained": structure_sentence(rep),
+        "error_maps": maps,
+        "compensation": compensation_sentence(rep),
+        "definition": "per-axis RMS of predicted - measured, measurement frame, mm, 4 significant digits",
+    }

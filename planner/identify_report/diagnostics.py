@@ -15,17 +15,19 @@ REPORT_DIAGNOSTIC_PLOTS = 4
 #: Diagnostics listed in the report's table besides the significant ones (the strongest first).
 REPORT_DIAGNOSTIC_ROWS = 5
 #: Names and units of the diagnostic variables (x axes and titles of the diagnostic figures).
-VARIABLE_LABELS = {"time": ("time", "s, or row number without a t column"),
-                   "load_magnitude": ("applied force |f|", "N"),
-                   "load_sign": ("sign pattern of the force components", "-"),
-                   "joint_torque": ("largest joint torque |τ_j| of the applied wrench", "N·m"),
-                   "gravity_torque": ("nominal gravity torque of the joint that varies most", "N·m"),
-                   "temperature": ("temperature", "°C"),
-                   "position": ("horizontal distance of the nominal TCP from the base axis", "m"),
-                   "pose": ("pose index", "-"),
-                   # joint angles: SI (rad) in the library, drawn in degrees
-                   **{f"q{j}": (f"joint {j} angle (error of joint {j})", "deg") for j in range(1, 7)},
-                   **{f"q{j}.{a}": (f"joint {j} angle (residual {a})", "deg") for j in range(1, 7) for a in "xyz"}}
+VARIABLE_LABELS = {
+    "time": ("time", "s, or row number without a t column"),
+    "load_magnitude": ("applied force |f|", "N"),
+    "load_sign": ("sign pattern of the force components", "-"),
+    "joint_torque": ("largest joint torque |τ_j| of the applied wrench", "N·m"),
+    "gravity_torque": ("nominal gravity torque of the joint that varies most", "N·m"),
+    "temperature": ("temperature", "°C"),
+    "position": ("horizontal distance of the nominal TCP from the base axis", "m"),
+    "pose": ("pose index", "-"),
+    # joint angles: SI (rad) in the library, drawn in degrees
+    **{f"q{j}": (f"joint {j} angle (error of joint {j})", "deg") for j in range(1, 7)},
+    **{f"q{j}.{a}": (f"joint {j} angle (residual {a})", "deg") for j in range(1, 7) for a in "xyz"},
+}
 #: Units of the diagnostic variables (kept for callers of the unit alone).
 VARIABLE_UNITS = {k: u for k, (_name, u) in VARIABLE_LABELS.items()}
 

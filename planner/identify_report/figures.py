@@ -51,8 +51,12 @@ def _residual_png(res: IdentificationResult) -> str:
     inl = res.inliers
     fig = _figure(11.0, 5.4, left=0.07, right=0.985, bottom=0.1, top=0.86, wspace=0.25, hspace=0.55)
     axs = fig.subplots(2, 3)
-    for row, (name, R, colour) in enumerate((("before: nominal model", res.residual_before[inl], "tab:red"),
-                                             ("after: identified model", res.residual_after[inl], "tab:green"))):
+    for row, (name, R, colour) in enumerate(
+        (
+            ("before: nominal model", res.residual_before[inl], "tab:red"),
+            ("after: identified model", res.residual_after[inl], "tab:green"),
+        )
+    ):
         # residuals below 0.1 mm are drawn in um, so the tick labels stay short and readable
         um = bool(np.max(np.abs(R[:, :3]), initial=0.0) < RESIDUAL_UM_BELOW_M)
         unit, k = ("µm", 1e6) if um else ("mm", 1e3)
@@ -65,9 +69,11 @@ def _residual_png(res: IdentificationResult) -> str:
             ax.set_xlabel(f"residual r_{ax_name} = predicted − measured [{unit}]")
             ax.set_ylabel("rows [count]")
             ax.grid(alpha=0.3)
-    fig.suptitle(f"Residual per axis of the measurement frame, {int(np.count_nonzero(inl))} inlier rows "
-                 f"(RMS per axis over x, y, z: before {format_number(res.rms_before_mm)} mm, after "
-                 f"{format_number(res.rms_after_mm)} mm)")
+    fig.suptitle(
+        f"Residual per axis of the measurement frame, {int(np.count_nonzero(inl))} inlier rows "
+        f"(RMS per axis over x, y, z: before {format_number(res.rms_before_mm)} mm, after "
+        f"{format_number(res.rms_after_mm)} mm)"
+    )
     return _png(fig)
 
 
@@ -78,8 +84,11 @@ def _history_png(res: IdentificationResult) -> str:
     ax = fig.subplots()
     labels = ["nominal", "declared"]
     for prev, st in itertools.pairwise(steps):
-        labels.append(f"+{prev.accepted}" if prev.accepted else
-                      ("backward" if st.reason.startswith("backward") else "(no change)"))
+        labels.append(
+            f"+{prev.accepted}"
+            if prev.accepted
+            else ("backward" if st.reason.startswith("backward") else "(no change)")
+        )
     cv = [res.cv_rms_before_m * 1e3] + [st.cv_rms_m * 1e3 for st in steps]
     ins = [res.rms_before_mm] + [st.rms_m * 1e3 for st in steps]
     xs = list(range(len(cv)))
@@ -87,11 +96,12 @@ def _history_png(res: IdentificationResult) -> str:
     ax.plot(xs, ins, "s--", label="in-sample RMS")
     if res.noise_sigma_m:
         ax.axhline(res.noise_sigma_m * 1e3, color="k", lw=0.8, ls=":", label="noise floor")
-    ax.set_xticks(xs, labels[:len(cv)], fontsize=8, rotation=20)
+    ax.set_xticks(xs, labels[: len(cv)], fontsize=8, rotation=20)
     ax.set_xlabel("selection step (effect added at that step)")
     ax.set_ylabel("RMS per axis [mm]" + (", log scale" if max(cv) > 5 * min(cv) else ""))
     if max(cv) > 5 * min(cv):
         import matplotlib.ticker as mt
+
         ax.set_yscale("log")
         ax.yaxis.set_major_locator(mt.LogLocator(subs=(1.0, 2.0, 5.0)))
         ax.yaxis.set_major_formatter(mt.FuncFormatter(lambda v, _pos: f"{v:g}"))
@@ -111,24 +121,45 @@ def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> str:
     fig = _figure(9.0, 3.8, left=0.08, right=0.98, bottom=0.14, top=0.8, wspace=0.3)
     axs = fig.subplots(1, 2)
     for ax, title, b, a, note in (
-            (axs[0], "base frame of the virtual robot (TCP)", c.get("rms_before_mm"), c.get("rms_after_mm"),
-             "not checkable with unregistered data:\nthe aliased parameters are held at nominal" if blind else ""),
-            (axs[1], "measurement frame (measured point)", c.get("meas_frame_rms_before_mm"),
-             c.get("meas_frame_rms_after_mm"), "")):
+        (
+            axs[0],
+            "base frame of the virtual robot (TCP)",
+            c.get("rms_before_mm"),
+            c.get("rms_after_mm"),
+            "not checkable with unregistered data:\nthe aliased parameters are held at nominal" if blind else "",
+        ),
+        (
+            axs[1],
+            "measurement frame (measured point)",
+            c.get("meas_frame_rms_before_mm"),
+            c.get("meas_frame_rms_after_mm"),
+            "",
+        ),
+    ):
         vals = [float(b or 0.0), float(a or 0.0)]
-        bars = ax.bar([0, 1], vals, color=["tab:red", "tab:green"], alpha=0.35 if note else 0.85,
-                      hatch="//" if note else None)
+        bars = ax.bar(
+            [0, 1], vals, color=["tab:red", "tab:green"], alpha=0.35 if note else 0.85, hatch="//" if note else None
+        )
         for rect, v in zip(bars, vals):
-            ax.text(rect.get_x() + rect.get_width() / 2, v, f"{format_number(v)} mm", ha="center", va="bottom",
-                    fontsize=8)
+            ax.text(
+                rect.get_x() + rect.get_width() / 2, v, f"{format_number(v)} mm", ha="center", va="bottom", fontsize=8
+            )
         ax.set_xticks([0, 1], ["before (command as is)", "after compensation"])
         ax.set_ylabel("TCP position error, RMS [mm]")
         ax.set_title(title)
         ax.set_ylim(0, max(vals + [1e-9]) * 1.2)
         ax.grid(alpha=0.3, axis="y")
         if note:
-            ax.text(0.5, 0.55, note, transform=ax.transAxes, ha="center", va="center", fontsize=8,
-                    bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"})
+            ax.text(
+                0.5,
+                0.55,
+                note,
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=8,
+                bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"},
+            )
     fig.suptitle(f"Compensation re-measured on the virtual robot: {c.get('n_poses', '?')} new poses and loads")
     return _png(fig)
 
@@ -173,7 +204,7 @@ def _diag_png(res: IdentificationResult, d: Diagnostic) -> str:
     if d.y is not None:
         y = np.asarray(d.y, dtype=float)
         label = re.sub(r"\s*\((m|µ|u)?rad\)\s*$", "", d.y_label or "projected residual")
-        if "rad" in (d.y_label or ""):       # an equivalent joint error, rad: µrad when small
+        if "rad" in (d.y_label or ""):  # an equivalent joint error, rad: µrad when small
             unit, k = ("µrad", 1e6) if np.max(np.abs(np.nan_to_num(y)), initial=0.0) < 1e-4 else ("mrad", 1e3)
         else:
             unit, k = "-", 1.0
@@ -190,26 +221,35 @@ def _diag_png(res: IdentificationResult, d: Diagnostic) -> str:
         colours = AXIS_COLOURS
     x, xlabel = _x_of(d)
     n = len(names)
-    fig = _figure(3.7 * n + 0.6 if n > 1 else 7.0, 3.4, left=0.08 if n > 1 else 0.1, right=0.985,
-                  bottom=0.16, top=0.76, wspace=0.3)
+    fig = _figure(
+        3.7 * n + 0.6 if n > 1 else 7.0,
+        3.4,
+        left=0.08 if n > 1 else 0.1,
+        right=0.985,
+        bottom=0.16,
+        top=0.76,
+        wspace=0.3,
+    )
     axs = np.atleast_1d(fig.subplots(1, n))
     edges = _bin_edges(x, d.variable)
     for j, ax in enumerate(axs):
         _scatter_panel(ax, x, R[:, j], edges, colours[j])
-        if n == 1 or j == n // 2:         # one x label under the middle panel: long names do not collide
+        if n == 1 or j == n // 2:  # one x label under the middle panel: long names do not collide
             ax.set_xlabel(xlabel)
         ax.set_ylabel(names[j])
         ax.set_title(titles[j])
     flag = "significant structure" if d.significant else "no significant structure"
-    fig.suptitle(f"Residual after identification against {_var_name(d.variable)}\ncross-validated explained share "
-                 f"{100 * d.explained_fraction:.0f} % (p = {d.p_value:.2g}, {flag})")
+    fig.suptitle(
+        f"Residual after identification against {_var_name(d.variable)}\ncross-validated explained share "
+        f"{100 * d.explained_fraction:.0f} % (p = {d.p_value:.2g}, {flag})"
+    )
     return _png(fig)
 
 
 def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> str:
     """The residual per axis against one joint angle (the per-axis diagnostics ``q{j}.x/y/z``, one
     panel each, with its own explained share and significance)."""
-    joint = _axis_diag(group[0].variable)[0]           # type: ignore[index]
+    joint = _axis_diag(group[0].variable)[0]  # type: ignore[index]
     by_axis: dict[str, Diagnostic] = {}
     for d in res.diagnostics:
         ad = _axis_diag(d.variable)
@@ -217,9 +257,16 @@ def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> str:
             by_axis[ad[1]] = d
     Rm = np.asarray(res.residual_after, dtype=float)[res.inliers]
     x_rad = np.asarray(group[0].x, dtype=float)
-    if len(Rm) != len(x_rad):                          # not the inlier rows: draw the tested y
-        Rm = np.column_stack([np.asarray(by_axis[a].y if a in by_axis and by_axis[a].y is not None
-                                         else np.full(len(x_rad), np.nan), dtype=float) for a in "xyz"])
+    if len(Rm) != len(x_rad):  # not the inlier rows: draw the tested y
+        Rm = np.column_stack(
+            [
+                np.asarray(
+                    by_axis[a].y if a in by_axis and by_axis[a].y is not None else np.full(len(x_rad), np.nan),
+                    dtype=float,
+                )
+                for a in "xyz"
+            ]
+        )
     unit, k = _length_scale(Rm)
     x = np.degrees(x_rad)
     fig = _figure(11.7, 3.4, left=0.06, right=0.985, bottom=0.16, top=0.74, wspace=0.3)
@@ -231,13 +278,17 @@ def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> str:
         if d is None:
             ax.set_title(f"{a} axis")
         else:
-            ax.set_title(f"{a} axis: {100 * d.explained_fraction:.0f} % explained, p = {d.p_value:.2g}"
-                         + (" (significant)" if d.significant else ""))
+            ax.set_title(
+                f"{a} axis: {100 * d.explained_fraction:.0f} % explained, p = {d.p_value:.2g}"
+                + (" (significant)" if d.significant else "")
+            )
         ax.set_xlabel(f"joint {joint} angle q{joint} [deg]")
         ax.set_ylabel(f"residual r_{a} = predicted − measured [{unit}]")
     sig = [a for a in "xyz" if a in by_axis and by_axis[a].significant]
     weighted = " (tested on the residual weighted by 1/σ)" if res.data.sigma is not None else ""
-    fig.suptitle(f"Residual after identification per axis against joint {joint} angle alone{weighted}\n"
-                 + (f"significant structure on {', '.join(sig)}" if sig else "no significant structure on any axis")
-                 + " (cross-validated P-spline of each axis on the angle)")
+    fig.suptitle(
+        f"Residual after identification per axis against joint {joint} angle alone{weighted}\n"
+        + (f"significant structure on {', '.join(sig)}" if sig else "no significant structure on any axis")
+        + " (cross-validated P-spline of each axis on the angle)"
+    )
     return _png(fig)

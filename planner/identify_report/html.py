@@ -13,24 +13,33 @@ from problems.identify.map_summary import MAP_BAND_SIGMAS
 
 #: Figures of the HTML report, in order: key -> (title, caption).
 FIGURE_TEXT = {
-    "residuals": ("Residual per axis, before and after",
-                  "Histograms of predicted − measured per axis of the measurement frame (mm; µm where every residual is below 0.1 mm), inlier rows: top, "
-                  "the nominal model (registration and measured point fitted); bottom, the identified model."),
-    "history": ("Selection history",
-                "Per-axis RMS (mm) at each step of the selection: held-out (cross-validated over poses) and "
-                "in-sample; the label names the effect added at that step."),
-    "error_maps": ("Joint error maps over the angle range of the data",
-                   "Each panel: the identified error of one joint (one component of its motion) against its "
-                   "commanded angle (deg), µrad for angles, µm for lengths; shaded, the uncertainty band of "
-                   f"±{MAP_BAND_SIGMAS:g} standard deviations from the fit's covariance; ticks at the bottom, the "
-                   "commanded angles of the measured rows; grey, beyond the range: there the map is held at its "
-                   "end value (dashed), not extrapolated."),
-    "compensation": ("Compensation re-measured on the virtual robot",
-                     "RMS TCP error (mm) of new poses and loads before and after compensation with the identified "
-                     "model: in the virtual robot's base frame (the TCP) and in the measurement frame (the "
-                     "measured point against its target mapped by the identified registration). With "
-                     "unregistered data the base frame is not checkable through the parameters that alias with "
-                     "the registration: judge the measurement frame."),
+    "residuals": (
+        "Residual per axis, before and after",
+        "Histograms of predicted − measured per axis of the measurement frame (mm; µm where every residual is "
+        "below 0.1 mm), inlier rows: top, "
+        "the nominal model (registration and measured point fitted); bottom, the identified model.",
+    ),
+    "history": (
+        "Selection history",
+        "Per-axis RMS (mm) at each step of the selection: held-out (cross-validated over poses) and "
+        "in-sample; the label names the effect added at that step.",
+    ),
+    "error_maps": (
+        "Joint error maps over the angle range of the data",
+        "Each panel: the identified error of one joint (one component of its motion) against its "
+        "commanded angle (deg), µrad for angles, µm for lengths; shaded, the uncertainty band of "
+        f"±{MAP_BAND_SIGMAS:g} standard deviations from the fit's covariance; ticks at the bottom, the "
+        "commanded angles of the measured rows; grey, beyond the range: there the map is held at its "
+        "end value (dashed), not extrapolated.",
+    ),
+    "compensation": (
+        "Compensation re-measured on the virtual robot",
+        "RMS TCP error (mm) of new poses and loads before and after compensation with the identified "
+        "model: in the virtual robot's base frame (the TCP) and in the measurement frame (the "
+        "measured point against its target mapped by the identified registration). With "
+        "unregistered data the base frame is not checkable through the parameters that alias with "
+        "the registration: judge the measurement frame.",
+    ),
 }
 
 
@@ -39,27 +48,37 @@ def _diag_figure_text(key: str) -> tuple[str, str]:
     v = key[5:]
     if v.endswith(".xyz"):
         j = v[1]
-        return (f"Residual per axis against joint {j} angle",
-                f"The residual after identification (predicted − measured, one panel per axis of the measurement "
-                f"frame) against the commanded angle of joint {j} in degrees (dots: rows; line: binned mean); "
-                "each panel names the cross-validated share of that axis a smooth function of the angle explains.")
+        return (
+            f"Residual per axis against joint {j} angle",
+            f"The residual after identification (predicted − measured, one panel per axis of the measurement "
+            f"frame) against the commanded angle of joint {j} in degrees (dots: rows; line: binned mean); "
+            "each panel names the cross-validated share of that axis a smooth function of the angle explains.",
+        )
     if _is_angle(v):
-        return (f"Equivalent error of joint {v[1]} against its angle",
-                f"The residual after identification projected on joint {v[1]}'s column of the positional "
-                f"Jacobian (the joint-{v[1]} error that would explain it) against the commanded angle in degrees "
-                "(dots: rows; line: binned mean).")
-    return (f"Residual against {_var_name(v)}",
-            "The residual after identification against a diagnostic variable (dots: rows; line: binned mean); "
-            "one panel per axis of the measurement frame, or the residual projected on the joint.")
+        return (
+            f"Equivalent error of joint {v[1]} against its angle",
+            f"The residual after identification projected on joint {v[1]}'s column of the positional "
+            f"Jacobian (the joint-{v[1]} error that would explain it) against the commanded angle in degrees "
+            "(dots: rows; line: binned mean).",
+        )
+    return (
+        f"Residual against {_var_name(v)}",
+        "The residual after identification against a diagnostic variable (dots: rows; line: binned mean); "
+        "one panel per axis of the measurement frame, or the residual projected on the joint.",
+    )
 
 
-def _html_table(header: list[str], rows: list[tuple[str, ...]], css: str = "summary",
-                mono_cols: tuple[int, ...] = ()) -> str:
+def _html_table(
+    header: list[str], rows: list[tuple[str, ...]], css: str = "summary", mono_cols: tuple[int, ...] = ()
+) -> str:
     out = [f'<table class="{css}"><tr>' + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>"]
     mono = ' class="mono"'
     for r in rows:
-        out.append("<tr>" + "".join(f"<td{mono if i in mono_cols else ''}>{html.escape(c)}</td>"
-                                    for i, c in enumerate(r)) + "</tr>")
+        out.append(
+            "<tr>"
+            + "".join(f"<td{mono if i in mono_cols else ''}>{html.escape(c)}</td>" for i, c in enumerate(r))
+            + "</tr>"
+        )
     out.append("</table>")
     return "\n".join(out)
 
@@ -68,26 +87,34 @@ def report_html(rep: dict[str, Any], figs: dict[str, str]) -> str:
     """Self-contained HTML, styled like the plan report: headline table, figures with captions,
     then the tables of the selection, parameters and diagnostics, and the provenance."""
     from planner.report.rendering import _CSS
+
     md = report_markdown(rep)
     sections = md.split("\n## ")
-    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-             f"<title>compplan identification report</title><style>{_CSS}</style></head><body>",
-             "<h1>compplan identification report</h1>", '<h3 id="headline">Headline</h3>',
-             _html_table(["quantity", "value", "note"], _headline_rows(rep), "summary headline"),
-             f'<p class="note">Data: {html.escape(str(rep["data"]["file"]))}. {html.escape(rep["rms_definition"])}. '
-             "Lengths in mm.</p>"]
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>compplan identification report</title><style>{_CSS}</style></head><body>",
+        "<h1>compplan identification report</h1>",
+        '<h3 id="headline">Headline</h3>',
+        _html_table(["quantity", "value", "note"], _headline_rows(rep), "summary headline"),
+        f'<p class="note">Data: {html.escape(str(rep["data"]["file"]))}. {html.escape(rep["rms_definition"])}. '
+        "Lengths in mm.</p>",
+    ]
     n = 0
 
     def figure(k: str) -> None:
         nonlocal n
         n += 1
         title, caption = FIGURE_TEXT.get(k) or _diag_figure_text(k)
-        parts.append(f'<h3 id="{html.escape(k)}">Figure {n}. {html.escape(title)}</h3>'
-                     f'<figure><img data-figure="{html.escape(k)}" alt="{html.escape(title)}" '
-                     f'src="data:image/png;base64,{figs[k]}"><figcaption>{html.escape(caption)}</figcaption>'
-                     "</figure>")
+        parts.append(
+            f'<h3 id="{html.escape(k)}">Figure {n}. {html.escape(title)}</h3>'
+            f'<figure><img data-figure="{html.escape(k)}" alt="{html.escape(title)}" '
+            f'src="data:image/png;base64,{figs[k]}"><figcaption>{html.escape(caption)}</figcaption>'
+            "</figure>"
+        )
+
     maps_sec = next((sec for sec in sections[1:] if sec.startswith("Joint error maps")), None)
-    if maps_sec is not None:              # what an engineer looks for when a map was added: near the top
+    if maps_sec is not None:  # what an engineer looks for when a map was added: near the top
         parts.append('<h2 id="error_maps">Joint error maps</h2>')
         parts.append(_md_block(maps_sec.split("\n", 1)[1]))
         if "error_maps" in figs:
@@ -128,9 +155,13 @@ def _md_block(text: str) -> str:
                     rows.append([html.escape(c) for c in _md_cells(lines[i])])
                 i += 1
             if rows:
-                out.append('<table class="summary"><tr>' + "".join(f"<th>{c}</th>" for c in rows[0]) + "</tr>"
-                           + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows[1:])
-                           + "</table>")
+                out.append(
+                    '<table class="summary"><tr>'
+                    + "".join(f"<th>{c}</th>" for c in rows[0])
+                    + "</tr>"
+                    + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows[1:])
+                    + "</table>"
+                )
             continue
         elif ln.startswith("- "):
             items = []

@@ -20,11 +20,13 @@ REPORT_MAP_PANELS = 6
 REPORT_MAP_HARMONICS = 3
 #: Components of a joint error map (``models.effects.joint_error_map.MAP_COMPONENTS``):
 #: symbol and words.
-MAP_COMPONENT_WORDS = {"theta": ("θ", "angular positioning error"),
-                       "d": ("d", "axial error (along the joint axis)"),
-                       "a": ("a", "radial error (along the link's x axis)"),
-                       "alpha": ("α", "tilt about the link's x axis"),
-                       "beta": ("β", "tilt about the link's y axis")}
+MAP_COMPONENT_WORDS = {
+    "theta": ("θ", "angular positioning error"),
+    "d": ("d", "axial error (along the joint axis)"),
+    "a": ("a", "radial error (along the link's x axis)"),
+    "alpha": ("α", "tilt about the link's x axis"),
+    "beta": ("β", "tilt about the link's y axis"),
+}
 
 
 def _map_name(m: dict[str, Any]) -> str:
@@ -36,8 +38,11 @@ def _harmonic_freqs(m: dict[str, Any]) -> str:
     """``13.56, 13.35 cycles/rev`` (the largest harmonics of a map)."""
     hs = m["harmonics"][:REPORT_MAP_HARMONICS]
     more = len(m["harmonics"]) - len(hs)
-    return (", ".join(format_number(h["freq_cpr"], 4) for h in hs) + (f" (+{more} more)" if more else "")
-            + " cycles/rev") if hs else "no harmonic"
+    return (
+        (", ".join(format_number(h["freq_cpr"], 4) for h in hs) + (f" (+{more} more)" if more else "") + " cycles/rev")
+        if hs
+        else "no harmonic"
+    )
 
 
 def _harmonic_text(m: dict[str, Any], h: dict[str, Any]) -> str:
@@ -62,19 +67,27 @@ def _map_rows(rep: dict[str, Any]) -> list[tuple[str, ...]]:
         harm = "; ".join(_harmonic_text(m, h) for h in hs) + (f"; +{more} smaller" if more else "")
         lo, hi = m["range_deg"]
         name = sym if sym == m["component"] else f"{sym} ({m['component']})"
-        rows.append((str(m["joint"]), f"{name}: {words}",
-                     f"{format_number(lo, 3)} … {format_number(hi, 3)}", harm or "-",
-                     format_number(m["rms_tcp_um"], 3)))
+        rows.append(
+            (
+                str(m["joint"]),
+                f"{name}: {words}",
+                f"{format_number(lo, 3)} … {format_number(hi, 3)}",
+                harm or "-",
+                format_number(m["rms_tcp_um"], 3),
+            )
+        )
     return rows
 
 
 #: What the maps table says about itself (Markdown and HTML).
-MAP_TABLE_NOTE = ("Each map is the error of one joint, one component of its motion, as a function of its own "
-                  "commanded angle: a Fourier series in that angle with the harmonics (cycles per revolution of "
-                  "the joint) the spectrum search found, largest first. Amplitude of a harmonic ± 1 standard "
-                  "deviation (µrad for angles, µm for lengths); at the TCP: times the median lever of the "
-                  "component over the data. RMS at the TCP: the map's effect over the measured poses. Beyond "
-                  "the angle range of the data a map is held at its end value (not extrapolated).")
+MAP_TABLE_NOTE = (
+    "Each map is the error of one joint, one component of its motion, as a function of its own "
+    "commanded angle: a Fourier series in that angle with the harmonics (cycles per revolution of "
+    "the joint) the spectrum search found, largest first. Amplitude of a harmonic ± 1 standard "
+    "deviation (µrad for angles, µm for lengths); at the TCP: times the median lever of the "
+    "component over the data. RMS at the TCP: the map's effect over the measured poses. Beyond "
+    "the angle range of the data a map is held at its end value (not extrapolated)."
+)
 
 
 def _maps_markdown(rep: dict[str, Any]) -> list[str]:
@@ -82,14 +95,22 @@ def _maps_markdown(rep: dict[str, Any]) -> list[str]:
     rows = _map_rows(rep)
     if not rows:
         return []
-    L = ["## Joint error maps", "", MAP_TABLE_NOTE, "",
-         "| joint | component | angle range (deg) | dominant harmonics | RMS at the TCP (µm) |",
-         "|---|---|---|---|---|"]
+    L = [
+        "## Joint error maps",
+        "",
+        MAP_TABLE_NOTE,
+        "",
+        "| joint | component | angle range (deg) | dominant harmonics | RMS at the TCP (µm) |",
+        "|---|---|---|---|---|",
+    ]
     L += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in rows]
     n = len(rows)
     if n > REPORT_MAP_PANELS:
-        L += ["", f"The figure draws the {REPORT_MAP_PANELS} maps with the largest RMS at the TCP; "
-              f"{n - REPORT_MAP_PANELS} more are in the table and in report.json."]
+        L += [
+            "",
+            f"The figure draws the {REPORT_MAP_PANELS} maps with the largest RMS at the TCP; "
+            f"{n - REPORT_MAP_PANELS} more are in the table and in report.json.",
+        ]
     return L + [""]
 
 
@@ -106,26 +127,29 @@ def _maps_png(res: IdentificationResult) -> str:
     commanded angles of the data, and the map held at its end values beyond the range."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
+
     maps_all = list(res.error_maps)
     maps = _maps_drawn(maps_all)
     k = len(maps)
     ncols = min(3, k)
     nrows = math.ceil(k / ncols)
-    spare = nrows * ncols > k                  # an empty slot holds the legend
+    spare = nrows * ncols > k  # an empty slot holds the legend
     # inches: panels 2.3 high, 1.05 between rows (x label and a two-line title), 1.15 on top
     # (figure title and the first titles), 0.55 below (x label) and 0.35 more for a legend there
     w = 3.9 * ncols + 0.5 if ncols > 1 else 7.5
-    title = ["Joint error maps: the error of each joint against its commanded angle, over the angle range of "
-             "the data"]
-    if w < 10:                                 # one or two panels: the title on two lines
-        title = ["Joint error maps: the error of each joint against its commanded angle,",
-                 "over the angle range of the data"]
+    title = ["Joint error maps: the error of each joint against its commanded angle, over the angle range of the data"]
+    if w < 10:  # one or two panels: the title on two lines
+        title = [
+            "Joint error maps: the error of each joint against its commanded angle,",
+            "over the angle range of the data",
+        ]
     if k < len(maps_all):
         title.append(f"{k} of {len(maps_all)} maps drawn (the largest RMS at the TCP); every map is in the table")
     panel, gap, top, bottom = 2.3, 1.05, 0.75 + 0.2 * len(title), 0.55 + (0.0 if spare else 0.35)
     h = nrows * panel + (nrows - 1) * gap + top + bottom
-    fig = _figure(w, h, left=0.75 / w, right=1 - 0.3 / w, top=1 - top / h, bottom=bottom / h,
-                  wspace=0.3, hspace=gap / panel)
+    fig = _figure(
+        w, h, left=0.75 / w, right=1 - 0.3 / w, top=1 - top / h, bottom=bottom / h, wspace=0.3, hspace=gap / panel
+    )
     axs = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
     q_data = np.asarray(res.data.q, dtype=float)[np.asarray(res.inliers, dtype=bool)]
     for ax, m in zip(axs, maps):
@@ -142,33 +166,54 @@ def _maps_png(res: IdentificationResult) -> str:
             ax.axvspan(xa, xb, color="0.88", lw=0)
             ax.plot([xa, xb], [v, v], "--", color="tab:blue", lw=1.1)
         if len(q_data):
-            ax.plot(np.degrees(q_data[:, m.joint - 1]), np.zeros(len(q_data)), "|", ms=6, color="0.35",
-                    alpha=0.5, transform=ax.get_xaxis_transform())
+            ax.plot(
+                np.degrees(q_data[:, m.joint - 1]),
+                np.zeros(len(q_data)),
+                "|",
+                ms=6,
+                color="0.35",
+                alpha=0.5,
+                transform=ax.get_xaxis_transform(),
+            )
         ax.set_xlim(lo - pad, hi + pad)
         y_lo, y_hi = float(np.min(y - b)), float(np.max(y + b))
         span = max(y_hi - y_lo, 1e-9)
-        ax.set_ylim(y_lo - 0.16 * span, y_hi + 0.06 * span)       # room for the ticks of the data
+        ax.set_ylim(y_lo - 0.16 * span, y_hi + 0.06 * span)  # room for the ticks of the data
         ax.axhline(0.0, color="0.4", lw=0.6)
         freqs = ", ".join(format_number(hm.freq_cpr, 3) for hm in m.harmonics[:REPORT_MAP_HARMONICS])
         more = f" (+{len(m.harmonics) - REPORT_MAP_HARMONICS})" if len(m.harmonics) > REPORT_MAP_HARMONICS else ""
-        ax.set_title(f"joint {m.joint} {sym}: {words}\n{freqs}{more} cycles/rev, "
-                     f"{format_number(m.rms_tcp_m * 1e6, 3)} µm RMS at the TCP")
+        ax.set_title(
+            f"joint {m.joint} {sym}: {words}\n{freqs}{more} cycles/rev, "
+            f"{format_number(m.rms_tcp_m * 1e6, 3)} µm RMS at the TCP"
+        )
         ax.set_xlabel(f"commanded angle q{m.joint} [deg]")
         ax.set_ylabel(f"{sym} error of joint {m.joint} [{unit}]")
         ax.grid(alpha=0.3)
-    br = "\n" if spare else " "           # the legend in a spare panel is narrow: two-line labels
-    handles = [Line2D([], [], color="tab:blue", lw=1.4, label="identified map"),
-               Patch(color="tab:blue", alpha=0.22, label=f"uncertainty band ±{MAP_BAND_SIGMAS:g}σ{br}"
-                     f"({MAP_BAND_SIGMAS:g} standard deviations)"),
-               Line2D([], [], color="tab:blue", lw=1.1, ls="--", label=f"beyond the range (grey): held at{br}"
-                      "the end value, not extrapolated"),
-               Line2D([], [], color="0.35", ls="none", marker="|", ms=6, label="commanded angles of the data")]
+    br = "\n" if spare else " "  # the legend in a spare panel is narrow: two-line labels
+    handles = [
+        Line2D([], [], color="tab:blue", lw=1.4, label="identified map"),
+        Patch(
+            color="tab:blue",
+            alpha=0.22,
+            label=f"uncertainty band ±{MAP_BAND_SIGMAS:g}σ{br}({MAP_BAND_SIGMAS:g} standard deviations)",
+        ),
+        Line2D(
+            [],
+            [],
+            color="tab:blue",
+            lw=1.1,
+            ls="--",
+            label=f"beyond the range (grey): held at{br}the end value, not extrapolated",
+        ),
+        Line2D([], [], color="0.35", ls="none", marker="|", ms=6, label="commanded angles of the data"),
+    ]
     for ax in axs[k:]:
         ax.axis("off")
     if spare:
         axs[k].legend(handles=handles, loc="center", frameon=False, fontsize=9)
     else:
-        fig.legend(handles=handles, loc="lower center", ncol=4 if w > 9 else 2, frameon=False,
-                   bbox_to_anchor=(0.5, 0.0))
+        fig.legend(
+            handles=handles, loc="lower center", ncol=4 if w > 9 else 2, frameon=False, bbox_to_anchor=(0.5, 0.0)
+        )
     fig.suptitle("\n".join(title))
     return _png(fig)

@@ -29,36 +29,57 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(quantity, value, note) rows of the headline table."""
     h = rep.get("headline") or _headline(rep)
     d = rep["data"]
-    rows = [("status", str(h["status"]), str(h["reason"])),
-            ("residual RMS per axis, before → after (in-sample)",
-             f"{_fmt(h['rms_before_mm'])} → {_fmt(h['rms_after_mm'])} mm",
-             "before: the nominal robot file with only the registration and the measured point fitted"),
-            ("residual RMS per axis, before → after (held-out)",
-             f"{_fmt(h['heldout_rms_before_mm'])} → {_fmt(h['heldout_rms_after_mm'])} mm",
-             "cross-validated over whole poses: what the model predicts on poses it has not seen"),
-            ("noise floor", "unknown" if h["noise_sigma_mm"] is None else f"{_fmt(h['noise_sigma_mm'])} mm",
-             str(h["noise_source"])),
-            ("effects added (in order)", ", ".join(h["effects_added"]) or "none", ""),
-            ("structure left in the residual", _structure_value(rep),
-             "as the status says" if structure_sentence(rep) == str(h["reason"]) else structure_sentence(rep)),
-            ("data", f"{d['n_rows']} rows, {d['n_poses']} poses", _setup_note(rep)),
-            ("compensation check", "re-measured" if rep.get("compensation_check") else "not run",
-             str(h["compensation"]))]
+    rows = [
+        ("status", str(h["status"]), str(h["reason"])),
+        (
+            "residual RMS per axis, before → after (in-sample)",
+            f"{_fmt(h['rms_before_mm'])} → {_fmt(h['rms_after_mm'])} mm",
+            "before: the nominal robot file with only the registration and the measured point fitted",
+        ),
+        (
+            "residual RMS per axis, before → after (held-out)",
+            f"{_fmt(h['heldout_rms_before_mm'])} → {_fmt(h['heldout_rms_after_mm'])} mm",
+            "cross-validated over whole poses: what the model predicts on poses it has not seen",
+        ),
+        (
+            "noise floor",
+            "unknown" if h["noise_sigma_mm"] is None else f"{_fmt(h['noise_sigma_mm'])} mm",
+            str(h["noise_source"]),
+        ),
+        ("effects added (in order)", ", ".join(h["effects_added"]) or "none", ""),
+        (
+            "structure left in the residual",
+            _structure_value(rep),
+            "as the status says" if structure_sentence(rep) == str(h["reason"]) else structure_sentence(rep),
+        ),
+        ("data", f"{d['n_rows']} rows, {d['n_poses']} poses", _setup_note(rep)),
+        ("compensation check", "re-measured" if rep.get("compensation_check") else "not run", str(h["compensation"])),
+    ]
     ori = (rep.get("identifiability") or {}).get("orientation")
     if ori:
         gained = ori.get("identifiable_thanks_to_orientation") or []
-        rows.insert(3, ("orientation residual per axis, before → after (in-sample)",
-                        f"{_fmt(ori['rms_before_rad'] * 1e6)} → {_fmt(ori['rms_after_rad'] * 1e6)} µrad",
-                        f"{ori['n_rows']} orientation rows (rx, ry, rz); identifiable only thanks to them: "
-                        + (", ".join(gained) if gained else "none")))
+        rows.insert(
+            3,
+            (
+                "orientation residual per axis, before → after (in-sample)",
+                f"{_fmt(ori['rms_before_rad'] * 1e6)} → {_fmt(ori['rms_after_rad'] * 1e6)} µrad",
+                f"{ori['n_rows']} orientation rows (rx, ry, rz); identifiable only thanks to them: "
+                + (", ".join(gained) if gained else "none"),
+            ),
+        )
     maps = rep.get("error_maps") or []
     if maps:
         top = max(maps, key=lambda m: m["rms_tcp_um"] or 0.0)
         joints = sorted({m["joint"] for m in maps})
-        rows.insert(5, ("joint error maps", f"{len(maps)} on joint{'s' if len(joints) > 1 else ''} "
-                        f"{', '.join(map(str, joints))}",
-                        f"largest at the TCP: {_map_name(top)} ({_harmonic_freqs(top)}), "
-                        f"{format_number(top['rms_tcp_um'], 3)} µm RMS; see 'Joint error maps'"))
+        rows.insert(
+            5,
+            (
+                "joint error maps",
+                f"{len(maps)} on joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))}",
+                f"largest at the TCP: {_map_name(top)} ({_harmonic_freqs(top)}), "
+                f"{format_number(top['rms_tcp_um'], 3)} µm RMS; see 'Joint error maps'",
+            ),
+        )
     return rows
 
 
@@ -69,9 +90,11 @@ def _unexplained_markdown(rep: dict[str, Any]) -> list[str]:
         text = f"None: {u.get('message')}"
     elif u.get("weak"):
         sentence = structure_sentence(rep)
-        text = (f"{sentence[:1].upper()}{sentence[1:]}. It is significant but explains only a small share of the "
-                f"residual, so the status stays {rep['status']}; the variable named is where to look if the "
-                "accuracy matters.")
+        text = (
+            f"{sentence[:1].upper()}{sentence[1:]}. It is significant but explains only a small share of the "
+            f"residual, so the status stays {rep['status']}; the variable named is where to look if the "
+            "accuracy matters."
+        )
     else:
         text = f"**Present.** {u.get('message')}"
     return ["## Unexplained structure", "", text, ""]
@@ -80,13 +103,16 @@ def _unexplained_markdown(rep: dict[str, Any]) -> list[str]:
 def _provenance_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(item, value, SHA-256) rows of the provenance table."""
     p = rep.get("provenance") or {}
-    rows = [("compplan version", str(p.get("compplan_version")), ""),
-            ("command line", str(p.get("command_line") or "none: written by a library call"), ""),
-            ("date (UTC, ISO 8601)", str(p.get("date_utc")), "")]
+    rows = [
+        ("compplan version", str(p.get("compplan_version")), ""),
+        ("command line", str(p.get("command_line") or "none: written by a library call"), ""),
+        ("date (UTC, ISO 8601)", str(p.get("date_utc")), ""),
+    ]
     for e in p.get("inputs") or []:
         name = f" '{e['name']}'" if e.get("name") else ""
-        rows.append((f"input: {e.get('role')}{name}", str(e.get("path") or e.get("note") or "-"),
-                     str(e.get("sha256") or "-")))
+        rows.append(
+            (f"input: {e.get('role')}{name}", str(e.get("path") or e.get("note") or "-"), str(e.get("sha256") or "-"))
+        )
     if rep.get("model_file"):
         rows.append(("output: identified model", str(rep["model_file"]), ""))
     return rows
@@ -96,52 +122,95 @@ def report_markdown(rep: dict[str, Any]) -> str:
     """Markdown rendering of :func:`~planner.identify_report.data.report_dict`: the headline table first."""
     L = ["# Identification report", "", "| quantity | value | note |", "|---|---|---|"]
     L += [f"| {q} | {_md_cell(v)} | {_md_cell(n)} |" for q, v, n in _headline_rows(rep)]
-    L += ["", f"- data: `{rep['data']['file']}`, registered: {rep['data']['registered']}",
-          f"- RMS definition: {rep['rms_definition']}", ""]
+    L += [
+        "",
+        f"- data: `{rep['data']['file']}`, registered: {rep['data']['registered']}",
+        f"- RMS definition: {rep['rms_definition']}",
+        "",
+    ]
     L += _maps_markdown(rep)
     L += _unexplained_markdown(rep)
     if rep.get("compensation_check"):
         c = rep["compensation_check"]
-        L += ["## Compensation re-measured on the virtual robot", "",
-              f"- {compensation_sentence(rep)}",
-              (f"- base frame: RMS of the 3-D TCP position error in the true base frame of the virtual robot, "
-               f"{_fmt(c['rms_before_mm'])} → {_fmt(c['rms_after_mm'])} mm "
-               f"({_fmt(100 * c['fraction_left'], 3)} % left)"),
-              (f"- measurement frame: the measured point against its nominal target mapped by the identified "
-               f"registration (what a tracker checks), {_fmt(c['meas_frame_rms_before_mm'])} → "
-               f"{_fmt(c['meas_frame_rms_after_mm'])} mm ({_fmt(100 * c['meas_frame_fraction_left'], 3)} % left)"),
-              ""]
+        L += [
+            "## Compensation re-measured on the virtual robot",
+            "",
+            f"- {compensation_sentence(rep)}",
+            (
+                f"- base frame: RMS of the 3-D TCP position error in the true base frame of the virtual robot, "
+                f"{_fmt(c['rms_before_mm'])} → {_fmt(c['rms_after_mm'])} mm "
+                f"({_fmt(100 * c['fraction_left'], 3)} % left)"
+            ),
+            (
+                f"- measurement frame: the measured point against its nominal target mapped by the identified "
+                f"registration (what a tracker checks), {_fmt(c['meas_frame_rms_before_mm'])} → "
+                f"{_fmt(c['meas_frame_rms_after_mm'])} mm ({_fmt(100 * c['meas_frame_fraction_left'], 3)} % left)"
+            ),
+            "",
+        ]
     if rep.get("validation"):
         v = rep["validation"]
-        L += ["## Validation file", "", (f"- `{v['file']}`: {v['n_rows']} rows, RMS {_fmt(v['rms_mm'])} mm "
-                                          f"(nominal model: {_fmt(v.get('rms_nominal_mm'))} mm)"), ""]
-    L += ["## Selection history", "", "| step | effects | CV RMS (mm) | RMS (mm) | excluded | decision |",
-          "|---|---|---|---|---|---|"]
+        L += [
+            "## Validation file",
+            "",
+            (
+                f"- `{v['file']}`: {v['n_rows']} rows, RMS {_fmt(v['rms_mm'])} mm "
+                f"(nominal model: {_fmt(v.get('rms_nominal_mm'))} mm)"
+            ),
+            "",
+        ]
+    L += [
+        "## Selection history",
+        "",
+        "| step | effects | CV RMS (mm) | RMS (mm) | excluded | decision |",
+        "|---|---|---|---|---|---|",
+    ]
     for h in rep["history"]:
-        L.append(f"| {h['step']} | {', '.join(h['effects']) or '(declared)'} | {_fmt(h['cv_rms_mm'])} | "
-                 f"{_fmt(h['rms_mm'])} | {h['n_excluded']} | {h['reason']} |")
+        L.append(
+            f"| {h['step']} | {', '.join(h['effects']) or '(declared)'} | {_fmt(h['cv_rms_mm'])} | "
+            f"{_fmt(h['rms_mm'])} | {h['n_excluded']} | {h['reason']} |"
+        )
     for h in rep["history"]:
         if not h["candidates"]:
             continue
-        L += ["", f"### Step {h['step']} candidates", "",
-              "| effect | new params | CV RMS (mm) | dBIC | F-test p | share | accepted | reason |",
-              "|---|---|---|---|---|---|---|---|"]
+        L += [
+            "",
+            f"### Step {h['step']} candidates",
+            "",
+            "| effect | new params | CV RMS (mm) | dBIC | F-test p | share | accepted | reason |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         cands = sorted(h["candidates"], key=lambda c: (c["cv_rms_mm"] is None, c["cv_rms_mm"] or 0))
         for c in cands:
-            L.append(f"| {c['effect']} | {c['n_params']} | {_fmt(c['cv_rms_mm'])} | {_fmt(c['delta_bic'], 3)} | "
-                     f"{_fmt(c['f_pvalue'], 2)} | {_fmt(c['explained_share'], 2)} | {c['accepted']} | "
-                     f"{_md_cell(c['reason'])} |")
+            L.append(
+                f"| {c['effect']} | {c['n_params']} | {_fmt(c['cv_rms_mm'])} | {_fmt(c['delta_bic'], 3)} | "
+                f"{_fmt(c['f_pvalue'], 2)} | {_fmt(c['explained_share'], 2)} | {c['accepted']} | "
+                f"{_md_cell(c['reason'])} |"
+            )
         details = [c for c in cands if c.get("detail")]
         if details:
             L += [""] + [f"- {c['effect']}: {c['detail']}" for c in details]
-    L += ["", "## Parameters (SI units)", "", "| name | value | std | unit | status | note |", "|---|---|---|---|---|---|"]
+    L += [
+        "",
+        "## Parameters (SI units)",
+        "",
+        "| name | value | std | unit | status | note |",
+        "|---|---|---|---|---|---|",
+    ]
     for p in rep["parameters"]:
-        L.append(f"| {p['name']} | {_fmt(p['value'], 6)} | {_fmt(p['std'], 3)} | {p['unit']} | {p['status']} | "
-                 f"{p['reason']} |")
+        L.append(
+            f"| {p['name']} | {_fmt(p['value'], 6)} | {_fmt(p['std'], 3)} | {p['unit']} | {p['status']} | "
+            f"{p['reason']} |"
+        )
     idf = rep["identifiability"]
-    L += ["", "## Identifiability", "",
-          f"- rank {idf['rank']}, condition number (column-normalised) {_fmt(idf['condition_number'], 3)}",
-          f"- saturated library model: {idf.get('saturated_model')}", ""]
+    L += [
+        "",
+        "## Identifiability",
+        "",
+        f"- rank {idf['rank']}, condition number (column-normalised) {_fmt(idf['condition_number'], 3)}",
+        f"- saturated library model: {idf.get('saturated_model')}",
+        "",
+    ]
     L += ["## Excluded rows (outliers)", ""]
     if rep["excluded_rows"]:
         L += ["| row | file line | |residual| (mm) |", "|---|---|---|"]
@@ -150,14 +219,24 @@ def report_markdown(rep: dict[str, Any]) -> str:
     else:
         L.append("none")
     shown, hidden = _shown_diagnostics(rep["diagnostics"])
-    L += ["", "## Diagnostics of the final residual", "",
-          "| variable | what | CV explained fraction | p-value | significant |", "|---|---|---|---|---|"]
+    L += [
+        "",
+        "## Diagnostics of the final residual",
+        "",
+        "| variable | what | CV explained fraction | p-value | significant |",
+        "|---|---|---|---|---|",
+    ]
     for d in shown:
-        L.append(f"| {d['variable']} | {_md_cell(_var_name(d['variable']))} | {_fmt(d['explained_fraction'], 3)} | "
-                 f"{_fmt(d['p_value'], 2)} | {d['significant']} |")
+        L.append(
+            f"| {d['variable']} | {_md_cell(_var_name(d['variable']))} | {_fmt(d['explained_fraction'], 3)} | "
+            f"{_fmt(d['p_value'], 2)} | {d['significant']} |"
+        )
     if hidden:
-        L += ["", f"{hidden} other diagnostic{'s' if hidden > 1 else ''} not shown (not significant, explaining "
-              "less than those listed); every diagnostic is in report.json."]
+        L += [
+            "",
+            f"{hidden} other diagnostic{'s' if hidden > 1 else ''} not shown (not significant, explaining "
+            "less than those listed); every diagnostic is in report.json.",
+        ]
     if rep["notes"]:
         L += ["", "## Notes", ""] + [f"- {n}" for n in rep["notes"]]
     L += ["", "## Provenance", "", "| item | value | SHA-256 |", "|---|---|---|"]

@@ -14,8 +14,9 @@ from planner.output import OutputSet
 from problems.identify import IdentificationResult
 
 
-def write_report(res: IdentificationResult, folder: str | Path, model_path: str | None = None,
-                 data_path: str | None = None) -> dict[str, Any]:
+def write_report(
+    res: IdentificationResult, folder: str | Path, model_path: str | None = None, data_path: str | None = None
+) -> dict[str, Any]:
     """Write ``report.json``, ``report.md`` and ``report.html`` to ``folder`` (all or nothing)."""
     rep = report_dict(res, model_path, data_path)
     out = OutputSet(folder)

@@ -54,25 +54,53 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from planner.report.figures import ARM_POSES, DYNAMIC_FIGURE, FIGURE_NAMES, build_figures
-    from planner.report.maps import _map_cache_key, map_job, write_map
-    from planner.report.rendering import (MAX_WORKERS, FigureItem, default_workers, render_html,
-                                          render_items, render_markdown)
+    from planner.report.maps import map_job, write_map
+    from planner.report.rendering import (
+        MAX_WORKERS,
+        FigureItem,
+        default_workers,
+        render_html,
+        render_items,
+        render_markdown,
+    )
     from planner.report.run import TRAJECTORY_FILES, Run, load_run, method_name, method_order, run_from_plan
-    from planner.report.tables import (Cell, Table, fmt, headline_table, load_words, lookup, provenance_table,
-                                       summary_tables, value_cell)
+    from planner.report.tables import (
+        Cell,
+        Table,
+        fmt,
+        headline_table,
+        load_words,
+        lookup,
+        provenance_table,
+        summary_tables,
+        value_cell,
+    )
     from planner.report.writer import publish_report, write_report
 
 #: The submodule defining each name re-exported here, imported on first use (PEP 562): a command
 #: that reads only the tables (``compplan plan --no-report``) does not import matplotlib.
-_LAZY = {name: module for module, names in {
-    "figures": ("ARM_POSES", "DYNAMIC_FIGURE", "FIGURE_NAMES", "build_figures"),
-    "maps": ("_map_cache_key", "map_job", "write_map"),
-    "rendering": ("MAX_WORKERS", "FigureItem", "default_workers", "render_html", "render_items", "render_markdown"),
-    "run": ("TRAJECTORY_FILES", "Run", "load_run", "method_name", "method_order", "run_from_plan"),
-    "tables": ("Cell", "Table", "fmt", "headline_table", "load_words", "lookup", "provenance_table",
-               "summary_tables", "value_cell"),
-    "writer": ("publish_report", "write_report"),
-}.items() for name in names}
+_LAZY = {
+    name: module
+    for module, names in {
+        "figures": ("ARM_POSES", "DYNAMIC_FIGURE", "FIGURE_NAMES", "build_figures"),
+        "maps": ("map_job", "write_map"),
+        "rendering": ("MAX_WORKERS", "FigureItem", "default_workers", "render_html", "render_items", "render_markdown"),
+        "run": ("TRAJECTORY_FILES", "Run", "load_run", "method_name", "method_order", "run_from_plan"),
+        "tables": (
+            "Cell",
+            "Table",
+            "fmt",
+            "headline_table",
+            "load_words",
+            "lookup",
+            "provenance_table",
+            "summary_tables",
+            "value_cell",
+        ),
+        "writer": ("publish_report", "write_report"),
+    }.items()
+    for name in names
+}
 
 
 def __getattr__(name: str) -> Any:
@@ -88,8 +116,34 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
 
 
-__all__ = ["ARM_POSES", "Cell", "DYNAMIC_FIGURE", "FIGURE_NAMES", "FigureItem", "MAX_WORKERS", "Run",
-           "TRAJECTORY_FILES", "Table", "build_figures", "default_workers", "fmt", "headline_table",
-           "load_run", "load_words", "lookup", "map_job", "method_name", "method_order", "provenance_table", "publish_report", "render_html",
-           "render_items", "render_markdown", "run_from_plan", "summary_tables", "value_cell", "write_map",
-           "write_report"]
+__all__ = [
+    "ARM_POSES",
+    "Cell",
+    "DYNAMIC_FIGURE",
+    "FIGURE_NAMES",
+    "FigureItem",
+    "MAX_WORKERS",
+    "Run",
+    "TRAJECTORY_FILES",
+    "Table",
+    "build_figures",
+    "default_workers",
+    "fmt",
+    "headline_table",
+    "load_run",
+    "load_words",
+    "lookup",
+    "map_job",
+    "method_name",
+    "method_order",
+    "provenance_table",
+    "publish_report",
+    "render_html",
+    "render_items",
+    "render_markdown",
+    "run_from_plan",
+    "summary_tables",
+    "value_cell",
+    "write_map",
+    "write_report",
+]

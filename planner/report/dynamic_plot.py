@@ -7,7 +7,7 @@ Split from :mod:`planner.report.plots` (same style helpers): drawn only for runs
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import matplotlib
 import matplotlib.ticker
@@ -22,9 +22,11 @@ __all__ = ["DYNAMIC_DECADES", "DYNAMIC_STYLES", "dynamic_figure"]
 
 # ------------------------------------------------------------------- 8. dynamic compensation
 #: Colours and line styles of the three cases of figure 8: none, static only, static + dynamic.
-DYNAMIC_STYLES = (("none (link plan commanded as is)", "0.35", "-", 1.3),
-                  ("static compensation only", "tab:orange", "-", 1.5),
-                  ("static + dynamic (motor-side command)", "tab:blue", "-", 1.6))
+DYNAMIC_STYLES = (
+    ("none (link plan commanded as is)", "0.35", "-", 1.3),
+    ("static compensation only", "tab:orange", "-", 1.5),
+    ("static + dynamic (motor-side command)", "tab:blue", "-", 1.6),
+)
 #: The log axis of figure 8 spans at most this many decades below the largest error; smaller
 #: values (and the exact zeros at rest) are drawn on its floor.
 DYNAMIC_DECADES = 5
@@ -36,14 +38,15 @@ def _rest_spans(t: np.ndarray, moving: np.ndarray) -> list[tuple[float, float]]:
     rest = ~np.asarray(moving, bool)
     edges = np.flatnonzero(np.diff(np.r_[0, rest.astype(int), 0]))
     spans = []
-    for i, j in zip(edges[::2], edges[1::2]):               # rest samples i .. j-1
+    for i, j in zip(edges[::2], edges[1::2]):  # rest samples i .. j-1
         spans.append((float(t[i]), float(t[min(j, len(t) - 1)])))
     return spans
 
 
 @_styled
-def dynamic_figure(t_s: np.ndarray, moving: np.ndarray, errors_m: Sequence[np.ndarray],
-                   speed_m_s: np.ndarray, *, title: str) -> Figure:
+def dynamic_figure(
+    t_s: np.ndarray, moving: np.ndarray, errors_m: Sequence[np.ndarray], speed_m_s: np.ndarray, *, title: str
+) -> Figure:
     """TCP deviation from the planned path against time with no, static and static + dynamic
     compensation (µm, log axis), above the planned TCP speed (m/s); the rest phases shaded.
 
@@ -67,17 +70,21 @@ def dynamic_figure(t_s: np.ndarray, moving: np.ndarray, errors_m: Sequence[np.nd
     top = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
     positive = np.concatenate([e[mv & np.isfinite(e) & (e > 0)] for e in um])
     lowest = float(positive.min()) if positive.size else top * 1e-3
-    floor = 10.0 ** math.floor(math.log10(max(lowest, top * 10.0 ** -DYNAMIC_DECADES,
-                                              NUMERICAL_FLOOR_MM * 1e3)))
+    floor = 10.0 ** math.floor(math.log10(max(lowest, top * 10.0**-DYNAMIC_DECADES, NUMERICAL_FLOOR_MM * 1e3)))
     spans = _rest_spans(t, mv)
     for a in (a1, a2):
         for i, (lo, hi) in enumerate(spans):
-            a.axvspan(lo, hi, color="0.85", alpha=0.7, lw=0, zorder=0,
-                      label="at rest" if (a is a1 and i == 0) else None)
+            a.axvspan(
+                lo, hi, color="0.85", alpha=0.7, lw=0, zorder=0, label="at rest" if (a is a1 and i == 0) else None
+            )
     for e, (label, colour, ls, lw) in zip(um, DYNAMIC_STYLES):
         em = e[mv]
-        stats = (f": max {format_number(float(em.max()))} µm, RMS {format_number(float(np.sqrt(np.mean(em ** 2))))}"
-                 " µm during the motion" if em.size else "")
+        stats = (
+            f": max {format_number(float(em.max()))} µm, RMS {format_number(float(np.sqrt(np.mean(em**2))))}"
+            " µm during the motion"
+            if em.size
+            else ""
+        )
         a1.plot(t, np.clip(e, floor, None), color=colour, ls=ls, lw=lw, label=label + stats, zorder=3)
     a1.set_yscale("log")
     a1.set_ylim(floor, top * 3.0)
@@ -85,14 +92,21 @@ def dynamic_figure(t_s: np.ndarray, moving: np.ndarray, errors_m: Sequence[np.nd
     a1.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _pos: f"{v:g}"))
     a1.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     a1.set_ylabel("TCP deviation from the planned path [µm], log scale")
-    a1.set_title(f"(a) predicted TCP position error; values below {floor:g} µm (and 0) drawn at {floor:g} µm",
-                 loc="left")
+    a1.set_title(
+        f"(a) predicted TCP position error; values below {floor:g} µm (and 0) drawn at {floor:g} µm", loc="left"
+    )
     a1.grid(alpha=0.3, which="major")
     a1.grid(alpha=0.12, which="minor")
     handles, labels = a1.get_legend_handles_labels()
-    order = sorted(range(len(handles)), key=lambda i: labels[i] == "at rest")   # the cases, then rest
-    fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper center", ncol=2,
-               bbox_to_anchor=(0.5, 0.905), frameon=False)
+    order = sorted(range(len(handles)), key=lambda i: labels[i] == "at rest")  # the cases, then rest
+    fig.legend(
+        [handles[i] for i in order],
+        [labels[i] for i in order],
+        loc="upper center",
+        ncol=2,
+        bbox_to_anchor=(0.5, 0.905),
+        frameon=False,
+    )
     a2.plot(t, np.asarray(speed_m_s, float), color="k", lw=1.3, label="planned TCP speed")
     a2.set_ylim(bottom=0.0)
     a2.set_ylabel("TCP speed [m/s]")

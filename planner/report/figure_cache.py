@@ -55,13 +55,14 @@ def figure_key(jb: Job, pdf: bool) -> str | None:
     """The cache key of a figure job (None: its arguments cannot be pickled, not cached)."""
     try:
         blob = pickle.dumps(jb, protocol=5)
-    except (pickle.PicklingError, TypeError, AttributeError):    # not picklable: not cached
+    except (pickle.PicklingError, TypeError, AttributeError):  # not picklable: not cached
         return None
     return hashlib.sha256(_code_hash() + (b"pdf" if pdf else b"png") + blob).hexdigest()[:32]
 
 
 def _folder() -> Path:
     from models.codegen import cache_root
+
     return cache_root() / FIGURE_CACHE_FOLDER
 
 
@@ -74,7 +75,7 @@ def _read(path: Path) -> tuple[bytes, bytes | None] | None:
     if len(data) < _HEADER.size:
         return None
     magic, n_png, n_pdf, digest = _HEADER.unpack_from(data)
-    body = data[_HEADER.size:]
+    body = data[_HEADER.size :]
     if magic != _MAGIC or n_png < 0 or len(body) != n_png + max(n_pdf, 0) or hashlib.sha256(body).digest() != digest:
         return None
     return body[:n_png], (body[n_png:] if n_pdf >= 0 else None)
@@ -98,7 +99,7 @@ def take_cached(items: list[FigureItem], pdf: bool = True) -> dict[str, str]:
         it.png, it.pdf = got
         it.job = None
         try:
-            os.utime(folder / key)          # recently used: kept longest
+            os.utime(folder / key)  # recently used: kept longest
         except OSError:
             pass
     return todo
@@ -120,7 +121,7 @@ def keep_rendered(items: list[FigureItem], keys: dict[str, str]) -> None:
             atomic_write_bytes(folder / key, head + body)
             stored = True
         except OutputError:
-            return                          # no cache here: the figures were rendered anyway
+            return  # no cache here: the figures were rendered anyway
     if stored:
         _trim(folder)
 
@@ -128,8 +129,11 @@ def keep_rendered(items: list[FigureItem], keys: dict[str, str]) -> None:
 def _trim(folder: Path) -> None:
     """Remove the least recently used entries until the folder holds at most FIGURE_CACHE_MAX_BYTES."""
     try:
-        entries = [(e.stat().st_mtime, e.stat().st_size, e.path) for e in os.scandir(folder)
-                   if e.is_file() and not e.name.startswith(".")]     # (not another writer's temporary file)
+        entries = [
+            (e.stat().st_mtime, e.stat().st_size, e.path)
+            for e in os.scandir(folder)
+            if e.is_file() and not e.name.startswith(".")
+        ]  # (not another writer's temporary file)
     except OSError:
         return
     total = sum(size for _, size, _ in entries)

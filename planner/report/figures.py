@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import textwrap
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -33,8 +34,15 @@ from planner.report.run import DYNAMIC_KEY, Run, method_name, method_order
 from planner.report.tables import RATIO_KINDS, flat_numbers, load_words
 
 #: File names of the figures, in report order.
-FIGURE_NAMES = (MAP_FIGURE, "fig2_stiffness_error", "fig3_compensation_angles",
-                "fig4_error_before_after", "fig5_branches", "fig6_trajectory", "fig7_arm_3d")
+FIGURE_NAMES = (
+    MAP_FIGURE,
+    "fig2_stiffness_error",
+    "fig3_compensation_angles",
+    "fig4_error_before_after",
+    "fig5_branches",
+    "fig6_trajectory",
+    "fig7_arm_3d",
+)
 
 #: File name of the figure of the dynamic compensation (figure 8), drawn only for a run that has
 #: it (``[timing] dynamic = true``); runs without it have no such figure, not an absent one.
@@ -64,13 +72,16 @@ class _Context:
     @property
     def s_mm(self) -> np.ndarray:
         """Path length from the first waypoint along the waypoints, mm."""
-        return path_length_mm(_xyz(self.wp, ""))          # type: ignore[arg-type]
+        return path_length_mm(_xyz(self.wp, ""))  # type: ignore[arg-type]
 
 
-def build_figures(run: Run, progress: ProgressFn | None = None,
-                  map_options: Mapping[str, Any] | None | bool = None,
-                  files: dict[str, bytes] | None = None,
-                  map_cache: bool = True) -> list[FigureItem]:
+def build_figures(
+    run: Run,
+    progress: ProgressFn | None = None,
+    map_options: Mapping[str, Any] | None | bool = None,
+    files: dict[str, bytes] | None = None,
+    map_cache: bool = True,
+) -> list[FigureItem]:
     """Prepare every figure the run allows (its ``job``); absent ones carry the reason.
 
     Only the compliance map is computed here (with progress); the figures are
@@ -91,9 +102,15 @@ def build_figures(run: Run, progress: ProgressFn | None = None,
     """
     files = {} if files is None else files
     ctx = _context(run)
-    items = [map_item(run, map_options, progress, files, map_cache), _stiffness_item(ctx),
-             _compensation_item(ctx), _error_item(ctx), _branch_item(ctx), _trajectory_item(ctx),
-             _arm_item(ctx)]
+    items = [
+        map_item(run, map_options, progress, files, map_cache),
+        _stiffness_item(ctx),
+        _compensation_item(ctx),
+        _error_item(ctx),
+        _branch_item(ctx),
+        _trajectory_item(ctx),
+        _arm_item(ctx),
+    ]
     if isinstance(run.summary.get(DYNAMIC_KEY), Mapping):
         items.append(_dynamic_item(ctx))
     return items
@@ -130,8 +147,9 @@ def _wrench(summary: Mapping[str, Any]) -> np.ndarray:
     try:
         return np.r_[np.asarray(w["F_N"], float), np.asarray(w["M_Nm"], float)]
     except (KeyError, TypeError, ValueError):
-        raise InputError("summary.json: wrench.F_N / wrench.M_Nm missing or not numeric; "
-                         "expected 3 + 3 numbers (N, N*m)") from None
+        raise InputError(
+            "summary.json: wrench.F_N / wrench.M_Nm missing or not numeric; expected 3 + 3 numbers (N, N*m)"
+        ) from None
 
 
 def path_length_mm(P: np.ndarray) -> np.ndarray:
@@ -158,70 +176,98 @@ def _wrap(text: str, width: int) -> str:
 
 # -------------------------------------------------------------------------- path figures 2-5
 def _stiffness_item(ctx: _Context) -> FigureItem:
-    item = FigureItem(FIGURE_NAMES[1], "Directional stiffness and load-induced error along the path",
-                      "Paper Figs. 6–7, against the path length (mm). (a) stiffness 1/(uᵀ C u) along "
-                      "base X, Y, Z in N/mm on a log axis (C: the translational compliance of the chosen "
-                      "posture); (b) TCP error under the load without compensation, per base axis and "
-                      "its norm (mm), at the exact deflected equilibrium.")
+    item = FigureItem(
+        FIGURE_NAMES[1],
+        "Directional stiffness and load-induced error along the path",
+        "Paper Figs. 6–7, against the path length (mm). (a) stiffness 1/(uᵀ C u) along "
+        "base X, Y, Z in N/mm on a log axis (C: the translational compliance of the chosen "
+        "posture); (b) TCP error under the load without compensation, per base axis and "
+        "its norm (mm), at the exact deflected equilibrium.",
+    )
     wp = ctx.wp
     if wp is None:
         item.absent = ctx.no_waypoints
     else:
-        item.job = job(plots.stiffness_error_figure, ctx.s_mm, _xyz(wp, "k"), _xyz(wp, "eb"),
-                       title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}; load: {ctx.load}", 130))
+        item.job = job(
+            plots.stiffness_error_figure,
+            ctx.s_mm,
+            _xyz(wp, "k"),
+            _xyz(wp, "eb"),
+            title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}; load: {ctx.load}", 130),
+        )
     return item
 
 
 def _compensation_item(ctx: _Context) -> FigureItem:
-    item = FigureItem(FIGURE_NAMES[2], "Compensation angle per joint along the path",
-                      "Paper Fig. 8. Δθ = q_command − q_target per joint against the path length: exact "
-                      "compensation (solid) and the paper's closed form q − K⁻¹Jᵀ(q)F, eqs. 32/47 (dashed); "
-                      "under each joint, the difference exact − closed form. Each panel has its own unit "
-                      "(deg, mdeg = 0.001°, µdeg = 10⁻⁶°) so every joint is readable.")
+    item = FigureItem(
+        FIGURE_NAMES[2],
+        "Compensation angle per joint along the path",
+        "Paper Fig. 8. Δθ = q_command − q_target per joint against the path length: exact "
+        "compensation (solid) and the paper's closed form q − K⁻¹Jᵀ(q)F, eqs. 32/47 (dashed); "
+        "under each joint, the difference exact − closed form. Each panel has its own unit "
+        "(deg, mdeg = 0.001°, µdeg = 10⁻⁶°) so every joint is readable.",
+    )
     wp = ctx.wp
     if wp is None:
         item.absent = ctx.no_waypoints
     else:
         qt = _joints(wp, "qt")
-        item.job = job(plots.compensation_figure, ctx.s_mm, _joints(wp, "qc") - qt,
-                       _joints(wp, "qf") - qt,
-                       title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}: joint compensation angles; "
-                                   f"load: {ctx.load}", 130))
+        item.job = job(
+            plots.compensation_figure,
+            ctx.s_mm,
+            _joints(wp, "qc") - qt,
+            _joints(wp, "qf") - qt,
+            title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}: joint compensation angles; load: {ctx.load}", 130),
+        )
     return item
 
 
 def _error_item(ctx: _Context) -> FigureItem:
-    item = FigureItem(FIGURE_NAMES[3], "TCP error before and after compensation",
-                      "Paper Figs. 9 and 13, against the path length. Top: error per base axis before "
-                      "compensation (solid) and after it (closed form dashed, exact dotted), mm; bottom: "
-                      "the residuals alone, µm. Errors at the exact deflected equilibrium; a residual below "
-                      f"{format_number(NUMERICAL_FLOOR_MM)} mm is 0 (numerical).")
+    item = FigureItem(
+        FIGURE_NAMES[3],
+        "TCP error before and after compensation",
+        "Paper Figs. 9 and 13, against the path length. Top: error per base axis before "
+        "compensation (solid) and after it (closed form dashed, exact dotted), mm; bottom: "
+        "the residuals alone, µm. Errors at the exact deflected equilibrium; a residual below "
+        f"{format_number(NUMERICAL_FLOOR_MM)} mm is 0 (numerical).",
+    )
     wp = ctx.wp
     if wp is None:
         item.absent = ctx.no_waypoints
         return item
     eb, ef, ee = _xyz(wp, "eb"), _xyz(wp, "ef"), _xyz(wp, "ee")
-    stats = (f"max |Δ|: before {mm_text(np.linalg.norm(eb, axis=1).max() * 1e3)}, after closed form "
-             f"{mm_text(np.linalg.norm(ef, axis=1).max() * 1e3)}, after exact "
-             f"{mm_text(np.linalg.norm(ee, axis=1).max() * 1e3)}")
-    item.job = job(plots.error_before_after_figure, ctx.s_mm, eb, ef, ee,
-                   title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}; load: {ctx.load}", 130) + f"\n{stats}")
+    stats = (
+        f"max |Δ|: before {mm_text(np.linalg.norm(eb, axis=1).max() * 1e3)}, after closed form "
+        f"{mm_text(np.linalg.norm(ef, axis=1).max() * 1e3)}, after exact "
+        f"{mm_text(np.linalg.norm(ee, axis=1).max() * 1e3)}"
+    )
+    item.job = job(
+        plots.error_before_after_figure,
+        ctx.s_mm,
+        eb,
+        ef,
+        ee,
+        title=_wrap(f"{ctx.robot_name}, branch {ctx.branch}; load: {ctx.load}", 130) + f"\n{stats}",
+    )
     return item
 
 
 def _rms(v: np.ndarray) -> float:
     v = np.asarray(v, float)
-    return float(np.sqrt(np.mean(v ** 2))) if np.isfinite(v).all() and v.size else float("nan")
+    return float(np.sqrt(np.mean(v**2))) if np.isfinite(v).all() and v.size else float("nan")
 
 
 def _branch_item(ctx: _Context) -> FigureItem:
-    item = FigureItem(FIGURE_NAMES[4], "Branch comparison",
-                      "(a) RMS load-induced TCP error of every IK branch (exact deflected equilibrium, "
-                      "from branches.csv: the measure of the error table; the branch table's first-order "
-                      "values differ by the second-order terms); branches that cannot follow the path are "
-                      "marked not feasible. (b) The error along the path of the chosen branch and of the "
-                      "default branch (the one nearest the home pose). "
-                      + legend(list((ctx.run.summary or {}).get("branches") or [])))
+    item = FigureItem(
+        FIGURE_NAMES[4],
+        "Branch comparison",
+        "(a) RMS load-induced TCP error of every IK branch (exact deflected equilibrium, "
+        "from branches.csv: the measure of the error table; the branch table's first-order "
+        "values differ by the second-order terms); branches that cannot follow the path are "
+        "marked not feasible. (b) The error along the path of the chosen branch and of the "
+        "default branch (the one nearest the home pose). "
+        + legend(list((ctx.run.summary or {}).get("branches") or [])),
+    )
     run = ctx.run
     if run.branches is None:
         item.absent = run.absent.get("branches", "branches.csv absent")
@@ -236,7 +282,7 @@ def _branch_item(ctx: _Context) -> FigureItem:
     s = run.summary
     rej = s.get("rejected_branches") or {}
     chosen, default = ctx.branch, s.get("default_branch")
-    order = [str(lab) for lab in (s.get("branch_labels") or BRANCH_LABELS)]   # the IK family's order
+    order = [str(lab) for lab in (s.get("branch_labels") or BRANCH_LABELS)]  # the IK family's order
     known = [lab for lab in order if lab in ana or lab in rej]
     labels = known + sorted(lab for lab in set(ana) | set(rej) if lab not in known)
     labels = [lab for lab in labels if lab in ana or lab in rej]
@@ -254,35 +300,47 @@ def _branch_item(ctx: _Context) -> FigureItem:
             info = (s.get("branches") or {}).get(lab) or {}
             what = "IK solution (fixed orientation)" if info.get("status") == "no_freedom" else "optimised posture"
             curves[f"{lab} ({kind}), {what}"] = opt[lab] * 1e3
-        if np.isfinite(ana[lab]).all() and (lab not in opt or not np.allclose(ana[lab], opt[lab], rtol=1e-9,
-                                                                               atol=1e-15)):
+        if np.isfinite(ana[lab]).all() and (
+            lab not in opt or not np.allclose(ana[lab], opt[lab], rtol=1e-9, atol=1e-15)
+        ):
             curves[f"{lab} ({kind}), analytic posture"] = ana[lab] * 1e3
     if default == chosen and chosen in ana:
         item.caption += " The chosen branch is the default one."
     by_reason: dict[str, list[str]] = {}
     for b, r in rej.items():
         by_reason.setdefault(str(r), []).append(str(b))
-    note = ("not feasible: " + "; ".join(f"{', '.join(bs)} ({r})" for r, bs in by_reason.items())
-            if rej else "")
+    note = "not feasible: " + "; ".join(f"{', '.join(bs)} ({r})" for r, bs in by_reason.items()) if rej else ""
     if not opt:
         item.caption += " No optimised postures in this run."
-    item.job = job(plots.branch_figure, labels, np.asarray(r_ana) * 1e3,
-                   None if r_opt is None else np.asarray(r_opt) * 1e3, {str(k): str(v) for k, v in rej.items()},
-                   x, curves, chosen, default, x_label=x_label,
-                   title=_wrap(f"{ctx.robot_name}: load-induced TCP error per IK branch; load: {ctx.load}", 130),
-                   note=_wrap(note, 160))
+    item.job = job(
+        plots.branch_figure,
+        labels,
+        np.asarray(r_ana) * 1e3,
+        None if r_opt is None else np.asarray(r_opt) * 1e3,
+        {str(k): str(v) for k, v in rej.items()},
+        x,
+        curves,
+        chosen,
+        default,
+        x_label=x_label,
+        title=_wrap(f"{ctx.robot_name}: load-induced TCP error per IK branch; load: {ctx.load}", 130),
+        note=_wrap(note, 160),
+    )
     return item
 
 
 # ----------------------------------------------------------------------------- 6. trajectory
 def _trajectory_item(ctx: _Context) -> FigureItem:
-    item = FigureItem(FIGURE_NAMES[5], "Trajectory: q, q̇, q̈ and jerk against time",
-                      "Joint position, velocity, acceleration and jerk (the qddd columns of the "
-                      "trajectory file, as the timing computed them) for each timing method, with "
-                      "the limits dashed; the methods share the time axis and, per row, the value axis. "
-                      "The jerk row shows at most "
-                      f"{format_number(plots.JERK_VIEW_LIMITS)}× the jerk limit; a method that does not "
-                      "limit jerk (TOPP-RA) is cut off there and its peak is written on the panel.")
+    item = FigureItem(
+        FIGURE_NAMES[5],
+        "Trajectory: q, q̇, q̈ and jerk against time",
+        "Joint position, velocity, acceleration and jerk (the qddd columns of the "
+        "trajectory file, as the timing computed them) for each timing method, with "
+        "the limits dashed; the methods share the time axis and, per row, the value axis. "
+        "The jerk row shows at most "
+        f"{format_number(plots.JERK_VIEW_LIMITS)}× the jerk limit; a method that does not "
+        "limit jerk (TOPP-RA) is cut off there and its peak is written on the panel.",
+    )
     run, s = ctx.run, ctx.run.summary
     if not run.trajectories:
         item.absent = run.absent.get("trajectory", "no trajectory in this run")
@@ -300,15 +358,21 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
     missing = [method_name(s, m) for m in method_order() if m not in run.trajectories]
     if missing:
         item.caption += f" No {', '.join(missing)} trajectory in this run."
-    item.job = job(plots.trajectory_figure, trajs, limits,
-                   title=f"{ctx.robot_name}: joint trajectories", headers=headers)
+    item.job = job(
+        plots.trajectory_figure, trajs, limits, title=f"{ctx.robot_name}: joint trajectories", headers=headers
+    )
     return item
 
 
 def _limits(run: Run) -> tuple[dict[str, np.ndarray | None], str]:
     """The limits drawn in figure 6 (summary.json's, else the robot file's) and where from."""
-    lim: dict[str, np.ndarray | None] = {"q_min": None, "q_max": None, "velocity": None,
-                                         "acceleration": None, "jerk": None}
+    lim: dict[str, np.ndarray | None] = {
+        "q_min": None,
+        "q_max": None,
+        "velocity": None,
+        "acceleration": None,
+        "jerk": None,
+    }
     src = []
     given = run.summary.get("limits")
     if isinstance(given, Mapping):
@@ -325,16 +389,20 @@ def _limits(run: Run) -> tuple[dict[str, np.ndarray | None], str]:
             src.append(f"{', '.join(found)} from summary.json limits")
     if run.robot is not None:
         r = run.robot
-        for k, v in (("q_min", r.q_min), ("q_max", r.q_max), ("velocity", r.v_max),
-                     ("acceleration", r.a_max), ("jerk", r.j_max)):
+        for k, v in (
+            ("q_min", r.q_min),
+            ("q_max", r.q_max),
+            ("velocity", r.v_max),
+            ("acceleration", r.a_max),
+            ("jerk", r.j_max),
+        ):
             if lim[k] is None:
                 lim[k] = v
                 src.append(f"{k} from the robot file")
     return lim, "; ".join(src) or "none available"
 
 
-def _traj_header(s: Mapping[str, Any], method: str, pretty: str, fname: str,
-                 tr: Mapping[str, Any]) -> str:
+def _traj_header(s: Mapping[str, Any], method: str, pretty: str, fname: str, tr: Mapping[str, Any]) -> str:
     """Column title of one method in figure 6: file, duration, peak limit ratios."""
     dur = s.get("duration_s")
     d = dur.get(method) if isinstance(dur, Mapping) else None
@@ -376,7 +444,7 @@ def _polylines(model: KinematicModel, q: np.ndarray) -> tuple[np.ndarray, list[i
     origin and, where a link has an offset d along the previous joint axis, the point
     that offset reaches) to the TCP: the links as straight segments between joint centres.
     """
-    frames = model.batch(model.fk_frames, q)          # 6 x (P, 4, 4)
+    frames = model.batch(model.fk_frames, q)  # 6 x (P, 4, 4)
     tcp = model.tcp(q)[:, :3, 3]
     P = len(q)
     pts = [np.zeros((P, 3))]
@@ -384,9 +452,9 @@ def _polylines(model: KinematicModel, q: np.ndarray) -> tuple[np.ndarray, list[i
     d = model.robot.d
     for i, Tf in enumerate(frames):
         if model.robot.convention == "standard_dh" and abs(d[i]) > 0:
-            pts.append(prev_o + d[i] * prev_z)         # the d_i offset along z_{i-1}
+            pts.append(prev_o + d[i] * prev_z)  # the d_i offset along z_{i-1}
         o = Tf[:, :3, 3]
-        if not np.allclose(o, pts[-1], atol=1e-12):     # a zero-length link adds no point
+        if not np.allclose(o, pts[-1], atol=1e-12):  # a zero-length link adds no point
             pts.append(o)
         prev_o, prev_z = o, Tf[:, :3, 2]
     if not np.allclose(tcp, pts[-1], atol=1e-12):
@@ -403,27 +471,30 @@ def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tupl
     equilibrium reached from ``q_command`` is ``q_target``): the deflection the whole load
     (wrench in its frame, payload) causes at ``q_target``, whatever the load's kind.
     """
-    model = run.model.kinematics                       # type: ignore[union-attr]
+    model = run.model.kinematics  # type: ignore[union-attr]
     qt, qc = _joints(wp, "qt"), _joints(wp, "qc")
     n = len(qt)
     idx = np.unique(np.round(np.linspace(0, n - 1, min(ARM_POSES, n))).astype(int))
-    dq = qt[idx] - qc[idx]                              # joint deflection under the load, rad
+    dq = qt[idx] - qc[idx]  # joint deflection under the load, rad
     eb = _xyz(wp, "eb")
     true_max = float(np.linalg.norm(eb, axis=1).max())
     factor = plots.nice_factor(true_max)
     nominal, joints = _polylines(model, qt[idx])
     deflected, _ = _polylines(model, qt[idx] + factor * dq)
     labels = [f"k = {int(wp['k'][i])}" for i in idx]
-    title = (f"{run.summary.get('robot', '?')}, branch {branch}: the arm at the start, middle and end of the path"
-             "\n" + _wrap(f"load: {load}; true TCP deflection up to {format_number(true_max * 1e3)} mm, "
-                          f"drawn ×{factor:g}", 115))
-    jb = job(plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title,
-             joint_index=joints)
-    caption = (f"The arm as its links (straight segments between joint centres: the DH frame origins and "
-               f"the link offsets along the joint axes) at {len(idx)} waypoints, equal scale on x, y, z: the "
-               f"planned pose q_target that puts the TCP on the path (solid), and the same joint angles "
-               f"under the load without compensation (dashed), their joint deflection q_target − q_command "
-               f"exaggerated ×{factor:g}.")
+    title = (
+        f"{run.summary.get('robot', '?')}, branch {branch}: the arm at the start, middle and end of the path"
+        "\n"
+        + _wrap(f"load: {load}; true TCP deflection up to {format_number(true_max * 1e3)} mm, drawn ×{factor:g}", 115)
+    )
+    jb = job(plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title, joint_index=joints)
+    caption = (
+        f"The arm as its links (straight segments between joint centres: the DH frame origins and "
+        f"the link offsets along the joint axes) at {len(idx)} waypoints, equal scale on x, y, z: the "
+        f"planned pose q_target that puts the TCP on the path (solid), and the same joint angles "
+        f"under the load without compensation (dashed), their joint deflection q_target − q_command "
+        f"exaggerated ×{factor:g}."
+    )
     return jb, caption
 
 
@@ -433,14 +504,17 @@ def _dynamic_item(ctx: _Context) -> FigureItem:
     compensation, and the planned TCP speed (``dynamic.csv``)."""
     run, s = ctx.run, ctx.run.summary
     entry = s.get(DYNAMIC_KEY) or {}
-    item = FigureItem(DYNAMIC_FIGURE, "TCP deviation from the planned path against time (dynamic compensation)",
-                      "Predicted (quasi-static) TCP position error against the planned link side at every "
-                      "command sample, in µm on a log axis: the link plan commanded as is (none), with the "
-                      "static compensation only, and with the motor-side command of the dynamic compensation "
-                      "(static + dynamic), which also makes the joints carry the inertial torques; below, the "
-                      "planned TCP speed (m/s) on the same time axis. Grey: the arm at rest. Vibrations are "
-                      f"not included. Data: {entry.get('file') or 'dynamic.csv'}; max and RMS in the table "
-                      "'Dynamic compensation'.")
+    item = FigureItem(
+        DYNAMIC_FIGURE,
+        "TCP deviation from the planned path against time (dynamic compensation)",
+        "Predicted (quasi-static) TCP position error against the planned link side at every "
+        "command sample, in µm on a log axis: the link plan commanded as is (none), with the "
+        "static compensation only, and with the motor-side command of the dynamic compensation "
+        "(static + dynamic), which also makes the joints carry the inertial torques; below, the "
+        "planned TCP speed (m/s) on the same time axis. Grey: the arm at rest. Vibrations are "
+        f"not included. Data: {entry.get('file') or 'dynamic.csv'}; max and RMS in the table "
+        "'Dynamic compensation'.",
+    )
     d = run.dynamic
     if d is None:
         item.absent = run.absent.get("dynamic", "dynamic compensation: dynamic.csv absent in this run")
@@ -450,14 +524,30 @@ def _dynamic_item(ctx: _Context) -> FigureItem:
         return item
     passes = entry.get("passes")
     scale = entry.get("limit_scale") if isinstance(entry.get("limit_scale"), Mapping) else {}
-    parts = [f"{passes} timing pass{'' if passes == 1 else 'es'}" if passes is not None else "",
-             ("limits scaled " + ", ".join(f"{k} ×{format_number(float(v), 3)}" for k, v in scale.items()
-                                           if isinstance(v, (int, float))) if scale else ""),
-             (f"dynamic part smoothed over {format_number(1e3 * float(entry['smoothing_s']))} ms"
-              if isinstance(entry.get("smoothing_s"), (int, float)) else "")]
+    parts = [
+        f"{passes} timing pass{'' if passes == 1 else 'es'}" if passes is not None else "",
+        (
+            "limits scaled "
+            + ", ".join(f"{k} ×{format_number(float(v), 3)}" for k, v in scale.items() if isinstance(v, (int, float)))
+            if scale
+            else ""
+        ),
+        (
+            f"dynamic part smoothed over {format_number(1e3 * float(entry['smoothing_s']))} ms"
+            if isinstance(entry.get("smoothing_s"), (int, float))
+            else ""
+        ),
+    ]
     sub = "; ".join(p for p in parts if p)
-    title = _wrap(f"{ctx.robot_name}, branch {ctx.branch}: TCP deviation from the planned path; load: {ctx.load}",
-                  130) + (f"\n{sub}" if sub else "")
-    item.job = job(dynamic_plot.dynamic_figure, d["t"], d["moving"],
-                   (d["e_none_m"], d["e_static_m"], d["e_static_dynamic_m"]), d["tcp_speed_m_s"], title=title)
+    title = _wrap(
+        f"{ctx.robot_name}, branch {ctx.branch}: TCP deviation from the planned path; load: {ctx.load}", 130
+    ) + (f"\n{sub}" if sub else "")
+    item.job = job(
+        dynamic_plot.dynamic_figure,
+        d["t"],
+        d["moving"],
+        (d["e_none_m"], d["e_static_m"], d["e_static_dynamic_m"]),
+        d["tcp_speed_m_s"],
+        title=title,
+    )
     return item

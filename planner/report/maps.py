@@ -24,7 +24,8 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -33,8 +34,7 @@ from models.arm import ArmModel
 from models.errors import CompplanError
 from models.ik import IK_REASONS, IKStatus
 
-from planner.compliance_map import (DEFAULT_POINTS, PLANE_AXES, ComplianceMap, GridCounts, ProgressFn,
-                                    compliance_map)
+from planner.compliance_map import DEFAULT_POINTS, PLANE_AXES, ComplianceMap, GridCounts, ProgressFn, compliance_map
 from planner.numbers import format_number
 from planner.output import OutputSet, atomic_write_bytes, json_bytes
 from planner.provenance import provenance, robot_input
@@ -113,26 +113,34 @@ def path_plane(P: np.ndarray) -> PathPlane:
     c = P.mean(axis=0)
     X = P - c
     _, S, Vt = np.linalg.svd(X, full_matrices=True) if len(P) > 1 else (None, np.zeros(3), np.eye(3))
-    if S[0] <= 0.0:                                    # one point
+    if S[0] <= 0.0:  # one point
         n = np.array([0.0, 1.0, 0.0])
-    elif len(S) < 2 or S[1] <= PATH_LINE_REL_TOL * S[0]:   # a straight line: the vertical plane through it
+    elif len(S) < 2 or S[1] <= PATH_LINE_REL_TOL * S[0]:  # a straight line: the vertical plane through it
         d = Vt[0]
         up = np.array([0.0, 0.0, 1.0]) - d * d[2]
-        if np.linalg.norm(up) < 1e-9:                  # a vertical line: the x-z plane through it
+        if np.linalg.norm(up) < 1e-9:  # a vertical line: the x-z plane through it
             up = np.array([1.0, 0.0, 0.0]) - d * d[0]
         n = np.cross(d, up / np.linalg.norm(up))
     else:
         n = Vt[2] if len(Vt) > 2 else np.cross(Vt[0], Vt[1])
     n = n / np.linalg.norm(n)
     axis = int(np.argmax(np.abs(n)))
-    if abs(abs(n[axis]) - 1.0) <= AXIS_ALIGNED_TOL:     # axis-aligned: base coordinates in the plane
+    if abs(abs(n[axis]) - 1.0) <= AXIS_ALIGNED_TOL:  # axis-aligned: base coordinates in the plane
         _, iu, iv = PLANE_AXES[_AXIS_NAMES[axis]]
         e_u, e_v = np.eye(3)[iu], np.eye(3)[iv]
         origin = np.zeros(3)
         origin[axis] = c[axis]
         off = float(np.max(np.abs(P[:, axis] - c[axis])))
-        return PathPlane(origin, e_u, e_v, np.eye(3)[axis], _AXIS_NAMES[iu], _AXIS_NAMES[iv],
-                         f"{_AXIS_NAMES[axis]} = {format_number(float(c[axis]))} m", off)
+        return PathPlane(
+            origin,
+            e_u,
+            e_v,
+            np.eye(3)[axis],
+            _AXIS_NAMES[iu],
+            _AXIS_NAMES[iv],
+            f"{_AXIS_NAMES[axis]} = {format_number(float(c[axis]))} m",
+            off,
+        )
     e_u = Vt[0] if S[0] > 0 else np.array([1.0, 0.0, 0.0])
     e_u = e_u - n * float(e_u @ n)
     e_u /= np.linalg.norm(e_u)
@@ -143,8 +151,7 @@ def path_plane(P: np.ndarray) -> PathPlane:
         e_v, n = -e_v, -n
     off = float(np.max(np.abs(X @ n)))
     kind = "the vertical plane through the path" if abs(n[2]) < 1e-9 else "the plane of the path"
-    desc = (f"{kind}: origin at its first waypoint {_vec(P[0])} m, u along {_vec(e_u)}, "
-            f"v along {_vec(e_v)} (base frame)")
+    desc = f"{kind}: origin at its first waypoint {_vec(P[0])} m, u along {_vec(e_u)}, v along {_vec(e_v)} (base frame)"
     v_label = "v, upwards" if abs(n[2]) < 1e-9 and e_v[2] > 0 else "v, across the path"
     return PathPlane(P[0].copy(), e_u, e_v, n, "u, along the path", v_label, desc, off)
 
@@ -187,10 +194,12 @@ class PlaneMap(GridCounts):
         """``compliance_map.csv``: u, v (m, in the plane), x, y, z (m, base frame), branch index
         (-1 unreachable), C11..C33 (m/N), C44..C66 (rad/(N*m))."""
         import io
+
         P = self.plane.points(self.u_m, self.v_m)
         U, V = np.meshgrid(self.u_m, self.v_m, indexing="ij")
         cols = ["u_m", "v_m", "x_m", "y_m", "z_m", "branch"] + [
-            f"C{i}{i}_{'m_per_N' if i <= 3 else 'rad_per_Nm'}" for i in range(1, 7)]
+            f"C{i}{i}_{'m_per_N' if i <= 3 else 'rad_per_Nm'}" for i in range(1, 7)
+        ]
         rows = np.column_stack([U.ravel(), V.ravel(), P, self.branch.ravel(), self.diag.reshape(-1, 6)])
         buf = io.StringIO()
         buf.write(",".join(cols) + "\n")
@@ -202,8 +211,14 @@ def _grid(lo: float, hi: float, n: int) -> np.ndarray:
     return np.linspace(lo, hi, max(2, int(n)))
 
 
-def path_plane_map(robot: "Robot | ArmModel", P: np.ndarray, R: np.ndarray, branch: str,
-                   points: int = DEFAULT_POINTS, progress: ProgressFn | None = None) -> PlaneMap:
+def path_plane_map(
+    robot: Robot | ArmModel,
+    P: np.ndarray,
+    R: np.ndarray,
+    branch: str,
+    points: int = DEFAULT_POINTS,
+    progress: ProgressFn | None = None,
+) -> PlaneMap:
     """Diagonal compliance over the plane of the path ``P`` (N, 3), at attitude ``R``, on one branch.
 
     ``robot``: the arm model whose compliance is mapped (a :class:`Robot` stands for its nominal
@@ -220,7 +235,7 @@ def path_plane_map(robot: "Robot | ArmModel", P: np.ndarray, R: np.ndarray, bran
     ext = float(np.max(hi - lo))
     m = max(PATH_MAP_MIN_MARGIN_M, PATH_MAP_MARGIN * ext)
     lo, hi = lo - m, hi + m
-    short = int(np.argmin(hi - lo))                    # keep the grid at least PATH_MAP_MIN_ASPECT : 1
+    short = int(np.argmin(hi - lo))  # keep the grid at least PATH_MAP_MIN_ASPECT : 1
     want = PATH_MAP_MIN_ASPECT * float(np.max(hi - lo))
     if hi[short] - lo[short] < want:
         mid = 0.5 * (hi[short] + lo[short])
@@ -232,8 +247,9 @@ def path_plane_map(robot: "Robot | ArmModel", P: np.ndarray, R: np.ndarray, bran
     arm = load_arm(robot)
     labels = arm.ik.labels
     b = labels.index(branch) if branch in labels else None
-    q, chosen, diag, status_ref = _evaluate_grid(arm, plane.points(u, v), np.asarray(R, float), b,
-                                                 max(1, len(u) * len(v)), progress)
+    q, chosen, diag, status_ref = _evaluate_grid(
+        arm, plane.points(u, v), np.asarray(R, float), b, max(1, len(u) * len(v)), progress
+    )
     reasons: dict[str, int] = {}
     bad = chosen < 0
     if bad.any():
@@ -241,31 +257,58 @@ def path_plane_map(robot: "Robot | ArmModel", P: np.ndarray, R: np.ndarray, bran
         for c_, k in zip(codes, counts):
             reasons[IK_REASONS[IKStatus.from_code(c_)]] = int(k)
     shape = (len(u), len(v))
-    return PlaneMap(arm.nominal.name, plane, u, v, np.asarray(R, float), branch if b is not None else "home",
-                    chosen.reshape(shape), diag.reshape(shape + (6,)), reasons, labels)
+    return PlaneMap(
+        arm.nominal.name,
+        plane,
+        u,
+        v,
+        np.asarray(R, float),
+        branch if b is not None else "home",
+        chosen.reshape(shape),
+        diag.reshape(shape + (6,)),
+        reasons,
+        labels,
+    )
 
 
 def _path_map_job(pm: PlaneMap, path: np.ndarray, k_mid: int) -> tuple[Job, str]:
     """The figure job and caption of a path-plane map."""
     rpy = _rpy_deg(pm.R)
     n_bad = pm.n_unreachable
-    on = ("the path lies in this plane" if pm.plane.off_plane_m < 1e-6
-          else f"the path is up to {format_number(pm.plane.off_plane_m * 1e3)} mm off this best-fit plane")
-    title = (f"{pm.robot}: diagonal compliance over the plane of the path ({len(pm.u_m)}×{len(pm.v_m)} points); "
-             f"{on}\n{pm.plane.description}\n"
-             f"TCP attitude of waypoint k = {k_mid} (roll, pitch, yaw = {', '.join(format_number(a, 3) for a in rpy)} "
-             f"deg), branch {pm.branch_label} at every point; {n_bad} of {pm.n_points} points outside its "
-             "reach at this attitude (hatched)")
-    jb = job(plots.compliance_map_figure, pm.u_m, pm.v_m, pm.diag, u_label=pm.plane.u_label,
-             v_label=pm.plane.v_label, title=title, branch=pm.branch, branch_labels=pm.labels,
-             path_uv_m=pm.plane.uv(path), path_label="the run's path (● first waypoint, ▶ last)")
+    on = (
+        "the path lies in this plane"
+        if pm.plane.off_plane_m < 1e-6
+        else f"the path is up to {format_number(pm.plane.off_plane_m * 1e3)} mm off this best-fit plane"
+    )
+    title = (
+        f"{pm.robot}: diagonal compliance over the plane of the path ({len(pm.u_m)}×{len(pm.v_m)} points); "
+        f"{on}\n{pm.plane.description}\n"
+        f"TCP attitude of waypoint k = {k_mid} (roll, pitch, yaw = {', '.join(format_number(a, 3) for a in rpy)} "
+        f"deg), branch {pm.branch_label} at every point; {n_bad} of {pm.n_points} points outside its "
+        "reach at this attitude (hatched)"
+    )
+    jb = job(
+        plots.compliance_map_figure,
+        pm.u_m,
+        pm.v_m,
+        pm.diag,
+        u_label=pm.plane.u_label,
+        v_label=pm.plane.v_label,
+        title=title,
+        branch=pm.branch,
+        branch_labels=pm.labels,
+        path_uv_m=pm.plane.uv(path),
+        path_label="the run's path (● first waypoint, ▶ last)",
+    )
     reasons = "; ".join(f"{k}: {v}" for k, v in pm.unreachable_reasons.items())
-    caption = (f"Paper Fig. 5, over the plane of this run's path with the path drawn on it (red). "
-               f"C11–C33: translational compliance along base x, y, z (mm/N); C44–C66: rotational "
-               f"compliance (deg/(N·m)). Every grid point is solved on the run's branch {pm.branch_label} at "
-               f"the TCP attitude of waypoint k = {k_mid}; {n_bad} of {pm.n_points} points are outside its "
-               f"reach (hatched){' — ' + reasons if reasons else ''}. Data: compliance_map.csv (SI; u, v in "
-               "the plane and x, y, z in the base frame).")
+    caption = (
+        f"Paper Fig. 5, over the plane of this run's path with the path drawn on it (red). "
+        f"C11–C33: translational compliance along base x, y, z (mm/N); C44–C66: rotational "
+        f"compliance (deg/(N·m)). Every grid point is solved on the run's branch {pm.branch_label} at "
+        f"the TCP attitude of waypoint k = {k_mid}; {n_bad} of {pm.n_points} points are outside its "
+        f"reach (hatched){' — ' + reasons if reasons else ''}. Data: compliance_map.csv (SI; u, v in "
+        "the plane and x, y, z in the base frame)."
+    )
     return jb, caption
 
 
@@ -282,16 +325,21 @@ def map_job(cm: ComplianceMap, path: np.ndarray | None = None) -> tuple[Job, str
     """The figure job and caption of an axis-aligned compliance map (``compplan map``; a report
     with explicit map options), with the run's ``path`` (N, 3), m, projected onto the plane."""
     used = cm.branches_used()
-    rule = ("per point, the IK branch nearest the home configuration" if cm.branch_rule == "home"
-            else f"fixed branch {cm.branch_rule}")
-    title = (f"{cm.robot}: diagonal compliance over the plane {cm.plane} = {cm.offset_m:g} m, "
-             f"{cm.u_axis} ∈ [{cm.u_m[0]:g}, {cm.u_m[-1]:g}] m, "
-             f"{cm.v_axis} ∈ [{cm.v_m[0]:g}, {cm.v_m[-1]:g}] m "
-             f"({len(cm.u_m)}×{len(cm.v_m)} points)\n"
-             f"end attitude (roll, pitch, yaw) = ({', '.join(f'{a:g}' for a in cm.rpy_rad)}) rad, "
-             f"R = Rz(yaw)·Ry(pitch)·Rx(roll)\n"
-             f"branch: {rule} ({', '.join(f'{k} at {v} points' for k, v in used.items()) or 'none'}); "
-             f"{cm.n_unreachable} of {cm.n_points} points unreachable (hatched)")
+    rule = (
+        "per point, the IK branch nearest the home configuration"
+        if cm.branch_rule == "home"
+        else f"fixed branch {cm.branch_rule}"
+    )
+    title = (
+        f"{cm.robot}: diagonal compliance over the plane {cm.plane} = {cm.offset_m:g} m, "
+        f"{cm.u_axis} ∈ [{cm.u_m[0]:g}, {cm.u_m[-1]:g}] m, "
+        f"{cm.v_axis} ∈ [{cm.v_m[0]:g}, {cm.v_m[-1]:g}] m "
+        f"({len(cm.u_m)}×{len(cm.v_m)} points)\n"
+        f"end attitude (roll, pitch, yaw) = ({', '.join(f'{a:g}' for a in cm.rpy_rad)}) rad, "
+        f"R = Rz(yaw)·Ry(pitch)·Rx(roll)\n"
+        f"branch: {rule} ({', '.join(f'{k} at {v} points' for k, v in used.items()) or 'none'}); "
+        f"{cm.n_unreachable} of {cm.n_points} points unreachable (hatched)"
+    )
     path_uv, path_label, path_note = None, "", ""
     if path is not None and len(path):
         n_axis, iu, iv = PLANE_AXES[cm.plane]
@@ -300,18 +348,32 @@ def map_job(cm: ComplianceMap, path: np.ndarray | None = None) -> tuple[Job, str
         off = P[:, n_axis] - cm.offset_m
         lo, hi = float(off.min()) * 1e3, float(off.max()) * 1e3
         path_label = "the run's path, projected onto the plane (● first waypoint, ▶ last)"
-        path_note = (" The run's path is drawn projected onto the plane; it lies "
-                     + ("in the plane." if max(abs(lo), abs(hi)) < 1e-3 else
-                        f"{format_number(lo)} to {format_number(hi)} mm from it along {cm.plane}: the "
-                        "compliance along the path differs from the map's."))
-    jb = job(plots.compliance_map_figure, cm.u_m, cm.v_m, cm.diag, u_label=cm.u_axis,
-             v_label=cm.v_axis, title=title, branch=cm.branch, branch_labels=cm.labels,
-             path_uv_m=path_uv, path_label=path_label)
+        path_note = " The run's path is drawn projected onto the plane; it lies " + (
+            "in the plane."
+            if max(abs(lo), abs(hi)) < 1e-3
+            else f"{format_number(lo)} to {format_number(hi)} mm from it along {cm.plane}: the "
+            "compliance along the path differs from the map's."
+        )
+    jb = job(
+        plots.compliance_map_figure,
+        cm.u_m,
+        cm.v_m,
+        cm.diag,
+        u_label=cm.u_axis,
+        v_label=cm.v_axis,
+        title=title,
+        branch=cm.branch,
+        branch_labels=cm.labels,
+        path_uv_m=path_uv,
+        path_label=path_label,
+    )
     reasons = "; ".join(f"{k}: {v}" for k, v in cm.unreachable_reasons.items())
-    caption = (f"Paper Fig. 5. C11–C33: translational compliance (mm/N); C44–C66: rotational "
-               f"compliance (deg/(N·m)). {cm.n_unreachable} of {cm.n_points} grid points "
-               f"unreachable (hatched){' — ' + reasons if reasons else ''}. "
-               f"Branch: {rule}. Data: compliance_map.csv (SI).{path_note}")
+    caption = (
+        f"Paper Fig. 5. C11–C33: translational compliance (mm/N); C44–C66: rotational "
+        f"compliance (deg/(N·m)). {cm.n_unreachable} of {cm.n_points} grid points "
+        f"unreachable (hatched){' — ' + reasons if reasons else ''}. "
+        f"Branch: {rule}. Data: compliance_map.csv (SI).{path_note}"
+    )
     return jb, caption
 
 
@@ -328,8 +390,13 @@ def _run_path(run: Run) -> tuple[np.ndarray, np.ndarray, int] | None:
     return P, R, int(wp["k"][k])
 
 
-def map_item(run: Run, map_options: Mapping[str, Any] | None | bool,
-             progress: ProgressFn | None, files: dict[str, bytes], map_cache: bool) -> FigureItem:
+def map_item(
+    run: Run,
+    map_options: Mapping[str, Any] | None | bool,
+    progress: ProgressFn | None,
+    files: dict[str, bytes],
+    map_cache: bool,
+) -> FigureItem:
     """Figure 1 of a report: from the cache, or computed here (its job still to render).
 
     The map is the run's arm model's (``run.model``: an identified model's, not its robot
@@ -351,9 +418,15 @@ def map_item(run: Run, map_options: Mapping[str, Any] | None | bool,
     branch = run.summary.get("chosen_branch", run.summary.get("branch"))
     path_mode = map_options is None and path is not None and isinstance(branch, str) and bool(branch)
     if path_mode:
-        P, R, k_mid = path                               # type: ignore[misc]
-        key_opts: dict[str, Any] = {"mode": "path plane", "path": P, "R": R, "branch": branch,
-                                    "points": DEFAULT_POINTS, "k_mid": k_mid}
+        P, R, k_mid = path  # type: ignore[misc]
+        key_opts: dict[str, Any] = {
+            "mode": "path plane",
+            "path": P,
+            "R": R,
+            "branch": branch,
+            "points": DEFAULT_POINTS,
+            "k_mid": k_mid,
+        }
     else:
         opts = dict(map_options or {})
         item.title = "Compliance maps C11…C66 over a plane (paper §4.3)"
@@ -390,18 +463,21 @@ def cache_rendered_maps(items: list[FigureItem], files: Mapping[str, bytes]) -> 
 
 # ------------------------------------------------------------------------------------ cache
 def _map_cache_dir(key: str) -> Path:
-    root = os.environ.get("COMPPLAN_CACHE") or os.path.join(os.path.expanduser("~"), ".cache",
-                                                              "compplan")
+    root = os.environ.get("COMPPLAN_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "compplan")
     return Path(root) / "maps" / key
 
 
 def _model_description(arm: ArmModel) -> dict[str, Any]:
     """Everything of an arm model its kinematic functions are built from (the cache key's part)."""
-    return arm.nominal.to_dict() | {"theta": arm.theta, "const": arm.planning_const,
-                                    "effects": list(arm.arm_effects), "temperature_C": arm.temperature_ref}
+    return arm.nominal.to_dict() | {
+        "theta": arm.theta,
+        "const": arm.planning_const,
+        "effects": list(arm.arm_effects),
+        "temperature_C": arm.temperature_ref,
+    }
 
 
-def _map_cache_key(robot: "Robot | ArmModel", map_options: Mapping[str, Any]) -> str:
+def _map_cache_key(robot: Robot | ArmModel, map_options: Mapping[str, Any]) -> str:
     """Hash of the arm model (a :class:`Robot`: its nominal one), the map options (defaults
     filled in), the drawing code and matplotlib."""
     import hashlib
@@ -411,13 +487,16 @@ def _map_cache_key(robot: "Robot | ArmModel", map_options: Mapping[str, Any]) ->
 
     from planner import compliance_map as cmod
     from planner import numbers
+
     sig = inspect.signature(cmod.compliance_map)
-    opts = {k: p.default for k, p in sig.parameters.items()
-            if p.default is not inspect.Parameter.empty and k not in ("progress", "chunk")}
+    opts = {
+        k: p.default
+        for k, p in sig.parameters.items()
+        if p.default is not inspect.Parameter.empty and k not in ("progress", "chunk")
+    }
     opts.update({k: v for k, v in map_options.items() if k not in ("progress", "chunk")})
     desc = _model_description(robot if isinstance(robot, ArmModel) else ArmModel.from_robot(robot))
-    blob = json.dumps({"robot": desc, "options": opts}, sort_keys=True,
-                      default=lambda o: np.asarray(o, float).tolist())
+    blob = json.dumps({"robot": desc, "options": opts}, sort_keys=True, default=lambda o: np.asarray(o, float).tolist())
     h = hashlib.sha256(blob.encode())
     for path in (plots.__file__, cmod.__file__, numbers.__file__, __file__):
         h.update(Path(path).read_bytes())
@@ -444,8 +523,9 @@ def _map_cache_put(key: str, png: bytes, pdf: bytes, csv_: bytes, caption: str) 
 
 
 # ------------------------------------------------------------------------------ compplan map
-def write_map(robot: Robot, folder: str | Path, progress: ProgressFn | None = None,
-              **options: Any) -> tuple[ComplianceMap, list[Path]]:
+def write_map(
+    robot: Robot, folder: str | Path, progress: ProgressFn | None = None, **options: Any
+) -> tuple[ComplianceMap, list[Path]]:
     """Compute a compliance map and write it (``compplan map``).
 
     Writes ``compliance_map.csv`` (SI), ``compliance_map.json`` (its provenance, what
@@ -473,6 +553,7 @@ def write_map(robot: Robot, folder: str | Path, progress: ProgressFn | None = No
     out = OutputSet(folder)
     out.add_bytes("compliance_map.csv", cm.csv_bytes())
     from models.arm import ArmModel
+
     src = robot.source if isinstance(robot, ArmModel) and robot.source else robot.name
     sha = robot.sha256 if isinstance(robot, ArmModel) else None
     prov = provenance([robot_input(src, sha256=sha or None)])

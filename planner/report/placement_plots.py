@@ -18,7 +18,8 @@ import io
 import math
 import textwrap
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any
+from collections.abc import Callable, Sequence
 
 import matplotlib
 import numpy as np
@@ -97,10 +98,12 @@ class MapFrame:
 
 def _styled(fn: Callable[..., Figure]) -> Callable[..., Figure]:
     """Build the figure under the report's :data:`~planner.report.plots.STYLE`."""
+
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Figure:
         with matplotlib.rc_context(STYLE):
             return fn(*args, **kwargs)
+
     return wrapper
 
 
@@ -108,8 +111,9 @@ def png(fig: Figure, dpi: int = PNG_DPI) -> bytes:
     """PNG bytes of ``fig`` (no software metadata, so the output is reproducible)."""
     buf = io.BytesIO()
     with matplotlib.rc_context(STYLE):
-        fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None},
-                    pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
+        fig.savefig(
+            buf, format="png", dpi=dpi, metadata={"Software": None}, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}
+        )
     return buf.getvalue()
 
 
@@ -171,8 +175,18 @@ def _infeasible_cells(ax: Any, frame: MapFrame, status: np.ndarray) -> None:
     for code, (_, hatch, _) in STATUS_STYLES.items():
         for j, row in enumerate(status == code):
             for a, b in _runs(row):
-                ax.add_patch(Rectangle((ext[0] + a * w, ext[2] + j * h), (b - a) * w, h, fill=False,
-                                       edgecolor=HATCH_COLOUR, hatch=hatch, linewidth=0, zorder=2))
+                ax.add_patch(
+                    Rectangle(
+                        (ext[0] + a * w, ext[2] + j * h),
+                        (b - a) * w,
+                        h,
+                        fill=False,
+                        edgecolor=HATCH_COLOUR,
+                        hatch=hatch,
+                        linewidth=0,
+                        zorder=2,
+                    )
+                )
 
 
 def _overlay(ax: Any, frame: MapFrame, marks: Sequence[tuple[int, float, float]]) -> None:
@@ -185,17 +199,35 @@ def _overlay(ax: Any, frame: MapFrame, marks: Sequence[tuple[int, float, float]]
         ax.plot(*p[-1], marker=">", color=PATH_COLOUR, mec="white", ms=6, zorder=7)
     ax.plot(0.0, 0.0, marker="*", ms=14, mfc="white", mec="black", mew=1.0, zorder=8, ls="none")
     for rank, x, y in marks:
-        ax.text(x, y, str(rank), ha="center", va="center", fontsize=8.5, fontweight="bold", zorder=9,
-                bbox={"boxstyle": "circle,pad=0.25", "facecolor": "white", "edgecolor": "black", "lw": 0.8})
+        ax.text(
+            x,
+            y,
+            str(rank),
+            ha="center",
+            va="center",
+            fontsize=8.5,
+            fontweight="bold",
+            zorder=9,
+            bbox={"boxstyle": "circle,pad=0.25", "facecolor": "white", "edgecolor": "black", "lw": 0.8},
+        )
 
 
 def _draw_panel(ax: Any, frame: MapFrame, panel: MapPanel, norm: Normalize, cmap: str) -> Any:
     """One map panel: the feasible values as colours, infeasible cells hatched, the overlay."""
     ext = cell_extent(frame)
-    im = ax.imshow(np.ma.masked_invalid(panel.values), origin="lower", extent=ext, cmap=cmap, norm=norm,
-                   interpolation="nearest", aspect="equal", zorder=1)
-    ax.add_patch(Rectangle((ext[0], ext[2]), ext[1] - ext[0], ext[3] - ext[2], fill=False,
-                           edgecolor="0.4", lw=0.6, zorder=3))
+    im = ax.imshow(
+        np.ma.masked_invalid(panel.values),
+        origin="lower",
+        extent=ext,
+        cmap=cmap,
+        norm=norm,
+        interpolation="nearest",
+        aspect="equal",
+        zorder=1,
+    )
+    ax.add_patch(
+        Rectangle((ext[0], ext[2]), ext[1] - ext[0], ext[3] - ext[2], fill=False, edgecolor="0.4", lw=0.6, zorder=3)
+    )
     _infeasible_cells(ax, frame, panel.status)
     _overlay(ax, frame, panel.marks)
     lim = view_limits(frame)
@@ -220,23 +252,27 @@ def _norm(values: Sequence[np.ndarray], extra: Sequence[float] = ()) -> Normaliz
     return Normalize(lo, hi)
 
 
-def _legend_handles(statuses: Sequence[int], counts: dict[int, int], baseline_label: str,
-                    marks_label: str) -> list[Any]:
+def _legend_handles(
+    statuses: Sequence[int], counts: dict[int, int], baseline_label: str, marks_label: str
+) -> list[Any]:
     """Legend proxies: path, problem as written, ranks, and each infeasible status present."""
-    hs: list[Any] = [Line2D([], [], color=PATH_COLOUR, lw=1.8, marker=">", ms=5,
-                            label="path x-y footprint (cell frame, ▶ end)"),
-                     Line2D([], [], ls="none", marker="*", ms=12, mfc="white", mec="black", label=baseline_label)]
+    hs: list[Any] = [
+        Line2D([], [], color=PATH_COLOUR, lw=1.8, marker=">", ms=5, label="path x-y footprint (cell frame, ▶ end)"),
+        Line2D([], [], ls="none", marker="*", ms=12, mfc="white", mec="black", label=baseline_label),
+    ]
     if marks_label:
         hs.append(Line2D([], [], ls="none", marker="o", ms=10, mfc="white", mec="black", label=marks_label))
     for code in statuses:
         face, hatch, text = STATUS_STYLES[code]
-        hs.append(Patch(facecolor=face, edgecolor=HATCH_COLOUR, hatch=hatch, lw=0,
-                        label=f"{text} ({counts.get(code, 0)})"))
+        hs.append(
+            Patch(facecolor=face, edgecolor=HATCH_COLOUR, hatch=hatch, lw=0, label=f"{text} ({counts.get(code, 0)})")
+        )
     return hs
 
 
-def _axes_grid(fig: Figure, nrows: int, ncols: int, box_in: tuple[float, float, float, float],
-               gap_in: tuple[float, float]) -> list[Any]:
+def _axes_grid(
+    fig: Figure, nrows: int, ncols: int, box_in: tuple[float, float, float, float], gap_in: tuple[float, float]
+) -> list[Any]:
     """Axes laid out in a grid inside ``box_in`` = (left, bottom, panel width, panel height), inches."""
     W, H = fig.get_size_inches()
     left, bottom, pw, ph = box_in
@@ -261,8 +297,9 @@ def _panel_size(frame: MapFrame, ncols: int, width_in: float) -> tuple[float, fl
 
 
 # ------------------------------------------------------------------------------- the figures
-def _colour_bar(fig: Figure, im: Any, rect_in: tuple[float, float, float, float], label: str,
-                mark: float | None = None) -> None:
+def _colour_bar(
+    fig: Figure, im: Any, rect_in: tuple[float, float, float, float], label: str, mark: float | None = None
+) -> None:
     """A colour bar in ``rect_in`` (left, bottom, width, height; inches), with an optional marked
     value (the problem as written's) drawn as a line across it and the map's ☆ beside it."""
     W, H = fig.get_size_inches()
@@ -274,13 +311,30 @@ def _colour_bar(fig: Figure, im: Any, rect_in: tuple[float, float, float, float]
     if mark is not None and im.norm.vmin <= mark <= im.norm.vmax:
         cax.axhline(mark, color="white", lw=2.6)
         cax.axhline(mark, color="black", lw=1.2)
-        cax.plot(-0.9, mark, transform=cax.get_yaxis_transform(), marker="*", ms=11, mfc="white", mec="black",
-                 clip_on=False, zorder=5)
+        cax.plot(
+            -0.9,
+            mark,
+            transform=cax.get_yaxis_transform(),
+            marker="*",
+            ms=11,
+            mfc="white",
+            mec="black",
+            clip_on=False,
+            zorder=5,
+        )
 
 
 @_styled
-def error_map_figure(frame: MapFrame, panels: Sequence[MapPanel], *, title: str, cbar_label: str,
-                     counts: dict[int, int], marks_label: str, baseline_value: float | None = None) -> Figure:
+def error_map_figure(
+    frame: MapFrame,
+    panels: Sequence[MapPanel],
+    *,
+    title: str,
+    cbar_label: str,
+    counts: dict[int, int],
+    marks_label: str,
+    baseline_value: float | None = None,
+) -> Figure:
     """Figure 1: the best branch's RMS load-induced TCP error over the base positions, one panel per
     (yaw, z, tilt), on one shared colour scale.
 
@@ -307,11 +361,11 @@ def error_map_figure(frame: MapFrame, panels: Sequence[MapPanel], *, title: str,
     left, gap_w, gap_h, top, bottom, right = 0.75, 0.6, 0.75, 0.85, 1.3, 1.55
     W = left + ncols * pw + (ncols - 1) * gap_w + right
     H = bottom + nrows * ph + (nrows - 1) * gap_h + top
-    left += max(0.0, MIN_WIDTH_IN - W) / 2                  # narrow maps centred in the minimum width
+    left += max(0.0, MIN_WIDTH_IN - W) / 2  # narrow maps centred in the minimum width
     fig = _new_figure(max(W, MIN_WIDTH_IN), H)
     axs = _axes_grid(fig, nrows, ncols, (left, bottom, pw, ph), (gap_w, gap_h))
     norm = _norm([p.values for p in panels])
-    if norm is not None and baseline_value is not None:      # the as-written value on the scale too
+    if norm is not None and baseline_value is not None:  # the as-written value on the scale too
         norm = _norm([p.values for p in panels], [baseline_value])
     im = None
     for i, ax in enumerate(axs):
@@ -320,9 +374,17 @@ def error_map_figure(frame: MapFrame, panels: Sequence[MapPanel], *, title: str,
             continue
         im = _draw_panel(ax, frame, panels[i], norm or Normalize(0, 1), ERROR_CMAP)
         if not np.isfinite(panels[i].values).any():
-            ax.text(0.5, 0.5, "no feasible placement" if norm is None else "no feasible placement\non this panel",
-                    transform=ax.transAxes, ha="center", va="center", fontsize=8,
-                    bbox={"facecolor": "white", "edgecolor": "0.5"}, zorder=10)
+            ax.text(
+                0.5,
+                0.5,
+                "no feasible placement" if norm is None else "no feasible placement\non this panel",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=8,
+                bbox={"facecolor": "white", "edgecolor": "0.5"},
+                zorder=10,
+            )
         if i % ncols == 0:
             ax.set_ylabel("base y [m]")
         if i >= n - ncols:
@@ -331,15 +393,21 @@ def error_map_figure(frame: MapFrame, panels: Sequence[MapPanel], *, title: str,
     if norm is not None and im is not None:
         _colour_bar(fig, im, (x_cb, bottom, 0.18, nrows * ph + (nrows - 1) * gap_h), cbar_label, baseline_value)
     present = [c for c in STATUS_STYLES if any((p.status == c).any() for p in panels)]
-    fig.legend(handles=_legend_handles(present, counts, frame.baseline_label, marks_label), loc="lower center",
-               ncol=min(3, 3 + len(present)), frameon=False, bbox_to_anchor=(0.5, 0.02))
+    fig.legend(
+        handles=_legend_handles(present, counts, frame.baseline_label, marks_label),
+        loc="lower center",
+        ncol=min(3, 3 + len(present)),
+        frameon=False,
+        bbox_to_anchor=(0.5, 0.02),
+    )
     fig.suptitle(title, y=1.0 - 0.12 / H, va="top")
     return fig
 
 
 @_styled
-def margin_map_figure(frame: MapFrame, joint: MapPanel, singular: MapPanel, *, title: str,
-                      counts: dict[int, int], marks_label: str) -> Figure:
+def margin_map_figure(
+    frame: MapFrame, joint: MapPanel, singular: MapPanel, *, title: str, counts: dict[int, int], marks_label: str
+) -> Figure:
     """Figure 2: joint-limit margin (deg) and singularity margin (ratio to the guard) over the base
     positions of one (yaw, z, tilt), side by side, each with its own colour bar (bright = more
     margin); infeasible cells hatched by status."""
@@ -356,13 +424,26 @@ def margin_map_figure(frame: MapFrame, joint: MapPanel, singular: MapPanel, *, t
         ax.set_xlabel("base x [m]")
         ax.set_ylabel("base y [m]")
         if norm is None:
-            ax.text(0.5, 0.5, "no feasible placement", transform=ax.transAxes, ha="center", va="center",
-                    bbox={"facecolor": "white", "edgecolor": "0.5"}, zorder=10)
+            ax.text(
+                0.5,
+                0.5,
+                "no feasible placement",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                bbox={"facecolor": "white", "edgecolor": "0.5"},
+                zorder=10,
+            )
             continue
         _colour_bar(fig, im, (left + k * (pw + gap_w) + pw + 0.12, bottom, 0.16, ph), label)
     present = [c for c in STATUS_STYLES if (joint.status == c).any()]
-    fig.legend(handles=_legend_handles(present, counts, frame.baseline_label, marks_label), loc="lower center",
-               ncol=3, frameon=False, bbox_to_anchor=(0.5, 0.02))
+    fig.legend(
+        handles=_legend_handles(present, counts, frame.baseline_label, marks_label),
+        loc="lower center",
+        ncol=3,
+        frameon=False,
+        bbox_to_anchor=(0.5, 0.02),
+    )
     fig.suptitle(title, y=1.0 - 0.12 / H, va="top")
     return fig
 
@@ -401,8 +482,17 @@ def _bar_text(ax: Any, x: float, v: float, digits: int = 3) -> None:
 def _failed_text(ax: Any, x: float, text: str) -> None:
     lines = textwrap.wrap(f"failed: {text}", 20)
     wrapped = "\n".join(lines[:9] + (["…"] if len(lines) > 9 else []))
-    ax.text(x, 0.5, wrapped, transform=ax.get_xaxis_transform(), ha="center", va="center", fontsize=7,
-            color="darkred", bbox={"facecolor": "#fff4f0", "edgecolor": "darkred", "lw": 0.6})
+    ax.text(
+        x,
+        0.5,
+        wrapped,
+        transform=ax.get_xaxis_transform(),
+        ha="center",
+        va="center",
+        fontsize=7,
+        color="darkred",
+        bbox={"facecolor": "#fff4f0", "edgecolor": "darkred", "lw": 0.6},
+    )
 
 
 def _error_bars(ax: Any, bars: Sequence[PlanBar]) -> None:
@@ -421,10 +511,12 @@ def _error_bars(ax: Any, bars: Sequence[PlanBar]) -> None:
         ax.axhline(base.rms_mm, color="0.15", ls="--", lw=1.2, zorder=1.5)
     ax.set_ylabel("load-induced TCP error, mm")
     ax.set_title("TCP error before compensation (exact equilibrium, full plan)")
-    hs = [Patch(facecolor=BAR_COLOURS["max"], edgecolor="black", lw=0.5, label="max"),
-          Patch(facecolor=BAR_COLOURS["rms"], edgecolor="black", lw=0.5, label="RMS"),
-          Patch(facecolor=BASELINE_BAR_COLOURS["max"], edgecolor="black", lw=0.5, label="max, as written"),
-          Patch(facecolor=BASELINE_BAR_COLOURS["rms"], edgecolor="black", lw=0.5, label="RMS, as written")]
+    hs = [
+        Patch(facecolor=BAR_COLOURS["max"], edgecolor="black", lw=0.5, label="max"),
+        Patch(facecolor=BAR_COLOURS["rms"], edgecolor="black", lw=0.5, label="RMS"),
+        Patch(facecolor=BASELINE_BAR_COLOURS["max"], edgecolor="black", lw=0.5, label="max, as written"),
+        Patch(facecolor=BASELINE_BAR_COLOURS["rms"], edgecolor="black", lw=0.5, label="RMS, as written"),
+    ]
     if base is not None and len(bars) > 1:
         hs.append(Line2D([], [], color="0.15", ls="--", lw=1.2, label="RMS as written"))
     ax.legend(handles=hs, loc="upper left", ncol=3, fontsize=7, framealpha=0.9)
@@ -445,13 +537,15 @@ def _duration_bars(ax: Any, bars: Sequence[PlanBar]) -> None:
 def _placement_lines(text: str) -> str:
     """``x=.., y=.., yaw=..`` on lines of two items."""
     parts = text.split(", ")
-    return "\n".join(", ".join(parts[i:i + 2]) for i in range(0, len(parts), 2))
+    return "\n".join(", ".join(parts[i : i + 2]) for i in range(0, len(parts), 2))
 
 
 def _plan_ticks(ax: Any, bars: Sequence[PlanBar], with_placement: bool) -> None:
     ax.set_xticks(range(len(bars)))
-    ax.set_xticklabels([b.label + ("\n" + _placement_lines(b.placement) if with_placement and b.placement else "")
-                        for b in bars], fontsize=7.5)
+    ax.set_xticklabels(
+        [b.label + ("\n" + _placement_lines(b.placement) if with_placement and b.placement else "") for b in bars],
+        fontsize=7.5,
+    )
     ax.set_xlim(-0.6, len(bars) - 0.4)
     top = ax.get_ylim()[1]
     ax.set_ylim(0.0, top * 1.25 if top > 0 else 1.0)
@@ -477,5 +571,15 @@ def plans_figure(bars: Sequence[PlanBar], *, title: str) -> Figure:
     return fig
 
 
-__all__ = ["MapFrame", "MapPanel", "PlanBar", "STATUS_STYLES", "cell_extent", "error_map_figure",
-           "margin_map_figure", "plans_figure", "png", "view_limits"]
+__all__ = [
+    "MapFrame",
+    "MapPanel",
+    "PlanBar",
+    "STATUS_STYLES",
+    "cell_extent",
+    "error_map_figure",
+    "margin_map_figure",
+    "plans_figure",
+    "png",
+    "view_limits",
+]

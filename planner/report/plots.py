@@ -17,7 +17,8 @@ from __future__ import annotations
 import functools
 import io
 import math
-from typing import Any, Mapping, Sequence
+from typing import Any
+from collections.abc import Mapping, Sequence
 
 import matplotlib
 import matplotlib.ticker
@@ -59,16 +60,25 @@ PNG_COMPRESS_LEVEL = 3
 #: Style applied while a figure is built and saved (text sizes are fixed at creation).  A fixed
 #: ``axes.titley`` spares matplotlib placing every axes title around the tick labels above it
 #: (about a sixth of the drawing time; no panel here has decorations on top).
-STYLE = {"pdf.compression": 3, "font.size": 9, "axes.titlesize": 9, "legend.fontsize": 8,
-         "figure.titlesize": 10, "axes.titley": 1.0, "axes.titlepad": 5.0}
+STYLE = {
+    "pdf.compression": 3,
+    "font.size": 9,
+    "axes.titlesize": 9,
+    "legend.fontsize": 8,
+    "figure.titlesize": 10,
+    "axes.titley": 1.0,
+    "axes.titlepad": 5.0,
+}
 
 
 def _styled(fn):
     """Build the figure under :data:`STYLE` without touching the global rc settings."""
+
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         with matplotlib.rc_context(STYLE):
             return fn(*args, **kwargs)
+
     return wrapper
 
 
@@ -88,8 +98,7 @@ def render(fig: Figure, dpi: int = PNG_DPI) -> tuple[bytes, bytes]:
     """PNG and PDF bytes of ``fig`` (metadata fixed so output is reproducible)."""
     png, pdf = render_png(fig, dpi), io.BytesIO()
     with matplotlib.rc_context(STYLE):
-        fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None,
-                                                 "Producer": None})
+        fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None, "Producer": None})
     return png, pdf.getvalue()
 
 
@@ -97,8 +106,9 @@ def render_png(fig: Figure, dpi: int = PNG_DPI) -> bytes:
     """PNG bytes of ``fig``, as :func:`render` writes them."""
     png = io.BytesIO()
     with matplotlib.rc_context(STYLE):
-        fig.savefig(png, format="png", dpi=dpi, metadata={"Software": None},
-                    pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
+        fig.savefig(
+            png, format="png", dpi=dpi, metadata={"Software": None}, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}
+        )
     return png.getvalue()
 
 
@@ -114,13 +124,24 @@ def _angle_unit(values_rad: np.ndarray) -> tuple[str, float]:
 
 
 # ----------------------------------------------------------------------------- 1. compliance map
-def _heat_panel(fig: Figure, ax: Any, values: np.ndarray, extent: tuple[float, float, float, float],
-                label: str, unit: str) -> None:
+def _heat_panel(
+    fig: Figure, ax: Any, values: np.ndarray, extent: tuple[float, float, float, float], label: str, unit: str
+) -> None:
     """One heat map (rows = v, columns = u; NaN unreachable, hatched) with its colour bar; a map
     constant to :data:`CONSTANT_REL_SPREAD` gets one colour and its value written on it."""
     data = np.ma.masked_invalid(values)
-    ax.add_patch(Rectangle((extent[0], extent[2]), extent[1] - extent[0], extent[3] - extent[2],
-                           facecolor="white", edgecolor="0.6", hatch="///", linewidth=0, zorder=0))
+    ax.add_patch(
+        Rectangle(
+            (extent[0], extent[2]),
+            extent[1] - extent[0],
+            extent[3] - extent[2],
+            facecolor="white",
+            edgecolor="0.6",
+            hatch="///",
+            linewidth=0,
+            zorder=0,
+        )
+    )
     finite = data.compressed()
     if not finite.size:
         ax.text(0.5, 0.5, "no reachable point", transform=ax.transAxes, ha="center", va="center")
@@ -128,10 +149,18 @@ def _heat_panel(fig: Figure, ax: Any, values: np.ndarray, extent: tuple[float, f
     lo, hi = float(finite.min()), float(finite.max())
     mean = float(finite.mean())
     constant = hi - lo <= CONSTANT_REL_SPREAD * max(abs(mean), 1e-300)
-    if constant:           # uniform colour; the value is written on the panel
+    if constant:  # uniform colour; the value is written on the panel
         lo, hi = mean - 0.01 * abs(mean) - 1e-300, mean + 0.01 * abs(mean) + 1e-300
-    mesh = ax.imshow(data, origin="lower", extent=extent, aspect="equal", cmap="viridis",
-                     norm=Normalize(lo, hi), interpolation="nearest", zorder=1)
+    mesh = ax.imshow(
+        data,
+        origin="lower",
+        extent=extent,
+        aspect="equal",
+        cmap="viridis",
+        norm=Normalize(lo, hi),
+        interpolation="nearest",
+        zorder=1,
+    )
     cax = make_axes_locatable(ax).append_axes("right", size="5%", pad=0.06)
     cb = fig.colorbar(mesh, cax=cax)
     cb.set_label(label)
@@ -139,9 +168,17 @@ def _heat_panel(fig: Figure, ax: Any, values: np.ndarray, extent: tuple[float, f
     cb.update_ticks()
     if constant:
         spread = (float(finite.max()) - float(finite.min())) / max(abs(mean), 1e-300)
-        ax.text(0.5, 0.5, f"constant over the plane:\n{mean:.4g} {unit}\n(relative spread {spread:.1e})",
-                transform=ax.transAxes, ha="center", va="center", fontsize=8,
-                bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.5"}, zorder=8)
+        ax.text(
+            0.5,
+            0.5,
+            f"constant over the plane:\n{mean:.4g} {unit}\n(relative spread {spread:.1e})",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+            fontsize=8,
+            bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.5"},
+            zorder=8,
+        )
 
 
 def _path_overlay(ax: Any, path_uv_m: np.ndarray) -> None:
@@ -153,12 +190,19 @@ def _path_overlay(ax: Any, path_uv_m: np.ndarray) -> None:
 
 
 @_styled
-def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
-                          u_label: str, v_label: str, title: str,
-                          branch: np.ndarray | None = None,
-                          branch_labels: Sequence[str] = (),
-                          path_uv_m: np.ndarray | None = None,
-                          path_label: str = "") -> Figure:
+def compliance_map_figure(
+    u_m: np.ndarray,
+    v_m: np.ndarray,
+    diag: np.ndarray,
+    *,
+    u_label: str,
+    v_label: str,
+    title: str,
+    branch: np.ndarray | None = None,
+    branch_labels: Sequence[str] = (),
+    path_uv_m: np.ndarray | None = None,
+    path_label: str = "",
+) -> Figure:
     """Paper Fig. 5: the six diagonal compliances as a 2x3 grid of heat maps.
 
     Parameters
@@ -182,24 +226,44 @@ def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
         What the path line is (legend), e.g. "path (in the plane)".
     """
     aspect = float(np.clip((v_m[-1] - v_m[0]) / max(u_m[-1] - u_m[0], 1e-12), 0.4, 1.2))
-    height = 2.0 * (2.75 * aspect + 0.85) + 1.7          # two rows of panels at equal scale, title, legend
-    fig = _figure(12.5, height, left=0.055, right=0.925, bottom=0.65 / height, top=1.0 - 1.2 / height,
-                  wspace=0.45, hspace=0.7 / (2.75 * aspect))
+    height = 2.0 * (2.75 * aspect + 0.85) + 1.7  # two rows of panels at equal scale, title, legend
+    fig = _figure(
+        12.5,
+        height,
+        left=0.055,
+        right=0.925,
+        bottom=0.65 / height,
+        top=1.0 - 1.2 / height,
+        wspace=0.45,
+        hspace=0.7 / (2.75 * aspect),
+    )
     axs = fig.subplots(2, 3)
     du = (u_m[-1] - u_m[0]) / max(1, len(u_m) - 1) / 2
     dv = (v_m[-1] - v_m[0]) / max(1, len(v_m) - 1) / 2
     extent = (u_m[0] - du, u_m[-1] + du, v_m[0] - dv, v_m[-1] + dv)
     scale = (1e3, 1e3, 1e3, 180.0 / math.pi, 180.0 / math.pi, 180.0 / math.pi)
     units = ("mm/N", "mm/N", "mm/N", "deg/(N·m)", "deg/(N·m)", "deg/(N·m)")
-    what = ("x displacement per N along x", "y displacement per N along y",
-            "z displacement per N along z", "rotation about x per N·m about x",
-            "rotation about y per N·m about y", "rotation about z per N·m about z")
+    what = (
+        "x displacement per N along x",
+        "y displacement per N along y",
+        "z displacement per N along z",
+        "rotation about x per N·m about x",
+        "rotation about y per N·m about y",
+        "rotation about z per N·m about z",
+    )
     multi = branch is not None and len(np.unique(branch[branch >= 0])) > 1
     for i, ax in enumerate(axs.ravel()):
         _heat_panel(fig, ax, diag[..., i].T * scale[i], extent, f"C{i + 1}{i + 1} [{units[i]}]", units[i])
         if multi:
-            ax.contour(u_m, v_m, np.ma.masked_less(branch.T, 0).astype(float),
-                       levels=np.arange(-0.5, 8.5, 1.0), colors="k", linewidths=0.8, zorder=2)
+            ax.contour(
+                u_m,
+                v_m,
+                np.ma.masked_less(branch.T, 0).astype(float),
+                levels=np.arange(-0.5, 8.5, 1.0),
+                colors="k",
+                linewidths=0.8,
+                zorder=2,
+            )
         if path_uv_m is not None and len(path_uv_m):
             _path_overlay(ax, path_uv_m)
         ax.set_xlim(extent[0], extent[1])
@@ -207,25 +271,26 @@ def compliance_map_figure(u_m: np.ndarray, v_m: np.ndarray, diag: np.ndarray, *,
         ax.set_xlabel(f"{u_label} [m]")
         ax.set_ylabel(f"{v_label} [m]")
         ax.set_title(f"({'abcdef'[i]}) C{i + 1}{i + 1}: {what[i]}")
-    handles = [Patch(facecolor="white", edgecolor="0.4", hatch="///",
-                     label="unreachable (no IK solution at this attitude)")]
+    handles = [
+        Patch(facecolor="white", edgecolor="0.4", hatch="///", label="unreachable (no IK solution at this attitude)")
+    ]
     if path_uv_m is not None and len(path_uv_m):
-        handles.append(Line2D([], [], color="crimson", lw=1.6, marker="o", ms=5,
-                              label=path_label or "the run's path (● start)"))
+        handles.append(
+            Line2D([], [], color="crimson", lw=1.6, marker="o", ms=5, label=path_label or "the run's path (● start)")
+        )
     if multi:
-        used = sorted({branch_labels[int(b)] for b in np.unique(branch[branch >= 0])}) \
-            if branch_labels else []
+        used = sorted({branch_labels[int(b)] for b in np.unique(branch[branch >= 0])}) if branch_labels else []
         handles.append(Line2D([], [], color="k", lw=0.8, label=f"branch changes ({', '.join(used)})"))
-    fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False,
-               bbox_to_anchor=(0.5, 0.0))
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False, bbox_to_anchor=(0.5, 0.0))
     fig.suptitle(title)
     return fig
 
 
 # ------------------------------------------------------------- 2. stiffness and error along path
 @_styled
-def stiffness_error_figure(s_mm: np.ndarray, stiffness_n_per_m: np.ndarray, error_m: np.ndarray,
-                           *, title: str) -> Figure:
+def stiffness_error_figure(
+    s_mm: np.ndarray, stiffness_n_per_m: np.ndarray, error_m: np.ndarray, *, title: str
+) -> Figure:
     """Paper Figs. 6-7: directional stiffness and load-induced TCP error along the path.
 
     Parameters
@@ -240,10 +305,12 @@ def stiffness_error_figure(s_mm: np.ndarray, stiffness_n_per_m: np.ndarray, erro
     fig = _figure(11.0, 4.6, left=0.07, right=0.985, bottom=0.12, top=0.83, wspace=0.24)
     a1, a2 = fig.subplots(1, 2, sharex=True)
     for j, name in enumerate("XYZ"):
-        a1.plot(s_mm, stiffness_n_per_m[:, j] * 1e-3, color=AXIS_COLOURS[j], marker=".", ms=3,
-                label=f"along base {name}")
-        a2.plot(s_mm, error_m[:, j] * 1e3, color=AXIS_COLOURS[j], marker=".", ms=3,
-                label=f"Δ{name.lower()} (base {name})")
+        a1.plot(
+            s_mm, stiffness_n_per_m[:, j] * 1e-3, color=AXIS_COLOURS[j], marker=".", ms=3, label=f"along base {name}"
+        )
+        a2.plot(
+            s_mm, error_m[:, j] * 1e3, color=AXIS_COLOURS[j], marker=".", ms=3, label=f"Δ{name.lower()} (base {name})"
+        )
     a2.plot(s_mm, np.linalg.norm(error_m, axis=1) * 1e3, color="k", ls="--", label="|Δ| (norm)")
     a1.set_yscale("log")
     a1.yaxis.set_major_locator(matplotlib.ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
@@ -264,8 +331,9 @@ def stiffness_error_figure(s_mm: np.ndarray, stiffness_n_per_m: np.ndarray, erro
 
 # --------------------------------------------------------------------- 3. compensation angles
 @_styled
-def compensation_figure(s_mm: np.ndarray, dq_exact_rad: np.ndarray,
-                        dq_closed_rad: np.ndarray | None, *, title: str) -> Figure:
+def compensation_figure(
+    s_mm: np.ndarray, dq_exact_rad: np.ndarray, dq_closed_rad: np.ndarray | None, *, title: str
+) -> Figure:
     """Paper Fig. 8: compensation angle ``q_command - q_target`` per joint along the path, and
     the difference exact minus closed form, each joint in the unit that shows it (deg, mdeg, µdeg).
 
@@ -278,8 +346,9 @@ def compensation_figure(s_mm: np.ndarray, dq_exact_rad: np.ndarray,
     """
     rows = 4 if dq_closed_rad is not None else 2
     height = 2.35 * rows + 1.2
-    fig = _figure(12.0, height, left=0.075, right=0.985, bottom=0.6 / height, top=1.0 - 0.75 / height,
-                  wspace=0.36, hspace=0.55)
+    fig = _figure(
+        12.0, height, left=0.075, right=0.985, bottom=0.6 / height, top=1.0 - 0.75 / height, wspace=0.36, hspace=0.55
+    )
     axs = fig.subplots(rows, 3, sharex=True)
     legend_done = False
     for j in range(6):
@@ -288,9 +357,17 @@ def compensation_figure(s_mm: np.ndarray, dq_exact_rad: np.ndarray,
         y = dq_exact_rad[:, j]
         if np.all(np.abs(y) < NUMERICAL_FLOOR_RAD):
             ax.plot(s_mm, np.zeros_like(s_mm), color=JOINT_COLOURS[j], lw=1.8)
-            ax.text(0.5, 0.72, f"Δθ{j + 1} = 0 on the whole path\n(|Δθ{j + 1}| < {NUMERICAL_FLOOR_RAD:g} rad: "
-                    f"no load torque on joint {j + 1})", transform=ax.transAxes, ha="center",
-                    va="center", fontsize=8, bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.6"})
+            ax.text(
+                0.5,
+                0.72,
+                f"Δθ{j + 1} = 0 on the whole path\n(|Δθ{j + 1}| < {NUMERICAL_FLOOR_RAD:g} rad: "
+                f"no load torque on joint {j + 1})",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=8,
+                bbox={"facecolor": "white", "alpha": 0.9, "edgecolor": "0.6"},
+            )
             ax.set_ylim(-1.0, 1.0)
             ax.set_yticks([-1.0, 0.0, 1.0])
             unit, f = "deg", 180.0 / math.pi
@@ -299,8 +376,9 @@ def compensation_figure(s_mm: np.ndarray, dq_exact_rad: np.ndarray,
             unit, f = _angle_unit(both)
             ax.plot(s_mm, y * f, color=JOINT_COLOURS[j], lw=1.8, label="exact")
             if dq_closed_rad is not None:
-                ax.plot(s_mm, dq_closed_rad[:, j] * f, color="k", lw=1.0, ls="--",
-                        label="closed form (paper eqs. 32/47)")
+                ax.plot(
+                    s_mm, dq_closed_rad[:, j] * f, color="k", lw=1.0, ls="--", label="closed form (paper eqs. 32/47)"
+                )
             ax.axhline(0.0, color="0.5", lw=0.6)
         ax.set_title(f"joint {j + 1}: compensation angle Δθ{j + 1}")
         ax.set_ylabel(f"Δθ{j + 1} [{unit}]")
@@ -314,8 +392,15 @@ def compensation_figure(s_mm: np.ndarray, dq_exact_rad: np.ndarray,
             d = dq_exact_rad[:, j] - dq_closed_rad[:, j]
             if np.all(np.abs(d) < NUMERICAL_FLOOR_RAD):
                 bx.plot(s_mm, np.zeros_like(s_mm), color="0.25", lw=1.2)
-                bx.text(0.5, 0.72, f"0 (numerical: < {NUMERICAL_FLOOR_RAD:g} rad)", transform=bx.transAxes,
-                        ha="center", va="center", fontsize=8)
+                bx.text(
+                    0.5,
+                    0.72,
+                    f"0 (numerical: < {NUMERICAL_FLOOR_RAD:g} rad)",
+                    transform=bx.transAxes,
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                )
                 bx.set_ylim(-1.0, 1.0)
                 bx.set_yticks([-1.0, 0.0, 1.0])
                 du = "deg"
@@ -335,8 +420,9 @@ def compensation_figure(s_mm: np.ndarray, dq_exact_rad: np.ndarray,
 
 # ---------------------------------------------------------------------- 4. error before/after
 @_styled
-def error_before_after_figure(s_mm: np.ndarray, before_m: np.ndarray, closed_m: np.ndarray,
-                              exact_m: np.ndarray, *, title: str) -> Figure:
+def error_before_after_figure(
+    s_mm: np.ndarray, before_m: np.ndarray, closed_m: np.ndarray, exact_m: np.ndarray, *, title: str
+) -> Figure:
     """Paper Figs. 9 and 13: TCP error before and after compensation, per axis.
 
     Top row: before vs. after (mm, one scale).  Bottom row: after only, in µm,
@@ -351,22 +437,18 @@ def error_before_after_figure(s_mm: np.ndarray, before_m: np.ndarray, closed_m: 
     before_m, closed_m, exact_m : ndarray, shape (N, 3)
         TCP position error (reached - target), base frame, m.
     """
-    fig = _figure(12.0, 7.0, left=0.065, right=0.985, bottom=0.08, top=0.86, wspace=0.3,
-                  hspace=0.32)
+    fig = _figure(12.0, 7.0, left=0.065, right=0.985, bottom=0.08, top=0.86, wspace=0.3, hspace=0.32)
     axs = fig.subplots(2, 3, sharex=True)
     exact_zero = bool(np.all(np.abs(exact_m) * 1e3 < NUMERICAL_FLOOR_MM))
-    exact_label = ("after exact compensation: 0 (numerical)" if exact_zero
-                   else "after exact compensation")
+    exact_label = "after exact compensation: 0 (numerical)" if exact_zero else "after exact compensation"
     for j, name in enumerate("xyz"):
         top, bot = axs[0, j], axs[1, j]
         top.plot(s_mm, before_m[:, j] * 1e3, color=AXIS_COLOURS[j], lw=1.8, label="before compensation")
-        top.plot(s_mm, closed_m[:, j] * 1e3, color="k", ls="--", lw=1.0,
-                 label="after closed-form compensation (paper)")
+        top.plot(s_mm, closed_m[:, j] * 1e3, color="k", ls="--", lw=1.0, label="after closed-form compensation (paper)")
         top.plot(s_mm, exact_m[:, j] * 1e3, color="tab:red", ls=":", lw=1.4, label=exact_label)
         top.set_ylabel(f"Δ{name} [mm]")
         top.set_title(f"base {name.upper()}: before and after")
-        bot.plot(s_mm, closed_m[:, j] * 1e6, color="k", ls="--", lw=1.0,
-                 label="after closed-form compensation (paper)")
+        bot.plot(s_mm, closed_m[:, j] * 1e6, color="k", ls="--", lw=1.0, label="after closed-form compensation (paper)")
         bot.plot(s_mm, exact_m[:, j] * 1e6, color="tab:red", ls=":", lw=1.4, label=exact_label)
         bot.set_ylabel(f"Δ{name} after compensation [µm]")
         bot.set_xlabel("path length from the first waypoint [mm]")
@@ -374,7 +456,7 @@ def error_before_after_figure(s_mm: np.ndarray, before_m: np.ndarray, closed_m: 
         for a in (top, bot):
             a.axhline(0.0, color="0.5", lw=0.6)
             a.grid(alpha=0.3)
-            if j == 0:                 # same styles in every column: one legend per row
+            if j == 0:  # same styles in every column: one legend per row
                 a.legend(loc="best")
     fig.suptitle(title)
     return fig
@@ -385,15 +467,27 @@ def error_before_after_figure(s_mm: np.ndarray, before_m: np.ndarray, closed_m: 
 def _branch_ticks(labels: Sequence[str], chosen: str | None, default: str | None) -> list[str]:
     """Tick labels of the branch bars: long labels (OPW: front-up-noflip) two parts a line, so
     neighbouring ticks do not overlap; the chosen and the default branch marked."""
-    return [(lab.replace("-", "\n", 2).replace("\n", "-", 1) if len(lab) > 8 else lab)
-            + ("\nchosen" if lab == chosen else "\ndefault" if lab == default else "") for lab in labels]
+    return [
+        (lab.replace("-", "\n", 2).replace("\n", "-", 1) if len(lab) > 8 else lab)
+        + ("\nchosen" if lab == chosen else "\ndefault" if lab == default else "")
+        for lab in labels
+    ]
 
 
-def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
-                  rms_optimised_mm: Sequence[float] | None, infeasible: Mapping[str, str],
-                  s_mm: np.ndarray, curves_mm: Mapping[str, np.ndarray], chosen: str | None,
-                  default: str | None, *, title: str, note: str = "",
-                  x_label: str = "path length from the first waypoint [mm]") -> Figure:
+def branch_figure(
+    labels: Sequence[str],
+    rms_analytic_mm: Sequence[float],
+    rms_optimised_mm: Sequence[float] | None,
+    infeasible: Mapping[str, str],
+    s_mm: np.ndarray,
+    curves_mm: Mapping[str, np.ndarray],
+    chosen: str | None,
+    default: str | None,
+    *,
+    title: str,
+    note: str = "",
+    x_label: str = "path length from the first waypoint [mm]",
+) -> Figure:
     """IK branch comparison: RMS load-induced error per branch (bars) and, along the path, the
     chosen and the default branch.
 
@@ -421,25 +515,41 @@ def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
     """
     ticks = _branch_ticks(labels, chosen, default)
     n_lines = max(t.count("\n") + 1 for t in ticks) if ticks else 1
-    fig = _figure(12.5, 5.2 + 0.15 * max(0, n_lines - 2), left=0.06, right=0.985,
-                  bottom=0.2 + 0.035 * max(0, n_lines - 2), top=0.84, wspace=0.22)
+    fig = _figure(
+        12.5,
+        5.2 + 0.15 * max(0, n_lines - 2),
+        left=0.06,
+        right=0.985,
+        bottom=0.2 + 0.035 * max(0, n_lines - 2),
+        top=0.84,
+        wspace=0.22,
+    )
     a1, a2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1.0]})
     x = np.arange(len(labels))
     ana = np.asarray(rms_analytic_mm, float)
     opt = None if rms_optimised_mm is None else np.asarray(rms_optimised_mm, float)
-    same = opt is None or np.allclose(np.nan_to_num(opt, nan=-1.0), np.nan_to_num(ana, nan=-1.0),
-                                      rtol=1e-9, atol=1e-12)
-    colours = [CHOSEN_COLOUR if lab == chosen else DEFAULT_COLOUR if lab == default else OTHER_COLOUR
-               for lab in labels]
-    top = np.nanmax(np.r_[ana, opt if opt is not None else []]) if np.isfinite(ana).any() or (
-        opt is not None and np.isfinite(opt).any()) else 1.0
+    same = opt is None or np.allclose(np.nan_to_num(opt, nan=-1.0), np.nan_to_num(ana, nan=-1.0), rtol=1e-9, atol=1e-12)
+    colours = [CHOSEN_COLOUR if lab == chosen else DEFAULT_COLOUR if lab == default else OTHER_COLOUR for lab in labels]
+    top = (
+        np.nanmax(np.r_[ana, opt if opt is not None else []])
+        if np.isfinite(ana).any() or (opt is not None and np.isfinite(opt).any())
+        else 1.0
+    )
     if same:
         vals = opt if opt is not None else ana
         a1.bar(x, np.nan_to_num(vals), color=colours, width=0.7)
         shown = vals
     else:
-        a1.bar(x - 0.18, np.nan_to_num(ana), color=colours, alpha=0.35, width=0.36, hatch="//",
-               edgecolor="0.3", label="analytic posture")
+        a1.bar(
+            x - 0.18,
+            np.nan_to_num(ana),
+            color=colours,
+            alpha=0.35,
+            width=0.36,
+            hatch="//",
+            edgecolor="0.3",
+            label="analytic posture",
+        )
         a1.bar(x + 0.18, np.nan_to_num(opt), color=colours, width=0.36, label="optimised posture")
         shown = opt
         a1.legend(loc="upper left")
@@ -448,8 +558,7 @@ def branch_figure(labels: Sequence[str], rms_analytic_mm: Sequence[float],
         if np.isfinite(v):
             a1.text(x[i], v + 0.015 * top, format_number(v), ha="center", va="bottom", fontsize=8)
         elif lab in infeasible:
-            a1.text(x[i], 0.03 * top, "not feasible", rotation=90, ha="center", va="bottom", fontsize=8,
-                    color="0.35")
+            a1.text(x[i], 0.03 * top, "not feasible", rotation=90, ha="center", va="bottom", fontsize=8, color="0.35")
     a1.set_xticks(x, ticks, fontsize=8)
     a1.set_ylabel("RMS load-induced TCP error [mm]")
     a1.set_ylim(0.0, top * 1.15)
@@ -481,19 +590,27 @@ def _limit_lines(ax, lim: np.ndarray | None, colours: Sequence[str]) -> None:
     lim = np.asarray(lim, dtype=float)
     if np.allclose(lim, lim[0]):
         for s in (1, -1):
-            ax.axhline(s * lim[0], color="k", ls="--", lw=1.0,
-                       label="limit" if s == 1 else None)
+            ax.axhline(s * lim[0], color="k", ls="--", lw=1.0, label="limit" if s == 1 else None)
     else:
         for j, l in enumerate(lim):
             for s in (1, -1):
-                ax.axhline(s * l, color=colours[j], ls="--", lw=0.8,
-                           label="limits (per joint, dashed)" if (j == 0 and s == 1) else None)
+                ax.axhline(
+                    s * l,
+                    color=colours[j],
+                    ls="--",
+                    lw=0.8,
+                    label="limits (per joint, dashed)" if (j == 0 and s == 1) else None,
+                )
 
 
 @_styled
-def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
-                      limits: Mapping[str, np.ndarray | None], *, title: str,
-                      headers: Mapping[str, str] | None = None) -> Figure:
+def trajectory_figure(
+    trajs: Mapping[str, Mapping[str, np.ndarray]],
+    limits: Mapping[str, np.ndarray | None],
+    *,
+    title: str,
+    headers: Mapping[str, str] | None = None,
+) -> Figure:
     """Joint position, velocity, acceleration and jerk against time, with limits.
 
     All panels share the time axis (the methods' durations compare at a glance) and
@@ -512,11 +629,16 @@ def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
         Column titles (duration, limit ratios).
     """
     methods = list(trajs)
-    fig = _figure(5.8 * max(1, len(methods)) + 0.8, 10.5, left=0.08, right=0.985, bottom=0.05,
-                  top=0.88, wspace=0.12, hspace=0.25)
+    fig = _figure(
+        5.8 * max(1, len(methods)) + 0.8, 10.5, left=0.08, right=0.985, bottom=0.05, top=0.88, wspace=0.12, hspace=0.25
+    )
     axs = np.atleast_2d(fig.subplots(4, len(methods), sharex="all", sharey="row", squeeze=False))
-    rows = (("q", "q [rad]", None), ("qd", "q̇ [rad/s]", "velocity"),
-            ("qdd", "q̈ [rad/s²]", "acceleration"), ("jerk", "jerk [rad/s³]", "jerk"))
+    rows = (
+        ("q", "q [rad]", None),
+        ("qd", "q̇ [rad/s]", "velocity"),
+        ("qdd", "q̈ [rad/s²]", "acceleration"),
+        ("jerk", "jerk [rad/s³]", "jerk"),
+    )
     q_all = np.concatenate([np.asarray(trajs[m]["q"], float).ravel() for m in methods]) if methods else np.zeros(1)
     qlo, qhi = float(np.nanmin(q_all)), float(np.nanmax(q_all))
     qpad = 0.1 * max(qhi - qlo, 1e-3)
@@ -534,8 +656,14 @@ def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
             if r == 3:
                 ax.set_xlabel("time t [s]")
             if data[key] is None:
-                ax.text(0.5, 0.5, "jerk not recorded in this trajectory file\n(no qddd columns)",
-                        transform=ax.transAxes, ha="center", va="center")
+                ax.text(
+                    0.5,
+                    0.5,
+                    "jerk not recorded in this trajectory file\n(no qddd columns)",
+                    transform=ax.transAxes,
+                    ha="center",
+                    va="center",
+                )
                 continue
             y = np.asarray(data[key], float)
             for j in range(y.shape[1]):
@@ -552,23 +680,32 @@ def trajectory_figure(trajs: Mapping[str, Mapping[str, np.ndarray]],
                                 shown = True
                 note = ""
                 if qmin is not None and qmax is not None and not shown:
-                    note = (f"\nposition limits outside the view (joint ranges "
-                            f"{format_number(float(np.min(qmin)))} … {format_number(float(np.max(qmax)))} rad)")
+                    note = (
+                        f"\nposition limits outside the view (joint ranges "
+                        f"{format_number(float(np.min(qmin)))} … {format_number(float(np.max(qmax)))} rad)"
+                    )
                 ax.set_title((headers or {}).get(m, m) + note)
             else:
                 _limit_lines(ax, limits.get(lim_key), JOINT_COLOURS)
             if key == "jerk" and jview is not None:
                 peak = float(np.nanmax(np.abs(y))) if y.size else 0.0
                 if peak > jview:
-                    ax.text(0.5, 0.97, f"peak |jerk| of the samples {format_number(peak)} rad/s³ = "
-                            f"{format_number(peak / float(np.max(jlim)))}× the limit: cut off "
-                            "(this method does not limit jerk)", transform=ax.transAxes, ha="center",
-                            va="top", fontsize=8, bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"})
+                    ax.text(
+                        0.5,
+                        0.97,
+                        f"peak |jerk| of the samples {format_number(peak)} rad/s³ = "
+                        f"{format_number(peak / float(np.max(jlim)))}× the limit: cut off "
+                        "(this method does not limit jerk)",
+                        transform=ax.transAxes,
+                        ha="center",
+                        va="top",
+                        fontsize=8,
+                        bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"},
+                    )
     if jview is not None:
         axs[3, 0].set_ylim(-jview, jview)
     handles, labels = axs[1, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", ncol=len(labels), bbox_to_anchor=(0.5, 0.965),
-               frameon=False)
+    fig.legend(handles, labels, loc="upper center", ncol=len(labels), bbox_to_anchor=(0.5, 0.965), frameon=False)
     fig.suptitle(title)
     return fig
 
@@ -589,9 +726,16 @@ def nice_factor(max_deflection_m: float, target_m: float = 0.05) -> float:
 
 
 @_styled
-def arm_figure(nominal_m: np.ndarray, deflected_m: np.ndarray, path_m: np.ndarray,
-               labels: Sequence[str], factor: float, *, title: str,
-               joint_index: Sequence[int] | None = None) -> Figure:
+def arm_figure(
+    nominal_m: np.ndarray,
+    deflected_m: np.ndarray,
+    path_m: np.ndarray,
+    labels: Sequence[str],
+    factor: float,
+    *,
+    title: str,
+    joint_index: Sequence[int] | None = None,
+) -> Figure:
     """The arm drawn in 3-D at a few poses: links between joint centres, nominal and
     (exaggerated) deflected, on equal axes.
 
@@ -615,8 +759,11 @@ def arm_figure(nominal_m: np.ndarray, deflected_m: np.ndarray, path_m: np.ndarra
     joints = list(joint_index) if joint_index is not None else list(range(1, L - 1))
     # look at the path from its side, turned by ARM_VIEW_TURN_DEG so the depth shows
     run_xy = path_m[-1, :2] - path_m[0, :2] if len(path_m) > 1 else np.array([1.0, 0.0])
-    azim = (math.degrees(math.atan2(run_xy[1], run_xy[0])) - 90.0 - ARM_VIEW_TURN_DEG
-            if np.linalg.norm(run_xy) > 1e-6 else -60.0)
+    azim = (
+        math.degrees(math.atan2(run_xy[1], run_xy[0])) - 90.0 - ARM_VIEW_TURN_DEG
+        if np.linalg.norm(run_xy) > 1e-6
+        else -60.0
+    )
     size = float(np.ptp(np.concatenate([nominal_m.reshape(-1, 3), path_m]), axis=0).max())
     label_offset = np.array([0.0, 0.0, -0.06 * size])
     ax.plot(*path_m.T, color="0.35", lw=1.2, ls="-", zorder=1)
@@ -627,11 +774,18 @@ def arm_figure(nominal_m: np.ndarray, deflected_m: np.ndarray, path_m: np.ndarra
         ax.plot(*nom.T, color=c, lw=3.0, solid_capstyle="round")
         ax.scatter(*nom[joints].T, color="white", edgecolor=c, s=22, depthshade=False, zorder=5)
         ax.scatter(*nom[-1], color=c, marker="v", s=40, depthshade=False)
-        ax.text(*(nom[-1] + label_offset), labels[p], color=c, fontsize=9, ha="center", va="center",
-                bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0}, zorder=10)
+        ax.text(
+            *(nom[-1] + label_offset),
+            labels[p],
+            color=c,
+            fontsize=9,
+            ha="center",
+            va="center",
+            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0},
+            zorder=10,
+        )
     ax.scatter([0.0], [0.0], [0.0], color="k", marker="s", s=40, depthshade=False)
-    pts = np.concatenate([nominal_m.reshape(-1, 3), deflected_m.reshape(-1, 3), path_m,
-                          np.zeros((1, 3))])
+    pts = np.concatenate([nominal_m.reshape(-1, 3), deflected_m.reshape(-1, 3), path_m, np.zeros((1, 3))])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     pad = 0.05 * float(np.max(hi - lo))
     lo, hi = lo - pad, hi + pad
@@ -639,27 +793,53 @@ def arm_figure(nominal_m: np.ndarray, deflected_m: np.ndarray, path_m: np.ndarra
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
-    ax.set_box_aspect(span)                  # equal scale on the three axes
+    ax.set_box_aspect(span)  # equal scale on the three axes
     for setter in (ax.xaxis, ax.yaxis, ax.zaxis):
         setter.set_major_locator(matplotlib.ticker.MaxNLocator(4))
         setter.pane.set_alpha(0.15)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    handles = [Line2D([], [], color="0.2", lw=3.0, marker="o", mfc="white", ms=5,
-                      label="planned pose, TCP on the path (links between joint centres)"),
-               Line2D([], [], color="0.2", lw=1.1, ls="--",
-                      label=f"the same command under the load, uncompensated: joint deflection ×{factor:g}"),
-               Line2D([], [], color="0.35", lw=1.2, label="target TCP path"),
-               Line2D([], [], color="k", marker="s", ls="", label="base origin"),
-               Line2D([], [], color="0.2", marker="v", ls="", label="TCP")]
-    fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.925), frameon=False,
-               fontsize=8)
+    handles = [
+        Line2D(
+            [],
+            [],
+            color="0.2",
+            lw=3.0,
+            marker="o",
+            mfc="white",
+            ms=5,
+            label="planned pose, TCP on the path (links between joint centres)",
+        ),
+        Line2D(
+            [],
+            [],
+            color="0.2",
+            lw=1.1,
+            ls="--",
+            label=f"the same command under the load, uncompensated: joint deflection ×{factor:g}",
+        ),
+        Line2D([], [], color="0.35", lw=1.2, label="target TCP path"),
+        Line2D([], [], color="k", marker="s", ls="", label="base origin"),
+        Line2D([], [], color="0.2", marker="v", ls="", label="TCP"),
+    ]
+    fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.925), frameon=False, fontsize=8)
     ax.view_init(elev=18, azim=azim)
     fig.suptitle(title, y=0.985)
     return fig
 
 
-__all__ = ["ANGLE_UNITS", "JERK_VIEW_LIMITS", "PNG_DPI", "arm_figure", "branch_figure", "compensation_figure",
-           "compliance_map_figure", "error_before_after_figure", "nice_factor", "render",
-           "stiffness_error_figure", "trajectory_figure"]
+__all__ = [
+    "ANGLE_UNITS",
+    "JERK_VIEW_LIMITS",
+    "PNG_DPI",
+    "arm_figure",
+    "branch_figure",
+    "compensation_figure",
+    "compliance_map_figure",
+    "error_before_after_figure",
+    "nice_factor",
+    "render",
+    "stiffness_error_figure",
+    "trajectory_figure",
+]

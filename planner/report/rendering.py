@@ -13,7 +13,8 @@ import base64
 import html
 import os
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from planner.compliance_map import ProgressFn
 from planner.report import plots
@@ -25,9 +26,16 @@ from planner.report.tables import Table, report_title
 MAX_WORKERS = 2
 
 #: Relative rendering cost of each figure (longest first when rendering in parallel).
-_COST = {"fig1_compliance_map": 3.0, "fig3_compensation_angles": 2.8, "fig6_trajectory": 2.7,
-         "fig4_error_before_after": 1.9, "fig2_stiffness_error": 1.0, "fig7_arm_3d": 1.0,
-         "fig5_branches": 0.9, "fig8_dynamic_compensation": 1.2}
+_COST = {
+    "fig1_compliance_map": 3.0,
+    "fig3_compensation_angles": 2.8,
+    "fig6_trajectory": 2.7,
+    "fig4_error_before_after": 1.9,
+    "fig2_stiffness_error": 1.0,
+    "fig7_arm_3d": 1.0,
+    "fig5_branches": 0.9,
+    "fig8_dynamic_compensation": 1.2,
+}
 
 #: A figure to draw: ``(drawing function, args, kwargs)``.
 Job = tuple[Callable[..., Any], tuple, dict]
@@ -68,6 +76,7 @@ def render_png(jb: Job) -> tuple[bytes, None]:
 
 def _fork_available() -> bool:
     import multiprocessing
+
     return "fork" in multiprocessing.get_all_start_methods()
 
 
@@ -77,8 +86,13 @@ def default_workers() -> int:
     return min(MAX_WORKERS, cpus) if _fork_available() else 1
 
 
-def render_items(items: list[FigureItem], progress: ProgressFn | None = None,
-                 workers: int | None = None, pdf: bool = True, cache: bool = True) -> None:
+def render_items(
+    items: list[FigureItem],
+    progress: ProgressFn | None = None,
+    workers: int | None = None,
+    pdf: bool = True,
+    cache: bool = True,
+) -> None:
     """Render every item that has a job, as :func:`render_fresh`; with ``cache``, a figure drawn
     before from the same data by the same code is read from the figure cache instead
     (:mod:`planner.report.figure_cache`), and the others are kept there."""
@@ -91,13 +105,15 @@ def render_items(items: list[FigureItem], progress: ProgressFn | None = None,
 
     def shifted(stage: str, done: int, total: int) -> None:
         progress(stage, cached + done, cached + total)  # type: ignore[misc]
+
     render_fresh(todo, shifted if progress is not None else None, workers, pdf)
     if cache:
         keep_rendered(todo, unrendered)
 
 
-def render_fresh(items: list[FigureItem], progress: ProgressFn | None = None,
-                 workers: int | None = None, pdf: bool = True) -> None:
+def render_fresh(
+    items: list[FigureItem], progress: ProgressFn | None = None, workers: int | None = None, pdf: bool = True
+) -> None:
     """Render every item that has a job, filling ``png`` and ``pdf`` (``pdf`` False: PNG only,
     ``pdf`` stays None).
 
@@ -122,6 +138,7 @@ def render_fresh(items: list[FigureItem], progress: ProgressFn | None = None,
             tick(i)
         return
     import multiprocessing
+
     # Most expensive first, so the two processes finish together.
     order = sorted(todo, key=lambda it: -_COST.get(it.name, 1.0))
     ctx = multiprocessing.get_context("fork")
@@ -156,15 +173,20 @@ def _html_lists(run: Run) -> list[str]:
     s, out = run.summary, []
     rej = s.get("rejected_branches") or {}
     if rej:
-        out.append("<h3>IK branches not feasible along the path</h3><ul>"
-                   + "".join(f"<li>{html.escape(str(b))}: {html.escape(str(r))}</li>"
-                             for b, r in rej.items()) + "</ul>")
+        out.append(
+            "<h3>IK branches not feasible along the path</h3><ul>"
+            + "".join(f"<li>{html.escape(str(b))}: {html.escape(str(r))}</li>" for b, r in rej.items())
+            + "</ul>"
+        )
     warn = s.get("warnings") or []
     if warn:
         out.append("<h3>Warnings</h3><ul>" + "".join(f"<li>{html.escape(str(w))}</li>" for w in warn) + "</ul>")
     if run.absent:
-        out.append("<h3>Absent in this run</h3><ul>"
-                   + "".join(f"<li>{html.escape(v)}</li>" for v in run.absent.values()) + "</ul>")
+        out.append(
+            "<h3>Absent in this run</h3><ul>"
+            + "".join(f"<li>{html.escape(v)}</li>" for v in run.absent.values())
+            + "</ul>"
+        )
     return out
 
 
@@ -174,11 +196,13 @@ def _html_figure(i: int, it: FigureItem) -> list[str]:
         out.append(f'<p class="absent" data-absent="{it.name}">{html.escape(it.absent)}</p>')
         return out
     b64 = base64.b64encode(it.png).decode("ascii")
-    out.append(f'<figure><img data-figure="{it.name}" alt="{html.escape(it.title)}" '
-               f'src="data:image/png;base64,{b64}">'
-               f"<figcaption>{html.escape(it.caption)} Files: "
-               f'<a href="figures/{it.name}.png">PNG</a>, '
-               f'<a href="figures/{it.name}.pdf">PDF</a>.</figcaption></figure>')
+    out.append(
+        f'<figure><img data-figure="{it.name}" alt="{html.escape(it.title)}" '
+        f'src="data:image/png;base64,{b64}">'
+        f"<figcaption>{html.escape(it.caption)} Files: "
+        f'<a href="figures/{it.name}.png">PNG</a>, '
+        f'<a href="figures/{it.name}.pdf">PDF</a>.</figcaption></figure>'
+    )
     return out
 
 
@@ -195,15 +219,20 @@ def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
     title = report_title(run.summary)
     head, body, prov = _split_tables(tables)
     toc = " ".join(f'<a href="#{it.name}">Fig. {i}</a>' for i, it in enumerate(items, start=1))
-    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-           f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
-           f"<h1>{html.escape(title)}</h1>"]
+    out = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+    ]
     out += [t.html() for t in head]
-    out += [f'<nav class="toc"><a href="#details">Run details</a> <a href="#provenance">Provenance</a> {toc}</nav>',
-            '<h2 id="details">Run details</h2>',
-            f'<p class="note">Output folder: {html.escape(str(run.folder))}. All values from '
-            "summary.json and the CSV files of this folder; SI inside, mm and deg in the "
-            "displays.</p>"]
+    out += [
+        f'<nav class="toc"><a href="#details">Run details</a> <a href="#provenance">Provenance</a> {toc}</nav>',
+        '<h2 id="details">Run details</h2>',
+        f'<p class="note">Output folder: {html.escape(str(run.folder))}. All values from '
+        "summary.json and the CSV files of this folder; SI inside, mm and deg in the "
+        "displays.</p>",
+    ]
     out += [t.html() for t in body]
     out += _html_lists(run)
     out += [t.html() for t in prov]
@@ -221,15 +250,17 @@ def render_markdown(run: Run, tables: list[Table], items: list[FigureItem]) -> s
     out = [f"# {report_title(s)}", ""]
     for t in head:
         out += [t.markdown(), ""]
-    out += ["## Run details", "",
-            "All values from summary.json and the CSV files of this folder; SI inside, mm and deg "
-            "in the displays.", ""]
+    out += [
+        "## Run details",
+        "",
+        "All values from summary.json and the CSV files of this folder; SI inside, mm and deg in the displays.",
+        "",
+    ]
     for t in body:
         out += [t.markdown(), ""]
     rej = s.get("rejected_branches") or {}
     if rej:
-        out += ["### IK branches not feasible along the path", ""] + [
-            f"- {b}: {r}" for b, r in rej.items()] + [""]
+        out += ["### IK branches not feasible along the path", ""] + [f"- {b}: {r}" for b, r in rej.items()] + [""]
     warn = s.get("warnings") or []
     if warn:
         out += ["### Warnings", ""] + [f"- {w}" for w in warn] + [""]
@@ -243,6 +274,10 @@ def render_markdown(run: Run, tables: list[Table], items: list[FigureItem]) -> s
         if it.png is None:
             out += [f"*{it.absent}*", ""]
             continue
-        out += [f"![Figure {i}. {it.title}](figures/{it.name}.png)", "",
-                f"{it.caption} ([PDF](figures/{it.name}.pdf))", ""]
+        out += [
+            f"![Figure {i}. {it.title}](figures/{it.name}.png)",
+            "",
+            f"{it.caption} ([PDF](figures/{it.name}.pdf))",
+            "",
+        ]
     return "\n".join(out)

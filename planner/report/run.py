@@ -18,7 +18,8 @@ import csv
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -41,6 +42,7 @@ def method_order() -> tuple[str, ...]:
     """The registered timing methods, in registration order (the column order of figure 6;
     :func:`problems.timing.available_methods`)."""
     from problems.timing import available_methods
+
     return available_methods()
 
 
@@ -51,6 +53,7 @@ def method_name(summary: Mapping[str, Any], method: str) -> str:
     if isinstance(info, Mapping) and isinstance(info.get("display_name"), str):
         return info["display_name"]
     from problems.timing import display_name
+
     return display_name(method)
 
 
@@ -110,7 +113,7 @@ class Run:
 
 
 # ------------------------------------------------------------------------- from a plan result
-def run_from_plan(res: "PlanResult", folder: str | Path, view: "RunView | None" = None) -> Run:
+def run_from_plan(res: PlanResult, folder: str | Path, view: RunView | None = None) -> Run:
     """The view of a successful plan, from its in-memory result.
 
     Gives the same :class:`Run` as :func:`load_run` on the folder that
@@ -157,17 +160,18 @@ def _dynamic_file(summary: Mapping[str, Any]) -> str:
 def _no_dynamic(summary: Mapping[str, Any]) -> str:
     entry = summary.get(DYNAMIC_KEY)
     status = entry.get("status") if isinstance(entry, Mapping) else None
-    return (f"dynamic compensation: {_dynamic_file(summary)} absent in this run"
-            + (f" (stage status {status})" if status not in (None, "ok") else ""))
+    return f"dynamic compensation: {_dynamic_file(summary)} absent in this run" + (
+        f" (stage status {status})" if status not in (None, "ok") else ""
+    )
 
 
-def _trajectory_arrays(tr: "Trajectory") -> dict[str, np.ndarray | None]:
+def _trajectory_arrays(tr: Trajectory) -> dict[str, np.ndarray | None]:
     return {"t": tr.t, "q": tr.q, "qd": tr.qd, "qdd": tr.qdd, "qddd": tr.qddd}
 
 
 def _add_trajectory(run: Run, method: str, name: str, tr: dict[str, np.ndarray | None]) -> None:
     """Record one method's trajectory, or why it is absent (no samples)."""
-    if len(tr["t"]) == 0:                                        # type: ignore[arg-type]
+    if len(tr["t"]) == 0:  # type: ignore[arg-type]
         run.absent[f"trajectory {method}"] = f"{name} has no samples"
         return
     run.trajectories[method] = tr
@@ -188,8 +192,7 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     data = np.empty((len(rows) - 1, len(header)))
     for i, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):
-            raise InputError(f"{path}: line {i} has {len(row)} fields; expected {len(header)} "
-                             "(as in the header)")
+            raise InputError(f"{path}: line {i} has {len(row)} fields; expected {len(header)} (as in the header)")
         for j, v in enumerate(row):
             try:
                 data[i - 2, j] = float(v)
@@ -201,8 +204,10 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
 def _require(path: Path, cols: Mapping[str, np.ndarray], names: list[str]) -> np.ndarray:
     missing = [n for n in names if n not in cols]
     if missing:
-        raise InputError(f"{path}: column(s) {', '.join(missing)} missing; expected the columns "
-                         "written by compplan demo/plan (docs/cli.md)")
+        raise InputError(
+            f"{path}: column(s) {', '.join(missing)} missing; expected the columns "
+            "written by compplan demo/plan (docs/cli.md)"
+        )
     return np.column_stack([cols[n] for n in names])
 
 
@@ -220,7 +225,7 @@ def _trajectory_files(summary: Mapping[str, Any], folder: Path | None = None) ->
         known = {f for f, _ in pairs}
         for p in sorted(folder.glob("trajectory_*.csv")) if folder is not None else ():
             if p.name not in known:
-                pairs.append((p.name, p.stem[len("trajectory_"):]))
+                pairs.append((p.name, p.stem[len("trajectory_") :]))
     order = {m: i for i, m in enumerate(method_order())}
     return sorted(pairs, key=lambda fm: (order.get(fm[1], len(order)), fm[1]))
 
@@ -231,8 +236,7 @@ def _read_trajectory(path: Path) -> dict[str, np.ndarray | None]:
     jerk = None if not any(c in cols for c in _JERK_COLUMNS) else _require(path, cols, _JERK_COLUMNS)
     base = [c for c in TRAJECTORY_COLUMNS if c not in _JERK_COLUMNS]
     arr = _require(path, cols, base)
-    return {"t": arr[:, 0], "q": arr[:, 1:7], "qd": arr[:, 7:13], "qdd": arr[:, 13:19],
-            "qddd": jerk}
+    return {"t": arr[:, 0], "q": arr[:, 1:7], "qd": arr[:, 7:13], "qdd": arr[:, 13:19], "qddd": jerk}
 
 
 #: Values of ``summary.json``'s ``command`` key of the runs ``compplan report`` reports on.
@@ -241,12 +245,13 @@ RUN_COMMANDS = ("plan", "demo")
 
 def _read_summary(folder: Path) -> dict[str, Any]:
     if not folder.is_dir():
-        raise InputError(f"report: folder {str(folder)!r} does not exist; expected the output "
-                         "folder of compplan demo or compplan plan")
+        raise InputError(
+            f"report: folder {str(folder)!r} does not exist; expected the output "
+            "folder of compplan demo or compplan plan"
+        )
     sp = folder / "summary.json"
     if not sp.is_file():
-        raise InputError(f"report: {sp} not found; expected the output folder of compplan demo "
-                         "or compplan plan")
+        raise InputError(f"report: {sp} not found; expected the output folder of compplan demo or compplan plan")
     try:
         summary = json.loads(sp.read_text())
     except (OSError, ValueError) as exc:
@@ -255,11 +260,15 @@ def _read_summary(folder: Path) -> dict[str, Any]:
         raise InputError(f"report: {sp}: top level is {type(summary).__name__}; expected an object")
     command = summary.get("command")
     if command == "place":
-        raise InputError(f"report: {sp} is a placement study's summary: compplan place writes its report itself "
-                         "(run it again without --no-report)")
+        raise InputError(
+            f"report: {sp} is a placement study's summary: compplan place writes its report itself "
+            "(run it again without --no-report)"
+        )
     if command not in RUN_COMMANDS:
-        raise InputError(f"report: {sp}: 'command' is {command!r}, not one of {list(RUN_COMMANDS)}: this is not the "
-                         "summary of a compplan plan or demo run (compplan report writes the report of such a folder)")
+        raise InputError(
+            f"report: {sp}: 'command' is {command!r}, not one of {list(RUN_COMMANDS)}: this is not the "
+            "summary of a compplan plan or demo run (compplan report writes the report of such a folder)"
+        )
     return summary
 
 
@@ -320,8 +329,7 @@ def load_run(folder: str | Path) -> Run:
     return run
 
 
-def recorded_model(summary: Mapping[str, Any], robot: Robot, where: Path,
-                   absent: dict[str, str]) -> ArmModel | None:
+def recorded_model(summary: Mapping[str, Any], robot: Robot, where: Path, absent: dict[str, str]) -> ArmModel | None:
     """The arm model a run was planned with, from its ``summary.json`` (``where``).
 
     A nominal model (``summary["model"]["identified"]`` false) is the one of the recorded
@@ -341,21 +349,30 @@ def recorded_model(summary: Mapping[str, Any], robot: Robot, where: Path,
         return ArmModel.from_robot(robot)
     path, sha = md.get("file"), md.get("sha256")
     if not isinstance(path, str) or not path or not isinstance(sha, str) or not sha:
-        absent["model"] = ("the run was planned with an identified arm model that has no file (model.file in "
-                           "summary.json is empty: built in memory), so the compliance map and the arm are not "
-                           "drawn (the nominal robot is not the model the run used)")
+        absent["model"] = (
+            "the run was planned with an identified arm model that has no file (model.file in "
+            "summary.json is empty: built in memory), so the compliance map and the arm are not "
+            "drawn (the nominal robot is not the model the run used)"
+        )
         return None
     import hashlib
 
     from models.arm_file import load_model
-    again = (f"restore the model file the run was planned with at {path}, or plan again with the model as it "
-             f"is now (compplan plan PROBLEM --robot MODEL --out {where.parent}) and report on that run")
+
+    again = (
+        f"restore the model file the run was planned with at {path}, or plan again with the model as it "
+        f"is now (compplan plan PROBLEM --robot MODEL --out {where.parent}) and report on that run"
+    )
     try:
         actual = hashlib.sha256(Path(path).read_bytes()).hexdigest()
     except OSError as exc:
-        raise InputError(f"report: {where}: model.file {path!r} (SHA-256 {sha}), the identified arm model the run "
-                         f"was planned with, cannot be read ({exc.strerror}: moved or deleted?); {again}") from None
+        raise InputError(
+            f"report: {where}: model.file {path!r} (SHA-256 {sha}), the identified arm model the run "
+            f"was planned with, cannot be read ({exc.strerror}: moved or deleted?); {again}"
+        ) from None
     if actual != sha:
-        raise InputError(f"report: {where}: the identified arm model file {path} has changed since the run was "
-                         f"planned: SHA-256 recorded in model.sha256 {sha}, the file's now {actual}; {again}")
+        raise InputError(
+            f"report: {where}: the identified arm model file {path} has changed since the run was "
+            f"planned: SHA-256 recorded in model.sha256 {sha}, the file's now {actual}; {again}"
+        )
     return load_model(path).with_tool(robot.tcp2flange)

@@ -19,7 +19,8 @@ import html
 import json
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -31,14 +32,23 @@ from planner.report.run import DYNAMIC_KEY, method_name
 RATIO_KINDS = ("velocity", "acceleration", "jerk")
 
 #: Columns of the branch table when summary.json's branch entries have them (plan, issue 5).
-_BRANCH_KEYS = ("rms_error_equilibrium_mm", "max_error_equilibrium_mm", "rms_error_analytic_mm",
-                "rms_error_mm", "cost", "iterations")
-_BRANCH_HEADERS = {"rms_error_equilibrium_mm": "RMS error, exact equilibrium [mm]",
-                   "max_error_equilibrium_mm": "max error, exact equilibrium [mm]",
-                   "rms_error_analytic_mm": "RMS error, first order, analytic posture [mm]",
-                   "rms_error_mm": "RMS error, first order, optimised posture [mm]",
-                   "max_error_mm": "max error, first order, optimised [mm]", "cost": "NLP cost [m²]",
-                   "iterations": "solver iterations"}
+_BRANCH_KEYS = (
+    "rms_error_equilibrium_mm",
+    "max_error_equilibrium_mm",
+    "rms_error_analytic_mm",
+    "rms_error_mm",
+    "cost",
+    "iterations",
+)
+_BRANCH_HEADERS = {
+    "rms_error_equilibrium_mm": "RMS error, exact equilibrium [mm]",
+    "max_error_equilibrium_mm": "max error, exact equilibrium [mm]",
+    "rms_error_analytic_mm": "RMS error, first order, analytic posture [mm]",
+    "rms_error_mm": "RMS error, first order, optimised posture [mm]",
+    "max_error_mm": "max error, first order, optimised [mm]",
+    "cost": "NLP cost [m²]",
+    "iterations": "solver iterations",
+}
 
 
 # ------------------------------------------------------------------------------- value helpers
@@ -123,8 +133,11 @@ class Table:
 
     def html(self) -> str:
         anchor = f' id="{self.anchor}"' if self.anchor else ""
-        out = [f"<h3{anchor}>{html.escape(self.title)}</h3>", f'<table class="{self.css}">',
-               "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in self.header) + "</tr>"]
+        out = [
+            f"<h3{anchor}>{html.escape(self.title)}</h3>",
+            f'<table class="{self.css}">',
+            "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in self.header) + "</tr>",
+        ]
         out += ["<tr>" + "".join(c.html() for c in row) + "</tr>" for row in self.rows]
         out.append("</table>")
         if self.note:
@@ -134,8 +147,13 @@ class Table:
     def markdown(self) -> str:
         def esc(s: str) -> str:
             return s.replace("|", "\\|")
-        out = [f"### {self.title}", "", "| " + " | ".join(esc(h) for h in self.header) + " |",
-               "|" + "---|" * len(self.header)]
+
+        out = [
+            f"### {self.title}",
+            "",
+            "| " + " | ".join(esc(h) for h in self.header) + " |",
+            "|" + "---|" * len(self.header),
+        ]
         out += ["| " + " | ".join(esc(c.text) for c in row) + " |" for row in self.rows]
         if self.note:
             out += ["", self.note]
@@ -171,8 +189,7 @@ def report_title(s: Mapping[str, Any]) -> str:
 def summary_tables(summary: Mapping[str, Any], absent: Mapping[str, str]) -> list[Table]:
     """The tables of the report, headline first and provenance last (numbers traceable to
     summary.json)."""
-    tables = [headline_table(summary), _run_table(summary), _error_table(summary),
-              _timing_table(summary, absent)]
+    tables = [headline_table(summary), _run_table(summary), _error_table(summary), _timing_table(summary, absent)]
     tables += dynamic_tables(summary)
     branches = _branch_table(summary)
     if branches is not None:
@@ -191,16 +208,20 @@ def load_words(s: Mapping[str, Any]) -> str:
     per_wp = bool(w.get("per_waypoint"))
     nonzero = any(abs(v) > 0 for v in F + M) or per_wp
     if nonzero and F and M:
-        vec = (f"F = [{', '.join(format_number(v) for v in F)}] N, "
-               f"M = [{', '.join(format_number(v) for v in M)}] N·m")
-        where = ("tool-frame wrench (turns with the tool)" if frame == "tool" else "base-frame wrench")
+        vec = f"F = [{', '.join(format_number(v) for v in F)}] N, M = [{', '.join(format_number(v) for v in M)}] N·m"
+        where = "tool-frame wrench (turns with the tool)" if frame == "tool" else "base-frame wrench"
         parts.append(f"{where} {vec}" + (" at waypoint 0 (per-waypoint wrench)" if per_wp else ""))
     p = s.get("payload")
     if isinstance(p, Mapping) and p.get("mass_kg"):
         com = flat_numbers(p.get("com_m_tcp_frame"))
-        parts.append(f"payload {format_number(float(p['mass_kg']))} kg"
-                     + (f" (centre of mass [{', '.join(format_number(v) for v in com)}] m, TCP frame)"
-                        if com and any(com) else ""))
+        parts.append(
+            f"payload {format_number(float(p['mass_kg']))} kg"
+            + (
+                f" (centre of mass [{', '.join(format_number(v) for v in com)}] m, TCP frame)"
+                if com and any(com)
+                else ""
+            )
+        )
     return " + ".join(parts) if parts else "no load"
 
 
@@ -208,35 +229,58 @@ def headline_table(s: Mapping[str, Any]) -> Table:
     """The headline: status, IK branch, TCP error before / after, duration (one short table)."""
     h = s.get("headline")
     if not isinstance(h, Mapping):
-        return Table("Headline", ["quantity", "value", "unit", "note"],
-                     [[Cell("headline"), Cell("absent"), Cell(""),
-                       Cell("summary.json has no headline block (written by an earlier compplan)")]],
-                     css="summary headline", anchor="headline")
+        return Table(
+            "Headline",
+            ["quantity", "value", "unit", "note"],
+            [
+                [
+                    Cell("headline"),
+                    Cell("absent"),
+                    Cell(""),
+                    Cell("summary.json has no headline block (written by an earlier compplan)"),
+                ]
+            ],
+            css="summary headline",
+            anchor="headline",
+        )
     label = h.get("branch")
     branch_note = h.get("branch_posture") or ""
     if label and h.get("default_branch") and h.get("default_branch") != label and h.get("gain_vs_default"):
-        branch_note += (f"{'; ' if branch_note else ''}{format_number(h['gain_vs_default'])}× less RMS error than "
-                        f"the default branch {h['default_branch']} (nearest home)")
+        branch_note += (
+            f"{'; ' if branch_note else ''}{format_number(h['gain_vs_default'])}× less RMS error than "
+            f"the default branch {h['default_branch']} (nearest home)"
+        )
     elif label and h.get("default_branch") == label:
         branch_note += f"{'; ' if branch_note else ''}the default branch (nearest home)"
     floor = f"below the numerical floor {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm"
-    rows = [[Cell("status"), value_cell(s, "headline.status"), Cell(""),
-             Cell(str(h.get("reason") or ""))],
-            [Cell("IK branch"), value_cell(s, "headline.branch"), Cell(""),
-             Cell(f"{branch_words.short(label) if label else ''}{': ' if branch_note else ''}{branch_note}")]]
+    rows = [
+        [Cell("status"), value_cell(s, "headline.status"), Cell(""), Cell(str(h.get("reason") or ""))],
+        [
+            Cell("IK branch"),
+            value_cell(s, "headline.branch"),
+            Cell(""),
+            Cell(f"{branch_words.short(label) if label else ''}{': ' if branch_note else ''}{branch_note}"),
+        ],
+    ]
     below = set(h.get("below_numerical_floor") or [])
     for text, key, note in (
-            ("TCP error before compensation, max", "error_before_max_mm",
-             "the chosen posture commanded as is, exact deflected equilibrium"),
-            ("TCP error before compensation, RMS", "error_before_rms_mm", ""),
-            ("TCP error after exact compensation, max", "error_after_max_mm", ""),
-            ("TCP error after exact compensation, RMS", "error_after_rms_mm", ""),
-            ("TCP error after closed-form compensation (paper), max", "error_after_closed_form_max_mm",
-             "first-order compensation q − K⁻¹Jᵀ(q)F, for comparison")):
+        (
+            "TCP error before compensation, max",
+            "error_before_max_mm",
+            "the chosen posture commanded as is, exact deflected equilibrium",
+        ),
+        ("TCP error before compensation, RMS", "error_before_rms_mm", ""),
+        ("TCP error after exact compensation, max", "error_after_max_mm", ""),
+        ("TCP error after exact compensation, RMS", "error_after_rms_mm", ""),
+        (
+            "TCP error after closed-form compensation (paper), max",
+            "error_after_closed_form_max_mm",
+            "first-order compensation q − K⁻¹Jᵀ(q)F, for comparison",
+        ),
+    ):
         if key not in h:
             continue
-        rows.append([Cell(text), value_cell(s, f"headline.{key}"), Cell("mm"),
-                     Cell(floor if key in below else note)])
+        rows.append([Cell(text), value_cell(s, f"headline.{key}"), Cell("mm"), Cell(floor if key in below else note)])
     if h.get("duration_s") is not None:
         note = str(h.get("duration_note") or "")
         if h.get("duration_time_optimal_s") is not None:
@@ -244,39 +288,60 @@ def headline_table(s: Mapping[str, Any]) -> Table:
         rows.append([Cell("duration"), value_cell(s, "headline.duration_s"), Cell("s"), Cell(note)])
     else:
         rows.append([Cell("duration"), Cell("not timed"), Cell(""), Cell(str(h.get("duration_note") or ""))])
-    return Table("Headline", ["quantity", "value", "unit", "note"], rows,
-                 "TCP error = |reached − target| TCP position over the waypoints at the exact deflected "
-                 f"equilibrium under the whole load ({load_words(s)}); rounded to 4 significant digits, "
-                 f"and an error below {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm "
-                 "(the exact-compensation contract) is 0: the accuracy of the equilibrium solve, not an "
-                 "error of the arm. Full precision: the tables below and summary.json.",
-                 css="summary headline", anchor="headline")
+    return Table(
+        "Headline",
+        ["quantity", "value", "unit", "note"],
+        rows,
+        "TCP error = |reached − target| TCP position over the waypoints at the exact deflected "
+        f"equilibrium under the whole load ({load_words(s)}); rounded to 4 significant digits, "
+        f"and an error below {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm "
+        "(the exact-compensation contract) is 0: the accuracy of the equilibrium solve, not an "
+        "error of the arm. Full precision: the tables below and summary.json.",
+        css="summary headline",
+        anchor="headline",
+    )
 
 
 def provenance_table(s: Mapping[str, Any]) -> Table:
     """compplan version, command line, date (UTC) and input files with their SHA-256."""
     p = s.get("provenance")
     if not isinstance(p, Mapping):
-        return Table("Provenance", ["item", "value", "SHA-256"],
-                     [[Cell("provenance"), Cell("absent: summary.json written by an earlier compplan"), Cell("")]],
-                     anchor="provenance")
-    rows = [[Cell("compplan version"), value_cell(s, "provenance.compplan_version"), Cell("")],
-            [Cell("command line"),
-             value_cell(s, "provenance.command_line", css="mono") if p.get("command_line")
-             else Cell("none: written by a library call"), Cell("")],
-            [Cell("date (UTC, ISO 8601)"), value_cell(s, "provenance.date_utc"), Cell("")]]
+        return Table(
+            "Provenance",
+            ["item", "value", "SHA-256"],
+            [[Cell("provenance"), Cell("absent: summary.json written by an earlier compplan"), Cell("")]],
+            anchor="provenance",
+        )
+    rows = [
+        [Cell("compplan version"), value_cell(s, "provenance.compplan_version"), Cell("")],
+        [
+            Cell("command line"),
+            value_cell(s, "provenance.command_line", css="mono")
+            if p.get("command_line")
+            else Cell("none: written by a library call"),
+            Cell(""),
+        ],
+        [Cell("date (UTC, ISO 8601)"), value_cell(s, "provenance.date_utc"), Cell("")],
+    ]
     for i, e in enumerate(p.get("inputs") or []):
         if not isinstance(e, Mapping):
             continue
         name = f" '{e['name']}'" if e.get("name") else ""
-        where = (value_cell(s, f"provenance.inputs.{i}.path", css="mono") if e.get("path")
-                 else Cell(str(e.get("note") or "not a file")))
-        digest = (value_cell(s, f"provenance.inputs.{i}.sha256", css="mono hash") if e.get("sha256")
-                  else Cell("—"))
+        where = (
+            value_cell(s, f"provenance.inputs.{i}.path", css="mono")
+            if e.get("path")
+            else Cell(str(e.get("note") or "not a file"))
+        )
+        digest = value_cell(s, f"provenance.inputs.{i}.sha256", css="mono hash") if e.get("sha256") else Cell("—")
         rows.append([Cell(f"input: {e.get('role', '?')}{name}"), where, digest])
-    return Table("Provenance", ["item", "value", "SHA-256"], rows,
-                 "Inputs as read by this run; their SHA-256 identifies the exact files (built-in robots and "
-                 "shipped problems are hashed from the installed package).", anchor="provenance")
+    return Table(
+        "Provenance",
+        ["item", "value", "SHA-256"],
+        rows,
+        "Inputs as read by this run; their SHA-256 identifies the exact files (built-in robots and "
+        "shipped problems are hashed from the installed package).",
+        anchor="provenance",
+    )
 
 
 def _run_table(s: Mapping[str, Any]) -> Table:
@@ -295,11 +360,14 @@ def _run_table(s: Mapping[str, Any]) -> Table:
         [Cell("compensation status, closed form"), value_cell(s, "status.closed_form"), Cell("")],
         [Cell("compensation status, exact"), value_cell(s, "status.exact"), Cell("")],
     ]
-    optional = (("plan status", "plan_status", ""), ("reason", "reason", ""),
-                ("default IK branch (nearest home)", "default_branch", ""),
-                ("error gain vs default branch", "gain.vs_default", "×"),
-                ("error gain vs best analytic posture", "gain.vs_best_analytic", "×"),
-                ("controller trajectory", "controller_trajectory", ""))
+    optional = (
+        ("plan status", "plan_status", ""),
+        ("reason", "reason", ""),
+        ("default IK branch (nearest home)", "default_branch", ""),
+        ("error gain vs default branch", "gain.vs_default", "×"),
+        ("error gain vs best analytic posture", "gain.vs_best_analytic", "×"),
+        ("controller trajectory", "controller_trajectory", ""),
+    )
     for label, key, unit in optional:
         try:
             v = lookup(s, key)
@@ -315,22 +383,37 @@ def _wrench_rows(s: Mapping[str, Any], w: Mapping[str, Any], frame: str) -> list
     """The process wrench: force, moment, frame and point; one row "none" when it is zero."""
     values = flat_numbers(w.get("F_N")) + flat_numbers(w.get("M_Nm"))
     if values and not any(values) and not w.get("per_waypoint"):
-        return [[Cell("process wrench"), Cell("none" + (" (the payload is the load)" if s.get("payload") else "")),
-                 Cell("")]]
-    return [[Cell(f"process wrench: force F ({frame} frame)"), value_cell(s, "wrench.F_N"), Cell("N")],
-            [Cell(f"process wrench: moment M ({frame} frame)"), value_cell(s, "wrench.M_Nm"), Cell("N·m")],
-            [Cell("process wrench: frame / point"),
-             Cell(f"{frame} frame" + (" (turns with the tool)" if frame == "tool" else "")
-                  + f", at the {w.get('point', '?')}"
-                  + ("; per-waypoint: the values are waypoint 0's" if w.get("per_waypoint") else "")), Cell("")]]
+        return [
+            [
+                Cell("process wrench"),
+                Cell("none" + (" (the payload is the load)" if s.get("payload") else "")),
+                Cell(""),
+            ]
+        ]
+    return [
+        [Cell(f"process wrench: force F ({frame} frame)"), value_cell(s, "wrench.F_N"), Cell("N")],
+        [Cell(f"process wrench: moment M ({frame} frame)"), value_cell(s, "wrench.M_Nm"), Cell("N·m")],
+        [
+            Cell("process wrench: frame / point"),
+            Cell(
+                f"{frame} frame"
+                + (" (turns with the tool)" if frame == "tool" else "")
+                + f", at the {w.get('point', '?')}"
+                + ("; per-waypoint: the values are waypoint 0's" if w.get("per_waypoint") else "")
+            ),
+            Cell(""),
+        ],
+    ]
 
 
 def _payload_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
     """Payload mass and centre of mass, when the problem has one."""
     if not s.get("payload"):
         return []
-    return [[Cell("payload: mass"), value_cell(s, "payload.mass_kg"), Cell("kg")],
-            [Cell("payload: centre of mass (TCP frame)"), value_cell(s, "payload.com_m_tcp_frame"), Cell("m")]]
+    return [
+        [Cell("payload: mass"), value_cell(s, "payload.mass_kg"), Cell("kg")],
+        [Cell("payload: centre of mass (TCP frame)"), value_cell(s, "payload.com_m_tcp_frame"), Cell("m")],
+    ]
 
 
 def _model_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
@@ -339,8 +422,10 @@ def _model_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
     if not isinstance(md, Mapping):
         return []
     src = md.get("file") or f"robot file '{s.get('robot', '?')}' (nominal)"
-    rows = [[Cell("arm model"), Cell(str(src)), Cell("")],
-            [Cell("arm model: effects"), Cell(", ".join(md.get("effects", [])) or "joint_springs"), Cell("")]]
+    rows = [
+        [Cell("arm model"), Cell(str(src)), Cell("")],
+        [Cell("arm model: effects"), Cell(", ".join(md.get("effects", [])) or "joint_springs"), Cell("")],
+    ]
     if md.get("sha256"):
         rows.append([Cell("arm model: SHA-256"), Cell(str(md["sha256"])[:16] + "…"), Cell("")])
     return rows
@@ -348,17 +433,23 @@ def _model_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
 
 def _error_table(s: Mapping[str, Any]) -> Table:
     rows = []
-    for label, key in (("before compensation", "error_before"),
-                       ("after closed form (paper eqs. 32/47)", "error_after.closed_form"),
-                       ("after exact compensation", "error_after.exact")):
+    for label, key in (
+        ("before compensation", "error_before"),
+        ("after closed form (paper eqs. 32/47)", "error_after.closed_form"),
+        ("after exact compensation", "error_after.exact"),
+    ):
         rows.append([Cell(label), value_cell(s, f"{key}.max_mm"), value_cell(s, f"{key}.rms_mm")])
-    return Table("TCP position error under load [mm]", ["case", "max [mm]", "RMS [mm]"], rows,
-                 "Euclidean norm of (reached − target) TCP position over the waypoints, at the exact "
-                 "deflected equilibrium of the arm model named above (its effects, under the whole load). "
-                 "'Before' is the chosen posture commanded as is; the IK branch table's first-order "
-                 "errors (|S·C(q)·F|, the NLP's objective) differ from it by the second-order terms, its "
-                 "'exact equilibrium' column is this same measure. "
-                 f"Below {format_number(NUMERICAL_FLOOR_MM)} mm: 0 (numerical).")
+    return Table(
+        "TCP position error under load [mm]",
+        ["case", "max [mm]", "RMS [mm]"],
+        rows,
+        "Euclidean norm of (reached − target) TCP position over the waypoints, at the exact "
+        "deflected equilibrium of the arm model named above (its effects, under the whole load). "
+        "'Before' is the chosen posture commanded as is; the IK branch table's first-order "
+        "errors (|S·C(q)·F|, the NLP's objective) differ from it by the second-order terms, its "
+        "'exact equilibrium' column is this same measure. "
+        f"Below {format_number(NUMERICAL_FLOOR_MM)} mm: 0 (numerical).",
+    )
 
 
 def _timing_table(s: Mapping[str, Any], absent: Mapping[str, str]) -> Table:
@@ -376,17 +467,25 @@ def _timing_table(s: Mapping[str, Any], absent: Mapping[str, str]) -> Table:
         else:
             dcell = Cell("absent")
         name = method_name(s, m) + (" (controller)" if s.get("controller_trajectory") == m else "")
-        rows.append([Cell(name), dcell]
-                    + [value_cell(s, f"{prefix}.{k}", agg="max") for k in RATIO_KINDS]
-                    + [value_cell(s, f"timing.{m}.status"), _binding_cell(s, m)])
-    note = ("Limit ratio: peak |value| / limit, maximum over the joints (1 = at the limit). "
-            + "".join(_partial_limits(s, m) for m in methods)
-            + "Binds: the limit and joint at ≥ 98 % of its limit for the largest share of the motion.")
+        rows.append(
+            [Cell(name), dcell]
+            + [value_cell(s, f"{prefix}.{k}", agg="max") for k in RATIO_KINDS]
+            + [value_cell(s, f"timing.{m}.status"), _binding_cell(s, m)]
+        )
+    note = (
+        "Limit ratio: peak |value| / limit, maximum over the joints (1 = at the limit). "
+        + "".join(_partial_limits(s, m) for m in methods)
+        + "Binds: the limit and joint at ≥ 98 % of its limit for the largest share of the motion."
+    )
     if not rows:
         rows = [[Cell(absent.get("trajectory", "no trajectory in this run"))] + [Cell("—")] * 6]
         note = "No trajectory in this run: durations and limit ratios are not available."
-    return Table("Timing", ["method", "duration [s]", "velocity ratio", "acceleration ratio",
-                            "jerk ratio", "status", "binds"], rows, note)
+    return Table(
+        "Timing",
+        ["method", "duration [s]", "velocity ratio", "acceleration ratio", "jerk ratio", "status", "binds"],
+        rows,
+        note,
+    )
 
 
 def _words(keys: list[str]) -> str:
@@ -404,8 +503,10 @@ def _partial_limits(s: Mapping[str, Any], method: str) -> str:
     if not free:
         return ""
     verb = "is" if len(free) == 1 else "are"
-    return (f"{method_name(s, method)} limits {_words([k for k in RATIO_KINDS if k in enforced])} only; its "
-            f"{_words(free)} ratio{'' if len(free) == 1 else 's'} {verb} reported, not enforced. ")
+    return (
+        f"{method_name(s, method)} limits {_words([k for k in RATIO_KINDS if k in enforced])} only; its "
+        f"{_words(free)} ratio{'' if len(free) == 1 else 's'} {verb} reported, not enforced. "
+    )
 
 
 def _binding_cell(s: Mapping[str, Any], method: str) -> Cell:
@@ -418,8 +519,10 @@ def _binding_cell(s: Mapping[str, Any], method: str) -> Cell:
     b = use.get("binding") or []
     if not b or not isinstance(b[0], Mapping):
         return Cell("—")
-    return Cell(f"{b[0].get('limit')} of joint {b[0].get('joint')} "
-                f"({100 * float(b[0].get('fraction_of_time', 0)):.0f} % of the time)")
+    return Cell(
+        f"{b[0].get('limit')} of joint {b[0].get('joint')} "
+        f"({100 * float(b[0].get('fraction_of_time', 0)):.0f} % of the time)"
+    )
 
 
 def _branch_table(s: Mapping[str, Any]) -> Table | None:
@@ -442,26 +545,32 @@ def _branch_table(s: Mapping[str, Any]) -> Table | None:
         name = f"{label} ({', '.join(marks)})" if marks else str(label)
         posture = str(info.get("posture") or branch_words.short(str(label)))
         status = str(info.get("status", "?"))
-        rows.append([Cell(name), Cell(posture), Cell(branch_words.status_text(status))]
-                    + [value_cell(s, f"branches.{label}.{k}") for k in keys])
+        rows.append(
+            [Cell(name), Cell(posture), Cell(branch_words.status_text(status))]
+            + [value_cell(s, f"branches.{label}.{k}") for k in keys]
+        )
     diff = ""
     ci = br.get(chosen) if isinstance(br.get(chosen), Mapping) else {}
     a, b = ci.get("rms_error_mm"), ci.get("rms_error_equilibrium_mm")
     if isinstance(a, (int, float)) and isinstance(b, (int, float)) and b:
         diff = f" ({format_number(100.0 * (a - b) / b, 2)} % for the chosen branch)"
-    note = (branch_words.legend(list(br)) + " Posture at waypoint 0, seen from above from the base. "
-            "'Exact equilibrium': the load-induced TCP error of the branch's posture at the deflected "
-            "equilibrium (the measure of the error table and of figure 5); 'first order': |S·C(q)·F|, "
-            "the posture NLP's objective, which neglects the change of C over the deflection"
-            f"{diff}. Status 'fixed orientation: the IK solution, nothing to optimise' (no_freedom) is "
-            "not a failure: six equations fix the six joints and only the branch is chosen.")
-    return Table("IK branches", ["branch", "posture", "status"]
-                 + [_BRANCH_HEADERS.get(k, k) for k in keys], rows, note)
+    note = (
+        branch_words.legend(list(br)) + " Posture at waypoint 0, seen from above from the base. "
+        "'Exact equilibrium': the load-induced TCP error of the branch's posture at the deflected "
+        "equilibrium (the measure of the error table and of figure 5); 'first order': |S·C(q)·F|, "
+        "the posture NLP's objective, which neglects the change of C over the deflection"
+        f"{diff}. Status 'fixed orientation: the IK solution, nothing to optimise' (no_freedom) is "
+        "not a failure: six equations fix the six joints and only the branch is chosen."
+    )
+    return Table("IK branches", ["branch", "posture", "status"] + [_BRANCH_HEADERS.get(k, k) for k in keys], rows, note)
 
 
 #: The cases of the dynamic compensation: (summary.json key, row label).
-DYNAMIC_CASES = (("none", "none (link plan commanded as is)"), ("static", "static compensation only"),
-                 ("static+dynamic", "static + dynamic (motor-side command)"))
+DYNAMIC_CASES = (
+    ("none", "none (link plan commanded as is)"),
+    ("static", "static compensation only"),
+    ("static+dynamic", "static + dynamic (motor-side command)"),
+)
 
 
 def dynamic_tables(s: Mapping[str, Any]) -> list[Table]:
@@ -472,38 +581,62 @@ def dynamic_tables(s: Mapping[str, Any]) -> list[Table]:
     if not isinstance(d, Mapping):
         return []
     k = f"{DYNAMIC_KEY}.predicted_tcp_error"
-    rows = [[Cell(label)] + [value_cell(s, f"{k}.{case}.{m}") for m in ("motion_max_mm", "motion_rms_mm",
-                                                                         "rest_max_mm")]
-            for case, label in DYNAMIC_CASES]
-    note = " ".join(p for p in (
-        f"Definition: {d['definition']}." if d.get("definition") else "",
-        f"Assumptions: {d['assumptions']}." if d.get("assumptions") else "",
-        f"Series against time: {d.get('file') or 'dynamic.csv'} (figure "
-        "'TCP deviation from the planned path against time').",
-        f"Below {format_number(NUMERICAL_FLOOR_MM)} mm: 0 (numerical).") if p)
-    errors = Table("Dynamic compensation: predicted TCP error [mm]",
-                   ["case", "max during motion [mm]", "RMS during motion [mm]", "max at rest [mm]"], rows,
-                   note.replace("..", "."), anchor="dynamic")
+    rows = [
+        [Cell(label)] + [value_cell(s, f"{k}.{case}.{m}") for m in ("motion_max_mm", "motion_rms_mm", "rest_max_mm")]
+        for case, label in DYNAMIC_CASES
+    ]
+    note = " ".join(
+        p
+        for p in (
+            f"Definition: {d['definition']}." if d.get("definition") else "",
+            f"Assumptions: {d['assumptions']}." if d.get("assumptions") else "",
+            f"Series against time: {d.get('file') or 'dynamic.csv'} (figure "
+            "'TCP deviation from the planned path against time').",
+            f"Below {format_number(NUMERICAL_FLOOR_MM)} mm: 0 (numerical).",
+        )
+        if p
+    )
+    errors = Table(
+        "Dynamic compensation: predicted TCP error [mm]",
+        ["case", "max during motion [mm]", "RMS during motion [mm]", "max at rest [mm]"],
+        rows,
+        note.replace("..", "."),
+        anchor="dynamic",
+    )
     scale = d.get("limit_scale") if isinstance(d.get("limit_scale"), Mapping) else {}
     kinds = [kd for kd in RATIO_KINDS if kd in scale] + [kd for kd in scale if kd not in RATIO_KINDS]
-    command = Table("Dynamic compensation: command",
-                    ["status", "timing passes"] + [f"limit scale: {kd} [×]" for kd in kinds] + ["smoothing [s]"],
-                    [[value_cell(s, f"{DYNAMIC_KEY}.status"), value_cell(s, f"{DYNAMIC_KEY}.passes")]
-                     + [value_cell(s, f"{DYNAMIC_KEY}.limit_scale.{kd}") for kd in kinds]
-                     + [value_cell(s, f"{DYNAMIC_KEY}.smoothing_s")]],
-                    str(d.get("reason") or ""), anchor="dynamic-command")
+    command = Table(
+        "Dynamic compensation: command",
+        ["status", "timing passes"] + [f"limit scale: {kd} [×]" for kd in kinds] + ["smoothing [s]"],
+        [
+            [value_cell(s, f"{DYNAMIC_KEY}.status"), value_cell(s, f"{DYNAMIC_KEY}.passes")]
+            + [value_cell(s, f"{DYNAMIC_KEY}.limit_scale.{kd}") for kd in kinds]
+            + [value_cell(s, f"{DYNAMIC_KEY}.smoothing_s")]
+        ],
+        str(d.get("reason") or ""),
+        anchor="dynamic-command",
+    )
     tables = [errors, command]
     mismatch = d.get("mismatch")
     if isinstance(mismatch, list) and mismatch:
         m = f"{DYNAMIC_KEY}.mismatch"
         cols = ("stiffness_factor", "payload_factor", "static_motion_max_mm", "static_dynamic_motion_max_mm", "gain")
-        rows = [[value_cell(s, f"{m}.{i}.{c}") for c in cols]
-                for i, e in enumerate(mismatch) if isinstance(e, Mapping)]
-        tables.append(Table("Dynamic compensation: model mismatch",
-                            ["joint stiffness [× model]", "payload mass [× model]",
-                             "static only: max during motion [mm]", "static + dynamic: max during motion [mm]",
-                             "gain [×]"], rows,
-                            "The same command (planned on the model) run on an arm whose joint stiffness and "
-                            "payload mass are the factors times the model's: predicted TCP error during the "
-                            "motion; gain = static only / static + dynamic.", anchor="dynamic-mismatch"))
+        rows = [[value_cell(s, f"{m}.{i}.{c}") for c in cols] for i, e in enumerate(mismatch) if isinstance(e, Mapping)]
+        tables.append(
+            Table(
+                "Dynamic compensation: model mismatch",
+                [
+                    "joint stiffness [× model]",
+                    "payload mass [× model]",
+                    "static only: max during motion [mm]",
+                    "static + dynamic: max during motion [mm]",
+                    "gain [×]",
+                ],
+                rows,
+                "The same command (planned on the model) run on an arm whose joint stiffness and "
+                "payload mass are the factors times the model's: predicted TCP error during the "
+                "motion; gain = static only / static + dynamic.",
+                anchor="dynamic-mismatch",
+            )
+        )
     return tables

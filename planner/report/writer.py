@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
 
 from planner.compliance_map import ProgressFn
 from planner.output import OutputSet
@@ -20,11 +21,16 @@ if TYPE_CHECKING:
 REPORT_OUTPUTS = ("report.html", "report.md", "figures", "compliance_map.csv")
 
 
-def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
-                 result: "PlanResult | None" = None,
-                 map_options: Mapping[str, Any] | None | bool = None,
-                 workers: int | None = None, map_cache: bool = True,
-                 view: "RunView | None" = None) -> Path:
+def write_report(
+    folder: str | Path,
+    progress: ProgressFn | None = None,
+    *,
+    result: PlanResult | None = None,
+    map_options: Mapping[str, Any] | None | bool = None,
+    workers: int | None = None,
+    map_cache: bool = True,
+    view: RunView | None = None,
+) -> Path:
     """Write ``report.html``, ``report.md`` and ``figures/*.png|pdf`` into a run folder.
 
     Parameters
@@ -66,13 +72,17 @@ def write_report(folder: str | Path, progress: ProgressFn | None = None, *,
         model file its summary records is missing or changed (SHA-256).
     """
     run = run_from_plan(result, folder, view) if result is not None else load_run(folder)
-    return publish_report(run, progress, map_options=map_options, workers=workers,
-                          map_cache=map_cache)
+    return publish_report(run, progress, map_options=map_options, workers=workers, map_cache=map_cache)
 
 
-def publish_report(run: Run, progress: ProgressFn | None = None, *,
-                   map_options: Mapping[str, Any] | None | bool = None,
-                   workers: int | None = None, map_cache: bool = True) -> Path:
+def publish_report(
+    run: Run,
+    progress: ProgressFn | None = None,
+    *,
+    map_options: Mapping[str, Any] | None | bool = None,
+    workers: int | None = None,
+    map_cache: bool = True,
+) -> Path:
     """Write the report of a :class:`~planner.report.run.Run` into ``run.folder``, all or
     nothing (options as for :func:`write_report`); returns the path of ``report.html``.
 
@@ -95,5 +105,5 @@ def publish_report(run: Run, progress: ProgressFn | None = None, *,
         out.add_bytes(name, data)
     out.add_bytes("report.md", render_markdown(run, tables, items).encode())
     out.add_bytes("report.html", render_html(run, tables, items).encode())
-    out.publish()           # every entry of REPORT_OUTPUTS replaced at once: no earlier figure is left
+    out.publish()  # every entry of REPORT_OUTPUTS replaced at once: no earlier figure is left
     return run.folder / "report.html"

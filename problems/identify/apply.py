@@ -63,6 +63,7 @@ REGISTRATION_ALIAS_MARKERS = ("registration.", "measured_point")
 # Predict and compensate
 # ----------------------------------------------------------------------------------
 
+
 def predict(model: IdentifiedModel, m: Measurements) -> np.ndarray:
     """Predicted measurement of the measured point, measurement frame, m, (N, 3).
 
@@ -89,9 +90,13 @@ def _at_temperature(model: ArmModel, temperature: np.ndarray | None) -> list[tup
     return out
 
 
-def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
-               temperature: np.ndarray | None = None,
-               target2base: np.ndarray | None = None) -> CompensationOutcome:
+def compensate(
+    model: ArmModel,
+    q_in: np.ndarray,
+    wrench: np.ndarray,
+    temperature: np.ndarray | None = None,
+    target2base: np.ndarray | None = None,
+) -> CompensationOutcome:
     """Commands that put the real TCP on its targets under ``wrench``.
 
     The targets are the nominal-FK TCP of ``q_in`` (the robot file's chain: what the
@@ -139,19 +144,35 @@ def compensate(model: ArmModel, q_in: np.ndarray, wrench: np.ndarray,
     limit_msg, limit_rows = _outside_limits(model, q_c)
     if len(limit_rows):
         rows = np.union1d(bad_rows, limit_rows)
-        return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.FAILED,
-                                   f"{len(limit_rows)} row(s) need a compensated command outside the joint limits "
-                                   f"({limit_msg})", failed_rows=rows)
+        return CompensationOutcome(
+            q_c,
+            q_eq,
+            target,
+            res,
+            rres,
+            CompensationStatus.FAILED,
+            f"{len(limit_rows)} row(s) need a compensated command outside the joint limits ({limit_msg})",
+            failed_rows=rows,
+        )
     if len(bad_rows):
         worst = int(bad_rows[np.argmax(np.where(np.isfinite(res[bad_rows]), res[bad_rows], np.inf))])
-        return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.FAILED,
-                                   f"{len(bad_rows)} row(s) not compensated to {COMPENSATION_RESIDUAL_TOL:g} m "
-                                   f"(rows {', '.join(str(int(i)) for i in bad_rows[:10])}"
-                                   f"{' ...' if len(bad_rows) > 10 else ''}; worst row {worst}: "
-                                   f"{res[worst]:.3g} m): target at the edge of the identified model's reach "
-                                   "or near a singularity", failed_rows=bad_rows)
-    return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.OK,
-                               f"max model-predicted residual {res.max():.3g} m")
+        return CompensationOutcome(
+            q_c,
+            q_eq,
+            target,
+            res,
+            rres,
+            CompensationStatus.FAILED,
+            f"{len(bad_rows)} row(s) not compensated to {COMPENSATION_RESIDUAL_TOL:g} m "
+            f"(rows {', '.join(str(int(i)) for i in bad_rows[:10])}"
+            f"{' ...' if len(bad_rows) > 10 else ''}; worst row {worst}: "
+            f"{res[worst]:.3g} m): target at the edge of the identified model's reach "
+            "or near a singularity",
+            failed_rows=bad_rows,
+        )
+    return CompensationOutcome(
+        q_c, q_eq, target, res, rres, CompensationStatus.OK, f"max model-predicted residual {res.max():.3g} m"
+    )
 
 
 def _outside_limits(model: ArmModel, q: np.ndarray) -> tuple[str, np.ndarray]:
@@ -167,8 +188,7 @@ def _outside_limits(model: ArmModel, q: np.ndarray) -> tuple[str, np.ndarray]:
     j = int(np.argmax(lo[i] | hi[i]))
     key = "q_min" if lo[i, j] else "q_max"
     joint = robot.joints[j]
-    return (f"row {i}: joint {j + 1} = {q[i, j]:.6g} rad, beyond {joint.limit_text(key)} of robot "
-            f"'{robot.name}'"), rows
+    return (f"row {i}: joint {j + 1} = {q[i, j]:.6g} rad, beyond {joint.limit_text(key)} of robot '{robot.name}'"), rows
 
 
 def check_command_limits(model: ArmModel, m: Measurements) -> None:
@@ -190,15 +210,18 @@ def check_command_limits(model: ArmModel, m: Measurements) -> None:
     limit = getattr(robot.joints[j], key)
     limit_text = robot.joints[j].limit_text(key)
     in_col = f" ({limit / factor:.6g} {unit})" if (unit == "deg") != (key in robot.joints[j].deg_keys) else ""
-    raise TargetsError(f"{m.source}: line {int(m.line[i])}, column '{col}': command {m.q[i, j] / factor:.6g} {unit} "
-                       f"is {'below' if key == 'q_min' else 'above'} the joint-{j + 1} limit {limit_text}{in_col} of "
-                       f"robot '{robot.name}' ({len(bad)} row(s) outside the limits); the commands must be within "
-                       "the robot's joint limits")
+    raise TargetsError(
+        f"{m.source}: line {int(m.line[i])}, column '{col}': command {m.q[i, j] / factor:.6g} {unit} "
+        f"is {'below' if key == 'q_min' else 'above'} the joint-{j + 1} limit {limit_text}{in_col} of "
+        f"robot '{robot.name}' ({len(bad)} row(s) outside the limits); the commands must be within "
+        "the robot's joint limits"
+    )
 
 
 # ----------------------------------------------------------------------------------
 # Targets of ``compplan compensate``
 # ----------------------------------------------------------------------------------
+
 
 def _column(m: Measurements, base: str) -> str:
     """The column of the file that holds quantity ``base`` (e.g. ``x_mm`` for ``x``)."""
@@ -211,11 +234,16 @@ def _column(m: Measurements, base: str) -> str:
 def _target_positions(m: Measurements, frame: TargetsFrame) -> np.ndarray:
     """The ``x, y, z`` columns of a command file, (N, 3), m; :class:`TargetsError` without them."""
     if m.p is None:
-        what = ("TCP target positions in the robot base frame" if frame is TargetsFrame.BASE
-                else "target positions of the measured point in the measurement frame")
-        raise TargetsError(f"{m.source}: missing column(s) {', '.join(POSITION_COLUMNS)}: targets frame "
-                           f"'{frame.value}' needs the {what} (units by suffix, e.g. x_mm; "
-                           "docs/measurement-file.md)")
+        what = (
+            "TCP target positions in the robot base frame"
+            if frame is TargetsFrame.BASE
+            else "target positions of the measured point in the measurement frame"
+        )
+        raise TargetsError(
+            f"{m.source}: missing column(s) {', '.join(POSITION_COLUMNS)}: targets frame "
+            f"'{frame.value}' needs the {what} (units by suffix, e.g. x_mm; "
+            "docs/measurement-file.md)"
+        )
     return np.asarray(m.p, dtype=float)
 
 
@@ -229,11 +257,13 @@ def _check_seeds(m: Measurements, target: np.ndarray, seed: np.ndarray, frame: T
     i = int(bad[np.argmax(gap[bad])]) if np.isfinite(gap[bad]).all() else int(bad[0])
     cols = [_column(m, c) for c in POSITION_COLUMNS]
     vals = ", ".join(f"{m.p[i, k] / m.units.get(cols[k], 1.0):g}" for k in range(3))
-    raise TargetsError(f"{m.source}: line {int(m.line[i])}, columns {', '.join(cols)}: target ({vals}) is "
-                       f"{gap[i] * 1e3:.1f} mm from the {what} of the row's q1..q6 (more than "
-                       f"{TARGET_SEED_MAX_M * 1e3:g} mm; {len(bad)} row(s)): q1..q6 seed the solve and pick the "
-                       f"branch and must command a pose near the target; are the targets in the '{frame.value}' "
-                       "frame and in the declared unit?")
+    raise TargetsError(
+        f"{m.source}: line {int(m.line[i])}, columns {', '.join(cols)}: target ({vals}) is "
+        f"{gap[i] * 1e3:.1f} mm from the {what} of the row's q1..q6 (more than "
+        f"{TARGET_SEED_MAX_M * 1e3:g} mm; {len(bad)} row(s)): q1..q6 seed the solve and pick the "
+        f"branch and must command a pose near the target; are the targets in the '{frame.value}' "
+        "frame and in the declared unit?"
+    )
 
 
 def measured_point_model(model: ArmModel) -> ArmModel:
@@ -300,8 +330,9 @@ def unobservable_in_base(model: ArmModel) -> list[str]:
     return sorted(names, key=lambda n: PARAM_NAMES.index(n) if n in PARAM_NAMES else len(PARAM_NAMES))
 
 
-def alias_effect_m(model: ArmModel, names: list[str], q: np.ndarray, wrench: np.ndarray,
-                   temperature: np.ndarray | None = None) -> dict[str, float]:
+def alias_effect_m(
+    model: ArmModel, names: list[str], q: np.ndarray, wrench: np.ndarray, temperature: np.ndarray | None = None
+) -> dict[str, float]:
     """Largest TCP displacement (base frame, m) over the rows that one typical magnitude
     (``make_layout(robot).scale``) of each parameter in ``names`` would cause.
 
@@ -323,8 +354,9 @@ def alias_effect_m(model: ArmModel, names: list[str], q: np.ndarray, wrench: np.
     theta[GROUP_SLICES["reg.w"]] = 0.0
     theta[GROUP_SLICES["reg.t"]] = 0.0
     theta[GROUP_SLICES["tool.p"]] = np.asarray(robot.tcp2flange)[:3, 3] + np.asarray(model.tcp_correction_m)
-    const = make_const(robot, np.eye(3), model.tau_scale, model.gravity_on, model.beams, model.knots,
-                       model.effect_const)
+    const = make_const(
+        robot, np.eye(3), model.tau_scale, model.gravity_on, model.beams, model.knots, model.effect_const
+    )
     m = Measurements(q=np.atleast_2d(q), wrench=np.atleast_2d(wrench), temperature=temperature)
     rows = make_rows(m, None, model.temperature_ref)
     ev = _ev_for(robot, const)
@@ -347,8 +379,9 @@ def _typical(scale: float, unit: str) -> str:
     return f"{scale:g} {unit}"
 
 
-def base_frame_warning(model: ArmModel, q: np.ndarray, wrench: np.ndarray,
-                       temperature: np.ndarray | None = None) -> str | None:
+def base_frame_warning(
+    model: ArmModel, q: np.ndarray, wrench: np.ndarray, temperature: np.ndarray | None = None
+) -> str | None:
     """The caveat of base-frame targets for a model identified from unregistered data
     (:func:`unobservable_in_base`), with the size of each parameter's effect; None when
     there is none."""
@@ -365,14 +398,18 @@ def base_frame_warning(model: ArmModel, q: np.ndarray, wrench: np.ndarray,
         # a DH angle error turns every frame after it, the tool included, by the same angle
         turn = f" and turns the tool by {typical}" if layout.units[i] == "rad" else ""
         parts.append(f"{n}: {typical} moves the TCP by up to {mm:.3g} mm{turn}")
-    return (f"the model was identified from unregistered data: {', '.join(names)} cannot be told apart from "
-            "the registration or the measured point, are held at their nominal values (zero for DH errors) and cannot be compensated in the base "
-            f"frame (over these rows, {'; '.join(parts)}); the compensation is exact in the measurement frame "
-            "(use --targets-frame measurement)")
+    return (
+        f"the model was identified from unregistered data: {', '.join(names)} cannot be told apart from "
+        "the registration or the measured point, are held at their nominal values (zero for DH errors) "
+        "and cannot be compensated in the base "
+        f"frame (over these rows, {'; '.join(parts)}); the compensation is exact in the measurement frame "
+        "(use --targets-frame measurement)"
+    )
 
 
-def compensate_targets(model: ArmModel, m: Measurements,
-                       frame: TargetsFrame | str = TargetsFrame.NOMINAL) -> CompensationOutcome:
+def compensate_targets(
+    model: ArmModel, m: Measurements, frame: TargetsFrame | str = TargetsFrame.NOMINAL
+) -> CompensationOutcome:
     """Compensated commands for the targets of a command file.
 
     Parameters
@@ -418,14 +455,20 @@ def compensate_targets(model: ArmModel, m: Measurements,
             out = compensate(model, m.q, m.wrench, m.temperature, target2base=target)
         else:
             b2m = model.base2meas()
-            p_base = (p - b2m[:3, 3]) @ b2m[:3, :3]                 # R^T (p - t), row-wise
-            point_in_tcp = np.linalg.solve(np.asarray(model.nominal.tcp2flange, dtype=float),
-                                        np.append(model.measured_point, 1.0))[:3]
-            seed = target[:, :3, :3] @ point_in_tcp + target[:, :3, 3]       # (N, 3) base frame
+            p_base = (p - b2m[:3, 3]) @ b2m[:3, :3]  # R^T (p - t), row-wise
+            point_in_tcp = np.linalg.solve(
+                np.asarray(model.nominal.tcp2flange, dtype=float), np.append(model.measured_point, 1.0)
+            )[:3]
+            seed = target[:, :3, :3] @ point_in_tcp + target[:, :3, 3]  # (N, 3) base frame
             _check_seeds(m, p_base, seed, frame, "measured point of the nominal arm (mapped to the base frame)")
             target[:, :3, 3] = p_base
-            out = compensate(measured_point_model(model), m.q, _measured_point_loads(model, m.wrench),
-                             m.temperature, target2base=target)
+            out = compensate(
+                measured_point_model(model),
+                m.q,
+                _measured_point_loads(model, m.wrench),
+                m.temperature,
+                target2base=target,
+            )
     out.targets_frame = frame
     if frame is not TargetsFrame.MEASUREMENT:
         warn = base_frame_warning(model, m.q, m.wrench, m.temperature)
@@ -440,8 +483,10 @@ def compensate_targets(model: ArmModel, m: Measurements,
 # Checks
 # ----------------------------------------------------------------------------------
 
-def compensation_check(vr: Any, model: IdentifiedModel, n_poses: int = 40,
-                       force_N: float | None = None, seed: int = 99) -> dict[str, Any]:
+
+def compensation_check(
+    vr: Any, model: IdentifiedModel, n_poses: int = 40, force_N: float | None = None, seed: int = 99
+) -> dict[str, Any]:
     """Simulate -> compensate -> re-measure on a virtual robot.
 
     New poses and loads (not those of the campaign) are drawn; the target is the
@@ -468,27 +513,38 @@ def compensation_check(vr: Any, model: IdentifiedModel, n_poses: int = 40,
     # by the identified registration (what a tracker can check; free of the base-frame aliasing
     # of unregistered data)
     b2m = model.base2meas()
-    p_t = target[:, :3, :3] @ (np.linalg.solve(model.nominal.tcp2flange, np.append(model.measured_point, 1.0))[:3]) \
+    p_t = (
+        target[:, :3, :3] @ (np.linalg.solve(model.nominal.tcp2flange, np.append(model.measured_point, 1.0))[:3])
         + target[:, :3, 3]
+    )
     p_t = p_t @ b2m[:3, :3].T + b2m[:3, 3]
-    t0 = np.full(n_poses, model.time_ref[0])   # drift is zero at the campaign's first row
+    t0 = np.full(n_poses, model.time_ref[0])  # drift is zero at the campaign's first row
     before_m = vr.measure(q, F, t0, temp) - p_t
     after_m = vr.measure(out.q_command, F, t0, temp) - p_t
 
     def rms3(e: np.ndarray) -> float:
         """RMS of the 3-D norms of (N, 3) errors."""
-        return float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
+        return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+
     rb, ra, rbm, ram = rms3(before), rms3(after), rms3(before_m), rms3(after_m)
-    return {"n_poses": n_poses, "rms_before_mm": rb * 1e3, "rms_after_mm": ra * 1e3,
-            "max_before_mm": float(np.linalg.norm(before, axis=1).max() * 1e3),
-            "max_after_mm": float(np.linalg.norm(after, axis=1).max() * 1e3),
-            "fraction_left": ra / rb if rb > 0 else 0.0,
-            "meas_frame_rms_before_mm": rbm * 1e3, "meas_frame_rms_after_mm": ram * 1e3,
-            "meas_frame_fraction_left": ram / rbm if rbm > 0 else 0.0,
-            "status": out.status.value, "reason": out.reason,
-            "metric": ("RMS of the 3-D TCP position error in the true base frame of the virtual robot; "
-                       "meas_frame_*: the measured point in the measurement frame against its nominal target "
-                       "mapped by the identified registration")}
+    return {
+        "n_poses": n_poses,
+        "rms_before_mm": rb * 1e3,
+        "rms_after_mm": ra * 1e3,
+        "max_before_mm": float(np.linalg.norm(before, axis=1).max() * 1e3),
+        "max_after_mm": float(np.linalg.norm(after, axis=1).max() * 1e3),
+        "fraction_left": ra / rb if rb > 0 else 0.0,
+        "meas_frame_rms_before_mm": rbm * 1e3,
+        "meas_frame_rms_after_mm": ram * 1e3,
+        "meas_frame_fraction_left": ram / rbm if rbm > 0 else 0.0,
+        "status": out.status.value,
+        "reason": out.reason,
+        "metric": (
+            "RMS of the 3-D TCP position error in the true base frame of the virtual robot; "
+            "meas_frame_*: the measured point in the measurement frame against its nominal target "
+            "mapped by the identified registration"
+        ),
+    }
 
 
 def validate_on(model: IdentifiedModel, m: Measurements) -> dict[str, Any]:
@@ -500,11 +556,24 @@ def validate_on(model: IdentifiedModel, m: Measurements) -> dict[str, Any]:
     if m.p is None:
         raise DataError(f"{m.source}: the validation file has no measured positions (x, y, z)")
     r = predict(model, m) - m.p
-    nominal = IdentifiedModel(nominal=model.nominal, theta=make_layout(model.nominal).nominal.copy(), R0=model.R0,
-                              tau_scale=model.tau_scale, gravity_on=False, beams=model.beams, knots=model.knots,
-                              time_ref=model.time_ref, temperature_ref=model.temperature_ref)
+    nominal = IdentifiedModel(
+        nominal=model.nominal,
+        theta=make_layout(model.nominal).nominal.copy(),
+        R0=model.R0,
+        tau_scale=model.tau_scale,
+        gravity_on=False,
+        beams=model.beams,
+        knots=model.knots,
+        time_ref=model.time_ref,
+        temperature_ref=model.temperature_ref,
+    )
     for g in ("reg.w", "reg.t", "tool.p"):
         nominal.theta[GROUP_SLICES[g]] = model.theta[GROUP_SLICES[g]]
     r0 = predict(nominal, m) - m.p
-    return {"file": m.source, "n_rows": m.n, "rms_mm": _rms(r) * 1e3, "rms_nominal_mm": _rms(r0) * 1e3,
-            "max_mm": float(np.linalg.norm(r, axis=1).max() * 1e3)}
+    return {
+        "file": m.source,
+        "n_rows": m.n,
+        "rms_mm": _rms(r) * 1e3,
+        "rms_nominal_mm": _rms(r0) * 1e3,
+        "max_mm": float(np.linalg.norm(r, axis=1).max() * 1e3),
+    }

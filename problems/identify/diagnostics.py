@@ -42,7 +42,7 @@ def _poly(x: np.ndarray, deg: int) -> np.ndarray:
     """Powers 1..deg of the standardised ``x`` (N,): (N, deg), dimensionless."""
     s = np.std(x)
     z = (x - np.mean(x)) / (s if s > 0 else 1.0)
-    return np.column_stack([z ** k for k in range(1, deg + 1)])
+    return np.column_stack([z**k for k in range(1, deg + 1)])
 
 
 def _scalar_design(B: np.ndarray) -> np.ndarray:
@@ -91,8 +91,9 @@ def _regress_cv(R: np.ndarray, X: np.ndarray, folds: np.ndarray) -> tuple[float,
     return 1.0 - cv / rss0, float(stats.f.sf(F, df1, df2))
 
 
-def diagnostic_variables(m: Measurements, Jp: np.ndarray, tau: np.ndarray, tau_g: np.ndarray | None,
-                         p_nominal: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
+def diagnostic_variables(
+    m: Measurements, Jp: np.ndarray, tau: np.ndarray, tau_g: np.ndarray | None, p_nominal: np.ndarray
+) -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
     """Explanatory variables: name -> (x for plots, design (n, 3, b), description).
 
     Parameters
@@ -110,41 +111,60 @@ def diagnostic_variables(m: Measurements, Jp: np.ndarray, tau: np.ndarray, tau_g
     n = m.n
     t = m.t if m.t is not None else np.arange(n, dtype=float)
     if np.ptp(t) > 0:
-        out["time"] = (t, _scalar_design(_poly(t, 4)),
-                       "time (s, or row number without a t column): polynomial of degree 4 per axis")
+        out["time"] = (
+            t,
+            _scalar_design(_poly(t, 4)),
+            "time (s, or row number without a t column): polynomial of degree 4 per axis",
+        )
     f = m.wrench[:, :3]
     fm = np.linalg.norm(f, axis=1)
     if fm.max() > 0:
         sc = fm.max()
-        B = np.column_stack([f / sc, f * fm[:, None] / sc ** 2, f * (fm ** 2)[:, None] / sc ** 3])
-        out["load_magnitude"] = (fm, _scalar_design(B),
-                                 "applied force |f| (N): f, f|f|, f|f|^2 with free 3-D coefficients")
+        B = np.column_stack([f / sc, f * fm[:, None] / sc**2, f * (fm**2)[:, None] / sc**3])
+        out["load_magnitude"] = (
+            fm,
+            _scalar_design(B),
+            "applied force |f| (N): f, f|f|, f|f|^2 with free 3-D coefficients",
+        )
         sg = np.sign(np.where(np.abs(f) > 1e-6 * sc, f, 0.0))
         ts = np.maximum(np.abs(tau).max(axis=0), 1e-12)
         sgt = np.sign(np.where(np.abs(tau) > 1e-3 * ts, tau, 0.0))
-        X = np.concatenate([_scalar_design(sg)] + [_joint_design(Jp, j, sgt[:, j:j + 1]) for j in range(6)], axis=2)
-        out["load_sign"] = (sg @ np.array([1.0, 2.0, 4.0]), X,
-                            "sign of each force component and of each joint torque")
-        X = np.concatenate([_joint_design(Jp, j, np.column_stack([tau[:, j] / ts[j], (tau[:, j] / ts[j]) ** 3]))
-                            for j in range(6)], axis=2)
-        out["joint_torque"] = (np.abs(tau).max(axis=1), X,
-                               "joint deflection as an odd cubic of each joint torque (J_j (a tau_j + b tau_j^3))")
+        X = np.concatenate([_scalar_design(sg)] + [_joint_design(Jp, j, sgt[:, j : j + 1]) for j in range(6)], axis=2)
+        out["load_sign"] = (sg @ np.array([1.0, 2.0, 4.0]), X, "sign of each force component and of each joint torque")
+        X = np.concatenate(
+            [_joint_design(Jp, j, np.column_stack([tau[:, j] / ts[j], (tau[:, j] / ts[j]) ** 3])) for j in range(6)],
+            axis=2,
+        )
+        out["joint_torque"] = (
+            np.abs(tau).max(axis=1),
+            X,
+            "joint deflection as an odd cubic of each joint torque (J_j (a tau_j + b tau_j^3))",
+        )
     if tau_g is not None:
         cols = [j for j in range(6) if np.ptp(tau_g[:, j]) > 1e-9]
         if cols:
             X = np.concatenate([_joint_design(Jp, j, _poly(tau_g[:, j], 2)) for j in cols], axis=2)
             big = cols[int(np.argmax([np.ptp(tau_g[:, j]) for j in cols]))]
-            out["gravity_torque"] = (tau_g[:, big], X,
-                                     "nominal gravity torque of each joint: J_j (a tau_g,j + b tau_g,j^2)")
+            out["gravity_torque"] = (
+                tau_g[:, big],
+                X,
+                "nominal gravity torque of each joint: J_j (a tau_g,j + b tau_g,j^2)",
+            )
     if m.temperature is not None and np.ptp(m.temperature) > 0:
-        out["temperature"] = (m.temperature, _scalar_design(_poly(m.temperature, 2)),
-                              "temperature (deg C): quadratic per axis")
+        out["temperature"] = (
+            m.temperature,
+            _scalar_design(_poly(m.temperature, 2)),
+            "temperature (deg C): quadratic per axis",
+        )
     P = p_nominal
     if np.ptp(P, axis=0).max() > 0:
         Z = (P - P.mean(axis=0)) / np.maximum(P.std(axis=0), 1e-9)
         quad = [Z[:, i] * Z[:, j] for i in range(3) for j in range(i, 3)]
-        out["position"] = (np.linalg.norm(P[:, :2], axis=1), _scalar_design(np.column_stack([Z] + quad)),
-                           "nominal TCP position in the workspace: quadratic in x, y, z per axis")
+        out["position"] = (
+            np.linalg.norm(P[:, :2], axis=1),
+            _scalar_design(np.column_stack([Z] + quad)),
+            "nominal TCP position in the workspace: quadratic in x, y, z per axis",
+        )
     return out
 
 
@@ -193,19 +213,43 @@ def joint_angle_diagnostics(R: np.ndarray, Jw: np.ndarray, q: np.ndarray, folds:
         if np.ptp(x) <= 1e-3:
             continue
         sj = joint_smoother_cv(R, Jw[:, :, j], x, folds)
-        out.append(Diagnostic(f"q{j + 1}", sj.explained, sj.p_value, False, x,
-                              (f"joint {j + 1} angle: an error of joint {j + 1} that is any smooth function of q{j + 1} "
-                               f"(P-spline through the joint's Jacobian column, {sj.edf:.0f} effective dof)")))
+        out.append(
+            Diagnostic(
+                f"q{j + 1}",
+                sj.explained,
+                sj.p_value,
+                False,
+                x,
+                (
+                    f"joint {j + 1} angle: an error of joint {j + 1} that is any smooth function of q{j + 1} "
+                    f"(P-spline through the joint's Jacobian column, {sj.edf:.0f} effective dof)"
+                ),
+            )
+        )
         for k, ax in enumerate("xyz"):
             sk = smoother_cv(R[:, k], x, folds)
-            out.append(Diagnostic(f"q{j + 1}.{ax}", sk.explained, sk.p_value, False, x,
-                                  (f"residual {ax} against q{j + 1} alone (P-spline, {sk.edf:.0f} effective dof)"),
-                                  y=R[:, k], y_label=f"weighted residual {ax}"))
+            out.append(
+                Diagnostic(
+                    f"q{j + 1}.{ax}",
+                    sk.explained,
+                    sk.p_value,
+                    False,
+                    x,
+                    (f"residual {ax} against q{j + 1} alone (P-spline, {sk.edf:.0f} effective dof)"),
+                    y=R[:, k],
+                    y_label=f"weighted residual {ax}",
+                )
+            )
     return out
 
 
-def run_diagnostics(R: np.ndarray, m: Measurements, variables: Mapping[str, tuple[np.ndarray, np.ndarray, str]],
-                    folds: np.ndarray, extra: Sequence[Diagnostic] = ()) -> list[Diagnostic]:
+def run_diagnostics(
+    R: np.ndarray,
+    m: Measurements,
+    variables: Mapping[str, tuple[np.ndarray, np.ndarray, str]],
+    folds: np.ndarray,
+    extra: Sequence[Diagnostic] = (),
+) -> list[Diagnostic]:
     """Regress the residual on each variable; significance with a Bonferroni correction over
     every diagnostic (``extra``: ones already computed, e.g. :func:`joint_angle_diagnostics`).
 
@@ -222,10 +266,17 @@ def run_diagnostics(R: np.ndarray, m: Measurements, variables: Mapping[str, tupl
         out.append(d)
     groups = m.pose_groups()
     frac, p = _pose_anova(R, groups)
-    out.append(Diagnostic("pose", frac, p, (p < DIAG_ALPHA / n_tests) and frac > DIAG_MIN_FRACTION,
-                          groups.astype(float),
-                          "per-pose mean of the residual (one-way ANOVA, adjusted R^2): an error that "
-                          "depends on the pose and that the model does not describe"))
+    out.append(
+        Diagnostic(
+            "pose",
+            frac,
+            p,
+            (p < DIAG_ALPHA / n_tests) and frac > DIAG_MIN_FRACTION,
+            groups.astype(float),
+            "per-pose mean of the residual (one-way ANOVA, adjusted R^2): an error that "
+            "depends on the pose and that the model does not describe",
+        )
+    )
     out.sort(key=lambda d: -d.explained_fraction)
     return out
 
@@ -263,7 +314,7 @@ def _diagnose(prob: _Problem, fit: _Fit, robot: Robot) -> list[Diagnostic]:
     W = prob.weights[mask]
     R = (fit.pred[mask] - m.p) * W
     # the joint-error signature needs one weight per row: the axes' RMS (equal weights: exact)
-    w_row = np.sqrt(np.mean(W ** 2, axis=1))
+    w_row = np.sqrt(np.mean(W**2, axis=1))
     Jw = Jp * w_row[:, None, None]
     extra = joint_angle_diagnostics(R, Jw, m.q, prob.folds[mask])
     rot = mask_all & ~prob.pos
@@ -276,10 +327,18 @@ def _diagnose(prob: _Problem, fit: _Fit, robot: Robot) -> list[Diagnostic]:
                 continue
             for k, ax in enumerate(("rx", "ry", "rz")):
                 sk = smoother_cv(Rr[:, k], qr[:, j], prob.folds[rot])
-                extra.append(Diagnostic(f"q{j + 1}.{ax}", sk.explained, sk.p_value, False, qr[:, j],
-                                        f"orientation residual {ax} against q{j + 1} alone (P-spline, "
-                                        f"{sk.edf:.0f} effective dof)", y=Rr[:, k],
-                                        y_label=f"weighted orientation residual {ax}"))
+                extra.append(
+                    Diagnostic(
+                        f"q{j + 1}.{ax}",
+                        sk.explained,
+                        sk.p_value,
+                        False,
+                        qr[:, j],
+                        f"orientation residual {ax} against q{j + 1} alone (P-spline, {sk.edf:.0f} effective dof)",
+                        y=Rr[:, k],
+                        y_label=f"weighted orientation residual {ax}",
+                    )
+                )
     diags = run_diagnostics(R, m, variables, prob.folds[mask], extra)
     # joint-angle diagnostics are shown as the equivalent error of that joint: the residual
     # projected on the joint's column of the positional Jacobian, (J_j . r) / |J_j|^2 (rad)

@@ -27,18 +27,34 @@ from typing import Any
 import numpy as np
 
 from models import effects as fx
-from models.effects import (GROUP_SLICES, LIBRARY, N_PARAMS, PARAM_NAMES, ModelLayout, get_const, make_const,
-                            make_layout, set_const)
+from models.effects import (
+    GROUP_SLICES,
+    LIBRARY,
+    N_PARAMS,
+    PARAM_NAMES,
+    ModelLayout,
+    get_const,
+    make_const,
+    make_layout,
+    set_const,
+)
 from models.effects.joint_error_map import MAP_COMPONENTS, MAP_CONST_KEYS
 from models.errors import InputError
-from models.plausibility import (GEOMETRY_GROUPS, IMPLAUSIBLE_ANGLE_ERROR_RAD,  # noqa: F401
-                                 IMPLAUSIBLE_LENGTH_ERROR_M, implausible_geometry)
+from models.plausibility import IMPLAUSIBLE_LENGTH_ERROR_M, implausible_geometry
 from models.robot import Robot
 
 from ..measurements import Measurements
 from .diagnostics import UNEXPLAINED_MIN_FRACTION, UNEXPLAINED_RMS_RATIO, _diagnose, structure_left
-from .evaluation import (_ev_for, _gravity_problem, _Problem, _torque_scale, make_rows, row_weights,
-                         time_reference, with_orientation_rows)
+from .evaluation import (
+    _ev_for,
+    _gravity_problem,
+    _Problem,
+    _torque_scale,
+    make_rows,
+    row_weights,
+    time_reference,
+    with_orientation_rows,
+)
 from .identifiability import Known, _order_for, _structural_held
 from .lsq import _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _wjac, _wres, kabsch
 from .map_candidate import MAP_CHANNEL_GROUPS, MAP_SEARCH_COMPONENTS
@@ -132,16 +148,16 @@ def _known_parts(registered: bool, known: Sequence[str], map_components: Sequenc
     components)."""
     bad_comp = [c for c in map_components if c not in MAP_COMPONENTS]
     if bad_comp or not map_components:
-        raise InputError(f"map component(s) {bad_comp or list(map_components)}: expected one or more of "
-                         f"{list(MAP_COMPONENTS)}")
+        raise InputError(
+            f"map component(s) {bad_comp or list(map_components)}: expected one or more of {list(MAP_COMPONENTS)}"
+        )
     bad_known = [k for k in known if k not in KNOWN_PARTS]
     if bad_known:
         raise InputError(f"known part(s) {bad_known}: expected any of {list(KNOWN_PARTS)}")
     return Known(bool(registered) or "registration" in known, bool(registered) or "measured_point" in known)
 
 
-def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand: int,
-           tick: Progress) -> _Setup:
+def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand: int, tick: Progress) -> _Setup:
     """Step 1: problem inputs, initial registration (and measured frame) and the "before" fit."""
     known = Known.of(registered)
     n_poses = len(np.unique(m.pose_groups()))
@@ -162,39 +178,71 @@ def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand:
     ev = _ev_for(robot, const)
     theta = layout.nominal.copy()
     weights = row_weights(mx, is_pos)
-    lower, upper = layout.lower.copy(), layout.upper.copy()      # declared by the effect plug-ins
+    lower, upper = layout.lower.copy(), layout.upper.copy()  # declared by the effect plug-ins
     fold_idx = _assign_folds(mx, folds)
     total_steps = n_cand + 3
     tick("registration", 0, total_steps)
     if not known.registration:
         if n_poses < 3:
-            raise DataError(f"{m.source}: {n_poses} distinct pose(s); the registration of the measurement "
-                            "frame and the measured point need at least 3 poses (many more for a useful fit); "
-                            "or declare the data registered")
+            raise DataError(
+                f"{m.source}: {n_poses} distinct pose(s); the registration of the measurement "
+                "frame and the measured point need at least 3 poses (many more for a useful fit); "
+                "or declare the data registered"
+            )
         pred0, _q = ev.measure(rows, theta, const)
         R0, t0 = kabsch(pred0[is_pos], m.p)
         theta[GROUP_SLICES["reg.t"]] = t0
         const = set_const(const, "registration.R0", R0)
     if orient and not known.measured_point:
         const = set_const(const, "measured_frame.R0", _measured_frame_start(robot, m, R0))
-    prob = _Problem(m=mx, layout=layout, ev=ev, rows=rows, const=const, weights=weights, folds=fold_idx,
-                    lower=lower, upper=upper, is_pos=is_pos)
+    prob = _Problem(
+        m=mx,
+        layout=layout,
+        ev=ev,
+        rows=rows,
+        const=const,
+        weights=weights,
+        folds=fold_idx,
+        lower=lower,
+        upper=upper,
+        is_pos=is_pos,
+    )
     all_rows = np.ones(mx.n, dtype=bool)
     order_b = _order_for(layout, [], known)
     pred_b, q_b = _evaluate(prob, theta)
     if not order_b:
-        fit_b = _Fit(theta=theta.copy(), free=np.zeros(0, dtype=int), held={}, inliers=all_rows.copy(),
-                     pred=pred_b, q_eq=q_b, J=_jac(prob, theta, q_b), converged=True, iterations=0)
+        fit_b = _Fit(
+            theta=theta.copy(),
+            free=np.zeros(0, dtype=int),
+            held={},
+            inliers=all_rows.copy(),
+            pred=pred_b,
+            q_eq=q_b,
+            J=_jac(prob, theta, q_b),
+            converged=True,
+            iterations=0,
+        )
     else:
         order_b = [i for i in order_b if i not in layout.indices(("stiffness.s",))]
         fit_b = _lm(prob, theta, np.asarray(order_b), all_rows, pred_b, q_b)
         theta = fit_b.theta.copy()
-    return _Setup(prob=prob, theta=theta, R0=R0, tau_s=tau_s, t_ref=t_ref, temp_ref=temp_ref, fit_b=fit_b,
-                  order_b=order_b, n_poses=n_poses, total_steps=total_steps)
+    return _Setup(
+        prob=prob,
+        theta=theta,
+        R0=R0,
+        tau_s=tau_s,
+        t_ref=t_ref,
+        temp_ref=temp_ref,
+        fit_b=fit_b,
+        order_b=order_b,
+        n_poses=n_poses,
+        total_steps=total_steps,
+    )
 
 
-def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust: bool, structural: set[int],
-                    notes: list[str]) -> tuple[_Problem, _Fit]:
+def _declared_model(
+    s: _Setup, include: Sequence[str], registered: bool, robust: bool, structural: set[int], notes: list[str]
+) -> tuple[_Problem, _Fit]:
     """Step 2: fit the declared model and the included effects; raise :class:`DataError`
     when the registration, the measured point or an included effect cannot be identified
     (and the cause is not structural)."""
@@ -205,29 +253,45 @@ def _declared_model(s: _Setup, include: Sequence[str], registered: bool, robust:
     bad = [i for i in fit.held if i in reg_idx and i not in structural]
     if bad:
         rms_b = _rms(s.fit_b.residual(s.prob))
-        wrong_robot = (f"; the nominal model of robot '{s.prob.layout.robot.name}' misses the data by "
-                       f"{rms_b * 1e3:.0f} mm RMS after the registration: is --robot the arm that was measured?"
-                       if rms_b > IMPLAUSIBLE_LENGTH_ERROR_M else "")
-        raise DataError(f"{m.source}: too few or too similar poses ({s.n_poses} distinct): cannot identify "
-                        + ", ".join(f"{PARAM_NAMES[i]} ({fit.held[i]})" for i in bad)
-                        + "; measure more poses spread over the workspace (and tool orientations), or declare "
-                          "known parts of the set-up (--known measured-point / registration, or --registered)"
-                        + wrong_robot)
+        wrong_robot = (
+            f"; the nominal model of robot '{s.prob.layout.robot.name}' misses the data by "
+            f"{rms_b * 1e3:.0f} mm RMS after the registration: is --robot the arm that was measured?"
+            if rms_b > IMPLAUSIBLE_LENGTH_ERROR_M
+            else ""
+        )
+        raise DataError(
+            f"{m.source}: too few or too similar poses ({s.n_poses} distinct): cannot identify "
+            + ", ".join(f"{PARAM_NAMES[i]} ({fit.held[i]})" for i in bad)
+            + "; measure more poses spread over the workspace (and tool orientations), or declare "
+            "known parts of the set-up (--known measured-point / registration, or --registered)" + wrong_robot
+        )
     inc_idx = {int(i): e for e in include for i in layout.effect_indices(e)}
     bad = [i for i in fit.held if i in inc_idx and i not in structural]
     if bad:
-        raise DataError(f"{m.source}: the data ({m.n} rows, {s.n_poses} poses) cannot identify "
-                        + ", ".join(f"{PARAM_NAMES[i]} [{inc_idx[i]}] ({fit.held[i]})" for i in bad[:8])
-                        + (f" and {len(bad) - 8} more" if len(bad) > 8 else "")
-                        + "; add poses/loads that excite them or do not include the effect")
+        raise DataError(
+            f"{m.source}: the data ({m.n} rows, {s.n_poses} poses) cannot identify "
+            + ", ".join(f"{PARAM_NAMES[i]} [{inc_idx[i]}] ({fit.held[i]})" for i in bad[:8])
+            + (f" and {len(bad) - 8} more" if len(bad) > 8 else "")
+            + "; add poses/loads that excite them or do not include the effect"
+        )
     if all(i in fit.held for i in layout.indices(("stiffness.s",))):
-        notes.append("joint stiffness is held at the robot file's values: the applied wrench does not excite it"
-                     if not m.load_varies() else "joint stiffness cannot be identified from these data")
+        notes.append(
+            "joint stiffness is held at the robot file's values: the applied wrench does not excite it"
+            if not m.load_varies()
+            else "joint stiffness cannot be identified from these data"
+        )
     return prob, fit
 
 
-def _saturated(robot: Robot, prob: _Problem, fit: _Fit, include: Sequence[str], sat_effects: list[str],
-               registered: bool, robust: bool) -> tuple[bool, dict[str, Any], np.ndarray, _Fit]:
+def _saturated(
+    robot: Robot,
+    prob: _Problem,
+    fit: _Fit,
+    include: Sequence[str],
+    sat_effects: list[str],
+    registered: bool,
+    robust: bool,
+) -> tuple[bool, dict[str, Any], np.ndarray, _Fit]:
     """Step 3: the saturated model, every testable library effect at once.
 
     Its residual tells whether the library can explain the data at all (then no
@@ -255,17 +319,31 @@ def _saturated(robot: Robot, prob: _Problem, fit: _Fit, include: Sequence[str], 
     if "gravity" in sat_effects and "gravity" not in include:
         gi = layout.effect_indices("gravity")
         th_s[gi] = layout.nominal[gi]
-    fit_s = _fit_model(prob_s, th_s, sat_effects, registered, np.ones(prob.m.n, dtype=bool), robust=robust,
-                       max_iter=SATURATED_MAX_ITER, passes=1, rounds=2)
+    fit_s = _fit_model(
+        prob_s,
+        th_s,
+        sat_effects,
+        registered,
+        np.ones(prob.m.n, dtype=bool),
+        robust=robust,
+        max_iter=SATURATED_MAX_ITER,
+        passes=1,
+        rounds=2,
+    )
     left = structure_left(_diagnose(prob_s, fit_s, robot))
     clean = left is None or left.explained_fraction < UNEXPLAINED_MIN_FRACTION
     if robust and not clean and (~fit_s.inliers).any():
         # structure outside the library: only gross errors count as outliers
         fit_s.inliers = _outlier_mask(prob_s, fit_s.pred, gross_only=True)
     sc_s, _fr = _score_p(prob_s, layout, fit_s, sat_effects, registered)
-    info.update({"cv_rms_mm": sc_s.cv_rms_m * 1e3, "clean": clean,
-                 "structure": None if left is None else left.variable,
-                 "n_excluded": int((~fit_s.inliers).sum())})
+    info.update(
+        {
+            "cv_rms_mm": sc_s.cv_rms_m * 1e3,
+            "clean": clean,
+            "structure": None if left is None else left.variable,
+            "n_excluded": int((~fit_s.inliers).sum()),
+        }
+    )
     if robust:
         mask_sel = fit_s.inliers.copy()
         if (~mask_sel).any():
@@ -291,11 +369,18 @@ def _final_fit(run: _Run, st: _State) -> None:
     st.fit = fit
 
 
-def identify(robot: Robot, data: Measurements, registered: bool = False,
-             candidates: Sequence[str] | None = None, include: Sequence[str] = (),
-             folds: int = CV_FOLDS, progress: Progress | None = None,
-             max_steps: int = 12, known: Sequence[str] = (),
-             map_components: Sequence[str] = MAP_SEARCH_COMPONENTS) -> IdentificationResult:
+def identify(
+    robot: Robot,
+    data: Measurements,
+    registered: bool = False,
+    candidates: Sequence[str] | None = None,
+    include: Sequence[str] = (),
+    folds: int = CV_FOLDS,
+    progress: Progress | None = None,
+    max_steps: int = 12,
+    known: Sequence[str] = (),
+    map_components: Sequence[str] = MAP_SEARCH_COMPONENTS,
+) -> IdentificationResult:
     """Identify the declared model and select effects from the library.
 
     Parameters
@@ -338,6 +423,7 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     InputError
         An unknown effect name.
     """
+
     def tick(msg: str, k: int, total: int) -> None:
         if progress is not None:
             progress(msg, k, total)
@@ -349,10 +435,12 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
     registered = _known_parts(registered, known, map_components)
     notes: list[str] = []
     if robot.identified is not None:
-        notes.append("the robot file carries an [identified] table; identification starts from its "
-                     "ordinary fields and ignores that table")
+        notes.append(
+            "the robot file carries an [identified] table; identification starts from its "
+            "ordinary fields and ignores that table"
+        )
     s = _setup(robot, m, registered, folds, len(cand), tick)
-    structural = _structural_held(robot, list(inc) + cand, registered)   # structural vs too few data
+    structural = _structural_held(robot, list(inc) + cand, registered)  # structural vs too few data
     tick("declared model", 1, s.total_steps)
     prob, fit = _declared_model(s, inc, registered, robust, structural, notes)
     if m.rotation is not None and getattr(m, "sigma_rot", None) is None:
@@ -370,10 +458,23 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
         sat_effects.remove("joint_offset")
     sat_clean, sat_info, mask_sel, fit = _saturated(robot, prob, fit, inc, sat_effects, registered, robust)
     score_b = _linear_scores(prob, s.fit_b.J, s.fit_b.pred, fit.inliers, np.asarray(s.order_b, dtype=int))
-    run = _Run(robot=robot, layout=prob.layout, registered=registered, robust=robust, include=list(inc),
-               cand=cand, applicable=applicable, sigma_noise=sigma_noise, sigma_w=sigma_w, sat_clean=sat_clean,
-               mask_sel=mask_sel, max_steps=max_steps, tick=tick, total_steps=s.total_steps,
-               map_components=tuple(map_components))
+    run = _Run(
+        robot=robot,
+        layout=prob.layout,
+        registered=registered,
+        robust=robust,
+        include=list(inc),
+        cand=cand,
+        applicable=applicable,
+        sigma_noise=sigma_noise,
+        sigma_w=sigma_w,
+        sat_clean=sat_clean,
+        mask_sel=mask_sel,
+        max_steps=max_steps,
+        tick=tick,
+        total_steps=s.total_steps,
+        map_components=tuple(map_components),
+    )
     st = _State(prob=prob, fit=fit, active=list(inc))
     forward_selection(run, st)
     backward_pass(run, st)
@@ -386,8 +487,10 @@ def identify(robot: Robot, data: Measurements, registered: bool = False,
 # Step 6: the result
 # ----------------------------------------------------------------------------------
 
-def _covariance(prob: _Problem, fit: _Fit, free: Sequence[int],
-                full: list[np.ndarray] | None = None) -> tuple[np.ndarray, float]:
+
+def _covariance(
+    prob: _Problem, fit: _Fit, free: Sequence[int], full: list[np.ndarray] | None = None
+) -> tuple[np.ndarray, float]:
     """Standard deviations (N_PARAMS,), SI (NaN where not free), from ``s^2 (J^T J)^-1``,
     and the condition number of the column-normalised Jacobian; the whole covariance
     (N_PARAMS, N_PARAMS), SI, zero where not free, is appended to ``full`` when given."""
@@ -424,56 +527,92 @@ def _effect_of(i: int) -> str:
     return "?"
 
 
-def _parameter_table(layout: ModelLayout, fit: _Fit, order: Sequence[int], std: np.ndarray,
-                     active: Sequence[str], registered: bool) -> list[ParameterEstimate]:
+def _parameter_table(
+    layout: ModelLayout, fit: _Fit, order: Sequence[int], std: np.ndarray, active: Sequence[str], registered: bool
+) -> list[ParameterEstimate]:
     """Every parameter of the model (priority order), with value, std, unit and status."""
     out = []
     order_set = set(order)
     for i in order:
         name = PARAM_NAMES[i]
         if i in fit.held:
-            out.append(ParameterEstimate(name, _effect_of(i), float(fit.theta[i]), None, layout.units[i],
-                                         ParameterStatus.HELD, fit.held[i]))
+            out.append(
+                ParameterEstimate(
+                    name, _effect_of(i), float(fit.theta[i]), None, layout.units[i], ParameterStatus.HELD, fit.held[i]
+                )
+            )
         else:
-            out.append(ParameterEstimate(name, _effect_of(i), float(fit.theta[i]),
-                                         float(std[i]) if np.isfinite(std[i]) else None, layout.units[i],
-                                         ParameterStatus.FREE))
+            out.append(
+                ParameterEstimate(
+                    name,
+                    _effect_of(i),
+                    float(fit.theta[i]),
+                    float(std[i]) if np.isfinite(std[i]) else None,
+                    layout.units[i],
+                    ParameterStatus.FREE,
+                )
+            )
     known = Known.of(registered)
     if known.registration or known.measured_point:
         for i in layout.indices(REGISTRATION_GROUPS):
             if i not in order_set:
-                out.insert(0, ParameterEstimate(PARAM_NAMES[i], _effect_of(i), float(fit.theta[i]), None,
-                                                layout.units[i], ParameterStatus.HELD,
-                                                "data declared registered" if known else
-                                                f"declared known ({known.describe()})"))
+                out.insert(
+                    0,
+                    ParameterEstimate(
+                        PARAM_NAMES[i],
+                        _effect_of(i),
+                        float(fit.theta[i]),
+                        None,
+                        layout.units[i],
+                        ParameterStatus.HELD,
+                        "data declared registered" if known else f"declared known ({known.describe()})",
+                    ),
+                )
     return out
 
 
-def _build_model(run: _Run, st: _State, s: _Setup, std: np.ndarray, free: Sequence[int],
-                 order: Sequence[int], sigma_noise: float | None) -> IdentifiedModel:
+def _build_model(
+    run: _Run,
+    st: _State,
+    s: _Setup,
+    std: np.ndarray,
+    free: Sequence[int],
+    order: Sequence[int],
+    sigma_noise: float | None,
+) -> IdentifiedModel:
     """The identified :class:`~models.arm.ArmModel`."""
     fit, robot = st.fit, run.robot
     rows = st.prob.rows[fit.inliers]
     te, tg, _q = st.prob.ev.call("torques", rows[:, 0:6], rows[:, 6:12], rows[:, 13:14], fit.theta, st.prob.const)
     torque_range = np.max(np.abs(np.asarray(te).T + np.asarray(tg).T), axis=0)
-    return IdentifiedModel(nominal=robot, theta=fit.theta.copy(), R0=s.R0, tau_scale=s.tau_s,
-                           gravity_on=bool(get_const(st.prob.const, "gravity.on")[0] > 0.5),
-                           beams=fx.beam_frames(robot),
-                           knots=get_const(st.prob.const, "hardening.knots").reshape(6, fx.N_KNOTS).copy(),
-                           time_ref=s.t_ref, temperature_ref=s.temp_ref, effects=list(st.active),
-                           registered=bool(run.registered),
-                           std={PARAM_NAMES[i]: float(std[i]) for i in free},
-                           noise_sigma_m=sigma_noise,
-                           held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order},
-                           tcp_correction_m=(fit.theta[GROUP_SLICES["tool.p"]] - robot.tcp2flange[:3, 3]
-                                             if bool(run.registered) else np.zeros(3)),
-                           torque_range_Nm=torque_range,
-                           effect_const=({k: get_const(st.prob.const, k).copy() for k in MAP_CONST_KEYS}
-                                         if "joint_error_map" in st.active else {}))
+    return IdentifiedModel(
+        nominal=robot,
+        theta=fit.theta.copy(),
+        R0=s.R0,
+        tau_scale=s.tau_s,
+        gravity_on=bool(get_const(st.prob.const, "gravity.on")[0] > 0.5),
+        beams=fx.beam_frames(robot),
+        knots=get_const(st.prob.const, "hardening.knots").reshape(6, fx.N_KNOTS).copy(),
+        time_ref=s.t_ref,
+        temperature_ref=s.temp_ref,
+        effects=list(st.active),
+        registered=bool(run.registered),
+        std={PARAM_NAMES[i]: float(std[i]) for i in free},
+        noise_sigma_m=sigma_noise,
+        held={PARAM_NAMES[i]: r for i, r in fit.held.items() if i in order},
+        tcp_correction_m=(
+            fit.theta[GROUP_SLICES["tool.p"]] - robot.tcp2flange[:3, 3] if bool(run.registered) else np.zeros(3)
+        ),
+        torque_range_Nm=torque_range,
+        effect_const=(
+            {k: get_const(st.prob.const, k).copy() for k in MAP_CONST_KEYS} if "joint_error_map" in st.active else {}
+        ),
+    )
 
 
-def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | None, stop_reason: str,
-             converged: bool) -> tuple[IdentifyStatus, str, dict[str, Any]]:
+def _verdict(
+    diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | None, stop_reason: str, converged: bool
+) -> tuple[IdentifyStatus, str, dict[str, Any]]:
     """Status, reason and the ``unexplained`` record of the final residual."""
     top = structure_left(diags)
     above_floor = sigma_noise is not None and score_f.cv_rms_m > UNEXPLAINED_RMS_RATIO * sigma_noise
@@ -484,24 +623,36 @@ def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | 
             top = diags[0]
         weak = not (strong or above_floor)
         unexplained = {
-            "present": True, "diagnostic": f"residual vs {top.variable}", "variable": top.variable,
-            "explained_fraction": top.explained_fraction, "p_value": top.p_value,
-            "description": top.description, "weak": weak,
+            "present": True,
+            "diagnostic": f"residual vs {top.variable}",
+            "variable": top.variable,
+            "explained_fraction": top.explained_fraction,
+            "p_value": top.p_value,
+            "description": top.description,
+            "weak": weak,
             "rms_over_noise": (score_f.cv_rms_m / sigma_noise) if sigma_noise else None,
-            "message": (f"{'weak ' if weak else ''}structure remains that no library effect explains: the residual "
-                        f"depends on {top.variable} (cross-validated regression explains "
-                        f"{100 * top.explained_fraction:.0f} % of its variance, p = {top.p_value:.2g})"
-                        + (f"; held-out RMS is {score_f.cv_rms_m / sigma_noise:.2f} x the noise floor"
-                           if sigma_noise else "")),
+            "message": (
+                f"{'weak ' if weak else ''}structure remains that no library effect explains: the residual "
+                f"depends on {top.variable} (cross-validated regression explains "
+                f"{100 * top.explained_fraction:.0f} % of its variance, p = {top.p_value:.2g})"
+                + (f"; held-out RMS is {score_f.cv_rms_m / sigma_noise:.2f} x the noise floor" if sigma_noise else "")
+            ),
         }
         status = IdentifyStatus.OK if weak else IdentifyStatus.UNEXPLAINED
         reason = stop_reason + "; " + unexplained["message"] if weak else unexplained["message"]
     else:
-        unexplained = {"present": False, "diagnostic": None, "variable": None, "weak": False,
-                       "explained_fraction": (diags[0].explained_fraction if diags else None),
-                       "message": ("no diagnostic shows structure the model leaves unexplained (cross-validated "
-                                   "nonparametric fits of the residual on each joint angle, per axis and through "
-                                   "each joint, and on time, load, temperature, position and pose)")}
+        unexplained = {
+            "present": False,
+            "diagnostic": None,
+            "variable": None,
+            "weak": False,
+            "explained_fraction": (diags[0].explained_fraction if diags else None),
+            "message": (
+                "no diagnostic shows structure the model leaves unexplained (cross-validated "
+                "nonparametric fits of the residual on each joint angle, per axis and through "
+                "each joint, and on time, load, temperature, position and pose)"
+            ),
+        }
         status = IdentifyStatus.OK
         reason = stop_reason
     if not converged:
@@ -510,8 +661,9 @@ def _verdict(diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | 
     return status, reason, unexplained
 
 
-def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[str, Any], noise_src: str,
-            notes: list[str]) -> IdentificationResult:
+def _result(
+    run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[str, Any], noise_src: str, notes: list[str]
+) -> IdentificationResult:
     """Step 6: covariance, model, parameter table, diagnostics and verdict."""
     prob, fit, m = st.prob, st.fit, st.prob.m
     score_f, free_f = run.score(prob, fit, st.active)
@@ -521,7 +673,7 @@ def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[st
     R_un = fit.residual(prob)
     model = _build_model(run, st, s, std, free_f, order_f, run.sigma_noise)
     params = _parameter_table(prob.layout, fit, order_f, std, st.active, run.registered)
-    diags = _diagnose(prob, fit, run.robot)       # diagnostics on the final residual (inliers)
+    diags = _diagnose(prob, fit, run.robot)  # diagnostics on the final residual (inliers)
     status, reason, unexplained = _verdict(diags, score_f, run.sigma_noise, st.stop_reason, fit.converged)
     implausible = implausible_geometry(run.robot, fit.theta, [i for i in fit.held])
     if implausible is not None and status is not IdentifyStatus.NOT_CONVERGED:
@@ -529,14 +681,26 @@ def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[st
     pos = prob.pos
     R_un_all = R_un
     R_un = R_un_all[pos]
-    excluded = [{"row": int(i), "line": int(m.line[i]), "residual_mm": float(np.linalg.norm(R_un_all[i]) * 1e3),
-                 "residual_xyz_mm": (R_un_all[i] * 1e3).tolist(), "kind": "position" if pos[i] else "orientation"}
-                for i in np.flatnonzero(~fit.inliers)]
+    excluded = [
+        {
+            "row": int(i),
+            "line": int(m.line[i]),
+            "residual_mm": float(np.linalg.norm(R_un_all[i]) * 1e3),
+            "residual_xyz_mm": (R_un_all[i] * 1e3).tolist(),
+            "kind": "position" if pos[i] else "orientation",
+        }
+        for i in np.flatnonzero(~fit.inliers)
+    ]
     ident = {
-        "rank": len(free_f), "condition_number": cond, "n_rows": int(pos.sum()), "n_inliers": int(fit.inliers[pos].sum()),
-        "n_poses": int(s.n_poses), "saturated_model": sat_info,
-        "held": [{"name": PARAM_NAMES[i], "effect": _effect_of(i), "reason": r}
-                 for i, r in fit.held.items() if i in order_f],
+        "rank": len(free_f),
+        "condition_number": cond,
+        "n_rows": int(pos.sum()),
+        "n_inliers": int(fit.inliers[pos].sum()),
+        "n_poses": int(s.n_poses),
+        "saturated_model": sat_info,
+        "held": [
+            {"name": PARAM_NAMES[i], "effect": _effect_of(i), "reason": r} for i, r in fit.held.items() if i in order_f
+        ],
         "known": Known.of(run.registered).describe(),
     }
     res_b_all = s.fit_b.residual(prob)
@@ -545,17 +709,38 @@ def _result(run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[st
     orient: dict[str, Any] | None = None
     if (~pos).any():
         rot = ~pos & fit.inliers
-        orient = {"rms_before_rad": _rms(res_b_all[~pos][fit.inliers[~pos]]), "rms_after_rad": _rms(R_un_all[rot]),
-                  "n_rows": int((~pos).sum()),
-                  "identifiable_thanks_to_orientation": _orientation_gain(prob, fit, order_f)}
+        orient = {
+            "rms_before_rad": _rms(res_b_all[~pos][fit.inliers[~pos]]),
+            "rms_after_rad": _rms(R_un_all[rot]),
+            "n_rows": int((~pos).sum()),
+            "identifiable_thanks_to_orientation": _orientation_gain(prob, fit, order_f),
+        }
         ident["orientation"] = orient
     return IdentificationResult(
-        status=status, reason=reason, model=model, effects_added=st.effects_added, history=st.history,
-        parameters=params, rms_before_m=_rms(res_b[inl]), rms_after_m=_rms(R_un[inl]),
-        cv_rms_before_m=score_b.cv_rms_m, cv_rms_after_m=score_f.cv_rms_m, noise_sigma_m=run.sigma_noise,
-        noise_source=noise_src, excluded=excluded, unexplained=unexplained, diagnostics=diags,
-        identifiability=ident, residual_before=res_b, residual_after=R_un, inliers=inl, data=m.subset(pos),
-        notes=notes, error_maps=_error_maps(st, cov[0] if cov else None), orientation=orient)
+        status=status,
+        reason=reason,
+        model=model,
+        effects_added=st.effects_added,
+        history=st.history,
+        parameters=params,
+        rms_before_m=_rms(res_b[inl]),
+        rms_after_m=_rms(R_un[inl]),
+        cv_rms_before_m=score_b.cv_rms_m,
+        cv_rms_after_m=score_f.cv_rms_m,
+        noise_sigma_m=run.sigma_noise,
+        noise_source=noise_src,
+        excluded=excluded,
+        unexplained=unexplained,
+        diagnostics=diags,
+        identifiability=ident,
+        residual_before=res_b,
+        residual_after=R_un,
+        inliers=inl,
+        data=m.subset(pos),
+        notes=notes,
+        error_maps=_error_maps(st, cov[0] if cov else None),
+        orientation=orient,
+    )
 
 
 def _error_maps(st: _State, cov: np.ndarray | None) -> list[ErrorMapSummary]:
@@ -570,5 +755,11 @@ def _error_maps(st: _State, cov: np.ndarray | None) -> list[ErrorMapSummary]:
     for k, group in enumerate(MAP_CHANNEL_GROUPS):
         for j in range(6):
             lever[:, j, k] = np.linalg.norm(J3[:, GROUP_SLICES[group].start + j].reshape(n, 3), axis=1)
-    return summarise_maps(fit.theta, cov, get_const(prob.const, "error_map.freq"),
-                          get_const(prob.const, "error_map.range"), lever, prob.m.q[mask])
+    return summarise_maps(
+        fit.theta,
+        cov,
+        get_const(prob.const, "error_map.freq"),
+        get_const(prob.const, "error_map.range"),
+        lever,
+        prob.m.q[mask],
+    )

@@ -173,7 +173,11 @@ def _channel_gain(Jc: np.ndarray, q: np.ndarray, f: np.ndarray, r: np.ndarray, Q
         U, V = M.T @ C, M.T @ S
         Qr = Q.T @ r
         a, b = a - U.T @ Qr, b - V.T @ Qr
-        aa, bb, ab = aa - np.einsum("kf,kf->f", U, U), bb - np.einsum("kf,kf->f", V, V), ab - np.einsum("kf,kf->f", U, V)
+        aa, bb, ab = (
+            aa - np.einsum("kf,kf->f", U, U),
+            bb - np.einsum("kf,kf->f", V, V),
+            ab - np.einsum("kf,kf->f", U, V),
+        )
     return _gain2(a, b, aa, bb, ab)
 
 
@@ -192,8 +196,9 @@ def _cv_rss(Z: np.ndarray, r: np.ndarray, folds3: np.ndarray) -> float:
     return tot
 
 
-def _refine(Jc: np.ndarray, q: np.ndarray, r: np.ndarray, Q: np.ndarray, f0: float, lo: float, hi: float,
-            step: float, s2: float) -> float:
+def _refine(
+    Jc: np.ndarray, q: np.ndarray, r: np.ndarray, Q: np.ndarray, f0: float, lo: float, hi: float, step: float, s2: float
+) -> float:
     """Golden-section maximum of the gain within a grid ``step`` of ``f0``, inside ``[lo, hi]``;
     a whole number of cycles per revolution when the data do not tell it from the refined
     frequency (a likelihood-ratio test at :data:`MAP_WHOLE_CHI2` with the residual variance ``s2``)."""
@@ -202,6 +207,7 @@ def _refine(Jc: np.ndarray, q: np.ndarray, r: np.ndarray, Q: np.ndarray, f0: flo
 
     def gain(f: float) -> float:
         return float(_channel_gain(Jc, q, np.array([f]), r, Q)[0])
+
     c, d = b - gr * (b - a), a + gr * (b - a)
     gc, gd = gain(c), gain(d)
     for _ in range(MAP_REFINE_STEPS):
@@ -233,8 +239,7 @@ def _bracket(fg: np.ndarray, f: float, others: Sequence[float], sep: float) -> t
     return lo_f, hi_f
 
 
-def _term_signature(t: MapTerm, chans: dict[tuple[int, int], np.ndarray], q: np.ndarray,
-                    Q: np.ndarray) -> np.ndarray:
+def _term_signature(t: MapTerm, chans: dict[tuple[int, int], np.ndarray], q: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """Signature (3n, 2) of a term with the directions ``Q`` projected out."""
     D = _signature(chans[(t.joint, t.component)], q[:, t.joint], np.array([t.freq_cpr]))
     return D - Q @ (Q.T @ D)
@@ -249,9 +254,16 @@ def _set_freq(prop: MapProposal) -> None:
         used[t.joint, t.component] += 1
 
 
-def _scan(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: dict[int, np.ndarray],
-          res: dict[int, float], q: np.ndarray, r: np.ndarray, QZ: np.ndarray, used: np.ndarray
-          ) -> tuple[float, tuple[int, int], float] | None:
+def _scan(
+    prop: MapProposal,
+    chans: dict[tuple[int, int], np.ndarray],
+    grids: dict[int, np.ndarray],
+    res: dict[int, float],
+    q: np.ndarray,
+    r: np.ndarray,
+    QZ: np.ndarray,
+    used: np.ndarray,
+) -> tuple[float, tuple[int, int], float] | None:
     """The spectrum: the best (gain, (joint, component), frequency) over every channel with a free
     slot, frequencies within a separation of the channel's terms excluded."""
     best: tuple[float, tuple[int, int], float] | None = None
@@ -260,7 +272,7 @@ def _scan(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: di
             continue
         fg = grids[j]
         g = _channel_gain(Jc, q[:, j], fg, r, QZ)
-        taken = prop.freq[j, c, :used[j, c]]
+        taken = prop.freq[j, c, : used[j, c]]
         if len(taken):
             near = np.min(np.abs(fg[:, None] - taken[None, :]), axis=1) < MAP_MIN_SEPARATION * res[j]
             g = np.where(near, 0.0, g)
@@ -270,8 +282,9 @@ def _scan(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: di
     return best
 
 
-def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: np.ndarray, Jfree: np.ndarray,
-                folds: np.ndarray) -> MapProposal | None:
+def propose_map(
+    r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: np.ndarray, Jfree: np.ndarray, folds: np.ndarray
+) -> MapProposal | None:
     """Search the residual for per-joint periodic error motions (see the module docstring).
 
     Parameters
@@ -322,7 +335,7 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
         fg = grids[j]
         Jc = chans[(j, c)]
         step = float(fg[1] - fg[0]) if len(fg) > 1 else MAP_FREQ_STEP_CPR
-        lo_f, hi_f = _bracket(fg, f, freq[j, c, :used[j, c]], MAP_MIN_SEPARATION * res[j])
+        lo_f, hi_f = _bracket(fg, f, freq[j, c, : used[j, c]], MAP_MIN_SEPARATION * res[j])
         df2 = 3 * n - k_free - Z.shape[1] - 2
         f = _refine(Jc, q[:, j], r, QZ, f, lo_f, hi_f, step, max(rss - best[0], 0.0) / max(df2, 1))
         D = _signature(Jc, q[:, j], np.array([f]))
@@ -338,8 +351,9 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
         cv_new = _cv_rss(Zn, r0, folds3)
         if p >= alpha or cv_new >= cv_prev or gain < MAP_MIN_TERM_SHARE * rss:
             break
-        prop.terms.append(MapTerm(joint=j, component=c, freq_cpr=f, rss_share=gain / max(rss_start, 1e-300),
-                                  p_value=p, cv_rss=cv_new))
+        prop.terms.append(
+            MapTerm(joint=j, component=c, freq_cpr=f, rss_share=gain / max(rss_start, 1e-300), p_value=p, cv_rss=cv_new)
+        )
         freq[j, c, used[j, c]] = f
         used[j, c] += 1
         Z, rss, cv_prev = Zn, rss_new, cv_new
@@ -351,24 +365,32 @@ def propose_map(r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: n
     return prop if prop.terms else None
 
 
-def _prune(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], q: np.ndarray, r0: np.ndarray,
-           Q: np.ndarray, alpha: float) -> None:
+def _prune(
+    prop: MapProposal,
+    chans: dict[tuple[int, int], np.ndarray],
+    q: np.ndarray,
+    r0: np.ndarray,
+    Q: np.ndarray,
+    alpha: float,
+) -> None:
     """Backward elimination: with every term in the model (after backfitting), drop the least
     significant one while its F-test fails at ``alpha`` or it removes under :data:`MAP_MIN_TERM_SHARE`
     of the residual left without it (a term that mattered only while the others were still missing)."""
+
     def rss_of(cols: list[np.ndarray]) -> float:
         if not cols:
             return float(r0 @ r0)
         Z = _orth(np.column_stack(cols))
         e = r0 - Z @ (Z.T @ r0)
         return float(e @ e)
+
     while prop.terms:
         sigs = [_term_signature(t, chans, q, Q) for t in prop.terms]
         rss_full = rss_of(sigs)
         df2 = max(len(r0) - Q.shape[1] - 2 * len(sigs), 1)
         worst, worst_p = None, -1.0
         for k in range(len(sigs)):
-            rss_k = rss_of(sigs[:k] + sigs[k + 1:])
+            rss_k = rss_of(sigs[:k] + sigs[k + 1 :])
             gain = max(rss_k - rss_full, 0.0)
             p = float(stats.f.sf((gain / 2) / max(rss_full / df2, 1e-300), 2, df2))
             if gain < MAP_MIN_TERM_SHARE * rss_k:
@@ -381,8 +403,16 @@ def _prune(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], q: np.nd
     _set_freq(prop)
 
 
-def _backfit(prop: MapProposal, chans: dict[tuple[int, int], np.ndarray], grids: dict[int, np.ndarray],
-             res: dict[int, float], q: np.ndarray, r0: np.ndarray, Q: np.ndarray, s2: float) -> None:
+def _backfit(
+    prop: MapProposal,
+    chans: dict[tuple[int, int], np.ndarray],
+    grids: dict[int, np.ndarray],
+    res: dict[int, float],
+    q: np.ndarray,
+    r0: np.ndarray,
+    Q: np.ndarray,
+    s2: float,
+) -> None:
     """Refine each term's frequency with the others in the model (:data:`MAP_BACKFIT_PASSES`
     passes): a term found early was fitted while later ones were still in the residual."""
     for _ in range(MAP_BACKFIT_PASSES):
@@ -457,8 +487,9 @@ def _penalty(nb: int) -> np.ndarray:
     return Dm.T @ Dm
 
 
-def _pspline(A: np.ndarray, y: np.ndarray, P: np.ndarray, folds: np.ndarray, intercept: np.ndarray | None
-             ) -> tuple[float, float, float, np.ndarray, float]:
+def _pspline(
+    A: np.ndarray, y: np.ndarray, P: np.ndarray, folds: np.ndarray, intercept: np.ndarray | None
+) -> tuple[float, float, float, np.ndarray, float]:
     """GCV-chosen penalised least squares of ``y`` (m,) on ``A`` (m, nb) with penalty ``P``;
     ``intercept`` (m, k) unpenalised columns (or None).  Returns CV RSS, in-sample RSS, edf,
     fitted (m,), RSS0 (around the intercept-only fit)."""
@@ -533,5 +564,5 @@ def joint_smoother_cv(R: np.ndarray, Jw: np.ndarray, x: np.ndarray, folds: np.nd
     explained = 1.0 - cv / rss0 if rss0 > 0 else 0.0
     F3 = fitted.reshape(n, 3)
     Rc = R - R.mean(axis=0)
-    per = 1.0 - np.sum((R - F3) ** 2, axis=0) / np.maximum(np.sum(Rc ** 2, axis=0), 1e-300)
+    per = 1.0 - np.sum((R - F3) ** 2, axis=0) / np.maximum(np.sum(Rc**2, axis=0), 1e-300)
     return SmootherFit(explained, _ftest(rss0, rss1, edf, 3, 3 * n), edf, F3, per)

@@ -48,8 +48,9 @@ class Evaluator:
 
     THREADS = 2
 
-    def __init__(self, convention: str, eligible: np.ndarray | None = None, orientation: bool = False,
-                 general: bool = False) -> None:
+    def __init__(
+        self, convention: str, eligible: np.ndarray | None = None, orientation: bool = False, general: bool = False
+    ) -> None:
         el = np.ones(N_PARAMS, dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
         self.eligible_idx = np.flatnonzero(el)
         self.fns = fx.identification_functions(convention, tuple(bool(x) for x in el), orientation, general)
@@ -89,8 +90,9 @@ class Evaluator:
         p, q = self._map("measure", n)(rows.T, theta, const)
         return _np(p).T, _np(q).T
 
-    def jacobian(self, rows: np.ndarray, q_eq: np.ndarray, theta: np.ndarray,
-                 const: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def jacobian(
+        self, rows: np.ndarray, q_eq: np.ndarray, theta: np.ndarray, const: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Predicted measurement (N, 3), m, and its Jacobian w.r.t. ``theta``.
 
         Returns
@@ -124,8 +126,9 @@ class Evaluator:
 _EVALUATORS: dict[tuple, Evaluator] = {}
 
 
-def evaluator(convention: str, eligible: np.ndarray | None = None, orientation: bool = False,
-              general: bool = False) -> Evaluator:
+def evaluator(
+    convention: str, eligible: np.ndarray | None = None, orientation: bool = False, general: bool = False
+) -> Evaluator:
     """Shared :class:`Evaluator` per convention, parameter eligibility, orientation rows and chain
     form (``general``: end transforms, a URDF chain)."""
     key = (convention, None if eligible is None else tuple(bool(x) for x in eligible), orientation, general)
@@ -155,8 +158,9 @@ def time_reference(m: Measurements) -> tuple[float, float]:
     return lo, max(hi - lo, 1e-9)
 
 
-def make_rows(m: Measurements, time_ref: tuple[float, float] | None, temperature_ref: float,
-              use_time: bool = True) -> np.ndarray:
+def make_rows(
+    m: Measurements, time_ref: tuple[float, float] | None, temperature_ref: float, use_time: bool = True
+) -> np.ndarray:
     """Per-row inputs of the CasADi functions, shape (N, ROW_SIZE).
 
     ``[q_c (6) rad, F (6) N and N*m (base frame), tn (1), dT (1) K]``: ``tn`` is the
@@ -222,10 +226,22 @@ def with_orientation_rows(m: Measurements) -> tuple[Measurements, np.ndarray]:
 
     def two(a: np.ndarray | None) -> np.ndarray | None:
         return None if a is None else np.concatenate([a, a])
-    mx = Measurements(q=two(m.q), wrench=two(m.wrench), p=np.vstack([m.p, np.zeros((n, 3))]), t=two(m.t),
-                      point=two(m.point), rotation=two(m.rotation), temperature=two(m.temperature),
-                      sigma=two(m.sigma), line=two(m.line), source=m.source, units=dict(m.units),
-                      sigma_xyz=two(m.sigma_xyz), sigma_rot=two(m.sigma_rot))
+
+    mx = Measurements(
+        q=two(m.q),
+        wrench=two(m.wrench),
+        p=np.vstack([m.p, np.zeros((n, 3))]),
+        t=two(m.t),
+        point=two(m.point),
+        rotation=two(m.rotation),
+        temperature=two(m.temperature),
+        sigma=two(m.sigma),
+        line=two(m.line),
+        source=m.source,
+        units=dict(m.units),
+        sigma_xyz=two(m.sigma_xyz),
+        sigma_rot=two(m.sigma_rot),
+    )
     return mx, np.concatenate([np.ones(n, dtype=bool), np.zeros(n, dtype=bool)])
 
 
@@ -266,7 +282,8 @@ def _torque_scale(prob_robot: Robot, m: Measurements) -> tuple[np.ndarray, np.nd
     layout = make_layout(prob_robot)
     const = make_const(prob_robot, np.eye(3), np.ones(6), False)
     te, _tg, _q = _ev_for(prob_robot).call(
-        "torques", m.q, m.wrench, np.zeros((m.n, 1)), np.zeros(N_PARAMS) + layout.nominal, const)
+        "torques", m.q, m.wrench, np.zeros((m.n, 1)), np.zeros(N_PARAMS) + layout.nominal, const
+    )
     tau = np.abs(np.asarray(te).T)
     ts = np.maximum(np.percentile(tau, 90, axis=0), fx.TORQUE_SCALE_FLOOR_NM)
     return ts, _knots_from(tau, ts)

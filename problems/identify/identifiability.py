@@ -38,8 +38,9 @@ LAST_AXIS_ROTATION = "dtheta[6]"
 STRUCTURAL_DESIGN_ROWS = 240
 
 
-def select_identifiable(Js: np.ndarray, order: Sequence[int], sigma: float,
-                        names: Sequence[str] = PARAM_NAMES) -> tuple[list[int], dict[int, str]]:
+def select_identifiable(
+    Js: np.ndarray, order: Sequence[int], sigma: float, names: Sequence[str] = PARAM_NAMES
+) -> tuple[list[int], dict[int, str]]:
     """Pivoted Gram-Schmidt on scaled Jacobian columns in priority order.
 
     Parameters
@@ -79,8 +80,10 @@ def select_identifiable(Js: np.ndarray, order: Sequence[int], sigma: float,
             held[idx] = _alias_reason(Q, c, kept, names)
             continue
         if sigma > 0 and sigma / rn > IDENT_MAX_STD_RATIO:
-            held[idx] = (f"not determined by the data (predicted std {sigma / rn:.3g} typical magnitudes > "
-                         f"{IDENT_MAX_STD_RATIO:g})")
+            held[idx] = (
+                f"not determined by the data (predicted std {sigma / rn:.3g} typical magnitudes > "
+                f"{IDENT_MAX_STD_RATIO:g})"
+            )
             continue
         Q = np.column_stack([Q, res / rn])
         kept.append(idx)
@@ -115,7 +118,7 @@ class Known:
         return self.registration and self.measured_point
 
     @classmethod
-    def of(cls, registered: "bool | Known") -> "Known":
+    def of(cls, registered: bool | Known) -> Known:
         return registered if isinstance(registered, Known) else cls(bool(registered), bool(registered))
 
     def describe(self) -> str:
@@ -123,7 +126,7 @@ class Known:
         return " and ".join(parts) if parts else "nothing"
 
 
-def _order_for(layout: ModelLayout, effects: Sequence[str], registered: "bool | Known") -> list[int]:
+def _order_for(layout: ModelLayout, effects: Sequence[str], registered: bool | Known) -> list[int]:
     """Parameter indices in priority order: registration, point, stiffness, effects
     (registration and point only where not known, see :class:`Known`)."""
     known = Known.of(registered)
@@ -159,8 +162,7 @@ def _structural_held(robot: Robot, effects: Sequence[str], registered: bool) -> 
     F = np.zeros((n, 6))
     F[:, :3] = rng.normal(0, 50.0, (n, 3))
     F[::3] = 0.0
-    m = Measurements(q=q, wrench=F, p=np.zeros((n, 3)), t=np.linspace(0, 1, n),
-                     temperature=np.linspace(15, 35, n))
+    m = Measurements(q=q, wrench=F, p=np.zeros((n, 3)), t=np.linspace(0, 1, n), temperature=np.linspace(15, 35, n))
     layout = make_layout(robot)
     tau_s, knots = _torque_scale(robot, m)
     const = make_const(robot, np.eye(3), tau_s, True, knots=knots)

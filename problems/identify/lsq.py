@@ -145,9 +145,16 @@ def _param_std(G: np.ndarray, cost: float, n_res: int) -> np.ndarray:
         return np.full(G.shape[0], np.inf)
 
 
-def _lm(prob: _Problem, theta0: np.ndarray, free: np.ndarray, mask: np.ndarray,
-        pred0: np.ndarray | None = None, q0: np.ndarray | None = None, J0: np.ndarray | None = None,
-        max_iter: int = LM_MAX_ITER) -> _Fit:
+def _lm(
+    prob: _Problem,
+    theta0: np.ndarray,
+    free: np.ndarray,
+    mask: np.ndarray,
+    pred0: np.ndarray | None = None,
+    q0: np.ndarray | None = None,
+    J0: np.ndarray | None = None,
+    max_iter: int = LM_MAX_ITER,
+) -> _Fit:
     """Levenberg-Marquardt over the parameters ``free`` on the rows ``mask``.
 
     Stops when the Gauss-Newton step is below :data:`LM_STEP_STD_TOL` standard
@@ -169,7 +176,7 @@ def _lm(prob: _Problem, theta0: np.ndarray, free: np.ndarray, mask: np.ndarray,
     it = 0
     free = np.asarray(free, dtype=int)
     sc = prob.layout.scale[free]
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 - the count is reported after the loop
         if len(free) == 0:
             break
         Js_all = _wjac(prob, J, mask, free)
@@ -178,7 +185,7 @@ def _lm(prob: _Problem, theta0: np.ndarray, free: np.ndarray, mask: np.ndarray,
         G0 = Js_all.T @ Js_all
         gn0 = -_solve_normal(G0, Js_all.T @ r)
         th_f = theta[free]
-        at_bound = (((th_f <= prob.lower[free]) & (gn0 < 0)) | ((th_f >= prob.upper[free]) & (gn0 > 0)))
+        at_bound = ((th_f <= prob.lower[free]) & (gn0 < 0)) | ((th_f >= prob.upper[free]) & (gn0 > 0))
         act = np.flatnonzero(~at_bound)
         if len(act) == 0:
             converged = True
@@ -217,13 +224,31 @@ def _lm(prob: _Problem, theta0: np.ndarray, free: np.ndarray, mask: np.ndarray,
         if rel < LM_COST_RTOL or (cost_prev - cost) < LM_COST_SIGMA_TOL * cost / max(r.size, 1):
             converged = True
             break
-    return _Fit(theta=theta, free=np.asarray(free, dtype=int), held={}, inliers=mask.copy(), pred=pred, q_eq=q,
-                J=J, converged=converged, iterations=it)
+    return _Fit(
+        theta=theta,
+        free=np.asarray(free, dtype=int),
+        held={},
+        inliers=mask.copy(),
+        pred=pred,
+        q_eq=q,
+        J=J,
+        converged=converged,
+        iterations=it,
+    )
 
 
-def _fit_model(prob: _Problem, theta0: np.ndarray, effects: Sequence[str], registered: bool,
-               mask0: np.ndarray, robust: bool = True, sigma_hint: float | None = None,
-               max_iter: int = LM_MAX_ITER, passes: int = 3, rounds: int = OUTLIER_MAX_ROUNDS) -> _Fit:
+def _fit_model(
+    prob: _Problem,
+    theta0: np.ndarray,
+    effects: Sequence[str],
+    registered: bool,
+    mask0: np.ndarray,
+    robust: bool = True,
+    sigma_hint: float | None = None,
+    max_iter: int = LM_MAX_ITER,
+    passes: int = 3,
+    rounds: int = OUTLIER_MAX_ROUNDS,
+) -> _Fit:
     """Fit the model with ``effects``: identifiability, LM, robust exclusion, and a
     re-check of identifiability at the solution (nonlinear parameters, up to
     ``passes`` times).

@@ -31,8 +31,9 @@ MAP_CHANNEL_GROUPS = ("joint_offset.dtheta", "geometric.dd", "geometric.da", "ge
 MAP_SEARCH_COMPONENTS = ("theta",)
 
 
-def map_problem(robot: Robot, components: Sequence[str], p: _Problem, fit: _Fit, th: np.ndarray,
-                others: np.ndarray | None = None) -> tuple[_Problem | None, np.ndarray, MapProposal | None]:
+def map_problem(
+    robot: Robot, components: Sequence[str], p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
+) -> tuple[_Problem | None, np.ndarray, MapProposal | None]:
     """The problem with the map frequencies of :func:`~.error_map.propose_map` on the residual of
     ``fit`` (its free parameters and the weighted, scaled Jacobian columns ``others`` (3n, k) of
     the other candidates projected out), the start parameters and the proposal; the problem is None

@@ -69,16 +69,32 @@ class ErrorMapSummary:
         """JSON form (SI plus the report's units: deg, urad or um)."""
         k = 1e6
         u = "urad" if self.unit == "rad" else "um"
-        return {"joint": self.joint, "component": self.component, "unit": self.unit,
-                "range_deg": [float(np.degrees(v)) for v in self.range_rad],
-                "rms_tcp_um": self.rms_tcp_m * 1e6,
-                "harmonics": [{"freq_cpr": h.freq_cpr, f"amplitude_{u}": h.amplitude * k,
-                               f"amplitude_std_{u}": h.amplitude_std * k, "amplitude_tcp_um": h.amplitude_tcp_m * 1e6}
-                              for h in self.harmonics]}
+        return {
+            "joint": self.joint,
+            "component": self.component,
+            "unit": self.unit,
+            "range_deg": [float(np.degrees(v)) for v in self.range_rad],
+            "rms_tcp_um": self.rms_tcp_m * 1e6,
+            "harmonics": [
+                {
+                    "freq_cpr": h.freq_cpr,
+                    f"amplitude_{u}": h.amplitude * k,
+                    f"amplitude_std_{u}": h.amplitude_std * k,
+                    "amplitude_tcp_um": h.amplitude_tcp_m * 1e6,
+                }
+                for h in self.harmonics
+            ],
+        }
 
 
-def summarise_maps(theta: np.ndarray, cov: np.ndarray | None, const_freq: np.ndarray, const_range: np.ndarray,
-                   lever: np.ndarray, q: np.ndarray) -> list[ErrorMapSummary]:
+def summarise_maps(
+    theta: np.ndarray,
+    cov: np.ndarray | None,
+    const_freq: np.ndarray,
+    const_range: np.ndarray,
+    lever: np.ndarray,
+    q: np.ndarray,
+) -> list[ErrorMapSummary]:
     """Summaries of every map with a term.
 
     Parameters

@@ -22,8 +22,9 @@ from .identifiability import Known, select_identifiable
 from .lsq import _Fit, _fit_model, _rms, _wjac, _wres
 
 
-def _balance_orientation(prob: _Problem, fit: _Fit, include: Sequence[str], registered: Known, robust: bool,
-                         notes: list[str]) -> tuple[_Problem, _Fit]:
+def _balance_orientation(
+    prob: _Problem, fit: _Fit, include: Sequence[str], registered: Known, robust: bool, notes: list[str]
+) -> tuple[_Problem, _Fit]:
     """Without ``sigma_r`` columns, weigh the orientation rows so that the declared model's
     orientation residual counts as much as its position residual (per axis RMS, weighted units),
     then refit; the weight (m/rad) goes into the notes."""
@@ -34,9 +35,11 @@ def _balance_orientation(prob: _Problem, fit: _Fit, include: Sequence[str], regi
         return prob, fit
     w = prob.weights.copy()
     w[~pos] *= rp / rr
-    notes.append(f"orientation rows weighted {float(np.mean(w[~pos])):.4g} per rad against position rows' "
-                 f"{float(np.mean(w[pos])):.4g} per m (no sigma_r column: balanced on the declared model's residual; "
-                 "give sigma_r / sigma_rx.. columns to weigh by the instrument's accuracy)")
+    notes.append(
+        f"orientation rows weighted {float(np.mean(w[~pos])):.4g} per rad against position rows' "
+        f"{float(np.mean(w[pos])):.4g} per m (no sigma_r column: balanced on the declared model's residual; "
+        "give sigma_r / sigma_rx.. columns to weigh by the instrument's accuracy)"
+    )
     prob = replace(prob, weights=w)
     return prob, _fit_model(prob, fit.theta, include, registered, np.ones(prob.m.n, dtype=bool), robust=robust)
 

@@ -57,7 +57,7 @@ def _robust_d2(r: np.ndarray) -> np.ndarray:
     s_mad = 1.4826 * np.median(np.abs(r - med))
     raw = np.sum(np.square(r - med), axis=1)
     s2_q = float(np.quantile(raw, OUTLIER_SCALE_QUANTILE)) / stats.chi2.ppf(OUTLIER_SCALE_QUANTILE, df=3)
-    s2 = max(s_mad ** 2, s2_q)
+    s2 = max(s_mad**2, s2_q)
     if not np.isfinite(s2) or s2 <= 0:
         return np.zeros(len(r))
     return raw / s2
@@ -71,9 +71,9 @@ def _exceeds(d2: np.ndarray, n: int, gross_only: bool) -> np.ndarray:
     Gaussian and not clearly separated from the rows beyond the bound.
     """
     bonf = stats.chi2.isf(OUTLIER_FALSE_ALARM / max(n, 1), df=3)
-    bound = max(bonf, OUTLIER_MIN_SIGMAS ** 2)
+    bound = max(bonf, OUTLIER_MIN_SIGMAS**2)
     lo = stats.chi2.isf(OUTLIER_TAIL_QUANTILE, df=3)
-    gross = d2 > OUTLIER_GROSS_SIGMAS ** 2
+    gross = d2 > OUTLIER_GROSS_SIGMAS**2
     mid = int(np.sum((d2 > lo) & (d2 <= bonf)))
     above = int(np.sum(d2 > bound))
     heavy = mid > OUTLIER_TAIL_FACTOR * len(d2) * OUTLIER_TAIL_QUANTILE + OUTLIER_TAIL_SLACK

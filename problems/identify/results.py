@@ -28,8 +28,8 @@ Progress = Callable[[str, int, int], None]
 class IdentifyStatus(Status):
     """Outcome of an identification (``.value`` is the ``report.json`` string)."""
 
-    OK = "ok"                       # the model explains the data (noise floor or no structure left)
-    UNEXPLAINED = "unexplained"     # structure remains that no library effect explains
+    OK = "ok"  # the model explains the data (noise floor or no structure left)
+    UNEXPLAINED = "unexplained"  # structure remains that no library effect explains
     NOT_CONVERGED = "not_converged"
     IMPLAUSIBLE = "implausible_geometry"  # DH corrections too large for the declared robot: wrong robot file?
 
@@ -41,9 +41,9 @@ class ParameterStatus(Status):
     (``"free"``, ``"held"``, ``"inactive"``).
     """
 
-    FREE = "free"           # identified
-    HELD = "held"           # kept at its value (see the reason)
-    INACTIVE = "inactive"   # its effect was not added
+    FREE = "free"  # identified
+    HELD = "held"  # kept at its value (see the reason)
+    INACTIVE = "inactive"  # its effect was not added
 
 
 class TargetsFrame(enum.Enum):

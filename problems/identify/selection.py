@@ -69,6 +69,7 @@ THERMAL_MIN_RANGE_K = 0.5
 # Scores
 # ----------------------------------------------------------------------------------
 
+
 @dataclass
 class _Score:
     """Linearised scores of a model on the rows used.
@@ -100,8 +101,9 @@ class _Score:
         return self.n * math.log(max(self.rss, 1e-300) / self.n) + self.k * math.log(self.n)
 
 
-def _linear_scores(prob: _Problem, J: np.ndarray, pred: np.ndarray, mask: np.ndarray,
-                   cols: np.ndarray, shift: np.ndarray | None = None) -> _Score:
+def _linear_scores(
+    prob: _Problem, J: np.ndarray, pred: np.ndarray, mask: np.ndarray, cols: np.ndarray, shift: np.ndarray | None = None
+) -> _Score:
     """In-sample and K-fold CV scores of the model linearised at the current point.
 
     The full-data Gauss-Newton step and one per fold (fold rows removed) are taken
@@ -148,8 +150,14 @@ def _linear_scores(prob: _Problem, J: np.ndarray, pred: np.ndarray, mask: np.nda
         cv_un += float(np.sum(np.square(ek / w3[sel])[pos3[sel]]))
     n = r.size
     npos = max(int(pos3.sum()), 1)
-    return _Score(rss=float(r_in @ r_in), cv_rss=cv_rss, cv_rms_m=math.sqrt(cv_un / npos),
-                  rms_m=math.sqrt(float(np.sum(np.square(r_in / w3)[pos3])) / npos), n=n, k=len(cols))
+    return _Score(
+        rss=float(r_in @ r_in),
+        cv_rss=cv_rss,
+        cv_rms_m=math.sqrt(cv_un / npos),
+        rms_m=math.sqrt(float(np.sum(np.square(r_in / w3)[pos3])) / npos),
+        n=n,
+        k=len(cols),
+    )
 
 
 def _assign_folds(m: Measurements, k: int, seed: int = CV_SEED) -> np.ndarray:
@@ -173,7 +181,7 @@ def noise_floor(m: Measurements) -> tuple[float | None, str]:
     else unknown.
     """
     if m.sigma is not None:
-        return float(np.sqrt(np.mean(m.sigma ** 2))), "sigma column"
+        return float(np.sqrt(np.mean(m.sigma**2))), "sigma column"
     groups = m.pose_groups()
     key = np.column_stack([groups, np.round(m.wrench, 9)])
     _u, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
@@ -203,8 +211,9 @@ def _candidate_applicable(effect: str, m: Measurements) -> tuple[bool, str]:
     return True, ""
 
 
-def _score_p(prob: _Problem, layout: ModelLayout, f: _Fit, effs: Sequence[str],
-             registered: bool) -> tuple[_Score, list[int]]:
+def _score_p(
+    prob: _Problem, layout: ModelLayout, f: _Fit, effs: Sequence[str], registered: bool
+) -> tuple[_Score, list[int]]:
     """Linearised in-sample and CV scores of a fitted model, and its free parameters."""
     order = _order_for(layout, effs, registered)
     free = [i for i in order if i not in f.held]
@@ -226,11 +235,19 @@ def _candidate_score(effect: str, sc: _Score, cur: _Score, sigma_w: float | None
         p = 1.0
     cv_cur = cur.cv_rss / cur.n
     cv_new = sc.cv_rss / sc.n
-    floor = (sigma_w ** 2) if sigma_w is not None else 0.0
+    floor = (sigma_w**2) if sigma_w is not None else 0.0
     excess = cv_cur - floor
     share = (cv_cur - cv_new) / excess if excess > 0 else 0.0
-    return CandidateScore(effect=effect, n_params=k_new, cv_rms_m=sc.cv_rms_m, rms_m=sc.rms_m, bic=sc.bic,
-                          delta_bic=dbic, f_pvalue=p, explained_share=float(share))
+    return CandidateScore(
+        effect=effect,
+        n_params=k_new,
+        cv_rms_m=sc.cv_rms_m,
+        rms_m=sc.rms_m,
+        bic=sc.bic,
+        delta_bic=dbic,
+        f_pvalue=p,
+        explained_share=float(share),
+    )
 
 
 def _significance(cs: CandidateScore, cur: _Score) -> tuple[bool, bool, str]:
@@ -241,9 +258,12 @@ def _significance(cs: CandidateScore, cur: _Score) -> tuple[bool, bool, str]:
     noise floor (of all of it when the floor is unknown).
     """
     gain = 1.0 - cs.cv_rms_m / cur.cv_rms_m
-    parts = [f"CV RMS {cur.cv_rms_m * 1e3:.4g} -> {cs.cv_rms_m * 1e3:.4g} mm ({100 * gain:+.1f} %)",
-             f"dBIC {cs.delta_bic:.1f}", f"F-test p = {cs.f_pvalue:.2g}",
-             f"explains {100 * cs.explained_share:.0f} % of the excess variance"]
+    parts = [
+        f"CV RMS {cur.cv_rms_m * 1e3:.4g} -> {cs.cv_rms_m * 1e3:.4g} mm ({100 * gain:+.1f} %)",
+        f"dBIC {cs.delta_bic:.1f}",
+        f"F-test p = {cs.f_pvalue:.2g}",
+        f"explains {100 * cs.explained_share:.0f} % of the excess variance",
+    ]
     basic = True
     if gain < CV_MIN_REL_GAIN:
         basic = False
@@ -263,6 +283,7 @@ def _significance(cs: CandidateScore, cur: _Score) -> tuple[bool, bool, str]:
 # ----------------------------------------------------------------------------------
 # Selection state
 # ----------------------------------------------------------------------------------
+
 
 @dataclass
 class _Run:
@@ -322,8 +343,9 @@ class _Run:
         """Full (robust when asked) fit of the model with ``effs`` from ``th``."""
         return _fit_model(p, th, effs, self.registered, mask, robust=self.robust)
 
-    def with_effect(self, p: _Problem, th: np.ndarray, e: str, fit: _Fit | None = None,
-                    others: np.ndarray | None = None) -> tuple[_Problem | None, np.ndarray]:
+    def with_effect(
+        self, p: _Problem, th: np.ndarray, e: str, fit: _Fit | None = None, others: np.ndarray | None = None
+    ) -> tuple[_Problem | None, np.ndarray]:
         """Problem and start parameters with ``e`` switched on (``gravity``: its switch
         and the robot file's masses; ``joint_error_map``: the frequencies the residual of
         ``fit`` shows beyond the directions ``others``, None when it shows none)."""
@@ -338,8 +360,9 @@ class _Run:
             return _gravity_problem(p, True), th
         return p, th
 
-    def map_problem(self, p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
-                    ) -> tuple[_Problem | None, np.ndarray]:
+    def map_problem(
+        self, p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
+    ) -> tuple[_Problem | None, np.ndarray]:
         """The ``joint_error_map`` candidate's problem (:func:`~.map_candidate.map_problem`), the
         proposal recorded in :attr:`map_proposal`."""
         prob_e, th_e, self.map_proposal = map_problem(self.robot, self.map_components, p, fit, th, others)
@@ -365,8 +388,10 @@ class _State:
 # Forward selection
 # ----------------------------------------------------------------------------------
 
-def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
-            ) -> tuple[list[CandidateScore], list[CandidateScore]]:
+
+def _screen(
+    run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
+) -> tuple[list[CandidateScore], list[CandidateScore]]:
     """Linearised score of every remaining candidate (one Gauss-Newton step and CV).
 
     Returns every candidate's record and those with a score (to rank)."""
@@ -381,21 +406,33 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
     prelim: list[CandidateScore] = []
     for e in remaining:
         if e in run.applicable:
-            scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
-                                         reason=f"not testable: {run.applicable[e]}"))
+            scores.append(
+                CandidateScore(e, 0, None, None, None, None, None, None, reason=f"not testable: {run.applicable[e]}")
+            )
             continue
-        prob_e, th_e = run.with_effect(st.prob, fit.theta, e, fit,
-                                       np.column_stack(others) if others else None)
+        prob_e, th_e = run.with_effect(st.prob, fit.theta, e, fit, np.column_stack(others) if others else None)
         if prob_e is None:
-            scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
-                                         reason="no joint angle shows a significant periodic error in the residual "
-                                                "(spectrum search with a family-wise test)"))
+            scores.append(
+                CandidateScore(
+                    e,
+                    0,
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    reason="no joint angle shows a significant periodic error in the residual "
+                    "(spectrum search with a family-wise test)",
+                )
+            )
             continue
         layout = prob_e.layout
         new = [int(i) for i in layout.effect_indices(e) if i not in cur_order]
         if not new:
-            scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
-                                         reason="subsumed by an effect already added"))
+            scores.append(
+                CandidateScore(e, 0, None, None, None, None, None, None, reason="subsumed by an effect already added")
+            )
             continue
         st.pending[e] = (prob_e, th_e)
         if prob_e is st.prob:
@@ -410,9 +447,20 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
         if kept_new and e != "joint_error_map":
             others.append(Js[:, [order.index(i) for i in kept_new]])
         if not kept_new:
-            scores.append(CandidateScore(e, 0, None, None, None, None, None, None,
-                                         reason="no parameter identifiable from these data",
-                                         held=[PARAM_NAMES[i] for i in new]))
+            scores.append(
+                CandidateScore(
+                    e,
+                    0,
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    reason="no parameter identifiable from these data",
+                    held=[PARAM_NAMES[i] for i in new],
+                )
+            )
             continue
         sc = _linear_scores(prob_e, J_e, pred_e, fit.inliers, np.asarray(kept, dtype=int))
         cs = _candidate_score(e, sc, score_m, run.sigma_w, len(kept_new))
@@ -424,24 +472,28 @@ def _screen(run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
     return scores, prelim
 
 
-def _refine(run: _Run, st: _State, prelim: Sequence[CandidateScore], score_m: _Score,
-            free_m: Sequence[int]) -> list[tuple[CandidateScore, _Fit, _Problem]]:
+def _refine(
+    run: _Run, st: _State, prelim: Sequence[CandidateScore], score_m: _Score, free_m: Sequence[int]
+) -> list[tuple[CandidateScore, _Fit, _Problem]]:
     """Full nonlinear fit of the best :data:`REFINE_TOP` candidates (and of ``gravity``
     when its linearisation is visibly off); their records are re-scored in place."""
     ranked = sorted(prelim, key=lambda c: c.cv_rms_m)
-    to_refine = [c for c in ranked[:REFINE_TOP] if c.cv_rms_m < score_m.cv_rms_m
-                 and c.cv_rms_m <= ranked[0].cv_rms_m * (1 + REFINE_MARGIN)]
+    to_refine = [
+        c
+        for c in ranked[:REFINE_TOP]
+        if c.cv_rms_m < score_m.cv_rms_m and c.cv_rms_m <= ranked[0].cv_rms_m * (1 + REFINE_MARGIN)
+    ]
     # gravity switches on at the file's masses: when its linearisation is visibly
     # off (worse in-sample than the current model) it is refined anyway
-    to_refine += [c for c in ranked if c.effect == "gravity" and c not in to_refine
-                  and c.rms_m > score_m.rms_m]
+    to_refine += [c for c in ranked if c.effect == "gravity" and c not in to_refine and c.rms_m > score_m.rms_m]
     refined: list[tuple[CandidateScore, _Fit, _Problem]] = []
     for cs in to_refine:
         e = cs.effect
         run.tick(f"step {st.step_idx}: fitting {e}", min(3 + st.step_idx, run.total_steps), run.total_steps)
         prob_e, th_e = st.pending[e]
-        f_e = _fit_model(prob_e, th_e, st.active + [e], run.registered, st.fit.inliers, robust=False,
-                         max_iter=REFINE_MAX_ITER)
+        f_e = _fit_model(
+            prob_e, th_e, st.active + [e], run.registered, st.fit.inliers, robust=False, max_iter=REFINE_MAX_ITER
+        )
         sc_e, free_e = run.score(prob_e, f_e, st.active + [e])
         cs2 = _candidate_score(e, sc_e, score_m, run.sigma_w, len([i for i in free_e if i not in free_m]))
         cs.cv_rms_m, cs.rms_m, cs.bic, cs.delta_bic = cs2.cv_rms_m, cs2.rms_m, cs2.bic, cs2.delta_bic
@@ -452,8 +504,7 @@ def _refine(run: _Run, st: _State, prelim: Sequence[CandidateScore], score_m: _S
     return refined
 
 
-def _pick(refined: list[tuple[CandidateScore, _Fit, _Problem]]
-          ) -> tuple[CandidateScore, _Fit, _Problem] | None:
+def _pick(refined: list[tuple[CandidateScore, _Fit, _Problem]]) -> tuple[CandidateScore, _Fit, _Problem] | None:
     """The refined candidate with the lowest CV RMS, or a smaller one within
     :data:`PARSIMONY_REL_TOL` of it."""
     if not refined:
@@ -473,16 +524,20 @@ def _accept(run: _Run, best: tuple[CandidateScore, _Fit, _Problem], score_m: _Sc
     if basic and not share_ok:
         if run.sat_clean:
             ok = True
-            why += ("; accepted: the whole library leaves no structure in the residual, so the "
-                    "share is small only because other effects are present")
+            why += (
+                "; accepted: the whole library leaves no structure in the residual, so the "
+                "share is small only because other effects are present"
+            )
         else:
             left = structure_left(_diagnose(best[2], best[1], run.robot))
             if left is None:
                 ok = True
                 why += "; accepted: no diagnostic shows structure left after it"
             else:
-                why += (f"; rejected: structure outside the library remains (residual vs "
-                        f"{left.variable}) and this effect would explain only a small part")
+                why += (
+                    f"; rejected: structure outside the library remains (residual vs "
+                    f"{left.variable}) and this effect would explain only a small part"
+                )
     return ok, why
 
 
@@ -493,16 +548,21 @@ def _forward_step(run: _Run, st: _State) -> bool:
         st.prob = _update_knots(st.prob, st.fit)
         st.fit.J = _jac(st.prob, st.fit.theta, st.fit.q_eq)
     score_m, free_m = run.score(st.prob, st.fit, st.active)
-    run.tick(f"step {st.step_idx}: CV RMS {score_m.cv_rms_m * 1e3:.4g} mm", min(3 + st.step_idx, run.total_steps),
-             run.total_steps)
+    run.tick(
+        f"step {st.step_idx}: CV RMS {score_m.cv_rms_m * 1e3:.4g} mm",
+        min(3 + st.step_idx, run.total_steps),
+        run.total_steps,
+    )
     scores: list[CandidateScore] = []
     accepted = None
     reason = ""
     at_floor = run.sigma_noise is not None and score_m.cv_rms_m <= NOISE_FLOOR_STOP_RATIO * run.sigma_noise
     remaining = [e for e in run.cand if e not in st.active]
     if at_floor:
-        st.stop_reason = (f"cross-validated RMS {score_m.cv_rms_m * 1e3:.4g} mm is at the noise floor "
-                          f"({NOISE_FLOOR_STOP_RATIO:g} x {run.sigma_noise * 1e3:.4g} mm)")
+        st.stop_reason = (
+            f"cross-validated RMS {score_m.cv_rms_m * 1e3:.4g} mm is at the noise floor "
+            f"({NOISE_FLOOR_STOP_RATIO:g} x {run.sigma_noise * 1e3:.4g} mm)"
+        )
     elif not remaining or st.step_idx >= run.max_steps:
         st.stop_reason = "no candidate left" if not remaining else "step limit"
     else:
@@ -526,10 +586,20 @@ def _forward_step(run: _Run, st: _State) -> bool:
                 reason = f"added {accepted}: {why}"
             else:
                 st.stop_reason = f"best candidate {best[0].effect} not significant: {why}"
-    st.history.append(SelectionStep(index=st.step_idx, effects=list(st.active), n_params=score_m.k,
-                                    rms_m=score_m.rms_m, cv_rms_m=score_m.cv_rms_m, bic=score_m.bic,
-                                    n_excluded=int((~st.fit.inliers).sum()), candidates=scores,
-                                    accepted=accepted, reason=reason or st.stop_reason))
+    st.history.append(
+        SelectionStep(
+            index=st.step_idx,
+            effects=list(st.active),
+            n_params=score_m.k,
+            rms_m=score_m.rms_m,
+            cv_rms_m=score_m.cv_rms_m,
+            bic=score_m.bic,
+            n_excluded=int((~st.fit.inliers).sum()),
+            candidates=scores,
+            accepted=accepted,
+            reason=reason or st.stop_reason,
+        )
+    )
     st.step_idx += 1
     return accepted is not None
 
@@ -543,6 +613,7 @@ def forward_selection(run: _Run, st: _State) -> None:
 # ----------------------------------------------------------------------------------
 # Backward pass
 # ----------------------------------------------------------------------------------
+
 
 def _try_simpler(run: _Run, st: _State, e: str, alt: list[str], score_m: _Score) -> bool:
     """Replace the current model by ``alt`` (``e`` removed or replaced) when its CV RMS is
@@ -564,17 +635,30 @@ def _try_simpler(run: _Run, st: _State, e: str, alt: list[str], score_m: _Score)
     th_alt[gone] = layout.nominal[gone]
     f_alt = _fit_model(p_alt, th_alt, alt, run.registered, fit.inliers, robust=False)
     sc_alt, _fa = run.score(p_alt, f_alt, alt)
-    if not (sc_alt.cv_rms_m <= score_m.cv_rms_m * (1 + PARSIMONY_REL_TOL)
-            and sc_alt.bic <= score_m.bic + 2.0 * math.log(sc_alt.n)):
+    if not (
+        sc_alt.cv_rms_m <= score_m.cv_rms_m * (1 + PARSIMONY_REL_TOL)
+        and sc_alt.bic <= score_m.bic + 2.0 * math.log(sc_alt.n)
+    ):
         return False
     replaced = "joint_offset" in alt and "joint_offset" not in st.active
     what = "replaced by joint_offset" if replaced else "removed"
-    st.history.append(SelectionStep(
-        index=st.step_idx, effects=list(alt), n_params=sc_alt.k, rms_m=sc_alt.rms_m,
-        cv_rms_m=sc_alt.cv_rms_m, bic=sc_alt.bic, n_excluded=int((~fit.inliers).sum()),
-        candidates=[], accepted=None,
-        reason=(f"backward step: {e} {what} (CV RMS {score_m.cv_rms_m * 1e3:.4g} -> "
-                f"{sc_alt.cv_rms_m * 1e3:.4g} mm, within {100 * PARSIMONY_REL_TOL:.0f} %)")))
+    st.history.append(
+        SelectionStep(
+            index=st.step_idx,
+            effects=list(alt),
+            n_params=sc_alt.k,
+            rms_m=sc_alt.rms_m,
+            cv_rms_m=sc_alt.cv_rms_m,
+            bic=sc_alt.bic,
+            n_excluded=int((~fit.inliers).sum()),
+            candidates=[],
+            accepted=None,
+            reason=(
+                f"backward step: {e} {what} (CV RMS {score_m.cv_rms_m * 1e3:.4g} -> "
+                f"{sc_alt.cv_rms_m * 1e3:.4g} mm, within {100 * PARSIMONY_REL_TOL:.0f} %)"
+            ),
+        )
+    )
     st.step_idx += 1
     st.prob, st.fit = p_alt, run.refit(p_alt, f_alt.theta, alt, run.mask_sel)
     st.effects_added = [x for x in st.effects_added if x != e]

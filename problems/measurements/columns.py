@@ -26,14 +26,28 @@ _UNITS: dict[str, dict[str, float]] = {
 #: Base column name -> quantity.
 COLUMNS: dict[str, str] = {
     **{f"q{i}": "angle" for i in range(1, 7)},
-    "fx": "force", "fy": "force", "fz": "force",
-    "mx": "moment", "my": "moment", "mz": "moment",
-    "x": "length", "y": "length", "z": "length",
-    "rx": "angle", "ry": "angle", "rz": "angle",
-    "t": "time", "temperature": "temperature", "sigma": "length",
-    "sigma_x": "length", "sigma_y": "length", "sigma_z": "length",
+    "fx": "force",
+    "fy": "force",
+    "fz": "force",
+    "mx": "moment",
+    "my": "moment",
+    "mz": "moment",
+    "x": "length",
+    "y": "length",
+    "z": "length",
+    "rx": "angle",
+    "ry": "angle",
+    "rz": "angle",
+    "t": "time",
+    "temperature": "temperature",
+    "sigma": "length",
+    "sigma_x": "length",
+    "sigma_y": "length",
+    "sigma_z": "length",
     "sigma_r": "small_angle",
-    "sigma_rx": "small_angle", "sigma_ry": "small_angle", "sigma_rz": "small_angle",
+    "sigma_rx": "small_angle",
+    "sigma_ry": "small_angle",
+    "sigma_rz": "small_angle",
 }
 Q_COLUMNS = tuple(f"q{i}" for i in range(1, 7))
 WRENCH_COLUMNS = ("fx", "fy", "fz", "mx", "my", "mz")
@@ -55,6 +69,12 @@ DIALECT_CHOICES = ("auto", *DIALECTS)
 
 #: Presets of ``joint_names``: name -> the six joint column names mapped to q1..q6 in order.
 JOINT_NAME_PRESETS: dict[str, tuple[str, ...]] = {
-    "ros-ur": ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
-               "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"),
+    "ros-ur": (
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "elbow_joint",
+        "wrist_1_joint",
+        "wrist_2_joint",
+        "wrist_3_joint",
+    ),
 }

@@ -41,8 +41,8 @@ from .validation import validate
 # Options: dialect and joint names
 # ----------------------------------------------------------------------------------
 
-def resolve_joint_names(joint_names: str | Sequence[str] | None, where: str = "joint_names") \
-        -> tuple[str, ...] | None:
+
+def resolve_joint_names(joint_names: str | Sequence[str] | None, where: str = "joint_names") -> tuple[str, ...] | None:
     """The six joint column names of a ``joint_names`` option, or None for ``q1..q6``.
 
     Parameters
@@ -70,34 +70,45 @@ def resolve_joint_names(joint_names: str | Sequence[str] | None, where: str = "j
         if spec in JOINT_NAME_PRESETS:
             return JOINT_NAME_PRESETS[spec]
         if "," not in spec:
-            raise InputError(f"{where} {joint_names!r}: expected a preset ({', '.join(JOINT_NAME_PRESETS)}), "
-                             "'none' (q1..q6) or six comma-separated column names (joint 1 to joint 6)")
+            raise InputError(
+                f"{where} {joint_names!r}: expected a preset ({', '.join(JOINT_NAME_PRESETS)}), "
+                "'none' (q1..q6) or six comma-separated column names (joint 1 to joint 6)"
+            )
         names = [n.strip() for n in spec.split(",")]
     else:
         names = [str(n).strip() for n in joint_names]
     shown = ",".join(names)
     if len(names) != 6:
-        raise InputError(f"{where} '{shown}': {len(names)} name(s); expected six column names, joint 1 to joint 6 "
-                         f"(or a preset: {', '.join(JOINT_NAME_PRESETS)})")
+        raise InputError(
+            f"{where} '{shown}': {len(names)} name(s); expected six column names, joint 1 to joint 6 "
+            f"(or a preset: {', '.join(JOINT_NAME_PRESETS)})"
+        )
     for i, name in enumerate(names):
         if name == "":
             raise InputError(f"{where} '{shown}': name {i + 1} is empty; expected six column names")
         if names.index(name) != i:
-            raise InputError(f"{where} '{shown}': '{name}' is given for joints {names.index(name) + 1} and {i + 1}; "
-                             "expected six different column names")
+            raise InputError(
+                f"{where} '{shown}': '{name}' is given for joints {names.index(name) + 1} and {i + 1}; "
+                "expected six different column names"
+            )
         for other in names:
-            if other != name and name.startswith(other) and name[len(other):] in _UNITS["angle"]:
-                raise InputError(f"{where} '{shown}': '{name}' reads as '{other}' with a unit suffix; "
-                                 "expected six column names without unit suffixes (a column may add one)")
+            if other != name and name.startswith(other) and name[len(other) :] in _UNITS["angle"]:
+                raise InputError(
+                    f"{where} '{shown}': '{name}' reads as '{other}' with a unit suffix; "
+                    "expected six column names without unit suffixes (a column may add one)"
+                )
         try:
             as_column = _split_unit(where, name)[0]
         except InputError:
             as_column = None
-        taken = (as_column is not None and not (as_column == Q_COLUMNS[i] and name == Q_COLUMNS[i])) \
-            or any(name.startswith(pfx) for pfx in IGNORED_PREFIXES)
+        taken = (as_column is not None and not (as_column == Q_COLUMNS[i] and name == Q_COLUMNS[i])) or any(
+            name.startswith(pfx) for pfx in IGNORED_PREFIXES
+        )
         if taken:
-            raise InputError(f"{where} '{shown}': '{name}' (joint {i + 1}) is the name of another column of the "
-                             "measurement file format; expected the file's own names of the six joint columns")
+            raise InputError(
+                f"{where} '{shown}': '{name}' (joint {i + 1}) is the name of another column of the "
+                "measurement file format; expected the file's own names of the six joint columns"
+            )
     return tuple(names)
 
 
@@ -112,37 +123,48 @@ def _ros_hint(col: str) -> str:
     """The hint for an unknown column that is a ROS UR joint name."""
     for preset, names in JOINT_NAME_PRESETS.items():
         for name in names:
-            if col.startswith(name) and col[len(name):] in _UNITS["angle"]:
-                return (f"; '{name}' is a ROS joint name: read the joint columns with --joint-names {preset} "
-                        f"(joint_names='{preset}': {', '.join(names)} -> q1..q6)")
+            if col.startswith(name) and col[len(name) :] in _UNITS["angle"]:
+                return (
+                    f"; '{name}' is a ROS joint name: read the joint columns with --joint-names {preset} "
+                    f"(joint_names='{preset}': {', '.join(names)} -> q1..q6)"
+                )
     return ""
+
 
 # ----------------------------------------------------------------------------------
 # Reading
 # ----------------------------------------------------------------------------------
+
 
 def _split_unit(where: str, col: str, joint_map: dict[str, str] | None = None) -> tuple[str, float]:
     """Map a column header to (base name, SI factor); raise for unknown names."""
     if col in LABEL_COLUMNS:
         return col, 1.0
     for name, base in (joint_map or {}).items():
-        if col.startswith(name) and col[len(name):] in _UNITS["angle"]:
-            return base, _UNITS["angle"][col[len(name):]]
+        if col.startswith(name) and col[len(name) :] in _UNITS["angle"]:
+            return base, _UNITS["angle"][col[len(name) :]]
     for base, qty in COLUMNS.items():
         if col.startswith(base):
-            suffix = col[len(base):]
+            suffix = col[len(base) :]
             if suffix in _UNITS[qty]:
                 return base, _UNITS[qty][suffix]
     known = ", ".join(list(COLUMNS) + list(LABEL_COLUMNS))
     hint = _ros_hint(col) if not joint_map else ""
-    raise InputError(f"{where}: unknown column '{col}'{hint}; expected one of {known} "
-                     "(with an optional unit suffix such as _mm, _deg, _N), or a column starting with "
-                     f"{' / '.join(IGNORED_PREFIXES)}")
+    raise InputError(
+        f"{where}: unknown column '{col}'{hint}; expected one of {known} "
+        "(with an optional unit suffix such as _mm, _deg, _N), or a column starting with "
+        f"{' / '.join(IGNORED_PREFIXES)}"
+    )
 
 
-def read_measurements(path: str | Path, require_position: bool = True, require_wrench: bool = True, *,
-                      dialect: str = "auto",
-                      joint_names: str | Sequence[str] | None = None) -> Measurements:
+def read_measurements(
+    path: str | Path,
+    require_position: bool = True,
+    require_wrench: bool = True,
+    *,
+    dialect: str = "auto",
+    joint_names: str | Sequence[str] | None = None,
+) -> Measurements:
     """Read and validate a measurement file.
 
     Parameters
@@ -185,8 +207,7 @@ def read_measurements(path: str | Path, require_position: bool = True, require_w
     _check_dialect(dialect)
     names = resolve_joint_names(joint_names)
     text = read_text_file(p, "measurement file (CSV)")
-    return parse_measurements(text, str(p), require_position, require_wrench, dialect=dialect,
-                              joint_names=names)
+    return parse_measurements(text, str(p), require_position, require_wrench, dialect=dialect, joint_names=names)
 
 
 #: Separators a spreadsheet may have written instead of the dialect's (name for the message).
@@ -211,16 +232,23 @@ def _check_separator(where: str, header_line: int, header: list[str], dialect: s
         if joined.count(sep) >= 2:
             shown = joined[:60].replace("\t", "\\t")
             if sep == ";":
-                way = ("use ',' as the separator (and '.' as the decimal point), e.g. export as "
-                       "'CSV (comma delimited)', or read the file as it is with --csv-dialect semicolon "
-                       "(or auto)")
+                way = (
+                    "use ',' as the separator (and '.' as the decimal point), e.g. export as "
+                    "'CSV (comma delimited)', or read the file as it is with --csv-dialect semicolon "
+                    "(or auto)"
+                )
             elif sep == ",":
                 way = "read it with --csv-dialect comma (or auto), or export it with ';' as the separator"
             else:
-                way = (f"use '{sep_ok}' as the separator, e.g. export as 'CSV (comma delimited)'"
-                       if sep_ok == "," else f"use '{sep_ok}' as the separator")
-            raise InputError(f"{where}: line {header_line}: the header '{shown}' looks {name}-separated, but the "
-                             f"file is read as the {dialect} dialect ('{sep_ok}'-separated); {way}")
+                way = (
+                    f"use '{sep_ok}' as the separator, e.g. export as 'CSV (comma delimited)'"
+                    if sep_ok == ","
+                    else f"use '{sep_ok}' as the separator"
+                )
+            raise InputError(
+                f"{where}: line {header_line}: the header '{shown}' looks {name}-separated, but the "
+                f"file is read as the {dialect} dialect ('{sep_ok}'-separated); {way}"
+            )
 
 
 def _header_text(lines: list[str]) -> tuple[int, str] | None:
@@ -240,8 +268,10 @@ def _detect_dialect(where: str, lines: list[str]) -> str:
         return "comma"
     ln, text = head
     if ";" in text and "," in text:
-        raise InputError(f"{where}: line {ln}: the header has both ',' and ';', so the separator cannot be told "
-                         "apart; declare the dialect (--csv-dialect comma or --csv-dialect semicolon)")
+        raise InputError(
+            f"{where}: line {ln}: the header has both ',' and ';', so the separator cannot be told "
+            "apart; declare the dialect (--csv-dialect comma or --csv-dialect semicolon)"
+        )
     return "semicolon" if ";" in text else "comma"
 
 
@@ -253,8 +283,7 @@ def _resolve_dialect(where: str, lines: list[str], dialect: str) -> tuple[str, b
     return dialect, detected
 
 
-def _read_rows(where: str, lines: list[str], dialect: str) \
-        -> tuple[int, list[str], list[tuple[int, list[str]]]]:
+def _read_rows(where: str, lines: list[str], dialect: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
     """(header line, header cells, rows as (line, cells)) of the non-empty, non-comment
     lines; raises for an empty file, a header in another separator or no rows."""
     sep = DIALECTS[dialect][0]
@@ -276,50 +305,73 @@ def _read_rows(where: str, lines: list[str], dialect: str) \
     return header_line, header, rows
 
 
-def _map_columns(where: str, header_line: int, header: list[str], jmap: dict[str, str]) \
-        -> tuple[dict[str, tuple[int, str, float]], list[str]]:
+def _map_columns(
+    where: str, header_line: int, header: list[str], jmap: dict[str, str]
+) -> tuple[dict[str, tuple[int, str, float]], list[str]]:
     """(quantity -> (column index, column as written, SI factor); the q1..q6 columns left
     unmapped because joint_names names the joint columns)."""
     colmap: dict[str, tuple[int, str, float]] = {}
-    unmapped_q: list[str] = []          # q1..q6 columns when joint_names names the joint columns
+    unmapped_q: list[str] = []  # q1..q6 columns when joint_names names the joint columns
     for k, col in enumerate(header):
         if col == "":
             raise InputError(f"{where}: line {header_line}: column {k + 1} has an empty name")
         if any(col.startswith(pfx) for pfx in IGNORED_PREFIXES):
             continue
         base, factor = _split_unit(where, col, jmap)
-        if jmap and base in Q_COLUMNS and not any(col.startswith(n) and col[len(n):] in _UNITS["angle"]
-                                                  for n in jmap):
+        if jmap and base in Q_COLUMNS and not any(col.startswith(n) and col[len(n) :] in _UNITS["angle"] for n in jmap):
             unmapped_q.append(col)
             continue
         if base in colmap:
             other = colmap[base][1]
-            raise InputError(f"{where}: column '{base}' is given twice ('{other}' and '{col}'); "
-                             "keep exactly one (with its unit suffix)")
+            raise InputError(
+                f"{where}: column '{base}' is given twice ('{other}' and '{col}'); "
+                "keep exactly one (with its unit suffix)"
+            )
         colmap[base] = (k, col, factor)
     return colmap, unmapped_q
 
 
-def _check_required(where: str, header_line: int, header: list[str], colmap: dict[str, tuple[int, str, float]],
-                    unmapped_q: list[str], jmap: dict[str, str], names: tuple[str, ...] | None,
-                    require_position: bool, require_wrench: bool) -> None:
+def _check_required(
+    where: str,
+    header_line: int,
+    header: list[str],
+    colmap: dict[str, tuple[int, str, float]],
+    unmapped_q: list[str],
+    jmap: dict[str, str],
+    names: tuple[str, ...] | None,
+    require_position: bool,
+    require_wrench: bool,
+) -> None:
     """Raise for a missing required column, or q1..q6 besides the named joint columns."""
-    required = list(Q_COLUMNS) + (list(WRENCH_COLUMNS) if require_wrench else []) \
+    required = (
+        list(Q_COLUMNS)
+        + (list(WRENCH_COLUMNS) if require_wrench else [])
         + (list(POSITION_COLUMNS) if require_position else [])
+    )
     missing = [c for c in required if c not in colmap]
     if missing:
         qname = {q: n for n, q in jmap.items()}
         shown = ", ".join(qname.get(c, c) for c in missing)
-        via = (f" (joint columns named by joint_names / --joint-names: {', '.join(names or ())})"
-               if any(c in qname for c in missing) else "")
-        also = (f"; the file has {', '.join(unmapped_q)}: to read those, leave the joint names at q1..q6"
-                if unmapped_q else "")
-        raise InputError(f"{where}: missing required column(s) {shown}{via} "
-                         f"(header on line {header_line}: {', '.join(header)}){also}")
+        via = (
+            f" (joint columns named by joint_names / --joint-names: {', '.join(names or ())})"
+            if any(c in qname for c in missing)
+            else ""
+        )
+        also = (
+            f"; the file has {', '.join(unmapped_q)}: to read those, leave the joint names at q1..q6"
+            if unmapped_q
+            else ""
+        )
+        raise InputError(
+            f"{where}: missing required column(s) {shown}{via} "
+            f"(header on line {header_line}: {', '.join(header)}){also}"
+        )
     if unmapped_q:
-        raise InputError(f"{where}: column(s) {', '.join(unmapped_q)} besides the joint columns named by "
-                         f"joint_names / --joint-names ({', '.join(colmap[q][1] for q in Q_COLUMNS)}); "
-                         "keep one set of joint columns")
+        raise InputError(
+            f"{where}: column(s) {', '.join(unmapped_q)} besides the joint columns named by "
+            f"joint_names / --joint-names ({', '.join(colmap[q][1] for q in Q_COLUMNS)}); "
+            "keep one set of joint columns"
+        )
 
 
 def _check_groups(where: str, colmap: dict[str, tuple[int, str, float]]) -> None:
@@ -328,18 +380,23 @@ def _check_groups(where: str, colmap: dict[str, tuple[int, str, float]]) -> None
     for grp in (WRENCH_COLUMNS, POSITION_COLUMNS, ROTATION_COLUMNS, SIGMA_XYZ_COLUMNS, SIGMA_ROT_COLUMNS):
         have = [c for c in grp if c in colmap]
         if have and len(have) != len(grp):
-            raise InputError(f"{where}: columns {', '.join(grp)} go together; found only "
-                             f"{', '.join(colmap[c][1] for c in have)}")
+            raise InputError(
+                f"{where}: columns {', '.join(grp)} go together; found only {', '.join(colmap[c][1] for c in have)}"
+            )
     for single, per_axis, what in (("sigma", "sigma_x", "position"), ("sigma_r", "sigma_rx", "orientation")):
         if single in colmap and per_axis in colmap:
             grp = SIGMA_XYZ_COLUMNS if single == "sigma" else SIGMA_ROT_COLUMNS
-            raise InputError(f"{where}: columns '{colmap[single][1]}' and '{colmap[per_axis][1]}' are both given; "
-                             f"give either '{single}' (one {what} standard deviation for every axis) or "
-                             f"{', '.join(grp)} (per axis), not both")
+            raise InputError(
+                f"{where}: columns '{colmap[single][1]}' and '{colmap[per_axis][1]}' are both given; "
+                f"give either '{single}' (one {what} standard deviation for every axis) or "
+                f"{', '.join(grp)} (per axis), not both"
+            )
     rot_sigma = [colmap[c][1] for c in ("sigma_r", *SIGMA_ROT_COLUMNS) if c in colmap]
     if rot_sigma and "rx" not in colmap:
-        raise InputError(f"{where}: column(s) {', '.join(rot_sigma)} (orientation standard deviation) need the "
-                         "measured orientation rx, ry, rz, which the file does not have")
+        raise InputError(
+            f"{where}: column(s) {', '.join(rot_sigma)} (orientation standard deviation) need the "
+            "measured orientation rx, ry, rz, which the file does not have"
+        )
 
 
 def _check_row_lengths(where: str, rows: list[tuple[int, list[str]]], ncol: int, decimal_comma: bool) -> None:
@@ -347,23 +404,25 @@ def _check_row_lengths(where: str, rows: list[tuple[int, list[str]]], ncol: int,
     for lineno, cells in rows:
         if len(cells) != ncol:
             hint = ""
-            if not decimal_comma and len(cells) > ncol \
-                    and any(c.isdigit() and c.lstrip("-").isdigit() for c in cells):
+            if not decimal_comma and len(cells) > ncol and any(c.isdigit() and c.lstrip("-").isdigit() for c in cells):
                 hint = "; a decimal comma (0,40)? write numbers with '.' (0.40)"
             raise InputError(f"{where}: line {lineno}: {len(cells)} cells, expected {ncol} (as the header){hint}")
 
 
-def _column(colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells,
-            base: str) -> np.ndarray:
+def _column(
+    colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells, base: str
+) -> np.ndarray:
     """One numeric column in SI units, shape (N,)."""
     k, col, factor = colmap[base]
     return np.array([cells_parser.number(ln, col, cells[k]) for ln, cells in rows]) * factor
 
 
-def _numeric_columns(where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]],
-                     cells_parser: _Cells) -> dict:
+def _numeric_columns(
+    where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells
+) -> dict:
     """The numeric fields of :class:`Measurements`, read in column order: joints, wrench
     (zero when absent), position, orientation, then the optional columns."""
+
     def stack(cols: tuple[str, ...]) -> np.ndarray:
         return np.column_stack([_column(colmap, rows, cells_parser, c) for c in cols])
 
@@ -374,9 +433,11 @@ def _numeric_columns(where: str, colmap: dict[str, tuple[int, str, float]], rows
     return dict(q=q, wrench=wrench, p=pos, rotation=rot, **_optional_columns(where, colmap, rows, cells_parser))
 
 
-def _optional_columns(where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]],
-                      cells_parser: _Cells) -> dict:
+def _optional_columns(
+    where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells
+) -> dict:
     """t (numbers or date-times), temperature and the standard deviations (None when absent)."""
+
     def column(base: str) -> np.ndarray:
         return _column(colmap, rows, cells_parser, base)
 
@@ -386,8 +447,7 @@ def _optional_columns(where: str, colmap: dict[str, tuple[int, str, float]], row
         t, t_origin = _time_column(where, rows, k, col, factor, cells_parser)
     temp = column("temperature") if "temperature" in colmap else None
     sigma = column("sigma") if "sigma" in colmap else None
-    sigma_xyz = (np.column_stack([column(c) for c in SIGMA_XYZ_COLUMNS]) if "sigma_x" in colmap
-                 else None)
+    sigma_xyz = np.column_stack([column(c) for c in SIGMA_XYZ_COLUMNS]) if "sigma_x" in colmap else None
     if sigma_xyz is not None:
         sigma = sigma_rms(sigma_xyz)
     sigma_rot = None
@@ -398,8 +458,9 @@ def _optional_columns(where: str, colmap: dict[str, tuple[int, str, float]], row
     return dict(t=t, t_origin=t_origin, temperature=temp, sigma=sigma, sigma_xyz=sigma_xyz, sigma_rot=sigma_rot)
 
 
-def _point_column(where: str, colmap: dict[str, tuple[int, str, float]],
-                  rows: list[tuple[int, list[str]]]) -> np.ndarray | None:
+def _point_column(
+    where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]]
+) -> np.ndarray | None:
     """The pose ids of the ``point`` column (str), or None; raises for an empty cell."""
     if "point" not in colmap:
         return None
@@ -411,28 +472,46 @@ def _point_column(where: str, colmap: dict[str, tuple[int, str, float]],
     return point.astype(str)
 
 
-def _notes(where: str, dialect: str, detected: bool, cells_parser: _Cells, t_origin: _dt.datetime | None,
-           line: np.ndarray,
-           names: tuple[str, ...] | None, colmap: dict[str, tuple[int, str, float]]) -> list[str]:
+def _notes(
+    where: str,
+    dialect: str,
+    detected: bool,
+    cells_parser: _Cells,
+    t_origin: _dt.datetime | None,
+    line: np.ndarray,
+    names: tuple[str, ...] | None,
+    colmap: dict[str, tuple[int, str, float]],
+) -> list[str]:
     """What was decided without the user saying so: a detected dialect, mixed decimal
     separators, date-times read as times, a joint-name mapping."""
     notes: list[str] = []
     if detected and dialect == "semicolon":
         extra = ""
         if cells_parser.n_point:
-            extra = (f"; {cells_parser.n_point} cell(s) written with a decimal point (e.g. 1.5) were read with "
-                     "'.' as the decimal point too")
-        notes.append(f"{where}: read as ';'-separated with decimal commas (detected from the header line; "
-                     f"declare --csv-dialect to fix it){extra}")
+            extra = (
+                f"; {cells_parser.n_point} cell(s) written with a decimal point (e.g. 1.5) were read with "
+                "'.' as the decimal point too"
+            )
+        notes.append(
+            f"{where}: read as ';'-separated with decimal commas (detected from the header line; "
+            f"declare --csv-dialect to fix it){extra}"
+        )
     elif DIALECTS[dialect][1] and cells_parser.n_point and cells_parser.n_comma:
-        notes.append(f"{where}: {cells_parser.n_comma} cell(s) have a decimal comma and {cells_parser.n_point} a "
-                     "decimal point; both were read as the decimal separator")
+        notes.append(
+            f"{where}: {cells_parser.n_comma} cell(s) have a decimal comma and {cells_parser.n_point} a "
+            "decimal point; both were read as the decimal separator"
+        )
     if t_origin is not None:
-        zone = ("" if t_origin.tzinfo is not None
-                else "; no time zone given: local clock times are taken as they are (a daylight-saving change "
-                     "inside the file would shift them by 1 h)")
-        notes.append(f"{where}: column 't' read as date-times: t = seconds since this file's first row "
-                     f"(line {int(line[0])}, {t_origin.isoformat()}){zone}")
+        zone = (
+            ""
+            if t_origin.tzinfo is not None
+            else "; no time zone given: local clock times are taken as they are (a daylight-saving change "
+            "inside the file would shift them by 1 h)"
+        )
+        notes.append(
+            f"{where}: column 't' read as date-times: t = seconds since this file's first row "
+            f"(line {int(line[0])}, {t_origin.isoformat()}){zone}"
+        )
     if names is not None:
         preset = next((p for p, v in JOINT_NAME_PRESETS.items() if v == names), None)
         how = f"preset '{preset}'" if preset else "joint names given"
@@ -441,9 +520,15 @@ def _notes(where: str, dialect: str, detected: bool, cells_parser: _Cells, t_ori
     return notes
 
 
-def parse_measurements(text: str, where: str = "<text>", require_position: bool = True,
-                       require_wrench: bool = True, *, dialect: str = "auto",
-                       joint_names: str | Sequence[str] | None = None) -> Measurements:
+def parse_measurements(
+    text: str,
+    where: str = "<text>",
+    require_position: bool = True,
+    require_wrench: bool = True,
+    *,
+    dialect: str = "auto",
+    joint_names: str | Sequence[str] | None = None,
+) -> Measurements:
     """Parse measurement-file text; see :func:`read_measurements` (same parameters;
     ``where`` names the text in messages and notes)."""
     _check_dialect(dialect)
@@ -463,7 +548,14 @@ def parse_measurements(text: str, where: str = "<text>", require_position: bool 
     fields = _numeric_columns(where, colmap, rows, cells_parser)
     point = _point_column(where, colmap, rows)
     notes = _notes(where, dialect, detected, cells_parser, fields["t_origin"], line, names, colmap)
-    m = Measurements(**fields, point=point, line=line, source=where, units=units, notes=notes,
-                     columns={base: col for base, (_k, col, _f) in colmap.items()})
+    m = Measurements(
+        **fields,
+        point=point,
+        line=line,
+        source=where,
+        units=units,
+        notes=notes,
+        columns={base: col for base, (_k, col, _f) in colmap.items()},
+    )
     validate(m, colmap, _plain=frozenset(c for c in header if c in COLUMNS or c in jmap))
     return m

@@ -100,14 +100,28 @@ class Measurements:
     def subset(self, idx: np.ndarray) -> Measurements:
         """Rows ``idx`` (integer indices or boolean mask) as a new table (notes, column
         names and the date-time origin carried along)."""
+
         def s(a: Any) -> Any:
             return None if a is None else a[idx]
-        return Measurements(q=self.q[idx], wrench=self.wrench[idx], p=s(self.p), t=s(self.t),
-                            point=s(self.point), rotation=s(self.rotation),
-                            temperature=s(self.temperature), sigma=s(self.sigma),
-                            line=self.line[idx], source=self.source, units=dict(self.units),
-                            sigma_xyz=s(self.sigma_xyz), sigma_rot=s(self.sigma_rot),
-                            notes=list(self.notes), columns=dict(self.columns), t_origin=self.t_origin)
+
+        return Measurements(
+            q=self.q[idx],
+            wrench=self.wrench[idx],
+            p=s(self.p),
+            t=s(self.t),
+            point=s(self.point),
+            rotation=s(self.rotation),
+            temperature=s(self.temperature),
+            sigma=s(self.sigma),
+            line=self.line[idx],
+            source=self.source,
+            units=dict(self.units),
+            sigma_xyz=s(self.sigma_xyz),
+            sigma_rot=s(self.sigma_rot),
+            notes=list(self.notes),
+            columns=dict(self.columns),
+            t_origin=self.t_origin,
+        )
 
     def pose_groups(self) -> np.ndarray:
         """Integer pose id per row, shape (N,): the ``point`` column if given, else
@@ -139,4 +153,4 @@ def sigma_rms(sigma_xyz: np.ndarray) -> np.ndarray:
         with the same total variance.
     """
     s = np.asarray(sigma_xyz, dtype=float).reshape(-1, 3)
-    return np.sqrt(np.mean(s ** 2, axis=1))
+    return np.sqrt(np.mean(s**2, axis=1))

@@ -37,8 +37,7 @@ PLAUSIBLE_SIGMA_MAX_M = 0.01
 #: An orientation-measurement standard deviation beyond this is implausible (rad, about 5.7 deg).
 PLAUSIBLE_SIGMA_ROT_MAX_RAD = 0.1
 
-_UNIT_HINT = {"angle": "_deg", "length": "_mm", "force": "_kN", "moment": "_Nmm",
-              "small_angle": "_urad"}
+_UNIT_HINT = {"angle": "_deg", "length": "_mm", "force": "_kN", "moment": "_Nmm", "small_angle": "_urad"}
 
 
 def _first_bad(values: np.ndarray, bad: np.ndarray) -> int:
@@ -49,8 +48,9 @@ class _Checks:
     """Magnitude and sign checks of one table's columns; messages quote the column as
     written (from ``colmap``) and, for a plain column name, the unit suffix to declare."""
 
-    def __init__(self, m: Measurements, colmap: dict[str, tuple[int, str, float]] | None,
-                 plain: frozenset[str] | None) -> None:
+    def __init__(
+        self, m: Measurements, colmap: dict[str, tuple[int, str, float]] | None, plain: frozenset[str] | None
+    ) -> None:
         self.m = m
         self.where = m.source
         self.colmap = colmap
@@ -72,11 +72,16 @@ class _Checks:
             i = _first_bad(values, bad)
             hint = _UNIT_HINT.get(qty)
             name = self.colname(base)
-            unit_msg = (f"; if the column is in other units, declare them by the suffix (e.g. '{name}{hint}')"
-                        if hint and self.is_plain(name, base) else "")
-            raise InputError(f"{self.where}: line {self.m.line[i]}, column '{name}': value "
-                             f"{values[i] / self.factor(base):g} is implausible (|value| above {limit:g} in SI "
-                             f"units){unit_msg}")
+            unit_msg = (
+                f"; if the column is in other units, declare them by the suffix (e.g. '{name}{hint}')"
+                if hint and self.is_plain(name, base)
+                else ""
+            )
+            raise InputError(
+                f"{self.where}: line {self.m.line[i]}, column '{name}': value "
+                f"{values[i] / self.factor(base):g} is implausible (|value| above {limit:g} in SI "
+                f"units){unit_msg}"
+            )
 
     def positive(self, base: str, values: np.ndarray, unit: str) -> None:
         """Raise for the first standard deviation that is not > 0."""
@@ -85,8 +90,10 @@ class _Checks:
             i = _first_bad(values, bad)
             name = self.colname(base)
             shown = f"{values[i] / self.factor(base):g}" + (f" {unit}" if self.is_plain(name, base) else "")
-            raise InputError(f"{self.where}: line {self.m.line[i]}, column '{name}': value {shown}; "
-                             "expected a standard deviation > 0")
+            raise InputError(
+                f"{self.where}: line {self.m.line[i]}, column '{name}': value {shown}; "
+                "expected a standard deviation > 0"
+            )
 
 
 def _check_pose_and_load(ck: _Checks, m: Measurements) -> None:
@@ -94,8 +101,12 @@ def _check_pose_and_load(ck: _Checks, m: Measurements) -> None:
     for j, c in enumerate(Q_COLUMNS):
         ck.check(c, m.q[:, j], PLAUSIBLE_ANGLE_MAX_RAD, "angle")
     for j, c in enumerate(WRENCH_COLUMNS):
-        ck.check(c, m.wrench[:, j], PLAUSIBLE_FORCE_MAX_N if j < 3 else PLAUSIBLE_MOMENT_MAX_NM,
-                 "force" if j < 3 else "moment")
+        ck.check(
+            c,
+            m.wrench[:, j],
+            PLAUSIBLE_FORCE_MAX_N if j < 3 else PLAUSIBLE_MOMENT_MAX_NM,
+            "force" if j < 3 else "moment",
+        )
     if m.p is not None:
         for j, c in enumerate(POSITION_COLUMNS):
             ck.check(c, m.p[:, j], PLAUSIBLE_POSITION_MAX_M, "length")
@@ -110,7 +121,8 @@ def _check_sigma(ck: _Checks, m: Measurements, colmap: dict[str, tuple[int, str,
         per_axis = "sigma_x" in colmap
     else:
         per_axis = m.sigma_xyz is not None and not (
-            m.sigma is not None and np.array_equal(m.sigma_xyz, np.repeat(m.sigma[:, None], 3, axis=1)))
+            m.sigma is not None and np.array_equal(m.sigma_xyz, np.repeat(m.sigma[:, None], 3, axis=1))
+        )
     if per_axis:
         assert m.sigma_xyz is not None
         for j, c in enumerate(SIGMA_XYZ_COLUMNS):
@@ -125,8 +137,7 @@ def _check_sigma_rot(ck: _Checks, m: Measurements, colmap: dict[str, tuple[int, 
     """Orientation standard deviations: with a measured orientation, > 0 and plausible."""
     if m.sigma_rot is not None:
         if m.rotation is None:
-            raise InputError(f"{ck.where}: orientation standard deviations without the measured orientation "
-                             "rx, ry, rz")
+            raise InputError(f"{ck.where}: orientation standard deviations without the measured orientation rx, ry, rz")
         single = colmap is not None and "sigma_r" in colmap
         for j, c in enumerate(SIGMA_ROT_COLUMNS):
             base = "sigma_r" if single else c
@@ -141,9 +152,11 @@ def _check_temperature(ck: _Checks, m: Measurements) -> None:
         bad = (m.temperature < lo) | (m.temperature > hi)
         if bad.any():
             i = _first_bad(m.temperature, bad)
-            raise InputError(f"{ck.where}: line {m.line[i]}, column '{ck.colname('temperature')}': value "
-                             f"{m.temperature[i]:g} deg C is outside the plausible range [{lo:g}, {hi:g}] "
-                             "(temperature is in deg C)")
+            raise InputError(
+                f"{ck.where}: line {m.line[i]}, column '{ck.colname('temperature')}': value "
+                f"{m.temperature[i]:g} deg C is outside the plausible range [{lo:g}, {hi:g}] "
+                "(temperature is in deg C)"
+            )
 
 
 def _check_time_order(ck: _Checks, m: Measurements) -> None:
@@ -152,8 +165,10 @@ def _check_time_order(ck: _Checks, m: Measurements) -> None:
         back = np.diff(m.t) < 0
         if back.any():
             i = int(np.argmax(back)) + 1
-            raise InputError(f"{ck.where}: line {m.line[i]}, column '{ck.colname('t')}': time {m.t[i]:g} s is "
-                             f"earlier than the previous row ({m.t[i - 1]:g} s); rows must be in measurement order")
+            raise InputError(
+                f"{ck.where}: line {m.line[i]}, column '{ck.colname('t')}': time {m.t[i]:g} s is "
+                f"earlier than the previous row ({m.t[i - 1]:g} s); rows must be in measurement order"
+            )
 
 
 def _check_duplicates(where: str, m: Measurements) -> None:
@@ -175,13 +190,16 @@ def _check_duplicates(where: str, m: Measurements) -> None:
         dup_rows = np.flatnonzero(counts[inv] > 1)
         a = dup_rows[0]
         b = next(r for r in dup_rows if r != a and inv[r] == inv[a])
-        raise InputError(f"{where}: lines {m.line[a]} and {m.line[b]} are identical in every column "
-                         "(a duplicated row); remove the copy, or if it is a genuine repeated measurement "
-                         "its measured values cannot be bit-identical")
+        raise InputError(
+            f"{where}: lines {m.line[a]} and {m.line[b]} are identical in every column "
+            "(a duplicated row); remove the copy, or if it is a genuine repeated measurement "
+            "its measured values cannot be bit-identical"
+        )
 
 
-def validate(m: Measurements, colmap: dict[str, tuple[int, str, float]] | None = None, *,
-             _plain: frozenset[str] | None = None) -> None:
+def validate(
+    m: Measurements, colmap: dict[str, tuple[int, str, float]] | None = None, *, _plain: frozenset[str] | None = None
+) -> None:
     """Check magnitudes and consistency of a table (raises :class:`InputError`).
 
     ``colmap`` (quantity -> (column index, column as written, SI factor)) lets the

@@ -40,8 +40,9 @@ def measurements_to_csv(m: Measurements, mm: bool = False) -> str:
         if arr is not None:
             header.append(name)
             cols.append(arr[:, None])
-    if m.sigma_xyz is not None and not (m.sigma is not None and np.array_equal(m.sigma_xyz, m.sigma[:, None]
-                                                                               * np.ones((1, 3)))):
+    if m.sigma_xyz is not None and not (
+        m.sigma is not None and np.array_equal(m.sigma_xyz, m.sigma[:, None] * np.ones((1, 3)))
+    ):
         header += [f"{c}_mm" if mm else c for c in SIGMA_XYZ_COLUMNS]
         cols.append(m.sigma_xyz * length)
     elif m.sigma is not None:

@@ -18,7 +18,8 @@ import os
 import time
 import uuid
 from contextlib import contextmanager
-from typing import Any, Callable, Iterator
+from typing import Any
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -50,8 +51,10 @@ def require_dask() -> Any:
     try:
         import distributed
     except ImportError:
-        raise InputError(f"--scheduler needs Dask, which is not installed: {DASK_INSTALL} "
-                         "(without it, run the sweep serially: omit --scheduler)") from None
+        raise InputError(
+            f"--scheduler needs Dask, which is not installed: {DASK_INSTALL} "
+            "(without it, run the sweep serially: omit --scheduler)"
+        ) from None
     return distributed
 
 
@@ -62,6 +65,7 @@ def dask_client(spec: str) -> Iterator[Any]:
     distributed = require_dask()
     if spec.startswith("local:"):
         import dask
+
         n = int(spec.split(":", 1)[1])
         # A None value unsets the nanny's variable (distributed.nanny._get_env_variables); a value
         # an earlier nanny of this process wrote into os.environ before spawning would still be
@@ -69,8 +73,13 @@ def dask_client(spec: str) -> Iterator[Any]:
         lifted = {k: os.environ.pop(k) for k in LOCAL_ENV_DROPPED if k in os.environ}
         try:
             with dask.config.set({f"distributed.nanny.pre-spawn-environ.{k}": None for k in LOCAL_ENV_DROPPED}):
-                cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                                   dashboard_address=None, silence_logs=logging.ERROR)
+                cluster = distributed.LocalCluster(
+                    n_workers=n,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    silence_logs=logging.ERROR,
+                )
             client = distributed.Client(cluster, timeout=LOCAL_START_TIMEOUT_S)
             try:
                 client.wait_for_workers(n, timeout=LOCAL_START_TIMEOUT_S)
@@ -84,8 +93,10 @@ def dask_client(spec: str) -> Iterator[Any]:
         try:
             client = distributed.Client(spec, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as exc:
-            raise InputError(f"--scheduler {spec}: cannot connect to a Dask scheduler there "
-                             f"({type(exc).__name__}: {_first_line(exc) if str(exc) else 'timed out'})") from None
+            raise InputError(
+                f"--scheduler {spec}: cannot connect to a Dask scheduler there "
+                f"({type(exc).__name__}: {_first_line(exc) if str(exc) else 'timed out'})"
+            ) from None
         try:
             yield client
         finally:
@@ -122,6 +133,7 @@ def _kernel(k: PlacementKernel) -> PlacementKernel:
 def _installed_version() -> str:
     """The compplan version installed in this process's environment (``unknown`` if none is)."""
     from importlib import metadata
+
     try:
         return metadata.version("compplan")
     except metadata.PackageNotFoundError:
@@ -131,7 +143,8 @@ def _installed_version() -> str:
 def _warm_import() -> str:
     """Import the kernel's modules on a worker (once per worker process, before timing) and say
     which compplan the worker has."""
-    import problems.placement.kernel  # noqa: F401
+    import problems.placement.kernel  # noqa: F401 - imported for its cost, paid before timing
+
     return _installed_version()
 
 
@@ -147,19 +160,25 @@ def check_workers(client: Any, spec: str) -> int:
         try:
             client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
         except (TimeoutError, OSError):
-            raise InputError(f"--scheduler {spec}: the scheduler has no workers (none joined within "
-                             f"{CONNECT_TIMEOUT_S} s); start workers with: dask worker {spec}") from None
+            raise InputError(
+                f"--scheduler {spec}: the scheduler has no workers (none joined within "
+                f"{CONNECT_TIMEOUT_S} s); start workers with: dask worker {spec}"
+            ) from None
     try:
         versions = client.run(_warm_import)
-    except Exception as exc:  # noqa: BLE001 - whatever the worker raised, it is reported whole
-        raise InputError(f"--scheduler {spec}: the Dask workers cannot import compplan "
-                         f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
-                         "install the same compplan on every worker") from None
+    except Exception as exc:
+        raise InputError(
+            f"--scheduler {spec}: the Dask workers cannot import compplan "
+            f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
+            "install the same compplan on every worker"
+        ) from None
     here = _installed_version()
     other = sorted({f"{v} on {w}" for w, v in versions.items() if v != here})
     if other:
-        raise InputError(f"--scheduler {spec}: the workers run another compplan than this process ({here}): "
-                         f"{', '.join(other[:3])}{' ...' if len(other) > 3 else ''}; install {here} on every worker")
+        raise InputError(
+            f"--scheduler {spec}: the workers run another compplan than this process ({here}): "
+            f"{', '.join(other[:3])}{' ...' if len(other) > 3 else ''}; install {here} on every worker"
+        )
     return len(versions)
 
 
@@ -167,9 +186,13 @@ def _evaluate(k: PlacementKernel, chunk: np.ndarray) -> ChunkScores:
     return k.evaluate(chunk)
 
 
-def run_on_dask(kernel: PlacementKernel, chunks: list[np.ndarray], spec: str,
-                progress: Callable[[str, int, int], None] | None,
-                on_chunk: Callable[[int], None] | None) -> tuple[list[ChunkScores], float, int, dict[str, Any]]:
+def run_on_dask(
+    kernel: PlacementKernel,
+    chunks: list[np.ndarray],
+    spec: str,
+    progress: Callable[[str, int, int], None] | None,
+    on_chunk: Callable[[int], None] | None,
+) -> tuple[list[ChunkScores], float, int, dict[str, Any]]:
     """Score the chunks on a Dask cluster.
 
     Returns
@@ -185,6 +208,7 @@ def run_on_dask(kernel: PlacementKernel, chunks: list[np.ndarray], spec: str,
         ``workers_at_start``.
     """
     from problems.placement.sweep import PROGRESS_STAGE
+
     distributed = require_dask()
     ppp = kernel.poses_per_placement
     total = sum(len(c) for c in chunks) * ppp
@@ -193,8 +217,10 @@ def run_on_dask(kernel: PlacementKernel, chunks: list[np.ndarray], spec: str,
         at_start = check_workers(client, spec)
         t0 = time.perf_counter()
         kf = client.submit(_kernel, kernel, key=f"placement-kernel-{token}", pure=False)
-        futs = [client.submit(_evaluate, kf, c, key=f"placement-chunk-{token}-{i}", pure=False,
-                              retries=CHUNK_RETRIES) for i, c in enumerate(chunks)]
+        futs = [
+            client.submit(_evaluate, kf, c, key=f"placement-chunk-{token}-{i}", pure=False, retries=CHUNK_RETRIES)
+            for i, c in enumerate(chunks)
+        ]
         index = {f.key: i for i, f in enumerate(futs)}
         parts: list[ChunkScores | None] = [None] * len(chunks)
         who: set[str] = set()
@@ -211,19 +237,33 @@ def run_on_dask(kernel: PlacementKernel, chunks: list[np.ndarray], spec: str,
         except distributed.KilledWorker as exc:
             raise ClusterError(f"Dask sweep failed: a chunk's workers died repeatedly ({exc})") from None
         except (OSError, concurrent.futures.CancelledError, asyncio.CancelledError) as exc:
-            raise ClusterError(f"Dask sweep failed: the cluster at {spec} went away during the sweep "
-                               f"({type(exc).__name__}: {_first_line(exc)})") from None
+            raise ClusterError(
+                f"Dask sweep failed: the cluster at {spec} went away during the sweep "
+                f"({type(exc).__name__}: {_first_line(exc)})"
+            ) from None
         elapsed = time.perf_counter() - t0
         try:
             for ws in client.who_has(futs).values():
                 who.update(ws)
-        except Exception:  # noqa: BLE001 - bookkeeping only
+        except Exception:
             pass
         for f in futs + [kf]:
             f.release()
-    return [p for p in parts if p is not None], elapsed, max(1, len(who)) if who else at_start, \
-        {"workers_at_start": at_start}
+    return (
+        [p for p in parts if p is not None],
+        elapsed,
+        max(1, len(who)) if who else at_start,
+        {"workers_at_start": at_start},
+    )
 
 
-__all__ = ["CHUNK_RETRIES", "ClusterError", "DASK_INSTALL", "LOCAL_ENV_DROPPED", "check_workers", "dask_client",
-           "require_dask", "run_on_dask"]
+__all__ = [
+    "CHUNK_RETRIES",
+    "ClusterError",
+    "DASK_INSTALL",
+    "LOCAL_ENV_DROPPED",
+    "check_workers",
+    "dask_client",
+    "require_dask",
+    "run_on_dask",
+]

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -72,7 +73,7 @@ class PlacementGrid:
     @property
     def size(self) -> int:
         """Number of placements."""
-        return math.prod(self.shape)                 # Python integers: no overflow
+        return math.prod(self.shape)  # Python integers: no overflow
 
     def placements(self) -> np.ndarray:
         """Every placement ``[x, y, z, yaw, tilt]`` (m, rad), shape (P, 5), x fastest.
@@ -148,6 +149,7 @@ def placement_label(p: np.ndarray) -> str:
 # Parsing
 # --------------------------------------------------------------------------------------
 
+
 def _number(key: str, v: Any, where: str) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise PlacementGridError(f"{where}: key '{key}' must be a number, got {v!r}")
@@ -177,8 +179,9 @@ def axis_values(key: str, v: Any, where: str = "grid") -> np.ndarray:
         if isinstance(n, float) and n.is_integer():
             n = int(n)
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_AXIS_VALUES:
-            raise PlacementGridError(f"{where}: key '{key}' count must be an integer in [1, {MAX_AXIS_VALUES}], "
-                                     f"got {v[2]!r}")
+            raise PlacementGridError(
+                f"{where}: key '{key}' count must be an integer in [1, {MAX_AXIS_VALUES}], got {v[2]!r}"
+            )
         if a > b:
             raise PlacementGridError(f"{where}: key '{key}' start {a:g} is above stop {b:g}")
         if n == 1 and a != b:
@@ -189,8 +192,9 @@ def axis_values(key: str, v: Any, where: str = "grid") -> np.ndarray:
     return vals * scale
 
 
-def grid_from_table(tab: Mapping[str, Any], where: str = "[placement]",
-                    base: PlacementGrid | None = None) -> PlacementGrid:
+def grid_from_table(
+    tab: Mapping[str, Any], where: str = "[placement]", base: PlacementGrid | None = None
+) -> PlacementGrid:
     """A grid from a ``[placement]`` table (keys of :data:`GRID_AXES` and ``top``), over
     ``base`` (every axis not given keeps ``base``'s values, or 0)."""
     unknown = sorted(set(tab) - set(GRID_AXES) - set(OTHER_KEYS))
@@ -208,8 +212,9 @@ def grid_from_table(tab: Mapping[str, Any], where: str = "[placement]",
         top = int(t)
     grid = PlacementGrid(axes, top)
     if grid.size > MAX_PLACEMENTS:
-        raise PlacementGridError(f"{where}: {grid.size} placements is more than {MAX_PLACEMENTS}; "
-                                 "split the study into several runs")
+        raise PlacementGridError(
+            f"{where}: {grid.size} placements is more than {MAX_PLACEMENTS}; split the study into several runs"
+        )
     return grid
 
 
@@ -225,17 +230,19 @@ def parse_grid_text(text: str, base: PlacementGrid | None = None, where: str = "
             continue
         key, sep, val = (s.strip() for s in item.partition("="))
         if not sep or not val:
-            raise PlacementGridError(f"{where}: item {item!r} must be KEY=VALUE or KEY=START:STOP:COUNT "
-                                     f"with KEY one of {list(GRID_AXES) + list(OTHER_KEYS)}")
+            raise PlacementGridError(
+                f"{where}: item {item!r} must be KEY=VALUE or KEY=START:STOP:COUNT "
+                f"with KEY one of {list(GRID_AXES) + list(OTHER_KEYS)}"
+            )
         parts = val.split(":")
         if key == "top":
             if not val.isdecimal():
-                raise PlacementGridError(f"{where}: item {item!r}: top must be a whole number in "
-                                         f"[0, {MAX_TOP}], got {val!r}")
+                raise PlacementGridError(
+                    f"{where}: item {item!r}: top must be a whole number in [0, {MAX_TOP}], got {val!r}"
+                )
             tab[key] = int(val)
             continue
-        bad = PlacementGridError(f"{where}: item {item!r}: value {val!r} must be a number or "
-                                 "START:STOP:COUNT")
+        bad = PlacementGridError(f"{where}: item {item!r}: value {val!r} must be a number or START:STOP:COUNT")
         if len(parts) not in (1, 3):
             raise bad
         try:
@@ -255,11 +262,29 @@ def default_grid(positions_cell: np.ndarray, reach_m: float) -> PlacementGrid:
     on the floor (z = 0, tilt = 0), at 8 yaws 45 deg apart."""
     c = np.asarray(positions_cell, dtype=float).mean(axis=0)
     h = float(reach_m)
-    return PlacementGrid({"x_m": np.linspace(c[0] - h, c[0] + h, 21), "y_m": np.linspace(c[1] - h, c[1] + h, 21),
-                          "z_m": np.zeros(1), "yaw_deg": np.radians(np.arange(0.0, 360.0, 45.0)),
-                          "tilt_deg": np.zeros(1)})
+    return PlacementGrid(
+        {
+            "x_m": np.linspace(c[0] - h, c[0] + h, 21),
+            "y_m": np.linspace(c[1] - h, c[1] + h, 21),
+            "z_m": np.zeros(1),
+            "yaw_deg": np.radians(np.arange(0.0, 360.0, 45.0)),
+            "tilt_deg": np.zeros(1),
+        }
+    )
 
 
-__all__ = ["DEFAULT_TOP", "GRID_AXES", "MAX_PLACEMENTS", "PlacementGrid", "PlacementGridError", "axis_values",
-           "base2cell", "cell2base", "default_grid", "describe_placement", "grid_from_table",
-           "parse_grid_text", "placement_label"]
+__all__ = [
+    "DEFAULT_TOP",
+    "GRID_AXES",
+    "MAX_PLACEMENTS",
+    "PlacementGrid",
+    "PlacementGridError",
+    "axis_values",
+    "base2cell",
+    "cell2base",
+    "default_grid",
+    "describe_placement",
+    "grid_from_table",
+    "parse_grid_text",
+    "placement_label",
+]

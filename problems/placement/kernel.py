@@ -65,7 +65,7 @@ def _rotate_load(L: np.ndarray, R: np.ndarray) -> np.ndarray:
     Returns (P, N, 19)."""
     out = np.broadcast_to(L, (len(R),) + L.shape).copy()
     for a in (0, 3, 16):
-        out[:, :, a:a + 3] = np.einsum("pij,nj->pni", R, L[:, a:a + 3])
+        out[:, :, a : a + 3] = np.einsum("pij,nj->pni", R, L[:, a : a + 3])
     return out
 
 
@@ -89,9 +89,9 @@ class PlacementKernel:
     def __init__(self, problem: Any, threads: int = KERNEL_THREADS) -> None:
         task = problem.task()
         self.robot: Robot = problem.robot
-        self.positions = np.asarray(task.positions, dtype=float)                   # (N, 3) cell
-        self.rotations = np.stack([R for _, R in candidates(task)])                # (S, N, 3, 3) cell
-        self.load_cell = np.asarray(task.load, dtype=float)                       # (N, 19) cell
+        self.positions = np.asarray(task.positions, dtype=float)  # (N, 3) cell
+        self.rotations = np.stack([R for _, R in candidates(task)])  # (S, N, 3, 3) cell
+        self.load_cell = np.asarray(task.load, dtype=float)  # (N, 19) cell
         self.smoothness = float(task.smoothness)
         self.max_joint_step = float(task.max_joint_step)
         self.threads = int(threads)
@@ -122,9 +122,11 @@ class PlacementKernel:
 
     def _setup(self, ik: Any, model: BatchFunction | VMBatchFunction) -> None:
         if not ik.labels_stable:
-            raise InputError(f"robot '{self.robot.name}': its IK family ({type(ik).__name__}) does not keep "
-                             "branch labels from one call to the next; a placement sweep needs a family that "
-                             "does (UR-type or OPW arms)")
+            raise InputError(
+                f"robot '{self.robot.name}': its IK family ({type(ik).__name__}) does not keep "
+                "branch labels from one call to the next; a placement sweep needs a family that "
+                "does (UR-type or OPW arms)"
+            )
         self.ik = ik
         self._bounds = guard_bounds(ik)
         self._model = model
@@ -153,7 +155,8 @@ class PlacementKernel:
         """Whether the model's ``load_error_g`` and the IK's closed form run compiled C here (else
         CasADi's virtual machine)."""
         return isinstance(self._model, BatchFunction) and (
-            self.ik.function is None or isinstance(self.ik.evaluator, BatchFunction))
+            self.ik.function is None or isinstance(self.ik.evaluator, BatchFunction)
+        )
 
     # ------------------------------------------------------------------ the kernel
     def evaluate(self, placements: np.ndarray) -> ChunkScores:
@@ -185,17 +188,17 @@ class PlacementKernel:
         ratio = np.zeros(P * S * N * B)
         ratio[ok] = (np.abs(self.ik.guard_factors(Qf[ok])) / self._bounds).min(axis=-1)
         ratio = ratio.reshape(P, S, N, B)
-        valid = ratio >= 1.0                                                        # (P, S, N, B)
-        reach_any = valid.any(axis=(1, 3))                                           # (P, N)
+        valid = ratio >= 1.0  # (P, S, N, B)
+        reach_any = valid.any(axis=(1, 3))  # (P, N)
         # a solution that only the joint limits exclude (no 2 pi k puts it inside them)
-        outside = (sol.status == IKStatus.JOINT_LIMIT.code).reshape(P, S, N, B).any(axis=(1, 3))   # (P, N)
+        outside = (sol.status == IKStatus.JOINT_LIMIT.code).reshape(P, S, N, B).any(axis=(1, 3))  # (P, N)
         # only branches reaching every waypoint can be feasible: the model is evaluated there only
         valid &= valid.any(axis=1).all(axis=1)[:, None, None, :]
         vf = valid.ravel()
         err = np.full(P * S * N * B, np.inf)
         if vf.any():
-            L = _rotate_load(self.load_cell, R).reshape(P * N, -1)                   # (P N, 19)
-            G = R @ self.gravity_cell                                                # (P, 3) base
+            L = _rotate_load(self.load_cell, R).reshape(P * N, -1)  # (P N, 19)
+            G = R @ self.gravity_cell  # (P, 3) base
             p_of = np.broadcast_to(np.arange(P)[:, None, None, None], (P, S, N, B)).ravel()[vf]
             n_of = np.broadcast_to(np.arange(N)[None, None, :, None], (P, S, N, B)).ravel()[vf]
             D = self._model(Qf[vf], L[p_of * N + n_of], G[p_of])[0][:, :3]
@@ -203,40 +206,42 @@ class PlacementKernel:
         err = err.reshape(P, S, N, B)
         return self._score(Q, err, ratio, reach_any, outside)
 
-    def _score(self, Q: np.ndarray, err: np.ndarray, ratio: np.ndarray, any_reach: np.ndarray,
-               outside: np.ndarray) -> ChunkScores:
+    def _score(
+        self, Q: np.ndarray, err: np.ndarray, ratio: np.ndarray, any_reach: np.ndarray, outside: np.ndarray
+    ) -> ChunkScores:
         """Per placement and branch: the cheapest flip-free sequence, its limits, its errors.
 
         ``err`` (P, S, N, B) m, inf where a node is invalid or its branch misses a waypoint;
         ``any_reach`` (P, N): the waypoint has a valid node on some branch; ``outside`` (P, N):
         it has an IK solution outside the joint limits."""
         P, S, N, B = err.shape
-        reach_all = np.isfinite(err).any(axis=1).all(axis=1)                         # (P, B)
+        reach_all = np.isfinite(err).any(axis=1).all(axis=1)  # (P, B)
         out = ChunkScores.empty(P, B)
         first_gap = np.where(~any_reach.all(axis=1), np.argmin(any_reach, axis=1), -1)
         out.blocked_waypoint[:] = first_gap
         gap_limit = (first_gap >= 0) & outside[np.arange(P), np.maximum(first_gap, 0)]
-        pb = np.argwhere(reach_all)                                                 # (M, 2)
+        pb = np.argwhere(reach_all)  # (M, 2)
         flip = np.zeros((P, B), dtype=bool)
         limit = np.zeros((P, B), dtype=bool)
         if len(pb):
-            node = err[pb[:, 0], :, :, pb[:, 1]]                                     # (M, S, N) m
-            qm = Q[pb[:, 0], :, :, pb[:, 1]]                                         # (M, S, N, 6)
+            node = err[pb[:, 0], :, :, pb[:, 1]]  # (M, S, N) m
+            qm = Q[pb[:, 0], :, :, pb[:, 1]]  # (M, S, N, 6)
             # float32 halves the programme's memory traffic; it only picks the sequence, whose
             # errors and joint angles are then read in float64.  Joint-major (6, N, M, S).
             qj = np.nan_to_num(qm.transpose(3, 2, 0, 1).astype(np.float32), copy=False, nan=0.0)
-            cost = (COST_SCALE * node ** 2).astype(np.float32)
+            cost = (COST_SCALE * node**2).astype(np.float32)
             seq, blocked = _viterbi(cost, qj, self.smoothness, self.max_joint_step, self._nbr)
             if blocked.any() and self._nbr.shape[1] < S:
                 # the restricted graph is blocked: every candidate may follow every other
                 rb = np.flatnonzero(blocked)
-                seq[rb], blocked[rb] = _viterbi(cost[rb], qj[:, :, rb], self.smoothness, self.max_joint_step,
-                                                np.tile(np.arange(S), (S, 1)))
+                seq[rb], blocked[rb] = _viterbi(
+                    cost[rb], qj[:, :, rb], self.smoothness, self.max_joint_step, np.tile(np.arange(S), (S, 1))
+                )
             flip[pb[blocked, 0], pb[blocked, 1]] = True
             good = ~blocked
             pbg, seqg = pb[good], seq[good]
             if len(pbg):
-                qpath = _unwrap(qm, np.flatnonzero(good), seqg)                      # (M', N, 6)
+                qpath = _unwrap(qm, np.flatnonzero(good), seqg)  # (M', N, 6)
                 # the float32 programme's step test, again in float64 (a step at the bound)
                 smooth = (np.abs(np.diff(qpath, axis=1)) <= self.max_joint_step).all(axis=(1, 2))
                 flip[pbg[~smooth, 0], pbg[~smooth, 1]] = True
@@ -244,10 +249,10 @@ class PlacementKernel:
                 limit[pbg[smooth & ~inside, 0], pbg[smooth & ~inside, 1]] = True
                 inside &= smooth
                 n_idx = np.arange(N)
-                e = err[pbg[:, 0][:, None], seqg, n_idx[None, :], pbg[:, 1][:, None]]   # (M', N)
+                e = err[pbg[:, 0][:, None], seqg, n_idx[None, :], pbg[:, 1][:, None]]  # (M', N)
                 r = ratio[pbg[:, 0][:, None], seqg, n_idx[None, :], pbg[:, 1][:, None]]
                 margin = np.minimum(shifted - self.ik.q_min, self.ik.q_max - shifted).min(axis=(1, 2))
-                rms = np.sqrt(np.mean(e ** 2, axis=1))
+                rms = np.sqrt(np.mean(e**2, axis=1))
                 f = inside
                 out.branch_rms_m[pbg[f, 0], pbg[f, 1]] = rms[f]
                 out.branch_max_m[pbg[f, 0], pbg[f, 1]] = e.max(axis=1)[f]
@@ -271,12 +276,13 @@ def _neighbour_table(rot: np.ndarray) -> np.ndarray:
     out = -np.ones((S, K), dtype=int)
     for i, row in enumerate(close):
         j = np.flatnonzero(row)
-        out[i, :len(j)] = j
+        out[i, : len(j)] = j
     return out
 
 
-def _viterbi(node: np.ndarray, q: np.ndarray, lam: float, max_step: float,
-             nbr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _viterbi(
+    node: np.ndarray, q: np.ndarray, lam: float, max_step: float, nbr: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Cheapest candidate sequences of M independent rows (placement x branch) at once.
 
     Parameters
@@ -310,7 +316,7 @@ def _viterbi(node: np.ndarray, q: np.ndarray, lam: float, max_step: float,
     dtype = q.dtype
     dense = K == S and bool((nbr == np.arange(S)[None, :]).all())
     pidx = np.where(nbr >= 0, nbr, 0)
-    pad = nbr < 0                                                     # (S, K) padding slots
+    pad = nbr < 0  # (S, K) padding slots
     qj = np.ascontiguousarray(q)
     V = node[:, :, 0].copy()
     backs = np.zeros((max(N - 1, 0), M, S), dtype=np.int32)
@@ -319,12 +325,12 @@ def _viterbi(node: np.ndarray, q: np.ndarray, lam: float, max_step: float,
     cost, worst, d, tmp = (np.empty((M, S, K), dtype) for _ in range(4))
     for k in range(N - 1):
         for j in range(6):
-            prev = qj[j, k][:, None, :] if dense else qj[j, k][:, pidx]            # (M, 1|S, K)
+            prev = qj[j, k][:, None, :] if dense else qj[j, k][:, pidx]  # (M, 1|S, K)
             np.subtract(qj[j, k + 1][:, :, None], prev, out=d)
             np.multiply(d, inv, out=tmp)
             np.rint(tmp, out=tmp)
             tmp *= two_pi
-            d -= tmp                                                    # wrapped into [-pi, pi]
+            d -= tmp  # wrapped into [-pi, pi]
             if j == 0:
                 np.multiply(d, d, out=cost)
                 np.abs(d, out=worst)
@@ -338,7 +344,7 @@ def _viterbi(node: np.ndarray, q: np.ndarray, lam: float, max_step: float,
         cost[worst > step] = np.inf
         if not dense:
             cost[:, pad] = np.inf
-        jj = np.argmin(cost, axis=2)                                    # (M, S)
+        jj = np.argmin(cost, axis=2)  # (M, S)
         V = np.take_along_axis(cost, jj[:, :, None], axis=2)[:, :, 0] + node[:, :, k + 1]
         backs[k] = jj if dense else pidx[np.arange(S)[None, :], jj]
     blocked = ~np.isfinite(V).any(axis=1)
@@ -354,7 +360,7 @@ def _unwrap(q: np.ndarray, rows: np.ndarray, seq: np.ndarray) -> np.ndarray:
     """Continuous joint paths (M', N, 6) of rows ``rows`` (M',) of the candidate angles ``q``
     (M, S, N, 6) along their chosen candidates ``seq`` (M', N) (wrapped differences)."""
     N = seq.shape[1]
-    qs = q[rows[:, None], seq, np.arange(N)[None, :]]                                # (M', N, 6)
+    qs = q[rows[:, None], seq, np.arange(N)[None, :]]  # (M', N, 6)
     d = np.diff(qs, axis=1)
     d = (d + np.pi) % (2.0 * np.pi) - np.pi
     return np.concatenate([qs[:, :1], qs[:, :1] + np.cumsum(d, axis=1)], axis=1)
@@ -364,7 +370,7 @@ def _into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray) -> tuple[n
     """Shift each joint of each path (M, N, 6) by the 2 pi k nearest zero that fits its limits.
 
     Returns the shifted paths and whether every joint of each path fits (M,)."""
-    lo, hi = q.min(axis=1), q.max(axis=1)                                           # (M, 6)
+    lo, hi = q.min(axis=1), q.max(axis=1)  # (M, 6)
     k_lo = np.ceil((q_min - lo) / (2.0 * np.pi) - _SHIFT_EPS)
     k_hi = np.floor((q_max - hi) / (2.0 * np.pi) + _SHIFT_EPS)
     fits = (k_lo <= k_hi).all(axis=1)

@@ -46,7 +46,7 @@ STATUS_REASONS = {
     PlacementStatus.UNREACHABLE: "a waypoint is out of reach (or inside a singularity guard) on every branch",
     PlacementStatus.FLIP: "every branch reaching the whole path flips (joint step above max_joint_step)",
     PlacementStatus.JOINT_LIMIT: "the joint limits exclude every branch (along the path, or at a waypoint whose "
-                                 "solutions all lie outside them)",
+    "solutions all lie outside them)",
 }
 
 
@@ -83,13 +83,22 @@ class ChunkScores:
     branch_singular_margin: np.ndarray
 
     @classmethod
-    def empty(cls, P: int, B: int) -> "ChunkScores":
+    def empty(cls, P: int, B: int) -> ChunkScores:
         nan1, nan2 = (lambda: np.full(P, np.nan)), (lambda: np.full((P, B), np.nan))
-        return cls(status=np.zeros(P, np.int8), best_branch=np.full(P, -1, np.int8),
-                   feasible_branches=np.zeros(P, np.int8), blocked_waypoint=np.full(P, -1, np.int32),
-                   rms_error_m=nan1(), max_error_m=nan1(), joint_margin_rad=nan1(), singular_margin=nan1(),
-                   branch_rms_m=nan2(), branch_max_m=nan2(), branch_joint_margin_rad=nan2(),
-                   branch_singular_margin=nan2())
+        return cls(
+            status=np.zeros(P, np.int8),
+            best_branch=np.full(P, -1, np.int8),
+            feasible_branches=np.zeros(P, np.int8),
+            blocked_waypoint=np.full(P, -1, np.int32),
+            rms_error_m=nan1(),
+            max_error_m=nan1(),
+            joint_margin_rad=nan1(),
+            singular_margin=nan1(),
+            branch_rms_m=nan2(),
+            branch_max_m=nan2(),
+            branch_joint_margin_rad=nan2(),
+            branch_singular_margin=nan2(),
+        )
 
     def __len__(self) -> int:
         return int(len(self.status))
@@ -107,9 +116,12 @@ class ChunkScores:
         rows = np.flatnonzero(anyf)
         b = best[rows]
         self.best_branch[rows] = b
-        for dst, src in ((self.rms_error_m, self.branch_rms_m), (self.max_error_m, self.branch_max_m),
-                         (self.joint_margin_rad, self.branch_joint_margin_rad),
-                         (self.singular_margin, self.branch_singular_margin)):
+        for dst, src in (
+            (self.rms_error_m, self.branch_rms_m),
+            (self.max_error_m, self.branch_max_m),
+            (self.joint_margin_rad, self.branch_joint_margin_rad),
+            (self.singular_margin, self.branch_singular_margin),
+        ):
             dst[rows] = src[rows, b]
         st = np.full(len(self.status), PlacementStatus.OK.code, dtype=np.int8)
         unreach = self.blocked_waypoint >= 0
@@ -132,16 +144,15 @@ class ChunkScores:
         return PlacementStatus.from_code(self.status[i])
 
     @classmethod
-    def concatenate(cls, parts: list["ChunkScores"]) -> "ChunkScores":
+    def concatenate(cls, parts: list[ChunkScores]) -> ChunkScores:
         """The scores of several chunks, in order."""
         return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)})
 
-    def equal(self, other: "ChunkScores") -> bool:
+    def equal(self, other: ChunkScores) -> bool:
         """Bit-for-bit equality of every array (NaN equal to NaN)."""
-        return all(np.array_equal(getattr(self, f.name), getattr(other, f.name), equal_nan=True)
-                   for f in fields(self))
+        return all(np.array_equal(getattr(self, f.name), getattr(other, f.name), equal_nan=True) for f in fields(self))
 
-    def max_difference(self, other: "ChunkScores") -> float:
+    def max_difference(self, other: ChunkScores) -> float:
         """Largest absolute difference over every float array (NaN positions must match, else inf)."""
         worst = 0.0
         for f in fields(self):
@@ -182,5 +193,11 @@ def ranking(scores: ChunkScores) -> np.ndarray:
     return idx[order]
 
 
-__all__ = ["ChunkScores", "PlacementStatus", "RANK_RESOLUTION_M", "RANK_RESOLUTION_SINGULAR", "STATUS_REASONS",
-           "ranking"]
+__all__ = [
+    "ChunkScores",
+    "PlacementStatus",
+    "RANK_RESOLUTION_M",
+    "RANK_RESOLUTION_SINGULAR",
+    "STATUS_REASONS",
+    "ranking",
+]

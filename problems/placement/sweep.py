@@ -13,7 +13,8 @@ import math
 import re
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 
@@ -132,7 +133,7 @@ def parse_scheduler(spec: str | None) -> str:
         return "serial"
     s = str(spec).strip()
     if s.startswith("local:"):
-        n = s[len("local:"):]
+        n = s[len("local:") :]
         if not re.fullmatch(r"[0-9]{1,4}", n) or not 1 <= int(n) <= 256:
             raise InputError(f"--scheduler {spec!r}: local:N needs a whole number of workers N in [1, 256]")
         return f"local:{int(n)}"
@@ -141,21 +142,33 @@ def parse_scheduler(spec: str | None) -> str:
         if not host or not re.fullmatch(r"[0-9]{1,5}", port) or not 1 <= int(port) <= 65535:
             raise InputError(f"--scheduler {spec!r}: an address must be tcp://HOST:PORT with PORT in [1, 65535]")
         return s
-    raise InputError(f"--scheduler {spec!r}: expected 'serial', 'local:N' (a LocalCluster of N workers) "
-                     "or a Dask scheduler address tcp://HOST:PORT")
+    raise InputError(
+        f"--scheduler {spec!r}: expected 'serial', 'local:N' (a LocalCluster of N workers) "
+        "or a Dask scheduler address tcp://HOST:PORT"
+    )
 
 
 def _no_feasible_reason(scores: ChunkScores) -> str:
     """One line: why no placement is feasible, with the count of each status."""
-    counts = ", ".join(f"{s.value.replace('_', ' ')} {int((scores.status == s.code).sum())}"
-                       for s in PlacementStatus if not s.ok and (scores.status == s.code).any())
-    return (f"none of the {len(scores)} placements reaches the whole path on one branch without a flip, "
-            f"inside the joint limits and outside the singularity guards ({counts}); move or widen the grid")
+    counts = ", ".join(
+        f"{s.value.replace('_', ' ')} {int((scores.status == s.code).sum())}"
+        for s in PlacementStatus
+        if not s.ok and (scores.status == s.code).any()
+    )
+    return (
+        f"none of the {len(scores)} placements reaches the whole path on one branch without a flip, "
+        f"inside the joint limits and outside the singularity guards ({counts}); move or widen the grid"
+    )
 
 
-def run_sweep(kernel: PlacementKernel, placements: np.ndarray, scheduler: str | None = None,
-              chunk_placements: int | None = None, progress: Progress | None = None,
-              on_chunk: Callable[[int], None] | None = None) -> SweepResult:
+def run_sweep(
+    kernel: PlacementKernel,
+    placements: np.ndarray,
+    scheduler: str | None = None,
+    chunk_placements: int | None = None,
+    progress: Progress | None = None,
+    on_chunk: Callable[[int], None] | None = None,
+) -> SweepResult:
     """Score every placement.
 
     Parameters
@@ -205,13 +218,26 @@ def run_sweep(kernel: PlacementKernel, placements: np.ndarray, scheduler: str | 
         elapsed, workers = time.perf_counter() - t0, 1
     else:
         from problems.placement.cluster import run_on_dask
+
         parts, elapsed, workers, extra = run_on_dask(kernel, chunks, spec, progress, on_chunk)
     scores = ChunkScores.concatenate(parts) if parts else ChunkScores.empty(0, kernel.n_branches)
     n_ok = int(scores.feasible.sum())
     status, reason = (SweepStatus.OK, "") if n_ok else (SweepStatus.NO_FEASIBLE, _no_feasible_reason(scores))
-    return SweepResult(status, reason, pl, scores, total, per, len(chunks), spec, workers, elapsed,
-                       kernel.compiled, extra)
+    return SweepResult(
+        status, reason, pl, scores, total, per, len(chunks), spec, workers, elapsed, kernel.compiled, extra
+    )
 
 
-__all__ = ["CHUNK_MAX_POSES", "CHUNK_POSES", "DEFAULT_MAX_CHUNKS", "PROGRESS_STAGE", "SweepResult", "SweepStatus",
-           "chunk_bounds", "chunk_placements_for", "default_chunk_poses", "parse_scheduler", "run_sweep"]
+__all__ = [
+    "CHUNK_MAX_POSES",
+    "CHUNK_POSES",
+    "DEFAULT_MAX_CHUNKS",
+    "PROGRESS_STAGE",
+    "SweepResult",
+    "SweepStatus",
+    "chunk_bounds",
+    "chunk_placements_for",
+    "default_chunk_poses",
+    "parse_scheduler",
+    "run_sweep",
+]

@@ -19,10 +19,21 @@ from models.ik import IK_REASONS, IKSolver, IKStatus, ik_solver
 from models.robot import Robot
 from models.symbolic import KinematicModel
 from problems.path import default_branch, poses
-from problems.posture.task import (COST_SCALE, DEFAULT_SCAN, DEGENERATE_ANGLE_TOL_RAD, DEGENERATE_OFFSET_TOL_M,
-                                   GUARD_ACTIVE_TOL, IPOPT_OK, BranchResult,
-                                   BranchStatus, OrientationRule, PostureResult, PostureStatus, PostureTask,
-                                   SolverSettings)
+from problems.posture.task import (
+    COST_SCALE,
+    DEFAULT_SCAN,
+    DEGENERATE_ANGLE_TOL_RAD,
+    DEGENERATE_OFFSET_TOL_M,
+    GUARD_ACTIVE_TOL,
+    IPOPT_OK,
+    BranchResult,
+    BranchStatus,
+    OrientationRule,
+    PostureResult,
+    PostureStatus,
+    PostureTask,
+    SolverSettings,
+)
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
 from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
@@ -30,6 +41,7 @@ from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear
 # --------------------------------------------------------------------------------------
 # What can be chosen
 # --------------------------------------------------------------------------------------
+
 
 def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
     """What the NLP can choose beyond the branch.
@@ -48,8 +60,10 @@ def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
         One sentence for the summary.
     """
     if rule is OrientationRule.FIXED:
-        return "none", ("fixed orientation: six equations for six joints, the posture is the IK "
-                        "solution of each branch; only the branch is chosen")
+        return "none", (
+            "fixed orientation: six equations for six joints, the posture is the IK "
+            "solution of each branch; only the branch is chosen"
+        )
     T = robot.tcp2flange
     off = float(np.hypot(T[0, 3], T[1, 3]))
     # Angle between the tool axis and the joint-6 axis, either sense (a tool axis
@@ -57,12 +71,16 @@ def analyse_freedom(robot: Robot, rule: OrientationRule) -> tuple[str, str]:
     tilt = float(np.arccos(np.clip(abs(T[2, 2]), 0.0, 1.0)))
     on_axis = off <= DEGENERATE_OFFSET_TOL_M and tilt <= DEGENERATE_ANGLE_TOL_RAD
     if rule is OrientationRule.FREE_TOOL_AXIS and on_axis:
-        return "degenerate", ("the TCP lies on the joint-6 axis and the tool axis is "
-                              "along it, so rotation about the tool axis only turns joint 6 and "
-                              "leaves C(q) unchanged (zero gradient); only the branch is chosen")
+        return "degenerate", (
+            "the TCP lies on the joint-6 axis and the tool axis is "
+            "along it, so rotation about the tool axis only turns joint 6 and "
+            "leaves C(q) unchanged (zero gradient); only the branch is chosen"
+        )
     if on_axis and rule in (OrientationRule.CONE, OrientationRule.POSITION_ONLY):
-        return "free", (f"{rule.value}: the tool axis direction is optimised; rotation about it "
-                        "only turns joint 6 (TCP on the joint-6 axis) and is left to the smoothness term")
+        return "free", (
+            f"{rule.value}: the tool axis direction is optimised; rotation about it "
+            "only turns joint 6 (TCP on the joint-6 axis) and is left to the smoothness term"
+        )
     return "free", f"{rule.value}: the posture is optimised along the free directions"
 
 
@@ -79,10 +97,17 @@ def branch_signs(ik: IKSolver, q: np.ndarray) -> np.ndarray:
 # The whole stage
 # --------------------------------------------------------------------------------------
 
-def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.ndarray,
-                      settings: SolverSettings = SolverSettings(), verbose: bool = False,
-                      model: KinematicModel | None = None, ik: IKSolver | None = None,
-                      optimise: bool = True) -> PostureResult:
+
+def optimise_postures(
+    robot: ArmModel | Robot,
+    task: PostureTask,
+    home_q: np.ndarray,
+    settings: SolverSettings = SolverSettings(),
+    verbose: bool = False,
+    model: KinematicModel | None = None,
+    ik: IKSolver | None = None,
+    optimise: bool = True,
+) -> PostureResult:
     """Solve the posture NLP on every feasible branch and choose the best.
 
     Parameters
@@ -115,8 +140,11 @@ def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.nda
     ws = warm_starts(ik, model, task)
     if not arm.geometry_is_nominal:
         ws = _onto_model_geometry(arm, ik, ws)
-    default = default_branch(ws.analytic, home_q) if ws.analytic else (
-        default_branch({b: v[0] for b, v in ws.warm.items()}, home_q) if ws.warm else None)
+    default = (
+        default_branch(ws.analytic, home_q)
+        if ws.analytic
+        else (default_branch({b: v[0] for b, v in ws.warm.items()}, home_q) if ws.warm else None)
+    )
     if not ws.warm:
         return _infeasible_result(ik, task, ws, default, freedom, note)
 
@@ -139,41 +167,56 @@ def optimise_postures(robot: ArmModel | Robot, task: PostureTask, home_q: np.nda
     return res
 
 
-def _infeasible_result(ik: IKSolver, task: PostureTask, ws: WarmStarts, default: int | None,
-                       freedom: str, note: str) -> PostureResult:
+def _infeasible_result(
+    ik: IKSolver, task: PostureTask, ws: WarmStarts, default: int | None, freedom: str, note: str
+) -> PostureResult:
     """The result when no branch reaches the whole path: a waypoint unreachable on every
     branch (status UNREACHABLE, naming the first one and the IK's reasons there), or every
     branch rejected somewhere (status NO_BRANCH, with every branch's reason)."""
     if ws.unreachable:
         k = ws.unreachable[0]
         p = task.positions[k]
-        sol = ik.solve(poses(task.positions[k:k + 1], task.rotations[k]))
+        sol = ik.solve(poses(task.positions[k : k + 1], task.rotations[k]))
         why = "; ".join(sorted({IK_REASONS[IKStatus.from_code(c)] for c in sol.status[0]}))
-        reason = (f"no IK branch reaches waypoint {k} at ({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}) m "
-                  f"({why})")
+        reason = f"no IK branch reaches waypoint {k} at ({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}) m ({why})"
         if len(ws.unreachable) > 1:
             reason += f"; {len(ws.unreachable)} unreachable waypoints in all"
         status = PostureStatus.UNREACHABLE
     else:
         reason = "no IK branch reaches the whole path: " + "; ".join(
-            f"{ik.labels[b]}: {r}" for b, r in sorted(ws.rejected.items()))
+            f"{ik.labels[b]}: {r}" for b, r in sorted(ws.rejected.items())
+        )
         status = PostureStatus.NO_BRANCH
-    return PostureResult(status, reason, task, {}, ws.rejected, None, default, freedom, note,
-                         ws.unreachable, labels=ik.labels, ik_family=ik.family)
+    return PostureResult(
+        status,
+        reason,
+        task,
+        {},
+        ws.rejected,
+        None,
+        default,
+        freedom,
+        note,
+        ws.unreachable,
+        labels=ik.labels,
+        ik_family=ik.family,
+    )
 
 
-def _analytic_of(model: KinematicModel, task: PostureTask,
-                 ws: WarmStarts, b: int) -> tuple[np.ndarray | None, np.ndarray, float]:
+def _analytic_of(
+    model: KinematicModel, task: PostureTask, ws: WarmStarts, b: int
+) -> tuple[np.ndarray | None, np.ndarray, float]:
     """Branch ``b``'s analytic posture (N, 6) rad or None, its error per waypoint (N,) m (NaN
     if None) and its cost (m^2, NaN if None)."""
     qa = ws.analytic[b].q if b in ws.analytic else None
     err_a = linear_error(model, qa, task.load) if qa is not None else np.full(task.n, np.nan)
-    cost_a = float(np.sum(err_a ** 2)) if qa is not None else math.nan
+    cost_a = float(np.sum(err_a**2)) if qa is not None else math.nan
     return qa, err_a, cost_a
 
 
-def _unoptimised_branch(model: KinematicModel, task: PostureTask, ws: WarmStarts, b: int,
-                        freedom: str, note: str) -> BranchResult:
+def _unoptimised_branch(
+    model: KinematicModel, task: PostureTask, ws: WarmStarts, b: int, freedom: str, note: str
+) -> BranchResult:
     """Branch ``b`` without an NLP: its analytic posture (else its warm start), with the
     status saying why (no freedom, degenerate, or optimisation switched off)."""
     bp_warm, wname, wcost = ws.warm[b]
@@ -186,12 +229,32 @@ def _unoptimised_branch(model: KinematicModel, task: PostureTask, ws: WarmStarts
         st, why = BranchStatus.ANALYTIC, "optimisation switched off: analytic posture"
     q = qa if qa is not None else bp_warm.q
     err = linear_error(model, q, task.load)
-    return BranchResult(b, st, why, q, qa, bp_warm.q, wname if qa is None else "nominal",
-                        float(np.sum(err ** 2)), cost_a, wcost, err, err_a)
+    return BranchResult(
+        b,
+        st,
+        why,
+        q,
+        qa,
+        bp_warm.q,
+        wname if qa is None else "nominal",
+        float(np.sum(err**2)),
+        cost_a,
+        wcost,
+        err,
+        err_a,
+    )
 
 
-def _optimised_branch(nlp: PostureNLP, model: KinematicModel, ik: IKSolver, task: PostureTask,
-                      ws: WarmStarts, b: int, q_min: np.ndarray, q_max: np.ndarray) -> BranchResult:
+def _optimised_branch(
+    nlp: PostureNLP,
+    model: KinematicModel,
+    ik: IKSolver,
+    task: PostureTask,
+    ws: WarmStarts,
+    b: int,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+) -> BranchResult:
     """Branch ``b`` through the NLP: IPOPT from its warm start, Gauss-Newton polish, verification.
 
     The optimised posture is kept only if IPOPT converged and every constraint verifies;
@@ -207,34 +270,66 @@ def _optimised_branch(nlp: PostureNLP, model: KinematicModel, ik: IKSolver, task
     problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
     kept = "analytic posture" if qa is not None else "warm start"
     if ip_status not in IPOPT_OK:
-        st, why = BranchStatus.SOLVER_FAILED, (f"IPOPT: {ip_status} after {iters} iterations; "
-                                               f"the {kept} is kept")
+        st, why = BranchStatus.SOLVER_FAILED, (f"IPOPT: {ip_status} after {iters} iterations; the {kept} is kept")
     elif problems:
         st, why = BranchStatus.CONSTRAINT_VIOLATED, f"{problems[0]}; the {kept} is kept"
     else:
         st, why = BranchStatus.OPTIMISED, f"IPOPT: {ip_status} in {iters} iterations"
     q = q_pol if st is BranchStatus.OPTIMISED else base
-    if st is BranchStatus.OPTIMISED and _objective(model, task, bp_warm.q) < _objective(model, task, q) \
-            and not verify(model, task, bp_warm.q, q_min, q_max, ik, sign)[0]:
+    if (
+        st is BranchStatus.OPTIMISED
+        and _objective(model, task, bp_warm.q) < _objective(model, task, q)
+        and not verify(model, task, bp_warm.q, q_min, q_max, ik, sign)[0]
+    ):
         # a local optimum worse than the (feasible) point it started from: keep the start
-        q, why = bp_warm.q, (f"IPOPT: {ip_status} in {iters} iterations at a local optimum worse than its warm "
-                             "start; the warm start is kept")
+        q, why = (
+            bp_warm.q,
+            (
+                f"IPOPT: {ip_status} in {iters} iterations at a local optimum worse than its warm "
+                "start; the warm start is kept"
+            ),
+        )
     err = linear_error(model, q, task.load)
     margin = ik.guard_factors(q) * sign - guard_bounds(ik)
     active = {name: int(np.sum(margin[:, i] <= GUARD_ACTIVE_TOL)) for i, name in enumerate(ik.guard_names)}
-    return BranchResult(b, st, why, q, qa, bp_warm.q, wname, float(np.sum(err ** 2)), cost_a,
-                        wcost, err, err_a, iters, dt, ip_status, res_m, res_rad,
-                        {k: v for k, v in active.items() if v})
+    return BranchResult(
+        b,
+        st,
+        why,
+        q,
+        qa,
+        bp_warm.q,
+        wname,
+        float(np.sum(err**2)),
+        cost_a,
+        wcost,
+        err,
+        err_a,
+        iters,
+        dt,
+        ip_status,
+        res_m,
+        res_rad,
+        {k: v for k, v in active.items() if v},
+    )
 
 
 def _objective(model: KinematicModel, task: PostureTask, q: np.ndarray) -> float:
     """The NLP's objective at ``q`` (N, 6): ``COST_SCALE sum ||S C F||^2 + smoothness sum ||dq||^2`` (mm^2)."""
     err = linear_error(model, q, task.load)
-    return float(COST_SCALE * np.sum(err ** 2) + task.smoothness * np.sum(np.diff(q, axis=0) ** 2))
+    return float(COST_SCALE * np.sum(err**2) + task.smoothness * np.sum(np.diff(q, axis=0) ** 2))
 
 
-def _choose(task: PostureTask, ws: WarmStarts, results: dict[int, BranchResult], default: int | None,
-            freedom: str, note: str, build: float, labels: tuple[str, ...]) -> PostureResult:
+def _choose(
+    task: PostureTask,
+    ws: WarmStarts,
+    results: dict[int, BranchResult],
+    default: int | None,
+    freedom: str,
+    note: str,
+    build: float,
+    labels: tuple[str, ...],
+) -> PostureResult:
     """The usable branch of least cost (status OK), or SOLVER_FAILED if none is usable.
 
     ``build`` is the solver's build time, s; ``labels`` the IK family's branch labels.
@@ -242,21 +337,55 @@ def _choose(task: PostureTask, ws: WarmStarts, results: dict[int, BranchResult],
     usable = {b: r for b, r in results.items() if r.status.usable}
     if not usable:
         reason = "the NLP failed on every feasible branch: " + "; ".join(
-            f"{r.label}: {r.reason}" for r in results.values())
-        return PostureResult(PostureStatus.SOLVER_FAILED, reason, task, results, ws.rejected, None,
-                             default, freedom, note, ws.unreachable, build, labels)
+            f"{r.label}: {r.reason}" for r in results.values()
+        )
+        return PostureResult(
+            PostureStatus.SOLVER_FAILED,
+            reason,
+            task,
+            results,
+            ws.rejected,
+            None,
+            default,
+            freedom,
+            note,
+            ws.unreachable,
+            build,
+            labels,
+        )
     chosen = min(usable, key=lambda b: usable[b].cost)
     n_fail = len(results) - len(usable)
-    reason = (f"branch {labels[chosen]} chosen among {len(usable)} usable branch(es)"
-              + (f"; {n_fail} failed" if n_fail else ""))
-    return PostureResult(PostureStatus.OK, reason, task, results, ws.rejected, chosen, default, freedom,
-                         note, ws.unreachable, build, labels)
+    reason = f"branch {labels[chosen]} chosen among {len(usable)} usable branch(es)" + (
+        f"; {n_fail} failed" if n_fail else ""
+    )
+    return PostureResult(
+        PostureStatus.OK,
+        reason,
+        task,
+        results,
+        ws.rejected,
+        chosen,
+        default,
+        freedom,
+        note,
+        ws.unreachable,
+        build,
+        labels,
+    )
 
 
-def optimal_pose(robot: ArmModel | Robot, position: np.ndarray, rotation: np.ndarray, rule: OrientationRule,
-                 wrench: np.ndarray, cone_half_angle: float = 0.0, home_q: np.ndarray | None = None,
-                 settings: SolverSettings = SolverSettings(), scan: int = DEFAULT_SCAN,
-                 verbose: bool = False) -> PostureResult:
+def optimal_pose(
+    robot: ArmModel | Robot,
+    position: np.ndarray,
+    rotation: np.ndarray,
+    rule: OrientationRule,
+    wrench: np.ndarray,
+    cone_half_angle: float = 0.0,
+    home_q: np.ndarray | None = None,
+    settings: SolverSettings = SolverSettings(),
+    scan: int = DEFAULT_SCAN,
+    verbose: bool = False,
+) -> PostureResult:
     """Single-pose query: the stiffness-optimal posture for one target and wrench.
 
     Parameters
@@ -285,7 +414,14 @@ def optimal_pose(robot: ArmModel | Robot, position: np.ndarray, rotation: np.nda
     PostureResult
         With N = 1 (no joint-step constraint).
     """
-    task = PostureTask(np.asarray(position, float).reshape(1, 3), np.asarray(rotation, float), rule,
-                       np.asarray(wrench, float), cone_half_angle=cone_half_angle, scan=scan)
-    return optimise_postures(robot, task, np.zeros(6) if home_q is None else np.asarray(home_q, float),
-                             settings, verbose)
+    task = PostureTask(
+        np.asarray(position, float).reshape(1, 3),
+        np.asarray(rotation, float),
+        rule,
+        np.asarray(wrench, float),
+        cone_half_angle=cone_half_angle,
+        scan=scan,
+    )
+    return optimise_postures(
+        robot, task, np.zeros(6) if home_q is None else np.asarray(home_q, float), settings, verbose
+    )

@@ -79,8 +79,12 @@ DEFAULT_SMOOTHNESS = 1.0
 DEFAULT_MAX_ITER = 200
 DEFAULT_TOL = 1e-8
 #: IPOPT options used unless a problem overrides them.
-IPOPT_DEFAULTS: dict[str, Any] = {"mu_strategy": "adaptive", "bound_push": 1e-6, "bound_frac": 1e-6,
-                                  "nlp_scaling_method": "none"}  # the NLP is scaled by hand (mm, mrad)
+IPOPT_DEFAULTS: dict[str, Any] = {
+    "mu_strategy": "adaptive",
+    "bound_push": 1e-6,
+    "bound_frac": 1e-6,
+    "nlp_scaling_method": "none",
+}  # the NLP is scaled by hand (mm, mrad)
 #: IPOPT return statuses accepted as converged.
 IPOPT_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 #: Length of the stage parameter vector: p (3), R (9, column-major), F (6), branch signs (3).
@@ -97,34 +101,37 @@ class OrientationRule(enum.Enum):
 
 
 #: Orientation constraints per waypoint of each rule.
-N_ORIENTATION = {OrientationRule.FIXED: 3, OrientationRule.FREE_TOOL_AXIS: 2,
-                 OrientationRule.CONE: 1, OrientationRule.POSITION_ONLY: 0}
+N_ORIENTATION = {
+    OrientationRule.FIXED: 3,
+    OrientationRule.FREE_TOOL_AXIS: 2,
+    OrientationRule.CONE: 1,
+    OrientationRule.POSITION_ONLY: 0,
+}
 
 
 class BranchStatus(Status):
     """Outcome of one branch's posture optimisation."""
 
-    OPTIMISED = "optimised"                  # IPOPT converged, every constraint verified
-    NO_FREEDOM = "no_freedom"                # fixed orientation: the IK posture is the only one
-    DEGENERATE = "degenerate"                # free rotation turns joint 6 only: zero gradient
-    ANALYTIC = "analytic"                    # optimisation switched off by the caller
-    SOLVER_FAILED = "solver_failed"          # IPOPT did not converge (its status in the reason)
+    OPTIMISED = "optimised"  # IPOPT converged, every constraint verified
+    NO_FREEDOM = "no_freedom"  # fixed orientation: the IK posture is the only one
+    DEGENERATE = "degenerate"  # free rotation turns joint 6 only: zero gradient
+    ANALYTIC = "analytic"  # optimisation switched off by the caller
+    SOLVER_FAILED = "solver_failed"  # IPOPT did not converge (its status in the reason)
     CONSTRAINT_VIOLATED = "constraint_violated"  # converged, but a constraint fails verification
 
     @property
     def usable(self) -> bool:
         """True if the branch's posture may be executed."""
-        return self in (BranchStatus.OPTIMISED, BranchStatus.NO_FREEDOM, BranchStatus.DEGENERATE,
-                        BranchStatus.ANALYTIC)
+        return self in (BranchStatus.OPTIMISED, BranchStatus.NO_FREEDOM, BranchStatus.DEGENERATE, BranchStatus.ANALYTIC)
 
 
 class PostureStatus(Status):
     """Outcome of the whole posture stage."""
 
     OK = "ok"
-    UNREACHABLE = "unreachable"        # a waypoint has no IK solution on any branch
-    NO_BRANCH = "no_branch"            # every waypoint reachable, but no branch along the whole path
-    SOLVER_FAILED = "solver_failed"    # every feasible branch failed its NLP
+    UNREACHABLE = "unreachable"  # a waypoint has no IK solution on any branch
+    NO_BRANCH = "no_branch"  # every waypoint reachable, but no branch along the whole path
+    SOLVER_FAILED = "solver_failed"  # every feasible branch failed its NLP
 
 
 class PostureError(InputError):
@@ -215,8 +222,9 @@ class PostureTask:
         if W.ndim == 1:
             W = np.broadcast_to(W, (n, W.shape[0]))
         if W.shape not in ((n, 6), (n, LOAD_SIZE)):
-            raise PostureError(f"posture task: wrench must have shape (6,), ({n}, 6) or ({n}, {LOAD_SIZE}), "
-                               f"got {W.shape}")
+            raise PostureError(
+                f"posture task: wrench must have shape (6,), ({n}, 6) or ({n}, {LOAD_SIZE}), got {W.shape}"
+            )
         self.wrench = np.ascontiguousarray(W)
         for name, arr in (("positions", self.positions), ("wrench", self.wrench)):
             if not np.all(np.isfinite(arr)):
@@ -225,8 +233,9 @@ class PostureTask:
         if not isinstance(self.rule, OrientationRule):
             raise PostureError(f"posture task: rule must be an OrientationRule, got {self.rule!r}")
         if self.rule is OrientationRule.CONE and not (0.0 < self.cone_half_angle < math.pi / 2):
-            raise PostureError(f"posture task: cone half-angle must be in (0, 90) deg, "
-                               f"got {math.degrees(self.cone_half_angle):g} deg")
+            raise PostureError(
+                f"posture task: cone half-angle must be in (0, 90) deg, got {math.degrees(self.cone_half_angle):g} deg"
+            )
         if not (self.max_joint_step > 0.0 and math.isfinite(self.max_joint_step)):
             raise PostureError(f"posture task: max_joint_step must be > 0 rad, got {self.max_joint_step!r}")
         if not (self.smoothness >= 0.0 and math.isfinite(self.smoothness)):
@@ -315,12 +324,12 @@ class BranchResult:
     @property
     def rms_error_m(self) -> float:
         """RMS of the linear load-induced TCP error over the waypoints, m."""
-        return float(np.sqrt(np.mean(self.error_m ** 2)))
+        return float(np.sqrt(np.mean(self.error_m**2)))
 
     @property
     def rms_error_analytic_m(self) -> float:
         """RMS of the linear load-induced TCP error at the analytic posture, m (NaN if none)."""
-        return float(np.sqrt(np.mean(self.error_analytic_m ** 2)))
+        return float(np.sqrt(np.mean(self.error_analytic_m**2)))
 
 
 @dataclass

@@ -30,15 +30,27 @@ from models.effects import LOAD_SIZE
 from models.errors import InputError
 from models.ik import IKSolver
 from models.robot import Robot
-from problems.posture.task import (AXIS_SCALE, COST_SCALE, IPOPT_DEFAULTS, N_ORIENTATION, N_THETA,
-                                   OBJECTIVE_WEIGHT_MAX, OBJECTIVE_WEIGHT_MIN,
-                                   POLISH_MAX_ITER, POLISH_STEP_TOL, POSITION_SCALE, OrientationRule,
-                                   PostureTask, SolverSettings)
+from problems.posture.task import (
+    AXIS_SCALE,
+    COST_SCALE,
+    IPOPT_DEFAULTS,
+    N_ORIENTATION,
+    N_THETA,
+    OBJECTIVE_WEIGHT_MAX,
+    OBJECTIVE_WEIGHT_MIN,
+    POLISH_MAX_ITER,
+    POLISH_STEP_TOL,
+    POSITION_SCALE,
+    OrientationRule,
+    PostureTask,
+    SolverSettings,
+)
 from problems.posture.verification import guard_bounds
 
 # --------------------------------------------------------------------------------------
 # Stage functions (per waypoint) and their compilation
 # --------------------------------------------------------------------------------------
+
 
 def _n_stage_constraints(rule: OrientationRule, n_guards: int) -> int:
     """Constraints per waypoint: position (3), the rule's orientation, the IK family's guards."""
@@ -74,10 +86,10 @@ def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule, ik: IKSolver | None 
     n_guards = len(ik.guard_kinds)
     q = ca.SX.sym("q", 6)
     th = ca.SX.sym("theta", N_THETA)
-    p, R, L, sig = th[0:3], ca.reshape(th[3:12], 3, 3), th[12:12 + LOAD_SIZE], th[12 + LOAD_SIZE:N_THETA]
+    p, R, L, sig = th[0:3], ca.reshape(th[3:12], 3, 3), th[12 : 12 + LOAD_SIZE], th[12 + LOAD_SIZE : N_THETA]
     fn = arm.kinematics.fn
     T = fn["fk_tcp"](q)
-    d = fn["load_error"](q, L)[:3]                # first-order TCP position error (m)
+    d = fn["load_error"](q, L)[:3]  # first-order TCP position error (m)
     cost = COST_SCALE * ca.sumsqr(d)
     z = T[:3, 2]
     g = [POSITION_SCALE * (T[:3, 3] - p)]
@@ -98,12 +110,15 @@ def _stage_sx(arm: ArmModel | Robot, rule: OrientationRule, ik: IKSolver | None 
     tag = rule.value
     return {
         "f": ca.Function(f"posture_{tag}_f", [q, th], [cost, g], ["q", "theta"], ["cost", "g"]),
-        "grad": ca.Function(f"posture_{tag}_grad", [q, th], [cost, ca.gradient(cost, q)],
-                            ["q", "theta"], ["cost", "grad"]),
-        "jac": ca.Function(f"posture_{tag}_jac", [q, th], [g, ca.densify(ca.jacobian(g, q))],
-                           ["q", "theta"], ["g", "jac"]),
-        "hess": ca.Function(f"posture_{tag}_hess", [q, th, sigma, lam], [ca.densify(H)],
-                            ["q", "theta", "sigma", "lam"], ["hess"]),
+        "grad": ca.Function(
+            f"posture_{tag}_grad", [q, th], [cost, ca.gradient(cost, q)], ["q", "theta"], ["cost", "grad"]
+        ),
+        "jac": ca.Function(
+            f"posture_{tag}_jac", [q, th], [g, ca.densify(ca.jacobian(g, q))], ["q", "theta"], ["g", "jac"]
+        ),
+        "hess": ca.Function(
+            f"posture_{tag}_hess", [q, th, sigma, lam], [ca.densify(H)], ["q", "theta", "sigma", "lam"], ["hess"]
+        ),
     }
 
 
@@ -120,8 +135,9 @@ def _compile_stage(funcs: dict[str, ca.Function]) -> dict[str, ca.Function]:
         No C compiler, compilation failed, or the library cannot be loaded (a note is
         recorded, see :func:`models.codegen.codegen_notes`).
     """
-    cg = ca.CodeGenerator("posture_stage.c", {"with_header": False, "casadi_real": "double",
-                                              "casadi_int": "long long int"})
+    cg = ca.CodeGenerator(
+        "posture_stage.c", {"with_header": False, "casadi_real": "double", "casadi_int": "long long int"}
+    )
     for f in funcs.values():
         cg.add(f)
     src = cg.dump()
@@ -141,6 +157,7 @@ def _compile_stage(funcs: dict[str, ca.Function]) -> dict[str, ca.Function]:
 # --------------------------------------------------------------------------------------
 # The NLP (one per robot, rule, N; reused across branches)
 # --------------------------------------------------------------------------------------
+
 
 def _blockdiag_sparsity(n: int, rows: int, cols: int) -> ca.Sparsity:
     """Sparsity (n rows, n cols) of ``n`` dense (rows, cols) blocks on the diagonal."""
@@ -197,8 +214,14 @@ class PostureNLP:
         Time to build the solver (incl. compiling or loading the stage functions), s.
     """
 
-    def __init__(self, arm: ArmModel | Robot, rule: OrientationRule, n: int,
-                 settings: SolverSettings = SolverSettings(), verbose: bool = False) -> None:
+    def __init__(
+        self,
+        arm: ArmModel | Robot,
+        rule: OrientationRule,
+        n: int,
+        settings: SolverSettings = SolverSettings(),
+        verbose: bool = False,
+    ) -> None:
         if settings.name != "ipopt":
             raise InputError(f"solver: unknown NLP solver {settings.name!r}; available: ['ipopt']")
         t0 = time.perf_counter()
@@ -225,7 +248,7 @@ class PostureNLP:
         X = ca.MX.sym("X", 6, n)
         Th = ca.MX.sym("Theta", N_THETA, n)
         lam_s = ca.MX.sym("lam_s")
-        w_obj = ca.MX.sym("w_obj")          # objective weight (conditioning, see solve)
+        w_obj = ca.MX.sym("w_obj")  # objective weight (conditioning, see solve)
         x = ca.vec(X)
         p = ca.vertcat(ca.vec(Th), lam_s, w_obj)
         Dm = _difference_matrix(n)
@@ -237,15 +260,18 @@ class PostureNLP:
         g = ca.vertcat(ca.vec(g_all), dX)
 
         c_g, grad = funcs["grad"].map(n)(X, Th)
-        grad_f = ca.Function("grad_f", [x, p], [w_obj * (ca.sum2(c_g) + lam_s * ca.sumsqr(dX)),
-                                                 w_obj * (ca.vec(grad) + 2.0 * lam_s * ca.mtimes(LtL, x))],
-                             ["x", "p"], ["f", "grad_f_x"])
+        grad_f = ca.Function(
+            "grad_f",
+            [x, p],
+            [w_obj * (ca.sum2(c_g) + lam_s * ca.sumsqr(dX)), w_obj * (ca.vec(grad) + 2.0 * lam_s * ca.mtimes(LtL, x))],
+            ["x", "p"],
+            ["f", "grad_f_x"],
+        )
 
         g_j, jac = funcs["jac"].map(n)(X, Th)
         jac_stage = ca.MX(_blockdiag_sparsity(n, m, 6), ca.vec(jac))
         jac_full = ca.vertcat(jac_stage, ca.MX(Dm)) if n > 1 else jac_stage
-        jac_g = ca.Function("jac_g", [x, p], [ca.vertcat(ca.vec(g_j), dX), jac_full],
-                            ["x", "p"], ["g", "jac_g_x"])
+        jac_g = ca.Function("jac_g", [x, p], [ca.vertcat(ca.vec(g_j), dX), jac_full], ["x", "p"], ["g", "jac_g_x"])
 
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", m * n + 6 * (n - 1))
@@ -253,15 +279,26 @@ class PostureNLP:
         H = funcs["hess"].map(n)(X, Th, ca.repmat(lam_f * w_obj, 1, n), Lg)
         H_stage = ca.MX(_blockdiag_sparsity(n, 6, 6), ca.vec(H))
         H_full = H_stage + 2.0 * lam_f * w_obj * lam_s * ca.MX(ca.DM(LtL)) if n > 1 else H_stage
-        hess = ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.triu(H_full)],
-                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+        hess = ca.Function(
+            "hess_lag", [x, p, lam_f, lam_g], [ca.triu(H_full)], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]
+        )
 
         s = self.settings
         opts: dict[str, Any] = {
-            "grad_f": grad_f, "jac_g": jac_g, "hess_lag": hess,
-            "calc_lam_p": False, "no_nlp_grad": True, "print_time": False,
-            "ipopt": {**IPOPT_DEFAULTS, "print_level": 5 if verbose else 0, "sb": "yes",
-                      "max_iter": int(s.max_iter), "tol": float(s.tol), **dict(s.ipopt_options)},
+            "grad_f": grad_f,
+            "jac_g": jac_g,
+            "hess_lag": hess,
+            "calc_lam_p": False,
+            "no_nlp_grad": True,
+            "print_time": False,
+            "ipopt": {
+                **IPOPT_DEFAULTS,
+                "print_level": 5 if verbose else 0,
+                "sb": "yes",
+                "max_iter": int(s.max_iter),
+                "tol": float(s.tol),
+                **dict(s.ipopt_options),
+            },
         }
         self.solver = ca.nlpsol("posture", "ipopt", {"x": x, "p": p, "f": f, "g": g}, opts)
         self._jac_map = funcs["jac"].map(n)
@@ -277,11 +314,11 @@ class PostureNLP:
         n = task.n
         th = np.empty((N_THETA, n))
         th[0:3] = task.positions.T
-        th[3:12] = task.rotations.transpose(0, 2, 1).reshape(n, 9).T   # column-major R
-        th[12:12 + LOAD_SIZE] = task.load.T
+        th[3:12] = task.rotations.transpose(0, 2, 1).reshape(n, 9).T  # column-major R
+        th[12 : 12 + LOAD_SIZE] = task.load.T
         sig = np.zeros(N_THETA - 12 - LOAD_SIZE)
-        sig[:len(sign)] = np.asarray(sign, dtype=float)
-        th[12 + LOAD_SIZE:N_THETA] = sig[:, None]
+        sig[: len(sign)] = np.asarray(sign, dtype=float)
+        th[12 + LOAD_SIZE : N_THETA] = sig[:, None]
         return th
 
     def bounds_g(self, task: PostureTask) -> tuple[np.ndarray, np.ndarray]:
@@ -298,13 +335,14 @@ class PostureNLP:
             lo[3] = AXIS_SCALE * math.cos(task.cone_half_angle)
             hi[3] = np.inf
         ng = len(self.ik.guard_kinds)
-        lo[m - ng:] = guard_bounds(self.ik)[:, None]
-        hi[m - ng:] = np.inf
+        lo[m - ng :] = guard_bounds(self.ik)[:, None]
+        hi[m - ng :] = np.inf
         step = np.full(6 * (n - 1), task.max_joint_step)
         return np.r_[lo.reshape(-1, order="F"), -step], np.r_[hi.reshape(-1, order="F"), step]
 
-    def solve(self, task: PostureTask, q0: np.ndarray, sign: np.ndarray,
-              q_min: np.ndarray, q_max: np.ndarray) -> tuple[np.ndarray, str, int, float]:
+    def solve(
+        self, task: PostureTask, q0: np.ndarray, sign: np.ndarray, q_min: np.ndarray, q_max: np.ndarray
+    ) -> tuple[np.ndarray, str, int, float]:
         """Run IPOPT from ``q0`` (N, 6) rad with joint limits ``q_min``, ``q_max`` (6,) rad.
 
         Returns
@@ -320,8 +358,9 @@ class PostureNLP:
         lbg, ubg = self.bounds_g(task)
         p = np.r_[th.reshape(-1, order="F"), task.smoothness, self.objective_weight(task, q0, th)]
         t0 = time.perf_counter()
-        res = self.solver(x0=q0.reshape(-1), p=p, lbx=np.tile(q_min, self.n), ubx=np.tile(q_max, self.n),
-                          lbg=lbg, ubg=ubg)
+        res = self.solver(
+            x0=q0.reshape(-1), p=p, lbx=np.tile(q_min, self.n), ubx=np.tile(q_max, self.n), lbg=lbg, ubg=ubg
+        )
         dt = time.perf_counter() - t0
         st = self.solver.stats()
         q = np.asarray(res["x"]).reshape(self.n, 6)
@@ -368,7 +407,7 @@ class PostureNLP:
         cos_a = math.cos(task.cone_half_angle)
         for _ in range(POLISH_MAX_ITER):
             g, jac = self._jac_map(q.T, th)
-            g = np.asarray(g).T                                              # (N, m)
+            g = np.asarray(g).T  # (N, m)
             # jac is (m, 6N): columns 6k..6k+5 hold waypoint k's m x 6 Jacobian.
             jac = np.asarray(jac).reshape(self.m, self.n, 6).transpose(1, 0, 2)  # (N, m, 6)
             worst = 0.0
@@ -394,13 +433,28 @@ _SOLVERS_LOCK = threading.Lock()
 def _model_key(arm: ArmModel) -> tuple:
     """Hashable key of everything in the arm model the stage functions depend on."""
     r = arm.nominal
-    return (r.convention, tuple(r.a), tuple(r.alpha), tuple(r.d), tuple(r.theta_offset), tuple(r.stiffness),
-            tuple(r.tcp2flange.reshape(-1)), arm.active_effects, arm.theta.tobytes(), arm.const.tobytes(),
-            float(arm.temperature_ref))
+    return (
+        r.convention,
+        tuple(r.a),
+        tuple(r.alpha),
+        tuple(r.d),
+        tuple(r.theta_offset),
+        tuple(r.stiffness),
+        tuple(r.tcp2flange.reshape(-1)),
+        arm.active_effects,
+        arm.theta.tobytes(),
+        arm.const.tobytes(),
+        float(arm.temperature_ref),
+    )
 
 
-def get_nlp(arm: ArmModel | Robot, rule: OrientationRule, n: int, settings: SolverSettings = SolverSettings(),
-            verbose: bool = False) -> PostureNLP:
+def get_nlp(
+    arm: ArmModel | Robot,
+    rule: OrientationRule,
+    n: int,
+    settings: SolverSettings = SolverSettings(),
+    verbose: bool = False,
+) -> PostureNLP:
     """The cached :class:`PostureNLP` for (model, rule, n, settings, verbose)."""
     arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
     key = (_model_key(arm), rule, n, settings, verbose)

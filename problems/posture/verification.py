@@ -17,8 +17,16 @@ import numpy as np
 from models.ik import IKSolver
 from models.symbolic import KinematicModel
 from models.transforms import rotation_angle
-from problems.posture.task import (JOINT_TOL_RAD, ORIENTATION_TOL_RAD, POSITION_TOL_M, SINGULAR_DET_MIN,
-                                   SINGULAR_RHO_MIN_M, SINGULAR_SIN_MIN, OrientationRule, PostureTask)
+from problems.posture.task import (
+    JOINT_TOL_RAD,
+    ORIENTATION_TOL_RAD,
+    POSITION_TOL_M,
+    SINGULAR_DET_MIN,
+    SINGULAR_RHO_MIN_M,
+    SINGULAR_SIN_MIN,
+    OrientationRule,
+    PostureTask,
+)
 
 #: Margin of each kind of guard factor (see :attr:`models.ik.IKSolver.guard_kinds`).
 GUARD_MARGINS = {"length": SINGULAR_RHO_MIN_M, "sine": SINGULAR_SIN_MIN, "det": SINGULAR_DET_MIN}
@@ -65,13 +73,21 @@ def _orientation_problems(task: PostureTask, T: np.ndarray) -> tuple[list[str], 
         res_rad = float(max(over.max(), 0.0))
         if res_rad > ORIENTATION_TOL_RAD:
             k = int(np.argmax(over))
-            out.append(f"waypoint {k}: tool axis {math.degrees(ang[k]):.6g} deg from the nominal axis "
-                       f"> cone half-angle {math.degrees(task.cone_half_angle):g} deg")
+            out.append(
+                f"waypoint {k}: tool axis {math.degrees(ang[k]):.6g} deg from the nominal axis "
+                f"> cone half-angle {math.degrees(task.cone_half_angle):g} deg"
+            )
     return out, res_rad
 
 
-def _joint_problems(task: PostureTask, q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
-                    ik: IKSolver | None, signs: np.ndarray | None) -> list[str]:
+def _joint_problems(
+    task: PostureTask,
+    q: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    ik: IKSolver | None,
+    signs: np.ndarray | None,
+) -> list[str]:
     """Joint limits (rad), singularity guards (with ``ik`` and ``signs``) and joint steps (rad)
     of ``q`` (N, 6), each with slack :data:`~problems.posture.task.JOINT_TOL_RAD`."""
     out: list[str] = []
@@ -84,20 +100,29 @@ def _joint_problems(task: PostureTask, q: np.ndarray, q_min: np.ndarray, q_max: 
         g = ik.guard_factors(q) * signs - guard_bounds(ik)
         if np.any(g < -JOINT_TOL_RAD):
             k, i = (int(v) for v in np.unravel_index(np.argmin(g), g.shape))
-            out.append(f"waypoint {k}: the {ik.guard_names[i]} guard factor crosses its singularity guard "
-                       f"(margin {g[k, i]:.3g})")
+            out.append(
+                f"waypoint {k}: the {ik.guard_names[i]} guard factor crosses its singularity guard "
+                f"(margin {g[k, i]:.3g})"
+            )
     if len(q) > 1:
         steps = np.abs(np.diff(q, axis=0))
         if steps.max() > task.max_joint_step + JOINT_TOL_RAD:
             k, j = (int(v) for v in np.unravel_index(np.argmax(steps), steps.shape))
-            out.append(f"waypoints {k}-{k + 1}: joint {j + 1} steps {steps[k, j]:.4g} rad "
-                       f"> {task.max_joint_step:g} rad")
+            out.append(
+                f"waypoints {k}-{k + 1}: joint {j + 1} steps {steps[k, j]:.4g} rad > {task.max_joint_step:g} rad"
+            )
     return out
 
 
-def verify(model: KinematicModel, task: PostureTask, q: np.ndarray, q_min: np.ndarray,
-           q_max: np.ndarray, ik: IKSolver | None = None,
-           signs: np.ndarray | None = None) -> tuple[list[str], float, float]:
+def verify(
+    model: KinematicModel,
+    task: PostureTask,
+    q: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    ik: IKSolver | None = None,
+    signs: np.ndarray | None = None,
+) -> tuple[list[str], float, float]:
     """Check every constraint of the task at ``q`` (N, 6), rad.
 
     With ``ik`` and ``signs`` (the branch's guard-factor signs, shape (G,)) the

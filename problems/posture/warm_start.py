@@ -23,14 +23,21 @@ from models.ik import IK_REASONS, IKSolution, IKSolver, IKStatus
 from models.load import load_rows
 from models.symbolic import KinematicModel
 from problems.path import BranchPath, branch_paths, poses
-from problems.posture.task import (COST_SCALE, DP_MAX_STATES, DP_NEIGHBOUR_ANGLE_RAD, POSITION_ONLY_AXES,
-                                   OrientationRule, PostureTask)
+from problems.posture.task import (
+    COST_SCALE,
+    DP_MAX_STATES,
+    DP_NEIGHBOUR_ANGLE_RAD,
+    POSITION_ONLY_AXES,
+    OrientationRule,
+    PostureTask,
+)
 from problems.posture.verification import guard_bounds
 
 
 # --------------------------------------------------------------------------------------
 # Candidates and helpers
 # --------------------------------------------------------------------------------------
+
 
 def _axis_angle(u: np.ndarray, angle: float) -> np.ndarray:
     """Rotation matrix (3, 3) of ``angle`` (rad) about the axis ``u`` (3,) (any length > 0)."""
@@ -50,11 +57,16 @@ def candidates(task: PostureTask) -> list[tuple[str, np.ndarray]]:
         return out
     tilts: list[tuple[str, float, float]] = [("", 0.0, 0.0)]
     if task.rule is OrientationRule.CONE:
-        tilts += [(f"tilt={math.degrees(task.cone_half_angle):g}deg@{int(phi)}deg",
-                   task.cone_half_angle, math.radians(phi)) for phi in (0, 90, 180, 270)]
+        tilts += [
+            (f"tilt={math.degrees(task.cone_half_angle):g}deg@{int(phi)}deg", task.cone_half_angle, math.radians(phi))
+            for phi in (0, 90, 180, 270)
+        ]
     elif task.rule is OrientationRule.POSITION_ONLY:
-        tilts += [(f"tilt={t:g}deg@{360.0 * i / nd:g}deg", math.radians(t), 2.0 * math.pi * i / nd)
-                  for t, nd in POSITION_ONLY_AXES for i in range(nd)]
+        tilts += [
+            (f"tilt={t:g}deg@{360.0 * i / nd:g}deg", math.radians(t), 2.0 * math.pi * i / nd)
+            for t, nd in POSITION_ONLY_AXES
+            for i in range(nd)
+        ]
     n_scan = int(task.scan)
     for tname, tilt, phi in tilts:
         if tilt > 0.0:
@@ -95,6 +107,7 @@ class WarmStarts:
     rejected: dict[int, str]
     unreachable: list[int]
 
+
 def linear_error(model: KinematicModel, q: np.ndarray, wrench: np.ndarray) -> np.ndarray:
     """First-order load-induced TCP position error per row (the NLP's objective), m.
 
@@ -133,15 +146,15 @@ def _into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray) -> np.ndar
         k_hi = math.floor((q_max[j] - hi) / (2.0 * math.pi) + 1e-12)
         if k_lo > k_hi:
             return None
-        k = min(max(0, k_lo), k_hi)          # the shift nearest zero that fits
+        k = min(max(0, k_lo), k_hi)  # the shift nearest zero that fits
         out[:, j] += 2.0 * math.pi * k
     return out
-
 
 
 # --------------------------------------------------------------------------------------
 # Warm starts
 # --------------------------------------------------------------------------------------
+
 
 def warm_starts(ik: IKSolver, model: KinematicModel, task: PostureTask) -> WarmStarts:
     """Analytic IK at the nominal rotations, and a warm start per branch.
@@ -175,14 +188,13 @@ def warm_starts(ik: IKSolver, model: KinematicModel, task: PostureTask) -> WarmS
 
     cost = _node_costs(ik, model, task, Q, ok)
     nb = ik.n_branches
-    Qb = np.ascontiguousarray(np.nan_to_num(Q).transpose(2, 0, 1, 3))         # (B, S, N, 6)
+    Qb = np.ascontiguousarray(np.nan_to_num(Q).transpose(2, 0, 1, 3))  # (B, S, N, 6)
     sparse = _sparse_sequences(cost, Qb, task, cands) if len(cands) > DP_MAX_STATES else {}
-    first_status = sol.status.reshape(len(cands), task.n, nb)[0]              # (N, B)
+    first_status = sol.status.reshape(len(cands), task.n, nb)[0]  # (N, B)
     warm: dict[int, tuple[BranchPath, str, float]] = {}
     rejected: dict[int, str] = {}
     for b in range(nb):
-        out = _branch_warm_start(ik, task, cands, b, cost[:, :, b], Qb[b], sparse.get(b),
-                                 first_status[:, b])
+        out = _branch_warm_start(ik, task, cands, b, cost[:, :, b], Qb[b], sparse.get(b), first_status[:, b])
         if isinstance(out, str):
             rejected[b] = out
         else:
@@ -193,8 +205,9 @@ def warm_starts(ik: IKSolver, model: KinematicModel, task: PostureTask) -> WarmS
     return WarmStarts(feas_nom, warm, rejected, unreachable)
 
 
-def _solve_candidates(ik: IKSolver, task: PostureTask,
-                      cands: list[tuple[str, np.ndarray]]) -> tuple[IKSolution, np.ndarray, np.ndarray]:
+def _solve_candidates(
+    ik: IKSolver, task: PostureTask, cands: list[tuple[str, np.ndarray]]
+) -> tuple[IKSolution, np.ndarray, np.ndarray]:
     """Analytic IK of every waypoint at every candidate orientation.
 
     Returns
@@ -208,7 +221,7 @@ def _solve_candidates(ik: IKSolver, task: PostureTask,
     """
     S, n = len(cands), task.n
     if ik.labels_stable:
-        T_all = np.concatenate([poses(task.positions, R) for _, R in cands])      # (S*N, 4, 4)
+        T_all = np.concatenate([poses(task.positions, R) for _, R in cands])  # (S*N, 4, 4)
         sol = ik.solve(T_all)
     else:
         sol = _continued_solutions(ik, task, cands)
@@ -225,7 +238,7 @@ def _continued_solutions(ik: IKSolver, task: PostureTask, cands: list[tuple[str,
     S = len(cands)
     sols: list[IKSolution | None] = [None] * S
     sols[0] = ik.solve(poses(task.positions, cands[0][1]))
-    R0 = np.stack([R[0] for _, R in cands])                                 # (S, 3, 3) at waypoint 0
+    R0 = np.stack([R[0] for _, R in cands])  # (S, 3, 3) at waypoint 0
     dist = np.arccos(np.clip((np.einsum("aji,bji->ab", R0, R0) - 1.0) / 2.0, -1.0, 1.0))
     done = [0]
     for _ in range(S - 1):
@@ -235,53 +248,64 @@ def _continued_solutions(ik: IKSolver, task: PostureTask, cands: list[tuple[str,
         s, ref = todo[int(i)], sols[done[int(j)]]
         sols[s] = ik.solve_like(poses(task.positions, cands[s][1]), ref.q)
         done.append(s)
-    return IKSolution(q=np.concatenate([x.q for x in sols]), status=np.concatenate([x.status for x in sols]),
-                      labels=ik.labels)
+    return IKSolution(
+        q=np.concatenate([x.q for x in sols]), status=np.concatenate([x.status for x in sols]), labels=ik.labels
+    )
 
 
-def _analytic_warm_starts(model: KinematicModel, task: PostureTask, feas_nom: dict[int, BranchPath],
-                          rej_nom: dict[int, str], unreachable: list[int]) -> WarmStarts:
+def _analytic_warm_starts(
+    model: KinematicModel,
+    task: PostureTask,
+    feas_nom: dict[int, BranchPath],
+    rej_nom: dict[int, str],
+    unreachable: list[int],
+) -> WarmStarts:
     """Warm starts when nothing is scanned (fixed orientation): the analytic postures."""
     warm: dict[int, tuple[BranchPath, str, float]] = {}
     for b, bp in feas_nom.items():
         err = linear_error(model, bp.q, task.load)
-        warm[b] = (bp, "nominal", float(np.sum(err ** 2)))
+        warm[b] = (bp, "nominal", float(np.sum(err**2)))
     return WarmStarts(feas_nom, warm, dict(rej_nom), unreachable)
 
 
-def _node_costs(ik: IKSolver, model: KinematicModel, task: PostureTask, Q: np.ndarray,
-                ok: np.ndarray) -> np.ndarray:
+def _node_costs(ik: IKSolver, model: KinematicModel, task: PostureTask, Q: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """Node costs ``COST_SCALE ||S C F||^2`` (mm^2), shape (S, N, B); inf where the IK failed
     or a guard factor lies inside its guard (a node must lie on the branch's side of
     every singularity, with margin)."""
     S, n = Q.shape[:2]
-    fac = ik.guard_factors(np.nan_to_num(Q))                                   # (S, N, B, G)
+    fac = ik.guard_factors(np.nan_to_num(Q))  # (S, N, B, G)
     valid = ok & (np.abs(fac) >= guard_bounds(ik)).all(axis=-1)
-    idx = np.argwhere(valid)                                                  # (M, 3): s, k, b
+    idx = np.argwhere(valid)  # (M, 3): s, k, b
     cost = np.full((S, n, ik.n_branches), np.inf)
     if len(idx):
         qv = Q[idx[:, 0], idx[:, 1], idx[:, 2]]
         err = linear_error(model, qv, task.load[idx[:, 1]])
-        cost[idx[:, 0], idx[:, 1], idx[:, 2]] = COST_SCALE * err ** 2
+        cost[idx[:, 0], idx[:, 1], idx[:, 2]] = COST_SCALE * err**2
     return cost
 
 
-def _sparse_sequences(cost: np.ndarray, Qb: np.ndarray, task: PostureTask,
-                      cands: list[tuple[str, np.ndarray]]) -> dict[int, np.ndarray]:
+def _sparse_sequences(
+    cost: np.ndarray, Qb: np.ndarray, task: PostureTask, cands: list[tuple[str, np.ndarray]]
+) -> dict[int, np.ndarray]:
     """Candidate sequences of every branch reaching all waypoints, by the neighbour-restricted
     programme (:func:`_dp_sparse`); branches whose restricted graph is blocked are left out.
 
     ``cost`` (S, N, B) node costs, ``Qb`` (B, S, N, 6) candidate joints (rad).
     """
-    reach_all = np.isfinite(cost).any(axis=0).all(axis=0)                     # (B,)
+    reach_all = np.isfinite(cost).any(axis=0).all(axis=0)  # (B,)
     bs = np.flatnonzero(reach_all)
     if not bs.size:
         return {}
     # float32 halves the memory traffic of the programme; the sequence it picks is
     # re-evaluated in float64 by the caller
     qk = np.ascontiguousarray(Qb[bs].transpose(0, 2, 1, 3), dtype=np.float32)  # (B, N, S, 6)
-    seqs = _dp_sparse(cost.transpose(2, 0, 1)[bs].astype(np.float32), qk, task.smoothness,
-                      task.max_joint_step, _neighbours([R for _, R in cands]))
+    seqs = _dp_sparse(
+        cost.transpose(2, 0, 1)[bs].astype(np.float32),
+        qk,
+        task.smoothness,
+        task.max_joint_step,
+        _neighbours([R for _, R in cands]),
+    )
     return {int(b): sq for b, sq in zip(bs, seqs) if sq is not None}
 
 
@@ -290,15 +314,22 @@ def _dense_sequence(node: np.ndarray, qb: np.ndarray, task: PostureTask) -> np.n
     pruned graph is disconnected.  Returns the sequence (N,) or the blocked waypoint (int)."""
     limit = DP_MAX_STATES
     seq = _dp(node, qb, task.smoothness, task.max_joint_step, limit)
-    while seq is None:                      # pruned graph disconnected: keep more states
+    while seq is None:  # pruned graph disconnected: keep more states
         limit *= 2
         seq = _dp(node, qb, task.smoothness, task.max_joint_step, limit)
     return seq
 
 
-def _branch_warm_start(ik: IKSolver, task: PostureTask, cands: list[tuple[str, np.ndarray]], b: int,
-                       node: np.ndarray, qb: np.ndarray, seq: np.ndarray | None,
-                       first_status: np.ndarray) -> tuple[BranchPath, str, float] | str:
+def _branch_warm_start(
+    ik: IKSolver,
+    task: PostureTask,
+    cands: list[tuple[str, np.ndarray]],
+    b: int,
+    node: np.ndarray,
+    qb: np.ndarray,
+    seq: np.ndarray | None,
+    first_status: np.ndarray,
+) -> tuple[BranchPath, str, float] | str:
     """One branch's warm start, or why the branch is rejected.
 
     Parameters
@@ -327,8 +358,10 @@ def _branch_warm_start(ik: IKSolver, task: PostureTask, cands: list[tuple[str, n
         return f"waypoint {k}: {why} (at the nominal orientation and every scanned one)"
     found = _dense_sequence(node, qb, task) if seq is None else seq
     if isinstance(found, int):
-        return (f"flip between waypoints {found} and {found + 1}: no scanned "
-                f"orientation keeps every joint step <= {task.max_joint_step:g} rad")
+        return (
+            f"flip between waypoints {found} and {found + 1}: no scanned "
+            f"orientation keeps every joint step <= {task.max_joint_step:g} rad"
+        )
     n = task.n
     q = np.empty((n, 6))
     q[0] = qb[found[0], 0]
@@ -347,23 +380,25 @@ def _branch_warm_start(ik: IKSolver, task: PostureTask, cands: list[tuple[str, n
 # The dynamic programmes
 # --------------------------------------------------------------------------------------
 
+
 def _neighbours(rotations: list[np.ndarray]) -> np.ndarray:
     """(S, M) indices of the candidates within DP_NEIGHBOUR_ANGLE_RAD of each candidate
     (padded with -1), from their rotations at the first waypoint."""
-    R = np.stack([r[0] for r in rotations])                                  # (S, 3, 3)
-    tr = np.einsum("aji,bji->ab", R, R)                                       # trace(Ra^T Rb)
+    R = np.stack([r[0] for r in rotations])  # (S, 3, 3)
+    tr = np.einsum("aji,bji->ab", R, R)  # trace(Ra^T Rb)
     ang = np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0))
     close = ang <= DP_NEIGHBOUR_ANGLE_RAD
     m = int(close.sum(axis=1).max())
     out = -np.ones((len(R), m), dtype=int)
     for i, row in enumerate(close):
         idx = np.flatnonzero(row)
-        out[i, :len(idx)] = idx
+        out[i, : len(idx)] = idx
     return out
 
 
-def _dp_sparse(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float,
-               nbr: np.ndarray) -> list[np.ndarray | None]:
+def _dp_sparse(
+    node: np.ndarray, qb: np.ndarray, lam: float, max_step: float, nbr: np.ndarray
+) -> list[np.ndarray | None]:
     """Cheapest candidate sequences of several branches at once, with transitions only
     between neighbouring candidates (:func:`_neighbours`).
 
@@ -385,18 +420,18 @@ def _dp_sparse(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float,
     valid = nbr >= 0
     idx = np.where(valid, nbr, 0)
     rows = np.arange(S)
-    V = node[:, :, 0].copy()                                                  # (B, S)
+    V = node[:, :, 0].copy()  # (B, S)
     blocked = np.zeros(B, dtype=bool)
     backs = []
     for k in range(n - 1):
-        d = qb[:, k + 1][:, :, None, :] - qb[:, k][:, idx]                    # (B, S_to, M, 6)
+        d = qb[:, k + 1][:, :, None, :] - qb[:, k][:, idx]  # (B, S_to, M, 6)
         d -= np.float32(2.0 * np.pi) * np.round(d * np.float32(0.5 / np.pi))
         trans = np.float32(lam) * np.einsum("bsmj,bsmj->bsm", d, d)
         trans[(np.abs(d).max(axis=-1) > max_step) | ~valid] = np.inf
         tot = V[:, idx] + trans
-        j = np.argmin(tot, axis=2)                                            # (B, S)
+        j = np.argmin(tot, axis=2)  # (B, S)
         V = np.take_along_axis(tot, j[:, :, None], axis=2)[:, :, 0] + node[:, :, k + 1]
-        backs.append(idx[rows, j])                                            # (B, S)
+        backs.append(idx[rows, j])  # (B, S)
         blocked |= ~np.isfinite(V).any(axis=1)
     out: list[np.ndarray | None] = []
     for i in range(B):
@@ -411,8 +446,7 @@ def _dp_sparse(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float,
     return out
 
 
-def _dp(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float,
-        max_states: int) -> np.ndarray | int | None:
+def _dp(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float, max_states: int) -> np.ndarray | int | None:
     """Cheapest candidate sequence (Viterbi) over the waypoints.
 
     Parameters
@@ -440,7 +474,7 @@ def _dp(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float,
     backs = []
     for k in range(n - 1):
         a, b = states[k], states[k + 1]
-        d = qb[b, k + 1][None, :, :] - qb[a, k][:, None, :]                   # (A, B, 6)
+        d = qb[b, k + 1][None, :, :] - qb[a, k][:, None, :]  # (A, B, 6)
         d -= 2.0 * np.pi * np.round(d / (2.0 * np.pi))
         trans = lam * np.einsum("abj,abj->ab", d, d)
         trans[np.abs(d).max(axis=-1) > max_step] = np.inf
@@ -460,10 +494,10 @@ def _dp(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float,
     return seq
 
 
-
 # --------------------------------------------------------------------------------------
 # Onto the model's geometry
 # --------------------------------------------------------------------------------------
+
 
 def _onto_model_geometry(arm: ArmModel, ik: IKSolver, ws: WarmStarts) -> WarmStarts:
     """Move the analytic postures and warm starts onto the model's geometry.
@@ -486,6 +520,7 @@ def _onto_model_geometry(arm: ArmModel, ik: IKSolver, ws: WarmStarts) -> WarmSta
         The same branches, labels, costs and rejections; moved joint paths (N, 6), rad.
     """
     from problems.compensation import rigid_pose_solve
+
     nominal = KinematicModel(ik.robot)
 
     def move(bp: BranchPath) -> BranchPath:
@@ -495,6 +530,8 @@ def _onto_model_geometry(arm: ArmModel, ik: IKSolver, ws: WarmStarts) -> WarmSta
         return BranchPath(bp.branch, q, steps, bp.label)
 
     analytic = {b: move(bp) for b, bp in ws.analytic.items()}
-    warm = {b: (analytic[b] if b in analytic and bp.q is ws.analytic[b].q else move(bp), name, cost)
-            for b, (bp, name, cost) in ws.warm.items()}
+    warm = {
+        b: (analytic[b] if b in analytic and bp.q is ws.analytic[b].q else move(bp), name, cost)
+        for b, (bp, name, cost) in ws.warm.items()
+    }
     return WarmStarts(analytic, warm, ws.rejected, ws.unreachable)

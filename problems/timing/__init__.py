@@ -72,19 +72,23 @@ TIMING_PATH_VARIABLE = "COMPPLAN_TIMING_PATH"
 
 # Backends and plug-ins: importing them registers them; the built-in ones first, in this order
 # (the order of available_methods() and of the error messages).
-import_plugins(__name__, __path__, TIMING_PATH_VARIABLE,
-               skip=("path", "registry", "trajectory", "verification", "limit_use", "toppra_law"),
-               first=("toppra_method", "ruckig_method", "jerk_optimal"))
+import_plugins(
+    __name__,
+    __path__,
+    TIMING_PATH_VARIABLE,
+    skip=("path", "registry", "trajectory", "verification", "limit_use", "toppra_law", "toppra_import"),
+    first=("toppra_method", "ruckig_method", "jerk_optimal"),
+)
 
 # Re-exports of the backends' constants: after import_plugins, which fixes the registration order.
-from problems.timing import jerk_optimal, ruckig_method, toppra_method
-from problems.timing.ruckig_method import (
+from problems.timing import jerk_optimal, ruckig_method, toppra_method  # noqa: E402 - after the registration
+from problems.timing.ruckig_method import (  # noqa: E402 - after the registration
     RUCKIG_BUDGET_FRACTIONS,
     RUCKIG_CONSISTENCY_TOL,
     RUCKIG_MAX_ITERATIONS,
     RUCKIG_SHRINK_MARGIN,
 )
-from problems.timing.toppra_method import (
+from problems.timing.toppra_method import (  # noqa: E402 - after the registration
     SHRINK_MARGIN_FLOOR,
     TOPPRA_GRIDPOINTS_PER_WAYPOINT,
     TOPPRA_MAX_GRIDPOINTS,

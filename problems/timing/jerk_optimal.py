@@ -53,7 +53,8 @@ from __future__ import annotations
 
 import math
 import threading
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import casadi as ca
 import numpy as np
@@ -122,9 +123,14 @@ JERK_MU_TARGET: float = 1e-7
 #: (the swapped rows' multipliers zeroed) with a small barrier parameter and small pushes away
 #: from the bounds, they take 5-10 iterations instead of 20-30.
 JERK_WARM_IPOPT: dict[str, Any] = {
-    "warm_start_init_point": "yes", "mu_init": 1e-4, "warm_start_bound_push": 1e-6,
-    "warm_start_bound_frac": 1e-6, "warm_start_mult_bound_push": 1e-6,
-    "warm_start_slack_bound_push": 1e-6, "warm_start_slack_bound_frac": 1e-6}
+    "warm_start_init_point": "yes",
+    "mu_init": 1e-4,
+    "warm_start_bound_push": 1e-6,
+    "warm_start_bound_frac": 1e-6,
+    "warm_start_mult_bound_push": 1e-6,
+    "warm_start_slack_bound_push": 1e-6,
+    "warm_start_slack_bound_frac": 1e-6,
+}
 #: Option names accepted by ``method="jerk_optimal"``.
 JERK_OPTIONS: tuple[str, ...] = ("gridpoints", "max_iterations")
 
@@ -137,14 +143,19 @@ _NLP_CACHE: dict[tuple[int, int, int, bool, int], ca.Function] = {}
 _NLP_PARTS: dict[tuple[int, int, int], tuple[dict[str, ca.SX], dict[str, ca.Function]]] = {}
 _NLP_LOCK = threading.Lock()
 #: The solver's derivative functions and the options that hand them to another solver of the NLP.
-_DERIVATIVE_OPTIONS: tuple[tuple[str, str], ...] = (("nlp_grad_f", "grad_f"), ("nlp_jac_g", "jac_g"),
-                                                    ("nlp_hess_l", "hess_lag"))
+_DERIVATIVE_OPTIONS: tuple[tuple[str, str], ...] = (
+    ("nlp_grad_f", "grad_f"),
+    ("nlp_jac_g", "jac_g"),
+    ("nlp_hess_l", "hess_lag"),
+)
+
+
 def _no_nlp_grad() -> dict[str, bool]:
     """``no_nlp_grad`` where this CasADi has it: the Lagrangian's gradient function (for ``lam_p``,
     not computed) is then not built at all."""
     try:
         ca.nlpsol_option_type("ipopt", "no_nlp_grad")
-    except RuntimeError:                        # an older CasADi: the function is built, not used
+    except RuntimeError:  # an older CasADi: the function is built, not used
         return {}
     return {"no_nlp_grad": True}
 
@@ -179,6 +190,7 @@ def default_gridpoints(n_waypoints: int) -> int:
 # The parametric NLP
 # --------------------------------------------------------------------------- #
 
+
 def _solver(n_grid: int, n_slots: int, max_iter: int, warm: bool = False) -> ca.Function:
     """IPOPT solver of the profile NLP (:func:`_nlp`) for ``n_grid`` gridpoints and ``n_slots``
     joint slots (cached); ``warm``: the variant for re-solves from a primal-dual point
@@ -195,11 +207,22 @@ def _solver(n_grid: int, n_slots: int, max_iter: int, warm: bool = False) -> ca.
             return _NLP_CACHE[key]
         nlp_key = (n_grid, n_slots, JERK_MID_ACC_SLOTS)
         nlp, derivatives = _NLP_PARTS.get(nlp_key) or (_nlp(n_grid, n_slots), {})
-        opts = {"print_time": False, "calc_lam_p": False, **_NO_NLP_GRAD, **derivatives,
-                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": int(max_iter),
-                          "tol": JERK_TOL, "constr_viol_tol": JERK_CONSTR_TOL,
-                          "mu_strategy": "adaptive", "mu_target": JERK_MU_TARGET,
-                          **(JERK_WARM_IPOPT if warm else {})}}
+        opts = {
+            "print_time": False,
+            "calc_lam_p": False,
+            **_NO_NLP_GRAD,
+            **derivatives,
+            "ipopt": {
+                "print_level": 0,
+                "sb": "yes",
+                "max_iter": int(max_iter),
+                "tol": JERK_TOL,
+                "constr_viol_tol": JERK_CONSTR_TOL,
+                "mu_strategy": "adaptive",
+                "mu_target": JERK_MU_TARGET,
+                **(JERK_WARM_IPOPT if warm else {}),
+            },
+        }
         solver = ca.nlpsol("jerk_optimal", "ipopt", nlp, opts)
         if nlp_key not in _NLP_PARTS:
             _NLP_PARTS[nlp_key] = nlp, {opt: solver.get_function(name) for name, opt in _DERIVATIVE_OPTIONS}
@@ -227,9 +250,9 @@ def _nlp(n_grid: int, n_slots: int) -> dict[str, ca.SX]:
     w_end = ca.DM.ones(K)
     w_end[0] = w_end[K - 1] = 1.0 / 3.0
     dul, dur = du * w_end, du * w_end
-    dul[0] = 0.0                                   # at rest: no jerk term from x = 0
+    dul[0] = 0.0  # at rest: no jerk term from x = 0
     dur[K - 1] = 0.0
-    xm2 = x[:-1] ** 2 + u[:-1] * ds + 0.25 * (u[1:] - u[:-1]) * ds   # x^2 at the midpoint (model)
+    xm2 = x[:-1] ** 2 + u[:-1] * ds + 0.25 * (u[1:] - u[:-1]) * ds  # x^2 at the midpoint (model)
     um = 0.5 * (u[:-1] + u[1:])
     # consistency: u linear in s inside (d(x^2)/ds = 2u); the end intervals are constant-jerk
     # cubics in time from / to rest (x^2 = 1.5 |u| ds at their inner gridpoint)
@@ -238,19 +261,19 @@ def _nlp(n_grid: int, n_slots: int) -> dict[str, ca.SX]:
     cons[K - 1] = x[K - 1] ** 2 + 1.5 * u[K - 1] * ds[K - 1]
     g = [cons]
     xl, xr, ul, ur = x[:-1], x[1:], u[:-1], u[1:]
-    for r, S in enumerate(slots):         # (velocity: bounds on x, see _bounds)
+    for r, S in enumerate(slots):  # (velocity: bounds on x, see _bounds)
         L1, L2, R1, R2, M1, M2, M3, alim, jlim = (S[:, c] for c in range(9))
-        g.append((L2 * xl ** 2 + L1 * ul) / alim)
-        if _rows(r) == 4:                 # the acceleration at the midpoint
+        g.append((L2 * xl**2 + L1 * ul) / alim)
+        if _rows(r) == 4:  # the acceleration at the midpoint
             g.append((M2 * xm2 + M1 * um) / alim)
         # jerk at both ends of every interval (x changes fastest near rest)
-        g.append(xl * (M3 * xl ** 2 + 3.0 * L2 * ul + L1 * dul) / jlim)
-        g.append(xr * (M3 * xr ** 2 + 3.0 * R2 * ur + R1 * dur) / jlim)
+        g.append(xl * (M3 * xl**2 + 3.0 * L2 * ul + L1 * dul) / jlim)
+        g.append(xr * (M3 * xr**2 + 3.0 * R2 * ur + R1 * dur) / jlim)
     T = ca.sum1(_interval_times(ds, x, ca))
     # a small penalty on the change of du/ds between neighbouring intervals keeps the jerk from
     # chattering at the grid's period (IPOPT otherwise alternates between equivalent optima)
     dc = du[1:] - du[:-1]
-    T = T + JERK_SMOOTHING * ca.sum1(dc ** 2 * 0.5 * (ds[1:] + ds[:-1]))
+    T = T + JERK_SMOOTHING * ca.sum1(dc**2 * 0.5 * (ds[1:] + ds[:-1]))
     p = ca.vertcat(ds, *[ca.vec(S) for S in slots])
     return {"x": ca.vertcat(x, u), "p": p, "f": T, "g": ca.vertcat(*g)}
 
@@ -260,9 +283,9 @@ class _Terms:
 
     def __init__(self, path: SplinePath, grid: np.ndarray, limits: JointLimits) -> None:
         m = 0.5 * (grid[:-1] + grid[1:])
-        self.P1, self.P2 = path._d1(grid), path._d2(grid)                  # (K+1, n)
-        self.M1, self.M2 = path._d1(m), path._d2(m)                        # (K, n)
-        self.M3 = _third_derivative(path, grid)                           # (K, n)
+        self.P1, self.P2 = path._d1(grid), path._d2(grid)  # (K+1, n)
+        self.M1, self.M2 = path._d1(m), path._d2(m)  # (K, n)
+        self.M3 = _third_derivative(path, grid)  # (K, n)
         self.a, self.j = np.asarray(limits.acceleration), np.asarray(limits.jerk)
         self.ds = np.diff(grid)
 
@@ -277,10 +300,11 @@ class _Terms:
         xl, xr, ul, ur = x[:-1, None], x[1:, None], u[:-1, None], u[1:, None]
         xm2 = (x[:-1] ** 2 + u[:-1] * ds + 0.25 * np.diff(u) * ds)[:, None]
         um = 0.5 * (ul + ur)
-        acc = np.maximum(np.abs(self.P2[:-1] * xl ** 2 + self.P1[:-1] * ul),
-                         np.abs(self.M2 * xm2 + self.M1 * um)) / self.a
-        jl = np.abs(xl * (self.M3 * xl ** 2 + 3.0 * self.P2[:-1] * ul + self.P1[:-1] * dul[:, None]))
-        jr = np.abs(xr * (self.M3 * xr ** 2 + 3.0 * self.P2[1:] * ur + self.P1[1:] * dur[:, None]))
+        acc = (
+            np.maximum(np.abs(self.P2[:-1] * xl**2 + self.P1[:-1] * ul), np.abs(self.M2 * xm2 + self.M1 * um)) / self.a
+        )
+        jl = np.abs(xl * (self.M3 * xl**2 + 3.0 * self.P2[:-1] * ul + self.P1[:-1] * dul[:, None]))
+        jr = np.abs(xr * (self.M3 * xr**2 + 3.0 * self.P2[1:] * ur + self.P1[1:] * dur[:, None]))
         return np.maximum(acc, np.maximum(jl, jr) / self.j)
 
     def parameters(self, slots: np.ndarray) -> np.ndarray:
@@ -288,9 +312,18 @@ class _Terms:
         k = np.arange(self.ds.size)[:, None]
         blocks = [self.ds]
         for r in range(slots.shape[1]):
-            j = slots[:, r:r + 1]
-            cols = [self.P1[:-1][k, j], self.P2[:-1][k, j], self.P1[1:][k, j], self.P2[1:][k, j],
-                    self.M1[k, j], self.M2[k, j], self.M3[k, j], self.a[j], self.j[j]]
+            j = slots[:, r : r + 1]
+            cols = [
+                self.P1[:-1][k, j],
+                self.P2[:-1][k, j],
+                self.P1[1:][k, j],
+                self.P2[1:][k, j],
+                self.M1[k, j],
+                self.M2[k, j],
+                self.M3[k, j],
+                self.a[j],
+                self.j[j],
+            ]
             blocks.append(np.hstack(cols).reshape(-1, order="F"))
         return np.concatenate(blocks)
 
@@ -313,14 +346,14 @@ def _third_derivative(path: SplinePath, grid: np.ndarray) -> np.ndarray:
     p3 = path._d3(0.5 * (grid[:-1] + grid[1:]))
     knots = path.knots
     first = np.searchsorted(knots, grid[:-1], side="right") - 1
-    inside = np.searchsorted(knots, grid[1:], side="left") - 1 - first   # knots strictly inside
+    inside = np.searchsorted(knots, grid[1:], side="left") - 1 - first  # knots strictly inside
     if not np.any(inside > 0):
         return p3
-    seg = 6.0 * np.asarray(path.spline.c[0])                         # (N-1, n) per knot segment
+    seg = 6.0 * np.asarray(path.spline.c[0])  # (N-1, n) per knot segment
     first = np.clip(first, 0, seg.shape[0] - 1)
     cols = np.arange(seg.shape[1])
     for k in np.flatnonzero(inside > 0):
-        block = seg[first[k]:first[k] + inside[k] + 1]
+        block = seg[first[k] : first[k] + inside[k] + 1]
         p3[k] = block[np.argmax(np.abs(block), axis=0), cols]
     return p3
 
@@ -342,7 +375,7 @@ def _interval_times(ds: Any, x: Any, lib: Any = np) -> Any:
     n = ds.shape[0]
     first = 3.0 * ds[0] / (x[1] + 1e-12)
     last = 3.0 * ds[n - 1] / (x[n - 1] + 1e-12)
-    return ca.vertcat(first, h[1:n - 1], last)
+    return ca.vertcat(first, h[1 : n - 1], last)
 
 
 def _bounds(n_grid: int, n_slots: int, x_max: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -390,7 +423,7 @@ class JerkLaw:
         ds = np.diff(s)
         # du/ds per interval from the end velocities, so that s and ds/dt are exactly continuous
         # whatever the solver's tolerance (d2s/dt2 then jumps by that tolerance at gridpoints)
-        self.ds, self.du = ds, (x[1:] ** 2 - x[:-1] ** 2 - 2.0 * u[:-1] * ds) / ds ** 2
+        self.ds, self.du = ds, (x[1:] ** 2 - x[:-1] ** 2 - 2.0 * u[:-1] * ds) / ds**2
         h = np.empty(ds.size)
         h[0], h[-1] = 3.0 * ds[0] / x[1], 3.0 * ds[-1] / x[-2]
         inner = slice(1, ds.size - 1)
@@ -403,7 +436,7 @@ class JerkLaw:
 
     def _x(self, k: np.ndarray, sig: np.ndarray) -> np.ndarray:
         """Path velocity at ``sigma`` into interval ``k`` (inner intervals), 1/s."""
-        b = self.x[k] ** 2 + 2.0 * self.u[k] * sig + self.du[k] * sig ** 2
+        b = self.x[k] ** 2 + 2.0 * self.u[k] * sig + self.du[k] * sig**2
         return np.sqrt(np.maximum(b, 1e-300))
 
     def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -418,15 +451,15 @@ class JerkLaw:
         if first.any():
             J = 2.0 * self.x[1] / self.h[0] ** 2
             tt = tau[first]
-            s[first], sd[first], sdd[first], sddd[first] = J * tt ** 3 / 6, J * tt ** 2 / 2, J * tt, J
+            s[first], sd[first], sdd[first], sddd[first] = J * tt**3 / 6, J * tt**2 / 2, J * tt, J
         if last.any():
             J = 2.0 * self.x[K - 1] / self.h[K - 1] ** 2
             tt = self.h[K - 1] - tau[last]
-            s[last], sd[last], sdd[last], sddd[last] = 1.0 - J * tt ** 3 / 6, J * tt ** 2 / 2, -J * tt, J
+            s[last], sd[last], sdd[last], sddd[last] = 1.0 - J * tt**3 / 6, J * tt**2 / 2, -J * tt, J
         mid = ~(first | last)
         if mid.any():
             s[mid], sd[mid], sdd[mid], sddd[mid] = self._inner(i[mid], tau[mid])
-        return s, sd / k_s, sdd / k_s ** 2, sddd / k_s ** 3
+        return s, sd / k_s, sdd / k_s**2, sddd / k_s**3
 
     def _inner(self, k: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, ...]:
         """The law inside inner intervals ``k`` at times ``tau`` after their start."""
@@ -444,6 +477,7 @@ class JerkLaw:
 # The method
 # --------------------------------------------------------------------------- #
 
+
 def _warm_start(path: SplinePath, grid: np.ndarray, limits: JointLimits) -> np.ndarray | None:
     """TOPP-RA's velocity/acceleration-optimal profile on the grid, scaled inside (x, u)."""
     tp = import_toppra().SplineInterpolator(path.knots, path.q_path, bc_type="natural")
@@ -452,7 +486,7 @@ def _warm_start(path: SplinePath, grid: np.ndarray, limits: JointLimits) -> np.n
         return None
     x = JERK_WARM_FRACTION * sd
     x[0] = x[-1] = 0.0
-    b = x ** 2
+    b = x**2
     u = np.zeros_like(x)
     u[1:-1] = (b[2:] - b[:-2]) / (2.0 * (grid[2:] - grid[:-2]))
     return np.r_[x, u]
@@ -475,7 +509,7 @@ def _optimise(terms: _Terms, z0: np.ndarray, x_max: np.ndarray, max_iter: int) -
     slots = _slots(terms.ratios(z0[:K1], z0[K1:]), n_slots)
     bounds = dict(zip(("lbx", "ubx", "lbg", "ubg"), _bounds(K1, n_slots, x_max)))
     z, st, rounds, warm = z0, {}, 0, {}
-    for rounds in range(1, JERK_SLOT_ROUNDS + 1):
+    for rounds in range(1, JERK_SLOT_ROUNDS + 1):  # noqa: B007 - the count is reported after the loop
         solver = _solver(K1, n_slots, max_iter, warm=bool(warm))
         res = solver(x0=z, p=terms.parameters(slots), **bounds, **warm)
         st, z = solver.stats(), np.asarray(res["x"]).ravel()
@@ -487,7 +521,7 @@ def _optimise(terms: _Terms, z0: np.ndarray, x_max: np.ndarray, max_iter: int) -
         if not outside:
             break
         warm = {"lam_x0": np.asarray(res["lam_x"]).ravel(), "lam_g0": np.asarray(res["lam_g"]).ravel()}
-        for k, j in outside:                  # the joint replaces the slot of smallest ratio there
+        for k, j in outside:  # the joint replaces the slot of smallest ratio there
             r = int(np.argmin(ratio[k, slots[k]]))
             slots[k, r] = j
             warm["lam_g0"][_row_offset(r, K) + np.arange(_rows(r)) * K + k] = 0.0
@@ -509,38 +543,58 @@ def run_jerk_optimal(path: SplinePath, limits: JointLimits, dt: float, opts: Map
     grid = profile_grid(path.knots, n_grid)
     z0 = _warm_start(path, grid, limits)
     if z0 is None:
-        return empty_trajectory("jerk_optimal", TimingStatus.FAILED, "TOPP-RA warm start failed on the grid",
-                                n, dt, 0)
+        return empty_trajectory("jerk_optimal", TimingStatus.FAILED, "TOPP-RA warm start failed on the grid", n, dt, 0)
     terms = _Terms(path, grid, limits)
     with np.errstate(divide="ignore"):
-        x_max = np.min(limits.velocity[None, :] / np.abs(terms.P1), axis=1)      # (K+1,) 1/s
+        x_max = np.min(limits.velocity[None, :] / np.abs(terms.P1), axis=1)  # (K+1,) 1/s
     z0[:n_grid] = np.minimum(z0[:n_grid], x_max)
     z, st, rounds = _optimise(terms, z0, x_max, max_iter)
     ip = str(st.get("return_status", "unknown"))
     x, u = np.maximum(z[:n_grid], 0.0), z[n_grid:].copy()
     x[0] = x[-1] = u[0] = u[-1] = 0.0
     if not st.get("success", False) or np.any(x[1:-1] <= 0.0):
-        return empty_trajectory("jerk_optimal", TimingStatus.FAILED,
-                                f"IPOPT ({ip}) after {st.get('iter_count', 0)} iterations on "
-                                f"{n_grid} gridpoints", n, dt, rounds)
+        return empty_trajectory(
+            "jerk_optimal",
+            TimingStatus.FAILED,
+            f"IPOPT ({ip}) after {st.get('iter_count', 0)} iterations on {n_grid} gridpoints",
+            n,
+            dt,
+            rounds,
+        )
     law, scale = JerkLaw(grid, x, u), 1.0
     ratio = _fine_check(path, limits, dt, law)
-    for _ in range(JERK_SCALE_ROUNDS):         # a slower law is checked at other times: repeat
-        r = max(float(ratio["velocity"].max()), math.sqrt(float(ratio["acceleration"].max())),
-                float(ratio["jerk"].max()) ** (1.0 / 3.0))
+    for _ in range(JERK_SCALE_ROUNDS):  # a slower law is checked at other times: repeat
+        r = max(
+            float(ratio["velocity"].max()),
+            math.sqrt(float(ratio["acceleration"].max())),
+            float(ratio["jerk"].max()) ** (1.0 / 3.0),
+        )
         if r <= 1.0 + LIMIT_RATIO_TOL:
             break
         scale *= r * (1.0 + JERK_SCALE_MARGIN)
         law = JerkLaw(grid, x, u, scale)
         ratio = _fine_check(path, limits, dt, law)
     t_nlp = float(np.sum(_interval_times(np.diff(grid), x)))
-    summary = (f"IPOPT ({ip}, {st.get('iter_count', 0)} iterations in the last of {rounds} solve(s)) on {n_grid} "
-               f"gridpoints with the {min(JERK_SLOTS, n)} most loaded joints of every interval, warm start "
-               f"TOPP-RA; optimal profile {t_nlp:.4f} s, slowed x{scale:.4f} after the fine check; "
-               f"motion {law.duration:.4f} s; {format_ratios(ratio)}")
+    summary = (
+        f"IPOPT ({ip}, {st.get('iter_count', 0)} iterations in the last of {rounds} solve(s)) on {n_grid} "
+        f"gridpoints with the {min(JERK_SLOTS, n)} most loaded joints of every interval, warm start "
+        f"TOPP-RA; optimal profile {t_nlp:.4f} s, slowed x{scale:.4f} after the fine check; "
+        f"motion {law.duration:.4f} s; {format_ratios(ratio)}"
+    )
     check_sd = law(check_times(law.duration, dt, law.breaks))[1]
-    return finish_trajectory("jerk_optimal", path, limits, dt, law, law.duration, ratio, summary,
-                             check_sd=check_sd, sd_scale=float(x.max()), iterations=1)
+    return finish_trajectory(
+        "jerk_optimal",
+        path,
+        limits,
+        dt,
+        law,
+        law.duration,
+        ratio,
+        summary,
+        check_sd=check_sd,
+        sd_scale=float(x.max()),
+        iterations=1,
+    )
 
 
 def _validate(out: dict[str, Any]) -> dict[str, Any]:
@@ -557,11 +611,10 @@ JERK_OPTIMAL_METHOD: TimingMethod = register_method(
         validate_options=_validate,
         checked_limits=_CHECKED,
         description="time-optimal under joint velocity, acceleration and jerk limits (NLP over the "
-                    "path-velocity profile, IPOPT, warm-started from TOPP-RA)",
+        "path-velocity profile, IPOPT, warm-started from TOPP-RA)",
         display_name="jerk-optimal",
         controller_rank=10,
         default=True,
-        duration_note="time-optimal under velocity, acceleration and jerk limits: the trajectory the "
-                      "controller runs",
+        duration_note="time-optimal under velocity, acceleration and jerk limits: the trajectory the controller runs",
     )
 )

@@ -9,7 +9,8 @@ is slower than it needs to be, and :func:`limit_use` says why (the method's regi
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -60,26 +61,38 @@ def limit_use(tr: Trajectory, limits: Any, enforced: tuple[str, ...]) -> dict[st
         j = int(np.argmax(r.max(axis=0)))
         if float(r[:, j].max()) > peak:
             peak_name, peak_joint, peak = name, j, float(r[:, j].max())
-    binding = [{"limit": name, "joint": j + 1, "fraction_of_time": float(np.mean(r[:, j] >= ACTIVE_RATIO))}
-               for name, r in ratios.items() for j in range(r.shape[1]) if np.any(r[:, j] >= ACTIVE_RATIO)]
+    binding = [
+        {"limit": name, "joint": j + 1, "fraction_of_time": float(np.mean(r[:, j] >= ACTIVE_RATIO))}
+        for name, r in ratios.items()
+        for j in range(r.shape[1])
+        if np.any(r[:, j] >= ACTIVE_RATIO)
+    ]
     binding.sort(key=lambda b: -b["fraction_of_time"])
     under = peak < UNDERUSE_RATIO
     why = None
     if under:
         try:
             cause = get_method(tr.method).underuse_cause
-        except InputError:          # a method not registered here (a plug-in not loaded)
+        except InputError:  # a method not registered here (a plug-in not loaded)
             cause = ""
-        why = (f"uses under half of every limit (peak {peak:.2f}: {peak_name} of joint {peak_joint + 1}); "
-               + (cause or "no limit binds; see the method's reason"))
-    return {"peak_ratio": peak, "peak": f"{peak_name} of joint {peak_joint + 1}",
-            "binding": binding[:BINDING_SHOWN], "under_half": bool(under), "why": why}
+        why = f"uses under half of every limit (peak {peak:.2f}: {peak_name} of joint {peak_joint + 1}); " + (
+            cause or "no limit binds; see the method's reason"
+        )
+    return {
+        "peak_ratio": peak,
+        "peak": f"{peak_name} of joint {peak_joint + 1}",
+        "binding": binding[:BINDING_SHOWN],
+        "under_half": bool(under),
+        "why": why,
+    }
 
 
 def describe_binding(use: Mapping[str, Any]) -> str:
     """One line: ``binds: acceleration of joint 2 (41 % of the time), ...`` or the underuse sentence."""
     if use.get("why"):
         return str(use["why"])
-    parts = [f"{b['limit']} of joint {b['joint']} ({100 * b['fraction_of_time']:.0f} % of the time)"
-             for b in use.get("binding", [])]
+    parts = [
+        f"{b['limit']} of joint {b['joint']} ({100 * b['fraction_of_time']:.0f} % of the time)"
+        for b in use.get("binding", [])
+    ]
     return "binds: " + ", ".join(parts) if parts else f"peak {use.get('peak')} ({use.get('peak_ratio', 0):.2f})"

@@ -74,10 +74,7 @@ def validate_path(q_path: Any, n: int) -> tuple[np.ndarray, int]:
     if q.shape[0] < 2:
         raise InputError(f"q_path needs at least 2 waypoints, got {q.shape[0]}")
     if q.shape[1] != n:
-        raise InputError(
-            f"q_path has {q.shape[1]} joints (shape {q.shape}) but the limits "
-            f"have {n}"
-        )
+        raise InputError(f"q_path has {q.shape[1]} joints (shape {q.shape}) but the limits have {n}")
     bad = np.argwhere(~np.isfinite(q))
     if bad.size:
         row, col = (int(x) for x in bad[0])

@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
+from collections.abc import Callable, Iterable, Mapping
 
 import numpy as np
 
@@ -192,11 +193,13 @@ def register_method(method: TimingMethod, *, replace: bool = False) -> TimingMet
         raise InputError(f"a timing method needs a non-empty name, got {method.name!r}")
     unknown = [k for k in method.checked_limits if k not in LIMIT_KEYS]
     if unknown:
-        raise InputError(f"timing method {method.name!r}: unknown checked limit(s) {unknown}; "
-                         f"valid: {list(LIMIT_KEYS)}")
+        raise InputError(
+            f"timing method {method.name!r}: unknown checked limit(s) {unknown}; valid: {list(LIMIT_KEYS)}"
+        )
     if not (0.0 < method.dt_max_s <= DT_MAX_S):
-        raise InputError(f"timing method {method.name!r}: dt_max_s = {method.dt_max_s!r} s must be in "
-                         f"(0, {DT_MAX_S}] s")
+        raise InputError(
+            f"timing method {method.name!r}: dt_max_s = {method.dt_max_s!r} s must be in (0, {DT_MAX_S}] s"
+        )
     rank = method.controller_rank
     if rank is not None and (isinstance(rank, bool) or not isinstance(rank, int)):
         raise InputError(f"timing method {method.name!r}: controller_rank must be an int or None, got {rank!r}")
@@ -238,8 +241,11 @@ def controller_methods(names: Iterable[str] | None = None) -> tuple[str, ...]:
         left out.
     """
     chosen = set(_METHODS) if names is None else set(names)
-    ranked = [(m.controller_rank, i, m.name) for i, m in enumerate(_METHODS.values())
-              if m.name in chosen and m.controller_rank is not None]
+    ranked = [
+        (m.controller_rank, i, m.name)
+        for i, m in enumerate(_METHODS.values())
+        if m.name in chosen and m.controller_rank is not None
+    ]
     return tuple(name for _, _, name in sorted(ranked))
 
 
@@ -377,9 +383,7 @@ def check_shrink_margin(out: dict[str, Any]) -> None:
         except (TypeError, ValueError):
             fval = math.nan
         if not (0.0 <= fval <= SHRINK_MARGIN_MAX):
-            raise InputError(
-                f"option shrink_margin must be in [0, {SHRINK_MARGIN_MAX}], got {val!r}"
-            )
+            raise InputError(f"option shrink_margin must be in [0, {SHRINK_MARGIN_MAX}], got {val!r}")
         out["shrink_margin"] = fval
 
 
@@ -394,10 +398,7 @@ def validate_options(method: TimingMethod, options: Mapping[str, Any]) -> dict[s
     allowed = method.options
     unknown = sorted(set(options) - set(allowed))
     if unknown:
-        raise InputError(
-            f"unknown option(s) {unknown} for method {method.name!r}; valid options: "
-            f"{list(allowed)}"
-        )
+        raise InputError(f"unknown option(s) {unknown} for method {method.name!r}; valid options: {list(allowed)}")
     return method.validate_options(dict(options))
 
 
@@ -406,9 +407,7 @@ def validate_options(method: TimingMethod, options: Mapping[str, Any]) -> dict[s
 # --------------------------------------------------------------------------- #
 
 
-def _zero_length_trajectory(
-    method: str, q: np.ndarray, n_input: int, dt: float
-) -> Trajectory:
+def _zero_length_trajectory(method: str, q: np.ndarray, n_input: int, dt: float) -> Trajectory:
     """``INFEASIBLE`` result for a path whose waypoints are all identical.
 
     One sample at ``t = 0`` holding ``q[0]`` (shape ``(n,)``, rad) at rest.
@@ -488,8 +487,9 @@ def time_parametrize(
     """
     spec = get_method(method)
     if not isinstance(limits, JointLimits):
-        raise InputError(f"limits must be a JointLimits (velocity, acceleration, jerk per joint), "
-                         f"got {type(limits).__name__}")
+        raise InputError(
+            f"limits must be a JointLimits (velocity, acceleration, jerk per joint), got {type(limits).__name__}"
+        )
     opts = validate_options(spec, options)
     dt = validate_dt(dt, spec.dt_max_s, spec.name)
     q, n_input = validate_path(q_path, limits.n_joints)

@@ -42,7 +42,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 import ruckig
@@ -172,7 +173,7 @@ class RuckigLaw:
         self._inp.max_jerk = [sddd_max]
         try:
             result = self._otg.calculate(self._inp, self.traj)
-        except Exception as exc:  # noqa: BLE001 - ruckig input errors are kept, not raised
+        except Exception as exc:
             lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
             code = f"{type(exc).__module__}.{type(exc).__name__}"
             attempt = RuckigAttempt(None, code, lines[0] if lines else type(exc).__name__)
@@ -308,7 +309,12 @@ class _RuckigLoop:
 
     def _failed(self, reason: str, it: int, solver_code: str = "") -> Trajectory:
         return empty_trajectory(
-            "ruckig", TimingStatus.FAILED, reason, self.limits.n_joints, self.dt, it,
+            "ruckig",
+            TimingStatus.FAILED,
+            reason,
+            self.limits.n_joints,
+            self.dt,
+            it,
             solver_code,
         )
 
@@ -321,9 +327,7 @@ class _RuckigLoop:
         scale = np.array([1.0, self.sd_max, self.sdd_max])
         gap = np.abs(states - np.column_stack((ps, vs, accs))) / scale
         if gap.size and float(gap.max()) > RUCKIG_CONSISTENCY_TOL:
-            raise RuntimeError(
-                f"Ruckig profile evaluation differs from at_time by {float(gap.max()):.3g}"
-            )
+            raise RuntimeError(f"Ruckig profile evaluation differs from at_time by {float(gap.max()):.3g}")
         return states[:, 0], states[:, 1], states[:, 2], js
 
     def run(self) -> Trajectory:
@@ -340,9 +344,19 @@ class _RuckigLoop:
             ):
                 try:
                     return finish_trajectory(
-                        "ruckig", self.path, self.limits, self.dt, self.sampled_law, self.duration,
-                        self.ratio, summary, check_sd=csd, sd_scale=self.sd_max, iterations=it,
-                        first=self.first, runs=f" after {it} run(s) (max_iterations={self.max_iter})",
+                        "ruckig",
+                        self.path,
+                        self.limits,
+                        self.dt,
+                        self.sampled_law,
+                        self.duration,
+                        self.ratio,
+                        summary,
+                        check_sd=csd,
+                        sd_scale=self.sd_max,
+                        iterations=it,
+                        first=self.first,
+                        runs=f" after {it} run(s) (max_iterations={self.max_iter})",
                     )
                 except RuntimeError as exc:
                     return self._failed(f"Ruckig sampling failed: {exc}", it)
@@ -393,9 +407,7 @@ class _RuckigLoop:
         )
 
 
-def run_ruckig(
-    path: SplinePath, limits: JointLimits, dt: float, opts: Mapping[str, Any]
-) -> Trajectory:
+def run_ruckig(path: SplinePath, limits: JointLimits, dt: float, opts: Mapping[str, Any]) -> Trajectory:
     """Time ``path`` with Ruckig (the registered runner of ``"ruckig"``).
 
     Parameters
@@ -420,9 +432,7 @@ def run_ruckig(
     bounds, msg = ruckig_bound_set(path, limits, law)
     if bounds is None:
         code = law.last_failure.solver_code if law.last_failure is not None else ""
-        return empty_trajectory(
-            "ruckig", TimingStatus.FAILED, f"Ruckig: {msg}", limits.n_joints, dt, 0, code
-        )
+        return empty_trajectory("ruckig", TimingStatus.FAILED, f"Ruckig: {msg}", limits.n_joints, dt, 0, code)
     return _RuckigLoop(path, limits, dt, opts, law, bounds).run()
 
 
@@ -445,9 +455,11 @@ RUCKIG_METHOD: TimingMethod = register_method(
         display_name="Ruckig",
         controller_rank=20,
         duration_note="Ruckig, jerk-limited: the trajectory the controller runs",
-        underuse_cause=("Ruckig times the path parameter under one bound per derivative for the whole path, set "
-                        "by the joint and point where the path is most demanding (its largest |dq/ds|, "
-                        "|d2q/ds2|, |d3q/ds3| at once), so everywhere else and on the other joints the limits "
-                        "are not reached; method jerk_optimal times the path point by point"),
+        underuse_cause=(
+            "Ruckig times the path parameter under one bound per derivative for the whole path, set "
+            "by the joint and point where the path is most demanding (its largest |dq/ds|, "
+            "|d2q/ds2|, |d3q/ds3| at once), so everywhere else and on the other joints the limits "
+            "are not reached; method jerk_optimal times the path point by point"
+        ),
     )
 )

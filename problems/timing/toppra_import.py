@@ -31,7 +31,7 @@ class _PyplotOnUse(ModuleType):
     ``sys.modules``: its first attribute read imports the real pyplot and reads from it."""
 
     def __getattr__(self, name: str) -> Any:
-        if name.startswith("__"):            # the import system's probes: not pyplot's names
+        if name.startswith("__"):  # the import system's probes: not pyplot's names
             raise AttributeError(name)
         return getattr(importlib.import_module(_PYPLOT), name)
 

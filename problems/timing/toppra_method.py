@@ -61,7 +61,8 @@ import contextlib
 import logging
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Iterator, Mapping
+from typing import Any
+from collections.abc import Iterator, Mapping
 
 import numpy as np
 
@@ -190,9 +191,7 @@ def toppra_grid(knots: np.ndarray, gridpoints: int) -> np.ndarray:
     return grid
 
 
-def refine_grid(
-    grid: np.ndarray, tgrid: np.ndarray, t_bad: np.ndarray, lag: float
-) -> np.ndarray:
+def refine_grid(grid: np.ndarray, tgrid: np.ndarray, t_bad: np.ndarray, lag: float) -> np.ndarray:
     """Subdivide the grid intervals that influence the violating times.
 
     Parameters
@@ -249,7 +248,7 @@ def toppra_once(
     infeasible : bool
         True if toppra reported the instance uncontrollable.
     """
-    toppra = import_toppra()   # on demand (with toppra.algorithm and toppra.constraint)
+    toppra = import_toppra()  # on demand (with toppra.algorithm and toppra.constraint)
 
     constraints = [
         toppra.constraint.JointVelocityConstraint(vlim),
@@ -259,12 +258,10 @@ def toppra_once(
     ]
     try:
         with quiet_toppra():
-            inst = toppra.algorithm.TOPPRA(
-                constraints, tp_path, gridpoints=grid, solver_wrapper="seidel"
-            )
+            inst = toppra.algorithm.TOPPRA(constraints, tp_path, gridpoints=grid, solver_wrapper="seidel")
             _, sd, _ = inst.compute_parameterization(0.0, 0.0)
         code = inst.problem_data.return_code
-    except Exception as exc:  # noqa: BLE001 - library failure becomes FAILED
+    except Exception as exc:
         return None, f"toppra raised {type(exc).__name__}: {exc}", False
     if sd is None or code != toppra.algorithm.ParameterizationReturnCode.Ok:
         infeasible = code == toppra.algorithm.ParameterizationReturnCode.FailUncontrollable
@@ -296,9 +293,7 @@ def _validate_toppra_options(out: dict[str, Any]) -> dict[str, Any]:
     check_integer_options(out, (("gridpoints", 2), ("max_iterations", 1), ("refinements", 0)))
     check_shrink_margin(out)
     if "time_law" in out and out["time_law"] not in TOPPRA_TIME_LAWS:
-        raise InputError(
-            f"option time_law must be one of {list(TOPPRA_TIME_LAWS)}, got {out['time_law']!r}"
-        )
+        raise InputError(f"option time_law must be one of {list(TOPPRA_TIME_LAWS)}, got {out['time_law']!r}")
     if "smoothing_s" in out:
         val = out["smoothing_s"]
         try:
@@ -351,9 +346,7 @@ class ToppraSettings:
             shrink_margin=opts.get("shrink_margin", TOPPRA_SHRINK_MARGIN),
             time_law=kind,
             smoothing_s=opts.get("smoothing_s", TOPPRA_SMOOTHING_S),
-            refinements=opts.get(
-                "refinements", TOPPRA_MAX_REFINEMENTS if kind == "smoothed" else 0
-            ),
+            refinements=opts.get("refinements", TOPPRA_MAX_REFINEMENTS if kind == "smoothed" else 0),
         )
 
     def law_description(self) -> str:
@@ -387,10 +380,8 @@ class _Checked:
 class _ToppraLoop:
     """TOPP-RA runs with grid refinement and limit shrinking until the check passes."""
 
-    def __init__(
-        self, path: SplinePath, limits: JointLimits, dt: float, cfg: ToppraSettings
-    ) -> None:
-        toppra = import_toppra()   # on demand
+    def __init__(self, path: SplinePath, limits: JointLimits, dt: float, cfg: ToppraSettings) -> None:
+        toppra = import_toppra()  # on demand
 
         self.path, self.limits, self.dt, self.cfg = path, limits, dt, cfg
         self.n_way = path.knots.shape[0]
@@ -416,8 +407,18 @@ class _ToppraLoop:
     def _finish(self, chk: _Checked, summary: str, sd_max: float, it: int) -> Trajectory:
         """The trajectory of run ``it`` (status and reason by :func:`finish_trajectory`)."""
         return finish_trajectory(
-            "toppra", self.path, self.limits, self.dt, chk.law, chk.law.duration, chk.ratio,
-            summary, check_sd=chk.csd, sd_scale=sd_max, iterations=it, first=self.first,
+            "toppra",
+            self.path,
+            self.limits,
+            self.dt,
+            chk.law,
+            chk.law.duration,
+            chk.ratio,
+            summary,
+            check_sd=chk.csd,
+            sd_scale=sd_max,
+            iterations=it,
+            first=self.first,
             runs=f" after {it} run(s) (max_iterations={self.cfg.max_iterations})",
         )
 
@@ -511,17 +512,11 @@ class _ToppraLoop:
         ra = ratio["acceleration"]
         over_v = rv > 1.0 + LIMIT_RATIO_TOL
         over_a = ra > 1.0 + LIMIT_RATIO_TOL
-        self.vlim = self.vlim / np.where(
-            over_v, shrink_factor(np.where(over_v, rv, 2.0), margin), 1.0
-        )
-        self.alim = self.alim / np.where(
-            over_a, shrink_factor(np.where(over_a, ra, 2.0), margin), 1.0
-        )
+        self.vlim = self.vlim / np.where(over_v, shrink_factor(np.where(over_v, rv, 2.0), margin), 1.0)
+        self.alim = self.alim / np.where(over_a, shrink_factor(np.where(over_a, ra, 2.0), margin), 1.0)
 
 
-def run_toppra(
-    path: SplinePath, limits: JointLimits, dt: float, opts: Mapping[str, Any]
-) -> Trajectory:
+def run_toppra(path: SplinePath, limits: JointLimits, dt: float, opts: Mapping[str, Any]) -> Trajectory:
     """Time ``path`` with TOPP-RA (the registered runner of ``"toppra"``).
 
     Parameters

@@ -46,9 +46,7 @@ def _limit_array(name: str, raw: object) -> np.ndarray:
     except (TypeError, ValueError) as exc:
         raise InputError(f"JointLimits.{name} must be a numeric array, got {raw!r}") from exc
     if arr.ndim != 1 or arr.size == 0:
-        raise InputError(
-            f"JointLimits.{name} must be a non-empty 1-D array (n,), got shape {arr.shape}"
-        )
+        raise InputError(f"JointLimits.{name} must be a non-empty 1-D array (n,), got shape {arr.shape}")
     return arr
 
 
@@ -97,8 +95,7 @@ class JointLimits:
             if bad.size:
                 j = int(bad[0])
                 raise InputError(
-                    f"JointLimits.{name}: joint {j + 1} has value {float(arr[j])!r}; "
-                    "limits must be finite and > 0"
+                    f"JointLimits.{name}: joint {j + 1} has value {float(arr[j])!r}; limits must be finite and > 0"
                 )
             arr.flags.writeable = False
             object.__setattr__(self, name, arr)
@@ -193,8 +190,9 @@ class Trajectory:
             )
         n = blocks[0].shape[1]
         if any(b.shape[1] != n for b in blocks):
-            raise InputError(f"q, qd, qdd and qddd must have the same number of joints, got "
-                             f"{[b.shape[1] for b in blocks]}")
+            raise InputError(
+                f"q, qd, qdd and qddd must have the same number of joints, got {[b.shape[1] for b in blocks]}"
+            )
         header = ",".join(["t"] + [f"{p}{j}" for p in ("q", "qd", "qdd", "qddd") for j in range(1, n + 1)])
         data = np.column_stack([t] + blocks) if m else np.empty((0, 1 + 4 * n))
         return header, data
@@ -223,9 +221,7 @@ class Trajectory:
         header, data = self._csv_table()
         dest = os.fspath(path)
         directory = os.path.dirname(os.path.abspath(dest))
-        fd, tmp = tempfile.mkstemp(
-            dir=directory, prefix="." + os.path.basename(dest) + ".", suffix=".tmp"
-        )
+        fd, tmp = tempfile.mkstemp(dir=directory, prefix="." + os.path.basename(dest) + ".", suffix=".tmp")
         try:
             with os.fdopen(fd, "w", newline="") as fh:
                 fh.write(header + "\n")

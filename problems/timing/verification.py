@@ -26,7 +26,7 @@ first and last waypoints) and has no limit of its own here.
 from __future__ import annotations
 
 import math
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -106,9 +106,7 @@ def check_times(duration: float, dt: float, extra: np.ndarray | None = None) -> 
     return fine
 
 
-def limit_ratios(
-    qd: np.ndarray, qdd: np.ndarray, qddd: np.ndarray, limits: JointLimits
-) -> dict[str, np.ndarray]:
+def limit_ratios(qd: np.ndarray, qdd: np.ndarray, qddd: np.ndarray, limits: JointLimits) -> dict[str, np.ndarray]:
     """Peak ``|value| / limit`` per joint.
 
     Parameters
@@ -312,8 +310,7 @@ def finish_trajectory(
     bad = exceeded_limits(ratio, checked)
     if backwards is not None:
         status = TimingStatus.FAILED
-        what = (f"the {display_name(method)} time law moves backwards along the path "
-                f"(min ds/dt = {backwards:.3g} 1/s)")
+        what = f"the {display_name(method)} time law moves backwards along the path (min ds/dt = {backwards:.3g} 1/s)"
     elif bad:
         status, what = TimingStatus.LIMIT_EXCEEDED, f"{' and '.join(bad)} ratio above 1{runs}"
     else:

@@ -69,8 +69,14 @@ class _CampaignPlan(NamedTuple):
 class _Campaign:
     """The measurement campaign of the configuration (a part of :class:`VirtualRobot`)."""
 
-    def sample_poses(self, n: int, rng: np.random.Generator, r_min: float = 0.25,
-                     z_min: float = -0.2, max_cond: float = SIM_MAX_JACOBIAN_COND) -> np.ndarray:
+    def sample_poses(
+        self,
+        n: int,
+        rng: np.random.Generator,
+        r_min: float = 0.25,
+        z_min: float = -0.2,
+        max_cond: float = SIM_MAX_JACOBIAN_COND,
+    ) -> np.ndarray:
         """Random joint configurations with the TCP in a sensible workspace, (n, 6) rad.
 
         Joints are drawn uniformly in [-pi, pi] (within the limits); a pose is kept when
@@ -78,6 +84,7 @@ class _Campaign:
         nominal Jacobian condition number is below :data:`SIM_MAX_JACOBIAN_COND`.
         """
         from models.symbolic import KinematicModel
+
         km = KinematicModel(self.robot)
         fk = km.kinetostatics
         lo = np.maximum(self.robot.q_min, -np.pi)
@@ -96,12 +103,13 @@ class _Campaign:
             kept.append(q)
             total += m
             if total > 200 * max(n, 10) * SIM_POSE_OVERSAMPLING:
-                raise SimConfigError(f"{self.where}: cannot find {n} poses in the workspace "
-                                     f"(r >= {r_min} m, z >= {z_min} m); relax r_min_m/z_min_m")
+                raise SimConfigError(
+                    f"{self.where}: cannot find {n} poses in the workspace "
+                    f"(r >= {r_min} m, z >= {z_min} m); relax r_min_m/z_min_m"
+                )
         return np.vstack(kept)[:n]
 
-    def campaign(self, progress: Callable[[int, int], None] | None = None,
-                 seed: int | None = None) -> Measurements:
+    def campaign(self, progress: Callable[[int, int], None] | None = None, seed: int | None = None) -> Measurements:
         """Simulate the measurement campaign of the configuration.
 
         ``seed`` overrides the seed of the campaign's random parts (poses, loads,
@@ -144,8 +152,17 @@ class _Campaign:
                 extra["sigma_rot"] = np.full((n, 3), sigma_rad)
         if progress is not None:
             progress(n, n)
-        return Measurements(q=q, wrench=F, p=p, t=t, point=np.array(pts), temperature=temperature,
-                            sigma=sig_col, source="virtual robot", **extra)
+        return Measurements(
+            q=q,
+            wrench=F,
+            p=p,
+            t=t,
+            point=np.array(pts),
+            temperature=temperature,
+            sigma=sig_col,
+            source="virtual robot",
+            **extra,
+        )
 
     def _rotation_noise_config(self, orientation: bool) -> tuple[float, bool]:
         """The orientation keys of ``[noise]``: ``sigma_rad`` (rad, >= 0; > 0 with the column)
@@ -154,11 +171,19 @@ class _Campaign:
         nw = f"{self.where}: [noise]"
         sigma = _num(nw, "sigma_rad", ncfg.get("sigma_rad", DEFAULT_NOISE["sigma_rad"]))
         column = _bool(nw, "sigma_rot_column", ncfg.get("sigma_rot_column", DEFAULT_NOISE["sigma_rot_column"]))
-        _at_least(nw, "sigma_rad", sigma, 0.0, strict=column,
-                  what="(a standard deviation, rad" + ("; the sigma_rot column needs it > 0)" if column else ")"))
+        _at_least(
+            nw,
+            "sigma_rad",
+            sigma,
+            0.0,
+            strict=column,
+            what="(a standard deviation, rad" + ("; the sigma_rot column needs it > 0)" if column else ")"),
+        )
         if column and not orientation:
-            raise SimConfigError(f"{nw}: key 'sigma_rot_column' = true needs [campaign] orientation = true "
-                                 "(there is no orientation to give a sigma for)")
+            raise SimConfigError(
+                f"{nw}: key 'sigma_rot_column' = true needs [campaign] orientation = true "
+                "(there is no orientation to give a sigma for)"
+            )
         return sigma, column
 
     @staticmethod
@@ -175,6 +200,7 @@ class _Campaign:
             Draws N x 3 normals.
         """
         from scipy.spatial.transform import Rotation
+
         w = rng.normal(0.0, sigma_rad, (len(R), 3))
         return R @ Rotation.from_rotvec(w).as_matrix()
 
@@ -187,12 +213,15 @@ class _Campaign:
         n_ld = _int(cw, "loaded_rows", camp["loaded_rows"], 0)
         n_rep = _int(cw, "repeats", camp["repeats"], 0)
         if n_un + n_ld == 0:
-            raise SimConfigError(f"{cw}: keys 'unloaded_rows' and 'loaded_rows' are both 0; a pose needs at "
-                                 "least one row")
+            raise SimConfigError(
+                f"{cw}: keys 'unloaded_rows' and 'loaded_rows' are both 0; a pose needs at least one row"
+            )
         n_rows = n_poses * (n_un + n_ld + n_rep)
         if n_rows > SIM_MAX_ROWS:
-            raise SimConfigError(f"{cw}: {n_poses} poses x {n_un + n_ld + n_rep} rows = {n_rows} rows, more than "
-                                 f"the cap of {SIM_MAX_ROWS} rows (SIM_MAX_ROWS)")
+            raise SimConfigError(
+                f"{cw}: {n_poses} poses x {n_un + n_ld + n_rep} rows = {n_rows} rows, more than "
+                f"the cap of {SIM_MAX_ROWS} rows (SIM_MAX_ROWS)"
+            )
         mags = _magnitudes(cw, "force_magnitudes_N", camp["force_magnitudes_N"])
         mmags = _magnitudes(cw, "moment_magnitudes_Nm", camp["moment_magnitudes_Nm"])
         dirs = camp["directions"]
@@ -204,8 +233,9 @@ class _Campaign:
         _at_least(cw, "r_min_m", r_min, 0.0)
         return _CampaignPlan(n_poses, n_un, n_ld, n_rep, mags, mmags, dirs, r_min, _num(cw, "z_min_m", camp["z_min_m"]))
 
-    def _campaign_loads(self, q_poses: np.ndarray, plan: _CampaignPlan,
-                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    def _campaign_loads(
+        self, q_poses: np.ndarray, plan: _CampaignPlan, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """The rows of the campaign: per pose, unloaded rows, random loads, then repeats.
 
         Parameters
@@ -259,8 +289,9 @@ class _Campaign:
         v /= np.linalg.norm(v)
         return np.concatenate([mag * u, mm * v])
 
-    def _campaign_times(self, camp: Mapping[str, Any], n: int,
-                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+    def _campaign_times(
+        self, camp: Mapping[str, Any], n: int, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """Measurement times and, with a ``[temperature]`` table, temperatures of the rows.
 
         Parameters
@@ -316,8 +347,14 @@ class _Campaign:
         nw = f"{self.where}: [noise]"
         sigma = _num(nw, "sigma_m", ncfg.get("sigma_m", DEFAULT_NOISE["sigma_m"]))
         column = _bool(nw, "sigma_column", ncfg.get("sigma_column", DEFAULT_NOISE["sigma_column"]))
-        _at_least(nw, "sigma_m", sigma, 0.0, strict=column,
-                  what="(a standard deviation, m" + ("; the sigma column needs it > 0)" if column else ")"))
+        _at_least(
+            nw,
+            "sigma_m",
+            sigma,
+            0.0,
+            strict=column,
+            what="(a standard deviation, m" + ("; the sigma column needs it > 0)" if column else ")"),
+        )
         p = p + rng.normal(0, sigma, p.shape)
         sig_col = np.full(len(p), sigma) if column else None
         return p, sig_col

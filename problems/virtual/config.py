@@ -25,9 +25,17 @@ from models.errors import InputError
 _TOP_KEYS = {"seed", "campaign", "noise", "temperature", "effects", "units"}
 #: Keys of the ``[campaign]`` table and their defaults.
 DEFAULT_CAMPAIGN = {
-    "poses": 100, "unloaded_rows": 1, "loaded_rows": 3, "force_magnitudes_N": [50.0, 100.0, 150.0],
-    "moment_magnitudes_Nm": [0.0], "directions": "random", "dt_s": 20.0, "r_min_m": 0.25,
-    "z_min_m": -0.2, "repeats": 0, "orientation": False,
+    "poses": 100,
+    "unloaded_rows": 1,
+    "loaded_rows": 3,
+    "force_magnitudes_N": [50.0, 100.0, 150.0],
+    "moment_magnitudes_Nm": [0.0],
+    "directions": "random",
+    "dt_s": 20.0,
+    "r_min_m": 0.25,
+    "z_min_m": -0.2,
+    "repeats": 0,
+    "orientation": False,
 }
 #: Keys of the ``[noise]`` table and their defaults.
 DEFAULT_NOISE = {"sigma_m": 2e-5, "sigma_column": False, "sigma_rad": 2e-5, "sigma_rot_column": False}
@@ -60,6 +68,7 @@ def load_config(path: str | Path) -> dict[str, Any]:
 # Checks of values (each names the source, the key and the value)
 # ----------------------------------------------------------------------------------
 
+
 def _num(where: str, key: str, v: Any) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
         raise SimConfigError(f"{where}: key '{key}' must be a finite number, got {v!r}")
@@ -70,21 +79,23 @@ def _vec(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.nda
     if broadcast and isinstance(v, (int, float)) and not isinstance(v, bool):
         return np.full(n, _num(where, key, v))
     if not isinstance(v, (list, tuple)) or len(v) != n:
-        raise SimConfigError(f"{where}: key '{key}' must be {'a number or ' if broadcast else ''}"
-                             f"a list of {n} numbers, got {v!r}")
+        raise SimConfigError(
+            f"{where}: key '{key}' must be {'a number or ' if broadcast else ''}a list of {n} numbers, got {v!r}"
+        )
     return np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
 
 
-def _at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bool = False,
-              what: str = "") -> None:
+def _at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bool = False, what: str = "") -> None:
     """Refuse values below ``lo`` (or equal to it when ``strict``), naming the key and the value."""
     arr = np.atleast_1d(np.asarray(v, dtype=float))
     bad = np.flatnonzero(arr <= lo) if strict else np.flatnonzero(arr < lo)
     if bad.size:
         i = int(bad[0])
         k = key if arr.size == 1 and np.ndim(v) == 0 else f"{key}[{i}]"
-        raise SimConfigError(f"{where}: key '{k}' must be {'>' if strict else '>='} {lo:g}"
-                             f"{' ' + what if what else ''}, got {float(arr[i]):g}")
+        raise SimConfigError(
+            f"{where}: key '{k}' must be {'>' if strict else '>='} {lo:g}"
+            f"{' ' + what if what else ''}, got {float(arr[i]):g}"
+        )
 
 
 def _int(where: str, key: str, v: Any, lo: int) -> int:

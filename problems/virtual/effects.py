@@ -63,8 +63,9 @@ class _EffectRealisation:
             name = next((s for s in r.spellings if s in self.effects), None)
             if name is not None:
                 self._simulated |= set(r.effects or (r.table,))
-            getattr(self, r.method)(None if name is None else self.effects[name],
-                                    f"{self.where}: [effects.{name or r.table}]", rng)
+            getattr(self, r.method)(
+                None if name is None else self.effects[name], f"{self.where}: [effects.{name or r.table}]", rng
+            )
 
     def simulated(self, name: str) -> bool:
         """Whether the physics of model effect ``name`` (or the disturbance ``outliers``) is simulated:
@@ -79,8 +80,11 @@ class _EffectRealisation:
         _at_least(ew, "scale", scale if isinstance(e.get("scale"), list) else scale[0], 0.0, strict=True)
         self.k_true = self.robot.stiffness * scale
 
-    @simulates("registration", "measured_point",
-               keys={"registered", "base2meas_xyz_m", "base2meas_rotvec_rad", "measured_point_m"})
+    @simulates(
+        "registration",
+        "measured_point",
+        keys={"registered", "base2meas_xyz_m", "base2meas_rotvec_rad", "measured_point_m"},
+    )
     def _realise_registration(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """The declared registration and measured point: :attr:`registered`, :attr:`R_reg` (3, 3) and
         :attr:`t_reg` (3,) m (base frame -> measurement frame), :attr:`p_tool` (3,) m, flange frame
@@ -91,8 +95,9 @@ class _EffectRealisation:
             self.R_reg, self.t_reg = np.eye(3), np.zeros(3)
             self.p_tool = robot.tcp2flange[:3, 3].copy()
         else:
-            self.R_reg = rotvec_to_matrix(_vec(ew, "base2meas_rotvec_rad",
-                                               e.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False))
+            self.R_reg = rotvec_to_matrix(
+                _vec(ew, "base2meas_rotvec_rad", e.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False)
+            )
             self.t_reg = _vec(ew, "base2meas_xyz_m", e.get("base2meas_xyz_m", [1.5, -0.5, 0.2]), 3, False)
             self.p_tool = _vec(ew, "measured_point_m", e.get("measured_point_m", [0.02, -0.015, 0.06]), 3, False)
 
@@ -102,8 +107,9 @@ class _EffectRealisation:
         if e is not None:
             self.dtheta += _vec(ew, "dtheta_rad", e.get("dtheta_rad", 1e-3), 6)
 
-    @simulates("geometric", keys={"sigma_length_m", "sigma_angle_rad", "da_m", "dalpha_rad", "dd_m", "dtheta_rad",
-                                  "dbeta_rad"})
+    @simulates(
+        "geometric", keys={"sigma_length_m", "sigma_angle_rad", "da_m", "dalpha_rad", "dd_m", "dtheta_rad", "dbeta_rad"}
+    )
     def _realise_geometric(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """Geometric errors: DH errors, given or drawn from ``rng``.
 
@@ -146,7 +152,7 @@ class _EffectRealisation:
         elif r.has_masses:
             self.masses = r.masses.copy()
         else:
-            self.masses = 12.0 * np.hypot(r.a, r.d) + 0.5   # generic: 12 kg/m plus 0.5 kg per joint
+            self.masses = 12.0 * np.hypot(r.a, r.d) + 0.5  # generic: 12 kg/m plus 0.5 kg per joint
         if "coms_m" in e:
             c = e["coms_m"]
             if not isinstance(c, list) or len(c) != 6:
@@ -154,7 +160,7 @@ class _EffectRealisation:
             self.coms = np.array([_vec(ew, f"coms_m[{i}]", ci, 3, False) for i, ci in enumerate(c)])
         elif r.has_masses:
             self.coms = r.coms.copy()
-        else:   # generic: half way back along the link (in link frame i, standard DH: -a/2 on x)
+        else:  # generic: half way back along the link (in link frame i, standard DH: -a/2 on x)
             self.coms = np.column_stack([-r.a / 2.0, np.zeros(6), np.zeros(6)])
         mass_scale = _num(ew, "mass_scale", e.get("mass_scale", 1.0))
         _at_least(ew, "mass_scale", mass_scale, 0.0)
@@ -193,8 +199,7 @@ class _EffectRealisation:
     def _realise_load_offset(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """Load offset: :attr:`r_tool` (3,) m, TCP frame, where the wrench's force acts (zeros
         without the effect)."""
-        self.r_tool = np.zeros(3) if e is None else _vec(ew, "r_tool_m", e.get("r_tool_m", [0.0, 0.03, 0.05]), 3,
-                                                           False)
+        self.r_tool = np.zeros(3) if e is None else _vec(ew, "r_tool_m", e.get("r_tool_m", [0.0, 0.03, 0.05]), 3, False)
 
     @simulates("link_compliance", keys={"links", "EI_Nm2", "GJ_Nm2"})
     def _realise_link_compliance(self, e: Table, ew: str, rng: np.random.Generator) -> None:
@@ -215,8 +220,7 @@ class _EffectRealisation:
         measurement frame."""
         if e is not None:
             self.drift_rate = _vec(ew, "rate_m_per_h", e.get("rate_m_per_h", [1e-4, -5e-5, 8e-5]), 3, False) / 3600.0
-            self.drift_acc = _vec(ew, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3,
-                                  False) / 3600.0 ** 2
+            self.drift_acc = _vec(ew, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3, False) / 3600.0**2
 
     @simulates("thermal", keys={"alpha_per_K", "links", "reference_C"})
     def _realise_thermal(self, e: Table, ew: str, rng: np.random.Generator) -> None:
@@ -245,17 +249,24 @@ class _EffectRealisation:
         self.ecc_phase = np.zeros(0)
         if e is None:
             return
-        raw = {"joint": e.get("joint", 1), "amplitude_rad": e.get("amplitude_rad", 1e-3),
-               "harmonic": e.get("harmonic", 2), "phase_rad": e.get("phase_rad", 0.3)}
+        raw = {
+            "joint": e.get("joint", 1),
+            "amplitude_rad": e.get("amplitude_rad", 1e-3),
+            "harmonic": e.get("harmonic", 2),
+            "phase_rad": e.get("phase_rad", 0.3),
+        }
         for key, v in raw.items():
             if isinstance(v, list) and not v:
-                raise SimConfigError(f"{ew}: key '{key}' must be a number or a non-empty list (one entry per "
-                                     f"term), got {v!r}")
+                raise SimConfigError(
+                    f"{ew}: key '{key}' must be a number or a non-empty list (one entry per term), got {v!r}"
+                )
         lengths = {key: len(v) for key, v in raw.items() if isinstance(v, list)}
         if len(set(lengths.values())) > 1:
             shown = ", ".join(f"'{k}' has {n}" for k, n in lengths.items())
-            raise SimConfigError(f"{ew}: the lists must have one entry per term, all of the same length; {shown} "
-                                 "entries (a number applies to every term)")
+            raise SimConfigError(
+                f"{ew}: the lists must have one entry per term, all of the same length; {shown} "
+                "entries (a number applies to every term)"
+            )
         k_terms = next(iter(lengths.values()), 1)
 
         def entries(key: str) -> list[tuple[str, Any]]:
@@ -275,12 +286,15 @@ class _EffectRealisation:
         amax, hmax = SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD, SIM_JOINT_ERROR_MAX_HARMONIC
         for (k, _v), a in zip(entries("amplitude_rad"), amp):
             if abs(a) > amax:
-                raise SimConfigError(f"{ew}: key '{k}' must be within [-{amax:g}, {amax:g}] rad (a transmission "
-                                     f"error; a constant offset is [effects.joint_offset]), got {a:g}")
+                raise SimConfigError(
+                    f"{ew}: key '{k}' must be within [-{amax:g}, {amax:g}] rad (a transmission "
+                    f"error; a constant offset is [effects.joint_offset]), got {a:g}"
+                )
         for (k, _v), h in zip(entries("harmonic"), harm):
             if not 0.0 < h <= hmax:
-                raise SimConfigError(f"{ew}: key '{k}' must be > 0 and <= {hmax:g} (cycles per revolution of the "
-                                     f"joint), got {h:g}")
+                raise SimConfigError(
+                    f"{ew}: key '{k}' must be > 0 and <= {hmax:g} (cycles per revolution of the joint), got {h:g}"
+                )
         self.ecc_joint = np.array(joints, dtype=int)
         self.ecc_amp, self.ecc_harm, self.ecc_phase = amp, harm, phase
 
@@ -294,8 +308,9 @@ class _EffectRealisation:
         self.outlier_fraction = _num(ew, "fraction", e.get("fraction", 0.03))
         self.outlier_magnitude = _num(ew, "magnitude_m", e.get("magnitude_m", 2e-3))
         if not 0.0 <= self.outlier_fraction <= 1.0:
-            raise SimConfigError(f"{ew}: key 'fraction' must be in [0, 1] (a fraction of the rows), got "
-                                 f"{self.outlier_fraction:g}")
+            raise SimConfigError(
+                f"{ew}: key 'fraction' must be in [0, 1] (a fraction of the rows), got {self.outlier_fraction:g}"
+            )
         _at_least(ew, "magnitude_m", self.outlier_magnitude, 0.0)
 
     def joint_error_terms(self) -> list[dict[str, Any]]:
@@ -308,5 +323,7 @@ class _EffectRealisation:
             per revolution) and ``phase_rad`` (rad); the error of ``joint`` is the sum of
             ``amplitude_rad * sin(harmonic * q_c + phase_rad)`` over its terms.
         """
-        return [{"joint": int(j) + 1, "amplitude_rad": float(a), "harmonic": float(h), "phase_rad": float(ph)}
-                for j, a, h, ph in zip(self.ecc_joint, self.ecc_amp, self.ecc_harm, self.ecc_phase)]
+        return [
+            {"joint": int(j) + 1, "amplitude_rad": float(a), "harmonic": float(h), "phase_rad": float(ph)}
+            for j, a, h, ph in zip(self.ecc_joint, self.ecc_amp, self.ecc_harm, self.ecc_phase)
+        ]

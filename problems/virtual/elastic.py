@@ -49,8 +49,16 @@ from models.status import Status
 
 from .rigid_body import EQUILIBRIUM_MAX_ITER, ElasticArm, _vector, static_command
 
-__all__ = ["ElasticArm", "ElasticResult", "ElasticStatus", "TrackingError", "read_trajectory_csv",
-           "simulate_elastic", "static_command", "tracking_error"]
+__all__ = [
+    "ElasticArm",
+    "ElasticResult",
+    "ElasticStatus",
+    "TrackingError",
+    "read_trajectory_csv",
+    "simulate_elastic",
+    "static_command",
+    "tracking_error",
+]
 
 #: Integrator: Radau IIA (order 5). The joint springs make the system stiff (link modes from
 #: ~15 Hz to > 1 kHz on the wrist without payload); Radau is A- and L-stable, so it is not limited by
@@ -95,8 +103,8 @@ class ElasticStatus(Status):
     """Outcome of :func:`simulate_elastic`."""
 
     OK = "ok"
-    NO_EQUILIBRIUM = "no_equilibrium"   #: the start's static equilibrium did not converge
-    SOLVER_FAILED = "solver_failed"     #: solve_ivp stopped early (its message in ``reason``)
+    NO_EQUILIBRIUM = "no_equilibrium"  #: the start's static equilibrium did not converge
+    SOLVER_FAILED = "solver_failed"  #: solve_ivp stopped early (its message in ``reason``)
 
 
 @dataclass
@@ -209,8 +217,17 @@ class _Rhs:
     State: ``[q, qd]`` (12,) for the exact motor, ``[q, qd, theta, thetad, int(e)]`` (30,) for
     the PID motor."""
 
-    def __init__(self, arm: ElasticArm, K: np.ndarray, D: np.ndarray, cmd, hold: np.ndarray | None,
-                 motor: str, B: np.ndarray, gains: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    def __init__(
+        self,
+        arm: ElasticArm,
+        K: np.ndarray,
+        D: np.ndarray,
+        cmd,
+        hold: np.ndarray | None,
+        motor: str,
+        B: np.ndarray,
+        gains: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ) -> None:
         self.arm, self.K, self.D, self.cmd, self.hold, self.motor = arm, K, D, cmd, hold, motor
         self.B, (self.kp, self.kd, self.ki) = B, gains
 
@@ -220,7 +237,7 @@ class _Rhs:
         return self.cmd(t), self.cmd(t, 1)
 
     def __call__(self, t: float, x: np.ndarray) -> np.ndarray:
-        x2 = x.reshape(x.shape[0], -1).T                                 # (N, n_state)
+        x2 = x.reshape(x.shape[0], -1).T  # (N, n_state)
         q, qd = x2[:, 0:6], x2[:, 6:12]
         th_c, thd_c = self.command(t)
         if self.motor == "exact":
@@ -240,8 +257,7 @@ class _Rhs:
         return out.reshape(x.shape)
 
 
-def _damping(arm: ElasticArm, q0: np.ndarray, K: np.ndarray, damping: np.ndarray | None,
-             ratio: float) -> np.ndarray:
+def _damping(arm: ElasticArm, q0: np.ndarray, K: np.ndarray, damping: np.ndarray | None, ratio: float) -> np.ndarray:
     """``damping`` (6,) N*m*s/rad as given, or ``2 ratio sqrt(K_i M_ii(q0))``."""
     if damping is not None:
         D = _vector(damping, 6, "damping")
@@ -262,19 +278,30 @@ def _output_times(t: np.ndarray, settle_s: float) -> np.ndarray:
 def _integrate(rhs: _Rhs, span: tuple[float, float], x0: np.ndarray, t_eval: np.ndarray):
     atol = np.r_[np.full(6, SIM_ATOL_ANGLE_RAD), np.full(6, SIM_ATOL_RATE_RAD_S)]
     if rhs.motor != "exact":
-        atol = np.r_[atol, np.full(6, SIM_ATOL_ANGLE_RAD), np.full(6, SIM_ATOL_RATE_RAD_S),
-                     np.full(6, SIM_ATOL_INTEGRAL_RAD_S)]
-    return solve_ivp(rhs, span, x0, method=SIM_METHOD, t_eval=t_eval, rtol=SIM_RTOL, atol=atol,
-                     vectorized=True)
+        atol = np.r_[
+            atol, np.full(6, SIM_ATOL_ANGLE_RAD), np.full(6, SIM_ATOL_RATE_RAD_S), np.full(6, SIM_ATOL_INTEGRAL_RAD_S)
+        ]
+    return solve_ivp(rhs, span, x0, method=SIM_METHOD, t_eval=t_eval, rtol=SIM_RTOL, atol=atol, vectorized=True)
 
 
-def simulate_elastic(robot: Robot, t: np.ndarray, theta_cmd: np.ndarray, theta_dot_cmd: np.ndarray | None = None, *,
-                     payload: np.ndarray | None = None, wrench: np.ndarray | None = None,
-                     stiffness: np.ndarray | None = None, damping: np.ndarray | None = None,
-                     damping_ratio: float = DEFAULT_DAMPING_RATIO, q0: np.ndarray | None = None,
-                     motor: str = "exact", motor_inertia: np.ndarray = DEFAULT_MOTOR_INERTIA,
-                     motor_bandwidth: float = DEFAULT_MOTOR_BANDWIDTH_RAD_S,
-                     settle_s: float = DEFAULT_SETTLE_S, interpolation: str = "spline") -> ElasticResult:
+def simulate_elastic(
+    robot: Robot,
+    t: np.ndarray,
+    theta_cmd: np.ndarray,
+    theta_dot_cmd: np.ndarray | None = None,
+    *,
+    payload: np.ndarray | None = None,
+    wrench: np.ndarray | None = None,
+    stiffness: np.ndarray | None = None,
+    damping: np.ndarray | None = None,
+    damping_ratio: float = DEFAULT_DAMPING_RATIO,
+    q0: np.ndarray | None = None,
+    motor: str = "exact",
+    motor_inertia: np.ndarray = DEFAULT_MOTOR_INERTIA,
+    motor_bandwidth: float = DEFAULT_MOTOR_BANDWIDTH_RAD_S,
+    settle_s: float = DEFAULT_SETTLE_S,
+    interpolation: str = "spline",
+) -> ElasticResult:
     """Simulate the elastic-joint arm driven by a motor-side command.
 
     Parameters
@@ -327,28 +354,33 @@ def simulate_elastic(robot: Robot, t: np.ndarray, theta_cmd: np.ndarray, theta_d
     if q0 is None:
         q_start, converged = arm.equilibrium(th[0], K)
         if not converged:
-            return ElasticResult(ElasticStatus.NO_EQUILIBRIUM, "static equilibrium of theta_cmd[0] did not converge "
-                                 f"in {EQUILIBRIUM_MAX_ITER} iterations (joints too soft for the load?)")
+            return ElasticResult(
+                ElasticStatus.NO_EQUILIBRIUM,
+                "static equilibrium of theta_cmd[0] did not converge "
+                f"in {EQUILIBRIUM_MAX_ITER} iterations (joints too soft for the load?)",
+            )
     else:
         q_start = _vector(q0, 6, "q0")
     D = _damping(arm, q_start, K, damping, damping_ratio)
     B = _vector(motor_inertia, 6, "motor_inertia")
-    J = B + np.diagonal(arm.mass_matrix(q_start[None])[0])       # motor and link as one rigid body
+    J = B + np.diagonal(arm.mass_matrix(q_start[None])[0])  # motor and link as one rigid body
     w = float(motor_bandwidth)
-    gains = (3 * J * w ** 2, 3 * J * w, J * w ** 3)
+    gains = (3 * J * w**2, 3 * J * w, J * w**3)
     x0 = np.r_[q_start, np.zeros(6)]
     if motor == "pid":
         x0 = np.r_[x0, th[0], np.zeros(6), K * (th[0] - q_start) / gains[2]]
     cmd = _command(t, th, thd, interpolation)
     phases = [(_Rhs(arm, K, D, cmd, None, motor, B, gains), (t[0], t[-1]), t)]
     if settle_s > 0:
-        phases.append((_Rhs(arm, K, D, cmd, th[-1], motor, B, gains), (t[-1], t[-1] + settle_s),
-                       _output_times(t, settle_s)))
+        phases.append(
+            (_Rhs(arm, K, D, cmd, th[-1], motor, B, gains), (t[-1], t[-1] + settle_s), _output_times(t, settle_s))
+        )
     return _run_phases(arm, phases, x0, K, D, motor, t[-1])
 
 
-def _run_phases(arm: ElasticArm, phases: list, x0: np.ndarray, K: np.ndarray, D: np.ndarray, motor: str,
-                t_end: float) -> ElasticResult:
+def _run_phases(
+    arm: ElasticArm, phases: list, x0: np.ndarray, K: np.ndarray, D: np.ndarray, motor: str, t_end: float
+) -> ElasticResult:
     """Integrate the phases one after the other (the held command's rate may jump at ``t_end``);
     each phase's output times end at its span's end and the first phase's start at its start."""
     ts, xs, msgs = [], [], []
@@ -375,17 +407,38 @@ def _run_phases(arm: ElasticArm, phases: list, x0: np.ndarray, K: np.ndarray, D:
     else:
         cmd, hold = phases[0][0].cmd, phases[0][0].cmd(t_end)
         theta = np.where((t_all > t_end)[:, None], hold, cmd(np.minimum(t_all, t_end)).reshape(-1, 6))
-    return ElasticResult(status, reason, t=t_all, q=q, qd=qd, theta=theta, p_tcp=arm.tcp_position(q),
-                         t_command_end=float(t_end), stiffness=K, damping=D, motor=motor, nfev=nfev,
-                         njev=njev, nlu=nlu, message=" | ".join(msgs), cpu_s=cpu)
+    return ElasticResult(
+        status,
+        reason,
+        t=t_all,
+        q=q,
+        qd=qd,
+        theta=theta,
+        p_tcp=arm.tcp_position(q),
+        t_command_end=float(t_end),
+        stiffness=K,
+        damping=D,
+        motor=motor,
+        nfev=nfev,
+        njev=njev,
+        nlu=nlu,
+        message=" | ".join(msgs),
+        cpu_s=cpu,
+    )
 
 
 # --------------------------------------------------------------------------------------
 # Evaluation and input
 # --------------------------------------------------------------------------------------
 
-def tracking_error(result: ElasticResult, robot: Robot, q_planned_t: np.ndarray, q_planned: np.ndarray,
-                   q_planned_dot: np.ndarray | None = None) -> TrackingError:
+
+def tracking_error(
+    result: ElasticResult,
+    robot: Robot,
+    q_planned_t: np.ndarray,
+    q_planned: np.ndarray,
+    q_planned_dot: np.ndarray | None = None,
+) -> TrackingError:
     """TCP position error of a simulated motion against the planned link-side trajectory.
 
     Parameters
@@ -413,11 +466,18 @@ def tracking_error(result: ElasticResult, robot: Robot, q_planned_t: np.ndarray,
     moving = result.t <= result.t_command_end
 
     def stats(e: np.ndarray) -> tuple[float, float]:
-        return (float(e.max()), float(np.sqrt(np.mean(e ** 2)))) if e.size else (float("nan"), float("nan"))
+        return (float(e.max()), float(np.sqrt(np.mean(e**2)))) if e.size else (float("nan"), float("nan"))
 
     (mx_m, rms_m), (mx_r, rms_r) = stats(err[moving]), stats(err[~moving])
-    return TrackingError(t=result.t, error=err, max_motion=mx_m, rms_motion=rms_m, max_rest=mx_r, rms_rest=rms_r,
-                         final=float(err[-1]) if err.size else float("nan"))
+    return TrackingError(
+        t=result.t,
+        error=err,
+        max_motion=mx_m,
+        rms_motion=rms_m,
+        max_rest=mx_r,
+        rms_rest=rms_r,
+        final=float(err[-1]) if err.size else float("nan"),
+    )
 
 
 def read_trajectory_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:

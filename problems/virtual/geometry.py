@@ -11,8 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 
 
-def _link(theta: np.ndarray, d: np.ndarray, a: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
-          convention: str) -> np.ndarray:
+def _link(
+    theta: np.ndarray, d: np.ndarray, a: np.ndarray, alpha: np.ndarray, beta: np.ndarray, convention: str
+) -> np.ndarray:
     n = theta.shape[0]
     ct, st = np.cos(theta), np.sin(theta)
     ca_, sa = np.cos(alpha), np.sin(alpha)
@@ -57,8 +58,7 @@ def _frames(q: np.ndarray, g: _Geometry, convention: str) -> np.ndarray:
     return out
 
 
-def _axes(frames: np.ndarray, convention: str,
-          frame02base: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _axes(frames: np.ndarray, convention: str, frame02base: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Joint axes z_i and points p_i, shape (N, 6, 3) each (``frame02base``: DH frame 0, default
     the base frame)."""
     n = frames.shape[0]
@@ -71,8 +71,9 @@ def _axes(frames: np.ndarray, convention: str,
     return z, p
 
 
-def _tau_point(z: np.ndarray, p: np.ndarray, point: np.ndarray, f: np.ndarray, m: np.ndarray,
-               first: int = 0) -> np.ndarray:
+def _tau_point(
+    z: np.ndarray, p: np.ndarray, point: np.ndarray, f: np.ndarray, m: np.ndarray, first: int = 0
+) -> np.ndarray:
     """Joint torques of force f at ``point`` and moment m: z_i . ((point - p_i) x f + m)."""
     lever = point[:, None, :] - p
     tau = np.einsum("nij,nij->ni", z, np.cross(lever, f[:, None, :]) + m[:, None, :])
@@ -83,4 +84,5 @@ def _tau_point(z: np.ndarray, p: np.ndarray, point: np.ndarray, f: np.ndarray, m
 def rotvecs(R: np.ndarray) -> np.ndarray:
     """Rotation vectors (axis x angle, rad, angle in [0, pi]) of rotations (N, 3, 3) -> (N, 3)."""
     from scipy.spatial.transform import Rotation
+
     return Rotation.from_matrix(np.asarray(R, dtype=float).reshape(-1, 3, 3)).as_rotvec()

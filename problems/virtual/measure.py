@@ -15,8 +15,9 @@ from .geometry import rotvecs
 class _Measuring:
     """Positions, orientations and their measurement (a part of :class:`VirtualRobot`)."""
 
-    def positions(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None,
-                  point: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def positions(
+        self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None, point: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """True position of a flange point and the TCP pose, base frame.
 
         Returns
@@ -30,8 +31,9 @@ class _Measuring:
         fr, F = self._deflected_frames(q_c, F, temperature)
         return self._positions_from_frames(fr, F, point)
 
-    def _positions_from_frames(self, fr: np.ndarray, F: np.ndarray,
-                               point: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def _positions_from_frames(
+        self, fr: np.ndarray, F: np.ndarray, point: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`positions` from the deflected frames of :meth:`_deflected_frames`."""
         pt = self.p_tool if point is None else np.asarray(point, dtype=float)
         fl = self._flange(fr)
@@ -43,8 +45,7 @@ class _Measuring:
             tcp[:, :3, 3] += self._beam_displacement(fr, F, tcp[:, :3, 3].copy())
         return p_point, tcp
 
-    def orientations(self, q_c: np.ndarray, F: np.ndarray,
-                     temperature: np.ndarray | None = None) -> np.ndarray:
+    def orientations(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None) -> np.ndarray:
         """True orientation of the measured frame, base frame, shape (N, 3, 3).
 
         The measured frame sits at the measured point with the TCP's orientation:
@@ -61,6 +62,7 @@ class _Measuring:
         R = self._flange(fr)[:, :3, :3] @ self._tool()[:3, :3]
         if self.simulated("link_compliance"):
             from scipy.spatial.transform import Rotation
+
             R = Rotation.from_rotvec(self._beam_rotation(fr, F)).as_matrix() @ R
         return R
 
@@ -69,37 +71,38 @@ class _Measuring:
         pm = p @ self.R_reg.T + self.t_reg
         if self.simulated("drift") and t is not None:
             tt = np.asarray(t, dtype=float)[:, None]
-            pm = pm + self.drift_rate * tt + self.drift_acc * tt ** 2
+            pm = pm + self.drift_rate * tt + self.drift_acc * tt**2
         return pm
 
-    def measure(self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None = None,
-                temperature: np.ndarray | None = None) -> np.ndarray:
+    def measure(
+        self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None = None, temperature: np.ndarray | None = None
+    ) -> np.ndarray:
         """Noise-free measurement of the measured point, measurement frame, m, (N, 3)."""
         p, _tcp = self.positions(q_c, F, temperature)
         return self._to_measurement_frame(p, t)
 
-    def measure_orientation(self, q_c: np.ndarray, F: np.ndarray,
-                            temperature: np.ndarray | None = None) -> np.ndarray:
+    def measure_orientation(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None) -> np.ndarray:
         """Noise-free orientation of the measured frame in the measurement frame,
         ``R_base2meas @ orientations(...)``, shape (N, 3, 3).  Drift (a translation of the
         instrument) does not turn it."""
         return self.R_reg @ self.orientations(q_c, F, temperature)
 
-    def measure_rotvec(self, q_c: np.ndarray, F: np.ndarray,
-                       temperature: np.ndarray | None = None) -> np.ndarray:
+    def measure_rotvec(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None) -> np.ndarray:
         """:meth:`measure_orientation` as rotation vectors (axis x angle, angle in [0, pi]),
         rad, shape (N, 3): the ``rx, ry, rz`` columns of a noise-free campaign."""
         return rotvecs(self.measure_orientation(q_c, F, temperature))
 
-    def _measure_pose(self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None,
-                      temperature: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    def _measure_pose(
+        self, q_c: np.ndarray, F: np.ndarray, t: np.ndarray | None, temperature: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`measure` and :meth:`measure_orientation` from one equilibrium."""
         fr, F = self._deflected_frames(q_c, F, temperature)
         p, _tcp = self._positions_from_frames(fr, F)
         return self._to_measurement_frame(p, t), self.R_reg @ self._orientations_from_frames(fr, F)
 
-    def tcp_error(self, q_command: np.ndarray, F: np.ndarray, target2base: np.ndarray,
-                  temperature: np.ndarray | None = None) -> np.ndarray:
+    def tcp_error(
+        self, q_command: np.ndarray, F: np.ndarray, target2base: np.ndarray, temperature: np.ndarray | None = None
+    ) -> np.ndarray:
         """True TCP position minus target position, base frame, m, shape (N, 3)."""
         _p, tcp = self.positions(q_command, F, temperature)
         return tcp[:, :3, 3] - target2base[:, :3, 3]

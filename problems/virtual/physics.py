@@ -60,9 +60,14 @@ class _Physics:
             for i in self.th_links:
                 a[:, i] *= s
                 d[:, i] *= s
-        return _Geometry(a=a, alpha=np.tile(r.alpha + self.dalpha, (n, 1)), d=d,
-                         toff=np.tile(r.theta_offset + self.dtheta, (n, 1)),
-                         beta=np.tile(self.dbeta, (n, 1)), frame02base=np.asarray(r.frame02base, dtype=float))
+        return _Geometry(
+            a=a,
+            alpha=np.tile(r.alpha + self.dalpha, (n, 1)),
+            d=d,
+            toff=np.tile(r.theta_offset + self.dtheta, (n, 1)),
+            beta=np.tile(self.dbeta, (n, 1)),
+            frame02base=np.asarray(r.frame02base, dtype=float),
+        )
 
     def _tool(self) -> np.ndarray:
         return self.robot.tcp2flange
@@ -83,8 +88,10 @@ class _Physics:
             g = self.robot.gravity
             for j in range(6):
                 c = fr[:, j, :3, 3] + np.einsum("nij,j->ni", fr[:, j, :3, :3], self.coms[j])
-                tau += _tau_point(z, p, c, np.broadcast_to(self.masses[j] * g, c.shape), np.zeros_like(c)) \
+                tau += (
+                    _tau_point(z, p, c, np.broadcast_to(self.masses[j] * g, c.shape), np.zeros_like(c))
                     * (np.arange(6) <= j)[None, :]
+                )
             if self.payload > 0:
                 c = fl[:, :3, 3] + np.einsum("nij,j->ni", fl[:, :3, :3], self.payload_com)
                 tau += _tau_point(z, p, c, np.broadcast_to(self.payload * g, c.shape), np.zeros_like(c))
@@ -150,8 +157,8 @@ class _Physics:
             m_ax = np.sum(m_tip * e, axis=1, keepdims=True) * e
             m_perp = m_tip - m_ax
             EI, GJ = self.EI[k], self.GJ[k]
-            delta = f_perp * L ** 3 / (3 * EI) + np.cross(m_perp, e) * L ** 2 / (2 * EI)
-            phi = np.cross(e, f_perp) * L ** 2 / (2 * EI) + m_perp * L / EI + m_ax * L / GJ
+            delta = f_perp * L**3 / (3 * EI) + np.cross(m_perp, e) * L**2 / (2 * EI)
+            phi = np.cross(e, f_perp) * L**2 / (2 * EI) + m_perp * L / EI + m_ax * L / GJ
             yield delta, phi, tip
 
     def _beam_displacement(self, fr: np.ndarray, F: np.ndarray, point: np.ndarray) -> np.ndarray:
@@ -169,8 +176,9 @@ class _Physics:
             phi_sum += phi
         return phi_sum
 
-    def _deflected_frames(self, q_c: np.ndarray, F: np.ndarray,
-                          temperature: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    def _deflected_frames(
+        self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Frames frame_i2base of the deflected arm (N, 6, 4, 4) and the wrench broadcast
         to (N, 6): equilibrium joints (plus periodic joint errors) on the true geometry."""
         q_c = np.atleast_2d(np.asarray(q_c, dtype=float))

@@ -111,6 +111,7 @@ def simulates(*effects: str, keys: Iterable[str], disturbance: str = "") -> Call
             raise TypeError(f"simulates: {clash} already realised")
         _REALISATIONS.append(r)
         return fn
+
     return deco
 
 
@@ -146,11 +147,15 @@ def not_simulated() -> dict[str, str]:
         if not e.simulation:
             out[e.name] = "declares no table of the virtual robot (its `simulation` is empty)"
         elif other is not None:
-            out[e.name] = (f"declares the table {table}, which the virtual robot realises as effect(s) "
-                           f"{', '.join(other.effects) or other.table} only")
+            out[e.name] = (
+                f"declares the table {table}, which the virtual robot realises as effect(s) "
+                f"{', '.join(other.effects) or other.table} only"
+            )
         else:
-            out[e.name] = (f"declares the table {table}, which the virtual robot does not realise "
-                           "(problems/virtual/effects.py, @simulates)")
+            out[e.name] = (
+                f"declares the table {table}, which the virtual robot does not realise "
+                "(problems/virtual/effects.py, @simulates)"
+            )
     return out
 
 
@@ -161,8 +166,10 @@ def _unknown_effect_hint(name: str) -> str:
         return f"Effect '{name}' is not simulated by the virtual robot: it {missing[name]}."
     declaring = [e.name for e in fx.registry() if e.simulation == name and e.name in missing]
     if declaring:
-        return (f"[effects.{name}] is the table of effect(s) {', '.join(declaring)} (Effect.simulation), which the "
-                "virtual robot does not realise (problems/virtual/effects.py, @simulates).")
+        return (
+            f"[effects.{name}] is the table of effect(s) {', '.join(declaring)} (Effect.simulation), which the "
+            "virtual robot does not realise (problems/virtual/effects.py, @simulates)."
+        )
     r = realisation(name)
     if r is not None and r.top_level:
         return f"Effect '{name}' is part of the declared model, simulated by the top-level table [{r.table}]."
@@ -181,8 +188,9 @@ def checked_effect_tables(where: str, cfg: Mapping[str, Any]) -> dict[str, dict[
     unknown = sorted(set(eff) - set(tables))
     if unknown:
         hints = " ".join(h for h in map(_unknown_effect_hint, unknown) if h)
-        raise SimConfigError(f"{where}: unknown effect(s) {unknown}; known: {list(tables)}"
-                             + (f". {hints}" if hints else ""))
+        raise SimConfigError(
+            f"{where}: unknown effect(s) {unknown}; known: {list(tables)}" + (f". {hints}" if hints else "")
+        )
     out: dict[str, dict[str, Any]] = {}
     for name, t in eff.items():
         if not isinstance(t, Mapping):
@@ -195,6 +203,8 @@ def checked_effect_tables(where: str, cfg: Mapping[str, Any]) -> dict[str, dict[
     for r in realisations(top_level=False):
         given = [s for s in r.spellings if s in out]
         if len(given) > 1:
-            raise SimConfigError(f"{where}: {' and '.join(f'[effects.{s}]' for s in given)} are two spellings of "
-                                 f"the same effect ({', '.join(r.effects)}); give one of them, with all its entries")
+            raise SimConfigError(
+                f"{where}: {' and '.join(f'[effects.{s}]' for s in given)} are two spellings of "
+                f"the same effect ({', '.join(r.effects)}); give one of them, with all its entries"
+            )
     return out

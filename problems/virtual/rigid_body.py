@@ -95,7 +95,7 @@ class ElasticArm:
             m.append(float(j.mass))
             c.append(np.zeros(3) if j.com is None else np.asarray(j.com, dtype=float))
             inertia.append(np.zeros((3, 3)) if j.inertia is None else np.asarray(j.inertia, dtype=float))
-        if pl[0] != 0.0:            # the payload: a second body of link 6, expressed in DH frame 6
+        if pl[0] != 0.0:  # the payload: a second body of link 6, expressed in DH frame 6
             R, o = self.tcp2frame6[:3, :3], self.tcp2frame6[:3, 3]
             link.append(5)
             m.append(float(pl[0]))
@@ -108,16 +108,25 @@ class ElasticArm:
 
     def _geometry(self, n: int) -> _Geometry:
         r = self.robot
-        row = (lambda v: np.broadcast_to(np.asarray(v, dtype=float), (n, 6)))
-        return _Geometry(a=row(r.a), alpha=row(r.alpha), d=row(r.d), toff=row(r.theta_offset),
-                         beta=row(np.zeros(6)), frame02base=self.frame02base)
+
+        def row(v: np.ndarray) -> np.ndarray:
+            return np.broadcast_to(np.asarray(v, dtype=float), (n, 6))
+
+        return _Geometry(
+            a=row(r.a),
+            alpha=row(r.alpha),
+            d=row(r.d),
+            toff=row(r.theta_offset),
+            beta=row(np.zeros(6)),
+            frame02base=self.frame02base,
+        )
 
     def kinematics(self, q: np.ndarray) -> _Kin:
         """Frames, axes, TCP and bodies of the states ``q`` (N, 6) rad."""
         q = np.atleast_2d(q)
         fr = _frames(q, self._geometry(q.shape[0]), self.convention)
         z, p = _axes(fr, self.convention, self.frame02base)
-        Tb = fr[:, self.body_link]                                          # (N, B, 4, 4)
+        Tb = fr[:, self.body_link]  # (N, B, 4, 4)
         Rb = Tb[:, :, :3, :3]
         c = Tb[:, :, :3, 3] + np.einsum("nbij,bj->nbi", Rb, self.body_com)
         inertia = Rb @ self.body_inertia[None] @ np.swapaxes(Rb, -1, -2)
@@ -129,8 +138,9 @@ class ElasticArm:
         fr = _frames(q, self._geometry(q.shape[0]), self.convention)
         return (fr[:, 5] @ self.tcp2frame6)[:, :3, 3]
 
-    def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, kin: _Kin | None = None,
-                         gravity: bool = True) -> np.ndarray:
+    def inverse_dynamics(
+        self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, kin: _Kin | None = None, gravity: bool = True
+    ) -> np.ndarray:
         """Joint torques ``M qdd + c + g - J^T W`` (N, 6) N*m of states (N, 6) rad, rad/s, rad/s^2:
         what the joints deliver to the links (recursive Newton-Euler; the recursions as cumulative
         sums over the chain).  ``gravity=False`` drops gravity and the wrench (``M qdd + c``)."""
@@ -138,23 +148,23 @@ class ElasticArm:
         k = self.kinematics(q) if kin is None else kin
         n = q.shape[0]
         zqd = k.z * qd[:, :, None]
-        w = np.cumsum(zqd, axis=1)                                    # link angular velocities
+        w = np.cumsum(zqd, axis=1)  # link angular velocities
         w_prev = np.concatenate([np.zeros((n, 1, 3)), w[:, :-1]], axis=1)
         dw = np.cumsum(k.z * qdd[:, :, None] + _cross(w_prev, zqd), axis=1)
         dw_prev = np.concatenate([np.zeros((n, 1, 3)), dw[:, :-1]], axis=1)
-        r = np.diff(k.p, axis=1, prepend=k.p[:, :1])                  # p_i - p_(i-1), fixed in link i-1
+        r = np.diff(k.p, axis=1, prepend=k.p[:, :1])  # p_i - p_(i-1), fixed in link i-1
         acc = np.cumsum(_cross(dw_prev, r) + _cross(w_prev, _cross(w_prev, r)), axis=1)
-        acc = acc - (self.gravity if gravity else 0.0)                # at p_i; gravity as base acceleration
+        acc = acc - (self.gravity if gravity else 0.0)  # at p_i; gravity as base acceleration
         L = self.body_link
         rc = k.c - k.p[:, L]
         wb, dwb = w[:, L], dw[:, L]
         f = self.body_mass[None, :, None] * (acc[:, L] + _cross(dwb, rc) + _cross(wb, _cross(wb, rc)))
         Iw = (k.inertia @ wb[..., None])[..., 0]
-        m = (k.inertia @ dwb[..., None])[..., 0] + _cross(wb, Iw) + _cross(k.c, f)   # about the base origin
+        m = (k.inertia @ dwb[..., None])[..., 0] + _cross(wb, Iw) + _cross(k.c, f)  # about the base origin
         W = self.wrench if gravity else np.zeros(6)
-        tip_f = np.broadcast_to(-W[:3], (n, 3))                       # what link 6 supplies against W
+        tip_f = np.broadcast_to(-W[:3], (n, 3))  # what link 6 supplies against W
         tip_m = -W[3:] + _cross(k.tcp[:, :3, 3], tip_f)
-        onto = (L[:, None] >= np.arange(6)[None, :]).astype(float)    # (B, 6): body b is distal to joint i
+        onto = (L[:, None] >= np.arange(6)[None, :]).astype(float)  # (B, 6): body b is distal to joint i
         F = np.einsum("nba,bi->nia", f, onto) + tip_f[:, None]
         N = np.einsum("nba,bi->nia", m, onto) + tip_m[:, None]
         return np.einsum("nia,nia->ni", k.z, N - _cross(k.p, F))
@@ -164,10 +174,13 @@ class ElasticArm:
         ``sum_b m_b Jv_b^T Jv_b + Jw_b^T I_b Jw_b``."""
         k = self.kinematics(q) if kin is None else kin
         moves = (self.body_link[:, None] >= np.arange(6)[None, :]).astype(float)[None, :, :, None]  # (1, B, 6, 1)
-        Jw = k.z[:, None] * moves                                                    # (N, B, 6, 3)
+        Jw = k.z[:, None] * moves  # (N, B, 6, 3)
         Jv = _cross(Jw, k.c[:, :, None] - k.p[:, None])
         n, nb = Jw.shape[0], Jw.shape[1]
-        rows = (lambda J: J.transpose(0, 2, 1, 3).reshape(n, 6, 3 * nb))             # (N, 6, 3B)
+
+        def rows(J: np.ndarray) -> np.ndarray:  # (N, 6, 3B)
+            return J.transpose(0, 2, 1, 3).reshape(n, 6, 3 * nb)
+
         A = rows(Jv * np.sqrt(self.body_mass)[None, :, None, None])
         Bw = rows(Jw @ k.inertia)
         return A @ A.transpose(0, 2, 1) + Bw @ rows(Jw).transpose(0, 2, 1)
@@ -193,8 +206,14 @@ class ElasticArm:
         return q, False
 
 
-def static_command(robot: Robot, q: np.ndarray, *, payload: np.ndarray | None = None,
-                   wrench: np.ndarray | None = None, stiffness: np.ndarray | None = None) -> np.ndarray:
+def static_command(
+    robot: Robot,
+    q: np.ndarray,
+    *,
+    payload: np.ndarray | None = None,
+    wrench: np.ndarray | None = None,
+    stiffness: np.ndarray | None = None,
+) -> np.ndarray:
     """Exact static compensation: motor angles ``theta = q + K^-1 (g(q) - J^T W)`` (N, 6) rad whose
     static equilibrium is the link pose ``q`` (N, 6) rad."""
     arm = ElasticArm(robot, payload, wrench)

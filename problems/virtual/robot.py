@@ -43,8 +43,9 @@ class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
         Name of the configuration source for error messages.
     """
 
-    def __init__(self, robot: Robot, config: Mapping[str, Any], seed: int | None = None,
-                 where: str = "simulation config") -> None:
+    def __init__(
+        self, robot: Robot, config: Mapping[str, Any], seed: int | None = None, where: str = "simulation config"
+    ) -> None:
         cfg = dict(config)
         top_keys = _TOP_KEYS | set(top_level_tables())
         unknown = sorted(set(cfg) - top_keys)
@@ -73,14 +74,19 @@ class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
     def truth(self) -> dict[str, Any]:
         """Every realised parameter (SI), TOML-serialisable; rebuild with :func:`from_truth`."""
         out: dict[str, Any] = {
-            "robot": self.robot.to_dict(), "config": self.config, "seed": self.seed,
+            "robot": self.robot.to_dict(),
+            "config": self.config,
+            "seed": self.seed,
             "realised": {
                 "stiffness_Nm_per_rad": self.k_true.tolist(),
                 "base2meas_rotvec_rad": matrix_to_rotvec(self.R_reg).tolist(),
                 "base2meas_xyz_m": self.t_reg.tolist(),
                 "measured_point_m": self.p_tool.tolist(),
-                "da_m": self.da.tolist(), "dalpha_rad": self.dalpha.tolist(), "dd_m": self.dd.tolist(),
-                "dtheta_rad": self.dtheta.tolist(), "dbeta_rad": self.dbeta.tolist(),
+                "da_m": self.da.tolist(),
+                "dalpha_rad": self.dalpha.tolist(),
+                "dd_m": self.dd.tolist(),
+                "dtheta_rad": self.dtheta.tolist(),
+                "dbeta_rad": self.dbeta.tolist(),
                 "joint_error_terms": self.joint_error_terms(),
                 "effects": sorted(self.effects),
             },
@@ -90,8 +96,9 @@ class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
         return out
 
 
-def simulator(robot: str | Robot, config: Mapping[str, Any], seed: int | None = None,
-              where: str = "simulation config") -> VirtualRobot:
+def simulator(
+    robot: str | Robot, config: Mapping[str, Any], seed: int | None = None, where: str = "simulation config"
+) -> VirtualRobot:
     """Convenience: a :class:`VirtualRobot` from a robot name/file and a config mapping."""
     r = robot if isinstance(robot, Robot) else load_robot(robot)
     return VirtualRobot(r, config, seed=seed, where=where)

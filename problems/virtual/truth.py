@@ -19,6 +19,7 @@ from .robot import VirtualRobot
 def from_truth(truth: Mapping[str, Any]) -> VirtualRobot:
     """Rebuild a :class:`VirtualRobot` from :meth:`VirtualRobot.truth`."""
     from models.robot import robot_from_dict
+
     try:
         robot = robot_from_dict(truth["robot"], "truth: robot")
         return VirtualRobot(robot, truth["config"], seed=int(truth["seed"]), where="truth: config")
@@ -38,6 +39,8 @@ def load_truth(path: str | Path) -> VirtualRobot:
         raise SimConfigError(f"{p}: not valid TOML: {exc}") from None
     missing = [k for k in ("robot", "config", "seed") if k not in data]
     if missing:
-        raise SimConfigError(f"{p}: not a truth file of compplan simulate (missing key(s) "
-                             f"{', '.join(missing)}); give the .truth.toml written next to the simulated data")
+        raise SimConfigError(
+            f"{p}: not a truth file of compplan simulate (missing key(s) "
+            f"{', '.join(missing)}); give the .truth.toml written next to the simulated data"
+        )
     return from_truth(data)
