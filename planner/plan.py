@@ -48,8 +48,6 @@ from problems.compensation import CompensationResult, CompensationStatus, closed
 from problems.posture import BranchResult, PostureResult, PostureStatus, optimise_postures
 from problems.problem import Problem
 
-from planner import branches as branch_words
-from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, round_sig
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
 from planner.output import OutputSet
 from planner.provenance import invocation, problem_provenance
@@ -63,7 +61,6 @@ from problems.timing import (
     time_parametrize,
 )
 from problems.timing.trajectory import LIMIT_KEYS
-from problems.timing.limit_use import limit_use
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
@@ -244,142 +241,12 @@ class PlanResult:
 
     # ------------------------------------------------------------------ summary
     def summary(self, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> dict[str, Any]:
-        """The content of ``summary.json`` (SI units unless a key says otherwise).
+        """The content of ``summary.json`` (:func:`planner.plan_summary.plan_summary`). Each call
+        hashes the inputs and solves the equilibria again: build a plan's summary once
+        (:meth:`view`)."""
+        from planner.plan_summary import plan_summary
 
-        It opens with ``headline`` (status, branch, TCP error before and after, duration:
-        rounded to what they mean, units in the keys; see :func:`_headline`) and
-        ``provenance`` (compplan version, command line, date, input files with SHA-256).
-        ``errors``: the branches' equilibrium errors of :meth:`branch_errors`, when the caller
-        has them (else those the summary needs are computed).  Each call hashes the inputs and
-        solves the equilibria again: build a plan's summary once (:meth:`view`).
-        """
-        pr = self.problem
-        R = pr.robot.tcp2flange
-        w = pr.wrench
-        s: dict[str, Any] = {
-            "command": "plan",
-            "plan_status": self.status.value,
-            "reason": self.reason,
-            "scenario": f"{pr.name}: {pr.description}" if pr.description else pr.name,
-            "problem": pr.to_dict(),
-            "robot": pr.robot.name,
-            "robot_file": pr.robot.to_dict(),
-            "tcp": (
-                "flange"
-                if np.allclose(R, np.eye(4))
-                else f"tool: xyz {[float(v) for v in R[:3, 3]]} m in the flange frame"
-            ),
-            "orientation": pr.rule.value,
-            "wrench": {
-                "frame": pr.wrench_frame,
-                "point": "TCP",
-                "F_N": w[0, :3],
-                "M_Nm": w[0, 3:],
-                "per_waypoint": bool(pr.wrench_per_waypoint),
-            },
-            "payload": (
-                {
-                    "mass_kg": float(pr.payload_mass_kg),
-                    "com_m_tcp_frame": pr.payload_com_m,
-                    "gravity_m_s2": pr.load.gravity,
-                    "inertia_kg_m2_about_com_tcp_axes": [0.0] * 6,
-                    "inertia_note": "a point mass (ixx, iyy, izz, ixy, ixz, iyz = 0)",
-                }
-                if pr.payload_mass_kg
-                else None
-            ),
-            "model": pr.model.describe(),
-            "n_waypoints": pr.n,
-            "limits": {
-                "velocity": pr.limits.velocity,
-                "acceleration": pr.limits.acceleration,
-                "jerk": pr.limits.jerk,
-                "max_joint_step": pr.limits.max_joint_step,
-                "q_min": pr.robot.q_min,
-                "q_max": pr.robot.q_max,
-            },
-            "dt": pr.timing.dt,
-            "warnings": list(self.warnings),
-            "stage_times_s": dict(self.stage_times_s),
-        }
-        if pr.wrench_per_waypoint:
-            s["wrench"]["rows"] = w
-            s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; rows holds every waypoint's wrench"
-        ps = self.posture
-        if ps is not None:
-            s["posture"] = {
-                "status": ps.status.value,
-                "reason": ps.reason,
-                "rule": pr.rule.value,
-                "freedom": ps.freedom,
-                "note": ps.freedom_note,
-                "solver": pr.solver.name,
-                "build_time_s": ps.build_time_s,
-                "solve_time_s": float(sum(r.solve_time_s for r in ps.branches.values())),
-                "objective": (
-                    "sum_k ||S C(q_k) F_k||^2 + smoothness * sum_k ||q_{k+1} - q_k||^2, "
-                    "S = [I3 0] (translational TCP deflection, m); costs reported "
-                    "in m^2 without the smoothness term"
-                ),
-            }
-            s["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
-            _add_branch_postures(self, s["branches"], errors)
-            s["ik_family"] = ps.ik_family
-            s["branch_labels"] = list(ps.labels)
-            s["rejected_branches"] = {ps.labels[b]: r for b, r in ps.rejected.items()}
-            s["default_branch"] = ps.labels[ps.default] if ps.default is not None else None
-            if ps.chosen is not None:
-                s["chosen_branch"] = ps.best.label
-                s["branch"] = ps.best.label
-                g = ps.gains()
-                s["gain"] = {
-                    **g,
-                    "definition": (
-                        "ratio of RMS load-induced TCP error (the *_cost keys: of summed squared error): "
-                        "vs_default = default branch (nearest branch.home) at its analytic posture over the "
-                        "chosen optimised posture; vs_best_analytic = best branch at its analytic posture "
-                        "over the chosen optimised posture (what the continuous freedom buys)"
-                    ),
-                }
-        if self.exact is not None:
-            assert self.before is not None and self.closed is not None
-            s["error_before"] = self.before.stats_mm()
-            s["error_after"] = {"closed_form": self.closed.stats_mm(), "exact": self.exact.stats_mm()}
-            s["exact_residual_max_m"] = float(self.exact.error_norm_m.max())
-            s["status"] = {"closed_form": self.closed.status.value, "exact": self.exact.status.value}
-            s["warnings"] += list(self.closed.warnings)
-        if self.trajectories:
-            s.update(self._timing_summary())
-            s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items() if t["limit_use"]["why"]]
-        head = {"headline": _headline(s), "provenance": self.provenance()}
-        return {**head, **s}
-
-    def _timing_summary(self) -> dict[str, Any]:
-        """The timing keys of the summary: durations, limit ratios, per-method status and limit use,
-        the controller's method and (with dynamic compensation) its block."""
-        pr = self.problem
-        out: dict[str, Any] = {
-            "duration_s": {m: tr.duration_s for m, tr in self.trajectories.items()},
-            "limit_ratio": {m: dict(tr.limit_ratio.items()) for m, tr in self.trajectories.items()},
-            "timing": {
-                m: {
-                    "status": tr.status.value,
-                    "reason": tr.reason,
-                    "limits_enforced": list(get_method(m).checked_limits),
-                    "within_all_limits": _within(tr, LIMIT_KEYS),
-                    "iterations": tr.iterations,
-                    "dt": tr.dt,
-                    "limit_use": limit_use(tr, pr.limits, get_method(m).checked_limits),
-                    "display_name": get_method(m).display_name,
-                    "file": "trajectory.csv" if m == self.controller else f"trajectory_{m}.csv",
-                }
-                for m, tr in self.trajectories.items()
-            },
-            "controller_trajectory": self.controller,
-        }
-        if self.dynamic is not None:
-            out["dynamic_compensation"] = self.dynamic.summary()
-        return out
+        return plan_summary(self, errors)
 
     def provenance(self) -> dict[str, Any]:
         """The ``provenance`` block: version, command line and date (when the result was made),
@@ -418,99 +285,6 @@ class RunView:
     def model(self) -> ArmModel:
         """The arm model the plan was made with (its ``kinematics`` built once)."""
         return self.result.problem.model
-
-
-#: What the headline's errors are (``summary.json`` ``headline.definition``).
-HEADLINE_DEFINITION = (
-    "TCP position error |reached - target| over the waypoints, at the exact deflected equilibrium of the arm "
-    "model under the whole load (the same numbers as error_before / error_after.exact at full precision): "
-    "before = the chosen posture commanded as is, after = with exact compensation. Rounded to 4 significant "
-    "digits; an error below numerical_floor_mm (the exact-compensation contract, 1e-9 m) is 0: the accuracy "
-    "of the equilibrium solve, not an error of the arm. The IK branch table's RMS errors are first order "
-    "(|S C(q) F|, the posture NLP's objective), its rms_error_equilibrium_mm the exact equilibrium."
-)
-
-
-def _headline(s: dict[str, Any]) -> dict[str, Any]:
-    """The ``headline`` block of a summary: what a cell engineer reads first.
-
-    Status, chosen IK branch (decoded), TCP error before and after compensation (max and
-    RMS, mm, rounded; 0 below :data:`~planner.numbers.NUMERICAL_FLOOR_MM`) and the
-    duration of the controller's trajectory (s).  Units are in every key.
-    """
-    h: dict[str, Any] = {"status": s.get("plan_status"), "reason": s.get("reason") or None}
-    label = s.get("chosen_branch")
-    h["branch"] = label
-    h["branch_meaning"] = branch_words.decode(label) if label else None
-    if label and isinstance(s.get("branches"), dict) and label in s["branches"]:
-        h["branch_posture"] = s["branches"][label].get("posture")
-    h["default_branch"] = s.get("default_branch")
-    g = s.get("gain") or {}
-    h["gain_vs_default"] = round_sig(g["vs_default"]) if np.isfinite(g.get("vs_default", np.nan)) else None
-    eb, ea = s.get("error_before"), (s.get("error_after") or {})
-    for tag, st in (
-        ("error_before", eb),
-        ("error_after", ea.get("exact")),
-        ("error_after_closed_form", ea.get("closed_form")),
-    ):
-        for k in ("max", "rms"):
-            h[f"{tag}_{k}_mm"] = headline_mm(st[f"{k}_mm"]) if st else None
-    h["numerical_floor_mm"] = NUMERICAL_FLOOR_MM
-    h["below_numerical_floor"] = [k for k, v in h.items() if k.startswith("error_") and v == 0.0]
-    ctrl = s.get("controller_trajectory")
-    dur = s.get("duration_s") or {}
-    h["duration_s"] = round_sig(dur[ctrl]) if ctrl in dur else None
-    h["duration_method"] = ctrl
-    h["duration_note"] = f"{get_method(ctrl).duration_note} (trajectory.csv)" if ctrl else "not timed"
-    if "toppra" in dur and ctrl != "toppra":
-        h["duration_time_optimal_s"] = round_sig(dur["toppra"])
-    h["definition"] = HEADLINE_DEFINITION
-    return h
-
-
-def _add_branch_postures(
-    res: PlanResult,
-    entries: dict[str, dict[str, Any]],
-    errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
-) -> None:
-    """Add to each branch entry its meaning, its posture in words (at waypoint 0) and its
-    load-induced TCP error at the exact deflected equilibrium (RMS and max, mm): the same
-    measure as ``error_before``, where ``rms_error_mm`` is the NLP's first-order one
-    (``errors``: :meth:`PlanResult.branch_errors`, when the caller has them)."""
-    assert res.posture is not None
-    pr = res.problem
-    arm = pr.model
-    km = arm.kinematics
-    L = pr.load.rows(pr.n)
-    for b, r in res.posture.branches.items():
-        e = entries[r.label]
-        e["meaning"] = branch_words.decode(r.label)
-        e["status_meaning"] = branch_words.status_text(r.status.value)
-        e["posture"] = e["rms_error_equilibrium_mm"] = e["max_error_equilibrium_mm"] = None
-        if not np.all(np.isfinite(r.q)):  # a branch without a posture along the whole path
-            continue
-        frames = [f[0] for f in km.batch(km.fk_frames, r.q[:1])]
-        e["posture"] = branch_words.posture_words(frames, r.q[0], r.label, pr.robot.convention, pr.robot.frame02base)
-        err = errors[b][1] if errors is not None else uncompensated(arm, r.q, L).error_norm_m
-        e["rms_error_equilibrium_mm"] = float(np.sqrt(np.mean(err**2)) * 1e3)
-        e["max_error_equilibrium_mm"] = float(err.max() * 1e3)
-
-
-def _branch_entry(r: BranchResult) -> dict[str, Any]:
-    return {
-        "status": r.status.value,
-        "cost": r.cost,
-        "cost_analytic": r.cost_analytic,
-        "cost_warm_start": r.cost_warm,
-        "rms_error_mm": r.rms_error_m * 1e3,
-        "rms_error_analytic_mm": r.rms_error_analytic_m * 1e3,
-        "max_error_mm": float(r.error_m.max() * 1e3),
-        "iterations": r.iterations,
-        "solve_time_s": r.solve_time_s,
-        "warm_start": r.warm_offset,
-        "reason": r.reason,
-        "active_singularity_guards": (", ".join(f"{k}: {v} waypoint(s)" for k, v in r.active_guards.items()) or "none"),
-    }
 
 
 def _within(tr: Trajectory, keys: tuple[str, ...]) -> bool:

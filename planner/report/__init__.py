@@ -49,8 +49,9 @@ Modules: :mod:`~planner.report.run` (the view), :mod:`~planner.report.tables`,
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from models.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from planner.report.figures import ARM_POSES, DYNAMIC_FIGURE, FIGURE_NAMES, build_figures
@@ -103,17 +104,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """A re-exported name, importing its submodule on first use."""
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 
 
 __all__ = [
