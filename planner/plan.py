@@ -464,22 +464,25 @@ def _time(res: PlanResult) -> None:
         t1 = time.perf_counter()
         res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
         res.stage_times_s[f"timing_{m}_s"] = time.perf_counter() - t1
-    res.controller = controller_methods(res.trajectories)[0]  # the problem names one (check_timing)
+    ranked = controller_methods(res.trajectories)
+    if not ranked:  # a problem file names one (check_timing); a Problem built in code may not
+        res.status = PlanStatus.TIMING_FAILED
+        res.reason = f"none of the timing methods {list(res.trajectories)} can be the controller's trajectory"
+        return
+    res.controller = ranked[0]
     for m, tr in res.trajectories.items():
         failure = _trajectory_failure(res, m, tr)
         if failure:
             res.status, res.reason = PlanStatus.TIMING_FAILED, failure
             return
-        if not _within(tr, LIMIT_KEYS):
-            j = float(np.max(tr.limit_ratio["jerk"]))
-            res.warnings.append(
-                f"{m} does not limit jerk: peak jerk ratio {j:.3g} > 1"
-                + (
-                    ""
-                    if m != res.controller
-                    else f"; add '{_jerk_limited()}' to timing.methods for a jerk-limited controller trajectory"
-                )
+        for k in (k for k in LIMIT_KEYS if not _within(tr, (k,))):  # limits the method does not enforce
+            r = float(np.max(tr.limit_ratio[k]))
+            hint = (
+                f"; add '{_jerk_limited()}' to timing.methods for a jerk-limited controller trajectory"
+                if k == "jerk" and m == res.controller
+                else ""
             )
+            res.warnings.append(f"{m} does not limit {k}: peak {k} ratio {r:.3g} > 1{hint}")
 
 
 def _jerk_limited() -> str:

@@ -209,8 +209,10 @@ def headline(s: dict[str, Any]) -> dict[str, Any]:
     h["duration_s"] = round_sig(dur[ctrl]) if ctrl in dur else None
     h["duration_method"] = ctrl
     h["duration_note"] = f"{get_method(ctrl).duration_note} (trajectory.csv)" if ctrl else "not timed"
-    if "toppra" in dur and ctrl != "toppra":
-        h["duration_time_optimal_s"] = round_sig(dur["toppra"])
+    ref = next((m for m in dur if m != ctrl and get_method(m).time_optimal_reference), None)
+    if ref is not None:
+        h["duration_time_optimal_s"] = round_sig(dur[ref])
+        h["duration_time_optimal_method"] = ref
     h["definition"] = HEADLINE_DEFINITION
     return h
 

@@ -444,8 +444,10 @@ def check_timing(where: str, t: TimingSettings) -> None:
             raise ProblemFileError(f"{where}: [timing.{m}]: unknown method {m!r}; valid: {valid}")
         try:
             validate_options(get_method(m), t.options(m))
-        except InputError as exc:
-            raise ProblemFileError(f"{where}: [timing.{m}]: {exc}") from None
+        except InputError as exc:  # name the flat [timing] key when the bad option came from one
+            flat = [k for k, (mm, opt) in TIMING_OPTION_KEYS.items() if mm == m and getattr(t, k) and opt in str(exc)]
+            key = f"timing.{flat[0]}" if flat else f"[timing.{m}]"
+            raise ProblemFileError(f"{where}: {key}: {exc}") from None
 
 
 # --------------------------------------------------------------------------------------
@@ -844,8 +846,6 @@ def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
     )
     if not isinstance(timing.dynamic, bool):
         raise _err(where, "timing.dynamic", f"must be true or false, got {timing.dynamic!r}")
-    if timing.toppra_gridpoints == 1:
-        raise _err(where, "timing.toppra_gridpoints", "must be 0 (default) or >= 2, got 1")
     check_timing(where, timing)
     return timing
 

@@ -17,11 +17,14 @@ setting below.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import functools
 import hashlib
 import io
 import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -39,6 +42,11 @@ BLAS_THREADS = "1"
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 for _var in BLAS_THREAD_VARIABLES:
     os.environ.setdefault(_var, BLAS_THREADS)
+
+#: The report figure cache of this test session (and the processes it starts): a fresh folder,
+#: so no test reads a figure the user's runs cached, and the user's cache is left alone.
+os.environ["COMPPLAN_FIGURE_CACHE"] = tempfile.mkdtemp(prefix="compplan-figures-")
+atexit.register(shutil.rmtree, os.environ["COMPPLAN_FIGURE_CACHE"], True)
 
 ROBOTS = ("ar5", "ur5", "ur10")
 

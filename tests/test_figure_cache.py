@@ -26,6 +26,7 @@ def line_figure(y: np.ndarray, title: str = ""):
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
+    monkeypatch.delenv("COMPPLAN_FIGURE_CACHE", raising=False)
     monkeypatch.setenv("COMPPLAN_CACHE", str(tmp_path / "cache"))
     return tmp_path / "cache" / figure_cache.FIGURE_CACHE_FOLDER
 
@@ -112,7 +113,19 @@ def test_the_cache_is_kept_under_its_size(cache, counted, monkeypatch):
 def test_an_unusable_cache_folder_only_costs_the_rendering(tmp_path, monkeypatch, counted):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
+    monkeypatch.delenv("COMPPLAN_FIGURE_CACHE", raising=False)
     monkeypatch.setenv("COMPPLAN_CACHE", str(blocker))
     items = _items()
     rendering.render_items(items, workers=1)
     assert items[0].png and counted == ["f1"]
+
+
+def test_the_figure_cache_folder_can_be_named(tmp_path, monkeypatch, counted):
+    """``$COMPPLAN_FIGURE_CACHE`` names the folder (the tests' own); ``$COMPPLAN_CACHE`` is then untouched."""
+    monkeypatch.setenv("COMPPLAN_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("COMPPLAN_FIGURE_CACHE", str(tmp_path / "figs"))
+    rendering.render_items(_items(), workers=1)
+    rendering.render_items(_items(), workers=1)
+    assert counted == ["f1"]  # the second rendering read the first back
+    assert any((tmp_path / "figs").iterdir())
+    assert not (tmp_path / "cache" / figure_cache.FIGURE_CACHE_FOLDER).exists()

@@ -227,7 +227,7 @@ def test_an_effect_plugin_reaches_the_plan_and_report(tmp_path):
     assert s["plan_status"] == "ok", s["reason"]
     assert "wrist_offset" in s["model"]["effects"]
     assert s["model"]["identified"] is True
-    assert (tmp_path / "run" / "report.html").stat().st_size > 0
+    assert "wrist_offset" in (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
 
     without = _run(["plan", str(problem), "--out", str(tmp_path / "run2"), "--no-report"], {}, tmp_path)
     assert without.returncode == 2 and "wrist_offset" in without.stderr  # not found: a clear error
@@ -243,7 +243,9 @@ def _one_line_error(r: subprocess.CompletedProcess, *needles: str) -> None:
         assert n in lines[0], (n, lines[0])
 
 
-@pytest.mark.parametrize("variable", ["COMPPLAN_EFFECT_PATH", "COMPPLAN_IK_PATH", "COMPPLAN_EXPORT_PATH"])
+@pytest.mark.parametrize(
+    "variable", ["COMPPLAN_EFFECT_PATH", "COMPPLAN_IK_PATH", "COMPPLAN_TIMING_PATH", "COMPPLAN_EXPORT_PATH"]
+)
 def test_a_missing_plugin_folder_is_one_line(tmp_path, variable):
     missing = tmp_path / "no_such_folder"
     r = _run(["plan", "paper_4_4", "--out", str(tmp_path / "run")], {variable: str(missing)}, tmp_path)
@@ -264,6 +266,14 @@ def test_a_missing_plugin_folder_is_one_line(tmp_path, variable):
                 "register_family(type('Twice', (AnalyticIK,), {}))\n"
             ),
             "registered twice",
+        ),
+        (
+            "COMPPLAN_TIMING_PATH",
+            (
+                "from .registry import TimingMethod, register_method\n"
+                "register_method(TimingMethod('nothing_checked', lambda *a: None, (), lambda o: o, ()))\n"
+            ),
+            "checked_limits is empty",
         ),
     ],
 )

@@ -573,6 +573,9 @@ def test_summary_opens_with_the_headline_in_units_and_rounded(demo_run):
     assert set(h["below_numerical_floor"]) == {"error_after_max_mm", "error_after_rms_mm"}
     assert h["duration_method"] == s["controller_trajectory"] == "jerk_optimal"
     assert h["duration_s"] == round_sig(s["duration_s"]["jerk_optimal"])
+    # the time-optimal reference is the registry's (TOPP-RA), named in the headline
+    assert h["duration_time_optimal_method"] == "toppra"
+    assert h["duration_time_optimal_s"] == round_sig(s["duration_s"]["toppra"])
     # units in every numeric key of the headline
     for k, v in h.items():
         if isinstance(v, float) and k != "gain_vs_default":

@@ -201,12 +201,12 @@ class IKSolver(abc.ABC):
 
         Raises
         ------
-        TypeError
+        PluginError
             The family has no batch function (a numeric family).
         """
         if self.function is None:
-            # A caller's error, not a user's: callers ship an evaluator only for families with a function.
-            raise TypeError(f"IK family {self.family!r} has no batch function to evaluate")
+            # callers ship an evaluator only for families with a function; a plug-in family may not have one
+            raise PluginError(f"IK family {self.family!r} has no batch function to evaluate")
         self._evaluator = evaluator
 
     @property

@@ -27,6 +27,19 @@ def _dt(text: str) -> float:
     return v
 
 
+def with_dt(problem: Any, dt: float) -> Any:
+    """The problem at the controller period ``--dt`` (s); a period one of its timing methods
+    refuses is an error naming ``--dt``, the method and its bound."""
+    from models.errors import InputError
+    from problems.timing import get_method
+
+    for m in problem.timing.methods:
+        bound = get_method(m).dt_max_s
+        if dt > bound:
+            raise InputError(f"--dt {dt:g} s: timing method {m!r} accepts a controller period of at most {bound:g} s")
+    return problem.with_timing(dt=dt)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "plan", help="stiffness-optimal branch and posture, exact compensation and timing of a problem file"
@@ -144,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     if args.robot is not None:
         problem = problem.with_robot(args.robot)
     if args.dt is not None:
-        problem = problem.with_timing(dt=args.dt)
+        problem = with_dt(problem, args.dt)
     res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise)
     return finish_run(res.raise_for_status(), args)
 

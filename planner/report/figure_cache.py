@@ -7,7 +7,8 @@ of :mod:`planner.report`, and :mod:`planner.numbers`), the versions of matplotli
 and matplotlib's rc settings.  A figure whose key is found is the same bytes its
 rendering would give (the rendering is reproducible: fixed metadata, no dates).
 
-Entries live under ``$COMPPLAN_CACHE/figures`` (default ``~/.cache/compplan/figures``), one file
+Entries live under ``$COMPPLAN_FIGURE_CACHE``, else ``$COMPPLAN_CACHE/figures`` (default
+``~/.cache/compplan/figures``), one file
 each: the PNG and PDF bytes behind a header with their lengths and the SHA-256 of both, checked
 on reading (a damaged entry is rendered again and replaced).  The folder is kept under
 :data:`FIGURE_CACHE_MAX_BYTES`, the least recently used entries removed first.  A cache that
@@ -30,6 +31,9 @@ if TYPE_CHECKING:
 FIGURE_CACHE_MAX_BYTES = 64 * 2**20
 #: The cache's sub-folder of ``$COMPPLAN_CACHE``.
 FIGURE_CACHE_FOLDER = "figures"
+#: The environment variable naming another folder for the figure cache (the tests use one of
+#: their own, so they neither read nor fill the user's).
+FIGURE_CACHE_ENV = "COMPPLAN_FIGURE_CACHE"
 #: Entry format: magic, PNG length, PDF length (-1: none), SHA-256 of the PNG and PDF bytes.
 _HEADER = struct.Struct("<8sqq32s")
 _MAGIC = b"CPFIG001"
@@ -61,6 +65,10 @@ def figure_key(jb: Job, pdf: bool) -> str | None:
 
 
 def _folder() -> Path:
+    """``$COMPPLAN_FIGURE_CACHE`` when set, else the ``figures`` folder of ``$COMPPLAN_CACHE``."""
+    own = os.environ.get(FIGURE_CACHE_ENV)
+    if own:
+        return Path(own)
     from models.codegen import cache_root
 
     return cache_root() / FIGURE_CACHE_FOLDER

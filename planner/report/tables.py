@@ -284,7 +284,10 @@ def headline_table(s: Mapping[str, Any]) -> Table:
     if h.get("duration_s") is not None:
         note = str(h.get("duration_note") or "")
         if h.get("duration_time_optimal_s") is not None:
-            note += f"; time-optimal (TOPP-RA, jerk not limited): {format_number(h['duration_time_optimal_s'])} s"
+            ref = str(h.get("duration_time_optimal_method") or "toppra")  # summaries before the key: TOPP-RA
+            enforced = ((s.get("timing") or {}).get(ref) or {}).get("limits_enforced") or ()
+            free = "" if "jerk" in enforced else ", jerk not limited"
+            note += f"; time-optimal ({method_name(s, ref)}{free}): {format_number(h['duration_time_optimal_s'])} s"
         rows.append([Cell("duration"), value_cell(s, "headline.duration_s"), Cell("s"), Cell(note)])
     else:
         rows.append([Cell("duration"), Cell("not timed"), Cell(""), Cell(str(h.get("duration_note") or ""))])

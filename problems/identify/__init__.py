@@ -58,9 +58,7 @@ from __future__ import annotations
 
 from .apply import (
     COMPENSATION_CHECK_MAX_COND,
-    COMPENSATION_MAX_ITER,
     COMPENSATION_RESIDUAL_TOL,
-    COMPENSATION_STEP_TOL,
     REGISTRATION_ALIAS_MARKERS,
     TARGET_SEED_MAX_M,
     alias_effect_m,
@@ -207,9 +205,7 @@ __all__ = [
     "identify",
     # applying a model
     "COMPENSATION_CHECK_MAX_COND",
-    "COMPENSATION_MAX_ITER",
     "COMPENSATION_RESIDUAL_TOL",
-    "COMPENSATION_STEP_TOL",
     "REGISTRATION_ALIAS_MARKERS",
     "TARGET_SEED_MAX_M",
     "alias_effect_m",

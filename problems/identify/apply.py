@@ -35,11 +35,6 @@ from .evaluation import _ev_for, _nominal_tcp, make_rows
 from .lsq import _rms
 from .results import CompensationOutcome, DataError, IdentifiedModel, TargetsError, TargetsFrame
 
-#: Compensation: Newton iterations and tolerance on the joint step (rad) (kept for
-#: compatibility; the engine's own are :data:`problems.compensation.NEWTON_MAX_ITER`
-#: and :data:`problems.compensation.NEWTON_STEP_TOL`).
-COMPENSATION_MAX_ITER = 50
-COMPENSATION_STEP_TOL = 1e-13
 #: Compensation fails for a row if the model-predicted residual exceeds this (m).
 COMPENSATION_RESIDUAL_TOL = 1e-6
 #: The compensation check on a virtual robot avoids poses whose nominal Jacobian

@@ -80,41 +80,12 @@ import_plugins(
     first=("toppra_method", "ruckig_method", "jerk_optimal"),
 )
 
-# Re-exports of the backends' constants: after import_plugins, which fixes the registration order.
-from problems.timing import jerk_optimal, ruckig_method, toppra_method  # noqa: E402 - after the registration
-from problems.timing.ruckig_method import (  # noqa: E402 - after the registration
-    RUCKIG_BUDGET_FRACTIONS,
-    RUCKIG_CONSISTENCY_TOL,
-    RUCKIG_MAX_ITERATIONS,
-    RUCKIG_SHRINK_MARGIN,
-)
-from problems.timing.toppra_method import (  # noqa: E402 - after the registration
-    SHRINK_MARGIN_FLOOR,
-    TOPPRA_GRIDPOINTS_PER_WAYPOINT,
-    TOPPRA_MAX_GRIDPOINTS,
-    TOPPRA_MAX_ITERATIONS,
-    TOPPRA_MAX_REFINEMENTS,
-    TOPPRA_MIN_GRIDPOINTS,
-    TOPPRA_REFINE_FACTOR,
-    TOPPRA_REFINE_MIN_EXCESS,
-    TOPPRA_SHRINK_MARGIN,
-    TOPPRA_SMOOTHING_S,
-    TOPPRA_TIME_LAW,
-    TOPPRA_TIME_LAWS,
-)
-
-#: Names of the methods registered at import (built-in and ``$COMPPLAN_TIMING_PATH``
-#: plug-ins), in registration order: a snapshot; :func:`available_methods` also lists
-#: methods registered later.
-VALID_METHODS: tuple[str, ...] = available_methods()
-
 __all__ = [
-    # public API (as exported by the former problems/timing.py)
+    # public API
     "LIMIT_RATIO_TOL",
     "JointLimits",
     "Trajectory",
     "TimingStatus",
-    "VALID_METHODS",
     "time_parametrize",
     # registry and dt bounds
     "DT_DEFAULT_S",
@@ -129,28 +100,8 @@ __all__ = [
     "register_method",
     "unregister_method",
     "SplinePath",
-    # named constants (tolerances and defaults) kept importable from here
+    # named constants shared by every method
     "MONOTONE_TOL",
     "SHRINK_MARGIN_MAX",
-    "SHRINK_MARGIN_FLOOR",
     "VERIFY_OVERSAMPLE",
-    "TOPPRA_MIN_GRIDPOINTS",
-    "TOPPRA_GRIDPOINTS_PER_WAYPOINT",
-    "TOPPRA_TIME_LAWS",
-    "TOPPRA_TIME_LAW",
-    "TOPPRA_SMOOTHING_S",
-    "TOPPRA_MAX_REFINEMENTS",
-    "TOPPRA_REFINE_FACTOR",
-    "TOPPRA_MAX_GRIDPOINTS",
-    "TOPPRA_REFINE_MIN_EXCESS",
-    "TOPPRA_MAX_ITERATIONS",
-    "TOPPRA_SHRINK_MARGIN",
-    "RUCKIG_MAX_ITERATIONS",
-    "RUCKIG_SHRINK_MARGIN",
-    "RUCKIG_BUDGET_FRACTIONS",
-    "RUCKIG_CONSISTENCY_TOL",
-    # backend modules
-    "jerk_optimal",
-    "ruckig_method",
-    "toppra_method",
 ]

@@ -149,6 +149,11 @@ class TimingMethod:
         What the duration of its trajectory is when the controller runs it (the summary
         headline's ``duration_note``, followed by `` (trajectory.csv)``); default
         ``"<display_name>: the trajectory the controller runs"``.
+    time_optimal_reference : bool
+        The method is a time-optimal reference: when it runs beside the controller's method,
+        the headline gives its duration (``duration_time_optimal_s``, with
+        ``duration_time_optimal_method``) as the bound the controller's trajectory is
+        compared with.
     """
 
     name: str
@@ -163,6 +168,7 @@ class TimingMethod:
     default: bool = False
     dt_max_s: float = DT_MAX_S
     duration_note: str = ""
+    time_optimal_reference: bool = False
 
     def __post_init__(self) -> None:
         if not self.display_name:
@@ -191,6 +197,11 @@ def register_method(method: TimingMethod, *, replace: bool = False) -> TimingMet
     """
     if not isinstance(method.name, str) or not method.name:
         raise InputError(f"a timing method needs a non-empty name, got {method.name!r}")
+    if not method.checked_limits:
+        raise InputError(
+            f"timing method {method.name!r}: checked_limits is empty; name the limits that decide its "
+            f"status, from {list(LIMIT_KEYS)}"
+        )
     unknown = [k for k in method.checked_limits if k not in LIMIT_KEYS]
     if unknown:
         raise InputError(

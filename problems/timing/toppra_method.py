@@ -553,5 +553,6 @@ TOPPRA_METHOD: TimingMethod = register_method(
         controller_rank=30,
         default=True,
         duration_note="TOPP-RA, time-optimal, jerk not limited",
+        time_optimal_reference=True,
     )
 )

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import models.effects as fx
+from models.errors import PluginError
 
 from .config import SimConfigError
 
@@ -83,12 +84,14 @@ def _declared_table(effects: tuple[str, ...]) -> None:
         try:
             e = fx.effect(name)
         except KeyError:
-            raise TypeError(f"the virtual robot realises effect '{name}', which is not registered") from None
+            raise PluginError(f"the virtual robot realises effect '{name}', which is not registered") from None
         if not e.simulation:
-            raise TypeError(f"the virtual robot realises effect '{name}', which declares no `simulation` table")
+            raise PluginError(f"the virtual robot realises effect '{name}', which declares no `simulation` table")
     kinds = {(fx.effect(n).simulation, fx.effect(n).declared) for n in effects}
     if len(kinds) > 1:
-        raise TypeError(f"one realisation of effects {list(effects)}, which declare different tables: {sorted(kinds)}")
+        raise PluginError(
+            f"one realisation of effects {list(effects)}, which declare different tables: {sorted(kinds)}"
+        )
 
 
 def simulates(*effects: str, keys: Iterable[str], disturbance: str = "") -> Callable[[_F], _F]:
@@ -100,7 +103,7 @@ def simulates(*effects: str, keys: Iterable[str], disturbance: str = "") -> Call
     realisation of no model effect (then ``effects`` is empty).
     """
     if bool(effects) == bool(disturbance):
-        raise TypeError("simulates: give the model effects realised, or the table of a disturbance, not both")
+        raise PluginError("simulates: give the model effects realised, or the table of a disturbance, not both")
     _declared_table(effects)
 
     def deco(fn: _F) -> _F:
@@ -108,7 +111,7 @@ def simulates(*effects: str, keys: Iterable[str], disturbance: str = "") -> Call
         taken = {s for q in _REALISATIONS for s in q.spellings} | {q.method for q in _REALISATIONS}
         clash = sorted(taken & {*r.spellings, r.method})
         if clash:
-            raise TypeError(f"simulates: {clash} already realised")
+            raise PluginError(f"simulates: {clash} already realised")
         _REALISATIONS.append(r)
         return fn
 
