@@ -93,6 +93,25 @@ SHRINK_MARGIN_MAX: float = 10.0
 #: limit of 1e-9 rad/s) would otherwise ask for terabytes.
 MAX_TRAJECTORY_SAMPLES: int = 1_000_000
 
+
+class TimeLawTooLong(Exception):
+    """A method's time law is longer than the sample cap allows (raised by :func:`check_times`).
+
+    The duration's lower bound passed the cap before the method ran (so the limits are not
+    off by a unit): the method slowed the path to a near stop. :func:`time_parametrize` turns it
+    into a ``FAILED`` trajectory whose reason says where the path is hard.
+
+    Attributes
+    ----------
+    duration_s : float
+        The time law's duration, s.
+    """
+
+    def __init__(self, duration_s: float) -> None:
+        super().__init__(f"time law of {duration_s:.4g} s")
+        self.duration_s = duration_s
+
+
 # --------------------------------------------------------------------------- #
 # Method records
 # --------------------------------------------------------------------------- #
@@ -444,6 +463,37 @@ def _zero_length_trajectory(method: str, q: np.ndarray, n_input: int, dt: float)
     )
 
 
+def _too_long_trajectory(method: str, q: np.ndarray, dt: float, duration_s: float, bound_s: float) -> Trajectory:
+    """``FAILED`` result (no samples) of a method whose time law is longer than the sample cap
+    allows while the path's lower bound ``bound_s`` is not: the reason names the largest joint
+    step between waypoints against the median one (a sharp corner is the usual cause)."""
+    n = q.shape[1]
+    steps = np.max(np.abs(np.diff(q, axis=0)), axis=1)
+    k = int(np.argmax(steps))
+    median = float(np.median(steps))
+    ratio = f", {steps[k] / median:.3g}x the median step" if median > 0 else ""
+    empty = np.empty((0, n))
+    return Trajectory(
+        method=method,
+        status=TimingStatus.FAILED,
+        reason=(
+            f"the time law slows the path to a near stop ({duration_s:.4g} s, more than the cap of "
+            f"{MAX_TRAJECTORY_SAMPLES} samples at dt = {dt:g} s, while no motion along these waypoints needs "
+            f"more than {bound_s:.4g} s at these limits): a sharp corner is the usual cause; the largest joint "
+            f"step is {steps[k]:.4g} rad between waypoints {k} and {k + 1}{ratio}: blend the corners or space "
+            "the waypoints evenly"
+        ),
+        t=np.empty(0),
+        q=empty,
+        qd=empty.copy(),
+        qdd=empty.copy(),
+        qddd=empty.copy(),
+        duration_s=math.nan,
+        limit_ratio={key: np.full(n, np.nan) for key in LIMIT_KEYS},
+        dt=dt,
+    )
+
+
 def time_parametrize(
     q_path: np.ndarray,
     limits: JointLimits,
@@ -485,7 +535,9 @@ def time_parametrize(
         ``INFEASIBLE`` (zero-length path: one sample at the start at rest,
         ``duration_s = 0``; or TOPP-RA reports the instance uncontrollable);
         ``FAILED`` (the library failed; empty samples, NaN duration, the
-        solver's code in ``solver_code`` where it gave one).
+        solver's code in ``solver_code`` where it gave one; or the method's time law
+        slows the path to a near stop, longer than the sample cap although the path's
+        lower bound is not: the reason names the largest joint step between waypoints).
 
     Raises
     ------
@@ -507,5 +559,9 @@ def time_parametrize(
     if q.shape[0] < 2:
         return _zero_length_trajectory(spec.name, q, n_input, dt)
     # refuse a motion longer than the sample cap before any method runs or samples
-    check_sample_count(_duration_lower_bound(q, limits, spec.checked_limits), dt, spec.name, lower_bound=True)
-    return spec.run(SplinePath(q), limits, dt, opts)
+    bound = _duration_lower_bound(q, limits, spec.checked_limits)
+    check_sample_count(bound, dt, spec.name, lower_bound=True)
+    try:
+        return spec.run(SplinePath(q), limits, dt, opts)
+    except TimeLawTooLong as exc:
+        return _too_long_trajectory(spec.name, q, dt, exc.duration_s, bound)

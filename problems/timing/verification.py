@@ -34,7 +34,8 @@ from problems.timing.path import SplinePath
 from problems.timing.registry import (
     LIMIT_RATIO_TOL,
     MONOTONE_TOL,
-    check_sample_count,
+    MAX_TRAJECTORY_SAMPLES,
+    TimeLawTooLong,
     display_name,
     get_method,
 )
@@ -94,12 +95,12 @@ def check_times(duration: float, dt: float, extra: np.ndarray | None = None) -> 
 
     Raises
     ------
-    InputError
-        The motion needs more than ``MAX_TRAJECTORY_SAMPLES`` samples at ``dt``
-        (checked here, before anything is sampled).
+    TimeLawTooLong
+        The motion needs more than ``MAX_TRAJECTORY_SAMPLES`` samples at ``dt``, or its
+        duration is not finite (checked here, before anything is sampled).
     """
-    if math.isfinite(duration):
-        check_sample_count(duration, dt)
+    if not math.isfinite(duration) or duration / dt + 1.0 > MAX_TRAJECTORY_SAMPLES:
+        raise TimeLawTooLong(duration)
     fine = np.arange(0.0, duration, dt / VERIFY_OVERSAMPLE)
     if extra is not None:
         fine = np.concatenate((fine, extra[(extra >= 0.0) & (extra < duration)]))
