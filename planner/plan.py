@@ -41,7 +41,6 @@ import numpy as np
 
 from models.arm import ArmModel
 from models.errors import InfeasibleError, UnreachableError
-from models.ik import ik_solver
 from models.status import Status
 from models.symbolic import directional_stiffness
 from problems.compensation import CompensationResult, CompensationStatus, closed_form, exact, uncompensated
@@ -328,7 +327,7 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     arm = problem.model
     if problem.arm is None:  # one model object for the whole run (its kinematics built once)
         problem = replace(problem, arm=arm)
-    ik = arm.ik if arm.nominal is problem.robot else ik_solver(problem.robot)
+    ik = arm.ik
     times["model_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

@@ -89,42 +89,8 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
     if pr.wrench_per_waypoint:
         s["wrench"]["rows"] = w
         s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; rows holds every waypoint's wrench"
-    ps = res.posture
-    if ps is not None:
-        s["posture"] = {
-            "status": ps.status.value,
-            "reason": ps.reason,
-            "rule": pr.rule.value,
-            "freedom": ps.freedom,
-            "note": ps.freedom_note,
-            "solver": pr.solver.name,
-            "build_time_s": ps.build_time_s,
-            "solve_time_s": float(sum(r.solve_time_s for r in ps.branches.values())),
-            "objective": (
-                "sum_k ||S C(q_k) F_k||^2 + smoothness * sum_k ||q_{k+1} - q_k||^2, "
-                "S = [I3 0] (translational TCP deflection, m); costs reported "
-                "in m^2 without the smoothness term"
-            ),
-        }
-        s["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
-        _add_branch_postures(res, s["branches"], errors)
-        s["ik_family"] = ps.ik_family
-        s["branch_labels"] = list(ps.labels)
-        s["rejected_branches"] = {ps.labels[b]: r for b, r in ps.rejected.items()}
-        s["default_branch"] = ps.labels[ps.default] if ps.default is not None else None
-        if ps.chosen is not None:
-            s["chosen_branch"] = ps.best.label
-            s["branch"] = ps.best.label
-            g = ps.gains()
-            s["gain"] = {
-                **g,
-                "definition": (
-                    "ratio of RMS load-induced TCP error (the *_cost keys: of summed squared error): "
-                    "vs_default = default branch (nearest branch.home) at its analytic posture over the "
-                    "chosen optimised posture; vs_best_analytic = best branch at its analytic posture "
-                    "over the chosen optimised posture (what the continuous freedom buys)"
-                ),
-            }
+    if res.posture is not None:
+        s.update(_posture_keys(res, errors))
     if res.exact is not None:
         assert res.before is not None and res.closed is not None
         s["error_before"] = res.before.stats_mm()
@@ -137,6 +103,49 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items() if t["limit_use"]["why"]]
     head = {"headline": headline(s), "provenance": res.provenance()}
     return {**head, **s}
+
+
+def _posture_keys(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None) -> dict[str, Any]:
+    """The posture keys of a summary: the NLP, every branch, the choice and its gain."""
+    ps = res.posture
+    assert ps is not None
+    pr = res.problem
+    out: dict[str, Any] = {}
+    out["posture"] = {
+        "status": ps.status.value,
+        "reason": ps.reason,
+        "rule": pr.rule.value,
+        "freedom": ps.freedom,
+        "note": ps.freedom_note,
+        "solver": pr.solver.name,
+        "build_time_s": ps.build_time_s,
+        "solve_time_s": float(sum(r.solve_time_s for r in ps.branches.values())),
+        "objective": (
+            "sum_k ||S C(q_k) F_k||^2 + smoothness * sum_k ||q_{k+1} - q_k||^2, "
+            "S = [I3 0] (translational TCP deflection, m); costs reported "
+            "in m^2 without the smoothness term"
+        ),
+    }
+    out["branches"] = {r.label: _branch_entry(r) for r in ps.branches.values()}
+    _add_branch_postures(res, out["branches"], errors)
+    out["ik_family"] = ps.ik_family
+    out["branch_labels"] = list(ps.labels)
+    out["rejected_branches"] = {ps.labels[b]: r for b, r in ps.rejected.items()}
+    out["default_branch"] = ps.labels[ps.default] if ps.default is not None else None
+    if ps.chosen is not None:
+        out["chosen_branch"] = ps.best.label
+        out["branch"] = ps.best.label
+        g = ps.gains()
+        out["gain"] = {
+            **g,
+            "definition": (
+                "ratio of RMS load-induced TCP error (the *_cost keys: of summed squared error): "
+                "vs_default = default branch (nearest branch.home) at its analytic posture over the "
+                "chosen optimised posture; vs_best_analytic = best branch at its analytic posture "
+                "over the chosen optimised posture (what the continuous freedom buys)"
+            ),
+        }
+    return out
 
 
 def timing_summary(res: PlanResult) -> dict[str, Any]:

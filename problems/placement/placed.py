@@ -44,11 +44,11 @@ def problem_at(problem: Problem, placement: np.ndarray) -> Problem:
         W[:, :3] = W[:, :3] @ R.T
         W[:, 3:] = W[:, 3:] @ R.T
     g_payload = problem.robot.gravity if problem.gravity is None else problem.gravity
-    robot = replace(problem.robot, gravity=R @ np.asarray(problem.robot.gravity, dtype=float))
     arm = replace(
         problem.model,
         nominal=replace(problem.model.nominal, gravity=R @ np.asarray(problem.model.nominal.gravity, dtype=float)),
     )
+    robot = arm.nominal  # one description: the problem's robot is its model's
     rpy = matrix_to_rpy(R @ rpy_to_matrix(problem.nominal_rpy))
     label = placement_label(np.asarray(placement, dtype=float))
     return replace(

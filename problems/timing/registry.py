@@ -467,30 +467,24 @@ def _too_long_trajectory(method: str, q: np.ndarray, dt: float, duration_s: floa
     """``FAILED`` result (no samples) of a method whose time law is longer than the sample cap
     allows while the path's lower bound ``bound_s`` is not: the reason names the largest joint
     step between waypoints against the median one (a sharp corner is the usual cause)."""
-    n = q.shape[1]
     steps = np.max(np.abs(np.diff(q, axis=0)), axis=1)
     k = int(np.argmax(steps))
     median = float(np.median(steps))
     ratio = f", {steps[k] / median:.3g}x the median step" if median > 0 else ""
-    empty = np.empty((0, n))
-    return Trajectory(
-        method=method,
-        status=TimingStatus.FAILED,
-        reason=(
+    from problems.timing.verification import empty_trajectory  # verification imports this module
+
+    return empty_trajectory(
+        method,
+        TimingStatus.FAILED,
+        (
             f"the time law slows the path to a near stop ({duration_s:.4g} s, more than the cap of "
             f"{MAX_TRAJECTORY_SAMPLES} samples at dt = {dt:g} s, while no motion along these waypoints needs "
             f"more than {bound_s:.4g} s at these limits): a sharp corner is the usual cause; the largest joint "
             f"step is {steps[k]:.4g} rad between waypoints {k} and {k + 1}{ratio}: blend the corners or space "
             "the waypoints evenly"
         ),
-        t=np.empty(0),
-        q=empty,
-        qd=empty.copy(),
-        qdd=empty.copy(),
-        qddd=empty.copy(),
-        duration_s=math.nan,
-        limit_ratio={key: np.full(n, np.nan) for key in LIMIT_KEYS},
-        dt=dt,
+        q.shape[1],
+        dt,
     )
 
 

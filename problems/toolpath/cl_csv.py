@@ -34,13 +34,15 @@ import numpy as np
 
 from models.errors import InputError
 
+from .textfile import PROGRAM_MAX_BYTES, read_program_text
+
 __all__ = ["CL_AXIS_NORM_TOL", "CL_MAX_BYTES", "ClPath", "parse_cl_csv", "read_cl_csv"]
 
 #: A tool-axis row whose norm is within this of 1 is normalised (CAM rounds to ~6 digits);
 #: further off it is an error (not a unit vector: probably another column).
 CL_AXIS_NORM_TOL = 1e-3
-#: Largest CL file read (bytes): 10^6 rows of 13 columns fit well under it.
-CL_MAX_BYTES = 512 * 2**20
+#: Largest CL file read (bytes): the limit of every program file.
+CL_MAX_BYTES = PROGRAM_MAX_BYTES
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _POSITION = {"_mm": 1e-3, "_m": 1.0}
@@ -99,21 +101,8 @@ def read_cl_csv(path: str | Path) -> ClPath:
     ClDataError
         Missing, unreadable, binary, empty or too large file, or any bad header or cell.
     """
-    p = Path(path)
-    try:
-        size = p.stat().st_size
-        if size > CL_MAX_BYTES:
-            raise ClDataError(f"{p}: {size} bytes, more than the {CL_MAX_BYTES} bytes a CL file may have")
-        data = p.read_bytes()
-    except OSError as exc:
-        raise ClDataError(f"{p}: cannot read the CL file ({exc.strerror or exc})") from None
-    if b"\0" in data:
-        raise ClDataError(f"{p}: a binary file (it holds NUL bytes); expected CL data as CSV text")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ClDataError(f"{p}: not UTF-8 text (byte {exc.start}); expected CL data as CSV text") from None
-    return parse_cl_csv(text, str(p))
+    text = read_program_text(path, "CL", "CL data as CSV text", ClDataError)
+    return parse_cl_csv(text, str(path))
 
 
 def _columns(where: str, line: int, header: list[str]) -> dict[str, int]:

@@ -19,7 +19,7 @@ within the path tolerance); ``tests/test_feed.py`` checks the TCP speed from for
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -137,20 +137,14 @@ def feed_time_law(
     )
     tr = time_parametrize(np.c_[Q, tau], aug, method, dt, **options)
     rate = tr.qd[:, n] if tr.qd.size else np.empty(0)
-    joints = Trajectory(
-        method=tr.method,
-        status=tr.status,
-        reason=tr.reason,
-        t=tr.t,
+    joints = replace(  # the joints' columns and ratios, without the pseudo-joint
+        tr,
         q=tr.q[:, :n],
         qd=tr.qd[:, :n],
         qdd=tr.qdd[:, :n],
         qddd=tr.qddd[:, :n],
-        duration_s=tr.duration_s,
         limit_ratio={k: v[:n] for k, v in tr.limit_ratio.items()},
-        dt=tr.dt,
-        iterations=tr.iterations,
-        solver_code=tr.solver_code,
+        first_pass_limit_ratio={k: v[:n] for k, v in tr.first_pass_limit_ratio.items()},
     )
     return FeedLaw(
         trajectory=joints,

@@ -18,6 +18,7 @@ from .arcs import INCH_M
 from .gcode_interp import GCODE_MAX_BYTES, Interpreter
 from .gcode_words import GCodeError, split_line
 from .program import Direction, Event, EventKind, Move, MoveKind, Program, RecordedWord, discretise
+from .textfile import read_program_text
 
 __all__ = [
     "GCODE_MAX_BYTES",
@@ -44,24 +45,8 @@ def read_gcode(path: str | Path) -> Program:
     GCodeError
         Missing, unreadable, binary, empty or too large file, or any refused or malformed word.
     """
-    p = Path(path)
-    try:
-        size = p.stat().st_size
-        if size > GCODE_MAX_BYTES:
-            raise GCodeError(f"{p}: {size} bytes, more than the {GCODE_MAX_BYTES} bytes a G-code file may have")
-        data = p.read_bytes()
-    except OSError as exc:
-        raise GCodeError(f"{p}: cannot read the G-code file ({exc.strerror or exc})") from None
-    if b"\0" in data:
-        raise GCodeError(f"{p}: a binary file (it holds NUL bytes); expected a G-code program as text")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        try:
-            text = data.decode("latin-1")  # old controls' comments; words are ASCII either way
-        except UnicodeDecodeError:  # pragma: no cover - latin-1 decodes every byte
-            raise GCodeError(f"{p}: not text; expected a G-code program") from None
-    return parse_gcode(text, str(p))
+    text = read_program_text(path, "G-code", "a G-code program as text", GCodeError, latin1_fallback=True)
+    return parse_gcode(text, str(path))
 
 
 def parse_gcode(text: str, name: str = "<string>") -> Program:

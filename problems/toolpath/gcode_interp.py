@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+from .textfile import PROGRAM_MAX_BYTES
 from .arcs import (
     CENTER_ARC_RADIUS_TOLERANCE_INCH_M,
     INCH_M,
@@ -28,8 +29,8 @@ from .program import Direction, Event, EventKind, Move, MoveKind, Program, Recor
 
 __all__ = ["GCODE_MAX_BYTES", "Interpreter"]
 
-#: Largest program read (bytes): a 10^6-line program fits well under it.
-GCODE_MAX_BYTES = 512 * 2**20
+#: Largest program read (bytes): the limit of every program file.
+GCODE_MAX_BYTES = PROGRAM_MAX_BYTES
 
 _MOTION = {"G0", "G1", "G2", "G3", "G80", "G81", "G82", "G83"}
 _CYCLES = {"G81", "G82", "G83"}
