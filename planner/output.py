@@ -132,13 +132,22 @@ def json_bytes(obj: Any) -> bytes:
     return (json.dumps(jsonable(obj), indent=2, allow_nan=False) + "\n").encode()
 
 
-def csv_bytes(header: Sequence[str], rows: Iterable[Sequence[float]] | np.ndarray) -> bytes:
-    """CSV text with a header row; floats written with 17 significant digits."""
+def csv_bytes(
+    header: Sequence[str], rows: Iterable[Sequence[float]] | np.ndarray, int_rows: np.ndarray | None = None
+) -> bytes:
+    """CSV text with a header row; floats written as the shortest text that reads back exactly
+    (Python's ``repr``); ``int_rows`` (N, k), when given, are the last ``k`` columns, as integers."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
-    for row in np.asarray(rows, dtype=float):
-        w.writerow([repr(float(v)) for v in row])
+    A = np.asarray(rows, dtype=float)
+    if A.ndim == 1:
+        A = A.reshape(len(A), -1) if A.size else A.reshape(0, 0)
+    body = [",".join(map(repr, r)) for r in A.tolist()]
+    if int_rows is not None:
+        I = np.asarray(int_rows, dtype=np.int64).reshape(len(body), -1)
+        body = [f"{a},{','.join(map(str, b))}" if a else ",".join(map(str, b)) for a, b in zip(body, I.tolist())]
+    buf.write("".join(f"{r}\n" for r in body))
     return buf.getvalue().encode()
 
 
@@ -656,9 +665,9 @@ class OutputSet:
         """Add a JSON file (see :func:`json_bytes`)."""
         self.add_bytes(name, json_bytes(obj))
 
-    def add_csv(self, name: str, header: Sequence[str], rows: Any) -> None:
+    def add_csv(self, name: str, header: Sequence[str], rows: Any, int_rows: Any = None) -> None:
         """Add a CSV file (see :func:`csv_bytes`)."""
-        self.add_bytes(name, csv_bytes(header, rows))
+        self.add_bytes(name, csv_bytes(header, rows, int_rows))
 
     def publish(self) -> list[Path]:
         """Write the set: built in a temporary sibling folder, then moved into place in one step.

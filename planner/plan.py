@@ -60,6 +60,7 @@ from problems.timing import (
     time_parametrize,
 )
 from problems.timing.trajectory import LIMIT_KEYS
+from problems.toolpath.feed import FEED_SLOW_TOL, feed_time_law
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
@@ -73,6 +74,11 @@ WAYPOINT_COLUMNS = (
 )
 #: Columns of ``path.csv``.
 PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
+#: Columns ``path.csv`` adds for a program path: the programmed feed of the move ending at the
+#: waypoint (mm/min, nan for rapids and waypoint 0), its program line, 1 for a rapid.
+PROGRAM_PATH_COLUMNS = ["feed_mm_min", "line", "rapid"]
+#: Column ``trajectory*.csv`` adds for a program path: the program line of the move each sample runs.
+PROGRAM_TRAJECTORY_COLUMNS = ["line"]
 #: Columns of ``trajectory*.csv``.
 TRAJECTORY_COLUMNS = OUTPUT_TRAJECTORY_COLUMNS
 #: Slack on the commanded joints' position limits (rad).
@@ -119,6 +125,9 @@ class PlanResult:
     made : dict
         When and by which command line the result was made (``command_line``, ``argv``,
         ``date_utc``; :func:`planner.provenance.invocation`): the summary's provenance.
+    feed : dict method -> problems.toolpath.feed.FeedLaw
+        For a program path: each method's feed law (the feed reached, the slowed moves, the
+        program move of every sample); empty otherwise.
     """
 
     status: PlanStatus
@@ -134,6 +143,7 @@ class PlanResult:
     stage_times_s: dict[str, float] = field(default_factory=dict)
     made: dict[str, Any] = field(default_factory=invocation)
     dynamic: Any = None
+    feed: dict[str, Any] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -461,7 +471,23 @@ def _time(res: PlanResult) -> None:
     lim = JointLimits(problem.limits.velocity, problem.limits.acceleration, problem.limits.jerk)
     for m in problem.timing.methods:
         t1 = time.perf_counter()
-        res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
+        if problem.program is not None:  # at the programmed feed, stretch by stretch between stops
+            w = problem.program.waypoints
+            fl = feed_time_law(
+                qc,
+                problem.positions,
+                w.feed_m_s,
+                lim,
+                problem.timing.dt,
+                m,
+                w.stop,
+                w.dwell_s,
+                **problem.timing.options(m),
+            )
+            res.feed[m] = fl
+            res.trajectories[m] = fl.trajectory
+        else:
+            res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
         res.stage_times_s[f"timing_{m}_s"] = time.perf_counter() - t1
     ranked = controller_methods(res.trajectories)
     if not ranked:  # a problem file names one (check_timing); a Problem built in code may not
@@ -469,6 +495,8 @@ def _time(res: PlanResult) -> None:
         res.reason = f"none of the timing methods {list(res.trajectories)} can be the controller's trajectory"
         return
     res.controller = ranked[0]
+    if res.controller in res.feed:
+        res.warnings += _feed_warnings(res)
     for m, tr in res.trajectories.items():
         failure = _trajectory_failure(res, m, tr)
         if failure:
@@ -482,6 +510,32 @@ def _time(res: PlanResult) -> None:
                 else ""
             )
             res.warnings.append(f"{m} does not limit {k}: peak {k} ratio {r:.3g} > 1{hint}")
+
+
+#: Slowed program lines named in a warning (the summary lists them all).
+FEED_WARN_LINES = 5
+
+
+def _feed_warnings(res: PlanResult) -> list[str]:
+    """The program lines whose feed the joint limits force down (the controller's law)."""
+    fl = res.feed[res.controller]
+    if not fl.slowed or res.problem.program is None:
+        return []
+    line = res.problem.program.waypoints.line
+    worst: dict[int, float] = {}
+    for k, frac in fl.slowed.items():
+        worst[int(line[k])] = min(frac, worst.get(int(line[k]), 1.0))
+    order = sorted(worst, key=lambda L: worst[L])
+    shown = ", ".join(f"line {L}: {100 * worst[L]:.0f} %" for L in order[:FEED_WARN_LINES])
+    more = (
+        f" and {len(order) - FEED_WARN_LINES} more (summary.json program.slowed_lines)"
+        if len(order) > FEED_WARN_LINES
+        else ""
+    )
+    return [
+        f"the joint limits (or the stops around them) keep the feed below {100 * (1 - FEED_SLOW_TOL):.0f} % of F on "
+        f"{len(order)} program line(s), peak TCP speed as a fraction of F: {shown}{more}"
+    ]
 
 
 def _jerk_limited() -> str:
@@ -565,13 +619,26 @@ def write_outputs(
     summary = view.summary
     out = OutputSet(folder)
     out.add_json("summary.json", summary)
-    out.add_csv("path.csv", PATH_COLUMNS, np.hstack([res.positions, res.exact.q_command]))
+    prog = res.problem.program
+    if prog is None:
+        out.add_csv("path.csv", PATH_COLUMNS, np.hstack([res.positions, res.exact.q_command]))
+    else:
+        w = prog.waypoints
+        out.add_csv(
+            "path.csv",
+            PATH_COLUMNS + PROGRAM_PATH_COLUMNS,
+            np.column_stack([res.positions, res.exact.q_command, w.feed_m_s * 6e4]),
+            np.column_stack([w.line, w.rapid]),
+        )
     out.add_csv("waypoints.csv", WAYPOINT_COLUMNS, view.waypoints)
     out.add_csv("branches.csv", view.branch_columns, view.branches)
     for m, tr in res.trajectories.items():
         name = "trajectory.csv" if m == res.controller else f"trajectory_{m}.csv"
         if m == res.controller and res.dynamic is not None and res.dynamic.link is not None:
             out.add_csv(name, TRAJECTORY_COLUMNS + LINK_COLUMNS, np.hstack([_trajectory_rows(tr), res.dynamic.link.q]))
+        elif m in res.feed and prog is not None:
+            lines = prog.waypoints.line[res.feed[m].sample_move]
+            out.add_csv(name, TRAJECTORY_COLUMNS + PROGRAM_TRAJECTORY_COLUMNS, _trajectory_rows(tr), lines[:, None])
         else:
             out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
     if with_figures:

@@ -86,7 +86,9 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         "warnings": list(res.warnings),
         "stage_times_s": dict(res.stage_times_s),
     }
-    if pr.wrench_per_waypoint:
+    if pr.wrench_per_waypoint and pr.program is not None:
+        s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; the program's CL file gives every point's (TCP frame)"
+    elif pr.wrench_per_waypoint:
         s["wrench"]["rows"] = w
         s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; rows holds every waypoint's wrench"
     if res.posture is not None:
@@ -98,11 +100,49 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         s["exact_residual_max_m"] = float(res.exact.error_norm_m.max())
         s["status"] = {"closed_form": res.closed.status.value, "exact": res.exact.status.value}
         s["warnings"] += list(res.closed.warnings)
+    if pr.program is not None:
+        s["program"] = program_summary(res)
     if res.trajectories:
         s.update(timing_summary(res))
         s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items() if t["limit_use"]["why"]]
     head = {"headline": headline(s), "provenance": res.provenance()}
     return {**head, **s}
+
+
+def program_summary(res: PlanResult) -> dict[str, Any]:
+    """The ``program`` keys of a program path: the file, its waypoints and stops, the path tolerance,
+    and per timing method the programmed and achieved times and the slowed program lines."""
+    sec = res.problem.program
+    w = sec.waypoints
+    cut = ~w.rapid
+    out: dict[str, Any] = {
+        "file": sec.file,
+        "kind": sec.kind,
+        "units_note": sec.units_note,
+        "n_waypoints": int(w.n),
+        "n_lines": int(len(np.unique(w.line))),
+        "n_stops": int(np.count_nonzero(w.stop)),
+        "dwell_s": float(np.sum(w.dwell_s)),
+        "path_tolerance_mm": w.tolerance_m * 1e3,
+        "path_tolerance_source": w.tolerance_source,
+        "cutting_length_m": float(np.sum(np.linalg.norm(np.diff(w.points_m, axis=0), axis=1)[cut[1:]])),
+        "workpiece": {"xyz_m": sec.workpiece.xyz_m, "rpy_rad": sec.workpiece.rpy_rad},
+        "feed": {},
+    }
+    for m, fl in res.feed.items():
+        worst: dict[int, float] = {}
+        for k, frac in fl.slowed.items():
+            worst[int(w.line[k])] = min(frac, worst.get(int(w.line[k]), 1.0))
+        dur = fl.trajectory.duration_s
+        out["feed"][m] = {
+            "programmed_time_s": fl.programmed_time_s,
+            "duration_s": dur,
+            "peak_feed_ratio": fl.feed_ratio,
+            "n_stretches": fl.n_stretches,
+            "slowed_lines": [[L, round_sig(worst[L], 3)] for L in sorted(worst)],
+            "slowed_note": "program line, peak TCP speed over F on it, where below 1 - FEED_SLOW_TOL (0.95)",
+        }
+    return out
 
 
 def _posture_keys(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None) -> dict[str, Any]:

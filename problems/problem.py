@@ -33,7 +33,6 @@ from problems.path import line_positions
 from problems.posture import OrientationRule, PostureTask, SolverSettings
 from problems.problem_file import (
     DEFAULT_RPY,
-    MAX_WAYPOINTS,
     WRENCH_FRAMES,
     Limits,
     ProblemFileError,
@@ -51,6 +50,7 @@ from problems.problem_file import (
     parse_solver,
     parse_timing,
     parse_wrench,
+    is_program_path,
 )
 
 
@@ -66,7 +66,7 @@ class Problem:
         The robot as named in the file (built-in name or resolved path).
     robot : Robot
         With the problem's tool applied.
-    path_kind : {"line", "waypoints"}
+    path_kind : {"line", "waypoints", "gcode", "toolpath_csv"}
     line : tuple (start (3,), end (3,)) or None
         For ``line`` paths, m.
     positions : ndarray, shape (N, 3)
@@ -131,6 +131,10 @@ class Problem:
     #: The ``[placement]`` grid of ``compplan place`` (a
     #: :class:`~problems.placement.grid.PlacementGrid`), or None.
     placement: Any = None
+    #: A program path (``path_kind`` ``gcode`` / ``toolpath_csv``): the program read and placed
+    #: (:class:`problems.program_section.ProgramSection`: file, waypoints with their program lines,
+    #: feeds, rapids and stops, the workpiece), else None.
+    program: Any = None
 
     @property
     def n(self) -> int:
@@ -178,8 +182,8 @@ class Problem:
             )
         if self.wrench_per_waypoint:
             raise ProblemFileError(f"{self.source}: cannot re-sample a path with a per-waypoint wrench")
-        if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= MAX_WAYPOINTS:
-            raise ProblemFileError(f"{self.source}: path.points must be an integer in [2, {MAX_WAYPOINTS}], got {n!r}")
+        if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n:
+            raise ProblemFileError(f"{self.source}: path.points must be an integer >= 2, got {n!r}")
         P = line_positions(self.line[0], self.line[1], n)
         R = np.broadcast_to(self.rotations[0], (n, 3, 3)).copy()
         W = np.broadcast_to(self.wrench[0], (n, 6)).copy()
@@ -210,7 +214,16 @@ class Problem:
                 "tool": {"xyz": [float(v) for v in T[:3, 3]], "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]},
             },
         }
-        if self.path_kind == "line" and self.line is not None:
+        if self.program is not None:
+            d["path"] = {"kind": self.path_kind, "file": self.program.file}
+            w = self.program.waypoints
+            if w.tolerance_source != "G64 P":
+                d["path"]["tolerance_mm"] = w.tolerance_m * 1e3
+            d["workpiece"] = {
+                "xyz": [float(v) for v in self.program.workpiece.xyz_m],
+                "rpy": [float(v) for v in self.program.workpiece.rpy_rad],
+            }
+        elif self.path_kind == "line" and self.line is not None:
             d["path"] = {
                 "kind": "line",
                 "start": [float(v) for v in self.line[0]],
@@ -223,11 +236,15 @@ class Problem:
                 "positions": self.positions.tolist(),
                 "rpy": [matrix_to_rpy(R).tolist() for R in self.rotations],
             }
-        o: dict[str, Any] = {"rule": self.rule.value, "rpy": [float(v) for v in self.nominal_rpy], "scan": self.scan}
+        o: dict[str, Any] = {"rule": self.rule.value, "scan": self.scan}
+        if self.program is None:
+            o["rpy"] = [float(v) for v in self.nominal_rpy]
         if self.rule is OrientationRule.CONE:
             o["half_angle"] = self.cone_half_angle
         d["orientation"] = o
-        if self.wrench_per_waypoint:
+        if self.wrench_per_waypoint and self.program is not None and self.program.waypoints.wrench is not None:
+            pass  # the CL file gives it
+        elif self.wrench_per_waypoint:
             d["wrench"] = {"frame": self.wrench_frame, "per_waypoint": self.wrench.tolist()}
         else:
             d["wrench"] = {
@@ -296,15 +313,17 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
     """
     head = parse_header(where, data)
     spec, arm = parse_robot(where, data, base_dir)
-    orient = parse_orientation(where, data)
-    path = parse_path(where, data, orient.rotation)
-    wrench = parse_wrench(where, data, len(path.positions))
+    program = is_program_path(data)
+    orient = parse_orientation(where, data, program)
+    path = parse_path(where, data, orient.rotation, base_dir, arm.nominal)
+    cl_wrench = path.program.waypoints.wrench if path.program is not None else None
+    wrench = parse_wrench(where, data, len(path.positions), cl_wrench)
     payload = parse_payload(where, data)
     limits = parse_limits(where, data, arm.nominal)
     smoothness = parse_cost(where, data)
     solver = parse_solver(where, data)
     home = parse_branch(where, data)
-    timing = parse_timing(where, data)
+    timing = parse_timing(where, data, program)
     placement = parse_placement(where, data)
     return Problem(
         name=head.name,
@@ -334,6 +353,7 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
         gravity=payload.gravity,
         arm=arm,
         placement=placement,
+        program=path.program,
     )
 
 
@@ -361,7 +381,8 @@ def load_problem(spec: str | Path) -> Problem:
     elif s in shipped_problems():
         res = resources.files("problems").joinpath(f"files/{s}.toml")
         text = res.read_text(encoding="utf-8")
-        where, base = f"shipped problem '{s}'", None
+        folder = Path(str(resources.files("problems").joinpath("files")))
+        where, base = f"shipped problem '{s}'", (folder if folder.is_dir() else None)
     else:
         raise ProblemFileError(
             f"problem '{s}': no such file, and not a shipped problem (shipped: {', '.join(shipped_problems())})"
@@ -375,7 +396,6 @@ def load_problem(spec: str | Path) -> Problem:
 
 __all__ = [
     "DEFAULT_RPY",
-    "MAX_WAYPOINTS",
     "WRENCH_FRAMES",
     "Limits",
     "Problem",

@@ -38,7 +38,14 @@ from problems.posture import (
     OrientationRule,
     SolverSettings,
 )
-from problems.timing import DT_DEFAULT_S, available_methods, controller_methods, default_methods, get_method
+from problems.timing import (
+    DT_DEFAULT_S,
+    available_methods,
+    controller_methods,
+    default_methods,
+    get_method,
+    program_default_methods,
+)
 from problems.timing.registry import validate_options
 
 # The timing methods a problem may name, those run when it names none, the default and largest
@@ -51,8 +58,6 @@ TIMING_OPTION_KEYS: dict[str, tuple[str, str]] = {
     "toppra_max_iterations": ("toppra", "max_iterations"),
     "ruckig_max_iterations": ("ruckig", "max_iterations"),
 }
-#: Largest accepted number of waypoints (keeps an NLP at a sane size).
-MAX_WAYPOINTS = 2000
 #: Default nominal TCP orientation: tool z axis pointing down (roll = 180 deg).
 DEFAULT_RPY = np.array([math.pi, 0.0, 0.0])
 
@@ -71,13 +76,15 @@ _TOP = (
     "branch",
     "timing",
     "placement",
+    "workpiece",
 )
 #: Frames a wrench may be given in.
 WRENCH_FRAMES = ("base", "tool")
 _TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "robot": ("model", "tool"),
     "robot.tool": ("xyz", "rpy", "rpy_deg"),
-    "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg"),
+    "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg", "file", "tolerance_mm"),
+    "workpiece": ("xyz", "rpy", "rpy_deg"),
     "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
     "wrench": ("frame", "force", "moment", "per_waypoint"),
     "payload": ("mass_kg", "com_m", "gravity_m_s2"),
@@ -217,19 +224,22 @@ class PathSection(NamedTuple):
 
     Attributes
     ----------
-    kind : {"line", "waypoints"}
+    kind : {"line", "waypoints", "gcode", "toolpath_csv"}
     line : tuple (start (3,), end (3,)) or None
         For ``line`` paths, m, base frame.
     positions : ndarray, shape (N, 3)
         TCP waypoints, m, base frame.
     rotations : ndarray, shape (N, 3, 3)
         Nominal base->TCP rotations (the path's own or the orientation's nominal one).
+    program : problems.program_section.ProgramSection or None
+        For a program path (``gcode``, ``toolpath_csv``): the program read and placed.
     """
 
     kind: str
     line: tuple[np.ndarray, np.ndarray] | None
     positions: np.ndarray
     rotations: np.ndarray
+    program: Any = None
 
 
 class WrenchSection(NamedTuple):
@@ -523,10 +533,27 @@ def parse_robot(where: str, data: Mapping[str, Any], base_dir: Path | None) -> R
     return RobotSection(spec, arm)
 
 
-def parse_orientation(where: str, data: Mapping[str, Any]) -> OrientationSection:
-    """The ``[orientation]`` section: rule, nominal rotation (rpy or tool axis), cone, scan."""
+def parse_orientation(where: str, data: Mapping[str, Any], program: bool = False) -> OrientationSection:
+    """The ``[orientation]`` section: rule, nominal rotation (rpy or tool axis), cone, scan.
+
+    ``program``: the path is a CAM program, which gives the tool axis: the rule defaults to
+    ``free_tool_axis``, ``fixed`` and a nominal rotation are refused.
+    """
     ot = _table(where, data, "orientation")
-    rule_raw = ot.get("rule")
+    if program:
+        for key in ("rpy", "rpy_deg", "axis"):
+            if key in ot:
+                raise _err(
+                    where, f"orientation.{key}", "does not apply to a program path (the program gives the tool axis)"
+                )
+        if ot.get("rule") == OrientationRule.FIXED.value:
+            raise _err(
+                where,
+                "orientation.rule",
+                "= 'fixed' does not apply to a program path: a program gives the tool axis, not the "
+                "rotation about it; use 'free_tool_axis' (the default), 'cone' or 'position_only'",
+            )
+    rule_raw = ot.get("rule", OrientationRule.FREE_TOOL_AXIS.value if program else None)
     try:
         rule = OrientationRule(rule_raw)
     except ValueError:
@@ -577,21 +604,48 @@ def _cone_half_angle(where: str, ot: Mapping[str, Any], rule: OrientationRule) -
     return half
 
 
-def parse_path(where: str, data: Mapping[str, Any], R_nom: np.ndarray) -> PathSection:
-    """The ``[path]`` section: a line or explicit waypoints.
+def is_program_path(data: Mapping[str, Any]) -> bool:
+    """Whether the document's path is a program file (``[path] kind`` in ``PROGRAM_KINDS``)."""
+    from problems.program_section import PROGRAM_KINDS
+
+    pt = data.get("path") if isinstance(data, Mapping) else None
+    return isinstance(pt, Mapping) and pt.get("kind") in PROGRAM_KINDS
+
+
+def parse_path(
+    where: str, data: Mapping[str, Any], R_nom: np.ndarray, base_dir: Path | None = None, robot: Robot | None = None
+) -> PathSection:
+    """The ``[path]`` section: a line, explicit waypoints, or a program file (with ``[workpiece]``).
 
     Parameters
     ----------
     R_nom : ndarray, shape (3, 3)
         The orientation's nominal base->TCP rotation, used where the path gives none.
+    base_dir : Path, optional
+        Directory against which a relative ``path.file`` is resolved.
+    robot : Robot, optional
+        The robot with its tool: a program point beyond its reach is refused with ``file:line``.
     """
+    from problems.program_section import PROGRAM_KINDS, check_reach, parse_program
+
     pt = _table(where, data, "path")
     kind = pt.get("kind")
+    if kind != "gcode" and kind != "toolpath_csv" and "workpiece" in data:
+        raise _err(where, "workpiece", f"only applies to a program path (kind {list(PROGRAM_KINDS)}); kind is {kind!r}")
+    for key in ("file", "tolerance_mm"):
+        if key in pt and kind not in PROGRAM_KINDS:
+            raise _err(where, f"path.{key}", f"only applies to kinds {list(PROGRAM_KINDS)}")
     if kind == "line":
         return _line_path(where, pt, R_nom)
     if kind == "waypoints":
         return _waypoints_path(where, pt, R_nom)
-    raise _err(where, "path.kind", f"must be 'line' or 'waypoints', got {kind!r}")
+    if kind in PROGRAM_KINDS:
+        wt = _table(where, data, "workpiece") if "workpiece" in data else None
+        sec = parse_program(where, pt, wt, base_dir, _err, lambda t, prefix: _rpy(where, t, prefix))
+        if robot is not None:
+            check_reach(sec, robot)
+        return PathSection(kind, None, sec.positions, sec.rotations, sec)
+    raise _err(where, "path.kind", f"must be one of {['line', 'waypoints', *PROGRAM_KINDS]}, got {kind!r}")
 
 
 def _line_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> PathSection:
@@ -604,7 +658,7 @@ def _line_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> PathSect
             raise _err(where, f"path.{key}", "is required for kind 'line'")
     start = _vector(where, "path.start", pt["start"], 3)
     end = _vector(where, "path.end", pt["end"], 3)
-    n = _integer(where, "path.points", pt["points"], 2, MAX_WAYPOINTS)
+    n = _integer(where, "path.points", pt["points"], 2)
     _check_positions(where, "path.start/end", np.vstack([start, end]))
     if np.linalg.norm(end - start) < 1e-9:
         raise _err(where, "path.end", f"equals path.start {start.tolist()}; a line needs two distinct points")
@@ -622,8 +676,6 @@ def _waypoints_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> Pat
         raise _err(where, "path.positions", "is required for kind 'waypoints'")
     P = _rows(where, "path.positions", pt["positions"], 3)
     n = len(P)
-    if n > MAX_WAYPOINTS:
-        raise _err(where, "path.positions", f"has {n} rows; at most {MAX_WAYPOINTS}")
     _check_positions(where, "path.positions", P)
     got = _angle_pair(where, pt, "rpy", "path.")
     if got is not None:
@@ -641,14 +693,24 @@ def _waypoints_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> Pat
     return PathSection("waypoints", None, P, R)
 
 
-def parse_wrench(where: str, data: Mapping[str, Any], n: int) -> WrenchSection:
+def parse_wrench(where: str, data: Mapping[str, Any], n: int, tool_rows: np.ndarray | None = None) -> WrenchSection:
     """The ``[wrench]`` section: frame, and a constant force/moment or one row per waypoint.
 
     Parameters
     ----------
     n : int
         Number of waypoints N of the path.
+    tool_rows : ndarray, shape (N, 6), optional
+        A per-waypoint wrench in the TCP frame from the path itself (CL data with wrench columns):
+        then ``[wrench]`` must be absent.
     """
+    if tool_rows is not None:
+        if "wrench" in data:
+            raise _err(
+                where, "wrench", "must be absent: the path's CL file gives the wrench per point (fx_N ... mz_Nm)"
+            )
+        _check_wrench(where, "wrench.per_waypoint", tool_rows)
+        return WrenchSection("tool", np.asarray(tool_rows, dtype=float), True)
     wt = _table(where, data, "wrench")
     frame = wt.get("frame", "base")
     if frame not in WRENCH_FRAMES:
@@ -826,11 +888,12 @@ def _method_tables(where: str, tt: Mapping[str, Any]) -> dict[str, dict[str, Any
     return out
 
 
-def parse_timing(where: str, data: Mapping[str, Any]) -> TimingSettings:
+def parse_timing(where: str, data: Mapping[str, Any], program: bool = False) -> TimingSettings:
     """The ``[timing]`` section: methods (registered in :mod:`problems.timing`), controller period
-    (s), method options (``[timing.<method>]`` tables and the older flat keys)."""
+    (s), method options (``[timing.<method>]`` tables and the older flat keys). ``program``: the path
+    is a CAM program (the default methods are then :func:`~problems.timing.program_default_methods`)."""
     tt = _table(where, data, "timing")
-    methods = tt.get("methods", list(default_methods()))
+    methods = tt.get("methods", list(program_default_methods() if program else default_methods()))
     if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
         raise _err(
             where, "timing.methods", f"must be a list of method names {list(available_methods())}, got {methods!r}"

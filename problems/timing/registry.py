@@ -162,6 +162,10 @@ class TimingMethod:
         (:data:`CONTROLLER_RANK_NEVER`): never the controller's.
     default : bool
         Run when a problem names no methods (:func:`default_methods`).
+    program_default : bool
+        Run when a problem whose path is a CAM program names no methods
+        (:func:`program_default_methods`): a program is timed stretch by stretch between its stops,
+        often 10^3 of them, so the default there is a method that is fast per stretch.
     dt_max_s : float
         Largest controller period the method accepts (s), at most :data:`DT_MAX_S`.
     duration_note : str
@@ -185,6 +189,7 @@ class TimingMethod:
     display_name: str = ""
     controller_rank: int | None = CONTROLLER_RANK_NEVER
     default: bool = False
+    program_default: bool = False
     dt_max_s: float = DT_MAX_S
     duration_note: str = ""
     time_optimal_reference: bool = False
@@ -253,6 +258,12 @@ def default_methods() -> tuple[str, ...]:
     """The methods a problem runs when it names none (registered with ``default=True``), in
     registration order."""
     return tuple(m.name for m in _METHODS.values() if m.default)
+
+
+def program_default_methods() -> tuple[str, ...]:
+    """The methods a problem with a CAM program path runs when it names none (registered with
+    ``program_default=True``), in registration order."""
+    return tuple(m.name for m in _METHODS.values() if m.program_default)
 
 
 def controller_methods(names: Iterable[str] | None = None) -> tuple[str, ...]:

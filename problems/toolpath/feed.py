@@ -19,12 +19,12 @@ within the path tolerance); ``tests/test_feed.py`` checks the TCP speed from for
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from models.errors import InputError
-from problems.timing import JointLimits, Trajectory, time_parametrize
+from problems.timing import JointLimits, TimingStatus, Trajectory, time_parametrize
 
 __all__ = ["FEED_PSEUDO_ACCEL", "FEED_PSEUDO_JERK", "FEED_SLOW_TOL", "FeedLaw", "feed_time_law", "programmed_time"]
 
@@ -85,12 +85,25 @@ class FeedLaw:
     slowed : dict of int -> float
         Waypoint -> the fraction of the feed reached at most on the move ending there, for the
         cutting moves the joint limits slow by more than :data:`FEED_SLOW_TOL`.
+    sample_move : np.ndarray
+        Shape ``(M,)``, int: for each sample, the waypoint ending the move it runs (1..N-1).
+    n_stretches : int
+        Number of stretches between stops timed on their own.
     """
 
     trajectory: Trajectory
     feed_ratio: float
     programmed_time_s: float
     slowed: dict[int, float]
+    sample_move: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    n_stretches: int = 1
+
+
+#: The waypoint-index pseudo-joint is the index times this (rad-like units): small enough not to
+#: change the spline's chord-length parameter, large enough to be read back exactly.
+INDEX_SCALE = 1e-6
+#: Limits of the waypoint-index pseudo-joint: unbounded in practice.
+_INDEX_LIMIT = 1e12
 
 
 def feed_time_law(
@@ -100,6 +113,8 @@ def feed_time_law(
     limits: JointLimits,
     dt: float,
     method: str = "jerk_optimal",
+    stop: np.ndarray | None = None,
+    dwell_s: np.ndarray | None = None,
     **options: object,
 ) -> FeedLaw:
     """Time a joint path so the TCP runs at its programmed feed (see the module docstring).
@@ -118,6 +133,11 @@ def feed_time_law(
         Controller period, s.
     method : str
         A registered timing method; a jerk-limited one (the default) for a controller.
+    stop : np.ndarray, optional
+        Shape ``(N,)``, bool: the arm is at rest at these waypoints (the first and last always).
+        Each stretch between stops is timed on its own, rest to rest, and the pieces joined.
+    dwell_s : np.ndarray, optional
+        Shape ``(N,)``, s: time held at rest at a stop.
     **options
         The method's options.
 
@@ -127,39 +147,141 @@ def feed_time_law(
     """
     Q = np.asarray(q, dtype=float)
     tau = programmed_time(points_m, feed_m_s)
-    if Q.ndim != 2 or len(Q) != len(tau) or Q.shape[1] != limits.n_joints:
-        raise InputError(
-            f"feed law: q must be (N, {limits.n_joints}) with N = {len(tau)} waypoints, got shape {Q.shape}"
-        )
+    n_way = len(tau)
+    if Q.ndim != 2 or len(Q) != n_way or Q.shape[1] != limits.n_joints:
+        raise InputError(f"feed law: q must be (N, {limits.n_joints}) with N = {n_way} waypoints, got shape {Q.shape}")
+    st = np.zeros(n_way, dtype=bool) if stop is None else np.asarray(stop, dtype=bool).copy()
+    dw = np.zeros(n_way) if dwell_s is None else np.asarray(dwell_s, dtype=float)
+    if st.shape != (n_way,) or dw.shape != (n_way,) or np.any(~(dw >= 0.0)):
+        raise InputError(f"feed law: stop and dwell_s must be ({n_way},) with dwells >= 0 s")
+    st[0] = st[-1] = True
     n = Q.shape[1]
     aug = JointLimits(
-        np.r_[limits.velocity, 1.0], np.r_[limits.acceleration, FEED_PSEUDO_ACCEL], np.r_[limits.jerk, FEED_PSEUDO_JERK]
+        np.r_[limits.velocity, 1.0, _INDEX_LIMIT],
+        np.r_[limits.acceleration, FEED_PSEUDO_ACCEL, _INDEX_LIMIT],
+        np.r_[limits.jerk, FEED_PSEUDO_JERK, _INDEX_LIMIT],
     )
-    tr = time_parametrize(np.c_[Q, tau], aug, method, dt, **options)
-    rate = tr.qd[:, n] if tr.qd.size else np.empty(0)
-    joints = replace(  # the joints' columns and ratios, without the pseudo-joint
-        tr,
-        q=tr.q[:, :n],
-        qd=tr.qd[:, :n],
-        qdd=tr.qdd[:, :n],
-        qddd=tr.qddd[:, :n],
-        limit_ratio={k: v[:n] for k, v in tr.limit_ratio.items()},
-        first_pass_limit_ratio={k: v[:n] for k, v in tr.first_pass_limit_ratio.items()},
+    cols = np.c_[Q, tau, np.arange(n_way) * INDEX_SCALE]
+    bounds = np.flatnonzero(st)
+    pieces: list[Trajectory] = []
+    failed: tuple[int, int, Trajectory] | None = None
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        seg = cols[a : b + 1].copy()
+        seg[:, n] -= tau[a]
+        tr = time_parametrize(seg, aug, method, dt, **options)
+        if tr.q.size:
+            tr = replace(tr, q=tr.q.copy())
+            tr.q[:, n] += tau[a]
+        pieces.append(tr)
+        if failed is None and tr.status is not TimingStatus.OK:
+            failed = (int(a), int(b), tr)
+    joined = _join(pieces, dw[bounds], dt, n + 2, method)
+    if failed is not None:
+        a, b, tr = failed
+        joined = replace(
+            joined,
+            status=tr.status,
+            reason=f"the stretch from waypoint {a} to {b} (of {len(pieces)} between stops): {tr.reason}",
+            solver_code=tr.solver_code,
+        )
+    elif len(pieces) > 1:
+        joined = replace(joined, reason=f"{len(pieces)} stretches between stops, each {pieces[0].reason}")
+    rate = joined.qd[:, n] if joined.qd.size else np.empty(0)
+    index = joined.q[:, n + 1] / INDEX_SCALE if joined.q.size else np.empty(0)
+    joints = replace(  # the joints' columns and ratios, without the pseudo-joints
+        joined,
+        q=joined.q[:, :n],
+        qd=joined.qd[:, :n],
+        qdd=joined.qdd[:, :n],
+        qddd=joined.qddd[:, :n],
+        limit_ratio={k: v[:n] for k, v in joined.limit_ratio.items()},
+        first_pass_limit_ratio={k: v[:n] for k, v in joined.first_pass_limit_ratio.items()},
     )
+    move = np.clip(np.ceil(index - 1e-6), 1, n_way - 1).astype(int) if index.size else np.zeros(0, dtype=int)
     return FeedLaw(
         trajectory=joints,
         feed_ratio=float(np.max(np.abs(rate))) if rate.size else float("nan"),
         programmed_time_s=float(tau[-1]),
-        slowed=_slowed(tr.q[:, n] if tr.q.size else np.empty(0), rate, tau, np.asarray(feed_m_s, float)),
+        slowed=_slowed(move, rate, tau, np.asarray(feed_m_s, float)),
+        sample_move=move,
+        n_stretches=len(pieces),
     )
 
 
-def _slowed(tau_t: np.ndarray, rate: np.ndarray, tau: np.ndarray, feed: np.ndarray) -> dict[int, float]:
+def _join(pieces: list[Trajectory], dwell: np.ndarray, dt: float, width: int, method: str) -> Trajectory:
+    """One trajectory from rest-to-rest pieces (each starting at t = 0), with the dwells held."""
+    if len(pieces) == 1 and dwell[0] == 0.0 and dwell[-1] == 0.0:
+        return pieces[0]
+    t, q, qd, qdd, qddd = [], [], [], [], []
+    t_end = 0.0
+    last = None
+
+    def hold(at: np.ndarray, seconds: float) -> None:
+        nonlocal t_end
+        m = int(round(seconds / dt))
+        if m <= 0:
+            return
+        t.append(t_end + dt * np.arange(1, m + 1))
+        q.append(np.repeat(at[None, :], m, axis=0))
+        z = np.zeros((m, width))
+        qd.append(z)
+        qdd.append(z)
+        qddd.append(z)
+        t_end += m * dt
+
+    for i, tr in enumerate(pieces):
+        if not tr.q.size:
+            continue
+        skip = 0 if last is None else 1  # the piece's first sample is the previous one's last
+        if last is None:
+            t.append(tr.t[:1])
+            q.append(tr.q[:1])
+            qd.append(tr.qd[:1])
+            qdd.append(tr.qdd[:1])
+            qddd.append(tr.qddd[:1])
+            hold(tr.q[0], float(dwell[0]))
+            skip = 1
+        t.append(t_end + tr.t[skip:])
+        q.append(tr.q[skip:])
+        qd.append(tr.qd[skip:])
+        qdd.append(tr.qdd[skip:])
+        qddd.append(tr.qddd[skip:])
+        t_end += float(tr.t[-1])
+        last = tr.q[-1]
+        hold(last, float(dwell[i + 1]))
+    keys = {k for tr in pieces for k in tr.limit_ratio}
+    ratio = {k: np.nanmax(np.vstack([tr.limit_ratio[k] for tr in pieces if k in tr.limit_ratio]), axis=0) for k in keys}
+    first = {
+        k: np.nanmax(
+            np.vstack([tr.first_pass_limit_ratio[k] for tr in pieces if k in tr.first_pass_limit_ratio]), axis=0
+        )
+        for k in {k for tr in pieces for k in tr.first_pass_limit_ratio}
+    }
+    T = np.concatenate(t) if t else np.zeros(0)
+    # uniform at dt from 0: the pieces end at multiples of dt, so the sum is one up to rounding
+    T = dt * np.round(T / dt)
+    return Trajectory(
+        method=method,
+        status=TimingStatus.OK,
+        reason=pieces[0].reason,
+        t=T,
+        q=np.vstack(q) if q else np.zeros((0, width)),
+        qd=np.vstack(qd) if qd else np.zeros((0, width)),
+        qdd=np.vstack(qdd) if qdd else np.zeros((0, width)),
+        qddd=np.vstack(qddd) if qddd else np.zeros((0, width)),
+        duration_s=float(T[-1]) if T.size else float("nan"),
+        limit_ratio=ratio,
+        dt=dt,
+        iterations=sum(tr.iterations for tr in pieces),
+        first_pass_limit_ratio=first,
+    )
+
+
+def _slowed(move: np.ndarray, rate: np.ndarray, tau: np.ndarray, feed: np.ndarray) -> dict[int, float]:
     """Waypoint -> peak ``d tau / dt`` on the cutting move ending there, where it stays below
-    ``1 - FEED_SLOW_TOL`` (samples assigned to moves by their programmed time)."""
+    ``1 - FEED_SLOW_TOL`` (``move``: the move each sample is on)."""
     if not rate.size:
         return {}
-    move = np.clip(np.searchsorted(tau, tau_t, side="right"), 1, len(tau) - 1)  # the move a sample is on
     peak = np.zeros(len(tau))
     np.maximum.at(peak, move, np.abs(rate))
     cutting = ~np.isnan(feed) & (np.r_[0.0, np.diff(tau)] > 0.0)

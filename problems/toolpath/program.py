@@ -16,7 +16,17 @@ from models.errors import InputError
 
 from .arcs import ArcGeometry, Plane, arc_points
 
-__all__ = ["Direction", "Event", "EventKind", "Move", "MoveKind", "Program", "RecordedWord", "discretise"]
+__all__ = [
+    "Direction",
+    "Event",
+    "EventKind",
+    "Move",
+    "MoveKind",
+    "Program",
+    "RecordedWord",
+    "discretise",
+    "discretise_moves",
+]
 
 
 class MoveKind(Enum):
@@ -207,9 +217,17 @@ class _Out:
     line: list[np.ndarray] = field(default_factory=list)
     rapid: list[np.ndarray] = field(default_factory=list)
     feed: list[np.ndarray] = field(default_factory=list)
+    move: list[np.ndarray] = field(default_factory=list)
 
 
 def discretise(program: Program, tol_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The program as points (see :func:`discretise_moves`, without the move index)."""
+    return discretise_moves(program, tol_m)[:4]
+
+
+def discretise_moves(
+    program: Program, tol_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The program as points: every move's end kept exactly, arcs split into chords.
 
     Parameters
@@ -231,11 +249,14 @@ def discretise(program: Program, tol_m: float) -> tuple[np.ndarray, np.ndarray, 
     feed : np.ndarray
         Shape ``(N,)``, m/s: the programmed feed of the move ending at the point (NaN for rapids
         and point 0).
+    move : np.ndarray
+        Shape ``(N,)``, int: the index in ``program.moves`` of the move ending at the point (point
+        0: -1).
     """
     if not tol_m > 0.0:
         raise InputError(f"the path tolerance for arc chords must be > 0 m, got {tol_m!r}")
     if program.start_m is None or not program.moves:
-        return np.zeros((0, 3)), np.zeros(0, dtype=int), np.zeros(0, dtype=bool), np.zeros(0)
+        return np.zeros((0, 3)), np.zeros(0, dtype=int), np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0, dtype=int)
     moves = program.moves
     n = len(moves)
     ends = np.array([m.end for m in moves], dtype=float)
@@ -243,6 +264,7 @@ def discretise(program: Program, tol_m: float) -> tuple[np.ndarray, np.ndarray, 
     rapid = np.fromiter((m.kind is MoveKind.RAPID for m in moves), dtype=bool, count=n)
     feed = np.fromiter((math.nan if m.feed_m_s is None else m.feed_m_s for m in moves), dtype=float, count=n)
     arcs = [k for k, m in enumerate(moves) if m.kind is MoveKind.ARC]
+    index = np.arange(n)
     head = (np.array([program.start_m]), np.array([program.start_line]), np.array([True]), np.array([math.nan]))
     if not arcs:
         return (
@@ -250,8 +272,9 @@ def discretise(program: Program, tol_m: float) -> tuple[np.ndarray, np.ndarray, 
             np.concatenate([head[1], lines]),
             np.concatenate([head[2], rapid]),
             np.concatenate([head[3], feed]),
+            np.r_[-1, index],
         )
-    out = _Out([head[0]], [head[1]], [head[2]], [head[3]])
+    out = _Out([head[0]], [head[1]], [head[2]], [head[3]], [np.array([-1])])
     prev = 0
     for k in arcs:
         if k > prev:
@@ -259,16 +282,25 @@ def discretise(program: Program, tol_m: float) -> tuple[np.ndarray, np.ndarray, 
             out.line.append(lines[prev:k])
             out.rapid.append(rapid[prev:k])
             out.feed.append(feed[prev:k])
+            out.move.append(index[prev:k])
         m = moves[k]
         pts = arc_points(m.arc(), m.plane, np.asarray(m.start), ends[k], tol_m)
         out.points.append(pts)
         out.line.append(np.full(len(pts), m.line))
         out.rapid.append(np.zeros(len(pts), dtype=bool))
         out.feed.append(np.full(len(pts), feed[k]))
+        out.move.append(np.full(len(pts), k))
         prev = k + 1
     if prev < n:
         out.points.append(ends[prev:])
         out.line.append(lines[prev:])
         out.rapid.append(rapid[prev:])
         out.feed.append(feed[prev:])
-    return np.vstack(out.points), np.concatenate(out.line), np.concatenate(out.rapid), np.concatenate(out.feed)
+        out.move.append(index[prev:])
+    return (
+        np.vstack(out.points),
+        np.concatenate(out.line),
+        np.concatenate(out.rapid),
+        np.concatenate(out.feed),
+        np.concatenate(out.move),
+    )

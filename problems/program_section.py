@@ -1,0 +1,216 @@
+"""Problem-file sections for a CAM program as the path: ``[path] kind = "gcode" | "toolpath_csv"``
+and ``[workpiece]`` (``docs/problem-file.md``, "Programs").
+
+``[path]``: ``file`` (the program, relative to the problem file) and optionally ``tolerance_mm``
+(the path tolerance when the program gives no ``G64 P``; default
+:data:`problems.toolpath.waypoints.DEFAULT_PATH_TOLERANCE_M`). ``[workpiece]``: ``xyz`` (m, the
+program zero in the base frame, required) and ``rpy`` / ``rpy_deg`` (the program frame's
+orientation in the base frame, default 0). The waypoints are the program's
+(:func:`problems.toolpath.waypoints.program_waypoints`), placed in the base frame by the workpiece;
+the TCP's z axis is the tool axis reversed (a 3-axis program: the program's -Z).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, NamedTuple
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from models.constants import PLAUSIBLE_POSITION_MAX_M
+from models.errors import InputError
+from problems.toolpath.waypoints import DEFAULT_PATH_TOLERANCE_M, ProgramWaypoints
+from problems.toolpath.workpiece import Workpiece
+
+__all__ = [
+    "MAX_TOLERANCE_M",
+    "PROGRAM_KINDS",
+    "ProgramSection",
+    "check_reach",
+    "parse_program",
+    "reach_bound_m",
+    "tool_frames",
+]
+
+#: ``[path] kind`` values whose path is a program file.
+PROGRAM_KINDS = ("gcode", "toolpath_csv")
+#: Largest path tolerance accepted, m (1 mm: beyond it a "tolerance" is a different path).
+MAX_TOLERANCE_M = 1e-3
+
+
+class ProgramSection(NamedTuple):
+    """A program path, read and placed.
+
+    Attributes
+    ----------
+    kind : {"gcode", "toolpath_csv"}
+    file : str
+        The program file, resolved.
+    waypoints : ProgramWaypoints
+        In the program frame.
+    workpiece : Workpiece
+    positions : np.ndarray
+        Shape ``(N, 3)``, m, base frame: TCP waypoints.
+    rotations : np.ndarray
+        Shape ``(N, 3, 3)``: nominal base->TCP rotations, z = the TCP axis (the tool axis reversed).
+    units_note : str
+        The program's note on units (no G20/G21), or empty.
+    """
+
+    kind: str
+    file: str
+    waypoints: ProgramWaypoints
+    workpiece: Workpiece
+    positions: np.ndarray
+    rotations: np.ndarray
+    units_note: str
+
+
+def tool_frames(z_axes: np.ndarray) -> np.ndarray:
+    """Rotations (N, 3, 3) with the given z columns and an x column carried along the path without
+    turning about z (parallel transport), starting from the base x (or y) axis made normal to z."""
+    Z = np.asarray(z_axes, dtype=float)
+    n = len(Z)
+    if n and np.allclose(Z, Z[0], atol=1e-15, rtol=0.0):  # 3-axis: one frame
+        z = Z[0]
+        ref = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        x = ref - z * (ref @ z)
+        x /= np.linalg.norm(x)
+        return np.broadcast_to(np.column_stack([x, np.cross(z, x), z]), (n, 3, 3)).copy()
+    X = np.empty_like(Z)
+    z = Z[0]
+    ref = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = ref - z * (ref @ z)
+    x /= np.linalg.norm(x)
+    for k in range(n):
+        z = Z[k]
+        x = x - z * (x @ z)
+        x /= np.linalg.norm(x)
+        X[k] = x
+    return np.stack([X, np.cross(Z, X), Z], axis=2)
+
+
+def parse_program(
+    where: str,
+    pt: Mapping[str, Any],
+    wt: Mapping[str, Any] | None,
+    base_dir: Path | None,
+    err: Callable[[str, str, str], InputError],
+    rpy: Callable[[Mapping[str, Any], str], np.ndarray | None],
+) -> ProgramSection:
+    """Read ``[path]`` (a program kind) and ``[workpiece]``.
+
+    Parameters
+    ----------
+    where : str
+        The problem file, for messages.
+    pt, wt : mapping
+        The ``[path]`` and ``[workpiece]`` tables (``wt`` None when absent).
+    base_dir : Path or None
+        The problem file's folder (a relative ``file`` is resolved against it).
+    err : callable
+        ``err(where, key, message)`` -> the problem-file error.
+    rpy : callable
+        ``rpy(table, prefix)`` -> the table's ``rpy`` / ``rpy_deg`` in rad, or None.
+
+    Raises
+    ------
+    InputError
+        The problem-file error naming the key, or the program's own error (``file:line``).
+    """
+    from problems.toolpath.cl_csv import read_cl_csv
+    from problems.toolpath.gcode import read_gcode
+    from problems.toolpath.waypoints import cl_waypoints, program_waypoints
+
+    kind = pt["kind"]
+    for key in ("start", "end", "points", "positions", "rpy", "rpy_deg"):
+        if key in pt:
+            raise err(where, f"path.{key}", f"does not apply to kind '{kind}' (the program gives the path)")
+    raw = pt.get("file")
+    if not isinstance(raw, str) or not raw:
+        raise err(where, "path.file", f"is required for kind '{kind}': the program file, got {raw!r}")
+    f = Path(raw)
+    if not f.is_absolute() and base_dir is not None:
+        f = base_dir / f
+    if not f.is_file():
+        raise err(where, "path.file", f"= {raw!r}: no such file ({f})")
+    tol = None
+    if "tolerance_mm" in pt:
+        v = pt["tolerance_mm"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 < v <= MAX_TOLERANCE_M * 1e3):
+            raise err(where, "path.tolerance_mm", f"must be a number in (0, {MAX_TOLERANCE_M * 1e3:g}] mm, got {v!r}")
+        tol = float(v) * 1e-3
+    if wt is None:
+        raise err(where, "workpiece", f"is required for kind '{kind}': the program zero in the base frame (xyz, m)")
+    if "xyz" not in wt:
+        raise err(where, "workpiece.xyz", "is required: the program zero in the base frame, m")
+    xyz = wt["xyz"]
+    if (
+        not isinstance(xyz, list)
+        or len(xyz) != 3
+        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in xyz)
+    ):
+        raise err(where, "workpiece.xyz", f"must be a list of 3 numbers (m), got {xyz!r}")
+    if max(abs(float(v)) for v in xyz) > PLAUSIBLE_POSITION_MAX_M:
+        raise err(where, "workpiece.xyz", f"= {xyz} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres")
+    ang = rpy(wt, "workpiece.")
+    wp = Workpiece(np.array(xyz, dtype=float), np.zeros(3) if ang is None else ang)
+    if kind == "gcode":
+        prog = read_gcode(f)
+        if prog.path_tolerance_m:
+            way = program_waypoints(prog)
+        elif tol is not None:
+            way = program_waypoints(prog, tol, "path.tolerance_mm")
+        else:
+            way = program_waypoints(prog, DEFAULT_PATH_TOLERANCE_M, "default")
+        note = prog.units_note
+    else:
+        cl = read_cl_csv(f)
+        way = cl_waypoints(
+            cl, DEFAULT_PATH_TOLERANCE_M if tol is None else tol, "default" if tol is None else "path.tolerance_mm"
+        )
+        note = ""
+    positions, z = wp.tcp_targets(way.points_m, way.tool_axis)
+    return ProgramSection(kind, str(f), way, wp, positions, tool_frames(z), note)
+
+
+def reach_bound_m(robot: Any) -> float:
+    """An upper bound on the TCP's distance from the base origin, m: the norms of every fixed
+    translation of the chain added (base frame, DH ``a`` and ``d`` of every joint, flange, tool)."""
+    return float(
+        np.linalg.norm(robot.frame02base[:3, 3])
+        + np.sum(np.abs(robot.a))
+        + np.sum(np.abs(robot.d))
+        + np.linalg.norm(robot.flange2frame6[:3, 3])
+        + np.linalg.norm(robot.tcp2flange[:3, 3])
+    )
+
+
+def check_reach(sec: ProgramSection, robot: Any) -> None:
+    """Refuse a program whose points lie beyond any reach of the robot, naming ``file:line``, the
+    point and, when the program gave no G20/G21 (read as millimetres), the likely cause.
+
+    Raises
+    ------
+    InputError
+    """
+    r = np.linalg.norm(sec.positions - robot.frame02base[:3, 3], axis=1)
+    bound = reach_bound_m(robot)
+    far = np.flatnonzero(r > bound)
+    if not far.size:
+        return
+    k = int(far[0])
+    w = sec.waypoints
+    p_mm = w.points_m[k] * 1e3
+    hint = (
+        " The program gives no G20/G21 and was read in millimetres: if it is in inches, add G20 at its start."
+        if sec.units_note
+        else " Check [workpiece] xyz (m) and the program's units."
+    )
+    raise InputError(
+        f"{sec.file}:{int(w.line[k])}: the point ({p_mm[0]:.4g}, {p_mm[1]:.4g}, {p_mm[2]:.4g}) mm of the program "
+        f"lands {r[k]:.4g} m from the robot base, beyond the reach of {robot.name} with its tool "
+        f"(at most {bound:.4g} m); {len(far)} waypoint(s) are out of reach.{hint}"
+    )
