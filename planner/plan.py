@@ -35,7 +35,7 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -314,7 +314,12 @@ _POSTURE_TO_PLAN = {
 }
 
 
-def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> PlanResult:
+def plan(
+    problem: Problem,
+    verbose: bool = False,
+    optimise: bool = True,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> PlanResult:
     """Plan a problem: posture, exact compensation, time parametrisation.
 
     Parameters
@@ -325,6 +330,9 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
         IPOPT output on.
     optimise : bool
         False: analytic postures only (branch choice without the NLP).
+    progress : callable, optional
+        ``progress(stage, done, total)`` at each stage (``"posture"``, ``"compensation"``) and, for a
+        program path, after each stretch timed (``"timing <method>"``); the CLI draws bars from it.
 
     Returns
     -------
@@ -340,26 +348,31 @@ def plan(problem: Problem, verbose: bool = False, optimise: bool = True) -> Plan
     ik = arm.ik
     times["model_s"] = time.perf_counter() - t0
 
+    tick = progress or (lambda stage, done, total: None)
+    tick("posture", 0, 1)
     t0 = time.perf_counter()
     ps = optimise_postures(
         arm, problem.task(), problem.home_q, problem.solver, verbose, model=arm.kinematics, ik=ik, optimise=optimise
     )
     times["posture_s"] = time.perf_counter() - t0
+    tick("posture", 1, 1)
     res = PlanResult(PlanStatus.OK, "", problem, ps, stage_times_s=times)
     if not ps.ok:
         res.status, res.reason = _POSTURE_TO_PLAN[ps.status], ps.reason
         return res
     res.warnings += _posture_warnings(ps)
+    tick("compensation", 0, 1)
     t0 = time.perf_counter()
     _compensate(res)
     times["compensation_s"] = time.perf_counter() - t0
+    tick("compensation", 1, 1)
     if not res.ok:
         return res
     if problem.n < 2:
         res.warnings.append("single waypoint: nothing to time-parametrise")
         return res
     t0 = time.perf_counter()
-    _time(res)
+    _time(res, progress)
     times["timing_s"] = time.perf_counter() - t0
     if res.ok and problem.timing.dynamic:
         t0 = time.perf_counter()
@@ -463,7 +476,7 @@ def _base_frame_caveat(arm: ArmModel, q: np.ndarray, L: np.ndarray) -> list[str]
     ]
 
 
-def _time(res: PlanResult) -> None:
+def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = None) -> None:
     """Time the commanded path with every requested method and check each trajectory."""
     problem = res.problem
     assert res.exact is not None

@@ -134,8 +134,14 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
         for k, frac in fl.slowed.items():
             worst[int(w.line[k])] = min(frac, worst.get(int(w.line[k]), 1.0))
         dur = fl.trajectory.duration_s
+        t = fl.trajectory.t
+        on_cut = cut[fl.sample_move[1:]] if len(t) > 1 else np.zeros(0, dtype=bool)
+        cutting = float(np.sum(np.diff(t)[on_cut])) if len(t) > 1 else 0.0
         out["feed"][m] = {
             "programmed_time_s": fl.programmed_time_s,
+            "cutting_time_s": cutting,
+            "cutting_time_over_programmed": cutting / fl.programmed_time_s if fl.programmed_time_s > 0 else None,
+            "cutting_time_note": "time of the samples on cutting moves (their accelerations and stops included)",
             "duration_s": dur,
             "peak_feed_ratio": fl.feed_ratio,
             "n_stretches": fl.n_stretches,

@@ -200,8 +200,9 @@ def provenance(inputs: Sequence[dict[str, Any]] = (), made: dict[str, Any] | Non
 
 
 def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The ``provenance`` block of a result made from one problem: its file and its arm model's
-    (a built-in robot, a robot file or a model file) with their SHA-256.
+    """The ``provenance`` block of a result made from one problem: its file, its arm model's
+    (a built-in robot, a robot file or a model file) and its program's (a program path), with their
+    SHA-256.
 
     Parameters
     ----------
@@ -210,10 +211,12 @@ def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict
         As for :func:`provenance`.
     """
     md = problem.model.describe()
-    return provenance(
-        [problem_input(problem.source), robot_input(md.get("file") or problem.robot_spec, sha256=md.get("sha256"))],
-        made,
-    )
+    inputs = [problem_input(problem.source), robot_input(md.get("file") or problem.robot_spec, sha256=md.get("sha256"))]
+    program = getattr(problem, "program", None)
+    if program is not None:  # the CAM program the path was read from
+        p = Path(program.file)
+        inputs.append(input_file("program", p if p.is_file() else None, name=p.name))
+    return provenance(inputs, made)
 
 
 __all__ = [

@@ -91,6 +91,13 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
         f"rule {pr.rule.value}; {ps.freedom_note}"
     )
     print(f"arm model: {md['file'] or pr.robot.name}; effects: {', '.join(md['effects'])}")
+    if "program" in s:
+        pg = s["program"]
+        print(
+            f"program {pg['file']} ({pg['kind']}): {pg['n_lines']} lines with moves, {pg['n_waypoints']} waypoints, "
+            f"{pg['n_stops']} stops, path tolerance {pg['path_tolerance_mm']:g} mm ({pg['path_tolerance_source']})"
+            + (f"; {pg['units_note']}" if pg["units_note"] else "")
+        )
     w = max([8] + [len(lab) + 2 for lab in ps.labels])
     print(
         f"  {'branch':<{w}}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
@@ -130,6 +137,15 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
                 + ("   -> trajectory.csv" if m == res.controller else "")
             )
             print(f"  {'':<12} {describe_binding(s['timing'][m]['limit_use'])}")
+            f = s.get("program", {}).get("feed", {}).get(m)
+            if f:
+                ratio = f["cutting_time_over_programmed"]
+                print(
+                    f"  {'':<12} feed: cutting moves take {f['cutting_time_s']:.3f} s"
+                    + (f" = x{ratio:.3f} length/F" if ratio is not None else "")
+                    + f" (stops included); peak TCP speed {f['peak_feed_ratio']:.3f} F; "
+                    f"{len(f['slowed_lines'])} line(s) slowed"
+                )
     for w in s["warnings"]:
         print(f"warning: {w}")
     h = s["headline"]
@@ -158,7 +174,10 @@ def run(args: argparse.Namespace) -> int:
         problem = problem.with_robot(args.robot)
     if args.dt is not None:
         problem = with_dt(problem, args.dt)
-    res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise)
+    from planner.commands.report import report_progress
+
+    with report_progress() as bars:
+        res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise, progress=bars)
     return finish_run(res.raise_for_status(), args)
 
 

@@ -18,7 +18,13 @@ from planner.commands.common import check_output, releases_outputs
 
 
 #: Progress units of the stages that do not count figures: (unit, scale to k/M).
-_UNITS = {"compliance map": ("pt", True), "placement sweep": ("pose", True), "full plans": ("plan", False)}
+_UNITS = {
+    "compliance map": ("pt", True),
+    "placement sweep": ("pose", True),
+    "full plans": ("plan", False),
+    "posture": ("stage", False),
+    "compensation": ("stage", False),
+}
 
 
 class TqdmProgress:
@@ -35,7 +41,7 @@ class TqdmProgress:
 
         bar = self._bars.get(stage)
         if bar is None:
-            unit, scale = _UNITS.get(stage, ("fig", False))
+            unit, scale = _UNITS.get(stage, ("stretch", False) if stage.startswith("timing ") else ("fig", False))
             bar = tqdm(total=total, desc=stage, unit=unit, unit_scale=scale, file=sys.stderr, disable=None, leave=False)
             self._bars[stage] = bar
         bar.update(done - bar.n)

@@ -9,7 +9,10 @@ names and the mapping from the model's joint angles to the controller's
 (``controller_angle = sign * q + offset``, ``[controller]`` of the robot file), built from a
 plan in memory (:func:`data_from_plan`) or from a run folder (:func:`data_from_run`).
 A trajectory whose status is not ``ok`` is refused (:class:`ExportError`).  Conventions
-of each vendor (joint order, units, signs, zeros): ``docs/export.md``.
+of each vendor (joint order, units, signs, zeros): ``docs/export.md``.  Big programs (10^5-10^6
+samples): above its limit each format writes numbered parts (:func:`part_ranges`,
+:func:`part_label`) and a main file, or a stream, as its controller needs (``docs/export.md``,
+"Big programs").
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,6 +42,8 @@ __all__ = [
     "data_from_run",
     "export_files",
     "formats",
+    "part_label",
+    "part_ranges",
     "register_format",
     "verify_limits",
 ]
@@ -150,9 +156,10 @@ def verify_limits(data: ExportData, where: str) -> None:
     for arr in (data.q, data.qd, data.qdd, data.qddd):
         if arr.shape != (t.size, 6) or not np.all(np.isfinite(arr)):
             raise ExportError(f"{where}: expected finite (samples, 6) joint arrays")
-    checks = [
-        ("position", data.q - data.q_max, data.q_max, "above q_max", "rad"),
-        ("position", data.q_min - data.q, data.q_min, "below q_min", "rad"),
+    # each excess array is made when its check runs (one (samples, 6) temporary at a time)
+    checks: list[tuple[str, Callable[[], np.ndarray], np.ndarray, str, str]] = [
+        ("position", lambda: data.q - data.q_max, data.q_max, "above q_max", "rad"),
+        ("position", lambda: data.q_min - data.q, data.q_min, "below q_min", "rad"),
     ]
     for name, arr, lim, unit in (
         ("velocity", data.qd, data.v_max, "rad/s"),
@@ -160,8 +167,11 @@ def verify_limits(data: ExportData, where: str) -> None:
         ("jerk", data.qddd, data.j_max, "rad/s^3"),
     ):
         if name in data.enforced:
-            checks.append((name, np.abs(arr) - lim * (1.0 + EXPORT_LIMIT_TOL), lim, "above its limit", unit))
-    for name, excess, lim, what, unit in checks:
+            checks.append(
+                (name, lambda a=arr, m=lim: np.abs(a) - m * (1.0 + EXPORT_LIMIT_TOL), lim, "above its limit", unit)
+            )
+    for name, make, lim, what, unit in checks:
+        excess = make()
         tol = EXPORT_POSITION_TOL if name == "position" else 0.0
         if np.any(excess > tol):
             i, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
@@ -229,6 +239,40 @@ def ranged(name: str, lo: float, hi: float) -> Callable[[Any], float]:
         return x
 
     return check
+
+
+def counted(name: str, lo: int, hi: int) -> Callable[[Any], int]:
+    """Validator: a whole number in [lo, hi], the message naming the option and the range."""
+
+    def check(v: Any) -> int:
+        x = ranged(name, lo, hi)(v)
+        if x != int(x):
+            raise ExportError(f"export option {name} = {x:g}: expected a whole number in [{lo}, {hi}]")
+        return int(x)
+
+    return check
+
+
+# --------------------------------------------------------------------------------------
+# Big programs: numbered parts
+# --------------------------------------------------------------------------------------
+
+#: Digits of the part number in a part's name (``NAME_p001``); more when there are more parts.
+PART_DIGITS = 3
+
+
+def part_ranges(n: int, limit: int) -> list[tuple[int, int]]:
+    """``[start, stop)`` index ranges that cover ``range(n)`` in order, each at most ``limit`` long
+    (all but the last exactly ``limit``)."""
+    if limit < 1:
+        raise ValueError(f"part size limit {limit}: expected at least 1")
+    return [(a, min(a + limit, n)) for a in range(0, n, limit)]
+
+
+def part_label(k: int, count: int) -> str:
+    """The name tag of part ``k`` (1-based) of ``count``: ``p001`` ... (zero-padded to
+    :data:`PART_DIGITS`, or to the digits of ``count``)."""
+    return f"p{k:0{max(PART_DIGITS, len(str(count)))}d}"
 
 
 def _program_name(text: str) -> str:
@@ -368,24 +412,59 @@ def data_from_run(folder: str | Path) -> ExportData:
 
 def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
     """``t, q, qd, qdd, qddd`` of a ``trajectory*.csv`` (columns by name, any order), and the link
-    side ``ql1..ql6`` when the file has it (else None)."""
+    side ``ql1..ql6`` when the file has it (else None).
+
+    The numbers are parsed by :func:`numpy.loadtxt` (C parser, exact round trip of the written
+    floats, no per-cell Python objects: a 10^6-sample file reads in seconds in the size of its
+    array); a file it cannot parse is read again row by row for a message naming the bad row.
+    """
     if not path.is_file():
         raise ExportError(f"{path}: no such trajectory file")
     try:
         with path.open(newline="", encoding="utf-8") as f:
-            rows = [r for r in csv.reader(f) if r and not r[0].startswith("#")]
+            head = None
+            for line in f:
+                if line.strip() and not line.startswith("#"):
+                    head = [h.strip() for h in next(csv.reader([line]))]
+                    break
+            if head is None:
+                raise ExportError(f"{path}: empty; expected a header row and samples")
+            need, has_link = _columns(path, head)
+            try:
+                with warnings.catch_warnings():  # "input contained no data": refused below
+                    warnings.simplefilter("ignore", UserWarning)
+                    a = np.loadtxt(f, delimiter=",", comments="#", usecols=[head.index(c) for c in need], ndmin=2)
+            except ValueError:
+                a = None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ExportError(f"{path}: not a readable CSV file ({exc})") from None
-    if not rows:
-        raise ExportError(f"{path}: empty; expected a header row and samples")
-    head = [h.strip() for h in rows[0]]
+    if a is None or a.shape[1] != len(need):
+        a = _read_rows(path, need)
+    if a.shape[0] < 2 or not np.all(np.isfinite(a)):
+        raise ExportError(f"{path}: expected at least 2 rows of finite numbers")
+    return a[:, 0], a[:, 1:7], a[:, 7:13], a[:, 13:19], a[:, 19:25], (a[:, 25:31] if has_link else None)
+
+
+def _columns(path: Path, head: list[str]) -> tuple[list[str], bool]:
+    """The columns to read (``t``, ``q*``, ``qd*``, ``qdd*``, ``qddd*``, and ``ql*`` when all six are
+    there) and whether the link side is among them."""
     need = ["t"] + [f"{c}{i}" for c in ("q", "qd", "qdd", "qddd") for i in range(1, 7)]
     missing = [c for c in need if c not in head]
     if missing:
         raise ExportError(f"{path}: missing column(s) {', '.join(missing)}")
     link = [f"ql{i}" for i in range(1, 7)]
     has_link = all(c in head for c in link)
-    need = need + (link if has_link else [])
+    return need + (link if has_link else []), has_link
+
+
+def _read_rows(path: Path, need: list[str]) -> np.ndarray:
+    """The columns ``need`` row by row (the slow path: its messages name the bad row)."""
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            rows = [r for r in csv.reader(f) if r and not r[0].startswith("#")]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ExportError(f"{path}: not a readable CSV file ({exc})") from None
+    head = [h.strip() for h in rows[0]]
     cols = [head.index(c) for c in need]
     a = np.empty((len(rows) - 1, len(need)))
     for n, r in enumerate(rows[1:]):
@@ -393,9 +472,7 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
             a[n] = [float(r[c]) for c in cols]
         except (ValueError, IndexError):
             raise ExportError(f"{path}: row {n + 2} is not {len(head)} numbers: {','.join(r)[:80]!r}") from None
-    if a.shape[0] < 2 or not np.all(np.isfinite(a)):
-        raise ExportError(f"{path}: expected at least 2 rows of finite numbers")
-    return a[:, 0], a[:, 1:7], a[:, 7:13], a[:, 13:19], a[:, 19:25], (a[:, 25:31] if has_link else None)
+    return a
 
 
 # --------------------------------------------------------------------------------------

@@ -5,7 +5,14 @@ trajectory_msgs/msg/JointTrajectory "$(cat file.yaml)"`` and MoveIt accept: ``jo
 from the robot file (its URDF joint names), and one point per sample with ``positions``
 (rad), ``velocities`` (rad/s), ``accelerations`` (rad/s^2) and ``time_from_start``
 (``sec``, ``nanosec``), in the controller's convention (sign and offset of the robot file's
-``[controller]``).  A rosbag2 is not written (no pure-Python writer is a dependency here).
+``[controller]``).  The bag form is the ``rosbag2`` format.
+
+Big programs: a trajectory of more than ``max_points`` samples (default
+:data:`ROS2_MAX_POINTS`) is written as numbered messages ``NAME_p001.yaml`` ... of at most
+``max_points`` points each, and ``NAME.yaml`` becomes their index: part k starts where part
+k - 1 ends (its ``time_from_start`` counts from the previous part's last sample, so its first
+point is one period after it), to be sent in order with ``header.stamp`` = the first part's
+start + the part's ``start`` (``docs/export.md``, "Big programs").
 """
 
 from __future__ import annotations
@@ -13,37 +20,106 @@ from __future__ import annotations
 from typing import Any
 from collections.abc import Mapping
 
-from planner.export import ExportData, ExportFormat, header_lines, register_format
+import numpy as np
+
+from planner.export import ExportData, ExportFormat, counted, header_lines, part_label, part_ranges, register_format
 
 #: Printed significant digits of positions, velocities and accelerations.
 DIGITS = 12
+#: Most points in one JointTrajectory message; a longer trajectory is split into several.  The
+#: message has no size limit (``points`` is an unbounded sequence) and ros2_control's
+#: joint_trajectory_controller keeps a whole message in memory; 10,000 points are 1.8 MB
+#: of CDR and 4.1 MB of YAML.  Drivers built on micro-ROS take far fewer (MotoROS2: 200 points
+#: per goal): set ``max_points`` for yours.
+ROS2_MAX_POINTS = 10_000
+#: Most ``max_points`` accepted (the option's range).
+MAX_POINTS_LIMIT = 10**9
+NS_PER_S = 1_000_000_000
 
 
-def _list(v: Any) -> str:
-    return "[" + ", ".join(f"{float(x):.{DIGITS}g}" for x in v) + "]"
+#: A row of six numbers as printed: ``[a, b, c, d, e, f]``, :data:`DIGITS` significant digits.
+_ROW6 = "[" + ", ".join([f"%.{DIGITS}g"] * 6) + "]"
 
 
-def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
+def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str | bytes]:
     q = data.controller_q()
     qd, qdd = data.controller_rates(data.qd), data.controller_rates(data.qdd)
-    lines = header_lines(data, "ros2 trajectory_msgs/msg/JointTrajectory", "#")
-    lines += [
+    ns = nanoseconds(data.t)
+    head = header_lines(data, "ros2 trajectory_msgs/msg/JointTrajectory", "#")
+    limit = int(o["max_points"])
+    if len(ns) <= limit:
+        return {f"{stem}.yaml": _message(head, data, o, q, qd, qdd, ns, 0, len(ns), 0)}
+    ranges = part_ranges(len(ns), limit)
+    files: dict[str, str | bytes] = {}
+    index = head + [
+        f"# {len(ranges)} JointTrajectory messages of at most {limit} points (max_points; docs/export.md "
+        '"Big programs"): send them in order,',
+        "# each with header.stamp = the start of the first + its start (its first point is one period after the "
+        "previous part's last)",
+        f"frame_id: '{o['frame_id']}'",
+        "joint_names: [" + ", ".join(f"'{n}'" for n in data.joint_names) + "]",
+        f"samples: {len(ns)}",
+        "parts:",
+    ]
+    for k, (a, b) in enumerate(ranges, 1):
+        name = f"{stem}_{part_label(k, len(ranges))}.yaml"
+        start = part_start_ns(ns, a)
+        note = (
+            f"# part {k} of {len(ranges)}: samples {a} to {b - 1} of {len(ns)}; starts {_stamp(start)} after the "
+            f"first part (header.stamp = its start + that; {stem}.yaml lists the parts)"
+        )
+        # bytes at once: a big trajectory's text is then held once, not also as str
+        files[name] = _message(head + [note], data, o, q, qd, qdd, ns, a, b, start).encode()
+        index.append(f"- {{file: {name}, start: {_stamp(start)}, first_sample: {a}, points: {b - a}}}")
+    return {f"{stem}.yaml": "\n".join(index) + "\n", **files}
+
+
+def nanoseconds(t: np.ndarray) -> list[int]:
+    """Sample times as whole nanoseconds (``time_from_start``, bag time stamps)."""
+    return [int(round(float(x) * 1e9)) for x in t]
+
+
+def part_start_ns(ns: list[int], a: int) -> int:
+    """Where a part that begins at sample ``a`` starts: at the previous sample (the last of the
+    previous part), so that its first point comes one period after it; 0 for the first part."""
+    return ns[a - 1] if a > 0 else 0
+
+
+def _stamp(ns: int) -> str:
+    return f"{{sec: {ns // NS_PER_S}, nanosec: {ns % NS_PER_S}}}"
+
+
+def _message(
+    head: list[str],
+    data: ExportData,
+    o: Mapping[str, Any],
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    ns: list[int],
+    a: int,
+    b: int,
+    start: int,
+) -> str:
+    """One JointTrajectory message (YAML) of samples ``a`` to ``b - 1``, ``time_from_start``
+    counted from ``start`` (ns)."""
+    lines = head + [
         "header:",
         "  stamp: {sec: 0, nanosec: 0}",
         f"  frame_id: '{o['frame_id']}'",
         "joint_names: [" + ", ".join(f"'{n}'" for n in data.joint_names) + "]",
         "points:",
     ]
-    for t, a, b, c in zip(data.t, q, qd, qdd):
-        ns = int(round(float(t) * 1e9))
+    P, V, A = q[a:b].tolist(), qd[a:b].tolist(), qdd[a:b].tolist()
+    for k in range(b - a):
         lines += [
-            f"- positions: {_list(a)}",
-            f"  velocities: {_list(b)}",
-            f"  accelerations: {_list(c)}",
+            f"- positions: {_ROW6 % tuple(P[k])}",
+            f"  velocities: {_ROW6 % tuple(V[k])}",
+            f"  accelerations: {_ROW6 % tuple(A[k])}",
             "  effort: []",
-            f"  time_from_start: {{sec: {ns // 1_000_000_000}, nanosec: {ns % 1_000_000_000}}}",
+            f"  time_from_start: {_stamp(ns[a + k] - start)}",
         ]
-    return {f"{stem}.yaml": "\n".join(lines) + "\n"}
+    return "\n".join(lines) + "\n"
 
 
 def _frame(v: Any) -> str:
@@ -55,7 +131,14 @@ register_format(
         "ros2",
         (".yaml",),
         write,
-        {"frame_id": ("", "header.frame_id", _frame)},
+        {
+            "frame_id": ("", "header.frame_id", _frame),
+            "max_points": (
+                ROS2_MAX_POINTS,
+                "most points in one message; a longer trajectory is split into NAME_p001.yaml ...",
+                counted("max_points", 2, MAX_POINTS_LIMIT),
+            ),
+        },
         "trajectory_msgs/msg/JointTrajectory as YAML (ros2 topic pub, MoveIt)",
     )
 )

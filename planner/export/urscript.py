@@ -10,6 +10,14 @@ sample period differs; the default is the trajectory's own dt): e-series 0.002 s
 ``urscript_movej``: one ``movej(q, t=..., r=...)`` per decimated sample (every ``step_s`` s),
 ``t`` the time the trajectory takes between them, ``r`` the blend radius (m, 0 at the end).
 Angles are radians in the controller's convention (UR: base, shoulder, elbow, wrist 1-3).
+
+Big programs: a program of more than ``max_motions`` motion statements (default
+:data:`URSCRIPT_MAX_MOTIONS`) is too big to send to a UR controller as one script, so both
+formats then *stream* the motions instead: ``NAME.script`` becomes a short program that
+connects to a PC (``stream_host``:``stream_port``) and reads one setpoint per motion with
+``socket_read_ascii_float``, and ``NAME_stream.txt`` holds the setpoints, one ``(...)`` line each,
+for the PC to serve (``nc -l PORT < NAME_stream.txt``).  Why and the sources: ``docs/export.md``,
+"Big programs".
 """
 
 from __future__ import annotations
@@ -19,7 +27,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from planner.export import ExportData, ExportError, ExportFormat, header_lines, ranged, register_format
+from planner.export import ExportData, ExportError, ExportFormat, counted, header_lines, ranged, register_format
 
 #: servoj periods a UR controller runs (e-series 500 Hz, CB3 125 Hz), s.
 PERIOD_MIN_S = 0.002
@@ -27,6 +35,27 @@ PERIOD_MAX_S = 0.008
 #: Printed decimals of joint angles (rad) and times (s).
 ANGLE_DECIMALS = 9
 TIME_DECIMALS = 6
+
+#: Most motion statements (``movej`` + ``servoj``) one program holds; a longer trajectory is streamed.
+#: UR documents no program size limit; users report scripts sent to the controller failing from
+#: about 1,000 (ros-industrial/universal_robot#411) or 2,500 (visose/Robots#55) moves up.
+URSCRIPT_MAX_MOTIONS = 2000
+#: Most ``max_motions`` accepted (the option's range).
+MAX_MOTIONS_LIMIT = 10**9
+#: TCP port on the PC that serves the stream (the robot connects to it with ``socket_open``).
+STREAM_PORT = 50010
+#: URScript socket name of the stream.
+STREAM_SOCKET = "compplan_stream"
+#: Seconds the program waits for the first setpoint (the PC may start serving late), then for
+#: each further one (a stream that stalls this long stops the robot).
+STREAM_FIRST_TIMEOUT_S = 10.0
+STREAM_TIMEOUT_S = 0.5
+#: ``stopj`` deceleration when the stream breaks off, rad/s^2.
+STREAM_ABORT_DECELERATION = 4.0
+#: Rows formatted at a time when writing the stream (bounds the temporary Python objects).
+STREAM_CHUNK = 10_000
+#: Characters allowed in ``stream_host`` (a host name or an IPv4/IPv6 address).
+HOST_CHARACTERS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-:_")
 
 
 def _vec(q: np.ndarray) -> str:
@@ -50,19 +79,83 @@ def resample(data: ExportData, period: float) -> np.ndarray:
     return q
 
 
-def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
+def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str | bytes]:
     period = float(o["period"]) if o["period"] is not None else _period_of(data)
     q = data.controller_q(resample(data, period))
     lines = [f"def {stem}():"] + ["  " + ln for ln in header_lines(data, "urscript (servoj)", "#")]
     lines.append(f"  # servoj every {period:g} s, lookahead_time {o['lookahead_time']:g} s, gain {o['gain']:g}")
+    servo = f"t={period:.{TIME_DECIMALS}f}, lookahead_time={o['lookahead_time']:g}, gain={o['gain']:g}"
+    if len(q) > int(o["max_motions"]):
+        return _streamed(stem, lines, o, q, None, f"servoj({{q}}, {servo})")
     lines.append(f"  movej({_vec(q[0])}, a={o['approach_acceleration']:g}, v={o['approach_speed']:g})")
     for qi in q[1:]:
-        lines.append(
-            f"  servoj({_vec(qi)}, t={period:.{TIME_DECIMALS}f}, "
-            f"lookahead_time={o['lookahead_time']:g}, gain={o['gain']:g})"
-        )
+        lines.append(f"  servoj({_vec(qi)}, {servo})")
     lines += ["  stopj(2.0)", "end", ""]
     return {f"{stem}.script": "\n".join(lines)}
+
+
+def stream_lines(q: np.ndarray, extra: np.ndarray | None = None, formats: tuple[str, ...] = ()) -> bytes:
+    """The setpoints as ``socket_read_ascii_float`` reads them: one ``(q1,...,q6[,extra...])`` line
+    per row of ``q`` (rad, :data:`ANGLE_DECIMALS` decimals), ``extra`` (rows, k) printed with the
+    ``%``-formats ``formats``; formatted :data:`STREAM_CHUNK` rows at a time."""
+    fmt = "(" + ",".join([f"%.{ANGLE_DECIMALS}f"] * 6 + list(formats)) + ")\n"
+    rows = q if extra is None else np.column_stack([q, extra])
+    return b"".join(
+        "".join([fmt % tuple(r) for r in rows[a : a + STREAM_CHUNK].tolist()]).encode()
+        for a in range(0, len(rows), STREAM_CHUNK)
+    )
+
+
+def _streamed(
+    stem: str, lines: list[str], o: Mapping[str, Any], q: np.ndarray, extra: np.ndarray | None, motion: str
+) -> dict[str, str | bytes]:
+    """A program that reads its setpoints from a socket (``socket_read_ascii_float``) and the stream
+    file the PC serves: the first setpoint is the ``movej`` target, each further one a ``motion``
+    (``{q}`` is the joint vector; ``{t}``, ``{r}`` the extra values of a movej list)."""
+    host, port, n = str(o["stream_host"]), int(o["stream_port"]), len(q)
+    width = 6 if extra is None else 6 + extra.shape[1]
+    data = f"{stem}_stream.txt"
+    where = f"{host or '(stream_host not set)'}:{port}"
+    lines += [
+        f"  # streamed: {n} setpoints, more than the {int(o['max_motions'])} motion statements one program "
+        'should hold (max_motions; docs/export.md "Big programs")',
+        f"  # before starting it, serve {data} on TCP port {port} of the PC at stream_host, e.g. nc -l {port} < {data}",
+        f'  if not socket_open("{host}", {port}, "{STREAM_SOCKET}"):',
+        f'    popup("compplan: cannot connect to {where}; serve {data} there first (docs/export.md)", '
+        'title="compplan stream", error=True, blocking=True)',
+        "    halt",
+        "  end",
+        f'  q = socket_read_ascii_float({width}, "{STREAM_SOCKET}", {STREAM_FIRST_TIMEOUT_S:g})',
+        f"  if q[0] != {width}:",
+        f'    popup("compplan: no setpoint from {where}", title="compplan stream", error=True, blocking=True)',
+        "    halt",
+        "  end",
+        f"  movej({_qref()}, a={o['approach_acceleration']:g}, v={o['approach_speed']:g})",
+        "  k = 1",
+        f"  while k < {n}:",
+        f'    q = socket_read_ascii_float({width}, "{STREAM_SOCKET}", {STREAM_TIMEOUT_S:g})',
+        f"    if q[0] != {width}:",
+        f"      stopj({STREAM_ABORT_DECELERATION:g})",
+        f'      popup("compplan: the stream from {where} broke off before setpoint {n}", title="compplan stream", '
+        "error=True, blocking=True)",
+        "      halt",
+        "    end",
+        "    " + motion.format(q=_qref(), t="q[7]", r="q[8]"),
+        "    k = k + 1",
+        "  end",
+    ]
+    if extra is None:
+        lines.append("  stopj(2.0)")
+    lines += [f'  socket_close("{STREAM_SOCKET}")', "end", ""]
+    if extra is None:
+        stream = stream_lines(q)
+    else:
+        stream = stream_lines(q, extra, (f"%.{TIME_DECIMALS}f", "%g"))
+    return {f"{stem}.script": "\n".join(lines), data: stream}
+
+
+def _qref() -> str:
+    return "[" + ", ".join(f"q[{i}]" for i in range(1, 7)) + "]"
 
 
 def _period_of(data: ExportData) -> float:
@@ -76,7 +169,7 @@ def _period_of(data: ExportData) -> float:
     return data.dt
 
 
-def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
+def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str | bytes]:
     idx = data.decimated(float(o["step_s"]))
     q = data.controller_q()[idx]
     t = data.t[idx]
@@ -84,12 +177,27 @@ def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, 
     lines.append(
         f"  # movej every ~{o['step_s']:g} s, t = the planned time between them, blend r = {o['blend_radius']:g} m"
     )
+    if len(idx) > int(o["max_motions"]):
+        r = np.full(len(idx), float(o["blend_radius"]))
+        r[0] = r[-1] = 0.0
+        dt = np.r_[0.0, np.diff(t)]  # the first line's t and r are not used (movej at approach speed)
+        return _streamed(stem, lines, o, q, np.column_stack([dt, r]), "movej({q}, t={t}, r={r})")
     lines.append(f"  movej({_vec(q[0])}, a={o['approach_acceleration']:g}, v={o['approach_speed']:g})")
     for k in range(1, len(idx)):
         r = 0.0 if k == len(idx) - 1 else float(o["blend_radius"])
         lines.append(f"  movej({_vec(q[k])}, t={t[k] - t[k - 1]:.{TIME_DECIMALS}f}, r={r:g})")
     lines += ["end", ""]
     return {f"{stem}.script": "\n".join(lines)}
+
+
+def _host(v: Any) -> str:
+    text = str(v).strip()
+    if not set(text) <= HOST_CHARACTERS or len(text) > 253:
+        raise ExportError(
+            f"export option stream_host = {v!r}: expected the PC's IP address or host name "
+            "(letters, digits, '.', '-', ':')"
+        )
+    return text
 
 
 _COMMON = {
@@ -99,6 +207,13 @@ _COMMON = {
         "joint acceleration of the movej to the start, rad/s^2",
         ranged("approach_acceleration", 0.01, 40.0),
     ),
+    "max_motions": (
+        URSCRIPT_MAX_MOTIONS,
+        "most motion statements in one program; more are streamed from a PC (NAME_stream.txt)",
+        counted("max_motions", 2, MAX_MOTIONS_LIMIT),
+    ),
+    "stream_host": ("", "IP address of the PC that serves NAME_stream.txt (streamed programs)", _host),
+    "stream_port": (STREAM_PORT, "TCP port of the stream on that PC", counted("stream_port", 1, 65535)),
 }
 
 register_format(

@@ -32,6 +32,7 @@ from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job, render_items
 from planner.report.run import DYNAMIC_KEY, Run, method_name, method_order
 from planner.report.tables import RATIO_KINDS, flat_numbers, load_words
+from planner.report.toolpath_plot import program_items
 
 #: File names of the figures, in report order.
 FIGURE_NAMES = (
@@ -113,6 +114,7 @@ def build_figures(
     ]
     if isinstance(run.summary.get(DYNAMIC_KEY), Mapping):
         items.append(_dynamic_item(ctx))
+    items += program_items(run)  # a program path's toolpath and feed (planner.report.toolpath_plot)
     return items
 
 

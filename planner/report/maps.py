@@ -112,7 +112,7 @@ def path_plane(P: np.ndarray) -> PathPlane:
     P = np.asarray(P, float).reshape(-1, 3)
     c = P.mean(axis=0)
     X = P - c
-    _, S, Vt = np.linalg.svd(X, full_matrices=True) if len(P) > 1 else (None, np.zeros(3), np.eye(3))
+    _, S, Vt = np.linalg.svd(X, full_matrices=False) if len(P) > 1 else (None, np.zeros(3), np.eye(3))
     if S[0] <= 0.0:  # one point
         n = np.array([0.0, 1.0, 0.0])
     elif len(S) < 2 or S[1] <= PATH_LINE_REL_TOL * S[0]:  # a straight line: the vertical plane through it

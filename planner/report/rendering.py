@@ -35,6 +35,8 @@ _COST = {
     "fig7_arm_3d": 1.0,
     "fig5_branches": 0.9,
     "fig8_dynamic_compensation": 1.2,
+    "fig9_toolpath": 1.5,
+    "fig10_feed": 1.2,
 }
 
 #: A figure to draw: ``(drawing function, args, kwargs)``.

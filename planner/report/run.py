@@ -96,6 +96,9 @@ class Run:
     dynamic : dict of column -> ndarray, or None
         The columns of ``dynamic.csv`` (:data:`DYNAMIC_COLUMNS`) of a run with dynamic
         compensation (summary.json key ``dynamic_compensation``); None otherwise.
+    program : planner.report.toolpath.ProgramView or None
+        A program path's waypoints in the program frame, lines, rapids, feeds and the program line
+        of each sample (summary.json key ``program``); None otherwise.
     absent : dict of piece -> reason
         What the report could not show and why.
     """
@@ -109,6 +112,7 @@ class Run:
     robot: Robot | None = None
     model: ArmModel | None = None
     dynamic: dict[str, np.ndarray] | None = None
+    program: Any = None
     absent: dict[str, str] = field(default_factory=dict)
 
 
@@ -143,6 +147,9 @@ def run_from_plan(res: PlanResult, folder: str | Path, view: RunView | None = No
             _add_trajectory(run, method, name, _trajectory_arrays(tr))
     if not run.trajectories:
         run.absent.setdefault("trajectory", _NO_TRAJECTORY)
+    from planner.report.toolpath import program_from_plan
+
+    run.program = program_from_plan(res, summary)
     if view.dynamic is not None:
         cols, rows = view.dynamic
         run.dynamic = {c: np.asarray(rows[:, j], float) for j, c in enumerate(cols)}
@@ -236,7 +243,10 @@ def _read_trajectory(path: Path) -> dict[str, np.ndarray | None]:
     jerk = None if not any(c in cols for c in _JERK_COLUMNS) else _require(path, cols, _JERK_COLUMNS)
     base = [c for c in TRAJECTORY_COLUMNS if c not in _JERK_COLUMNS]
     arr = _require(path, cols, base)
-    return {"t": arr[:, 0], "q": arr[:, 1:7], "qd": arr[:, 7:13], "qdd": arr[:, 13:19], "qddd": jerk}
+    out = {"t": arr[:, 0], "q": arr[:, 1:7], "qd": arr[:, 7:13], "qdd": arr[:, 13:19], "qddd": jerk}
+    if "line" in cols:  # a program path's (taken into Run.program by load_run)
+        out["line"] = cols["line"]
+    return out
 
 
 #: Values of ``summary.json``'s ``command`` key of the runs ``compplan report`` reports on.
@@ -306,6 +316,9 @@ def load_run(folder: str | Path) -> Run:
             _add_trajectory(run, method, name, _read_trajectory(folder / name))
     if not run.trajectories:
         run.absent["trajectory"] = _NO_TRAJECTORY
+    from planner.report.toolpath import program_from_folder
+
+    run.program = program_from_folder(run)
 
     if isinstance(summary.get(DYNAMIC_KEY), Mapping):
         dp = folder / _dynamic_file(summary)

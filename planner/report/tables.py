@@ -189,7 +189,10 @@ def report_title(s: Mapping[str, Any]) -> str:
 def summary_tables(summary: Mapping[str, Any], absent: Mapping[str, str]) -> list[Table]:
     """The tables of the report, headline first and provenance last (numbers traceable to
     summary.json)."""
+    from planner.report.toolpath import program_tables  # (it imports this module)
+
     tables = [headline_table(summary), _run_table(summary), _error_table(summary), _timing_table(summary, absent)]
+    tables += program_tables(summary)
     tables += dynamic_tables(summary)
     branches = _branch_table(summary)
     if branches is not None:

@@ -37,7 +37,6 @@ from models.symbolic import KinematicModel
 from problems.path import branch_paths, poses
 from problems.posture.task import (
     BranchResult,
-    BranchStatus,
     OrientationRule,
     PostureResult,
     PostureStatus,
@@ -52,8 +51,10 @@ __all__ = ["POSTURE_MAX_NODES", "densify", "node_indices", "node_task"]
 POSTURE_MAX_NODES = 1000
 
 
-def node_indices(n: int, max_nodes: int = POSTURE_MAX_NODES) -> np.ndarray:
-    """``min(n, max_nodes)`` waypoint indices spread evenly over ``0 .. n-1``, both ends included."""
+def node_indices(n: int, max_nodes: int | None = None) -> np.ndarray:
+    """``min(n, max_nodes)`` waypoint indices spread evenly over ``0 .. n-1``, both ends included
+    (``max_nodes``: default :data:`POSTURE_MAX_NODES`)."""
+    max_nodes = POSTURE_MAX_NODES if max_nodes is None else max_nodes
     if n <= max_nodes:
         return np.arange(n)
     return np.unique(np.round(np.linspace(0, n - 1, max_nodes)).astype(int))

@@ -34,7 +34,7 @@ from problems.posture.task import (
     PostureTask,
     SolverSettings,
 )
-from problems.posture.dense import POSTURE_MAX_NODES, densify, node_indices, node_task
+from problems.posture import dense
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
 from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
@@ -137,7 +137,7 @@ def optimise_postures(
     robot = arm.nominal
     model = model or arm.kinematics
     ik = ik or ik_solver(robot)
-    if task.n > POSTURE_MAX_NODES:
+    if task.n > dense.POSTURE_MAX_NODES:
         return _on_nodes(arm, task, home_q, settings, verbose, model, ik, optimise)
     freedom, note = analyse_freedom(robot, task.rule)
     ws = warm_starts(ik, model, task)
@@ -181,10 +181,10 @@ def _on_nodes(
     optimise: bool,
 ) -> PostureResult:
     """A long path: the NLP on nodes, densified (:mod:`problems.posture.dense`)."""
-    nodes = node_indices(task.n)
-    res = optimise_postures(arm, node_task(task, nodes), home_q, settings, verbose, model, ik, optimise)
+    nodes = dense.node_indices(task.n)
+    res = optimise_postures(arm, dense.node_task(task, nodes), home_q, settings, verbose, model, ik, optimise)
     if res.ok:
-        return densify(arm, model, ik, task, nodes, res)
+        return dense.densify(arm, model, ik, task, nodes, res)
     res.reason = (
         f"on {len(nodes)} nodes spread over the {task.n} waypoints (node k is waypoint "
         f"round(k * {(task.n - 1) / (len(nodes) - 1):.6g})): {res.reason}"

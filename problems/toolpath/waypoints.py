@@ -11,7 +11,7 @@ or :data:`DEFAULT_PATH_TOLERANCE_M`):
   within ``tol``, :func:`problems.toolpath.program.discretise`);
 * at a programmed corner of deflection ``theta`` (the angle between the two moves' directions), the
   spline's rounding is at most about ``CORNER_DEVIATION_FACTOR * d * theta`` for neighbouring
-  waypoints at distance ``d``. The corner waypoint is kept exactly; where that bound exceeds
+  waypoints at distance ``d`` (the farther of the two). The corner waypoint is kept exactly; where that bound exceeds
   ``tol`` waypoints are added on both moves at ``a = tol / (CORNER_DEVIATION_FACTOR * theta)`` from
   the corner and at ``2a, 4a, ...`` (a blend within ``tol``);
 * where ``a`` would be below :data:`CORNER_MIN_APPROACH_M` (a sharp corner at a small tolerance)
@@ -143,7 +143,8 @@ def corner_waypoints(theta: float, d_in: float, d_out: float, tol: float) -> tup
     Returns ``(before, after)`` (m, increasing; empty when the spline's rounding stays within
     ``tol`` without them), or None when the corner must be an exact stop.
     """
-    if theta < CORNER_ANGLE_MIN_RAD or CORNER_DEVIATION_FACTOR * min(d_in, d_out) * theta <= tol:
+    # the longer neighbour drives the rounding (a tiny move beside a corner does not make it small)
+    if theta < CORNER_ANGLE_MIN_RAD or CORNER_DEVIATION_FACTOR * max(d_in, d_out) * theta <= tol:
         return np.zeros(0), np.zeros(0)
     a = tol / (CORNER_DEVIATION_FACTOR * theta)
     if a < CORNER_MIN_APPROACH_M:
@@ -192,7 +193,17 @@ def program_waypoints(program: Program, tol_m: float | None = None, tol_source: 
     dwell = np.where(ends, dwell_m[done], 0.0)
     dwell[0] = dwell_m[0]
     stop[0] |= dwell_m[0] > 0
-    return _refine(P, None, line, rapid, feed, stop, dwell, ends, None, tol_m, tol_source, program.source)
+    # an arc's chords turn by its sweep over their count; at the arc's ends the chord is that over 2
+    # off the tangent, which is not a corner of the program: relieve the deflection by it
+    count = np.bincount(move[1:], minlength=program.n_moves)
+    sweep = np.fromiter(
+        (abs(m.sweep_rad) if m.kind.value == "arc" else 0.0 for m in program.moves), float, program.n_moves
+    )
+    half = 0.5 * sweep / np.maximum(count, 1)
+    relief = np.zeros(len(P))
+    k = np.flatnonzero(ends[1:-1]) + 1
+    relief[k] = half[move[k]] + half[move[k + 1]]
+    return _refine(P, None, line, rapid, feed, stop, dwell, ends, None, tol_m, tol_source, program.source, relief)
 
 
 def cl_waypoints(cl: ClPath, tol_m: float, tol_source: str = "") -> ProgramWaypoints:
@@ -275,16 +286,23 @@ def _refine(
     tol: float,
     tol_source: str,
     source: str,
+    relief: np.ndarray | None = None,
 ) -> ProgramWaypoints:
-    """Stops at the ends and at rapid/cut changes, corners blended or stopped, moves split."""
+    """Stops at the ends and at rapid/cut changes, corners blended or stopped, moves split.
+
+    ``corner``: the points that may be corners (move ends); ``relief`` (rad, per point): deflection
+    that is not a corner (an arc chord's angle to its tangent at the arc's ends)."""
     n = len(P)
     stop = stop.copy()
     stop[0] = stop[-1] = True
     change = np.r_[False, rapid[1:-1] != rapid[2:], False]  # the move after k is of another kind
     stop |= change
     theta = _deflection(P)
+    if relief is not None:
+        theta = np.maximum(0.0, theta - relief)
     length = np.r_[0.0, np.linalg.norm(np.diff(P, axis=0), axis=1)]
-    corner = corner & (theta > CORNER_ANGLE_MIN_RAD) | stop
+    cand = corner & (theta > CORNER_ANGLE_MIN_RAD)
+    corner = cand | stop
     pts, lin, rap, fed, stp, dwl, cor = (
         [P[:1]],
         [line[:1]],
@@ -300,7 +318,7 @@ def _refine(
     after = np.zeros(n, dtype=object)
     for k in range(n):
         before[k], after[k] = np.zeros(0), np.zeros(0)
-    for k in np.flatnonzero((theta > CORNER_ANGLE_MIN_RAD) & ~stop):
+    for k in np.flatnonzero(cand & ~stop):
         got = corner_waypoints(float(theta[k]), float(length[k]), float(length[k + 1]), tol)
         if got is None:
             stop[k] = True

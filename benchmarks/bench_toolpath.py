@@ -1,0 +1,191 @@
+"""Machining programs at real size: parse, posture, compensation and timing of 10^3, 10^4 and 10^5
+G1 moves, with the peak memory of each run.
+
+The program is a freeform raster (``raster_program``): rows of 0.5 mm G1 moves over a 2 mm wavy
+surface at 1500 mm/min, a 1 mm step between rows, stops at the row ends; planned on a UR10 with an
+off-axis spindle (0.1 m) and a milling force of [30, 20, 40] N in the tool frame, at dt = 2 ms.
+Each size runs in a fresh process (so its peak resident memory is its own); the stage times are the
+plan's ``stage_times_s`` and the parse time is ``load_problem`` (G-code read, waypoints, placement).
+
+``Tcut/Tp``: the time of the samples on cutting moves (accelerations at stops included) over the
+programmed time length / F (issue 23's bound: 1.15 where the limits allow the feed).
+
+Anchor, measured in the same run (in a process of its own, so the peak memory above is the plan's): the posture NLP over every waypoint (the method before this one
+for long paths; feasible to 10^4) against the nodes-and-densify posture used above
+``POSTURE_MAX_NODES`` waypoints, time and load-induced error.
+
+Budgets (issue 23): growth from 10^4 to 10^5 moves at most 12x; 10^5 moves planned in at most
+60 s and 4 GiB on the 2-core machine. The script prints each with its figure.
+
+Usage: ``python benchmarks/bench_toolpath.py [--sizes 1000 10000 100000] [--no-anchor]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+GROWTH_BUDGET = 12.0
+TIME_BUDGET_S = 60.0
+MEMORY_BUDGET_GIB = 4.0
+
+PROBLEM = """\
+name = "bench_raster"
+description = "freeform raster, {n} G1 moves"
+[robot]
+model = "ur10"
+tool = {{ xyz = [0.1, 0.0, 0.05] }}
+[path]
+kind = "gcode"
+file = "raster.ngc"
+[workpiece]
+xyz = [0.6, -0.1, 0.05]
+[wrench]
+frame = "tool"
+force = [30.0, 20.0, 40.0]
+[limits]
+max_joint_step = 0.3
+[timing]
+dt = 0.002
+"""
+
+
+def raster_program(n_moves: int, step_mm: float = 0.5, width_mm: float = 80.0, feed: int = 1500) -> str:
+    """A freeform raster of ``n_moves`` G1 moves (mm): zig-zag rows over z = 2 sin(x/15) cos(y/20)."""
+    per_row = int(width_mm / step_mm)
+    out = ["%", "(freeform raster)", "G21 G90 G17 G94 G40 G49 G80", "G54", f"F{feed}", "G0 X0 Y0 Z5", "G1 Z0"]
+    y, k, row = 0.0, 0, 0
+    while k < n_moves:
+        xs = [i * step_mm for i in range(1, per_row + 1)]
+        if row % 2:
+            xs = [width_mm - x for x in xs]
+        for x in xs:
+            z = 2.0 * math.sin(x / 15.0) * math.cos(y / 20.0)
+            out.append(f"G1 X{x:.3f} Y{y:.3f} Z{z:.4f}")
+            k += 1
+            if k >= n_moves:
+                break
+        if k >= n_moves:
+            break
+        y += 1.0
+        out.append(f"G1 Y{y:.3f}")
+        k += 1
+        row += 1
+    out += ["G0 Z5", "M30", "%"]
+    return "\n".join(out) + "\n"
+
+
+def one(n: int, folder: Path, anchor: bool) -> dict:
+    """Plan one size in this process; the figures as a dict."""
+    sys.path.insert(0, str(ROOT))
+    import numpy as np
+
+    from planner.plan import plan
+    from problems.posture import optimise_postures
+    from problems.problem import load_problem
+
+    (folder / "raster.ngc").write_text(raster_program(n))
+    (folder / "p.toml").write_text(PROBLEM.format(n=n))
+    t0 = time.perf_counter()
+    pr = load_problem(folder / "p.toml")
+    parse = time.perf_counter() - t0
+    res = plan(pr)
+    st = res.stage_times_s
+    fl = res.feed[res.controller]
+    out = {
+        "moves": n,
+        "waypoints": pr.n,
+        "status": res.status.value,
+        "parse_s": parse,
+        "posture_s": st.get("posture_s", float("nan")),
+        "compensation_s": st.get("compensation_s", float("nan")),
+        "timing_s": st.get("timing_s", float("nan")),
+        "samples": int(len(fl.trajectory.t)),
+        "time_over_programmed": res.view().summary["program"]["feed"][res.controller]["cutting_time_over_programmed"],
+        "rms_error_um": res.posture.best.rms_error_m * 1e6,
+    }
+    out["total_s"] = parse + out["posture_s"] + out["compensation_s"] + out["timing_s"] + st.get("model_s", 0.0)
+    if anchor:  # in its own process: only the anchor, its time and error
+        from problems.posture import dense
+
+        out = {"status": res.status.value, "dense_cost": res.posture.best.cost}
+        dense.POSTURE_MAX_NODES = 10**9  # the NLP over every waypoint
+        t0 = time.perf_counter()
+        full = optimise_postures(pr.model, pr.task(), pr.home_q, pr.solver)
+        out["anchor_posture_s"] = time.perf_counter() - t0
+        out["anchor_rms_error_um"] = full.best.rms_error_m * 1e6 if full.ok else float("nan")
+        out["anchor_cost_ratio"] = float(res.posture.best.cost / full.best.cost) if full.ok else float("nan")
+        return out
+    out["peak_rss_gib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    del np
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 100000])
+    ap.add_argument("--no-anchor", action="store_true", help="skip the full-NLP anchor")
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--anchor", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        with tempfile.TemporaryDirectory() as d:
+            print(json.dumps(one(args.one, Path(d), args.anchor)))
+        return 0
+    rows = []
+    for n in args.sizes:
+        runs = [[sys.executable, __file__, "--one", str(n)]]
+        if not args.no_anchor and n <= 10000:
+            runs.append(runs[0] + ["--anchor"])
+        row: dict = {}
+        for cmd in runs:
+            r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+            if r.returncode:
+                print(r.stderr, file=sys.stderr)
+                return 1
+            got = json.loads(r.stdout.strip().splitlines()[-1])
+            row.update({k: v for k, v in got.items() if k.startswith("anchor_")} if "--anchor" in cmd else got)
+        rows.append(row)
+    print(
+        f"{'moves':>7} {'waypts':>7} {'parse':>7} {'posture':>8} {'comp':>6} {'timing':>7} {'total':>7} "
+        f"{'peak':>8} {'samples':>9} {'Tcut/Tp':>7} {'RMS err':>8} | {'anchor: NLP everywhere':>24}"
+    )
+    for r in rows:
+        anc = (
+            f"{r['anchor_posture_s']:7.2f} s, {r['anchor_rms_error_um']:6.1f} um, cost x{r['anchor_cost_ratio']:.4f}"
+            if "anchor_posture_s" in r
+            else "-"
+        )
+        print(
+            f"{r['moves']:>7} {r['waypoints']:>7} {r['parse_s']:6.2f}s {r['posture_s']:7.2f}s {r['compensation_s']:5.2f}s "
+            f"{r['timing_s']:6.2f}s {r['total_s']:6.2f}s {r['peak_rss_gib']:6.2f}Gi {r['samples']:>9} "
+            f"{r['time_over_programmed']:7.3f} {r['rms_error_um']:6.1f}um | {anc}"
+        )
+    by = {r["moves"]: r for r in rows}
+    if 10000 in by and 100000 in by:
+        g = by[100000]["total_s"] / by[10000]["total_s"]
+        print(
+            f"growth 10^4 -> 10^5 moves: x{g:.2f} (budget x{GROWTH_BUDGET:g}) {'ok' if g <= GROWTH_BUDGET else 'MISS'}"
+        )
+    if 100000 in by:
+        r = by[100000]
+        print(
+            f"10^5 moves: {r['total_s']:.1f} s (budget {TIME_BUDGET_S:g} s) {'ok' if r['total_s'] <= TIME_BUDGET_S else 'MISS'}, "
+            f"{r['peak_rss_gib']:.2f} GiB (budget {MEMORY_BUDGET_GIB:g}) {'ok' if r['peak_rss_gib'] <= MEMORY_BUDGET_GIB else 'MISS'}"
+        )
+    print(
+        "anchor cost ratio: the nodes-and-densify posture's summed squared load error over the NLP's over every waypoint"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
