@@ -15,6 +15,10 @@ the posture NLP over every waypoint (the method before this one for long paths; 
 against the nodes-and-densify posture used above
 ``POSTURE_MAX_NODES`` waypoints, time and load-induced error.
 
+``write`` and ``w.peak``: writing the run's output files (summary, path, waypoints, branches,
+trajectory CSV; no figures) and the process's peak memory once they are written (not in the budget:
+the budget is the plan).
+
 Budgets (issue 23): growth from 10^4 to 10^5 moves at most 12x; 10^5 moves planned in at most
 60 s and 4 GiB on the 2-core machine. The script prints each with its figure.
 
@@ -126,6 +130,12 @@ def one(n: int, folder: Path, anchor: bool) -> dict:
         out["anchor_cost_ratio"] = float(res.posture.best.cost / full.best.cost) if full.ok else float("nan")
         return out
     out["peak_rss_gib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    from planner.plan import write_outputs
+
+    t0 = time.perf_counter()  # the output files (no figures): summary, path, waypoints, branches, trajectory
+    write_outputs(res, folder / "out", with_figures=False)
+    out["write_s"] = time.perf_counter() - t0
+    out["write_peak_rss_gib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
     del np
     return out
 
@@ -157,7 +167,8 @@ def main() -> int:
         rows.append(row)
     print(
         f"{'moves':>7} {'waypts':>7} {'parse':>7} {'posture':>8} {'comp':>6} {'timing':>7} {'total':>7} "
-        f"{'peak':>8} {'samples':>9} {'Tcut/Tp':>7} {'RMS err':>8} | {'anchor: NLP everywhere':>24}"
+        f"{'peak':>8} {'samples':>9} {'Tcut/Tp':>7} {'RMS err':>8} {'write':>7} {'w.peak':>7} | "
+        f"{'anchor: NLP everywhere':>24}"
     )
     for r in rows:
         anc = (
@@ -169,7 +180,8 @@ def main() -> int:
             f"{r['moves']:>7} {r['waypoints']:>7} {r['parse_s']:6.2f}s {r['posture_s']:7.2f}s "
             f"{r['compensation_s']:5.2f}s "
             f"{r['timing_s']:6.2f}s {r['total_s']:6.2f}s {r['peak_rss_gib']:6.2f}Gi {r['samples']:>9} "
-            f"{r['time_over_programmed']:7.3f} {r['rms_error_um']:6.1f}um | {anc}"
+            f"{r['time_over_programmed']:7.3f} {r['rms_error_um']:6.1f}um {r['write_s']:6.2f}s "
+            f"{r['write_peak_rss_gib']:5.2f}Gi | {anc}"
         )
     by = {r["moves"]: r for r in rows}
     if 10000 in by and 100000 in by:

@@ -132,23 +132,38 @@ def json_bytes(obj: Any) -> bytes:
     return (json.dumps(jsonable(obj), indent=2, allow_nan=False) + "\n").encode()
 
 
-def csv_bytes(
+#: Rows of a CSV file formatted at a time when it is written in pieces (:func:`csv_chunks`).
+CSV_CHUNK_ROWS = 50_000
+
+
+def csv_chunks(
     header: Sequence[str], rows: Iterable[Sequence[float]] | np.ndarray, int_rows: np.ndarray | None = None
-) -> bytes:
-    """CSV text with a header row; floats written as the shortest text that reads back exactly
+) -> Iterator[bytes]:
+    """CSV text with a header row, in pieces of :data:`CSV_CHUNK_ROWS` rows (a 10^6-row trajectory
+    is never one string in memory); floats written as the shortest text that reads back exactly
     (Python's ``repr``); ``int_rows`` (N, k), when given, are the last ``k`` columns, as integers."""
     buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
+    csv.writer(buf, lineterminator="\n").writerow(header)
+    yield buf.getvalue().encode()
     A = np.asarray(rows, dtype=float)
     if A.ndim == 1:
         A = A.reshape(len(A), -1) if A.size else A.reshape(0, 0)
-    body = [",".join(map(repr, r)) for r in A.tolist()]
-    if int_rows is not None:
-        I = np.asarray(int_rows, dtype=np.int64).reshape(len(body), -1)
-        body = [f"{a},{','.join(map(str, b))}" if a else ",".join(map(str, b)) for a, b in zip(body, I.tolist())]
-    buf.write("".join(f"{r}\n" for r in body))
-    return buf.getvalue().encode()
+    I = None if int_rows is None else np.asarray(int_rows, dtype=np.int64).reshape(len(A), -1)
+    for k in range(0, len(A), CSV_CHUNK_ROWS):
+        body = [",".join(map(repr, r)) for r in A[k : k + CSV_CHUNK_ROWS].tolist()]
+        if I is not None:
+            body = [
+                f"{a},{','.join(map(str, b))}" if a else ",".join(map(str, b))
+                for a, b in zip(body, I[k : k + CSV_CHUNK_ROWS].tolist())
+            ]
+        yield "".join(f"{r}\n" for r in body).encode()
+
+
+def csv_bytes(
+    header: Sequence[str], rows: Iterable[Sequence[float]] | np.ndarray, int_rows: np.ndarray | None = None
+) -> bytes:
+    """CSV text with a header row (:func:`csv_chunks` joined)."""
+    return b"".join(csv_chunks(header, rows, int_rows))
 
 
 # ------------------------------------------------------------------------------ errors
@@ -666,8 +681,10 @@ class OutputSet:
         self.add_bytes(name, json_bytes(obj))
 
     def add_csv(self, name: str, header: Sequence[str], rows: Any, int_rows: Any = None) -> None:
-        """Add a CSV file (see :func:`csv_bytes`)."""
-        self.add_bytes(name, csv_bytes(header, rows, int_rows))
+        """Add a CSV file (see :func:`csv_chunks`), written in pieces when the set is published."""
+        A = np.asarray(rows, dtype=float)
+        I = None if int_rows is None else np.asarray(int_rows)
+        self.add_bytes(name, lambda: csv_chunks(header, A, I))
 
     def publish(self) -> list[Path]:
         """Write the set: built in a temporary sibling folder, then moved into place in one step.

@@ -312,3 +312,54 @@ def test_cutting_time_stays_near_length_over_feed_on_a_wavy_raster(tmp_path):
     assert f["cutting_time_over_programmed"] <= FEED_TIME_FACTOR, f
     assert f["peak_feed_ratio"] <= 1.0 + 1e-6
     assert "re-timed by jerk_optimal" in res.trajectories["ruckig"].reason
+
+
+#: The compensated commands land on their waypoints under the independent physics within this (issue 23).
+LANDING_TOL_M = 1e-6
+
+
+def _landed(robot, q_command: np.ndarray, wrench_tool: np.ndarray, iters: int = 200) -> np.ndarray:
+    """Where the TCP lands: the fixed point q = q_c + K^-1 J(q)^T W(q), the tool-frame wrench turned
+    into the base frame by the TCP's rotation at q, the Jacobian by central differences of the
+    forward kinematics (not the model's symbolic Jacobian or its compensation)."""
+    from models.symbolic import KinematicModel
+
+    km = KinematicModel(robot)
+    kinv = 1.0 / robot.stiffness
+    q = q_command.copy()
+    h = 1e-7
+    for _ in range(iters):
+        T0 = km.tcp(q)
+        J = np.zeros((6, 6))
+        for k in range(6):
+            dq = np.zeros(6)
+            dq[k] = h
+            Tp, Tm = km.tcp(q + dq), km.tcp(q - dq)
+            J[:3, k] = (Tp[:3, 3] - Tm[:3, 3]) / (2 * h)
+            W = (Tp[:3, :3] - Tm[:3, :3]) / (2 * h) @ T0[:3, :3].T
+            J[3:, k] = [W[2, 1], W[0, 2], W[1, 0]]
+        R = T0[:3, :3]
+        F = np.r_[R @ wrench_tool[:3], R @ wrench_tool[3:]]
+        q_new = q_command + kinv * (J.T @ F)
+        done = np.max(np.abs(q_new - q)) < 1e-15
+        q = q_new
+        if done:
+            break
+    return km.tcp(q)[:3, 3]
+
+
+def test_compensated_program_commands_land_on_the_waypoints(tmp_path):
+    problem = PROBLEM.replace(
+        "[wrench]\nforce = [0.0, 0.0, 0.0]", '[wrench]\nframe = "tool"\nforce = [40.0, 25.0, 30.0]'
+    )
+    pr = load_problem(_write(tmp_path, problem=problem))
+    res = plan(pr)
+    assert res.ok, res.reason
+    robot = pr.robot
+    worst = 0.0
+    for k in range(0, pr.n, 7):
+        p = _landed(robot, res.exact.q_command[k], pr.wrench[k])
+        worst = max(worst, float(np.linalg.norm(p - pr.positions[k])))
+    assert worst < LANDING_TOL_M, worst
+    # and the load does move the uncompensated TCP (the check is not vacuous)
+    assert res.before.error_norm_m.max() > 50 * LANDING_TOL_M

@@ -561,7 +561,7 @@ def branch_figure(
             a1.text(x[i], 0.03 * top, "not feasible", rotation=90, ha="center", va="bottom", fontsize=8, color="0.35")
     a1.set_xticks(x, ticks, fontsize=8)
     a1.set_ylabel("RMS load-induced TCP error [mm]")
-    a1.set_ylim(0.0, top * 1.15)
+    a1.set_ylim(0.0, top * 1.15 if top > 0 else 1.0)  # no load: every error 0
     a1.set_title("(a) RMS error per IK branch" + ("" if same else " (analytic hatched, optimised solid)"))
     a1.grid(alpha=0.3, axis="y")
     styles = {"chosen": (CHOSEN_COLOUR, "-", 2.4), "default": (DEFAULT_COLOUR, "--", 1.6)}

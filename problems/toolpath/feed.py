@@ -168,7 +168,9 @@ def feed_time_law(
     method : str
         A registered timing method; a jerk-limited one (the default) for a controller.
     stop : np.ndarray, optional
-        Shape ``(N,)``, bool: the arm is at rest at these waypoints (the first and last always).
+        Shape ``(N,)``, bool: the arm is at rest at these waypoints (the first and last always, and
+        every change between a rapid and a cutting move: the stretch between two stops is then all
+        cut or all rapid, so its path parameter is the programmed time or the joints' travel).
         Each stretch between stops is timed on its own, rest to rest, and the pieces joined.
     dwell_s : np.ndarray, optional
         Shape ``(N,)``, s: time held at rest at a stop.
@@ -191,6 +193,8 @@ def feed_time_law(
     if st.shape != (n_way,) or dw.shape != (n_way,) or np.any(~(dw >= 0.0)):
         raise InputError(f"feed law: stop and dwell_s must be ({n_way},) with dwells >= 0 s")
     st[0] = st[-1] = True
+    F = np.asarray(feed_m_s, dtype=float)
+    st[1:-1] |= np.isnan(F[1:-1]) != np.isnan(F[2:])  # a change between rapid and cut: a stop
     n = Q.shape[1]
     aug = JointLimits(
         np.r_[limits.velocity, FEED_TIME_SCALE, _INDEX_LIMIT],
