@@ -77,8 +77,9 @@ PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
 #: Columns ``path.csv`` adds for a program path: the programmed feed of the move ending at the
 #: waypoint (mm/min, nan for rapids and waypoint 0), its program line, 1 for a rapid.
 PROGRAM_PATH_COLUMNS = ["feed_mm_min", "line", "rapid"]
-#: Column ``trajectory*.csv`` adds for a program path: the program line of the move each sample runs.
-PROGRAM_TRAJECTORY_COLUMNS = ["line"]
+#: Columns ``trajectory*.csv`` adds for a program path: the program line of the move each sample runs,
+#: and the waypoint (0-based row of ``path.csv``) that move ends at.
+PROGRAM_TRAJECTORY_COLUMNS = ["line", "waypoint"]
 #: Columns of ``trajectory*.csv``.
 TRAJECTORY_COLUMNS = OUTPUT_TRAJECTORY_COLUMNS
 #: Slack on the commanded joints' position limits (rad).
@@ -650,8 +651,13 @@ def write_outputs(
         if m == res.controller and res.dynamic is not None and res.dynamic.link is not None:
             out.add_csv(name, TRAJECTORY_COLUMNS + LINK_COLUMNS, np.hstack([_trajectory_rows(tr), res.dynamic.link.q]))
         elif m in res.feed and prog is not None:
-            lines = prog.waypoints.line[res.feed[m].sample_move]
-            out.add_csv(name, TRAJECTORY_COLUMNS + PROGRAM_TRAJECTORY_COLUMNS, _trajectory_rows(tr), lines[:, None])
+            move = res.feed[m].sample_move
+            out.add_csv(
+                name,
+                TRAJECTORY_COLUMNS + PROGRAM_TRAJECTORY_COLUMNS,
+                _trajectory_rows(tr),
+                np.column_stack([prog.waypoints.line[move], move]),
+            )
         else:
             out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
     if with_figures:

@@ -3,10 +3,19 @@
 A problem file (TOML, documented in ``docs/problem-file.md``) has the sections
 header (``name``, ``description``, ``source``), ``[robot]`` (with its tool),
 ``[orientation]``, ``[path]``, ``[wrench]``, ``[payload]``, ``[limits]``,
-``[cost]``, ``[solver]``, ``[branch]`` and ``[timing]``.  Each ``parse_*``
-function below validates one section of the parsed document and returns its
-values in SI units (m, rad, N, N*m, kg, s); :func:`problems.problem.problem_from_dict`
-calls them in file order and assembles the :class:`~problems.problem.Problem`.
+``[cost]``, ``[solver]``, ``[branch]``, ``[timing]`` and ``[placement]``.  Each ``parse_*``
+function validates one section of the parsed document and returns its values in SI units
+(m, rad, N, N*m, kg, s); :func:`problems.problem.problem_from_dict` calls them in file order and
+assembles the :class:`~problems.problem.Problem`.
+
+This module holds the section parsers and the settings and section types they return
+(:class:`Limits`, :class:`Header`, :class:`RobotSection`, :class:`OrientationSection`,
+:class:`WrenchSection`, :class:`PayloadSection`). The others, whose names are re-exported here:
+:mod:`problems.problem_values` (:class:`ProblemFileError`, the generic value validators and the
+plausibility limits), :mod:`problems.path_section` (``[path]``: :class:`PathSection`,
+:func:`parse_path`, :func:`is_program_path`; a program as the path, with ``[workpiece]``, is
+:mod:`problems.program_section`) and :mod:`problems.timing_section` (``[timing]`` against the
+timing registry: :class:`TimingSettings`, :func:`check_timing`, :func:`parse_timing`).
 
 Every error is a :class:`ProblemFileError` naming the file, the key (dotted,
 e.g. ``path.points``) and, for tables of rows, the row; the value found; and
@@ -16,7 +25,7 @@ what was expected.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 from collections.abc import Mapping
@@ -25,11 +34,17 @@ import numpy as np
 
 from models.arm import ArmModel, load_arm
 from models.constants import PLAUSIBLE_POSITION_MAX_M
-from models.errors import InputError
 from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError
 from models.transforms import matrix_to_rpy, rpy_to_matrix, transform
 from problems import paper
-from problems.path import MAX_JOINT_STEP, line_positions
+from problems.path import MAX_JOINT_STEP
+from problems.path_section import (
+    PathSection as PathSection,
+    _line_path as _line_path,
+    _waypoints_path as _waypoints_path,
+    is_program_path as is_program_path,
+    parse_path as parse_path,
+)
 from problems.posture import (
     DEFAULT_MAX_ITER,
     DEFAULT_SCAN,
@@ -38,26 +53,33 @@ from problems.posture import (
     OrientationRule,
     SolverSettings,
 )
-from problems.timing import (
-    DT_DEFAULT_S,
-    available_methods,
-    controller_methods,
-    default_methods,
-    get_method,
-    program_default_methods,
+from problems.problem_values import (
+    _TABLE_KEYS as _TABLE_KEYS,
+    PLAUSIBLE_JOINT_MAX_RAD,
+    PLAUSIBLE_JOINT_STEP_MAX_RAD,
+    PLAUSIBLE_RPY_MAX_RAD as PLAUSIBLE_RPY_MAX_RAD,
+    ProblemFileError,
+    _angle_pair,
+    _check_positions as _check_positions,
+    _check_radians,
+    _err,
+    _integer,
+    _number,
+    _positive,
+    _rows,
+    _rpy,
+    _table,
+    _vector,
+    _vector_or_scalar,
 )
-from problems.timing.registry import validate_options
+from problems.timing_section import (
+    TIMING_OPTION_KEYS as TIMING_OPTION_KEYS,
+    TimingSettings as TimingSettings,
+    _method_tables as _method_tables,
+    check_timing as check_timing,
+    parse_timing as parse_timing,
+)
 
-# The timing methods a problem may name, those run when it names none, the default and largest
-# controller period and each method's options are the registry's (problems.timing.registry).
-
-#: ``[timing]`` keys that set a method's option (kept from before the ``[timing.<method>]``
-#: tables): key -> (method, option).
-TIMING_OPTION_KEYS: dict[str, tuple[str, str]] = {
-    "toppra_gridpoints": ("toppra", "gridpoints"),
-    "toppra_max_iterations": ("toppra", "max_iterations"),
-    "ruckig_max_iterations": ("ruckig", "max_iterations"),
-}
 #: Default nominal TCP orientation: tool z axis pointing down (roll = 180 deg).
 DEFAULT_RPY = np.array([math.pi, 0.0, 0.0])
 
@@ -80,33 +102,6 @@ _TOP = (
 )
 #: Frames a wrench may be given in.
 WRENCH_FRAMES = ("base", "tool")
-_TABLE_KEYS: dict[str, tuple[str, ...]] = {
-    "robot": ("model", "tool"),
-    "robot.tool": ("xyz", "rpy", "rpy_deg"),
-    "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg", "file", "tolerance_mm"),
-    "workpiece": ("xyz", "rpy", "rpy_deg"),
-    "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
-    "wrench": ("frame", "force", "moment", "per_waypoint"),
-    "payload": ("mass_kg", "com_m", "gravity_m_s2"),
-    "limits": (
-        "velocity",
-        "acceleration",
-        "jerk",
-        "velocity_scale",
-        "acceleration_scale",
-        "jerk_scale",
-        "max_joint_step",
-        "max_joint_step_deg",
-    ),
-    "cost": ("smoothness",),
-    "solver": ("name", "max_iter", "tol", "codegen"),
-    "branch": ("home", "home_deg"),
-    "timing": ("methods", "dt", "toppra_gridpoints", "toppra_max_iterations", "ruckig_max_iterations", "dynamic"),
-}
-
-
-class ProblemFileError(InputError):
-    """A problem file is malformed; the message names the file, key, value and expectation."""
 
 
 # --------------------------------------------------------------------------------------
@@ -130,35 +125,6 @@ class Limits:
     acceleration: np.ndarray
     jerk: np.ndarray
     max_joint_step: float = MAX_JOINT_STEP
-
-
-@dataclass(frozen=True)
-class TimingSettings:
-    """Time parametrisation: methods by name (registered in :mod:`problems.timing`), controller
-    period (s) and method options.
-
-    ``method_options`` holds the ``[timing.<method>]`` tables (option name -> value, as the
-    method's ``options`` name them); ``toppra_gridpoints``, ``toppra_max_iterations`` and
-    ``ruckig_max_iterations`` are the older flat keys of two of them (0: the method's default).
-    """
-
-    methods: tuple[str, ...] = field(default_factory=default_methods)
-    dt: float = DT_DEFAULT_S
-    toppra_gridpoints: int = 0  # 0: the timing module's default
-    toppra_max_iterations: int = 0  # 0: default
-    ruckig_max_iterations: int = 0  # 0: default
-    dynamic: bool = False  # motor-side commands for the inertial torques (problems/dynamic.py)
-    method_options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
-
-    def options(self, method: str) -> dict[str, Any]:
-        """Keyword options of ``method`` for ``problems.timing.time_parametrize``."""
-        out: dict[str, Any] = {
-            opt: getattr(self, key)
-            for key, (m, opt) in TIMING_OPTION_KEYS.items()
-            if m == method and getattr(self, key)
-        }
-        out.update(self.method_options.get(method, {}))
-        return out
 
 
 class Header(NamedTuple):
@@ -219,29 +185,6 @@ class OrientationSection(NamedTuple):
     scan: int
 
 
-class PathSection(NamedTuple):
-    """The ``[path]`` section.
-
-    Attributes
-    ----------
-    kind : {"line", "waypoints", "gcode", "toolpath_csv"}
-    line : tuple (start (3,), end (3,)) or None
-        For ``line`` paths, m, base frame.
-    positions : ndarray, shape (N, 3)
-        TCP waypoints, m, base frame.
-    rotations : ndarray, shape (N, 3, 3)
-        Nominal base->TCP rotations (the path's own or the orientation's nominal one).
-    program : problems.program_section.ProgramSection or None
-        For a program path (``gcode``, ``toolpath_csv``): the program read and placed.
-    """
-
-    kind: str
-    line: tuple[np.ndarray, np.ndarray] | None
-    positions: np.ndarray
-    rotations: np.ndarray
-    program: Any = None
-
-
 class WrenchSection(NamedTuple):
     """The ``[wrench]`` section.
 
@@ -279,96 +222,8 @@ class PayloadSection(NamedTuple):
 
 
 # --------------------------------------------------------------------------------------
-# Value helpers (every message: "<file>: key '<key>' ...")
+# Geometry
 # --------------------------------------------------------------------------------------
-
-
-def _err(where: str, key: str, msg: str) -> ProblemFileError:
-    return ProblemFileError(f"{where}: key '{key}' {msg}")
-
-
-def _number(where: str, key: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _err(where, key, f"must be a number, got {v!r}")
-    f = float(v)
-    if not math.isfinite(f):
-        raise _err(where, key, f"must be finite, got {v!r}")
-    return f
-
-
-def _positive(where: str, key: str, v: Any) -> float:
-    f = _number(where, key, v)
-    if f <= 0.0:
-        raise _err(where, key, f"must be > 0, got {v!r}")
-    return f
-
-
-def _integer(where: str, key: str, v: Any, lo: int, hi: int | None = None) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
-        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-        raise _err(where, key, f"must be an integer {rng}, got {v!r}")
-    return int(v)
-
-
-def _vector(where: str, key: str, v: Any, n: int) -> np.ndarray:
-    if not isinstance(v, list) or len(v) != n:
-        raise _err(where, key, f"must be a list of {n} numbers, got {v!r}")
-    return np.array([_number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
-
-
-def _vector_or_scalar(where: str, key: str, v: Any, n: int) -> np.ndarray:
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        return np.full(n, _number(where, key, v))
-    return _vector(where, key, v, n)
-
-
-def _rows(where: str, key: str, v: Any, width: int) -> np.ndarray:
-    if not isinstance(v, list) or not v:
-        raise _err(where, key, f"must be a non-empty list of rows of {width} numbers, got {v!r}")
-    out = np.empty((len(v), width))
-    for i, row in enumerate(v):
-        if not isinstance(row, list) or len(row) != width:
-            raise ProblemFileError(f"{where}: key '{key}' row {i}: must be a list of {width} numbers, got {row!r}")
-        for j, x in enumerate(row):
-            out[i, j] = _number(where, f"{key}[{i}][{j}]", x)
-    return out
-
-
-def _table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
-    parts = key.split(".")
-    cur: Any = data
-    for p in parts:
-        cur = cur.get(p, {}) if isinstance(cur, Mapping) else None
-        if not isinstance(cur, Mapping):
-            raise _err(where, key, f"must be a table, got {cur!r}")
-    allowed = _TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
-    unknown = sorted(set(cur) - set(allowed))
-    if unknown:
-        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(allowed)}")
-    return cur
-
-
-def _angle_pair(where: str, tab: Mapping[str, Any], key: str, prefix: str) -> tuple[Any, bool] | None:
-    """The raw value of ``key`` (rad) or ``key_deg``, and whether it is in degrees."""
-    has_rad, has_deg = key in tab, f"{key}_deg" in tab
-    if has_rad and has_deg:
-        raise ProblemFileError(f"{where}: give either '{prefix}{key}' (rad) or '{prefix}{key}_deg', not both")
-    if has_deg:
-        return tab[f"{key}_deg"], True
-    if has_rad:
-        return tab[key], False
-    return None
-
-
-def _rpy(where: str, tab: Mapping[str, Any], prefix: str) -> np.ndarray | None:
-    got = _angle_pair(where, tab, "rpy", prefix)
-    if got is None:
-        return None
-    raw, deg = got
-    v = _vector(where, f"{prefix}rpy{'_deg' if deg else ''}", raw, 3)
-    if not deg:
-        _check_radians(where, f"{prefix}rpy", v, PLAUSIBLE_RPY_MAX_RAD, f"{prefix}rpy_deg")
-    return np.radians(v) if deg else v
 
 
 def _rotation_with_axis(axis: np.ndarray) -> np.ndarray:
@@ -379,85 +234,6 @@ def _rotation_with_axis(axis: np.ndarray) -> np.ndarray:
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
     return np.column_stack([x, y, z])
-
-
-def _check_positions(where: str, key: str, P: np.ndarray) -> None:
-    r = np.linalg.norm(P, axis=1)
-    if np.any(r > PLAUSIBLE_POSITION_MAX_M):
-        k = int(np.argmax(r))
-        raise ProblemFileError(
-            f"{where}: key '{key}' row {k}: position {P[k].tolist()} is {r[k]:.4g} m from the base "
-            f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); positions are in metres (millimetres given?)"
-        )
-
-
-#: An orientation angle (rpy) in radians beyond this magnitude is implausible: degrees given
-#: under the radian key (one turn).
-PLAUSIBLE_RPY_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
-#: A joint angle (``branch.home``) or joint step in radians beyond this magnitude is
-#: implausible (two turns for a joint angle, one turn for a step).
-PLAUSIBLE_JOINT_MAX_RAD = 4.0 * math.pi * (1.0 + 1e-9)
-PLAUSIBLE_JOINT_STEP_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
-
-
-def _check_radians(where: str, key: str, values: np.ndarray, limit: float, deg_key: str) -> None:
-    """Refuse radian values that are almost certainly degrees (|value| > ``limit``), naming the
-    key, the value and the ``_deg`` key to use instead."""
-    v = np.atleast_1d(np.asarray(values, dtype=float))
-    bad = np.flatnonzero(np.abs(v) > limit)
-    if bad.size:
-        i = int(bad[0])
-        raise _err(
-            where,
-            key,
-            f"= {v.tolist() if v.size > 1 else float(v[0])} rad is implausible "
-            f"(|{float(v[i]):g}| > {limit:.4g} rad): a key without '_deg' is in radians; "
-            f"degrees given? use '{deg_key}'",
-        )
-
-
-def check_timing(where: str, t: TimingSettings) -> None:
-    """Validate timing settings against the registry of timing methods: methods registered and
-    non-empty, one the controller can run among them, ``dt`` in (0, the smallest ``dt_max_s`` of
-    the methods] s, each method's options known to it and valid.
-
-    Parameters
-    ----------
-    where : str
-        The source, used in error messages.
-    t : TimingSettings
-
-    Raises
-    ------
-    ProblemFileError
-        Naming ``timing.methods``, ``timing.dt`` or the option's key; an unknown method's message
-        lists the registered ones.
-    """
-    valid = list(available_methods())
-    if not t.methods:
-        raise _err(where, "timing.methods", f"must name at least one of {valid}")
-    for m in t.methods:
-        if m not in valid:
-            raise _err(where, "timing.methods", f"has unknown method {m!r}; valid: {valid}")
-    if not controller_methods(t.methods):
-        raise _err(
-            where,
-            "timing.methods",
-            f"= {list(t.methods)} has no method whose trajectory the controller "
-            f"can run; add one of {list(controller_methods())}",
-        )
-    dt_max = min(get_method(m).dt_max_s for m in t.methods)
-    if not (0.0 < t.dt <= dt_max) or not math.isfinite(t.dt):
-        raise _err(where, "timing.dt", f"must be in (0, {dt_max}] s, got {t.dt!r}")
-    for m in dict.fromkeys([*t.methods, *t.method_options]):
-        if m not in valid:
-            raise ProblemFileError(f"{where}: [timing.{m}]: unknown method {m!r}; valid: {valid}")
-        try:
-            validate_options(get_method(m), t.options(m))
-        except InputError as exc:  # name the flat [timing] key when the bad option came from one
-            flat = [k for k, (mm, opt) in TIMING_OPTION_KEYS.items() if mm == m and getattr(t, k) and opt in str(exc)]
-            key = f"timing.{flat[0]}" if flat else f"[timing.{m}]"
-            raise ProblemFileError(f"{where}: {key}: {exc}") from None
 
 
 # --------------------------------------------------------------------------------------
@@ -602,95 +378,6 @@ def _cone_half_angle(where: str, ot: Mapping[str, Any], rule: OrientationRule) -
     elif got is not None:
         raise _err(where, "orientation.half_angle", f"only applies to rule 'cone' (rule is '{rule.value}')")
     return half
-
-
-def is_program_path(data: Mapping[str, Any]) -> bool:
-    """Whether the document's path is a program file (``[path] kind`` in ``PROGRAM_KINDS``)."""
-    from problems.program_section import PROGRAM_KINDS
-
-    pt = data.get("path") if isinstance(data, Mapping) else None
-    return isinstance(pt, Mapping) and pt.get("kind") in PROGRAM_KINDS
-
-
-def parse_path(
-    where: str, data: Mapping[str, Any], R_nom: np.ndarray, base_dir: Path | None = None, robot: Robot | None = None
-) -> PathSection:
-    """The ``[path]`` section: a line, explicit waypoints, or a program file (with ``[workpiece]``).
-
-    Parameters
-    ----------
-    R_nom : ndarray, shape (3, 3)
-        The orientation's nominal base->TCP rotation, used where the path gives none.
-    base_dir : Path, optional
-        Directory against which a relative ``path.file`` is resolved.
-    robot : Robot, optional
-        The robot with its tool: a program point beyond its reach is refused with ``file:line``.
-    """
-    from problems.program_section import PROGRAM_KINDS, check_reach, parse_program
-
-    pt = _table(where, data, "path")
-    kind = pt.get("kind")
-    if kind != "gcode" and kind != "toolpath_csv" and "workpiece" in data:
-        raise _err(where, "workpiece", f"only applies to a program path (kind {list(PROGRAM_KINDS)}); kind is {kind!r}")
-    for key in ("file", "tolerance_mm"):
-        if key in pt and kind not in PROGRAM_KINDS:
-            raise _err(where, f"path.{key}", f"only applies to kinds {list(PROGRAM_KINDS)}")
-    if kind == "line":
-        return _line_path(where, pt, R_nom)
-    if kind == "waypoints":
-        return _waypoints_path(where, pt, R_nom)
-    if kind in PROGRAM_KINDS:
-        wt = _table(where, data, "workpiece") if "workpiece" in data else None
-        sec = parse_program(where, pt, wt, base_dir, _err, lambda t, prefix: _rpy(where, t, prefix))
-        if robot is not None:
-            check_reach(sec, robot)
-        return PathSection(kind, None, sec.positions, sec.rotations, sec)
-    raise _err(where, "path.kind", f"must be one of {['line', 'waypoints', *PROGRAM_KINDS]}, got {kind!r}")
-
-
-def _line_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> PathSection:
-    """A ``kind = "line"`` path: ``points`` waypoints from ``start`` to ``end`` (m, base frame)."""
-    for key in ("positions", "rpy", "rpy_deg"):
-        if key in pt:
-            raise _err(where, f"path.{key}", "only applies to kind 'waypoints'")
-    for key in ("start", "end", "points"):
-        if key not in pt:
-            raise _err(where, f"path.{key}", "is required for kind 'line'")
-    start = _vector(where, "path.start", pt["start"], 3)
-    end = _vector(where, "path.end", pt["end"], 3)
-    n = _integer(where, "path.points", pt["points"], 2)
-    _check_positions(where, "path.start/end", np.vstack([start, end]))
-    if np.linalg.norm(end - start) < 1e-9:
-        raise _err(where, "path.end", f"equals path.start {start.tolist()}; a line needs two distinct points")
-    P = line_positions(start, end, n)
-    R = np.broadcast_to(R_nom, (n, 3, 3)).copy()
-    return PathSection("line", (start, end), P, R)
-
-
-def _waypoints_path(where: str, pt: Mapping[str, Any], R_nom: np.ndarray) -> PathSection:
-    """A ``kind = "waypoints"`` path: explicit positions (m) and optional per-row rpy."""
-    for key in ("start", "end", "points"):
-        if key in pt:
-            raise _err(where, f"path.{key}", "only applies to kind 'line'")
-    if "positions" not in pt:
-        raise _err(where, "path.positions", "is required for kind 'waypoints'")
-    P = _rows(where, "path.positions", pt["positions"], 3)
-    n = len(P)
-    _check_positions(where, "path.positions", P)
-    got = _angle_pair(where, pt, "rpy", "path.")
-    if got is not None:
-        raw, deg = got
-        key = f"path.rpy{'_deg' if deg else ''}"
-        A = _rows(where, key, raw, 3)
-        if len(A) != n:
-            raise _err(where, key, f"has {len(A)} rows but path.positions has {n}")
-        if not deg:
-            for i, row in enumerate(A):
-                _check_radians(where, f"path.rpy[{i}]", row, PLAUSIBLE_RPY_MAX_RAD, "path.rpy_deg")
-        R = np.stack([rpy_to_matrix(np.radians(a) if deg else a) for a in A])
-    else:
-        R = np.broadcast_to(R_nom, (n, 3, 3)).copy()
-    return PathSection("waypoints", None, P, R)
 
 
 def parse_wrench(where: str, data: Mapping[str, Any], n: int, tool_rows: np.ndarray | None = None) -> WrenchSection:
@@ -866,51 +553,6 @@ def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:
     if not deg:
         _check_radians(where, "branch.home", home, PLAUSIBLE_JOINT_MAX_RAD, "branch.home_deg")
     return np.radians(home) if deg else home
-
-
-def _method_tables(where: str, tt: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    """The ``[timing.<method>]`` tables of ``[timing]``: method -> option -> value, each name
-    known to the method (values are checked by :func:`check_timing`)."""
-    out: dict[str, dict[str, Any]] = {}
-    for m in available_methods():
-        if m not in tt:
-            continue
-        tab, spec = tt[m], get_method(m)
-        if not isinstance(tab, Mapping):
-            raise _err(where, f"timing.{m}", f"must be a table of {m}'s options {list(spec.options)}, got {tab!r}")
-        unknown = sorted(set(tab) - set(spec.options))
-        if unknown:
-            raise ProblemFileError(f"{where}: [timing.{m}]: unknown key(s) {unknown}; allowed: {list(spec.options)}")
-        for key, (method, opt) in TIMING_OPTION_KEYS.items():
-            if method == m and opt in tab and tt.get(key):
-                raise ProblemFileError(f"{where}: give either 'timing.{key}' or 'timing.{m}.{opt}', not both")
-        out[m] = dict(tab)
-    return out
-
-
-def parse_timing(where: str, data: Mapping[str, Any], program: bool = False) -> TimingSettings:
-    """The ``[timing]`` section: methods (registered in :mod:`problems.timing`), controller period
-    (s), method options (``[timing.<method>]`` tables and the older flat keys). ``program``: the path
-    is a CAM program (the default methods are then :func:`~problems.timing.program_default_methods`)."""
-    tt = _table(where, data, "timing")
-    methods = tt.get("methods", list(program_default_methods() if program else default_methods()))
-    if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
-        raise _err(
-            where, "timing.methods", f"must be a list of method names {list(available_methods())}, got {methods!r}"
-        )
-    timing = TimingSettings(
-        methods=tuple(methods),
-        dt=_positive(where, "timing.dt", tt.get("dt", DT_DEFAULT_S)),
-        toppra_gridpoints=_integer(where, "timing.toppra_gridpoints", tt.get("toppra_gridpoints", 0), 0),
-        toppra_max_iterations=_integer(where, "timing.toppra_max_iterations", tt.get("toppra_max_iterations", 0), 0),
-        ruckig_max_iterations=_integer(where, "timing.ruckig_max_iterations", tt.get("ruckig_max_iterations", 0), 0),
-        dynamic=tt.get("dynamic", False),
-        method_options=_method_tables(where, tt),
-    )
-    if not isinstance(timing.dynamic, bool):
-        raise _err(where, "timing.dynamic", f"must be true or false, got {timing.dynamic!r}")
-    check_timing(where, timing)
-    return timing
 
 
 def parse_placement(where: str, data: Mapping[str, Any]) -> Any:

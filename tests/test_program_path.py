@@ -165,7 +165,7 @@ def test_program_outputs_name_lines_and_feeds(tmp_path):
     assert first[-3:] == ["nan", "5", "1"]  # waypoint 0: the rapid's end, line 5
     assert any(row.split(",")[-3:] == ["1200.0", "7", "0"] for row in head[2:])
     traj = (out / "trajectory.csv").read_text().splitlines()
-    assert traj[0].endswith(",line") and traj[1].split(",")[-1] == "6"
+    assert traj[0].endswith(",line,waypoint") and traj[1].split(",")[-2:] == ["6", "1"]
 
 
 @pytest.mark.parametrize(

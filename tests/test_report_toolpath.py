@@ -25,6 +25,7 @@ from planner.report.toolpath import (
     ProgramView,
     bin_extrema,
     line_feed_m_s,
+    sample_feed_m_s,
     merge_segments,
     slowed_lines_worst_first,
     tcp_speed_m_s,
@@ -251,7 +252,8 @@ def test_the_view_from_the_plan_equals_the_view_from_the_folder(program_run):
         np.testing.assert_array_equal(getattr(a.program, field), getattr(b.program, field), err_msg=field)
     assert a.program.sample_line.keys() == b.program.sample_line.keys() == {res.controller}
     np.testing.assert_array_equal(a.program.sample_line[res.controller], b.program.sample_line[res.controller])
-    assert all("line" not in tr for tr in b.trajectories.values())  # taken into the view, as from a plan
+    np.testing.assert_array_equal(a.program.sample_waypoint[res.controller], b.program.sample_waypoint[res.controller])
+    assert all("line" not in tr and "waypoint" not in tr for tr in b.trajectories.values())  # as from a plan
     ia, ib = program_items(a), program_items(b)
     assert [it.name for it in ia] == [it.name for it in ib] == list(PROGRAM_FIGURES)
     for x, y in zip(ia, ib):
@@ -278,12 +280,12 @@ def test_a_trajectory_without_program_lines_states_why_the_feed_is_absent(progra
     shutil.copytree(out, folder)
     path = folder / "trajectory.csv"
     cols = np.genfromtxt(path, delimiter=",", names=True)
-    names = [n for n in cols.dtype.names if n != "line"]
+    names = [n for n in cols.dtype.names if n not in ("line", "waypoint")]
     path.write_bytes(csv_bytes(names, np.column_stack([cols[n] for n in names])))
     write_report(folder, map_options=False, workers=1)
     rep = _parse(folder)
     assert TOOLPATH_FIGURE in rep.images
-    assert FEED_FIGURE not in rep.images and "no 'line' column" in rep.absent[FEED_FIGURE]
+    assert FEED_FIGURE not in rep.images and "no 'line' and 'waypoint' columns" in rep.absent[FEED_FIGURE]
 
 
 def test_the_feed_figure_speed_is_the_forward_kinematics_speed(program_run):
@@ -296,7 +298,7 @@ def test_the_feed_figure_speed_is_the_forward_kinematics_speed(program_run):
     v = np.linalg.norm(np.diff(p, axis=0), axis=1) / np.diff(tr.t)
     speed = tcp_speed_m_s(res.problem.model.kinematics.tcp, tr.t, tr.q)
     np.testing.assert_allclose(speed[1:], v, rtol=1e-12)
-    feed = line_feed_m_s(run.program, run.program.sample_line[res.controller])
+    feed = sample_feed_m_s(run.program, run.program.sample_waypoint[res.controller])
     cut = np.isfinite(feed)
     assert np.max(speed[cut] / feed[cut]) <= 1.02
     item = program_items(run)[1]

@@ -244,8 +244,9 @@ def _read_trajectory(path: Path) -> dict[str, np.ndarray | None]:
     base = [c for c in TRAJECTORY_COLUMNS if c not in _JERK_COLUMNS]
     arr = _require(path, cols, base)
     out = {"t": arr[:, 0], "q": arr[:, 1:7], "qd": arr[:, 7:13], "qdd": arr[:, 13:19], "qddd": jerk}
-    if "line" in cols:  # a program path's (taken into Run.program by load_run)
-        out["line"] = cols["line"]
+    for c in ("line", "waypoint"):  # a program path's (taken into Run.program by load_run)
+        if c in cols:
+            out[c] = cols[c]
     return out
 
 

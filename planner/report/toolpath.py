@@ -48,6 +48,7 @@ __all__ = [
     "ProgramView",
     "bin_extrema",
     "line_feed_m_s",
+    "sample_feed_m_s",
     "merge_segments",
     "program_from_folder",
     "program_from_plan",
@@ -103,6 +104,7 @@ class ProgramView:
     rapid: np.ndarray
     feed_m_s: np.ndarray
     sample_line: dict[str, np.ndarray] = field(default_factory=dict)
+    sample_waypoint: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -170,6 +172,7 @@ def program_from_plan(res: PlanResult, summary: Mapping[str, Any]) -> ProgramVie
             continue
         if len(fl.sample_move) == len(tr.t):
             view.sample_line[m] = np.asarray(w.line)[fl.sample_move].astype(int)
+            view.sample_waypoint[m] = np.asarray(fl.sample_move).astype(int)
     return view
 
 
@@ -183,6 +186,7 @@ def program_from_folder(run: Run) -> ProgramView | None:
     from planner.report.run import _read_csv  # the report's one CSV reader
 
     lines = {m: tr.pop("line", None) for m, tr in run.trajectories.items()}
+    waypoints = {m: tr.pop("waypoint", None) for m, tr in run.trajectories.items()}
     if not isinstance(run.summary.get(PROGRAM_KEY), Mapping):
         return None
     path = Path(run.folder) / "path.csv"
@@ -200,7 +204,15 @@ def program_from_folder(run: Run) -> ProgramView | None:
     base = np.column_stack([cols[c] for c in _PATH_POSITION])
     view = _view(run.summary, base, cols["feed_mm_min"], cols["line"], cols["rapid"])
     view.sample_line = {m: np.asarray(v).astype(int) for m, v in lines.items() if v is not None}
+    view.sample_waypoint = {m: np.asarray(v).astype(int) for m, v in waypoints.items() if v is not None}
     return view
+
+
+def sample_feed_m_s(view: ProgramView, waypoints: np.ndarray) -> np.ndarray:
+    """The programmed feed of the move each sample runs (m/s), from the waypoint that move ends at;
+    NaN on a rapid (also inside a canned cycle, whose line holds rapids and feeds)."""
+    k = np.asarray(waypoints).astype(int)
+    return np.where(view.rapid[k], np.nan, view.feed_m_s[k])
 
 
 # ---------------------------------------------------------------------------------- the feed

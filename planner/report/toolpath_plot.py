@@ -43,7 +43,7 @@ from planner.report.toolpath import (
     MM_MIN_PER_M_S,
     PROGRAM_KEY,
     bin_extrema,
-    line_feed_m_s,
+    sample_feed_m_s,
     merge_segments,
     slowed_lines_worst_first,
     tcp_speed_m_s,
@@ -161,11 +161,13 @@ def _feed_item(run: Run) -> FigureItem:
         item.absent = run.absent.get("trajectory", "no controller trajectory in this run: the feed is not drawn")
         return item
     lines = view.sample_line.get(ctrl)
+    wps = view.sample_waypoint.get(ctrl)
     fname = run.trajectory_files.get(ctrl, "trajectory.csv")
-    if lines is None or len(lines) != len(tr["t"]):
+    if lines is None or wps is None or len(lines) != len(tr["t"]) or len(wps) != len(tr["t"]):
         item.absent = (
-            f"program path: {fname} has no program line per sample (no 'line' column: a motor-side command of "
-            "the dynamic compensation, or a run written before): the feed is not drawn"
+            f"program path: {fname} has no program line and waypoint per sample (no 'line' and 'waypoint' "
+            "columns: a motor-side command of the dynamic compensation, or a run written before): the feed is "
+            "not drawn"
         )
         return item
     if run.model is None:
@@ -176,7 +178,7 @@ def _feed_item(run: Run) -> FigureItem:
         return item
     t = np.asarray(tr["t"], float)
     speed = tcp_speed_m_s(run.model.kinematics.tcp, t, np.asarray(tr["q"], float))
-    feed = line_feed_m_s(view, lines)
+    feed = sample_feed_m_s(view, wps)
     entry = ((s.get(PROGRAM_KEY) or {}).get("feed") or {}).get(ctrl) or {}
     worst = slowed_lines_worst_first(entry)
     slowed = np.isin(lines, np.array([L for L, _ in worst], dtype=int))

@@ -169,8 +169,10 @@ def feed_time_law(
         A registered timing method; a jerk-limited one (the default) for a controller.
     stop : np.ndarray, optional
         Shape ``(N,)``, bool: the arm is at rest at these waypoints (the first and last always, and
-        every change between a rapid and a cutting move: the stretch between two stops is then all
-        cut or all rapid, so its path parameter is the programmed time or the joints' travel).
+        every change between a rapid and a cutting move or of the feed: the stretch between two
+        stops is then all rapid or all cut at one feed, so its path parameter is the joints' travel
+        or the programmed time, and a smooth time law cannot carry one move's speed into the next
+        move's lower feed).
         Each stretch between stops is timed on its own, rest to rest, and the pieces joined.
     dwell_s : np.ndarray, optional
         Shape ``(N,)``, s: time held at rest at a stop.
@@ -195,6 +197,7 @@ def feed_time_law(
     st[0] = st[-1] = True
     F = np.asarray(feed_m_s, dtype=float)
     st[1:-1] |= np.isnan(F[1:-1]) != np.isnan(F[2:])  # a change between rapid and cut: a stop
+    st[1:-1] |= np.isfinite(F[1:-1]) & np.isfinite(F[2:]) & (F[1:-1] != F[2:])  # a change of feed: a stop
     n = Q.shape[1]
     aug = JointLimits(
         np.r_[limits.velocity, FEED_TIME_SCALE, _INDEX_LIMIT],

@@ -18,7 +18,7 @@ or :data:`DEFAULT_PATH_TOLERANCE_M`):
   the corner is an **exact stop**: the arm comes to rest there, as under G61.
 
 The arm is also at rest (a **stop**) at the first and last waypoint, at every change between rapid
-and cutting moves, at a dwell (G4, with its time), at M0/M1/M60, and at every move's end while G61
+and cutting moves and of the feed (the next move runs at its own feed from its first sample), at a dwell (G4, with its time), at M0/M1/M60, and at every move's end while G61
 (exact stop) is in force. The timed path is one segment per stretch between stops
 (:func:`problems.toolpath.feed.feed_time_law`).
 
@@ -296,7 +296,8 @@ def _refine(
     stop = stop.copy()
     stop[0] = stop[-1] = True
     change = np.r_[False, rapid[1:-1] != rapid[2:], False]  # the move after k is of another kind
-    stop |= change
+    refeed = np.r_[False, np.isfinite(feed[1:-1]) & np.isfinite(feed[2:]) & (feed[1:-1] != feed[2:]), False]
+    stop |= change | refeed
     theta = _deflection(P)
     if relief is not None:
         theta = np.maximum(0.0, theta - relief)

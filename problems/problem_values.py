@@ -1,0 +1,183 @@
+"""The values of a problem file: the error type, the generic validators and the plausibility limits.
+
+Every section parser of a problem file (:mod:`problems.problem_file`,
+:mod:`problems.timing_section`, :mod:`problems.program_section`) checks its values with the
+helpers here, so every message reads the same: ``"<file>: key '<key>' ..."``, naming the file,
+the key (dotted, e.g. ``path.points``) and, for tables of rows, the row; the value found; and
+what was expected.
+
+Holds :class:`ProblemFileError`; the checks of one value (numbers, positive numbers, bounded
+integers, vectors, rows, an angle given in rad or ``_deg``, a roll-pitch-yaw triple); the check of
+a table against the keys it may hold (``_TABLE_KEYS``; ``[timing]`` also takes one
+``[timing.<method>]`` table per registered timing method); and the plausibility limits that catch
+a value in the wrong unit (millimetres for metres, degrees under a radian key).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+from collections.abc import Mapping
+
+import numpy as np
+
+from models.constants import PLAUSIBLE_POSITION_MAX_M
+from models.errors import InputError
+from problems.timing import available_methods
+
+#: The keys each table of a problem file may hold (checked by :func:`_table`).
+_TABLE_KEYS: dict[str, tuple[str, ...]] = {
+    "robot": ("model", "tool"),
+    "robot.tool": ("xyz", "rpy", "rpy_deg"),
+    "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg", "file", "tolerance_mm"),
+    "workpiece": ("xyz", "rpy", "rpy_deg"),
+    "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
+    "wrench": ("frame", "force", "moment", "per_waypoint"),
+    "payload": ("mass_kg", "com_m", "gravity_m_s2"),
+    "limits": (
+        "velocity",
+        "acceleration",
+        "jerk",
+        "velocity_scale",
+        "acceleration_scale",
+        "jerk_scale",
+        "max_joint_step",
+        "max_joint_step_deg",
+    ),
+    "cost": ("smoothness",),
+    "solver": ("name", "max_iter", "tol", "codegen"),
+    "branch": ("home", "home_deg"),
+    "timing": ("methods", "dt", "toppra_gridpoints", "toppra_max_iterations", "ruckig_max_iterations", "dynamic"),
+}
+
+
+class ProblemFileError(InputError):
+    """A problem file is malformed; the message names the file, key, value and expectation."""
+
+
+# --------------------------------------------------------------------------------------
+# Value helpers (every message: "<file>: key '<key>' ...")
+# --------------------------------------------------------------------------------------
+
+
+def _err(where: str, key: str, msg: str) -> ProblemFileError:
+    return ProblemFileError(f"{where}: key '{key}' {msg}")
+
+
+def _number(where: str, key: str, v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _err(where, key, f"must be a number, got {v!r}")
+    f = float(v)
+    if not math.isfinite(f):
+        raise _err(where, key, f"must be finite, got {v!r}")
+    return f
+
+
+def _positive(where: str, key: str, v: Any) -> float:
+    f = _number(where, key, v)
+    if f <= 0.0:
+        raise _err(where, key, f"must be > 0, got {v!r}")
+    return f
+
+
+def _integer(where: str, key: str, v: Any, lo: int, hi: int | None = None) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
+        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise _err(where, key, f"must be an integer {rng}, got {v!r}")
+    return int(v)
+
+
+def _vector(where: str, key: str, v: Any, n: int) -> np.ndarray:
+    if not isinstance(v, list) or len(v) != n:
+        raise _err(where, key, f"must be a list of {n} numbers, got {v!r}")
+    return np.array([_number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+
+
+def _vector_or_scalar(where: str, key: str, v: Any, n: int) -> np.ndarray:
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return np.full(n, _number(where, key, v))
+    return _vector(where, key, v, n)
+
+
+def _rows(where: str, key: str, v: Any, width: int) -> np.ndarray:
+    if not isinstance(v, list) or not v:
+        raise _err(where, key, f"must be a non-empty list of rows of {width} numbers, got {v!r}")
+    out = np.empty((len(v), width))
+    for i, row in enumerate(v):
+        if not isinstance(row, list) or len(row) != width:
+            raise ProblemFileError(f"{where}: key '{key}' row {i}: must be a list of {width} numbers, got {row!r}")
+        for j, x in enumerate(row):
+            out[i, j] = _number(where, f"{key}[{i}][{j}]", x)
+    return out
+
+
+def _table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+    parts = key.split(".")
+    cur: Any = data
+    for p in parts:
+        cur = cur.get(p, {}) if isinstance(cur, Mapping) else None
+        if not isinstance(cur, Mapping):
+            raise _err(where, key, f"must be a table, got {cur!r}")
+    allowed = _TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
+    unknown = sorted(set(cur) - set(allowed))
+    if unknown:
+        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(allowed)}")
+    return cur
+
+
+def _angle_pair(where: str, tab: Mapping[str, Any], key: str, prefix: str) -> tuple[Any, bool] | None:
+    """The raw value of ``key`` (rad) or ``key_deg``, and whether it is in degrees."""
+    has_rad, has_deg = key in tab, f"{key}_deg" in tab
+    if has_rad and has_deg:
+        raise ProblemFileError(f"{where}: give either '{prefix}{key}' (rad) or '{prefix}{key}_deg', not both")
+    if has_deg:
+        return tab[f"{key}_deg"], True
+    if has_rad:
+        return tab[key], False
+    return None
+
+
+def _rpy(where: str, tab: Mapping[str, Any], prefix: str) -> np.ndarray | None:
+    got = _angle_pair(where, tab, "rpy", prefix)
+    if got is None:
+        return None
+    raw, deg = got
+    v = _vector(where, f"{prefix}rpy{'_deg' if deg else ''}", raw, 3)
+    if not deg:
+        _check_radians(where, f"{prefix}rpy", v, PLAUSIBLE_RPY_MAX_RAD, f"{prefix}rpy_deg")
+    return np.radians(v) if deg else v
+
+
+def _check_positions(where: str, key: str, P: np.ndarray) -> None:
+    r = np.linalg.norm(P, axis=1)
+    if np.any(r > PLAUSIBLE_POSITION_MAX_M):
+        k = int(np.argmax(r))
+        raise ProblemFileError(
+            f"{where}: key '{key}' row {k}: position {P[k].tolist()} is {r[k]:.4g} m from the base "
+            f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); positions are in metres (millimetres given?)"
+        )
+
+
+#: An orientation angle (rpy) in radians beyond this magnitude is implausible: degrees given
+#: under the radian key (one turn).
+PLAUSIBLE_RPY_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
+#: A joint angle (``branch.home``) or joint step in radians beyond this magnitude is
+#: implausible (two turns for a joint angle, one turn for a step).
+PLAUSIBLE_JOINT_MAX_RAD = 4.0 * math.pi * (1.0 + 1e-9)
+PLAUSIBLE_JOINT_STEP_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
+
+
+def _check_radians(where: str, key: str, values: np.ndarray, limit: float, deg_key: str) -> None:
+    """Refuse radian values that are almost certainly degrees (|value| > ``limit``), naming the
+    key, the value and the ``_deg`` key to use instead."""
+    v = np.atleast_1d(np.asarray(values, dtype=float))
+    bad = np.flatnonzero(np.abs(v) > limit)
+    if bad.size:
+        i = int(bad[0])
+        raise _err(
+            where,
+            key,
+            f"= {v.tolist() if v.size > 1 else float(v[0])} rad is implausible "
+            f"(|{float(v[i]):g}| > {limit:.4g} rad): a key without '_deg' is in radians; "
+            f"degrees given? use '{deg_key}'",
+        )
