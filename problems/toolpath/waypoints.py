@@ -18,8 +18,9 @@ or :data:`DEFAULT_PATH_TOLERANCE_M`):
   the corner is an **exact stop**: the arm comes to rest there, as under G61.
 
 The arm is also at rest (a **stop**) at the first and last waypoint, at every change between rapid
-and cutting moves and of the feed (the next move runs at its own feed from its first sample), at a dwell (G4, with its time), at M0/M1/M60, and at every move's end while G61
-(exact stop) is in force. The timed path is one segment per stretch between stops
+and cutting moves and of the feed (the next move runs at its own feed from its first sample), at a
+dwell (G4, with its time), at M0/M1/M60, and at every move's end while G61 (exact stop) is in
+force. The timed path is one segment per stretch between stops
 (:func:`problems.toolpath.feed.feed_time_law`).
 
 The distances between the sampled trajectory and the programmed path are measured after planning
