@@ -60,7 +60,7 @@ from problems.timing import (
     time_parametrize,
 )
 from problems.timing.trajectory import LIMIT_KEYS
-from problems.toolpath.feed import FEED_SLOW_TOL, feed_time_law
+from problems.toolpath.feed import FEED_FALLBACK_METHOD, FEED_SLOW_TOL, feed_time_law
 
 #: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
 #: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
@@ -503,6 +503,12 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
         else:
             res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
         res.stage_times_s[f"timing_{m}_s"] = time.perf_counter() - t1
+    for m, fl in res.feed.items():
+        if fl.n_substituted:
+            res.warnings.append(
+                f"{m} failed on {fl.n_substituted} stretch(es) between stops; {FEED_FALLBACK_METHOD} timed them "
+                f"(summary.json timing.{m}.reason names the first and why)"
+            )
     ranked = controller_methods(res.trajectories)
     if not ranked:  # a problem file names one (check_timing); a Problem built in code may not
         res.status = PlanStatus.TIMING_FAILED

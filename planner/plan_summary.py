@@ -145,6 +145,7 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
             "duration_s": dur,
             "peak_feed_ratio": fl.feed_ratio,
             "n_stretches": fl.n_stretches,
+            "n_stretches_by_fallback": fl.n_substituted,
             "slowed_lines": [[L, round_sig(worst[L], 3)] for L in sorted(worst)],
             "slowed_note": "program line, peak TCP speed over F on it, where below 1 - FEED_SLOW_TOL (0.95)",
         }

@@ -85,3 +85,37 @@ def test_wrong_shapes_are_named(paper_result):
     lim = JointLimits(L.velocity, L.acceleration, L.jerk)
     with pytest.raises(InputError, match="q must be"):
         feed_time_law(q[:-1], P, np.full(len(P), 0.05), lim, 0.008)
+
+
+#: A 2.5 mm stretch between two corners of the shipped milling_pocket (UR10, waypoints 3881-3883 of its
+#: plan): q (rad), then the programmed time (s) and the distance along the path (m) at each waypoint.
+_TOPPRA_UNCONTROLLABLE = np.array(
+    [
+        [2.9750706099815094, 0.545981047818711, -1.6043895118868257, 2.628859712725286, 1.5707491865040297,
+         -2.3753879438707513, 152.26522139047552, 5.172183024011046],
+        [2.975541781762344, 0.5450267874826004, -1.6016610762114099, 2.6270842760691773, 1.570748307219673,
+         -2.377027692331261, 152.30688805714217, 5.173433024011046],
+        [2.976013304337836, 0.544070963160185, -1.5989327193612954, 2.6253104824481412, 1.5707474129911947,
+         -2.378695556629028, 152.34855472380883, 5.1746830240110455],
+    ]
+)  # fmt: skip
+
+
+def test_a_stretch_the_method_fails_on_is_timed_by_the_fallback_and_said():
+    from problems.toolpath.feed import FEED_FALLBACK_METHOD
+
+    a = _TOPPRA_UNCONTROLLABLE
+    L = a[:, 7] - a[0, 7]
+    P = np.c_[L, np.zeros(3), np.zeros(3)]
+    F = np.r_[np.nan, np.diff(L) / np.diff(a[:, 6])]
+    lim = JointLimits(np.r_[2.0944, 2.0944, np.full(4, np.pi)], np.full(6, 4.0), np.full(6, 40.0))
+    seg = np.c_[a[:, :6], 100.0 * (a[:, 6] - a[0, 6]), 1e-6 * L]
+    # the method alone fails on it (toppra: "not controllable")
+    from problems.timing import time_parametrize
+
+    aug = JointLimits(np.r_[lim.velocity, 100.0, 1e12], np.r_[lim.acceleration, 1e5, 1e12], np.r_[lim.jerk, 1e8, 1e12])
+    assert time_parametrize(seg, aug, "toppra", 0.008).status is not TimingStatus.OK
+    law = feed_time_law(a[:, :6], P, F, lim, 0.008, method="toppra")
+    assert law.trajectory.status is TimingStatus.OK and law.n_substituted == 1
+    assert f"timed by {FEED_FALLBACK_METHOD} where toppra failed" in law.trajectory.reason
+    assert law.trajectory.method == "toppra"

@@ -28,6 +28,7 @@ from models.errors import InputError
 from problems.timing import JointLimits, TimingStatus, Trajectory, time_parametrize
 
 __all__ = [
+    "FEED_FALLBACK_METHOD",
     "FEED_PSEUDO_ACCEL",
     "FEED_PSEUDO_JERK",
     "FEED_RETRY_METHOD",
@@ -65,6 +66,10 @@ FEED_RETRY_MIN_WAYPOINTS = 8
 #: held the shipped milling_pocket's cutting time at 1.22x length/F instead of 1.10x).
 FEED_RETRY_METHOD = "jerk_optimal"
 FEED_RETRY_OPTIONS: dict[str, object] = {}
+#: A stretch the method fails on (TOPP-RA's "not controllable" on a short stretch between two
+#: corners of the shipped milling program) is timed by this method instead when it checks every
+#: limit the method does; the trajectory's reason and the plan's warnings say so.
+FEED_FALLBACK_METHOD = "ruckig"
 #: A waypoint counts as slowed when its peak ``d tau / dt`` is below ``1 - FEED_SLOW_TOL``: 5 %, above
 #: the uniform slow-down (a few %) that ``jerk_optimal`` applies to its whole law when its fine
 #: check finds a discretisation excess (x1.0245 on the demo's line at 3 m/min).
@@ -121,6 +126,9 @@ class FeedLaw:
         Shape ``(M,)``, int: for each sample, the waypoint ending the move it runs (1..N-1).
     n_stretches : int
         Number of stretches between stops timed on their own.
+    n_substituted : int
+        Stretches the method failed on and :data:`FEED_FALLBACK_METHOD` timed (the trajectory's
+        reason names the first and why).
     """
 
     trajectory: Trajectory
@@ -129,6 +137,7 @@ class FeedLaw:
     slowed: dict[int, float]
     sample_move: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     n_stretches: int = 1
+    n_substituted: int = 0
 
 
 #: The path-length pseudo-joint is the TCP's distance along the waypoints (m) times this: small
@@ -210,18 +219,17 @@ def feed_time_law(
     pieces: list[Trajectory] = []
     failed: tuple[int, int, Trajectory] | None = None
     retimed = 0
+    substituted: list[tuple[int, int, str]] = []
     stage = f"timing {method}"
     for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
         if progress is not None:
             progress(stage, i, len(bounds) - 1)
         seg = cols[a : b + 1].copy()
         seg[:, n] -= FEED_TIME_SCALE * tau[a]
-        tr = time_parametrize(seg, aug, method, dt, **options)
-        if _retry(method, tr, b - a + 1, tau[b] - tau[a]):
-            again = time_parametrize(seg, aug, FEED_RETRY_METHOD, dt, **FEED_RETRY_OPTIONS)
-            if again.status is TimingStatus.OK and again.duration_s < tr.duration_s:
-                tr = replace(again, method=method)
-                retimed += 1
+        tr, how = _time_stretch(seg, aug, method, dt, tau[b] - tau[a], options)
+        retimed += how == "retimed"
+        if how.startswith("substituted"):
+            substituted.append((int(a), int(b), how.split(":", 1)[1]))
         if tr.q.size:
             tr = replace(tr, q=tr.q.copy())
             tr.q[:, n] += FEED_TIME_SCALE * tau[a]
@@ -239,14 +247,20 @@ def feed_time_law(
             reason=f"the stretch from waypoint {a} to {b} (of {len(pieces)} between stops): {tr.reason}",
             solver_code=tr.solver_code,
         )
-    elif len(pieces) > 1:
-        again = (
-            f"; {retimed} re-timed by {FEED_RETRY_METHOD} where {method} ran a cutting stretch above "
-            f"{FEED_RETRY_RATIO:g}x its programmed time"
-            if retimed
-            else ""
-        )
-        joined = replace(joined, reason=f"{len(pieces)} stretches between stops{again}; the first: {pieces[0].reason}")
+    elif len(pieces) > 1 or substituted:
+        notes = ""
+        if retimed:
+            notes += (
+                f"; {retimed} re-timed by {FEED_RETRY_METHOD} where {method} ran a cutting stretch above "
+                f"{FEED_RETRY_RATIO:g}x its programmed time"
+            )
+        if substituted:
+            a, b, why = substituted[0]
+            notes += (
+                f"; {len(substituted)} timed by {FEED_FALLBACK_METHOD} where {method} failed (the first, waypoints "
+                f"{a} to {b}: {why})"
+            )
+        joined = replace(joined, reason=f"{len(pieces)} stretches between stops{notes}; the first: {pieces[0].reason}")
     rate = joined.qd[:, n] / FEED_TIME_SCALE if joined.qd.size else np.empty(0)
     along = joined.q[:, n + 1] / LENGTH_SCALE if joined.q.size else np.empty(0)
     joints = replace(  # the joints' columns and ratios, without the pseudo-joints
@@ -266,7 +280,35 @@ def feed_time_law(
         slowed=_slowed(move, rate, tau, np.asarray(feed_m_s, float)),
         sample_move=move,
         n_stretches=len(pieces),
+        n_substituted=len(substituted),
     )
+
+
+def _time_stretch(
+    seg: np.ndarray, aug: JointLimits, method: str, dt: float, programmed_s: float, options: dict
+) -> tuple[Trajectory, str]:
+    """One stretch timed by ``method``; re-timed by :data:`FEED_RETRY_METHOD` where that is shorter
+    (``"retimed"``), or by :data:`FEED_FALLBACK_METHOD` where ``method`` fails
+    (``"substituted:<its reason>"``); else ``""``."""
+    tr = time_parametrize(seg, aug, method, dt, **options)
+    if _retry(method, tr, len(seg), programmed_s):
+        again = time_parametrize(seg, aug, FEED_RETRY_METHOD, dt, **FEED_RETRY_OPTIONS)
+        if again.status is TimingStatus.OK and again.duration_s < tr.duration_s:
+            return replace(again, method=method), "retimed"
+    if tr.status is not TimingStatus.OK and _covers(FEED_FALLBACK_METHOD, method):
+        again = time_parametrize(seg, aug, FEED_FALLBACK_METHOD, dt)
+        if again.status is TimingStatus.OK:
+            return replace(again, method=method), f"substituted:{tr.status.value}: {tr.reason}"
+    return tr, ""
+
+
+def _covers(other: str, method: str) -> bool:
+    """Whether registered method ``other`` (not ``method``) checks every limit ``method`` checks."""
+    from problems.timing import available_methods, get_method
+
+    if other == method or other not in available_methods():
+        return False
+    return set(get_method(method).checked_limits) <= set(get_method(other).checked_limits)
 
 
 def _retry(method: str, tr: Trajectory, n_way: int, programmed_s: float) -> bool:
@@ -274,15 +316,11 @@ def _retry(method: str, tr: Trajectory, n_way: int, programmed_s: float) -> bool
     at least :data:`FEED_RETRY_MIN_WAYPOINTS` waypoints that ``method`` ran above
     :data:`FEED_RETRY_RATIO` times its programmed time, when the retry method checks every limit
     ``method`` does."""
-    if method == FEED_RETRY_METHOD or tr.status is not TimingStatus.OK or programmed_s <= 0.0:
+    if tr.status is not TimingStatus.OK or programmed_s <= 0.0:
         return False
     if n_way < FEED_RETRY_MIN_WAYPOINTS or tr.duration_s <= FEED_RETRY_RATIO * programmed_s:
         return False
-    from problems.timing import available_methods, get_method
-
-    if FEED_RETRY_METHOD not in available_methods():
-        return False
-    return set(get_method(method).checked_limits) <= set(get_method(FEED_RETRY_METHOD).checked_limits)
+    return _covers(FEED_RETRY_METHOD, method)
 
 
 def _join(pieces: list[Trajectory], dwell: np.ndarray, dt: float, width: int, method: str) -> Trajectory:
