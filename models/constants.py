@@ -6,6 +6,8 @@ contract stated in the README can be checked against one place.
 
 from __future__ import annotations
 
+from typing import Any
+
 #: Standard gravity, m/s^2.
 STANDARD_GRAVITY = 9.80665
 
@@ -46,3 +48,22 @@ DLS_DAMPING = 1e-4
 #: A position beyond this distance from the base is implausible in metres (m);
 #: the loaders suggest a unit mistake (probably millimetres).
 PLAUSIBLE_POSITION_MAX_M = 5.0
+#: Gravity vectors whose magnitude is above this (m/s^2) are implausible: 1.5 standard gravities
+#: covers every place an arm stands on Earth and a tilted base; 10 g or 981 is a unit slip
+#: (cm/s^2, or g given as a multiple).
+PLAUSIBLE_GRAVITY_MAX_M_S2 = 1.5 * STANDARD_GRAVITY
+
+
+def gravity_problem(g: Any) -> str:
+    """Why a gravity vector (m/s^2) is implausible, or empty: its magnitude above
+    :data:`PLAUSIBLE_GRAVITY_MAX_M_S2`, with the likely slip."""
+    import numpy as np
+
+    mag = float(np.linalg.norm(g))
+    if mag <= PLAUSIBLE_GRAVITY_MAX_M_S2:
+        return ""
+    hint = "cm/s^2 given?" if abs(mag / 100.0 - STANDARD_GRAVITY) < 1.0 else "a multiple of g given, or another unit?"
+    return (
+        f"has magnitude {mag:.6g} m/s^2, implausible for gravity on Earth (at most {PLAUSIBLE_GRAVITY_MAX_M_S2:.4g}; "
+        f"standard gravity is {STANDARD_GRAVITY} m/s^2): {hint}"
+    )

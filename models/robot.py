@@ -27,7 +27,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .constants import PLAUSIBLE_POSITION_MAX_M, STANDARD_GRAVITY
+from .constants import PLAUSIBLE_POSITION_MAX_M, STANDARD_GRAVITY, gravity_problem
 from .errors import InputError
 from .transforms import rpy_to_matrix, transform
 
@@ -543,6 +543,9 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Pat
 
     tcp2flange = parse_frame_table(where, "tool", data.get("tool", {}))
     gravity = _vector(where, "gravity", data.get("gravity", [0.0, 0.0, -STANDARD_GRAVITY]), 3)
+    why = gravity_problem(gravity)
+    if why:
+        raise RobotFileError(f"{where}: key 'gravity' = {gravity.tolist()} {why}")
     desc = data.get("description", "")
     src = data.get("source", "")
     for key, val in (("description", desc), ("source", src)):

@@ -76,9 +76,11 @@ def write_outputs(
     :func:`planner.report.write_report` in ``report_options``).  Returns the summary.
     """
     view = res.view()
-    _write_plan_outputs(res, folder, with_figures=with_figures, view=view)
-    if report:
-        from planner.report import write_report
+    extra: dict[str, bytes] = {}
+    if report:  # the plan's files and its report are written as one set
+        from planner.report.run import run_from_plan
+        from planner.report.writer import report_files
 
-        write_report(folder, result=res, view=view, **report_options)
+        extra = report_files(run_from_plan(res, folder, view), **report_options)
+    _write_plan_outputs(res, folder, with_figures=with_figures, view=view, extra=extra)
     return view.summary

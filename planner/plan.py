@@ -522,14 +522,18 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
         if failure:
             res.status, res.reason = PlanStatus.TIMING_FAILED, failure
             return
+        if m != res.controller:  # a reference beside the controller's: its unenforced limits are in the summary
+            continue
         for k in (k for k in LIMIT_KEYS if not _within(tr, (k,))):  # limits the method does not enforce
             r = float(np.max(tr.limit_ratio[k]))
             hint = (
                 f"; add '{_jerk_limited()}' to timing.methods for a jerk-limited controller trajectory"
-                if k == "jerk" and m == res.controller
+                if k == "jerk"
                 else ""
             )
-            res.warnings.append(f"{m} does not limit {k}: peak {k} ratio {r:.3g} > 1{hint}")
+            res.warnings.append(
+                f"{m}, the controller's trajectory, does not limit {k}: peak {k} ratio {r:.3g} > 1{hint}"
+            )
 
 
 #: Slowed program lines named in a warning (the summary lists them all).

@@ -33,7 +33,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from models.arm import ArmModel, load_arm
-from models.constants import PLAUSIBLE_POSITION_MAX_M
+from models.constants import PLAUSIBLE_POSITION_MAX_M, gravity_problem
 from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError
 from models.transforms import matrix_to_rpy, rpy_to_matrix, transform
 from problems import paper
@@ -463,6 +463,9 @@ def parse_payload(where: str, data: Mapping[str, Any]) -> PayloadSection:
             )
         if "gravity_m_s2" in pt:
             p_grav = _vector(where, "payload.gravity_m_s2", pt["gravity_m_s2"], 3)
+            why = gravity_problem(p_grav)
+            if why:
+                raise _err(where, "payload.gravity_m_s2", f"= {p_grav.tolist()} {why}")
     return PayloadSection(p_mass, p_com, p_grav)
 
 

@@ -539,3 +539,38 @@ def test_library_publish_refuses_and_raises_input_errors(tmp_path):
     (tmp_path / "set" / "mine.txt").write_text("x")
     with pytest.raises(OutputError, match=r"holds files compplan did not write \(data, mine.txt\)"):
         s.publish()
+
+
+# ------------------------------------------------------------------------------ the report phase
+@pytest.mark.parametrize(
+    "failure",
+    [
+        OSError(errno.EFBIG, os.strerror(errno.EFBIG), "figures/fig1_compliance_map.png"),
+        KeyboardInterrupt(),
+    ],
+    ids=["EFBIG", "Ctrl-C"],
+)
+def test_a_plan_failing_in_its_report_leaves_the_previous_run_whole(tmp_path, capsys, monkeypatch, failure):
+    """Issue 24: the plan's files and its report are one output set; a failure or an interrupt while the
+    report is built or written leaves the previous run, report, figures and map included, as it was."""
+    out = tmp_path / "run"
+    code, _, err = _main(capsys, "demo", "--points", "20", "--out", str(out))
+    assert code == 0, err
+    before = _snapshot(out)
+    assert {"report.html", "summary.json", "compliance_map.csv"} <= set(before)
+    real_write = output._write_new_file
+
+    def fail_on_report(path: Path, data) -> None:
+        if path.name == "report.html" or "figures" in path.parts:
+            raise failure
+        real_write(path, data)
+
+    monkeypatch.setattr(output, "_write_new_file", fail_on_report)
+    if isinstance(failure, KeyboardInterrupt):
+        code, stdout, err = _main(capsys, "demo", "--points", "21", "--out", str(out))
+        assert code == 130 and "interrupted" in err and "wrote" not in stdout
+    else:
+        code, stdout, err = _main(capsys, "demo", "--points", "21", "--out", str(out))
+        assert code == EXIT_USER_ERROR and "wrote" not in stdout
+        assert "File too large (EFBIG)" in _one_line_error(err)
+    assert _snapshot(out) == before and _siblings(out) == []

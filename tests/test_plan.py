@@ -358,3 +358,19 @@ def test_the_quick_figures_are_the_reports(machining_run, tmp_path):
     write_report(folder, map_options=False, workers=1)
     for quick, figure in (("branches.png", "fig5_branches"), ("trajectory.png", "fig6_trajectory")):
         assert (folder / quick).read_bytes() == (folder / "figures" / f"{figure}.png").read_bytes(), quick
+
+
+def test_the_reference_method_s_unenforced_limits_are_not_warnings(paper_result):
+    """Issue 24: TOPP-RA beside the controller's method is a reference; its jerk (not limited by it)
+    is in the summary, not a warning on every plan. The controller's own would be warned about."""
+    res = paper_result
+    assert "toppra" in res.trajectories and res.controller != "toppra"
+    assert not any(w.startswith("toppra") and "does not limit" in w for w in res.warnings), res.warnings
+    assert res.view().summary["timing"]["toppra"]["within_all_limits"] in (True, False)
+
+
+def test_binding_shares_below_half_a_percent_are_not_printed_as_zero():
+    from problems.timing.limit_use import describe_binding
+
+    use = {"binding": [{"limit": "jerk", "joint": 3, "fraction_of_time": 0.001}]}
+    assert describe_binding(use) == "binds: jerk of joint 3 (under 0.5 % of the time)"

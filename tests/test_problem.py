@@ -184,6 +184,17 @@ BAD = [
         "force = [0.0, 0.0, -10.0]\n[branch]\nhome_deg = [0, 1]",
         ["branch.home_deg", "6 numbers"],
     ),
+    # gravity checked like positions (issue 24): 10 g, and cm/s^2
+    (
+        "force = [0.0, 0.0, -10.0]",
+        "force = [0.0, 0.0, -10.0]\n[payload]\nmass_kg = 1.0\ngravity_m_s2 = [0.0, 0.0, -98.0665]",
+        ["payload.gravity_m_s2", "98.0665", "implausible", "multiple of g"],
+    ),
+    (
+        "force = [0.0, 0.0, -10.0]",
+        "force = [0.0, 0.0, -10.0]\n[payload]\nmass_kg = 1.0\ngravity_m_s2 = [0.0, 0.0, -980.665]",
+        ["payload.gravity_m_s2", "cm/s^2 given?"],
+    ),
 ]
 
 
@@ -223,3 +234,13 @@ def test_shipped_files_parse_as_plain_toml():
         data = tomllib.loads(resources.files("problems").joinpath(f"files/{name}.toml").read_text())
         assert data["name"] == name
         assert np.all(np.abs(np.asarray(load_problem(name).positions)) < PLAUSIBLE_POSITION_MAX_M)
+
+
+def test_the_starter_file_shows_the_posture_optimisation_working():
+    """docs/examples/my_task.toml is what users copy (issue 24): its tool is off the flange axis, so the
+    free rotation about the tool axis moves the arm (on the axis it would be 'degenerate')."""
+    from problems.posture import analyse_freedom
+
+    pr = load_problem(Path(__file__).resolve().parents[1] / "docs/examples/my_task.toml")
+    freedom, note = analyse_freedom(pr.robot, pr.rule)
+    assert freedom == "free", note

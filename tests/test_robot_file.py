@@ -57,6 +57,8 @@ def _base() -> dict:
         (lambda d: d["joints"][0].update(com=[0, 0]), "com"),
         (lambda d: d["joints"][0].pop("com"), "together"),
         (lambda d: d.update(gravity=[0, 0, math.inf]), "gravity"),
+        (lambda d: d.update(gravity=[0, 0, -98.0665]), r"'gravity'.*implausible.*multiple of g"),  # 10 g
+        (lambda d: d.update(gravity=[0, 0, -980.665]), r"'gravity'.*cm/s\^2 given"),
         (lambda d: d.update(extra=1), "unknown top-level"),
         (lambda d: d["joints"][1].update(a=-425.0), r"joints\[2\].*'a'.*millimetres"),
         (lambda d: d.update(tool={"xyz": [0, 0, 31.0]}), "millimetres"),

@@ -191,12 +191,19 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
     quick_figures = args.no_report and not args.no_figures
     view = res.view()
     exports = plan_exports(res, getattr(args, "export", []))
-    write_outputs(res, args.out, with_figures=quick_figures, extra=exports, view=view)
-    print_plan(res, args.out, output_names(res, quick_figures) + list(exports), view)
-    if not args.no_report:
-        from planner.commands.report import write_run_report
+    report: dict[str, bytes] = {}
+    if not args.no_report:  # built first: the plan's files and its report are swapped in together
+        from planner.commands.report import report_progress
+        from planner.report.run import run_from_plan
+        from planner.report.writer import report_files
 
-        write_run_report(args.out, result=res, view=view)  # the report's view is built from res
+        with report_progress() as prog:
+            report = report_files(run_from_plan(res, args.out, view), prog)
+    write_outputs(res, args.out, with_figures=quick_figures, extra={**exports, **report}, view=view)
+    print_plan(res, args.out, output_names(res, quick_figures) + list(exports), view)
+    if report:
+        out = Path(args.out)
+        print(f"wrote {out / 'report.html'} (self-contained), report.md and {out / 'figures'}/ (PNG, PDF)")
     return 0
 
 

@@ -76,7 +76,7 @@ if TYPE_CHECKING:
         summary_tables,
         value_cell,
     )
-    from planner.report.writer import publish_report, write_report
+    from planner.report.writer import publish_report, report_files, write_report
 
 #: The submodule defining each name re-exported here, imported on first use (PEP 562): a command
 #: that reads only the tables (``compplan plan --no-report``) does not import matplotlib.
@@ -98,7 +98,7 @@ _LAZY = {
             "summary_tables",
             "value_cell",
         ),
-        "writer": ("publish_report", "write_report"),
+        "writer": ("publish_report", "report_files", "write_report"),
     }.items()
     for name in names
 }
@@ -129,6 +129,7 @@ __all__ = [
     "method_order",
     "provenance_table",
     "publish_report",
+    "report_files",
     "render_html",
     "render_items",
     "render_markdown",

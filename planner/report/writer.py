@@ -91,19 +91,38 @@ def publish_report(
     :class:`planner.output.OutputSet`): an earlier report's figure or map is never left
     beside the new report, and a failure leaves the earlier report as it was.
     """
+    out = OutputSet(run.folder, owns=REPORT_OUTPUTS)
+    for name, data in report_files(
+        run, progress, map_options=map_options, workers=workers, map_cache=map_cache
+    ).items():
+        out.add_bytes(name, data)
+    out.publish()  # every entry of REPORT_OUTPUTS replaced at once: no earlier figure is left
+    return run.folder / "report.html"
+
+
+def report_files(
+    run: Run,
+    progress: ProgressFn | None = None,
+    *,
+    map_options: Mapping[str, Any] | None | bool = None,
+    workers: int | None = None,
+    map_cache: bool = True,
+) -> dict[str, bytes]:
+    """The files of a run's report (names relative to the run folder: ``report.html``, ``report.md``,
+    ``figures/*.png|pdf``, ``compliance_map.csv``), built in memory and written nowhere: the caller
+    puts them in an output set (:func:`publish_report`, or ``compplan plan``'s own set, so that the
+    plan and its report are swapped in together). Options as for :func:`write_report`."""
     files: dict[str, bytes] = {}
     items = build_figures(run, progress, map_options, files, map_cache)
     render_items(items, progress, workers, cache=map_cache)
     cache_rendered_maps(items, files)
     tables = summary_tables(run.summary, run.absent)
-    out = OutputSet(run.folder, owns=REPORT_OUTPUTS)
+    out: dict[str, bytes] = {}
     for it in items:
         if it.png is not None:
-            out.add_bytes(f"figures/{it.name}.png", it.png)
-            out.add_bytes(f"figures/{it.name}.pdf", it.pdf)  # type: ignore[arg-type]
-    for name, data in files.items():
-        out.add_bytes(name, data)
-    out.add_bytes("report.md", render_markdown(run, tables, items).encode())
-    out.add_bytes("report.html", render_html(run, tables, items).encode())
-    out.publish()  # every entry of REPORT_OUTPUTS replaced at once: no earlier figure is left
-    return run.folder / "report.html"
+            out[f"figures/{it.name}.png"] = it.png
+            out[f"figures/{it.name}.pdf"] = it.pdf  # type: ignore[assignment]
+    out.update(files)
+    out["report.md"] = render_markdown(run, tables, items).encode()
+    out["report.html"] = render_html(run, tables, items).encode()
+    return out

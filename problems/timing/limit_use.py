@@ -91,8 +91,12 @@ def describe_binding(use: Mapping[str, Any]) -> str:
     """One line: ``binds: acceleration of joint 2 (41 % of the time), ...`` or the underuse sentence."""
     if use.get("why"):
         return str(use["why"])
+
+    def share(f: float) -> str:  # "0 %" read as "never", though the limit is reached
+        return f"{100 * f:.0f} %" if f >= 0.005 else "under 0.5 %"
+
     parts = [
-        f"{b['limit']} of joint {b['joint']} ({100 * b['fraction_of_time']:.0f} % of the time)"
+        f"{b['limit']} of joint {b['joint']} ({share(b['fraction_of_time'])} of the time)"
         for b in use.get("binding", [])
     ]
     return "binds: " + ", ".join(parts) if parts else f"peak {use.get('peak')} ({use.get('peak_ratio', 0):.2f})"
