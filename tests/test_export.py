@@ -299,6 +299,11 @@ def test_verify_limits_names_the_joint_sample_and_limit():
     t[7] += 0.001
     with pytest.raises(ExportError, match="sample 7 .* expected the period"):
         verify_limits(small_data(t=t), "here")
+    # issue 24: a jump of the positions the rate columns do not show (0.5 rad in one sample)
+    q = data.q.copy()
+    q[6:, 1] += 0.5
+    with pytest.raises(ExportError, match=r"joint 2 velocity by finite differences .* over samples 5 to 6"):
+        verify_limits(small_data(q=q), "here")
 
 
 def test_unknown_format_and_bad_options_are_refused():

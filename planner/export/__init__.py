@@ -53,6 +53,31 @@ class ExportError(InputError):
     """The trajectory cannot be exported (not ok, no trajectory, a bad option); the message says why."""
 
 
+def _verify_differences(data: ExportData, where: str) -> None:
+    """The positions against the rate limits by finite differences (a jump between two samples is
+    refused even where the rate columns say nothing of it): the k-th difference of ``q`` over
+    ``dt^k`` is a weighted mean of the k-th derivative over ``k`` periods, so it must keep the limit
+    the method enforces on that derivative (velocity always; acceleration and jerk when enforced)."""
+    dq = np.diff(data.q, axis=0)
+    for k, (name, lim, unit) in enumerate(
+        (("velocity", data.v_max, "rad/s"), ("acceleration", data.a_max, "rad/s^2"), ("jerk", data.j_max, "rad/s^3")),
+        start=1,
+    ):
+        if k > 1:
+            dq = np.diff(dq, axis=0)
+        if (k > 1 and name not in data.enforced) or not len(dq):
+            continue
+        rate = dq / data.dt**k
+        excess = np.abs(rate) - lim * (1.0 + EXPORT_FD_TOL) - EXPORT_POSITION_TOL / data.dt**k
+        if np.any(excess > 0.0):
+            i, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
+            raise ExportError(
+                f"{where}: joint {j + 1} {name} by finite differences of the positions, {rate[i, j]:.9g} {unit} "
+                f"over samples {i} to {i + k} (t = {data.t[i]:.6g} s), is above its limit ({lim[j]:.9g} {unit}): "
+                "the positions jump where the rate columns do not say so; refusing to export"
+            )
+
+
 @dataclass(frozen=True)
 class ExportData:
     """What every export format writes (SI units, the model's joint convention).
@@ -129,6 +154,11 @@ EXPORT_LIMIT_TOL: float = 1e-9
 #: Slack on the position limits (rad) and on the sample period's uniformity (s).
 EXPORT_POSITION_TOL: float = 1e-9
 EXPORT_TIME_TOL: float = 1e-9
+#: Relative slack of the finite-difference checks of the positions: a difference quotient over one
+#: period is a weighted mean of the analytic derivative over it, so it is within the limit the
+#: derivative keeps, up to the methods' own check tolerance and rounding (0.1 %: a jump of a sample is
+#: orders of magnitude above it).
+EXPORT_FD_TOL: float = 1e-3
 
 
 def verify_limits(data: ExportData, where: str) -> None:
@@ -180,6 +210,7 @@ def verify_limits(data: ExportData, where: str) -> None:
                 f"{where}: joint {j + 1} {name} {value:.9g} {unit} at sample {i} (t = {t[i]:.6g} s) is "
                 f"{what} ({lim[j]:.9g} {unit}); refusing to export a trajectory outside its limits"
             )
+    _verify_differences(data, where)
 
 
 @dataclass(frozen=True)
