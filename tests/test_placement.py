@@ -949,3 +949,10 @@ def test_problem_at_identity_is_the_problem(name):
     assert q.robot.tcp2flange.tolist() == p.robot.tcp2flange.tolist()
     # and the kernel scores it as the problem as written, bit for bit
     assert PlacementKernel(q).evaluate(np.zeros((1, 5))).equal(kernel_of(name).evaluate(np.zeros((1, 5))))
+
+
+@pytest.mark.parametrize("text", ["x_m=-600:1000:17", "z_m=250", "y_m=-0.5:800:3"])
+def test_a_grid_in_millimetres_is_refused(text):
+    """Issue 24: bases 1000 m away ran with exit 0."""
+    with pytest.raises(PlacementGridError, match=r"implausible for a robot base .*metres \(millimetres given\?\)"):
+        parse_grid_text(text)

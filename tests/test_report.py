@@ -862,3 +862,20 @@ def test_identification_report_is_styled_and_explains_itself(tmp_path):
         assert f'data-figure="{key}"' in html_text
     assert "meas_frame_" not in (tmp_path / "rep" / "report.md").read_text()  # no raw keys in prose
     assert set(VARIABLE_UNITS) >= {"q1", "q6", "load_magnitude", "pose", "time", "position"}
+
+
+def test_an_unknown_map_branch_is_the_users_error(paper_folder, tmp_path, capsys):
+    """Issue 24: ``report --map-branch banana`` exits 2 naming the labels, as docs/cli.md says (it
+    wrote a report with the map left out, exit 0)."""
+    import shutil
+
+    from planner.cli import main
+
+    folder = tmp_path / "run"
+    shutil.copytree(paper_folder, folder)
+    before = sorted(p.name for p in folder.rglob("*"))
+    capsys.readouterr()
+    assert main(["report", str(folder), "--map-branch", "banana"]) == 2
+    err = capsys.readouterr().err
+    assert "branch = 'banana'" in err and "s+w+e+" in err and "Traceback" not in err
+    assert sorted(p.name for p in folder.rglob("*")) == before

@@ -430,6 +430,10 @@ def map_item(
     else:
         opts = dict(map_options or {})
         item.title = "Compliance maps C11…C66 over a plane (paper §4.3)"
+        if "branch" in opts:  # the user's option: an unknown label is their error (exit 2), not an absent map
+            from planner.compliance_map import _branch_index
+
+            _branch_index(opts["branch"], tuple(model.ik.labels))
         key_opts = {**opts, "path": None if path is None else path[0]}
     key = _map_cache_key(model, key_opts) if map_cache else None
     hit = _map_cache_get(key) if key else None

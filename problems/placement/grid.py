@@ -24,6 +24,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
 
 #: The grid axes: key (unit in the name), SI scale from the key's unit, what it is.
@@ -189,6 +190,11 @@ def axis_values(key: str, v: Any, where: str = "grid") -> np.ndarray:
         vals = np.linspace(a, b, n)
     else:
         vals = np.array([_number(key, v, where)])
+    if key.endswith("_m") and np.max(np.abs(vals)) > PLAUSIBLE_POSITION_MAX_M:
+        raise PlacementGridError(
+            f"{where}: key '{key}' reaches {float(np.max(np.abs(vals))):g} m, implausible for a robot base in a cell "
+            f"(> {PLAUSIBLE_POSITION_MAX_M:g} m); the grid is in metres (millimetres given?)"
+        )
     return vals * scale
 
 
