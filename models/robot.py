@@ -219,6 +219,9 @@ class Robot:
     #: and zero of each joint on the robot's controller (exports, ``docs/export.md``).
     controller_sign: np.ndarray = field(default_factory=lambda: np.ones(6), compare=False)
     controller_offset: np.ndarray = field(default_factory=lambda: np.zeros(6), compare=False)
+    #: The robot file has a ``[controller]`` table: the signs and zeros above are the controller's,
+    #: not a default (vendor exports warn without it, ``docs/export.md``).
+    controller_declared: bool = field(default=False, compare=False)
 
     @property
     def has_chain_transforms(self) -> bool:
@@ -356,7 +359,7 @@ class Robot:
             out["frame0_in_base"] = _frame_dict(self.frame02base)
         if not np.array_equal(self.flange2frame6, np.eye(4)):
             out["flange_in_frame6"] = _frame_dict(self.flange2frame6)
-        if np.any(self.controller_sign != 1.0) or np.any(self.controller_offset != 0.0):
+        if self.controller_declared or np.any(self.controller_sign != 1.0) or np.any(self.controller_offset != 0.0):
             out["controller"] = {
                 "joint_sign": [int(v) for v in self.controller_sign],
                 "joint_offset": [float(v) for v in self.controller_offset],
@@ -570,6 +573,7 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Pat
         flange2frame6=frames.get("flange_in_frame6", np.eye(4)),
         joint_names=parse_joint_names(where, data.get("joint_names")),
         **parse_controller(where, data.get("controller")),
+        controller_declared="controller" in data,
     )
 
 

@@ -681,4 +681,5 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
         urdf={"path": str(path), "base_link": base_link, "tip_link": tip_link},
         notes=tuple(notes),
         **parse_controller(where, data.get("controller")),
+        controller_declared="controller" in data,
     )

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
+from models.robot import load_robot
 from planner.cli import main
 from planner.export import EXPORT_FORMATS, ExportData, ExportError, export_files, verify_limits
 
@@ -334,9 +335,10 @@ def run_folder(tmp_path_factory):
     from planner.provenance import builtin_robot_file
 
     robot = base / "ur5_ctrl.toml"
-    robot.write_text(
-        Path(builtin_robot_file("ur5")).read_text(encoding="utf-8") + ROBOT_WITH_CONTROLLER, encoding="utf-8"
-    )
+    text = Path(builtin_robot_file("ur5")).read_text(encoding="utf-8")
+    start = text.index("[controller]")  # the file's own (identity) table, replaced by this one
+    end = text.index("\n[", start + 1) + 1
+    robot.write_text(text[:start] + text[end:] + ROBOT_WITH_CONTROLLER, encoding="utf-8")
     out = base / "run"
     argv = ["demo", "--points", "12", "--robot", str(robot), "--out", str(out), "--no-report"]
     for f in FORMATS:
@@ -538,3 +540,28 @@ def test_plan_export_rosbag2_is_a_folder_of_the_run(tmp_path):
     assert main(["demo", "--points", "12", "--out", str(out), "--no-report", "--export", "rosbag2"]) == 0
     bag = out / "paper_4_4_rosbag2"
     assert (bag / "metadata.yaml").is_file() and any(bag.glob("*.db3"))
+
+
+def test_a_vendor_export_without_a_controller_table_warns():
+    """Issue 24: the research arm (ar5) or any robot file without [controller] exported to a vendor format
+    proceeded silently with identity signs; the CLI now warns, naming the table to fill."""
+    from planner.export import VENDOR_FORMATS, controller_warning
+
+    undeclared = small_data(controller_declared=False)
+    for fmt in VENDOR_FORMATS:
+        w = controller_warning(undeclared, fmt)
+        assert "no [controller] table" in w and "joint_sign" in w and "joint_offset_deg" in w
+    assert controller_warning(undeclared, "ros2") == ""  # joint names and the model's angles
+    assert controller_warning(small_data(), "urscript") == ""
+    assert load_robot("ur10").controller_declared and not load_robot("ar5").controller_declared
+
+
+def test_plan_export_of_the_research_arm_warns_on_stderr(tmp_path, capsys):
+    code = main(["demo", "--out", str(tmp_path / "run"), "--no-report"])
+    assert code == 0
+    capsys.readouterr()
+    assert (
+        main(["export", str(tmp_path / "run"), "--format", "urscript_movej", "--out", str(tmp_path / "m.script")]) == 0
+    )
+    err = capsys.readouterr().err
+    assert "compplan: warning: robot ar5 has no [controller] table" in err

@@ -9,6 +9,8 @@ Conventions: ``docs/export.md``.
 
 from __future__ import annotations
 
+import sys
+
 import argparse
 from pathlib import Path
 from typing import Any
@@ -124,6 +126,11 @@ def run(args: argparse.Namespace) -> int:
         f"{args.format}: {len(data.t)} samples, {data.t[-1]:.4f} s at {data.dt * 1e3:g} ms from {run_dir} "
         f"(robot {data.robot}) -> {', '.join(str(p) for p in files)}"
     )
+    from planner.export import controller_warning
+
+    warn = controller_warning(data, args.format)
+    if warn:
+        print(f"compplan: warning: {warn}", file=sys.stderr)
     return 0
 
 
@@ -152,9 +159,14 @@ def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
 
     if not fmts:
         return {}
+    from planner.export import controller_warning
+
     data = data_from_plan(res)
     out: dict[str, bytes] = {}
     for fmt in dict.fromkeys(fmts):
+        warn = controller_warning(data, fmt)
+        if warn:
+            print(f"compplan: warning: {warn}", file=sys.stderr)
         for path, content in export_files(data, fmt, Path(f"{data.name}_{fmt}")).items():
             out[path.as_posix()] = _bytes(content)
     return out

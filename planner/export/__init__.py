@@ -38,6 +38,8 @@ __all__ = [
     "ExportData",
     "ExportError",
     "ExportFormat",
+    "VENDOR_FORMATS",
+    "controller_warning",
     "data_from_plan",
     "data_from_run",
     "export_files",
@@ -130,6 +132,9 @@ class ExportData:
     enforced: tuple[str, ...] = ("velocity", "acceleration", "jerk")
     sign: np.ndarray = field(default_factory=lambda: np.ones(6))
     offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    #: The robot file declared its controller's signs and zeros (``[controller]``); False: the identity
+    #: is assumed (:func:`controller_warning`).
+    controller_declared: bool = True
     source: str = ""
     inputs: tuple[Path, ...] = ()
     link_q: np.ndarray | None = None
@@ -306,6 +311,22 @@ def part_label(k: int, count: int) -> str:
     return f"p{k:0{max(PART_DIGITS, len(str(count)))}d}"
 
 
+#: Formats whose joint angles go to a vendor's controller in its own signs and zeros.
+VENDOR_FORMATS = ("urscript", "urscript_movej", "rapid", "krl")
+
+
+def controller_warning(data: ExportData, fmt: str) -> str:
+    """The warning for a vendor format of a robot whose file has no ``[controller]`` table (the
+    identity is then assumed for the controller's joint signs and zeros), or empty."""
+    if fmt not in VENDOR_FORMATS or data.controller_declared:
+        return ""
+    return (
+        f"robot {data.robot} has no [controller] table: the {fmt} angles assume its controller's joint signs "
+        "and zeros are the model's (sign +1, offset 0); check them and fill [controller] joint_sign and "
+        "joint_offset_deg in its robot file (docs/robot-file.md)"
+    )
+
+
 def _program_name(text: str) -> str:
     out = "".join(c if c.isalnum() else "_" for c in text).strip("_") or "compplan"
     return ("t_" + out) if out[0].isdigit() else out
@@ -352,6 +373,7 @@ def data_from_plan(res: Any) -> ExportData:
         enforced=tuple(get_method(res.controller).checked_limits),
         sign=np.asarray(r.controller_sign, float),
         offset=np.asarray(r.controller_offset, float),
+        controller_declared=bool(r.controller_declared),
         source=f"problem {pr.name}",
     )
     verify_limits(data, f"export of problem {pr.name} ({res.controller})")
@@ -433,6 +455,7 @@ def data_from_run(folder: str | Path) -> ExportData:
         enforced=tuple(timing.get("limits_enforced") or _DEFAULT_ENFORCED),
         sign=np.asarray(ctrl_map.get("joint_sign", [1] * 6), float),
         offset=np.asarray(ctrl_map.get("joint_offset", [0.0] * 6), float),
+        controller_declared="controller" in rf,
         source=f"run {folder}",
         inputs=(summary, path),
         link_q=link_q,
