@@ -161,9 +161,9 @@ def test_parse_grid_keeps_the_base_grids_other_axes():
 
 
 def test_placements_order_is_x_fastest_and_indices_are_stable():
-    text = "x_m=0:2:3, y_m=10:11:2, z_m=5, yaw_deg=0:90:2, tilt_deg=0:180:2"
+    text = "x_m=0:2:3, y_m=1:1.5:2, z_m=0.5, yaw_deg=0:90:2, tilt_deg=0:180:2"
     g = parse_grid_text(text)
-    xs, ys, zs = [0.0, 1.0, 2.0], [10.0, 11.0], [5.0]
+    xs, ys, zs = [0.0, 1.0, 2.0], [1.0, 1.5], [0.5]
     yaws, tilts = [0.0, math.pi / 2], [0.0, math.pi]
     expected = [[x, y, z, yw, t] for t in tilts for yw in yaws for z in zs for y in ys for x in xs]
     P = g.placements()
@@ -172,7 +172,7 @@ def test_placements_order_is_x_fastest_and_indices_are_stable():
     # the same grid parsed again (and from a table) gives the same indices
     np.testing.assert_array_equal(parse_grid_text(text).placements(), P)
     t = grid_from_table(
-        {"x_m": [0, 2, 3], "y_m": [10, 11, 2], "z_m": 5, "yaw_deg": [0, 90, 2], "tilt_deg": [0, 180, 2]}
+        {"x_m": [0, 2, 3], "y_m": [1, 1.5, 2], "z_m": 0.5, "yaw_deg": [0, 90, 2], "tilt_deg": [0, 180, 2]}
     )
     np.testing.assert_array_equal(t.placements(), P)
 
