@@ -374,3 +374,17 @@ def test_binding_shares_below_half_a_percent_are_not_printed_as_zero():
 
     use = {"binding": [{"limit": "jerk", "joint": 3, "fraction_of_time": 0.001}]}
     assert describe_binding(use) == "binds: jerk of joint 3 (under 0.5 % of the time)"
+
+
+def test_long_warnings_are_one_short_terminal_line():
+    """Issue 24: a ~2000-character warning was printed whole; the terminal line is cut at a clause
+    boundary and points to the summary, which keeps it whole."""
+    from planner.commands.plan import WARNING_TERMINAL_CHARS, terminal_warning
+
+    short = "toppra does not limit jerk"
+    assert terminal_warning(short) == short
+    long = "the model was identified from unregistered data: " + ", ".join(f"param_{i} (x{i})" for i in range(200))
+    line = terminal_warning(long)
+    assert len(line) <= WARNING_TERMINAL_CHARS + 60 and "\n" not in line
+    assert line.endswith("(in full: summary.json 'warnings')") and line.startswith(long[:40])
+    assert ", ..." not in line and not line.split(" ...")[0].endswith(",")

@@ -75,6 +75,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.set_defaults(func=run_pose)
 
 
+#: A warning longer than this (characters) is cut on the terminal at a clause boundary; the summary
+#: and the report keep it whole (a wall of text of ~2000 characters listing 21 parameters was one
+#: "line" before).
+WARNING_TERMINAL_CHARS = 300
+
+
+def terminal_warning(text: str, limit: int = WARNING_TERMINAL_CHARS) -> str:
+    """``text`` as one terminal line: whole when short, else cut after its last ``"; "`` or ``", "``
+    before ``limit`` characters and pointed to its full text in ``summary.json``."""
+    if len(text) <= limit:
+        return text
+    head = text[:limit]
+    cut = max(head.rfind("; "), head.rfind(", "), head.rfind(": "))
+    head = head[: cut if cut > limit // 2 else limit].rstrip(" ,;:")
+    return f"{head} ... (in full: summary.json 'warnings')"
+
+
 def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = None) -> None:
     """Print the branch table, the gains, the error table and the timing of a plan
     (``view``: its :class:`~planner.plan.RunView`, when the caller has it)."""
@@ -147,7 +164,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
                     f"{len(f['slowed_lines'])} line(s) slowed"
                 )
     for w in s["warnings"]:
-        print(f"warning: {w}")
+        print(f"warning: {terminal_warning(w)}")
     h = s["headline"]
     dur = (
         f", duration {format_number(h['duration_s'])} s ({h['duration_method']})"
