@@ -565,3 +565,18 @@ def test_plan_export_of_the_research_arm_warns_on_stderr(tmp_path, capsys):
     )
     err = capsys.readouterr().err
     assert "compplan: warning: robot ar5 has no [controller] table" in err
+
+
+def test_a_servoj_export_resampled_beyond_the_limits_is_refused():
+    """Issue 24: ``--set period=0.002`` of an 8 ms plan resampled without a check (1.17x the jerk limit on
+    kr6_milling); the setpoints are now checked at the servoj period by finite differences."""
+    d = small_data()
+    tight = small_data(j_max=np.abs(d.qddd).max(axis=0) * 1.001, a_max=np.abs(d.qdd).max(axis=0) * 1.001)
+    verify_limits(tight, "at its own period")  # inside its limits at 8 ms
+    export_files(tight, "urscript", Path("x"))  # at its own period: nothing resampled
+    with pytest.raises(
+        ExportError, match=r"resampled to the servoj period 0.002 s .* joint 3 reaches acceleration .*x its limit"
+    ):
+        export_files(tight, "urscript", Path("x"), {"period": 0.002})
+    roomy = small_data(a_max=np.full(6, 40.0), j_max=np.full(6, 4000.0))
+    export_files(roomy, "urscript", Path("x"), {"period": 0.002})  # with room, resampled and exported

@@ -41,6 +41,7 @@ __all__ = [
     "VENDOR_FORMATS",
     "controller_warning",
     "data_from_plan",
+    "difference_excess",
     "data_from_run",
     "export_files",
     "formats",
@@ -57,10 +58,24 @@ class ExportError(InputError):
 
 def _verify_differences(data: ExportData, where: str) -> None:
     """The positions against the rate limits by finite differences (a jump between two samples is
-    refused even where the rate columns say nothing of it): the k-th difference of ``q`` over
-    ``dt^k`` is a weighted mean of the k-th derivative over ``k`` periods, so it must keep the limit
-    the method enforces on that derivative (velocity always; acceleration and jerk when enforced)."""
-    dq = np.diff(data.q, axis=0)
+    refused even where the rate columns say nothing of it), :func:`difference_excess`."""
+    bad = difference_excess(data, data.q, data.dt)
+    if bad:
+        name, j, i, k, value, lim, unit = bad
+        raise ExportError(
+            f"{where}: joint {j + 1} {name} by finite differences of the positions, {value:.9g} {unit} "
+            f"over samples {i} to {i + k} (t = {data.t[i]:.6g} s), is above its limit ({lim:.9g} {unit}): "
+            "the positions jump where the rate columns do not say so; refusing to export"
+        )
+
+
+def difference_excess(data: ExportData, q: np.ndarray, period: float) -> tuple | None:
+    """The worst limit excess of positions ``q`` (M, 6), rad, sampled every ``period`` s, by finite
+    differences, or None: the k-th difference over ``period^k`` is a weighted mean of the k-th
+    derivative over ``k`` periods, so it must keep the limit ``data`` enforces on it (velocity always;
+    acceleration and jerk when enforced; relative slack :data:`EXPORT_FD_TOL`). Returns
+    ``(quantity, joint index, first sample, k, value, limit, unit)``."""
+    dq = np.diff(q, axis=0)
     for k, (name, lim, unit) in enumerate(
         (("velocity", data.v_max, "rad/s"), ("acceleration", data.a_max, "rad/s^2"), ("jerk", data.j_max, "rad/s^3")),
         start=1,
@@ -69,15 +84,12 @@ def _verify_differences(data: ExportData, where: str) -> None:
             dq = np.diff(dq, axis=0)
         if (k > 1 and name not in data.enforced) or not len(dq):
             continue
-        rate = dq / data.dt**k
-        excess = np.abs(rate) - lim * (1.0 + EXPORT_FD_TOL) - EXPORT_POSITION_TOL / data.dt**k
-        if np.any(excess > 0.0):
+        rate = dq / period**k
+        excess = np.abs(rate) - lim * (1.0 + EXPORT_FD_TOL) - EXPORT_POSITION_TOL / period**k
+        if np.any(excess > 0.0):  # the lowest derivative that exceeds is the one to name
             i, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
-            raise ExportError(
-                f"{where}: joint {j + 1} {name} by finite differences of the positions, {rate[i, j]:.9g} {unit} "
-                f"over samples {i} to {i + k} (t = {data.t[i]:.6g} s), is above its limit ({lim[j]:.9g} {unit}): "
-                "the positions jump where the rate columns do not say so; refusing to export"
-            )
+            return name, int(j), int(i), k, float(rate[i, j]), float(lim[j]), unit
+    return None
 
 
 @dataclass(frozen=True)

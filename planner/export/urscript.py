@@ -27,7 +27,16 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from planner.export import ExportData, ExportError, ExportFormat, counted, header_lines, ranged, register_format
+from planner.export import (
+    ExportData,
+    ExportError,
+    ExportFormat,
+    counted,
+    difference_excess,
+    header_lines,
+    ranged,
+    register_format,
+)
 
 #: servoj periods a UR controller runs (e-series 500 Hz, CB3 125 Hz), s.
 PERIOD_MIN_S = 0.002
@@ -81,7 +90,18 @@ def resample(data: ExportData, period: float) -> np.ndarray:
 
 def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str | bytes]:
     period = float(o["period"]) if o["period"] is not None else _period_of(data)
-    q = data.controller_q(resample(data, period))
+    q_model = resample(data, period)
+    if abs(period - data.dt) >= 1e-12:  # the setpoints the controller runs, checked at its period
+        bad = difference_excess(data, q_model, period)
+        if bad:
+            name, j, i, _, value, lim, unit = bad
+            raise ExportError(
+                f"urscript: resampled to the servoj period {period:g} s (the plan's is {data.dt:g} s), joint {j + 1} "
+                f"reaches {name} {abs(value):.6g} {unit} = {abs(value) / lim:.3f}x its limit ({lim:.6g} {unit}) "
+                f"at t = {i * period:.6g} s; plan at that period (compplan plan --dt {period:g}) or export at the "
+                f"plan's (--set period={data.dt:g})"
+            )
+    q = data.controller_q(q_model)
     lines = [f"def {stem}():"] + ["  " + ln for ln in header_lines(data, "urscript (servoj)", "#")]
     lines.append(f"  # servoj every {period:g} s, lookahead_time {o['lookahead_time']:g} s, gain {o['gain']:g}")
     servo = f"t={period:.{TIME_DECIMALS}f}, lookahead_time={o['lookahead_time']:g}, gain={o['gain']:g}"
