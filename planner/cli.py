@@ -85,7 +85,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     for name in COMMAND_MODULES:
         importlib.import_module(f"planner.commands.{name}").register(sub)
+    _verbose_anywhere(sub)
     return p
+
+
+def _verbose_anywhere(sub: argparse._SubParsersAction) -> None:
+    """Accept ``-v/--verbose`` after the sub-command (and its action) too, as users type it
+    (``compplan plan P --out D -v``): the same flag as before the sub-command, left unset when not
+    given there so that the top-level one counts."""
+    for parser in sub.choices.values():
+        parser.add_argument(
+            "-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="as compplan -v (verbose output)"
+        )
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                _verbose_anywhere(action)
 
 
 def _is_user_error(exc: BaseException) -> bool:

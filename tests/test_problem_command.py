@@ -36,3 +36,15 @@ def test_an_unknown_problem_is_the_users_error(capsys):
     assert "'nope' is not a shipped problem" in err and "machining_offaxis" in err and "Traceback" not in err
     assert main(["problem", "show", "paper_4_4", "--program"]) == 2
     assert "has no program path" in capsys.readouterr().err
+
+
+def test_verbose_is_accepted_after_the_sub_command(capsys):
+    """Issue 24: ``compplan plan P --out D -v`` said "unrecognized arguments: -v"."""
+    from planner.cli import build_parser
+
+    p = build_parser()
+    assert p.parse_args(["robot", "list", "-v"]).verbose is True
+    assert p.parse_args(["-v", "robot", "list"]).verbose is True
+    assert p.parse_args(["robot", "list"]).verbose is False
+    assert p.parse_args(["plan", "paper_4_4", "--out", "x", "--verbose"]).verbose is True
+    assert main(["problem", "list", "-v"]) == 0
