@@ -496,6 +496,7 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
                 m,
                 w.stop,
                 w.dwell_s,
+                progress,
                 **problem.timing.options(m),
             )
             res.feed[m] = fl

@@ -363,3 +363,13 @@ def test_compensated_program_commands_land_on_the_waypoints(tmp_path):
     assert worst < LANDING_TOL_M, worst
     # and the load does move the uncompensated TCP (the check is not vacuous)
     assert res.before.error_norm_m.max() > 50 * LANDING_TOL_M
+
+
+def test_progress_reaches_every_stage_and_stretch(tmp_path):
+    seen: dict[str, tuple[int, int]] = {}
+    res = plan(
+        load_problem(_write(tmp_path)), progress=lambda stage, done, total: seen.__setitem__(stage, (done, total))
+    )
+    assert res.ok
+    n = res.feed[res.controller].n_stretches
+    assert seen == {"posture": (1, 1), "compensation": (1, 1), f"timing {res.controller}": (n, n)}
