@@ -15,6 +15,13 @@ joint limits. Where the joint limits force the path slower than the feed, ``d ta
 The pseudo-joint is spline-interpolated through the waypoints like the joints: between
 waypoints the TCP speed matches ``F d tau/dt`` to the path's discretisation (chords of a curve
 within the path tolerance); ``tests/test_feed.py`` checks the TCP speed from forward kinematics.
+
+At program scale (:func:`feed_time_law` with ``stop``): the path is cut at its stops (and at every
+change between rapid and cut or of the feed) into stretches timed rest to rest and joined, dwells
+held; the pseudo-joint enters scaled by :data:`FEED_TIME_SCALE` so that it leads the spline's
+parameter; a second pseudo-joint, the distance along the path, gives the move each sample runs;
+a cutting stretch the method runs slowly is re-timed by :data:`FEED_RETRY_METHOD`, and one it fails
+on is timed by :data:`FEED_FALLBACK_METHOD` (``docs/gcode.md``, "The feed law at program scale").
 """
 
 from __future__ import annotations
