@@ -546,10 +546,7 @@ def _feed_warnings(res: PlanResult) -> list[str]:
     fl = res.feed[res.controller]
     if not fl.slowed or res.problem.program is None:
         return []
-    line = res.problem.program.waypoints.line
-    worst: dict[int, float] = {}
-    for k, frac in fl.slowed.items():
-        worst[int(line[k])] = min(frac, worst.get(int(line[k]), 1.0))
+    worst = fl.slowed_lines(res.problem.program.waypoints.line)
     order = sorted(worst, key=lambda L: worst[L])
     shown = ", ".join(f"line {L}: {100 * worst[L]:.0f} %" for L in order[:FEED_WARN_LINES])
     more = (

@@ -130,9 +130,7 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
         "feed": {},
     }
     for m, fl in res.feed.items():
-        worst: dict[int, float] = {}
-        for k, frac in fl.slowed.items():
-            worst[int(w.line[k])] = min(frac, worst.get(int(w.line[k]), 1.0))
+        worst = fl.slowed_lines(w.line)
         dur = fl.trajectory.duration_s
         t = fl.trajectory.t
         on_cut = cut[fl.sample_move[1:]] if len(t) > 1 else np.zeros(0, dtype=bool)

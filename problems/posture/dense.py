@@ -28,6 +28,7 @@ measures the load-induced error of this against the NLP over every waypoint.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -138,64 +139,41 @@ def densify(
             qa = rigid_pose_solve(arm, qa, poses(task.positions, task.rotations))
         err = linear_error(model, q, task.load)
         err_a = linear_error(model, qa, task.load) if qa is not None else np.full(task.n, np.nan)
-        results[b] = BranchResult(
-            b,
-            r.status,
-            r.reason + note,
-            q,
-            qa,
-            q,
-            r.warm_offset,
-            float(np.sum(err**2)),
-            float(np.sum(err_a**2)) if qa is not None else math.nan,
-            float(np.sum(err**2)),
-            err,
-            err_a,
-            r.iterations,
-            r.solve_time_s,
-            r.solver_status,
-            r.residual_m,
-            r.residual_rad,
-            dict(r.active_guards),
-            r.label,
+        cost = float(np.sum(err**2))
+        results[b] = replace(  # the node result's solver record, with the dense posture and errors
+            r,
+            reason=r.reason + note,
+            q=q,
+            q_analytic=qa,
+            q_warm=q,
+            cost=cost,
+            cost_analytic=float(np.sum(err_a**2)) if qa is not None else math.nan,
+            cost_warm=cost,
+            error_m=err,
+            error_analytic_m=err_a,
+            active_guards=dict(r.active_guards),
         )
     labels = on_nodes.labels
-    default = on_nodes.default
     if not results:
         why = "; ".join(f"{labels[b] if b < len(labels) else b}: {w}" for b, w in sorted(rejected.items()))
-        return PostureResult(
-            PostureStatus.NO_BRANCH,
-            f"no IK branch is feasible along the whole path ({why})",
-            task,
-            {},
-            rejected,
-            None,
-            default,
-            on_nodes.freedom,
-            on_nodes.freedom_note,
-            [],
-            on_nodes.build_time_s,
-            labels,
-            on_nodes.ik_family,
+        status, reason, chosen = PostureStatus.NO_BRANCH, f"no IK branch is feasible along the whole path ({why})", None
+    else:
+        chosen = min(results, key=lambda b: results[b].cost)
+        status, reason = (
+            PostureStatus.OK,
+            f"branch {labels[chosen]} chosen among {len(results)} usable branch(es) on {task.n} waypoints "
+            f"(the NLP on {len(nodes)} nodes)",
         )
-    chosen = min(results, key=lambda b: results[b].cost)
-    if default not in results:
-        default = None
-    return PostureResult(
-        PostureStatus.OK,
-        f"branch {labels[chosen]} chosen among {len(results)} usable branch(es) on {task.n} waypoints "
-        f"(the NLP on {len(nodes)} nodes)",
-        task,
-        results,
-        rejected,
-        chosen,
-        default,
-        on_nodes.freedom,
-        on_nodes.freedom_note,
-        [],
-        on_nodes.build_time_s,
-        labels,
-        on_nodes.ik_family,
+    return replace(  # the nodes' freedom, build time, labels and IK family
+        on_nodes,
+        status=status,
+        reason=reason,
+        task=task,
+        branches=results,
+        rejected=rejected,
+        chosen=chosen,
+        default=on_nodes.default if not results or on_nodes.default in results else None,
+        unreachable=[],
     )
 
 

@@ -146,6 +146,15 @@ class FeedLaw:
     n_stretches: int = 1
     n_substituted: int = 0
 
+    def slowed_lines(self, line: np.ndarray) -> dict[int, float]:
+        """Program line -> the smallest fraction of the feed reached on its slowed moves
+        (``line``: the program line of each waypoint, shape ``(N,)``)."""
+        worst: dict[int, float] = {}
+        for k, frac in self.slowed.items():
+            L = int(line[k])
+            worst[L] = min(frac, worst.get(L, 1.0))
+        return worst
+
 
 #: The path-length pseudo-joint is the TCP's distance along the waypoints (m) times this: small
 #: enough not to change the spline's chord-length parameter, and read back to tell the move each
@@ -206,14 +215,7 @@ def feed_time_law(
     n_way = len(tau)
     if Q.ndim != 2 or len(Q) != n_way or Q.shape[1] != limits.n_joints:
         raise InputError(f"feed law: q must be (N, {limits.n_joints}) with N = {n_way} waypoints, got shape {Q.shape}")
-    st = np.zeros(n_way, dtype=bool) if stop is None else np.asarray(stop, dtype=bool).copy()
-    dw = np.zeros(n_way) if dwell_s is None else np.asarray(dwell_s, dtype=float)
-    if st.shape != (n_way,) or dw.shape != (n_way,) or np.any(~(dw >= 0.0)):
-        raise InputError(f"feed law: stop and dwell_s must be ({n_way},) with dwells >= 0 s")
-    st[0] = st[-1] = True
-    F = np.asarray(feed_m_s, dtype=float)
-    st[1:-1] |= np.isnan(F[1:-1]) != np.isnan(F[2:])  # a change between rapid and cut: a stop
-    st[1:-1] |= np.isfinite(F[1:-1]) & np.isfinite(F[2:]) & (F[1:-1] != F[2:])  # a change of feed: a stop
+    st, dw = _stops(n_way, stop, dwell_s, np.asarray(feed_m_s, dtype=float))
     n = Q.shape[1]
     aug = JointLimits(
         np.r_[limits.velocity, FEED_TIME_SCALE, _INDEX_LIMIT],
@@ -245,40 +247,10 @@ def feed_time_law(
             failed = (int(a), int(b), tr)
     if progress is not None:
         progress(stage, len(bounds) - 1, len(bounds) - 1)
-    joined = _join(pieces, dw[bounds], dt, n + 2, method)
-    if failed is not None:
-        a, b, tr = failed
-        joined = replace(
-            joined,
-            status=tr.status,
-            reason=f"the stretch from waypoint {a} to {b} (of {len(pieces)} between stops): {tr.reason}",
-            solver_code=tr.solver_code,
-        )
-    elif len(pieces) > 1 or substituted:
-        notes = ""
-        if retimed:
-            notes += (
-                f"; {retimed} re-timed by {FEED_RETRY_METHOD} where {method} ran a cutting stretch above "
-                f"{FEED_RETRY_RATIO:g}x its programmed time"
-            )
-        if substituted:
-            a, b, why = substituted[0]
-            notes += (
-                f"; {len(substituted)} timed by {FEED_FALLBACK_METHOD} where {method} failed (the first, waypoints "
-                f"{a} to {b}: {why})"
-            )
-        joined = replace(joined, reason=f"{len(pieces)} stretches between stops{notes}; the first: {pieces[0].reason}")
+    joined = _with_reason(_join(pieces, dw[bounds], dt, n + 2, method), pieces, failed, retimed, substituted, method)
     rate = joined.qd[:, n] / FEED_TIME_SCALE if joined.qd.size else np.empty(0)
     along = joined.q[:, n + 1] / LENGTH_SCALE if joined.q.size else np.empty(0)
-    joints = replace(  # the joints' columns and ratios, without the pseudo-joints
-        joined,
-        q=joined.q[:, :n],
-        qd=joined.qd[:, :n],
-        qdd=joined.qdd[:, :n],
-        qddd=joined.qddd[:, :n],
-        limit_ratio={k: v[:n] for k, v in joined.limit_ratio.items()},
-        first_pass_limit_ratio={k: v[:n] for k, v in joined.first_pass_limit_ratio.items()},
-    )
+    joints = _joints_only(joined, n)
     move = np.clip(np.searchsorted(length, along, side="left"), 1, n_way - 1) if along.size else np.zeros(0, dtype=int)
     return FeedLaw(
         trajectory=joints,
@@ -288,6 +260,69 @@ def feed_time_law(
         sample_move=move,
         n_stretches=len(pieces),
         n_substituted=len(substituted),
+    )
+
+
+def _stops(
+    n_way: int, stop: np.ndarray | None, dwell_s: np.ndarray | None, F: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The stop mask (the given stops, both ends, every change between rapid and cut or of the feed)
+    and the dwells, checked (see :func:`feed_time_law`)."""
+    st = np.zeros(n_way, dtype=bool) if stop is None else np.asarray(stop, dtype=bool).copy()
+    dw = np.zeros(n_way) if dwell_s is None else np.asarray(dwell_s, dtype=float)
+    if st.shape != (n_way,) or dw.shape != (n_way,) or np.any(~(dw >= 0.0)):
+        raise InputError(f"feed law: stop and dwell_s must be ({n_way},) with dwells >= 0 s")
+    st[0] = st[-1] = True
+    st[1:-1] |= np.isnan(F[1:-1]) != np.isnan(F[2:])  # a change between rapid and cut: a stop
+    st[1:-1] |= np.isfinite(F[1:-1]) & np.isfinite(F[2:]) & (F[1:-1] != F[2:])  # a change of feed: a stop
+    return st, dw
+
+
+def _with_reason(
+    joined: Trajectory,
+    pieces: list[Trajectory],
+    failed: tuple[int, int, Trajectory] | None,
+    retimed: int,
+    substituted: list[tuple[int, int, str]],
+    method: str,
+) -> Trajectory:
+    """The joined trajectory with the status of its first failed stretch, or a reason that counts the
+    stretches, the re-timed ones and those the fallback timed."""
+    if failed is not None:
+        a, b, tr = failed
+        return replace(
+            joined,
+            status=tr.status,
+            reason=f"the stretch from waypoint {a} to {b} (of {len(pieces)} between stops): {tr.reason}",
+            solver_code=tr.solver_code,
+        )
+    if len(pieces) <= 1 and not substituted:
+        return joined
+    notes = ""
+    if retimed:
+        notes += (
+            f"; {retimed} re-timed by {FEED_RETRY_METHOD} where {method} ran a cutting stretch above "
+            f"{FEED_RETRY_RATIO:g}x its programmed time"
+        )
+    if substituted:
+        a, b, why = substituted[0]
+        notes += (
+            f"; {len(substituted)} timed by {FEED_FALLBACK_METHOD} where {method} failed (the first, waypoints "
+            f"{a} to {b}: {why})"
+        )
+    return replace(joined, reason=f"{len(pieces)} stretches between stops{notes}; the first: {pieces[0].reason}")
+
+
+def _joints_only(tr: Trajectory, n: int) -> Trajectory:
+    """The trajectory's first ``n`` columns and ratios: the joints, without the pseudo-joints."""
+    return replace(
+        tr,
+        q=tr.q[:, :n],
+        qd=tr.qd[:, :n],
+        qdd=tr.qdd[:, :n],
+        qddd=tr.qddd[:, :n],
+        limit_ratio={k: v[:n] for k, v in tr.limit_ratio.items()},
+        first_pass_limit_ratio={k: v[:n] for k, v in tr.first_pass_limit_ratio.items()},
     )
 
 

@@ -305,21 +305,8 @@ def _refine(
     length = np.r_[0.0, np.linalg.norm(np.diff(P, axis=0), axis=1)]
     cand = corner & (theta > CORNER_ANGLE_MIN_RAD)
     corner = cand | stop
-    pts, lin, rap, fed, stp, dwl, cor = (
-        [P[:1]],
-        [line[:1]],
-        [rapid[:1]],
-        [feed[:1]],
-        [stop[:1]],
-        [dwell[:1]],
-        [corner[:1]],
-    )
-    axs = [axis[:1]] if axis is not None else None
-    wrs = [wrench[:1]] if wrench is not None else None
-    before = np.zeros(n, dtype=object)
-    after = np.zeros(n, dtype=object)
-    for k in range(n):
-        before[k], after[k] = np.zeros(0), np.zeros(0)
+    before = [np.zeros(0)] * n
+    after = [np.zeros(0)] * n
     for k in np.flatnonzero(cand & ~stop):
         got = corner_waypoints(float(theta[k]), float(length[k]), float(length[k + 1]), tol)
         if got is None:
@@ -327,49 +314,45 @@ def _refine(
             corner[k] = True
         else:
             before[k], after[k] = got
-    for k in range(1, n):
-        d = length[k]
-        # fractions of the move k-1 -> k: the corner waypoints near both ends and equal steps between
-        near = np.r_[after[k - 1], d - before[k][::-1]] / d if d > 0 else np.zeros(0)
-        m = max(1, int(math.ceil(d / MAX_STEP_M - 1e-9)))
-        fr = np.unique(np.r_[np.arange(1, m) / m, near])
-        fr = fr[(fr > 1e-12) & (fr < 1 - 1e-12)]
-        if fr.size:
-            seg = P[k - 1] + fr[:, None] * (P[k] - P[k - 1])
-            pts.append(seg)
-            lin.append(np.full(fr.size, line[k]))
-            rap.append(np.full(fr.size, rapid[k]))
-            fed.append(np.full(fr.size, feed[k]))
-            stp.append(np.zeros(fr.size, dtype=bool))
-            dwl.append(np.zeros(fr.size))
-            cor.append(np.zeros(fr.size, dtype=bool))
-            if axs is not None:
-                a = axis[k - 1] + fr[:, None] * (axis[k] - axis[k - 1])
-                axs.append(a / np.linalg.norm(a, axis=1, keepdims=True))
-            if wrs is not None:
-                wrs.append(np.repeat(wrench[k : k + 1], fr.size, axis=0))
-        pts.append(P[k : k + 1])
-        lin.append(line[k : k + 1])
-        rap.append(rapid[k : k + 1])
-        fed.append(feed[k : k + 1])
-        stp.append(stop[k : k + 1])
-        dwl.append(dwell[k : k + 1])
-        cor.append(corner[k : k + 1])
-        if axs is not None:
-            axs.append(axis[k : k + 1])
-        if wrs is not None:
-            wrs.append(wrench[k : k + 1])
+    idx, frac = _split_moves(length, before, after)
+    end = frac == 1.0  # a programmed point (the others split a move)
+    prev = P[np.maximum(idx - 1, 0)]
+    points = np.where(end[:, None], P[idx], prev + frac[:, None] * (P[idx] - prev))
+    tool = None
+    if axis is not None:
+        a0 = axis[np.maximum(idx - 1, 0)]
+        mid = a0 + frac[:, None] * (axis[idx] - a0)
+        tool = np.where(end[:, None], axis[idx], mid / np.linalg.norm(mid, axis=1, keepdims=True))
     return ProgramWaypoints(
-        np.vstack(pts),
-        np.vstack(axs) if axs is not None else None,
-        np.concatenate(lin),
-        np.concatenate(rap),
-        np.concatenate(fed),
-        np.concatenate(stp),
-        np.concatenate(dwl),
-        np.concatenate(cor),
-        np.vstack(wrs) if wrs is not None else None,
+        points,
+        tool,
+        line[idx],
+        rapid[idx],
+        feed[idx],
+        end & stop[idx],
+        np.where(end, dwell[idx], 0.0),
+        end & corner[idx],
+        wrench[idx] if wrench is not None else None,
         float(tol),
         tol_source,
         source,
     )
+
+
+def _split_moves(
+    length: np.ndarray, before: list[np.ndarray], after: list[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of the split path: for each, the programmed point ``k`` whose move (``k-1 -> k``) it
+    lies on and its fraction along that move (1 at the point itself; point 0 first). A move is split
+    into equal steps of at most :data:`MAX_STEP_M` and at the corner waypoints ``after[k-1]`` (from
+    its start) and ``before[k]`` (from its end), m."""
+    idx, frac = [np.zeros(1, dtype=int)], [np.ones(1)]
+    for k in range(1, len(length)):
+        d = length[k]
+        near = np.r_[after[k - 1], d - before[k][::-1]] / d if d > 0 else np.zeros(0)
+        m = max(1, int(math.ceil(d / MAX_STEP_M - 1e-9)))
+        fr = np.unique(np.r_[np.arange(1, m) / m, near])
+        fr = fr[(fr > 1e-12) & (fr < 1 - 1e-12)]
+        idx.append(np.full(fr.size + 1, k))
+        frac.append(np.r_[fr, 1.0])
+    return np.concatenate(idx), np.concatenate(frac)
