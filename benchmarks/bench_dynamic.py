@@ -9,7 +9,8 @@ lasts about 2 s at dt = 2 ms), it prints the time of
 
 * the motor-side command of the timed trajectory (``planner.dynamic._command``: inertial torques,
   static torques and the deflection law for the command and the static compensation, smoothing,
-  predicted errors) and its limit check (central differences): what the stage adds per pass;
+  predicted errors) and its limit check (the command's quintic-spline derivatives and their peaks
+  between samples): what the stage adds per pass;
 * the whole stage (``dynamic_stage``: every link-side timing pass included);
 * the anchor, measured in the same run: the same inertial torques by a Python loop over pinocchio's
   ``rnea`` (compiled C++) when pinocchio is installed, and the jerk_optimal timing of the same path.
@@ -47,7 +48,7 @@ def main() -> None:
     from planner.dynamic import _command, dynamic_stage
     from planner.plan import plan
     from problems.timing import JointLimits, time_parametrize
-    from problems.dynamic import DYNAMIC_SMOOTHING_S, finite_derivatives
+    from problems.dynamic import command_derivatives, curve_peaks
     from problems.problem import load_problem
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -59,12 +60,13 @@ def main() -> None:
     path_q, dt = res.exact.q_deflected, 0.002
     lim = JointLimits(pr.limits.velocity, 0.55 * pr.limits.acceleration, 0.4 * pr.limits.jerk)
     link, t_timing, _ = _best(lambda: time_parametrize(path_q, lim, "jerk_optimal", dt), args.repeat)
-    n = int(round(DYNAMIC_SMOOTHING_S / dt))
     arm = pr.model
-    _command(arm, link, pr.load, path_q, n, n)  # build the functions once
+    _command(arm, link, pr.load, path_q)  # build the functions once
 
     def stage_per_pass():
-        return finite_derivatives(_command(arm, link, pr.load, path_q, n, n).theta, dt)
+        ps = _command(arm, link, pr.load, path_q)
+        d = command_derivatives(link.t, ps.theta, ~ps.moving)
+        return curve_peaks(link.t, ps.theta, d[0], d[1])
 
     _, best, med = _best(stage_per_pass, args.repeat)
     print(f"link-side trajectory: {link.duration_s:.3f} s, {len(link.t)} samples at {dt * 1e3:g} ms")

@@ -1,6 +1,6 @@
 """The real-data run: a UR5 measured by a laser tracker (shared/data/ur5-laser-tracker).
 
-Converts the dataset to our measurement-file format, identifies on ``grid.csv`` with
+Reads the dataset as it is (the measurement-file format ``tracker-dif``), identifies on ``grid.csv`` with
 ``compplan identify`` (full effect library, residual-driven selection), and reports on
 ``random.csv`` only (held out): mean, RMS and max Euclidean error, beside the published
 figures (2.566 mm uncalibrated, 0.155 mm mean after hybrid calibration + neural network).
@@ -9,21 +9,22 @@ Run::
 
     python benchmarks/real_ur5_tracker.py [--data ../shared/data/ur5-laser-tracker] [--out out/real]
 
-Conventions (see docs/real-data.md):
+The dataset's files are read as they are by the installed commands, in the measurement-file
+format ``tracker-dif`` (``docs/measurement-file.md``, "Tracker exports"); conventions (see
+docs/real-data.md):
 
 * ``x_t, y_t, z_t`` are the nominal-FK targets (mm, base frame) of the commanded joints
   ``joint_1..6`` (deg) with the measured point 31 mm along the flange z axis;
-* the measured position is ``target + dif`` (the sign that makes the identified
-  self-weight compliance of joint 2 positive, i.e. physical; the other sign gives a
-  negative stiffness);
-* no external load: the wrench columns are zero, self-weight acts through the
-  ``gravity`` effect (UR5 link masses from the robot file).
+* the measured position is ``target + dif`` (the format ``tracker-dif``; the sign that makes the
+  identified self-weight compliance of joint 2 positive, i.e. physical; the other sign,
+  ``tracker-dif-reversed``, gives a negative stiffness);
+* no external load: the wrench is zero, self-weight acts through the ``gravity`` effect (UR5
+  link masses from the robot file).
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 import time
@@ -33,48 +34,16 @@ import numpy as np
 
 #: The measured point in the flange frame assumed by the dataset's targets, m.
 TRACKER_TCP_M = (0.0, 0.0, 0.031)
-#: Sign of ``dif``: measured = target + DIF_SIGN * dif.
-DIF_SIGN = +1.0
+#: The measurement-file format of the dataset: measured = target + dif (docs/real-data.md).
+DATA_FORMAT = "tracker-dif"
+#: The dataset's files: identification and held-out.
+GRID_FILE, RANDOM_FILE = "grid.csv", "random.csv"
 PUBLISHED_UNCALIBRATED_MEAN_MM = 2.566
 PUBLISHED_BEST_MEAN_MM = 0.155
 #: Issue 10's acceptance: held-out mean Euclidean error, mm.
 TARGET_MEAN_MM = 0.08
-
-
-def convert(src: Path, dst: Path) -> np.ndarray:
-    """Write ``dst`` in measurement-file format; return measured positions (N, 3) in mm."""
-    with open(src, newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    if not rows:
-        raise SystemExit(f"{src}: no rows")
-    header = [
-        "q1_deg",
-        "q2_deg",
-        "q3_deg",
-        "q4_deg",
-        "q5_deg",
-        "q6_deg",
-        "fx",
-        "fy",
-        "fz",
-        "mx",
-        "my",
-        "mz",
-        "x_mm",
-        "y_mm",
-        "z_mm",
-    ]
-    meas = []
-    with open(dst, "w", newline="") as fh:
-        fh.write(f"# converted from {src.name} (Jacobi 2025, MIT); measured = target + dif\n")
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(header)
-        for r in rows:
-            q = [float(r[f"joint_{i}"]) for i in range(1, 7)]
-            p = [float(r[f"{a}_t"]) + DIF_SIGN * float(r[f"{a}_dif"]) for a in "xyz"]
-            meas.append(p)
-            w.writerow([repr(v) for v in q] + ["0"] * 6 + [repr(v) for v in p])
-    return np.asarray(meas)
+#: Exit status of a bad argument (as compplan's).
+EXIT_USER_ERROR = 2
 
 
 def robot_file(dst: Path) -> None:
@@ -86,10 +55,20 @@ def robot_file(dst: Path) -> None:
     dst.write_text(robot_to_toml(r))
 
 
+def _error(message: str) -> int:
+    """One line on stderr, as compplan's errors; the exit status of a bad argument."""
+    print(f"real_ur5_tracker.py: error: {message}", file=sys.stderr)
+    return EXIT_USER_ERROR
+
+
 def main() -> int:
     here = Path(__file__).resolve().parents[1]
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--data", default=str(here.parent / "shared" / "data" / "ur5-laser-tracker"))
+    ap.add_argument(
+        "--data",
+        default=str(here.parent / "shared" / "data" / "ur5-laser-tracker"),
+        help=f"folder of the dataset ({GRID_FILE}, {RANDOM_FILE})",
+    )
     ap.add_argument("--out", default=str(here / "out" / "real_ur5"))
     ap.add_argument("--candidates", default=None, help="comma-separated effect names (default: all)")
     args = ap.parse_args()
@@ -97,15 +76,28 @@ def main() -> int:
 
     from planner.cli import main as cli
     from models.arm_file import load_model
+    from models.errors import InputError
     from problems.identify import predict
     from problems.measurements import read_measurements
 
     data, out = Path(args.data), Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    grid_csv, rand_csv = out / "grid_measurements.csv", out / "random_measurements.csv"
-    convert(data / "grid.csv", grid_csv)
-    p_rand_mm = convert(data / "random.csv", rand_csv)
-    robot_file(out / "ur5_tracker.toml")
+    grid_csv, rand_csv = data / GRID_FILE, data / RANDOM_FILE
+    for f in (grid_csv, rand_csv):
+        if not f.is_file():
+            return _error(
+                f"--data {data}: no file {f.name} there; expected the folder of the UR5 laser-tracker data "
+                f"({GRID_FILE}, {RANDOM_FILE})"
+            )
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        robot_file(out / "ur5_tracker.toml")
+    except OSError as exc:
+        return _error(f"--out {out}: cannot write there ({exc.strerror or exc})")
+    try:
+        m = read_measurements(rand_csv, file_format=DATA_FORMAT)
+    except InputError as exc:
+        return _error(str(exc))
+    p_rand_mm = m.p * 1e3
 
     t0 = time.perf_counter()
     argv = [
@@ -114,6 +106,8 @@ def main() -> int:
         str(out / "ur5_tracker.toml"),
         "--data",
         str(grid_csv),
+        "--format",
+        DATA_FORMAT,
         "--out",
         str(out / "ur5_identified.toml"),
         "--report",
@@ -130,7 +124,6 @@ def main() -> int:
         return rc
 
     model = load_model(str(out / "ur5_identified.toml"))
-    m = read_measurements(rand_csv)
     e_after = np.linalg.norm(predict(model, m) * 1e3 - p_rand_mm, axis=1)
     from models import KinematicModel, load_robot
 

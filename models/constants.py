@@ -48,6 +48,15 @@ DLS_DAMPING = 1e-4
 #: A position beyond this distance from the base is implausible in metres (m);
 #: the loaders suggest a unit mistake (probably millimetres).
 PLAUSIBLE_POSITION_MAX_M = 5.0
+#: A joint speed limit above this (rad/s, about 2300 deg/s; the fastest 6R wrists run about
+#: 1000 deg/s) is implausible in rad/s: the loaders suggest degrees per second.
+PLAUSIBLE_JOINT_SPEED_MAX_RAD_S = 40.0
+#: A link mass above this (kg) is implausible: the loaders suggest grams.
+PLAUSIBLE_LINK_MASS_MAX_KG = 5000.0
+#: The arm's total link mass over the cube of its reach (sum of |a| and |d|), kg/m^3, above which
+#: the masses are implausible in kg: real 6R arms lie near 5 (cobots, 0.8-1.7 m) to 150 (heavy industrial
+#: arms); masses in grams give about 1000 times that.
+PLAUSIBLE_MASS_PER_REACH3_MAX_KG_M3 = 3000.0
 #: Gravity vectors whose magnitude is above this (m/s^2) are implausible: 1.5 standard gravities
 #: covers every place an arm stands on Earth and a tilted base; 10 g or 981 is a unit slip
 #: (cm/s^2, or g given as a multiple).

@@ -23,11 +23,18 @@ from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .constants import PLAUSIBLE_POSITION_MAX_M, STANDARD_GRAVITY, gravity_problem
+from .constants import (
+    PLAUSIBLE_JOINT_SPEED_MAX_RAD_S,
+    PLAUSIBLE_LINK_MASS_MAX_KG,
+    PLAUSIBLE_MASS_PER_REACH3_MAX_KG_M3,
+    PLAUSIBLE_POSITION_MAX_M,
+    STANDARD_GRAVITY,
+    gravity_problem,
+)
 from .errors import InputError
 from .transforms import rpy_to_matrix, transform
 
@@ -465,12 +472,22 @@ def _parse_joint(where: str, row: Any) -> Joint:
     for key in ("v_max", "a_max", "j_max", "stiffness"):
         if vals[key] <= 0:
             raise RobotFileError(f"{where}: key '{key}' must be > 0, got {vals[key]}")
+    if vals["v_max"] > PLAUSIBLE_JOINT_SPEED_MAX_RAD_S:
+        raise RobotFileError(
+            f"{where}: key 'v_max' = {vals['v_max']:g} rad/s is implausible for a joint "
+            f"(> {PLAUSIBLE_JOINT_SPEED_MAX_RAD_S:g} rad/s); speeds are in rad/s (degrees per second given?)"
+        )
     if ("mass" in row) != ("com" in row):
         raise RobotFileError(f"{where}: give 'mass' and 'com' together")
     if "mass" in row:
         vals["mass"] = _finite(where, "mass", row["mass"])
         if vals["mass"] < 0:
             raise RobotFileError(f"{where}: key 'mass' must be >= 0, got {vals['mass']}")
+        if vals["mass"] > PLAUSIBLE_LINK_MASS_MAX_KG:
+            raise RobotFileError(
+                f"{where}: key 'mass' = {vals['mass']:g} kg is implausible for a link "
+                f"(> {PLAUSIBLE_LINK_MASS_MAX_KG:g} kg); masses are in kg (grams given?)"
+            )
         vals["com"] = _vector(where, "com", row["com"], 3)
     if "inertia" in row:
         if "mass" not in row:
@@ -560,7 +577,7 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Pat
     frames = {
         key: parse_frame_table(where, key, data[key]) for key in ("frame0_in_base", "flange_in_frame6") if key in data
     }
-    return Robot(
+    robot = Robot(
         name=name,
         convention=conv,
         joints=joints,
@@ -575,6 +592,27 @@ def robot_from_dict(data: Mapping[str, Any], where: str = "robot", base_dir: Pat
         **parse_controller(where, data.get("controller")),
         controller_declared="controller" in data,
     )
+    from .degenerate import check_chain, robot_axes  # a chain that spans < 6 DOF everywhere
+
+    check_chain(where, robot_axes(robot), robot.q_min, robot.q_max, robot.joint_names)
+    _check_mass_scale(where, joints)
+    return robot
+
+
+def _check_mass_scale(where: str, joints: Sequence[Joint]) -> None:
+    """Refuse link masses that are implausible for the arm's size (grams given as kg): the total
+    mass over the cube of the reach above :data:`PLAUSIBLE_MASS_PER_REACH3_MAX_KG_M3`."""
+    total = sum(j.mass for j in joints if j.mass is not None)
+    reach = sum(abs(j.a) + abs(j.d) for j in joints)
+    if total <= 0 or reach <= 0:
+        return
+    ratio = total / reach**3
+    if ratio > PLAUSIBLE_MASS_PER_REACH3_MAX_KG_M3:
+        raise RobotFileError(
+            f"{where}: the link masses add up to {total:g} kg for an arm of reach {reach:.3g} m "
+            f"({ratio:.3g} kg/m^3 of reach cubed; real arms lie near 5 to 150, the limit is "
+            f"{PLAUSIBLE_MASS_PER_REACH3_MAX_KG_M3:g}): key 'mass' is in kg (grams given?)"
+        )
 
 
 def parse_frame_table(where: str, key: str, table: Any) -> np.ndarray:

@@ -51,7 +51,8 @@ from .robot import (
     parse_frame_table,
     read_text_file,
 )
-from .constants import STANDARD_GRAVITY
+from .constants import PLAUSIBLE_JOINT_SPEED_MAX_RAD_S, STANDARD_GRAVITY
+from .degenerate import URDF_HINT, check_chain, poe_axes
 from .transforms import dh_chain_frames, poe_fk
 
 #: Keys of a URDF-based robot file.
@@ -542,6 +543,12 @@ def _joint_limits(where: str, chain: UrdfChain, overrides: Mapping[str, Any], i:
         out["v_max"] = float(vel)
     if out["v_max"] <= 0:
         raise RobotFileError(f"{w}: key 'v_max' must be > 0, got {out['v_max']:g}")
+    if out["v_max"] > PLAUSIBLE_JOINT_SPEED_MAX_RAD_S:
+        raise RobotFileError(
+            f"{where}: joint '{name}': velocity limit {out['v_max']:g} rad/s is implausible "
+            f"(> {PLAUSIBLE_JOINT_SPEED_MAX_RAD_S:g} rad/s); URDF and robot-file speeds are in rad/s "
+            "(degrees per second given?)"
+        )
     return out
 
 
@@ -608,6 +615,9 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
     chain = read_chain(where, path, base_link, tip_link)
     ov = _overrides(where, data, chain)
     w, p = chain.zero_axes()
+    limits = [_joint_limits(where, chain, ov, i) for i in range(6)]
+    q_lo, q_hi = (np.array([lim[k] for lim in limits]) for k in ("q_min", "q_max"))
+    check_chain(where, poe_axes(w, p), q_lo, q_hi, chain.joint_names, URDF_HINT)  # before its DH form
     ch = dh_from_axes(where, w, p, chain.tip)
     check_dh(where, w, p, chain.tip, ch)
     notes = list(chain.notes)
@@ -615,7 +625,7 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
     has_mass = any(b.mass > 0 for b in chain.bodies)
     joints = []
     for i in range(6):
-        lim = _joint_limits(where, chain, ov, i)
+        lim = limits[i]
         row_ov = ov.get(chain.joint_names[i], {})
         am = (
             _positive(where, chain.joint_names[i], row_ov, "a_max")

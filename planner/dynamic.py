@@ -4,18 +4,25 @@ After timing, with ``[timing] dynamic = true``: the *link-side* path (the deflec
 the exact compensation makes the arm take at every waypoint) is timed by the controller's
 jerk-limited method; :func:`problems.dynamic.motor_command` turns it into the motor-side command
 that makes the elastic joints carry the static and the inertial torques; the command's dynamic
-part (command minus static compensation) is smoothed by two moving averages of
-:data:`~problems.dynamic.DYNAMIC_SMOOTHING_S`, and the link trajectory is padded with that much
-rest at both ends so that the command starts and ends exactly at the static compensation.  The
-command's velocity, acceleration and jerk (central differences of the samples) are checked
-against the limits; where the command exceeds one, the link side is re-timed with that limit
-scaled by ``(1 - DYNAMIC_RETIME_MARGIN) / ratio`` and the command rebuilt, at most
-:data:`DYNAMIC_MAX_PASSES` times.
+part (command minus static compensation) is zero where the link side is at rest and smoothed
+(:func:`problems.dynamic.command_with_rest`: centred moving averages of
+:data:`~problems.dynamic.DYNAMIC_SMOOTHING_S` in the motion, one-sided ones next to a rest phase),
+so the command at rest (start, end, dwells) *is* the static compensation.  The command's
+velocity, acceleration and jerk columns are those of one smooth curve through its samples
+(:func:`problems.dynamic.command_derivatives`: a quintic spline, zero velocity and acceleration
+at rest), the curve a controller that interpolates positions, velocities and accelerations runs
+(ROS 2's joint_trajectory_controller); its peaks, between the samples included
+(:func:`problems.dynamic.curve_peaks`), are checked against the limits.  Each pass re-times the
+link side with every limit the command exceeded scaled by ``(1 - DYNAMIC_RETIME_MARGIN) / ratio``,
+and a scaled limit the command keeps with more than :data:`DYNAMIC_SETTLED_BAND` to spare scaled
+back up the same way (``jerk_optimal``'s duration is not monotonic in its limits); the search ends
+at a pass within every limit and within that band of each scaled one, or after
+:data:`DYNAMIC_MAX_PASSES` passes, and keeps the fastest pass within every limit.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -24,38 +31,95 @@ from models.arm import ArmModel
 from models.errors import InfeasibleError
 from models.load import Load
 from models.status import Status
+from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, mm_text
 from problems.timing import JointLimits, Trajectory, TimingStatus, time_parametrize
 from problems.dynamic import (
+    DYNAMIC_BLEND_S,
+    DYNAMIC_EDGE_SMOOTHING_S,
     DYNAMIC_SMOOTHING_S,
     MISMATCH_CASES,
     DynamicStatus,
-    finite_derivatives,
+    command_derivatives,
+    curve_peaks,
     mismatch_errors,
+    command_with_rest,
     motor_command,
-    padded,
     predicted_tcp_errors,
-    smooth,
+    rest_samples,
 )
 
-__all__ = ["DYNAMIC_MAX_PASSES", "DYNAMIC_RETIME_MARGIN", "DynamicStage", "DynamicStageStatus", "dynamic_stage"]
+__all__ = [
+    "DYNAMIC_MAX_PASSES",
+    "DYNAMIC_RETIME_MARGIN",
+    "HEADLINE_CASES",
+    "HEADLINE_DEFINITION",
+    "DynamicStage",
+    "DynamicStageStatus",
+    "dynamic_stage",
+    "headline_text",
+]
 
 #: Re-timing passes at most, and the margin kept below a limit the command exceeded.
 DYNAMIC_MAX_PASSES: int = 6
 DYNAMIC_RETIME_MARGIN: float = 0.02
 #: A command ratio above 1 + this fails the check (the timing's own tolerance).
 DYNAMIC_RATIO_TOL: float = 1e-9
+#: A pass within every limit ends the search when no scaled limit's peak ratio is below 1 - this: the
+#: command uses the limit to within twice the margin (``jerk_optimal``'s duration is not monotonic in
+#: its limits, so a pass far below a scaled limit is not taken as the answer: the scale is raised back).
+DYNAMIC_SETTLED_BAND: float = 2.0 * DYNAMIC_RETIME_MARGIN
 _KEYS = ("velocity", "acceleration", "jerk")
 #: What the summary's predicted errors are, and the stage's assumptions (``summary.json``).
 SUMMARY_DEFINITION = (
-    "predicted (quasi-static) TCP position error against the planned link side, mm, during the motion and at rest, "
-    "for the link plan commanded as is (none), the static compensation only (static) and the motor-side command "
-    "(static+dynamic); vibrations excluded (docs/elastic-simulation.md); mismatch: the same during the motion on an "
-    "arm whose joint stiffness and payload mass are the factors times the model's (the command unchanged)"
+    "predicted (quasi-static) TCP position error against the planned link side at every sample of trajectory.csv, "
+    "mm, under the torques the motor-side command carries (the load, the arm's own weight from its rigid-body model, "
+    "the inertial torques of the motion), max and RMS during the motion and max at rest (the samples whose joint "
+    "rates and accelerations are zero: start, end, dwells), for the link plan commanded as is (none: "
+    "uncompensated), the static command (static: load and own weight, no inertial torques) and the motor-side "
+    "command (static+dynamic: what trajectory.csv holds); vibrations excluded (docs/elastic-simulation.md); "
+    "mismatch: the same during the motion on an arm whose joint stiffness and payload mass are the factors times "
+    "the model's (the command unchanged)"
+)
+#: The headline's cases: (``predicted_tcp_error`` key, headline key part, words).
+HEADLINE_CASES = (
+    ("none", "uncompensated", "uncompensated"),
+    ("static", "static_command", "static command"),
+    ("static+dynamic", "motor_side_command", "motor-side command"),
+)
+#: What the dynamic headline's errors are (``summary.json`` ``headline.dynamic_compensation.definition``).
+HEADLINE_DEFINITION = (
+    "TCP position error |reached - planned| along the controller's trajectory (every sample of trajectory.csv), "
+    "predicted quasi-statically (the link where the command and the deflection of the planned torques put it; "
+    "vibrations excluded), under the torques the motor-side command carries: the load, the arm's own weight "
+    "(rigid-body model) and the inertial torques of the timed motion. Max during the motion and max at rest "
+    "(samples whose joint rates and accelerations are zero: start, end, dwells; there the motor-side command is "
+    "the static command, by construction), for the link plan commanded as is (uncompensated), the static command "
+    "(load and own weight, no inertial torques) and the motor-side command (trajectory.csv). The same numbers as "
+    "dynamic_compensation.predicted_tcp_error, rounded to 4 significant digits, 0 below numerical_floor_mm. The "
+    "waypoint errors error_before / error_after are another measure: the arm model's load alone (its own weight "
+    "only if the model has a gravity effect), at the exact equilibrium, at the waypoints."
 )
 SUMMARY_ASSUMPTIONS = (
     "elastic joints between the motor-side position the servo holds and the link; joint damping "
     "and link compliance not compensated dynamically; payload a point mass"
 )
+
+
+def headline_text(h: dict[str, Any]) -> str:
+    """The dynamic headline ``h`` (:meth:`DynamicStage.headline`, as in ``summary.json``) in words, for
+    the terminal: the max errors during the motion and at rest of :data:`HEADLINE_CASES`, and what
+    they are."""
+
+    def chain(where: str, named: bool) -> str:
+        values = [h.get(f"error_{where}_max_{key}_mm") for _case, key, _words in HEADLINE_CASES]
+        texts = [mm_text(v) if v is not None else "n/a" for v in values]
+        return " -> ".join(f"{t} {w}" if named else t for t, (_c, _k, w) in zip(texts, HEADLINE_CASES, strict=True))
+
+    return (
+        f"TCP error max during the motion {chain('motion', True)}; at rest (start, end, dwells) "
+        f"{chain('rest', False)} (predicted along trajectory.csv under the load, the arm's own weight and the "
+        "inertial torques; the waypoint errors before -> after exact compensation: the arm model's load alone)"
+    )
 
 
 class DynamicStageStatus(Status):
@@ -76,19 +140,21 @@ class DynamicStage:
     reason : str
     command : Trajectory or None
         The motor-side command (what the controller runs): ``q``, ``qd``, ``qdd``, ``qddd`` (rad,
-        rad/s, rad/s^2, rad/s^3) at ``dt``, derivatives by central differences, limit ratios
-        against the plan's limits.
+        rad/s, rad/s^2, rad/s^3) at ``dt``, the derivatives those of the quintic spline through the
+        samples (zero velocity and acceleration at rest), limit ratios its peaks against the plan's
+        limits.
     link : Trajectory or None
-        The planned link side on the same samples (rest padding included).
+        The planned link side on the same samples (the link-side timing of the pass kept).
     passes : int
         Timings of the link side it took.
     limit_scale : dict
-        Factor on each limit the link side was timed with in the last pass.
+        Factor on each limit the link side was timed with in the pass kept.
     errors_m : dict of str to ndarray (M,)
         Predicted (quasi-static) TCP position error along the command for ``none`` (the link plan
         commanded as is), ``static`` (static compensation only) and ``static+dynamic``, m.
     moving : ndarray (M,) of bool
-        Samples during the motion (the others are at rest).
+        Samples during the motion; the others are at rest (:func:`problems.dynamic.rest_samples` of the
+        link side), where the command is the static command.
     mismatch : list of dict
         The predicted gain during the motion on arms whose stiffness and payload differ from the
         model's (``stiffness_factor``, ``payload_factor``, both max errors in mm, ``gain``).
@@ -131,6 +197,9 @@ class DynamicStage:
             "passes": self.passes,
             "limit_scale": self.limit_scale,
             "smoothing_s": DYNAMIC_SMOOTHING_S,
+            "smoothing_edge_s": DYNAMIC_EDGE_SMOOTHING_S,
+            "smoothing_blend_s": DYNAMIC_BLEND_S,
+            "headline": self.headline(),
             "predicted_tcp_error": self.error_stats_mm(),
             "mismatch": self.mismatch,
             "definition": SUMMARY_DEFINITION,
@@ -138,6 +207,23 @@ class DynamicStage:
             "link_columns": "trajectory.csv ql1..ql6: the planned link side",
             "file": "dynamic.csv",
         }
+
+    def headline(self) -> dict[str, Any]:
+        """The dynamic headline: max predicted TCP error during the motion and at rest for each of
+        :data:`HEADLINE_CASES` (mm, ``error_motion_max_<case>_mm``, ``error_rest_max_<case>_mm``:
+        :meth:`error_stats_mm` rounded by :func:`planner.numbers.headline_mm`), the keys below the
+        numerical floor and :data:`HEADLINE_DEFINITION`.  The terminal, ``summary.json`` and the
+        report show these numbers; none of them recomputes one."""
+        stats = self.error_stats_mm()
+        h: dict[str, Any] = {}
+        for where in ("motion", "rest"):
+            for case, key, _words in HEADLINE_CASES:
+                value = stats[case][f"{where}_max_mm"] if case in stats else None
+                h[f"error_{where}_max_{key}_mm"] = headline_mm(value)
+        h["numerical_floor_mm"] = NUMERICAL_FLOOR_MM
+        h["below_numerical_floor"] = [k for k, v in h.items() if k.startswith("error_") and v == 0.0]
+        h["definition"] = HEADLINE_DEFINITION
+        return h
 
     def error_stats_mm(self) -> dict[str, dict[str, float]]:
         """Max and RMS of each predicted error during the motion and at rest, mm."""
@@ -177,26 +263,27 @@ class _Pass:
     moving: np.ndarray
 
 
-def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray, n_smooth: int, n_pad: int) -> _Pass:
-    """Padded link samples, the smoothed command, the predicted errors and the moving mask.
+def _command(arm: ArmModel, link: Trajectory, load: Load, path_q: np.ndarray) -> _Pass:
+    """The link samples' load rows, the command (static at rest, :func:`~problems.dynamic.command_with_rest`),
+    the predicted errors and the moving mask (not at rest: :func:`~problems.dynamic.rest_samples`).
 
     Raises
     ------
     InfeasibleError
         No motor-side command (the robot has no link masses); the message is the reason.
     """
-    q, qd, qdd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd))
+    q, qd, qdd = link.q, link.qd, link.qdd
     rows = _sample_rows(load, path_q, q)
     dyn = motor_command(arm, q, qd, qdd, load, rows=rows)
     if dyn.status is not DynamicStatus.OK:
         raise InfeasibleError(dyn.reason)
     static = q - arm.torque_deflection(q, dyn.tau_static)  # the same command without the inertial torques
-    theta = static + smooth(dyn.theta - static, n_smooth)
+    rest = rest_samples(qd, qdd)
+    rest[[0, -1]] = True  # every timing method runs rest to rest (Trajectory.t)
+    theta = command_with_rest(static, dyn.theta, rest, link.dt)
     needed = q - dyn.theta  # the deflection the plan's torques cause
     errors = predicted_tcp_errors(arm, q, needed, {"none": q, "static": static, "static+dynamic": theta})
-    moving = np.zeros(len(q), dtype=bool)
-    moving[n_pad : n_pad + len(link.q)] = np.linalg.norm(link.qd, axis=1) > 0.0
-    return _Pass(q, qd, qdd, rows, theta, static, errors, moving)
+    return _Pass(q, qd, qdd, rows, theta, static, errors, ~rest)
 
 
 def _mismatch(arm: ArmModel, ps: _Pass, load: Load) -> list[dict[str, float]]:
@@ -218,85 +305,123 @@ def _mismatch(arm: ArmModel, ps: _Pass, load: Load) -> list[dict[str, float]]:
     return out
 
 
+@dataclass
+class _Attempt:
+    """One timing pass of the link side: its limit scales, the command and its peak ratios."""
+
+    scale: dict[str, float]
+    link: Trajectory
+    ps: _Pass
+    derivs: tuple[np.ndarray, np.ndarray, np.ndarray]
+    ratio: dict[str, np.ndarray]
+
+    @property
+    def worst(self) -> dict[str, float]:
+        return {k: float(r.max()) for k, r in self.ratio.items()}
+
+    @property
+    def ok(self) -> bool:
+        return all(v <= 1.0 + DYNAMIC_RATIO_TOL for v in self.worst.values())
+
+    @property
+    def settled(self) -> bool:
+        """Within every limit, and no scaled limit leaves more than :data:`DYNAMIC_SETTLED_BAND` unused."""
+        return self.ok and all(self.scale[k] == 1.0 or v >= 1.0 - DYNAMIC_SETTLED_BAND for k, v in self.worst.items())
+
+
+def _attempt(
+    arm: ArmModel,
+    path_q: np.ndarray,
+    lim: dict[str, np.ndarray],
+    scale: dict[str, float],
+    dt: float,
+    method: str,
+    options: dict[str, Any],
+    load: Load,
+) -> _Attempt | str:
+    """Time the link side with the limits ``lim`` times ``scale`` and build the command, its derivative
+    columns (:func:`~problems.dynamic.command_derivatives`) and its peak ratios over the whole curve
+    (:func:`~problems.dynamic.curve_peaks`); the failure's reason instead when the timing fails.
+
+    Raises
+    ------
+    InfeasibleError
+        No motor-side command (the robot has no link masses).
+    """
+    link = time_parametrize(path_q, JointLimits(*(lim[k] * scale[k] for k in _KEYS)), method, dt, **options)
+    if link.status is not TimingStatus.OK:
+        return f"the link side's {method} timing: {link.status.value}: {link.reason}"
+    ps = _command(arm, link, load, path_q)
+    derivs = command_derivatives(link.t, ps.theta, ~ps.moving)
+    peaks = curve_peaks(link.t, ps.theta, derivs[0], derivs[1])
+    return _Attempt(dict(scale), link, ps, derivs, {k: peaks[k] / lim[k] for k in _KEYS})
+
+
 def dynamic_stage(
     arm: ArmModel, path_q: np.ndarray, limits: JointLimits, dt: float, method: str, options: dict[str, Any], load: Load
 ) -> DynamicStage:
     """Time the link-side path ``path_q`` (N, 6) rad and build the motor-side command (see module doc)."""
-    n_smooth = max(1, int(round(DYNAMIC_SMOOTHING_S / dt)))
-    n_pad = n_smooth
     scale = dict.fromkeys(_KEYS, 1.0)
     lim = {k: np.asarray(getattr(limits, k), float) for k in _KEYS}
-    ratio: dict[str, np.ndarray] = {}
+    best: _Attempt | None = None
+    last: _Attempt | None = None
     for p in range(1, DYNAMIC_MAX_PASSES + 1):
-        link = time_parametrize(path_q, JointLimits(*(lim[k] * scale[k] for k in _KEYS)), method, dt, **options)
-        if link.status is not TimingStatus.OK:
-            return DynamicStage(
-                DynamicStageStatus.FAILED,
-                f"pass {p}: the link side's {method} timing: {link.status.value}: {link.reason}",
-                passes=p,
-                limit_scale=dict(scale),
-            )
         try:
-            ps = _command(arm, link, load, path_q, n_smooth, n_pad)
+            got = _attempt(arm, path_q, lim, scale, dt, method, options, load)
         except InfeasibleError as exc:
             return DynamicStage(DynamicStageStatus.FAILED, str(exc), passes=p)
-        q, theta = ps.q, ps.theta
-        derivs = finite_derivatives(theta, dt)
-        ratio = {k: np.abs(x).max(axis=0) / lim[k] for k, x in zip(_KEYS, derivs)}
-        worst = {k: float(r.max()) for k, r in ratio.items()}
-        if all(v <= 1.0 + DYNAMIC_RATIO_TOL for v in worst.values()):
+        if isinstance(got, str):
+            if best is not None:  # an earlier pass is within every limit: keep it
+                break
+            return DynamicStage(DynamicStageStatus.FAILED, f"pass {p}: {got}", passes=p, limit_scale=dict(scale))
+        last = got
+        if got.ok and (best is None or got.link.duration_s < best.link.duration_s):
+            best = got
+        if got.settled:
             break
-        for k, v in worst.items():
-            if v > 1.0:
-                scale[k] *= (1.0 - DYNAMIC_RETIME_MARGIN) / v
-    t = np.arange(len(q)) * dt
-    ok = all(float(r.max()) <= 1.0 + DYNAMIC_RATIO_TOL for r in ratio.values())
-    text = ", ".join(f"{k} {float(r.max()):.3f}" for k, r in ratio.items())
-    scaled = ", ".join(f"{k} x{v:.3f}" for k, v in scale.items() if v != 1.0) or "none"
+        for k, v in got.worst.items():
+            if v > 1.0 + DYNAMIC_RATIO_TOL or scale[k] < 1.0:  # down where exceeded, back up where slack
+                scale[k] = min(1.0, scale[k] * (1.0 - DYNAMIC_RETIME_MARGIN) / v) if v > 0.0 else 1.0
+    assert last is not None
+    return _stage(arm, best or last, p, method, dt, load)
+
+
+def _stage(arm: ArmModel, a: _Attempt, passes: int, method: str, dt: float, load: Load) -> DynamicStage:
+    """The stage's result from the chosen pass ``a`` after ``passes`` timings of the link side."""
+    ok = a.ok
+    text = ", ".join(f"{k} {v:.3f}" for k, v in a.worst.items())
+    scaled = ", ".join(f"{k} x{v:.3f}" for k, v in a.scale.items() if v != 1.0) or "none"
     reason = (
-        f"motor-side command after {p} timing pass(es) of the link side "
-        f"(limits scaled: {scaled}); command peak ratios {text}; dynamic part smoothed over 2 x "
-        f"{n_smooth * dt * 1e3:g} ms, {n_pad * dt * 1e3:g} ms rest added at both ends"
+        f"motor-side command after {passes} timing pass(es) of the link side (limits scaled: {scaled}"
+        f"{'; the fastest pass within every limit' if ok and passes > 1 else ''}); command peak ratios {text} (on "
+        "the quintic spline through its samples); dynamic part zero at rest (the command there is the "
+        f"static one), smoothed over 2 x {DYNAMIC_SMOOTHING_S * 1e3:g} ms centred in the motion, 2 x "
+        f"{DYNAMIC_EDGE_SMOOTHING_S * 1e3:g} ms one-sided next to rest, handed over within {DYNAMIC_BLEND_S * 1e3:g} ms"
     )
-    status = TimingStatus.OK if ok else TimingStatus.LIMIT_EXCEEDED
-    d1, d2, d3 = derivs
+    t = a.link.t
+    d1, d2, d3 = a.derivs
     command = Trajectory(
         method=method,
-        status=status,
+        status=TimingStatus.OK if ok else TimingStatus.LIMIT_EXCEEDED,
         reason=reason,
         t=t,
-        q=theta,
+        q=a.ps.theta,
         qd=d1,
         qdd=d2,
         qddd=d3,
         duration_s=float(t[-1]),
-        limit_ratio=ratio,
+        limit_ratio=a.ratio,
         dt=dt,
-        iterations=p,
-    )
-    lq, lqd, lqdd, lqddd = (padded(x, n_pad) for x in (link.q, link.qd, link.qdd, link.qddd))
-    link_tr = Trajectory(
-        method=f"{method} (link side)",
-        status=link.status,
-        reason=link.reason,
-        t=t,
-        q=lq,
-        qd=lqd,
-        qdd=lqdd,
-        qddd=lqddd,
-        duration_s=float(t[-1]),
-        limit_ratio=link.limit_ratio,
-        dt=dt,
-        iterations=link.iterations,
+        iterations=passes,
     )
     return DynamicStage(
         DynamicStageStatus.OK if ok else DynamicStageStatus.LIMIT_EXCEEDED,
         reason,
         command,
-        link_tr,
-        p,
-        dict(scale),
-        ps.errors,
-        ps.moving,
-        _mismatch(arm, ps, load),
+        replace(a.link, method=f"{method} (link side)"),
+        passes,
+        dict(a.scale),
+        a.ps.errors,
+        a.ps.moving,
+        _mismatch(arm, a.ps, load),
     )

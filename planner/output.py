@@ -8,9 +8,21 @@
   A failure at any point (disk full ``ENOSPC``, file-size limit ``EFBIG``, an interrupt)
   removes the temporary folder and leaves the previous set exactly as it was: never a mix
   of old and new files, never an earlier run's file beside a new one.  A set either owns
-  its whole folder (a run: plan, demo, map, pose, the identification report) or, with
+  its whole folder (a run: plan, demo, place, map, pose, the identification report) or, with
   ``owns=``, some entries of an existing folder (the report of a run folder: the rest is
-  carried over by hard links).
+  carried over by hard links).  A file that belongs with a set but lives elsewhere (the model
+  file of ``identify``) is written first and moved in after the set (:func:`pending_file`).
+* **Killed runs.**  A run killed outright (``SIGKILL``, a power cut) cannot clean up: it
+  leaves its hidden siblings (``new-*``, ``old-*``, ``tmp-*``) and never the output half
+  written.  The next writer of the output removes them once it holds the output's lock; one
+  it cannot remove is named in a note (:func:`take_output_notes`, printed by the command
+  line as a warning) with the command that removes it.
+* **What a folder holds.**  An output folder of compplan is recognised by its marker file
+  (:data:`FOLDER_KIND_MARKERS`; :func:`output_folder_kind`).  A folder holding files compplan
+  did not write is never replaced; one holding another command's output (a placement study
+  where a plan is written) is replaced only when asked (``holds=``, ``force=`` of
+  :func:`check_output_path`, the ``--force`` of the commands); one whose previous contents
+  could not be removed (a read-only sub-folder) is refused before anything is written.
 * **Permissions.**  Files are created with mode ``0o666`` and folders ``0o777`` less the
   process umask, as by any program (no temporary file's ``0600`` is left on an output).
 * **One writer.**  An output is locked while it is written (``fcntl.flock`` on the hidden
@@ -18,6 +30,10 @@
   refused at once with one line naming the holder's process.  The commands take the lock
   before their long work (:func:`planner.commands.common.check_output`) and keep it to the
   end; :meth:`OutputSet.publish` takes it too (re-entrant within one thread).
+
+The siblings, their clean-up and the lock live in :mod:`planner.output_siblings`, the checks of
+an output path and the kinds of output folder in :mod:`planner.output_checks`; this module
+re-exports what callers use.
 
 Errors are :class:`OutputError` (a :class:`~models.errors.InputError`, so the command
 line prints one line and exits 2, and an :class:`OSError`).
@@ -29,27 +45,49 @@ import contextlib
 import csv
 import ctypes
 import errno
-import hashlib
 import io
 import json
 import os
-import secrets
 import shutil
 import sys
-import threading
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 from collections.abc import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
 from models.errors import InputError
-
-try:
-    import fcntl
-except ImportError:  # not POSIX: outputs are written whole but not locked
-    fcntl = None  # type: ignore[assignment]
+from planner.output_checks import (
+    FOLDER_KIND_MARKERS,
+    OUTPUT_FOLDER_MARKERS,
+    SUMMARY_COMMAND_KINDS,
+    FolderKind,
+    OutputKind,
+    check_output_folder,
+    check_output_path,
+    output_folder_kind,
+)
+from planner.output_siblings import (
+    FILE_MODE,
+    FOLDER_MODE,
+    LOCK_KIND,
+    RETIRED_KIND,
+    SIBLING_TAG,
+    STAGING_KIND,
+    TEMP_KIND,
+    OutputError,
+    _cause,
+    _real,
+    acquire_output_lock,
+    clean_up,
+    holds_output_lock,
+    lock_path,
+    new_sibling_name,
+    output_lock,
+    release_output_lock,
+    sibling_prefix,
+    take_output_notes,
+)
 
 #: Columns of ``trajectory*.csv`` (SI): time, positions, velocities, accelerations, jerks.
 TRAJECTORY_COLUMNS = (
@@ -60,52 +98,14 @@ TRAJECTORY_COLUMNS = (
     + [f"qddd{i}" for i in range(1, 7)]
 )
 
-#: Mode of a created file and of a created folder before the process umask is applied.
-FILE_MODE = 0o666
-FOLDER_MODE = 0o777
-
-#: Every hidden sibling compplan makes beside an output ``NAME`` is ``.NAME`` + this tag + a
-#: kind: the lock file, a set being built, a set being retired, a file being written.
-SIBLING_TAG = ".compplan-"
-LOCK_KIND = "lock"
-STAGING_KIND = "new-"
-RETIRED_KIND = "old-"
-TEMP_KIND = "tmp-"
-#: Names longer than this are shortened (prefix + hash) in sibling names (NAME_MAX is 255).
-SIBLING_NAME_MAX = 64
-#: Random hex digits in a temporary sibling's name.
-SIBLING_TOKEN_BYTES = 6
-
-#: A file of one of these names marks an existing folder as an output folder of compplan
-#: (plan/demo, identification report, map, pose), which a new run may replace whole.
-OUTPUT_FOLDER_MARKERS = ("summary.json", "report.json", "compliance_map.json", "pose.json")
-#: Entries of a foreign folder named in the refusal message.
-FOREIGN_SHOWN = 3
-
-#: Attempts to lock a lock file that its previous holder removes between our open and flock.
-LOCK_ATTEMPTS = 5
 
 #: Flush every output file to the disk before it is moved into place (a crash right after
 #: the move then never leaves an empty file).
 FSYNC_FILES = True
 
-#: ``flock`` errors of a file system without locks (some network file systems): written unlocked.
-_NO_LOCKING = (errno.ENOLCK, errno.ENOTSUP, errno.EOPNOTSUPP)
-
 #: Linux ``renameat2`` arguments: ``AT_FDCWD`` and the flag that swaps two paths atomically.
 _AT_FDCWD = -100
 _RENAME_EXCHANGE = 2
-
-OutputKind = Literal["file", "folder", "update"]
-
-
-class OutputError(InputError, OSError):
-    """An output cannot be written (disk full, file-size limit, permissions, another writer).
-
-    One line naming the output and the cause; the previous output is unchanged.  Both an
-    :class:`~models.errors.InputError` (the CLI prints it and exits 2) and an
-    :class:`OSError` (callers that tolerate I/O failures, e.g. caches, still catch it).
-    """
 
 
 def jsonable(obj: Any) -> Any:
@@ -166,352 +166,6 @@ def csv_bytes(
     return b"".join(csv_chunks(header, rows, int_rows))
 
 
-# ------------------------------------------------------------------------------ errors
-def _cause(exc: OSError) -> str:
-    """``strerror (ENAME)`` of an OS error, e.g. ``No space left on device (ENOSPC)``."""
-    if exc.errno is None:
-        return str(exc)
-    name = errno.errorcode.get(exc.errno, str(exc.errno))
-    return f"{exc.strerror or os.strerror(exc.errno)} ({name})"
-
-
-# ------------------------------------------------------------------------------ siblings
-def _real(path: str | Path) -> Path:
-    """The absolute path with symbolic links resolved (also for parts that do not exist yet)."""
-    return Path(os.path.realpath(os.fspath(path)))
-
-
-def _stem(name: str) -> str:
-    """``name`` as used in sibling names: long names shortened to a prefix and a hash."""
-    if len(name) <= SIBLING_NAME_MAX:
-        return name
-    digest = hashlib.sha256(name.encode("utf-8", "surrogateescape")).hexdigest()[:12]
-    return f"{name[: SIBLING_NAME_MAX - 13]}-{digest}"
-
-
-def sibling_prefix(target: str | Path, kind: str) -> Path:
-    """Path (prefix) of a hidden sibling of ``target`` of the given kind (``LOCK_KIND`` ...)."""
-    real = _real(target)
-    return real.parent / f".{_stem(real.name)}{SIBLING_TAG}{kind}"
-
-
-def lock_path(target: str | Path) -> Path:
-    """The lock file of an output: ``.NAME.compplan-lock`` beside it."""
-    return sibling_prefix(target, LOCK_KIND)
-
-
-def _new_sibling_name(target: Path, kind: str) -> Path:
-    return Path(f"{sibling_prefix(target, kind)}{os.getpid()}-{secrets.token_hex(SIBLING_TOKEN_BYTES)}")
-
-
-def _remove(path: Path) -> None:
-    """Remove a file or a folder tree; errors ignored (best effort clean-up)."""
-    try:
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path, ignore_errors=True)
-        else:
-            path.unlink()
-    except OSError:
-        pass
-
-
-def _remove_leftovers(target: Path) -> None:
-    """Remove temporary siblings that an earlier, killed writer of ``target`` left.
-
-    Only called by the holder of ``target``'s lock, so no live writer owns them.
-    """
-    real = _real(target)
-    prefixes = tuple(sibling_prefix(real, k).name for k in (STAGING_KIND, RETIRED_KIND, TEMP_KIND))
-    try:
-        names = os.listdir(real.parent)
-    except OSError:
-        return
-    for name in names:
-        if name.startswith(prefixes):
-            _remove(real.parent / name)
-
-
-# ------------------------------------------------------------------------------ locks
-@dataclass
-class _HeldLock:
-    """A lock this process holds on one output."""
-
-    fd: int
-    path: Path
-    thread: int
-    count: int = 1
-    created: list[Path] = field(default_factory=list)
-
-
-_HELD: dict[Path, _HeldLock] = {}
-_HELD_GUARD = threading.Lock()
-
-
-def _make_parents(folder: Path) -> list[Path]:
-    """Create ``folder`` and its missing parents; returns the folders created, outermost first."""
-    missing = []
-    p = folder
-    while not p.exists():
-        missing.append(p)
-        if p.parent == p:
-            break
-        p = p.parent
-    created = []
-    for d in reversed(missing):
-        try:
-            d.mkdir(FOLDER_MODE)
-            created.append(d)
-        except FileExistsError:
-            pass
-    return created
-
-
-def _remove_if_empty(folders: list[Path]) -> None:
-    """Remove the folders made for a lock, innermost first, while they are empty."""
-    for d in reversed(folders):
-        try:
-            d.rmdir()
-        except OSError:
-            break
-
-
-def _holder(fd: int) -> str:
-    """``pid N`` as the holder wrote it into the lock file, or ``''``."""
-    try:
-        text = os.pread(fd, 64, 0).decode(errors="replace").strip()
-    except OSError:
-        return ""
-    return f"pid {text}" if text.isdigit() else ""
-
-
-def holds_output_lock(target: str | Path) -> bool:
-    """Whether this process holds the lock of ``target``."""
-    return _real(target) in _HELD
-
-
-def _lock_attempt(path: Path, created: list[Path], target: str | Path, what: str) -> tuple[int | None, bool]:
-    """One attempt at the lock file ``path``: ``(fd, True)`` when locked, ``(None, True)`` on a
-    file system without locks, ``(None, False)`` when the file was removed under us (try again).
-
-    Raises
-    ------
-    OutputError
-        Another run holds the lock, or the lock file cannot be created or locked.
-    """
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, FILE_MODE)
-    except OSError as exc:
-        _remove_if_empty(created)
-        raise OutputError(f"{what} {target}: cannot create the lock file {path} ({_cause(exc)})") from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        holder = _holder(fd)
-        os.close(fd)
-        _remove_if_empty(created)
-        raise OutputError(
-            f"{what} {target}: another compplan run is writing it "
-            f"({holder + ', ' if holder else ''}lock {path}); wait for it to finish "
-            "or choose another path"
-        ) from None
-    except OSError as exc:
-        os.close(fd)
-        if exc.errno in _NO_LOCKING:
-            with contextlib.suppress(OSError):
-                path.unlink()
-            _remove_if_empty(created)
-            return None, True
-        _remove_if_empty(created)
-        raise OutputError(f"{what} {target}: cannot lock {path} ({_cause(exc)})") from None
-    # The previous holder removes the file on release: ours may be an unlinked one.
-    try:
-        same = os.path.samestat(os.fstat(fd), os.stat(path))
-    except FileNotFoundError:
-        same = False
-    if same:
-        return fd, True
-    os.close(fd)
-    return None, False
-
-
-def acquire_output_lock(target: str | Path, what: str = "output") -> Path:
-    """Lock ``target`` (a file or folder to be written) for this process, without waiting.
-
-    Re-entrant within one thread (a count); release with :func:`release_output_lock` as
-    often.  Missing parent folders are created for the lock file and removed again on
-    release if nothing was written into them.
-
-    Parameters
-    ----------
-    target : str or Path
-        The output file or folder.
-    what : str
-        How messages name it, e.g. ``"--out"`` or ``"output folder"``.
-
-    Returns
-    -------
-    Path
-        The lock file.
-
-    Raises
-    ------
-    OutputError
-        Another process (or another thread of this one) is writing ``target``, or the
-        lock file cannot be created.
-    """
-    real = _real(target)
-    with _HELD_GUARD:
-        held = _HELD.get(real)
-        if held is not None:
-            if held.thread != threading.get_ident():
-                raise OutputError(f"{what} {target}: another thread of this process is writing it")
-            held.count += 1
-            return held.path
-    path = lock_path(real)
-    if fcntl is None:
-        return path
-    try:
-        created = _make_parents(path.parent)
-    except OSError as exc:
-        raise OutputError(f"{what} {target}: cannot create the folder {path.parent} ({_cause(exc)})") from None
-    for _ in range(LOCK_ATTEMPTS):
-        fd, locked = _lock_attempt(path, created, target, what)
-        if locked and fd is None:  # a file system without locks: write unlocked
-            return path
-        if locked:
-            break
-    else:
-        _remove_if_empty(created)
-        raise OutputError(f"{what} {target}: cannot lock {path} (removed repeatedly by other runs)")
-    with contextlib.suppress(OSError):
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-    with _HELD_GUARD:
-        _HELD[real] = _HeldLock(fd, path, threading.get_ident(), created=created)
-    _remove_leftovers(real)
-    return path
-
-
-def release_output_lock(target: str | Path) -> None:
-    """Release one :func:`acquire_output_lock` of ``target``; the last removes the lock file."""
-    real = _real(target)
-    with _HELD_GUARD:
-        held = _HELD.get(real)
-        if held is None:
-            return
-        held.count -= 1
-        if held.count > 0:
-            return
-        del _HELD[real]
-    try:
-        if os.path.samestat(os.fstat(held.fd), os.stat(held.path)):
-            held.path.unlink()  # while still locked: no one can hold this inode
-    except OSError:
-        pass
-    os.close(held.fd)
-    _remove_if_empty(held.created)
-
-
-@contextlib.contextmanager
-def output_lock(target: str | Path, what: str = "output") -> Iterator[Path]:
-    """``with output_lock(path):`` -- :func:`acquire_output_lock` ... :func:`release_output_lock`."""
-    path = acquire_output_lock(target, what)
-    try:
-        yield path
-    finally:
-        release_output_lock(target)
-
-
-# ------------------------------------------------------------------------------ checks
-def check_output_path(
-    path: str | Path, kind: OutputKind = "folder", what: str = "--out", writes: Iterable[str] = ()
-) -> Path:
-    """Check that ``path`` can be written as an output of the given kind; nothing is created.
-
-    Call it before long computations so that a bad output path fails at once.
-
-    Parameters
-    ----------
-    path : str or Path
-        The output.
-    kind : {"file", "folder", "update"}
-        ``"file"``: one file (not an existing folder).  ``"folder"``: a folder a run
-        replaces whole: new, empty, or an output folder of compplan (it holds one of
-        :data:`OUTPUT_FOLDER_MARKERS`, or only entries named in ``writes``).  ``"update"``:
-        an existing folder some of whose entries are replaced (the report of a run folder).
-    what : str
-        How messages name the output (``"--out"``, ``"--report"``, ...).
-    writes : iterable of str
-        Top-level names the output set writes (a folder holding only these is one it wrote).
-
-    Returns
-    -------
-    Path
-
-    Raises
-    ------
-    OutputError
-        One line naming the path and what is wrong with it.
-    """
-    p = Path(path)
-    real = _real(p)
-    if real.parent == real:
-        raise OutputError(f"{what} {p}: is the root folder; give a folder below it")
-    if kind == "file":
-        if p.is_dir():
-            raise OutputError(f"{what} {p}: is an existing folder; give the path of the file to write")
-        if p.exists() and not p.is_file():
-            raise OutputError(f"{what} {p}: exists and is not a regular file")
-    else:
-        if p.exists() and not p.is_dir():
-            raise OutputError(f"{what} {p}: exists and is not a folder; give a folder path")
-        cwd = _real(os.getcwd())
-        if cwd == real or real in cwd.parents:
-            raise OutputError(
-                f"{what} {p}: is the current folder or contains it, and it is replaced whole "
-                "when written; run from outside it (e.g. its parent)"
-            )
-        if kind == "folder" and p.is_dir():
-            try:
-                entries = sorted(os.listdir(p))
-            except OSError as exc:
-                raise OutputError(f"{what} {p}: cannot read the folder ({_cause(exc)})") from None
-            ours = set(writes)
-            if entries and not any(m in entries for m in OUTPUT_FOLDER_MARKERS) and not set(entries) <= ours:
-                shown = ", ".join(entries[:FOREIGN_SHOWN]) + (", ..." if len(entries) > FOREIGN_SHOWN else "")
-                raise OutputError(
-                    f"{what} {p}: holds files compplan did not write ({shown}), and an output "
-                    "folder is replaced whole; give a new or empty folder"
-                )
-    parent = real.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise OutputError(f"{what} {p}: {parent} is not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError(f"{what} {p}: {parent} is not writable")
-    return p
-
-
-def check_output_folder(folder: str | Path, create: bool = False) -> Path:
-    """Check that ``folder`` can be written as a whole output folder (see :func:`check_output_path`).
-
-    Kept for callers of earlier versions; nothing is created unless ``create``.
-
-    Raises
-    ------
-    OutputError
-        Naming the folder and what is wrong with it.
-    """
-    p = check_output_path(folder, "folder", "--out")
-    if create:
-        try:
-            p.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"--out {p}: cannot create the folder ({_cause(exc)})") from None
-    return p
-
-
 # ------------------------------------------------------------------------------ writing
 def _write_new_file(path: Path, data: bytes | Iterable[bytes]) -> None:
     """Create ``path`` (which must not exist; mode ``FILE_MODE`` less the umask) holding ``data``
@@ -530,6 +184,64 @@ def _write_new_file(path: Path, data: bytes | Iterable[bytes]) -> None:
             os.fsync(fh.fileno())
 
 
+@contextlib.contextmanager
+def pending_file(path: str | Path, data: bytes, what: str = "") -> Iterator[Path]:
+    """``with pending_file(path, data): ...`` -- write ``data`` for ``path`` now, put it in place
+    when the block ends without an error.
+
+    The file is written to a hidden temporary sibling before the block runs (so a full disk or a
+    file-size limit fails before anything is replaced) and moved into place with
+    :func:`os.replace` after it; an error or an interrupt in the block removes it and leaves
+    ``path`` as it was.  Used for a file that belongs with an output set published in the block
+    (the model file of ``identify`` and its report folder): both are new, or both as they were.
+    The file gets mode ``0o666`` less the umask; missing parent folders are created.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file (a symbolic link is written through, not replaced).
+    data : bytes
+        Its contents.
+    what : str
+        How messages name it (e.g. ``"--out"``), before the path.
+
+    Yields
+    ------
+    Path
+        The temporary file.
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written (names it and the cause); ``path`` is unchanged and no
+        temporary file is left.
+    """
+    path = Path(path)
+    name = f"{what} {path}".strip()
+    real = _real(path)
+    try:
+        real.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{name}: cannot create the folder {path.parent} ({_cause(exc)})") from None
+    tmp = new_sibling_name(real, TEMP_KIND)
+    unchanged = "the previous file, if any, is unchanged"
+    done = False
+    try:
+        try:
+            _write_new_file(tmp, data)
+        except OSError as exc:
+            raise OutputError(f"{name}: cannot write ({_cause(exc)}); {unchanged}") from None
+        yield tmp
+        try:
+            os.replace(tmp, real)
+        except OSError as exc:
+            raise OutputError(f"{name}: cannot move it into place ({_cause(exc)}); {unchanged}") from None
+        done = True
+    finally:
+        if not done:
+            clean_up(tmp, name, "the unfinished new version of it")
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` whole or not at all (hidden temporary sibling + rename).
 
@@ -541,22 +253,8 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
         The file cannot be written (names it and the cause); ``path`` is unchanged and no
         temporary file is left.
     """
-    path = Path(path)
-    real = _real(path)  # a symbolic link is written through, not replaced
-    try:
-        real.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot create the folder {path.parent} ({_cause(exc)})") from None
-    tmp = _new_sibling_name(real, TEMP_KIND)
-    try:
-        _write_new_file(tmp, data)
-        os.replace(tmp, real)
-    except OSError as exc:
-        _remove(tmp)
-        raise OutputError(f"{path}: cannot write ({_cause(exc)}); the previous file, if any, is unchanged") from None
-    except BaseException:
-        _remove(tmp)
-        raise
+    with pending_file(path, data):
+        pass
 
 
 def atomic_write_files(files: dict[Path, bytes]) -> None:
@@ -571,22 +269,23 @@ def atomic_write_files(files: dict[Path, bytes]) -> None:
     OutputError
         Naming the file that could not be written and the cause.
     """
-    staged: list[tuple[Path, Path]] = []
+    staged: list[tuple[Path, Path, Path]] = []
     try:
         for path, data in files.items():
             real = _real(Path(path))
             try:
                 real.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
-                tmp = _new_sibling_name(real, TEMP_KIND)
-                staged.append((tmp, real))
+                tmp = new_sibling_name(real, TEMP_KIND)
+                staged.append((tmp, real, Path(path)))
                 _write_new_file(tmp, data)
             except OSError as exc:
                 raise OutputError(f"{path}: cannot write ({_cause(exc)}); no file of the set was changed") from None
-        for tmp, real in staged:
+        for tmp, real, _path in staged:
             os.replace(tmp, real)
     finally:
-        for tmp, _real_path in staged:
-            _remove(tmp)
+        for tmp, _real_path, path in staged:
+            if os.path.lexists(tmp):
+                clean_up(tmp, str(path), "the unfinished new version of it")
 
 
 def _exchange(a: Path, b: Path) -> bool:
@@ -620,12 +319,13 @@ def _move_into_place(staging: Path, target: Path) -> Path | None:
         return None
     if _exchange(staging, target):
         return staging
-    retired = _new_sibling_name(target, RETIRED_KIND)
-    os.rename(target, retired)
+    retired = new_sibling_name(target, RETIRED_KIND)
     try:
+        os.rename(target, retired)
         os.rename(staging, target)
     except BaseException:
-        os.rename(retired, target)
+        if not os.path.lexists(target) and os.path.lexists(retired):
+            os.rename(retired, target)
         raise
     return retired
 
@@ -708,7 +408,8 @@ class OutputSet:
         check_output_path(self.folder, kind, "output folder", writes={Path(n).parts[0] for n in self.files})
         with output_lock(self.folder, "output folder"):
             target = _real(self.folder)
-            staging = _new_sibling_name(target, STAGING_KIND)
+            staging = new_sibling_name(target, STAGING_KIND)
+            owner = f"output folder {self.folder}"
             doing = "create a temporary folder"
             try:
                 staging.mkdir(FOLDER_MODE)
@@ -726,34 +427,47 @@ class OutputSet:
                 doing = "move the new files into place"
                 retired = _move_into_place(staging, target)
             except OSError as exc:
-                _remove(staging)
-                raise OutputError(
-                    f"output folder {self.folder}: cannot {doing} ({_cause(exc)}); nothing was changed"
-                ) from None
+                clean_up(staging, owner, "the unfinished new version of it")
+                raise OutputError(f"{owner}: cannot {doing} ({_cause(exc)}); nothing was changed") from None
             except BaseException:
-                _remove(staging)
+                clean_up(staging, owner, "the unfinished new version of it")
                 raise
             if retired is not None:
-                _remove(retired)
+                clean_up(retired, owner, "its previous version (the new one is in place)")
         return [self.folder / name for name in self.files]
 
 
 __all__ = [
     "FILE_MODE",
+    "FOLDER_KIND_MARKERS",
     "FOLDER_MODE",
+    "FolderKind",
+    "LOCK_KIND",
     "OUTPUT_FOLDER_MARKERS",
     "OutputError",
+    "OutputKind",
     "OutputSet",
+    "RETIRED_KIND",
+    "SIBLING_TAG",
+    "STAGING_KIND",
+    "SUMMARY_COMMAND_KINDS",
+    "TEMP_KIND",
     "TRAJECTORY_COLUMNS",
     "acquire_output_lock",
     "atomic_write_bytes",
+    "atomic_write_files",
     "check_output_folder",
     "check_output_path",
     "csv_bytes",
+    "csv_chunks",
     "holds_output_lock",
     "json_bytes",
     "jsonable",
     "lock_path",
+    "output_folder_kind",
     "output_lock",
+    "pending_file",
     "release_output_lock",
+    "sibling_prefix",
+    "take_output_notes",
 ]

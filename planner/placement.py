@@ -66,6 +66,9 @@ class StudyStatus(Status):
     OK = "ok"
     #: no placement of the grid is feasible
     NO_FEASIBLE = "no feasible placement"
+    #: the sweep did not complete on its cluster (the sweep's status and reason:
+    #: ``SweepStatus.NO_WORKERS`` or ``CLUSTER_FAILED``)
+    SWEEP_FAILED = "sweep failed"
 
 
 @dataclass
@@ -335,12 +338,17 @@ def study(
     Returns
     -------
     PlacementStudy
+        Status ``SWEEP_FAILED`` (no baseline, ranking or plans) when the sweep's cluster failed.
     """
     kernel = PlacementKernel(problem)
     sw = run_sweep(kernel, grid.placements(), scheduler, chunk_placements, progress)
+    labels = tuple(kernel.ik.labels)
+    if not sw.scored:  # the cluster failed: nothing to rank
+        none, unranked = ChunkScores.empty(0, kernel.n_branches), np.zeros(0, dtype=int)
+        failed = StudyStatus.SWEEP_FAILED
+        return PlacementStudy(failed, sw.reason, problem, grid, sw, none, unranked, branch_labels=labels)
     base = kernel.evaluate(np.zeros((1, 5)))
     ranked = ranking(sw.scores)
-    labels = tuple(kernel.ik.labels)
     status, reason = (StudyStatus.OK, "") if sw.ok else (StudyStatus.NO_FEASIBLE, sw.reason)
     st = PlacementStudy(status, reason, problem, grid, sw, base, ranked, branch_labels=labels)
     if not st.ok:

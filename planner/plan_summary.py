@@ -268,6 +268,9 @@ def headline(s: dict[str, Any]) -> dict[str, Any]:
         h["duration_time_optimal_s"] = round_sig(dur[ref])
         h["duration_time_optimal_method"] = ref
     h["definition"] = HEADLINE_DEFINITION
+    dyn = s.get("dynamic_compensation")
+    if isinstance(dyn, dict) and isinstance(dyn.get("headline"), dict):  # computed once: DynamicStage.headline
+        h["dynamic_compensation"] = dyn["headline"]
     return h
 
 

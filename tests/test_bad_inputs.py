@@ -828,14 +828,14 @@ REPORT = [
         "report {t}/run --no-map",
         {"run": None, "run/summary.json": "{}"},
         ["run/report.html"],
-        ["summary.json", "'command'", "plan or demo"],
+        ["summary.json", "command missing", "'plan', 'demo'"],
     ),
     C(
         "report-summary-of-identify",
         "report {t}/run --no-map",
         {"run": None, "run/summary.json": '{"command": "identify"}'},
         ["run/report.html"],
-        ["'identify'"],
+        ['command = "identify"', "'plan', 'demo'"],
     ),
 ]
 

@@ -34,6 +34,9 @@ POS_TOL_RAD = 1e-8
 #: Times: servoj's t and RAPID's \T print 6 decimals; ROS 2 nanoseconds.
 TIME_TOL_S = 1e-6
 FORMATS = ("urscript", "urscript_movej", "ros2", "rapid", "krl")
+#: Options of the golden files and of the exports of a run: a movej list without blend stops at every
+#: target, which a jerk-limited plan's motion is not (refused), so the movej golden file blends.
+GOLDEN_OPTIONS = {"urscript_movej": {"blend_radius": 0.001}}
 NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
@@ -142,7 +145,7 @@ def small_data(**kw) -> ExportData:
         qddd=np.outer(pddd, dq),
         dt=dt,
         v_max=np.full(6, 3.14),
-        a_max=np.full(6, 20.0),
+        a_max=np.full(6, 21.0),  # joint 3 peaks at 20.04 rad/s^2 between the samples (20 at them)
         j_max=np.full(6, 2000.0),
         q_min=np.full(6, -2 * math.pi),
         q_max=np.full(6, 2 * math.pi),
@@ -152,6 +155,33 @@ def small_data(**kw) -> ExportData:
     )
     args.update(kw)
     return ExportData(**args)
+
+
+def bang_data(room: float = 1.0, tau: float = 0.05, jerk: float = 400.0, **kw) -> ExportData:
+    """A rest-to-rest move at 8 ms whose jerk is +J, -J, -J, +J for ``tau`` each (switching between
+    the samples), integrated exactly; the jerk and acceleration limits are its peaks times ``room``
+    (``kw``: other fields of :func:`small_data`)."""
+    h = 1e-5  # integration step: a divisor of tau and of the period, so the switches and samples fall on it
+    n = int(round(4 * tau / h))
+    sign = np.where((np.arange(n) < n // 4) | (np.arange(n) >= 3 * n // 4), 1.0, -1.0)
+    scale = np.array([1.0, -0.6, 0.8, 0.3, -0.5, 0.7])
+    q, v, a = np.array([0.1, -1.2, 1.3, -0.4, 1.5707963, 0.2]), np.zeros(6), np.zeros(6)
+    rows, every = [], int(round(0.008 / h))
+    for k in range(n + 1):
+        j = jerk * scale * (sign[k] if k < n else 0.0)
+        if k % every == 0 or k == n:
+            rows.append(np.r_[k * h, q, v, a, j])
+        if k < n:  # exact over a step of constant jerk
+            q, v, a = q + v * h + a * h**2 / 2 + j * h**3 / 6, v + a * h + j * h**2 / 2, a + j * h
+    r = np.array(rows)
+    return small_data(
+        t=r[:, 0],
+        q=r[:, 1:7],
+        qd=r[:, 7:13],
+        qdd=r[:, 13:19],
+        qddd=r[:, 19:25],
+        **{"a_max": jerk * tau * np.abs(scale) * room * 1.0001, "j_max": jerk * np.abs(scale) * room, **kw},
+    )
 
 
 @pytest.fixture
@@ -167,7 +197,7 @@ def test_golden_files(fmt, fixed_version):
     files instead and fails the test, naming them: review the diff, then run again without it (a
     run with the variable set never passes)."""
     data = small_data()
-    files = export_files(data, fmt, Path(f"golden_{fmt}"))
+    files = export_files(data, fmt, Path(f"golden_{fmt}"), GOLDEN_OPTIONS.get(fmt))
     if os.environ.get(UPDATE_GOLDEN_ENV):
         written = []
         for path, text in files.items():
@@ -207,15 +237,17 @@ def test_urscript_round_trip(fixed_version):
     pos = 10 * t**3 - 15 * t**4 + 6 * t**5
     dq = np.array([0.02, -0.03, 0.05, 0.01, -0.02, 0.04])
     vel = (30 * t**2 - 60 * t**3 + 30 * t**4) / fine.t[-1]
+    acc = (60 * t - 180 * t**2 + 120 * t**3) / fine.t[-1] ** 2
     fine = small_data(
         dt=0.002,
         t=np.arange(61) * 0.002,
         q=fine.q[0] + np.outer(pos, dq),
         qd=np.outer(vel, dq),
-        qdd=np.zeros((61, 6)),
+        qdd=np.outer(acc, dq),
         qddd=np.zeros((61, 6)),
+        enforced=("velocity", "acceleration"),
     )
-    text = next(iter(export_files(fine, "urscript", Path("p"), {"period": 0.008}).values()))
+    text = next(iter(export_files(fine, "urscript", Path("p"), {"period": 0.008, "slow_down": "no"}).values()))
     moves = parse_urscript(text)["moves"]
     q = np.array([m[1] for m in moves])
     np.testing.assert_allclose(q, _ctrl(fine)[::4], atol=POS_TOL_RAD)
@@ -363,9 +395,23 @@ def _csv_controller_q(run: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
+def _set(fmt: str) -> list[str]:
+    """``--set`` arguments of :data:`GOLDEN_OPTIONS` for ``fmt``."""
+    return [a for k, v in GOLDEN_OPTIONS.get(fmt, {}).items() for a in ("--set", f"{k}={v}")]
+
+
+def _slow_factor(t_written: np.ndarray, t: np.ndarray, text: str) -> float:
+    """How much slower than the plan an export runs (1 unless its header says it was slowed down)."""
+    k = float(t_written[-1] / t[-1])
+    m = re.search(r"slowed down x(" + NUM + ")", text)
+    assert (m is None and k == pytest.approx(1.0, abs=1e-9)) or (m and k == pytest.approx(float(m.group(1)), abs=1e-4))
+    return k
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
 def test_export_of_a_run_matches_trajectory_csv(fmt, run_folder, tmp_path, capsys):
     out = tmp_path / f"prog_{fmt}"
-    assert main(["export", str(run_folder), "--format", fmt, "--out", str(out)]) == 0
+    assert main(["export", str(run_folder), "--format", fmt, "--out", str(out), *_set(fmt)]) == 0
     t, qc = _csv_controller_q(run_folder)
     written = sorted(tmp_path.iterdir())
     texts = {p.suffix: p.read_text(encoding="utf-8") for p in written}
@@ -385,8 +431,9 @@ def test_export_of_a_run_matches_trajectory_csv(fmt, run_folder, tmp_path, capsy
             "wrist_3_joint",
         ]
         np.testing.assert_allclose([p["positions"] for p in msg["points"]], qc, atol=POS_TOL_RAD)
-        ts = [p["time_from_start"]["sec"] + 1e-9 * p["time_from_start"]["nanosec"] for p in msg["points"]]
-        np.testing.assert_allclose(ts, t, atol=TIME_TOL_S)
+        ts = np.array([p["time_from_start"]["sec"] + 1e-9 * p["time_from_start"]["nanosec"] for p in msg["points"]])
+        k = _slow_factor(ts, t, texts[".yaml"])  # the same path, k times slower if the header says so
+        np.testing.assert_allclose(ts, k * t, atol=TIME_TOL_S)
     else:
         if fmt == "urscript_movej":
             moves = parse_urscript(texts[".script"])["moves"]
@@ -409,11 +456,17 @@ def test_export_of_a_run_matches_trajectory_csv(fmt, run_folder, tmp_path, capsy
         np.testing.assert_allclose(q, qc[k], atol=POS_TOL_RAD)
 
 
-def test_plan_export_equals_export_of_the_run(run_folder, tmp_path):
-    """plan/demo --export (in memory) writes what compplan export writes from the folder."""
+def test_plan_export_equals_export_of_the_run(run_folder, tmp_path, capsys):
+    """plan/demo --export (in memory) writes what compplan export writes from the folder; a format the
+    export refuses at its default options (a movej list without blend) is left out of the run."""
+    written = []
     for fmt in FORMATS:
-        assert main(["export", str(run_folder), "--format", fmt, "--out", str(tmp_path / f"paper_4_4_{fmt}")]) == 0
-    assert len(list(tmp_path.iterdir())) == len(FORMATS) + 1
+        code = main(["export", str(run_folder), "--format", fmt, "--out", str(tmp_path / f"paper_4_4_{fmt}")])
+        assert code == (2 if fmt == "urscript_movej" else 0), fmt
+        written += [fmt] if code == 0 else []
+    assert "blend_radius 0 stops the arm at every target" in capsys.readouterr().err
+    assert not list(run_folder.glob("*urscript_movej*"))
+    assert len(list(tmp_path.iterdir())) == len(written) + 1
     for p in tmp_path.iterdir():
         mine = (run_folder / p.name).read_text(encoding="utf-8")
         body = [ln for ln in p.read_text(encoding="utf-8").splitlines() if "generated by compplan" not in ln]
@@ -528,8 +581,11 @@ def test_rosbag2_round_trip(run_folder, tmp_path, capsys):
                 states.append(msg.position)
                 stamps.append(stamp)
     np.testing.assert_allclose(states, qc, atol=1e-12)
-    np.testing.assert_allclose((np.array(stamps) - 100e9) * 1e-9, t, atol=TIME_TOL_S)
-    # a second export into the same folder is refused (a bag folder is written whole, never merged)
+    stamps = (np.array(stamps) - 100e9) * 1e-9
+    k = _slow_factor(stamps, t, capsys.readouterr().err)  # the warning says how much slower, as the header
+    np.testing.assert_allclose(stamps, k * t, atol=TIME_TOL_S)
+    # a bag folder is written whole, never merged: into a folder holding other files it is refused
+    (bag / "notes.txt").write_text("mine")
     assert main(["export", str(run_folder), "--format", "rosbag2", "--out", str(bag)]) == 2
     assert "give a new or empty folder" in capsys.readouterr().err
 
@@ -560,23 +616,31 @@ def test_plan_export_of_the_research_arm_warns_on_stderr(tmp_path, capsys):
     code = main(["demo", "--out", str(tmp_path / "run"), "--no-report"])
     assert code == 0
     capsys.readouterr()
-    assert (
-        main(["export", str(tmp_path / "run"), "--format", "urscript_movej", "--out", str(tmp_path / "m.script")]) == 0
-    )
+    assert main(["export", str(tmp_path / "run"), "--format", "rapid", "--out", str(tmp_path / "m.mod")]) == 0
     err = capsys.readouterr().err
     assert "compplan: warning: robot ar5 has no [controller] table" in err
 
 
-def test_a_servoj_export_resampled_beyond_the_limits_is_refused():
+def test_a_servoj_export_resampled_beyond_the_limits_is_refused_or_slowed_down():
     """Issue 24: ``--set period=0.002`` of an 8 ms plan resampled without a check (1.17x the jerk limit on
-    kr6_milling); the setpoints are now checked at the servoj period by finite differences."""
-    d = small_data()
-    tight = small_data(j_max=np.abs(d.qddd).max(axis=0) * 1.001, a_max=np.abs(d.qdd).max(axis=0) * 1.001)
+    kr6_milling); the setpoints are now checked at the servoj period by finite differences, and refused
+    (``slow_down=no``) or slowed down, saying so."""
+    from planner.export import build_export
+
+    tight = bang_data()  # at its jerk limit, jerk switches between the samples
     verify_limits(tight, "at its own period")  # inside its limits at 8 ms
-    export_files(tight, "urscript", Path("x"))  # at its own period: nothing resampled
+    assert not build_export(tight, "urscript", Path("x")).warnings  # at its own period: nothing resampled
     with pytest.raises(
-        ExportError, match=r"resampled to the servoj period 0.002 s .* joint 3 reaches acceleration .*x its limit"
+        ExportError,
+        match=r"urscript: joint \d (acceleration|jerk) .* by finite differences of the servoj setpoints every 0.002 s "
+        r"at t = .* is .*x its limit .*refusing to export \(--set slow_down=auto .*plan --dt 0.002",
     ):
-        export_files(tight, "urscript", Path("x"), {"period": 0.002})
-    roomy = small_data(a_max=np.full(6, 40.0), j_max=np.full(6, 4000.0))
-    export_files(roomy, "urscript", Path("x"), {"period": 0.002})  # with room, resampled and exported
+        export_files(tight, "urscript", Path("x"), {"period": 0.002, "slow_down": "no"})
+    slowed = build_export(tight, "urscript", Path("x"), {"period": 0.002})
+    (warning,) = slowed.warnings
+    k = float(re.search(r"slowed down x(" + NUM + ")", warning).group(1))
+    assert 1.0 < k < 1.5 and "0.002 s" in warning
+    moves = parse_urscript(next(iter(slowed.files.values())))["moves"]
+    assert len(moves) - 1 == pytest.approx(k * tight.t[-1] / 0.002, abs=1.0)  # k times as many setpoints
+    roomy = bang_data(room=1.2)
+    assert not build_export(roomy, "urscript", Path("x"), {"period": 0.002}).warnings  # with room: as planned

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import yaml
 
+from models.robot import load_robot
 from planner.cli import main
 from planner.export import ExportData, export_files, part_label, part_ranges
 from planner.export import krl as krl_mod
@@ -327,12 +328,12 @@ def test_krl_and_rapid_at_the_limit_are_one_module_as_before():
 def test_small_exports_equal_the_golden_files(monkeypatch):
     """Below every limit the files are exactly those of before this change (tests/golden/export)."""
     import planner.provenance as prov
-    from tests.test_export import GOLDEN, small_data
+    from tests.test_export import GOLDEN, GOLDEN_OPTIONS, small_data
 
     monkeypatch.setattr(prov, "version", lambda: "0.0.0-golden")
 
     for fmt in ("urscript", "urscript_movej", "ros2", "rapid", "krl"):
-        for path, text in export_files(small_data(), fmt, Path(f"golden_{fmt}")).items():
+        for path, text in export_files(small_data(), fmt, Path(f"golden_{fmt}"), GOLDEN_OPTIONS.get(fmt)).items():
             assert isinstance(text, str) and text == (GOLDEN / path.name).read_text(encoding="utf-8"), path.name
 
 
@@ -386,10 +387,10 @@ def _run_folder(base: Path, data: ExportData) -> Path:
         "problem": {"name": "big"},
         "controller_trajectory": "jerk_optimal",
         "timing": {"jerk_optimal": {"status": "ok", "file": "trajectory.csv", "dt": data.dt}},
-        "robot_file": {
-            "name": "ur10",
+        "robot_file": {  # the robot file a run records (summary.json is checked on reading)
+            **load_robot("ur10").to_dict(),
             "joint_names": list(data.joint_names),
-            "controller": {"joint_sign": list(data.sign), "joint_offset": list(data.offset)},
+            "controller": {"joint_sign": [int(v) for v in data.sign], "joint_offset": list(data.offset)},
         },
         "limits": {
             "velocity": list(data.v_max),

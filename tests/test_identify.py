@@ -202,6 +202,33 @@ def test_clean_data_adds_nothing() -> None:
     assert res.rms_after_mm == pytest.approx(SIGMA * 1e3, rel=0.2)
 
 
+@pytest.mark.parametrize("seed", [1, 2])
+def test_too_few_poses_do_not_make_a_model_to_use(seed: int) -> None:
+    """Three poses of an unregistered campaign (ur5 under payloads, problems/files/sim/ur5_gravity.toml)
+    cannot identify the registration, measured point and stiffness: the fit predicts held-out
+    poses worse than the nominal model, and is not called ok."""
+    import tomllib
+    from pathlib import Path
+
+    from problems.identify import IdentifyStatus
+
+    cfg_file = Path(__file__).resolve().parents[1] / "problems" / "files" / "sim" / "ur5_gravity.toml"
+    cfg = tomllib.loads(cfg_file.read_text())
+    cfg["campaign"]["poses"] = 3
+    res = identify(load_robot("ur5"), VirtualRobot(load_robot("ur5"), cfg, seed=seed).campaign())
+    assert res.cv_rms_after_m > res.cv_rms_before_m
+    assert res.status is IdentifyStatus.DOES_NOT_GENERALISE
+    assert "too few" in res.reason and "measure more poses" in res.reason
+
+
+def test_enough_poses_generalise() -> None:
+    from problems.identify import IdentifyStatus
+
+    _vr, _cfg, _m, res = _identified("joint_offset")
+    assert res.status is not IdentifyStatus.DOES_NOT_GENERALISE
+    assert res.cv_rms_after_m < res.cv_rms_before_m
+
+
 @pytest.mark.slow
 def test_effects_together_with_noise_floor_from_sigma_column() -> None:
     cfg = _config({"gravity": {}, "lost_motion": {"backlash_rad": 2e-4}, "drift": {}}, {}, False, poses=100)

@@ -164,7 +164,7 @@ def test_many_maps_are_drawn_in_at_most_the_panel_limit(maps_run) -> None:
     assert {m.rms_tcp_m for m in drawn} == {m.rms_tcp_m for m in many[-REPORT_MAP_PANELS:]}  # the largest
     res_many = dataclasses.replace(res, error_maps=many)
     figs = _figures(res_many, report_dict(res_many))
-    assert base64.b64decode(figs["error_maps"]).startswith(PNG_MAGIC)
+    assert figs["error_maps"].png.startswith(PNG_MAGIC) and figs["error_maps"].pdf.startswith(b"%PDF")
     md = report_markdown(report_dict(res_many))
     assert f"the {REPORT_MAP_PANELS} maps with the largest RMS at the TCP; 3 more" in md
 
@@ -282,3 +282,20 @@ def test_many_diagnostics_stay_in_a_few_figures_and_a_short_table(maps_run) -> N
 def test_pipes_in_table_cells_stay_in_their_cell() -> None:
     out = _md_block("| variable | what |\n|---|---|\n| load_magnitude | applied force \\|f\\| |")
     assert "<td>load_magnitude</td><td>applied force |f|</td>" in out
+
+
+@pytest.mark.parametrize(
+    "significant", [set(), {"q2.x"}, {"q2.x", "q2.z", "time"}, {"q1", "q3.y", "q4", "q6.x", "time"}]
+)
+def test_only_significant_diagnostics_are_drawn(maps_run, significant) -> None:
+    """Non-significant diagnostics get no panel (however strong); the significant ones do, up to the limit."""
+    res, _rep, _folder = maps_run
+    n = int(np.count_nonzero(res.inliers))
+    x = np.linspace(-1.0, 1.0, n)
+    names = [f"q{j}{a}" for j in range(1, 7) for a in ("", ".x", ".y", ".z")] + ["time", "pose"]
+    diags = [Diagnostic(v, 0.5 - 0.01 * i, 1e-12, v in significant, x) for i, v in enumerate(names)]
+    r = dataclasses.replace(res, diagnostics=diags, unexplained={**res.unexplained, "variable": None})
+    keys = [k for k, _g in _diag_groups(r)]
+    want = {f"{v[:2]}.xyz" if "." in v else v for v in significant}
+    assert set(keys) <= want and len(keys) == min(len(want), REPORT_DIAGNOSTIC_PLOTS)
+    assert all(d.significant for _k, g in _diag_groups(r) for d in g)

@@ -144,8 +144,8 @@ def test_modified_dh_ik_and_non_ur_structure():
     err = np.linalg.norm(T2[..., :3, 3] - T[:, None, :3, 3], axis=-1)
     assert sol.valid.any(axis=1).all()
     assert np.all(err[sol.valid] < IK_ROUNDTRIP_TOL)
-    # a non-UR arm: the error names the parameter
-    d["joints"][3]["alpha"] = 0.0
+    # a non-UR arm: the error names the parameter (alpha4 = 0 would make axes 4 and 5 one line: refused at load)
+    d["joints"][3]["alpha"] = 0.5
     with pytest.raises(IKStructureError, match="alpha4"):
         AnalyticIK(robot_from_dict(d))
 

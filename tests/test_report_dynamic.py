@@ -15,9 +15,11 @@ import numpy as np
 import pytest
 
 from planner.cli import main
+from planner.numbers import format_mm
 from planner.report import FIGURE_NAMES, load_run
 from planner.report.figures import DYNAMIC_FIGURE
 from planner.report.run import DYNAMIC_COLUMNS
+from planner.report.tables import DYNAMIC_CASES
 from tests.test_report import PNG_MAGIC, check_cells_match_summary, check_figures_embedded, parse
 
 CASES = ("none", "static", "static+dynamic")
@@ -64,10 +66,11 @@ def _check_dynamic_report(folder: Path, with_map: bool = True) -> None:
         assert html_text.escape(text) in html
     md = (folder / "report.md").read_text()
     assert f"figures/{DYNAMIC_FIGURE}.png" in md
-    row = next(line for line in md.splitlines() if line.startswith("| static + dynamic"))
+    label = dict(DYNAMIC_CASES)["static+dynamic"]
+    row = next(line for line in md.splitlines() if line.startswith(f"| {label} |"))
     shown = [c.strip() for c in row.strip("|").split("|")][1:]
     for text, m in zip(shown, MEASURES, strict=True):
-        assert float(text) == pytest.approx(dyn["predicted_tcp_error"]["static+dynamic"][m], rel=1e-3)
+        assert text == format_mm(dyn["predicted_tcp_error"]["static+dynamic"][m])
 
 
 def test_dynamic_plan_report_has_figure_and_table(dynamic_run):
@@ -110,3 +113,39 @@ def test_run_without_dynamic_compensation_has_neither(static_run):
     for text in ((static_run / "report.html").read_text(), (static_run / "report.md").read_text()):
         assert "Dynamic compensation" not in text and "Figure 8" not in text
     assert load_run(static_run).dynamic is None
+
+
+def test_one_dynamic_headline_on_the_terminal_in_the_summary_and_the_report(shared_cli):
+    """Issue 24: the dynamic headline is computed once (DynamicStage.headline) and the terminal, both
+    places of summary.json and the report show the same numbers, each with its definition; at rest
+    the motor-side command's error is zero."""
+    from planner.dynamic import HEADLINE_CASES, HEADLINE_DEFINITION, headline_text
+    from planner.numbers import format_mm, headline_mm, mm_text
+    from tests.conftest import FAST_PAYLOAD_ARGV
+
+    run = shared_cli.run(*FAST_PAYLOAD_ARGV)  # the run of the dynamic_run fixture
+    s = json.loads((run.folder / "summary.json").read_text())
+    h, d = s["headline"]["dynamic_compensation"], s["dynamic_compensation"]
+    assert h == d["headline"] and h["definition"] == HEADLINE_DEFINITION
+    shown = {}
+    for where in ("motion", "rest"):
+        for case, key, _words in HEADLINE_CASES:
+            k = f"error_{where}_max_{key}_mm"
+            assert h[k] == headline_mm(d["predicted_tcp_error"][case][f"{where}_max_mm"]), k
+            shown[k] = h[k]
+    assert shown["error_rest_max_motor_side_command_mm"] == 0.0 < shown["error_rest_max_uncompensated_mm"]
+    # the terminal: the headline's own text, every number in it
+    line = next(x.strip() for x in run.out.splitlines() if x.strip().startswith("dynamic compensation:"))
+    assert line == f"dynamic compensation: {headline_text(h)}"
+    for v in shown.values():
+        assert mm_text(v) in line
+    # the report: the headline rows are cells of the same keys and values, and the table below shows
+    # the same rounded numbers
+    cells = {c["key"]: c for c in parse(run.folder).cells}
+    for k, v in shown.items():
+        cell = cells[f"headline.dynamic_compensation.{k}"]
+        assert cell["value"] == v and cell["text"].strip() == format_mm(v), k
+    for where in ("motion", "rest"):
+        for case, key, _words in HEADLINE_CASES:
+            table = cells[f"dynamic_compensation.predicted_tcp_error.{case}.{where}_max_mm"]["text"].strip()
+            assert table == format_mm(shown[f"error_{where}_max_{key}_mm"]), (case, where)

@@ -62,6 +62,10 @@ def _base() -> dict:
         (lambda d: d.update(extra=1), "unknown top-level"),
         (lambda d: d["joints"][1].update(a=-425.0), r"joints\[2\].*'a'.*millimetres"),
         (lambda d: d.update(tool={"xyz": [0, 0, 31.0]}), "millimetres"),
+        (lambda d: d["joints"][5].update(v_max=180.0), r"joints\[6\].*'v_max'.*degrees per second"),
+        (lambda d: d["joints"][1].update(mass=8393.0), r"joints\[2\].*'mass'.*grams"),
+        # every link in grams, none above the per-link bound: the arm's mass for its size gives it away
+        (lambda d: [j.update(mass=j["mass"] * 1e3) for j in d["joints"] if j["mass"] < 5], r"'mass'.*grams"),
     ],
 )
 def test_validation_names_the_key(mutate, match):

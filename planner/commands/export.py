@@ -15,7 +15,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from planner.commands.common import check_output, releases_outputs
+from planner.commands.common import add_force_argument, check_output, releases_outputs
 
 
 def _format_names() -> list[str]:
@@ -47,6 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="format option, repeatable (e.g. --set period=0.008 --set gain=500)",
     )
     e.add_argument("--list", action="store_true", help="print the formats and their options, and exit")
+    add_force_argument(e)
     e.set_defaults(func=run)
 
 
@@ -94,7 +95,7 @@ def out_path(out: str, fmt: str) -> Path:
 @releases_outputs
 def run(args: argparse.Namespace) -> int:
     from models.errors import InputError
-    from planner.export import data_from_run, export_files, formats
+    from planner.export import build_export, data_from_run, formats
     from planner.output import OutputSet, atomic_write_files
 
     if args.list:
@@ -109,11 +110,16 @@ def run(args: argparse.Namespace) -> int:
     options = parse_options(args.set)
     out = out_path(args.out, args.format)
     run_dir = Path(args.run_dir)
+    from planner.summary_schema import read_summary
+
+    read_summary(run_dir, "export")  # every key of summary.json the export reads, checked (exit 2)
     data = data_from_run(run_dir)
-    files = export_files(data, args.format, out, options)
+    export = build_export(data, args.format, out, options)  # refused, or slowed down, over a limit
+    files = export.files
     inputs = {f"RUN_DIR {p.name}": p for p in data.inputs}
     if formats()[args.format].folder:
-        check_output(out, inputs, kind="folder")
+        names = {p.relative_to(out).parts[0] for p in files}
+        check_output(out, inputs, kind="folder", holds="trajectory export", force=args.force, writes=names)
         folder = OutputSet(out)
         for path, content in files.items():
             folder.add_bytes(path.relative_to(out).as_posix(), _bytes(content))
@@ -128,9 +134,9 @@ def run(args: argparse.Namespace) -> int:
     )
     from planner.export import controller_warning
 
-    warn = controller_warning(data, args.format)
-    if warn:
-        print(f"compplan: warning: {warn}", file=sys.stderr)
+    for warn in (controller_warning(data, args.format), *export.warnings):
+        if warn:
+            print(f"compplan: warning: {warn}", file=sys.stderr)
     return 0
 
 
@@ -154,19 +160,28 @@ def add_export_argument(parser: argparse.ArgumentParser) -> None:
 
 def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
     """The files of ``plan --export``: ``<problem>_<format>.<suffix>`` (a folder for rosbag2) by name, from the plan in
-    memory (refused, before anything is written, if the trajectory is not ok or leaves its limits)."""
-    from planner.export import data_from_plan, export_files
+    memory (refused, before anything is written, if the trajectory is not ok or leaves its limits).  A format whose
+    controller motion would exceed a limit at its default options is left out with a warning that says why and how
+    ``compplan export`` writes it with other options; the plan and the other formats are written."""
+    from planner.export import ExportLimitError, build_export, controller_warning, data_from_plan
 
     if not fmts:
         return {}
-    from planner.export import controller_warning
-
     data = data_from_plan(res)
     out: dict[str, bytes] = {}
     for fmt in dict.fromkeys(fmts):
-        warn = controller_warning(data, fmt)
-        if warn:
-            print(f"compplan: warning: {warn}", file=sys.stderr)
-        for path, content in export_files(data, fmt, Path(f"{data.name}_{fmt}")).items():
+        try:
+            export = build_export(data, fmt, Path(f"{data.name}_{fmt}"))
+        except ExportLimitError as exc:
+            print(
+                f"compplan: warning: --export {fmt} not written: {exc}; compplan export RUN_DIR --format {fmt} "
+                "--set KEY=VALUE writes it with other options (docs/export.md)",
+                file=sys.stderr,
+            )
+            continue
+        for warn in (controller_warning(data, fmt), *export.warnings):
+            if warn:
+                print(f"compplan: warning: {warn}", file=sys.stderr)
+        for path, content in export.files.items():
             out[path.as_posix()] = _bytes(content)
     return out

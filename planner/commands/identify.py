@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from planner.commands.common import check_output, releases_outputs
+from planner.commands.common import add_force_argument, check_output, releases_outputs
 
 #: Sub-commands defined here.
 COMMANDS = ("identify", "predict", "compensate", "simulate")
@@ -77,9 +77,19 @@ def _joint_names(text: str) -> tuple[str, ...] | None:
 
 
 def _add_csv_options(p: argparse.ArgumentParser, files: str) -> None:
-    """``--csv-dialect`` and ``--joint-names``: how the measurement/command files ``files`` are read."""
-    from problems.measurements import DIALECT_CHOICES, JOINT_NAME_PRESETS
+    """``--format``, ``--csv-dialect`` and ``--joint-names``: how the measurement/command files ``files`` are read."""
+    from problems.measurements import DIALECT_CHOICES, FORMAT_CHOICES, JOINT_NAME_PRESETS
 
+    p.add_argument(
+        "--format",
+        dest="file_format",
+        choices=FORMAT_CHOICES,
+        default="auto",
+        help=f"format of {files}: 'compplan' (the columns of docs/measurement-file.md), 'tracker-dif' (a "
+        "tracker export step_order, x_t.., x_dif.., joint_1..joint_6: measured point = target + dif in mm, "
+        "joints in deg, no load), 'tracker-dif-reversed' (the same, measured point = target - dif), 'auto' "
+        "(default: tracker-dif when the header has all its columns, noted on stderr; else compplan)",
+    )
     p.add_argument(
         "--csv-dialect",
         choices=DIALECT_CHOICES,
@@ -100,11 +110,15 @@ def _add_csv_options(p: argparse.ArgumentParser, files: str) -> None:
 
 
 def _read(args: argparse.Namespace, path: str, require_position: bool = True) -> Any:
-    """A measurement/command file read with the options ``--csv-dialect`` and ``--joint-names``."""
+    """A measurement/command file read with the options ``--format``, ``--csv-dialect`` and ``--joint-names``."""
     from problems.measurements import read_measurements
 
     return read_measurements(
-        path, require_position=require_position, dialect=args.csv_dialect, joint_names=args.joint_names
+        path,
+        require_position=require_position,
+        dialect=args.csv_dialect,
+        joint_names=args.joint_names,
+        file_format=args.file_format,
     )
 
 
@@ -202,16 +216,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_csv_options(p, "--data and --validation")
+    add_force_argument(p, "--report")
     p.set_defaults(func=run_identify)
 
-    p = sub.add_parser("predict", help="predicted measurement of commands under loads")
+    p = sub.add_parser(
+        "predict",
+        help="predicted measurement of commands under loads",
+        description="The predicted measurement (x, y, z of the measured point, measurement frame) of joint "
+        "commands under loads, by an identified model: one output row per input row (docs/cli.md).",
+    )
     p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
     p.add_argument("--input", required=True, help="CSV with q1..q6 and fx..mz (optional t, temperature)")
     p.add_argument("--out", required=True, help="CSV to write: x, y, z (m), measurement frame")
     _add_csv_options(p, "--input")
     p.set_defaults(func=run_predict)
 
-    p = sub.add_parser("compensate", help="commands that put the real TCP on its targets under the load")
+    p = sub.add_parser(
+        "compensate",
+        help="commands that put the real TCP on its targets under the load",
+        description="Joint commands that put the real TCP on its targets under the load, by an identified "
+        "model: one compensated q1..q6 row per input row; the targets as --targets-frame says (docs/cli.md).",
+    )
     p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
     p.add_argument(
         "--input",
@@ -237,7 +262,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     _add_csv_options(p, "--input")
     p.set_defaults(func=run_compensate)
 
-    p = sub.add_parser("simulate", help="measurement campaign from the virtual robot")
+    p = sub.add_parser(
+        "simulate",
+        help="measurement campaign from the virtual robot",
+        description="A measurement campaign from the virtual robot (poses, loads, effects and noise as the "
+        "configuration says): writes the measurement CSV and its truth file (docs/identification.md).",
+    )
     p.add_argument("--robot", required=True, help="built-in robot name or robot file")
     p.add_argument("--config", required=True, help="simulation configuration TOML (docs/identification.md)")
     p.add_argument("--out", required=True, help="measurement CSV to write")
@@ -279,15 +309,16 @@ def run_identify(args: argparse.Namespace) -> int:
     """Identify, write the model file and the report, print the summary."""
     inputs = {"--robot": args.robot, "--data": args.data, "--validation": args.validation, "--truth": args.truth}
     check_output(args.out, inputs, kind="file", outputs={"--report": args.report})
-    check_output(args.report, inputs, kind="folder", option="--report", outputs={"--out": args.out})
+    check_output(
+        args.report, inputs, "folder", "--report", {"--out": args.out}, holds="identification report", force=args.force
+    )
     from models import load_robot
     from models.errors import InputError
     from planner.identify_report import write_report
-    from planner.output import atomic_write_bytes
+    from planner.output import pending_file
     from models.arm_file import model_toml
     from problems.identify import (
         CV_FOLDS,
-        IdentifyStatus,
         compensation_check,
         identify,
         validate_on,
@@ -328,9 +359,26 @@ def run_identify(args: argparse.Namespace) -> int:
     if truth is not None:
         res.compensation_check = compensation_check(truth, res.model)
     text = model_toml(res.model)
-    rep = write_report(res, args.report, model_path=str(args.out), data_path=str(args.data))
-    atomic_write_bytes(args.out, text.encode())
+    with pending_file(args.out, text.encode(), "--out"):  # the model goes in once the report is written
+        rep = write_report(res, args.report, model_path=str(args.out), data_path=str(args.data))
+    _print_identify(res, rep, data, val, args)
+    return 0
+
+
+def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: argparse.Namespace) -> None:
+    """The summary of ``identify``, one line per fact (the report holds the lists): RMS, validation,
+    held parameters, the compensation check (the figure to read first), notes and warnings."""
+    from planner.identify_report import compensation_sentence
+    from problems.identify import IdentifyStatus
+
     print(f"identify: {data.n} rows, {rep['data']['n_poses']} poses, status {res.status.value}")
+    if res.validation is not None:
+        v = res.validation
+        held_out = "held out" if rep["headline"]["validation_held_out"] else "the --data file itself"
+        print(
+            f"  validation file ({held_out}, {v['n_rows']} rows): RMS {v['rms_nominal_mm']:.4f} -> {v['rms_mm']:.4f} "
+            "mm per axis (nominal -> identified)"
+        )
     print(
         f"  RMS before {res.rms_before_mm:.4f} mm -> after {res.rms_after_mm:.4f} mm "
         f"(held-out {rep['heldout_rms_before_mm']:.4f} -> {rep['heldout_rms_after_mm']:.4f} mm, per axis)"
@@ -342,25 +390,17 @@ def run_identify(args: argparse.Namespace) -> int:
         print(f"  {len(res.excluded)} row(s) excluded as outliers (listed in the report)")
     if res.unexplained.get("present"):
         print(f"  unexplained: {res.unexplained['message']}")
-    if res.validation is not None:
-        print(
-            f"  validation file: RMS {res.validation['rms_mm']:.4f} mm "
-            f"(nominal {res.validation['rms_nominal_mm']:.4f} mm)"
-        )
+    held = (rep.get("held_parameters") or {}).get("message")
+    if held:
+        print(f"  {held}")
     if res.compensation_check is not None:
-        c = res.compensation_check
-        print(
-            f"  compensation on the virtual robot: TCP error RMS {c['rms_before_mm']:.4f} -> "
-            f"{c['rms_after_mm']:.4f} mm ({100 * c['fraction_left']:.2f} % left; measurement frame "
-            f"{100 * c['meas_frame_fraction_left']:.2f} % left)"
-        )
+        print(f"  compensation on the virtual robot: {compensation_sentence(rep, arrow='->')}")
     for n in res.notes:
         print(f"  note: {n}")
     _print_notes(data, val)
-    if res.status is IdentifyStatus.IMPLAUSIBLE:
+    if res.status in (IdentifyStatus.IMPLAUSIBLE, IdentifyStatus.DOES_NOT_GENERALISE):
         print(f"compplan: warning: {res.reason}", file=sys.stderr)
-    print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html")
-    return 0
+    print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html, figures/")
 
 
 @releases_outputs

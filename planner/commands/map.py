@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
-from planner.commands.common import check_output, releases_outputs
+from planner.commands.common import add_force_argument, check_output, releases_outputs
 from planner.commands.report import add_map_arguments, map_options, report_progress
 
 
@@ -23,6 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     m.add_argument("--out", required=True, help="output folder")
     add_map_arguments(m)
+    add_force_argument(m)
     m.set_defaults(func=run)
 
 
@@ -32,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from planner.compliance_map import ELEMENT_NAMES
     from planner.report import write_map
 
-    check_output(args.out, {"--robot": args.robot})
+    check_output(args.out, {"--robot": args.robot}, holds="compliance map", force=args.force)
     arm = load_arm(args.robot)
     robot = arm.nominal
     with report_progress() as prog:
@@ -40,16 +42,18 @@ def run(args: argparse.Namespace) -> int:
     s = cm.summary()
     print(
         f"compliance map, robot {robot.name}, plane {s['plane']}, "
-        f"{s['points'][0]}x{s['points'][1]} points, attitude rpy {s['rpy_rad']} rad "
-        f"({s['rpy_convention']}), branch rule {cm.branch_rule}"
+        f"{s['points'][0]}x{s['points'][1]} points, attitude rpy [{', '.join(f'{v:.5g}' for v in s['rpy_rad'])}] rad "
+        f"= [{', '.join(f'{math.degrees(v):.4g}' for v in s['rpy_rad'])}] deg ({s['rpy_convention']}), "
+        f"branch rule {cm.branch_rule}"
     )
-    print(f"  branches used: {s['branches_used'] or 'none'}; unreachable points: {cm.n_unreachable} of {cm.n_points}")
+    used = ", ".join(f"{label} ({n} points)" for label, n in s["branches_used"].items()) or "none"
+    print(f"  branches used: {used}; unreachable points: {cm.n_unreachable} of {cm.n_points}")
     for i, name in enumerate(ELEMENT_NAMES):
         lo, hi = s["diag_range_SI"][name]
         if lo is None:
             print(f"  {name}: no reachable point")
             continue
-        unit, scale = ("mm/N", 1e3) if i < 3 else ("deg/(N*m)", 57.29577951308232)
+        unit, scale = ("mm/N", 1e3) if i < 3 else ("deg/(N*m)", math.degrees(1.0))
         print(f"  {name}: {lo * scale:.6g} .. {hi * scale:.6g} {unit}")
     print(f"wrote {', '.join(str(p) for p in written)}")
     return 0

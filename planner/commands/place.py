@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from planner.commands.common import check_output, releases_outputs
+from planner.commands.common import add_force_argument, check_output, releases_outputs
 from planner.commands.report import report_progress
 
 
@@ -64,6 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(faster; the plans then do not use the orientation freedom the sweep scanned)",
     )
     p.add_argument("--no-report", action="store_true", help="skip report.html and figures/")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
@@ -100,11 +101,12 @@ def _reach_m(problem: Any) -> float:
 @releases_outputs
 def run(args: argparse.Namespace) -> int:
     from models.errors import InfeasibleError, InputError
-    from planner.placement import study, write_study
+    from planner.placement import StudyStatus, study, write_study
+    from problems.placement.cluster import ClusterError
     from problems.placement.sweep import parse_scheduler
     from problems.problem import load_problem
 
-    check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot})
+    check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot}, holds="placement study", force=args.force)
     spec = parse_scheduler(args.scheduler)
     if spec != "serial":
         from problems.placement.cluster import require_dask
@@ -122,10 +124,12 @@ def run(args: argparse.Namespace) -> int:
     grid = grid_for(problem, args.grid, args.top)
     print(
         f"placement study of {problem.name} (robot {problem.robot.name}): {grid.size} placements "
-        f"{dict(zip(('x', 'y', 'z', 'yaw', 'tilt'), grid.shape))}, scheduler {spec}"
+        f"({' × '.join(f'{n} {k}' for k, n in zip(('x', 'y', 'z', 'yaw', 'tilt'), grid.shape))}), scheduler {spec}"
     )
     with report_progress() as prog:
         st = study(problem, grid, spec, args.chunk, progress=prog, optimise=not args.no_optimise)
+        if st.status is StudyStatus.SWEEP_FAILED:  # the cluster failed (no workers, died, gone)
+            raise ClusterError(f"place: {st.reason}")
         if not st.ok:
             raise InfeasibleError(f"place: {st.reason}")
         written = write_study(st, args.out, with_report=not args.no_report)
@@ -181,8 +185,13 @@ def print_study(st: Any) -> None:
         if not plan.result.ok:
             print(f"    {p['label']:<10} {p['placement_text']}: {p['plan_status']}: {h.get('reason')}")
             continue
-        dur = "not timed" if h.get("duration_s") is None else f"{h['duration_s']} s"
+        dur = "not timed" if h.get("duration_s") is None else f"{_num(h['duration_s'])} s"
         print(
-            f"    {p['label']:<10} {p['placement_text']}: branch {h['branch']}, {h['error_before_max_mm']} / "
-            f"{h['error_before_rms_mm']} mm -> {h['error_after_max_mm']} mm, {dur}"
+            f"    {p['label']:<10} {p['placement_text']}: branch {h['branch']}, {_num(h['error_before_max_mm'])} / "
+            f"{_num(h['error_before_rms_mm'])} mm -> {_num(h['error_after_max_mm'])} mm, {dur}"
         )
+
+
+def _num(v: Any) -> str:
+    """A headline value as printed: a number to 4 significant digits, a word (``0 (numerical)``) as is."""
+    return f"{v:.4g}" if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)

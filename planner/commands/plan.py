@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.commands.common import check_output, print_error_table, releases_outputs
+from planner.commands.common import add_force_argument, check_output, print_error_table, releases_outputs
 from planner.commands.export import add_export_argument, plan_exports
 
 
@@ -42,7 +42,11 @@ def with_dt(problem: Any, dt: float) -> Any:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "plan", help="stiffness-optimal branch and posture, exact compensation and timing of a problem file"
+        "plan",
+        help="stiffness-optimal branch and posture, exact compensation and timing of a problem file",
+        description="Plan a problem file (or a shipped problem): the stiffness-optimal IK branch and posture "
+        "along its path, exact compensation of the load-induced deflection, timing of the controller's "
+        "trajectory; writes summary.json, the CSV files, the report and any --export into --out (docs/cli.md).",
     )
     p.add_argument("problem", help="problem file (TOML) or the name of a shipped problem")
     p.add_argument("--out", required=True, help="output folder")
@@ -65,13 +69,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--no-report", action="store_true", help="skip the report (report.html, report.md, figures/) written at the end"
     )
     add_export_argument(p)
+    add_force_argument(p)
     p.set_defaults(func=run)
 
-    q = sub.add_parser("pose", help="single-pose query: the stiffness-optimal posture for one waypoint of a problem")
+    q = sub.add_parser(
+        "pose",
+        help="single-pose query: the stiffness-optimal posture for one waypoint of a problem",
+        description="The stiffness-optimal posture for one waypoint of a problem: every IK branch with its "
+        "status, load-induced TCP error (analytic and optimised) and joint angles; --out writes pose.json.",
+    )
     q.add_argument("problem", help="problem file (TOML) or the name of a shipped problem")
     q.add_argument("--waypoint", type=int, default=0, help="waypoint index k (default 0)")
     q.add_argument("--robot", default=None, help="arm model instead of the problem's robot (as for plan)")
     q.add_argument("--out", default=None, help="write pose.json into this folder")
+    add_force_argument(q)
     q.set_defaults(func=run_pose)
 
 
@@ -120,6 +131,7 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
         f"  {'branch':<{w}}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
         f"{'iter':>6}{'NLP [ms]':>10}"
     )
+    print(f"  {'':<{w}}{'':<21}{'(first order: |S C(q) F|, the NLP objective)':>29}")
     for r in ps.branches.values():
         mark = " *" if r.branch == ps.chosen else ("  (default)" if r.branch == ps.default else "")
         ana = f"{r.rms_error_analytic_m * 1e3:.4f} mm" if np.isfinite(r.rms_error_analytic_m) else "—"
@@ -132,7 +144,8 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
     g = s.get("gain", {})
     print(
         f"chosen branch {s['chosen_branch']} (default {s['default_branch']}): RMS load-induced error "
-        f"{ps.best.rms_error_m * 1e3:.4f} mm; gain x{g.get('vs_default', float('nan')):.3f} over the default "
+        f"{ps.best.rms_error_m * 1e3:.4f} mm to first order (exact equilibrium: the table below); "
+        f"gain x{g.get('vs_default', float('nan')):.3f} over the default "
         f"branch at its analytic posture, x{g.get('vs_best_analytic', float('nan')):.3f} over the best "
         f"analytic posture"
     )
@@ -176,6 +189,10 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
         f"{mm_text(h['error_before_max_mm'])} before -> {mm_text(h['error_after_max_mm'])} after exact "
         f"compensation{dur}"
     )
+    if h.get("dynamic_compensation"):  # the stage's own headline (summary.json), not recomputed here
+        from planner.dynamic import headline_text
+
+        print(f"  dynamic compensation: {headline_text(h['dynamic_compensation'])}")
     if out is not None:
         print(f"wrote {Path(out)}/: {', '.join(names)}")
 
@@ -185,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     from planner.plan import plan
     from problems.problem import load_problem
 
-    check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot})
+    check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot}, holds="plan", force=args.force)
     problem = load_problem(args.problem)
     if args.robot is not None:
         problem = problem.with_robot(args.robot)
@@ -232,7 +249,7 @@ def run_pose(args: argparse.Namespace) -> int:
     from problems.problem import load_problem
 
     if args.out:
-        check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot})
+        check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot}, holds="pose", force=args.force)
     pr = load_problem(args.problem)
     if args.robot is not None:
         pr = pr.with_robot(args.robot)
@@ -259,16 +276,19 @@ def run_pose(args: argparse.Namespace) -> int:
     p = pr.positions[k]
     print(
         f"waypoint {k} of {pr.name}: TCP ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, rule {pr.rule.value}, "
-        f"F = {[float(v) for v in pr.wrench[k]]} (N, N*m, {pr.wrench_frame} frame)"
+        f"F = [{', '.join(f'{float(v):g}' for v in pr.wrench[k])}] (N, N*m, {pr.wrench_frame} frame)"
         + (f" + payload {pr.payload_mass_kg:g} kg" if pr.payload_mass_kg else "")
     )
     entries = {}
+    wl = max(len(r.label) for r in res.branches.values()) + 2  # aligned columns, whatever the labels
+    ws = max(len(r.status.value) for r in res.branches.values()) + 2
+    print(f"  {'branch':<{wl}}{'status':<{ws}}{'analytic [mm]':>15}{'optimised [mm]':>16}  q1..q6 [rad]")
     for r in res.branches.values():
         mark = " *" if r.branch == res.chosen else ""
         ana = f"{r.error_analytic_m[0] * 1e3:.4f}" if np.isfinite(r.error_analytic_m[0]) else "—"
         print(
-            f"  {r.label:<8}{r.status.value:<12} error analytic {ana:>9} mm, optimised "
-            f"{r.error_m[0] * 1e3:.4f} mm  q = [{', '.join(f'{v:.4f}' for v in r.q[0])}] rad{mark}"
+            f"  {r.label:<{wl}}{r.status.value:<{ws}}{ana:>15}{r.error_m[0] * 1e3:>16.4f}  "
+            f"{' '.join(f'{v:8.4f}' for v in r.q[0])}{mark}"
         )
         entries[r.label] = {
             "status": r.status.value,

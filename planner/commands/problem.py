@@ -22,9 +22,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         "> my_task.toml (format: docs/problem-file.md).",
     )
     acts = r.add_subparsers(dest="problem_action", required=True)
-    ls = acts.add_parser("list", help="the shipped problems, one a line: name, robot, path, description")
+    ls = acts.add_parser(
+        "list",
+        help="the shipped problems, one a line: name, robot, path, description",
+        description="The shipped problems, one a line: name, robot, path kind and size, and the first line "
+        "of the description; plan and place take them by name.",
+    )
     ls.set_defaults(func=run_list)
-    sh = acts.add_parser("show", help="print a shipped problem file (TOML) to stdout")
+    sh = acts.add_parser(
+        "show",
+        help="print a shipped problem file (TOML) to stdout",
+        description="Print a shipped problem file (TOML) unchanged, a template to copy: compplan problem show "
+        "machining_offaxis > my_task.toml; --program prints the program file a program problem names.",
+    )
     sh.add_argument("name", help="shipped problem name (compplan problem list)")
     sh.add_argument("--program", action="store_true", help="print the program file a program problem names")
     sh.set_defaults(func=run_show)

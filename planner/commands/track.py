@@ -12,7 +12,6 @@ model.  See ``docs/elastic-simulation.md``.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 
@@ -40,6 +39,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "track",
         help="simulate a run's trajectory on the elastic-joint arm and print the TCP "
         "tracking error (during the motion and at rest)",
+        description="Run the controller trajectory of a plan or demo output folder through the elastic-joint "
+        "simulation of the arm it records and print the TCP tracking error during the motion and at rest; "
+        "--out writes it per sample (docs/elastic-simulation.md).",
     )
     p.add_argument("run_dir", metavar="RUN_DIR", help="output folder of compplan plan or demo")
     p.add_argument("--out", default=None, help="CSV of the tracking error per simulated sample (t, error_m)")
@@ -92,11 +94,13 @@ def run(args: argparse.Namespace) -> int:
     run_dir = Path(args.run_dir)
     if args.out:
         check_output(args.out, {"RUN_DIR": run_dir}, kind="file")
+    from planner.summary_schema import read_summary
+
+    summary = read_summary(run_dir, "track")  # every key of summary.json track reads, checked (exit 2)
     try:
         data = data_from_run(run_dir)  # checks status, limits and sampling
     except ExportError as exc:
         raise InputError(str(exc).replace("export", "track")) from None
-    summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
     robot = robot_from_dict(summary["robot_file"], where=f"{run_dir}/summary.json robot_file")
     if not robot.has_masses:
         raise InputError(

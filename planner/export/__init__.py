@@ -8,7 +8,10 @@ joint positions, velocities and accelerations at the controller period), the rob
 names and the mapping from the model's joint angles to the controller's
 (``controller_angle = sign * q + offset``, ``[controller]`` of the robot file), built from a
 plan in memory (:func:`data_from_plan`) or from a run folder (:func:`data_from_run`).
-A trajectory whose status is not ``ok`` is refused (:class:`ExportError`).  Conventions
+A trajectory whose status is not ``ok`` or outside its limits is refused (:class:`ExportError`), and
+so is what a format would send its controller over a limit under the interpolation that controller
+applies (``ExportFormat.motion``; :mod:`planner.export.limits`: refused, or slowed down and said so,
+:func:`build_export`).  Conventions
 of each vendor (joint order, units, signs, zeros): ``docs/export.md``.  Big programs (10^5-10^6
 samples): above its limit each format writes numbered parts (:func:`part_ranges`,
 :func:`part_label`) and a main file, or a stream, as its controller needs (``docs/export.md``,
@@ -21,7 +24,7 @@ import csv
 import json
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 from collections.abc import Callable, Mapping
@@ -32,21 +35,33 @@ from models.errors import InputError, PluginError
 from models.plugins import import_plugins
 
 __all__ = [
+    "EXPORT_FD_TOL",
     "EXPORT_FORMATS",
     "EXPORT_LIMIT_TOL",
     "EXPORT_PATH_VARIABLE",
+    "EXPORT_POSITION_TOL",
+    "EXPORT_TIME_TOL",
+    "SLOW_DOWN_OPTION",
+    "ControllerMotion",
+    "Export",
     "ExportData",
     "ExportError",
     "ExportFormat",
+    "ExportLimitError",
+    "Interpolation",
     "VENDOR_FORMATS",
+    "build_export",
+    "check_motion",
+    "choice",
     "controller_warning",
+    "counted",
     "data_from_plan",
-    "difference_excess",
     "data_from_run",
     "export_files",
     "formats",
     "part_label",
     "part_ranges",
+    "ranged",
     "register_format",
     "verify_limits",
 ]
@@ -56,40 +71,8 @@ class ExportError(InputError):
     """The trajectory cannot be exported (not ok, no trajectory, a bad option); the message says why."""
 
 
-def _verify_differences(data: ExportData, where: str) -> None:
-    """The positions against the rate limits by finite differences (a jump between two samples is
-    refused even where the rate columns say nothing of it), :func:`difference_excess`."""
-    bad = difference_excess(data, data.q, data.dt)
-    if bad:
-        name, j, i, k, value, lim, unit = bad
-        raise ExportError(
-            f"{where}: joint {j + 1} {name} by finite differences of the positions, {value:.9g} {unit} "
-            f"over samples {i} to {i + k} (t = {data.t[i]:.6g} s), is above its limit ({lim:.9g} {unit}): "
-            "the positions jump where the rate columns do not say so; refusing to export"
-        )
-
-
-def difference_excess(data: ExportData, q: np.ndarray, period: float) -> tuple | None:
-    """The worst limit excess of positions ``q`` (M, 6), rad, sampled every ``period`` s, by finite
-    differences, or None: the k-th difference over ``period^k`` is a weighted mean of the k-th
-    derivative over ``k`` periods, so it must keep the limit ``data`` enforces on it (velocity always;
-    acceleration and jerk when enforced; relative slack :data:`EXPORT_FD_TOL`). Returns
-    ``(quantity, joint index, first sample, k, value, limit, unit)``."""
-    dq = np.diff(q, axis=0)
-    for k, (name, lim, unit) in enumerate(
-        (("velocity", data.v_max, "rad/s"), ("acceleration", data.a_max, "rad/s^2"), ("jerk", data.j_max, "rad/s^3")),
-        start=1,
-    ):
-        if k > 1:
-            dq = np.diff(dq, axis=0)
-        if (k > 1 and name not in data.enforced) or not len(dq):
-            continue
-        rate = dq / period**k
-        excess = np.abs(rate) - lim * (1.0 + EXPORT_FD_TOL) - EXPORT_POSITION_TOL / period**k
-        if np.any(excess > 0.0):  # the lowest derivative that exceeds is the one to name
-            i, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
-            return name, int(j), int(i), k, float(rate[i, j]), float(lim[j]), unit
-    return None
+class ExportLimitError(ExportError):
+    """What a format would send its controller exceeds a limit (:func:`~planner.export.limits.check_motion`)."""
 
 
 @dataclass(frozen=True)
@@ -125,6 +108,8 @@ class ExportData:
         The files it was read from (none for a plan in memory).
     link_q : ndarray, shape (M, 6), or None
         The planned link side (``ql1..ql6``) of a run with dynamic compensation, rad.
+    slow_factor : float
+        How much slower than planned (1: as planned; :meth:`slowed`).
     """
 
     name: str
@@ -150,6 +135,20 @@ class ExportData:
     source: str = ""
     inputs: tuple[Path, ...] = ()
     link_q: np.ndarray | None = None
+    slow_factor: float = 1.0
+
+    def slowed(self, k: float) -> ExportData:
+        """The same path ``k`` times slower: times and ``dt`` times ``k``, velocities over ``k``,
+        accelerations over ``k^2``, jerks over ``k^3`` (every rate's peak divided by ``k`` to its order)."""
+        return replace(
+            self,
+            t=self.t * k,
+            qd=self.qd / k,
+            qdd=self.qdd / k**2,
+            qddd=self.qddd / k**3,
+            dt=self.dt * k,
+            slow_factor=self.slow_factor * k,
+        )
 
     def controller_q(self, q: np.ndarray | None = None) -> np.ndarray:
         """Joint positions in the controller's convention (rad), (M, 6)."""
@@ -164,70 +163,6 @@ class ExportData:
         k = max(1, int(round(step_s / self.dt)))
         idx = np.arange(0, len(self.t), k)
         return idx if idx[-1] == len(self.t) - 1 else np.r_[idx, len(self.t) - 1]
-
-
-#: Relative slack of the limit check before export (the timing's own LIMIT_RATIO_TOL).
-EXPORT_LIMIT_TOL: float = 1e-9
-#: Slack on the position limits (rad) and on the sample period's uniformity (s).
-EXPORT_POSITION_TOL: float = 1e-9
-EXPORT_TIME_TOL: float = 1e-9
-#: Relative slack of the finite-difference checks of the positions: a difference quotient over one
-#: period is a weighted mean of the analytic derivative over it, so it is within the limit the
-#: derivative keeps, up to the methods' own check tolerance and rounding (0.1 %: a jump of a sample is
-#: orders of magnitude above it).
-EXPORT_FD_TOL: float = 1e-3
-
-
-def verify_limits(data: ExportData, where: str) -> None:
-    """Refuse a trajectory outside its limits, or not sampled every ``dt`` from 0.
-
-    Checks the positions against ``q_min``/``q_max`` and every rate in ``data.enforced``
-    against its limit (relative slack :data:`EXPORT_LIMIT_TOL`).
-
-    Raises
-    ------
-    ExportError
-        Naming ``where``, the quantity, the joint (1-based), the sample and its time, the value
-        and the limit.
-    """
-    t = data.t
-    if t.ndim != 1 or t.size < 2 or abs(t[0]) > EXPORT_TIME_TOL:
-        raise ExportError(f"{where}: expected at least 2 samples starting at t = 0 s")
-    step = np.diff(t)
-    k = int(np.argmax(np.abs(step - data.dt)))
-    if abs(step[k] - data.dt) > EXPORT_TIME_TOL + 1e-9 * t[-1]:
-        raise ExportError(
-            f"{where}: sample {k + 1} at t = {t[k + 1]:.9g} s is {step[k]:.9g} s after the previous "
-            f"one; expected the period dt = {data.dt:.9g} s throughout"
-        )
-    for arr in (data.q, data.qd, data.qdd, data.qddd):
-        if arr.shape != (t.size, 6) or not np.all(np.isfinite(arr)):
-            raise ExportError(f"{where}: expected finite (samples, 6) joint arrays")
-    # each excess array is made when its check runs (one (samples, 6) temporary at a time)
-    checks: list[tuple[str, Callable[[], np.ndarray], np.ndarray, str, str]] = [
-        ("position", lambda: data.q - data.q_max, data.q_max, "above q_max", "rad"),
-        ("position", lambda: data.q_min - data.q, data.q_min, "below q_min", "rad"),
-    ]
-    for name, arr, lim, unit in (
-        ("velocity", data.qd, data.v_max, "rad/s"),
-        ("acceleration", data.qdd, data.a_max, "rad/s^2"),
-        ("jerk", data.qddd, data.j_max, "rad/s^3"),
-    ):
-        if name in data.enforced:
-            checks.append(
-                (name, lambda a=arr, m=lim: np.abs(a) - m * (1.0 + EXPORT_LIMIT_TOL), lim, "above its limit", unit)
-            )
-    for name, make, lim, what, unit in checks:
-        excess = make()
-        tol = EXPORT_POSITION_TOL if name == "position" else 0.0
-        if np.any(excess > tol):
-            i, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
-            value = {"position": data.q, "velocity": data.qd, "acceleration": data.qdd, "jerk": data.qddd}[name][i, j]
-            raise ExportError(
-                f"{where}: joint {j + 1} {name} {value:.9g} {unit} at sample {i} (t = {t[i]:.6g} s) is "
-                f"{what} ({lim[j]:.9g} {unit}); refusing to export a trajectory outside its limits"
-            )
-    _verify_differences(data, where)
 
 
 @dataclass(frozen=True)
@@ -248,6 +183,15 @@ class ExportFormat:
     folder : bool
         The format writes a folder (``--out`` names it; the file names are inside it), e.g. a
         rosbag2; otherwise files beside ``--out``.
+    motion : callable or None
+        ``motion(data, options) -> ControllerMotion``: what the controller runs from the files
+        ``write`` makes of the same data and options (times and positions as written, the
+        interpolation the controller applies), checked against every limit before anything is
+        written (:func:`planner.export.limits.check_motion`).  None (a plug-in that declares
+        none): only the trajectory itself is checked, and the export warns so.
+    timing_options : tuple of str
+        The options that change what the controller runs (periods, steps, blends, motion types):
+        the tests export every format over their whole ranges.
     """
 
     name: str
@@ -256,6 +200,8 @@ class ExportFormat:
     options: Mapping[str, tuple[Any, str, Callable[[Any], Any]]]
     description: str
     folder: bool = False
+    motion: Callable[[ExportData, Mapping[str, Any]], ControllerMotion] | None = None
+    timing_options: tuple[str, ...] = ()
 
 
 _FORMATS: dict[str, ExportFormat] = {}
@@ -272,33 +218,6 @@ def register_format(fmt: ExportFormat) -> ExportFormat:
 def formats() -> dict[str, ExportFormat]:
     """The registered export formats by name."""
     return dict(_FORMATS)
-
-
-def ranged(name: str, lo: float, hi: float) -> Callable[[Any], float]:
-    """Validator: a number in [lo, hi], the message naming the option and the range."""
-
-    def check(v: Any) -> float:
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            raise ExportError(f"export option {name} = {v!r}: expected a number in [{lo:g}, {hi:g}]") from None
-        if not (math.isfinite(x) and lo <= x <= hi):
-            raise ExportError(f"export option {name} = {x:g}: expected a number in [{lo:g}, {hi:g}]")
-        return x
-
-    return check
-
-
-def counted(name: str, lo: int, hi: int) -> Callable[[Any], int]:
-    """Validator: a whole number in [lo, hi], the message naming the option and the range."""
-
-    def check(v: Any) -> int:
-        x = ranged(name, lo, hi)(v)
-        if x != int(x):
-            raise ExportError(f"export option {name} = {x:g}: expected a whole number in [{lo}, {hi}]")
-        return int(x)
-
-    return check
 
 
 # --------------------------------------------------------------------------------------
@@ -546,11 +465,19 @@ def _read_rows(path: Path, need: list[str]) -> np.ndarray:
 # --------------------------------------------------------------------------------------
 
 
-def export_files(
-    data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None
-) -> dict[Path, str | bytes]:
-    """The files (path -> text, or bytes for binary formats) of ``data`` in format ``fmt`` for
-    output ``out`` (a file, or the folder of a folder format such as ``rosbag2``).
+@dataclass(frozen=True)
+class Export:
+    """An export ready to write: ``files`` (path -> text, or bytes for binary formats) and the
+    ``warnings`` the command line prints (what the vendor does not document, a slow-down)."""
+
+    files: dict[Path, str | bytes]
+    warnings: tuple[str, ...] = ()
+
+
+def build_export(data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None) -> Export:
+    """The files of ``data`` in format ``fmt`` for output ``out`` (a file, or the folder of a
+    folder format such as ``rosbag2``), after checking what the controller runs against every
+    limit (:func:`~planner.export.limits.check_motion`: refused, or slowed down and said so).
 
     Options not given take the format's defaults; unknown options and bad values raise
     :class:`ExportError` naming them.  Nothing is written here (the caller writes the set
@@ -564,12 +491,29 @@ def export_files(
     if unknown:
         raise ExportError(f"export: format {fmt} has no option(s) {unknown}; options: {sorted(f.options)}")
     values = {k: (check(opts[k]) if k in opts else default) for k, (default, _h, check) in f.options.items()}
+    if f.motion is None:
+        notes = [
+            f"{fmt}: the format declares no controller motion (ExportFormat.motion): what it writes is not checked "
+            "against the limits beyond the trajectory's own samples (docs/export.md)"
+        ]
+    else:
+        motion = f.motion
+        data, notes = check_motion(data, fmt, lambda d: motion(d, values), values.get("slow_down") == "auto")
     out = Path(out)
     stem = out.stem if out.suffix else out.name
     texts = f.write(data, _program_name(stem), values)
     if f.folder:
-        return {out / name: text for name, text in texts.items()}
-    return {out.with_name(name): text for name, text in texts.items()}
+        files = {out / name: text for name, text in texts.items()}
+    else:
+        files = {out.with_name(name): text for name, text in texts.items()}
+    return Export(files, tuple(notes))
+
+
+def export_files(
+    data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None
+) -> dict[Path, str | bytes]:
+    """The files of :func:`build_export` (its warnings dropped)."""
+    return build_export(data, fmt, out, options).files
 
 
 def header_lines(data: ExportData, fmt: str, comment: str) -> list[str]:
@@ -582,7 +526,29 @@ def header_lines(data: ExportData, fmt: str, comment: str) -> list[str]:
         f"{comment} joints {', '.join(data.joint_names)}; controller angle = sign * q + offset, "
         f"sign {[int(v) for v in data.sign]}, offset {[round(math.degrees(v), 6) for v in data.offset]} deg "
         "(docs/export.md)",
-    ]
+    ] + (
+        [
+            f"{comment} slowed down x{data.slow_factor:.4f} from the plan's timing "
+            f"({data.t[-1] / data.slow_factor:.6g} s) so that what the controller runs stays within every limit "
+            "(docs/export.md)"
+        ]
+        if data.slow_factor != 1.0
+        else []
+    )
+
+
+# the checks and the options' validators (they need ExportError and ExportData above)
+from planner.export.options import SLOW_DOWN_OPTION, choice, counted, ranged  # noqa: E402
+from planner.export.limits import (  # noqa: E402
+    EXPORT_FD_TOL,
+    EXPORT_LIMIT_TOL,
+    EXPORT_POSITION_TOL,
+    EXPORT_TIME_TOL,
+    ControllerMotion,
+    Interpolation,
+    check_motion,
+    verify_limits,
+)
 
 
 #: Extra folders searched for export format modules (``os.pathsep``-separated): each ``*.py``

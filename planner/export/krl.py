@@ -14,7 +14,9 @@ controller's convention, external axes 0).  The ``.src`` moves ``PTP`` to the fi
   velocity and acceleration limits the planned trajectory uses on that segment (rounded up,
   1 to 100); KUKA's PTP plans its own profile within those, so the timing is approximate.
 
-Sample by sample reproduction needs streaming (RSI), not a program.
+Sample by sample reproduction needs streaming (RSI), not a program.  Checked (:func:`motion`): the
+points (and, for ``spline``, their times) against every limit; KUKA does not publish what its
+controller does between them, and the export warns so.
 
 Big programs: more than ``max_points`` points (default :data:`KRL_MAX_POINTS`) are split into
 numbered part modules ``NAME_p001.src``/``.dat`` ... of at most ``max_points`` points each (one
@@ -32,9 +34,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from planner.export import (
+    ControllerMotion,
     ExportData,
-    ExportError,
     ExportFormat,
+    Interpolation,
+    choice,
     counted,
     header_lines,
     part_label,
@@ -42,6 +46,7 @@ from planner.export import (
     ranged,
     register_format,
 )
+from planner.export.rapid import targets
 
 #: Printed decimals of joint angles (deg) and of the time-block parts (s).
 ANGLE_DECIMALS = 6
@@ -93,11 +98,10 @@ def _ptp(
     return src
 
 
-def _spline(data: ExportData, idx: np.ndarray, ks: range | None = None, axes: bool = True) -> list[str]:
+def _spline(t: np.ndarray, ks: range | None = None, axes: bool = True) -> list[str]:
     """A ``PTP_SPLINE`` block of ``SPTP XPk`` for ``k`` in ``ks`` (default 1 ... last) in a
-    ``TIME_BLOCK`` of their planned durations."""
-    t = data.t[idx]
-    ks = ks if ks is not None else range(1, len(idx))
+    ``TIME_BLOCK`` of their planned durations (``t``: the points' times, s)."""
+    ks = ks if ks is not None else range(1, len(t))
     src = (_axis_lines([100] * 6, [100] * 6) if axes else []) + ["  PTP_SPLINE", "    TIME_BLOCK START"]
     for k in ks:
         src += [f"    SPTP XP{k}", f"    TIME_BLOCK PART = {t[k] - t[k - 1]:.{TIME_DECIMALS}f}"]
@@ -105,23 +109,48 @@ def _spline(data: ExportData, idx: np.ndarray, ks: range | None = None, axes: bo
     return src
 
 
+#: Why the motion between the points is not checked, by ``motion``.
+UNCHECKED = {
+    "spline": "KUKA does not publish the shape of SPTP splines in a TIME_BLOCK, and $VEL_AXIS/$ACC_AXIS 100 leave "
+    "the controller's machine data as their only bound: between the points the motion is not checked against the "
+    "limits; the points at their times are (docs/export.md)",
+    "ptp": "KUKA plans each PTP's profile itself within $VEL_AXIS/$ACC_AXIS, percentages of its machine data set "
+    "from the robot file's limits (within those limits only if they are the machine data); its jerk, the C_PTP "
+    "approximation and the times are the controller's: not checked against the limits; the points are "
+    "(docs/export.md)",
+}
+
+
+def motion(data: ExportData, o: Mapping[str, Any]) -> ControllerMotion:
+    """The points (and, for ``spline``, their times); KUKA does not document the motion between them."""
+    _deg, t, q = targets(data, float(o["step_s"]), ANGLE_DECIMALS)
+    return ControllerMotion(
+        Interpolation.THROUGH_POINTS,
+        "the E6AXIS points",
+        t if o["motion"] == "spline" else None,
+        q,
+        eps=math.radians(0.5 * 10.0**-ANGLE_DECIMALS),
+        unchecked=UNCHECKED[str(o["motion"])],
+    )
+
+
 def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
     idx = data.decimated(float(o["step_s"]))
-    qd = np.degrees(data.controller_q()[idx])
+    qd, t, _model = targets(data, float(o["step_s"]), ANGLE_DECIMALS)
     name = stem[:NAME_MAX]
     src = ["&ACCESS RVP", "&REL 1", f"DEF {name}( )"] + ["  " + ln for ln in header_lines(data, "kuka krl", ";")]
     src += [f"  ; motion {o['motion']}, a point every ~{o['step_s']:g} s"]
     src += ["  BAS(#INITMOV, 0)"] + _axis_lines([int(o["approach_percent"])] * 6, [int(o["approach_percent"])] * 6)
     src.append("  PTP XP0")
     if len(idx) > int(o["max_points"]):
-        return _parts(data, idx, qd, stem, src, o)
-    src += _spline(data, idx) if o["motion"] == "spline" else _ptp(data, idx, o)
+        return _parts(data, idx, qd, t, stem, src, o)
+    src += _spline(t) if o["motion"] == "spline" else _ptp(data, idx, o)
     src += ["END", ""]
     return {f"{name}.src": "\n".join(src), f"{name}.dat": "\n".join(_dat(name, qd))}
 
 
 def _parts(
-    data: ExportData, idx: np.ndarray, qd: np.ndarray, stem: str, src: list[str], o: Mapping[str, Any]
+    data: ExportData, idx: np.ndarray, qd: np.ndarray, t: np.ndarray, stem: str, src: list[str], o: Mapping[str, Any]
 ) -> dict[str, str]:
     """The main pair ``NAME.src``/``.dat`` (XP0, then a call of each part) and the part pairs of
     points 1 ... (at most ``max_points`` each)."""
@@ -146,7 +175,7 @@ def _parts(
         body.append(f"  ; part {k} of {n}: points XP{a} to XP{b - 1} of XP{len(idx) - 1}, motion {o['motion']}")
         body.append(f"  ; called by {name}")
         if spline:
-            body += _spline(data, idx, range(a, b), axes=False)
+            body += _spline(t, range(a, b), axes=False)
         else:
             body += _ptp(data, idx, o, range(a, b), apo=False)
         body += ["END", ""]
@@ -157,12 +186,6 @@ def _parts(
 
 def _percent(name: str) -> Any:
     return lambda v: int(ranged(name, 1, 100)(v))
-
-
-def _motion(v: Any) -> str:
-    if str(v) not in MOTIONS:
-        raise ExportError(f"export option motion = {v!r}: expected one of {', '.join(MOTIONS)}")
-    return str(v)
 
 
 register_format(
@@ -176,7 +199,7 @@ register_format(
                 "spline",
                 "spline: PTP_SPLINE with TIME_BLOCK (planned times, KSS 8.3+); ptp: PTP C_PTP with "
                 "$VEL_AXIS/$ACC_AXIS percentages",
-                _motion,
+                choice("motion", MOTIONS),
             ),
             "approach_percent": (10, "$VEL_AXIS / $ACC_AXIS of the PTP to the start, %", _percent("approach_percent")),
             "approximation_percent": (
@@ -191,5 +214,7 @@ register_format(
             ),
         },
         "KUKA KRL .src/.dat pair: E6AXIS points (deg), a PTP_SPLINE time block or PTP with axis percentages",
+        motion=motion,
+        timing_options=("step_s", "motion"),
     )
 )

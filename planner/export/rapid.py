@@ -5,6 +5,8 @@ One target per decimated sample (every ``step_s`` s); each ``MoveAbsJ`` after th
 give a move's duration; the ``speeddata`` ``v_fallback`` applies only if ``\\T`` is removed),
 zone ``z1`` between targets and ``fine`` at the ends, tool ``tool0``.  External axes 9E+09
 (none).  Angles in degrees in the controller's convention (ABB: axes 1-6, its own zero).
+Checked (:func:`motion`): the targets at their times against every limit; ABB does not document
+the joint motion between them, and the export warns so.
 
 Big programs: more than ``max_targets`` targets (default :data:`RAPID_MAX_TARGETS`) are split
 into numbered part modules ``NAME_p001.mod`` ... of at most ``max_targets`` targets, each with
@@ -24,9 +26,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from planner.export import (
+    ControllerMotion,
     ExportData,
     ExportError,
     ExportFormat,
+    Interpolation,
     counted,
     header_lines,
     part_label,
@@ -54,20 +58,43 @@ LOAD_PATH = "HOME:"
 LOAD_SESSION = "compplan_load"
 
 
+def targets(data: ExportData, step_s: float, decimals: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Targets every ``step_s``: controller angles in degrees as printed (``decimals``), their times
+    from the first as the controller adds up the printed move times (s), and the angles in the
+    model's convention (rad).  Shared with KRL."""
+    idx = data.decimated(step_s)
+    deg = np.round(np.degrees(data.controller_q()[idx]), decimals)
+    t = np.r_[0.0, np.cumsum(np.round(np.diff(data.t[idx]), TIME_DECIMALS))]
+    return deg, t, (np.radians(deg) - data.offset) * data.sign
+
+
+def motion(data: ExportData, o: Mapping[str, Any]) -> ControllerMotion:
+    """The targets at their times; ABB does not document the joint motion between them."""
+    _deg, t, q = targets(data, float(o["step_s"]), ANGLE_DECIMALS)
+    return ControllerMotion(
+        Interpolation.THROUGH_POINTS,
+        "the MoveAbsJ targets",
+        t,
+        q,
+        eps=math.radians(0.5 * 10.0**-ANGLE_DECIMALS),
+        unchecked="ABB does not document the joint motion of MoveAbsJ with \\T between targets nor its z1 corner "
+        "paths: between the targets the controller's own motion is not checked against the limits; the targets at "
+        "their times are (docs/export.md)",
+    )
+
+
 def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str]:
-    idx = data.decimated(float(o["step_s"]))
-    qd = np.degrees(data.controller_q()[idx])
-    t = data.t[idx]
+    qd, t, _model = targets(data, float(o["step_s"]), ANGLE_DECIMALS)
     mod = stem[:MODULE_NAME_MAX] if stem[:1].isalpha() else "M" + stem[: MODULE_NAME_MAX - 1]
     head = ["  " + ln for ln in header_lines(data, "abb rapid", "!")]
     v = int(o["v_fallback"])
-    if len(idx) > int(o["max_targets"]):
+    if len(t) > int(o["max_targets"]):
         return _parts(stem, mod, head, qd, t, v, int(o["max_targets"]), str(o["load_path"]))
     lines = [f"MODULE {mod}"] + head
     lines += [_target(k, q) for k, q in enumerate(qd)]
     lines.append("  PROC main()")
     lines.append(f"    MoveAbsJ jt0\\NoEOffs, v{v}, fine, tool0;")
-    lines += _moves(t, v, range(1, len(idx)))
+    lines += _moves(t, v, range(1, len(t)))
     lines += ["  ENDPROC", "ENDMODULE", ""]
     return {f"{stem}.mod": "\n".join(lines)}
 
@@ -166,5 +193,7 @@ register_format(
             "load_path": (LOAD_PATH, "controller folder the driver module loads the part modules from", _path),
         },
         "ABB RAPID module: CONST jointtarget (deg) and MoveAbsJ with \\T from the timing",
+        motion=motion,
+        timing_options=("step_s",),
     )
 )

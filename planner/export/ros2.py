@@ -5,7 +5,9 @@ trajectory_msgs/msg/JointTrajectory "$(cat file.yaml)"`` and MoveIt accept: ``jo
 from the robot file (its URDF joint names), and one point per sample with ``positions``
 (rad), ``velocities`` (rad/s), ``accelerations`` (rad/s^2) and ``time_from_start``
 (``sec``, ``nanosec``), in the controller's convention (sign and offset of the robot file's
-``[controller]``).  The bag form is the ``rosbag2`` format.
+``[controller]``).  The bag form is the ``rosbag2`` format.  Checked (:func:`spline_motion`): the
+quintic a joint_trajectory_controller lays between the points, against every limit (slowed down,
+saying so, or refused: option ``slow_down``).
 
 Big programs: a trajectory of more than ``max_points`` samples (default
 :data:`ROS2_MAX_POINTS`) is written as numbered messages ``NAME_p001.yaml`` ... of at most
@@ -17,12 +19,24 @@ start + the part's ``start`` (``docs/export.md``, "Big programs").
 
 from __future__ import annotations
 
+import math
 from typing import Any
 from collections.abc import Mapping
 
 import numpy as np
 
-from planner.export import ExportData, ExportFormat, counted, header_lines, part_label, part_ranges, register_format
+from planner.export import (
+    SLOW_DOWN_OPTION,
+    ControllerMotion,
+    ExportData,
+    ExportFormat,
+    Interpolation,
+    counted,
+    header_lines,
+    part_label,
+    part_ranges,
+    register_format,
+)
 
 #: Printed significant digits of positions, velocities and accelerations.
 DIGITS = 12
@@ -72,6 +86,38 @@ def write(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str | 
         files[name] = _message(head + [note], data, o, q, qd, qdd, ns, a, b, start).encode()
         index.append(f"- {{file: {name}, start: {_stamp(start)}, first_sample: {a}, points: {b - a}}}")
     return {f"{stem}.yaml": "\n".join(index) + "\n", **files}
+
+
+def spline_motion(data: ExportData, digits: int | None = None, label: str = "the points") -> ControllerMotion:
+    """The points at their times (whole nanoseconds) with their velocities and accelerations, as
+    written (``digits`` significant digits, or float64 as they are), and the quintic a
+    joint_trajectory_controller lays between them (``splines``, its default)."""
+    q, qd, qdd = data.controller_q(), data.controller_rates(data.qd), data.controller_rates(data.qdd)
+    eps = 0.0
+    if digits is not None:
+        q, qd, qdd = (significant(x, digits) for x in (q, qd, qdd))
+        eps = 0.5 * 10.0 ** (math.floor(math.log10(max(float(np.abs(q).max()), 1e-300))) - digits + 1)
+    return ControllerMotion(
+        Interpolation.QUINTIC,
+        f"the joint_trajectory_controller's quintic spline through {label}",
+        np.rint(data.t * 1e9) * 1e-9,
+        (q - data.offset) * data.sign,
+        qd * data.sign,
+        qdd * data.sign,
+        eps=eps,
+    )
+
+
+def significant(x: np.ndarray, digits: int) -> np.ndarray:
+    """``x`` rounded to ``digits`` significant digits, as ``%.{digits}g`` prints it (up to ties)."""
+    mag = np.floor(np.log10(np.abs(x), out=np.zeros_like(x), where=x != 0.0))
+    scale = 10.0 ** (digits - 1 - mag)
+    return np.round(x * scale) / scale
+
+
+def motion(data: ExportData, o: Mapping[str, Any]) -> ControllerMotion:
+    """What a joint_trajectory_controller runs from the YAML (:data:`DIGITS` significant digits)."""
+    return spline_motion(data, DIGITS)
 
 
 def nanoseconds(t: np.ndarray) -> list[int]:
@@ -138,7 +184,10 @@ register_format(
                 "most points in one message; a longer trajectory is split into NAME_p001.yaml ...",
                 counted("max_points", 2, MAX_POINTS_LIMIT),
             ),
+            "slow_down": SLOW_DOWN_OPTION,
         },
         "trajectory_msgs/msg/JointTrajectory as YAML (ros2 topic pub, MoveIt)",
+        motion=motion,
+        timing_options=("slow_down",),
     )
 )

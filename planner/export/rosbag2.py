@@ -29,8 +29,18 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from planner.export import ExportData, ExportError, ExportFormat, counted, part_ranges, ranged, register_format
-from planner.export.ros2 import MAX_POINTS_LIMIT, ROS2_MAX_POINTS, nanoseconds, part_start_ns
+from planner.export import (
+    SLOW_DOWN_OPTION,
+    ControllerMotion,
+    ExportData,
+    ExportError,
+    ExportFormat,
+    counted,
+    part_ranges,
+    ranged,
+    register_format,
+)
+from planner.export.ros2 import MAX_POINTS_LIMIT, ROS2_MAX_POINTS, nanoseconds, part_start_ns, spline_motion
 
 #: ROS 2 distribution whose message definitions are written.
 TYPESTORE = "ROS2_HUMBLE"
@@ -152,6 +162,13 @@ class JointStates:
         )
 
 
+def motion(data: ExportData, o: Mapping[str, Any]) -> ControllerMotion:
+    """The ``/joint_trajectory`` points (float64, as the ``ros2`` format's without its rounding) and
+    the quintic a joint_trajectory_controller lays between them; ``/joint_states`` holds the same
+    positions and velocities at the same times."""
+    return spline_motion(data, None, "the /joint_trajectory points")
+
+
 def _version(v: Any) -> int:
     x = int(ranged("version", 8, 9)(v))
     if x not in (8, 9):
@@ -177,8 +194,11 @@ register_format(
                 "most points in one /joint_trajectory message; a longer trajectory is split into several",
                 counted("max_points", 2, MAX_POINTS_LIMIT),
             ),
+            "slow_down": SLOW_DOWN_OPTION,
         },
         "ROS 2 bag folder (rosbags): /joint_trajectory (one JointTrajectory) and /joint_states per sample",
         folder=True,
+        motion=motion,
+        timing_options=("slow_down",),
     )
 )

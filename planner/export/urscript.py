@@ -4,11 +4,13 @@
 ``urscript``: a ``movej`` to the first sample (joint speed ``approach_speed`` rad/s,
 acceleration ``approach_acceleration`` rad/s^2), then one ``servoj(q, t=period,
 lookahead_time=..., gain=...)`` per controller period (the trajectory is resampled to
-``period`` by cubic Hermite interpolation of its positions and velocities when its own
-sample period differs; the default is the trajectory's own dt): e-series 0.002 s, CB3 0.008 s.  UR's documented ranges:
-``lookahead_time`` 0.03 to 0.2 s, ``gain`` 100 to 2000.
+``period`` by the quintic through its samples' positions, velocities and accelerations when its
+own sample period differs; the default is the trajectory's own dt): e-series 0.002 s, CB3
+0.008 s.  UR's documented ranges: ``lookahead_time`` 0.03 to 0.2 s, ``gain`` 100 to 2000.  The
+setpoints as written are checked at the period (:func:`servoj_motion`; slowed down or refused).
 ``urscript_movej``: one ``movej(q, t=..., r=...)`` per decimated sample (every ``step_s`` s),
-``t`` the time the trajectory takes between them, ``r`` the blend radius (m, 0 at the end).
+``t`` the time the trajectory takes between them, ``r`` the blend radius (m, 0 at the end);
+without blend every move stops at its target (:func:`movej_motion`: refused for a jerk limit).
 Angles are radians in the controller's convention (UR: base, shoulder, elbow, wrist 1-3).
 
 Big programs: a program of more than ``max_motions`` motion statements (default
@@ -22,21 +24,25 @@ for the PC to serve (``nc -l PORT < NAME_stream.txt``).  Why and the sources: ``
 
 from __future__ import annotations
 
+import math
 from typing import Any
 from collections.abc import Mapping
 
 import numpy as np
 
 from planner.export import (
+    SLOW_DOWN_OPTION,
+    ControllerMotion,
     ExportData,
     ExportError,
     ExportFormat,
+    Interpolation,
     counted,
-    difference_excess,
     header_lines,
     ranged,
     register_format,
 )
+from planner.export.quintic import quintic_coefficients
 
 #: servoj periods a UR controller runs (e-series 500 Hz, CB3 125 Hz), s.
 PERIOD_MIN_S = 0.002
@@ -72,36 +78,60 @@ def _vec(q: np.ndarray) -> str:
 
 
 def resample(data: ExportData, period: float) -> np.ndarray:
-    """Positions (model convention, rad) every ``period`` s over the trajectory, (M', 6):
-    cubic Hermite through the samples' positions and velocities; the last sample is kept."""
+    """Positions (model convention, rad) every ``period`` s from 0 to the first multiple of
+    ``period`` at or after the trajectory's end (held there), (M', 6): the trajectory's own samples
+    when ``period`` is its ``dt``, else the quintic through each pair of samples' positions,
+    velocities and accelerations (exact at the samples, continuous to the acceleration)."""
     if abs(period - data.dt) < 1e-12:
         return data.q
-    t = np.arange(0.0, data.t[-1] + 0.5 * period, period)
-    t[-1] = min(t[-1], data.t[-1])
+    n = int(math.ceil(data.t[-1] / period - 1e-9))
+    t = np.arange(n + 1) * period
     i = np.clip(np.searchsorted(data.t, t, side="right") - 1, 0, len(data.t) - 2)
-    h = data.t[i + 1] - data.t[i]
-    s = ((t - data.t[i]) / h)[:, None]
-    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-    hh = h[:, None]
-    q = h00 * data.q[i] + h10 * hh * data.qd[i] + h01 * data.q[i + 1] + h11 * hh * data.qd[i + 1]
-    q[-1] = data.q[-1]
+    c, h = quintic_coefficients(data.t[i[0] : i[-1] + 2], *(a[i[0] : i[-1] + 2] for a in (data.q, data.qd, data.qdd)))
+    k = i - i[0]
+    tau = np.minimum(t - data.t[i], h[k, 0])[:, None]
+    q = np.zeros((len(t), 6))
+    for ck in reversed(c):
+        q = q * tau + ck[k]
+    q[t >= data.t[-1] - 1e-12] = data.q[-1]
     return q
 
 
+def _period(data: ExportData, o: Mapping[str, Any]) -> float:
+    """The servoj period, s, as printed (``t=``): the option, else the plan's own ``dt``."""
+    return round(float(o["period"]) if o["period"] is not None else _period_of(data), TIME_DECIMALS)
+
+
+def _written(data: ExportData, q_model: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Controller angles as printed (:data:`ANGLE_DECIMALS`) and the same in the model's convention."""
+    c = np.round(data.controller_q(q_model), ANGLE_DECIMALS)
+    return c, (c - data.offset) * data.sign
+
+
+def servoj_motion(data: ExportData, o: Mapping[str, Any]) -> ControllerMotion:
+    """The servoj setpoints as written, every period from the first (the movej's target)."""
+    period = _period(data, o)
+    _c, q = _written(data, resample(data, period))
+    plan_dt = data.dt / data.slow_factor
+    return ControllerMotion(
+        Interpolation.SETPOINTS,
+        f"the servoj setpoints every {period:g} s",
+        np.arange(len(q)) * period,
+        q,
+        eps=0.5 * 10.0**-ANGLE_DECIMALS,
+        advice=(
+            ""
+            if abs(period - plan_dt) < 1e-12
+            else f"; or plan at the servoj period (compplan plan --dt {period:g}), or export at the plan's "
+            f"(--set period={plan_dt:g})"
+        ),
+        approach=(float(o["approach_speed"]), float(o["approach_acceleration"])),
+    )
+
+
 def write_servoj(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str | bytes]:
-    period = float(o["period"]) if o["period"] is not None else _period_of(data)
-    q_model = resample(data, period)
-    if abs(period - data.dt) >= 1e-12:  # the setpoints the controller runs, checked at its period
-        bad = difference_excess(data, q_model, period)
-        if bad:
-            name, j, i, _, value, lim, unit = bad
-            raise ExportError(
-                f"urscript: resampled to the servoj period {period:g} s (the plan's is {data.dt:g} s), joint {j + 1} "
-                f"reaches {name} {abs(value):.6g} {unit} = {abs(value) / lim:.3f}x its limit ({lim:.6g} {unit}) "
-                f"at t = {i * period:.6g} s; plan at that period (compplan plan --dt {period:g}) or export at the "
-                f"plan's (--set period={data.dt:g})"
-            )
-    q = data.controller_q(q_model)
+    period = _period(data, o)
+    q, _model = _written(data, resample(data, period))
     lines = [f"def {stem}():"] + ["  " + ln for ln in header_lines(data, "urscript (servoj)", "#")]
     lines.append(f"  # servoj every {period:g} s, lookahead_time {o['lookahead_time']:g} s, gain {o['gain']:g}")
     servo = f"t={period:.{TIME_DECIMALS}f}, lookahead_time={o['lookahead_time']:g}, gain={o['gain']:g}"
@@ -179,32 +209,70 @@ def _qref() -> str:
 
 
 def _period_of(data: ExportData) -> float:
-    """The trajectory's own sample period as the servoj period, if UR accepts it."""
-    if not PERIOD_MIN_S - 1e-12 <= data.dt <= PERIOD_MAX_S + 1e-12:
+    """The plan's own sample period (before any slow-down) as the servoj period, if UR accepts it."""
+    dt = data.dt / data.slow_factor
+    if not PERIOD_MIN_S - 1e-12 <= dt <= PERIOD_MAX_S + 1e-12:
         raise ExportError(
-            f"urscript: the trajectory's period {data.dt:g} s is outside the servoj periods "
+            f"urscript: the trajectory's period {dt:g} s is outside the servoj periods "
             f"[{PERIOD_MIN_S:g}, {PERIOD_MAX_S:g}] s; give one with --set period=0.002 (e-series) "
             "or 0.008 (CB3)"
         )
-    return data.dt
+    return dt
+
+
+def _movej_targets(data: ExportData, o: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The movej targets as printed: controller angles (rad), their times from the first as the
+    controller adds up the printed ``t`` (s), and the same angles in the model's convention."""
+    idx = data.decimated(float(o["step_s"]))
+    c, q = _written(data, data.q[idx])
+    t = np.r_[0.0, np.cumsum(np.round(np.diff(data.t[idx]), TIME_DECIMALS))]
+    return c, t, q
+
+
+def movej_motion(data: ExportData, o: Mapping[str, Any]) -> ControllerMotion:
+    """The movej targets at their times: without blend each move goes from rest to rest on UR's
+    trapezoidal speed profile; with one, what the controller does in the blends is not documented."""
+    _c, t, q = _movej_targets(data, o)
+    blended = float(o["blend_radius"]) > 0.0
+    return ControllerMotion(
+        Interpolation.THROUGH_POINTS if blended else Interpolation.REST_TO_REST,
+        "the movej targets"
+        if blended
+        else "the movej moves (r = 0: each from rest to rest in its t on a trapezoidal speed profile)",
+        t,
+        q,
+        eps=0.5 * 10.0**-ANGLE_DECIMALS,
+        unchecked=(
+            f"UR does not document the motion of movej blends (blend_radius {float(o['blend_radius']):g} m): between "
+            "the targets the arm follows the controller's blends, not checked against the limits; the targets at "
+            "their times are (docs/export.md)"
+            if blended
+            else ""
+        ),
+        advice=(
+            ""
+            if blended
+            else "; blend_radius 0 stops the arm at every target: give blend_radius > 0 (m, under half the TCP "
+            "distance between targets) or use the urscript format (servoj)"
+        ),
+        approach=(float(o["approach_speed"]), float(o["approach_acceleration"])),
+    )
 
 
 def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, str | bytes]:
-    idx = data.decimated(float(o["step_s"]))
-    q = data.controller_q()[idx]
-    t = data.t[idx]
+    q, t, _model = _movej_targets(data, o)
     lines = [f"def {stem}():"] + ["  " + ln for ln in header_lines(data, "urscript (movej list)", "#")]
     lines.append(
         f"  # movej every ~{o['step_s']:g} s, t = the planned time between them, blend r = {o['blend_radius']:g} m"
     )
-    if len(idx) > int(o["max_motions"]):
-        r = np.full(len(idx), float(o["blend_radius"]))
+    if len(q) > int(o["max_motions"]):
+        r = np.full(len(q), float(o["blend_radius"]))
         r[0] = r[-1] = 0.0
         dt = np.r_[0.0, np.diff(t)]  # the first line's t and r are not used (movej at approach speed)
         return _streamed(stem, lines, o, q, np.column_stack([dt, r]), "movej({q}, t={t}, r={r})")
     lines.append(f"  movej({_vec(q[0])}, a={o['approach_acceleration']:g}, v={o['approach_speed']:g})")
-    for k in range(1, len(idx)):
-        r = 0.0 if k == len(idx) - 1 else float(o["blend_radius"])
+    for k in range(1, len(q)):
+        r = 0.0 if k == len(q) - 1 else float(o["blend_radius"])
         lines.append(f"  movej({_vec(q[k])}, t={t[k] - t[k - 1]:.{TIME_DECIMALS}f}, r={r:g})")
     lines += ["end", ""]
     return {f"{stem}.script": "\n".join(lines)}
@@ -249,9 +317,12 @@ register_format(
             ),
             "lookahead_time": (0.1, "servoj lookahead_time, s (UR: 0.03-0.2)", ranged("lookahead_time", 0.03, 0.2)),
             "gain": (300.0, "servoj gain (UR: 100-2000)", ranged("gain", 100.0, 2000.0)),
+            "slow_down": SLOW_DOWN_OPTION,
             **_COMMON,
         },
         "URScript program streaming the trajectory by servoj at the controller period",
+        motion=servoj_motion,
+        timing_options=("period", "slow_down", "approach_speed", "approach_acceleration"),
     )
 )
 
@@ -266,5 +337,7 @@ register_format(
             **_COMMON,
         },
         "URScript program of movej moves with blend radii (low-rate use)",
+        motion=movej_motion,
+        timing_options=("step_s", "blend_radius", "approach_speed", "approach_acceleration"),
     )
 )

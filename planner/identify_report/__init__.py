@@ -1,36 +1,38 @@
-"""Report of ``compplan identify``: ``report.json``, ``report.md`` and ``report.html``.
+"""Report of ``compplan identify``: ``report.json``, ``report.md``, ``report.html`` and its figures
+as files, ``figures/<name>.png`` and ``.pdf``.
 
 The JSON holds every figure of the identification (see ``docs/identification.md``,
-section "Report"), opened by a ``headline`` (status, RMS before/after in-sample and
-held-out, noise floor, effects added, the structure left -- "weak structure remains"
-when a significant but small one does -- the joint error maps, and the compensation
-check in one sentence that says what it can and cannot show) and a ``provenance``
-block (compplan version, command line, date, input files with SHA-256).  The
-Markdown and HTML say the same for people, the HTML styled like the plan report
-(headline table first, then the joint error maps when the model has any: a table of
-their harmonics and sizes at the TCP and a figure of each map over its angle range
-with its band) with embedded figures (PNG, base64, matplotlib's Agg canvas, no
-pyplot): the residuals per axis before and after, the cross-validated RMS at each
-selection step, the compensation re-measured on the virtual robot (base and
-measurement frame), and the residual against the diagnostic variables (the one
-that shows unexplained structure first, then the significant ones; joint angles in
-degrees).  Every axis names its unit.
+section "Report"), opened by a ``headline`` (status, the validation file's RMS before -> after
+with ``--validation``, RMS before/after in-sample and held-out, noise floor, effects added, the
+structure left -- "weak structure remains" when a significant but small one does -- the joint
+error maps, the held parameters in one line, and the compensation check in one sentence that
+gives the measurement-frame figure first and says why the base frame's differs) and a
+``provenance`` block (compplan version, command line, date, input files with SHA-256).  The
+Markdown and HTML say the same for people, the HTML styled like the plan report (headline table
+first, then the joint error maps when the model has any: a table of their harmonics and sizes at
+the TCP and a figure of each map over its angle range with its band) with embedded figures
+(matplotlib's Agg canvas, no pyplot), each also written as a PNG and a PDF and linked: the
+residuals per axis before and after, the cross-validated RMS at each selection step, the
+compensation re-measured on the virtual robot (measurement and base frame), and the residual
+against the significant diagnostic variables (the one that shows unexplained structure first;
+joint angles in degrees; the others named in one line).  Every axis names its unit.
 Files are written through :class:`planner.output.OutputSet` (all or nothing).
 Lengths in the report are in mm (names end in ``_mm``).  Nothing here prints.
 
 Modules (each imports only those listed before it): :mod:`~planner.identify_report.canvas`
-(the Agg canvas and its PNG), :mod:`~planner.identify_report.text` (values and Markdown cells
-as text), :mod:`~planner.identify_report.diagnostics` (which diagnostics are shown, the words
-of their variables), :mod:`~planner.identify_report.data` (``report.json``: report_dict,
-headline, sentences), :mod:`~planner.identify_report.maps` (the joint error maps: table rows,
-Markdown, figure), :mod:`~planner.identify_report.figures` (residual, history, compensation
-and diagnostic figures), :mod:`~planner.identify_report.markdown`,
+(the Agg canvas, PNG and PDF, figure file names), :mod:`~planner.identify_report.text` (values
+and Markdown cells as text), :mod:`~planner.identify_report.diagnostics` (which diagnostics are
+drawn and listed, the words of their variables), :mod:`~planner.identify_report.captions`
+(figure titles, captions, order and files), :mod:`~planner.identify_report.data`
+(``report.json``: report_dict, headline, sentences), :mod:`~planner.identify_report.maps` (the
+joint error maps: table rows, Markdown, figure), :mod:`~planner.identify_report.figures`
+(residual, history, compensation and diagnostic figures), :mod:`~planner.identify_report.markdown`,
 :mod:`~planner.identify_report.html`, :mod:`~planner.identify_report.writer` (write_report).
 """
 
 from __future__ import annotations
 
-from planner.identify_report.canvas import REPORT_DPI
+from planner.identify_report.canvas import FIGURE_FOLDER, REPORT_DPI, RenderedFigure
 from planner.identify_report.data import compensation_sentence, report_dict, structure_sentence
 from planner.identify_report.diagnostics import (
     REPORT_DIAGNOSTIC_PLOTS,
@@ -39,13 +41,15 @@ from planner.identify_report.diagnostics import (
     VARIABLE_UNITS,
 )
 from planner.identify_report.figures import AXIS_COLOURS, REPORT_ANGLE_BINS_MAX, REPORT_BINS, RESIDUAL_UM_BELOW_M
-from planner.identify_report.html import FIGURE_TEXT, report_html
+from planner.identify_report.captions import FIGURE_TEXT
+from planner.identify_report.html import report_html
 from planner.identify_report.maps import MAP_COMPONENT_WORDS, MAP_TABLE_NOTE, REPORT_MAP_HARMONICS, REPORT_MAP_PANELS
 from planner.identify_report.markdown import report_markdown
 from planner.identify_report.writer import write_report
 
 __all__ = [
     "AXIS_COLOURS",
+    "FIGURE_FOLDER",
     "FIGURE_TEXT",
     "MAP_COMPONENT_WORDS",
     "MAP_TABLE_NOTE",
@@ -56,6 +60,7 @@ __all__ = [
     "REPORT_DPI",
     "REPORT_MAP_HARMONICS",
     "REPORT_MAP_PANELS",
+    "RenderedFigure",
     "RESIDUAL_UM_BELOW_M",
     "VARIABLE_LABELS",
     "VARIABLE_UNITS",

@@ -1,15 +1,40 @@
-"""The figures' canvas: a matplotlib Figure on the Agg canvas (no pyplot state) and its base64 PNG."""
+"""The figures' canvas: a matplotlib Figure on the Agg canvas (no pyplot state), rendered to PNG and
+PDF bytes (:class:`RenderedFigure`: the report embeds the PNG and writes both beside it)."""
 
 from __future__ import annotations
 
 import base64
 import io
+import re
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 #: PNG resolution of the identification figures (dots per inch).
 REPORT_DPI = 90
+#: Folder of the report's figure files, relative to the report folder (as the plan report's).
+FIGURE_FOLDER = "figures"
+
+
+@dataclass(frozen=True)
+class RenderedFigure:
+    """One figure of the report as files: ``png`` (embedded in the HTML, written as
+    ``figures/<name>.png``) and ``pdf`` (vector, ``figures/<name>.pdf``)."""
+
+    png: bytes
+    pdf: bytes
+
+    @property
+    def b64(self) -> str:
+        """The PNG as base64 text (the HTML's ``data:`` URL)."""
+        return base64.b64encode(self.png).decode("ascii")
+
+
+def figure_file(key: str) -> str:
+    """The file stem of figure ``key`` (``diag_q3.xyz`` -> ``diag_q3_xyz``): letters, digits, ``_``
+    and ``-`` only, so a link to it needs no escaping."""
+    return re.sub(r"[^A-Za-z0-9_-]+", "_", key)
 
 
 def _figure(w: float, h: float, **adjust: float) -> Any:
@@ -24,11 +49,12 @@ def _figure(w: float, h: float, **adjust: float) -> Any:
     return fig
 
 
-def _png(fig: Any) -> str:
-    """Base64 PNG of a figure."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=REPORT_DPI, metadata={"Software": None})
-    return base64.b64encode(buf.getvalue()).decode()
+def _render(fig: Any) -> RenderedFigure:
+    """PNG and PDF bytes of a figure (metadata fixed, so the same figure gives the same bytes)."""
+    png, pdf = io.BytesIO(), io.BytesIO()
+    fig.savefig(png, format="png", dpi=REPORT_DPI, metadata={"Software": None})
+    fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None, "Producer": None})
+    return RenderedFigure(png.getvalue(), pdf.getvalue())
 
 
 def _rms(v: np.ndarray) -> float:

@@ -9,6 +9,13 @@ from typing import Any
 from planner.numbers import format_number
 from planner.provenance import builtin_robot_file, input_file, provenance
 from problems.identify import IdentificationResult
+from problems.identify.results import held_summary
+
+
+#: The base-frame and measurement-frame results of the compensation check agree when their fractions
+#: of the error left differ by at most this (two points of the error before, the compensation tests'
+#: acceptance level); otherwise :func:`compensation_sentence` says which to read and why they differ.
+FRACTION_LEFT_AGREE = 0.02
 
 
 def _mm(v: float | None) -> float | None:
@@ -110,6 +117,7 @@ def report_dict(
     if res.compensation_check is not None:
         out["compensation_check"] = res.compensation_check
     out["base_frame_aliases"] = _aliases(res)
+    out["held_parameters"] = held_summary(res).to_dict()
     head = {"headline": _headline(out), "provenance": provenance(_inputs(res, data_path))}
     return {**head, **out}
 
@@ -148,33 +156,37 @@ def _inputs(res: IdentificationResult, data_path: str | None) -> list[dict[str, 
     return entries
 
 
-def compensation_sentence(rep: dict[str, Any]) -> str:
-    """The compensation check in one sentence that says what it shows and what it cannot."""
+def compensation_sentence(rep: dict[str, Any], arrow: str = "→") -> str:
+    """The compensation check in one sentence: first the figure to read (the measured point's error in
+    the measurement frame, what an instrument checks, mm RMS before → after on new poses), then the
+    base-frame figure and, when the two differ by more than :data:`FRACTION_LEFT_AGREE`, why (the
+    terminal prints the same sentence with ``arrow="->"``)."""
     c = rep.get("compensation_check")
     if not c:
         return (
             "compensation not re-measured (no --truth): the held-out RMS is the estimate of what the "
             "model predicts on new poses"
         )
+
+    def pct(f: float) -> str:
+        return format_number(100 * f, 3)
+
     meas = (
-        f"measurement frame {format_number(c['meas_frame_rms_before_mm'])} → "
-        f"{format_number(c['meas_frame_rms_after_mm'])} mm RMS "
-        f"({format_number(100 * c['meas_frame_fraction_left'], 3)} % left)"
+        f"{format_number(c['meas_frame_rms_before_mm'])} {arrow} {format_number(c['meas_frame_rms_after_mm'])} mm "
+        f"RMS in the measurement frame ({pct(c['meas_frame_fraction_left'])} % left, {c['n_poses']} new poses)"
     )
+    base = f"{format_number(c['rms_before_mm'])} {arrow} {format_number(c['rms_after_mm'])} mm"
+    if abs(c["fraction_left"] - c["meas_frame_fraction_left"]) <= FRACTION_LEFT_AGREE:
+        return f"{meas}; in the base frame {base} ({pct(c['fraction_left'])} % left)"
     aliases = rep.get("base_frame_aliases") or []
     if aliases and not rep["data"]["registered"]:
-        return (
-            f"base-frame error cannot be checked with unregistered data: {', '.join(aliases)} cannot be told "
-            "apart from the registration or the measured point and are held at nominal, so the base-frame "
-            f"result ({format_number(c['rms_before_mm'])} → {format_number(c['rms_after_mm'])} mm RMS on the "
-            "virtual robot) reflects their true values, not the data; see the measurement-frame figure: "
-            f"{meas}, {c['n_poses']} new poses"
+        why = (
+            f"the registration and measured point absorb {len(aliases)} aliased parameters held at nominal "
+            "(parameters differ, predictions agree)"
         )
-    return (
-        f"TCP error in the virtual robot's base frame {format_number(c['rms_before_mm'])} → "
-        f"{format_number(c['rms_after_mm'])} mm RMS ({format_number(100 * c['fraction_left'], 3)} % left), "
-        f"{meas}, {c['n_poses']} new poses"
-    )
+    else:
+        why = "parameters held at nominal (held_parameters) move the TCP and the measured point differently"
+    return f"{meas}: read this; the base frame's {pct(c['fraction_left'])} % left differs as {why}"
 
 
 def structure_sentence(rep: dict[str, Any]) -> str:
@@ -199,9 +211,20 @@ def _structure_value(rep: dict[str, Any]) -> str:
     return "weak structure remains" if u.get("weak") else "structure remains"
 
 
+def _same_file(a: Any, b: Any) -> bool:
+    """Whether two file names name the same file (the validation file given as the data itself)."""
+    if not a or not b:
+        return False
+    try:
+        return Path(str(a)).resolve() == Path(str(b)).resolve()
+    except OSError:
+        return str(a) == str(b)
+
+
 def _headline(rep: dict[str, Any]) -> dict[str, Any]:
-    """What an engineer reads first: status, RMS before/after, noise floor, effects, structure left,
-    joint error maps, compensation."""
+    """What an engineer reads first: status, the validation file's RMS before/after (with
+    ``--validation``), RMS before/after in-sample and held-out, noise floor, effects, structure left,
+    joint error maps, held parameters, compensation."""
 
     def r4(v: float | None) -> float | None:
         from planner.numbers import round_sig
@@ -217,9 +240,13 @@ def _headline(rep: dict[str, Any]) -> dict[str, Any]:
         }
         for m in rep.get("error_maps") or []
     ]
+    v = rep.get("validation") or {}
     return {
         "status": rep["status"],
         "reason": rep["reason"],
+        "validation_rms_before_mm": r4(v.get("rms_nominal_mm")),
+        "validation_rms_after_mm": r4(v.get("rms_mm")),
+        "validation_held_out": (not _same_file(v.get("file"), rep["data"]["file"])) if v else None,
         "rms_before_mm": r4(rep["rms_before_mm"]),
         "rms_after_mm": r4(rep["rms_after_mm"]),
         "heldout_rms_before_mm": r4(rep["heldout_rms_before_mm"]),
@@ -230,6 +257,9 @@ def _headline(rep: dict[str, Any]) -> dict[str, Any]:
         "registered": bool(rep["data"]["registered"]),
         "unexplained": structure_sentence(rep),
         "error_maps": maps,
+        "held_parameters": (rep.get("held_parameters") or {}).get("message", ""),
         "compensation": compensation_sentence(rep),
-        "definition": "per-axis RMS of predicted - measured, measurement frame, mm, 4 significant digits",
+        "definition": "per-axis RMS of predicted - measured, measurement frame, mm, 4 significant digits; "
+        "validation: the --validation file, never used in the fit (before: the nominal robot file with the "
+        "identified registration and measured point)",
     }

@@ -7,10 +7,11 @@ import re
 from typing import Any
 
 from problems.identify import Diagnostic, IdentificationResult
+from problems.identify.results import joints_text
 
-#: Diagnostic figures drawn in the HTML report (the one behind the unexplained structure first,
-#: then the significant ones, then the strongest others; the per-axis diagnostics of one joint
-#: share a figure).
+#: Diagnostic figures drawn in the report, at most (the one behind the unexplained structure first,
+#: then the other significant ones; the per-axis diagnostics of one joint share a figure).  A
+#: diagnostic that is not significant is not drawn: the report names them in one line.
 REPORT_DIAGNOSTIC_PLOTS = 4
 #: Diagnostics listed in the report's table besides the significant ones (the strongest first).
 REPORT_DIAGNOSTIC_ROWS = 5
@@ -49,13 +50,13 @@ def _var_name(variable: str) -> str:
 
 
 def _diag_groups(res: IdentificationResult) -> list[tuple[str, list[Diagnostic]]]:
-    """The diagnostic figures to draw, at most :data:`REPORT_DIAGNOSTIC_PLOTS`: the variable behind
-    the unexplained structure first, then the significant ones, then the strongest others, each by
-    explained fraction.  The per-axis diagnostics of one joint (``q3.x``, ``q3.y``, ``q3.z``) share
-    one figure (key ``q3.xyz``, one panel per axis)."""
-    diags = [d for d in res.diagnostics if d.x is not None]
+    """The diagnostic figures to draw, at most :data:`REPORT_DIAGNOSTIC_PLOTS`, significant ones
+    only: the variable behind the unexplained structure first, then the others by explained
+    fraction.  The per-axis diagnostics of one joint (``q3.x``, ``q3.y``, ``q3.z``) share one figure
+    (key ``q3.xyz``, one panel per axis, the non-significant axes drawn beside the significant)."""
+    diags = [d for d in res.diagnostics if d.x is not None and d.significant]
     want = res.unexplained.get("variable")
-    diags.sort(key=lambda d: (d.variable != want, not d.significant, -d.explained_fraction))
+    diags.sort(key=lambda d: (d.variable != want, -d.explained_fraction))
     groups: dict[str, list[Diagnostic]] = {}
     for d in diags:
         ax = _axis_diag(d.variable)
@@ -65,6 +66,29 @@ def _diag_groups(res: IdentificationResult) -> list[tuple[str, list[Diagnostic]]
         elif len(groups) < REPORT_DIAGNOSTIC_PLOTS:
             groups[key] = [d]
     return list(groups.items())
+
+
+def _joint_of(variable: str) -> int | None:
+    """The joint of a joint-angle diagnostic (``q3``, ``q3.x``, ``q3.rz``), else None."""
+    m = re.fullmatch(r"q([1-6])(\.r?[xyz])?", variable)
+    return int(m.group(1)) if m else None
+
+
+def _not_significant_line(diags: list[dict[str, Any]]) -> str:
+    """One line naming where nothing is significant (those are not drawn): the joints none of whose
+    angle diagnostics is significant, then the other variables (``report.json`` diagnostics)."""
+    sig_joints = {_joint_of(d["variable"]) for d in diags if d["significant"]} - {None}
+    joints = sorted({j for d in diags if (j := _joint_of(d["variable"])) is not None} - sig_joints)
+    others = [d["variable"] for d in diags if _joint_of(d["variable"]) is None and not d["significant"]]
+    where = []
+    if joints:
+        where.append(joints_text(joints))
+    if others:
+        where.append(", ".join(others))
+    if not where:
+        return ""
+    head = "no diagnostic is significant" if not any(d["significant"] for d in diags) else "nothing significant"
+    return f"{head} on {' or on '.join(where)}: not drawn"
 
 
 def _shown_diagnostics(diags: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], int]:

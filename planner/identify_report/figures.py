@@ -1,6 +1,6 @@
-"""The report's figures as base64 PNGs (:func:`_figures`): residuals per axis before and after,
-the selection history, the compensation check and the diagnostics (the joint error maps are
-drawn by :mod:`planner.identify_report.maps`)."""
+"""The report's figures rendered to PNG and PDF (:func:`_figures`): residuals per axis before and
+after, the selection history, the compensation check and the significant diagnostics (the joint
+error maps are drawn by :mod:`planner.identify_report.maps`)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.identify_report.canvas import _figure, _png, _rms
+from planner.identify_report.canvas import RenderedFigure, _figure, _render, _rms
 from planner.identify_report.diagnostics import VARIABLE_UNITS, _axis_diag, _diag_groups, _is_angle, _var_name
 from planner.identify_report.maps import _maps_png
 from planner.numbers import format_number
@@ -27,12 +27,12 @@ AXIS_COLOURS = ("tab:blue", "tab:orange", "tab:green")
 RESIDUAL_UM_BELOW_M = 1e-4
 
 
-def _figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> dict[str, str]:
-    """The report's figures as base64 PNGs: residuals per axis, selection history, compensation
-    check, diagnostics."""
+def _figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> dict[str, RenderedFigure]:
+    """The report's figures, rendered: joint error maps, residuals per axis, selection history,
+    compensation check, significant diagnostics (key -> :class:`RenderedFigure`)."""
     import matplotlib
 
-    figs: dict[str, str] = {}
+    figs: dict[str, RenderedFigure] = {}
     with matplotlib.rc_context({"font.size": 9, "axes.titlesize": 9, "legend.fontsize": 8}):
         if getattr(res, "error_maps", None):
             figs["error_maps"] = _maps_png(res)
@@ -46,7 +46,7 @@ def _figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> di
     return figs
 
 
-def _residual_png(res: IdentificationResult) -> str:
+def _residual_png(res: IdentificationResult) -> RenderedFigure:
     """Histograms of the residual per axis (x, y, z), before (nominal) and after (identified)."""
     inl = res.inliers
     fig = _figure(11.0, 5.4, left=0.07, right=0.985, bottom=0.1, top=0.86, wspace=0.25, hspace=0.55)
@@ -74,10 +74,10 @@ def _residual_png(res: IdentificationResult) -> str:
         f"(RMS per axis over x, y, z: before {format_number(res.rms_before_mm)} mm, after "
         f"{format_number(res.rms_after_mm)} mm)"
     )
-    return _png(fig)
+    return _render(fig)
 
 
-def _history_png(res: IdentificationResult) -> str:
+def _history_png(res: IdentificationResult) -> RenderedFigure:
     """Cross-validated and in-sample RMS at each selection step."""
     steps = list(res.history)
     fig = _figure(8.0, 3.8, left=0.1, right=0.98, bottom=0.24, top=0.88)
@@ -109,31 +109,35 @@ def _history_png(res: IdentificationResult) -> str:
     ax.grid(alpha=0.3, which="both")
     ax.legend()
     ax.set_title("Selection history")
-    return _png(fig)
+    return _render(fig)
 
 
-def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> str:
-    """The compensation re-measured on the virtual robot: RMS before/after, base frame and
-    measurement frame (the base frame marked not checkable for unregistered data with aliases)."""
+def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> RenderedFigure:
+    """The compensation re-measured on the virtual robot: RMS before/after, measurement frame (the
+    figure to read, left) and base frame (marked not checkable for unregistered data with aliases)."""
     c = res.compensation_check or {}
     aliases = rep.get("base_frame_aliases") or []
     blind = bool(aliases) and not res.model.registered
     fig = _figure(9.0, 3.8, left=0.08, right=0.98, bottom=0.14, top=0.8, wspace=0.3)
     axs = fig.subplots(1, 2)
-    for ax, title, b, a, note in (
+    for ax, title, what, b, a, note in (
         (
             axs[0],
-            "base frame of the virtual robot (TCP)",
-            c.get("rms_before_mm"),
-            c.get("rms_after_mm"),
-            "not checkable with unregistered data:\nthe aliased parameters are held at nominal" if blind else "",
-        ),
-        (
-            axs[1],
-            "measurement frame (measured point)",
+            "measurement frame (measured point): read this",
+            "measured-point position error",
             c.get("meas_frame_rms_before_mm"),
             c.get("meas_frame_rms_after_mm"),
             "",
+        ),
+        (
+            axs[1],
+            "base frame of the virtual robot (TCP)",
+            "TCP position error",
+            c.get("rms_before_mm"),
+            c.get("rms_after_mm"),
+            (f"not checkable with unregistered data:\n{len(aliases)} aliased parameters are held at nominal")
+            if blind
+            else "",
         ),
     ):
         vals = [float(b or 0.0), float(a or 0.0)]
@@ -145,14 +149,14 @@ def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> str:
                 rect.get_x() + rect.get_width() / 2, v, f"{format_number(v)} mm", ha="center", va="bottom", fontsize=8
             )
         ax.set_xticks([0, 1], ["before (command as is)", "after compensation"])
-        ax.set_ylabel("TCP position error, RMS [mm]")
+        ax.set_ylabel(f"{what}, RMS [mm]")
         ax.set_title(title)
         ax.set_ylim(0, max(vals + [1e-9]) * 1.2)
         ax.grid(alpha=0.3, axis="y")
         if note:
             ax.text(
                 0.5,
-                0.55,
+                0.22,  # below the value labels of the bars
                 note,
                 transform=ax.transAxes,
                 ha="center",
@@ -161,7 +165,7 @@ def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> str:
                 bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"},
             )
     fig.suptitle(f"Compensation re-measured on the virtual robot: {c.get('n_poses', '?')} new poses and loads")
-    return _png(fig)
+    return _render(fig)
 
 
 def _length_scale(R: np.ndarray) -> tuple[str, float]:
@@ -199,7 +203,7 @@ def _x_of(d: Diagnostic) -> tuple[np.ndarray, str]:
     return x, f"{_var_name(d.variable)} [{VARIABLE_UNITS.get(d.variable, '-')}]"
 
 
-def _diag_png(res: IdentificationResult, d: Diagnostic) -> str:
+def _diag_png(res: IdentificationResult, d: Diagnostic) -> RenderedFigure:
     """Residual (one panel per axis) or its projected joint error against a diagnostic variable."""
     if d.y is not None:
         y = np.asarray(d.y, dtype=float)
@@ -243,10 +247,10 @@ def _diag_png(res: IdentificationResult, d: Diagnostic) -> str:
         f"Residual after identification against {_var_name(d.variable)}\ncross-validated explained share "
         f"{100 * d.explained_fraction:.0f} % (p = {d.p_value:.2g}, {flag})"
     )
-    return _png(fig)
+    return _render(fig)
 
 
-def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> str:
+def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> RenderedFigure:
     """The residual per axis against one joint angle (the per-axis diagnostics ``q{j}.x/y/z``, one
     panel each, with its own explained share and significance)."""
     joint = _axis_diag(group[0].variable)[0]  # type: ignore[index]
@@ -291,4 +295,4 @@ def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> str:
         + (f"significant structure on {', '.join(sig)}" if sig else "no significant structure on any axis")
         + " (cross-validated P-spline of each axis on the angle)"
     )
-    return _png(fig)
+    return _render(fig)

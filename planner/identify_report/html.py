@@ -1,71 +1,18 @@
 """``report.html``: :func:`report_html`, self-contained and styled like the plan report (the
-Markdown's sections converted by a tiny Markdown subset, figures embedded as base64 PNGs)."""
+Markdown's sections converted by a tiny Markdown subset, figures embedded as base64 PNGs and linked
+to their files ``figures/<name>.png|pdf``)."""
 
 from __future__ import annotations
 
 import html
 import re
+from collections.abc import Mapping
 from typing import Any
 
-from planner.identify_report.diagnostics import _is_angle, _var_name
+from planner.identify_report.canvas import RenderedFigure
+from planner.identify_report.captions import figure_entries, figure_text
+from planner.identify_report.diagnostics import _not_significant_line
 from planner.identify_report.markdown import _headline_rows, _provenance_rows, report_markdown
-from problems.identify.map_summary import MAP_BAND_SIGMAS
-
-#: Figures of the HTML report, in order: key -> (title, caption).
-FIGURE_TEXT = {
-    "residuals": (
-        "Residual per axis, before and after",
-        "Histograms of predicted − measured per axis of the measurement frame (mm; µm where every residual is "
-        "below 0.1 mm), inlier rows: top, "
-        "the nominal model (registration and measured point fitted); bottom, the identified model.",
-    ),
-    "history": (
-        "Selection history",
-        "Per-axis RMS (mm) at each step of the selection: held-out (cross-validated over poses) and "
-        "in-sample; the label names the effect added at that step.",
-    ),
-    "error_maps": (
-        "Joint error maps over the angle range of the data",
-        "Each panel: the identified error of one joint (one component of its motion) against its "
-        "commanded angle (deg), µrad for angles, µm for lengths; shaded, the uncertainty band of "
-        f"±{MAP_BAND_SIGMAS:g} standard deviations from the fit's covariance; ticks at the bottom, the "
-        "commanded angles of the measured rows; grey, beyond the range: there the map is held at its "
-        "end value (dashed), not extrapolated.",
-    ),
-    "compensation": (
-        "Compensation re-measured on the virtual robot",
-        "RMS TCP error (mm) of new poses and loads before and after compensation with the identified "
-        "model: in the virtual robot's base frame (the TCP) and in the measurement frame (the "
-        "measured point against its target mapped by the identified registration). With "
-        "unregistered data the base frame is not checkable through the parameters that alias with "
-        "the registration: judge the measurement frame.",
-    ),
-}
-
-
-def _diag_figure_text(key: str) -> tuple[str, str]:
-    """(title, caption) of a diagnostic figure ``diag_<variable>``."""
-    v = key[5:]
-    if v.endswith(".xyz"):
-        j = v[1]
-        return (
-            f"Residual per axis against joint {j} angle",
-            f"The residual after identification (predicted − measured, one panel per axis of the measurement "
-            f"frame) against the commanded angle of joint {j} in degrees (dots: rows; line: binned mean); "
-            "each panel names the cross-validated share of that axis a smooth function of the angle explains.",
-        )
-    if _is_angle(v):
-        return (
-            f"Equivalent error of joint {v[1]} against its angle",
-            f"The residual after identification projected on joint {v[1]}'s column of the positional "
-            f"Jacobian (the joint-{v[1]} error that would explain it) against the commanded angle in degrees "
-            "(dots: rows; line: binned mean).",
-        )
-    return (
-        f"Residual against {_var_name(v)}",
-        "The residual after identification against a diagnostic variable (dots: rows; line: binned mean); "
-        "one panel per axis of the measurement frame, or the residual projected on the joint.",
-    )
 
 
 def _html_table(
@@ -83,9 +30,10 @@ def _html_table(
     return "\n".join(out)
 
 
-def report_html(rep: dict[str, Any], figs: dict[str, str]) -> str:
-    """Self-contained HTML, styled like the plan report: headline table, figures with captions,
-    then the tables of the selection, parameters and diagnostics, and the provenance."""
+def report_html(rep: dict[str, Any], figs: Mapping[str, RenderedFigure]) -> str:
+    """Self-contained HTML, styled like the plan report: headline table, figures with captions
+    (each linked to its PNG and PDF files), then the tables of the selection, parameters and
+    diagnostics, and the provenance."""
     from planner.report.rendering import _CSS
 
     md = report_markdown(rep)
@@ -100,17 +48,16 @@ def report_html(rep: dict[str, Any], figs: dict[str, str]) -> str:
         f'<p class="note">Data: {html.escape(str(rep["data"]["file"]))}. {html.escape(rep["rms_definition"])}. '
         "Lengths in mm.</p>",
     ]
-    n = 0
+    entries = {e["key"]: e for e in rep.get("figures") or figure_entries(figs)}
 
     def figure(k: str) -> None:
-        nonlocal n
-        n += 1
-        title, caption = FIGURE_TEXT.get(k) or _diag_figure_text(k)
+        e = entries[k]
+        title, caption = figure_text(k)
         parts.append(
-            f'<h3 id="{html.escape(k)}">Figure {n}. {html.escape(title)}</h3>'
+            f'<h3 id="{html.escape(k)}">Figure {e["number"]}. {html.escape(title)}</h3>'
             f'<figure><img data-figure="{html.escape(k)}" alt="{html.escape(title)}" '
-            f'src="data:image/png;base64,{figs[k]}"><figcaption>{html.escape(caption)}</figcaption>'
-            "</figure>"
+            f'src="data:image/png;base64,{figs[k].b64}"><figcaption>{html.escape(caption)} Files: '
+            f'<a href="{e["png"]}">PNG</a>, <a href="{e["pdf"]}">PDF</a>.</figcaption></figure>'
         )
 
     maps_sec = next((sec for sec in sections[1:] if sec.startswith("Joint error maps")), None)
@@ -120,11 +67,14 @@ def report_html(rep: dict[str, Any], figs: dict[str, str]) -> str:
         if "error_maps" in figs:
             figure("error_maps")
     parts.append("<h2>Figures</h2>")
-    for k in ["residuals", "history", "compensation"] + [k for k in figs if k.startswith("diag_")]:
-        if k in figs:
+    for k in entries:
+        if k in figs and k != "error_maps":
             figure(k)
+    line = _not_significant_line(rep["diagnostics"])
+    if line:
+        parts.append(f'<p class="note">Residual against the diagnostic variables: {html.escape(line)}.</p>')
     for sec in sections[1:]:
-        if sec.startswith("Provenance") or sec is maps_sec:
+        if sec.startswith(("Provenance", "Figures")) or sec is maps_sec:
             continue
         parts.append(_md_block("## " + sec))
     parts.append('<h2 id="provenance">Provenance</h2>')

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.identify_report.canvas import _figure, _png
+from planner.identify_report.canvas import RenderedFigure, _figure, _render
 from planner.identify_report.text import _md_cell
 from planner.numbers import format_number
 from problems.identify import IdentificationResult
@@ -122,7 +122,7 @@ def _maps_drawn(maps: list[Any]) -> list[Any]:
     return [maps[i] for i in sorted(keep)]
 
 
-def _maps_png(res: IdentificationResult) -> str:
+def _maps_png(res: IdentificationResult) -> RenderedFigure:
     """The joint error maps over their angle ranges (one panel per map): the map, its band, the
     commanded angles of the data, and the map held at its end values beyond the range."""
     from matplotlib.lines import Line2D
@@ -216,4 +216,4 @@ def _maps_png(res: IdentificationResult) -> str:
             handles=handles, loc="lower center", ncol=4 if w > 9 else 2, frameon=False, bbox_to_anchor=(0.5, 0.0)
         )
     fig.suptitle("\n".join(title))
-    return _png(fig)
+    return _render(fig)

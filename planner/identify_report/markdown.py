@@ -5,8 +5,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from planner.identify_report.captions import figure_text
 from planner.identify_report.data import _headline, _structure_value, compensation_sentence, structure_sentence
-from planner.identify_report.diagnostics import _shown_diagnostics, _var_name
+from planner.identify_report.diagnostics import _not_significant_line, _shown_diagnostics, _var_name
 from planner.identify_report.maps import _harmonic_freqs, _map_name, _maps_markdown
 from planner.identify_report.text import _fmt, _md_cell
 from planner.numbers import format_number
@@ -29,8 +30,19 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(quantity, value, note) rows of the headline table."""
     h = rep.get("headline") or _headline(rep)
     d = rep["data"]
-    rows = [
-        ("status", str(h["status"]), str(h["reason"])),
+    rows = [("status", str(h["status"]), str(h["reason"]))]
+    v = rep.get("validation")
+    if v:
+        rows.append(
+            (
+                "validation file RMS per axis, before → after",
+                f"{_fmt(h.get('validation_rms_before_mm'))} → {_fmt(h.get('validation_rms_after_mm'))} mm",
+                f"{v['n_rows']} rows of {v['file']}, "
+                + ("never used in the fit" if h.get("validation_held_out") else "the --data file itself: not held out")
+                + "; before: the nominal robot file with the identified registration and measured point",
+            )
+        )
+    rows += [
         (
             "residual RMS per axis, before → after (in-sample)",
             f"{_fmt(h['rms_before_mm'])} → {_fmt(h['rms_after_mm'])} mm",
@@ -53,13 +65,15 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
             "as the status says" if structure_sentence(rep) == str(h["reason"]) else structure_sentence(rep),
         ),
         ("data", f"{d['n_rows']} rows, {d['n_poses']} poses", _setup_note(rep)),
+        _held_row(rep),
         ("compensation check", "re-measured" if rep.get("compensation_check") else "not run", str(h["compensation"])),
     ]
     ori = (rep.get("identifiability") or {}).get("orientation")
+    names = [r[0] for r in rows]
     if ori:
         gained = ori.get("identifiable_thanks_to_orientation") or []
         rows.insert(
-            3,
+            names.index("residual RMS per axis, before → after (held-out)") + 1,
             (
                 "orientation residual per axis, before → after (in-sample)",
                 f"{_fmt(ori['rms_before_rad'] * 1e6)} → {_fmt(ori['rms_after_rad'] * 1e6)} µrad",
@@ -72,7 +86,7 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
         top = max(maps, key=lambda m: m["rms_tcp_um"] or 0.0)
         joints = sorted({m["joint"] for m in maps})
         rows.insert(
-            5,
+            [r[0] for r in rows].index("structure left in the residual"),
             (
                 "joint error maps",
                 f"{len(maps)} on joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))}",
@@ -81,6 +95,73 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
             ),
         )
     return rows
+
+
+def _held_row(rep: dict[str, Any]) -> tuple[str, str, str]:
+    """The headline row of the held parameters: how many per group, and the one line of what they
+    mean and what to do."""
+    hp = rep.get("held_parameters") or {}
+    groups = hp.get("groups") or []
+    if not groups:
+        return ("parameters held at nominal", "none", "the data determine every parameter of the model")
+    words = {"setup_alias": "alias with the set-up", "redundant": "redundant", "undetermined": "undetermined"}
+    value = f"{hp['count']}: " + ", ".join(f"{g['count']} {words.get(g['kind'], g['kind'])}" for g in groups)
+    todo = [f"{words.get(g['kind'], g['kind'])}: {g['action']}" for g in groups if g["action"] != "none"]
+    return ("parameters held at nominal", value, "; ".join(todo + ["see 'Held parameters'"]))
+
+
+def _held_markdown(rep: dict[str, Any]) -> list[str]:
+    """The "Held parameters" section: per group its parameters, what it means and what to do (each
+    parameter's own reason is in the parameter table)."""
+    groups = (rep.get("held_parameters") or {}).get("groups") or []
+    if not groups:
+        return []
+    L = ["## Held parameters", "", "| parameters | what it means | what to do |", "|---|---|---|"]
+    L += [f"| {_md_cell(', '.join(g['names']))} | {_md_cell(g['meaning'])} | {_md_cell(g['action'])} |" for g in groups]
+    return L + [""]
+
+
+def _compensation_markdown(rep: dict[str, Any]) -> list[str]:
+    """The "Compensation re-measured on the virtual robot" section: the sentence (the figure to read
+    first, why the other differs), then both frames."""
+    c = rep.get("compensation_check")
+    if not c:
+        return []
+    aliases = rep.get("base_frame_aliases") or []
+    alias_note = (
+        f"; parameters held at nominal that alias with the registration and the measured point: {', '.join(aliases)}"
+        if aliases and not rep["data"]["registered"]
+        else ""
+    )
+    return [
+        "## Compensation re-measured on the virtual robot",
+        "",
+        f"- {compensation_sentence(rep)}",
+        (
+            f"- measurement frame (read this): the measured point against its nominal target mapped by the identified "
+            f"registration (what an instrument checks), {_fmt(c['meas_frame_rms_before_mm'])} → "
+            f"{_fmt(c['meas_frame_rms_after_mm'])} mm ({_fmt(100 * c['meas_frame_fraction_left'], 3)} % left)"
+        ),
+        (
+            f"- base frame: RMS of the 3-D TCP position error in the true base frame of the virtual robot, "
+            f"{_fmt(c['rms_before_mm'])} → {_fmt(c['rms_after_mm'])} mm "
+            f"({_fmt(100 * c['fraction_left'], 3)} % left){alias_note}"
+        ),
+        "",
+    ]
+
+
+def _figures_markdown(rep: dict[str, Any]) -> list[str]:
+    """The "Figures" section: each figure file (``report.json`` → ``figures``), its caption and its PDF."""
+    figs = rep.get("figures") or []
+    if not figs:
+        return []
+    L = ["## Figures", ""]
+    for f in figs:
+        title, caption = figure_text(f["key"])
+        L += [f"### Figure {f['number']}. {title}", "", f"![Figure {f['number']}. {title}]({f['png']})", ""]
+        L += [f"{caption} ([PDF]({f['pdf']}))", ""]
+    return L
 
 
 def _unexplained_markdown(rep: dict[str, Any]) -> list[str]:
@@ -130,32 +211,16 @@ def report_markdown(rep: dict[str, Any]) -> str:
     ]
     L += _maps_markdown(rep)
     L += _unexplained_markdown(rep)
-    if rep.get("compensation_check"):
-        c = rep["compensation_check"]
-        L += [
-            "## Compensation re-measured on the virtual robot",
-            "",
-            f"- {compensation_sentence(rep)}",
-            (
-                f"- base frame: RMS of the 3-D TCP position error in the true base frame of the virtual robot, "
-                f"{_fmt(c['rms_before_mm'])} → {_fmt(c['rms_after_mm'])} mm "
-                f"({_fmt(100 * c['fraction_left'], 3)} % left)"
-            ),
-            (
-                f"- measurement frame: the measured point against its nominal target mapped by the identified "
-                f"registration (what a tracker checks), {_fmt(c['meas_frame_rms_before_mm'])} → "
-                f"{_fmt(c['meas_frame_rms_after_mm'])} mm ({_fmt(100 * c['meas_frame_fraction_left'], 3)} % left)"
-            ),
-            "",
-        ]
+    L += _compensation_markdown(rep)
     if rep.get("validation"):
         v = rep["validation"]
         L += [
             "## Validation file",
             "",
             (
-                f"- `{v['file']}`: {v['n_rows']} rows, RMS {_fmt(v['rms_mm'])} mm "
-                f"(nominal model: {_fmt(v.get('rms_nominal_mm'))} mm)"
+                f"- `{v['file']}` (held out: never used in the fit): {v['n_rows']} rows, RMS per axis "
+                f"{_fmt(v.get('rms_nominal_mm'))} → {_fmt(v['rms_mm'])} mm (nominal robot file with the identified "
+                "registration and measured point → identified model)"
             ),
             "",
         ]
@@ -202,13 +267,16 @@ def report_markdown(rep: dict[str, Any]) -> str:
             f"| {p['name']} | {_fmt(p['value'], 6)} | {_fmt(p['std'], 3)} | {p['unit']} | {p['status']} | "
             f"{p['reason']} |"
         )
+    held_md = _held_markdown(rep)
+    if held_md:
+        L += [""] + held_md[:-1]
     idf = rep["identifiability"]
     L += [
         "",
         "## Identifiability",
         "",
         f"- rank {idf['rank']}, condition number (column-normalised) {_fmt(idf['condition_number'], 3)}",
-        f"- saturated library model: {idf.get('saturated_model')}",
+        f"- saturated library model: {_saturated_words(idf.get('saturated_model'))}",
         "",
     ]
     L += ["## Excluded rows (outliers)", ""]
@@ -237,8 +305,29 @@ def report_markdown(rep: dict[str, Any]) -> str:
             f"{hidden} other diagnostic{'s' if hidden > 1 else ''} not shown (not significant, explaining "
             "less than those listed); every diagnostic is in report.json.",
         ]
+    drawn_line = _not_significant_line(rep["diagnostics"])
+    if drawn_line:
+        L += ["", f"Figures: only significant diagnostics are drawn; {drawn_line}."]
     if rep["notes"]:
         L += ["", "## Notes", ""] + [f"- {n}" for n in rep["notes"]]
+    fig_md = _figures_markdown(rep)
+    if fig_md:
+        L += [""] + fig_md[:-1]
     L += ["", "## Provenance", "", "| item | value | SHA-256 |", "|---|---|---|"]
     L += [f"| {a} | {b} | {c} |" for a, b, c in _provenance_rows(rep)]
     return "\n".join(L) + "\n"
+
+
+def _saturated_words(info: Any) -> str:
+    """The saturated library model (every testable effect at once) in words, not a Python dict."""
+    if not isinstance(info, dict) or not info.get("effects"):
+        return "not fitted"
+    words = f"effects {', '.join(map(str, info['effects']))}"
+    if "cv_rms_mm" not in info:
+        return words + " (no effect beyond the declared model: not fitted separately)"
+    structure = _var_name(str(info.get("structure")))
+    left = "leaves no structure" if info.get("clean") else f"leaves structure in {structure}"
+    return (
+        f"{words}; CV RMS {_fmt(info['cv_rms_mm'], 4)} mm; {left}; "
+        f"{info.get('n_excluded', 0)} rows excluded as outliers against it"
+    )

@@ -21,11 +21,12 @@ __all__ = ["DYNAMIC_DECADES", "DYNAMIC_STYLES", "dynamic_figure"]
 
 
 # ------------------------------------------------------------------- 8. dynamic compensation
-#: Colours and line styles of the three cases of figure 8: none, static only, static + dynamic.
+#: Labels (the headline's words), colours and line styles of the three cases of figure 8: the link plan
+#: commanded as is, the static command, the motor-side command.
 DYNAMIC_STYLES = (
-    ("none (link plan commanded as is)", "0.35", "-", 1.3),
-    ("static compensation only", "tab:orange", "-", 1.5),
-    ("static + dynamic (motor-side command)", "tab:blue", "-", 1.6),
+    ("uncompensated", "0.35", "-", 1.3),
+    ("static command", "tab:orange", "-", 1.5),
+    ("motor-side command", "tab:blue", "-", 1.6),
 )
 #: The log axis of figure 8 spans at most this many decades below the largest error; smaller
 #: values (and the exact zeros at rest) are drawn on its floor.

@@ -510,10 +510,11 @@ def _dynamic_item(ctx: _Context) -> FigureItem:
         DYNAMIC_FIGURE,
         "TCP deviation from the planned path against time (dynamic compensation)",
         "Predicted (quasi-static) TCP position error against the planned link side at every "
-        "command sample, in µm on a log axis: the link plan commanded as is (none), with the "
-        "static compensation only, and with the motor-side command of the dynamic compensation "
+        "command sample, in µm on a log axis: the link plan commanded as is (uncompensated), with the "
+        "static command (load and own weight), and with the motor-side command of the dynamic compensation "
         "(static + dynamic), which also makes the joints carry the inertial torques; below, the "
-        "planned TCP speed (m/s) on the same time axis. Grey: the arm at rest. Vibrations are "
+        "planned TCP speed (m/s) on the same time axis. Grey: the arm at rest (start, end, dwells), where "
+        "the motor-side command is the static command. Vibrations are "
         f"not included. Data: {entry.get('file') or 'dynamic.csv'}; max and RMS in the table "
         "'Dynamic compensation'.",
     )
@@ -536,6 +537,11 @@ def _dynamic_item(ctx: _Context) -> FigureItem:
         ),
         (
             f"dynamic part smoothed over {format_number(1e3 * float(entry['smoothing_s']))} ms"
+            + (
+                f" ({format_number(1e3 * float(entry['smoothing_edge_s']))} ms one-sided next to rest)"
+                if isinstance(entry.get("smoothing_edge_s"), (int, float))
+                else ""
+            )
             if isinstance(entry.get("smoothing_s"), (int, float))
             else ""
         ),

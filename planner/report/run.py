@@ -4,7 +4,8 @@ A :class:`Run` is built either from the in-memory result of a plan
 (:func:`run_from_plan`, what ``compplan plan`` and ``compplan demo`` use right
 after planning) or from the files of an output folder (:func:`load_run`, what
 ``compplan report DIR`` uses).  Both give the same view: ``summary`` is the
-content of ``summary.json`` as JSON values (non-finite numbers are None), the
+content of ``summary.json`` as JSON values (non-finite numbers are None; from a folder, every key
+the report reads checked against its declaration, :mod:`planner.summary_schema`), the
 waypoint, branch and trajectory tables hold the columns of ``waypoints.csv``,
 ``branches.csv`` and ``trajectory*.csv``, and a plan with dynamic compensation
 (``[timing] dynamic = true``) the series of ``dynamic.csv``.  ``model`` is the arm model the
@@ -15,7 +16,6 @@ from a folder the model file its summary records, read again after checking its 
 from __future__ import annotations
 
 import csv
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -28,6 +28,8 @@ from models.arm import ArmModel
 from models.errors import CompplanError, InputError
 
 from planner.output import TRAJECTORY_COLUMNS, jsonable
+from planner.summary_schema import read_summary
+from planner.summary_specs import MAGNITUDE_MAX
 
 if TYPE_CHECKING:
     from planner.plan import PlanResult, RunView
@@ -186,13 +188,29 @@ def _add_trajectory(run: Run, method: str, name: str, tr: dict[str, np.ndarray |
 
 
 # ------------------------------------------------------------------------------ from a folder
+#: Columns checked by name in every CSV file of a run the report reads (what
+#: :func:`planner.plan.write_outputs` writes there): the time column (s, >= 0, strictly increasing),
+#: the whole-number columns (waypoint index, program line, row of path.csv), the 0/1 columns, and
+#: the columns of magnitudes (>= 0; m, m/s, mm/min).
+TIME_COLUMN = "t"
+INDEX_COLUMNS = ("k", "line", "waypoint")
+FLAG_COLUMNS = ("rapid", "moving")
+MAGNITUDE_COLUMNS = ("e_none_m", "e_static_m", "e_static_dynamic_m", "tcp_speed_m_s", "feed_mm_min")
+#: The columns of a file that may hold NaN, "none" (``"*"``: every column but the indices): a branch
+#: without a posture at a waypoint, the feed of a rapid and of waypoint 0.  Every other cell of
+#: every file must be a finite number (a trajectory's samples, the waypoints, dynamic.csv, ...).
+NAN_COLUMNS: dict[str, tuple[str, ...] | str] = {"branches.csv": "*", "path.csv": ("feed_mm_min",)}
+
+
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
-    """Columns of a numeric CSV with a header row, as float arrays."""
+    """Columns of a numeric CSV with a header row, as float arrays, checked by :func:`_check_columns`."""
     try:
         with path.open(newline="") as fh:
             rows = list(csv.reader(fh))
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{path}: not a readable CSV file ({exc})") from None
     if not rows:
         raise InputError(f"{path}: empty file; expected a header row and data rows")
     header = [h.strip() for h in rows[0]]
@@ -205,7 +223,40 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
                 data[i - 2, j] = float(v)
             except ValueError:
                 raise InputError(f"{path}: line {i}, column {header[j]}: {v!r} is not a number") from None
-    return {h: data[:, j] for j, h in enumerate(header)}
+    cols = {h: data[:, j] for j, h in enumerate(header)}
+    _check_columns(path, cols)
+    return cols
+
+
+def _check_columns(path: Path, cols: Mapping[str, np.ndarray]) -> None:
+    """Refuse a cell that is infinite or above :data:`~planner.summary_specs.MAGNITUDE_MAX`, or NaN
+    outside :data:`NAN_COLUMNS`; a time column that is negative or does not increase, an index that
+    is not a whole number >= 0, a flag not 0 or 1, a negative magnitude (:data:`TIME_COLUMN`, ...).
+    The message names the file, the line (the header is line 1), the column and the value."""
+
+    def refuse(col: str, bad: np.ndarray, expected: str) -> None:
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise InputError(f"{path}: line {i + 2}, column {col}: {float(cols[col][i])!r}; expected {expected}")
+
+    nan_ok = NAN_COLUMNS.get(path.name, ())
+    for col, v in cols.items():
+        ruled = col == TIME_COLUMN or col in INDEX_COLUMNS or col in FLAG_COLUMNS
+        may_be_nan = not ruled and (nan_ok == "*" or col in nan_ok)
+        refuse(
+            col,
+            (np.abs(v) > MAGNITUDE_MAX) | (np.isnan(v) & (not may_be_nan)),
+            f"a finite number, at most {MAGNITUDE_MAX:g} in magnitude",
+        )
+        if col == TIME_COLUMN:
+            refuse(col, v < 0.0, "a time >= 0 s")
+            refuse(col, np.r_[False, np.diff(v) <= 0.0], "a time after the previous line's (increasing)")
+        elif col in INDEX_COLUMNS:
+            refuse(col, (v < 0) | (v != np.round(v)), "a whole number >= 0")
+        elif col in FLAG_COLUMNS:
+            refuse(col, (v != 0.0) & (v != 1.0), "0 or 1")
+        elif col in MAGNITUDE_COLUMNS:
+            refuse(col, v < 0.0, "a number >= 0")
 
 
 def _require(path: Path, cols: Mapping[str, np.ndarray], names: list[str]) -> np.ndarray:
@@ -238,7 +289,8 @@ def _trajectory_files(summary: Mapping[str, Any], folder: Path | None = None) ->
 
 
 def _read_trajectory(path: Path) -> dict[str, np.ndarray | None]:
-    """One ``trajectory*.csv``; ``qddd`` is None when the file has no jerk columns."""
+    """One ``trajectory*.csv`` (every cell finite, times increasing from >= 0); ``qddd`` is None
+    when the file has no jerk columns."""
     cols = _read_csv(path)
     jerk = None if not any(c in cols for c in _JERK_COLUMNS) else _require(path, cols, _JERK_COLUMNS)
     base = [c for c in TRAJECTORY_COLUMNS if c not in _JERK_COLUMNS]
@@ -250,37 +302,21 @@ def _read_trajectory(path: Path) -> dict[str, np.ndarray | None]:
     return out
 
 
-#: Values of ``summary.json``'s ``command`` key of the runs ``compplan report`` reports on.
-RUN_COMMANDS = ("plan", "demo")
+#: Largest difference between a method's ``duration_s`` in summary.json and the time span of its
+#: trajectory file, s: both are written from the same floats at full precision (1 µs allows a file
+#: rewritten with fewer digits; a tampered duration or another run's file differs by far more).
+DURATION_TOL_S = 1e-6
 
 
 def _read_summary(folder: Path) -> dict[str, Any]:
+    """``summary.json`` of a run folder, every key the report reads checked
+    (:func:`planner.summary_schema.read_summary`)."""
     if not folder.is_dir():
         raise InputError(
             f"report: folder {str(folder)!r} does not exist; expected the output "
             "folder of compplan demo or compplan plan"
         )
-    sp = folder / "summary.json"
-    if not sp.is_file():
-        raise InputError(f"report: {sp} not found; expected the output folder of compplan demo or compplan plan")
-    try:
-        summary = json.loads(sp.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"report: {sp}: not valid JSON ({exc})") from None
-    if not isinstance(summary, dict):
-        raise InputError(f"report: {sp}: top level is {type(summary).__name__}; expected an object")
-    command = summary.get("command")
-    if command == "place":
-        raise InputError(
-            f"report: {sp} is a placement study's summary: compplan place writes its report itself "
-            "(run it again without --no-report)"
-        )
-    if command not in RUN_COMMANDS:
-        raise InputError(
-            f"report: {sp}: 'command' is {command!r}, not one of {list(RUN_COMMANDS)}: this is not the "
-            "summary of a compplan plan or demo run (compplan report writes the report of such a folder)"
-        )
-    return summary
+    return read_summary(folder, "report")
 
 
 def load_run(folder: str | Path) -> Run:
@@ -289,8 +325,10 @@ def load_run(folder: str | Path) -> Run:
     Raises
     ------
     InputError
-        The folder or its ``summary.json`` is missing or malformed, or a data
-        file present in it is malformed (the message names file, line, column).
+        The folder or its ``summary.json`` is missing or malformed (a key that does not fit its
+        declaration, :func:`planner.summary_schema.read_summary`: the message names the key), a
+        data file present in it is malformed (the message names file, line, column: see
+        :func:`_check_columns`), or a method's ``duration_s`` is not its trajectory file's.
     """
     from planner.plan import WAYPOINT_COLUMNS
 
@@ -312,14 +350,11 @@ def load_run(folder: str | Path) -> Run:
     else:
         run.absent["branches"] = "branches.csv absent in this run"
 
-    for name, method in _trajectory_files(summary, folder):
-        if (folder / name).is_file():
-            _add_trajectory(run, method, name, _read_trajectory(folder / name))
-    if not run.trajectories:
-        run.absent["trajectory"] = _NO_TRAJECTORY
+    _read_trajectories(run)
     from planner.report.toolpath import program_from_folder
 
     run.program = program_from_folder(run)
+    _check_sample_waypoints(run)
 
     if isinstance(summary.get(DYNAMIC_KEY), Mapping):
         dp = folder / _dynamic_file(summary)
@@ -341,6 +376,49 @@ def load_run(folder: str | Path) -> Run:
     if run.robot is not None:
         run.model = recorded_model(summary, run.robot, folder / "summary.json", run.absent)
     return run
+
+
+def _read_trajectories(run: Run) -> None:
+    """The trajectory files of a run folder, each against its ``duration_s`` in the summary; a
+    file the summary names (``timing.<method>.file``) but the folder lacks is stated absent."""
+    summary, folder = run.summary, run.folder
+    timing = summary.get("timing") if isinstance(summary.get("timing"), Mapping) else {}
+    named = {m for m, info in timing.items() if isinstance(info, Mapping) and "file" in info}
+    durations = summary.get("duration_s") if isinstance(summary.get("duration_s"), Mapping) else {}
+    for name, method in _trajectory_files(summary, folder):
+        path = folder / name
+        if not path.is_file():
+            if method in named:
+                run.absent[f"trajectory {method}"] = f"{name} (timing.{method}.file in summary.json) absent in this run"
+            continue
+        tr = _read_trajectory(path)
+        t = tr["t"]
+        d = durations.get(method)
+        span = float(t[-1] - t[0]) if len(t) else None  # type: ignore[index]
+        if d is not None and span is not None and abs(d - span) > DURATION_TOL_S:
+            raise InputError(
+                f"report: {folder / 'summary.json'}: duration_s.{method} = {d!r} s, but {name} spans {span!r} s "
+                f"(t from {float(t[0])!r} to {float(t[-1])!r}); expected the duration of that file: the summary "
+                "and the trajectory are not of the same run"
+            )
+        _add_trajectory(run, method, name, tr)
+    if not run.trajectories:
+        run.absent["trajectory"] = _NO_TRAJECTORY
+
+
+def _check_sample_waypoints(run: Run) -> None:
+    """A program path's ``waypoint`` column of each trajectory file must name rows of path.csv."""
+    view = run.program
+    if view is None:
+        return
+    for method, k in view.sample_waypoint.items():
+        bad = np.asarray(k) >= view.n
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{run.folder / run.trajectory_files.get(method, 'trajectory.csv')}: line {i + 2}, column waypoint: "
+                f"{int(k[i])}; expected a row of path.csv (0 to {view.n - 1})"
+            )
 
 
 def recorded_model(summary: Mapping[str, Any], robot: Robot, where: Path, absent: dict[str, str]) -> ArmModel | None:

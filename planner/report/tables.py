@@ -284,6 +284,7 @@ def headline_table(s: Mapping[str, Any]) -> Table:
         if key not in h:
             continue
         rows.append([Cell(text), value_cell(s, f"headline.{key}"), Cell("mm"), Cell(floor if key in below else note)])
+    rows += dynamic_headline_rows(s)
     if h.get("duration_s") is not None:
         note = str(h.get("duration_note") or "")
         if h.get("duration_time_optimal_s") is not None:
@@ -302,7 +303,7 @@ def headline_table(s: Mapping[str, Any]) -> Table:
         f"equilibrium under the whole load ({load_words(s)}); rounded to 4 significant digits, "
         f"and an error below {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm "
         "(the exact-compensation contract) is 0: the accuracy of the equilibrium solve, not an "
-        "error of the arm. Full precision: the tables below and summary.json.",
+        "error of the arm. Full precision: the tables below and summary.json." + dynamic_headline_note(s),
         css="summary headline",
         anchor="headline",
     )
@@ -571,11 +572,61 @@ def _branch_table(s: Mapping[str, Any]) -> Table | None:
     return Table("IK branches", ["branch", "posture", "status"] + [_BRANCH_HEADERS.get(k, k) for k in keys], rows, note)
 
 
-#: The cases of the dynamic compensation: (summary.json key, row label).
+#: The cases of the dynamic compensation: (summary.json key, row label); the headline's words
+#: (planner.dynamic.HEADLINE_CASES) open each label.
 DYNAMIC_CASES = (
-    ("none", "none (link plan commanded as is)"),
-    ("static", "static compensation only"),
-    ("static+dynamic", "static + dynamic (motor-side command)"),
+    ("none", "uncompensated (link plan commanded as is)"),
+    ("static", "static command (load and own weight, no inertial torques)"),
+    ("static+dynamic", "motor-side command (static + dynamic: trajectory.csv)"),
+)
+#: The dynamic headline's rows: (key part of ``headline.dynamic_compensation``, case words, note).
+DYNAMIC_HEADLINE_ROWS = (
+    ("uncompensated", "uncompensated", "the link plan commanded as is"),
+    ("static_command", "static command", "load and own weight compensated, no inertial torques"),
+    ("motor_side_command", "motor-side command", "the dynamic compensation: what trajectory.csv holds"),
+)
+
+
+def dynamic_headline_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
+    """The headline table's rows of a plan with dynamic compensation (``headline.dynamic_compensation``,
+    computed by the plan, shown as it is): the max predicted TCP error during the motion and at rest
+    without, with the static and with the motor-side command; none without the block."""
+    h = (s.get("headline") or {}).get(DYNAMIC_KEY) if isinstance(s.get("headline"), Mapping) else None
+    if not isinstance(h, Mapping):
+        return []
+    below = set(h.get("below_numerical_floor") or [])
+    floor = f"below the numerical floor {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm"
+    rows = []
+    for where, words in (("motion", "max during the motion"), ("rest", "max at rest (start, end, dwells)")):
+        for key, case, note in DYNAMIC_HEADLINE_ROWS:
+            k = f"error_{where}_max_{key}_mm"
+            if k in h:
+                text = f"TCP error along the trajectory, {words}: {case}"
+                cell = value_cell(s, f"headline.{DYNAMIC_KEY}.{k}")
+                rows.append([Cell(text), cell, Cell("mm"), Cell(floor if k in below else note)])
+    return rows
+
+
+def dynamic_headline_note(s: Mapping[str, Any]) -> str:
+    """The headline note's sentence on the dynamic rows (their definition from summary.json), or ""."""
+    h = (s.get("headline") or {}).get(DYNAMIC_KEY) if isinstance(s.get("headline"), Mapping) else None
+    if not isinstance(h, Mapping):
+        return ""
+    return (
+        " Trajectory rows (dynamic compensation): the predicted (quasi-static) TCP error at every sample of "
+        "trajectory.csv under the load, the arm's own weight and the inertial torques, unlike the waypoint rows "
+        "(the arm model's load alone); at rest the motor-side command is the static command. Definition: "
+        "summary.json headline.dynamic_compensation.definition and the table 'Dynamic compensation: predicted "
+        "TCP error'."
+    )
+
+
+#: The command table's smoothing columns: (``dynamic_compensation`` key, header); older summaries have
+#: only the first.
+DYNAMIC_SMOOTHING_COLUMNS = (
+    ("smoothing_s", "smoothing, centred [s]"),
+    ("smoothing_edge_s", "smoothing next to rest, one-sided [s]"),
+    ("smoothing_blend_s", "hand-over [s]"),
 )
 
 
@@ -604,20 +655,21 @@ def dynamic_tables(s: Mapping[str, Any]) -> list[Table]:
     )
     errors = Table(
         "Dynamic compensation: predicted TCP error [mm]",
-        ["case", "max during motion [mm]", "RMS during motion [mm]", "max at rest [mm]"],
+        ["case", "max during motion [mm]", "RMS during motion [mm]", "max at rest (start, end, dwells) [mm]"],
         rows,
         note.replace("..", "."),
         anchor="dynamic",
     )
     scale = d.get("limit_scale") if isinstance(d.get("limit_scale"), Mapping) else {}
     kinds = [kd for kd in RATIO_KINDS if kd in scale] + [kd for kd in scale if kd not in RATIO_KINDS]
+    smoothing = [(key, text) for key, text in DYNAMIC_SMOOTHING_COLUMNS if key in d]
     command = Table(
         "Dynamic compensation: command",
-        ["status", "timing passes"] + [f"limit scale: {kd} [×]" for kd in kinds] + ["smoothing [s]"],
+        ["status", "timing passes"] + [f"limit scale: {kd} [×]" for kd in kinds] + [t for _k, t in smoothing],
         [
             [value_cell(s, f"{DYNAMIC_KEY}.status"), value_cell(s, f"{DYNAMIC_KEY}.passes")]
             + [value_cell(s, f"{DYNAMIC_KEY}.limit_scale.{kd}") for kd in kinds]
-            + [value_cell(s, f"{DYNAMIC_KEY}.smoothing_s")]
+            + [value_cell(s, f"{DYNAMIC_KEY}.{key}") for key, _t in smoothing]
         ],
         str(d.get("reason") or ""),
         anchor="dynamic-command",
@@ -634,14 +686,14 @@ def dynamic_tables(s: Mapping[str, Any]) -> list[Table]:
                 [
                     "joint stiffness [× model]",
                     "payload mass [× model]",
-                    "static only: max during motion [mm]",
-                    "static + dynamic: max during motion [mm]",
+                    "static command: max during motion [mm]",
+                    "motor-side command: max during motion [mm]",
                     "gain [×]",
                 ],
                 rows,
                 "The same command (planned on the model) run on an arm whose joint stiffness and "
                 "payload mass are the factors times the model's: predicted TCP error during the "
-                "motion; gain = static only / static + dynamic.",
+                "motion; gain = static command / motor-side command.",
                 anchor="dynamic-mismatch",
             )
         )

@@ -243,6 +243,13 @@ def joint_angle_diagnostics(R: np.ndarray, Jw: np.ndarray, q: np.ndarray, folds:
     return out
 
 
+def _share(fraction: float) -> float:
+    """An explained fraction as a share of the residual variance: ``1 - CV RSS / RSS`` is negative
+    when the cross-validated fit predicts held-out rows worse than their mean; that is no structure,
+    a share of 0 (a share is never negative)."""
+    return max(float(fraction), 0.0)
+
+
 def run_diagnostics(
     R: np.ndarray,
     m: Measurements,
@@ -253,23 +260,24 @@ def run_diagnostics(
     """Regress the residual on each variable; significance with a Bonferroni correction over
     every diagnostic (``extra``: ones already computed, e.g. :func:`joint_angle_diagnostics`).
 
-    Returned sorted by explained fraction (largest first).
+    Returned sorted by explained fraction (largest first; never negative, :func:`_share`).
     """
     out: list[Diagnostic] = []
     n_tests = len(variables) + 1 + len(extra)
     for name, (x, X, desc) in variables.items():
         frac, p = _regress_cv(R, X, folds)
         sig = (p < DIAG_ALPHA / n_tests) and frac > DIAG_MIN_FRACTION
-        out.append(Diagnostic(name, frac, p, sig, x, desc))
+        out.append(Diagnostic(name, _share(frac), p, sig, x, desc))
     for d in extra:
         d.significant = (d.p_value < DIAG_ALPHA / n_tests) and d.explained_fraction > DIAG_MIN_FRACTION
+        d.explained_fraction = _share(d.explained_fraction)
         out.append(d)
     groups = m.pose_groups()
     frac, p = _pose_anova(R, groups)
     out.append(
         Diagnostic(
             "pose",
-            frac,
+            _share(frac),
             p,
             (p < DIAG_ALPHA / n_tests) and frac > DIAG_MIN_FRACTION,
             groups.astype(float),

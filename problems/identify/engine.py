@@ -20,7 +20,7 @@ callback ``progress(message, done, total)``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -59,6 +59,7 @@ from .identifiability import Known, _order_for, _structural_held
 from .lsq import _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _wjac, _wres, kabsch
 from .map_candidate import MAP_CHANNEL_GROUPS, MAP_SEARCH_COMPONENTS
 from .map_summary import ErrorMapSummary, summarise_maps
+from .nominal_check import check_nominal_fit, target_note
 from .orientation import _balance_orientation, _measured_frame_start, _orientation_gain
 from .outliers import _outlier_mask
 from .results import (
@@ -240,6 +241,29 @@ def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand:
     )
 
 
+#: An identification whose cross-validated (held-out) RMS after exceeds this multiple of the nominal
+#: model's is refused as a model to use: status ``does_not_generalise`` (it fits noise, not the arm).
+#: A 20 % margin: at the noise floor the two differ by chance by a few per cent.
+CV_WORSE_RATIO = 1.2
+#: Parameters named in a "cannot identify" error (one line a person reads); the rest are counted.
+HELD_NAMED_MAX = 6
+#: Characters of a parameter's reason quoted in that error.
+HELD_REASON_CHARS = 80
+
+
+def _held_list(bad: Sequence[int], held: Mapping[int, str], effect: Mapping[int, str] | None = None) -> str:
+    """The parameters of a "cannot identify" error on one short line: the names grouped by their
+    reason (each reason once, shortened), at most :data:`HELD_NAMED_MAX` names, the rest counted."""
+    groups: dict[str, list[str]] = {}
+    for i in bad[:HELD_NAMED_MAX]:
+        reason = str(held[i])
+        reason = reason if len(reason) <= HELD_REASON_CHARS else reason[: HELD_REASON_CHARS - 1].rstrip() + "…"
+        name = PARAM_NAMES[i] + (f" [{effect[i]}]" if effect else "")
+        groups.setdefault(reason, []).append(name)
+    text = "; ".join(f"{', '.join(names)} ({reason})" for reason, names in groups.items())
+    return text + (f" and {len(bad) - HELD_NAMED_MAX} more" if len(bad) > HELD_NAMED_MAX else "")
+
+
 def _declared_model(
     s: _Setup, include: Sequence[str], registered: bool, robust: bool, structural: set[int], notes: list[str]
 ) -> tuple[_Problem, _Fit]:
@@ -261,7 +285,7 @@ def _declared_model(
         )
         raise DataError(
             f"{m.source}: too few or too similar poses ({s.n_poses} distinct): cannot identify "
-            + ", ".join(f"{PARAM_NAMES[i]} ({fit.held[i]})" for i in bad)
+            + _held_list(bad, fit.held)
             + "; measure more poses spread over the workspace (and tool orientations), or declare "
             "known parts of the set-up (--known measured-point / registration, or --registered)" + wrong_robot
         )
@@ -270,8 +294,7 @@ def _declared_model(
     if bad:
         raise DataError(
             f"{m.source}: the data ({m.n} rows, {s.n_poses} poses) cannot identify "
-            + ", ".join(f"{PARAM_NAMES[i]} [{inc_idx[i]}] ({fit.held[i]})" for i in bad[:8])
-            + (f" and {len(bad) - 8} more" if len(bad) > 8 else "")
+            + _held_list(bad, fit.held, inc_idx)
             + "; add poses/loads that excite them or do not include the effect"
         )
     if all(i in fit.held for i in layout.indices(("stiffness.s",))):
@@ -419,7 +442,9 @@ def identify(
     ------
     DataError
         Too few rows/poses for the declared model or an included effect (names the
-        unidentifiable parameters), or no measured positions.
+        unidentifiable parameters), no measured positions, or measured points that do not
+        fit the robot (in another unit than declared, or from another arm:
+        :mod:`problems.identify.nominal_check`).
     InputError
         An unknown effect name.
     """
@@ -440,9 +465,20 @@ def identify(
             "ordinary fields and ignores that table"
         )
     s = _setup(robot, m, registered, folds, len(cand), tick)
+    # do the data fit this robot at all (units, the wrong arm)?  DataError when nothing can fit
+    nominal = check_nominal_fit(robot, s.prob, s.fit_b, s.theta, registered, "geometric" in cand + inc)
+    notes += nominal.notes()
+    target = target_note(robot, m)
+    if target is not None:
+        notes.append(target)
     structural = _structural_held(robot, list(inc) + cand, registered)  # structural vs too few data
     tick("declared model", 1, s.total_steps)
-    prob, fit = _declared_model(s, inc, registered, robust, structural, notes)
+    try:
+        prob, fit = _declared_model(s, inc, registered, robust, structural, notes)
+    except DataError:
+        if nominal.plausible:
+            raise
+        raise DataError(nominal.refusal()) from None  # undetermined against the miss: the wrong robot
     if m.rotation is not None and getattr(m, "sigma_rot", None) is None:
         prob, fit = _balance_orientation(prob, fit, inc, registered, robust, notes)
     sigma_noise, noise_src = noise_floor(m)
@@ -678,6 +714,14 @@ def _result(
     implausible = implausible_geometry(run.robot, fit.theta, [i for i in fit.held])
     if implausible is not None and status is not IdentifyStatus.NOT_CONVERGED:
         status, reason = IdentifyStatus.IMPLAUSIBLE, implausible
+    elif status is not IdentifyStatus.NOT_CONVERGED and score_f.cv_rms_m > CV_WORSE_RATIO * score_b.cv_rms_m:
+        status = IdentifyStatus.DOES_NOT_GENERALISE
+        reason = (
+            f"the identified model predicts held-out poses worse than the nominal one (cross-validated RMS "
+            f"{score_b.cv_rms_m * 1e3:.4g} -> {score_f.cv_rms_m * 1e3:.4g} mm per axis): {s.n_poses} poses are "
+            f"too few for {len(free_f)} free parameters; do not use this model, measure more poses spread "
+            "over the workspace"
+        )
     pos = prob.pos
     R_un_all = R_un
     R_un = R_un_all[pos]

@@ -8,6 +8,7 @@ millimetres.
 from __future__ import annotations
 
 import enum
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -15,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from models.arm import ArmModel
+from models.effects import PARAM_NAMES
 from models.errors import InputError
 from models.status import Status
 
@@ -32,6 +34,8 @@ class IdentifyStatus(Status):
     UNEXPLAINED = "unexplained"  # structure remains that no library effect explains
     NOT_CONVERGED = "not_converged"
     IMPLAUSIBLE = "implausible_geometry"  # DH corrections too large for the declared robot: wrong robot file?
+    #: the identified model predicts held-out poses worse than the nominal one (over-fitted: too few poses)
+    DOES_NOT_GENERALISE = "does_not_generalise"
 
 
 class ParameterStatus(Status):
@@ -105,7 +109,9 @@ class CandidateScore:
 
     RMS values are per axis, m (weighted fits report the unweighted RMS); ``bic`` and
     ``delta_bic`` are dimensionless; ``explained_share`` is the fraction of the
-    cross-validated residual variance above the noise floor that the effect explains.
+    cross-validated residual variance above the noise floor that the effect explains, never
+    negative: 0 when the candidate does not lower the cross-validated residual (a candidate
+    that raises it explains none; by how much it raises it is its CV RMS against the step's).
     """
 
     effect: str
@@ -147,7 +153,8 @@ class Diagnostic:
     ----------
     variable : str
     explained_fraction : float
-        ``1 - CV RSS / RSS`` of the residual (can be negative: no structure).
+        ``max(0, 1 - CV RSS / RSS)`` of the residual: the share of its variance a cross-validated
+        fit explains, 0 when the fit predicts held-out rows no better than their mean (no structure).
     p_value : float
         F-test of the regression against a constant.
     significant : bool
@@ -259,3 +266,156 @@ class CompensationOutcome:
     failed_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     targets_frame: TargetsFrame = TargetsFrame.NOMINAL
     warnings: list[str] = field(default_factory=list)
+
+
+# ----------------------------------------------------------------------------------
+# Held parameters in a few groups: what each means and what to do
+# ----------------------------------------------------------------------------------
+
+#: The groups of held parameters (``HeldGroup.kind``), in the order they are reported.
+HELD_KINDS = ("setup_alias", "redundant", "undetermined")
+#: The longest ``HeldSummary.message`` (characters): one terminal line, the names in the report.
+HELD_MESSAGE_MAX_CHARS = 300
+#: A joint index in a parameter name (``dd[3]``, ``hardening.b[4].knot5``): 1-based.
+_JOINT_IN_NAME = re.compile(r"\[(\d+)\]")
+
+
+@dataclass(frozen=True)
+class HeldGroup:
+    """Held parameters that share a cause (:data:`HELD_KINDS`).
+
+    * ``setup_alias`` -- cannot be told apart from the registration or the measured point
+      (unregistered data): the model is exact in the measurement frame only;
+    * ``redundant`` -- aliased in the model's parametrisation whatever the data (the
+      parameters they alias with carry their effect): nothing to do;
+    * ``undetermined`` -- these data do not determine them: ``joints`` are those to exercise.
+    """
+
+    kind: str
+    names: list[str]
+    meaning: str
+    action: str
+    joints: list[int] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "count": len(self.names),
+            "names": list(self.names),
+            "meaning": self.meaning,
+            "action": self.action,
+            "joints": list(self.joints),
+        }
+
+
+@dataclass(frozen=True)
+class HeldSummary:
+    """The held parameters of an identification in groups (:class:`HeldGroup`) and one line
+    (``message``, at most :data:`HELD_MESSAGE_MAX_CHARS`) that says what they mean and what to do;
+    the full list, with each parameter's reason, is ``identifiability['held']``."""
+
+    groups: list[HeldGroup]
+
+    @property
+    def count(self) -> int:
+        return sum(len(g.names) for g in self.groups)
+
+    @property
+    def message(self) -> str:
+        """One line: how many, and per group what it means and what to do ("" when none held)."""
+        if not self.groups:
+            return ""
+        words = {
+            "setup_alias": "alias with the registration/measured point (exact in the measurement frame; registered "
+            "data identify them)",
+            "redundant": "redundant in the model (nothing to do)",
+            "undetermined": "undetermined ({action})",
+        }
+        parts = [f"{len(g.names)} " + words[g.kind].format(action=g.action) for g in self.groups]
+        return f"{self.count} parameters held at nominal (report.json 'held_parameters'): " + "; ".join(parts)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"count": self.count, "message": self.message, "groups": [g.to_dict() for g in self.groups]}
+
+
+def joints_text(joints: list[int]) -> str:
+    """``joint 4``, ``joints 4, 5``, ``joints 1-3, 5`` (runs of three or more joined)."""
+    if len(joints) == 1:
+        return f"joint {joints[0]}"
+    runs: list[list[int]] = []
+    for j in joints:
+        if runs and j == runs[-1][-1] + 1:
+            runs[-1].append(j)
+        else:
+            runs.append([j])
+    words = [f"{r[0]}-{r[-1]}" if len(r) >= 3 else ", ".join(map(str, r)) for r in runs]
+    return "joints " + ", ".join(words)
+
+
+def _undetermined_action(held: list[dict[str, Any]]) -> tuple[str, list[int]]:
+    """What to add so that the data determine ``held`` (entries name, reason): the joints of
+    the parameters and of those they cannot be told apart from."""
+    joints: set[int] = set()
+    for h in held:
+        joints.update(int(j) for j in _JOINT_IN_NAME.findall(h["name"]))
+        _head, _sep, tail = str(h.get("reason", "")).partition("cannot be told apart from ")
+        joints.update(int(j) for j in _JOINT_IN_NAME.findall(tail))
+    js = sorted(j for j in joints if 1 <= j <= 6)
+    if not js:
+        return "add poses spread over the workspace and varied loads", []
+    return f"add poses and loads exercising {joints_text(js)}", js
+
+
+def held_summary(res: IdentificationResult) -> HeldSummary:
+    """The held parameters of ``res`` in groups (:class:`HeldSummary`).
+
+    ``setup_alias``: those whose reason names the registration or the measured point first
+    (``problems.identify.apply._aliases_registration``, as :func:`~.apply.unobservable_in_base`);
+    ``redundant``: the others that a rich synthetic design of the same model holds too
+    (:func:`~.identifiability._structural_held`); ``undetermined``: the rest.  Parameters of a
+    part of the set-up declared known are not held by the data and are left out.
+    """
+    from .apply import _aliases_registration
+    from .identifiability import Known, _structural_held
+
+    held = list(res.identifiability.get("held") or [])
+    if not held:
+        return HeldSummary([])
+    known_words = str(res.identifiability.get("known") or "")
+    known = Known("registration" in known_words, "measured point" in known_words)
+    structural = _structural_held(res.model.nominal, list(res.model.active_effects), known)
+    structural_names = {PARAM_NAMES[i] for i in structural}
+    by_kind: dict[str, list[dict[str, Any]]] = {k: [] for k in HELD_KINDS}
+    for h in held:
+        if _aliases_registration(str(h.get("reason", ""))):
+            by_kind["setup_alias"].append(h)
+        elif h["name"] in structural_names:
+            by_kind["redundant"].append(h)
+        else:
+            by_kind["undetermined"].append(h)
+    action, joints = _undetermined_action(by_kind["undetermined"])
+    text = {
+        "setup_alias": (
+            "cannot be told apart from the registration or the measured point: held at nominal (zero for DH "
+            "errors), their effect is absorbed by the identified registration and measured point, so the model "
+            "predicts the measurement frame exactly but not the base frame",
+            "none in the measurement frame; for the base frame, calibrate the registration and the tool and "
+            "identify with --registered (or --known)",
+        ),
+        "redundant": (
+            "redundant in the model: no data can tell them from the parameters their reasons name, which carry "
+            "their effect",
+            "none",
+        ),
+        "undetermined": (
+            "not determined by these data: over these poses and loads their effect is too small or too like that "
+            "of other parameters",
+            action,
+        ),
+    }
+    groups = [
+        HeldGroup(k, [h["name"] for h in by_kind[k]], *text[k], joints=joints if k == "undetermined" else [])
+        for k in HELD_KINDS
+        if by_kind[k]
+    ]
+    return HeldSummary(groups)

@@ -237,7 +237,7 @@ def _candidate_score(effect: str, sc: _Score, cur: _Score, sigma_w: float | None
     cv_new = sc.cv_rss / sc.n
     floor = (sigma_w**2) if sigma_w is not None else 0.0
     excess = cv_cur - floor
-    share = (cv_cur - cv_new) / excess if excess > 0 else 0.0
+    share = max((cv_cur - cv_new) / excess, 0.0) if excess > 0 else 0.0  # a worse CV explains none
     return CandidateScore(
         effect=effect,
         n_params=k_new,
@@ -259,7 +259,7 @@ def _significance(cs: CandidateScore, cur: _Score) -> tuple[bool, bool, str]:
     """
     gain = 1.0 - cs.cv_rms_m / cur.cv_rms_m
     parts = [
-        f"CV RMS {cur.cv_rms_m * 1e3:.4g} -> {cs.cv_rms_m * 1e3:.4g} mm ({100 * gain:+.1f} %)",
+        f"CV RMS {cur.cv_rms_m * 1e3:.4g} -> {cs.cv_rms_m * 1e3:.4g} mm ({-100 * gain:+.1f} %)",  # - is a decrease
         f"dBIC {cs.delta_bic:.1f}",
         f"F-test p = {cs.f_pvalue:.2g}",
         f"explains {100 * cs.explained_share:.0f} % of the excess variance",

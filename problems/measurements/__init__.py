@@ -11,7 +11,9 @@ decimal point) and ``semicolon`` (``;`` separator, decimal comma ``1,5``; a
 spreadsheet's or tracker software's export in a German/French locale); ``auto``
 tells them apart by the header line and records that it did in
 :attr:`Measurements.notes`.  Joint columns may carry other names than
-``q1..q6`` (``joint_names``: the ROS preset ``"ros-ur"`` or six names).
+``q1..q6`` (``joint_names``: the ROS preset ``"ros-ur"`` or six names).  Besides this
+``compplan`` format, ``file_format`` reads a tracker export of targets and deviations
+(``tracker-dif``: ``step_order, x_t.., x_dif.., joint_1..``; ``auto`` recognises its header).
 
 Every problem is an :class:`~models.errors.InputError` whose one-line message
 names the file, the row (file line number) or column, the value and what was
@@ -22,22 +24,28 @@ mapping) is stored in :attr:`Measurements.notes` for the caller to show.
 Modules
 -------
 :mod:`~problems.measurements.columns`
-    Column names and their units, column groups, ``joint_names`` presets, CSV dialects.
+    Column names and their units, column groups, ``joint_names`` presets, CSV dialects,
+    file formats.
+:mod:`~problems.measurements.header`
+    Header names to quantities and units (:func:`resolve_joint_names`, the unknown-column
+    message listing every format's columns).
 :mod:`~problems.measurements.table`
     The :class:`Measurements` table and :func:`sigma_rms`.
 :mod:`~problems.measurements.cells`
     Cells: numbers in either dialect, date-times, the ``t`` column.
 :mod:`~problems.measurements.parse`
-    :func:`read_measurements`, :func:`parse_measurements`: dialect detection, header
-    and joint-name mapping (:func:`resolve_joint_names`), building the table.
+    :func:`read_measurements`, :func:`parse_measurements`: dialect and format detection,
+    building the table.
+:mod:`~problems.measurements.tracker`
+    The tracker-dif formats (measured point = target + dif, the target kept).
 :mod:`~problems.measurements.validation`
     :func:`validate` and the plausibility limits (``PLAUSIBLE_*``).
 :mod:`~problems.measurements.write`
     :func:`measurements_to_csv`, :func:`commands_csv`.
 
 Dependencies run one way: ``columns`` and ``table`` and ``cells`` import nothing of
-the package; ``validation`` and ``write`` use ``columns`` and ``table``; ``parse``
-uses all but ``write``.
+the package; ``header``, ``validation`` and ``write`` use ``columns`` and ``table``;
+``tracker`` uses those and ``cells``; ``parse`` uses all but ``write``.
 """
 
 from __future__ import annotations
@@ -47,6 +55,8 @@ from .columns import (
     COLUMNS,
     DIALECT_CHOICES,
     DIALECTS,
+    FORMAT_CHOICES,
+    FORMATS,
     IGNORED_PREFIXES,
     JOINT_NAME_PRESETS,
     LABEL_COLUMNS,
@@ -55,14 +65,18 @@ from .columns import (
     ROTATION_COLUMNS,
     SIGMA_ROT_COLUMNS,
     SIGMA_XYZ_COLUMNS,
+    TRACKER_COLUMNS,
+    TRACKER_FORMATS,
     WRENCH_COLUMNS,
 )
-from .parse import parse_measurements, read_measurements, resolve_joint_names
+from .header import resolve_joint_names
+from .parse import parse_measurements, read_measurements
 from .table import Measurements, sigma_rms
 from .validation import (
     PLAUSIBLE_ANGLE_MAX_RAD,
     PLAUSIBLE_FORCE_MAX_N,
     PLAUSIBLE_MOMENT_MAX_NM,
+    PLAUSIBLE_NOMINAL_DEVIATION_M,
     PLAUSIBLE_SIGMA_MAX_M,
     PLAUSIBLE_SIGMA_ROT_MAX_RAD,
     PLAUSIBLE_TEMPERATURE_C,
@@ -83,6 +97,7 @@ __all__ = [
     "PLAUSIBLE_ANGLE_MAX_RAD",
     "PLAUSIBLE_FORCE_MAX_N",
     "PLAUSIBLE_MOMENT_MAX_NM",
+    "PLAUSIBLE_NOMINAL_DEVIATION_M",
     "PLAUSIBLE_SIGMA_MAX_M",
     "PLAUSIBLE_SIGMA_ROT_MAX_RAD",
     "PLAUSIBLE_TEMPERATURE_C",
@@ -102,4 +117,8 @@ __all__ = [
     "DIALECTS",
     "DIALECT_CHOICES",
     "JOINT_NAME_PRESETS",
+    "FORMATS",
+    "FORMAT_CHOICES",
+    "TRACKER_COLUMNS",
+    "TRACKER_FORMATS",
 ]

@@ -3,7 +3,8 @@
 The vocabulary of ``docs/measurement-file.md``: the base column names and the
 quantity of each, the unit suffixes a column may carry (with their factor to SI),
 the column groups (joints, wrench, position, orientation, standard deviations), the
-``joint_names`` presets and the two CSV dialects.  Data only; no parsing here.
+``joint_names`` presets, the two CSV dialects and the file formats (the tracker-dif layout).
+Data only; no parsing here.
 """
 
 from __future__ import annotations
@@ -78,3 +79,35 @@ JOINT_NAME_PRESETS: dict[str, tuple[str, ...]] = {
         "wrist_3_joint",
     ),
 }
+
+# ----------------------------------------------------------------------------------
+# File formats (``file_format`` / ``--format``)
+# ----------------------------------------------------------------------------------
+
+#: The tracker-dif layout (a laser-tracker export of targets and deviations): the measurement
+#: order, the target of the measured point (mm, robot base frame: the acquisition software's
+#: nominal forward kinematics), its deviation ``dif`` (mm) and the commanded joints (deg).
+TRACKER_ORDER_COLUMN = "step_order"
+TRACKER_TARGET_COLUMNS = ("x_t", "y_t", "z_t")
+TRACKER_DIF_COLUMNS = ("x_dif", "y_dif", "z_dif")
+TRACKER_JOINT_COLUMNS = tuple(f"joint_{i}" for i in range(1, 7))
+TRACKER_COLUMNS = (TRACKER_ORDER_COLUMN, *TRACKER_TARGET_COLUMNS, *TRACKER_DIF_COLUMNS, *TRACKER_JOINT_COLUMNS)
+#: SI factors of the tracker-dif columns: lengths in mm, joint angles in degrees.
+TRACKER_LENGTH_FACTOR = _UNITS["length"]["_mm"]
+TRACKER_ANGLE_FACTOR = _UNITS["angle"]["_deg"]
+#: Tracker formats: name -> sign of ``dif`` (measured = target + sign * dif).  ``tracker-dif``:
+#: ``dif`` = measured - target; ``tracker-dif-reversed``: ``dif`` = target - measured.
+TRACKER_FORMATS: dict[str, float] = {"tracker-dif": 1.0, "tracker-dif-reversed": -1.0}
+#: The measurement-file formats: ``compplan`` (docs/measurement-file.md's columns) and the tracker ones.
+FORMATS = ("compplan", *TRACKER_FORMATS)
+#: Values of the ``file_format`` parameter: ``auto`` tells the formats apart by the header.
+FORMAT_CHOICES = ("auto", *FORMATS)
+
+
+def tracker_columns_text() -> str:
+    """The tracker-dif columns with their units, for messages."""
+    return (
+        f"{TRACKER_ORDER_COLUMN}, {', '.join(TRACKER_TARGET_COLUMNS)} (target, mm), "
+        f"{', '.join(TRACKER_DIF_COLUMNS)} (deviation, mm), "
+        f"{TRACKER_JOINT_COLUMNS[0]}..{TRACKER_JOINT_COLUMNS[-1]} (deg)"
+    )

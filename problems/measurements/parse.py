@@ -1,8 +1,9 @@
-"""Reading measurement files: dialects, header and joint-name mapping, the table.
+"""Reading measurement files: dialects, formats, header and joint-name mapping, the table.
 
 :func:`read_measurements` / :func:`parse_measurements` turn CSV text into a
-validated :class:`~problems.measurements.table.Measurements`; the cells themselves
-are read by :mod:`.cells` and the finished table is checked by :mod:`.validation`.
+validated :class:`~problems.measurements.table.Measurements`; the header's names are
+mapped by :mod:`.header`, the cells themselves are read by :mod:`.cells`, a tracker-dif
+file by :mod:`.tracker`, and the finished table is checked by :mod:`.validation`.
 """
 
 from __future__ import annotations
@@ -23,9 +24,9 @@ from .columns import (
     COLUMNS,
     DIALECT_CHOICES,
     DIALECTS,
+    FORMAT_CHOICES,
     IGNORED_PREFIXES,
     JOINT_NAME_PRESETS,
-    LABEL_COLUMNS,
     POSITION_COLUMNS,
     Q_COLUMNS,
     ROTATION_COLUMNS,
@@ -33,128 +34,10 @@ from .columns import (
     SIGMA_XYZ_COLUMNS,
     WRENCH_COLUMNS,
 )
+from .header import _joint_map, _split_unit, resolve_joint_names
 from .table import Measurements, sigma_rms
+from .tracker import is_tracker_header, read_tracker
 from .validation import validate
-
-
-# ----------------------------------------------------------------------------------
-# Options: dialect and joint names
-# ----------------------------------------------------------------------------------
-
-
-def resolve_joint_names(joint_names: str | Sequence[str] | None, where: str = "joint_names") -> tuple[str, ...] | None:
-    """The six joint column names of a ``joint_names`` option, or None for ``q1..q6``.
-
-    Parameters
-    ----------
-    joint_names : str, sequence of str or None
-        ``None`` (or ``"none"``): the plain ``q1..q6``.  A preset name of
-        :data:`JOINT_NAME_PRESETS` (``"ros-ur"``), six comma-separated names
-        (``"a,b,c,d,e,f"``) or a sequence of six names: the columns read as
-        ``q1..q6`` in this order.
-    where : str
-        What the option is called, for messages.
-
-    Raises
-    ------
-    InputError
-        Unknown preset, not six names, an empty or repeated name, a name that is
-        another column of the format (``fx``, ``x``, ``t``, ``q3`` for joint 1 ...).
-    """
-    if joint_names is None:
-        return None
-    if isinstance(joint_names, str):
-        spec = joint_names.strip()
-        if spec in ("", "none"):
-            return None
-        if spec in JOINT_NAME_PRESETS:
-            return JOINT_NAME_PRESETS[spec]
-        if "," not in spec:
-            raise InputError(
-                f"{where} {joint_names!r}: expected a preset ({', '.join(JOINT_NAME_PRESETS)}), "
-                "'none' (q1..q6) or six comma-separated column names (joint 1 to joint 6)"
-            )
-        names = [n.strip() for n in spec.split(",")]
-    else:
-        names = [str(n).strip() for n in joint_names]
-    shown = ",".join(names)
-    if len(names) != 6:
-        raise InputError(
-            f"{where} '{shown}': {len(names)} name(s); expected six column names, joint 1 to joint 6 "
-            f"(or a preset: {', '.join(JOINT_NAME_PRESETS)})"
-        )
-    for i, name in enumerate(names):
-        if name == "":
-            raise InputError(f"{where} '{shown}': name {i + 1} is empty; expected six column names")
-        if names.index(name) != i:
-            raise InputError(
-                f"{where} '{shown}': '{name}' is given for joints {names.index(name) + 1} and {i + 1}; "
-                "expected six different column names"
-            )
-        for other in names:
-            if other != name and name.startswith(other) and name[len(other) :] in _UNITS["angle"]:
-                raise InputError(
-                    f"{where} '{shown}': '{name}' reads as '{other}' with a unit suffix; "
-                    "expected six column names without unit suffixes (a column may add one)"
-                )
-        try:
-            as_column = _split_unit(where, name)[0]
-        except InputError:
-            as_column = None
-        taken = (as_column is not None and not (as_column == Q_COLUMNS[i] and name == Q_COLUMNS[i])) or any(
-            name.startswith(pfx) for pfx in IGNORED_PREFIXES
-        )
-        if taken:
-            raise InputError(
-                f"{where} '{shown}': '{name}' (joint {i + 1}) is the name of another column of the "
-                "measurement file format; expected the file's own names of the six joint columns"
-            )
-    return tuple(names)
-
-
-def _joint_map(joint_names: tuple[str, ...] | None) -> dict[str, str]:
-    """Joint column name -> ``q<i>`` (empty for the plain names)."""
-    if joint_names is None:
-        return {}
-    return {name: Q_COLUMNS[i] for i, name in enumerate(joint_names)}
-
-
-def _ros_hint(col: str) -> str:
-    """The hint for an unknown column that is a ROS UR joint name."""
-    for preset, names in JOINT_NAME_PRESETS.items():
-        for name in names:
-            if col.startswith(name) and col[len(name) :] in _UNITS["angle"]:
-                return (
-                    f"; '{name}' is a ROS joint name: read the joint columns with --joint-names {preset} "
-                    f"(joint_names='{preset}': {', '.join(names)} -> q1..q6)"
-                )
-    return ""
-
-
-# ----------------------------------------------------------------------------------
-# Reading
-# ----------------------------------------------------------------------------------
-
-
-def _split_unit(where: str, col: str, joint_map: dict[str, str] | None = None) -> tuple[str, float]:
-    """Map a column header to (base name, SI factor); raise for unknown names."""
-    if col in LABEL_COLUMNS:
-        return col, 1.0
-    for name, base in (joint_map or {}).items():
-        if col.startswith(name) and col[len(name) :] in _UNITS["angle"]:
-            return base, _UNITS["angle"][col[len(name) :]]
-    for base, qty in COLUMNS.items():
-        if col.startswith(base):
-            suffix = col[len(base) :]
-            if suffix in _UNITS[qty]:
-                return base, _UNITS[qty][suffix]
-    known = ", ".join(list(COLUMNS) + list(LABEL_COLUMNS))
-    hint = _ros_hint(col) if not joint_map else ""
-    raise InputError(
-        f"{where}: unknown column '{col}'{hint}; expected one of {known} "
-        "(with an optional unit suffix such as _mm, _deg, _N), or a column starting with "
-        f"{' / '.join(IGNORED_PREFIXES)}"
-    )
 
 
 def read_measurements(
@@ -164,6 +47,7 @@ def read_measurements(
     *,
     dialect: str = "auto",
     joint_names: str | Sequence[str] | None = None,
+    file_format: str = "auto",
 ) -> Measurements:
     """Read and validate a measurement file.
 
@@ -187,6 +71,14 @@ def read_measurements(
         ``shoulder_pan_joint, shoulder_lift_joint, elbow_joint, wrist_1_joint,
         wrist_2_joint, wrist_3_joint`` (rad; ``_deg`` suffix allowed), or six names
         (a sequence or one comma-separated string).  See :func:`resolve_joint_names`.
+        Only for the ``compplan`` format.
+    file_format : {"auto", "compplan", "tracker-dif", "tracker-dif-reversed"}
+        ``compplan``: the columns of ``docs/measurement-file.md``.  ``tracker-dif``: a
+        tracker export ``step_order, x_t, y_t, z_t, x_dif, y_dif, z_dif, joint_1..joint_6``
+        (mm, deg; measured point = target + dif, no load; :mod:`.tracker`);
+        ``tracker-dif-reversed``: the same with measured point = target - dif.  ``auto``
+        (default): ``tracker-dif`` when the header has every tracker-dif column (with a
+        note), else ``compplan``.
 
     Returns
     -------
@@ -199,15 +91,20 @@ def read_measurements(
         Missing or duplicated columns, non-numeric, empty, NaN or infinite cells,
         implausible magnitudes (the message suggests the unit), duplicated rows,
         time running backwards, a separator other than the dialect's, an ambiguous
-        header under ``auto``, a bad ``dialect`` or ``joint_names``.
+        header under ``auto``, a bad ``dialect``, ``joint_names`` or ``file_format``; for the
+        tracker formats, a column other than theirs, ``step_order`` decreasing, or a
+        deviation beyond :data:`~.validation.PLAUSIBLE_NOMINAL_DEVIATION_M`.
     """
     from models.robot import read_text_file
 
     p = Path(path)
     _check_dialect(dialect)
+    _check_format(file_format)
     names = resolve_joint_names(joint_names)
     text = read_text_file(p, "measurement file (CSV)")
-    return parse_measurements(text, str(p), require_position, require_wrench, dialect=dialect, joint_names=names)
+    return parse_measurements(
+        text, str(p), require_position, require_wrench, dialect=dialect, joint_names=names, file_format=file_format
+    )
 
 
 #: Separators a spreadsheet may have written instead of the dialect's (name for the message).
@@ -217,6 +114,34 @@ _OTHER_SEPARATORS = {",": "','", ";": "';'", "\t": "tab", "|": "'|'"}
 def _check_dialect(dialect: str) -> None:
     if dialect not in DIALECT_CHOICES:
         raise InputError(f"CSV dialect {dialect!r}: expected one of {', '.join(DIALECT_CHOICES)}")
+
+
+def _check_format(file_format: str) -> None:
+    if file_format not in FORMAT_CHOICES:
+        raise InputError(f"file format {file_format!r}: expected one of {', '.join(FORMAT_CHOICES)}")
+
+
+def _resolve_format(where: str, header: list[str], file_format: str, names: tuple[str, ...] | None) -> str:
+    """The format of a header: ``auto`` is ``tracker-dif`` when every tracker-dif column is there;
+    raises for joint names given with a tracker format."""
+    if file_format == "auto":
+        file_format = "tracker-dif" if is_tracker_header(header) else "compplan"
+    if file_format != "compplan" and names is not None:
+        raise InputError(
+            f"{where}: joint_names / --joint-names apply to the compplan format; the {file_format} "
+            "format's joint columns are joint_1..joint_6"
+        )
+    return file_format
+
+
+def _format_note(where: str, file_format: str) -> str:
+    """The note of a format detected from the header."""
+    return (
+        f"{where}: read as the {file_format} format (detected from the header): measured point = "
+        "x_t + x_dif ... in mm (target + deviation, robot base frame), joints joint_1..joint_6 in degrees, "
+        "no external load; declare --format tracker-dif to fix it, or --format tracker-dif-reversed when "
+        "the deviation is target - measured"
+    )
 
 
 def _check_separator(where: str, header_line: int, header: list[str], dialect: str = "comma") -> None:
@@ -528,17 +453,22 @@ def parse_measurements(
     *,
     dialect: str = "auto",
     joint_names: str | Sequence[str] | None = None,
+    file_format: str = "auto",
 ) -> Measurements:
     """Parse measurement-file text; see :func:`read_measurements` (same parameters;
     ``where`` names the text in messages and notes)."""
     _check_dialect(dialect)
+    _check_format(file_format)
     names = resolve_joint_names(joint_names)
-    jmap = _joint_map(names)
     lines = text.splitlines()
     dialect, detected = _resolve_dialect(where, lines, dialect)
     decimal_comma = DIALECTS[dialect][1]
     cells_parser = _Cells(where, decimal_comma)
     header_line, header, rows = _read_rows(where, lines, dialect)
+    fmt = _resolve_format(where, header, file_format, names)
+    if fmt != "compplan":
+        return _parse_tracker(where, header_line, header, rows, cells_parser, fmt, (dialect, detected, file_format))
+    jmap = _joint_map(names)
     colmap, unmapped_q = _map_columns(where, header_line, header, jmap)
     _check_required(where, header_line, header, colmap, unmapped_q, jmap, names, require_position, require_wrench)
     _check_groups(where, colmap)
@@ -558,4 +488,25 @@ def parse_measurements(
         columns={base: col for base, (_k, col, _f) in colmap.items()},
     )
     validate(m, colmap, _plain=frozenset(c for c in header if c in COLUMNS or c in jmap))
+    return m
+
+
+def _parse_tracker(
+    where: str,
+    header_line: int,
+    header: list[str],
+    rows: list[tuple[int, list[str]]],
+    cells_parser: _Cells,
+    fmt: str,
+    how: tuple[str, bool, str],
+) -> Measurements:
+    """A file of a tracker format (:mod:`.tracker`), validated, with its notes; ``how`` is
+    (dialect, dialect detected, format as asked)."""
+    dialect, detected, asked = how
+    _check_row_lengths(where, rows, len(header), DIALECTS[dialect][1])
+    m, colmap = read_tracker(where, header_line, header, rows, cells_parser, fmt)
+    m.notes = _notes(where, dialect, detected, cells_parser, None, m.line, None, colmap)
+    if asked == "auto":
+        m.notes.append(_format_note(where, fmt))
+    validate(m, colmap, _plain=frozenset())
     return m

@@ -59,6 +59,13 @@ class Measurements:
     t_origin : datetime.datetime or None
         The first row's date-time when ``t`` was given as date-times (aware when the
         file gave a time zone, naive otherwise); ``None`` for numeric times.
+    target : ndarray, shape (N, 3) or None
+        The file's target position of the measured point, robot base frame, m: the
+        acquisition software's nominal forward kinematics of the commanded joints
+        (the ``x_t, y_t, z_t`` columns of the tracker-dif format; None otherwise).
+        Identification compares it with the declared robot's nominal model.
+    file_format : str
+        The format the file was read as (``compplan``, ``tracker-dif`` ...).
     """
 
     q: np.ndarray
@@ -77,6 +84,8 @@ class Measurements:
     notes: list[str] = field(default_factory=list)
     columns: dict[str, str] = field(default_factory=dict)
     t_origin: _dt.datetime | None = None
+    target: np.ndarray | None = None
+    file_format: str = "compplan"
 
     def __post_init__(self) -> None:
         n = len(self.q)
@@ -121,6 +130,8 @@ class Measurements:
             notes=list(self.notes),
             columns=dict(self.columns),
             t_origin=self.t_origin,
+            target=s(self.target),
+            file_format=self.file_format,
         )
 
     def pose_groups(self) -> np.ndarray:

@@ -47,6 +47,12 @@ class SweepStatus(Status):
     OK = "ok"
     #: every chunk was scored, but no placement is feasible
     NO_FEASIBLE = "no feasible placement"
+    #: the cluster had no live worker for ``cluster.WORKER_WAIT_S`` (none joined, or all died and
+    #: none came back); the remaining chunks were cancelled
+    NO_WORKERS = "no workers"
+    #: a chunk's workers died more than ``distributed.scheduler.allowed-failures`` times, or the
+    #: scheduler went away
+    CLUSTER_FAILED = "cluster failed"
 
 
 @dataclass
@@ -61,7 +67,7 @@ class SweepResult:
     placements : ndarray, shape (P, 5)
         ``[x, y, z, yaw, tilt]`` (m, rad), grid order.
     scores : ChunkScores
-        One row per placement.
+        One row per placement; none when the sweep did not complete (not :attr:`scored`).
     poses : int
         TCP poses evaluated (placements x waypoints x scanned orientations), each on every branch.
     chunk_placements : int
@@ -75,6 +81,9 @@ class SweepResult:
         Wall time of scoring (cluster start-up excluded), s.
     compiled : bool
         The model's functions ran compiled C (else CasADi's virtual machine).
+    extra : dict
+        On a cluster: ``workers_at_start``, ``chunks_done`` (chunks scored before it failed, or
+        all).
     """
 
     status: SweepStatus
@@ -93,6 +102,11 @@ class SweepResult:
     @property
     def ok(self) -> bool:
         return self.status is SweepStatus.OK
+
+    @property
+    def scored(self) -> bool:
+        """Every placement was scored (``OK`` or ``NO_FEASIBLE``); else the cluster failed."""
+        return self.status in (SweepStatus.OK, SweepStatus.NO_FEASIBLE)
 
     @property
     def poses_per_second(self) -> float:
@@ -188,11 +202,14 @@ def run_sweep(
     Returns
     -------
     SweepResult
+        Status ``NO_WORKERS`` or ``CLUSTER_FAILED`` (and no scores) when the cluster could not
+        score every chunk: it never waits forever for workers (``cluster.WORKER_WAIT_S``).
 
     Raises
     ------
     InputError
-        A bad scheduler spec, Dask missing for a cluster, or no connection to the scheduler.
+        A bad scheduler spec, Dask missing for a cluster, no connection to the scheduler, or
+        workers without compplan or with another version.
     """
     spec = parse_scheduler(scheduler)
     pl = np.atleast_2d(np.asarray(placements, dtype=float))
@@ -205,6 +222,7 @@ def run_sweep(
     ppp = kernel.poses_per_placement
     total = len(pl) * ppp
     extra: dict[str, Any] = {}
+    failed: tuple[SweepStatus, str] | None = None
     if spec == "serial":
         t0 = time.perf_counter()
         parts, done = [], 0
@@ -219,10 +237,17 @@ def run_sweep(
     else:
         from problems.placement.cluster import run_on_dask
 
-        parts, elapsed, workers, extra = run_on_dask(kernel, chunks, spec, progress, on_chunk)
-    scores = ChunkScores.concatenate(parts) if parts else ChunkScores.empty(0, kernel.n_branches)
-    n_ok = int(scores.feasible.sum())
-    status, reason = (SweepStatus.OK, "") if n_ok else (SweepStatus.NO_FEASIBLE, _no_feasible_reason(scores))
+        run = run_on_dask(kernel, chunks, spec, progress, on_chunk)
+        parts, elapsed, workers = run.parts, run.elapsed_s, run.workers
+        extra = {"workers_at_start": run.workers_at_start, "chunks_done": run.chunks_done}
+        if not run.ok:
+            failed = (run.status, run.reason)
+    if failed is not None:  # the cluster failed: no scores
+        scores, (status, reason) = ChunkScores.empty(0, kernel.n_branches), failed
+    else:
+        scores = ChunkScores.concatenate(parts) if parts else ChunkScores.empty(0, kernel.n_branches)
+        n_ok = int(scores.feasible.sum())
+        status, reason = (SweepStatus.OK, "") if n_ok else (SweepStatus.NO_FEASIBLE, _no_feasible_reason(scores))
     return SweepResult(
         status, reason, pl, scores, total, per, len(chunks), spec, workers, elapsed, kernel.compiled, extra
     )
