@@ -77,6 +77,7 @@ STATUS_TEXT = {
     "optimised": "optimised (NLP)",
     "degenerate": "degenerate freedom (rotation about the joint-6 axis): branch choice only",
     "analytic": "analytic posture (no NLP)",
+    "collision": "set aside: its posture comes closer than the cell's clearance (the reason names the pair)",
 }
 
 

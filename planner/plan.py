@@ -95,6 +95,7 @@ class PlanStatus(Status):
     SOLVER_FAILED = "solver_failed"  # the posture NLP failed on every branch
     COMPENSATION_FAILED = "compensation_failed"  # exact compensation failed or leaves the limits
     TIMING_FAILED = "timing_failed"  # a time parametrisation failed or breaks a limit
+    COLLISION = "collision"  # every branch, or the controller's trajectory, closer than the cell's clearance
 
 
 _ERROR_CLASS = {PlanStatus.UNREACHABLE: UnreachableError}
@@ -145,6 +146,8 @@ class PlanResult:
     made: dict[str, Any] = field(default_factory=invocation)
     dynamic: Any = None
     feed: dict[str, Any] = field(default_factory=dict)
+    #: The cell check (:class:`planner.cell_check.CellCheck`) when the problem has a ``[cell]``.
+    cell: Any = None
 
     @property
     def ok(self) -> bool:
@@ -312,6 +315,7 @@ _POSTURE_TO_PLAN = {
     PostureStatus.UNREACHABLE: PlanStatus.UNREACHABLE,
     PostureStatus.NO_BRANCH: PlanStatus.NO_BRANCH,
     PostureStatus.SOLVER_FAILED: PlanStatus.SOLVER_FAILED,
+    PostureStatus.COLLISION: PlanStatus.COLLISION,
 }
 
 
@@ -358,6 +362,9 @@ def plan(
     times["posture_s"] = time.perf_counter() - t0
     tick("posture", 1, 1)
     res = PlanResult(PlanStatus.OK, "", problem, ps, stage_times_s=times)
+    if ps.ok and problem.cell is not None:
+        _cell_branches(res)
+        ps = res.posture
     if not ps.ok:
         res.status, res.reason = _POSTURE_TO_PLAN[ps.status], ps.reason
         return res
@@ -371,6 +378,8 @@ def plan(
         return res
     if problem.n < 2:
         res.warnings.append("single waypoint: nothing to time-parametrise")
+        if res.cell is not None:
+            _cell_trajectory(res)
         return res
     t0 = time.perf_counter()
     _time(res, progress)
@@ -379,7 +388,45 @@ def plan(
         t0 = time.perf_counter()
         _dynamic(res)
         times["dynamic_compensation_s"] = time.perf_counter() - t0
+    if res.ok and res.cell is not None:
+        _cell_trajectory(res)
     return res
+
+
+def _cell_branches(res: PlanResult) -> None:
+    """Every usable branch checked against the cell at every waypoint, the choice made again
+    among the collision-free ones (:func:`planner.cell_check.choose_collision_free`)."""
+    from planner.cell_check import choose_collision_free
+
+    t0 = time.perf_counter()
+    assert res.posture is not None
+    res.posture, res.cell = choose_collision_free(res.problem, res.posture)
+    res.stage_times_s["cell_branches_s"] = time.perf_counter() - t0
+
+
+def _cell_trajectory(res: PlanResult) -> None:
+    """The chosen command at the waypoints and the controller's trajectory at every sample
+    against the cell; closer than the clearance: status COLLISION with the time and the pair."""
+    from planner.cell_check import check_command, check_trajectory
+    from models.collision import ClearanceStatus
+
+    assert res.exact is not None and res.posture is not None
+    t0 = time.perf_counter()
+    check_command(res.cell, res.exact.q_command, res.posture.best.q)
+    clearance = res.cell.geometry.clearance
+    if res.cell.deflection_m > clearance:
+        res.warnings.append(
+            f"cell: the load-induced deflection moves the arm by up to {res.cell.deflection_m * 1e3:.3g} mm "
+            f"({res.cell.deflection_where}), more than the clearance {clearance * 1e3:.3g} mm: the waypoints are "
+            "checked at both poses, the trajectory at the commanded one only"
+        )
+    if res.controller is not None and res.controller in res.trajectories:
+        tr = res.trajectories[res.controller]
+        c = check_trajectory(res.cell, res.controller, tr.t, tr.q)
+        if c.status is not ClearanceStatus.OK:
+            res.status = PlanStatus.COLLISION
+            res.reason = f"the controller's trajectory ({res.controller}) comes closer than the clearance: {c.reason}"
+    res.stage_times_s["cell_trajectory_s"] = time.perf_counter() - t0
 
 
 def _dynamic(res: PlanResult) -> None:

@@ -102,6 +102,10 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         s["warnings"] += list(res.closed.warnings)
     if pr.program is not None:
         s["program"] = program_summary(res)
+    if res.cell is not None and res.posture is not None:
+        from planner.cell_check import cell_summary
+
+        s["cell"] = cell_summary(res.cell, res.posture.labels)
     if res.trajectories:
         s.update(timing_summary(res))
         s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items() if t["limit_use"]["why"]]

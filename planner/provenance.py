@@ -201,8 +201,8 @@ def provenance(inputs: Sequence[dict[str, Any]] = (), made: dict[str, Any] | Non
 
 def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict[str, Any]:
     """The ``provenance`` block of a result made from one problem: its file, its arm model's
-    (a built-in robot, a robot file or a model file) and its program's (a program path), with their
-    SHA-256.
+    (a built-in robot, a robot file or a model file), its program's (a program path) and its cell's mesh
+    files (role ``cell mesh``), with their SHA-256.
 
     Parameters
     ----------
@@ -216,6 +216,10 @@ def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict
     if program is not None:  # the CAM program the path was read from
         p = Path(program.file)
         inputs.append(input_file("program", p if p.is_file() else None, name=p.name))
+    cell = getattr(problem, "cell", None)
+    for f in cell.mesh_files() if cell is not None else ():  # the cell's mesh objects
+        p = Path(f)
+        inputs.append(input_file("cell mesh", p if p.is_file() else None, name=p.name))
     return provenance(inputs, made)
 
 

@@ -82,6 +82,14 @@ def _robot_file(value: Any, where: str) -> None:
     robot_from_dict(value, where=where)
 
 
+def _cell(value: Any, where: str) -> None:
+    """A run's ``problem.cell``: the cell as the problem had it (:meth:`problems.cell.Cell.to_dict`;
+    the report's cell view draws it, :mod:`planner.report.cell_view`)."""
+    from planner.report.cell_record import cell_block
+
+    cell_block(value, where)
+
+
 def _limits_ordered(table: Mapping[str, Any], path: tuple, ctx: Ctx) -> None:
     """``limits.q_min`` below ``limits.q_max``, joint by joint."""
     lo, hi = table.get("q_min"), table.get("q_max")
@@ -286,7 +294,17 @@ SUMMARY = Table(
         "plan_status": Text(choices=_statuses("planner.plan", "PlanStatus"), need=_EXPORT),
         "reason": _maybe_text(),
         "scenario": Text(),
-        "problem": Table(fields={"name": Text()}),
+        "problem": Table(
+            fields={
+                "name": Text(),
+                "cell": External(
+                    reader=_cell,
+                    what="the problem's cell: clearance and objects (docs/problem-file.md, [cell])",
+                    errors=(InputError,),
+                    nullable=True,
+                ),
+            }
+        ),
         "robot": Text(),
         "robot_file": External(
             reader=_robot_file,

@@ -29,6 +29,8 @@ from models.arm import ArmModel, load_arm
 from models.load import Load
 from models.robot import Robot
 from models.transforms import matrix_to_rpy
+from problems.cell import Cell
+from problems.cell_section import parse_cell
 from problems.path import line_positions
 from problems.posture import OrientationRule, PostureTask, SolverSettings
 from problems.problem_file import (
@@ -135,6 +137,9 @@ class Problem:
     #: (:class:`problems.program_section.ProgramSection`: file, waypoints with their program lines,
     #: feeds, rapids and stops, the workpiece), else None.
     program: Any = None
+    #: The ``[cell]`` table: the objects around the robot (base frame) and the clearance, or None
+    #: when the file has none (:class:`problems.cell.Cell`).
+    cell: Cell | None = None
 
     @property
     def n(self) -> int:
@@ -283,6 +288,8 @@ class Problem:
         if self.placement is not None:
             g = self.placement.describe()
             d["placement"] = {k: v for k, v in g.items() if k != "placements"}
+        if self.cell is not None:
+            d["cell"] = self.cell.to_dict()
         return d
 
 
@@ -325,6 +332,7 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
     home = parse_branch(where, data)
     timing = parse_timing(where, data, program)
     placement = parse_placement(where, data)
+    cell = parse_cell(where, data, base_dir, arm.nominal, path.positions, path.program)
     return Problem(
         name=head.name,
         description=head.description,
@@ -354,6 +362,7 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
         arm=arm,
         placement=placement,
         program=path.program,
+        cell=cell,
     )
 
 

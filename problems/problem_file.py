@@ -3,7 +3,8 @@
 A problem file (TOML, documented in ``docs/problem-file.md``) has the sections
 header (``name``, ``description``, ``source``), ``[robot]`` (with its tool),
 ``[orientation]``, ``[path]``, ``[wrench]``, ``[payload]``, ``[limits]``,
-``[cost]``, ``[solver]``, ``[branch]``, ``[timing]`` and ``[placement]``.  Each ``parse_*``
+``[cost]``, ``[solver]``, ``[branch]``, ``[timing]``, ``[placement]`` and ``[cell]`` (the cell's
+objects: :mod:`problems.cell_section`).  Each ``parse_*``
 function validates one section of the parsed document and returns its values in SI units
 (m, rad, N, N*m, kg, s); :func:`problems.problem.problem_from_dict` calls them in file order and
 assembles the :class:`~problems.problem.Problem`.
@@ -99,6 +100,7 @@ _TOP = (
     "timing",
     "placement",
     "workpiece",
+    "cell",
 )
 #: Frames a wrench may be given in.
 WRENCH_FRAMES = ("base", "tool")

@@ -30,6 +30,7 @@ SHIPPED = {
     "kr6_milling": (OrientationRule.CONE, 30),
     "ur5_fast_payload": (OrientationRule.FIXED, 24),
     "placement_milling": (OrientationRule.FREE_TOOL_AXIS, 30),
+    "cell_table": (OrientationRule.CONE, 29),
 }
 
 MINIMAL = """

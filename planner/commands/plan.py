@@ -149,6 +149,9 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
         f"branch at its analytic posture, x{g.get('vs_best_analytic', float('nan')):.3f} over the best "
         f"analytic posture"
     )
+    if "cell" in s:
+        for line in cell_lines(s["cell"]):
+            print(line)
     print_error_table(
         [
             ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
@@ -195,6 +198,26 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
         print(f"  dynamic compensation: {headline_text(h['dynamic_compensation'])}")
     if out is not None:
         print(f"wrote {Path(out)}/: {', '.join(names)}")
+
+
+def cell_lines(c: dict[str, Any]) -> list[str]:
+    """The terminal's lines for the cell (``summary.json`` ``cell``): the smallest clearance at the
+    waypoints and along the controller's trajectory, with the pair and where; the choice's price."""
+    objs = ", ".join(o["name"] + (" (workpiece)" if o["role"] == "workpiece" else "") for o in c["objects"])
+    parts = []
+    w, tr = c.get("waypoints"), c.get("trajectory")
+    if w and w["min_clearance_mm"] is not None:
+        parts.append(f"{w['min_clearance_mm']:.1f} mm at the waypoints ({w['pair']}, waypoint {w['index']})")
+    if tr and tr["min_clearance_mm"] is not None:
+        parts.append(f"{tr['min_clearance_mm']:.1f} mm along {tr['method']} ({tr['pair']}, t = {tr['time_s']:.3f} s)")
+    out = [
+        f"cell: {objs}; clearance {c['clearance_mm']:g} mm; smallest distance "
+        + ("; ".join(parts) if parts else "not checked")
+        + f"; load-induced deflection moves the arm by up to {c['deflection_margin_mm']:.3g} mm"
+    ]
+    if c.get("choice_note"):
+        out.append(f"cell: {c['choice_note']}")
+    return out
 
 
 @releases_outputs

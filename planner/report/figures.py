@@ -28,6 +28,7 @@ from planner.branches import legend
 from planner.compliance_map import ProgressFn
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
 from planner.report import dynamic_plot, plots
+from planner.report.cell_view import cell_items
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job, render_items
 from planner.report.run import DYNAMIC_KEY, Run, method_name, method_order
@@ -115,6 +116,7 @@ def build_figures(
     if isinstance(run.summary.get(DYNAMIC_KEY), Mapping):
         items.append(_dynamic_item(ctx))
     items += program_items(run)  # a program path's toolpath and feed (planner.report.toolpath_plot)
+    items += cell_items(run)  # a problem with a [cell]: the 3-D cell view (planner.report.cell_view)
     return items
 
 

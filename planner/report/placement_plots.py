@@ -37,6 +37,7 @@ STATUS_STYLES: dict[int, tuple[str, str, str]] = {
     1: ("0.86", "///", "unreachable"),
     2: ("0.70", "xx", "flips on every branch"),
     3: ("0.55", "..", "joint limit on every branch"),
+    4: ("0.40", "++", "collision (base on an object, or every branch)"),
 }
 #: Colour of the hatch lines of infeasible cells.
 HATCH_COLOUR = "0.25"

@@ -37,6 +37,7 @@ _COST = {
     "fig8_dynamic_compensation": 1.2,
     "fig9_toolpath": 1.5,
     "fig10_feed": 1.2,
+    "fig11_cell": 2.0,
 }
 
 #: A figure to draw: ``(drawing function, args, kwargs)``.
@@ -57,6 +58,9 @@ class FigureItem:
     job: Job | None = None
     #: Key under which the rendered figure is cached (compliance map only).
     cache_key: str | None = None
+    #: An interactive version for report.html (an HTML ``<div>`` with its script, needing plotly.js:
+    #: the cell view, :mod:`planner.report.cell_view`); the PNG stays for report.md and the PDF.
+    interactive: str | None = None
 
 
 def job(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Job:
@@ -197,6 +201,14 @@ def _html_figure(i: int, it: FigureItem) -> list[str]:
     if it.png is None:
         out.append(f'<p class="absent" data-absent="{it.name}">{html.escape(it.absent)}</p>')
         return out
+    if it.interactive is not None:  # shown instead of the PNG; the PNG and PDF are linked
+        out.append(
+            f'<figure data-figure="{it.name}" data-interactive="plotly">{it.interactive}'
+            f"<figcaption>{html.escape(it.caption)} Static files: "
+            f'<a href="figures/{it.name}.png">PNG</a>, '
+            f'<a href="figures/{it.name}.pdf">PDF</a>.</figcaption></figure>'
+        )
+        return out
     b64 = base64.b64encode(it.png).decode("ascii")
     out.append(
         f'<figure><img data-figure="{it.name}" alt="{html.escape(it.title)}" '
@@ -216,6 +228,16 @@ def _split_tables(tables: list[Table]) -> tuple[list[Table], list[Table], list[T
     return head, body, prov
 
 
+def _plotly_script(items: list[FigureItem]) -> str:
+    """The plotly.js bundle, inline and once, when a figure is interactive (no network needed to
+    view the report; about 4.9 MB); else nothing."""
+    if not any(it.interactive is not None and it.png is not None for it in items):
+        return ""
+    from plotly.offline import get_plotlyjs
+
+    return f'<script type="text/javascript" data-bundle="plotly.js">{get_plotlyjs()}</script>'
+
+
 def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
     """``report.html``: self-contained (the PNGs embedded as data URIs), the headline first."""
     title = report_title(run.summary)
@@ -224,7 +246,7 @@ def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
     out = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style>{_plotly_script(items)}</head><body>",
         f"<h1>{html.escape(title)}</h1>",
     ]
     out += [t.html() for t in head]

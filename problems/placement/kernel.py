@@ -42,7 +42,8 @@ from models.portable import evaluator_from_state, portable_state
 from models.errors import InputError
 from models.ik import IKStatus, ik_solver
 from models.robot import Robot
-from problems.placement.grid import cell2base
+from problems.placement.collide import KernelCell
+from problems.placement.grid import base2cell, cell2base
 from problems.placement.scores import ChunkScores, PlacementStatus
 from problems.posture.task import COST_SCALE, DP_MAX_STATES, DP_NEIGHBOUR_ANGLE_RAD
 from problems.posture.verification import guard_bounds
@@ -57,6 +58,10 @@ KERNEL_THREADS = 1
 DENSE_CANDIDATES = DP_MAX_STATES
 #: Round-off allowance of the joint-limit shift (as the warm starts), in units of 2 pi.
 _SHIFT_EPS = 1e-12
+#: Lazy collision rounds: a branch's chosen sequence is checked, its violating nodes excluded and
+#: the programme re-run, at most this many times; then every node at a violating waypoint is
+#: checked at once (the result is the same: the cheapest collision-free sequence).
+LAZY_COLLISION_ROUNDS = 3
 
 
 def _rotate_load(L: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -104,6 +109,8 @@ class PlacementKernel:
         self._model_state = portable_state(f, model)
         ik = ik_solver(self.robot)
         self._ik_state = None if ik.function is None else portable_state(ik.function, ik.evaluator)
+        #: The cell's checks (``problems/placement/collide.py``), or None without ``[cell]``.
+        self.cell: KernelCell | None = None if problem.cell is None else KernelCell(self.robot, problem.cell)
         self._setup(ik, model)
 
     # -------------------------------------------------------------- pickling (shipping)
@@ -173,6 +180,20 @@ class PlacementKernel:
             One row per placement.
         """
         pl = np.atleast_2d(np.asarray(placements, dtype=float))
+        if self.cell is None:
+            return self._evaluate(pl)
+        foot = self.cell.footprint_blocked(pl)  # before the IK: these are not solved
+        if not foot.any():
+            return self._evaluate(pl)
+        out = ChunkScores.empty(len(pl), self.n_branches)
+        out.status[foot] = PlacementStatus.COLLISION.code
+        free = np.flatnonzero(~foot)
+        if free.size:
+            out.set_rows(free, self._evaluate(pl[free]))
+        return out
+
+    def _evaluate(self, pl: np.ndarray) -> ChunkScores:
+        """Scores of placements (P, 5) whose base footprint is free."""
         P, S, N, B = len(pl), self.n_candidates, self.n_waypoints, self.n_branches
         C2B = cell2base(pl)
         R, t = C2B[:, :3, :3], C2B[:, :3, 3]
@@ -204,16 +225,23 @@ class PlacementKernel:
             D = self._model(Qf[vf], L[p_of * N + n_of], G[p_of])[0][:, :3]
             err[vf] = np.sqrt(np.einsum("ij,ij->i", D, D))
         err = err.reshape(P, S, N, B)
-        return self._score(Q, err, ratio, reach_any, outside)
+        return self._score(Q, err, ratio, reach_any, outside, pl)
 
     def _score(
-        self, Q: np.ndarray, err: np.ndarray, ratio: np.ndarray, any_reach: np.ndarray, outside: np.ndarray
+        self,
+        Q: np.ndarray,
+        err: np.ndarray,
+        ratio: np.ndarray,
+        any_reach: np.ndarray,
+        outside: np.ndarray,
+        pl: np.ndarray | None = None,
     ) -> ChunkScores:
         """Per placement and branch: the cheapest flip-free sequence, its limits, its errors.
 
         ``err`` (P, S, N, B) m, inf where a node is invalid or its branch misses a waypoint;
         ``any_reach`` (P, N): the waypoint has a valid node on some branch; ``outside`` (P, N):
-        it has an IK solution outside the joint limits."""
+        it has an IK solution outside the joint limits; ``pl`` (P, 5) the placements (for the
+        cell's checks)."""
         P, S, N, B = err.shape
         reach_all = np.isfinite(err).any(axis=1).all(axis=1)  # (P, B)
         out = ChunkScores.empty(P, B)
@@ -223,6 +251,7 @@ class PlacementKernel:
         pb = np.argwhere(reach_all)  # (M, 2)
         flip = np.zeros((P, B), dtype=bool)
         limit = np.zeros((P, B), dtype=bool)
+        coll = np.zeros((P, B), dtype=bool)
         if len(pb):
             node = err[pb[:, 0], :, :, pb[:, 1]]  # (M, S, N) m
             qm = Q[pb[:, 0], :, :, pb[:, 1]]  # (M, S, N, 6)
@@ -230,15 +259,14 @@ class PlacementKernel:
             # errors and joint angles are then read in float64.  Joint-major (6, N, M, S).
             qj = np.nan_to_num(qm.transpose(3, 2, 0, 1).astype(np.float32), copy=False, nan=0.0)
             cost = (COST_SCALE * node**2).astype(np.float32)
-            seq, blocked = _viterbi(cost, qj, self.smoothness, self.max_joint_step, self._nbr)
-            if blocked.any() and self._nbr.shape[1] < S:
-                # the restricted graph is blocked: every candidate may follow every other
-                rb = np.flatnonzero(blocked)
-                seq[rb], blocked[rb] = _viterbi(
-                    cost[rb], qj[:, :, rb], self.smoothness, self.max_joint_step, np.tile(np.arange(S), (S, 1))
-                )
+            seq, blocked = self._programme(cost, qj)
+            if self.cell is not None and pl is not None:
+                hit = self._avoid_collisions(cost, qj, qm, seq, blocked, pb, base2cell(pl))
+                coll[pb[hit, 0], pb[hit, 1]] = True
+                blocked &= ~hit
+                seq[hit] = 0
             flip[pb[blocked, 0], pb[blocked, 1]] = True
-            good = ~blocked
+            good = ~blocked & ~coll[pb[:, 0], pb[:, 1]]
             pbg, seqg = pb[good], seq[good]
             if len(pbg):
                 qpath = _unwrap(qm, np.flatnonzero(good), seqg)  # (M', N, 6)
@@ -258,8 +286,85 @@ class PlacementKernel:
                 out.branch_max_m[pbg[f, 0], pbg[f, 1]] = e.max(axis=1)[f]
                 out.branch_joint_margin_rad[pbg[f, 0], pbg[f, 1]] = margin[f]
                 out.branch_singular_margin[pbg[f, 0], pbg[f, 1]] = r.min(axis=1)[f]
-        out.finish(flip, limit, gap_limit)
+        out.finish(flip, limit, gap_limit, coll)
         return out
+
+    def _programme(self, cost: np.ndarray, qj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The Viterbi programme on rows (``cost`` (M, S, N), ``qj`` (6, N, M, S)); where the
+        restricted graph is blocked, the dense one (every candidate may follow every other)."""
+        S = cost.shape[1]
+        seq, blocked = _viterbi(cost, qj, self.smoothness, self.max_joint_step, self._nbr)
+        if blocked.any() and self._nbr.shape[1] < S:
+            rb = np.flatnonzero(blocked)
+            seq[rb], blocked[rb] = _viterbi(
+                cost[rb], qj[:, :, rb], self.smoothness, self.max_joint_step, np.tile(np.arange(S), (S, 1))
+            )
+        return seq, blocked
+
+    def _avoid_collisions(
+        self,
+        cost: np.ndarray,
+        qj: np.ndarray,
+        qm: np.ndarray,
+        seq: np.ndarray,
+        blocked: np.ndarray,
+        pb: np.ndarray,
+        b2c: np.ndarray,
+    ) -> np.ndarray:
+        """The cheapest collision-free sequence of each row (placement x branch), in place.
+
+        A row's chosen sequence is checked; where it violates the clearance, its violating nodes
+        get an infinite cost and the programme is re-run on those rows (lazily, at most
+        :data:`LAZY_COLLISION_ROUNDS` times; then, for the rows still violating, every node at the
+        violating waypoints is checked and the violating ones excluded, until the sequence is
+        clear: each waypoint is checked whole at most once, so this ends).  Only rows whose
+        sequence is flip-free in float64 and fits the joint limits are checked (the others are
+        not feasible anyway).  ``cost`` (M, S, N) is modified; ``seq`` (M, N) and ``blocked``
+        (M,) are updated.
+
+        Returns
+        -------
+        ndarray of bool, shape (M,)
+            Rows that had a sequence without a flip but have none without a collision.
+        """
+        cell = self.cell
+        assert cell is not None
+        M, S, N = cost.shape
+        hit = np.zeros(M, dtype=bool)
+        rows = self._checkable(qm, seq, np.flatnonzero(~blocked))
+        for rnd in range(LAZY_COLLISION_ROUNDS + N + 1):
+            if rows.size == 0:
+                break
+            qpath = qm[rows[:, None], seq[rows], np.arange(N)[None, :]]  # (R, N, 6)
+            d = cell.min_distance(qpath.reshape(-1, 6), np.repeat(b2c[pb[rows, 0]], N, axis=0)).reshape(-1, N)
+            bad = d < cell.clearance
+            rb = np.flatnonzero(bad.any(axis=1))
+            if rb.size == 0:
+                break
+            rows_b = rows[rb]
+            r_i, n_i = np.nonzero(bad[rb])
+            if rnd < LAZY_COLLISION_ROUNDS:  # the violating nodes of the sequence
+                cost[rows_b[r_i], seq[rows_b[r_i], n_i], n_i] = np.inf
+            else:  # every node still in the running at the violating waypoints
+                live = np.isfinite(cost[rows_b[r_i], :, n_i])  # (V, S)
+                v_i, s_i = np.nonzero(live)
+                rr, nn = rows_b[r_i[v_i]], n_i[v_i]
+                dn = cell.min_distance(qm[rr, s_i, nn], b2c[pb[rr, 0]])
+                v = dn < cell.clearance
+                cost[rr[v], s_i[v], nn[v]] = np.inf
+            seq[rows_b], now_blocked = self._programme(cost[rows_b], qj[:, :, rows_b])
+            hit[rows_b[now_blocked]] = True
+            rows = self._checkable(qm, seq, rows_b[~now_blocked])
+        return hit
+
+    def _checkable(self, qm: np.ndarray, seq: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Those of ``rows`` whose sequence is flip-free in float64 and fits the joint limits."""
+        if rows.size == 0:
+            return rows
+        qpath = _unwrap(qm, rows, seq[rows])
+        smooth = (np.abs(np.diff(qpath, axis=1)) <= self.max_joint_step).all(axis=(1, 2))
+        _, inside = _into_limits(qpath, self.ik.q_min, self.ik.q_max)
+        return rows[smooth & inside]
 
 
 def _neighbour_table(rot: np.ndarray) -> np.ndarray:

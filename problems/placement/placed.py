@@ -62,6 +62,7 @@ def problem_at(problem: Problem, placement: np.ndarray) -> Problem:
         robot=robot,
         arm=arm,
         nominal_rpy=rpy,
+        cell=None if problem.cell is None else problem.cell.moved(T),  # the objects seen from the placed base
     )
 
 

@@ -38,6 +38,10 @@ class PlacementStatus(CodedStatus):
     #: every flip-free branch leaves a joint's limits along the path, or the first waypoint out of
     #: reach has solutions that only the joint limits exclude
     JOINT_LIMIT = "joint_limit", 3
+    #: the base footprint overlaps a cell object, or every branch that is otherwise feasible (flip-
+    #: free, inside the joint limits) comes closer than the cell's clearance to an object or to
+    #: itself at every sequence of scanned orientations (only with a ``[cell]``)
+    COLLISION = "collision", 4
 
 
 #: One line per status, for reports and summaries.
@@ -47,6 +51,8 @@ STATUS_REASONS = {
     PlacementStatus.FLIP: "every branch reaching the whole path flips (joint step above max_joint_step)",
     PlacementStatus.JOINT_LIMIT: "the joint limits exclude every branch (along the path, or at a waypoint whose "
     "solutions all lie outside them)",
+    PlacementStatus.COLLISION: "the base stands on an object, or every otherwise feasible branch comes closer than "
+    "the clearance to an object or to itself",
 }
 
 
@@ -103,12 +109,21 @@ class ChunkScores:
     def __len__(self) -> int:
         return int(len(self.status))
 
-    def finish(self, flip: np.ndarray, limit: np.ndarray, gap_limit: np.ndarray | None = None) -> None:
+    def finish(
+        self,
+        flip: np.ndarray,
+        limit: np.ndarray,
+        gap_limit: np.ndarray | None = None,
+        collision: np.ndarray | None = None,
+    ) -> None:
         """Pick the best branch of each placement and set its status.
 
         ``flip``, ``limit`` (P, B): branches that reach every waypoint but flip, or leave the
         joint limits; ``gap_limit`` (P,): the first waypoint out of reach has an IK solution that
-        only the joint limits exclude (the placement is then ``JOINT_LIMIT``, not ``UNREACHABLE``)."""
+        only the joint limits exclude (the placement is then ``JOINT_LIMIT``, not ``UNREACHABLE``);
+        ``collision`` (P, B): branches that would be feasible but violate the cell's clearance on
+        every sequence (the placement is then ``COLLISION`` when no branch is feasible; it takes
+        precedence over ``FLIP`` and ``JOINT_LIMIT``)."""
         feas = np.isfinite(self.branch_rms_m)
         self.feasible_branches[:] = feas.sum(axis=1)
         anyf = feas.any(axis=1)
@@ -132,7 +147,14 @@ class ChunkScores:
         st[~anyf & ~unreach & ~flip.any(axis=1) & ~limit.any(axis=1)] = PlacementStatus.UNREACHABLE.code
         if gap_limit is not None:
             st[~anyf & unreach & gap_limit] = PlacementStatus.JOINT_LIMIT.code
+        if collision is not None:
+            st[~anyf & ~unreach & collision.any(axis=1)] = PlacementStatus.COLLISION.code
         self.status[:] = st
+
+    def set_rows(self, rows: np.ndarray, other: ChunkScores) -> None:
+        """Copy ``other``'s rows (in order) into rows ``rows`` of these scores."""
+        for f in fields(self):
+            getattr(self, f.name)[rows] = getattr(other, f.name)
 
     @property
     def feasible(self) -> np.ndarray:

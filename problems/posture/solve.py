@@ -165,7 +165,7 @@ def optimise_postures(
         else:
             results[b] = _optimised_branch(nlp, model, ik, task, ws, b, robot.q_min, robot.q_max)
         results[b].label = ik.labels[b]
-    res = _choose(task, ws, results, default, freedom, note, build, ik.labels)
+    res = _choose(task, ws.rejected, ws.unreachable, results, default, freedom, note, build, ik.labels)
     res.ik_family = ik.family
     return res
 
@@ -349,7 +349,8 @@ def _objective(model: KinematicModel, task: PostureTask, q: np.ndarray) -> float
 
 def _choose(
     task: PostureTask,
-    ws: WarmStarts,
+    rejected: dict[int, str],
+    unreachable: list[int],
     results: dict[int, BranchResult],
     default: int | None,
     freedom: str,
@@ -357,48 +358,61 @@ def _choose(
     build: float,
     labels: tuple[str, ...],
 ) -> PostureResult:
-    """The usable branch of least cost (status OK), or SOLVER_FAILED if none is usable.
+    """The usable branch of least cost (status OK); if none is usable, COLLISION when a branch
+    was set aside for colliding with the cell (:func:`rechoose`), else SOLVER_FAILED.
 
-    ``build`` is the solver's build time, s; ``labels`` the IK family's branch labels.
+    ``rejected``, ``unreachable``: the warm starts' (:class:`PostureResult`); ``build`` is the
+    solver's build time, s; ``labels`` the IK family's branch labels.
     """
     usable = {b: r for b, r in results.items() if r.status.usable}
     if not usable:
-        reason = "the NLP failed on every feasible branch: " + "; ".join(
-            f"{r.label}: {r.reason}" for r in results.values()
-        )
+        colliding = [r for r in results.values() if r.status is BranchStatus.COLLISION]
+        if colliding:
+            status = PostureStatus.COLLISION
+            reason = (
+                f"every branch the posture stage gave ({len(colliding)}) collides with the cell; first "
+                f"{colliding[0].label}: {colliding[0].reason}"
+            )
+        else:
+            status = PostureStatus.SOLVER_FAILED
+            reason = "the NLP failed on every feasible branch: " + "; ".join(
+                f"{r.label}: {r.reason}" for r in results.values()
+            )
         return PostureResult(
-            PostureStatus.SOLVER_FAILED,
-            reason,
-            task,
-            results,
-            ws.rejected,
-            None,
-            default,
-            freedom,
-            note,
-            ws.unreachable,
-            build,
-            labels,
+            status, reason, task, results, rejected, None, default, freedom, note, unreachable, build, labels
         )
     chosen = min(usable, key=lambda b: usable[b].cost)
-    n_fail = len(results) - len(usable)
-    reason = f"branch {labels[chosen]} chosen among {len(usable)} usable branch(es)" + (
-        f"; {n_fail} failed" if n_fail else ""
+    n_coll = sum(r.status is BranchStatus.COLLISION for r in results.values())
+    n_fail = len(results) - len(usable) - n_coll
+    reason = (
+        f"branch {labels[chosen]} chosen among {len(usable)} usable branch(es)"
+        + (f"; {n_fail} failed" if n_fail else "")
+        + (f"; {n_coll} set aside for colliding with the cell" if n_coll else "")
     )
     return PostureResult(
-        PostureStatus.OK,
-        reason,
-        task,
-        results,
-        ws.rejected,
-        chosen,
-        default,
-        freedom,
-        note,
-        ws.unreachable,
-        build,
-        labels,
+        PostureStatus.OK, reason, task, results, rejected, chosen, default, freedom, note, unreachable, build, labels
     )
+
+
+def rechoose(ps: PostureResult) -> PostureResult:
+    """The choice made again after branches' statuses changed (e.g. set to ``collision`` by the
+    plan's cell check): the usable branch of least cost, or the status saying why none is.
+
+    Returns a new :class:`PostureResult` with the same branches (``ik_family`` and the rest kept).
+    """
+    out = _choose(
+        ps.task,
+        ps.rejected,
+        ps.unreachable,
+        ps.branches,
+        ps.default,
+        ps.freedom,
+        ps.freedom_note,
+        ps.build_time_s,
+        ps.labels,
+    )
+    out.ik_family = ps.ik_family
+    return out
 
 
 def optimal_pose(

@@ -118,6 +118,7 @@ class BranchStatus(Status):
     ANALYTIC = "analytic"  # optimisation switched off by the caller
     SOLVER_FAILED = "solver_failed"  # IPOPT did not converge (its status in the reason)
     CONSTRAINT_VIOLATED = "constraint_violated"  # converged, but a constraint fails verification
+    COLLISION = "collision"  # closer than the cell's clearance at a waypoint (planner/cell_check.py)
 
     @property
     def usable(self) -> bool:
@@ -132,6 +133,7 @@ class PostureStatus(Status):
     UNREACHABLE = "unreachable"  # a waypoint has no IK solution on any branch
     NO_BRANCH = "no_branch"  # every waypoint reachable, but no branch along the whole path
     SOLVER_FAILED = "solver_failed"  # every feasible branch failed its NLP
+    COLLISION = "collision"  # every branch the NLP gave collides with the cell (or itself)
 
 
 class PostureError(InputError):

@@ -1,0 +1,282 @@
+"""Distances between capsules and cell objects.
+
+* :func:`segment_distance`: the closed-form distance between segments (Ericson, *Real-Time
+  Collision Detection*, 5.1.9), vectorised in NumPy over any leading shape, so N configurations
+  times P capsule pairs are one call; a capsule pair's distance is it minus both radii.
+* Objects (:class:`CellShape`: box, sphere, cylinder, mesh) are `coal <https://github.com/coal-library/coal>`_
+  geometries (the maintained hpp-fcl); :func:`capsule_shape_distance` asks coal for the signed
+  distance between a capsule and an object and its closest points.  Meshes are read with ``trimesh``
+  into coal BVH models (:func:`mesh_shape`).
+
+Signed distances: negative is penetration depth.  coal gives it for primitives and convex meshes
+(GJK/EPA); for a non-convex mesh coal's depth is per triangle, so a capsule crossing the surface
+reports at most the depth past the nearest triangle, and a capsule wholly inside a closed mesh is
+found by an inside test of its end points (reported as a penetration of its radius).
+
+Units: m; every point in the base frame unless named otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import coal
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = [
+    "CellShape",
+    "PairDistance",
+    "box_shape",
+    "capsule_distance",
+    "capsule_shape_distance",
+    "cylinder_shape",
+    "mesh_shape",
+    "segment_distance",
+    "shape_pair_distance",
+    "sphere_shape",
+]
+
+#: Squared segment length (m^2) below which a segment is treated as a point.
+DEGENERATE_SEGMENT_M2 = 1e-24
+#: GJK convergence tolerance handed to coal (m): far below the 1e-6 m the distances are checked to.
+COAL_GJK_TOLERANCE_M = 1e-10
+#: EPA (penetration) tolerance handed to coal (m).
+COAL_EPA_TOLERANCE_M = 1e-10
+
+
+def segment_distance(
+    p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Smallest distance between segments ``p0-p1`` and ``q0-q1``, with the closest points.
+
+    Parameters
+    ----------
+    p0, p1, q0, q1 : ndarray, shape (..., 3)
+        End points, m (broadcast against each other).
+
+    Returns
+    -------
+    dist : ndarray, shape (...)
+        Distance, m (>= 0).
+    cp, cq : ndarray, shape (..., 3)
+        Closest points on the first and on the second segment.
+    """
+    d1, d2 = p1 - p0, q1 - q0
+    r = p0 - q0
+    a = np.einsum("...i,...i->...", d1, d1)
+    e = np.einsum("...i,...i->...", d2, d2)
+    f = np.einsum("...i,...i->...", d2, r)
+    c = np.einsum("...i,...i->...", d1, r)
+    b = np.einsum("...i,...i->...", d1, d2)
+    a_pt, e_pt = a <= DEGENERATE_SEGMENT_M2, e <= DEGENERATE_SEGMENT_M2
+    a_s = np.where(a_pt, 1.0, a)
+    e_s = np.where(e_pt, 1.0, e)
+    denom = a * e - b * b
+    # s on the first segment for the nearest point of the infinite lines (0 if parallel)
+    s = np.where(
+        denom > DEGENERATE_SEGMENT_M2 * (a + e + 1.0),
+        np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1),
+        0.0,
+    )
+    t = (b * s + f) / e_s
+    # t outside [0, 1]: clamp it and recompute s
+    s = np.where(t < 0.0, np.clip(-c / a_s, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a_s, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    # degenerate segments (points)
+    s = np.where(a_pt, 0.0, np.where(e_pt, np.clip(-c / a_s, 0.0, 1.0), s))
+    t = np.where(e_pt, 0.0, np.where(a_pt, np.clip(f / e_s, 0.0, 1.0), t))
+    cp = p0 + s[..., None] * d1
+    cq = q0 + t[..., None] * d2
+    return np.linalg.norm(cp - cq, axis=-1), cp, cq
+
+
+def capsule_distance(
+    seg_a: np.ndarray, r_a: np.ndarray | float, seg_b: np.ndarray, r_b: np.ndarray | float
+) -> np.ndarray:
+    """Signed distance between capsules (segment distance minus radii; negative: penetration).
+
+    Parameters
+    ----------
+    seg_a, seg_b : ndarray, shape (..., 2, 3)
+        Segment end points, m.
+    r_a, r_b : float or ndarray broadcast to shape (...)
+        Radii, m.
+
+    Returns
+    -------
+    ndarray, shape (...), m.
+    """
+    dist, _, _ = segment_distance(seg_a[..., 0, :], seg_a[..., 1, :], seg_b[..., 0, :], seg_b[..., 1, :])
+    return dist - r_a - r_b
+
+
+@dataclass(frozen=True)
+class CellShape:
+    """A coal geometry with its pose: one object of a cell (or a robot body given as a shape).
+
+    Attributes
+    ----------
+    name : str
+        Used in messages (``table``, ``fixture``).
+    geometry : coal.CollisionGeometry
+        In the shape's own frame.
+    shape2base : ndarray, shape (4, 4)
+        The shape's frame in the base frame.
+    kind : str
+        ``box``, ``sphere``, ``cylinder`` or ``mesh``.
+    mesh : trimesh.Trimesh or None
+        The mesh in its own frame (meshes only; for the inside test).
+    """
+
+    name: str
+    geometry: Any
+    shape2base: np.ndarray
+    kind: str
+    mesh: Any = field(default=None, repr=False)
+
+
+@dataclass(frozen=True)
+class PairDistance:
+    """The signed distance of one pair and its closest points.
+
+    Attributes
+    ----------
+    distance : float
+        Signed distance, m (negative: penetration depth).
+    point_a, point_b : ndarray, shape (3,)
+        Closest points on the first and second member, base frame, m.
+    pair : str
+        The pair named for messages, ``"link 3 – table"``.
+    """
+
+    distance: float
+    point_a: np.ndarray
+    point_b: np.ndarray
+    pair: str
+
+
+def _transform(T: np.ndarray) -> Any:
+    tf = coal.Transform3s()
+    tf.setRotation(np.ascontiguousarray(T[:3, :3], dtype=float))
+    tf.setTranslation(np.ascontiguousarray(T[:3, 3], dtype=float))
+    return tf
+
+
+def box_shape(name: str, size: np.ndarray, shape2base: np.ndarray) -> CellShape:
+    """A box of extents ``size`` (3,) m along its x, y, z, centred on its frame's origin."""
+    sx, sy, sz = (float(v) for v in size)
+    return CellShape(name, coal.Box(sx, sy, sz), np.asarray(shape2base, dtype=float), "box")
+
+
+def sphere_shape(name: str, radius: float, shape2base: np.ndarray) -> CellShape:
+    """A sphere of ``radius`` m centred on its frame's origin."""
+    return CellShape(name, coal.Sphere(float(radius)), np.asarray(shape2base, dtype=float), "sphere")
+
+
+def cylinder_shape(name: str, radius: float, length: float, shape2base: np.ndarray) -> CellShape:
+    """A cylinder of ``radius`` and ``length`` m along its z axis, centred on its frame's origin."""
+    return CellShape(name, coal.Cylinder(float(radius), float(length)), np.asarray(shape2base, dtype=float), "cylinder")
+
+
+def mesh_shape(name: str, source: Any, shape2base: np.ndarray, scale: float = 1.0) -> CellShape:
+    """A triangle mesh (a ``trimesh.Trimesh`` or an STL/OBJ/PLY file) as a coal BVH model.
+
+    Parameters
+    ----------
+    name : str
+    source : trimesh.Trimesh or path
+        The mesh, vertices in its own frame (in the file's unit, times ``scale``).
+    shape2base : ndarray, shape (4, 4)
+    scale : float
+        Vertex unit to m (0.001 for a file in mm).
+
+    Raises
+    ------
+    InputError
+        The file does not exist or holds no triangles.
+    """
+    import trimesh
+
+    if isinstance(source, trimesh.Trimesh):
+        mesh = source.copy()
+    else:
+        path = Path(source)
+        if not path.is_file():
+            raise InputError(f"{path}: no such mesh file (object '{name}')")
+        try:
+            mesh = trimesh.load_mesh(path, force="mesh")
+        except Exception as exc:  # trimesh raises many types on bad files
+            raise InputError(f"{path}: cannot read the mesh of object '{name}': {exc}") from None
+    if len(mesh.faces) == 0:
+        raise InputError(f"{source}: the mesh of object '{name}' has no triangles")
+    mesh.apply_scale(float(scale))
+    return CellShape(name, mesh_bvh(mesh), np.asarray(shape2base, dtype=float), "mesh", mesh)
+
+
+def mesh_bvh(mesh: Any) -> Any:
+    """A coal BVH model (OBBRSS) of a ``trimesh.Trimesh``'s triangles (vertices as they are, m)."""
+    verts = coal.StdVec_Vec3s()
+    verts.extend(np.asarray(v, dtype=float) for v in mesh.vertices)
+    tris = coal.StdVec_Triangle()
+    tris.extend(coal.Triangle(int(i), int(j), int(k)) for i, j, k in mesh.faces)
+    bvh = coal.BVHModelOBBRSS()
+    bvh.beginModel(len(mesh.faces), len(mesh.vertices))
+    bvh.addSubModel(verts, tris)
+    bvh.endModel()
+    return bvh
+
+
+def _request() -> Any:
+    req = coal.DistanceRequest()
+    req.enable_signed_distance = True
+    req.gjk_tolerance = COAL_GJK_TOLERANCE_M
+    req.epa_tolerance = COAL_EPA_TOLERANCE_M
+    return req
+
+
+_REQUEST = _request()
+
+
+def shape_pair_distance(a: CellShape, b: CellShape) -> PairDistance:
+    """Signed distance between two shapes through coal, with the closest points (base frame)."""
+    res = coal.DistanceResult()
+    dist = coal.distance(a.geometry, _transform(a.shape2base), b.geometry, _transform(b.shape2base), _REQUEST, res)
+    return PairDistance(
+        float(dist), np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2()), f"{a.name} – {b.name}"
+    )
+
+
+def _capsule_frame(p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, float]:
+    """A frame centred on the segment with z along it (coal's capsule axis), and its length."""
+    axis = p1 - p0
+    length = float(np.linalg.norm(axis))
+    z = axis / length if length > 0 else np.array([0.0, 0.0, 1.0])
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    T[:3, 3] = 0.5 * (p0 + p1)
+    return T, length
+
+
+def capsule_shape_distance(
+    p0: np.ndarray, p1: np.ndarray, radius: float, obj: CellShape, name: str = "capsule"
+) -> PairDistance:
+    """Signed distance between the capsule ``p0-p1`` of ``radius`` (m, base frame) and an object.
+
+    A capsule whose end point lies inside a closed mesh object is reported as penetrating it (the
+    distance is then minus the depth past the nearest triangle, at least minus the radius).
+    """
+    T, length = _capsule_frame(np.asarray(p0, dtype=float), np.asarray(p1, dtype=float))
+    cap = CellShape(name, coal.Capsule(float(radius), length), T, "capsule")
+    out = shape_pair_distance(cap, obj)
+    if obj.kind == "mesh" and out.distance > 0 and obj.mesh is not None and obj.mesh.is_watertight:
+        local = (np.linalg.inv(obj.shape2base) @ np.array([[*p0, 1.0], [*p1, 1.0]]).T).T[:, :3]
+        if np.any(obj.mesh.contains(local)):
+            out = PairDistance(-out.distance - float(radius), out.point_a, out.point_b, out.pair)
+    return out

@@ -1,0 +1,478 @@
+"""The cell checked in the plan: the arm's capsules against the cell's objects and themselves.
+
+What is checked (``docs/cell.md``, "What is checked where"):
+
+* **which pose**: joint configurations as the controller runs them (a branch's exact compensated
+  command at the waypoints, the controller's trajectory at every sample); the planned, deflected
+  posture is compared with the command and the largest displacement of a capsule end point
+  between them is reported (:attr:`CellCheck.deflection_m`): the clearance must cover it;
+* **the arm** as the capsules of :func:`models.collision.capsule_model` (built-in radii or the
+  generic ones), plus the **tool**: a capsule from the flange to the TCP of the flange link's
+  radius (:data:`TOOL_BODY`; until problem files describe the tool body);
+* **objects**: every capsule against every object of the cell, except the capsule that ends at the
+  TCP (the tool, or link 6 without a tool), which may touch the workpiece (its pair is not checked)
+  and capsules fixed to the base (they do not move: the problem file's base-footprint check covers
+  the base, :func:`problems.cell.footprint_overlaps`); distances through coal
+  (:func:`models.collision.capsule_shape_distance`), a bounding-sphere lower bound first so that
+  coal is asked only for the pairs that can be the nearest of their sample;
+* **self-collision**: the arm's self pairs (:func:`models.collision.self_collision_pairs`) and the
+  tool against links 0..4, closed form, vectorised over the samples.
+
+The result of a check is a :class:`models.collision.Clearance` (status ok / too_close /
+collision, the pair, the sample, the smallest signed distance). Units: m, base frame. Prints nothing.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from models.collision import (
+    CapsuleModel,
+    CellShape,
+    Clearance,
+    ClearanceStatus,
+    capsule_distance,
+    capsule_model,
+    capsule_segments,
+    capsule_shape_distance,
+    chain_frames,
+    self_collision_pairs,
+)
+from models.collision.distance import segment_distance
+from models.robot import Robot
+from problems.compensation import exact
+from problems.posture import BranchStatus, PostureResult, PostureStatus
+from problems.posture.solve import rechoose
+
+__all__ = [
+    "TOOL_BODY",
+    "TOOL_MIN_LENGTH_M",
+    "CellCheck",
+    "CellGeometry",
+    "cell_geometry",
+    "cell_summary",
+    "check_branches",
+    "check_command",
+    "check_poses",
+    "check_trajectory",
+    "choose_collision_free",
+    "distance_table",
+    "first_violation",
+    "largest_displacement",
+    "segments",
+]
+
+#: The tool's body number in the capsule model (after links 0..6).
+TOOL_BODY = 7
+#: A TCP closer than this to the flange (m) has no tool capsule: link 6 then ends at the TCP.
+TOOL_MIN_LENGTH_M = 1e-6
+#: The tool is checked against bodies up to this one (links 5 and 6 meet it at the wrist).
+TOOL_SELF_MAX_BODY = 4
+
+
+@dataclass(frozen=True)
+class CellGeometry:
+    """The arm's capsules (tool included) and the cell's objects, ready to check.
+
+    Attributes
+    ----------
+    robot : Robot
+    model : CapsuleModel
+        The arm's capsules plus the tool's (body :data:`TOOL_BODY`), M in all.
+    names : tuple of str, length M
+        Capsule names in messages (``link 3``, ``tool``).
+    shapes : tuple of CellShape, length K
+        The cell's objects (base frame).
+    checked : ndarray of bool, shape (M, K)
+        Which capsule-object pairs are checked (not: the TCP capsule with the workpiece, capsules
+        fixed to the base).
+    self_pairs : ndarray of int, shape (P, 2)
+        Capsule index pairs of the self-collision check.
+    clearance : float
+        m.
+    centre, bound : ndarray, shape (K, 3), (K,)
+        Each object's bounding sphere (base frame), m.
+    roles : tuple of str, length K
+        ``obstacle`` or ``workpiece``.
+    """
+
+    robot: Robot
+    model: CapsuleModel
+    names: tuple[str, ...]
+    shapes: tuple[CellShape, ...]
+    checked: np.ndarray
+    self_pairs: np.ndarray
+    clearance: float
+    centre: np.ndarray
+    bound: np.ndarray
+    roles: tuple[str, ...] = ()
+
+    @property
+    def pair_names(self) -> list[str]:
+        """Names of the object pairs (capsule-major, ``m * K + k``), then of the self pairs."""
+        obj = [f"{c} – {s.name}" for c in self.names for s in self.shapes]
+        return obj + [f"{self.names[i]} – {self.names[j]}" for i, j in self.self_pairs]
+
+
+def _shape(obj: Any) -> CellShape:
+    """A :class:`problems.cell.CellObject` as a :class:`models.collision.CellShape`."""
+    if isinstance(obj, CellShape):
+        return obj
+    return CellShape(obj.name, obj.geometry, np.asarray(obj.object2base, dtype=float), obj.shape, obj.mesh)
+
+
+def _bounding_sphere(s: CellShape) -> tuple[np.ndarray, float]:
+    """Centre (base frame) and radius (m) of a sphere holding the object."""
+    T = s.shape2base
+    if s.kind == "mesh" and s.mesh is not None:
+        lo, hi = s.mesh.bounds
+        c = 0.5 * (lo + hi)
+        return T[:3, :3] @ c + T[:3, 3], float(np.max(np.linalg.norm(s.mesh.vertices - c, axis=1)))
+    g = s.geometry
+    if s.kind == "box":
+        r = float(np.linalg.norm(np.asarray(g.halfSide)))
+    elif s.kind == "sphere":
+        r = float(g.radius)
+    elif s.kind == "cylinder":
+        r = float(np.hypot(g.radius, g.halfLength))
+    else:  # an unknown coal geometry: no pruning
+        r = np.inf
+    return T[:3, 3].copy(), r
+
+
+def _with_tool(model: CapsuleModel, robot: Robot) -> tuple[CapsuleModel, bool]:
+    """The capsule model with the tool capsule appended (flange -> TCP, in DH frame 6), and
+    whether there is one."""
+    f6 = np.asarray(robot.flange2frame6, dtype=float)
+    flange = f6[:3, 3]
+    tcp = (f6 @ np.asarray(robot.tcp2flange, dtype=float))[:3, 3]
+    if np.linalg.norm(tcp - flange) < TOOL_MIN_LENGTH_M:
+        return model, False
+    r6 = float(model.radius[model.body == 6].max())
+    return (
+        replace(
+            model,
+            frame_a=np.r_[model.frame_a, 6],
+            frame_b=np.r_[model.frame_b, 6],
+            local_a=np.vstack([model.local_a, flange]),
+            local_b=np.vstack([model.local_b, tcp]),
+            radius=np.r_[model.radius, r6],
+            body=np.r_[model.body, TOOL_BODY],
+        ),
+        True,
+    )
+
+
+def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) -> CellGeometry:
+    """The geometry to check for a robot in a cell.
+
+    Parameters
+    ----------
+    robot : Robot
+        With its tool (``tcp2flange``).
+    cell : problems.cell.Cell
+        Its objects (``object2base``, ``geometry``, ``role``) and ``clearance`` (m).
+    model : CapsuleModel, optional
+        The arm's capsules (default :func:`models.collision.capsule_model`).
+    """
+    arm = capsule_model(robot) if model is None else model
+    full, has_tool = _with_tool(arm, robot)
+    names = tuple("tool" if b == TOOL_BODY else n for n, b in zip(full.names, full.body))
+    shapes = tuple(_shape(o) for o in cell.objects)
+    m, k = full.n_capsules, len(shapes)
+    checked = np.ones((m, k), dtype=bool)
+    fixed = (full.frame_a <= 0) & (full.frame_b <= 0)
+    checked[fixed] = False
+    tcp_capsule = m - 1 if has_tool else int(np.flatnonzero(full.body == 6)[-1])
+    for j, o in enumerate(cell.objects):
+        if getattr(o, "role", "obstacle") == "workpiece":
+            checked[tcp_capsule, j] = False
+    pairs = self_collision_pairs(arm)
+    if has_tool:
+        near = [(c, m - 1) for c in range(arm.n_capsules) if arm.body[c] <= TOOL_SELF_MAX_BODY]
+        pairs = np.vstack([pairs, np.array(near, dtype=int).reshape(-1, 2)])
+    spheres = [_bounding_sphere(s) for s in shapes]
+    centre = np.array([c for c, _ in spheres]).reshape(k, 3)
+    bound = np.array([r for _, r in spheres], dtype=float)
+    roles = tuple(str(getattr(o, "role", "obstacle")) for o in cell.objects)
+    return CellGeometry(robot, full, names, shapes, checked, pairs, float(cell.clearance), centre, bound, roles)
+
+
+def segments(geom: CellGeometry, q: np.ndarray) -> np.ndarray:
+    """Capsule end points at configurations ``q`` (N, 6) rad: shape (N, M, 2, 3), m, base frame."""
+    return capsule_segments(geom.model, chain_frames(geom.robot, np.atleast_2d(q)))
+
+
+def distance_table(geom: CellGeometry, q: np.ndarray) -> np.ndarray:
+    """Signed distances (m) of every pair at every configuration, shape (N, M * K + P).
+
+    Object pairs not checked are ``+inf``. An object pair whose bounding-sphere lower bound is
+    not below the smallest distance of its sample holds that lower bound (a distance no smaller
+    than the sample's smallest), so the minimum of each row, and its pair, are exact.
+    """
+    seg = segments(geom, q)
+    n, m = seg.shape[:2]
+    k = len(geom.shapes)
+    r = geom.model.radius
+    sp = geom.self_pairs
+    self_d = capsule_distance(seg[:, sp[:, 0]], r[sp[:, 0]], seg[:, sp[:, 1]], r[sp[:, 1]])
+    obj = np.full((n, m, k), np.inf)
+    if k:
+        d_c, _, _ = segment_distance(
+            seg[:, :, None, 0], seg[:, :, None, 1], geom.centre[None, None], geom.centre[None, None]
+        )
+        lower = np.where(geom.checked[None], d_c - r[None, :, None] - geom.bound[None, None], np.inf)
+        best = self_d.min(axis=1) if sp.size else np.full(n, np.inf)
+        for i in range(n):
+            for flat in np.argsort(lower[i], axis=None):
+                c, j = divmod(int(flat), k)
+                if not lower[i, c, j] < best[i]:
+                    break  # every remaining pair is at least this far
+                d = capsule_shape_distance(seg[i, c, 0], seg[i, c, 1], r[c], geom.shapes[j]).distance
+                obj[i, c, j] = d
+                best[i] = min(best[i], d)
+        unknown = np.isinf(obj) & geom.checked[None]
+        obj[unknown] = lower[unknown]
+    return np.hstack([obj.reshape(n, m * k), self_d])
+
+
+def _clearance(d_row_min: float, pair: str, clearance: float, where: str, index: int) -> Clearance:
+    if d_row_min <= 0.0:
+        status, text = ClearanceStatus.COLLISION, f"{pair} overlap by {-d_row_min * 1e3:.1f} mm at {where}"
+    elif d_row_min < clearance:
+        status = ClearanceStatus.TOO_CLOSE
+        text = f"{pair} {d_row_min * 1e3:.1f} mm apart at {where} (clearance {clearance * 1e3:.1f} mm)"
+    else:
+        status, text = ClearanceStatus.OK, f"smallest distance {d_row_min * 1e3:.1f} mm: {pair} at {where}"
+    return Clearance(status, text, d_row_min, pair, index, clearance)
+
+
+def first_violation(
+    geom: CellGeometry, d: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None
+) -> Clearance:
+    """The :class:`Clearance` of a distance table (:func:`distance_table`): at the *first* sample
+    closer than the clearance (its nearest pair), else at the smallest distance of all.
+
+    ``label``: what a sample is in the reason; ``times`` (N,) s: name samples by their time.
+    """
+    names = geom.pair_names
+    if d.size == 0 or not np.isfinite(d).any():
+        return Clearance(ClearanceStatus.OK, "no pair to check", float("inf"), "", -1, geom.clearance)
+    row_min = d.min(axis=1)
+    bad = np.flatnonzero(row_min < geom.clearance)
+    i = int(bad[0]) if bad.size else int(np.argmin(row_min))
+    p = int(np.argmin(d[i]))
+    where = f"{label} {i}" if times is None else f"t = {times[i]:.3f} s ({label} {i})"
+    return _clearance(float(d[i, p]), names[p], geom.clearance, where, i)
+
+
+def check_poses(
+    geom: CellGeometry, q: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None
+) -> Clearance:
+    """Clearance of configurations ``q`` (N, 6) rad against the cell and themselves
+    (:func:`first_violation` of :func:`distance_table`)."""
+    return first_violation(geom, distance_table(geom, q), label, times)
+
+
+def largest_displacement(geom: CellGeometry, q_a: np.ndarray, q_b: np.ndarray) -> tuple[float, str, int]:
+    """Largest displacement (m) of a capsule end point between configurations ``q_a`` and ``q_b``
+    (N, 6) rad, with the capsule's name and the sample."""
+    a, b = segments(geom, q_a), segments(geom, q_b)
+    dist = np.linalg.norm(a - b, axis=-1).max(axis=-1)  # (N, M)
+    i, c = np.unravel_index(int(np.argmax(dist)), dist.shape)
+    return float(dist[i, c]), geom.names[c], int(i)
+
+
+@dataclass
+class CellCheck:
+    """What the plan's cell check found (``summary.json`` ``cell``).
+
+    Attributes
+    ----------
+    geometry : CellGeometry
+    branches : dict branch -> Clearance
+        Each usable branch's command at the waypoints (with its planned posture).
+    waypoints : Clearance or None
+        The chosen branch's command at the waypoints.
+    trajectory : Clearance or None
+        The controller's trajectory at every sample (``index`` the sample).
+    trajectory_method : str or None
+    trajectory_time_s : float or None
+        Time of the trajectory's nearest sample, s.
+    deflection_m : float
+        Largest capsule end-point displacement between the chosen branch's command and its planned
+        (deflected) posture at the waypoints, m; ``deflection_where``: capsule and waypoint.
+    stiffness_best : int or None
+        The branch the plan would choose without the cell.
+    choice_note : str
+        When the stiffness-best branch collides: what the collision-free choice pays (one line).
+    check_time_s : dict
+        Wall time of each check, s, and ``poses``: the number of poses checked.
+    """
+
+    geometry: CellGeometry
+    branches: dict[int, Clearance] = field(default_factory=dict)
+    waypoints: Clearance | None = None
+    trajectory: Clearance | None = None
+    trajectory_method: str | None = None
+    trajectory_time_s: float | None = None
+    deflection_m: float = 0.0
+    deflection_where: str = ""
+    stiffness_best: int | None = None
+    choice_note: str = ""
+    check_time_s: dict[str, float] = field(default_factory=dict)
+
+
+def check_branches(
+    geom: CellGeometry, postures: dict[int, np.ndarray], commands: dict[int, np.ndarray]
+) -> dict[int, Clearance]:
+    """Each branch's clearance at the waypoints: its command and its planned posture (the smaller).
+
+    Parameters
+    ----------
+    postures, commands : dict branch -> ndarray, shape (N, 6)
+        Planned (deflected) posture and exact command, rad (a command with non-finite values is
+        left out: its planned posture alone is checked).
+    """
+    out = {}
+    for b, q in postures.items():
+        d = distance_table(geom, q)
+        qc = commands.get(b)
+        if qc is not None and np.all(np.isfinite(qc)):
+            d = np.minimum(d, distance_table(geom, qc))
+        out[b] = first_violation(geom, d)
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# The plan's stages
+# --------------------------------------------------------------------------------------
+
+
+def choose_collision_free(problem: Any, ps: PostureResult) -> tuple[PostureResult, CellCheck]:
+    """Every usable branch checked at every waypoint, colliding ones set aside, the choice made
+    again (:func:`problems.posture.solve.rechoose`).
+
+    A branch whose exact command or planned posture comes closer than the clearance to an object
+    or to itself gets status ``collision`` and the reason of its :class:`Clearance` (first
+    waypoint, pair, penetration or distance in mm). When the stiffness-best branch is set aside,
+    the new choice's reason says what the collision-free branch pays in load-induced error.
+
+    Parameters
+    ----------
+    problem : problems.problem.Problem
+        With its ``cell``, arm model and load.
+    ps : PostureResult
+        The posture stage's result (status OK).
+
+    Returns
+    -------
+    PostureResult
+        New (the branches replaced where they collide); status COLLISION if no branch is free.
+    CellCheck
+    """
+    t0 = time.perf_counter()
+    geom = cell_geometry(problem.robot, problem.cell)
+    arm, L = problem.model, problem.load.rows(problem.n)
+    usable = {b: r for b, r in ps.branches.items() if r.status.usable}
+    commands = {b: exact(arm, r.q, L).q_command for b, r in usable.items()}
+    found = check_branches(geom, {b: r.q for b, r in usable.items()}, commands)
+    check = CellCheck(geom, found, stiffness_best=ps.chosen)
+    branches = dict(ps.branches)
+    for b, c in found.items():
+        if c.status is not ClearanceStatus.OK:
+            branches[b] = replace(branches[b], status=BranchStatus.COLLISION, reason=c.reason)
+    out = rechoose(replace(ps, branches=branches))
+    if out.ok and ps.chosen is not None and out.chosen != ps.chosen:
+        was, now = ps.branches[ps.chosen], out.best
+        check.choice_note = (
+            f"the stiffness-best branch {was.label} collides ({found[ps.chosen].reason}): the collision-free "
+            f"{now.label} pays RMS load-induced error {now.rms_error_m * 1e3:.4g} mm vs {was.rms_error_m * 1e3:.4g} mm "
+            f"(x{now.rms_error_m / was.rms_error_m:.3g}, first order)"
+        )
+        out.reason += f"; {check.choice_note}"
+    if out.ok:
+        check.waypoints = found[out.chosen]
+    elif out.status is PostureStatus.COLLISION:
+        pairs = Counter(c.pair for c in found.values() if c.status is not ClearanceStatus.OK)
+        out.reason += "; the pair at each branch's first violation: " + ", ".join(
+            f"{p} ({n} branch(es))" for p, n in pairs.most_common()
+        )
+    check.check_time_s = {"branches_s": time.perf_counter() - t0, "poses": 2 * problem.n * len(usable)}
+    return out, check
+
+
+def check_command(check: CellCheck, q_command: np.ndarray, q_planned: np.ndarray) -> None:
+    """The chosen branch's command at the waypoints again, and the deflection between it and
+    the planned posture (:attr:`CellCheck.deflection_m`)."""
+    g = check.geometry
+    check.waypoints = first_violation(g, np.minimum(distance_table(g, q_command), distance_table(g, q_planned)))
+    size, capsule, k = largest_displacement(g, q_command, q_planned)
+    check.deflection_m, check.deflection_where = size, f"{capsule} at waypoint {k}"
+
+
+def check_trajectory(check: CellCheck, method: str, t: np.ndarray, q: np.ndarray) -> Clearance:
+    """The controller's trajectory ``q`` (S, 6) rad at its samples ``t`` (S,) s against the cell;
+    kept in ``check`` and returned."""
+    t0 = time.perf_counter()
+    c = check_poses(check.geometry, q, "sample", t)
+    check.trajectory, check.trajectory_method = c, method
+    check.trajectory_time_s = float(t[c.index]) if c.index >= 0 else None
+    check.check_time_s["trajectory_s"] = time.perf_counter() - t0
+    check.check_time_s["trajectory_poses"] = int(len(q))
+    return c
+
+
+def _block(c: Clearance | None) -> dict[str, Any] | None:
+    if c is None:
+        return None
+    return {
+        "status": c.status.value,
+        "min_clearance_mm": c.distance * 1e3 if np.isfinite(c.distance) else None,
+        "pair": c.pair or None,
+        "index": c.index,
+        "reason": c.reason,
+    }
+
+
+def cell_summary(check: CellCheck, labels: tuple[str, ...]) -> dict[str, Any]:
+    """The ``cell`` block of ``summary.json`` (mm where the key says so, else SI)."""
+    g = check.geometry
+    traj = _block(check.trajectory)
+    if traj is not None:
+        traj["method"] = check.trajectory_method
+        traj["time_s"] = check.trajectory_time_s
+    per_pose = (
+        check.check_time_s["trajectory_s"] / check.check_time_s["trajectory_poses"] * 1e6
+        if check.check_time_s.get("trajectory_poses")
+        else None
+    )
+    return {
+        "clearance_mm": g.clearance * 1e3,
+        "objects": [{"name": s.name, "shape": s.kind, "role": role} for s, role in zip(g.shapes, g.roles)],
+        "capsules": {n: float(r) for n, r in zip(g.names, g.model.radius)},
+        "radii_source": g.model.radii_source,
+        "waypoints": _block(check.waypoints),
+        "trajectory": traj,
+        "branches": {labels[b]: _block(c) for b, c in check.branches.items()},
+        "stiffness_best_branch": labels[check.stiffness_best] if check.stiffness_best is not None else None,
+        "choice_note": check.choice_note or None,
+        "deflection_margin_mm": check.deflection_m * 1e3,
+        "deflection_where": check.deflection_where,
+        "deflection_note": (
+            "largest displacement of a capsule end point between the commanded joints and the planned "
+            "(deflected) posture at the waypoints: the clearance must cover it"
+        ),
+        "what": (
+            "commanded joints (path.csv) and planned postures at the waypoints, the controller's trajectory at "
+            "every sample; capsules along the links and the tool (flange to TCP) against every object (the tool "
+            "may touch the workpiece) and non-adjacent links against each other"
+        ),
+        "check_time_s": dict(check.check_time_s),
+        "trajectory_us_per_pose": per_pose,
+    }

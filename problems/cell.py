@@ -1,0 +1,387 @@
+"""The cell: the objects around the robot (tables, fixtures, walls, the workpiece) as geometry.
+
+A :class:`Cell` is the ``[cell]`` table of a problem file read and checked
+(:mod:`problems.cell_section`, ``docs/problem-file.md``, "[cell]"): the smallest allowed distance
+``clearance`` (m) and its :class:`CellObject` s. An object is a box, a cylinder, a sphere or a
+triangle mesh (STL, OBJ, PLY read with ``trimesh``), placed by ``object2base`` (pytransform3d's
+naming: it maps object-frame coordinates to the base frame, ``p_base = object2base @ p_object``):
+
+* box: ``size = [x, y, z]`` extents (m) along the object's axes, centred on its origin;
+* cylinder: ``size = [radius, length]`` (m), its axis the object's z axis, centred on its origin;
+* sphere: ``size = [radius]`` (m), centred on its origin;
+* mesh: the file's vertices times ``scale`` (m) in the object frame (the file's own origin).
+
+Each object carries its `coal <https://github.com/coal-library/coal>`_ collision geometry
+(``coal.Box``, ``coal.Cylinder`` along z, ``coal.Sphere``, a ``coal.BVHModelOBBRSS`` of the mesh's
+triangles) in its own frame, for the pair distances of the collision checks (``models/collision``).
+Point queries (:meth:`CellObject.distance_to_point`, :meth:`CellObject.contains`) are closed form
+for the primitives (vectorised; checked against coal in ``tests/test_cell_file.py``) and
+``trimesh``'s closest points and inside test for meshes. One role may be ``workpiece``: the only
+object the cutter may touch.
+
+The robot's base **footprint** (:func:`base_footprint`) is a cylinder about the base z axis from the
+mounting plane (z = 0) up to :data:`BASE_FOOTPRINT_HEIGHT_M`, of the arm's base radius: at the
+problem's own placement no object may overlap it (:func:`footprint_overlaps`).
+
+Units: m. Frames: the base frame (``docs/conventions.md``). coal and trimesh are imported only
+when a cell is built, so problems without ``[cell]`` do not load them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+import numpy as np
+
+from models.errors import InputError
+
+__all__ = [
+    "BASE_FOOTPRINT_HEIGHT_M",
+    "BASE_FOOTPRINT_RADIUS_M",
+    "BUILTIN_BASE_FOOTPRINT_RADIUS_M",
+    "COAL_GJK_TOLERANCE_M",
+    "DEFAULT_CLEARANCE_M",
+    "FOOTPRINT_TOUCH_TOL_M",
+    "OBJECT_ROLES",
+    "OBJECT_SHAPES",
+    "POINT_INSIDE_TOL_M",
+    "SIZE_LENGTH",
+    "Cell",
+    "CellObject",
+    "base_footprint",
+    "footprint_overlaps",
+    "mesh_geometry",
+]
+
+#: Default smallest allowed distance between the robot (and tool body) and the objects, and
+#: between non-adjacent links, m.
+DEFAULT_CLEARANCE_M = 0.005
+#: The shapes an object may have.
+OBJECT_SHAPES = ("box", "cylinder", "sphere", "mesh")
+#: The roles an object may have: ``workpiece`` is the only object the cutter may touch.
+OBJECT_ROLES = ("obstacle", "workpiece")
+#: Numbers in ``size`` per primitive shape: box x, y, z extents; cylinder radius, length; sphere radius.
+SIZE_LENGTH: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1}
+#: A point counts as inside an object when its signed distance is below minus this, m: a path
+#: point on an object's surface (up to rounding of the pose) is not inside it.
+POINT_INSIDE_TOL_M = 1e-6
+
+#: Radius of the base footprint of an arm without an entry in
+#: :data:`BUILTIN_BASE_FOOTPRINT_RADIUS_M`, m (a mid-size arm's base foot).
+BASE_FOOTPRINT_RADIUS_M = 0.08
+#: Base footprint radius of the built-in arms, m: half the base foot's diameter on the makers'
+#: dimension drawings, rounded up to 5 mm (UR5 / UR5e foot 149 mm, UR10 190 mm); the seed paper's
+#: ``ar5`` has UR5 proportions.
+BUILTIN_BASE_FOOTPRINT_RADIUS_M: dict[str, float] = {"ur5": 0.075, "ur5e": 0.075, "ar5": 0.075, "ur10": 0.095}
+#: Height of the base footprint above the mounting plane (z = 0 of the base frame), m: the base
+#: housing below the shoulder of the built-in arms (UR5 shoulder height 0.089 m, UR10 0.127 m).
+BASE_FOOTPRINT_HEIGHT_M = 0.10
+#: The footprint is shrunk by this on every side before the overlap test, m, so that an object
+#: that only touches it (a table whose top is the mounting plane) is not an overlap (well above
+#: coal's resolution of a touch with :data:`COAL_GJK_TOLERANCE_M`).
+FOOTPRINT_TOUCH_TOL_M = 1e-5
+#: coal's GJK tolerance in the footprint test, m (its default, 1e-6, reports shapes 1e-6 m apart
+#: as colliding).
+COAL_GJK_TOLERANCE_M = 1e-9
+
+
+def _coal() -> Any:
+    import coal
+
+    return coal
+
+
+def _coal_transform(T: np.ndarray) -> Any:
+    coal = _coal()
+    tf = coal.Transform3s()
+    tf.setRotation(np.ascontiguousarray(T[:3, :3], dtype=float))
+    tf.setTranslation(np.ascontiguousarray(T[:3, 3], dtype=float))
+    return tf
+
+
+def mesh_geometry(mesh: Any) -> Any:
+    """A coal BVH model (OBBRSS) of a ``trimesh.Trimesh``'s triangles, vertices in m
+    (:func:`models.collision.distance.mesh_bvh`, imported here so that coal loads only with a cell)."""
+    from models.collision.distance import mesh_bvh
+
+    return mesh_bvh(mesh)
+
+
+def _box_sd(q: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Signed distance of points ``q`` (N, k) from the box ``|x_i| <= half_i`` (k-D), m."""
+    d = np.abs(q) - half
+    return np.linalg.norm(np.maximum(d, 0.0), axis=1) + np.minimum(np.max(d, axis=1), 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class CellObject:
+    """One object of the cell.
+
+    Attributes
+    ----------
+    name : str
+        Unique in its cell; used in messages (``link 3 – fixture``).
+    shape : {"box", "cylinder", "sphere", "mesh"}
+    size : ndarray
+        m: box ``(3,)`` x, y, z extents; cylinder ``(2,)`` radius, length (along z); sphere ``(1,)``
+        radius; mesh ``(3,)`` the extents of its axis-aligned bounding box in the object frame.
+    object2base : ndarray, shape (4, 4)
+        Maps object-frame coordinates to the base frame: the centre (primitives) or the file's
+        origin (mesh) and the object's axes in the base frame.
+    role : {"obstacle", "workpiece"}
+    mesh_file : str or None
+        The mesh file read (resolved path), meshes only.
+    mesh_scale : float
+        Mesh file unit to m (0.001 for a file in mm).
+    mesh : trimesh.Trimesh or None
+        The mesh in the object frame, scaled to m (meshes only).
+    geometry : coal.CollisionGeometry
+        Built from the above: ``coal.Box``, ``coal.Cylinder`` (along z), ``coal.Sphere``, or a
+        ``coal.BVHModelOBBRSS`` of the mesh, in the object frame.
+
+    Raises
+    ------
+    InputError
+        Unknown shape or role, a size of the wrong length or not positive, a bad transform, a mesh
+        object without its mesh.
+    """
+
+    name: str
+    shape: str
+    size: np.ndarray
+    object2base: np.ndarray
+    role: str = "obstacle"
+    mesh_file: str | None = None
+    mesh_scale: float = 1.0
+    mesh: Any = field(default=None, repr=False)
+    geometry: Any = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.shape not in OBJECT_SHAPES:
+            raise InputError(
+                f"cell object '{self.name}': shape must be one of {list(OBJECT_SHAPES)}, got {self.shape!r}"
+            )
+        if self.role not in OBJECT_ROLES:
+            raise InputError(f"cell object '{self.name}': role must be one of {list(OBJECT_ROLES)}, got {self.role!r}")
+        T = np.asarray(self.object2base, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)) or not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3)):
+            raise InputError(f"cell object '{self.name}': object2base must be a finite 4x4 rigid transform")
+        object.__setattr__(self, "object2base", T)
+        if self.shape == "mesh":
+            if self.mesh is None:
+                raise InputError(f"cell object '{self.name}': a mesh object needs its mesh")
+            object.__setattr__(self, "size", np.asarray(self.mesh.extents, dtype=float))
+        else:
+            s = np.asarray(self.size, dtype=float).reshape(-1)
+            if s.shape != (SIZE_LENGTH[self.shape],) or not np.all(np.isfinite(s)) or np.any(s <= 0.0):
+                raise InputError(
+                    f"cell object '{self.name}': a {self.shape} needs {SIZE_LENGTH[self.shape]} positive size(s), "
+                    f"got {np.asarray(self.size).tolist()}"
+                )
+            object.__setattr__(self, "size", s)
+        object.__setattr__(self, "geometry", self._build_geometry())
+
+    def _build_geometry(self) -> Any:
+        coal = _coal()
+        s = self.size
+        if self.shape == "box":
+            return coal.Box(float(s[0]), float(s[1]), float(s[2]))
+        if self.shape == "cylinder":
+            return coal.Cylinder(float(s[0]), float(s[1]))
+        if self.shape == "sphere":
+            return coal.Sphere(float(s[0]))
+        return mesh_geometry(self.mesh)
+
+    @property
+    def coal_transform(self) -> Any:
+        """``object2base`` as a ``coal.Transform3s``."""
+        return _coal_transform(self.object2base)
+
+    def to_object(self, points_base: np.ndarray) -> np.ndarray:
+        """Points (N, 3) from the base frame to the object frame, m."""
+        P = np.atleast_2d(np.asarray(points_base, dtype=float))
+        R, t = self.object2base[:3, :3], self.object2base[:3, 3]
+        return (P - t) @ R
+
+    def distance_to_point(self, points_base: np.ndarray) -> np.ndarray:
+        """Signed distance of points from the object's surface, m (negative inside).
+
+        Parameters
+        ----------
+        points_base : ndarray, shape (N, 3) or (3,)
+            Points in the base frame, m.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            Closed form for box, cylinder and sphere; a mesh's closest-triangle distance with the
+            sign of ``trimesh``'s inside test.
+        """
+        q = self.to_object(points_base)
+        s = self.size
+        if self.shape == "box":
+            return _box_sd(q, 0.5 * s)
+        if self.shape == "cylinder":
+            rz = np.column_stack([np.linalg.norm(q[:, :2], axis=1), q[:, 2]])
+            return _box_sd(rz, np.array([s[0], 0.5 * s[1]]))
+        if self.shape == "sphere":
+            return np.linalg.norm(q, axis=1) - s[0]
+        import trimesh
+
+        return -np.asarray(trimesh.proximity.signed_distance(self.mesh, q), dtype=float)  # trimesh: + inside
+
+    def contains(self, points_base: np.ndarray, tol: float = POINT_INSIDE_TOL_M) -> np.ndarray:
+        """Whether points lie inside the object by more than ``tol`` (m), shape (N,) bool.
+
+        A mesh is tested only at the points inside its bounding box (the rest are outside).
+        """
+        P = np.atleast_2d(np.asarray(points_base, dtype=float))
+        if self.shape != "mesh":
+            return self.distance_to_point(P) < -tol
+        q = self.to_object(P)
+        lo, hi = self.mesh.bounds
+        near = np.flatnonzero(np.all((q > lo + tol) & (q < hi - tol), axis=1))
+        inside = np.zeros(len(P), dtype=bool)
+        if near.size:
+            inside[near] = self.distance_to_point(P[near]) < -tol
+        return inside
+
+    def moved(self, new2base: np.ndarray) -> CellObject:
+        """The same object with ``object2base`` replaced by ``new2base @ object2base`` (e.g. a
+        placement's ``base2cell`` inverse: the cell seen from a moved base)."""
+        return CellObject(
+            self.name,
+            self.shape,
+            self.size,
+            np.asarray(new2base, dtype=float) @ self.object2base,
+            self.role,
+            self.mesh_file,
+            self.mesh_scale,
+            self.mesh,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The object in the problem-file schema (SI units, radians, base frame)."""
+        from models.transforms import matrix_to_rpy
+
+        d: dict[str, Any] = {"name": self.name, "shape": self.shape}
+        if self.shape == "mesh":
+            d["file"], d["scale"] = self.mesh_file, self.mesh_scale
+        else:
+            d["size"] = [float(v) for v in self.size]
+        d["xyz"] = [float(v) for v in self.object2base[:3, 3]]
+        d["rpy"] = [float(v) for v in matrix_to_rpy(self.object2base[:3, :3])]
+        d["role"] = self.role
+        return d
+
+
+@dataclass(frozen=True, eq=False)
+class Cell:
+    """The cell's objects and the clearance the plan must keep from them.
+
+    Attributes
+    ----------
+    objects : tuple of CellObject
+        Unique names; at most one with role ``workpiece``.
+    clearance : float
+        m, the smallest allowed distance between the robot (and tool body) and the objects, and
+        between non-adjacent links; in ``[0, MAX_CLEARANCE_M)`` (:mod:`problems.cell_section`).
+
+    Raises
+    ------
+    InputError
+        Duplicate names, more than one workpiece, a negative clearance.
+    """
+
+    objects: tuple[CellObject, ...] = ()
+    clearance: float = DEFAULT_CLEARANCE_M
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "objects", tuple(self.objects))
+        names = [o.name for o in self.objects]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise InputError(f"cell: object names must be unique, repeated: {dup}")
+        wps = [o.name for o in self.objects if o.role == "workpiece"]
+        if len(wps) > 1:
+            raise InputError(f"cell: at most one object may have role 'workpiece', got {wps}")
+        if not np.isfinite(self.clearance) or self.clearance < 0.0:
+            raise InputError(f"cell: clearance must be >= 0 m, got {self.clearance!r}")
+
+    @property
+    def workpiece(self) -> CellObject | None:
+        """The object with role ``workpiece``, or None."""
+        return next((o for o in self.objects if o.role == "workpiece"), None)
+
+    @property
+    def obstacles(self) -> tuple[CellObject, ...]:
+        """The objects other than the workpiece."""
+        return tuple(o for o in self.objects if o.role != "workpiece")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The objects' names, in file order."""
+        return tuple(o.name for o in self.objects)
+
+    def object(self, name: str) -> CellObject:
+        """The object called ``name`` (KeyError if none)."""
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise KeyError(name)
+
+    def distance_to_point(self, points_base: np.ndarray) -> np.ndarray:
+        """Signed distances of points (N, 3) (base frame, m) from every object: shape (N, M), m."""
+        P = np.atleast_2d(np.asarray(points_base, dtype=float))
+        if not self.objects:
+            return np.zeros((len(P), 0))
+        return np.column_stack([o.distance_to_point(P) for o in self.objects])
+
+    def contains(self, points_base: np.ndarray, tol: float = POINT_INSIDE_TOL_M) -> np.ndarray:
+        """Whether each point (N, 3) lies inside each object: shape (N, M) bool."""
+        P = np.atleast_2d(np.asarray(points_base, dtype=float))
+        if not self.objects:
+            return np.zeros((len(P), 0), dtype=bool)
+        return np.column_stack([o.contains(P, tol) for o in self.objects])
+
+    def moved(self, new2base: np.ndarray) -> Cell:
+        """Every object moved by ``new2base`` (see :meth:`CellObject.moved`)."""
+        return Cell(tuple(o.moved(new2base) for o in self.objects), self.clearance)
+
+    def mesh_files(self) -> tuple[str, ...]:
+        """The mesh files the cell was read from (resolved paths, in object order)."""
+        return tuple(o.mesh_file for o in self.objects if o.mesh_file is not None)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``[cell]`` table in the problem-file schema (SI, radians, base frame)."""
+        return {"clearance": self.clearance, "objects": [o.to_dict() for o in self.objects]}
+
+
+def base_footprint(robot: Any) -> tuple[float, float]:
+    """The base footprint of an arm: (radius, height), m.
+
+    A cylinder about the base z axis from the mounting plane z = 0 up to ``height``: the radius of
+    :data:`BUILTIN_BASE_FOOTPRINT_RADIUS_M` for a built-in arm (by its name), else
+    :data:`BASE_FOOTPRINT_RADIUS_M`; the height :data:`BASE_FOOTPRINT_HEIGHT_M`.
+    """
+    name = str(getattr(robot, "name", "") or "")
+    return BUILTIN_BASE_FOOTPRINT_RADIUS_M.get(name, BASE_FOOTPRINT_RADIUS_M), BASE_FOOTPRINT_HEIGHT_M
+
+
+def footprint_overlaps(obj: CellObject, radius: float, height: float, tol: float = FOOTPRINT_TOUCH_TOL_M) -> bool:
+    """Whether an object overlaps the base footprint (a cylinder of ``radius`` from z = 0 to
+    ``height`` about the base z axis, m), by more than ``tol`` (m).
+
+    coal's collision test of the footprint shrunk by ``tol``; a mesh that encloses the footprint
+    (no triangle near it) is caught by its inside test at the footprint's centre.
+    """
+    coal = _coal()
+    r, h = radius - tol, height - 2.0 * tol
+    foot = coal.Cylinder(float(r), float(h))
+    T = np.eye(4)
+    T[2, 3] = 0.5 * height
+    req, res = coal.CollisionRequest(), coal.CollisionResult()
+    req.gjk_tolerance = COAL_GJK_TOLERANCE_M
+    if coal.collide(foot, _coal_transform(T), obj.geometry, obj.coal_transform, req, res) > 0:
+        return True
+    return obj.shape == "mesh" and bool(obj.contains(T[:3, 3][None, :], tol)[0])

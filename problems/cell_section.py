@@ -1,0 +1,290 @@
+"""The ``[cell]`` section of a problem file: the objects around the robot, read and checked.
+
+``[cell]`` holds ``clearance`` (m, default :data:`problems.cell.DEFAULT_CLEARANCE_M`) and a list
+``[[cell.objects]]``, each with ``name``, ``shape`` (box | cylinder | sphere | mesh), ``size`` (m;
+primitives), ``file`` and ``scale`` (meshes: STL, OBJ or PLY, a relative path relative to the
+problem file), ``xyz`` (m) and ``rpy`` / ``rpy_deg``, ``role`` (obstacle | workpiece) and ``frame``
+(``base``, or ``workpiece``: the pose is in a program's ``[workpiece]`` frame). The format is
+``docs/problem-file.md``, "[cell]"; :class:`problems.cell.Cell` is what it becomes.
+
+Every error is a :class:`~problems.problem_values.ProblemFileError` naming the problem file, the key
+(``cell.objects[2].size``), the value and what was expected; besides the values, the cell is
+checked against the problem: no object may overlap the robot's base footprint at the problem's own
+placement, and no path point (TCP target) may lie inside an object other than the workpiece.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+from collections.abc import Mapping
+
+import numpy as np
+
+from models.constants import PLAUSIBLE_POSITION_MAX_M
+from models.transforms import rpy_to_matrix, transform
+from problems.cell import (
+    DEFAULT_CLEARANCE_M,
+    OBJECT_ROLES,
+    OBJECT_SHAPES,
+    POINT_INSIDE_TOL_M,
+    SIZE_LENGTH,
+    Cell,
+    CellObject,
+    base_footprint,
+    footprint_overlaps,
+)
+from problems.problem_values import ProblemFileError, _err, _number, _positive, _rpy, _vector
+
+__all__ = ["CELL_KEYS", "MAX_CLEARANCE_M", "MESH_SUFFIXES", "OBJECT_FRAMES", "OBJECT_KEYS", "parse_cell"]
+
+#: The keys of ``[cell]``.
+CELL_KEYS = ("clearance", "objects")
+#: The keys of one ``[[cell.objects]]`` table.
+OBJECT_KEYS = ("name", "shape", "size", "file", "scale", "xyz", "rpy", "rpy_deg", "role", "frame")
+#: A clearance at or above this (m) is implausible: millimetres given under the metre key.
+MAX_CLEARANCE_M = 0.1
+#: The mesh file types read (by suffix, lower case).
+MESH_SUFFIXES = (".stl", ".obj", ".ply")
+#: The frames an object's pose may be given in: the robot's base frame, or a program's
+#: ``[workpiece]`` frame (``program2base``).
+OBJECT_FRAMES = ("base", "workpiece")
+#: What ``size`` holds per primitive shape (for messages).
+_SIZE_MEANING = {
+    "box": "[x, y, z] extents (m)",
+    "cylinder": "[radius, length] (m), the axis along the object's z",
+    "sphere": "[radius] (m)",
+}
+
+
+def parse_cell(
+    where: str,
+    data: Mapping[str, Any],
+    base_dir: Path | None,
+    robot: Any,
+    positions: np.ndarray,
+    program: Any = None,
+) -> Cell | None:
+    """The optional ``[cell]`` table, read and checked against the problem.
+
+    Parameters
+    ----------
+    where : str
+        The problem file, for messages.
+    data : mapping
+        The parsed problem file.
+    base_dir : Path or None
+        The problem file's folder: a relative mesh ``file`` is resolved against it.
+    robot : models.robot.Robot
+        The robot with its tool: its base footprint (:func:`problems.cell.base_footprint`).
+    positions : ndarray, shape (N, 3)
+        The path's TCP targets, base frame, m.
+    program : problems.program_section.ProgramSection, optional
+        A program path: its ``workpiece.program2base`` is the frame of ``frame = "workpiece"`` and
+        its program lines name the waypoints in messages.
+
+    Returns
+    -------
+    Cell or None
+        None when the file has no ``[cell]``.
+
+    Raises
+    ------
+    ProblemFileError
+        Naming the file, the key, the value and what was expected.
+    """
+    if "cell" not in data:
+        return None
+    ct = data["cell"]
+    if not isinstance(ct, Mapping):
+        raise _err(where, "cell", f"must be a table, got {ct!r}")
+    unknown = sorted(set(ct) - set(CELL_KEYS))
+    if unknown:
+        raise ProblemFileError(f"{where}: [cell]: unknown key(s) {unknown}; allowed: {list(CELL_KEYS)}")
+    clearance = _number(where, "cell.clearance", ct.get("clearance", DEFAULT_CLEARANCE_M))
+    if not 0.0 <= clearance < MAX_CLEARANCE_M:
+        hint = " (millimetres given? the clearance is in m)" if clearance >= MAX_CLEARANCE_M else ""
+        raise _err(where, "cell.clearance", f"must be in [0, {MAX_CLEARANCE_M:g}) m, got {clearance!r}{hint}")
+    raw = ct.get("objects", [])
+    if not isinstance(raw, list) or not all(isinstance(t, Mapping) for t in raw):
+        raise _err(where, "cell.objects", f"must be a list of tables ([[cell.objects]]), got {raw!r}")
+    program2base = program.workpiece.program2base if program is not None else None
+    objects: list[CellObject] = []
+    for i, tab in enumerate(raw):
+        obj = _parse_object(where, f"cell.objects[{i}]", tab, base_dir, program2base)
+        for j, other in enumerate(objects):
+            if other.name == obj.name:
+                raise _err(
+                    where,
+                    f"cell.objects[{i}].name",
+                    f"= {obj.name!r} repeats cell.objects[{j}]'s; names must be unique",
+                )
+        objects.append(obj)
+    wps = [i for i, o in enumerate(objects) if o.role == "workpiece"]
+    if len(wps) > 1:
+        raise _err(
+            where,
+            f"cell.objects[{wps[1]}].role",
+            f"= 'workpiece' for '{objects[wps[1]].name}', but '{objects[wps[0]].name}' (cell.objects[{wps[0]}]) "
+            "is the workpiece already; at most one object may be the workpiece",
+        )
+    cell = Cell(tuple(objects), clearance)
+    _check_footprint(where, cell, robot)
+    _check_path_points(where, cell, np.asarray(positions, dtype=float), program)
+    return cell
+
+
+def _parse_object(
+    where: str, key: str, tab: Mapping[str, Any], base_dir: Path | None, program2base: np.ndarray | None
+) -> CellObject:
+    """One ``[[cell.objects]]`` table (``key`` = ``cell.objects[i]``)."""
+    unknown = sorted(set(tab) - set(OBJECT_KEYS))
+    if unknown:
+        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(OBJECT_KEYS)}")
+    name = tab.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise _err(where, f"{key}.name", f"must be a non-empty string, got {name!r}")
+    name = name.strip()
+    shape = tab.get("shape")
+    if shape not in OBJECT_SHAPES:
+        raise _err(where, f"{key}.shape", f"must be one of {list(OBJECT_SHAPES)} (object '{name}'), got {shape!r}")
+    role = tab.get("role", "obstacle")
+    if role not in OBJECT_ROLES:
+        raise _err(where, f"{key}.role", f"must be one of {list(OBJECT_ROLES)} (object '{name}'), got {role!r}")
+    xyz = _vector(where, f"{key}.xyz", tab.get("xyz", [0.0, 0.0, 0.0]), 3)
+    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
+        raise _err(
+            where,
+            f"{key}.xyz",
+            f"= {xyz.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres (millimetres given?)",
+        )
+    rpy = _rpy(where, tab, f"{key}.")
+    object2frame = transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz)
+    object2base = _in_base(where, key, tab.get("frame", "base"), object2frame, program2base)
+    if shape == "mesh":
+        if "size" in tab:
+            raise _err(where, f"{key}.size", f"does not apply to a mesh (object '{name}': the file gives its size)")
+        mesh, path, scale = _read_mesh(where, key, name, tab, base_dir)
+        return CellObject(name, shape, np.zeros(3), object2base, role, str(path), scale, mesh)
+    for k in ("file", "scale"):
+        if k in tab:
+            raise _err(where, f"{key}.{k}", f"only applies to shape 'mesh' (object '{name}' is a {shape})")
+    return CellObject(name, shape, _size(where, key, name, shape, tab), object2base, role)
+
+
+def _in_base(where: str, key: str, frame: Any, object2frame: np.ndarray, program2base: np.ndarray | None) -> np.ndarray:
+    """``object2base`` from the pose in ``frame`` (``base``, or a program's ``workpiece`` frame)."""
+    if frame not in OBJECT_FRAMES:
+        raise _err(where, f"{key}.frame", f"must be one of {list(OBJECT_FRAMES)}, got {frame!r}")
+    if frame == "base":
+        return object2frame
+    if program2base is None:
+        raise _err(
+            where,
+            f"{key}.frame",
+            "= 'workpiece' needs a program path ([path] kind 'gcode' or 'toolpath_csv') and its [workpiece]",
+        )
+    return program2base @ object2frame
+
+
+def _size(where: str, key: str, name: str, shape: str, tab: Mapping[str, Any]) -> np.ndarray:
+    """A primitive's ``size``: the right count of positive, plausible lengths (m)."""
+    n = SIZE_LENGTH[shape]
+    raw = tab.get("size")
+    if not isinstance(raw, list) or len(raw) != n:
+        raise _err(
+            where,
+            f"{key}.size",
+            f"must be {n} number(s) for a {shape}: {_SIZE_MEANING[shape]} (object '{name}'), got {raw!r}",
+        )
+    size = np.array([_positive(where, f"{key}.size[{j}]", v) for j, v in enumerate(raw)])
+    if np.max(size) > PLAUSIBLE_POSITION_MAX_M:
+        raise _err(
+            where,
+            f"{key}.size",
+            f"= {size.tolist()} m is implausible for object '{name}' (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
+            "sizes are in metres (millimetres given?)",
+        )
+    return size
+
+
+def _read_mesh(
+    where: str, key: str, name: str, tab: Mapping[str, Any], base_dir: Path | None
+) -> tuple[Any, Path, float]:
+    """A mesh object's file read with trimesh, scaled to m, checked closed and plausibly sized."""
+    import trimesh
+    from trimesh import grouping
+
+    raw = tab.get("file")
+    if not isinstance(raw, str) or not raw:
+        raise _err(
+            where,
+            f"{key}.file",
+            f"is required for shape 'mesh' (object '{name}'): an STL, OBJ or PLY file, got {raw!r}",
+        )
+    scale = _positive(where, f"{key}.scale", tab.get("scale", 1.0))
+    path = Path(raw)
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise _err(
+            where, f"{key}.file", f"= {raw!r} (object '{name}'): must be an STL, OBJ or PLY file {list(MESH_SUFFIXES)}"
+        )
+    if not path.is_file():
+        raise _err(where, f"{key}.file", f"= {raw!r} (object '{name}'): no such file ({path})")
+    try:
+        mesh = trimesh.load_mesh(path, force="mesh")
+    except Exception as exc:  # trimesh raises many types on a bad file
+        raise _err(where, f"{key}.file", f"= {raw!r} (object '{name}'): cannot be read as a mesh: {exc}") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise _err(where, f"{key}.file", f"= {raw!r} (object '{name}'): holds no triangles (not a mesh file, or empty)")
+    if not mesh.is_watertight:
+        n_open = len(grouping.group_rows(mesh.edges_sorted, require_count=1))
+        raise _err(
+            where,
+            f"{key}.file",
+            f"= {raw!r} (object '{name}'): the mesh is not closed ({n_open} open edge(s)); an object must be a closed "
+            "surface (repair it, e.g. fill its holes, before use)",
+        )
+    mesh.apply_scale(scale)
+    ext = float(np.max(mesh.extents))
+    if ext > PLAUSIBLE_POSITION_MAX_M:
+        raise _err(
+            where,
+            f"{key}.file",
+            f"= {raw!r} (object '{name}'): the mesh is {ext:.4g} m across after scale = {scale:g} "
+            f"(> {PLAUSIBLE_POSITION_MAX_M:g} m): read as metres; add scale = 0.001 if the file is in millimetres",
+        )
+    return mesh, path, scale
+
+
+def _check_footprint(where: str, cell: Cell, robot: Any) -> None:
+    """No object may overlap the robot's base footprint at the problem's own placement."""
+    radius, height = base_footprint(robot)
+    for i, obj in enumerate(cell.objects):
+        if footprint_overlaps(obj, radius, height):
+            raise _err(
+                where,
+                f"cell.objects[{i}]",
+                f"object '{obj.name}' overlaps the robot's base (footprint: a cylinder of radius {radius:g} m from "
+                f"z = 0 to {height:g} m about the base z axis, {getattr(robot, 'name', 'robot')}) at the problem's own "
+                "placement; move the object or the robot",
+            )
+
+
+def _check_path_points(where: str, cell: Cell, positions: np.ndarray, program: Any) -> None:
+    """No TCP target may lie inside an object other than the workpiece."""
+    for i, obj in enumerate(cell.objects):
+        if obj.role == "workpiece":
+            continue
+        inside = np.flatnonzero(obj.contains(positions, POINT_INSIDE_TOL_M))
+        if not inside.size:
+            continue
+        k = int(inside[0])
+        depth = -float(obj.distance_to_point(positions[k])[0])
+        line = f" (program {program.file}:{int(program.waypoints.line[k])})" if program is not None else ""
+        raise ProblemFileError(
+            f"{where}: waypoint {k}{line} at {np.round(positions[k], 6).tolist()} m lies {depth:.4g} m inside cell "
+            f"object '{obj.name}' (cell.objects[{i}], role {obj.role}); {len(inside)} waypoint(s) are inside it. "
+            "Only the workpiece may hold the path: move the object, or give it role = 'workpiece'"
+        )

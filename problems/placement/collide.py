@@ -1,0 +1,270 @@
+"""The cell in the placement kernel: base footprints and the arm's clearance, vectorised.
+
+What is checked (``docs/placement.md``, "Collisions"), the same pairs as the plan's check
+(``planner/cell_check.py``):
+
+* **the base footprint** (:func:`problems.cell.base_footprint`: a cylinder about the base z axis
+  from the mounting plane up to 0.10 m) of each placement against every object, before the IK:
+  coal's collision test, asked only for the objects whose bounding sphere comes near the
+  footprint's (vectorised), the footprint shrunk by ``FOOTPRINT_TOUCH_TOL_M`` as in the problem
+  file's check (a table whose top is the mounting plane only touches it);
+* **the arm** as the capsules of :func:`models.collision.capsule_model` plus the tool, a capsule
+  from the flange to the TCP of the flange link's radius, at the analytic IK configurations:
+  every capsule against every object (closed form, :mod:`models.collision.vectorised`: exact for
+  boxes and spheres, a conservative bound for cylinders and meshes), except the capsule ending at
+  the TCP against the workpiece and the capsules fixed to the base (the footprint covers the
+  base); self-collision between the arm's self pairs and the tool against links 0..4 (closed form).
+  A pair closer than the cell's ``clearance`` is a violation.  A bounding-sphere lower bound
+  first: only the pairs that can come within the clearance are computed exactly.
+
+Frames: the objects are in the cell frame (the problem as written); a configuration's capsules
+are computed in its placement's base frame and moved to the cell frame with ``base2cell``.
+Units: m.  Picklable (the kernel ships it to Dask workers).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+import casadi as ca
+
+from models.codegen import BatchFunction, VMBatchFunction, batch_function
+from models.collision import capsule_model, self_collision_pairs
+from models.collision.capsules import CapsuleModel
+from models.collision.distance import capsule_distance
+from models.collision.vectorised import VecObject, capsule_object_distance, vec_object
+from models.portable import evaluator_from_state, portable_state
+from models.robot import Robot
+from problems.cell import FOOTPRINT_TOUCH_TOL_M, COAL_GJK_TOLERANCE_M, base_footprint
+from problems.placement.grid import base2cell
+
+__all__ = ["KernelCell", "TOOL_MIN_LENGTH_M", "TOOL_SELF_MAX_BODY"]
+
+#: A TCP closer than this to the flange (m) has no tool capsule: link 6 then ends at the TCP
+#: (as ``planner/cell_check.py``).
+TOOL_MIN_LENGTH_M = 1e-6
+#: The tool is checked against bodies up to this one (links 5 and 6 meet it at the wrist).
+TOOL_SELF_MAX_BODY = 4
+#: Probe points along each capsule's segment for the bounds of :meth:`KernelCell._object_distance`.
+PROBE_POINTS = 4
+#: Body number of the tool capsule.
+TOOL_BODY = 7
+
+
+def _with_tool(model: CapsuleModel, robot: Robot) -> tuple[CapsuleModel, bool]:
+    """The capsules plus the tool's (flange -> TCP in DH frame 6, link 6's radius)."""
+    f6 = np.asarray(robot.flange2frame6, dtype=float)
+    flange = f6[:3, 3]
+    tcp = (f6 @ np.asarray(robot.tcp2flange, dtype=float))[:3, 3]
+    if np.linalg.norm(tcp - flange) < TOOL_MIN_LENGTH_M:
+        return model, False
+    r6 = float(model.radius[model.body == 6].max())
+    return (
+        CapsuleModel(
+            frame_a=np.r_[model.frame_a, 6],
+            frame_b=np.r_[model.frame_b, 6],
+            local_a=np.vstack([model.local_a, flange]),
+            local_b=np.vstack([model.local_b, tcp]),
+            radius=np.r_[model.radius, r6],
+            body=np.r_[model.body, TOOL_BODY],
+            allowed_pairs=model.allowed_pairs,
+            radii_source=model.radii_source,
+        ),
+        True,
+    )
+
+
+def _transform(coal: Any, T: np.ndarray) -> Any:
+    tf = coal.Transform3s()
+    tf.setRotation(np.ascontiguousarray(T[:3, :3]))
+    tf.setTranslation(np.ascontiguousarray(T[:3, 3]))
+    return tf
+
+
+def _capsule_points_function(robot: Robot, model: CapsuleModel) -> ca.Function:
+    """CasADi ``capsule_points(q, base2cell) -> ends``: the capsule ends (M x 2 x 3, capsule-major,
+    end a then end b, x y z) in the cell frame at joint angles ``q`` (6) of a placement
+    ``base2cell`` (4 x 4); the DH chain of :func:`models.collision.chain_frames`."""
+    q = ca.SX.sym("q", 6)
+    T = ca.SX.sym("base2cell", 4, 4)
+    frames = [ca.SX(np.asarray(robot.frame02base, dtype=float))]
+    for i in range(6):
+        th = q[i] + float(robot.theta_offset[i])
+        ct, st = ca.cos(th), ca.sin(th)
+        al, a, d = float(robot.alpha[i]), float(robot.a[i]), float(robot.d[i])
+        ca_, sa = float(np.cos(al)), float(np.sin(al))
+        A = ca.SX.eye(4)
+        if robot.convention == "standard_dh":
+            A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st * ca_, st * sa, a * ct
+            A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st, ct * ca_, -ct * sa, a * st
+            A[2, 0], A[2, 1], A[2, 2], A[2, 3] = 0, sa, ca_, d
+        else:
+            A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st, 0, a
+            A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st * ca_, ct * ca_, -sa, -sa * d
+            A[2, 0], A[2, 1], A[2, 2], A[2, 3] = st * sa, ct * sa, ca_, ca_ * d
+        frames.append(ca.mtimes(frames[-1], A))
+    out = []
+    for m in range(model.n_capsules):
+        for fr, loc in ((model.frame_a[m], model.local_a[m]), (model.frame_b[m], model.local_b[m])):
+            F = T if fr < 0 else ca.mtimes(T, frames[int(fr)])
+            out.append(ca.mtimes(F[:3, :3], ca.DM(np.asarray(loc, dtype=float))) + F[:3, 3])
+    return ca.Function("capsule_points", [q, T], [ca.vertcat(*out)])
+
+
+class KernelCell:
+    """The cell's objects and the arm's capsules as the kernel checks them (module docstring).
+
+    Parameters
+    ----------
+    robot : Robot
+        With its tool.
+    cell : problems.cell.Cell
+        Objects in the cell frame (the problem as written) and the clearance, m.
+    """
+
+    def __init__(self, robot: Robot, cell: Any) -> None:
+        self.robot = robot
+        self.cell = cell
+        self.clearance = float(cell.clearance)
+        arm = capsule_model(robot)
+        self.model, has_tool = _with_tool(arm, robot)
+        m = self.model.n_capsules
+        self.objects: tuple[VecObject, ...] = tuple(
+            vec_object(o.name, o.shape, o.size, o.object2base, o.mesh) for o in cell.objects
+        )
+        fixed = (self.model.frame_a <= 0) & (self.model.frame_b <= 0)
+        tcp_capsule = m - 1 if has_tool else int(np.flatnonzero(self.model.body == 6)[-1])
+        #: per object, the capsule indices checked against it
+        self.checked: tuple[np.ndarray, ...] = tuple(
+            np.array(
+                [c for c in range(m) if not fixed[c] and not (o.role == "workpiece" and c == tcp_capsule)], dtype=int
+            )
+            for o in cell.objects
+        )
+        pairs = self_collision_pairs(arm)
+        if has_tool:
+            near = [(c, m - 1) for c in range(arm.n_capsules) if arm.body[c] <= TOOL_SELF_MAX_BODY]
+            pairs = np.vstack([pairs, np.array(near, dtype=int).reshape(-1, 2)])
+        self.self_pairs = pairs.reshape(-1, 2)
+        self.footprint = base_footprint(robot)
+        f = _capsule_points_function(robot, self.model)
+        points = batch_function(f, 1)
+        self._points_state = portable_state(f, points)
+        self._points: BatchFunction | VMBatchFunction = points
+
+    def __getstate__(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        d.pop("_points", None)
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        self.__dict__.update(d)
+        self._points = evaluator_from_state(self._points_state, 1)
+
+    def segments(self, q: np.ndarray, b2c: np.ndarray) -> np.ndarray:
+        """Capsule ends in the cell frame, shape (K, M, 2, 3), m, at joint angles ``q`` (K, 6) of
+        placements ``base2cell`` ``b2c`` (K, 4, 4)."""
+        pts = self._points(np.ascontiguousarray(q), np.ascontiguousarray(b2c.transpose(0, 2, 1)).reshape(-1, 16))[0]
+        return pts.reshape(len(q), self.model.n_capsules, 2, 3)
+
+    # ------------------------------------------------------------------ base footprint
+    def footprint_blocked(self, placements: np.ndarray) -> np.ndarray:
+        """Whether each placement's base footprint overlaps an object (any role), shape (P,) bool."""
+        import coal
+
+        pl = np.atleast_2d(np.asarray(placements, dtype=float))
+        out = np.zeros(len(pl), dtype=bool)
+        if not self.objects:
+            return out
+        radius, height = self.footprint
+        local = np.eye(4)
+        local[2, 3] = 0.5 * height
+        F = base2cell(pl) @ local  # (P, 4, 4) footprint centre in the cell frame
+        foot_r = float(np.hypot(radius, 0.5 * height))
+        foot = coal.Cylinder(float(radius - FOOTPRINT_TOUCH_TOL_M), float(height - 2.0 * FOOTPRINT_TOUCH_TOL_M))
+        req = coal.CollisionRequest()
+        req.gjk_tolerance = COAL_GJK_TOLERANCE_M
+        for obj, vo in zip(self.cell.objects, self.objects):
+            gap = np.linalg.norm(F[:, :3, 3] - vo.object2base[:3, 3], axis=1) - foot_r - vo.bounding_radius
+            tf_obj = obj.coal_transform
+            for i in np.flatnonzero((gap < 0.0) & ~out):
+                res = coal.CollisionResult()
+                hit = coal.collide(foot, _transform(coal, F[i]), obj.geometry, tf_obj, req, res) > 0
+                if not hit and obj.shape == "mesh":
+                    hit = bool(obj.contains(F[i][None, :3, 3], FOOTPRINT_TOUCH_TOL_M)[0])
+                out[i] = hit
+        return out
+
+    # ------------------------------------------------------------------ the arm
+    def _object_distance(self, seg: np.ndarray, half_len: np.ndarray, radius: np.ndarray, obj: VecObject) -> np.ndarray:
+        """The smallest capsule distance to ``obj`` per configuration (K,), m, decided against the
+        clearance without computing every pair exactly: the point distances at the ends and at
+        ``PROBE_POINTS`` points along each segment give a lower bound (the nearest probe's minus the
+        probe spacing's half, the point distance being 1-Lipschitz) and, for exact shapes, an upper
+        bound; only pairs whose bounds straddle the clearance are computed in closed form.  A value
+        below the clearance is exact or an upper bound, one at or above it a lower bound."""
+        t = (np.arange(PROBE_POINTS) + 0.5) / PROBE_POINTS
+        pts = seg[:, :, :1] + t[None, None, :, None] * (seg[:, :, 1:] - seg[:, :, :1])  # (K, m, J, 3)
+        local = (pts - obj.object2base[:3, 3]) @ obj.object2base[:3, :3]
+        if obj.kind == "sphere":
+            sd = np.linalg.norm(local, axis=-1) - obj.half[0]
+        else:
+            e = np.abs(local) - obj.half
+            sd = np.linalg.norm(np.maximum(e, 0.0), axis=-1) + np.minimum(e.max(axis=-1), 0.0)
+        near = sd.min(axis=-1) - radius  # (K, m): a probe's distance (>= the pair's)
+        lb = near - half_len / PROBE_POINTS
+        d = lb.copy()
+        if obj.exact:
+            hit = near < self.clearance  # a probe within the clearance: a violation, whatever the rest
+            d[hit] = near[hit]
+        else:
+            hit = np.zeros_like(lb, dtype=bool)
+        todo = (lb < self.clearance) & ~hit
+        if todo.any():
+            kk, cc = np.nonzero(todo)
+            d[kk, cc] = capsule_object_distance(seg[kk, cc], radius[cc], obj)
+        return d.min(axis=1)
+
+    def min_distance(self, q: np.ndarray, b2c: np.ndarray) -> np.ndarray:
+        """The smallest signed distance of each configuration to the objects and between its
+        self pairs, m; a value at or above the clearance may be a lower bound (pairs the bounding
+        spheres keep beyond the clearance are not computed).
+
+        Parameters
+        ----------
+        q : ndarray, shape (K, 6)
+            Joint angles in the placement's base frame, rad.
+        b2c : ndarray, shape (K, 4, 4)
+            ``base2cell`` of each configuration's placement.
+
+        Returns
+        -------
+        ndarray, shape (K,), m (``inf`` without any pair).
+        """
+        K = len(q)
+        out = np.full(K, np.inf)
+        if K == 0:
+            return out
+        seg = self.segments(q, b2c)  # (K, M, 2, 3) cell frame
+        mid = 0.5 * (seg[:, :, 0] + seg[:, :, 1])  # (K, M, 3)
+        half_len = 0.5 * np.linalg.norm(seg[:, :, 1] - seg[:, :, 0], axis=-1)  # (K, M)
+        hl = half_len + self.model.radius
+        for obj, idx in zip(self.objects, self.checked):
+            if idx.size == 0:
+                continue
+            np.minimum(out, self._object_distance(seg[:, idx], half_len[:, idx], self.model.radius[idx], obj), out=out)
+        if len(self.self_pairs):
+            a, b = self.self_pairs[:, 0], self.self_pairs[:, 1]
+            lb = np.linalg.norm(mid[:, a] - mid[:, b], axis=-1) - hl[:, a] - hl[:, b]
+            near = lb < self.clearance
+            d = lb
+            if near.any():
+                kk, pp = np.nonzero(near)
+                d = lb.copy()
+                d[kk, pp] = capsule_distance(
+                    seg[kk, a[pp]], self.model.radius[a[pp]], seg[kk, b[pp]], self.model.radius[b[pp]]
+                )
+            np.minimum(out, d.min(axis=1), out=out)
+        return out
