@@ -423,9 +423,65 @@ def large_sweep_estimate(run: Run, o_task_wall: float | None, o_task: float | No
             )
 
 
+#: The cell of the cell-vs-no-cell figure: placement_milling's table, fixture and part (m, cell frame).
+CELL_TOML = """
+[cell]
+clearance = 0.005
+[[cell.objects]]
+name = "table"
+shape = "box"
+size = [0.60, 1.20, 0.70]
+xyz = [0.75, 0.0, -0.38]
+[[cell.objects]]
+name = "fixture"
+shape = "box"
+size = [0.25, 0.80, 0.03]
+xyz = [0.65, 0.0, -0.015]
+[[cell.objects]]
+name = "part"
+shape = "box"
+size = [0.15, 0.70, 0.10]
+xyz = [0.65, 0.0, 0.05]
+role = "workpiece"
+"""
+#: Target share of the no-cell rate the sweep keeps with the cell (issue 25).
+TARGET_CELL_SHARE = 0.5
+
+
+def cell_rates() -> None:
+    """The sweep over the file's own grid, serially, without and with a cell (``CELL_TOML``): poses/s
+    of both in the same run and their ratio (target ``TARGET_CELL_SHARE``)."""
+    import tempfile
+    from dataclasses import replace
+
+    from problems.placement.kernel import PlacementKernel
+    from problems.placement.sweep import run_sweep
+    from problems.problem import load_problem
+
+    text = (Path(__file__).resolve().parents[1] / "problems" / "files" / f"{PROBLEM}.toml").read_text() + CELL_TOML
+    with tempfile.TemporaryDirectory() as d:
+        f = Path(d) / f"{PROBLEM}_cell.toml"
+        f.write_text(text)
+        pr = load_problem(str(f))
+    pl = pr.placement.placements()
+    rates = {}
+    for label, cell in (("no cell", None), ("cell", pr.cell)):
+        k = PlacementKernel(replace(pr, cell=cell))
+        k.evaluate(pl[:50])  # warm
+        t0 = time.perf_counter()
+        sw = run_sweep(k, pl)
+        rates[label] = sw.poses / (time.perf_counter() - t0)
+    print(f"\ncell vs no cell ({PROBLEM}, its own grid, serial, same run; 3 boxes, clearance 5 mm):")
+    for label, r in rates.items():
+        print(f"  {label:<8}{r:>12.0f} poses/s")
+    share = rates["cell"] / rates["no cell"]
+    print(f"  with the cell / without: {share:.0%} (target >= {TARGET_CELL_SHARE:.0%})")
+
+
 def main() -> None:
     run = setup(_parse())
     serial_and_anchors(run)
+    cell_rates()
     large_sweep_estimate(run, *dask_modes(run))
     la1 = os.getloadavg()
     print(f"\nload average at the end {la1[0]:.2f} {la1[1]:.2f} {la1[2]:.2f}")

@@ -109,3 +109,30 @@ def test_study_avoids_the_table(milling):
     assert sc.status_of(i_best) is PlacementStatus.COLLISION
     chosen = int(ranking(sc)[0])
     assert sc.status_of(chosen) is PlacementStatus.OK
+
+
+@pytest.mark.parametrize("kind", ["box", "sphere", "cylinder"])
+def test_the_kernels_shortcut_decides_as_the_exact_distance(kind):
+    """KernelCell._object_distance (slab test, probe points, exact distances only where undecided)
+    says "closer than the clearance" exactly when the closed-form distance of every pair does;
+    capsules drawn around the object's surface so that many lie within a few clearances of it."""
+    from problems.placement.collide import KernelCell
+
+    rng = np.random.default_rng(7)
+    clearance = 0.005
+    T = np.eye(4)
+    T[:3, :3] = rpy_to_matrix(rng.uniform(-np.pi, np.pi, 3))
+    T[:3, 3] = rng.uniform(-0.2, 0.2, 3)
+    size = {"box": np.array([0.3, 0.2, 0.1]), "sphere": np.array([0.12]), "cylinder": np.array([0.1, 0.3])}[kind]
+    obj = vec_object("o", kind, size, T)
+    K, m = 400, 3
+    centre = T[:3, 3] + rng.normal(0.0, 0.15, (K, m, 1, 3))
+    seg = centre + rng.normal(0.0, 0.08, (K, m, 2, 3))
+    radius = rng.uniform(0.01, 0.05, m)
+    cell = object.__new__(KernelCell)
+    cell.clearance = clearance  # the method reads only the clearance of its instance
+    fast = KernelCell._object_distance(cell, seg, radius, obj)
+    exact = capsule_object_distance(seg.reshape(-1, 2, 3), np.tile(radius, K), obj).reshape(K, m).min(axis=1)
+    assert np.array_equal(fast < clearance, exact < clearance)
+    near = np.abs(exact - clearance) < 0.02
+    assert near.sum() > 10  # the draw puts cases near the threshold, where a shortcut could err

@@ -154,6 +154,12 @@ def print_study(st: Any) -> None:
         f"{sw['chunk_placements']} placements{'' if sw['compiled'] else ' (CasADi virtual machine)'}"
     )
     print("  placements: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in sw["status_counts"].items()))
+    cell = st.problem.cell
+    print(
+        f"  collisions: checked against the cell ({', '.join(cell.names)}; clearance {cell.clearance * 1e3:g} mm)"
+        if cell is not None
+        else "  collisions: not checked (the problem has no [cell]: docs/cell.md)"
+    )
     print(
         "  best base positions (sweep: RMS / max load-induced TCP error of the best branch; rank among all placements):"
     )

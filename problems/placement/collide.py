@@ -47,8 +47,6 @@ __all__ = ["KernelCell", "TOOL_MIN_LENGTH_M", "TOOL_SELF_MAX_BODY"]
 TOOL_MIN_LENGTH_M = 1e-6
 #: The tool is checked against bodies up to this one (links 5 and 6 meet it at the wrist).
 TOOL_SELF_MAX_BODY = 4
-#: Probe points along each capsule's segment for the bounds of :meth:`KernelCell._object_distance`.
-PROBE_POINTS = 4
 #: Body number of the tool capsule.
 TOOL_BODY = 7
 
@@ -198,34 +196,48 @@ class KernelCell:
         return out
 
     # ------------------------------------------------------------------ the arm
-    def _object_distance(self, seg: np.ndarray, half_len: np.ndarray, radius: np.ndarray, obj: VecObject) -> np.ndarray:
+    def _object_distance(self, seg: np.ndarray, radius: np.ndarray, obj: VecObject) -> np.ndarray:
         """The smallest capsule distance to ``obj`` per configuration (K,), m, decided against the
-        clearance without computing every pair exactly: the point distances at the ends and at
-        ``PROBE_POINTS`` points along each segment give a lower bound (the nearest probe's minus the
-        probe spacing's half, the point distance being 1-Lipschitz) and, for exact shapes, an upper
-        bound; only pairs whose bounds straddle the clearance are computed in closed form.  A value
-        below the clearance is exact or an upper bound, one at or above it a lower bound."""
-        t = (np.arange(PROBE_POINTS) + 0.5) / PROBE_POINTS
-        pts = seg[:, :, :1] + t[None, None, :, None] * (seg[:, :, 1:] - seg[:, :, :1])  # (K, m, J, 3)
-        local = (pts - obj.object2base[:3, 3]) @ obj.object2base[:3, :3]
+        clearance without computing every pair exactly.  A slab test first: a capsule (segment
+        ``seg`` (K, m, 2, 3), cell frame, radii ``radius`` (m,)) within the clearance of the object
+        has a segment point inside the object's box (its own box, a cylinder's or mesh's enclosing
+        box) grown by the radius plus the clearance on every side; a segment that misses that box
+        (a few operations per pair) is farther than the clearance, and its pair is reported as the
+        clearance (a lower bound).  The other pairs are computed in closed form
+        (:func:`models.collision.vectorised.capsule_object_distance`).  So the decision against
+        the clearance is the same as with every pair computed."""
+        R, t = obj.object2base[:3, :3], obj.object2base[:3, 3]
+        s = (seg - t) @ R  # (K, m, 2, 3) object frame
+        p0 = s[:, :, 0]
+        d = s[:, :, 1] - p0
+        grown = obj.half + (radius + self.clearance)[:, None]  # (m, 3)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / d  # +-inf on a zero component: the slab is all or nothing
+            t1 = (-grown - p0) * inv
+            t2 = (grown - p0) * inv
+        t_in = np.maximum(np.fmin(t1, t2).max(axis=-1), 0.0)  # NaN (0 * inf, on a slab face) ignored
+        t_out = np.minimum(np.fmax(t1, t2).min(axis=-1), 1.0)
+        out = np.full(t_in.shape, self.clearance)
+        near = t_in <= t_out  # (K, m)
+        if not near.any():
+            return out.min(axis=1)
+        kk, cc = np.nonzero(near)
+        # a point of the segment within the clearance (at the middle of its span in the grown box,
+        # or at either end of the span): a violation; its distance, an upper bound, is reported
+        tm = np.stack([t_in[kk, cc], 0.5 * (t_in[kk, cc] + t_out[kk, cc]), t_out[kk, cc]], axis=-1)  # (V, 3)
+        x = p0[kk, cc][:, None, :] + tm[..., None] * d[kk, cc][:, None, :]  # (V, 3, 3) object frame
         if obj.kind == "sphere":
-            sd = np.linalg.norm(local, axis=-1) - obj.half[0]
+            sd = np.linalg.norm(x, axis=-1) - obj.half[0]
         else:
-            e = np.abs(local) - obj.half
+            e = np.abs(x) - obj.half
             sd = np.linalg.norm(np.maximum(e, 0.0), axis=-1) + np.minimum(e.max(axis=-1), 0.0)
-        near = sd.min(axis=-1) - radius  # (K, m): a probe's distance (>= the pair's)
-        lb = near - half_len / PROBE_POINTS
-        d = lb.copy()
-        if obj.exact:
-            hit = near < self.clearance  # a probe within the clearance: a violation, whatever the rest
-            d[hit] = near[hit]
-        else:
-            hit = np.zeros_like(lb, dtype=bool)
-        todo = (lb < self.clearance) & ~hit
+        probe = sd.min(axis=-1) - radius[cc]  # (V,) >= the pair's distance (box: exact shape)
+        hit = probe < self.clearance if obj.exact else np.zeros(len(kk), dtype=bool)
+        out[kk[hit], cc[hit]] = probe[hit]
+        todo = ~hit
         if todo.any():
-            kk, cc = np.nonzero(todo)
-            d[kk, cc] = capsule_object_distance(seg[kk, cc], radius[cc], obj)
-        return d.min(axis=1)
+            out[kk[todo], cc[todo]] = capsule_object_distance(seg[kk[todo], cc[todo]], radius[cc[todo]], obj)
+        return out.min(axis=1)
 
     def min_distance(self, q: np.ndarray, b2c: np.ndarray) -> np.ndarray:
         """The smallest signed distance of each configuration to the objects and between its
@@ -254,7 +266,7 @@ class KernelCell:
         for obj, idx in zip(self.objects, self.checked):
             if idx.size == 0:
                 continue
-            np.minimum(out, self._object_distance(seg[:, idx], half_len[:, idx], self.model.radius[idx], obj), out=out)
+            np.minimum(out, self._object_distance(seg[:, idx], self.model.radius[idx], obj), out=out)
         if len(self.self_pairs):
             a, b = self.self_pairs[:, 0], self.self_pairs[:, 1]
             lb = np.linalg.norm(mid[:, a] - mid[:, b], axis=-1) - hl[:, a] - hl[:, b]
