@@ -136,3 +136,27 @@ def test_the_kernels_shortcut_decides_as_the_exact_distance(kind):
     assert np.array_equal(fast < clearance, exact < clearance)
     near = np.abs(exact - clearance) < 0.02
     assert near.sum() > 10  # the draw puts cases near the threshold, where a shortcut could err
+
+
+def test_the_maps_outline_each_object_seen_from_above():
+    """The placement maps draw each cell object's x-y footprint (cell frame): a box turned 90 deg
+    about z swaps its x and y extents; a cylinder lying along x shows its length along x."""
+    from planner.report.placement import _object_outlines
+
+    T = np.eye(4)
+    T[:3, :3] = rpy_to_matrix(np.array([0.0, 0.0, np.pi / 2]))
+    T[:3, 3] = [0.5, 0.1, 0.2]
+    C = np.eye(4)
+    C[:3, :3] = rpy_to_matrix(np.array([0.0, np.pi / 2, 0.0]))  # the cylinder's z axis along base x
+    cell = Cell(
+        (
+            CellObject("plate", "box", np.array([0.4, 0.2, 0.05]), T),
+            CellObject("roller", "cylinder", np.array([0.05, 0.6]), C, role="workpiece"),
+        ),
+        0.005,
+    )
+    (n1, r1, box), (n2, r2, cyl) = _object_outlines(cell)
+    assert (n1, r1, n2, r2) == ("plate", "obstacle", "roller", "workpiece")
+    assert np.allclose(box[0], box[-1]) and np.allclose(cyl[0], cyl[-1])  # closed outlines
+    assert np.allclose(box.min(axis=0), [0.4, -0.1]) and np.allclose(box.max(axis=0), [0.6, 0.3])
+    assert np.allclose(cyl.min(axis=0), [-0.3, -0.05], atol=1e-9) and np.allclose(cyl.max(axis=0), [0.3, 0.05])

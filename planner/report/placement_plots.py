@@ -77,6 +77,11 @@ class MapPanel:
     marks: list[tuple[int, float, float]] = field(default_factory=list)
 
 
+#: Outline colours of the cell's objects on the maps (obstacles, the workpiece).
+OBSTACLE_OUTLINE = "#444444"
+WORKPIECE_OUTLINE = "#c05a00"
+
+
 @dataclass
 class MapFrame:
     """What every map panel shares: the base-position axes, the path and the problem as written.
@@ -95,6 +100,9 @@ class MapFrame:
     y_m: np.ndarray
     path_xy_m: np.ndarray
     baseline_label: str = "as written (x=0, y=0)"
+    #: The cell's objects seen from above: (name, role, closed outline (K, 2) of its x-y footprint in
+    #: the cell frame, m); empty without a ``[cell]``.
+    objects_xy_m: tuple[tuple[str, str, np.ndarray], ...] = ()
 
 
 def _styled(fn: Callable[..., Figure]) -> Callable[..., Figure]:
@@ -191,7 +199,16 @@ def _infeasible_cells(ax: Any, frame: MapFrame, status: np.ndarray) -> None:
 
 
 def _overlay(ax: Any, frame: MapFrame, marks: Sequence[tuple[int, float, float]]) -> None:
-    """The path footprint, the problem-as-written marker (cell origin) and the numbered ranks."""
+    """The cell's objects (outlines seen from above), the path footprint, the problem-as-written
+    marker (cell origin) and the numbered ranks."""
+    for name, role, outline in frame.objects_xy_m:
+        colour = WORKPIECE_OUTLINE if role == "workpiece" else OBSTACLE_OUTLINE
+        ax.fill(outline[:, 0], outline[:, 1], facecolor="none", edgecolor=colour, lw=1.4, ls="--", zorder=4)
+        corner = outline[np.argmax(outline[:, 1] - 1e-3 * outline[:, 0])]  # the top (left) corner
+        ax.text(
+            corner[0], corner[1], name, color=colour, fontsize=7, ha="left", va="bottom", zorder=9,
+            bbox={"boxstyle": "round,pad=0.15", "facecolor": "white", "edgecolor": "none", "alpha": 0.8},
+        )  # fmt: skip
     p = frame.path_xy_m
     if len(p):
         ax.plot(p[:, 0], p[:, 1], color="white", lw=3.4, zorder=5, solid_capstyle="round")
@@ -254,15 +271,19 @@ def _norm(values: Sequence[np.ndarray], extra: Sequence[float] = ()) -> Normaliz
 
 
 def _legend_handles(
-    statuses: Sequence[int], counts: dict[int, int], baseline_label: str, marks_label: str
+    statuses: Sequence[int], counts: dict[int, int], baseline_label: str, marks_label: str, objects: bool = False
 ) -> list[Any]:
-    """Legend proxies: path, problem as written, ranks, and each infeasible status present."""
+    """Legend proxies: path, problem as written, ranks, the cell's objects, and each infeasible
+    status present."""
     hs: list[Any] = [
         Line2D([], [], color=PATH_COLOUR, lw=1.8, marker=">", ms=5, label="path x-y footprint (cell frame, ▶ end)"),
         Line2D([], [], ls="none", marker="*", ms=12, mfc="white", mec="black", label=baseline_label),
     ]
     if marks_label:
         hs.append(Line2D([], [], ls="none", marker="o", ms=10, mfc="white", mec="black", label=marks_label))
+    if objects:
+        hs.append(Line2D([], [], color=OBSTACLE_OUTLINE, ls="--", lw=1.4, label="cell objects seen from above"))
+        hs.append(Line2D([], [], color=WORKPIECE_OUTLINE, ls="--", lw=1.4, label="the workpiece"))
     for code in statuses:
         face, hatch, text = STATUS_STYLES[code]
         hs.append(
@@ -395,7 +416,7 @@ def error_map_figure(
         _colour_bar(fig, im, (x_cb, bottom, 0.18, nrows * ph + (nrows - 1) * gap_h), cbar_label, baseline_value)
     present = [c for c in STATUS_STYLES if any((p.status == c).any() for p in panels)]
     fig.legend(
-        handles=_legend_handles(present, counts, frame.baseline_label, marks_label),
+        handles=_legend_handles(present, counts, frame.baseline_label, marks_label, bool(frame.objects_xy_m)),
         loc="lower center",
         ncol=min(3, 3 + len(present)),
         frameon=False,
@@ -439,7 +460,7 @@ def margin_map_figure(
         _colour_bar(fig, im, (left + k * (pw + gap_w) + pw + 0.12, bottom, 0.16, ph), label)
     present = [c for c in STATUS_STYLES if (joint.status == c).any()]
     fig.legend(
-        handles=_legend_handles(present, counts, frame.baseline_label, marks_label),
+        handles=_legend_handles(present, counts, frame.baseline_label, marks_label, bool(frame.objects_xy_m)),
         loc="lower center",
         ncol=3,
         frameon=False,
