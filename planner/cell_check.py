@@ -32,6 +32,10 @@ from typing import Any
 import numpy as np
 
 from models.collision import (
+    TOOL_BODY,
+    TOOL_MIN_LENGTH_M,
+    TOOL_SELF_MAX_BODY,
+    with_tool,
     CapsuleModel,
     CellShape,
     Clearance,
@@ -66,13 +70,6 @@ __all__ = [
     "largest_displacement",
     "segments",
 ]
-
-#: The tool's body number in the capsule model (after links 0..6).
-TOOL_BODY = 7
-#: A TCP closer than this to the flange (m) has no tool capsule: link 6 then ends at the TCP.
-TOOL_MIN_LENGTH_M = 1e-6
-#: The tool is checked against bodies up to this one (links 5 and 6 meet it at the wrist).
-TOOL_SELF_MAX_BODY = 4
 
 
 @dataclass(frozen=True)
@@ -145,29 +142,6 @@ def _bounding_sphere(s: CellShape) -> tuple[np.ndarray, float]:
     return T[:3, 3].copy(), r
 
 
-def _with_tool(model: CapsuleModel, robot: Robot) -> tuple[CapsuleModel, bool]:
-    """The capsule model with the tool capsule appended (flange -> TCP, in DH frame 6), and
-    whether there is one."""
-    f6 = np.asarray(robot.flange2frame6, dtype=float)
-    flange = f6[:3, 3]
-    tcp = (f6 @ np.asarray(robot.tcp2flange, dtype=float))[:3, 3]
-    if np.linalg.norm(tcp - flange) < TOOL_MIN_LENGTH_M:
-        return model, False
-    r6 = float(model.radius[model.body == 6].max())
-    return (
-        replace(
-            model,
-            frame_a=np.r_[model.frame_a, 6],
-            frame_b=np.r_[model.frame_b, 6],
-            local_a=np.vstack([model.local_a, flange]),
-            local_b=np.vstack([model.local_b, tcp]),
-            radius=np.r_[model.radius, r6],
-            body=np.r_[model.body, TOOL_BODY],
-        ),
-        True,
-    )
-
-
 def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) -> CellGeometry:
     """The geometry to check for a robot in a cell.
 
@@ -181,7 +155,7 @@ def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) ->
         The arm's capsules (default :func:`models.collision.capsule_model`).
     """
     arm = capsule_model(robot) if model is None else model
-    full, has_tool = _with_tool(arm, robot)
+    full, has_tool = with_tool(arm, robot)
     names = tuple("tool" if b == TOOL_BODY else n for n, b in zip(full.names, full.body))
     shapes = tuple(_shape(o) for o in cell.objects)
     m, k = full.n_capsules, len(shapes)

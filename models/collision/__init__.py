@@ -4,6 +4,10 @@ Foundation of issue 25 (``docs/cell.md``): not yet wired into problem files or p
 """
 
 from .capsules import (
+    TOOL_BODY,
+    TOOL_MIN_LENGTH_M,
+    TOOL_SELF_MAX_BODY,
+    with_tool,
     BUILTIN_ALLOWED_PAIRS,
     BUILTIN_RADII_M,
     BUILTIN_RADII_SOURCE,
@@ -38,6 +42,10 @@ from .distance import (
 )
 
 __all__ = [
+    "TOOL_BODY",
+    "TOOL_MIN_LENGTH_M",
+    "TOOL_SELF_MAX_BODY",
+    "with_tool",
     "BUILTIN_ALLOWED_PAIRS",
     "BUILTIN_RADII_M",
     "BUILTIN_RADII_SOURCE",

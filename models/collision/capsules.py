@@ -21,13 +21,17 @@ Units: m.  Frames: the base frame (``docs/conventions.md``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..robot import Robot
 
 __all__ = [
+    "TOOL_BODY",
+    "TOOL_MIN_LENGTH_M",
+    "TOOL_SELF_MAX_BODY",
+    "with_tool",
     "BUILTIN_ALLOWED_PAIRS",
     "BUILTIN_OVERLAPPING_ALLOWED",
     "BUILTIN_RADII_M",
@@ -343,3 +347,34 @@ def self_collision_pairs(model: CapsuleModel) -> np.ndarray:
         if (int(model.body[k]), int(model.body[m])) in pairs
     ]
     return np.array(idx, dtype=int).reshape(-1, 2)
+
+
+#: The tool capsule's body number (after links 0..6).
+TOOL_BODY = 7
+#: A TCP closer than this to the flange (m) has no tool capsule: link 6 then ends at the TCP.
+TOOL_MIN_LENGTH_M = 1e-6
+#: The tool is checked for self-collision against bodies up to this one (links 5 and 6 meet it at
+#: the wrist).
+TOOL_SELF_MAX_BODY = 4
+
+
+def with_tool(model: CapsuleModel, robot: Robot) -> tuple[CapsuleModel, bool]:
+    """The capsule model with the tool capsule appended (flange -> TCP in DH frame 6, link 6's
+    radius, body :data:`TOOL_BODY`; until problem files describe the tool body), and whether
+    there is one (a TCP within :data:`TOOL_MIN_LENGTH_M` of the flange has none)."""
+    f6 = np.asarray(robot.flange2frame6, dtype=float)
+    flange = f6[:3, 3]
+    tcp = (f6 @ np.asarray(robot.tcp2flange, dtype=float))[:3, 3]
+    if np.linalg.norm(tcp - flange) < TOOL_MIN_LENGTH_M:
+        return model, False
+    r6 = float(model.radius[model.body == 6].max())
+    tool = replace(
+        model,
+        frame_a=np.r_[model.frame_a, 6],
+        frame_b=np.r_[model.frame_b, 6],
+        local_a=np.vstack([model.local_a, flange]),
+        local_b=np.vstack([model.local_b, tcp]),
+        radius=np.r_[model.radius, r6],
+        body=np.r_[model.body, TOOL_BODY],
+    )
+    return tool, True

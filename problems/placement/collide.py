@@ -31,7 +31,7 @@ import numpy as np
 import casadi as ca
 
 from models.codegen import BatchFunction, VMBatchFunction, batch_function
-from models.collision import capsule_model, self_collision_pairs
+from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY, capsule_model, self_collision_pairs, with_tool
 from models.collision.capsules import CapsuleModel
 from models.collision.distance import capsule_distance
 from models.collision.vectorised import VecObject, capsule_object_distance, vec_object
@@ -41,37 +41,6 @@ from problems.cell import FOOTPRINT_TOUCH_TOL_M, COAL_GJK_TOLERANCE_M, base_foot
 from problems.placement.grid import base2cell
 
 __all__ = ["KernelCell", "TOOL_MIN_LENGTH_M", "TOOL_SELF_MAX_BODY"]
-
-#: A TCP closer than this to the flange (m) has no tool capsule: link 6 then ends at the TCP
-#: (as ``planner/cell_check.py``).
-TOOL_MIN_LENGTH_M = 1e-6
-#: The tool is checked against bodies up to this one (links 5 and 6 meet it at the wrist).
-TOOL_SELF_MAX_BODY = 4
-#: Body number of the tool capsule.
-TOOL_BODY = 7
-
-
-def _with_tool(model: CapsuleModel, robot: Robot) -> tuple[CapsuleModel, bool]:
-    """The capsules plus the tool's (flange -> TCP in DH frame 6, link 6's radius)."""
-    f6 = np.asarray(robot.flange2frame6, dtype=float)
-    flange = f6[:3, 3]
-    tcp = (f6 @ np.asarray(robot.tcp2flange, dtype=float))[:3, 3]
-    if np.linalg.norm(tcp - flange) < TOOL_MIN_LENGTH_M:
-        return model, False
-    r6 = float(model.radius[model.body == 6].max())
-    return (
-        CapsuleModel(
-            frame_a=np.r_[model.frame_a, 6],
-            frame_b=np.r_[model.frame_b, 6],
-            local_a=np.vstack([model.local_a, flange]),
-            local_b=np.vstack([model.local_b, tcp]),
-            radius=np.r_[model.radius, r6],
-            body=np.r_[model.body, TOOL_BODY],
-            allowed_pairs=model.allowed_pairs,
-            radii_source=model.radii_source,
-        ),
-        True,
-    )
 
 
 def _transform(coal: Any, T: np.ndarray) -> Any:
@@ -127,7 +96,7 @@ class KernelCell:
         self.cell = cell
         self.clearance = float(cell.clearance)
         arm = capsule_model(robot)
-        self.model, has_tool = _with_tool(arm, robot)
+        self.model, has_tool = with_tool(arm, robot)
         m = self.model.n_capsules
         self.objects: tuple[VecObject, ...] = tuple(
             vec_object(o.name, o.shape, o.size, o.object2base, o.mesh) for o in cell.objects
