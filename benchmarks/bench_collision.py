@@ -4,7 +4,12 @@ For 10^4 random configurations of a built-in arm: (1) capsule self-collision, cl
 in NumPy (frames, segments, distances); (2) capsule-box through coal in a Python loop; and the anchor,
 measured in the same run: coal's capsule-capsule distance for the same self pairs in a Python loop.
 
-    python benchmarks/bench_collision.py [--robot ur10] [--n 10000]
+Then the posture NLP of a problem with a cell (default the shipped ``cell_table``), solved with the
+cell's clearance constraints and, as the anchor in the same run, without them: the stage's wall
+time, IPOPT iterations, the cost per waypoint and iteration, and the clearance constraints'
+evaluation (values, Jacobian, Hessian) per pose.
+
+    python benchmarks/bench_collision.py [--robot ur10] [--n 10000] [--nlp-problem cell_table]
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ def main() -> None:
     ap.add_argument("--robot", default="ur10")
     ap.add_argument("--n", type=int, default=10_000)
     ap.add_argument("--n-loop", type=int, default=1000, help="configurations of the Python-loop timings")
+    ap.add_argument("--nlp-problem", default="cell_table", help="problem with a [cell] for the NLP timings")
     args = ap.parse_args()
     robot = load_robot(args.robot)
     model = capsule_model(robot)
@@ -75,6 +81,48 @@ def main() -> None:
     print(f"  capsule-box, coal in a Python loop:     {t_box / m * 1e6:8.2f} us/pose ({m} poses)")
     print(f"  anchor: self pairs, coal in a loop:     {t_anchor / m * 1e6:8.2f} us/pose ({m} poses)")
     print(f"  closed form vs anchor: {t_anchor / m / (t_self / args.n):.0f}x faster per pose")
+
+    _nlp(args.nlp_problem)
+
+
+def _nlp(name: str) -> None:
+    """The posture NLP with and without the cell's clearance constraints (module docstring)."""
+    from planner.cell_check import cell_geometry
+    from problems.posture import optimise_postures
+    from problems.posture.clearance import clearance_functions, clearance_spec
+    from problems.posture.transcription import _SOLVERS
+    from problems.problem import load_problem
+
+    problem = load_problem(name)
+    arm, task = problem.model, problem.task()
+    spec = clearance_spec(cell_geometry(problem.robot, problem.cell))
+    rows = {}
+    for label, clearance in (("without cell", None), ("with cell", spec)):
+        _SOLVERS.clear()
+        t0 = time.perf_counter()
+        ps = optimise_postures(arm, task, problem.home_q, problem.solver, clearance=clearance)
+        wall = time.perf_counter() - t0
+        iters = sum(r.iterations or 0 for r in ps.branches.values())
+        rows[label] = (wall, iters, len(ps.branches))
+    fn = clearance_functions(spec)
+    q = np.random.default_rng(0).uniform(problem.robot.q_min, problem.robot.q_max, (1000, 6))
+    lam = np.ones((len(spec.pairs), q.shape[0]))
+    t_g = _timed(lambda: fn["jac"].map(q.shape[0])(q.T))
+    t_h = _timed(lambda: fn["hess"].map(q.shape[0])(q.T, lam))
+    print(f"posture NLP of '{name}' ({task.n} waypoints, {len(spec.pairs)} checked pairs, those near posed):")
+    for label, (wall, iters, nb) in rows.items():
+        per = wall / max(iters, 1) / task.n * 1e6
+        print(
+            f"  {label:13s}: {wall:7.2f} s, {nb} branches, {iters:4d} IPOPT iterations, "
+            f"{per:8.1f} us/waypoint/iteration"
+        )
+    w0, i0, _ = rows["without cell"]
+    w1, i1, _ = rows["with cell"]
+    print(f"  with vs without: x{w1 / w0:.1f} wall time, x{(w1 / max(i1, 1)) / (w0 / max(i0, 1)):.1f} per iteration")
+    print(
+        f"  clearance constraints, all {len(spec.pairs)} pairs: values+Jacobian {t_g / q.shape[0] * 1e6:.1f} us/pose, "
+        f"Hessian {t_h / q.shape[0] * 1e6:.1f} us/pose (CasADi virtual machine)"
+    )
 
 
 if __name__ == "__main__":

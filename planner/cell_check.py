@@ -6,17 +6,22 @@ What is checked (``docs/cell.md``, "What is checked where"):
   command at the waypoints, the controller's trajectory at every sample); the planned, deflected
   posture is compared with the command and the largest displacement of a capsule end point
   between them is reported (:attr:`CellCheck.deflection_m`): the clearance must cover it;
-* **the arm** as the capsules of :func:`models.collision.capsule_model` (built-in radii or the
-  generic ones), plus the **tool**: a capsule from the flange to the TCP of the flange link's
-  radius (:data:`TOOL_BODY`; until problem files describe the tool body);
-* **objects**: every capsule against every object of the cell, except the capsule that ends at the
-  TCP (the tool, or link 6 without a tool), which may touch the workpiece (its pair is not checked)
-  and capsules fixed to the base (they do not move: the problem file's base-footprint check covers
-  the base, :func:`problems.cell.footprint_overlaps`); distances through coal
+* **the arm** as the capsules of :func:`models.collision.capsule_model` (the robot file's
+  ``[collision]`` geometry, the built-in radii or the generic ones), plus the **tool**
+  (:func:`models.collision.tool.with_tool_geometry`): the bounding capsules of its declared body
+  elements and its cutter, else one capsule from the flange to the TCP;
+* **objects**: every capsule against every object of the cell, except the cutter (else the capsule
+  that ends at the TCP), which may touch the workpiece (its pair is not checked), and capsules
+  fixed to the base (they do not move: the problem file's base-footprint check covers the base,
+  :func:`problems.cell.footprint_overlaps`); distances through coal
   (:func:`models.collision.capsule_shape_distance`), a bounding-sphere lower bound first so that
   coal is asked only for the pairs that can be the nearest of their sample;
 * **self-collision**: the arm's self pairs (:func:`models.collision.self_collision_pairs`) and the
-  tool against links 0..4, closed form, vectorised over the samples.
+  tool's capsules against links 0..4, closed form, vectorised over the samples.
+
+Before this check, the posture NLP itself keeps the clearance of the pairs that come near
+(:mod:`problems.posture.clearance`, constraints with gradients); this module checks every pair
+exactly afterwards and sets aside the branches the NLP could not clear.
 
 The result of a check is a :class:`models.collision.Clearance` (status ok / too_close /
 collision, the pair, the sample, the smallest signed distance). Units: m, base frame. Prints nothing.
@@ -34,8 +39,6 @@ import numpy as np
 from models.collision import (
     TOOL_BODY,
     TOOL_MIN_LENGTH_M,
-    TOOL_SELF_MAX_BODY,
-    with_tool,
     CapsuleModel,
     CellShape,
     Clearance,
@@ -45,7 +48,6 @@ from models.collision import (
     capsule_segments,
     capsule_shape_distance,
     chain_frames,
-    self_collision_pairs,
 )
 from models.collision.distance import segment_distance
 from models.robot import Robot
@@ -86,7 +88,7 @@ class CellGeometry:
     shapes : tuple of CellShape, length K
         The cell's objects (base frame).
     checked : ndarray of bool, shape (M, K)
-        Which capsule-object pairs are checked (not: the TCP capsule with the workpiece, capsules
+        Which capsule-object pairs are checked (not: the cutter (else the TCP capsule) with the workpiece, capsules
         fixed to the base).
     self_pairs : ndarray of int, shape (P, 2)
         Capsule index pairs of the self-collision check.
@@ -153,28 +155,25 @@ def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) ->
         Its objects (``object2base``, ``geometry``, ``role``) and ``clearance`` (m).
     model : CapsuleModel, optional
         The arm's capsules (default :func:`models.collision.capsule_model`).
+
+    The tool's capsules and the pairs checked come from :mod:`models.collision.tool`
+    (:func:`~models.collision.tool.with_tool_geometry` with the cell's ``tool``, then
+    :func:`~models.collision.tool.check_pairs`), as in the placement kernel: the declared body
+    elements and the cutter (named as declared, ``cutter``), else one capsule flange -> TCP
+    (``tool``); only the cutter (else the capsule ending at the TCP) may touch the workpiece.
     """
+    from models.collision.tool import check_pairs, with_tool_geometry
+
     arm = capsule_model(robot) if model is None else model
-    full, has_tool = with_tool(arm, robot)
-    names = tuple("tool" if b == TOOL_BODY else n for n, b in zip(full.names, full.body))
+    full, info = with_tool_geometry(arm, robot, getattr(cell, "tool", None))
     shapes = tuple(_shape(o) for o in cell.objects)
-    m, k = full.n_capsules, len(shapes)
-    checked = np.ones((m, k), dtype=bool)
-    fixed = (full.frame_a <= 0) & (full.frame_b <= 0)
-    checked[fixed] = False
-    tcp_capsule = m - 1 if has_tool else int(np.flatnonzero(full.body == 6)[-1])
-    for j, o in enumerate(cell.objects):
-        if getattr(o, "role", "obstacle") == "workpiece":
-            checked[tcp_capsule, j] = False
-    pairs = self_collision_pairs(arm)
-    if has_tool:
-        near = [(c, m - 1) for c in range(arm.n_capsules) if arm.body[c] <= TOOL_SELF_MAX_BODY]
-        pairs = np.vstack([pairs, np.array(near, dtype=int).reshape(-1, 2)])
+    k = len(shapes)
+    roles = tuple(str(getattr(o, "role", "obstacle")) for o in cell.objects)
+    checked, pairs = check_pairs(arm, full, info, roles)
     spheres = [_bounding_sphere(s) for s in shapes]
     centre = np.array([c for c, _ in spheres]).reshape(k, 3)
     bound = np.array([r for _, r in spheres], dtype=float)
-    roles = tuple(str(getattr(o, "role", "obstacle")) for o in cell.objects)
-    return CellGeometry(robot, full, names, shapes, checked, pairs, float(cell.clearance), centre, bound, roles)
+    return CellGeometry(robot, full, info.names, shapes, checked, pairs, float(cell.clearance), centre, bound, roles)
 
 
 def segments(geom: CellGeometry, q: np.ndarray) -> np.ndarray:
@@ -328,21 +327,33 @@ def check_branches(
 # --------------------------------------------------------------------------------------
 
 
-def choose_collision_free(problem: Any, ps: PostureResult) -> tuple[PostureResult, CellCheck]:
+#: Branch statuses whose kept (analytic) posture is checked too: the NLP with the cell's
+#: clearance constraints failed on them, typically because no posture of the branch keeps it.
+_KEPT = (BranchStatus.SOLVER_FAILED, BranchStatus.CONSTRAINT_VIOLATED)
+
+
+def choose_collision_free(
+    problem: Any, ps: PostureResult, geom: CellGeometry | None = None, free: PostureResult | None = None
+) -> tuple[PostureResult, CellCheck]:
     """Every usable branch checked at every waypoint, colliding ones set aside, the choice made
     again (:func:`problems.posture.solve.rechoose`).
 
     A branch whose exact command or planned posture comes closer than the clearance to an object
     or to itself gets status ``collision`` and the reason of its :class:`Clearance` (first
-    waypoint, pair, penetration or distance in mm). When the stiffness-best branch is set aside,
-    the new choice's reason says what the collision-free branch pays in load-induced error.
+    waypoint, pair, penetration or distance in mm). When the stiffness-best posture in empty
+    space (``free``, else ``ps``'s own choice) collides, the new choice's reason says what the
+    collision-free posture pays in load-induced error.
 
     Parameters
     ----------
     problem : problems.problem.Problem
         With its ``cell``, arm model and load.
     ps : PostureResult
-        The posture stage's result (status OK).
+        The posture stage's result (status OK), solved with the cell's clearance constraints.
+    geom : CellGeometry, optional
+        The geometry to check (default :func:`cell_geometry` of the problem).
+    free : PostureResult, optional
+        The same stage in empty space (no clearance constraints): what the cell costs.
 
     Returns
     -------
@@ -351,25 +362,38 @@ def choose_collision_free(problem: Any, ps: PostureResult) -> tuple[PostureResul
     CellCheck
     """
     t0 = time.perf_counter()
-    geom = cell_geometry(problem.robot, problem.cell)
+    geom = geom or cell_geometry(problem.robot, problem.cell)
     arm, L = problem.model, problem.load.rows(problem.n)
     usable = {b: r for b, r in ps.branches.items() if r.status.usable}
+    failed = {b: r for b, r in ps.branches.items() if r.status in _KEPT and np.all(np.isfinite(r.q))}
     commands = {b: exact(arm, r.q, L).q_command for b, r in usable.items()}
     found = check_branches(geom, {b: r.q for b, r in usable.items()}, commands)
-    check = CellCheck(geom, found, stiffness_best=ps.chosen)
+    kept = check_branches(geom, {b: r.q for b, r in failed.items()}, {})
+    ref = free if free is not None and free.ok else ps
+    check = CellCheck(geom, found, stiffness_best=ref.chosen)
     branches = dict(ps.branches)
     for b, c in found.items():
         if c.status is not ClearanceStatus.OK:
             branches[b] = replace(branches[b], status=BranchStatus.COLLISION, reason=c.reason)
+    for b, c in kept.items():  # the NLP found no posture that keeps the clearance
+        if c.status is not ClearanceStatus.OK:
+            why = f"no posture keeps the clearance ({branches[b].reason}): {c.reason}"
+            branches[b] = replace(branches[b], status=BranchStatus.COLLISION, reason=why)
+            check.branches[b] = c
     out = rechoose(replace(ps, branches=branches))
-    if out.ok and ps.chosen is not None and out.chosen != ps.chosen:
-        was, now = ps.branches[ps.chosen], out.best
-        check.choice_note = (
-            f"the stiffness-best branch {was.label} collides ({found[ps.chosen].reason}): the collision-free "
-            f"{now.label} pays RMS load-induced error {now.rms_error_m * 1e3:.4g} mm vs {was.rms_error_m * 1e3:.4g} mm "
-            f"(x{now.rms_error_m / was.rms_error_m:.3g}, first order)"
+    if out.ok and ref.chosen is not None:
+        was = ref.branches[ref.chosen]
+        was_c = (
+            found[ref.chosen] if ref is ps else check_branches(geom, {0: was.q}, {0: exact(arm, was.q, L).q_command})[0]
         )
-        out.reason += f"; {check.choice_note}"
+        if was_c.status is not ClearanceStatus.OK:
+            now = out.best
+            check.choice_note = (
+                f"in empty space the stiffness-best posture ({was.label}) collides ({was_c.reason}): the "
+                f"collision-free {now.label} pays RMS load-induced error {now.rms_error_m * 1e3:.4g} mm vs "
+                f"{was.rms_error_m * 1e3:.4g} mm (x{now.rms_error_m / was.rms_error_m:.3g}, first order)"
+            )
+            out.reason += f"; {check.choice_note}"
     if out.ok:
         check.waypoints = found[out.chosen]
     elif out.status is PostureStatus.COLLISION:

@@ -58,6 +58,21 @@ SCORE_COLUMNS = (
 GRID_DIGITS = 12
 #: Progress stage of the full plans.
 PLAN_STAGE = "full plans"
+#: The collision line of a study without a ``[cell]`` (summary ``collisions.note``, terminal, report).
+NO_CELL_NOTE = "not checked (the problem has no [cell]: docs/cell.md)"
+#: What the sweep checks against the cell (summary ``collisions.what``).
+COLLISIONS_WHAT = (
+    "every placement's base footprint against every object (before the IK); where the base is free, the "
+    "arm's capsules and the tool at the scanned orientations of every branch that reaches the whole path "
+    "without a flip, against the objects and themselves: a placement is set aside (status collision) when "
+    "its base overlaps an object or when every such branch comes closer than the clearance on every "
+    "sequence of orientations (problems/placement/collide.py)"
+)
+#: Why the summary names no colliding pair (summary ``collisions.colliding_pairs_note``).
+PAIRS_NOTE = (
+    "the sweep records one status per placement, not the colliding pair: the placements set aside are "
+    "counted by reason (base_on_object, every_branch_colliding); the full plans name their nearest pair"
+)
 
 
 class StudyStatus(Status):
@@ -111,6 +126,26 @@ class PlacementPlan:
             return {"status": self.result.status.value, "reason": self.result.reason}
         return self.result.summary()["headline"]
 
+    def cell(self) -> dict[str, Any] | None:
+        """The plan's cell check as its ``summary.json`` holds it (``cell``,
+        :func:`planner.cell_check.cell_summary`), read from the result (nothing is checked again);
+        None without a cell or when the plan stopped before the check."""
+        return self._cell
+
+    @functools.cached_property
+    def _cell(self) -> dict[str, Any] | None:
+        r = self.result
+        if r.cell is None or r.posture is None:
+            return None
+        from planner.cell_check import cell_summary
+
+        return cell_summary(r.cell, r.posture.labels)
+
+    def clearance(self) -> dict[str, Any] | None:
+        """The plan's smallest clearance to the cell (:func:`plan_clearance`), None without a cell check."""
+        c = self.cell()
+        return None if c is None else plan_clearance(c)
+
 
 @dataclass
 class PlacementStudy:
@@ -132,6 +167,14 @@ class PlacementStudy:
         The best ``grid.top`` placements at distinct base positions (:func:`distinct_positions`),
         then the baseline; none when no placement is feasible.
     branch_labels : tuple of str
+    footprint_collisions : ndarray of int or None
+        With a ``[cell]``: grid indices of the placements set aside for collision whose base
+        footprint overlaps an object (the kernel's own footprint test,
+        :meth:`problems.placement.collide.KernelCell.footprint_blocked`, asked again for the
+        ``collision`` placements only); the other ``collision`` placements have every flip-free
+        branch colliding.  None without a cell or when it was not asked.
+    baseline_on_object : bool or None
+        The same for the problem as written.
     """
 
     status: StudyStatus
@@ -144,6 +187,8 @@ class PlacementStudy:
     plans: list[PlacementPlan] = field(default_factory=list)
     branch_labels: tuple[str, ...] = ()
     made: dict[str, Any] = field(default_factory=invocation)
+    footprint_collisions: np.ndarray | None = None
+    baseline_on_object: bool | None = None
 
     @property
     def ok(self) -> bool:
@@ -217,7 +262,8 @@ class PlacementStudy:
             ],
             "improvement_rms_factor": None if self.improvement is None else round(self.improvement, 4),
             "warnings": self.warnings(),
-            "plans": [_plan_entry(p) for p in self.plans],
+            "collisions": self.collisions(),
+            "plans": [_plan_entry(p, self.problem.cell is not None) for p in self.plans],
             "definitions": {
                 "rms_error_mm": "RMS over the waypoints of the load-induced TCP position error of the best branch "
                 "(arm model load_error, analytic posture at the cheapest scanned orientations)",
@@ -228,6 +274,51 @@ class PlacementStudy:
             "provenance": problem_provenance(self.problem, self.made),
         }
         return out
+
+    def collisions(self) -> dict[str, Any]:
+        """``summary.json`` ``collisions``: whether the placements were checked against the cell,
+        how many were set aside for collision and why, and the best placement's smallest clearance
+        in its full plan (counts over the whole grid; lengths in mm)."""
+        cell = self.problem.cell
+        if cell is None:
+            return {"checked": False, "note": NO_CELL_NOTE}
+        sc = self.sweep.scores
+        coll = sc.status == PlacementStatus.COLLISION.code
+        n_coll = int(coll.sum())
+        if self.footprint_collisions is None:
+            on_object = branches = None
+        else:
+            foot = np.zeros(len(coll), dtype=bool)
+            foot[np.asarray(self.footprint_collisions, dtype=int)] = True
+            on_object = int((foot & coll).sum())
+            branches = n_coll - on_object
+        b0 = self.baseline.status_of(0) if len(self.baseline) else None
+        why0 = None
+        if b0 is PlacementStatus.COLLISION and self.baseline_on_object is not None:
+            why0 = "base_on_object" if self.baseline_on_object else "every_branch_colliding"
+        best = next((p for p in self.plans if p.rank == 1), None)
+        return {
+            "checked": True,
+            "objects": [{"name": o.name, "shape": o.shape, "role": o.role} for o in cell.objects],
+            "clearance_mm": float(cell.clearance * 1e3),
+            "placements_checked": int(len(sc)),
+            "set_aside": n_coll,
+            "base_on_object": on_object,
+            "every_branch_colliding": branches,
+            "feasible": int(sc.feasible.sum()),
+            "as_written": {"status": None if b0 is None else b0.value, "collision": why0},
+            "colliding_pairs": None,
+            "colliding_pairs_note": PAIRS_NOTE,
+            "best_plan": None
+            if best is None
+            else {
+                "label": best.label,
+                "placement_text": placement_label(best.placement),
+                "plan_status": best.result.status.value,
+                "clearance": best.clearance(),
+            },
+            "what": COLLISIONS_WHAT,
+        }
 
     def headline(self) -> dict[str, Any]:
         """What the engineer reads first (``summary.json`` ``headline``): the best placement (edge
@@ -268,6 +359,12 @@ class PlacementStudy:
                 if k in ph
             }
             h[key]["status"] = p.result.status.value
+            if self.problem.cell is not None:
+                c = p.clearance()
+                h[key]["min_clearance_mm"] = None if c is None else c["min_clearance_mm"]
+        col = self.collisions()
+        h["collisions_checked"] = col["checked"]
+        h["collision_set_aside"] = col.get("set_aside")
         h["definition"] = (
             "errors: load-induced TCP position error of the best IK branch; best_* and "
             "as_written_rms_error_mm from the sweep (first order, analytic postures), *_plan from "
@@ -297,8 +394,8 @@ def _scores_dict(sc: ChunkScores, i: int, labels: tuple[str, ...]) -> dict[str, 
     return d
 
 
-def _plan_entry(p: PlacementPlan) -> dict[str, Any]:
-    return {
+def _plan_entry(p: PlacementPlan, with_cell: bool = False) -> dict[str, Any]:
+    out = {
         "label": p.label,
         "rank": p.rank,
         "index": p.index,
@@ -309,6 +406,97 @@ def _plan_entry(p: PlacementPlan) -> dict[str, Any]:
         "plan_status": p.result.status.value,
         "elapsed_s": round(p.elapsed_s, 3),
     }
+    if with_cell:
+        out["clearance"] = p.clearance()
+    return out
+
+
+def plan_clearance(cell: dict[str, Any]) -> dict[str, Any]:
+    """A full plan's smallest clearance to the cell, from its ``cell`` block
+    (:func:`planner.cell_check.cell_summary`): the smaller of the chosen branch's at the waypoints
+    and the controller's trajectory's, with its pair and where; a plan that chose no branch (all
+    collide) gives its branches' smallest at the waypoints.
+
+    Returns
+    -------
+    dict
+        ``min_clearance_mm`` (None when nothing was checked), ``pair``, ``where`` (text),
+        ``status`` (ok / too_close / collision), ``waypoints_min_clearance_mm``,
+        ``trajectory_min_clearance_mm`` and the required ``clearance_mm``.
+    """
+    found: list[tuple[float, str | None, str, str]] = []
+    w, tr = cell.get("waypoints"), cell.get("trajectory")
+    if w and w.get("min_clearance_mm") is not None:
+        found.append((w["min_clearance_mm"], w["pair"], f"waypoint {w['index']}", w["status"]))
+    if tr and tr.get("min_clearance_mm") is not None:
+        t = tr.get("time_s")
+        where = f"{tr.get('method')} trajectory" + ("" if t is None else f", t = {t:.3f} s")
+        found.append((tr["min_clearance_mm"], tr["pair"], where, tr["status"]))
+    if not found:
+        for label, b in (cell.get("branches") or {}).items():
+            if b and b.get("min_clearance_mm") is not None:
+                found.append((b["min_clearance_mm"], b["pair"], f"branch {label}, waypoint {b['index']}", b["status"]))
+    d, pair, where, status = min(found, key=lambda f: f[0]) if found else (None, None, None, None)
+    return {
+        "min_clearance_mm": d,
+        "pair": pair,
+        "where": where,
+        "status": status,
+        "waypoints_min_clearance_mm": w.get("min_clearance_mm") if w else None,
+        "trajectory_min_clearance_mm": tr.get("min_clearance_mm") if tr else None,
+        "clearance_mm": cell["clearance_mm"],
+    }
+
+
+def _objects_text(objects: list[dict[str, Any]]) -> str:
+    return ", ".join(o["name"] + (" (workpiece)" if o["role"] == "workpiece" else "") for o in objects)
+
+
+def collision_lines(s: dict[str, Any]) -> list[str]:
+    """What a study says about collisions, one line each (the terminal prints them, the report
+    shows them): from ``summary.json`` (``s``: :meth:`PlacementStudy.summary`) ``collisions``."""
+    c = s["collisions"]
+    if not c["checked"]:
+        return [f"collisions: {c['note']}"]
+    n, k = c["placements_checked"], c["set_aside"]
+    out = [
+        f"collisions: checked against the cell ({_objects_text(c['objects'])}; clearance {c['clearance_mm']:g} mm): "
+        f"{n:,} placement{'s' if n != 1 else ''} checked"
+    ]
+    if not k:
+        out.append("collisions: none set aside for collision")
+    elif c["base_on_object"] is None:
+        out.append(f"collisions: {k:,} set aside for collision (base on an object or every branch colliding)")
+    else:
+        out.append(
+            f"collisions: {k:,} set aside for collision: {c['base_on_object']:,} with the base overlapping an "
+            f"object, {c['every_branch_colliding']:,} with every flip-free branch colliding along the path"
+        )
+        out.append(
+            "collisions: the sweep records a status per placement, not the colliding pair; "
+            "the full plans name their nearest pair"
+        )
+    why0 = c["as_written"]["collision"]
+    if why0 is not None:
+        out.append(
+            "collisions: the problem as written is set aside: "
+            + ("its base overlaps an object" if why0 == "base_on_object" else "every flip-free branch collides")
+        )
+    b = c["best_plan"]
+    if b is None:
+        out.append("collisions: no placement planned in full, so no clearance along a path")
+        return out
+    cl = b["clearance"]
+    if cl is None or cl["min_clearance_mm"] is None:
+        out.append(
+            f"collisions: {b['label']} ({b['placement_text']}): no clearance recorded (full plan {b['plan_status']})"
+        )
+    else:
+        out.append(
+            f"collisions: {b['label']} ({b['placement_text']}): smallest clearance {cl['min_clearance_mm']:.1f} mm "
+            f"in its full plan ({cl['pair']}, {cl['where']}; required {cl['clearance_mm']:g} mm)"
+        )
+    return out
 
 
 def study(
@@ -351,6 +539,10 @@ def study(
     ranked = ranking(sw.scores)
     status, reason = (StudyStatus.OK, "") if sw.ok else (StudyStatus.NO_FEASIBLE, sw.reason)
     st = PlacementStudy(status, reason, problem, grid, sw, base, ranked, branch_labels=labels)
+    if kernel.cell is not None:  # which collisions are the base's: the kernel's footprint test, asked again
+        coll = np.flatnonzero(sw.scores.status == PlacementStatus.COLLISION.code)
+        st.footprint_collisions = coll[kernel.cell.footprint_blocked(sw.placements[coll])]
+        st.baseline_on_object = bool(kernel.cell.footprint_blocked(np.zeros((1, 5)))[0])
     if not st.ok:
         return st  # nothing to compare the problem as written with
     rank_of = {int(i): r + 1 for r, i in enumerate(ranked)}
@@ -459,12 +651,17 @@ def write_study(st: PlacementStudy, folder: str | Path, with_report: bool = True
 
 
 __all__ = [
+    "COLLISIONS_WHAT",
+    "NO_CELL_NOTE",
+    "PAIRS_NOTE",
     "PLAN_STAGE",
     "PlacementPlan",
     "PlacementStudy",
     "SCORE_COLUMNS",
     "StudyStatus",
+    "collision_lines",
     "distinct_positions",
+    "plan_clearance",
     "scores_csv",
     "study",
     "write_study",

@@ -356,14 +356,29 @@ def plan(
     tick = progress or (lambda stage, done, total: None)
     tick("posture", 0, 1)
     t0 = time.perf_counter()
+    geom = spec = None
+    if problem.cell is not None:
+        from planner.cell_check import cell_geometry
+        from problems.posture.clearance import clearance_spec
+
+        geom = cell_geometry(problem.robot, problem.cell)
+        spec = clearance_spec(geom)
     ps = optimise_postures(
-        arm, problem.task(), problem.home_q, problem.solver, verbose, model=arm.kinematics, ik=ik, optimise=optimise
+        arm,
+        problem.task(),
+        problem.home_q,
+        problem.solver,
+        verbose,
+        model=arm.kinematics,
+        ik=ik,
+        optimise=optimise,
+        clearance=spec,
     )
     times["posture_s"] = time.perf_counter() - t0
     tick("posture", 1, 1)
     res = PlanResult(PlanStatus.OK, "", problem, ps, stage_times_s=times)
-    if ps.ok and problem.cell is not None:
-        _cell_branches(res)
+    if geom is not None and ps.status in (PostureStatus.OK, PostureStatus.SOLVER_FAILED) and ps.branches:
+        _cell_branches(res, geom, optimise)  # failed branches too: the NLP may have failed on the cell
         ps = res.posture
     if not ps.ok:
         res.status, res.reason = _POSTURE_TO_PLAN[ps.status], ps.reason
@@ -393,14 +408,20 @@ def plan(
     return res
 
 
-def _cell_branches(res: PlanResult) -> None:
+def _cell_branches(res: PlanResult, geom: Any, optimise: bool) -> None:
     """Every usable branch checked against the cell at every waypoint, the choice made again
-    among the collision-free ones (:func:`planner.cell_check.choose_collision_free`)."""
+    among the collision-free ones (:func:`planner.cell_check.choose_collision_free`); the
+    posture stage is solved once more in empty space to say what the cell costs."""
     from planner.cell_check import choose_collision_free
 
     t0 = time.perf_counter()
     assert res.posture is not None
-    res.posture, res.cell = choose_collision_free(res.problem, res.posture)
+    p = res.problem
+    free = optimise_postures(
+        p.model, p.task(), p.home_q, p.solver, False, model=p.model.kinematics, ik=p.model.ik, optimise=optimise
+    )
+    res.stage_times_s["posture_empty_space_s"] = time.perf_counter() - t0
+    res.posture, res.cell = choose_collision_free(p, res.posture, geom, free)
     res.stage_times_s["cell_branches_s"] = time.perf_counter() - t0
 
 

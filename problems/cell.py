@@ -17,7 +17,8 @@ triangles) in its own frame, for the pair distances of the collision checks (``m
 Point queries (:meth:`CellObject.distance_to_point`, :meth:`CellObject.contains`) are closed form
 for the primitives (vectorised; checked against coal in ``tests/test_cell_file.py``) and
 ``trimesh``'s closest points and inside test for meshes. One role may be ``workpiece``: the only
-object the cutter may touch.
+object the cutter may touch. The tool's declared geometry (``[robot.tool]`` body elements and
+cutter, :mod:`models.collision.tool`) travels with the cell as :attr:`Cell.tool`.
 
 The robot's base **footprint** (:func:`base_footprint`) is a cylinder about the base z axis from the
 mounting plane (z = 0) up to :data:`BASE_FOOTPRINT_HEIGHT_M`, of the arm's base radius: at the
@@ -30,10 +31,13 @@ when a cell is built, so problems without ``[cell]`` do not load them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from models.errors import InputError
+
+if TYPE_CHECKING:  # models.collision loads coal: only when a cell is built
+    from models.collision.tool import ToolGeometry
 
 __all__ = [
     "BASE_FOOTPRINT_HEIGHT_M",
@@ -286,6 +290,10 @@ class Cell:
     clearance : float
         m, the smallest allowed distance between the robot (and tool body) and the objects, and
         between non-adjacent links; in ``[0, MAX_CLEARANCE_M)`` (:mod:`problems.cell_section`).
+    tool : models.collision.tool.ToolGeometry or None
+        The tool's declared body elements and cutter (``[robot.tool]`` ``body`` / ``cutter``, flange
+        frame), checked against the objects with the arm; None: the tool is one capsule flange -> TCP
+        (:func:`models.collision.tool.with_tool_geometry`). Unchanged by :meth:`moved`.
 
     Raises
     ------
@@ -295,6 +303,7 @@ class Cell:
 
     objects: tuple[CellObject, ...] = ()
     clearance: float = DEFAULT_CLEARANCE_M
+    tool: ToolGeometry | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "objects", tuple(self.objects))
@@ -346,11 +355,13 @@ class Cell:
 
     def moved(self, new2base: np.ndarray) -> Cell:
         """Every object moved by ``new2base`` (see :meth:`CellObject.moved`)."""
-        return Cell(tuple(o.moved(new2base) for o in self.objects), self.clearance)
+        return Cell(tuple(o.moved(new2base) for o in self.objects), self.clearance, self.tool)
 
     def mesh_files(self) -> tuple[str, ...]:
-        """The mesh files the cell was read from (resolved paths, in object order)."""
-        return tuple(o.mesh_file for o in self.objects if o.mesh_file is not None)
+        """The mesh files the cell was read from (resolved paths, in object order), then the tool's
+        (in element order)."""
+        tool = self.tool.mesh_files() if self.tool is not None else ()
+        return tuple(o.mesh_file for o in self.objects if o.mesh_file is not None) + tool
 
     def to_dict(self) -> dict[str, Any]:
         """The ``[cell]`` table in the problem-file schema (SI, radians, base frame)."""

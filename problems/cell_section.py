@@ -11,6 +11,12 @@ Every error is a :class:`~problems.problem_values.ProblemFileError` naming the p
 (``cell.objects[2].size``), the value and what was expected; besides the values, the cell is
 checked against the problem: no object may overlap the robot's base footprint at the problem's own
 placement, and no path point (TCP target) may lie inside an object other than the workpiece.
+
+The tool's collision geometry is read here too (:func:`parse_tool_geometry`): ``[robot.tool]``'s
+``[[robot.tool.body]]`` elements (``name``, ``shape``, ``size`` or ``file`` / ``scale``, ``xyz``,
+``rpy`` / ``rpy_deg`` in the **flange** frame) and ``[robot.tool.cutter]`` (``radius``, ``length``,
+m); it becomes :attr:`problems.cell.Cell.tool` (:mod:`models.collision.tool`). It is checked
+whenever the file declares it, and used only with a ``[cell]``.
 """
 
 from __future__ import annotations
@@ -36,12 +42,26 @@ from problems.cell import (
 )
 from problems.problem_values import ProblemFileError, _err, _number, _positive, _rpy, _vector
 
-__all__ = ["CELL_KEYS", "MAX_CLEARANCE_M", "MESH_SUFFIXES", "OBJECT_FRAMES", "OBJECT_KEYS", "parse_cell"]
+__all__ = [
+    "CELL_KEYS",
+    "CUTTER_KEYS",
+    "MAX_CLEARANCE_M",
+    "MESH_SUFFIXES",
+    "OBJECT_FRAMES",
+    "OBJECT_KEYS",
+    "TOOL_BODY_KEYS",
+    "parse_cell",
+    "parse_tool_geometry",
+]
 
 #: The keys of ``[cell]``.
 CELL_KEYS = ("clearance", "objects")
 #: The keys of one ``[[cell.objects]]`` table.
 OBJECT_KEYS = ("name", "shape", "size", "file", "scale", "xyz", "rpy", "rpy_deg", "role", "frame")
+#: The keys of one ``[[robot.tool.body]]`` table (a tool body element, pose in the flange frame).
+TOOL_BODY_KEYS = ("name", "shape", "size", "file", "scale", "xyz", "rpy", "rpy_deg")
+#: The keys of ``[robot.tool.cutter]``.
+CUTTER_KEYS = ("radius", "length")
 #: A clearance at or above this (m) is implausible: millimetres given under the metre key.
 MAX_CLEARANCE_M = 0.1
 #: The mesh file types read (by suffix, lower case).
@@ -86,13 +106,15 @@ def parse_cell(
     Returns
     -------
     Cell or None
-        None when the file has no ``[cell]``.
+        None when the file has no ``[cell]`` (a declared tool geometry is checked all the same,
+        :func:`parse_tool_geometry`); else with the tool geometry as ``tool``.
 
     Raises
     ------
     ProblemFileError
         Naming the file, the key, the value and what was expected.
     """
+    tool = parse_tool_geometry(where, data, base_dir)
     if "cell" not in data:
         return None
     ct = data["cell"]
@@ -128,10 +150,125 @@ def parse_cell(
             f"= 'workpiece' for '{objects[wps[1]].name}', but '{objects[wps[0]].name}' (cell.objects[{wps[0]}]) "
             "is the workpiece already; at most one object may be the workpiece",
         )
-    cell = Cell(tuple(objects), clearance)
+    cell = Cell(tuple(objects), clearance, tool)
     _check_footprint(where, cell, robot)
     _check_path_points(where, cell, np.asarray(positions, dtype=float), program)
     return cell
+
+
+def parse_tool_geometry(where: str, data: Mapping[str, Any], base_dir: Path | None) -> Any:
+    """The tool's collision geometry: ``[[robot.tool.body]]`` and ``[robot.tool.cutter]``, or None.
+
+    Parameters
+    ----------
+    where : str
+        The problem file, for messages.
+    data : mapping
+        The parsed problem file (``[robot.tool]`` was checked for its keys by the ``[robot]`` parser).
+    base_dir : Path or None
+        The problem file's folder: a relative mesh ``file`` is resolved against it.
+
+    Returns
+    -------
+    models.collision.tool.ToolGeometry or None
+        None when neither ``body`` nor ``cutter`` is given.
+
+    Raises
+    ------
+    ProblemFileError
+        Naming the file, the key (``robot.tool.body[1].shape``, ``robot.tool.cutter.radius``), the
+        value and what was expected: not a list of tables / a table, an unknown key, a missing or
+        repeated or reserved name, an unknown shape, a size of the wrong count or not positive or
+        implausible (millimetres?), a mesh not found / not readable / not closed / implausibly large
+        (millimetres read as metres), a cutter radius or length not positive or implausible. A
+        cutter longer than the flange -> TCP distance is accepted.
+    """
+    robot = data.get("robot")
+    tt = robot.get("tool") if isinstance(robot, Mapping) else None
+    if not isinstance(tt, Mapping) or ("body" not in tt and "cutter" not in tt):
+        return None
+    from models.collision.tool import Cutter, ToolGeometry  # loads coal: only for a declared tool
+
+    raw = tt.get("body", [])
+    if not isinstance(raw, list) or not all(isinstance(t, Mapping) for t in raw):
+        raise _err(where, "robot.tool.body", f"must be a list of tables ([[robot.tool.body]]), got {raw!r}")
+    elements: list[Any] = []
+    for i, tab in enumerate(raw):
+        key = f"robot.tool.body[{i}]"
+        e = _parse_tool_element(where, key, tab, base_dir)
+        for j, other in enumerate(elements):
+            if other.name == e.name:
+                raise _err(where, f"{key}.name", f"= {e.name!r} repeats robot.tool.body[{j}]'s; names must be unique")
+        elements.append(e)
+    cutter = None
+    if "cutter" in tt:
+        ct = tt["cutter"]
+        if not isinstance(ct, Mapping):
+            raise _err(where, "robot.tool.cutter", f"must be a table (radius, length in m), got {ct!r}")
+        unknown = sorted(set(ct) - set(CUTTER_KEYS))
+        if unknown:
+            raise ProblemFileError(
+                f"{where}: [robot.tool.cutter]: unknown key(s) {unknown}; allowed: {list(CUTTER_KEYS)}"
+            )
+        vals = {}
+        for k in CUTTER_KEYS:
+            if k not in ct:
+                raise _err(where, f"robot.tool.cutter.{k}", "is required (m)")
+            vals[k] = _positive(where, f"robot.tool.cutter.{k}", ct[k])
+            if vals[k] > PLAUSIBLE_POSITION_MAX_M:
+                raise _err(
+                    where,
+                    f"robot.tool.cutter.{k}",
+                    f"= {vals[k]:g} m is implausible for a cutter (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
+                    "in metres (millimetres given?)",
+                )
+        cutter = Cutter(vals["radius"], vals["length"])
+    return ToolGeometry(tuple(elements), cutter)
+
+
+def _parse_tool_element(where: str, key: str, tab: Mapping[str, Any], base_dir: Path | None) -> Any:
+    """One ``[[robot.tool.body]]`` table (``key`` = ``robot.tool.body[i]``) as a
+    :class:`models.collision.tool.ToolElement`."""
+    from models.collision.tool import TOOL_ELEMENT_SHAPES, ToolElement, reserved_name
+
+    unknown = sorted(set(tab) - set(TOOL_BODY_KEYS))
+    if unknown:
+        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(TOOL_BODY_KEYS)}")
+    name = tab.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise _err(where, f"{key}.name", f"must be a non-empty string, got {name!r}")
+    name = name.strip()
+    if reserved_name(name):
+        raise _err(
+            where,
+            f"{key}.name",
+            f"= {name!r} is the name of a capsule already (base, link i, tool, cutter); choose another",
+        )
+    shape = tab.get("shape")
+    if shape not in TOOL_ELEMENT_SHAPES:
+        raise _err(
+            where, f"{key}.shape", f"must be one of {list(TOOL_ELEMENT_SHAPES)} (tool element '{name}'), got {shape!r}"
+        )
+    xyz = _vector(where, f"{key}.xyz", tab.get("xyz", [0.0, 0.0, 0.0]), 3)
+    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
+        raise _err(
+            where,
+            f"{key}.xyz",
+            f"= {xyz.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres (millimetres given?)",
+        )
+    rpy = _rpy(where, tab, f"{key}.")
+    element2flange = transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz)
+    if shape == "mesh":
+        if "size" in tab:
+            raise _err(
+                where, f"{key}.size", f"does not apply to a mesh (tool element '{name}': the file gives its size)"
+            )
+        mesh, path, scale = _read_mesh(where, key, name, tab, base_dir, "tool element")
+        return ToolElement(name, shape, np.zeros(3), element2flange, mesh, str(path), scale)
+    for k in ("file", "scale"):
+        if k in tab:
+            raise _err(where, f"{key}.{k}", f"only applies to shape 'mesh' (tool element '{name}' is a {shape})")
+    return ToolElement(name, shape, _size(where, key, name, shape, tab, "tool element"), element2flange)
 
 
 def _parse_object(
@@ -187,31 +324,33 @@ def _in_base(where: str, key: str, frame: Any, object2frame: np.ndarray, program
     return program2base @ object2frame
 
 
-def _size(where: str, key: str, name: str, shape: str, tab: Mapping[str, Any]) -> np.ndarray:
-    """A primitive's ``size``: the right count of positive, plausible lengths (m)."""
+def _size(where: str, key: str, name: str, shape: str, tab: Mapping[str, Any], what: str = "object") -> np.ndarray:
+    """A primitive's ``size``: the right count of positive, plausible lengths (m); ``what``: the
+    kind of thing in messages (``object``, ``tool element``)."""
     n = SIZE_LENGTH[shape]
     raw = tab.get("size")
     if not isinstance(raw, list) or len(raw) != n:
         raise _err(
             where,
             f"{key}.size",
-            f"must be {n} number(s) for a {shape}: {_SIZE_MEANING[shape]} (object '{name}'), got {raw!r}",
+            f"must be {n} number(s) for a {shape}: {_SIZE_MEANING[shape]} ({what} '{name}'), got {raw!r}",
         )
     size = np.array([_positive(where, f"{key}.size[{j}]", v) for j, v in enumerate(raw)])
     if np.max(size) > PLAUSIBLE_POSITION_MAX_M:
         raise _err(
             where,
             f"{key}.size",
-            f"= {size.tolist()} m is implausible for object '{name}' (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
+            f"= {size.tolist()} m is implausible for {what} '{name}' (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
             "sizes are in metres (millimetres given?)",
         )
     return size
 
 
 def _read_mesh(
-    where: str, key: str, name: str, tab: Mapping[str, Any], base_dir: Path | None
+    where: str, key: str, name: str, tab: Mapping[str, Any], base_dir: Path | None, what: str = "object"
 ) -> tuple[Any, Path, float]:
-    """A mesh object's file read with trimesh, scaled to m, checked closed and plausibly sized."""
+    """A mesh's file read with trimesh, scaled to m, checked closed and plausibly sized; ``what``:
+    the kind of thing in messages (``object``, ``tool element``)."""
     import trimesh
     from trimesh import grouping
 
@@ -220,7 +359,7 @@ def _read_mesh(
         raise _err(
             where,
             f"{key}.file",
-            f"is required for shape 'mesh' (object '{name}'): an STL, OBJ or PLY file, got {raw!r}",
+            f"is required for shape 'mesh' ({what} '{name}'): an STL, OBJ or PLY file, got {raw!r}",
         )
     scale = _positive(where, f"{key}.scale", tab.get("scale", 1.0))
     path = Path(raw)
@@ -228,22 +367,22 @@ def _read_mesh(
         path = base_dir / path
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise _err(
-            where, f"{key}.file", f"= {raw!r} (object '{name}'): must be an STL, OBJ or PLY file {list(MESH_SUFFIXES)}"
+            where, f"{key}.file", f"= {raw!r} ({what} '{name}'): must be an STL, OBJ or PLY file {list(MESH_SUFFIXES)}"
         )
     if not path.is_file():
-        raise _err(where, f"{key}.file", f"= {raw!r} (object '{name}'): no such file ({path})")
+        raise _err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): no such file ({path})")
     try:
         mesh = trimesh.load_mesh(path, force="mesh")
     except Exception as exc:  # trimesh raises many types on a bad file
-        raise _err(where, f"{key}.file", f"= {raw!r} (object '{name}'): cannot be read as a mesh: {exc}") from None
+        raise _err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): cannot be read as a mesh: {exc}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise _err(where, f"{key}.file", f"= {raw!r} (object '{name}'): holds no triangles (not a mesh file, or empty)")
+        raise _err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): holds no triangles (not a mesh file, or empty)")
     if not mesh.is_watertight:
         n_open = len(grouping.group_rows(mesh.edges_sorted, require_count=1))
         raise _err(
             where,
             f"{key}.file",
-            f"= {raw!r} (object '{name}'): the mesh is not closed ({n_open} open edge(s)); an object must be a closed "
+            f"= {raw!r} ({what} '{name}'): the mesh is not closed ({n_open} open edge(s)); it must be a closed "
             "surface (repair it, e.g. fill its holes, before use)",
         )
     mesh.apply_scale(scale)
@@ -252,7 +391,7 @@ def _read_mesh(
         raise _err(
             where,
             f"{key}.file",
-            f"= {raw!r} (object '{name}'): the mesh is {ext:.4g} m across after scale = {scale:g} "
+            f"= {raw!r} ({what} '{name}'): the mesh is {ext:.4g} m across after scale = {scale:g} "
             f"(> {PLAUSIBLE_POSITION_MAX_M:g} m): read as metres; add scale = 0.001 if the file is in millimetres",
         )
     return mesh, path, scale

@@ -219,6 +219,9 @@ class Problem:
                 "tool": {"xyz": [float(v) for v in T[:3, 3]], "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]},
             },
         }
+        tool = getattr(self.cell, "tool", None)
+        if tool is not None:  # the tool's body and cutter ([robot.tool] body, cutter)
+            d["robot"]["tool"].update(tool.to_dict())
         if self.program is not None:
             d["path"] = {"kind": self.path_kind, "file": self.program.file}
             w = self.program.waypoints

@@ -28,7 +28,7 @@ from problems.timing import available_methods
 #: The keys each table of a problem file may hold (checked by :func:`_table`).
 _TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "robot": ("model", "tool"),
-    "robot.tool": ("xyz", "rpy", "rpy_deg"),
+    "robot.tool": ("xyz", "rpy", "rpy_deg", "body", "cutter"),  # body, cutter: problems.cell_section
     "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg", "file", "tolerance_mm"),
     "workpiece": ("xyz", "rpy", "rpy_deg"),
     "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),

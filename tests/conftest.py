@@ -160,7 +160,9 @@ def as_modified_dh(robot_dict: dict) -> dict:
         row["a"] = rows[i - 1]["a"] if i > 0 else 0.0
         row["alpha"] = rows[i - 1]["alpha"] if i > 0 else 0.0
         mdh.append(row)
-    return {**robot_dict, "convention": "modified_dh", "joints": mdh}
+    out = {**robot_dict, "convention": "modified_dh", "joints": mdh}
+    out.pop("collision", None)  # its segments are given in the standard-DH frames
+    return out
 
 
 # ------------------------------------------------------------------------------ shared folders

@@ -213,7 +213,8 @@ def test_a_trajectory_closer_than_the_clearance_between_waypoints_fails_with_tim
     ball = CellObject("ball", "sphere", np.array([radius]), _at(elbow[i]))
     problem = replace(bare.problem, cell=Cell((ball,), 0.005))
     res = plan(problem)
-    assert res.posture.chosen == bare.posture.chosen  # the waypoints clear the ball
+    # the waypoints clear the ball (the NLP, now with the ball's clearance constraint, may settle in
+    # another local optimum and choose another branch: what matters is that its waypoints are clear)
     assert res.cell.waypoints.status is ClearanceStatus.OK
     assert res.status is PlanStatus.COLLISION
     assert "t = " in res.reason and "ball" in res.reason

@@ -26,7 +26,7 @@ from models.collision import (
     self_distances,
     sphere_shape,
 )
-from models.collision.capsules import BUILTIN_OVERLAPPING_ALLOWED
+from models.collision.capsules import BUILTIN_OVERLAPPING_ALLOWED, LINE_RADIUS_M
 from models.ik.base import dh_frames
 from models.robot import BUILTIN_ROBOTS, load_robot
 from models.transforms import rpy_to_matrix, transform
@@ -181,13 +181,15 @@ def test_capsules_follow_forward_kinematics(name):
         flange = (ref[6] @ robot.flange2frame6)[:3, 3]
         assert np.min(np.linalg.norm(ends - flange, axis=1)) < 1e-12
     assert np.all(model.radius > 0) and set(model.body) >= {1, 2, 3, 4, 5, 6}
-    np.testing.assert_allclose(sorted(set(model.radius)), sorted(set(np.array(BUILTIN_RADII_M[name])[model.body])))
+    mat = ~model.is_line  # material capsules: the body's radius; lines (the skeleton): thin
+    np.testing.assert_allclose(model.radius[mat], np.array(BUILTIN_RADII_M[name])[model.body[mat]])
+    np.testing.assert_allclose(model.radius[~mat], LINE_RADIUS_M)
 
 
 def test_generic_radii_for_another_arm():
     from dataclasses import replace
 
-    robot = replace(load_robot("ur5"), name="my_arm")
+    robot = replace(load_robot("ur5"), name="my_arm", collision=None)  # no [collision] table, not built-in
     model = capsule_model(robot)
     assert model.radii_source.startswith("generic")
     reach = np.sum(np.abs(robot.a)) + np.sum(np.abs(robot.d))
@@ -236,7 +238,8 @@ def test_allowed_pairs_never_touch(name, pair):
     model = capsule_model(robot)
     q = np.random.default_rng(13).uniform(robot.q_min, robot.q_max, (3000, 6))
     S = capsule_segments(model, chain_frames(robot, q))
-    ia, ib = np.flatnonzero(model.body == pair[0]), np.flatnonzero(model.body == pair[1])
+    mat = ~model.is_line  # lines stand for no material: not in self-collision
+    ia, ib = np.flatnonzero((model.body == pair[0]) & mat), np.flatnonzero((model.body == pair[1]) & mat)
     d = min(capsule_distance(S[:, a], model.radius[a], S[:, b], model.radius[b]).min() for a in ia for b in ib)
     assert d > 0
 

@@ -131,7 +131,7 @@ def test_a_run_without_a_cell_has_no_cell_view(paper_report):
 def _expected_points(robot: Any, q: np.ndarray) -> np.ndarray:
     """The capsule ends the chain defines at ``q`` (6,), from the arm model's compiled forward
     kinematics: base origin, DH frame origins, the points the d offsets reach along the joint axes
-    (and a modified-DH row's a offset), the flange."""
+    (and a modified-DH row's a offset), the flange, and the ends of the robot's own segments."""
     from models.arm import ArmModel
 
     km = ArmModel.from_robot(robot).kinematics
@@ -147,6 +147,14 @@ def _expected_points(robot: Any, q: np.ndarray) -> np.ndarray:
     if robot.convention != "standard_dh":
         pts.append(F[0][:3, 3] + robot.a[0] * F[0][:3, 0])
     pts.append((F[6] @ np.asarray(robot.flange2frame6, float))[:3, 3])
+    # the robot's own segments (its [collision] table: UR link offsets, lines), each end fixed in a
+    # DH frame (-1 base), placed by the same forward kinematics
+    from models.collision import capsule_model
+
+    m = capsule_model(robot)
+    ext = [np.eye(4)] + F
+    for fr, loc in zip(np.r_[m.frame_a, m.frame_b], np.vstack([m.local_a, m.local_b])):
+        pts.append(ext[fr + 1][:3, :3] @ loc + ext[fr + 1][:3, 3])
     return np.array(pts)
 
 

@@ -131,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
         if st.status is StudyStatus.SWEEP_FAILED:  # the cluster failed (no workers, died, gone)
             raise ClusterError(f"place: {st.reason}")
         if not st.ok:
-            raise InfeasibleError(f"place: {st.reason}")
+            raise InfeasibleError(f"place: {st.reason}{_collision_reason(st)}")
         written = write_study(st, args.out, with_report=not args.no_report)
     print_study(st)
     print(
@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
 
 def print_study(st: Any) -> None:
     """The sweep's figures, the ranking head, the full plans and the improvement."""
-    from planner.placement import distinct_positions
+    from planner.placement import collision_lines, distinct_positions
     from problems.placement.grid import placement_label
 
     s = st.summary()
@@ -153,13 +153,10 @@ def print_study(st: Any) -> None:
         f"{sw['poses_per_second']:,.0f} poses/s on {sw['workers']} worker(s), {sw['chunks']} chunk(s) of "
         f"{sw['chunk_placements']} placements{'' if sw['compiled'] else ' (CasADi virtual machine)'}"
     )
-    print("  placements: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in sw["status_counts"].items()))
-    cell = st.problem.cell
-    print(
-        f"  collisions: checked against the cell ({', '.join(cell.names)}; clearance {cell.clearance * 1e3:g} mm)"
-        if cell is not None
-        else "  collisions: not checked (the problem has no [cell]: docs/cell.md)"
-    )
+    counts = {k: v for k, v in sw["status_counts"].items() if k != "collision" or s["collisions"]["checked"]}
+    print("  placements: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in counts.items()))
+    for line in collision_lines(s):
+        print(f"  {line}")
     print(
         "  best base positions (sweep: RMS / max load-induced TCP error of the best branch; rank among all placements):"
     )
@@ -185,7 +182,11 @@ def print_study(st: Any) -> None:
         )
     for w in s["warnings"]:
         print(f"  warning: {w}")
-    print("  full plans (error before compensation max / RMS, after compensation max, duration):")
+    with_cell = s["collisions"]["checked"]
+    print(
+        "  full plans (error before compensation max / RMS, after compensation max, duration"
+        + (", smallest clearance to the cell):" if with_cell else "):")
+    )
     for plan, p in zip(st.plans, s["plans"]):
         h = p["plan"]
         if not plan.result.ok:
@@ -195,7 +196,26 @@ def print_study(st: Any) -> None:
         print(
             f"    {p['label']:<10} {p['placement_text']}: branch {h['branch']}, {_num(h['error_before_max_mm'])} / "
             f"{_num(h['error_before_rms_mm'])} mm -> {_num(h['error_after_max_mm'])} mm, {dur}"
+            + (_clearance_text(p.get("clearance")) if with_cell else "")
         )
+
+
+def _clearance_text(c: dict[str, Any] | None) -> str:
+    """``, clearance 23.4 mm (link 3 – table)`` of a full plan's entry (empty when none recorded)."""
+    if c is None or c["min_clearance_mm"] is None:
+        return ", clearance not recorded"
+    return f", clearance {c['min_clearance_mm']:.1f} mm ({c['pair']})"
+
+
+def _collision_reason(st: Any) -> str:
+    """The tail of the no-feasible error with a cell: the placements set aside for collision, by reason."""
+    c = st.collisions()
+    if not c["checked"] or not c["set_aside"] or c["base_on_object"] is None:
+        return ""
+    return (
+        f"; of the {c['set_aside']} set aside for collision, {c['base_on_object']} have the base overlapping an "
+        f"object and {c['every_branch_colliding']} every flip-free branch colliding"
+    )
 
 
 def _num(v: Any) -> str:

@@ -13,7 +13,9 @@
 
 :func:`html` writes the page that references them (``figures/<name>``): the headline (best
 placement, its error against the problem as written and the improvement factor, from the sweep
-and from the full plans), the full plans, the ranking, the sweep, the definitions and frames.
+and from the full plans; whether collisions were checked and how many placements were set aside),
+the full plans, the collisions (``summary.json`` ``collisions``), the ranking, the sweep, the
+definitions and frames.
 Numbers in the tables carry ``data-key`` (dotted path into ``summary.json``) and ``data-value``
 like the run report's (:mod:`planner.report.tables`).  The drawing is in
 :mod:`planner.report.placement_plots`.  Nothing here prints.
@@ -465,7 +467,17 @@ def _plan_row(i: int, p: Any, e: dict[str, Any]) -> list[str]:
         _num(_sig(sw.get("joint_margin_deg")), f"{k}.sweep.joint_margin_deg", sw.get("joint_margin_deg")),
         _num(_sig(sw.get("singular_margin")), f"{k}.sweep.singular_margin", sw.get("singular_margin")),
     ]
+    if "clearance" in e:
+        c = e["clearance"] or {}
+        d = c.get("min_clearance_mm")
+        row.append(_num(_clearance_mm(d), f"{k}.clearance.min_clearance_mm", d))
+        row.append(_txt(f"{c['pair']} ({c['where']})" if d is not None else "not recorded"))
     return row
+
+
+def _clearance_mm(v: Any) -> str:
+    """A clearance in mm to 0.1 mm (negative: penetration), "n/a" without one."""
+    return "n/a" if v is None or not isinstance(v, (int, float)) or not math.isfinite(v) else f"{v:.1f}"
 
 
 def _plans_section(st: PlacementStudy, s: dict[str, Any]) -> list[str]:
@@ -482,6 +494,9 @@ def _plans_section(st: PlacementStudy, s: dict[str, Any]) -> list[str]:
         "joint-limit margin [deg]",
         "singularity margin",
     ]
+    with_cell = s["collisions"]["checked"]
+    if with_cell:
+        header += ["smallest clearance [mm]", "nearest pair (where)"]
     rows = [_plan_row(i, p, e) for i, (p, e) in enumerate(zip(st.plans, s["plans"]))]
     return [
         '<h2 id="plans">Full plans</h2>',
@@ -489,7 +504,102 @@ def _plans_section(st: PlacementStudy, s: dict[str, Any]) -> list[str]:
         '<p class="note">Sweep columns: the placement kernel (first-order load-induced error at the analytic '
         "postures of the best branch). Plan columns: the full plan (posture optimisation; errors at the exact "
         "deflected equilibrium, before and after exact compensation; duration of the controller's "
-        "trajectory). Margins from the sweep.</p>",
+        "trajectory). Margins from the sweep."
+        + (
+            " Clearance: the full plan's cell check, the smaller of the chosen branch's commanded joints at the "
+            "waypoints and the controller's trajectory at every sample (negative: penetration).</p>"
+            if with_cell
+            else "</p>"
+        ),
+    ]
+
+
+def _collisions_headline(s: dict[str, Any]) -> str:
+    """The headline's collision sentence (HTML)."""
+    c = s["collisions"]
+    if not c["checked"]:
+        return f"Collisions: <b>{_esc(c['note'])}</b>."
+    k, n = c["set_aside"], c["placements_checked"]
+    text = f"Collisions: checked against the cell; {k:,} of {n:,} placements set aside for collision"
+    if k and c["base_on_object"] is not None:
+        text += (
+            f" ({c['base_on_object']:,} base overlapping an object, {c['every_branch_colliding']:,} every "
+            "flip-free branch colliding)"
+        )
+    b = c["best_plan"]
+    cl = None if b is None else b["clearance"]
+    if cl is not None and cl["min_clearance_mm"] is not None:
+        text += f"; smallest clearance of {b['label']}: {_clearance_mm(cl['min_clearance_mm'])} mm ({cl['pair']})"
+    return _esc(text) + "."
+
+
+def _collisions_section(s: dict[str, Any]) -> list[str]:
+    """The collisions: what the sweep checked against the cell, the placements set aside by reason,
+    the best placement's smallest clearance in its full plan (``summary.json`` ``collisions``)."""
+    c = s["collisions"]
+    out = ['<h2 id="collisions">Collisions</h2>']
+    if not c["checked"]:
+        return out + [
+            f'<p class="warn">Collisions were {_esc(c["note"])}: no placement was checked against the robot\'s '
+            "surroundings, and a placement close to the path must be checked in the cell's CAD.</p>"
+        ]
+    k = "collisions"
+    rows = [
+        [_txt("checked against"), _txt(", ".join(f"{o['name']} ({o['role']}, {o['shape']})" for o in c["objects"]))],
+        [_txt("clearance [mm]"), _num(f"{c['clearance_mm']:g}", f"{k}.clearance_mm", c["clearance_mm"])],
+        [
+            _txt("placements checked"),
+            _num(f"{c['placements_checked']:,}", f"{k}.placements_checked", c["placements_checked"]),
+        ],
+        [_txt("set aside for collision"), _num(f"{c['set_aside']:,}", f"{k}.set_aside", c["set_aside"])],
+    ]
+    for key, what in (
+        ("base_on_object", "of which: the base overlaps an object"),
+        ("every_branch_colliding", "of which: every flip-free branch collides along the path"),
+    ):
+        v = c[key]
+        rows.append([_txt(what), _num("n/a" if v is None else f"{v:,}", f"{k}.{key}", v)])
+    rows.append(
+        [
+            _txt("feasible (collision-free along their scored path)"),
+            _num(f"{c['feasible']:,}", f"{k}.feasible", c["feasible"]),
+        ]
+    )
+    a = c["as_written"]
+    why0 = {
+        "base_on_object": "collision: its base overlaps an object",
+        "every_branch_colliding": "collision: every flip-free branch collides",
+    }
+    rows.append(
+        [
+            _txt("the problem as written (sweep)"),
+            _txt(why0.get(a["collision"] or "", (a["status"] or "n/a").replace("_", " "))),
+        ]
+    )
+    rows.append([_txt("colliding pairs"), _txt(c["colliding_pairs_note"])])
+    b = c["best_plan"]
+    cl = None if b is None else b["clearance"]
+    if b is None:
+        rows.append([_txt("smallest clearance of the best placement"), _txt("no placement planned in full")])
+    else:
+        d = None if cl is None else cl["min_clearance_mm"]
+        rows.append(
+            [
+                _txt(f"smallest clearance of {b['label']} ({b['placement_text']}), full plan [mm]"),
+                _num(_clearance_mm(d), f"{k}.best_plan.clearance.min_clearance_mm", d),
+            ]
+        )
+        if d is not None:
+            rows.append(
+                [
+                    _txt("its nearest pair, where"),
+                    _txt(f"{cl['pair']}, {cl['where']} ({cl['status'].replace('_', ' ')})"),
+                ]
+            )
+    return out + [
+        _table(["", "value"], rows, "collisions-table"),
+        f'<p class="note">What the sweep checks: {_esc(c["what"])}. Every placement set aside is in scores.csv '
+        "(status collision).</p>",
     ]
 
 
@@ -571,7 +681,11 @@ def _sweep_section(s: dict[str, Any]) -> list[str]:
         [
             _txt(st.value.replace("_", " ")),
             _num(str(counts.get(st.value, 0)), f"sweep.status_counts.{st.value}", counts.get(st.value, 0)),
-            _txt(STATUS_REASONS[st]),
+            _txt(
+                STATUS_REASONS[st]
+                if st is not PlacementStatus.COLLISION or s["collisions"]["checked"]
+                else f"{STATUS_REASONS[st]}; {s['collisions']['note']}"
+            ),
         ]
         for st in PlacementStatus
     ]
@@ -612,9 +726,10 @@ _CAPTIONS = {
         "its colour is the RMS load-induced TCP error (mm) of the best feasible IK branch along the path "
         "as the sweep scores it (darker = smaller error; one colour scale for every panel, the problem "
         "as written marked on the colour bar). Grey hatched cells are infeasible: /// unreachable, "
-        "xx flips on every branch, ·· joint limit on every branch. ☆ the problem as written (base at the "
-        "cell origin, yaw 0); numbered circles: the best placements by rank, on the panel of their yaw; "
-        "red line: the path's x–y footprint (● start, ▶ end).",
+        "xx flips on every branch, ·· joint limit on every branch, ++ collision (with a [cell]: the base on "
+        "an object, or every branch colliding; dashed outlines: the cell's objects seen from above). ☆ the "
+        "problem as written (base at the cell origin, yaw 0); numbered circles: the best placements by rank, "
+        "on the panel of their yaw; red line: the path's x–y footprint (● start, ▶ end).",
     ),
     MARGINS: (
         "Joint-limit and singularity margins on the best placement's panel",
@@ -660,7 +775,7 @@ def html(study: PlacementStudy, figure_names: list[str], summary: dict[str, Any]
     Returns
     -------
     str
-        The page: headline, full plans, figures, ranking, sweep, definitions and frames.
+        The page: headline, full plans, collisions, figures, ranking, sweep, definitions and frames.
     """
     st, s = study, study.summary() if summary is None else summary
     title = f"compplan placement study: {s['robot']}, {s['problem']}"
@@ -669,7 +784,8 @@ def html(study: PlacementStudy, figure_names: list[str], summary: dict[str, Any]
         '<html lang="en"><head><meta charset="utf-8">',
         f"<title>{_esc(title)}</title><style>{_CSS}{_EXTRA_CSS}</style></head><body>",
         f"<h1>{_esc(title)}</h1>",
-        f'<p class="{"headline" if st.ok else "warn"}">{_sweep_headline(st, s)}<br>{_plans_headline(st)}</p>',
+        f'<p class="{"headline" if st.ok else "warn"}">{_sweep_headline(st, s)}<br>{_plans_headline(st)}'
+        f"<br>{_collisions_headline(s)}</p>",
     ]
     warnings = s.get("warnings") or []
     if warnings:
@@ -677,11 +793,12 @@ def html(study: PlacementStudy, figure_names: list[str], summary: dict[str, Any]
             '<div class="warn"><b>Warnings</b><ul>' + "".join(f"<li>{_esc(w)}</li>" for w in warnings) + "</ul></div>"
         )
     out.append(
-        '<nav class="toc"><a href="#plans">Full plans</a> <a href="#figures">Figures</a> '
+        '<nav class="toc"><a href="#plans">Full plans</a> <a href="#collisions">Collisions</a> '
+        '<a href="#figures">Figures</a> '
         '<a href="#ranking">Ranking</a> <a href="#sweep">Sweep</a> '
         '<a href="#definitions">Definitions and frames</a> <a href="#provenance">Provenance</a></nav>'
     )
-    out += _plans_section(st, s) + _figures_section(figure_names) + _ranking_section(st, s)
+    out += _plans_section(st, s) + _collisions_section(s) + _figures_section(figure_names) + _ranking_section(st, s)
     out += _sweep_section(s) + _definitions_section(s)
     out.append(provenance_table(s).html())
     out.append(

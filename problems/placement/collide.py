@@ -8,12 +8,15 @@ What is checked (``docs/placement.md``, "Collisions"), the same pairs as the pla
   coal's collision test, asked only for the objects whose bounding sphere comes near the
   footprint's (vectorised), the footprint shrunk by ``FOOTPRINT_TOUCH_TOL_M`` as in the problem
   file's check (a table whose top is the mounting plane only touches it);
-* **the arm** as the capsules of :func:`models.collision.capsule_model` plus the tool, a capsule
-  from the flange to the TCP of the flange link's radius, at the analytic IK configurations:
-  every capsule against every object (closed form, :mod:`models.collision.vectorised`: exact for
-  boxes and spheres, a conservative bound for cylinders and meshes), except the capsule ending at
-  the TCP against the workpiece and the capsules fixed to the base (the footprint covers the
-  base); self-collision between the arm's self pairs and the tool against links 0..4 (closed form).
+* **the arm** as the capsules of :func:`models.collision.capsule_model` plus the tool's
+  (:func:`models.collision.tool.with_tool_geometry`: the declared body elements and cutter, else a
+  capsule from the flange to the TCP of the flange link's radius), at the analytic IK
+  configurations: every capsule against every object (closed form, :mod:`models.collision.vectorised`:
+  exact for boxes and spheres, a conservative bound for cylinders and meshes), except the cutter
+  (else the capsule ending at the TCP) against the workpiece and the capsules fixed to the base (the
+  footprint covers the base); self-collision between the arm's self pairs and every tool capsule
+  against links 0..4 (closed form); the pairs from :func:`models.collision.tool.check_pairs`, as the
+  plan's.
   A pair closer than the cell's ``clearance`` is a violation.  A bounding-sphere lower bound
   first: only the pairs that can come within the clearance are computed exactly.
 
@@ -31,8 +34,9 @@ import numpy as np
 import casadi as ca
 
 from models.codegen import BatchFunction, VMBatchFunction, batch_function
-from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY, capsule_model, self_collision_pairs, with_tool
+from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY, capsule_model
 from models.collision.capsules import CapsuleModel
+from models.collision.tool import check_pairs, with_tool_geometry
 from models.collision.distance import capsule_distance
 from models.collision.vectorised import VecObject, capsule_object_distance, vec_object
 from models.portable import evaluator_from_state, portable_state
@@ -96,24 +100,14 @@ class KernelCell:
         self.cell = cell
         self.clearance = float(cell.clearance)
         arm = capsule_model(robot)
-        self.model, has_tool = with_tool(arm, robot)
-        m = self.model.n_capsules
+        # the tool's capsules and the pairs checked: the plan's rules (planner/cell_check.py), one function
+        self.model, self.tool = with_tool_geometry(arm, robot, getattr(cell, "tool", None))
         self.objects: tuple[VecObject, ...] = tuple(
             vec_object(o.name, o.shape, o.size, o.object2base, o.mesh) for o in cell.objects
         )
-        fixed = (self.model.frame_a <= 0) & (self.model.frame_b <= 0)
-        tcp_capsule = m - 1 if has_tool else int(np.flatnonzero(self.model.body == 6)[-1])
+        checked, pairs = check_pairs(arm, self.model, self.tool, tuple(o.role for o in cell.objects))
         #: per object, the capsule indices checked against it
-        self.checked: tuple[np.ndarray, ...] = tuple(
-            np.array(
-                [c for c in range(m) if not fixed[c] and not (o.role == "workpiece" and c == tcp_capsule)], dtype=int
-            )
-            for o in cell.objects
-        )
-        pairs = self_collision_pairs(arm)
-        if has_tool:
-            near = [(c, m - 1) for c in range(arm.n_capsules) if arm.body[c] <= TOOL_SELF_MAX_BODY]
-            pairs = np.vstack([pairs, np.array(near, dtype=int).reshape(-1, 2)])
+        self.checked: tuple[np.ndarray, ...] = tuple(np.flatnonzero(checked[:, j]) for j in range(len(cell.objects)))
         self.self_pairs = pairs.reshape(-1, 2)
         self.footprint = base_footprint(robot)
         f = _capsule_points_function(robot, self.model)

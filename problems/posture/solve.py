@@ -35,6 +35,7 @@ from problems.posture.task import (
     SolverSettings,
 )
 from problems.posture import dense
+from problems.posture.clearance import CLEARANCE_TOL_M, ClearanceSpec, near_pairs
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
 from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
@@ -108,6 +109,7 @@ def optimise_postures(
     model: KinematicModel | None = None,
     ik: IKSolver | None = None,
     optimise: bool = True,
+    clearance: ClearanceSpec | None = None,
 ) -> PostureResult:
     """Solve the posture NLP on every feasible branch and choose the best.
 
@@ -127,6 +129,10 @@ def optimise_postures(
         Reuse already built objects for ``robot``.
     optimise : bool
         False: analytic postures only (every branch as if it had no freedom).
+    clearance : ClearanceSpec, optional
+        The cell: its pairs that come within :data:`~problems.posture.clearance.NEAR_DISTANCE_M`
+        at some branch's warm start are kept at the clearance by the NLP (constraints with
+        gradients); the caller checks every pair exactly afterwards.
 
     Returns
     -------
@@ -138,7 +144,7 @@ def optimise_postures(
     model = model or arm.kinematics
     ik = ik or ik_solver(robot)
     if task.n > dense.POSTURE_MAX_NODES:
-        return _on_nodes(arm, task, home_q, settings, verbose, model, ik, optimise)
+        return _on_nodes(arm, task, home_q, settings, verbose, model, ik, optimise, clearance)
     freedom, note = analyse_freedom(robot, task.rule)
     ws = warm_starts(ik, model, task)
     if not arm.geometry_is_nominal:
@@ -155,7 +161,11 @@ def optimise_postures(
     build = 0.0
     if optimise and freedom == "free":
         t0 = time.perf_counter()
-        nlp = get_nlp(arm, task.rule, task.n, settings, verbose)
+        posed = None
+        if clearance is not None and clearance.pairs:
+            starts = [v[0].q for v in ws.warm.values()] + [v.q for v in ws.analytic.values()]
+            posed = clearance.subset(near_pairs(clearance, starts))
+        nlp = get_nlp(arm, task.rule, task.n, settings, verbose, posed)
         build = time.perf_counter() - t0
 
     results: dict[int, BranchResult] = {}
@@ -179,10 +189,13 @@ def _on_nodes(
     model: KinematicModel,
     ik: IKSolver,
     optimise: bool,
+    clearance: ClearanceSpec | None = None,
 ) -> PostureResult:
     """A long path: the NLP on nodes, densified (:mod:`problems.posture.dense`)."""
     nodes = dense.node_indices(task.n)
-    res = optimise_postures(arm, dense.node_task(task, nodes), home_q, settings, verbose, model, ik, optimise)
+    res = optimise_postures(
+        arm, dense.node_task(task, nodes), home_q, settings, verbose, model, ik, optimise, clearance
+    )
     if res.ok:
         return dense.densify(arm, model, ik, task, nodes, res)
     res.reason = (
@@ -295,6 +308,10 @@ def _optimised_branch(
     q_opt, ip_status, iters, dt = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
     q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
     problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
+    margin_c = nlp.clearance_margin_m(q_pol) if np.all(np.isfinite(q_pol)) else np.full(task.n, -np.inf)
+    if np.any(margin_c < -CLEARANCE_TOL_M):
+        k = int(np.argmin(margin_c))
+        problems = [*problems, f"waypoint {k}: {-margin_c[k] * 1e3:.3g} mm inside the cell's clearance"]
     kept = "analytic posture" if qa is not None else "warm start"
     if ip_status not in IPOPT_OK:
         st, why = BranchStatus.SOLVER_FAILED, (f"IPOPT: {ip_status} after {iters} iterations; the {kept} is kept")
@@ -307,6 +324,7 @@ def _optimised_branch(
         st is BranchStatus.OPTIMISED
         and _objective(model, task, bp_warm.q) < _objective(model, task, q)
         and not verify(model, task, bp_warm.q, q_min, q_max, ik, sign)[0]
+        and np.all(nlp.clearance_margin_m(bp_warm.q) >= -CLEARANCE_TOL_M)
     ):
         # a local optimum worse than the (feasible) point it started from: keep the start
         q, why = (

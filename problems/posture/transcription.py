@@ -45,6 +45,7 @@ from problems.posture.task import (
     PostureTask,
     SolverSettings,
 )
+from problems.posture.clearance import CLEARANCE_SCALE, ClearanceSpec, clearance_functions
 from problems.posture.verification import guard_bounds
 
 # --------------------------------------------------------------------------------------
@@ -199,6 +200,9 @@ class PostureNLP:
     settings : SolverSettings
     verbose : bool
         IPOPT output on (print level 5).
+    clearance : ClearanceSpec, optional
+        The cell's clearance constraints (:mod:`problems.posture.clearance`), one row per pair
+        per waypoint after the stage constraints; none without a cell.
 
     Attributes
     ----------
@@ -221,6 +225,7 @@ class PostureNLP:
         n: int,
         settings: SolverSettings = SolverSettings(),
         verbose: bool = False,
+        clearance: ClearanceSpec | None = None,
     ) -> None:
         if settings.name != "ipopt":
             raise InputError(f"solver: unknown NLP solver {settings.name!r}; available: ['ipopt']")
@@ -239,6 +244,11 @@ class PostureNLP:
                 funcs = sx
         self.stage = funcs
         self.m = _n_stage_constraints(rule, len(self.ik.guard_kinds))
+        self.clearance = clearance if clearance is not None and clearance.pairs else None
+        # the clearance functions run on CasADi's virtual machine: they change with every cell,
+        # and compiling their Hessian (-O3) takes minutes where the whole solve takes seconds
+        self.clear = clearance_functions(self.clearance) if self.clearance is not None else None
+        self.mc = len(self.clearance.pairs) if self.clearance is not None else 0
         self._build(funcs, verbose)
         self.build_time_s = time.perf_counter() - t0
 
@@ -257,7 +267,9 @@ class PostureNLP:
         c_all, g_all = funcs["f"].map(n)(X, Th)
         dX = ca.mtimes(Dm, x) if n > 1 else ca.MX(0, 1)
         f = w_obj * (ca.sum2(c_all) + lam_s * ca.sumsqr(dX))
-        g = ca.vertcat(ca.vec(g_all), dX)
+        mc, clear = self.mc, self.clear
+        gc = ca.vec(clear["g"].map(n)(X)) if clear is not None else ca.MX(0, 1)
+        g = ca.vertcat(ca.vec(g_all), gc, dX)
 
         c_g, grad = funcs["grad"].map(n)(X, Th)
         grad_f = ca.Function(
@@ -269,14 +281,24 @@ class PostureNLP:
         )
 
         g_j, jac = funcs["jac"].map(n)(X, Th)
-        jac_stage = ca.MX(_blockdiag_sparsity(n, m, 6), ca.vec(jac))
-        jac_full = ca.vertcat(jac_stage, ca.MX(Dm)) if n > 1 else jac_stage
-        jac_g = ca.Function("jac_g", [x, p], [ca.vertcat(ca.vec(g_j), dX), jac_full], ["x", "p"], ["g", "jac_g_x"])
+        blocks = [ca.MX(_blockdiag_sparsity(n, m, 6), ca.vec(jac))]
+        g_rows = [ca.vec(g_j)]
+        if clear is not None:
+            g_c, jac_c = clear["jac"].map(n)(X)
+            blocks.append(ca.MX(_blockdiag_sparsity(n, mc, 6), ca.vec(jac_c)))
+            g_rows.append(ca.vec(g_c))
+        if n > 1:
+            blocks.append(ca.MX(Dm))
+        jac_g = ca.Function(
+            "jac_g", [x, p], [ca.vertcat(*g_rows, dX), ca.vertcat(*blocks)], ["x", "p"], ["g", "jac_g_x"]
+        )
 
         lam_f = ca.MX.sym("lam_f")
-        lam_g = ca.MX.sym("lam_g", m * n + 6 * (n - 1))
+        lam_g = ca.MX.sym("lam_g", (m + mc) * n + 6 * (n - 1))
         Lg = ca.reshape(lam_g[: m * n], m, n)
         H = funcs["hess"].map(n)(X, Th, ca.repmat(lam_f * w_obj, 1, n), Lg)
+        if clear is not None:
+            H = H + clear["hess"].map(n)(X, ca.reshape(lam_g[m * n : (m + mc) * n], mc, n))
         H_stage = ca.MX(_blockdiag_sparsity(n, 6, 6), ca.vec(H))
         H_full = H_stage + 2.0 * lam_f * w_obj * lam_s * ca.MX(ca.DM(LtL)) if n > 1 else H_stage
         hess = ca.Function(
@@ -338,7 +360,8 @@ class PostureNLP:
         lo[m - ng :] = guard_bounds(self.ik)[:, None]
         hi[m - ng :] = np.inf
         step = np.full(6 * (n - 1), task.max_joint_step)
-        return np.r_[lo.reshape(-1, order="F"), -step], np.r_[hi.reshape(-1, order="F"), step]
+        clo, chi = np.zeros(self.mc * n), np.full(self.mc * n, np.inf)
+        return np.r_[lo.reshape(-1, order="F"), clo, -step], np.r_[hi.reshape(-1, order="F"), chi, step]
 
     def solve(
         self, task: PostureTask, q0: np.ndarray, sign: np.ndarray, q_min: np.ndarray, q_max: np.ndarray
@@ -365,6 +388,14 @@ class PostureNLP:
         st = self.solver.stats()
         q = np.asarray(res["x"]).reshape(self.n, 6)
         return q, str(st.get("return_status", "unknown")), int(st.get("iter_count", 0)), dt
+
+    def clearance_margin_m(self, q: np.ndarray) -> np.ndarray:
+        """Each waypoint's smallest clearance margin (m) of the posed pairs at ``q`` (N, 6) rad:
+        the lower-bound distance less the clearance; ``+inf`` without clearance constraints."""
+        if self.clear is None:
+            return np.full(q.shape[0], np.inf)
+        g = np.asarray(self.clear["g"].map(q.shape[0])(q.T))  # (mc, N), mm
+        return g.min(axis=0) / CLEARANCE_SCALE
 
     def objective_weight(self, task: PostureTask, q0: np.ndarray, th: np.ndarray) -> float:
         """Weight that brings the objective at the warm start to about one per waypoint.
@@ -454,15 +485,17 @@ def get_nlp(
     n: int,
     settings: SolverSettings = SolverSettings(),
     verbose: bool = False,
+    clearance: ClearanceSpec | None = None,
 ) -> PostureNLP:
-    """The cached :class:`PostureNLP` for (model, rule, n, settings, verbose)."""
+    """The cached :class:`PostureNLP` for (model, rule, n, settings, verbose, clearance)."""
     arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
-    key = (_model_key(arm), rule, n, settings, verbose)
+    ckey = clearance.key if clearance is not None and clearance.pairs else None
+    key = (_model_key(arm), rule, n, settings, verbose, ckey)
     with _SOLVERS_LOCK:
         nlp = _SOLVERS.get(key)
         if nlp is None:
             if len(_SOLVERS) > 32:
                 _SOLVERS.clear()
-            nlp = PostureNLP(arm, rule, n, settings, verbose)
+            nlp = PostureNLP(arm, rule, n, settings, verbose, clearance)
             _SOLVERS[key] = nlp
     return nlp

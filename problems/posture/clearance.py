@@ -1,0 +1,372 @@
+"""Clearance constraints of the posture NLP: the arm's capsules kept away from the cell's objects
+and from each other, closed form in CasADi with exact gradients and Hessians.
+
+Per waypoint, one constraint per checked pair (capsule - object, capsule - capsule)::
+
+    g_pair(q) = softmin_i  m_i(q)  -  r  -  c   >= 0        (in mm)
+
+* ``f_s = d_pair(p_s(q))``, ``s = 0..S-1``: the exact signed distance of points spread evenly
+  along the capsule's segment (both ends included, at most :data:`SAMPLE_SPACING_M` apart,
+  spacing ``h``) from the other body: a box's, sphere's or cylinder's signed distance function,
+  or the distance from the other capsule's segment minus its radius; ``r`` the capsule's
+  radius, ``c`` the cell's clearance.  A mesh object enters as its oriented bounding box
+  (trimesh), which holds the mesh, so its constraint is conservative; the plan's check
+  afterwards measures the mesh itself (coal).
+* ``m_i``: a lower bound of the distance's minimum between samples i and i+1
+  (:func:`_interval_bounds`).  Every body here is convex, so the signed distance along a
+  segment is a convex, 1-Lipschitz function of the arc length: it lies above the secant lines
+  of the neighbouring samples, and above ``(f_i + f_i+1 - h) / 2``.
+* ``softmin_i x_i = m - log(sum_i exp(-beta (x_i - m))) / beta`` (``m = min_i x_i``) is never
+  above the minimum (by at most ``log(S) / beta``, :data:`SOFTMIN_SHARPNESS_PER_M`).
+* So a feasible posture keeps *at least* the clearance, pair by pair, at its waypoints.  What
+  the bound gives away is measured against coal in ``tests/test_posture_clearance.py``
+  (``benchmarks/bench_collision.py`` prints it): a fraction of a millimetre along faces, a few
+  millimetres where a segment passes a box's edge or corner.
+* The NLP is local: from a warm start deep inside an object IPOPT may report the branch
+  infeasible although another posture of it is free; the branch then gets status ``collision``.
+
+Only pairs that can come near are posed (:func:`near_pairs`): a pair farther than
+:data:`NEAR_DISTANCE_M` at every warm start of every branch is left out; the plan's exact check
+after the NLP (``planner/cell_check.py``) still checks every pair.
+
+Units: m inside, constraints scaled to mm for IPOPT (:data:`CLEARANCE_SCALE`).  Frames: the
+base frame; ``shape2base`` maps a shape's own coordinates to the base frame.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from models.robot import Robot
+
+__all__ = [
+    "CLEARANCE_SCALE",
+    "CLEARANCE_TOL_M",
+    "NEAR_DISTANCE_M",
+    "SAMPLE_SPACING_M",
+    "SOFTMIN_SHARPNESS_PER_M",
+    "ClearanceSpec",
+    "PairSpec",
+    "clearance_functions",
+    "clearance_spec",
+    "distance_function",
+    "near_pairs",
+    "segment_points_sx",
+]
+
+#: Largest spacing of the sample points along a capsule's segment (m); half of it is the most
+#: the constraint gives away to the sampling.
+SAMPLE_SPACING_M = 0.04
+#: Sharpness ``beta`` of the smooth minimum over a capsule's samples (1/m): it is below the true
+#: minimum by at most ``log(S) / beta`` (1.5 mm for 20 samples).
+SOFTMIN_SHARPNESS_PER_M = 5000.0
+#: Constraints are posed in mm (m -> mm), as the position constraints.
+CLEARANCE_SCALE = 1e3
+#: A pair is posed in the NLP when it comes within this distance (m, surface to surface) at a
+#: warm start of some branch; the rest are far and left to the exact check after the NLP.
+NEAR_DISTANCE_M = 0.25
+#: A posture keeps the posed clearance to this (m): IPOPT's constraint tolerance and the
+#: Gauss-Newton polish after it move the joints by about 1e-8 rad.
+CLEARANCE_TOL_M = 1e-6
+#: Secant slopes closer than this (m/m) count as one line (the function is linear there).
+SECANT_SLOPE_EPS = 1e-9
+#: A capsule shorter than this (m) is a sphere: its centre alone is measured.
+MIN_SAMPLED_LENGTH_M = 1e-9
+#: Regularisation of the Euclidean norms (m): keeps their gradients finite at zero.
+NORM_EPS_M = 1e-9
+
+
+@dataclass(frozen=True)
+class PairSpec:
+    """One pair of the clearance constraints.
+
+    Attributes
+    ----------
+    capsule : int
+        The sampled capsule (index into the capsule model).
+    kind : {"box", "sphere", "cylinder", "capsule"}
+        What it keeps away from.
+    shape2base : ndarray, shape (4, 4)
+        The object's frame in the base frame (box, sphere, cylinder; unused for a capsule).
+    size : ndarray
+        box: half extents (3,); sphere: (radius,); cylinder: (radius, half length along z);
+        capsule: (index of the other capsule,).
+    name : str
+        ``link 3 – table`` (messages).
+    """
+
+    capsule: int
+    kind: str
+    shape2base: np.ndarray
+    size: np.ndarray
+    name: str
+
+
+@dataclass(frozen=True)
+class ClearanceSpec:
+    """The clearance constraints of one robot in one cell.
+
+    Attributes
+    ----------
+    robot : Robot
+        Its nominal DH chain places the capsules.
+    model : Any
+        The capsule model (:class:`models.collision.CapsuleModel`, tool included).
+    pairs : tuple of PairSpec
+        Every pair the plan's check checks (objects, then self pairs).
+    clearance : float
+        m.
+    """
+
+    robot: Robot
+    model: Any
+    pairs: tuple[PairSpec, ...]
+    clearance: float
+
+    @property
+    def key(self) -> str:
+        """A hash of everything the constraint functions depend on (solver cache key)."""
+        h = hashlib.sha256()
+        r = self.robot
+        for arr in (r.a, r.alpha, r.d, r.theta_offset, r.frame02base, r.flange2frame6):
+            h.update(np.ascontiguousarray(arr, dtype=float).tobytes())
+        h.update(r.convention.encode())
+        m = self.model
+        for arr in (m.frame_a, m.frame_b, m.local_a, m.local_b, m.radius):
+            h.update(np.ascontiguousarray(arr).tobytes())
+        for p in self.pairs:
+            h.update(f"{p.capsule}|{p.kind}|".encode())
+            h.update(np.ascontiguousarray(p.shape2base, dtype=float).tobytes())
+            h.update(np.ascontiguousarray(p.size, dtype=float).tobytes())
+        h.update(np.float64(self.clearance).tobytes())
+        return h.hexdigest()
+
+    def subset(self, keep: np.ndarray) -> ClearanceSpec:
+        """The spec with only the pairs ``keep`` (indices or a boolean mask)."""
+        idx = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, dtype=int)
+        return ClearanceSpec(self.robot, self.model, tuple(self.pairs[int(i)] for i in idx), self.clearance)
+
+
+def _obb(mesh: Any) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's oriented bounding box: ``box2mesh`` (4, 4) and half extents (3,), m."""
+    box = mesh.bounding_box_oriented
+    return np.asarray(box.primitive.transform, dtype=float), 0.5 * np.asarray(box.primitive.extents, dtype=float)
+
+
+def _object_pair(capsule: int, name: str, shape: Any) -> PairSpec:
+    """The pair of a capsule and a :class:`models.collision.CellShape` (a mesh as its bounding box)."""
+    T = np.asarray(shape.shape2base, dtype=float)
+    g = shape.geometry
+    if shape.kind == "box":
+        return PairSpec(capsule, "box", T, np.asarray(g.halfSide, dtype=float).reshape(3), name)
+    if shape.kind == "sphere":
+        return PairSpec(capsule, "sphere", T, np.array([float(g.radius)]), name)
+    if shape.kind == "cylinder":
+        return PairSpec(capsule, "cylinder", T, np.array([float(g.radius), float(g.halfLength)]), name)
+    if shape.kind == "mesh" and shape.mesh is not None:
+        box2mesh, half = _obb(shape.mesh)
+        return PairSpec(capsule, "box", T @ box2mesh, half, name)
+    raise ValueError(f"clearance constraint: object '{shape.name}' of kind {shape.kind!r} has no distance function")
+
+
+def clearance_spec(geom: Any) -> ClearanceSpec:
+    """Every pair a cell geometry checks, as NLP constraints.
+
+    Parameters
+    ----------
+    geom : planner.cell_check.CellGeometry or alike
+        With ``robot``, ``model`` (capsules, tool included), ``names``, ``shapes`` (base frame),
+        ``checked`` (M, K) bool, ``self_pairs`` (P, 2) and ``clearance`` (m).
+    """
+    pairs = []
+    for c in range(geom.model.n_capsules):
+        for j, s in enumerate(geom.shapes):
+            if geom.checked[c, j]:
+                pairs.append(_object_pair(c, f"{geom.names[c]} – {s.name}", s))
+    for i, j in np.asarray(geom.self_pairs, dtype=int).reshape(-1, 2):
+        # sample the longer capsule, measure from the other's segment
+        pairs.append(PairSpec(int(i), "capsule", np.eye(4), np.array([float(j)]), f"{geom.names[i]} – {geom.names[j]}"))
+    return ClearanceSpec(geom.robot, geom.model, tuple(pairs), float(geom.clearance))
+
+
+# --------------------------------------------------------------------------------------
+# Symbolic geometry
+# --------------------------------------------------------------------------------------
+
+
+def _dh_sx(robot: Robot, q: ca.SX) -> list[ca.SX]:
+    """DH frames 0..6 (4x4 SX, base frame) at ``q``, as :func:`models.collision.chain_frames`."""
+    F = [ca.SX(np.asarray(robot.frame02base, dtype=float))]
+    for i in range(6):
+        th = q[i] + float(robot.theta_offset[i])
+        ct, st = ca.cos(th), ca.sin(th)
+        al, a, d = float(robot.alpha[i]), float(robot.a[i]), float(robot.d[i])
+        ca_, sa = math.cos(al), math.sin(al)
+        if robot.convention == "standard_dh":
+            A = ca.vertcat(
+                ca.horzcat(ct, -st * ca_, st * sa, a * ct),
+                ca.horzcat(st, ct * ca_, -ct * sa, a * st),
+                ca.horzcat(0, sa, ca_, d),
+                ca.horzcat(0, 0, 0, 1),
+            )
+        else:
+            A = ca.vertcat(
+                ca.horzcat(ct, -st, 0, a),
+                ca.horzcat(st * ca_, ct * ca_, -sa, -sa * d),
+                ca.horzcat(st * sa, ct * sa, ca_, ca_ * d),
+                ca.horzcat(0, 0, 0, 1),
+            )
+        F.append(ca.mtimes(F[-1], A))
+    return F
+
+
+def _point_sx(frames: list[ca.SX], frame: int, local: np.ndarray) -> ca.SX:
+    if frame < 0:
+        return ca.SX(np.asarray(local, dtype=float))
+    T = frames[frame]
+    return ca.mtimes(T[:3, :3], ca.DM(np.asarray(local, dtype=float))) + T[:3, 3]
+
+
+def segment_points_sx(model: Any, frames: list[ca.SX], c: int) -> tuple[ca.SX, ca.SX]:
+    """End points (3,) of capsule ``c`` in the base frame (SX)."""
+    a = _point_sx(frames, int(model.frame_a[c]), model.local_a[c])
+    b = _point_sx(frames, int(model.frame_b[c]), model.local_b[c])
+    return a, b
+
+
+def _norm(v: ca.SX) -> ca.SX:
+    return ca.sqrt(ca.sumsqr(v) + NORM_EPS_M**2)
+
+
+def _sdf(p: ca.SX, pair: PairSpec, segs: list[tuple[ca.SX, ca.SX]], radius: np.ndarray) -> ca.SX:
+    """Signed distance (m) of point ``p`` (3,) from the pair's other body."""
+    if pair.kind == "capsule":
+        j = int(pair.size[0])
+        a, b = segs[j]
+        ab = b - a
+        t = ca.fmin(ca.fmax(ca.dot(p - a, ab) / (ca.sumsqr(ab) + NORM_EPS_M**2), 0.0), 1.0)
+        return _norm(p - a - t * ab) - float(radius[j])
+    T = pair.shape2base
+    local = ca.mtimes(ca.DM(T[:3, :3].T), p - ca.DM(T[:3, 3]))
+    if pair.kind == "sphere":
+        return _norm(local) - float(pair.size[0])
+    if pair.kind == "box":
+        d = ca.fabs(local) - ca.DM(pair.size)
+        outside = ca.sqrt(ca.sumsqr(ca.fmax(d, 0.0)) + NORM_EPS_M**2) - NORM_EPS_M
+        return outside + ca.fmin(ca.mmax(d), 0.0)
+    # cylinder along z: radial and axial excess
+    rho = ca.sqrt(local[0] ** 2 + local[1] ** 2 + NORM_EPS_M**2)
+    d = ca.vertcat(rho - float(pair.size[0]), ca.fabs(local[2]) - float(pair.size[1]))
+    outside = ca.sqrt(ca.sumsqr(ca.fmax(d, 0.0)) + NORM_EPS_M**2) - NORM_EPS_M
+    return outside + ca.fmin(ca.mmax(d), 0.0)
+
+
+def _softmin(x: list[ca.SX]) -> ca.SX:
+    """Smooth minimum, never above the minimum (module docstring)."""
+    if len(x) == 1:
+        return x[0]
+    v = ca.vertcat(*x)
+    m = ca.mmin(v)
+    beta = SOFTMIN_SHARPNESS_PER_M
+    return m - ca.log(ca.sum1(ca.exp(-beta * (v - m)))) / beta
+
+
+def _samples(a: np.ndarray, b: np.ndarray) -> int:
+    """Number of samples along a segment of these end points at q = 0 (its length is constant)."""
+    return max(2, int(math.ceil(float(np.linalg.norm(b - a)) / SAMPLE_SPACING_M)) + 1)
+
+
+def _interval_bounds(f: list[ca.SX], h: float) -> list[ca.SX]:
+    """Lower bounds of a convex, 1-Lipschitz function's minimum on each interval between samples.
+
+    ``f``: its values at samples ``h`` (m) apart.  On interval ``[t_i, t_i+1]`` it lies above the
+    secant lines through its neighbours (slope ``s_L`` of samples i-1, i through sample i, slope
+    ``s_R`` of samples i+1, i+2 through sample i+1; -1 and +1 at the ends, the Lipschitz bound);
+    the bound is the least value of the larger of the two lines on the interval, at their
+    crossing clamped to the interval; or, where larger, the Lipschitz bound
+    ``(f_i + f_i+1 - h) / 2`` (deep inside an object, where the secants cross kinks).
+    """
+    n = len(f)
+    out = []
+    for i in range(n - 1):
+        s_l = (f[i] - f[i - 1]) / h if i > 0 else -1.0
+        s_r = (f[i + 2] - f[i + 1]) / h if i + 2 < n else 1.0
+        den = s_r - s_l  # >= 0 for a convex function
+        safe = ca.if_else(den > SECANT_SLOPE_EPS, den, 1.0)
+        tau = ca.fmin(ca.fmax((f[i] - f[i + 1] + s_r * h) / safe, 0.0), h)
+        both = ca.fmax(f[i] + s_l * tau, f[i + 1] + s_r * (tau - h))
+        convex = ca.if_else(den > SECANT_SLOPE_EPS, both, ca.fmin(f[i], f[i + 1]))
+        out.append(ca.fmax(convex, 0.5 * (f[i] + f[i + 1] - h)))  # and the Lipschitz bound
+    return out
+
+
+def _distance_sx(spec: ClearanceSpec, q: ca.SX) -> ca.SX:
+    """The pairs' lower-bound surface distances (P,), m, at ``q`` (module docstring)."""
+    frames = _dh_sx(spec.robot, q)
+    m = spec.model
+    segs = [segment_points_sx(m, frames, c) for c in range(m.n_capsules)]
+    # segment lengths are constant: measure them at q = 0
+    f0 = ca.Function("ends0", [q], [ca.vertcat(*[ca.vertcat(a, b) for a, b in segs])])
+    ends = np.asarray(f0(np.zeros(6))).reshape(-1, 2, 3)
+    lengths = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    g = []
+    for p in spec.pairs:
+        a, b = segs[p.capsule]
+        length = float(lengths[p.capsule])
+        if length < MIN_SAMPLED_LENGTH_M:  # a sphere
+            g.append(_sdf(a, p, segs, m.radius) - float(m.radius[p.capsule]))
+            continue
+        n = _samples(ends[p.capsule, 0], ends[p.capsule, 1])
+        f = [_sdf(a + (s / (n - 1)) * (b - a), p, segs, m.radius) for s in range(n)]
+        g.append(_softmin(_interval_bounds(f, length / (n - 1))) - float(m.radius[p.capsule]))
+    return ca.vertcat(*g) if g else ca.SX(0, 1)
+
+
+def distance_function(spec: ClearanceSpec) -> ca.Function:
+    """``q (6,) -> distance (P,)``: each pair's lower-bound surface distance, m (what the
+    constraint keeps at least the clearance)."""
+    q = ca.SX.sym("q", 6)
+    return ca.Function("clearance_distance", [q], [_distance_sx(spec, q)], ["q"], ["distance"])
+
+
+def clearance_functions(spec: ClearanceSpec) -> dict[str, ca.Function]:
+    """The per-waypoint clearance functions (SX, run on CasADi's virtual machine).
+
+    Returns
+    -------
+    dict str -> casadi.Function
+        ``"g"``: q (6,) -> g (P,), mm, ``>= 0`` where every pair keeps the clearance;
+        ``"jac"``: q -> (g, dg/dq (P, 6) dense); ``"hess"``: (q, lam (P,)) -> Hessian (6, 6) of
+        ``lam . g``, dense, symmetric.
+    """
+    q = ca.SX.sym("q", 6)
+    gc = CLEARANCE_SCALE * (_distance_sx(spec, q) - spec.clearance)
+    lam = ca.SX.sym("lam", gc.shape[0])
+    H = ca.hessian(ca.dot(lam, gc), q)[0] if gc.shape[0] else ca.SX(6, 6)
+    H = 0.5 * (H + H.T)
+    return {
+        "g": ca.Function("clearance_g", [q], [gc], ["q"], ["g"]),
+        "jac": ca.Function("clearance_jac", [q], [gc, ca.densify(ca.jacobian(gc, q))], ["q"], ["g", "jac"]),
+        "hess": ca.Function("clearance_hess", [q, lam], [ca.densify(H)], ["q", "lam"], ["hess"]),
+    }
+
+
+def near_pairs(spec: ClearanceSpec, q_sets: list[np.ndarray], near_m: float = NEAR_DISTANCE_M) -> np.ndarray:
+    """Which pairs come within ``near_m`` (m) at any configuration of ``q_sets`` (each (N, 6) rad).
+
+    Returns
+    -------
+    ndarray of bool, shape (P,)
+    """
+    if not spec.pairs:
+        return np.zeros(0, dtype=bool)
+    fn = distance_function(spec)
+    q = np.vstack([np.atleast_2d(s) for s in q_sets if np.size(s)])
+    d = np.asarray(fn.map(q.shape[0])(q.T))  # (P, N)
+    return d.min(axis=1) < near_m
