@@ -44,7 +44,8 @@ from models.errors import InfeasibleError, UnreachableError
 from models.status import Status
 from models.symbolic import directional_stiffness
 from problems.compensation import CompensationResult, CompensationStatus, closed_form, exact, uncompensated
-from problems.posture import BranchResult, PostureResult, PostureStatus, optimise_postures
+from problems.posture import BranchResult, BranchStatus, PostureResult, PostureStatus, optimise_postures
+from problems.posture.solve import rechoose
 from problems.problem import Problem
 
 from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
@@ -384,18 +385,62 @@ def plan(
         res.status, res.reason = _POSTURE_TO_PLAN[ps.status], ps.reason
         return res
     res.warnings += _posture_warnings(ps)
+    _after_posture(res, tick, progress)
+    set_aside: list[str] = []
+    while _trajectory_collides(res):  # the next collision-free branch, if there is one
+        assert res.posture is not None and res.cell is not None and res.cell.trajectory is not None
+        ps, b = res.posture, res.posture.chosen
+        assert b is not None
+        why = f"its controller's trajectory ({res.controller}): {res.cell.trajectory.reason}"
+        branches = dict(ps.branches)
+        branches[b] = replace(branches[b], status=BranchStatus.COLLISION, reason=why)
+        res.cell.branches[b] = res.cell.trajectory
+        nxt = rechoose(replace(ps, branches=branches))
+        if not nxt.ok:
+            res.reason += (
+                f"; every other branch was set aside too ({len(set_aside)} for their trajectories, the rest at "
+                "their waypoints: see the branch table)"
+            )
+            break
+        set_aside.append(f"branch {ps.labels[b]} set aside: {why}")
+        check = replace(res.cell, waypoints=res.cell.branches[nxt.chosen], trajectory=None, trajectory_method=None)
+        res = PlanResult(PlanStatus.OK, "", problem, nxt, stage_times_s=times)
+        res.cell = check
+        res.warnings += _posture_warnings(nxt) + set_aside
+        _after_posture(res, tick, progress)
+    return res
+
+
+def _trajectory_collides(res: PlanResult) -> bool:
+    """Whether the plan failed only because the controller's trajectory meets the cell."""
+    from models.collision import ClearanceStatus
+
+    return (
+        res.status is PlanStatus.COLLISION
+        and res.cell is not None
+        and res.cell.trajectory is not None
+        and res.cell.trajectory.status is not ClearanceStatus.OK
+    )
+
+
+def _after_posture(
+    res: PlanResult, tick: Callable[[str, int, int], None], progress: Callable[[str, int, int], None] | None
+) -> None:
+    """Compensation, timing, dynamic compensation and the trajectory's cell check of the chosen
+    branch (each stage only if the ones before succeeded)."""
+    problem, times = res.problem, res.stage_times_s
     tick("compensation", 0, 1)
     t0 = time.perf_counter()
     _compensate(res)
     times["compensation_s"] = time.perf_counter() - t0
     tick("compensation", 1, 1)
     if not res.ok:
-        return res
+        return
     if problem.n < 2:
         res.warnings.append("single waypoint: nothing to time-parametrise")
         if res.cell is not None:
             _cell_trajectory(res)
-        return res
+        return
     t0 = time.perf_counter()
     _time(res, progress)
     times["timing_s"] = time.perf_counter() - t0
@@ -405,7 +450,6 @@ def plan(
         times["dynamic_compensation_s"] = time.perf_counter() - t0
     if res.ok and res.cell is not None:
         _cell_trajectory(res)
-    return res
 
 
 def _cell_branches(res: PlanResult, geom: Any, optimise: bool) -> None:

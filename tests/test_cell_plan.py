@@ -15,7 +15,10 @@ import coal
 import numpy as np
 import pytest
 
+from pathlib import Path
+
 from models.collision import ClearanceStatus
+from planner.cell_check import cell_geometry, segments
 from planner.plan import PlanStatus, plan
 from problems.cell import Cell, CellObject
 from problems.posture import BranchStatus
@@ -242,3 +245,31 @@ def test_the_shipped_cell_problem_shows_the_choice():
         for q in [res.exact.q_command, *_timed_samples(res)]:
             d = _thin_distance(res.problem, q, obj, skip_tool=obj.role == "workpiece")
             assert d.min() >= cell.clearance, obj.name
+
+
+def test_a_branch_whose_trajectory_alone_meets_the_cell_is_set_aside_and_the_next_planned(tmp_path):
+    """Three waypoints 0.35 m apart: a small ball on the path link 5 sweeps between two waypoints
+    (the waypoints clear it); the plan sets that branch aside with the time and the pair and plans
+    the next branch, whose trajectory keeps the clearance by the independent check."""
+    f = tmp_path / "three.toml"
+    f.write_text(
+        (Path(__file__).parents[1] / "problems/files/cell_table.toml").read_text().replace("points = 29", "points = 3")
+    )
+    problem = load_problem(str(f))
+    base = plan(problem)
+    assert base.ok, base.reason
+    tr = base.trajectories[base.controller]
+    geom = cell_geometry(problem.robot, problem.cell)
+    c = geom.names.index("link 5")
+    ball = CellObject(
+        "ball", "sphere", np.array([0.005]), _at(segments(geom, tr.q)[int(0.3 * len(tr.t)), c].mean(axis=0))
+    )
+    res = plan(replace(problem, cell=Cell(problem.cell.objects + (ball,), 0.005)))
+    assert res.ok, res.reason
+    aside = [r for r in res.posture.branches.values() if "controller's trajectory" in r.reason]
+    assert aside and all(r.status is BranchStatus.COLLISION for r in aside)
+    assert any("set aside" in w and "ball" in w and "t = " in w for w in res.warnings)
+    assert res.posture.chosen != base.posture.chosen
+    final = res.trajectories[res.controller]
+    assert res.cell.trajectory.status is ClearanceStatus.OK
+    assert _thin_distance(res.problem, final.q, ball).min() > 0.0  # independently

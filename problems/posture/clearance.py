@@ -46,9 +46,12 @@ import numpy as np
 from models.robot import Robot
 
 __all__ = [
+    "CLEARANCE_EXACT_HESSIAN",
+    "CLEARANCE_MAX_NODES",
     "CLEARANCE_SCALE",
     "CLEARANCE_TOL_M",
     "NEAR_DISTANCE_M",
+    "NLP_MAX_PENETRATION_M",
     "SAMPLE_SPACING_M",
     "SOFTMIN_SHARPNESS_PER_M",
     "ClearanceSpec",
@@ -71,6 +74,18 @@ CLEARANCE_SCALE = 1e3
 #: A pair is posed in the NLP when it comes within this distance (m, surface to surface) at a
 #: warm start of some branch; the rest are far and left to the exact check after the NLP.
 NEAR_DISTANCE_M = 0.25
+#: With clearance constraints, a long path's NLP is solved on at most this many nodes (each
+#: waypoint's constraints cost about as much as its stage functions ten times over); the densified
+#: postures between the nodes are checked exactly by the plan afterwards.
+CLEARANCE_MAX_NODES = 250
+#: Whether the constraints' second derivatives enter the Lagrangian Hessian.  Left out: on the
+#: shipped cell cases IPOPT then takes about twice the iterations at a third of their cost, to the
+#: same postures (measured: cell_table 9.3 s vs 11.6 s, a ceiling case 13.9 s vs 20.0 s).
+CLEARANCE_EXACT_HESSIAN = False
+#: A branch whose warm start lies deeper than this (m) inside some pair's clearance is not given to
+#: the NLP (changing the posture along a path does not pull a link a table's depth out of it; IPOPT
+#: would spend its iterations proving the branch infeasible); the plan's check then sets it aside.
+NLP_MAX_PENETRATION_M = 0.05
 #: A posture keeps the posed clearance to this (m): IPOPT's constraint tolerance and the
 #: Gauss-Newton polish after it move the joints by about 1e-8 rad.
 CLEARANCE_TOL_M = 1e-6
@@ -306,15 +321,21 @@ def _interval_bounds(f: list[ca.SX], h: float) -> list[ca.SX]:
     return out
 
 
-def _distance_sx(spec: ClearanceSpec, q: ca.SX) -> ca.SX:
-    """The pairs' lower-bound surface distances (P,), m, at ``q`` (module docstring)."""
+def _ends_sx(spec: ClearanceSpec, q: ca.SX) -> tuple[ca.SX, np.ndarray, np.ndarray]:
+    """Every capsule's end points at ``q`` as one vector ``E`` (6 M,: a then b per capsule, base
+    frame, m), and the end points (M, 2, 3) and segment lengths (M,) at q = 0 (constant)."""
     frames = _dh_sx(spec.robot, q)
     m = spec.model
-    segs = [segment_points_sx(m, frames, c) for c in range(m.n_capsules)]
-    # segment lengths are constant: measure them at q = 0
-    f0 = ca.Function("ends0", [q], [ca.vertcat(*[ca.vertcat(a, b) for a, b in segs])])
-    ends = np.asarray(f0(np.zeros(6))).reshape(-1, 2, 3)
-    lengths = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    E = ca.vertcat(*[ca.vertcat(*segment_points_sx(m, frames, c)) for c in range(m.n_capsules)])
+    ends = np.asarray(ca.Function("ends0", [q], [E])(np.zeros(6))).reshape(-1, 2, 3)
+    return E, ends, np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+
+
+def _distance_sx(spec: ClearanceSpec, q: ca.SX) -> ca.SX:
+    """The pairs' lower-bound surface distances (P,), m, at ``q`` (module docstring)."""
+    E, ends, lengths = _ends_sx(spec, q)
+    m = spec.model
+    segs = [(E[6 * c : 6 * c + 3], E[6 * c + 3 : 6 * c + 6]) for c in range(m.n_capsules)]
     g = []
     for p in spec.pairs:
         a, b = segs[p.capsule]
@@ -335,8 +356,15 @@ def distance_function(spec: ClearanceSpec) -> ca.Function:
     return ca.Function("clearance_distance", [q], [_distance_sx(spec, q)], ["q"], ["distance"])
 
 
-def clearance_functions(spec: ClearanceSpec) -> dict[str, ca.Function]:
+def clearance_functions(spec: ClearanceSpec, exact_hessian: bool = CLEARANCE_EXACT_HESSIAN) -> dict[str, ca.Function]:
     """The per-waypoint clearance functions (SX, run on CasADi's virtual machine).
+
+    Parameters
+    ----------
+    spec : ClearanceSpec
+    exact_hessian : bool
+        False: the constraints' second derivatives are left out of the Lagrangian Hessian (the
+        objective's are kept); cheaper per iteration, more iterations.
 
     Returns
     -------
@@ -348,8 +376,11 @@ def clearance_functions(spec: ClearanceSpec) -> dict[str, ca.Function]:
     q = ca.SX.sym("q", 6)
     gc = CLEARANCE_SCALE * (_distance_sx(spec, q) - spec.clearance)
     lam = ca.SX.sym("lam", gc.shape[0])
-    H = ca.hessian(ca.dot(lam, gc), q)[0] if gc.shape[0] else ca.SX(6, 6)
-    H = 0.5 * (H + H.T)
+    if exact_hessian and gc.shape[0]:
+        H = ca.hessian(ca.dot(lam, gc), q)[0]
+        H = 0.5 * (H + H.T)
+    else:
+        H = ca.SX(6, 6)
     return {
         "g": ca.Function("clearance_g", [q], [gc], ["q"], ["g"]),
         "jac": ca.Function("clearance_jac", [q], [gc, ca.densify(ca.jacobian(gc, q))], ["q"], ["g", "jac"]),

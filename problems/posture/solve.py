@@ -35,7 +35,13 @@ from problems.posture.task import (
     SolverSettings,
 )
 from problems.posture import dense
-from problems.posture.clearance import CLEARANCE_TOL_M, ClearanceSpec, near_pairs
+from problems.posture.clearance import (
+    CLEARANCE_MAX_NODES,
+    CLEARANCE_TOL_M,
+    NLP_MAX_PENETRATION_M,
+    ClearanceSpec,
+    near_pairs,
+)
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
 from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
@@ -143,8 +149,10 @@ def optimise_postures(
     robot = arm.nominal
     model = model or arm.kinematics
     ik = ik or ik_solver(robot)
-    if task.n > dense.POSTURE_MAX_NODES:
-        return _on_nodes(arm, task, home_q, settings, verbose, model, ik, optimise, clearance)
+    posed = clearance is not None and bool(clearance.pairs)
+    max_nodes = CLEARANCE_MAX_NODES if posed else dense.POSTURE_MAX_NODES
+    if task.n > max_nodes:
+        return _on_nodes(arm, task, home_q, settings, verbose, model, ik, optimise, clearance, max_nodes)
     freedom, note = analyse_freedom(robot, task.rule)
     ws = warm_starts(ik, model, task)
     if not arm.geometry_is_nominal:
@@ -190,9 +198,10 @@ def _on_nodes(
     ik: IKSolver,
     optimise: bool,
     clearance: ClearanceSpec | None = None,
+    max_nodes: int | None = None,
 ) -> PostureResult:
     """A long path: the NLP on nodes, densified (:mod:`problems.posture.dense`)."""
-    nodes = dense.node_indices(task.n)
+    nodes = dense.node_indices(task.n, max_nodes)
     res = optimise_postures(
         arm, dense.node_task(task, nodes), home_q, settings, verbose, model, ik, optimise, clearance
     )
@@ -305,6 +314,20 @@ def _optimised_branch(
     qa, err_a, cost_a = _analytic_of(model, task, ws, b)
     base = qa if qa is not None else bp_warm.q
     sign = branch_signs(ik, bp_warm.q)
+    deep = nlp.clearance_margin_m(bp_warm.q)
+    if deep.min() < -NLP_MAX_PENETRATION_M:  # a posture change does not pull a link out of an object
+        k = int(np.argmin(deep))
+        err = linear_error(model, base, task.load)
+        why = (
+            f"not optimised: its warm start is {-deep[k] * 1e3:.0f} mm inside the cell's clearance at waypoint {k} "
+            f"(more than {NLP_MAX_PENETRATION_M * 1e3:.0f} mm); the "
+            + ("analytic posture" if qa is not None else "warm start")
+            + " is kept"
+        )
+        return BranchResult(
+            b, BranchStatus.SOLVER_FAILED, why, base, qa, bp_warm.q, wname, float(np.sum(err**2)), cost_a, wcost,
+            err, err_a,
+        )  # fmt: skip
     q_opt, ip_status, iters, dt = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
     q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
     problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
