@@ -377,7 +377,7 @@ def choose_collision_free(
             branches[b] = replace(branches[b], status=BranchStatus.COLLISION, reason=c.reason)
     for b, c in kept.items():  # the NLP found no posture that keeps the clearance
         if c.status is not ClearanceStatus.OK:
-            why = f"the NLP found no posture that keeps the clearance ({branches[b].reason}): {c.reason}"
+            why = f"{c.reason} (posture NLP: {branches[b].reason})"
             branches[b] = replace(branches[b], status=BranchStatus.COLLISION, reason=why)
             check.branches[b] = c
     out = rechoose(replace(ps, branches=branches))

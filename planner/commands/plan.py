@@ -142,12 +142,16 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
     for b, why in ps.rejected.items():
         print(f"  {ps.labels[b]:<{w}}rejected: {why}")
     g = s.get("gain", {})
+    vs_default = g.get("vs_default")
+    default = (
+        f"gain x{vs_default:.3f} over the default branch at its analytic posture"
+        if vs_default is not None and np.isfinite(vs_default)
+        else "no gain over the default branch (the branch nearest home has no usable posture)"
+    )
     print(
-        f"chosen branch {s['chosen_branch']} (default {s['default_branch']}): RMS load-induced error "
-        f"{ps.best.rms_error_m * 1e3:.4f} mm to first order (exact equilibrium: the table below); "
-        f"gain x{g.get('vs_default', float('nan')):.3f} over the default "
-        f"branch at its analytic posture, x{g.get('vs_best_analytic', float('nan')):.3f} over the best "
-        f"analytic posture"
+        f"chosen branch {s['chosen_branch']} (default {s['default_branch'] or 'none usable'}): RMS load-induced "
+        f"error {ps.best.rms_error_m * 1e3:.4f} mm to first order (exact equilibrium: the table below); "
+        f"{default}, x{g.get('vs_best_analytic', float('nan')):.3f} over the best analytic posture"
     )
     if "cell" in s:
         for line in cell_lines(s["cell"]):

@@ -1,5 +1,6 @@
 """Clearance constraints of the posture NLP: the arm's capsules kept away from the cell's objects
-and from each other, closed form in CasADi with exact gradients and Hessians.
+and from each other, closed form in CasADi with exact gradients (and Hessians, which the NLP leaves
+out by default: :data:`CLEARANCE_EXACT_HESSIAN`).
 
 Per waypoint, one constraint per checked pair (capsule - object, capsule - capsule)::
 
@@ -19,11 +20,12 @@ Per waypoint, one constraint per checked pair (capsule - object, capsule - capsu
 * ``softmin_i x_i = m - log(sum_i exp(-beta (x_i - m))) / beta`` (``m = min_i x_i``) is never
   above the minimum (by at most ``log(S) / beta``, :data:`SOFTMIN_SHARPNESS_PER_M`).
 * So a feasible posture keeps *at least* the clearance, pair by pair, at its waypoints.  What
-  the bound gives away is measured against coal in ``tests/test_posture_clearance.py``
-  (``benchmarks/bench_collision.py`` prints it): a fraction of a millimetre along faces, a few
-  millimetres where a segment passes a box's edge or corner.
-* The NLP is local: from a warm start deep inside an object IPOPT may report the branch
-  infeasible although another posture of it is free; the branch then gets status ``collision``.
+  the bound gives away is measured against coal in ``tests/test_posture_clearance.py``: a
+  fraction of a millimetre along faces, a few millimetres where a segment passes a box's edge or
+  corner.
+* The NLP is local: from a warm start inside an object IPOPT may report the branch infeasible
+  although another posture of it is free; the branch then gets status ``collision``.  A branch
+  deeper than :data:`NLP_MAX_PENETRATION_M` at its warm start is not given to the NLP.
 
 Only pairs that can come near are posed (:func:`near_pairs`): a pair farther than
 :data:`NEAR_DISTANCE_M` at every warm start of every branch is left out; the plan's exact check
