@@ -150,6 +150,7 @@ _TIMING_ENTRY = Table(
 _BRANCH_ENTRY = Table(
     fields={
         "status": Text(choices=_statuses("problems.posture.task", "BranchStatus")),
+        "reason": _maybe_text(),
         "posture": _maybe_text(),
         **{k: Number(unit="m^2", lo=0.0, nullable=True) for k in ("cost", "cost_analytic", "cost_warm_start")},
         **{

@@ -552,10 +552,11 @@ def _branch_table(s: Mapping[str, Any]) -> Table | None:
         name = f"{label} ({', '.join(marks)})" if marks else str(label)
         posture = str(info.get("posture") or branch_words.short(str(label)))
         status = str(info.get("status", "?"))
-        rows.append(
-            [Cell(name), Cell(posture), Cell(branch_words.status_text(status))]
-            + [value_cell(s, f"branches.{label}.{k}") for k in keys]
-        )
+        text = branch_words.status_text(status)
+        reason = info.get("reason")
+        if status == "collision" and isinstance(reason, str) and reason:
+            text = f"set aside: {reason.split(' (posture NLP')[0]}"  # the pair, the waypoint, the overlap
+        rows.append([Cell(name), Cell(posture), Cell(text)] + [value_cell(s, f"branches.{label}.{k}") for k in keys])
     diff = ""
     ci = br.get(chosen) if isinstance(br.get(chosen), Mapping) else {}
     a, b = ci.get("rms_error_mm"), ci.get("rms_error_equilibrium_mm")
