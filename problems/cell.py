@@ -266,15 +266,9 @@ class CellObject:
 
     def to_dict(self) -> dict[str, Any]:
         """The object in the problem-file schema (SI units, radians, base frame)."""
-        from models.transforms import matrix_to_rpy
+        from models.collision.tool import shape_to_dict
 
-        d: dict[str, Any] = {"name": self.name, "shape": self.shape}
-        if self.shape == "mesh":
-            d["file"], d["scale"] = self.mesh_file, self.mesh_scale
-        else:
-            d["size"] = [float(v) for v in self.size]
-        d["xyz"] = [float(v) for v in self.object2base[:3, 3]]
-        d["rpy"] = [float(v) for v in matrix_to_rpy(self.object2base[:3, :3])]
+        d = shape_to_dict(self.name, self.shape, self.size, self.object2base, self.mesh_file, self.mesh_scale)
         d["role"] = self.role
         return d
 

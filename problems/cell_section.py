@@ -249,15 +249,7 @@ def _parse_tool_element(where: str, key: str, tab: Mapping[str, Any], base_dir: 
         raise _err(
             where, f"{key}.shape", f"must be one of {list(TOOL_ELEMENT_SHAPES)} (tool element '{name}'), got {shape!r}"
         )
-    xyz = _vector(where, f"{key}.xyz", tab.get("xyz", [0.0, 0.0, 0.0]), 3)
-    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-        raise _err(
-            where,
-            f"{key}.xyz",
-            f"= {xyz.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres (millimetres given?)",
-        )
-    rpy = _rpy(where, tab, f"{key}.")
-    element2flange = transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz)
+    element2flange = _pose(where, key, tab)
     if shape == "mesh":
         if "size" in tab:
             raise _err(
@@ -269,6 +261,20 @@ def _parse_tool_element(where: str, key: str, tab: Mapping[str, Any], base_dir: 
         if k in tab:
             raise _err(where, f"{key}.{k}", f"only applies to shape 'mesh' (tool element '{name}' is a {shape})")
     return ToolElement(name, shape, _size(where, key, name, shape, tab, "tool element"), element2flange)
+
+
+def _pose(where: str, key: str, tab: Mapping[str, Any]) -> np.ndarray:
+    """The table's pose from ``xyz`` (m, checked plausible) and ``rpy`` / ``rpy_deg``: 4x4, mapping
+    the shape's coordinates to its frame's."""
+    xyz = _vector(where, f"{key}.xyz", tab.get("xyz", [0.0, 0.0, 0.0]), 3)
+    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
+        raise _err(
+            where,
+            f"{key}.xyz",
+            f"= {xyz.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres (millimetres given?)",
+        )
+    rpy = _rpy(where, tab, f"{key}.")
+    return transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz)
 
 
 def _parse_object(
@@ -288,15 +294,7 @@ def _parse_object(
     role = tab.get("role", "obstacle")
     if role not in OBJECT_ROLES:
         raise _err(where, f"{key}.role", f"must be one of {list(OBJECT_ROLES)} (object '{name}'), got {role!r}")
-    xyz = _vector(where, f"{key}.xyz", tab.get("xyz", [0.0, 0.0, 0.0]), 3)
-    if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-        raise _err(
-            where,
-            f"{key}.xyz",
-            f"= {xyz.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres (millimetres given?)",
-        )
-    rpy = _rpy(where, tab, f"{key}.")
-    object2frame = transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz)
+    object2frame = _pose(where, key, tab)
     object2base = _in_base(where, key, tab.get("frame", "base"), object2frame, program2base)
     if shape == "mesh":
         if "size" in tab:

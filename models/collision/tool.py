@@ -92,6 +92,23 @@ def _rigid(T: Any, what: str) -> np.ndarray:
     return A
 
 
+def shape_to_dict(
+    name: str, shape: str, size: np.ndarray, shape2frame: np.ndarray, mesh_file: str | None, mesh_scale: float
+) -> dict[str, Any]:
+    """A shape (cell object or tool element) in the problem-file schema: name, shape, size (or a
+    mesh's file and scale), and its pose ``shape2frame`` as xyz (m) and rpy (rad)."""
+    from ..transforms import matrix_to_rpy
+
+    d: dict[str, Any] = {"name": name, "shape": shape}
+    if shape == "mesh":
+        d["file"], d["scale"] = mesh_file, mesh_scale
+    else:
+        d["size"] = [float(v) for v in size]
+    d["xyz"] = [float(v) for v in shape2frame[:3, 3]]
+    d["rpy"] = [float(v) for v in matrix_to_rpy(shape2frame[:3, :3])]
+    return d
+
+
 @dataclass(frozen=True, eq=False)
 class ToolElement:
     """One element of the tool's body, placed in the flange frame.
@@ -158,16 +175,7 @@ class ToolElement:
 
     def to_dict(self) -> dict[str, Any]:
         """The element in the problem-file schema (``[[robot.tool.body]]``: SI, radians, flange frame)."""
-        from ..transforms import matrix_to_rpy
-
-        d: dict[str, Any] = {"name": self.name, "shape": self.shape}
-        if self.shape == "mesh":
-            d["file"], d["scale"] = self.mesh_file, self.mesh_scale
-        else:
-            d["size"] = [float(v) for v in self.size]
-        d["xyz"] = [float(v) for v in self.element2flange[:3, 3]]
-        d["rpy"] = [float(v) for v in matrix_to_rpy(self.element2flange[:3, :3])]
-        return d
+        return shape_to_dict(self.name, self.shape, self.size, self.element2flange, self.mesh_file, self.mesh_scale)
 
 
 @dataclass(frozen=True)
