@@ -58,6 +58,33 @@ class EquilibriumResult:
 
 
 @dataclass
+class CampaignFrame:
+    """One measurement campaign of a model identified from several.
+
+    Attributes
+    ----------
+    name : str
+        The campaign's name (by default its data file's stem), unique within the model.
+    base2meas : ndarray, shape (4, 4)
+        Its registration: base-frame coordinates -> that campaign's measurement-frame coordinates, m.
+    n_rows : int
+        Rows of the campaign used in the fit.
+    data : str
+        The data file it was read from.
+    registration_cov : ndarray, shape (6, 6), or None
+        Covariance of its registration in the model's registration parameters ``reg.t`` (m) then
+        ``reg.w`` (Cayley vector of the rotation correction applied on the measurement side,
+        around the rotation of ``base2meas``), SI.
+    """
+
+    name: str
+    base2meas: np.ndarray
+    n_rows: int = 0
+    data: str = ""
+    registration_cov: np.ndarray | None = None
+
+
+@dataclass
 class ArmModel:
     """A robot's kinematic chain and deflection model (SI units).
 
@@ -103,6 +130,23 @@ class ArmModel:
     effect_const : dict of str to ndarray
         Data-dependent constant blocks of effects by key (e.g. ``error_map.freq``, cycles/rev, and
         ``error_map.range``, rad, of :mod:`models.effects.joint_error_map`); others keep their defaults.
+    covariance : ndarray, shape (k, k), or None
+        Covariance of the free parameters of the identification, SI (units of :data:`theta`'s
+        entries), in the order of :attr:`covariance_names`; None for a nominal model or a model
+        file written before the covariance was stored (format 1).
+    covariance_names : list of str
+        The parameter names (``models.effects.PARAM_NAMES``) of the rows of :attr:`covariance`.
+    residual_sigma_m : float or None
+        Standard deviation per axis of the identification's residual (inlier position rows,
+        corrected for the free parameters: ``sqrt(sum r^2 / (3 n - k))``), m: the part of a
+        prediction's error no parameter explains (noise and what the model lacks).
+    joint_range_rad : ndarray, shape (6, 2), or None
+        Smallest and largest commanded joint angle of the identification data, rad (every
+        campaign): beyond them the model is extrapolated (:func:`problems.identify.uncertainty`).
+    campaigns : list of CampaignFrame
+        The measurement campaigns the model was identified from, each with its own registration
+        (base frame -> that campaign's measurement frame); the model's own registration
+        (:meth:`base2meas`) is the last campaign's.  Empty for a one-campaign model.
     source, sha256 : str
         Where the model was read from and the file's hash (empty when built in memory).
     """
@@ -124,6 +168,11 @@ class ArmModel:
     tcp_correction_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     torque_range_Nm: np.ndarray | None = None
     effect_const: dict[str, np.ndarray] = field(default_factory=dict)
+    covariance: np.ndarray | None = None
+    covariance_names: list[str] = field(default_factory=list)
+    residual_sigma_m: float | None = None
+    joint_range_rad: np.ndarray | None = None
+    campaigns: list[CampaignFrame] = field(default_factory=list)
     source: str = ""
     sha256: str = ""
 
@@ -206,6 +255,36 @@ class ArmModel:
     def joint_compliance(self) -> np.ndarray:
         """Linear joint-spring compliances ``c0 (1 + s)``, rad/(N*m), (6,)."""
         return (1.0 / self.nominal.stiffness) * (1.0 + self.theta[fx.GROUP_SLICES["stiffness.s"]])
+
+    def campaign_names(self) -> list[str]:
+        """Names of the campaigns the model was identified from (empty for one campaign)."""
+        return [c.name for c in self.campaigns]
+
+    def for_campaign(self, name: str | None) -> ArmModel:
+        """The model with campaign ``name``'s registration (None: the model as it is, i.e. the
+        last campaign's).  Raises ``KeyError`` naming the campaigns for an unknown name."""
+        if name is None:
+            return self
+        for c in self.campaigns:
+            if c.name == name:
+                theta = self.theta.copy()
+                theta[fx.GROUP_SLICES["reg.t"]] = c.base2meas[:3, 3]
+                theta[fx.GROUP_SLICES["reg.w"]] = 0.0
+                cov = self.covariance
+                if cov is not None and c.registration_cov is not None:
+                    cov = cov.copy()
+                    reg = list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.t"]] + fx.PARAM_NAMES[fx.GROUP_SLICES["reg.w"]])
+                    idx = [self.covariance_names.index(n) if n in self.covariance_names else -1 for n in reg]
+                    for a, ia in enumerate(idx):
+                        if ia < 0:
+                            continue
+                        cov[ia, :] = 0.0
+                        cov[:, ia] = 0.0
+                        for b, ib in enumerate(idx):
+                            if ib >= 0:
+                                cov[ia, ib] = c.registration_cov[a, b]
+                return replace(self, theta=theta, R0=np.array(c.base2meas[:3, :3], dtype=float), covariance=cov)
+        raise KeyError(name)
 
     def base2meas(self) -> np.ndarray:
         """Identified measurement-frame registration (4, 4): base-frame -> measurement-frame coordinates."""

@@ -17,13 +17,18 @@ from typing import Any
 import numpy as np
 
 from . import effects as fx
-from .arm import ArmModel
+from .arm import ArmModel, CampaignFrame
 from .effects import GROUP_SLICES, LIBRARY, make_layout
 from .robot import BUILTIN_ROBOTS, Robot, RobotFileError, load_robot, robot_from_dict
 from .transforms import matrix_to_rotvec, rotvec_to_matrix
 
-#: Format version of the ``[identified]`` table.
-MODEL_FORMAT = 1
+#: Format version of the ``[identified]`` table written (2: the parameters' covariance, the
+#: identified joint ranges and the campaigns; see ``docs/identification.md``).
+MODEL_FORMAT = 2
+#: Format versions read (a format-1 file has no covariance: no predicted sigma).
+MODEL_FORMATS_READ = (1, 2)
+#: A covariance read is symmetric when ``|C_ij - C_ji| <= tol sqrt(C_ii C_jj)``.
+COVARIANCE_SYMMETRY_TOL = 1e-9
 
 _FOLDED = ("joint_offset.dtheta", "geometric.da", "geometric.dalpha", "geometric.dd", "stiffness.s")
 
@@ -105,8 +110,100 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
     }
     if model.noise_sigma_m is not None:
         ident["noise_sigma_m"] = float(model.noise_sigma_m)
+    if model.covariance is not None and model.covariance_names:
+        C = np.asarray(model.covariance, dtype=float)
+        ident["covariance"] = {
+            "names": list(model.covariance_names),
+            "matrix": [[float(v) for v in row] for row in 0.5 * (C + C.T)],
+        }
+    if model.residual_sigma_m is not None:
+        ident["residual_sigma_m"] = float(model.residual_sigma_m)
+    if model.joint_range_rad is not None:
+        ident["joint_range_rad"] = [[float(v) for v in row] for row in np.asarray(model.joint_range_rad)]
+    if model.campaigns:
+        ident["campaigns"] = [_campaign_to_dict(c) for c in model.campaigns]
     d["identified"] = ident
     return d
+
+
+def _campaign_to_dict(c: CampaignFrame) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "name": c.name,
+        "base2meas": {
+            "xyz": [float(v) for v in c.base2meas[:3, 3]],
+            "rotvec": [float(v) for v in matrix_to_rotvec(c.base2meas[:3, :3])],
+        },
+        "rows": int(c.n_rows),
+        "data": str(c.data),
+    }
+    if c.registration_cov is not None:
+        out["registration_cov"] = [[float(v) for v in row] for row in np.asarray(c.registration_cov)]
+    return out
+
+
+def _matrix(where: str, key: str, v: Any, rows: int, cols: int) -> np.ndarray:
+    if not isinstance(v, list) or len(v) != rows:
+        raise RobotFileError(f"{where}: [identified] key '{key}' must be a list of {rows} rows of {cols} numbers")
+    return np.array([_nums(where, f"{key}[{i}]", r, cols) for i, r in enumerate(v)], dtype=float).reshape(rows, cols)
+
+
+def _covariance_from(where: str, ident: dict[str, Any]) -> tuple[np.ndarray | None, list[str]]:
+    """The ``[identified.covariance]`` table: names (known parameters, no repeats) and a symmetric
+    matrix with a non-negative diagonal."""
+    cov = ident.get("covariance")
+    if cov is None:
+        return None, []
+    names = cov["names"]
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise RobotFileError(f"{where}: [identified.covariance] key 'names' must be a list of parameter names")
+    unknown = [n for n in names if n not in fx.PARAM_NAMES]
+    if unknown or len(set(names)) != len(names):
+        raise RobotFileError(
+            f"{where}: [identified.covariance] names {unknown or 'repeated'}: expected distinct parameter names "
+            "(docs/identification.md)"
+        )
+    C = _matrix(where, "covariance.matrix", cov["matrix"], len(names), len(names))
+    scale = np.sqrt(np.outer(np.abs(np.diag(C)), np.abs(np.diag(C))))
+    if (np.abs(C - C.T) > COVARIANCE_SYMMETRY_TOL * scale + 1e-300).any() or (np.diag(C) < 0).any():
+        raise RobotFileError(
+            f"{where}: [identified.covariance] key 'matrix' must be symmetric with a non-negative diagonal"
+        )
+    return C, list(names)
+
+
+def _joint_range(where: str, ident: dict[str, Any]) -> np.ndarray | None:
+    """``joint_range_rad``: 6 rows ``[lo, hi]``, rad, lo <= hi (None when absent)."""
+    if "joint_range_rad" not in ident:
+        return None
+    r = _matrix(where, "joint_range_rad", ident["joint_range_rad"], 6, 2)
+    if (r[:, 0] > r[:, 1]).any():
+        raise RobotFileError(f"{where}: [identified] key 'joint_range_rad' must hold [lo, hi] rows with lo <= hi")
+    return r
+
+
+def _campaigns_from(where: str, ident: dict[str, Any]) -> list[CampaignFrame]:
+    out = []
+    for k, c in enumerate(ident.get("campaigns", [])):
+        key = f"campaigns[{k}]"
+        if not isinstance(c, dict) or not isinstance(c.get("name"), str) or not c["name"]:
+            raise RobotFileError(f"{where}: [identified] key '{key}' must be a table with a non-empty 'name'")
+        T = np.eye(4)
+        T[:3, :3] = rotvec_to_matrix(_nums(where, f"{key}.base2meas.rotvec", c["base2meas"]["rotvec"], 3))
+        T[:3, 3] = _nums(where, f"{key}.base2meas.xyz", c["base2meas"]["xyz"], 3)
+        rc = c.get("registration_cov")
+        out.append(
+            CampaignFrame(
+                name=c["name"],
+                base2meas=T,
+                n_rows=int(c.get("rows", 0)),
+                data=str(c.get("data", "")),
+                registration_cov=None if rc is None else _matrix(where, f"{key}.registration_cov", rc, 6, 6),
+            )
+        )
+    names = [c.name for c in out]
+    if len(set(names)) != len(names):
+        raise RobotFileError(f"{where}: [identified] campaigns {names}: names must be distinct")
+    return out
 
 
 def _nums(where: str, key: str, v: Any, n: int) -> np.ndarray:
@@ -138,8 +235,10 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
         )
     try:
         fmt = ident.get("format")
-        if fmt != MODEL_FORMAT:
-            raise RobotFileError(f"{where}: [identified] format {fmt!r} is not supported (expected {MODEL_FORMAT})")
+        if fmt not in MODEL_FORMATS_READ:
+            raise RobotFileError(
+                f"{where}: [identified] format {fmt!r} is not supported (expected one of {list(MODEL_FORMATS_READ)})"
+            )
         nom = ident["nominal"]
         d = robot.to_dict()
         d.pop("identified", None)
@@ -178,6 +277,7 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
         knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"], 6 * fx.N_KNOTS).reshape(
             6, fx.N_KNOTS
         )
+        cov, cov_names = _covariance_from(where, ident)
         effect_const = {}
         for key, vals in dict(c.get("effect", {})).items():
             if key not in fx.CONST_SLICES or key.split(".")[0] in ("dh", "tool", "gravity", "compliance0", "tau_scale"):
@@ -204,6 +304,19 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
                 _nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6) if "torque_range_Nm" in ident else None
             ),
             effect_const=effect_const,
+            covariance=cov,
+            covariance_names=cov_names,
+            residual_sigma_m=(
+                float(_nums(where, "residual_sigma_m", [ident["residual_sigma_m"]], 1)[0])
+                if "residual_sigma_m" in ident
+                else None
+            ),
+            joint_range_rad=(
+                _matrix(where, "joint_range_rad", ident["joint_range_rad"], 6, 2)
+                if "joint_range_rad" in ident
+                else None
+            ),
+            campaigns=_campaigns_from(where, ident),
         )
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None

@@ -25,7 +25,20 @@ EXIT_INTERNAL = 3
 
 #: Sub-command modules under planner/commands/; each defines ``register(subparsers)``
 #: which adds its parser and sets ``func`` (returning an exit code).
-COMMAND_MODULES = ("demo", "report", "map", "plan", "identify", "robot", "problem", "export", "track", "place")
+COMMAND_MODULES = (
+    "demo",
+    "report",
+    "map",
+    "plan",
+    "identify",
+    "predict",
+    "design",
+    "robot",
+    "problem",
+    "export",
+    "track",
+    "place",
+)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -30,6 +30,7 @@ class FolderKind(Enum):
     PLAN = "plan"
     PLACEMENT = "placement study"
     IDENTIFICATION = "identification report"
+    DESIGN = "campaign design report"
     MAP = "compliance map"
     POSE = "pose"
     EXPORT = "trajectory export"
@@ -49,6 +50,7 @@ _KIND_COMMANDS = {
     FolderKind.PLAN: "compplan plan or demo",
     FolderKind.PLACEMENT: "compplan place",
     FolderKind.IDENTIFICATION: "compplan identify --report",
+    FolderKind.DESIGN: "compplan design --report",
     FolderKind.MAP: "compplan map",
     FolderKind.POSE: "compplan pose --out",
     FolderKind.EXPORT: "compplan export",
@@ -66,6 +68,8 @@ FOLDER_KIND_MARKERS = {
 }
 #: ``summary.json`` is shared by plans and placement studies: its ``"command"`` tells them apart.
 SUMMARY_COMMAND_KINDS = {"place": FolderKind.PLACEMENT}
+#: ``report.json`` is shared by identification and design reports: its ``"command"`` tells them apart.
+REPORT_COMMAND_KINDS = {"design": FolderKind.DESIGN}
 #: A file of one of these names marks an existing folder as an output folder of compplan.
 OUTPUT_FOLDER_MARKERS = tuple(FOLDER_KIND_MARKERS)
 #: Entries of a foreign folder named in the refusal message.
@@ -81,12 +85,15 @@ def output_folder_kind(folder: str | Path) -> FolderKind | None:
         if (p / marker).is_file():
             if kind is FolderKind.PLAN:
                 return SUMMARY_COMMAND_KINDS.get(_summary_command(p / marker), kind)
+            if kind is FolderKind.IDENTIFICATION:
+                return REPORT_COMMAND_KINDS.get(_summary_command(p / marker), kind)
             return kind
     return None
 
 
 def _summary_command(path: Path) -> Any:
-    """The ``"command"`` of a ``summary.json`` (None when unreadable or absent: an earlier plan)."""
+    """The ``"command"`` of a ``summary.json`` or ``report.json`` (None when unreadable or absent: an
+    earlier plan, an identification report)."""
     try:
         s = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):

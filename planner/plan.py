@@ -44,6 +44,7 @@ from models.errors import InfeasibleError, UnreachableError
 from models.status import Status
 from models.symbolic import directional_stiffness
 from problems.compensation import CompensationResult, CompensationStatus, closed_form, exact, uncompensated
+from problems.identify.uncertainty import path_sigma
 from problems.posture import BranchResult, BranchStatus, PostureResult, PostureStatus, optimise_postures
 from problems.posture.solve import rechoose
 from problems.problem import Problem
@@ -147,6 +148,9 @@ class PlanResult:
     made: dict[str, Any] = field(default_factory=invocation)
     dynamic: Any = None
     feed: dict[str, Any] = field(default_factory=dict)
+    #: The predicted sigma of the compensated TCP along the path and where the model extrapolates
+    #: (:class:`problems.identify.uncertainty.PathSigma`), once the exact compensation succeeded.
+    model_sigma: Any = None
     #: The cell check (:class:`planner.cell_check.CellCheck`) when the problem has a ``[cell]``.
     cell: Any = None
 
@@ -557,6 +561,10 @@ def _compensate(res: PlanResult) -> None:
         res.reason = f"exact compensation of branch {res.posture.best.label}: {res.exact.reason}"
         return
     qc = res.exact.q_command
+    res.model_sigma = path_sigma(arm, qc, arm.tcp_wrench(res.exact.q_deflected, L))
+    extrapolates = res.model_sigma.warning()
+    if extrapolates:
+        res.warnings.append(extrapolates)
     lo, hi = qc < robot.q_min - COMMAND_LIMIT_TOL, qc > robot.q_max + COMMAND_LIMIT_TOL
     if lo.any() or hi.any():
         k, j = (int(v) for v in np.argwhere(lo | hi)[0])

@@ -100,6 +100,8 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         s["exact_residual_max_m"] = float(res.exact.error_norm_m.max())
         s["status"] = {"closed_form": res.closed.status.value, "exact": res.exact.status.value}
         s["warnings"] += list(res.closed.warnings)
+    if res.model_sigma is not None:
+        s["model_sigma"] = res.model_sigma.to_dict()
     if pr.program is not None:
         s["program"] = program_summary(res)
     if res.cell is not None and res.posture is not None:

@@ -296,3 +296,24 @@ def paper_run_output(shared_cli) -> str:
 def fast_payload_run(shared_cli) -> Path:
     """The folder of ``compplan plan ur5_fast_payload --out DIR`` (with its report)."""
     return shared_cli.run(*FAST_PAYLOAD_ARGV).folder
+
+
+@pytest.fixture(scope="session")
+def small_virtual_model() -> tuple:
+    """A small identification on the virtual UR5 (DH errors, 60 unloaded poses, 20 um noise; under a
+    second): ``(robot, virtual_robot, data, model)``, the model with its covariance (format 2).
+    Shared by the tests of the sigma, the design and the outputs: do not modify it."""
+    from models import load_robot
+    from problems.identify import identify
+    from problems.virtual import VirtualRobot
+
+    robot = load_robot("ur5")
+    cfg = {
+        "seed": 3,
+        "campaign": {"poses": 60, "loaded_rows": 0, "unloaded_rows": 1},
+        "noise": {"sigma_m": 2e-5},
+        "effects": {"geometric": {}},
+    }
+    vr = VirtualRobot(robot, cfg)
+    data = vr.campaign()
+    return robot, vr, data, identify(robot, data, candidates=["geometric"]).model

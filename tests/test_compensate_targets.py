@@ -203,7 +203,9 @@ def test_cli_targets_frames(unregistered, tmp_path, capsys) -> None:
     )
     cap = capsys.readouterr()
     assert cap.err.count("\n") == 1 and cap.err.startswith("compplan: warning: ") and "dtheta[1]" in cap.err
-    assert np.loadtxt(out, delimiter=",", skiprows=1).shape == (N_TARGETS, 6)
+    # q1..q6, sigma_x..z (base frame), outside_range (text)
+    assert out.read_text().splitlines()[0] == "q1,q2,q3,q4,q5,q6,sigma_x,sigma_y,sigma_z,outside_range"
+    assert np.loadtxt(out, delimiter=",", skiprows=1, usecols=range(9)).shape == (N_TARGETS, 9)
     # measurement-frame targets: no warning, the truth instrument sees the measured point on them
     target = vr.measure(q, np.zeros_like(F)) + 1e-3
     inp = tmp_path / "meas.csv"
@@ -227,7 +229,7 @@ def test_cli_targets_frames(unregistered, tmp_path, capsys) -> None:
     )
     cap = capsys.readouterr()
     assert cap.err == "" and "targets measurement frame, status ok" in cap.out
-    qc = np.loadtxt(out, delimiter=",", skiprows=1)
+    qc = np.loadtxt(out, delimiter=",", skiprows=1, usecols=range(6))
     assert np.linalg.norm(vr.measure(qc, F) - target, axis=1).max() < LANDING_TOL_M
 
 

@@ -377,11 +377,12 @@ def test_cli_end_to_end(tmp_path, capsys) -> None:
     inp.write_text("\n".join(",".join(l.split(",")[k] for k in keep) for l in lines[:11]) + "\n")
     out = tmp_path / "pred.csv"
     assert cli_main(["predict", "--model", str(model), "--input", str(inp), "--out", str(out)]) == 0
-    assert out.read_text().splitlines()[0] == "x,y,z"
+    assert out.read_text().splitlines()[0] == "x,y,z,sigma_x,sigma_y,sigma_z,outside_range"
     comp = tmp_path / "comp.csv"
     assert cli_main(["compensate", "--model", str(model), "--input", str(inp), "--out", str(comp)]) == 0
-    qc = np.loadtxt(comp, delimiter=",", skiprows=1)
-    assert qc.shape == (10, 6)
+    qc = np.loadtxt(comp, delimiter=",", skiprows=1, usecols=range(9))
+    assert qc.shape == (10, 9) and (qc[:, 6:9] > 0).all()
+    assert all(r.endswith(",") for r in comp.read_text().splitlines()[1:])  # rows of the data: outside_range empty
     # bad data: one-line error, exit 2, nothing written
     bad = tmp_path / "bad.csv"
     bad.write_text(lines[0] + "\n" + lines[1].replace(lines[1].split(",")[-3], "nan", 1) + "\n")

@@ -519,12 +519,18 @@ WRITERS: dict[str, tuple[FolderKind, tuple[str, ...], str]] = {
         "--report",
     ),
     "export": (FolderKind.EXPORT, ("export", RUN, "--format", "rosbag2", "--out", OUT), "--out"),
+    "design": (
+        FolderKind.DESIGN,
+        ("design", "--model", "model.toml", "--pool", "pool.csv", "--n", "5", "--out", "c.csv", "--report", OUT),
+        "--report",
+    ),
 }
 #: A folder of each kind with a marker: its marker file and contents.
 MARKED: dict[FolderKind, tuple[str, bytes]] = {
     FolderKind.PLAN: ("summary.json", b'{"command": "plan"}'),
     FolderKind.PLACEMENT: ("summary.json", b'{"command": "place"}'),
     FolderKind.IDENTIFICATION: ("report.json", b"{}"),
+    FolderKind.DESIGN: ("report.json", b'{"command": "design"}'),
     FolderKind.MAP: ("compliance_map.json", b"{}"),
     FolderKind.POSE: ("pose.json", b"{}"),
 }

@@ -20,10 +20,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+
 from planner.commands.common import add_force_argument, check_output, releases_outputs
 
 #: Sub-commands defined here.
-COMMANDS = ("identify", "predict", "compensate", "simulate")
+COMMANDS = ("identify", "simulate")
 
 
 def _effects_arg(text: str | None) -> list[str] | None:
@@ -167,7 +168,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "cross-validated share of the residual.",
     )
     p.add_argument("--robot", required=True, help="built-in robot name or robot file (the declared model)")
-    p.add_argument("--data", required=True, help="measurement CSV (docs/measurement-file.md)")
+    p.add_argument(
+        "--data",
+        required=True,
+        action="append",
+        help="measurement CSV (docs/measurement-file.md); repeat for several campaigns (one robot model, one "
+        "registration per campaign named by the file stem; the last is the model's own)",
+    )
+    p.add_argument(
+        "--shared",
+        type=_known,  # the words of --known
+        default=(),
+        help="comma-separated parts of the set-up shared by every --data campaign: 'registration' (the "
+        "instrument did not move: one measurement frame, the campaigns are concatenated); 'measured-point' "
+        "is always shared",
+    )
     p.add_argument("--out", required=True, help="identified model file to write (robot TOML)")
     p.add_argument("--report", required=True, help="report folder (report.json, report.md, report.html)")
     p.add_argument(
@@ -220,49 +235,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_identify)
 
     p = sub.add_parser(
-        "predict",
-        help="predicted measurement of commands under loads",
-        description="The predicted measurement (x, y, z of the measured point, measurement frame) of joint "
-        "commands under loads, by an identified model: one output row per input row (docs/cli.md).",
-    )
-    p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
-    p.add_argument("--input", required=True, help="CSV with q1..q6 and fx..mz (optional t, temperature)")
-    p.add_argument("--out", required=True, help="CSV to write: x, y, z (m), measurement frame")
-    _add_csv_options(p, "--input")
-    p.set_defaults(func=run_predict)
-
-    p = sub.add_parser(
-        "compensate",
-        help="commands that put the real TCP on its targets under the load",
-        description="Joint commands that put the real TCP on its targets under the load, by an identified "
-        "model: one compensated q1..q6 row per input row; the targets as --targets-frame says (docs/cli.md).",
-    )
-    p.add_argument("--model", required=True, help="identified model file (or a plain robot file)")
-    p.add_argument(
-        "--input",
-        required=True,
-        help="CSV with q1..q6 (commands) and fx..mz; x, y, z for --targets-frame base/measurement",
-    )
-    p.add_argument("--out", required=True, help="CSV to write: q1..q6 (rad), compensated")
-    p.add_argument(
-        "--targets-frame",
-        choices=("nominal", "base", "measurement"),
-        default="nominal",
-        help="the targets: 'nominal' (default), the nominal-FK TCP poses of q1..q6; 'base', TCP "
-        "positions x, y, z in the robot base frame; 'measurement', positions x, y, z of the "
-        "measured point in the measurement frame (exact there even for unregistered data). "
-        "Orientation: that of the nominal TCP of q1..q6, which also seed the solve",
-    )
-    p.add_argument(
-        "--strict",
-        action="store_true",
-        help="fail (nothing written) if any row cannot be compensated; default: write every row "
-        "(the best command) and warn naming the rows",
-    )
-    _add_csv_options(p, "--input")
-    p.set_defaults(func=run_compensate)
-
-    p = sub.add_parser(
         "simulate",
         help="measurement campaign from the virtual robot",
         description="A measurement campaign from the virtual robot (poses, loads, effects and noise as the "
@@ -307,7 +279,9 @@ class _Bar:
 @releases_outputs
 def run_identify(args: argparse.Namespace) -> int:
     """Identify, write the model file and the report, print the summary."""
-    inputs = {"--robot": args.robot, "--data": args.data, "--validation": args.validation, "--truth": args.truth}
+    paths = list(args.data) if isinstance(args.data, (list, tuple)) else [args.data]
+    inputs = {"--robot": args.robot, "--validation": args.validation, "--truth": args.truth}
+    inputs.update({"--data" if k == 0 else f"--data ({k + 1})": p for k, p in enumerate(paths)})
     check_output(args.out, inputs, kind="file", outputs={"--report": args.report})
     check_output(
         args.report, inputs, "folder", "--report", {"--out": args.out}, holds="identification report", force=args.force
@@ -323,14 +297,16 @@ def run_identify(args: argparse.Namespace) -> int:
         identify,
         validate_on,
     )
+    from problems.identify.campaigns import campaign_names, identify_campaigns
 
     robot = load_robot(args.robot)
-    data = _read(args, args.data)
+    datas = [_read(args, p) for p in paths]
+    data = datas[-1]
     if args.folds is not None:
-        n_poses = len(set(data.pose_groups().tolist()))
+        n_poses = sum(len(set(d.pose_groups().tolist())) for d in datas)
         if args.folds > n_poses:
             raise InputError(
-                f"--folds {args.folds}: more folds than the {n_poses} poses of {args.data} "
+                f"--folds {args.folds}: more folds than the {n_poses} poses of {', '.join(paths)} "
                 f"(a fold holds whole poses); give --folds between 2 and {n_poses}"
             )
     val = _read(args, args.validation) if args.validation else None
@@ -341,17 +317,19 @@ def run_identify(args: argparse.Namespace) -> int:
         truth = load_truth(args.truth)
     bar = _Bar(not args.no_progress)
     try:
-        res = identify(
-            robot,
-            data,
-            registered=args.registered,
-            candidates=_effects_arg(args.candidates),
-            include=_effects_arg(args.include) or [],
-            folds=args.folds or CV_FOLDS,
-            progress=bar,
-            known=args.known,
-            map_components=args.map_components,
-        )
+        kwargs = {
+            "registered": args.registered,
+            "candidates": _effects_arg(args.candidates),
+            "include": _effects_arg(args.include) or [],
+            "folds": args.folds or CV_FOLDS,
+            "progress": bar,
+            "known": args.known,
+            "map_components": args.map_components,
+        }
+        if len(datas) == 1:  # one campaign: the engine as it is (--shared changes nothing)
+            res = identify(robot, data, **kwargs)
+        else:
+            res = identify_campaigns(robot, datas, names=campaign_names(paths), shared=args.shared, **kwargs)
     finally:
         bar.close()
     if val is not None:
@@ -360,8 +338,8 @@ def run_identify(args: argparse.Namespace) -> int:
         res.compensation_check = compensation_check(truth, res.model)
     text = model_toml(res.model)
     with pending_file(args.out, text.encode(), "--out"):  # the model goes in once the report is written
-        rep = write_report(res, args.report, model_path=str(args.out), data_path=str(args.data))
-    _print_identify(res, rep, data, val, args)
+        rep = write_report(res, args.report, model_path=str(args.out), data_path=", ".join(map(str, paths)))
+    _print_identify(res, rep, data if len(datas) == 1 else res.data, val, args)
     return 0
 
 
@@ -372,6 +350,19 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
     from problems.identify import IdentifyStatus
 
     print(f"identify: {data.n} rows, {rep['data']['n_poses']} poses, status {res.status.value}")
+    camps = res.identifiability.get("campaigns") or []
+    shared = "shared" in (res.identifiability.get("campaign_fit") or {})
+    for k, c in enumerate(camps):
+        where = (
+            "shared frame"
+            if shared
+            else "reference (the model's registration)"
+            if k == len(camps) - 1
+            else f"registration {c['translation_from_last_mm']:.3f} mm, {c['rotation_from_last_deg']:.4f} deg from "
+            "the last campaign's"
+        )
+        rms = "" if c["rms_after_mm"] is None else f", RMS after {c['rms_after_mm']:.4f} mm"
+        print(f"  campaign {c['name']} ({c['file']}): {c['n_rows']} rows, {c['n_poses']} poses{rms}; {where}")
     if res.validation is not None:
         v = res.validation
         held_out = "held out" if rep["headline"]["validation_held_out"] else "the --data file itself"
@@ -401,63 +392,6 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
     if res.status in (IdentifyStatus.IMPLAUSIBLE, IdentifyStatus.DOES_NOT_GENERALISE):
         print(f"compplan: warning: {res.reason}", file=sys.stderr)
     print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html, figures/")
-
-
-@releases_outputs
-def run_predict(args: argparse.Namespace) -> int:
-    """Predicted measurement (measurement frame) of the commands of ``--input``."""
-    check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
-    from planner.output import atomic_write_bytes
-    from models.effects import effect as fx_effect
-    from models.effects import get_const
-    from models.arm_file import load_model
-    from problems.identify import check_command_limits, predict
-    from problems.measurements import commands_csv
-
-    model = load_model(args.model)
-    m = _read(args, args.input, require_position=False)
-    check_command_limits(model, m)  # a command the robot cannot run has no prediction
-    p = predict(model, m)
-    atomic_write_bytes(args.out, commands_csv(["x", "y", "z"], p).encode())
-    _print_notes(m)
-    for name in model.active_effects:  # e.g. a joint error map beyond its identified angle range
-        for line in fx_effect(name).angle_caveats(model.parameter, lambda k: get_const(model.const, k), m.q):
-            print(f"compplan: warning: {line.replace('waypoint', 'row')}", file=sys.stderr)
-    print(
-        f"predict: {m.n} rows, effects {', '.join(model.effects) or 'none'}; wrote {args.out} (x, y, z in m, "
-        "measurement frame)"
-    )
-    return 0
-
-
-@releases_outputs
-def run_compensate(args: argparse.Namespace) -> int:
-    """Compensated commands for the targets of ``--input`` (``--targets-frame``); warnings on stderr."""
-    check_output(args.out, {"--model": args.model, "--input": args.input}, kind="file")
-    from models.errors import InfeasibleError
-    from planner.output import atomic_write_bytes
-    from models.arm_file import load_model
-    from problems.identify import compensate_targets
-    from problems.measurements import commands_csv
-
-    model = load_model(args.model)
-    m = _read(args, args.input, require_position=False)
-    out = compensate_targets(model, m, args.targets_frame)
-    failed = not out.status.usable
-    if failed and args.strict:
-        raise InfeasibleError(f"{args.input}: {out.reason}; nothing written")
-    atomic_write_bytes(args.out, commands_csv([f"q{i}" for i in range(1, 7)], out.q_command).encode())
-    if failed:
-        lines = ", ".join(str(int(m.line[i])) for i in out.failed_rows[:10])
-        print(f"compplan: warning: {out.reason}; input lines {lines}", file=sys.stderr)
-    for w in out.warnings:
-        print(f"compplan: warning: {w}", file=sys.stderr)
-    _print_notes(m)
-    print(
-        f"compensate: {m.n} rows, targets {out.targets_frame.value} frame, status {out.status.value}; "
-        f"wrote {args.out} (q1..q6 in rad)"
-    )
-    return 0
 
 
 @releases_outputs

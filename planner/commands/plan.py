@@ -156,6 +156,8 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
     if "cell" in s:
         for line in cell_lines(s["cell"]):
             print(line)
+    if md.get("identified") and s.get("model_sigma"):
+        print(s["model_sigma"]["text"])
     print_error_table(
         [
             ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),

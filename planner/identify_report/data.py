@@ -112,6 +112,8 @@ def report_dict(
         },
         "model_file": model_path,
     }
+    if res.identifiability.get("campaigns"):  # several campaigns (problems.identify.campaigns)
+        out["campaigns"] = res.identifiability["campaigns"]
     if res.validation is not None:
         out["validation"] = res.validation
     if res.compensation_check is not None:

@@ -12,7 +12,7 @@ from typing import Any
 from planner.identify_report.canvas import RenderedFigure
 from planner.identify_report.captions import figure_entries, figure_text
 from planner.identify_report.diagnostics import _not_significant_line
-from planner.identify_report.markdown import _headline_rows, _provenance_rows, report_markdown
+from planner.identify_report.markdown import _headline_rows, _provenance_rows, campaigns_text, report_markdown
 
 
 def _html_table(
@@ -48,6 +48,9 @@ def report_html(rep: dict[str, Any], figs: Mapping[str, RenderedFigure]) -> str:
         f'<p class="note">Data: {html.escape(str(rep["data"]["file"]))}. {html.escape(rep["rms_definition"])}. '
         "Lengths in mm.</p>",
     ]
+    if rep.get("campaigns"):
+        text = html.escape(campaigns_text(rep))
+        parts.append(f'<p class="note">Campaigns (the last is the model&#39;s registration): {text}.</p>')
     entries = {e["key"]: e for e in rep.get("figures") or figure_entries(figs)}
 
     def figure(k: str) -> None:

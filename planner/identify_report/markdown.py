@@ -199,6 +199,26 @@ def _provenance_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     return rows
 
 
+def campaigns_text(rep: dict[str, Any]) -> str:
+    """The campaigns of a several-campaign identification on one line: name, rows, RMS after and the
+    registration's difference from the last campaign's (mm, deg)."""
+    camps = rep.get("campaigns") or []
+    shared = "shared" in ((rep.get("identifiability") or {}).get("campaign_fit") or {})
+    out = []
+    for k, c in enumerate(camps):
+        rms = "" if c.get("rms_after_mm") is None else f", RMS after {c['rms_after_mm']:.4f} mm"
+        where = (
+            "shared frame"
+            if shared
+            else "the model's registration"
+            if k == len(camps) - 1
+            else f"registration {c['translation_from_last_mm']:.3f} mm, {c['rotation_from_last_deg']:.4f} deg "
+            "from the last"
+        )
+        out.append(f"{c['name']} ({c['n_rows']} rows{rms}; {where})")
+    return "; ".join(out)
+
+
 def report_markdown(rep: dict[str, Any]) -> str:
     """Markdown rendering of :func:`~planner.identify_report.data.report_dict`: the headline table first."""
     L = ["# Identification report", "", "| quantity | value | note |", "|---|---|---|"]
@@ -209,6 +229,8 @@ def report_markdown(rep: dict[str, Any]) -> str:
         f"- RMS definition: {rep['rms_definition']}",
         "",
     ]
+    if rep.get("campaigns"):  # several campaigns: one line, the figures in report.json 'campaigns'
+        L[-1:-1] = [f"- campaigns (the last is the model's registration): {campaigns_text(rep)}"]
     L += _maps_markdown(rep)
     L += _unexplained_markdown(rep)
     L += _compensation_markdown(rep)

@@ -435,6 +435,9 @@ def _model_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
     ]
     if md.get("sha256"):
         rows.append([Cell("arm model: SHA-256"), Cell(str(md["sha256"])[:16] + "…"), Cell("")])
+    sig = s.get("model_sigma")
+    if isinstance(sig, Mapping) and sig.get("text"):
+        rows.append([Cell("arm model: where it holds"), Cell(str(sig["text"])), Cell("")])
     return rows
 
 

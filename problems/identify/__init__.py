@@ -45,6 +45,8 @@ Modules
     Regressions of the residual on explanatory variables.
 :mod:`~problems.identify.engine`
     :func:`identify`, in named steps.
+:mod:`~problems.identify.campaigns`
+    :func:`identify_campaigns`: one model from several campaigns, one registration each.
 :mod:`~problems.identify.apply`
     :func:`predict`, :func:`compensate`, :func:`compensate_targets`,
     :func:`compensation_check`, :func:`validate_on`.
@@ -72,6 +74,7 @@ from .apply import (
     unobservable_in_base,
     validate_on,
 )
+from .campaigns import SHARED_PARTS, campaign_names, identify_campaigns, merge_campaigns
 from .diagnostics import (
     DIAG_ALPHA,
     DIAG_MIN_FRACTION,
@@ -203,6 +206,11 @@ __all__ = [
     # the engine
     "SATURATED_MAX_ITER",
     "identify",
+    # several campaigns
+    "SHARED_PARTS",
+    "campaign_names",
+    "identify_campaigns",
+    "merge_campaigns",
     # applying a model
     "COMPENSATION_CHECK_MAX_COND",
     "COMPENSATION_RESIDUAL_TOL",

@@ -708,6 +708,15 @@ def _result(
     std, cond = _covariance(prob, fit, free_f, cov)
     R_un = fit.residual(prob)
     model = _build_model(run, st, s, std, free_f, order_f, run.sigma_noise)
+    if cov:
+        free_idx = np.asarray(free_f, dtype=int)
+        model.covariance = cov[0][np.ix_(free_idx, free_idx)].copy()
+        model.covariance_names = [PARAM_NAMES[i] for i in free_idx]
+    r_in = R_un[fit.inliers & prob.pos]
+    if r_in.size:
+        model.residual_sigma_m = float(np.sqrt(np.sum(r_in**2) / max(r_in.size - len(free_f), 1)))
+    q_used = prob.m.q[fit.inliers]
+    model.joint_range_rad = np.column_stack([q_used.min(axis=0), q_used.max(axis=0)]) if len(q_used) else None
     params = _parameter_table(prob.layout, fit, order_f, std, st.active, run.registered)
     diags = _diagnose(prob, fit, run.robot)  # diagnostics on the final residual (inliers)
     status, reason, unexplained = _verdict(diags, score_f, run.sigma_noise, st.stop_reason, fit.converged)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -64,11 +64,27 @@ def measurements_to_csv(m: Measurements, mm: bool = False) -> str:
     return buf.getvalue()
 
 
-def commands_csv(header: Sequence[str], rows: np.ndarray) -> str:
-    """CSV text of a numeric table (used by ``predict`` and ``compensate`` outputs)."""
+def commands_csv(header: Sequence[str], rows: np.ndarray, text: Mapping[str, Sequence[str]] | None = None) -> str:
+    """CSV text of a numeric table (used by ``predict`` and ``compensate`` outputs).
+
+    Parameters
+    ----------
+    header : sequence of str
+        Names of the numeric columns.
+    rows : ndarray, shape (N, len(header))
+        The numbers (written as Python ``repr``: exact round trip; NaN as ``nan``).
+    text : mapping of str to sequence of str, optional
+        Text columns after the numeric ones, name -> N strings (quoted by the CSV writer where a
+        value holds a comma, quote or line break; an empty string is an empty field).
+    """
+    text = dict(text or {})
+    rows = np.asarray(rows, dtype=float)
+    for name, values in text.items():
+        if len(values) != len(rows):
+            raise ValueError(f"text column {name!r}: {len(values)} values for {len(rows)} rows")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(list(header))
-    for row in np.asarray(rows, dtype=float):
-        w.writerow([repr(float(v)) for v in row])
+    w.writerow(list(header) + list(text))
+    for i, row in enumerate(rows):
+        w.writerow([repr(float(v)) for v in row] + [str(values[i]) for values in text.values()])
     return buf.getvalue()

@@ -1,0 +1,723 @@
+"""Several measurement campaigns in one fit: one robot model, one registration per campaign.
+
+A campaign is one measurement file: the arm measured with the instrument (tracker) set up once.
+Between campaigns the instrument may have been moved, so each campaign ``c`` has its own
+registration ``base2meas_c`` (base frame -> that campaign's measurement frame); the robot (its
+geometry, stiffness and effects) and the measured point (the same tool or reflector) are shared.
+
+Method (:func:`identify_campaigns`; the engine :func:`problems.identify.identify` has one
+registration in its parameter vector and is used unchanged):
+
+1. **Reference frame** -- the last campaign's measurement frame.  Each other campaign ``c`` gets
+   a rigid transform ``A_c`` (campaign ``c``'s measurement frame -> the reference frame); its start
+   is Kabsch of the nominal model's points (base frame, the same for every campaign) to the
+   measured points of ``c`` and of the reference: ``A_c = B_ref inv(B_c)``.
+2. **Merge** -- every campaign's measured points mapped by ``A_c`` into the reference frame, one
+   table (:func:`merge_campaigns`: pose ids kept apart per campaign, time since each campaign's
+   start, weights from each campaign's ``sigma``), and the engine identifies the model on it with
+   its full effect selection.
+3. **Joint Gauss-Newton** -- at that model, Gauss-Newton steps on the joint least-squares
+   objective over the free robot parameters *and* the six parameters of every ``A_c``
+   (``r = p_model - (exp([dphi]x) p' + dt)``, ``p' = A_c p``: ``dr/dphi = [p']x``, ``dr/dt = -I``),
+   to :data:`CAMPAIGN_TOL_M` / :data:`CAMPAIGN_TOL_RAD` or :data:`CAMPAIGN_GN_MAX_ITER` steps.
+   A step over both blocks (not a Kabsch re-estimate of ``A_c`` alone with the robot held) is what
+   converges in a few steps when the robot's parameters and the transforms are correlated.
+4. **Re-merge and re-fit** -- with the new ``A_c``, the engine refits (selection restricted to the
+   effects already selected); repeated until ``A_c`` changes by less than the tolerances between
+   two rounds, at most :data:`CAMPAIGN_MAX_ROUNDS` rounds.  The result's notes say how many rounds
+   and the last change.
+5. **Covariance** -- ``s^2 (J^T J)^-1`` of the joint problem (weighted Jacobian over the free robot
+   parameters and 6 columns per non-reference campaign, inlier rows, ``s^2`` the weighted residual
+   over ``3 n - k - 6 (C - 1)`` degrees of freedom).  The robot block (and the reference
+   registration) is the model's :attr:`~models.arm.ArmModel.covariance`; each campaign's
+   registration covariance (:attr:`models.arm.CampaignFrame.registration_cov`) is the joint
+   covariance carried to that campaign's registration parameters ``reg.t`` (m) and ``reg.w``
+   (Cayley vector of the correction on the measurement side around the rotation of its
+   ``base2meas``, the parametrisation of :meth:`models.arm.ArmModel.for_campaign`) by the
+   Jacobian of the map, taken by central differences.
+
+With ``shared=("registration",)`` (or data declared registered) every campaign is in one frame and
+the campaigns are only concatenated.  One campaign is exactly :func:`problems.identify.identify`
+(``model.campaigns`` stays empty).  Everything is SI; the library prints nothing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models import effects as fx
+from models.arm import ArmModel, CampaignFrame
+from models.errors import InputError
+from models.robot import Robot
+from models.transforms import matrix_to_rotvec, rotvec_to_matrix
+
+from ..measurements import Measurements
+from .apply import predict
+from .engine import identify
+from .evaluation import _ev_for, make_rows, row_weights
+from .lsq import kabsch
+from .results import DataError, IdentificationResult, ParameterStatus, Progress
+
+#: Parts of the set-up ``shared`` may name.  ``measured_point`` is always shared (the same tool or
+#: reflector in every campaign): naming it changes nothing.
+SHARED_PARTS = ("registration", "measured_point")
+#: Convergence of the campaigns' transforms: translation change, m ...
+CAMPAIGN_TOL_M = 1e-7
+#: ... and rotation change, rad.
+CAMPAIGN_TOL_RAD = 1e-7
+#: Gauss-Newton steps of the joint problem per round.
+CAMPAIGN_GN_MAX_ITER = 12
+#: A Gauss-Newton run stops when its step is below this fraction of the tolerances above (so that two
+#: runs from different starts agree to within the tolerances).
+CAMPAIGN_GN_TOL_RATIO = 0.1
+#: Rounds of (engine re-fit, joint Gauss-Newton) at most.
+CAMPAIGN_MAX_ROUNDS = 4
+#: Step halvings of a Gauss-Newton step that does not lower the joint cost.
+CAMPAIGN_GN_HALVINGS = 8
+#: Fewest distinct poses of a campaign with its own registration (a rigid transform needs 3 points).
+CAMPAIGN_MIN_POSES = 3
+#: Directions of the joint problem (column-normalised Jacobian) with a singular value below this
+#: fraction of the largest are left out of its covariance (taken as determined by the model's holds:
+#: a parameter the engine freed can become inseparable from a campaign's transform).
+CAMPAIGN_COV_RCOND = 1e-6
+#: Central-difference step of the map to a campaign's registration parameters (m and rad).
+REG_FD_STEP = 1e-6
+#: Separator of a campaign's name and a pose id in the merged table's ``point`` column.
+POSE_SEPARATOR = "/"
+
+
+# ----------------------------------------------------------------------------------
+# Transforms
+# ----------------------------------------------------------------------------------
+
+
+def _transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """4x4 homogeneous transform of a rotation (3, 3) and a translation (3,)."""
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = t
+    return T
+
+
+def _inv(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid 4x4 transform."""
+    R = T[:3, :3]
+    return _transform(R.T, -R.T @ T[:3, 3])
+
+
+def cayley_vector(R: np.ndarray) -> np.ndarray:
+    """Cayley vector ``w`` of a rotation (3, 3): the inverse of :func:`models.effects.cayley_np`
+    (``W = (R - I)(R + I)^-1``; a rotation by angle ``a`` has ``|w| = tan(a/2)``)."""
+    W = (R - np.eye(3)) @ np.linalg.inv(R + np.eye(3))
+    return np.array([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]]) / 2.0
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """``[v]x`` of vectors (..., 3) -> (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def _perturbed(A: np.ndarray, dt: np.ndarray, dphi: np.ndarray) -> np.ndarray:
+    """``A`` followed by the small motion ``x -> exp([dphi]x) x + dt`` (of the reference frame)."""
+    return _transform(rotvec_to_matrix(dphi), dt) @ A
+
+
+def _change(A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
+    """Translation (m) and rotation (rad) difference of two rigid transforms."""
+    D = B @ _inv(A)
+    return float(np.linalg.norm(D[:3, 3])), float(np.linalg.norm(matrix_to_rotvec(D[:3, :3])))
+
+
+# ----------------------------------------------------------------------------------
+# The merged table
+# ----------------------------------------------------------------------------------
+
+
+def campaign_names(sources: Sequence[str]) -> list[str]:
+    """Unique campaign names from data file names: the stems, ``-2``, ``-3`` ... appended to repeats
+    (``campaign1`` ... for tables without a file name)."""
+    out: list[str] = []
+    for k, s in enumerate(sources):
+        stem = Path(str(s)).stem if s and not str(s).startswith("<") else ""
+        base = stem or f"campaign{k + 1}"
+        name, n = base, 2
+        while name in out:
+            name, n = f"{base}-{n}", n + 1
+        out.append(name)
+    return out
+
+
+def _all_or_none(campaigns: Sequence[Measurements], attr: str, names: Sequence[str], notes: list[str]) -> bool:
+    """Whether every campaign has column ``attr``; a note names those without when only some have it."""
+    have = [getattr(m, attr) is not None for m in campaigns]
+    if any(have) and not all(have):
+        missing = [n for n, h in zip(names, have) if not h]
+        notes.append(
+            f"campaigns: {attr} ignored in every campaign: {', '.join(missing)} give(s) none (a column is used "
+            "only when every campaign gives it)"
+        )
+    return all(have)
+
+
+def merge_campaigns(
+    campaigns: Sequence[Measurements],
+    names: Sequence[str],
+    meas2ref: Sequence[np.ndarray] | None = None,
+    notes: list[str] | None = None,
+) -> tuple[Measurements, np.ndarray]:
+    """One table of several campaigns, measured points in the reference frame.
+
+    Parameters
+    ----------
+    campaigns : sequence of Measurements
+        With positions ``p``, each in its own measurement frame, m.
+    names : sequence of str
+        Unique campaign names.
+    meas2ref : sequence of ndarray, shape (4, 4), optional
+        Per campaign: its measurement frame -> the reference frame (default identity: one frame).
+    notes : list of str, optional
+        Receives what the merge decided (columns some campaigns lack).
+
+    Returns
+    -------
+    merged : Measurements
+        ``p`` mapped into the reference frame; ``point`` = ``"<name>/<pose>"`` (a campaign's
+        poses stay distinct from another's even with equal joints); ``t`` the time since the
+        campaign's first row when every campaign has ``t``, else the row number within the
+        campaign; ``sigma`` (isotropic: a rotated campaign's per-axis sigmas become their RMS),
+        ``temperature`` and ``target`` only when every campaign gives them; ``line`` the file lines.
+    campaign : ndarray of int, shape (N,)
+        Campaign index of each row.
+    """
+    notes = [] if notes is None else notes
+    C = len(campaigns)
+    meas2ref = [np.eye(4)] * C if meas2ref is None else list(meas2ref)
+    rot = [m.rotation is not None for m in campaigns]
+    if any(rot) and not all(np.allclose(T, np.eye(4)) for T in meas2ref):
+        raise InputError(
+            f"{', '.join(m.source for m, r in zip(campaigns, rot) if r)}: orientation columns (rx, ry, rz): "
+            "several campaigns with their own registrations are fitted from positions only; give --shared "
+            "registration (one frame for every campaign) or drop the rx, ry, rz columns"
+        )
+    use_t = _all_or_none(campaigns, "t", names, notes)
+    use_sigma = _all_or_none(campaigns, "sigma", names, notes)
+    use_temp = _all_or_none(campaigns, "temperature", names, notes)
+    use_target = all(m.target is not None for m in campaigns)
+    use_rot = all(rot)
+    aniso = False
+    P, T, PT, S, SX = [], [], [], [], []
+    for m, name, A in zip(campaigns, names, meas2ref):
+        P.append(m.p @ A[:3, :3].T + A[:3, 3])
+        T.append((m.t - float(np.min(m.t))) if use_t else np.arange(m.n, dtype=float))
+        ids = m.point if m.point is not None else m.pose_groups().astype(str)
+        PT.append(np.array([f"{name}{POSE_SEPARATOR}{i}" for i in ids], dtype=object))
+        if use_sigma:
+            S.append(np.asarray(m.sigma, dtype=float))
+            if np.allclose(A[:3, :3], np.eye(3)) and m.sigma_xyz is not None:
+                SX.append(np.asarray(m.sigma_xyz, dtype=float))
+            else:
+                aniso |= m.sigma_xyz is not None and bool(np.ptp(m.sigma_xyz, axis=1).max() > 0)
+                SX.append(np.repeat(np.asarray(m.sigma, dtype=float)[:, None], 3, axis=1))
+    if aniso:
+        notes.append("campaigns: per-axis sigmas of a re-registered campaign are used as their RMS (isotropic)")
+    cat = np.concatenate
+    merged = Measurements(
+        q=cat([m.q for m in campaigns]),
+        wrench=cat([m.wrench for m in campaigns]),
+        p=cat(P),
+        t=cat(T),
+        point=cat(PT).astype(str),
+        rotation=cat([m.rotation for m in campaigns]) if use_rot else None,
+        temperature=cat([m.temperature for m in campaigns]) if use_temp else None,
+        sigma=cat(S) if use_sigma else None,
+        line=cat([m.line for m in campaigns]),
+        source=", ".join(m.source for m in campaigns),
+        units=dict(campaigns[-1].units),
+        sigma_xyz=cat(SX) if use_sigma else None,
+        sigma_rot=(
+            cat([m.sigma_rot for m in campaigns])
+            if use_rot and all(m.sigma_rot is not None for m in campaigns)
+            else None
+        ),
+        notes=[n for m in campaigns for n in m.notes],
+        columns=dict(campaigns[-1].columns),
+        target=cat([m.target for m in campaigns]) if use_target else None,
+        file_format=campaigns[-1].file_format,
+    )
+    campaign = np.concatenate([np.full(m.n, k) for k, m in enumerate(campaigns)])
+    return merged, campaign
+
+
+# ----------------------------------------------------------------------------------
+# The joint problem
+# ----------------------------------------------------------------------------------
+
+
+def _free_names(res: IdentificationResult) -> list[str]:
+    """Free parameters of an identification (the covariance's names, else the FREE table rows)."""
+    if res.model.covariance_names:
+        return list(res.model.covariance_names)
+    return [p.name for p in res.parameters if p.status is ParameterStatus.FREE]
+
+
+class _Joint:
+    """The joint least-squares problem of the robot's free parameters and the campaigns' transforms
+    (every campaign but the reference: 6 columns each, ``[dt (m), dphi (rad)]``)."""
+
+    def __init__(
+        self,
+        model: ArmModel,
+        names: list[str],
+        campaigns: Sequence[Measurements],
+        campaign: np.ndarray,
+        merged: Measurements,
+        inliers: np.ndarray,
+    ) -> None:
+        self.model = model
+        self.names = names
+        self.idx = np.array([fx.PARAM_NAMES.index(n) for n in names], dtype=int)
+        self.const = model.const
+        self.ev = _ev_for(model.nominal, self.const)
+        self.rows = make_rows(merged, model.time_ref, model.temperature_ref)
+        self.raw = np.concatenate([m.p for m in campaigns])
+        self.campaign = campaign
+        self.C = len(campaigns)
+        self.w = row_weights(merged, np.ones(merged.n, dtype=bool))
+        self.mask = np.asarray(inliers, dtype=bool)
+
+    def mapped(self, A: Sequence[np.ndarray]) -> np.ndarray:
+        """The raw measured points in the reference frame, (N, 3), m."""
+        out = np.empty_like(self.raw)
+        for c in range(self.C):
+            sel = self.campaign == c
+            out[sel] = self.raw[sel] @ A[c][:3, :3].T + A[c][:3, 3]
+        return out
+
+    def residual(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> np.ndarray:
+        """Unweighted residual ``p_model - A p``, (N, 3), m, reference frame."""
+        p, _q = self.ev.measure(self.rows, theta, self.const)
+        return p - self.mapped(A)
+
+    def rms(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> float:
+        """RMS per axis of the unweighted residual over the inlier rows, m: the rounds' comparison."""
+        r = self.residual(theta, A)[self.mask]
+        return float(np.sqrt(np.mean(r**2))) if r.size else 0.0
+
+    def cost(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> float:
+        r = (self.residual(theta, A) * self.w)[self.mask]
+        return float(np.sum(r**2))
+
+    def jacobian(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted residual (3n,) and weighted Jacobian (3n, k + 6 (C - 1)) over the inlier rows:
+        the free parameters (SI) then ``[dt, dphi]`` per non-reference campaign."""
+        p, q_eq = self.ev.measure(self.rows, theta, self.const)
+        _p, J = self.ev.jacobian(self.rows, q_eq, theta, self.const)
+        n = len(self.rows)
+        J3 = np.asarray(J).reshape(n, 3, -1)[:, :, self.idx]
+        pm = self.mapped(A)
+        cols = [J3]
+        for c in range(self.C - 1):
+            JA = np.zeros((n, 3, 6))
+            sel = self.campaign == c
+            JA[sel, :, 0:3] = -np.eye(3)
+            JA[sel, :, 3:6] = _skew(pm[sel])
+            cols.append(JA)
+        Jall = np.concatenate(cols, axis=2) * self.w[:, :, None]
+        r = (p - pm) * self.w
+        return r[self.mask].reshape(-1), Jall[self.mask].reshape(-1, Jall.shape[2])
+
+    def solve(self, theta: np.ndarray, A: list[np.ndarray]) -> tuple[np.ndarray, list[np.ndarray], int]:
+        """Gauss-Newton (with step halving) on the joint problem from ``theta`` and ``A``; returns
+        the parameters, the transforms and the steps taken."""
+        theta, A = theta.copy(), [a.copy() for a in A]
+        k = len(self.idx)
+        cost = self.cost(theta, A)
+        for it in range(1, CAMPAIGN_GN_MAX_ITER + 1):
+            r, J = self.jacobian(theta, A)
+            norm = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
+            d = -np.linalg.lstsq(J / norm, r, rcond=CAMPAIGN_COV_RCOND)[0] / norm
+            step = 1.0
+            for _h in range(CAMPAIGN_GN_HALVINGS):
+                th_n = theta.copy()
+                th_n[self.idx] += step * d[:k]
+                A_n = [
+                    _perturbed(A[c], step * d[k + 6 * c : k + 6 * c + 3], step * d[k + 6 * c + 3 : k + 6 * c + 6])
+                    for c in range(self.C - 1)
+                ] + [A[-1]]
+                cost_n = self.cost(th_n, A_n)
+                if cost_n <= cost:
+                    break
+                step /= 2.0
+            else:
+                return theta, A, it
+            dA = d[k:].reshape(-1, 6) * step if self.C > 1 else np.zeros((0, 6))
+            theta, A, cost = th_n, A_n, cost_n
+            if np.all(np.linalg.norm(dA[:, :3], axis=1) < CAMPAIGN_GN_TOL_RATIO * CAMPAIGN_TOL_M) and np.all(
+                np.linalg.norm(dA[:, 3:], axis=1) < CAMPAIGN_GN_TOL_RATIO * CAMPAIGN_TOL_RAD
+            ):
+                return theta, A, it
+        return theta, A, CAMPAIGN_GN_MAX_ITER
+
+
+def _registration_params(base2meas: np.ndarray, around: np.ndarray) -> np.ndarray:
+    """``[reg.t (m), reg.w (Cayley)]`` of a registration ``base2meas`` with the correction around
+    the rotation ``around`` (3, 3)."""
+    return np.concatenate([base2meas[:3, 3], cayley_vector(base2meas[:3, :3] @ around.T)])
+
+
+def _campaign_registration(model: ArmModel, x: np.ndarray, A: np.ndarray | None) -> np.ndarray:
+    """Registration of a campaign (4, 4) from the model's reference registration perturbed by
+    ``x[:6]`` (``reg.t``, ``reg.w`` of the model) and, for a non-reference campaign, its transform
+    ``A`` (its frame -> the reference frame) perturbed by ``x[6:12]`` (``dt``, ``dphi``)."""
+    theta = model.theta.copy()
+    theta[fx.GROUP_SLICES["reg.t"]] += x[0:3]
+    theta[fx.GROUP_SLICES["reg.w"]] += x[3:6]
+    B = _transform(fx.cayley_np(theta[fx.GROUP_SLICES["reg.w"]]) @ model.R0, theta[fx.GROUP_SLICES["reg.t"]])
+    if A is None:
+        return B
+    return _inv(_perturbed(A, x[6:9], x[9:12])) @ B
+
+
+def _registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) -> np.ndarray:
+    """6x6 covariance of a campaign's registration in ``[reg.t, reg.w]`` around its own rotation,
+    from the joint covariance ``cov`` of ``[reg.t, reg.w of the model, (dt, dphi of A)]``."""
+    n = cov.shape[0]
+    x0 = np.zeros(n)
+    B0 = _campaign_registration(model, x0, A)
+    G = np.zeros((6, n))
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = REG_FD_STEP
+        hi = _registration_params(_campaign_registration(model, x0 + e, A), B0[:3, :3])
+        lo = _registration_params(_campaign_registration(model, x0 - e, A), B0[:3, :3])
+        G[:, j] = (hi - lo) / (2.0 * REG_FD_STEP)
+    return G @ cov @ G.T
+
+
+def joint_covariance(joint: _Joint, theta: np.ndarray, A: Sequence[np.ndarray]) -> tuple[np.ndarray, float, int]:
+    """``s^2 (J^T J)^-1`` of the joint problem (free parameters, then 6 per non-reference campaign),
+    ``s^2`` (weighted residual variance) and the degrees of freedom."""
+    r, J = joint.jacobian(theta, A)
+    dof = max(r.size - J.shape[1], 1)
+    s2 = float(r @ r) / dof
+    norm = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
+    _u, sv, vt = np.linalg.svd(J / norm, full_matrices=False)
+    keep = sv > CAMPAIGN_COV_RCOND * sv[0] if len(sv) else np.zeros(0, dtype=bool)
+    V = vt[keep].T / sv[keep]
+    cov = (V @ V.T) / np.outer(norm, norm) * s2
+    return 0.5 * (cov + cov.T), s2, dof
+
+
+# ----------------------------------------------------------------------------------
+# The entry point
+# ----------------------------------------------------------------------------------
+
+
+def _check_shared(shared: Sequence[str]) -> bool:
+    bad = [s for s in shared if s not in SHARED_PARTS]
+    if bad:
+        raise InputError(f"shared part(s) {bad}: expected any of {list(SHARED_PARTS)}")
+    return "registration" in shared
+
+
+def _start_transforms(
+    robot: Robot, campaigns: Sequence[Measurements], identify_kwargs: Mapping[str, Any]
+) -> tuple[list[np.ndarray], str]:
+    """``A_c`` (campaign frame -> reference frame) to start from, and how they were found.
+
+    The campaign with the most poses is identified alone (``identify_kwargs``); Kabsch of its model's
+    points (its measurement frame) to each campaign's measured points gives every campaign's frame
+    relative to it.  A start from the nominal model (Kabsch of its points) is off by the nominal
+    model's error, which the first merged fit then explains with wrong effects; with the identified
+    model of one campaign the start is off by what that model mispredicts.  When that campaign cannot
+    be identified alone (:class:`DataError`), the nominal model is used."""
+    sizes = [len(np.unique(m.pose_groups())) for m in campaigns]
+    big = int(np.argmax(sizes))
+    how = f"Kabsch of the model identified from campaign {big + 1} alone"
+    try:
+        model = identify(robot, campaigns[big], **identify_kwargs).model
+    except DataError as exc:
+        model = ArmModel.from_robot(robot)
+        how = f"Kabsch of the nominal model (campaign {big + 1} alone cannot be identified: {exc})"
+    frames = []
+    for m in campaigns:
+        p = predict(model, _no_time(m))
+        R, t = kabsch(p, m.p)
+        frames.append(_transform(R, t))
+    return [frames[-1] @ _inv(B) for B in frames], how
+
+
+def _no_time(m: Measurements) -> Measurements:
+    """``m`` without its time column (the nominal model has no drift; this keeps it so)."""
+    out = m.subset(np.arange(m.n))
+    out.t = None
+    return out
+
+
+def _campaign_table(
+    res: IdentificationResult,
+    names: Sequence[str],
+    campaigns: Sequence[Measurements],
+    campaign: np.ndarray,
+    frames: Sequence[CampaignFrame],
+) -> list[dict[str, Any]]:
+    """``identifiability['campaigns']``: per campaign rows, poses, inlier RMS after (mm per axis), its
+    registration and its translation's difference from the last campaign's (mm)."""
+    ref = frames[-1].base2meas
+    out = []
+    for c, (name, m, f) in enumerate(zip(names, campaigns, frames)):
+        sel = campaign == c
+        r = res.residual_after[sel & res.inliers]
+        std = None if f.registration_cov is None else np.sqrt(np.maximum(np.diag(f.registration_cov), 0.0))
+        out.append(
+            {
+                "name": name,
+                "file": m.source,
+                "n_rows": int(m.n),
+                "n_inliers": int(f.n_rows),
+                "n_poses": int(len(np.unique(m.pose_groups()))),
+                "rms_after_mm": float(np.sqrt(np.mean(r**2)) * 1e3) if r.size else None,
+                "base2meas": {
+                    "xyz_m": f.base2meas[:3, 3].tolist(),
+                    "rotvec_rad": matrix_to_rotvec(f.base2meas[:3, :3]).tolist(),
+                },
+                "registration_std": (None if std is None else {"t_m": std[:3].tolist(), "w": std[3:].tolist()}),
+                "translation_from_last_mm": float(np.linalg.norm(f.base2meas[:3, 3] - ref[:3, 3]) * 1e3),
+                "rotation_from_last_deg": float(
+                    np.degrees(np.linalg.norm(matrix_to_rotvec(f.base2meas[:3, :3] @ ref[:3, :3].T)))
+                ),
+            }
+        )
+    return out
+
+
+def _reg_block(model: ArmModel) -> np.ndarray | None:
+    """The model's own registration covariance ``[reg.t, reg.w]`` (6, 6) (None without)."""
+    reg = list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.t"]]) + list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.w"]])
+    if model.covariance is None or any(n not in model.covariance_names for n in reg):
+        return None
+    idx = [model.covariance_names.index(n) for n in reg]
+    return np.asarray(model.covariance)[np.ix_(idx, idx)].copy()
+
+
+def identify_campaigns(
+    robot: Robot,
+    campaigns: Sequence[Measurements],
+    names: Sequence[str] | None = None,
+    shared: Sequence[str] = (),
+    progress: Progress | None = None,
+    **identify_kwargs: Any,
+) -> IdentificationResult:
+    """Identify one robot model from several measurement campaigns.
+
+    Parameters
+    ----------
+    robot : Robot
+        Nominal description.
+    campaigns : sequence of Measurements
+        Each with positions ``p`` in its own measurement frame, m; the last one is the reference
+        (the model's own registration, what ``predict`` and ``compensate`` use by default).
+    names : sequence of str, optional
+        Unique campaign names (default: :func:`campaign_names` of the sources).
+    shared : sequence of str
+        Parts of the set-up shared by every campaign (:data:`SHARED_PARTS`): ``"registration"``
+        puts every campaign in one measurement frame (they are concatenated).  The measured point
+        is always shared.
+    progress : callable, optional
+        ``progress(message, done, total)`` of the engine.
+    **identify_kwargs
+        Passed to :func:`problems.identify.identify` (``candidates``, ``include``, ``folds``,
+        ``known``, ``registered``, ``max_steps``, ``map_components``).  Data declared registered
+        (``registered=True`` or ``"registration"`` in ``known``) share the base frame: as
+        ``shared=("registration",)``.
+
+    Returns
+    -------
+    IdentificationResult
+        On the merged table (``res.data``, reference frame); ``res.model.campaigns`` holds one
+        :class:`~models.arm.CampaignFrame` per campaign (empty for one campaign), the model's
+        registration is the last campaign's; ``res.identifiability["campaigns"]`` the per-campaign
+        figures; the notes say how the campaigns were fitted.
+
+    Raises
+    ------
+    DataError
+        A campaign without positions, or one with its own registration and fewer than
+        :data:`CAMPAIGN_MIN_POSES` distinct poses (naming the file).
+    InputError
+        Bad ``names``/``shared``, orientation data with per-campaign registrations.
+    """
+    campaigns = list(campaigns)
+    if not campaigns:
+        raise InputError("identify_campaigns: no campaign given")
+    names = campaign_names([m.source for m in campaigns]) if names is None else [str(n) for n in names]
+    if len(names) != len(campaigns) or len(set(names)) != len(names) or any(not n for n in names):
+        raise InputError(f"campaign names {names}: expected {len(campaigns)} distinct non-empty names")
+    one_frame = _check_shared(shared)
+    if len(campaigns) == 1:
+        return identify(robot, campaigns[0], progress=progress, **identify_kwargs)
+    for m in campaigns:
+        if m.p is None:
+            raise DataError(f"{m.source}: no measured positions (columns x, y, z) to identify from")
+    known = tuple(identify_kwargs.get("known", ()))
+    notes: list[str] = []
+    if not one_frame and (identify_kwargs.get("registered") or "registration" in known):
+        one_frame = True
+        notes.append("campaigns: the data are declared registered: every campaign is in the base frame (one frame)")
+    if one_frame:
+        return _one_frame(robot, campaigns, names, progress, notes, identify_kwargs)
+    for m, name in zip(campaigns, names):
+        n_poses = len(np.unique(m.pose_groups()))
+        if n_poses < CAMPAIGN_MIN_POSES:
+            raise DataError(
+                f"{m.source}: campaign '{name}' has {n_poses} distinct pose(s); its own registration needs at "
+                f"least {CAMPAIGN_MIN_POSES} (many more for a useful fit); if the instrument did not move "
+                "between the campaigns, give --shared registration (shared=('registration',))"
+            )
+    A, how = _start_transforms(robot, campaigns, identify_kwargs)
+    notes.append(f"campaigns: the start of every campaign's transform: {how}")
+    merged, campaign = merge_campaigns(campaigns, names, A, notes)
+    res = identify(robot, merged, progress=progress, **identify_kwargs)
+    first = res
+    rounds, gn_steps, change = 0, 0, (float("inf"), float("inf"))
+    tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], _Joint, np.ndarray]] = []
+    while True:
+        rounds += 1
+        joint = _Joint(res.model, _free_names(res), campaigns, campaign, merged, res.inliers)
+        tried.append((joint.rms(res.model.theta, A), rounds, res, A, joint, campaign))
+        _th, A_new, steps = joint.solve(res.model.theta, A)
+        gn_steps += steps
+        change = max(
+            (_change(a, b) for a, b in zip(A, A_new)), key=lambda d: d[0] / CAMPAIGN_TOL_M + d[1] / CAMPAIGN_TOL_RAD
+        )
+        if (change[0] < CAMPAIGN_TOL_M and change[1] < CAMPAIGN_TOL_RAD) or rounds >= CAMPAIGN_MAX_ROUNDS:
+            break
+        A = A_new
+        merged, campaign = merge_campaigns(campaigns, names, A)
+        res = identify(robot, merged, progress=progress, **identify_kwargs)
+    converged = change[0] < CAMPAIGN_TOL_M and change[1] < CAMPAIGN_TOL_RAD
+    best = min(tried, key=lambda t: t[0])
+    if best[1] != rounds:  # an engine re-fit can end worse than an earlier round: keep the best of them
+        notes.append(
+            f"campaigns: round {best[1]}'s fit is kept (RMS per axis {best[0] * 1e3:.4g} mm over the inlier rows of "
+            f"every campaign; the last round's {tried[-1][0] * 1e3:.4g} mm)"
+        )
+        _rms, _k, res, A, joint, campaign = best
+    return _finish(res, first, joint, A, names, campaigns, campaign, notes, rounds, gn_steps, change, converged)
+
+
+def _finish(
+    res: IdentificationResult,
+    first: IdentificationResult,
+    joint: _Joint,
+    A: list[np.ndarray],
+    names: list[str],
+    campaigns: list[Measurements],
+    campaign: np.ndarray,
+    notes: list[str],
+    rounds: int,
+    gn_steps: int,
+    change: tuple[float, float],
+    converged: bool,
+) -> IdentificationResult:
+    """The result of the joint fit: the joint covariance, the campaigns' frames, the notes."""
+    model = res.model
+    C = len(campaigns)
+    k = len(joint.idx)
+    cov, s2, dof = joint_covariance(joint, model.theta, A)
+    names_free = joint.names
+    model.covariance = cov[:k, :k].copy()
+    model.covariance_names = list(names_free)
+    r = joint.residual(model.theta, A)[joint.mask]
+    if r.size:
+        model.residual_sigma_m = float(np.sqrt(np.sum(r**2) / max(r.size - k - 6 * (C - 1), 1)))
+    reg = list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.t"]]) + list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.w"]])
+    reg_idx = [names_free.index(n) if n in names_free else -1 for n in reg]
+    frames = []
+    for c in range(C):
+        sub = [i for i in reg_idx if i >= 0]
+        a_idx = list(range(k + 6 * c, k + 6 * c + 6)) if c < C - 1 else []
+        full = np.zeros((6 + len(a_idx), 6 + len(a_idx)))
+        pos = [j for j, i in enumerate(reg_idx) if i >= 0] + list(range(6, 6 + len(a_idx)))
+        full[np.ix_(pos, pos)] = cov[np.ix_(sub + a_idx, sub + a_idx)]
+        Rc = _campaign_registration(model, np.zeros(6 + len(a_idx)), A[c] if c < C - 1 else None)
+        frames.append(
+            CampaignFrame(
+                name=names[c],
+                base2meas=Rc,
+                n_rows=int(np.sum(res.inliers & (campaign == c))),
+                data=campaigns[c].source,
+                registration_cov=_registration_cov(model, full, A[c] if c < C - 1 else None),
+            )
+        )
+    model.campaigns = frames
+    res.history = first.history
+    res.effects_added = list(first.effects_added)
+    for e in res.model.effects:
+        if e not in res.effects_added:
+            res.effects_added.append(e)
+    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, frames)
+    res.identifiability["campaign_fit"] = {
+        "reference": names[-1],
+        "rounds": rounds,
+        "gauss_newton_steps": gn_steps,
+        "last_change_m": change[0],
+        "last_change_rad": change[1],
+        "converged": converged,
+        "residual_variance_weighted": s2,
+        "dof": dof,
+    }
+    res.notes = (
+        list(first.notes)
+        + notes
+        + [
+            f"campaigns: {C} ({', '.join(names)}), one registration each (reference: '{names[-1]}', the model's "
+            f"own); fitted jointly in {rounds} round(s) of engine re-fit and Gauss-Newton ({gn_steps} steps), "
+            f"last change of a campaign's transform {change[0] * 1e3:.2g} mm / {change[1]:.2g} rad"
+            + ("" if converged else f" (not converged in {CAMPAIGN_MAX_ROUNDS} rounds)")
+        ]
+    )
+    return res
+
+
+def _one_frame(
+    robot: Robot,
+    campaigns: list[Measurements],
+    names: list[str],
+    progress: Progress | None,
+    notes: list[str],
+    identify_kwargs: dict[str, Any],
+) -> IdentificationResult:
+    """Every campaign in one measurement frame: the engine on the concatenation."""
+    merged, campaign = merge_campaigns(campaigns, names, None, notes)
+    res = identify(robot, merged, progress=progress, **identify_kwargs)
+    model = res.model
+    reg_cov = _reg_block(model)
+    frames = [
+        CampaignFrame(
+            name=names[c],
+            base2meas=model.base2meas(),
+            n_rows=int(np.sum(res.inliers & (campaign == c))),
+            data=campaigns[c].source,
+            registration_cov=None if reg_cov is None else reg_cov.copy(),
+        )
+        for c in range(len(campaigns))
+    ]
+    model.campaigns = frames
+    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, frames)
+    res.identifiability["campaign_fit"] = {"reference": names[-1], "shared": ["registration"]}
+    res.notes = (
+        list(res.notes)
+        + notes
+        + [f"campaigns: {len(campaigns)} ({', '.join(names)}) in one shared measurement frame (concatenated)"]
+    )
+    return res

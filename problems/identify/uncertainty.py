@@ -1,0 +1,308 @@
+"""Where an identified model holds: the predicted standard deviation of a prediction, and the
+poses outside the identified ranges.
+
+A model identified by :func:`problems.identify.identify` carries the covariance ``C`` of its
+free parameters (SI, :attr:`models.arm.ArmModel.covariance`) and the standard deviation per
+axis of its residual ``s`` (:attr:`models.arm.ArmModel.residual_sigma_m`).  At a pose the
+predicted point ``p(theta)`` has the linearised covariance ``J C J^T`` (``J`` the Jacobian of
+the point w.r.t. the free parameters, by CasADi's AD on the identification graph), and a
+new measurement of it also carries the residual: per axis
+
+    sigma_k^2 = (J C J^T)_kk + s^2.
+
+In the measurement frame (``frame="measurement"``, what :func:`problems.identify.predict`
+returns) every free parameter counts, the registration included; in the base frame
+(``frame="base"``, where compensation and plans put the TCP) the Jacobian is taken at the TCP
+(:func:`at_tcp`), the registration's parameters do not act (nor the measured point's, unless the
+data were registered and the measured point is the TCP) and it is rotated into the base frame.
+
+:func:`outside_ranges` names, per row, the joints commanded outside the range of the
+identification data (:attr:`models.arm.ArmModel.joint_range_rad`): there the model
+extrapolates and its sigma is the linearised one of an extrapolation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from models import effects as fx
+from models.arm import ArmModel
+
+from .evaluation import _ev_for
+
+#: Frames a sigma is given in.
+FRAMES = ("measurement", "base")
+#: Registration parameter groups: they do not act on the TCP in the base frame.
+REGISTRATION_PARAM_GROUPS = ("reg.t", "reg.w")
+#: A joint counts as inside the identified range up to this far beyond it, rad (rounding).
+JOINT_RANGE_TOL_RAD = 1e-9
+
+
+@dataclass
+class PredictedSigma:
+    """The predicted standard deviation of N predicted points.
+
+    Attributes
+    ----------
+    sigma_m : ndarray, shape (N, 3)
+        Per axis (x, y, z of ``frame``), m: parameters and residual together.
+    param_cov : ndarray, shape (N, 3, 3)
+        The parameters' part ``J C J^T``, m^2.
+    residual_sigma_m : float
+        The residual's part per axis, m (0 when the model does not carry it).
+    frame : str
+        ``"measurement"`` or ``"base"``.
+    available : bool
+        False when the model has no covariance (a nominal model, or a format-1 model file):
+        then ``sigma_m`` is NaN.
+    """
+
+    sigma_m: np.ndarray
+    param_cov: np.ndarray
+    residual_sigma_m: float
+    frame: str
+    available: bool
+
+
+def rows_of(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None = None) -> np.ndarray:
+    """Rows of the identification graph (:func:`problems.identify.evaluation.make_rows`) for commands
+    ``q`` (N, 6), rad, under base-frame TCP wrenches ``wrench`` (N, 6) or (6,), N and N*m (zero when
+    None), at the model's temperature and at the start of its time reference."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    rows = np.zeros((len(q), fx.ROW_SIZE))
+    rows[:, 0:6] = q
+    if wrench is not None:
+        rows[:, 6:12] = np.broadcast_to(np.asarray(wrench, dtype=float), (len(q), 6))
+    rows[:, 13] = model.temperature_ref - fx.THERMAL_REFERENCE_C
+    return rows
+
+
+def parameter_jacobian(
+    model: ArmModel, q: np.ndarray, wrench: np.ndarray | None = None, names: list[str] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted measured point and its Jacobian w.r.t. named parameters (measurement frame).
+
+    Parameters
+    ----------
+    model : ArmModel
+    q : ndarray, shape (N, 6)
+        Commands, rad.
+    wrench : ndarray, shape (N, 6) or (6,), optional
+        Base-frame TCP wrench ``[f (N); m (N*m)]``.
+    names : list of str, optional
+        Parameter names (``models.effects.PARAM_NAMES``); default the model's
+        :attr:`~models.arm.ArmModel.covariance_names`.
+
+    Returns
+    -------
+    p : ndarray, shape (N, 3)
+        Predicted measured point, measurement frame, m.
+    J : ndarray, shape (N, 3, k)
+        ``dp/dtheta`` in m per SI unit of each parameter, columns in the order of ``names``.
+    """
+    names = list(model.covariance_names if names is None else names)
+    idx = np.array([fx.PARAM_NAMES.index(n) for n in names], dtype=int)
+    rows = rows_of(model, q, wrench)
+    const = model.const
+    ev = _ev_for(model.nominal, const)
+    _p, q_eq = ev.measure(rows, model.theta, const)
+    p, J = ev.jacobian(rows, q_eq, model.theta, const)
+    n = len(rows)
+    return p, J.reshape(n, 3, -1)[:, :, idx]
+
+
+def at_tcp(model: ArmModel) -> ArmModel:
+    """The model with its measured point on the planning TCP (the robot file's tool translation plus
+    :attr:`~models.arm.ArmModel.tcp_correction_m`, flange frame): where the base-frame sigma is taken."""
+    theta = model.theta.copy()
+    theta[fx.GROUP_SLICES["tool.p"]] = np.asarray(model.nominal.tcp2flange, dtype=float)[:3, 3] + np.asarray(
+        model.tcp_correction_m, dtype=float
+    )
+    return replace(model, theta=theta)
+
+
+def to_base_frame(model: ArmModel, J: np.ndarray, names: list[str]) -> np.ndarray:
+    """A measurement-frame Jacobian (N, 3, k) rotated into the base frame, the registration's
+    columns zero (they move the measurement frame, not the TCP), and the measured point's too unless
+    the data were registered (then the measured point is the TCP; otherwise it is another point
+    than the TCP, which the robot file declares)."""
+    R = model.base2meas()[:3, :3]
+    Jb = np.einsum("ji,njk->nik", R, J)
+    groups = REGISTRATION_PARAM_GROUPS + (() if model.registered else ("tool.p",))
+    reg = {n for g in groups for n in fx.PARAM_NAMES[fx.GROUP_SLICES[g]]}
+    for k, name in enumerate(names):
+        if name in reg:
+            Jb[:, :, k] = 0.0
+    return Jb
+
+
+def predicted_sigma(
+    model: ArmModel,
+    q: np.ndarray,
+    wrench: np.ndarray | None = None,
+    frame: str = "measurement",
+    include_residual: bool = True,
+) -> PredictedSigma:
+    """Predicted standard deviation per axis of the model's prediction at commands ``q`` (N, 6), rad.
+
+    ``sigma^2 = diag(J C J^T) + s^2`` (module docstring); ``frame`` is ``"measurement"`` (the
+    measured point, as :func:`problems.identify.predict`) or ``"base"`` (the TCP position of
+    compensation and plans, registration excluded).  ``include_residual=False`` leaves out ``s``
+    (the parameters' part alone, what a design can reduce).
+    """
+    if frame not in FRAMES:
+        raise ValueError(f"frame {frame!r}: expected one of {FRAMES}")
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = len(q)
+    s = float(model.residual_sigma_m or 0.0) if include_residual else 0.0
+    if model.covariance is None or not model.covariance_names:
+        return PredictedSigma(np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), s, frame, False)
+    names = list(model.covariance_names)
+    if frame == "base":
+        J = to_base_frame(model, parameter_jacobian(at_tcp(model), q, wrench, names)[1], names)
+    else:
+        _p, J = parameter_jacobian(model, q, wrench, names)
+    C = np.asarray(model.covariance, dtype=float)
+    P = np.einsum("nik,kl,njl->nij", J, C, J)
+    var = np.maximum(np.diagonal(P, axis1=1, axis2=2), 0.0) + s**2
+    return PredictedSigma(np.sqrt(var), P, s, frame, True)
+
+
+def outside_joints(model: ArmModel, q: np.ndarray) -> np.ndarray:
+    """Which joints of each row of ``q`` (N, 6), rad, lie outside the identification data's range,
+    bool (N, 6) (all False for a model that does not record its ranges)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    rng = model.joint_range_rad
+    if rng is None:
+        return np.zeros(q.shape, dtype=bool)
+    return (q < rng[:, 0] - JOINT_RANGE_TOL_RAD) | (q > rng[:, 1] + JOINT_RANGE_TOL_RAD)
+
+
+def outside_ranges(model: ArmModel, q: np.ndarray) -> list[str]:
+    """Per row of ``q`` (N, 6), rad: the joints outside the identification data's range, e.g.
+    ``"q1 -200.0 deg (identified -180.0..-45.0)"`` joined by ``"; "``, or ``""`` inside (and for
+    a model that does not record its ranges)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    rng = model.joint_range_rad
+    if rng is None:
+        return [""] * len(q)
+    out = []
+    for row, mask in zip(q, outside_joints(model, q)):
+        bad = np.flatnonzero(mask)
+        out.append(
+            "; ".join(
+                f"q{j + 1} {np.degrees(row[j]):.1f} deg (identified {np.degrees(rng[j, 0]):.1f}.."
+                f"{np.degrees(rng[j, 1]):.1f})"
+                for j in bad
+            )
+        )
+    return out
+
+
+#: Poses of a path at which the plan's sigma is evaluated, at most (evenly spaced; the largest of
+#: them is reported): the Jacobian costs about a millisecond per pose.
+PATH_SIGMA_MAX_POSES = 2000
+#: Waypoints outside the identified ranges named in a plan's warning (the rest counted).
+PATH_OUTSIDE_NAMED = 5
+
+
+@dataclass
+class PathSigma:
+    """The predicted sigma of the compensated TCP along a path, and where the model extrapolates.
+
+    Attributes
+    ----------
+    available : bool
+        False for a model without covariance (then ``reason`` says why and the numbers are NaN).
+    reason : str
+    waypoints : ndarray of int, shape (M,)
+        The waypoints evaluated (every one up to :data:`PATH_SIGMA_MAX_POSES`, else evenly spaced).
+    sigma_m : ndarray, shape (M, 3)
+        Predicted standard deviation per axis of the base frame at those waypoints, m (the
+        parameters' part and the residual's, :func:`predicted_sigma` with ``frame="base"``).
+    outside : ndarray of bool, shape (N, 6)
+        Joints outside the identification data's range at every waypoint of the path.
+    outside_text : list of str
+        :func:`outside_ranges` of the first :data:`PATH_OUTSIDE_NAMED` waypoints outside, with their index.
+    """
+
+    available: bool
+    reason: str
+    waypoints: np.ndarray
+    sigma_m: np.ndarray
+    outside: np.ndarray
+    outside_text: list[tuple[int, str]]
+
+    @property
+    def n_outside(self) -> int:
+        """Waypoints with a joint outside the identified ranges."""
+        return int(self.outside.any(axis=1).sum())
+
+    def text(self) -> str:
+        """One line for the terminal and the report."""
+        if not self.available:
+            return f"predicted sigma of the compensated TCP: not available ({self.reason})"
+        norm = np.linalg.norm(self.sigma_m, axis=1)
+        k = int(np.argmax(norm))
+        out = (
+            f"; {self.n_outside} waypoint(s) outside the identified joint ranges (extrapolated)"
+            if self.n_outside
+            else "; every waypoint inside the identified joint ranges"
+        )
+        return (
+            f"predicted sigma of the compensated TCP (base frame, per axis): mean {self.sigma_m.mean() * 1e3:.4f} mm, "
+            f"largest {self.sigma_m.max() * 1e3:.4f} mm (|sigma| {norm[k] * 1e3:.4f} mm at waypoint "
+            f"{int(self.waypoints[k])}){out}"
+        )
+
+    def warning(self) -> str | None:
+        """The plan's warning naming the waypoints where the model extrapolates, or None."""
+        if not self.n_outside:
+            return None
+        named = "; ".join(f"waypoint {k}: {t}" for k, t in self.outside_text)
+        more = f" and {self.n_outside - len(self.outside_text)} more" if self.n_outside > len(self.outside_text) else ""
+        return (
+            f"the arm model extrapolates at {self.n_outside} waypoint(s), outside the joint ranges it was "
+            f"identified on ({named}{more}): its prediction and sigma there are an extrapolation"
+        )
+
+    def to_dict(self) -> dict[str, object]:
+        """``summary.json`` ``model_sigma`` (SI; NaN as None)."""
+        ok = self.available and len(self.sigma_m)
+        norm = np.linalg.norm(self.sigma_m, axis=1) if ok else np.zeros(0)
+        return {
+            "available": bool(self.available),
+            "reason": self.reason,
+            "frame": "base",
+            "n_evaluated": int(len(self.waypoints)),
+            "mean_m": float(self.sigma_m.mean()) if ok else None,
+            "max_m": float(self.sigma_m.max()) if ok else None,
+            "max_waypoint": int(self.waypoints[int(np.argmax(norm))]) if ok else None,
+            "n_outside_range": self.n_outside,
+            "outside_range": [{"waypoint": k, "joints": t} for k, t in self.outside_text],
+            "text": self.text(),
+        }
+
+
+def path_sigma(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None = None) -> PathSigma:
+    """The predicted sigma of the compensated TCP along a path (commands ``q`` (N, 6), rad, under
+    base-frame TCP wrenches ``wrench`` (N, 6)), and the waypoints outside the identified ranges."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = len(q)
+    outside = outside_joints(model, q)
+    bad = np.flatnonzero(outside.any(axis=1))[:PATH_OUTSIDE_NAMED]
+    texts = outside_ranges(model, q[bad]) if len(bad) else []
+    out_text = [(int(k), t) for k, t in zip(bad, texts)]
+    idx = np.unique(np.linspace(0, n - 1, min(n, PATH_SIGMA_MAX_POSES)).round().astype(int)) if n else np.zeros(0, int)
+    if model.covariance is None or not model.covariance_names:
+        why = (
+            "nominal model: no covariance"
+            if not model.effects and model.is_nominal
+            else "the model file has no parameter covariance (written before format 2); identify again"
+        )
+        return PathSigma(False, why, idx, np.full((len(idx), 3), np.nan), outside, out_text)
+    w = None if wrench is None else np.broadcast_to(np.asarray(wrench, dtype=float), (n, 6))[idx]
+    ps = predicted_sigma(model, q[idx], w, frame="base")
+    return PathSigma(True, "", idx, ps.sigma_m, outside, out_text)
