@@ -53,7 +53,7 @@ from models import effects as fx
 from models.arm import ArmModel, CampaignFrame
 from models.errors import InputError
 from models.robot import Robot
-from models.transforms import matrix_to_rotvec, rotvec_to_matrix
+from models.transforms import invert, matrix_to_rotvec, rotvec_to_matrix, transform
 
 from ..measurements import Measurements
 from .apply import predict
@@ -95,20 +95,6 @@ POSE_SEPARATOR = "/"
 # ----------------------------------------------------------------------------------
 
 
-def _transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """4x4 homogeneous transform of a rotation (3, 3) and a translation (3,)."""
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = t
-    return T
-
-
-def _inv(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4x4 transform."""
-    R = T[:3, :3]
-    return _transform(R.T, -R.T @ T[:3, 3])
-
-
 def cayley_vector(R: np.ndarray) -> np.ndarray:
     """Cayley vector ``w`` of a rotation (3, 3): the inverse of :func:`models.effects.cayley_np`
     (``W = (R - I)(R + I)^-1``; a rotation by angle ``a`` has ``|w| = tan(a/2)``)."""
@@ -128,12 +114,12 @@ def _skew(v: np.ndarray) -> np.ndarray:
 
 def _perturbed(A: np.ndarray, dt: np.ndarray, dphi: np.ndarray) -> np.ndarray:
     """``A`` followed by the small motion ``x -> exp([dphi]x) x + dt`` (of the reference frame)."""
-    return _transform(rotvec_to_matrix(dphi), dt) @ A
+    return transform(rotvec_to_matrix(dphi), dt) @ A
 
 
 def _change(A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
     """Translation (m) and rotation (rad) difference of two rigid transforms."""
-    D = B @ _inv(A)
+    D = B @ invert(A)
     return float(np.linalg.norm(D[:3, 3])), float(np.linalg.norm(matrix_to_rotvec(D[:3, :3])))
 
 
@@ -381,10 +367,10 @@ def _campaign_registration(model: ArmModel, x: np.ndarray, A: np.ndarray | None)
     theta = model.theta.copy()
     theta[fx.GROUP_SLICES["reg.t"]] += x[0:3]
     theta[fx.GROUP_SLICES["reg.w"]] += x[3:6]
-    B = _transform(fx.cayley_np(theta[fx.GROUP_SLICES["reg.w"]]) @ model.R0, theta[fx.GROUP_SLICES["reg.t"]])
+    B = transform(fx.cayley_np(theta[fx.GROUP_SLICES["reg.w"]]) @ model.R0, theta[fx.GROUP_SLICES["reg.t"]])
     if A is None:
         return B
-    return _inv(_perturbed(A, x[6:9], x[9:12])) @ B
+    return invert(_perturbed(A, x[6:9], x[9:12])) @ B
 
 
 def _registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) -> np.ndarray:
@@ -452,8 +438,8 @@ def _start_transforms(
     for m in campaigns:
         p = predict(model, _no_time(m))
         R, t = kabsch(p, m.p)
-        frames.append(_transform(R, t))
-    return [frames[-1] @ _inv(B) for B in frames], how
+        frames.append(transform(R, t))
+    return [frames[-1] @ invert(B) for B in frames], how
 
 
 def _no_time(m: Measurements) -> Measurements:
