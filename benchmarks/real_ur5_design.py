@@ -57,6 +57,58 @@ def _errors(pred_csv: Path, rows: list[list[str]], header: list[str]) -> tuple[n
     return meas - p, s
 
 
+#: The dataset's measurement-file format (docs/real-data.md).
+FMT = ("--format", "tracker-dif")
+
+
+def _split(data: Path, out: Path) -> tuple[list[str], list[list[str]], list[list[str]]]:
+    """grid.csv split by joint 1 into campaign A and the pool B, both written to ``out`` (A.csv, B.csv)."""
+    with (data / "grid.csv").open() as f:
+        rd = csv.reader(f)
+        header = next(rd)
+        rows = list(rd)
+    j1 = header.index("joint_1")
+    A = [r for r in rows if float(r[j1]) < SPLIT_JOINT1_DEG]
+    B = [r for r in rows if float(r[j1]) >= SPLIT_JOINT1_DEG]
+    _write(out / "A.csv", header, A)
+    _write(out / "B.csv", header, B)
+    return header, A, B
+
+
+def _designed(out: Path, n: int, criterion: str) -> list[int]:
+    """Model A, then ``compplan design`` on the pool: the chosen pool rows (0-based)."""
+    a_csv, a_toml = str(out / "A.csv"), str(out / "A.toml")
+    _run("identify", "--robot", "ur5", "--data", a_csv, *FMT, "--out", a_toml, "--report", str(out / "A_report"),
+         "--force")  # fmt: skip
+    _run("design", "--model", a_toml, "--data", a_csv, "--pool", str(out / "B.csv"), *FMT, "--n", str(n),
+         "--criterion", criterion, "--out", str(out / "campaign.csv"))  # fmt: skip
+    with (out / "campaign.csv").open() as f:
+        return [int(r["extra_pool_line"]) - 2 for r in csv.DictReader(f)]  # the pool file's line; header = 1
+
+
+def _evaluate(out: Path, label: str, idx: list[int], header: list[str], B: list[list[str]]) -> tuple[float, float]:
+    """Identify A with the pool rows ``idx``, predict the rest of the pool: the mean Euclidean error (mm)
+    and the share of per-axis errors within 2 sigma; prints one line."""
+    sel = set(idx)
+    _write(out / f"B_{label}.csv", header, [B[i] for i in sorted(idx)])  # measurement order
+    rest = [B[i] for i in range(len(B)) if i not in sel]
+    _write(out / f"rest_{label}.csv", header, rest)
+    model = str(out / f"AB_{label}.toml")
+    _run("identify", "--robot", "ur5", "--data", str(out / "A.csv"), "--data", str(out / f"B_{label}.csv"), *FMT,
+         "--out", model, "--report", str(out / f"AB_{label}_report"), "--force")  # fmt: skip
+    _run("predict", "--model", model, "--input", str(out / f"rest_{label}.csv"), *FMT, "--out",
+         str(out / f"pred_{label}.csv"))  # fmt: skip
+    e, s = _errors(out / f"pred_{label}.csv", rest, header)
+    eu = np.linalg.norm(e, axis=1) * 1e3
+    cov = float(np.mean(np.abs(e) <= 2 * s))
+    print(
+        f"  {label:9s}: mean {eu.mean():.4f} mm, RMS per axis {np.sqrt(np.mean(e**2)) * 1e3:.4f} mm, "
+        f"2-sigma coverage {100 * cov:.1f} %",
+        flush=True,
+    )
+    return float(eu.mean()), cov
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", default="../shared/data/ur5-laser-tracker")
@@ -67,92 +119,13 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    with (Path(a.data) / "grid.csv").open() as f:
-        rd = csv.reader(f)
-        header = next(rd)
-        rows = list(rd)
-    j1 = header.index("joint_1")
-    A = [r for r in rows if float(r[j1]) < SPLIT_JOINT1_DEG]
-    B = [r for r in rows if float(r[j1]) >= SPLIT_JOINT1_DEG]
-    _write(out / "A.csv", header, A)
-    _write(out / "B.csv", header, B)
-    fmt = ("--format", "tracker-dif")
-    _run(
-        "identify",
-        "--robot",
-        "ur5",
-        "--data",
-        str(out / "A.csv"),
-        *fmt,
-        "--out",
-        str(out / "A.toml"),
-        "--report",
-        str(out / "A_report"),
-        "--force",
-    )
-    _run(
-        "design",
-        "--model",
-        str(out / "A.toml"),
-        "--data",
-        str(out / "A.csv"),
-        "--pool",
-        str(out / "B.csv"),
-        *fmt,
-        "--n",
-        str(a.n),
-        "--criterion",
-        a.criterion,
-        "--out",
-        str(out / "campaign.csv"),
-    )
-    with (out / "campaign.csv").open() as f:
-        lines = [int(r["extra_pool_line"]) for r in csv.DictReader(f)]
-    chosen = {"designed": [L - 2 for L in lines]}  # the pool file's line; its header is line 1
+    header, A, B = _split(Path(a.data), out)
+    chosen = {"designed": _designed(out, a.n, a.criterion)}
     rng = np.random.default_rng(0)
     for s in range(a.random_seeds):
         chosen[f"random{s}"] = sorted(rng.choice(len(B), a.n, replace=False).tolist())
     print(f"real_ur5_design: A {len(A)} rows (joint 1 < {SPLIT_JOINT1_DEG} deg), pool B {len(B)} rows, N = {a.n}")
-    result = {}
-    for label, idx in chosen.items():
-        sel = set(idx)
-        _write(out / f"B_{label}.csv", header, [B[i] for i in sorted(idx)])  # measurement order
-        rest = [B[i] for i in range(len(B)) if i not in sel]
-        _write(out / f"rest_{label}.csv", header, rest)
-        _run(
-            "identify",
-            "--robot",
-            "ur5",
-            "--data",
-            str(out / "A.csv"),
-            "--data",
-            str(out / f"B_{label}.csv"),
-            *fmt,
-            "--out",
-            str(out / f"AB_{label}.toml"),
-            "--report",
-            str(out / f"AB_{label}_report"),
-            "--force",
-        )
-        _run(
-            "predict",
-            "--model",
-            str(out / f"AB_{label}.toml"),
-            "--input",
-            str(out / f"rest_{label}.csv"),
-            *fmt,
-            "--out",
-            str(out / f"pred_{label}.csv"),
-        )
-        e, s = _errors(out / f"pred_{label}.csv", rest, header)
-        eu = np.linalg.norm(e, axis=1) * 1e3
-        cov = float(np.mean(np.abs(e) <= 2 * s))
-        result[label] = (float(eu.mean()), cov)
-        print(
-            f"  {label:9s}: mean {eu.mean():.4f} mm, RMS per axis {np.sqrt(np.mean(e**2)) * 1e3:.4f} mm, "
-            f"2-sigma coverage {100 * cov:.1f} %",
-            flush=True,
-        )
+    result = {label: _evaluate(out, label, idx, header, B) for label, idx in chosen.items()}
     rnd = np.mean([v[0] for k, v in result.items() if k.startswith("random")])
     d = result["designed"][0]
     print(

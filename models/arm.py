@@ -273,8 +273,10 @@ class ArmModel:
                 cov = self.covariance
                 if cov is not None and c.registration_cov is not None:
                     cov = cov.copy()
-                    reg = list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.t"]] + fx.PARAM_NAMES[fx.GROUP_SLICES["reg.w"]])
-                    idx = [self.covariance_names.index(n) if n in self.covariance_names else -1 for n in reg]
+                    idx = [
+                        self.covariance_names.index(n) if n in self.covariance_names else -1
+                        for n in fx.REGISTRATION_NAMES
+                    ]
                     for a, ia in enumerate(idx):
                         if ia < 0:
                             continue

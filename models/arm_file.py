@@ -171,6 +171,34 @@ def _covariance_from(where: str, ident: dict[str, Any]) -> tuple[np.ndarray | No
     return C, list(names)
 
 
+def _effect_constants(where: str, c: dict[str, Any]) -> dict[str, np.ndarray]:
+    """``[identified.constants.effect]``: the data-dependent constant blocks of effects by key."""
+    out = {}
+    for key, vals in dict(c.get("effect", {})).items():
+        if key not in fx.CONST_SLICES or key.split(".")[0] in ("dh", "tool", "gravity", "compliance0", "tau_scale"):
+            raise RobotFileError(f"{where}: [identified.constants.effect] unknown constant block '{key}'")
+        sl = fx.CONST_SLICES[key]
+        out[key] = _nums(where, f"constants.effect.{key}", vals, sl.stop - sl.start)
+    return out
+
+
+def _where_it_holds(where: str, ident: dict[str, Any]) -> dict[str, Any]:
+    """The format-2 keys as :class:`ArmModel` fields: covariance and its names, the residual's sigma,
+    the identified joint ranges and the campaigns (absent keys: a format-1 file, no sigma)."""
+    cov, cov_names = _covariance_from(where, ident)
+    return {
+        "covariance": cov,
+        "covariance_names": cov_names,
+        "residual_sigma_m": (
+            float(_nums(where, "residual_sigma_m", [ident["residual_sigma_m"]], 1)[0])
+            if "residual_sigma_m" in ident
+            else None
+        ),
+        "joint_range_rad": _joint_range(where, ident),
+        "campaigns": _campaigns_from(where, ident),
+    }
+
+
 def _joint_range(where: str, ident: dict[str, Any]) -> np.ndarray | None:
     """``joint_range_rad``: 6 rows ``[lo, hi]``, rad, lo <= hi (None when absent)."""
     if "joint_range_rad" not in ident:
@@ -277,13 +305,6 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
         knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"], 6 * fx.N_KNOTS).reshape(
             6, fx.N_KNOTS
         )
-        cov, cov_names = _covariance_from(where, ident)
-        effect_const = {}
-        for key, vals in dict(c.get("effect", {})).items():
-            if key not in fx.CONST_SLICES or key.split(".")[0] in ("dh", "tool", "gravity", "compliance0", "tau_scale"):
-                raise RobotFileError(f"{where}: [identified.constants.effect] unknown constant block '{key}'")
-            sl = fx.CONST_SLICES[key]
-            effect_const[key] = _nums(where, f"constants.effect.{key}", vals, sl.stop - sl.start)
         return ArmModel(
             nominal=nominal,
             theta=theta,
@@ -303,20 +324,8 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
             torque_range_Nm=(
                 _nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6) if "torque_range_Nm" in ident else None
             ),
-            effect_const=effect_const,
-            covariance=cov,
-            covariance_names=cov_names,
-            residual_sigma_m=(
-                float(_nums(where, "residual_sigma_m", [ident["residual_sigma_m"]], 1)[0])
-                if "residual_sigma_m" in ident
-                else None
-            ),
-            joint_range_rad=(
-                _matrix(where, "joint_range_rad", ident["joint_range_rad"], 6, 2)
-                if "joint_range_rad" in ident
-                else None
-            ),
-            campaigns=_campaigns_from(where, ident),
+            effect_const=_effect_constants(where, c),
+            **_where_it_holds(where, ident),
         )
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None

@@ -180,3 +180,11 @@ def test_sigma_covers_the_real_held_out_errors():
     share = np.mean(np.abs(e) <= 2 * s)
     assert 0.90 <= share <= 0.99, share
     assert outside_ranges(model, held.q) == [""] * held.n  # the held-out poses lie inside the grid's ranges
+
+
+def test_bad_joint_range_is_refused(fitted):
+    _robot, _vr, model = fitted
+    d = tomllib.loads(model_toml(model))
+    d["identified"]["joint_range_rad"][2] = [1.0, -1.0]
+    with pytest.raises(RobotFileError, match="joint_range_rad.*lo <= hi"):
+        model_from_robot(robot_from_dict(d, "m.toml"), "m.toml")

@@ -49,7 +49,7 @@ from .graph import (  # noqa: E402 - the layouts need every effect registered fi
 )
 from .link_compliance import LINK_BEAM_MIN_FRACTION, beam_frames  # noqa: E402 - after the registration above
 from .lost_motion import LOST_MOTION_RHO_BOUNDS, LOST_MOTION_RHO_INIT  # noqa: E402 - after the registration above
-from .registration import cayley, cayley_np  # noqa: E402 - after the registration above
+from .registration import cayley, cayley_np, cayley_vector  # noqa: E402 - after the registration above
 from .stiffness_hardening import HARDENING_KNOT_QUANTILES, N_HARDENING, N_KNOTS  # noqa: E402 - after the registration above
 from .thermal import THERMAL_REFERENCE_C  # noqa: E402 - after the registration above
 
@@ -68,6 +68,9 @@ CONST_SLICES: dict[str, slice] = dict(_L.const_slices)
 LIBRARY: tuple[str, ...] = tuple(e.name for e in registry() if not e.declared) + ("outliers",)
 #: Names of the declared (always present) parameter groups.
 BASE_GROUPS: tuple[str, ...] = tuple(g.key for e in registry() if e.declared for g in e.groups)
+#: Names of the registration's parameters (base frame -> measurement frame): translation ``reg.t``,
+#: then rotation ``reg.w`` (Cayley vector).
+REGISTRATION_NAMES: tuple[str, ...] = PARAM_NAMES[GROUP_SLICES["reg.t"]] + PARAM_NAMES[GROUP_SLICES["reg.w"]]
 #: Effect plug-ins by name.
 EFFECTS: dict[str, Effect] = {e.name: e for e in registry()}
 
@@ -131,8 +134,10 @@ __all__ = [
     "arm_functions",
     "base",
     "beam_frames",
+    "REGISTRATION_NAMES",
     "cayley",
     "cayley_np",
+    "cayley_vector",
     "default_constants",
     "effect",
     "get_const",

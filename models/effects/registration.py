@@ -29,6 +29,13 @@ def cayley_np(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + 2.0 / (1.0 + w @ w) * (W + W @ W)
 
 
+def cayley_vector(R: np.ndarray) -> np.ndarray:
+    """Cayley vector ``w`` of a rotation (3, 3): the inverse of :func:`cayley_np`
+    (``W = (R - I)(R + I)^-1``; a rotation by angle ``a`` has ``|w| = tan(a/2)``)."""
+    W = (R - np.eye(3)) @ np.linalg.inv(R + np.eye(3))
+    return np.array([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]]) / 2.0
+
+
 @register
 class Registration(Effect):
     name = "registration"

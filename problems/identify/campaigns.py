@@ -95,13 +95,6 @@ POSE_SEPARATOR = "/"
 # ----------------------------------------------------------------------------------
 
 
-def cayley_vector(R: np.ndarray) -> np.ndarray:
-    """Cayley vector ``w`` of a rotation (3, 3): the inverse of :func:`models.effects.cayley_np`
-    (``W = (R - I)(R + I)^-1``; a rotation by angle ``a`` has ``|w| = tan(a/2)``)."""
-    W = (R - np.eye(3)) @ np.linalg.inv(R + np.eye(3))
-    return np.array([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]]) / 2.0
-
-
 def _skew(v: np.ndarray) -> np.ndarray:
     """``[v]x`` of vectors (..., 3) -> (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
@@ -357,7 +350,7 @@ class _Joint:
 def _registration_params(base2meas: np.ndarray, around: np.ndarray) -> np.ndarray:
     """``[reg.t (m), reg.w (Cayley)]`` of a registration ``base2meas`` with the correction around
     the rotation ``around`` (3, 3)."""
-    return np.concatenate([base2meas[:3, 3], cayley_vector(base2meas[:3, :3] @ around.T)])
+    return np.concatenate([base2meas[:3, 3], fx.cayley_vector(base2meas[:3, :3] @ around.T)])
 
 
 def _campaign_registration(model: ArmModel, x: np.ndarray, A: np.ndarray | None) -> np.ndarray:
@@ -488,7 +481,7 @@ def _campaign_table(
 
 def _reg_block(model: ArmModel) -> np.ndarray | None:
     """The model's own registration covariance ``[reg.t, reg.w]`` (6, 6) (None without)."""
-    reg = list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.t"]]) + list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.w"]])
+    reg = list(fx.REGISTRATION_NAMES)
     if model.covariance is None or any(n not in model.covariance_names for n in reg):
         return None
     idx = [model.covariance_names.index(n) for n in reg]
@@ -571,15 +564,39 @@ def identify_campaigns(
             )
     A, how = _start_transforms(robot, campaigns, identify_kwargs)
     notes.append(f"campaigns: the start of every campaign's transform: {how}")
+    first, res, A, joint, campaign, rounds, gn_steps, change = _fit_rounds(
+        robot, campaigns, names, A, progress, identify_kwargs, notes
+    )
+    converged = change[0] < CAMPAIGN_TOL_M and change[1] < CAMPAIGN_TOL_RAD
+    return _finish(res, first, joint, A, names, campaigns, campaign, notes, rounds, gn_steps, change, converged)
+
+
+def _fit_rounds(
+    robot: Robot,
+    campaigns: list[Measurements],
+    names: list[str],
+    A: list[np.ndarray],
+    progress: Progress | None,
+    identify_kwargs: Mapping[str, Any],
+    notes: list[str],
+) -> tuple[
+    IdentificationResult, IdentificationResult, list[np.ndarray], _Joint, np.ndarray, int, int, tuple[float, float]
+]:
+    """Steps 2-4 of the method (docs/identification.md, section 11): merge, identify, joint Gauss-Newton,
+    until the transforms ``A`` settle; the round of smallest joint RMS is kept.
+
+    Returns the first round's result (its selection history), the kept result, its transforms and joint
+    problem, the campaign index of the merged rows, the rounds, the Gauss-Newton steps and the last
+    change of a transform (m, rad)."""
     merged, campaign = merge_campaigns(campaigns, names, A, notes)
     res = identify(robot, merged, progress=progress, **identify_kwargs)
     first = res
     rounds, gn_steps, change = 0, 0, (float("inf"), float("inf"))
-    tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], _Joint, np.ndarray]] = []
+    tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], _Joint]] = []
     while True:
         rounds += 1
         joint = _Joint(res.model, _free_names(res), campaigns, campaign, merged, res.inliers)
-        tried.append((joint.rms(res.model.theta, A), rounds, res, A, joint, campaign))
+        tried.append((joint.rms(res.model.theta, A), rounds, res, A, joint))
         _th, A_new, steps = joint.solve(res.model.theta, A)
         gn_steps += steps
         change = max(
@@ -590,15 +607,14 @@ def identify_campaigns(
         A = A_new
         merged, campaign = merge_campaigns(campaigns, names, A)
         res = identify(robot, merged, progress=progress, **identify_kwargs)
-    converged = change[0] < CAMPAIGN_TOL_M and change[1] < CAMPAIGN_TOL_RAD
     best = min(tried, key=lambda t: t[0])
     if best[1] != rounds:  # an engine re-fit can end worse than an earlier round: keep the best of them
         notes.append(
             f"campaigns: round {best[1]}'s fit is kept (RMS per axis {best[0] * 1e3:.4g} mm over the inlier rows of "
             f"every campaign; the last round's {tried[-1][0] * 1e3:.4g} mm)"
         )
-        _rms, _k, res, A, joint, campaign = best
-    return _finish(res, first, joint, A, names, campaigns, campaign, notes, rounds, gn_steps, change, converged)
+        _rms, _k, res, A, joint = best
+    return first, res, A, joint, campaign, rounds, gn_steps, change
 
 
 def _finish(
@@ -626,7 +642,7 @@ def _finish(
     r = joint.residual(model.theta, A)[joint.mask]
     if r.size:
         model.residual_sigma_m = float(np.sqrt(np.sum(r**2) / max(r.size - k - 6 * (C - 1), 1)))
-    reg = list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.t"]]) + list(fx.PARAM_NAMES[fx.GROUP_SLICES["reg.w"]])
+    reg = list(fx.REGISTRATION_NAMES)
     reg_idx = [names_free.index(n) if n in names_free else -1 for n in reg]
     frames = []
     for c in range(C):

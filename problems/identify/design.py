@@ -75,7 +75,7 @@ from ..virtual.campaign import SIM_MAX_JACOBIAN_COND
 from .design_region import TASK_MARGIN_RAD, TASK_MAX_EVAL_POSES, TASK_POOL_POSES, TaskRegion, task_region
 from .identifiability import IDENT_REL_TOL, select_identifiable
 from .travel import travel_order
-from .uncertainty import REGISTRATION_PARAM_GROUPS, outside_joints, parameter_jacobian, to_base_frame
+from .uncertainty import outside_joints, parameter_jacobian, to_base_frame
 
 #: Design criteria: ``task`` (mean predicted variance over the evaluation poses), ``d`` (log det).
 DESIGN_CRITERIA = ("task", "d")
@@ -105,8 +105,6 @@ EXCHANGE_REL_GAIN = 1e-9
 RANDOM_TRIALS = 20
 #: Rows named per guard (the first ones, by file line).
 GUARD_LINES_NAMED = 5
-
-_REG_NAMES = tuple(n for g in REGISTRATION_PARAM_GROUPS for n in fx.PARAM_NAMES[fx.GROUP_SLICES[g]])
 
 
 class DesignStatus(Status):
@@ -259,7 +257,7 @@ class _Layout:
 
 def _layout(names: list[str], n_earlier: int, new_registration: bool) -> _Layout:
     k = len(names)
-    reg = np.array([i for i, n in enumerate(names) if n in _REG_NAMES], dtype=int)
+    reg = np.array([i for i, n in enumerate(names) if n in fx.REGISTRATION_NAMES], dtype=int)
     out = list(names)
     new_reg = None
     if new_registration and len(reg):
@@ -580,15 +578,7 @@ def design_campaign(
     # pool Jacobian (usable rows), the new campaign's layout
     _p, Jp = parameter_jacobian(model, pool.q[uidx], pool.wrench[uidx], names)
     Jc = _place(Jp, lay, lay.new_reg)
-    # earlier information, unscaled
-    Je_rows: list[np.ndarray] = []
-    w_rows: list[np.ndarray] = []
-    for e, m in enumerate(earlier):
-        me = _model_for_earlier(model, e, len(earlier))
-        _pe, Jx = parameter_jacobian(me, m.q, m.wrench, names)
-        Je_rows.append(_place(Jx, lay, lay.earlier_reg[e]))
-        se = np.asarray(m.sigma, dtype=float) if m.sigma is not None else np.full(m.n, s)
-        w_rows.append(1.0 / se)
+    Je_rows, w_rows = _earlier_rows(model, earlier, names, lay, s)
     # evaluation poses
     if eval_q is None:
         eq, ew = pool.q[uidx], pool.wrench[uidx]
@@ -604,11 +594,7 @@ def design_campaign(
             "at its end value beyond its range; docs/identification.md, section 10)"
         )
 
-    # column scales: unit RMS over the rows that carry each column
-    rows_all = [Jc] + Je_rows
-    ss = sum(np.einsum("nik,nik->k", R, R) for R in rows_all)
-    cnt = sum(len(R) * 3 * np.any(R != 0, axis=(0, 1)) for R in rows_all)
-    scale = np.where(ss > 0, np.sqrt(ss / np.maximum(cnt, 1)), 1.0)
+    scale = _column_scale([Jc] + Je_rows)
     Jc = Jc / scale
     Jev = Jev / scale
     # the model's own information (what the reported sigmas use)
@@ -620,26 +606,15 @@ def design_campaign(
     P0p = _inv_spd(I0p)
     Mp = np.einsum("nik,nil->kl", Jev, Jev) / len(Jev)
     _sign, ld0 = np.linalg.slogdet(I0p)
-    # the selection's: with the potential terms (scaled by their prior sigma: prior information 1 each)
-    H = max(0, int(potential_knots))
-    tau = DESIGN_POTENTIAL_SIGMA_RAD
-    q_range = np.column_stack([eq.min(axis=0), eq.max(axis=0)])
-    Jca = _with_potential(Jc, model, pool.q[uidx], pool.wrench[uidx], H, tau, "measurement", q_range)
-    Jeva = _with_potential(Jev, model, eq, ew, H, tau, eval_frame, q_range)
-    I0 = np.zeros((Jca.shape[2], Jca.shape[2]))
-    I0[:n_prim, :n_prim] = I0p
-    if H:
-        I0[n_prim:, n_prim:] += np.eye(Jca.shape[2] - n_prim)
-        for e, (Jx, w, m) in enumerate(zip(Je_rows, w_rows, earlier)):
-            me = _model_for_earlier(model, e, len(earlier))
-            K = _with_potential(np.zeros(Jx.shape[:2] + (0,)), me, m.q, m.wrench, H, tau, "measurement", q_range)
-            Jw = np.concatenate([Jx / scale, K], axis=2) * w[:, None, None]
-            I0[:n_prim, n_prim:] += np.einsum("nik,nil->kl", Jw[:, :, :n_prim], Jw[:, :, n_prim:])
-            I0[n_prim:, :n_prim] = I0[:n_prim, n_prim:].T
-            I0[n_prim:, n_prim:] += np.einsum("nik,nil->kl", Jw[:, :, n_prim:], Jw[:, :, n_prim:])
+    # the selection's information: with the potential terms when asked for
+    Jca, Jeva, I0 = _selection_problem(
+        model, pool.subset(uidx), Jc, Jev, eq, ew, eval_frame, earlier, Je_rows, w_rows, scale, I0p, potential_knots
+    )
+    if Jca.shape[2] > n_prim:
         notes.append(
-            f"selection: model-robust, with an unmodelled angular error of each joint over the region's range "
-            f"({H} knots, prior {tau:g} rad) as potential terms; the sigmas reported are the model's own"
+            "selection: model-robust, with an unmodelled angular error of each joint over the region's range "
+            f"({int(potential_knots)} knots, prior {DESIGN_POTENTIAL_SIGMA_RAD:g} rad) as potential terms; the "
+            "sigmas reported are the model's own"
         )
     M = np.einsum("nik,nil->kl", Jeva, Jeva) / len(Jeva)
 
@@ -654,34 +629,15 @@ def design_campaign(
         return float(-ldp - ld0)
 
     P = posterior(sel)
-    # before: in the model's own measurement frame (the new campaign's exists only once measured)
-    Jb = Jev.copy()
-    if lay.new_reg is not None:
-        Jb[:, :, lay.reg_idx] = Jev[:, :, lay.new_reg] * (scale[lay.new_reg] / scale[lay.reg_idx])
-        Jb[:, :, lay.new_reg] = 0.0
-    if earlier:
-        sig_before = _sigma_rms(Jb, P0p)
-        notes.append("before: the information of the earlier data")
-    else:
-        C = np.asarray(model.covariance, dtype=float)
-        Cs = C * np.outer(scale[: lay.k], scale[: lay.k])  # covariance of theta * scale
-        sig_before = _sigma_rms(Jb[:, :, : lay.k], Cs)
-        notes.append("before: the model's own parameter covariance (no earlier data given: a design from scratch)")
+    sig_before = _sigma_before(model, Jev, lay, scale, P0p if earlier else None, notes)
     if lay.new_reg is not None and eval_frame == "measurement":
         notes.append(
             "before: in the model's measurement frame; after: in the new campaign's, its registration's "
             "uncertainty included"
         )
     sig_after = _sigma_rms(Jev, P)
-    rng = np.random.default_rng(seed)
     trials = max(1, int(random_trials))
-    sig_rand = np.zeros(len(Jev))
-    var_rand = ld_rand = 0.0
-    for _ in range(trials):
-        Pr = posterior(rng.choice(len(uidx), int(n), replace=False))
-        sig_rand += _sigma_rms(Jev, Pr) / trials
-        var_rand += float(np.trace(Mp @ Pr)) / trials
-        ld_rand += logdet_gain(Pr) / trials
+    sig_rand, var_rand, ld_rand = _random_baseline(posterior, logdet_gain, Jev, Mp, len(uidx), int(n), trials, seed)
 
     # unidentifiable parameters over the usable pool (the model's k parameters, pool frame)
     unident = _unidentifiable(Jp, names, [x[:, :, : lay.k] for x in Je_rows], w_rows, s)
@@ -689,14 +645,7 @@ def design_campaign(
     # travel order
     order, travel_s = travel_order(pool.q[uidx[sel]], model.nominal.v_max)
     chosen = uidx[sel[order]]
-    bad = [u for u in unident if not u.determined_by_earlier]
-    if bad:
-        status = DesignStatus.UNIDENTIFIABLE
-        reason = f"{len(bad)} parameter(s) no pool row can identify and no earlier data determine: " + ", ".join(
-            u.name for u in bad
-        )
-    else:
-        status, reason = DesignStatus.OK, f"{n} of {len(uidx)} usable pool rows chosen ({criterion} criterion)"
+    status, reason = _status(unident, int(n), len(uidx), criterion)
     return CampaignDesign(
         status=status,
         reason=reason,
@@ -720,6 +669,113 @@ def design_campaign(
         random_trials=trials,
         notes=notes,
     )
+
+
+def _earlier_rows(
+    model: ArmModel, earlier: Sequence[Measurements], names: list[str], lay: _Layout, s: float
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The earlier campaigns' Jacobians placed in the design's layout (each with its own registration
+    block but the last), unscaled, and their row weights ``1/sigma`` (the file's, else ``s``)."""
+    J_rows: list[np.ndarray] = []
+    w_rows: list[np.ndarray] = []
+    for e, m in enumerate(earlier):
+        me = _model_for_earlier(model, e, len(earlier))
+        _pe, Jx = parameter_jacobian(me, m.q, m.wrench, names)
+        J_rows.append(_place(Jx, lay, lay.earlier_reg[e]))
+        se = np.asarray(m.sigma, dtype=float) if m.sigma is not None else np.full(m.n, s)
+        w_rows.append(1.0 / se)
+    return J_rows, w_rows
+
+
+def _column_scale(rows: list[np.ndarray]) -> np.ndarray:
+    """Column scales: unit RMS over the rows (N, 3, k) that carry each column (1 for none)."""
+    ss = sum(np.einsum("nik,nik->k", R, R) for R in rows)
+    cnt = sum(len(R) * 3 * np.any(R != 0, axis=(0, 1)) for R in rows)
+    return np.where(ss > 0, np.sqrt(ss / np.maximum(cnt, 1)), 1.0)
+
+
+def _selection_problem(
+    model: ArmModel,
+    pool: Measurements,
+    Jc: np.ndarray,
+    Jev: np.ndarray,
+    eq: np.ndarray,
+    ew: np.ndarray | None,
+    eval_frame: str,
+    earlier: Sequence[Measurements],
+    Je_rows: list[np.ndarray],
+    w_rows: list[np.ndarray],
+    scale: np.ndarray,
+    I0p: np.ndarray,
+    potential_knots: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The selection's pool and evaluation Jacobians and prior information: the model's own (scaled)
+    with, when ``potential_knots`` > 0, the potential terms appended (scaled by their prior sigma:
+    prior information 1 each, and what the earlier data say of them)."""
+    H = max(0, int(potential_knots))
+    tau = DESIGN_POTENTIAL_SIGMA_RAD
+    n_prim = len(I0p)
+    q_range = np.column_stack([eq.min(axis=0), eq.max(axis=0)])
+    Jca = _with_potential(Jc, model, pool.q, pool.wrench, H, tau, "measurement", q_range)
+    Jeva = _with_potential(Jev, model, eq, ew, H, tau, eval_frame, q_range)
+    I0 = np.zeros((Jca.shape[2], Jca.shape[2]))
+    I0[:n_prim, :n_prim] = I0p
+    if H:
+        I0[n_prim:, n_prim:] += np.eye(Jca.shape[2] - n_prim)
+        for e, (Jx, w, m) in enumerate(zip(Je_rows, w_rows, earlier)):
+            me = _model_for_earlier(model, e, len(earlier))
+            K = _with_potential(np.zeros(Jx.shape[:2] + (0,)), me, m.q, m.wrench, H, tau, "measurement", q_range)
+            Jw = np.concatenate([Jx / scale, K], axis=2) * w[:, None, None]
+            I0[:n_prim, n_prim:] += np.einsum("nik,nil->kl", Jw[:, :, :n_prim], Jw[:, :, n_prim:])
+            I0[n_prim:, :n_prim] = I0[:n_prim, n_prim:].T
+            I0[n_prim:, n_prim:] += np.einsum("nik,nil->kl", Jw[:, :, n_prim:], Jw[:, :, n_prim:])
+    return Jca, Jeva, I0
+
+
+def _sigma_before(
+    model: ArmModel, Jev: np.ndarray, lay: _Layout, scale: np.ndarray, P0: np.ndarray | None, notes: list[str]
+) -> np.ndarray:
+    """Sigma per evaluation pose before the campaign, in the model's own measurement frame (the new
+    campaign's exists only once measured): from the earlier data's posterior ``P0`` (scaled), else from
+    the model's own covariance; says which in ``notes``."""
+    Jb = Jev.copy()
+    if lay.new_reg is not None:
+        Jb[:, :, lay.reg_idx] = Jev[:, :, lay.new_reg] * (scale[lay.new_reg] / scale[lay.reg_idx])
+        Jb[:, :, lay.new_reg] = 0.0
+    if P0 is not None:
+        notes.append("before: the information of the earlier data")
+        return _sigma_rms(Jb, P0)
+    C = np.asarray(model.covariance, dtype=float)
+    Cs = C * np.outer(scale[: lay.k], scale[: lay.k])  # covariance of theta * scale
+    notes.append("before: the model's own parameter covariance (no earlier data given: a design from scratch)")
+    return _sigma_rms(Jb[:, :, : lay.k], Cs)
+
+
+def _random_baseline(
+    posterior: Any, logdet_gain: Any, Jev: np.ndarray, Mp: np.ndarray, n_usable: int, n: int, trials: int, seed: int
+) -> tuple[np.ndarray, float, float]:
+    """The mean over ``trials`` random subsets of ``n`` usable pool rows: sigma per evaluation pose,
+    the task criterion's value and the log-det gain."""
+    rng = np.random.default_rng(seed)
+    sig_rand = np.zeros(len(Jev))
+    var_rand = ld_rand = 0.0
+    for _ in range(trials):
+        Pr = posterior(rng.choice(n_usable, n, replace=False))
+        sig_rand += _sigma_rms(Jev, Pr) / trials
+        var_rand += float(np.trace(Mp @ Pr)) / trials
+        ld_rand += logdet_gain(Pr) / trials
+    return sig_rand, var_rand, ld_rand
+
+
+def _status(unident: list[Unidentifiable], n: int, n_usable: int, criterion: str) -> tuple[DesignStatus, str]:
+    """``unidentifiable_parameters`` when some parameter is determined by no data, else ``ok``."""
+    bad = [u for u in unident if not u.determined_by_earlier]
+    if bad:
+        return DesignStatus.UNIDENTIFIABLE, (
+            f"{len(bad)} parameter(s) no pool row can identify and no earlier data determine: "
+            + ", ".join(u.name for u in bad)
+        )
+    return DesignStatus.OK, f"{n} of {n_usable} usable pool rows chosen ({criterion} criterion)"
 
 
 def _unidentifiable(

@@ -30,12 +30,11 @@ import numpy as np
 from models import effects as fx
 from models.arm import ArmModel
 
-from .evaluation import _ev_for
+from ..measurements import Measurements
+from .evaluation import _ev_for, make_rows
 
 #: Frames a sigma is given in.
 FRAMES = ("measurement", "base")
-#: Registration parameter groups: they do not act on the TCP in the base frame.
-REGISTRATION_PARAM_GROUPS = ("reg.t", "reg.w")
 #: A joint counts as inside the identified range up to this far beyond it, rad (rounding).
 JOINT_RANGE_TOL_RAD = 1e-9
 
@@ -71,12 +70,8 @@ def rows_of(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None = None) ->
     ``q`` (N, 6), rad, under base-frame TCP wrenches ``wrench`` (N, 6) or (6,), N and N*m (zero when
     None), at the model's temperature and at the start of its time reference."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    rows = np.zeros((len(q), fx.ROW_SIZE))
-    rows[:, 0:6] = q
-    if wrench is not None:
-        rows[:, 6:12] = np.broadcast_to(np.asarray(wrench, dtype=float), (len(q), 6))
-    rows[:, 13] = model.temperature_ref - fx.THERMAL_REFERENCE_C
-    return rows
+    w = np.zeros((len(q), 6)) if wrench is None else np.broadcast_to(np.asarray(wrench, dtype=float), (len(q), 6))
+    return make_rows(Measurements(q=q, wrench=np.array(w), p=None, source="commands"), None, model.temperature_ref)
 
 
 def parameter_jacobian(
@@ -130,8 +125,7 @@ def to_base_frame(model: ArmModel, J: np.ndarray, names: list[str]) -> np.ndarra
     than the TCP, which the robot file declares)."""
     R = model.base2meas()[:3, :3]
     Jb = np.einsum("ji,njk->nik", R, J)
-    groups = REGISTRATION_PARAM_GROUPS + (() if model.registered else ("tool.p",))
-    reg = {n for g in groups for n in fx.PARAM_NAMES[fx.GROUP_SLICES[g]]}
+    reg = set(fx.REGISTRATION_NAMES) | (set() if model.registered else set(fx.PARAM_NAMES[fx.GROUP_SLICES["tool.p"]]))
     for k, name in enumerate(names):
         if name in reg:
             Jb[:, :, k] = 0.0
