@@ -91,7 +91,10 @@ def collect(root: Path) -> dict:
                 span = node.end_lineno - node.lineno + 1
                 if span > LONG_FUNCTION_LINES:
                     long_functions.append((f"{path.relative_to(root)}:{node.name}", span))
-            if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
+            is_all = isinstance(node, ast.Assign) and any(
+                isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets
+            )
+            if is_all:
                 if isinstance(node.value, ast.List | ast.Tuple):
                     exported += len(node.value.elts)
             if isinstance(node, ast.ImportFrom):
