@@ -132,6 +132,7 @@ MASKS = [
     (re.compile(rb"[\d.]+ s (wall|CPU)"), b"<T>"),
     (re.compile(rb"/CreationDate \([^)]*\)"), b"/CreationDate ()"),
     (re.compile(rb'("\w*time\w*_s": )[\d.eE+-]+'), rb"\1<T>"),
+    (re.compile(rb'("\w*_us_per_\w*": )[\d.eE+-]+'), rb"\1<T>"),
     (re.compile(rb'"check_time_s": \{[^}]*\}'), b'"check_time_s": {}'),
     (re.compile(rb'(data-key="[\w.]*(elapsed|time)\w*_s" data-value=")[\d.]+(">)[\d.,]+'), rb"\1<T>\3<T>"),
     (re.compile(rb'"stage_times_s": \{[^}]*\}'), b'"stage_times_s": {}'),
