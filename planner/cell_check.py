@@ -49,7 +49,7 @@ from models.collision import (
     capsule_shape_distance,
     chain_frames,
 )
-from models.collision.distance import segment_distance
+from models.collision.segments import segment_distance
 from models.robot import Robot
 from problems.compensation import exact
 from problems.posture import BranchStatus, PostureResult, PostureStatus

@@ -13,7 +13,8 @@ import numpy as np
 
 from ..status import Status
 from .capsules import CapsuleModel, self_collision_pairs
-from .distance import CellShape, capsule_distance, capsule_shape_distance
+from .distance import CellShape, capsule_shape_distance
+from .segments import capsule_distance
 
 __all__ = [
     "DEFAULT_CLEARANCE_M",

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from .distance import segment_distance
+from .segments import segment_distance
 
 __all__ = [
     "VecObject",

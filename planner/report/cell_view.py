@@ -67,9 +67,6 @@ CELL_FIGURE = "fig11_cell"
 CELL_POSES = 5
 #: Sides of a capsule's mesh around its axis (interactive view; the static one uses half).
 CAPSULE_SIDES = 16
-#: Sides of a cylinder object's mesh; subdivisions of a sphere object's icosphere.
-CYLINDER_SECTIONS = 48
-SPHERE_SUBDIVISIONS = 3
 #: Opacity of the faded (earlier) postures, of the last posture, and of the objects.
 FADED_OPACITY = 0.18
 SOLID_OPACITY = 1.0
@@ -173,16 +170,9 @@ def _mesh_hashes(summary: Mapping[str, Any]) -> dict[str, str]:
 
 def _object_triangles(rec: Mapping[str, Any], hashes: Mapping[str, str]) -> tuple[np.ndarray, np.ndarray] | str:
     """An object's triangles in the base frame (vertices m, faces), or why it is not drawn."""
-    import trimesh
+    from models.collision.shapes import shape_class
 
-    shape = rec["shape"]
-    if shape == "box":
-        mesh = trimesh.creation.box(extents=rec["size"])
-    elif shape == "cylinder":
-        mesh = trimesh.creation.cylinder(radius=rec["size"][0], height=rec["size"][1], sections=CYLINDER_SECTIONS)
-    elif shape == "sphere":
-        mesh = trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=rec["size"][0])
-    else:
+    if "file" in rec:  # a shape read from a file: drawn only if the file is the one the run read
         path = Path(rec["file"]).resolve()
         try:
             data = path.read_bytes()
@@ -195,11 +185,9 @@ def _object_triangles(rec: Mapping[str, Any], hashes: Mapping[str, str]) -> tupl
                 f"mesh '{rec['name']}' not drawn: {path} has changed since the run (SHA-256 recorded "
                 f"{recorded[:12]}…, now {sha[:12]}…)"
             )
-        mesh = trimesh.load_mesh(path, force="mesh")
-        mesh.apply_scale(rec["scale"])
+    vertices, faces = shape_class(rec["shape"]).from_record(rec).triangles()
     T = rec["object2base"]
-    v = np.asarray(mesh.vertices, dtype=float) @ T[:3, :3].T + T[:3, 3]
-    return v, np.asarray(mesh.faces, dtype=np.int64)
+    return vertices @ T[:3, :3].T + T[:3, 3], faces
 
 
 # ------------------------------------------------------------------------------- the scene

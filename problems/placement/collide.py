@@ -37,7 +37,7 @@ from models.codegen import BatchFunction, VMBatchFunction, batch_function
 from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY, capsule_model
 from models.collision.capsules import CapsuleModel
 from models.collision.tool import check_pairs, with_tool_geometry
-from models.collision.distance import capsule_distance
+from models.collision.segments import capsule_distance
 from models.collision.vectorised import VecObject, capsule_object_distance, vec_object
 from models.portable import evaluator_from_state, portable_state
 from models.robot import Robot
