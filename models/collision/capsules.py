@@ -38,11 +38,13 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass, replace
+from typing import Any
 from importlib import resources
 
 import numpy as np
 
 from ..robot import BUILTIN_ROBOTS, Robot, RobotCollision, parse_collision_table
+from ..transforms import dh_chain_frames
 
 __all__ = [
     "TOOL_BODY",
@@ -57,8 +59,10 @@ __all__ = [
     "CapsuleModel",
     "body_name",
     "capsule_model",
+    "capsule_points_sx",
     "capsule_segments",
     "chain_frames",
+    "chain_frames_sx",
     "default_radii",
     "robot_collision",
     "self_collision_body_pairs",
@@ -207,7 +211,8 @@ def body_name(body: int) -> str:
 
 
 def chain_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """DH frames 0..6 of the robot's nominal chain at N configurations, base frame.
+    """DH frames 0..6 of the robot's nominal chain at N configurations, base frame
+    (:func:`models.transforms.dh_chain_frames`, the one NumPy chain).
 
     Parameters
     ----------
@@ -220,27 +225,55 @@ def chain_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
     ndarray, shape (N, 7, 4, 4)
         ``frame_i2base`` for i = 0..6 (frame 0 is ``frame02base``).
     """
-    qa = np.atleast_2d(np.asarray(q, dtype=float))
-    n = qa.shape[0]
-    th = qa + robot.theta_offset
-    ct, st = np.cos(th), np.sin(th)
-    ca, sa = np.cos(robot.alpha), np.sin(robot.alpha)
-    a, d = robot.a, robot.d
-    A = np.zeros((n, 6, 4, 4))
-    A[..., 3, 3] = 1.0
-    if robot.convention == "standard_dh":
-        A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = ct, -st * ca, st * sa, a * ct
-        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st, ct * ca, -ct * sa, a * st
-        A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca, d
-    else:
-        A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, a
-        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * d
-        A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * d
-    F = np.empty((n, 7, 4, 4))
-    F[:, 0] = robot.frame02base
-    for i in range(6):
-        F[:, i + 1] = F[:, i] @ A[:, i]
-    return F
+    r = robot
+    return dh_chain_frames(r.convention, r.a, r.alpha, r.d, r.theta_offset, np.atleast_2d(q), r.frame02base)
+
+
+def chain_frames_sx(robot: Robot, q: Any) -> list[Any]:
+    """DH frames 0..6 (4 x 4 CasADi SX, base frame) of the robot's nominal chain at symbolic ``q``
+    (6): the model graph's chain (:func:`models.effects.graph.chain`, the one CasADi chain) of the
+    nominal DH table, frame 0 ``frame02base``."""
+    import casadi as ca
+
+    from ..effects.graph import chain
+
+    f0 = ca.SX(np.asarray(robot.frame02base, dtype=float))
+    dh = {
+        "a": robot.a,
+        "alpha": robot.alpha,
+        "d": robot.d,
+        "theta_offset": robot.theta_offset,
+        "beta": np.zeros(6),
+        "frame02base": f0,
+    }
+    return [f0, *chain(q, dh, robot.convention)]
+
+
+def capsule_points_sx(model: CapsuleModel, frames: list[Any], base2x: Any = None) -> list[tuple[Any, Any]]:
+    """Every capsule's segment ends (3 x 1 SX each) from symbolic DH frames 0..6
+    (:func:`chain_frames_sx`), in the base frame, or in frame x with ``base2x`` (4 x 4 SX).
+
+    Returns
+    -------
+    list of (SX, SX), length M
+        End a and end b of each capsule.
+    """
+    import casadi as ca
+
+    def point(frame: int, local: np.ndarray) -> Any:
+        loc = ca.DM(np.asarray(local, dtype=float))
+        if base2x is None:
+            if frame < 0:
+                return ca.SX(np.asarray(local, dtype=float))
+            T = frames[frame]
+        else:
+            T = base2x if frame < 0 else ca.mtimes(base2x, frames[frame])
+        return ca.mtimes(T[:3, :3], loc) + T[:3, 3]
+
+    return [
+        (point(int(model.frame_a[c]), model.local_a[c]), point(int(model.frame_b[c]), model.local_b[c]))
+        for c in range(model.n_capsules)
+    ]
 
 
 def _body_points(robot: Robot) -> list[list[tuple[int, np.ndarray]]]:

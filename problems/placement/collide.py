@@ -35,7 +35,7 @@ import casadi as ca
 
 from models.codegen import BatchFunction, VMBatchFunction, batch_function
 from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY, capsule_model
-from models.collision.capsules import CapsuleModel
+from models.collision.capsules import CapsuleModel, capsule_points_sx, chain_frames_sx
 from models.collision.tool import check_pairs, with_tool_geometry
 from models.collision.segments import capsule_distance
 from models.collision.vectorised import VecObject, capsule_object_distance, vec_object
@@ -57,30 +57,10 @@ def _transform(coal: Any, T: np.ndarray) -> Any:
 def _capsule_points_function(robot: Robot, model: CapsuleModel) -> ca.Function:
     """CasADi ``capsule_points(q, base2cell) -> ends``: the capsule ends (M x 2 x 3, capsule-major,
     end a then end b, x y z) in the cell frame at joint angles ``q`` (6) of a placement
-    ``base2cell`` (4 x 4); the DH chain of :func:`models.collision.chain_frames`."""
+    ``base2cell`` (4 x 4); the one CasADi chain (:func:`models.collision.capsules.chain_frames_sx`)."""
     q = ca.SX.sym("q", 6)
     T = ca.SX.sym("base2cell", 4, 4)
-    frames = [ca.SX(np.asarray(robot.frame02base, dtype=float))]
-    for i in range(6):
-        th = q[i] + float(robot.theta_offset[i])
-        ct, st = ca.cos(th), ca.sin(th)
-        al, a, d = float(robot.alpha[i]), float(robot.a[i]), float(robot.d[i])
-        ca_, sa = float(np.cos(al)), float(np.sin(al))
-        A = ca.SX.eye(4)
-        if robot.convention == "standard_dh":
-            A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st * ca_, st * sa, a * ct
-            A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st, ct * ca_, -ct * sa, a * st
-            A[2, 0], A[2, 1], A[2, 2], A[2, 3] = 0, sa, ca_, d
-        else:
-            A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st, 0, a
-            A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st * ca_, ct * ca_, -sa, -sa * d
-            A[2, 0], A[2, 1], A[2, 2], A[2, 3] = st * sa, ct * sa, ca_, ca_ * d
-        frames.append(ca.mtimes(frames[-1], A))
-    out = []
-    for m in range(model.n_capsules):
-        for fr, loc in ((model.frame_a[m], model.local_a[m]), (model.frame_b[m], model.local_b[m])):
-            F = T if fr < 0 else ca.mtimes(T, frames[int(fr)])
-            out.append(ca.mtimes(F[:3, :3], ca.DM(np.asarray(loc, dtype=float))) + F[:3, 3])
+    out = [p for ends in capsule_points_sx(model, chain_frames_sx(robot, q), T) for p in ends]
     return ca.Function("capsule_points", [q, T], [ca.vertcat(*out)])
 
 

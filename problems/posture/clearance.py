@@ -45,6 +45,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from models.collision.capsules import capsule_points_sx, chain_frames_sx
 from models.robot import Robot
 
 __all__ = [
@@ -62,7 +63,6 @@ __all__ = [
     "clearance_spec",
     "distance_function",
     "near_pairs",
-    "segment_points_sx",
 ]
 
 #: Largest spacing of the sample points along a capsule's segment (m); half of it is the most
@@ -217,46 +217,6 @@ def clearance_spec(geom: Any) -> ClearanceSpec:
 # --------------------------------------------------------------------------------------
 
 
-def _dh_sx(robot: Robot, q: ca.SX) -> list[ca.SX]:
-    """DH frames 0..6 (4x4 SX, base frame) at ``q``, as :func:`models.collision.chain_frames`."""
-    F = [ca.SX(np.asarray(robot.frame02base, dtype=float))]
-    for i in range(6):
-        th = q[i] + float(robot.theta_offset[i])
-        ct, st = ca.cos(th), ca.sin(th)
-        al, a, d = float(robot.alpha[i]), float(robot.a[i]), float(robot.d[i])
-        ca_, sa = math.cos(al), math.sin(al)
-        if robot.convention == "standard_dh":
-            A = ca.vertcat(
-                ca.horzcat(ct, -st * ca_, st * sa, a * ct),
-                ca.horzcat(st, ct * ca_, -ct * sa, a * st),
-                ca.horzcat(0, sa, ca_, d),
-                ca.horzcat(0, 0, 0, 1),
-            )
-        else:
-            A = ca.vertcat(
-                ca.horzcat(ct, -st, 0, a),
-                ca.horzcat(st * ca_, ct * ca_, -sa, -sa * d),
-                ca.horzcat(st * sa, ct * sa, ca_, ca_ * d),
-                ca.horzcat(0, 0, 0, 1),
-            )
-        F.append(ca.mtimes(F[-1], A))
-    return F
-
-
-def _point_sx(frames: list[ca.SX], frame: int, local: np.ndarray) -> ca.SX:
-    if frame < 0:
-        return ca.SX(np.asarray(local, dtype=float))
-    T = frames[frame]
-    return ca.mtimes(T[:3, :3], ca.DM(np.asarray(local, dtype=float))) + T[:3, 3]
-
-
-def segment_points_sx(model: Any, frames: list[ca.SX], c: int) -> tuple[ca.SX, ca.SX]:
-    """End points (3,) of capsule ``c`` in the base frame (SX)."""
-    a = _point_sx(frames, int(model.frame_a[c]), model.local_a[c])
-    b = _point_sx(frames, int(model.frame_b[c]), model.local_b[c])
-    return a, b
-
-
 def _norm(v: ca.SX) -> ca.SX:
     return ca.sqrt(ca.sumsqr(v) + NORM_EPS_M**2)
 
@@ -326,9 +286,7 @@ def _interval_bounds(f: list[ca.SX], h: float) -> list[ca.SX]:
 def _ends_sx(spec: ClearanceSpec, q: ca.SX) -> tuple[ca.SX, np.ndarray, np.ndarray]:
     """Every capsule's end points at ``q`` as one vector ``E`` (6 M,: a then b per capsule, base
     frame, m), and the end points (M, 2, 3) and segment lengths (M,) at q = 0 (constant)."""
-    frames = _dh_sx(spec.robot, q)
-    m = spec.model
-    E = ca.vertcat(*[ca.vertcat(*segment_points_sx(m, frames, c)) for c in range(m.n_capsules)])
+    E = ca.vertcat(*[ca.vertcat(a, b) for a, b in capsule_points_sx(spec.model, chain_frames_sx(spec.robot, q))])
     ends = np.asarray(ca.Function("ends0", [q], [E])(np.zeros(6))).reshape(-1, 2, 3)
     return E, ends, np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
 
