@@ -38,6 +38,7 @@ from models.collision.shapes import Shape, shape_class, shape_kinds
 from models.errors import InputError
 
 if TYPE_CHECKING:  # models.collision loads coal: only when a cell is built
+    from models.collision.scene import Scene, SceneObject
     from models.collision.tool import ToolGeometry
 
 __all__ = [
@@ -191,6 +192,13 @@ class CellObject:
         """Whether points lie inside the object by more than ``tol`` (m), shape (N,) bool."""
         return self.form.contains(self.to_object(points_base), tol)
 
+    def scene_object(self) -> SceneObject:
+        """The object as the collision scene holds it (:class:`models.collision.scene.SceneObject`,
+        its coal geometry shared)."""
+        from models.collision.scene import SceneObject
+
+        return SceneObject.with_geometry(self.name, self.form, self.object2base, self.role, self.geometry)
+
     def moved(self, new2base: np.ndarray) -> CellObject:
         """The same object with ``object2base`` replaced by ``new2base @ object2base`` (e.g. a
         placement's ``base2cell`` inverse: the cell seen from a moved base)."""
@@ -291,6 +299,14 @@ class Cell:
     def moved(self, new2base: np.ndarray) -> Cell:
         """Every object moved by ``new2base`` (see :meth:`CellObject.moved`)."""
         return Cell(tuple(o.moved(new2base) for o in self.objects), self.clearance, self.tool)
+
+    def scene(self, robot: Any, arm: Any = None) -> Scene:
+        """The collision scene of ``robot`` (with its tool) in this cell
+        (:meth:`models.collision.scene.Scene.build`: the arm's capsules, or ``arm``, the tool's, the
+        objects and the pairs to check)."""
+        from models.collision.scene import Scene
+
+        return Scene.build(robot, [o.scene_object() for o in self.objects], self.tool, self.clearance, arm)
 
     def mesh_files(self) -> tuple[str, ...]:
         """The mesh files the cell was read from (resolved paths, in object order), then the tool's

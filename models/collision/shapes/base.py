@@ -185,6 +185,11 @@ class Shape:
         """Whether points ``q`` (N, 3) in its frame lie inside it by more than ``tol`` (m), (N,) bool."""
         return self.signed_distance(q) < -tol
 
+    def encloses_any(self, q: np.ndarray) -> bool:
+        """Whether one of the points ``q`` (N, 3), its frame, lies inside it where coal sees only
+        its surface (:attr:`surface_only`); False for a shape coal sees solid."""
+        return False
+
     def signed_distance_sx(self, local: Any) -> Any:
         """CasADi signed distance (m) of a point ``local`` (3 x 1 SX, its frame), with gradients
         (norms regularised: :data:`models.collision.shapes.NORM_EPS_M`)."""

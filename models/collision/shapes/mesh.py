@@ -116,6 +116,10 @@ class Mesh(Shape):
             inside[near] = self.signed_distance(q[near]) < -tol
         return inside
 
+    def encloses_any(self, q: np.ndarray) -> bool:
+        """``trimesh``'s inside test of a closed mesh (an open one: False)."""
+        return bool(self.mesh.is_watertight and np.any(self.mesh.contains(q)))
+
     def nlp_proxy(self) -> tuple[Shape, np.ndarray | None]:
         """Its oriented bounding box (trimesh)."""
         box = self.mesh.bounding_box_oriented
@@ -123,11 +127,13 @@ class Mesh(Shape):
         return Box(2.0 * half), np.asarray(box.primitive.transform, dtype=float)
 
     def kernel_proxy(self) -> tuple[Shape, np.ndarray | None]:
-        """Its axis-aligned bounding box in its frame."""
+        """Its axis-aligned bounding box in its frame (a bound of the mesh: not exact)."""
         lo, hi = (np.asarray(b, dtype=float) for b in self.mesh.bounds)
         C = np.eye(4)
         C[:3, 3] = 0.5 * (lo + hi)
-        return Box(hi - lo), C
+        box = Box(hi - lo)
+        box.exact_in_kernel = False  # type: ignore[misc]
+        return box, C
 
     @property
     def half_extents(self) -> np.ndarray:
