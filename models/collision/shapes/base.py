@@ -111,6 +111,8 @@ class Shape:
     surface_only : bool
         Whether coal sees only its surface (a BVH of triangles): a point or capsule wholly inside
         is then found by :meth:`contains`.
+    urdf_element : str or None
+        The URDF ``<geometry>`` element it reads (``box``; :meth:`from_urdf`), None: none.
     size : ndarray
         Its size, m (a mesh: the extents of its axis-aligned bounding box).
     """
@@ -121,6 +123,7 @@ class Shape:
     size_meaning: ClassVar[str] = ""
     exact_in_kernel: ClassVar[bool] = True
     surface_only: ClassVar[bool] = False
+    urdf_element: ClassVar[str | None] = None
 
     size: np.ndarray
 
@@ -165,6 +168,12 @@ class Shape:
         if np.any(size <= 0):
             raise InputError(f"{key}.size = {rec.get('size')!r}; expected {cls.size_length} numbers > 0 (m)")
         return {"size": size}
+
+    @classmethod
+    def from_urdf(cls, element: Any) -> Shape:
+        """The shape of a URDF ``<geometry>``'s :attr:`urdf_element` (as ``yourdfpy`` reads it),
+        unchecked (the URDF reader checks what it makes of it)."""
+        raise NotImplementedError
 
     @classmethod
     def from_record(cls, rec: Mapping[str, Any]) -> Shape:

@@ -22,6 +22,11 @@ class Box(Shape):
     kind = "box"
     size_length = 3
     size_meaning = "[x, y, z] extents (m)"
+    urdf_element = "box"
+
+    @classmethod
+    def from_urdf(cls, element: Any) -> Shape:
+        return cls(np.abs(np.asarray(element.size, dtype=float)))
 
     def geometry(self) -> Any:
         import coal

@@ -31,6 +31,11 @@ class Cylinder(Shape):
     size_length = 2
     size_meaning = "[radius, length] (m), the axis along the object's z"
     exact_in_kernel = False
+    urdf_element = "cylinder"
+
+    @classmethod
+    def from_urdf(cls, element: Any) -> Shape:
+        return cls(np.array([float(element.radius), float(element.length)]))
 
     def geometry(self) -> Any:
         import coal

@@ -23,6 +23,11 @@ class Sphere(Shape):
     kind = "sphere"
     size_length = 1
     size_meaning = "[radius] (m)"
+    urdf_element = "sphere"
+
+    @classmethod
+    def from_urdf(cls, element: Any) -> Shape:
+        return cls(np.array([float(element.radius)]))
 
     @property
     def radius(self) -> float:
