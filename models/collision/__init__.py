@@ -20,12 +20,11 @@ if TYPE_CHECKING:
         CapsuleModel,
         body_name,
         capsule_model,
-        capsule_segments,
-        chain_frames,
         default_radii,
         self_collision_body_pairs,
         self_collision_pairs,
     )
+    from .chain import capsule_segments, chain_frames
     from .clearance import (
         DEFAULT_CLEARANCE_M,
         Clearance,
@@ -61,8 +60,8 @@ _LAZY = {
     "CapsuleModel": "capsules",
     "body_name": "capsules",
     "capsule_model": "capsules",
-    "capsule_segments": "capsules",
-    "chain_frames": "capsules",
+    "capsule_segments": "chain",
+    "chain_frames": "chain",
     "default_radii": "capsules",
     "self_collision_body_pairs": "capsules",
     "self_collision_pairs": "capsules",

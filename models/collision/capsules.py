@@ -2,7 +2,8 @@
 
 A :class:`CapsuleModel` is the *description* (which segments, fixed in which DH frame, with which
 radius, on which body); the positions of its segments at configurations are computed from it
-(:func:`capsule_segments`), as pinocchio keeps ``GeometryModel`` apart from ``GeometryData``.
+(:func:`models.collision.chain.capsule_segments`, ``capsule_points_sx``), as pinocchio keeps
+``GeometryModel`` apart from ``GeometryData``.
 
 Bodies: body 0 is the base, body *i* (1..6) the link moved by joint *i*.  Body *i* holds the DH
 offsets of its own row: ``d_i`` along joint *i*'s axis, then the common normal ``a_i`` to the next
@@ -38,13 +39,12 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass, replace
-from typing import Any
 from importlib import resources
 
 import numpy as np
 
 from ..robot import BUILTIN_ROBOTS, Robot, RobotCollision, parse_collision_table
-from ..transforms import dh_chain_frames
+from .chain import chain_frames
 
 __all__ = [
     "TOOL_BODY",
@@ -59,10 +59,6 @@ __all__ = [
     "CapsuleModel",
     "body_name",
     "capsule_model",
-    "capsule_points_sx",
-    "capsule_segments",
-    "chain_frames",
-    "chain_frames_sx",
     "default_radii",
     "robot_collision",
     "self_collision_body_pairs",
@@ -208,72 +204,6 @@ class CapsuleModel:
 def body_name(body: int) -> str:
     """The name of a body in messages: ``base`` for 0, ``link i`` for i = 1..6."""
     return "base" if body == 0 else f"link {body}"
-
-
-def chain_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """DH frames 0..6 of the robot's nominal chain at N configurations, base frame
-    (:func:`models.transforms.dh_chain_frames`, the one NumPy chain).
-
-    Parameters
-    ----------
-    robot : Robot
-    q : ndarray, shape (N, 6) or (6,)
-        Joint angles, rad.
-
-    Returns
-    -------
-    ndarray, shape (N, 7, 4, 4)
-        ``frame_i2base`` for i = 0..6 (frame 0 is ``frame02base``).
-    """
-    r = robot
-    return dh_chain_frames(r.convention, r.a, r.alpha, r.d, r.theta_offset, np.atleast_2d(q), r.frame02base)
-
-
-def chain_frames_sx(robot: Robot, q: Any) -> list[Any]:
-    """DH frames 0..6 (4 x 4 CasADi SX, base frame) of the robot's nominal chain at symbolic ``q``
-    (6): the model graph's chain (:func:`models.effects.graph.chain`, the one CasADi chain) of the
-    nominal DH table, frame 0 ``frame02base``."""
-    import casadi as ca
-
-    from ..effects.graph import chain
-
-    f0 = ca.SX(np.asarray(robot.frame02base, dtype=float))
-    dh = {
-        "a": robot.a,
-        "alpha": robot.alpha,
-        "d": robot.d,
-        "theta_offset": robot.theta_offset,
-        "beta": np.zeros(6),
-        "frame02base": f0,
-    }
-    return [f0, *chain(q, dh, robot.convention)]
-
-
-def capsule_points_sx(model: CapsuleModel, frames: list[Any], base2x: Any = None) -> list[tuple[Any, Any]]:
-    """Every capsule's segment ends (3 x 1 SX each) from symbolic DH frames 0..6
-    (:func:`chain_frames_sx`), in the base frame, or in frame x with ``base2x`` (4 x 4 SX).
-
-    Returns
-    -------
-    list of (SX, SX), length M
-        End a and end b of each capsule.
-    """
-    import casadi as ca
-
-    def point(frame: int, local: np.ndarray) -> Any:
-        loc = ca.DM(np.asarray(local, dtype=float))
-        if base2x is None:
-            if frame < 0:
-                return ca.SX(np.asarray(local, dtype=float))
-            T = frames[frame]
-        else:
-            T = base2x if frame < 0 else ca.mtimes(base2x, frames[frame])
-        return ca.mtimes(T[:3, :3], loc) + T[:3, 3]
-
-    return [
-        (point(int(model.frame_a[c]), model.local_a[c]), point(int(model.frame_b[c]), model.local_b[c]))
-        for c in range(model.n_capsules)
-    ]
 
 
 def _body_points(robot: Robot) -> list[list[tuple[int, np.ndarray]]]:
@@ -549,29 +479,6 @@ def capsule_model(
         radii_source=source,
         line=np.array(is_line, dtype=bool),
     )
-
-
-def capsule_segments(model: CapsuleModel, frames: np.ndarray) -> np.ndarray:
-    """End points of every capsule's segment at N configurations, base frame.
-
-    Parameters
-    ----------
-    model : CapsuleModel
-    frames : ndarray, shape (N, 7, 4, 4)
-        DH frames 0..6 (:func:`chain_frames`).
-
-    Returns
-    -------
-    ndarray, shape (N, M, 2, 3)
-        ``[..., 0, :]`` end a, ``[..., 1, :]`` end b, m.
-    """
-    n = frames.shape[0]
-    ext = np.concatenate([np.broadcast_to(np.eye(4), (n, 1, 4, 4)), frames], axis=1)  # index 0: base
-    out = np.empty((n, model.n_capsules, 2, 3))
-    for end, (fr, loc) in enumerate(((model.frame_a, model.local_a), (model.frame_b, model.local_b))):
-        T = ext[:, fr + 1]  # (N, M, 4, 4)
-        out[:, :, end] = np.einsum("nmij,mj->nmi", T[..., :3, :3], loc) + T[..., :3, 3]
-    return out
 
 
 def _bridged(model: CapsuleModel) -> set[tuple[int, int]]:

@@ -11,7 +11,7 @@ placement kernel (:mod:`problems.placement.collide`, objects in the cell frame) 
 cell view (:mod:`planner.report.cell_view`).
 
 Capsule positions at configurations come from the one kinematic chain
-(:func:`models.collision.chain_frames`, :func:`models.collision.capsules.chain_frames_sx`).
+(:func:`models.collision.chain_frames`, :func:`models.collision.chain.chain_frames_sx`).
 
 Units: m.  Frames: the base frame (or the frame the objects are given in).
 """
@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 
 from ..robot import Robot
-from .capsules import CapsuleModel, capsule_model, capsule_segments, chain_frames
+from .capsules import CapsuleModel, capsule_model
+from .chain import capsule_segments, chain_frames
 from .shapes import Shape
 
 __all__ = ["Scene", "SceneObject"]

@@ -35,7 +35,8 @@ import casadi as ca
 
 from models.codegen import BatchFunction, VMBatchFunction, batch_function
 from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY
-from models.collision.capsules import CapsuleModel, capsule_points_sx, chain_frames_sx
+from models.collision.capsules import CapsuleModel
+from models.collision.chain import capsule_points_sx, chain_frames_sx
 from models.collision.scene import SceneObject
 from models.collision.segments import capsule_distance
 from models.collision.vectorised import capsule_object_distance
@@ -57,7 +58,7 @@ def _transform(coal: Any, T: np.ndarray) -> Any:
 def _capsule_points_function(robot: Robot, model: CapsuleModel) -> ca.Function:
     """CasADi ``capsule_points(q, base2cell) -> ends``: the capsule ends (M x 2 x 3, capsule-major,
     end a then end b, x y z) in the cell frame at joint angles ``q`` (6) of a placement
-    ``base2cell`` (4 x 4); the one CasADi chain (:func:`models.collision.capsules.chain_frames_sx`)."""
+    ``base2cell`` (4 x 4); the one CasADi chain (:func:`models.collision.chain.chain_frames_sx`)."""
     q = ca.SX.sym("q", 6)
     T = ca.SX.sym("base2cell", 4, 4)
     out = [p for ends in capsule_points_sx(model, chain_frames_sx(robot, q), T) for p in ends]

@@ -45,7 +45,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from models.collision.capsules import CapsuleModel, capsule_points_sx, chain_frames_sx
+from models.collision.capsules import CapsuleModel
+from models.collision.chain import capsule_points_sx, chain_frames_sx
 from models.collision.scene import Scene, SceneObject
 from models.collision.shapes import NORM_EPS_M
 from models.robot import Robot
