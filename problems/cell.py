@@ -106,7 +106,9 @@ class CellObject:
     ----------
     name : str
         Unique in its cell; used in messages (``link 3 – fixture``).
-    shape : {"box", "cylinder", "sphere", "mesh"}
+    shape : str
+        A registered shape kind (:func:`models.collision.shapes.shape_kinds`: ``box``, ``cylinder``,
+        ``sphere``, ``mesh`` and the plug-ins').
     size : ndarray
         m: box ``(3,)`` x, y, z extents; cylinder ``(2,)`` radius, length (along z); sphere ``(1,)``
         radius; mesh ``(3,)`` the extents of its axis-aligned bounding box in the object frame.

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
         self_collision_body_pairs,
         self_collision_pairs,
     )
-    from .chain import capsule_segments, chain_frames
+    from .chain import capsule_points_sx, capsule_segments, chain_frames, chain_frames_sx
     from .clearance import (
         DEFAULT_CLEARANCE_M,
         Clearance,
@@ -43,6 +43,7 @@ if TYPE_CHECKING:
         shape_pair_distance,
         sphere_shape,
     )
+    from .scene import Scene, SceneObject
     from .segments import (
         capsule_distance,
         segment_distance,
@@ -61,6 +62,10 @@ _LAZY = {
     "body_name": "capsules",
     "capsule_model": "capsules",
     "capsule_segments": "chain",
+    "capsule_points_sx": "chain",
+    "chain_frames_sx": "chain",
+    "Scene": "scene",
+    "SceneObject": "scene",
     "chain_frames": "chain",
     "default_radii": "capsules",
     "self_collision_body_pairs": "capsules",
@@ -86,6 +91,10 @@ _LAZY = {
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 
 __all__ = [
+    "Scene",
+    "SceneObject",
+    "capsule_points_sx",
+    "chain_frames_sx",
     "BUILTIN_ALLOWED_PAIRS",
     "BUILTIN_RADII_M",
     "BUILTIN_RADII_SOURCE",

@@ -7,7 +7,8 @@ closed triangle mesh, each placed in the **flange** frame by ``element2flange``)
 :class:`ToolGeometry` holds both.
 
 :func:`with_tool_geometry` appends one bounding capsule per element, fixed in DH frame 6
-(``flange2frame6 @ element2flange``), body :data:`TOOL_BODY`, to the arm's capsule model:
+(``flange2frame6 @ element2flange``), body :data:`TOOL_BODY`, to the arm's capsule model, its
+shape's :meth:`~models.collision.shapes.Shape.bounding_capsule`:
 
 * box: the segment along its longest side (the full side), radius the half-diagonal of the
   cross-section;
@@ -92,7 +93,9 @@ class ToolElement:
     name : str
         Unique in the tool; not a reserved name (:func:`reserved_name`); used in messages
         (``spindle – fixture``).
-    shape : {"box", "cylinder", "sphere", "mesh"}
+    shape : str
+        A registered shape kind (:func:`models.collision.shapes.shape_kinds`: ``box``, ``cylinder``,
+        ``sphere``, ``mesh`` and the plug-ins').
     size : ndarray
         m: box ``(3,)`` x, y, z extents; cylinder ``(2,)`` radius, length (along z); sphere ``(1,)``
         radius; mesh ``(3,)`` the extents of its axis-aligned bounding box in the element frame.
