@@ -1,6 +1,6 @@
 """Plug-in discovery, one rule for every registry.
 
-A registry of the product (effects, IK families, timing methods, export formats) is a package
+A registry of the product (effects, IK families, shape kinds, timing methods, export formats) is a package
 whose modules register themselves when imported. :func:`import_plugins` imports every module
 of such a package and every ``*.py`` module in the folders named by the registry's environment
 variable (``os.pathsep``-separated), as ``<package>.<module>``: a plug-in outside the installed
@@ -12,6 +12,7 @@ registry               package                        environment variable
 =====================  =============================  ===========================
 effects                ``models.effects``             ``COMPPLAN_EFFECT_PATH``
 IK families            ``models.ik``                  ``COMPPLAN_IK_PATH``
+shape kinds            ``models.collision.shapes``    ``COMPPLAN_SHAPE_PATH``
 timing methods         ``problems.timing``            ``COMPPLAN_TIMING_PATH``
 export formats         ``planner.export``             ``COMPPLAN_EXPORT_PATH``
 =====================  =============================  ===========================

@@ -172,35 +172,42 @@ def dh_chain_frames(
     q: np.ndarray,
     frame02base: np.ndarray | None = None,
 ) -> np.ndarray:
-    """DH frames 0..6 of a chain at ``q`` (6,), base frame, shape (7, 4, 4) (NumPy twin of the
-    model graph's chain; frame 0 is ``frame02base``, default the base frame).
+    """DH frames 0..6 of a chain at ``q``, base frame: the one NumPy chain (twin of the model
+    graph's :func:`models.effects.graph.chain`; frame 0 is ``frame02base``, default the base frame).
 
     ``standard_dh``: ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``; ``modified_dh``:
     ``A_i = Rx(alpha_i) Tx(a_i) Rz(theta_i) Tz(d_i)`` (row i holds the previous link's a, alpha);
     ``theta_i = q_i + theta_offset_i``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (6,) or (N, 6)
+        Joint angles, rad.
+
+    Returns
+    -------
+    ndarray, shape (7, 4, 4) or (N, 7, 4, 4)
+        ``frame_i2base`` for i = 0..6.
     """
-    T = np.eye(4) if frame02base is None else np.array(frame02base, dtype=float)
-    out = [T]
-    for ai, al, di, off, qi in zip(a, alpha, d, theta_offset, np.asarray(q, dtype=float)):
-        ct, st, ca_, sa = np.cos(qi + off), np.sin(qi + off), np.cos(al), np.sin(al)
-        if convention == "standard_dh":
-            A = np.array(
-                [
-                    [ct, -st * ca_, st * sa, ai * ct],
-                    [st, ct * ca_, -ct * sa, ai * st],
-                    [0.0, sa, ca_, di],
-                    [0.0, 0.0, 0.0, 1.0],
-                ]
-            )
-        else:
-            A = np.array(
-                [
-                    [ct, -st, 0.0, ai],
-                    [st * ca_, ct * ca_, -sa, -sa * di],
-                    [st * sa, ct * sa, ca_, ca_ * di],
-                    [0.0, 0.0, 0.0, 1.0],
-                ]
-            )
-        T = T @ A
-        out.append(T)
-    return np.array(out)
+    qa = np.asarray(q, dtype=float)
+    q2 = np.atleast_2d(qa)
+    n = q2.shape[0]
+    th = q2 + np.asarray(theta_offset, dtype=float)
+    ct, st = np.cos(th), np.sin(th)
+    ca_, sa = np.cos(np.asarray(alpha, dtype=float)), np.sin(np.asarray(alpha, dtype=float))
+    a, d = np.asarray(a, dtype=float), np.asarray(d, dtype=float)
+    A = np.zeros((n, 6, 4, 4))
+    A[..., 3, 3] = 1.0
+    if convention == "standard_dh":
+        A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = ct, -st * ca_, st * sa, a * ct
+        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st, ct * ca_, -ct * sa, a * st
+        A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca_, d
+    else:
+        A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, a
+        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca_, ct * ca_, -sa, -sa * d
+        A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca_, ca_ * d
+    F = np.empty((n, 7, 4, 4))
+    F[:, 0] = np.eye(4) if frame02base is None else np.asarray(frame02base, dtype=float)
+    for i in range(6):
+        F[:, i + 1] = F[:, i] @ A[:, i]
+    return F[0] if qa.ndim == 1 else F

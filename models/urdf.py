@@ -772,21 +772,16 @@ def points_capsule(V: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 def _element_capsule(where: str, urdf_path: Path, link: str, geom: Any) -> tuple[np.ndarray, np.ndarray, float, str]:
     """The bounding capsule of one ``<collision>`` geometry in its own frame: ends, radius (m), kind."""
-    z = np.array([0.0, 0.0, 1.0])
+    from .collision.shapes import shape_class, shape_kinds
+
     if geom is None:
         raise RobotFileError(f"{urdf_path}: link '{link}': a <collision> element without <geometry>")
-    if geom.box is not None:
-        size = np.abs(np.asarray(geom.box.size, dtype=float))
-        k = int(np.argmax(size))
-        e = np.eye(3)[k]
-        r = 0.5 * float(np.hypot(*np.delete(size, k)))
-        return -0.5 * size[k] * e, 0.5 * size[k] * e, r, "box"
-    if geom.cylinder is not None:
-        half = 0.5 * float(geom.cylinder.length)
-        return -half * z, half * z, float(geom.cylinder.radius), "cylinder"
-    if geom.sphere is not None:
-        return np.zeros(3), np.zeros(3), float(geom.sphere.radius), "sphere"
-    if geom.mesh is not None:
+    for kind in shape_kinds():  # the shape kinds that read a URDF element: their bounding capsule
+        cls = shape_class(kind)
+        element = getattr(geom, cls.urdf_element, None) if cls.urdf_element else None
+        if element is not None:
+            return (*cls.from_urdf(element).bounding_capsule(), kind)
+    if geom.mesh is not None:  # a mesh: the capsule of its vertices, scaled per axis (points_capsule)
         path = _mesh_path(urdf_path, link, geom.mesh.filename)
         try:
             import trimesh

@@ -40,16 +40,13 @@ from models.collision import (
     TOOL_BODY,
     TOOL_MIN_LENGTH_M,
     CapsuleModel,
-    CellShape,
     Clearance,
     ClearanceStatus,
     capsule_distance,
-    capsule_model,
-    capsule_segments,
     capsule_shape_distance,
-    chain_frames,
 )
-from models.collision.distance import segment_distance
+from models.collision.scene import Scene
+from models.collision.segments import segment_distance
 from models.robot import Robot
 from problems.compensation import exact
 from problems.posture import BranchStatus, PostureResult, PostureStatus
@@ -59,7 +56,6 @@ __all__ = [
     "TOOL_BODY",
     "TOOL_MIN_LENGTH_M",
     "CellCheck",
-    "CellGeometry",
     "cell_geometry",
     "cell_summary",
     "check_branches",
@@ -74,114 +70,32 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class CellGeometry:
-    """The arm's capsules (tool included) and the cell's objects, ready to check.
-
-    Attributes
-    ----------
-    robot : Robot
-    model : CapsuleModel
-        The arm's capsules plus the tool's (body :data:`TOOL_BODY`), M in all.
-    names : tuple of str, length M
-        Capsule names in messages (``link 3``, ``tool``).
-    shapes : tuple of CellShape, length K
-        The cell's objects (base frame).
-    checked : ndarray of bool, shape (M, K)
-        Which capsule-object pairs are checked (not: the cutter (else the TCP capsule) with the workpiece, capsules
-        fixed to the base).
-    self_pairs : ndarray of int, shape (P, 2)
-        Capsule index pairs of the self-collision check.
-    clearance : float
-        m.
-    centre, bound : ndarray, shape (K, 3), (K,)
-        Each object's bounding sphere (base frame), m.
-    roles : tuple of str, length K
-        ``obstacle`` or ``workpiece``.
-    """
-
-    robot: Robot
-    model: CapsuleModel
-    names: tuple[str, ...]
-    shapes: tuple[CellShape, ...]
-    checked: np.ndarray
-    self_pairs: np.ndarray
-    clearance: float
-    centre: np.ndarray
-    bound: np.ndarray
-    roles: tuple[str, ...] = ()
-
-    @property
-    def pair_names(self) -> list[str]:
-        """Names of the object pairs (capsule-major, ``m * K + k``), then of the self pairs."""
-        obj = [f"{c} – {s.name}" for c in self.names for s in self.shapes]
-        return obj + [f"{self.names[i]} – {self.names[j]}" for i, j in self.self_pairs]
-
-
-def _shape(obj: Any) -> CellShape:
-    """A :class:`problems.cell.CellObject` as a :class:`models.collision.CellShape`."""
-    if isinstance(obj, CellShape):
-        return obj
-    return CellShape(obj.name, obj.geometry, np.asarray(obj.object2base, dtype=float), obj.shape, obj.mesh)
-
-
-def _bounding_sphere(s: CellShape) -> tuple[np.ndarray, float]:
-    """Centre (base frame) and radius (m) of a sphere holding the object."""
-    T = s.shape2base
-    if s.kind == "mesh" and s.mesh is not None:
-        lo, hi = s.mesh.bounds
-        c = 0.5 * (lo + hi)
-        return T[:3, :3] @ c + T[:3, 3], float(np.max(np.linalg.norm(s.mesh.vertices - c, axis=1)))
-    g = s.geometry
-    if s.kind == "box":
-        r = float(np.linalg.norm(np.asarray(g.halfSide)))
-    elif s.kind == "sphere":
-        r = float(g.radius)
-    elif s.kind == "cylinder":
-        r = float(np.hypot(g.radius, g.halfLength))
-    else:  # an unknown coal geometry: no pruning
-        r = np.inf
-    return T[:3, 3].copy(), r
-
-
-def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) -> CellGeometry:
-    """The geometry to check for a robot in a cell.
+def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) -> Scene:
+    """The collision scene to check for a robot in a cell (:meth:`problems.cell.Cell.scene`).
 
     Parameters
     ----------
     robot : Robot
         With its tool (``tcp2flange``).
     cell : problems.cell.Cell
-        Its objects (``object2base``, ``geometry``, ``role``) and ``clearance`` (m).
+        Its objects, its declared tool geometry and ``clearance`` (m).
     model : CapsuleModel, optional
         The arm's capsules (default :func:`models.collision.capsule_model`).
 
-    The tool's capsules and the pairs checked come from :mod:`models.collision.tool`
-    (:func:`~models.collision.tool.with_tool_geometry` with the cell's ``tool``, then
-    :func:`~models.collision.tool.check_pairs`), as in the placement kernel: the declared body
+    The tool's capsules and the pairs checked come from :mod:`models.collision.tool`, as in the
+    placement kernel and the posture NLP (:class:`models.collision.scene.Scene`): the declared body
     elements and the cutter (named as declared, ``cutter``), else one capsule flange -> TCP
     (``tool``); only the cutter (else the capsule ending at the TCP) may touch the workpiece.
     """
-    from models.collision.tool import check_pairs, with_tool_geometry
-
-    arm = capsule_model(robot) if model is None else model
-    full, info = with_tool_geometry(arm, robot, getattr(cell, "tool", None))
-    shapes = tuple(_shape(o) for o in cell.objects)
-    k = len(shapes)
-    roles = tuple(str(getattr(o, "role", "obstacle")) for o in cell.objects)
-    checked, pairs = check_pairs(arm, full, info, roles)
-    spheres = [_bounding_sphere(s) for s in shapes]
-    centre = np.array([c for c, _ in spheres]).reshape(k, 3)
-    bound = np.array([r for _, r in spheres], dtype=float)
-    return CellGeometry(robot, full, info.names, shapes, checked, pairs, float(cell.clearance), centre, bound, roles)
+    return cell.scene(robot, model)
 
 
-def segments(geom: CellGeometry, q: np.ndarray) -> np.ndarray:
+def segments(geom: Scene, q: np.ndarray) -> np.ndarray:
     """Capsule end points at configurations ``q`` (N, 6) rad: shape (N, M, 2, 3), m, base frame."""
-    return capsule_segments(geom.model, chain_frames(geom.robot, np.atleast_2d(q)))
+    return geom.segments(q)
 
 
-def distance_table(geom: CellGeometry, q: np.ndarray) -> np.ndarray:
+def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
     """Signed distances (m) of every pair at every configuration, shape (N, M * K + P).
 
     Object pairs not checked are ``+inf``. An object pair whose bounding-sphere lower bound is
@@ -225,9 +139,7 @@ def _clearance(d_row_min: float, pair: str, clearance: float, where: str, index:
     return Clearance(status, text, d_row_min, pair, index, clearance)
 
 
-def first_violation(
-    geom: CellGeometry, d: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None
-) -> Clearance:
+def first_violation(geom: Scene, d: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None) -> Clearance:
     """The :class:`Clearance` of a distance table (:func:`distance_table`): at the *first* sample
     closer than the clearance (its nearest pair), else at the smallest distance of all.
 
@@ -244,15 +156,13 @@ def first_violation(
     return _clearance(float(d[i, p]), names[p], geom.clearance, where, i)
 
 
-def check_poses(
-    geom: CellGeometry, q: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None
-) -> Clearance:
+def check_poses(geom: Scene, q: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None) -> Clearance:
     """Clearance of configurations ``q`` (N, 6) rad against the cell and themselves
     (:func:`first_violation` of :func:`distance_table`)."""
     return first_violation(geom, distance_table(geom, q), label, times)
 
 
-def largest_displacement(geom: CellGeometry, q_a: np.ndarray, q_b: np.ndarray) -> tuple[float, str, int]:
+def largest_displacement(geom: Scene, q_a: np.ndarray, q_b: np.ndarray) -> tuple[float, str, int]:
     """Largest displacement (m) of a capsule end point between configurations ``q_a`` and ``q_b``
     (N, 6) rad, with the capsule's name and the sample."""
     a, b = segments(geom, q_a), segments(geom, q_b)
@@ -267,7 +177,7 @@ class CellCheck:
 
     Attributes
     ----------
-    geometry : CellGeometry
+    geometry : Scene
     branches : dict branch -> Clearance
         Each usable branch's command at the waypoints (with its planned posture).
     waypoints : Clearance or None
@@ -288,7 +198,7 @@ class CellCheck:
         Wall time of each check, s, and ``poses``: the number of poses checked.
     """
 
-    geometry: CellGeometry
+    geometry: Scene
     branches: dict[int, Clearance] = field(default_factory=dict)
     waypoints: Clearance | None = None
     trajectory: Clearance | None = None
@@ -302,7 +212,7 @@ class CellCheck:
 
 
 def check_branches(
-    geom: CellGeometry, postures: dict[int, np.ndarray], commands: dict[int, np.ndarray]
+    geom: Scene, postures: dict[int, np.ndarray], commands: dict[int, np.ndarray]
 ) -> dict[int, Clearance]:
     """Each branch's clearance at the waypoints: its command and its planned posture (the smaller).
 
@@ -333,7 +243,7 @@ _KEPT = (BranchStatus.SOLVER_FAILED, BranchStatus.CONSTRAINT_VIOLATED)
 
 
 def choose_collision_free(
-    problem: Any, ps: PostureResult, geom: CellGeometry | None = None, free: PostureResult | None = None
+    problem: Any, ps: PostureResult, geom: Scene | None = None, free: PostureResult | None = None
 ) -> tuple[PostureResult, CellCheck]:
     """Every usable branch checked at every waypoint, colliding ones set aside, the choice made
     again (:func:`problems.posture.solve.rechoose`).
@@ -350,7 +260,7 @@ def choose_collision_free(
         With its ``cell``, arm model and load.
     ps : PostureResult
         The posture stage's result (status OK), solved with the cell's clearance constraints.
-    geom : CellGeometry, optional
+    geom : Scene, optional
         The geometry to check (default :func:`cell_geometry` of the problem).
     free : PostureResult, optional
         The same stage in empty space (no clearance constraints): what the cell costs.

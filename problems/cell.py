@@ -34,9 +34,11 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 import numpy as np
 
+from models.collision.shapes import Shape, shape_class, shape_kinds
 from models.errors import InputError
 
 if TYPE_CHECKING:  # models.collision loads coal: only when a cell is built
+    from models.collision.scene import Scene, SceneObject
     from models.collision.tool import ToolGeometry
 
 __all__ = [
@@ -47,25 +49,18 @@ __all__ = [
     "DEFAULT_CLEARANCE_M",
     "FOOTPRINT_TOUCH_TOL_M",
     "OBJECT_ROLES",
-    "OBJECT_SHAPES",
     "POINT_INSIDE_TOL_M",
-    "SIZE_LENGTH",
     "Cell",
     "CellObject",
     "base_footprint",
     "footprint_overlaps",
-    "mesh_geometry",
 ]
 
 #: Default smallest allowed distance between the robot (and tool body) and the objects, and
 #: between non-adjacent links, m.
 DEFAULT_CLEARANCE_M = 0.005
-#: The shapes an object may have.
-OBJECT_SHAPES = ("box", "cylinder", "sphere", "mesh")
 #: The roles an object may have: ``workpiece`` is the only object the cutter may touch.
 OBJECT_ROLES = ("obstacle", "workpiece")
-#: Numbers in ``size`` per primitive shape: box x, y, z extents; cylinder radius, length; sphere radius.
-SIZE_LENGTH: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1}
 #: A point counts as inside an object when its signed distance is below minus this, m: a path
 #: point on an object's surface (up to rounding of the pose) is not inside it.
 POINT_INSIDE_TOL_M = 1e-6
@@ -103,20 +98,6 @@ def _coal_transform(T: np.ndarray) -> Any:
     return tf
 
 
-def mesh_geometry(mesh: Any) -> Any:
-    """A coal BVH model (OBBRSS) of a ``trimesh.Trimesh``'s triangles, vertices in m
-    (:func:`models.collision.distance.mesh_bvh`, imported here so that coal loads only with a cell)."""
-    from models.collision.distance import mesh_bvh
-
-    return mesh_bvh(mesh)
-
-
-def _box_sd(q: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """Signed distance of points ``q`` (N, k) from the box ``|x_i| <= half_i`` (k-D), m."""
-    d = np.abs(q) - half
-    return np.linalg.norm(np.maximum(d, 0.0), axis=1) + np.minimum(np.max(d, axis=1), 0.0)
-
-
 @dataclass(frozen=True, eq=False)
 class CellObject:
     """One object of the cell.
@@ -125,7 +106,9 @@ class CellObject:
     ----------
     name : str
         Unique in its cell; used in messages (``link 3 – fixture``).
-    shape : {"box", "cylinder", "sphere", "mesh"}
+    shape : str
+        A registered shape kind (:func:`models.collision.shapes.shape_kinds`: ``box``, ``cylinder``,
+        ``sphere``, ``mesh`` and the plug-ins').
     size : ndarray
         m: box ``(3,)`` x, y, z extents; cylinder ``(2,)`` radius, length (along z); sphere ``(1,)``
         radius; mesh ``(3,)`` the extents of its axis-aligned bounding box in the object frame.
@@ -139,9 +122,11 @@ class CellObject:
         Mesh file unit to m (0.001 for a file in mm).
     mesh : trimesh.Trimesh or None
         The mesh in the object frame, scaled to m (meshes only).
+    form : models.collision.shapes.Shape
+        The shape of its kind (:func:`models.collision.shapes.shape_class`) built from the above:
+        every per-kind computation (distances, bounds, triangles, its dictionary form).
     geometry : coal.CollisionGeometry
-        Built from the above: ``coal.Box``, ``coal.Cylinder`` (along z), ``coal.Sphere``, or a
-        ``coal.BVHModelOBBRSS`` of the mesh, in the object frame.
+        Its coal geometry (``form.geometry()``), in the object frame.
 
     Raises
     ------
@@ -158,12 +143,13 @@ class CellObject:
     mesh_file: str | None = None
     mesh_scale: float = 1.0
     mesh: Any = field(default=None, repr=False)
+    form: Shape = field(init=False, repr=False)
     geometry: Any = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        if self.shape not in OBJECT_SHAPES:
+        if self.shape not in shape_kinds():
             raise InputError(
-                f"cell object '{self.name}': shape must be one of {list(OBJECT_SHAPES)}, got {self.shape!r}"
+                f"cell object '{self.name}': shape must be one of {list(shape_kinds())}, got {self.shape!r}"
             )
         if self.role not in OBJECT_ROLES:
             raise InputError(f"cell object '{self.name}': role must be one of {list(OBJECT_ROLES)}, got {self.role!r}")
@@ -171,30 +157,12 @@ class CellObject:
         if T.shape != (4, 4) or not np.all(np.isfinite(T)) or not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3)):
             raise InputError(f"cell object '{self.name}': object2base must be a finite 4x4 rigid transform")
         object.__setattr__(self, "object2base", T)
-        if self.shape == "mesh":
-            if self.mesh is None:
-                raise InputError(f"cell object '{self.name}': a mesh object needs its mesh")
-            object.__setattr__(self, "size", np.asarray(self.mesh.extents, dtype=float))
-        else:
-            s = np.asarray(self.size, dtype=float).reshape(-1)
-            if s.shape != (SIZE_LENGTH[self.shape],) or not np.all(np.isfinite(s)) or np.any(s <= 0.0):
-                raise InputError(
-                    f"cell object '{self.name}': a {self.shape} needs {SIZE_LENGTH[self.shape]} positive size(s), "
-                    f"got {np.asarray(self.size).tolist()}"
-                )
-            object.__setattr__(self, "size", s)
-        object.__setattr__(self, "geometry", self._build_geometry())
-
-    def _build_geometry(self) -> Any:
-        coal = _coal()
-        s = self.size
-        if self.shape == "box":
-            return coal.Box(float(s[0]), float(s[1]), float(s[2]))
-        if self.shape == "cylinder":
-            return coal.Cylinder(float(s[0]), float(s[1]))
-        if self.shape == "sphere":
-            return coal.Sphere(float(s[0]))
-        return mesh_geometry(self.mesh)
+        form = shape_class(self.shape).build(
+            self.size, f"cell object '{self.name}'", self.mesh, self.mesh_file, self.mesh_scale
+        )
+        object.__setattr__(self, "form", form)
+        object.__setattr__(self, "size", form.size)
+        object.__setattr__(self, "geometry", form.geometry())
 
     @property
     def coal_transform(self) -> Any:
@@ -218,37 +186,20 @@ class CellObject:
         Returns
         -------
         ndarray, shape (N,)
-            Closed form for box, cylinder and sphere; a mesh's closest-triangle distance with the
-            sign of ``trimesh``'s inside test.
+            The shape's :meth:`~models.collision.shapes.Shape.signed_distance`.
         """
-        q = self.to_object(points_base)
-        s = self.size
-        if self.shape == "box":
-            return _box_sd(q, 0.5 * s)
-        if self.shape == "cylinder":
-            rz = np.column_stack([np.linalg.norm(q[:, :2], axis=1), q[:, 2]])
-            return _box_sd(rz, np.array([s[0], 0.5 * s[1]]))
-        if self.shape == "sphere":
-            return np.linalg.norm(q, axis=1) - s[0]
-        import trimesh
-
-        return -np.asarray(trimesh.proximity.signed_distance(self.mesh, q), dtype=float)  # trimesh: + inside
+        return self.form.signed_distance(self.to_object(points_base))
 
     def contains(self, points_base: np.ndarray, tol: float = POINT_INSIDE_TOL_M) -> np.ndarray:
-        """Whether points lie inside the object by more than ``tol`` (m), shape (N,) bool.
+        """Whether points lie inside the object by more than ``tol`` (m), shape (N,) bool."""
+        return self.form.contains(self.to_object(points_base), tol)
 
-        A mesh is tested only at the points inside its bounding box (the rest are outside).
-        """
-        P = np.atleast_2d(np.asarray(points_base, dtype=float))
-        if self.shape != "mesh":
-            return self.distance_to_point(P) < -tol
-        q = self.to_object(P)
-        lo, hi = self.mesh.bounds
-        near = np.flatnonzero(np.all((q > lo + tol) & (q < hi - tol), axis=1))
-        inside = np.zeros(len(P), dtype=bool)
-        if near.size:
-            inside[near] = self.distance_to_point(P[near]) < -tol
-        return inside
+    def scene_object(self) -> SceneObject:
+        """The object as the collision scene holds it (:class:`models.collision.scene.SceneObject`,
+        its coal geometry shared)."""
+        from models.collision.scene import SceneObject
+
+        return SceneObject.with_geometry(self.name, self.form, self.object2base, self.role, self.geometry)
 
     def moved(self, new2base: np.ndarray) -> CellObject:
         """The same object with ``object2base`` replaced by ``new2base @ object2base`` (e.g. a
@@ -268,7 +219,7 @@ class CellObject:
         """The object in the problem-file schema (SI units, radians, base frame)."""
         from models.collision.tool import shape_to_dict
 
-        d = shape_to_dict(self.name, self.shape, self.size, self.object2base, self.mesh_file, self.mesh_scale)
+        d = shape_to_dict(self.name, self.form, self.object2base)
         d["role"] = self.role
         return d
 
@@ -351,6 +302,14 @@ class Cell:
         """Every object moved by ``new2base`` (see :meth:`CellObject.moved`)."""
         return Cell(tuple(o.moved(new2base) for o in self.objects), self.clearance, self.tool)
 
+    def scene(self, robot: Any, arm: Any = None) -> Scene:
+        """The collision scene of ``robot`` (with its tool) in this cell
+        (:meth:`models.collision.scene.Scene.build`: the arm's capsules, or ``arm``, the tool's, the
+        objects and the pairs to check)."""
+        from models.collision.scene import Scene
+
+        return Scene.build(robot, [o.scene_object() for o in self.objects], self.tool, self.clearance, arm)
+
     def mesh_files(self) -> tuple[str, ...]:
         """The mesh files the cell was read from (resolved paths, in object order), then the tool's
         (in element order)."""
@@ -378,7 +337,8 @@ def footprint_overlaps(obj: CellObject, radius: float, height: float, tol: float
     ``height`` about the base z axis, m), by more than ``tol`` (m).
 
     coal's collision test of the footprint shrunk by ``tol``; a mesh that encloses the footprint
-    (no triangle near it) is caught by its inside test at the footprint's centre.
+    (no triangle near it; a shape coal sees as its surface only) is caught by its inside test at the
+    footprint's centre.
     """
     coal = _coal()
     r, h = radius - tol, height - 2.0 * tol
@@ -389,4 +349,4 @@ def footprint_overlaps(obj: CellObject, radius: float, height: float, tol: float
     req.gjk_tolerance = COAL_GJK_TOLERANCE_M
     if coal.collide(foot, _coal_transform(T), obj.geometry, obj.coal_transform, req, res) > 0:
         return True
-    return obj.shape == "mesh" and bool(obj.contains(T[:3, 3][None, :], tol)[0])
+    return obj.form.surface_only and bool(obj.contains(T[:3, 3][None, :], tol)[0])

@@ -29,12 +29,11 @@ import numpy as np
 
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.transforms import rpy_to_matrix, transform
+from models.collision.shapes import SHAPE_KEYS, Shape, shape_class, shape_kinds
 from problems.cell import (
     DEFAULT_CLEARANCE_M,
     OBJECT_ROLES,
-    OBJECT_SHAPES,
     POINT_INSIDE_TOL_M,
-    SIZE_LENGTH,
     Cell,
     CellObject,
     base_footprint,
@@ -69,12 +68,6 @@ MESH_SUFFIXES = (".stl", ".obj", ".ply")
 #: The frames an object's pose may be given in: the robot's base frame, or a program's
 #: ``[workpiece]`` frame (``program2base``).
 OBJECT_FRAMES = ("base", "workpiece")
-#: What ``size`` holds per primitive shape (for messages).
-_SIZE_MEANING = {
-    "box": "[x, y, z] extents (m)",
-    "cylinder": "[radius, length] (m), the axis along the object's z",
-    "sphere": "[radius] (m)",
-}
 
 
 def parse_cell(
@@ -229,7 +222,7 @@ def parse_tool_geometry(where: str, data: Mapping[str, Any], base_dir: Path | No
 def _parse_tool_element(where: str, key: str, tab: Mapping[str, Any], base_dir: Path | None) -> Any:
     """One ``[[robot.tool.body]]`` table (``key`` = ``robot.tool.body[i]``) as a
     :class:`models.collision.tool.ToolElement`."""
-    from models.collision.tool import TOOL_ELEMENT_SHAPES, ToolElement, reserved_name
+    from models.collision.tool import ToolElement, reserved_name
 
     unknown = sorted(set(tab) - set(TOOL_BODY_KEYS))
     if unknown:
@@ -245,22 +238,13 @@ def _parse_tool_element(where: str, key: str, tab: Mapping[str, Any], base_dir: 
             f"= {name!r} is the name of a capsule already (base, link i, tool, cutter); choose another",
         )
     shape = tab.get("shape")
-    if shape not in TOOL_ELEMENT_SHAPES:
+    if shape not in shape_kinds():
         raise _err(
-            where, f"{key}.shape", f"must be one of {list(TOOL_ELEMENT_SHAPES)} (tool element '{name}'), got {shape!r}"
+            where, f"{key}.shape", f"must be one of {list(shape_kinds())} (tool element '{name}'), got {shape!r}"
         )
     element2flange = _pose(where, key, tab)
-    if shape == "mesh":
-        if "size" in tab:
-            raise _err(
-                where, f"{key}.size", f"does not apply to a mesh (tool element '{name}': the file gives its size)"
-            )
-        mesh, path, scale = _read_mesh(where, key, name, tab, base_dir, "tool element")
-        return ToolElement(name, shape, np.zeros(3), element2flange, mesh, str(path), scale)
-    for k in ("file", "scale"):
-        if k in tab:
-            raise _err(where, f"{key}.{k}", f"only applies to shape 'mesh' (tool element '{name}' is a {shape})")
-    return ToolElement(name, shape, _size(where, key, name, shape, tab, "tool element"), element2flange)
+    v = _shape_values(where, key, name, shape_class(shape), tab, base_dir, "tool element")
+    return ToolElement(name, shape, v["size"], element2flange, v["mesh"], v["file"], v["scale"])
 
 
 def _pose(where: str, key: str, tab: Mapping[str, Any]) -> np.ndarray:
@@ -289,22 +273,44 @@ def _parse_object(
         raise _err(where, f"{key}.name", f"must be a non-empty string, got {name!r}")
     name = name.strip()
     shape = tab.get("shape")
-    if shape not in OBJECT_SHAPES:
-        raise _err(where, f"{key}.shape", f"must be one of {list(OBJECT_SHAPES)} (object '{name}'), got {shape!r}")
+    if shape not in shape_kinds():
+        raise _err(where, f"{key}.shape", f"must be one of {list(shape_kinds())} (object '{name}'), got {shape!r}")
     role = tab.get("role", "obstacle")
     if role not in OBJECT_ROLES:
         raise _err(where, f"{key}.role", f"must be one of {list(OBJECT_ROLES)} (object '{name}'), got {role!r}")
     object2frame = _pose(where, key, tab)
     object2base = _in_base(where, key, tab.get("frame", "base"), object2frame, program2base)
-    if shape == "mesh":
-        if "size" in tab:
-            raise _err(where, f"{key}.size", f"does not apply to a mesh (object '{name}': the file gives its size)")
-        mesh, path, scale = _read_mesh(where, key, name, tab, base_dir)
-        return CellObject(name, shape, np.zeros(3), object2base, role, str(path), scale, mesh)
-    for k in ("file", "scale"):
-        if k in tab:
-            raise _err(where, f"{key}.{k}", f"only applies to shape 'mesh' (object '{name}' is a {shape})")
-    return CellObject(name, shape, _size(where, key, name, shape, tab), object2base, role)
+    v = _shape_values(where, key, name, shape_class(shape), tab, base_dir, "object")
+    return CellObject(name, shape, v["size"], object2base, role, v["file"], v["scale"], v["mesh"])
+
+
+def _shape_values(
+    where: str, key: str, name: str, kind: type[Shape], tab: Mapping[str, Any], base_dir: Path | None, what: str
+) -> dict[str, Any]:
+    """The values of a shape table's keys the kind declares (:attr:`~models.collision.shapes.Shape.keys`):
+    ``size`` (:func:`_size`), ``file`` and ``scale`` (:func:`_read_mesh`); a shape key it does not
+    take is an error.  ``what``: the kind of thing in messages (``object``, ``tool element``).
+
+    Returns
+    -------
+    dict
+        ``size`` (ndarray, m; zeros without the key), ``mesh``, ``file`` (resolved path) and ``scale``.
+    """
+    for k in SHAPE_KEYS:
+        if k in tab and k not in kind.keys:
+            if k == "size":
+                note = f"does not apply to a {kind.kind} ({what} '{name}': the file gives its size)"
+            else:
+                owners = " or ".join(repr(c) for c in shape_kinds() if k in shape_class(c).keys)
+                note = f"only applies to shape {owners} ({what} '{name}' is a {kind.kind})"
+            raise _err(where, f"{key}.{k}", note)
+    out: dict[str, Any] = {"size": np.zeros(3), "mesh": None, "file": None, "scale": 1.0}
+    if "size" in kind.keys:
+        out["size"] = _size(where, key, name, kind, tab, what)
+    if "file" in kind.keys:
+        mesh, path, scale = _read_mesh(where, key, name, tab, base_dir, what)
+        out.update(mesh=mesh, file=str(path), scale=scale)
+    return out
 
 
 def _in_base(where: str, key: str, frame: Any, object2frame: np.ndarray, program2base: np.ndarray | None) -> np.ndarray:
@@ -322,16 +328,16 @@ def _in_base(where: str, key: str, frame: Any, object2frame: np.ndarray, program
     return program2base @ object2frame
 
 
-def _size(where: str, key: str, name: str, shape: str, tab: Mapping[str, Any], what: str = "object") -> np.ndarray:
-    """A primitive's ``size``: the right count of positive, plausible lengths (m); ``what``: the
-    kind of thing in messages (``object``, ``tool element``)."""
-    n = SIZE_LENGTH[shape]
+def _size(where: str, key: str, name: str, kind: type[Shape], tab: Mapping[str, Any], what: str) -> np.ndarray:
+    """A shape's ``size``: the kind's count of positive, plausible lengths (m); ``what``: the kind
+    of thing in messages (``object``, ``tool element``)."""
+    n = kind.size_length
     raw = tab.get("size")
     if not isinstance(raw, list) or len(raw) != n:
         raise _err(
             where,
             f"{key}.size",
-            f"must be {n} number(s) for a {shape}: {_SIZE_MEANING[shape]} ({what} '{name}'), got {raw!r}",
+            f"must be {n} number(s) for a {kind.kind}: {kind.size_meaning} ({what} '{name}'), got {raw!r}",
         )
     size = np.array([_positive(where, f"{key}.size[{j}]", v) for j, v in enumerate(raw)])
     if np.max(size) > PLAUSIBLE_POSITION_MAX_M:

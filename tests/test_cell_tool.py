@@ -23,7 +23,7 @@ coal = pytest.importorskip("coal")
 trimesh = pytest.importorskip("trimesh")
 
 from models.collision import capsule_model, capsule_segments, chain_frames, with_tool  # noqa: E402
-from models.collision.distance import segment_distance  # noqa: E402
+from models.collision.segments import segment_distance  # noqa: E402
 from models.collision.tool import CUTTER_BODY, TOOL_BODY, with_tool_geometry  # noqa: E402
 from models.transforms import rpy_to_matrix, transform  # noqa: E402
 from problems.cell import Cell, CellObject  # noqa: E402

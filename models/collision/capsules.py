@@ -2,7 +2,8 @@
 
 A :class:`CapsuleModel` is the *description* (which segments, fixed in which DH frame, with which
 radius, on which body); the positions of its segments at configurations are computed from it
-(:func:`capsule_segments`), as pinocchio keeps ``GeometryModel`` apart from ``GeometryData``.
+(:func:`models.collision.chain.capsule_segments`, ``capsule_points_sx``), as pinocchio keeps
+``GeometryModel`` apart from ``GeometryData``.
 
 Bodies: body 0 is the base, body *i* (1..6) the link moved by joint *i*.  Body *i* holds the DH
 offsets of its own row: ``d_i`` along joint *i*'s axis, then the common normal ``a_i`` to the next
@@ -43,6 +44,7 @@ from importlib import resources
 import numpy as np
 
 from ..robot import BUILTIN_ROBOTS, Robot, RobotCollision, parse_collision_table
+from .chain import chain_frames
 
 __all__ = [
     "TOOL_BODY",
@@ -57,8 +59,6 @@ __all__ = [
     "CapsuleModel",
     "body_name",
     "capsule_model",
-    "capsule_segments",
-    "chain_frames",
     "default_radii",
     "robot_collision",
     "self_collision_body_pairs",
@@ -204,43 +204,6 @@ class CapsuleModel:
 def body_name(body: int) -> str:
     """The name of a body in messages: ``base`` for 0, ``link i`` for i = 1..6."""
     return "base" if body == 0 else f"link {body}"
-
-
-def chain_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """DH frames 0..6 of the robot's nominal chain at N configurations, base frame.
-
-    Parameters
-    ----------
-    robot : Robot
-    q : ndarray, shape (N, 6) or (6,)
-        Joint angles, rad.
-
-    Returns
-    -------
-    ndarray, shape (N, 7, 4, 4)
-        ``frame_i2base`` for i = 0..6 (frame 0 is ``frame02base``).
-    """
-    qa = np.atleast_2d(np.asarray(q, dtype=float))
-    n = qa.shape[0]
-    th = qa + robot.theta_offset
-    ct, st = np.cos(th), np.sin(th)
-    ca, sa = np.cos(robot.alpha), np.sin(robot.alpha)
-    a, d = robot.a, robot.d
-    A = np.zeros((n, 6, 4, 4))
-    A[..., 3, 3] = 1.0
-    if robot.convention == "standard_dh":
-        A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = ct, -st * ca, st * sa, a * ct
-        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st, ct * ca, -ct * sa, a * st
-        A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca, d
-    else:
-        A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, a
-        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * d
-        A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * d
-    F = np.empty((n, 7, 4, 4))
-    F[:, 0] = robot.frame02base
-    for i in range(6):
-        F[:, i + 1] = F[:, i] @ A[:, i]
-    return F
 
 
 def _body_points(robot: Robot) -> list[list[tuple[int, np.ndarray]]]:
@@ -516,29 +479,6 @@ def capsule_model(
         radii_source=source,
         line=np.array(is_line, dtype=bool),
     )
-
-
-def capsule_segments(model: CapsuleModel, frames: np.ndarray) -> np.ndarray:
-    """End points of every capsule's segment at N configurations, base frame.
-
-    Parameters
-    ----------
-    model : CapsuleModel
-    frames : ndarray, shape (N, 7, 4, 4)
-        DH frames 0..6 (:func:`chain_frames`).
-
-    Returns
-    -------
-    ndarray, shape (N, M, 2, 3)
-        ``[..., 0, :]`` end a, ``[..., 1, :]`` end b, m.
-    """
-    n = frames.shape[0]
-    ext = np.concatenate([np.broadcast_to(np.eye(4), (n, 1, 4, 4)), frames], axis=1)  # index 0: base
-    out = np.empty((n, model.n_capsules, 2, 3))
-    for end, (fr, loc) in enumerate(((model.frame_a, model.local_a), (model.frame_b, model.local_b))):
-        T = ext[:, fr + 1]  # (N, M, 4, 4)
-        out[:, :, end] = np.einsum("nmij,mj->nmi", T[..., :3, :3], loc) + T[..., :3, 3]
-    return out
 
 
 def _bridged(model: CapsuleModel) -> set[tuple[int, int]]:

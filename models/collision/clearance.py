@@ -7,13 +7,18 @@ sample index), never a bare ``None``.  Units: m.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from collections.abc import Sequence
 
 import numpy as np
 
 from ..status import Status
 from .capsules import CapsuleModel, self_collision_pairs
-from .distance import CellShape, capsule_distance, capsule_shape_distance
+from .distance import capsule_shape_distance
+from .segments import capsule_distance
+
+if TYPE_CHECKING:
+    from .scene import SceneObject
 
 __all__ = [
     "DEFAULT_CLEARANCE_M",
@@ -120,7 +125,7 @@ def self_distances(
 
 
 def object_distances(
-    model: CapsuleModel, segments: np.ndarray, objects: Sequence[CellShape]
+    model: CapsuleModel, segments: np.ndarray, objects: Sequence[SceneObject]
 ) -> tuple[np.ndarray, list[str]]:
     """Signed distances between every capsule and every object at N configurations (coal, a loop).
 

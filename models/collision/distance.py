@@ -1,12 +1,10 @@
 """Distances between capsules and cell objects.
 
-* :func:`segment_distance`: the closed-form distance between segments (Ericson, *Real-Time
-  Collision Detection*, 5.1.9), vectorised in NumPy over any leading shape, so N configurations
-  times P capsule pairs are one call; a capsule pair's distance is it minus both radii.
-* Objects (:class:`CellShape`: box, sphere, cylinder, mesh) are `coal <https://github.com/coal-library/coal>`_
-  geometries (the maintained hpp-fcl); :func:`capsule_shape_distance` asks coal for the signed
-  distance between a capsule and an object and its closest points.  Meshes are read with ``trimesh``
-  into coal BVH models (:func:`mesh_shape`).
+* segments and capsules in closed form: :mod:`models.collision.segments`.
+* Objects (:class:`models.collision.scene.SceneObject`: a shape of a registered kind, placed) carry
+  their `coal <https://github.com/coal-library/coal>`_ geometries (the maintained hpp-fcl);
+  :func:`capsule_shape_distance` asks coal for the signed distance between a capsule and an object
+  and its closest points.  Meshes are read with ``trimesh`` into coal BVH models (:func:`mesh_bvh`).
 
 Signed distances: negative is penetration depth.  coal gives it for primitives and convex meshes
 (GJK/EPA); for a non-convex mesh coal's depth is per triangle, so a capsule crossing the surface
@@ -18,105 +16,39 @@ Units: m; every point in the base frame unless named otherwise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import coal
 import numpy as np
 
 from ..errors import InputError
 
+if TYPE_CHECKING:
+    from .scene import SceneObject
+
 __all__ = [
     "CellShape",
     "PairDistance",
     "box_shape",
-    "capsule_distance",
     "capsule_shape_distance",
     "cylinder_shape",
     "mesh_shape",
-    "segment_distance",
     "shape_pair_distance",
     "sphere_shape",
 ]
 
-#: Squared segment length (m^2) below which a segment is treated as a point.
-DEGENERATE_SEGMENT_M2 = 1e-24
 #: GJK convergence tolerance handed to coal (m): far below the 1e-6 m the distances are checked to.
 COAL_GJK_TOLERANCE_M = 1e-10
 #: EPA (penetration) tolerance handed to coal (m).
 COAL_EPA_TOLERANCE_M = 1e-10
 
 
-def segment_distance(
-    p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Smallest distance between segments ``p0-p1`` and ``q0-q1``, with the closest points.
-
-    Parameters
-    ----------
-    p0, p1, q0, q1 : ndarray, shape (..., 3)
-        End points, m (broadcast against each other).
-
-    Returns
-    -------
-    dist : ndarray, shape (...)
-        Distance, m (>= 0).
-    cp, cq : ndarray, shape (..., 3)
-        Closest points on the first and on the second segment.
-    """
-    d1, d2 = p1 - p0, q1 - q0
-    r = p0 - q0
-    a = np.einsum("...i,...i->...", d1, d1)
-    e = np.einsum("...i,...i->...", d2, d2)
-    f = np.einsum("...i,...i->...", d2, r)
-    c = np.einsum("...i,...i->...", d1, r)
-    b = np.einsum("...i,...i->...", d1, d2)
-    a_pt, e_pt = a <= DEGENERATE_SEGMENT_M2, e <= DEGENERATE_SEGMENT_M2
-    a_s = np.where(a_pt, 1.0, a)
-    e_s = np.where(e_pt, 1.0, e)
-    denom = a * e - b * b
-    # s on the first segment for the nearest point of the infinite lines (0 if parallel)
-    s = np.where(
-        denom > DEGENERATE_SEGMENT_M2 * (a + e + 1.0),
-        np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1),
-        0.0,
-    )
-    t = (b * s + f) / e_s
-    # t outside [0, 1]: clamp it and recompute s
-    s = np.where(t < 0.0, np.clip(-c / a_s, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a_s, 0.0, 1.0), s))
-    t = np.clip(t, 0.0, 1.0)
-    # degenerate segments (points)
-    s = np.where(a_pt, 0.0, np.where(e_pt, np.clip(-c / a_s, 0.0, 1.0), s))
-    t = np.where(e_pt, 0.0, np.where(a_pt, np.clip(f / e_s, 0.0, 1.0), t))
-    cp = p0 + s[..., None] * d1
-    cq = q0 + t[..., None] * d2
-    return np.linalg.norm(cp - cq, axis=-1), cp, cq
-
-
-def capsule_distance(
-    seg_a: np.ndarray, r_a: np.ndarray | float, seg_b: np.ndarray, r_b: np.ndarray | float
-) -> np.ndarray:
-    """Signed distance between capsules (segment distance minus radii; negative: penetration).
-
-    Parameters
-    ----------
-    seg_a, seg_b : ndarray, shape (..., 2, 3)
-        Segment end points, m.
-    r_a, r_b : float or ndarray broadcast to shape (...)
-        Radii, m.
-
-    Returns
-    -------
-    ndarray, shape (...), m.
-    """
-    dist, _, _ = segment_distance(seg_a[..., 0, :], seg_a[..., 1, :], seg_b[..., 0, :], seg_b[..., 1, :])
-    return dist - r_a - r_b
-
-
 @dataclass(frozen=True)
 class CellShape:
-    """A coal geometry with its pose: one object of a cell (or a robot body given as a shape).
+    """A raw coal geometry with its pose (a capsule as coal measures it); the cell's objects are
+    :class:`models.collision.scene.SceneObject` s.
 
     Attributes
     ----------
@@ -127,16 +59,13 @@ class CellShape:
     shape2base : ndarray, shape (4, 4)
         The shape's frame in the base frame.
     kind : str
-        ``box``, ``sphere``, ``cylinder`` or ``mesh``.
-    mesh : trimesh.Trimesh or None
-        The mesh in its own frame (meshes only; for the inside test).
+        What it is (``capsule``).
     """
 
     name: str
     geometry: Any
     shape2base: np.ndarray
     kind: str
-    mesh: Any = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -166,23 +95,29 @@ def _transform(T: np.ndarray) -> Any:
     return tf
 
 
-def box_shape(name: str, size: np.ndarray, shape2base: np.ndarray) -> CellShape:
+def box_shape(name: str, size: np.ndarray, shape2base: np.ndarray) -> SceneObject:
     """A box of extents ``size`` (3,) m along its x, y, z, centred on its frame's origin."""
-    sx, sy, sz = (float(v) for v in size)
-    return CellShape(name, coal.Box(sx, sy, sz), np.asarray(shape2base, dtype=float), "box")
+    return _posed("box", name, size, shape2base)
 
 
-def sphere_shape(name: str, radius: float, shape2base: np.ndarray) -> CellShape:
+def sphere_shape(name: str, radius: float, shape2base: np.ndarray) -> SceneObject:
     """A sphere of ``radius`` m centred on its frame's origin."""
-    return CellShape(name, coal.Sphere(float(radius)), np.asarray(shape2base, dtype=float), "sphere")
+    return _posed("sphere", name, [radius], shape2base)
 
 
-def cylinder_shape(name: str, radius: float, length: float, shape2base: np.ndarray) -> CellShape:
+def cylinder_shape(name: str, radius: float, length: float, shape2base: np.ndarray) -> SceneObject:
     """A cylinder of ``radius`` and ``length`` m along its z axis, centred on its frame's origin."""
-    return CellShape(name, coal.Cylinder(float(radius), float(length)), np.asarray(shape2base, dtype=float), "cylinder")
+    return _posed("cylinder", name, [radius, length], shape2base)
 
 
-def mesh_shape(name: str, source: Any, shape2base: np.ndarray, scale: float = 1.0) -> CellShape:
+def _posed(kind: str, name: str, size: Any, shape2base: np.ndarray) -> SceneObject:
+    from .scene import SceneObject
+    from .shapes import shape_class
+
+    return SceneObject(name, shape_class(kind).build(size, f"object '{name}'"), shape2base)
+
+
+def mesh_shape(name: str, source: Any, shape2base: np.ndarray, scale: float = 1.0) -> SceneObject:
     """A triangle mesh (a ``trimesh.Trimesh`` or an STL/OBJ/PLY file) as a coal BVH model.
 
     Parameters
@@ -201,6 +136,9 @@ def mesh_shape(name: str, source: Any, shape2base: np.ndarray, scale: float = 1.
     """
     import trimesh
 
+    from .scene import SceneObject
+    from .shapes.mesh import Mesh
+
     if isinstance(source, trimesh.Trimesh):
         mesh = source.copy()
     else:
@@ -214,7 +152,7 @@ def mesh_shape(name: str, source: Any, shape2base: np.ndarray, scale: float = 1.
     if len(mesh.faces) == 0:
         raise InputError(f"{source}: the mesh of object '{name}' has no triangles")
     mesh.apply_scale(float(scale))
-    return CellShape(name, mesh_bvh(mesh), np.asarray(shape2base, dtype=float), "mesh", mesh)
+    return SceneObject(name, Mesh(mesh), shape2base)
 
 
 def mesh_bvh(mesh: Any) -> Any:
@@ -241,7 +179,7 @@ def _request() -> Any:
 _REQUEST = _request()
 
 
-def shape_pair_distance(a: CellShape, b: CellShape) -> PairDistance:
+def shape_pair_distance(a: CellShape | SceneObject, b: CellShape | SceneObject) -> PairDistance:
     """Signed distance between two shapes through coal, with the closest points (base frame)."""
     res = coal.DistanceResult()
     dist = coal.distance(a.geometry, _transform(a.shape2base), b.geometry, _transform(b.shape2base), _REQUEST, res)
@@ -265,7 +203,7 @@ def _capsule_frame(p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def capsule_shape_distance(
-    p0: np.ndarray, p1: np.ndarray, radius: float, obj: CellShape, name: str = "capsule"
+    p0: np.ndarray, p1: np.ndarray, radius: float, obj: SceneObject, name: str = "capsule"
 ) -> PairDistance:
     """Signed distance between the capsule ``p0-p1`` of ``radius`` (m, base frame) and an object.
 
@@ -275,8 +213,8 @@ def capsule_shape_distance(
     T, length = _capsule_frame(np.asarray(p0, dtype=float), np.asarray(p1, dtype=float))
     cap = CellShape(name, coal.Capsule(float(radius), length), T, "capsule")
     out = shape_pair_distance(cap, obj)
-    if obj.kind == "mesh" and out.distance > 0 and obj.mesh is not None and obj.mesh.is_watertight:
+    if obj.shape.surface_only and out.distance > 0:
         local = (np.linalg.inv(obj.shape2base) @ np.array([[*p0, 1.0], [*p1, 1.0]]).T).T[:, :3]
-        if np.any(obj.mesh.contains(local)):
+        if obj.shape.encloses_any(local):
             out = PairDistance(-out.distance - float(radius), out.point_a, out.point_b, out.pair)
     return out

@@ -7,7 +7,8 @@ closed triangle mesh, each placed in the **flange** frame by ``element2flange``)
 :class:`ToolGeometry` holds both.
 
 :func:`with_tool_geometry` appends one bounding capsule per element, fixed in DH frame 6
-(``flange2frame6 @ element2flange``), body :data:`TOOL_BODY`, to the arm's capsule model:
+(``flange2frame6 @ element2flange``), body :data:`TOOL_BODY`, to the arm's capsule model, its
+shape's :meth:`~models.collision.shapes.Shape.bounding_capsule`:
 
 * box: the segment along its longest side (the full side), radius the half-diagonal of the
   cross-section;
@@ -44,15 +45,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..robot import Robot
+from .shapes import Shape, shape_class, shape_kinds, shape_to_dict
 from .capsules import TOOL_BODY, TOOL_SELF_MAX_BODY, CapsuleModel, self_collision_pairs, with_tool
 
 __all__ = [
     "CUTTER_BODY",
     "CUTTER_NAME",
-    "FIT_MARGIN_M",
     "LEGACY_TOOL_NAME",
-    "TOOL_ELEMENT_SHAPES",
-    "TOOL_SIZE_LENGTH",
     "Cutter",
     "ToolCapsules",
     "ToolElement",
@@ -69,13 +68,6 @@ CUTTER_BODY = 8
 CUTTER_NAME = "cutter"
 #: The name of today's tool capsule (flange -> TCP, link 6's radius) in messages.
 LEGACY_TOOL_NAME = "tool"
-#: The shapes a tool body element may have.
-TOOL_ELEMENT_SHAPES = ("box", "cylinder", "sphere", "mesh")
-#: Numbers in ``size`` per primitive shape (as the cell's objects): box x, y, z extents; cylinder
-#: radius, length (along z); sphere radius.
-TOOL_SIZE_LENGTH: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1}
-#: Added to a mesh element's capsule radius, m: rounding in the fit must not leave a vertex outside.
-FIT_MARGIN_M = 1e-9
 #: Names an element may not have: the arm's capsule names, the tool's and the cutter's.
 _RESERVED = re.compile(r"^(base|tool|cutter|link \d+(#\d+)?)$")
 
@@ -92,23 +84,6 @@ def _rigid(T: Any, what: str) -> np.ndarray:
     return A
 
 
-def shape_to_dict(
-    name: str, shape: str, size: np.ndarray, shape2frame: np.ndarray, mesh_file: str | None, mesh_scale: float
-) -> dict[str, Any]:
-    """A shape (cell object or tool element) in the problem-file schema: name, shape, size (or a
-    mesh's file and scale), and its pose ``shape2frame`` as xyz (m) and rpy (rad)."""
-    from ..transforms import matrix_to_rpy
-
-    d: dict[str, Any] = {"name": name, "shape": shape}
-    if shape == "mesh":
-        d["file"], d["scale"] = mesh_file, mesh_scale
-    else:
-        d["size"] = [float(v) for v in size]
-    d["xyz"] = [float(v) for v in shape2frame[:3, 3]]
-    d["rpy"] = [float(v) for v in matrix_to_rpy(shape2frame[:3, :3])]
-    return d
-
-
 @dataclass(frozen=True, eq=False)
 class ToolElement:
     """One element of the tool's body, placed in the flange frame.
@@ -118,7 +93,9 @@ class ToolElement:
     name : str
         Unique in the tool; not a reserved name (:func:`reserved_name`); used in messages
         (``spindle – fixture``).
-    shape : {"box", "cylinder", "sphere", "mesh"}
+    shape : str
+        A registered shape kind (:func:`models.collision.shapes.shape_kinds`: ``box``, ``cylinder``,
+        ``sphere``, ``mesh`` and the plug-ins').
     size : ndarray
         m: box ``(3,)`` x, y, z extents; cylinder ``(2,)`` radius, length (along z); sphere ``(1,)``
         radius; mesh ``(3,)`` the extents of its axis-aligned bounding box in the element frame.
@@ -131,6 +108,8 @@ class ToolElement:
         The mesh file read (resolved path), meshes only.
     mesh_scale : float
         Mesh file unit to m.
+    form : models.collision.shapes.Shape
+        The shape of its kind built from the above (its bounding capsule, its dictionary form).
 
     Raises
     ------
@@ -146,6 +125,7 @@ class ToolElement:
     mesh: Any = field(default=None, repr=False)
     mesh_file: str | None = None
     mesh_scale: float = 1.0
+    form: Shape = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -155,27 +135,20 @@ class ToolElement:
                 f"tool element '{self.name}': the name is taken by a capsule (base, link i, tool, cutter); "
                 "choose another"
             )
-        if self.shape not in TOOL_ELEMENT_SHAPES:
+        if self.shape not in shape_kinds():
             raise InputError(
-                f"tool element '{self.name}': shape must be one of {list(TOOL_ELEMENT_SHAPES)}, got {self.shape!r}"
+                f"tool element '{self.name}': shape must be one of {list(shape_kinds())}, got {self.shape!r}"
             )
         object.__setattr__(self, "element2flange", _rigid(self.element2flange, f"tool element '{self.name}'"))
-        if self.shape == "mesh":
-            if self.mesh is None or len(getattr(self.mesh, "vertices", ())) == 0:
-                raise InputError(f"tool element '{self.name}': a mesh element needs its mesh (with vertices)")
-            object.__setattr__(self, "size", np.asarray(self.mesh.extents, dtype=float))
-            return
-        s = np.asarray(self.size, dtype=float).reshape(-1)
-        if s.shape != (TOOL_SIZE_LENGTH[self.shape],) or not np.all(np.isfinite(s)) or np.any(s <= 0.0):
-            raise InputError(
-                f"tool element '{self.name}': a {self.shape} needs {TOOL_SIZE_LENGTH[self.shape]} positive "
-                f"size(s), got {np.asarray(self.size).tolist()}"
-            )
-        object.__setattr__(self, "size", s)
+        form = shape_class(self.shape).build(
+            self.size, f"tool element '{self.name}'", self.mesh, self.mesh_file, self.mesh_scale
+        )
+        object.__setattr__(self, "form", form)
+        object.__setattr__(self, "size", form.size)
 
     def to_dict(self) -> dict[str, Any]:
         """The element in the problem-file schema (``[[robot.tool.body]]``: SI, radians, flange frame)."""
-        return shape_to_dict(self.name, self.shape, self.size, self.element2flange, self.mesh_file, self.mesh_scale)
+        return shape_to_dict(self.name, self.form, self.element2flange)
 
 
 @dataclass(frozen=True)
@@ -250,24 +223,6 @@ class ToolGeometry:
         return d
 
 
-def _mesh_capsule(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """A capsule holding every vertex (V, 3): along their principal axis through their centroid,
-    radius the largest distance from that axis, ends as close as the vertices allow."""
-    c = vertices.mean(axis=0)
-    X = vertices - c
-    _, vecs = np.linalg.eigh(X.T @ X)
-    u = vecs[:, -1]  # largest variance
-    t = X @ u
-    rho = np.linalg.norm(X - t[:, None] * u, axis=1)
-    r = float(rho.max())
-    h = np.sqrt(np.maximum(r * r - rho * rho, 0.0))  # how far along the axis each vertex lets an end stop short
-    hi = float(np.max(t - h))  # the upper end must reach at least this far
-    lo = float(np.min(t + h))  # the lower end at least this far back
-    if lo > hi:  # a short, fat cloud: any point between them holds all
-        lo = hi = 0.5 * (lo + hi)
-    return c + lo * u, c + hi * u, r + FIT_MARGIN_M
-
-
 def element_capsule(element: ToolElement) -> tuple[np.ndarray, np.ndarray, float]:
     """The bounding capsule of a tool element (module docstring), in the flange frame.
 
@@ -278,19 +233,7 @@ def element_capsule(element: ToolElement) -> tuple[np.ndarray, np.ndarray, float
     radius : float
         m.
     """
-    s = element.size
-    if element.shape == "box":
-        k = int(np.argmax(s))
-        cross = np.delete(s, k)
-        a, b = np.zeros(3), np.zeros(3)
-        a[k], b[k] = -0.5 * s[k], 0.5 * s[k]
-        r = 0.5 * float(np.hypot(cross[0], cross[1]))
-    elif element.shape == "cylinder":
-        a, b, r = np.array([0.0, 0.0, -0.5 * s[1]]), np.array([0.0, 0.0, 0.5 * s[1]]), float(s[0])
-    elif element.shape == "sphere":
-        a, b, r = np.zeros(3), np.zeros(3), float(s[0])
-    else:
-        a, b, r = _mesh_capsule(np.asarray(element.mesh.vertices, dtype=float))
+    a, b, r = element.form.bounding_capsule()
     T = element.element2flange
     return T[:3, :3] @ a + T[:3, 3], T[:3, :3] @ b + T[:3, 3], r
 

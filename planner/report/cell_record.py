@@ -42,8 +42,9 @@ def cell_block(value: Any, where: str) -> tuple[float, list[dict[str, Any]]]:
     clearance : float
         m.
     objects : list of dict
-        Per object: ``name``, ``shape``, ``role``, ``object2base`` (4, 4), and ``size`` (ndarray, m)
-        for a primitive or ``file`` (str) and ``scale`` (float) for a mesh.
+        Per object: ``name``, ``shape``, ``role``, ``object2base`` (4, 4), and its kind's keys
+        (:meth:`models.collision.shapes.Shape.check_record`: ``size`` (ndarray, m), or a mesh's
+        ``file`` (str) and ``scale`` (float)).
 
     Raises
     ------
@@ -51,7 +52,8 @@ def cell_block(value: Any, where: str) -> tuple[float, list[dict[str, Any]]]:
         Naming the key (``problem.cell.objects[1].size``), the value and what was expected.
     """
     from models.transforms import rpy_to_matrix, transform
-    from problems.cell import OBJECT_ROLES, OBJECT_SHAPES, SIZE_LENGTH
+    from models.collision.shapes import shape_class, shape_kinds
+    from problems.cell import OBJECT_ROLES
 
     if not isinstance(value, Mapping):
         raise InputError(f"{where} = {value!r}; expected a table (the problem's [cell])")
@@ -69,23 +71,12 @@ def cell_block(value: Any, where: str) -> tuple[float, list[dict[str, Any]]]:
         name, shape, role = o.get("name"), o.get("shape"), o.get("role", "obstacle")
         if not isinstance(name, str) or not name:
             raise InputError(f"{key}.name = {name!r}; expected a non-empty string")
-        if shape not in OBJECT_SHAPES:
-            raise InputError(f"{key}.shape = {shape!r}; expected one of {list(OBJECT_SHAPES)}")
+        if shape not in shape_kinds():
+            raise InputError(f"{key}.shape = {shape!r}; expected one of {list(shape_kinds())}")
         if role not in OBJECT_ROLES:
             raise InputError(f"{key}.role = {role!r}; expected one of {list(OBJECT_ROLES)}")
         T = transform(rpy_to_matrix(_vec(f"{key}.rpy", o.get("rpy"), 3)), _vec(f"{key}.xyz", o.get("xyz"), 3))
         rec: dict[str, Any] = {"name": name, "shape": shape, "role": role, "object2base": T}
-        if shape == "mesh":
-            f, s = o.get("file"), o.get("scale", 1.0)
-            if not isinstance(f, str) or not f:
-                raise InputError(f"{key}.file = {f!r}; expected the mesh file's path")
-            if isinstance(s, bool) or not isinstance(s, (int, float)) or not np.isfinite(s) or s <= 0:
-                raise InputError(f"{key}.scale = {s!r}; expected a number > 0")
-            rec.update(file=f, scale=float(s))
-        else:
-            size = _vec(f"{key}.size", o.get("size"), SIZE_LENGTH[shape])
-            if np.any(size <= 0):
-                raise InputError(f"{key}.size = {o.get('size')!r}; expected {SIZE_LENGTH[shape]} numbers > 0 (m)")
-            rec["size"] = size
+        rec.update(shape_class(shape).check_record(o, key, _vec))
         out.append(rec)
     return float(c), out

@@ -33,7 +33,7 @@ import hashlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.cm import ScalarMappable
@@ -49,11 +49,14 @@ from planner.report.rendering import FigureItem, job
 from planner.report.run import Run
 from planner.report.tables import load_words
 
+if TYPE_CHECKING:
+    from models.collision.scene import SceneObject
+
 __all__ = [
     "CELL_FIGURE",
     "CELL_POSES",
     "CellScene",
-    "SceneObject",
+    "DrawnObject",
     "capsule_mesh",
     "cell_figure",
     "cell_items",
@@ -67,9 +70,6 @@ CELL_FIGURE = "fig11_cell"
 CELL_POSES = 5
 #: Sides of a capsule's mesh around its axis (interactive view; the static one uses half).
 CAPSULE_SIDES = 16
-#: Sides of a cylinder object's mesh; subdivisions of a sphere object's icosphere.
-CYLINDER_SECTIONS = 48
-SPHERE_SUBDIVISIONS = 3
 #: Opacity of the faded (earlier) postures, of the last posture, and of the objects.
 FADED_OPACITY = 0.18
 SOLID_OPACITY = 1.0
@@ -97,7 +97,7 @@ PLOTLY_DIV_ID = "cell_view_3d"
 
 
 @dataclass(frozen=True)
-class SceneObject:
+class DrawnObject:
     """One cell object as triangles in the base frame.
 
     Attributes
@@ -121,7 +121,7 @@ class CellScene:
 
     Attributes
     ----------
-    objects : list of SceneObject
+    objects : list of DrawnObject
     waypoints : ndarray of int, shape (P,)
         The waypoints whose commanded postures are drawn (the last is drawn solid).
     segments : ndarray, shape (P, M, 2, 3)
@@ -140,7 +140,7 @@ class CellScene:
         What is not drawn and why (a mesh file changed since the run).
     """
 
-    objects: list[SceneObject]
+    objects: list[DrawnObject]
     waypoints: np.ndarray
     segments: np.ndarray
     radius: np.ndarray
@@ -171,18 +171,12 @@ def _mesh_hashes(summary: Mapping[str, Any]) -> dict[str, str]:
     return out
 
 
-def _object_triangles(rec: Mapping[str, Any], hashes: Mapping[str, str]) -> tuple[np.ndarray, np.ndarray] | str:
-    """An object's triangles in the base frame (vertices m, faces), or why it is not drawn."""
-    import trimesh
+def _scene_object(rec: Mapping[str, Any], hashes: Mapping[str, str]) -> SceneObject | str:
+    """A recorded object (:func:`cell_block`) as the collision scene holds it, or why it is not drawn."""
+    from models.collision.scene import SceneObject
+    from models.collision.shapes import shape_class
 
-    shape = rec["shape"]
-    if shape == "box":
-        mesh = trimesh.creation.box(extents=rec["size"])
-    elif shape == "cylinder":
-        mesh = trimesh.creation.cylinder(radius=rec["size"][0], height=rec["size"][1], sections=CYLINDER_SECTIONS)
-    elif shape == "sphere":
-        mesh = trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=rec["size"][0])
-    else:
+    if "file" in rec:  # a shape read from a file: drawn only if the file is the one the run read
         path = Path(rec["file"]).resolve()
         try:
             data = path.read_bytes()
@@ -195,11 +189,7 @@ def _object_triangles(rec: Mapping[str, Any], hashes: Mapping[str, str]) -> tupl
                 f"mesh '{rec['name']}' not drawn: {path} has changed since the run (SHA-256 recorded "
                 f"{recorded[:12]}…, now {sha[:12]}…)"
             )
-        mesh = trimesh.load_mesh(path, force="mesh")
-        mesh.apply_scale(rec["scale"])
-    T = rec["object2base"]
-    v = np.asarray(mesh.vertices, dtype=float) @ T[:3, :3].T + T[:3, 3]
-    return v, np.asarray(mesh.faces, dtype=np.int64)
+    return SceneObject(rec["name"], shape_class(rec["shape"]).from_record(rec), rec["object2base"], rec["role"])
 
 
 # ------------------------------------------------------------------------------- the scene
@@ -215,7 +205,8 @@ def cell_scene(run: Run) -> CellScene | str | None:
     the commanded joints (``waypoints.csv`` ``qc1..qc6``) of :func:`_pose_indices`, the path
     (``x, y, z``) and its error before compensation (``ebx, eby, ebz``).
     """
-    from models.collision import capsule_model, capsule_segments, chain_frames
+    from models.collision import capsule_segments, chain_frames
+    from models.collision.scene import Scene
 
     prob = run.summary.get("problem")
     block = prob.get("cell") if isinstance(prob, Mapping) else None
@@ -229,17 +220,14 @@ def cell_scene(run: Run) -> CellScene | str | None:
         return f"cell view not drawn: {run.absent.get('waypoints', 'waypoints.csv absent')}"
     clearance, recs = cell_block(block, where)
     hashes = _mesh_hashes(run.summary)
-    objects, notes = [], []
-    for rec in recs:
-        tri = _object_triangles(rec, hashes)
-        if isinstance(tri, str):
-            notes.append(tri)
-        else:
-            objects.append(SceneObject(rec["name"], rec["shape"], rec["role"], *tri))
+    found = [_scene_object(rec, hashes) for rec in recs]
+    notes = [o for o in found if isinstance(o, str)]
+    robot = run.robot
+    scene = Scene.build(robot, [o for o in found if not isinstance(o, str)], clearance=clearance)
+    objects = [DrawnObject(o.name, o.kind, o.role, *o.triangles()) for o in scene.objects]
     qc = np.column_stack([wp[f"qc{i}"] for i in range(1, 7)])
     idx = _pose_indices(len(qc))
-    robot = run.robot
-    model = capsule_model(robot)
+    model = scene.arm
     frames = chain_frames(robot, qc[idx])  # (P, 7, 4, 4)
     flange = frames[:, 6] @ np.asarray(robot.flange2frame6, dtype=float)
     tcp = flange @ np.asarray(robot.tcp2flange, dtype=float)

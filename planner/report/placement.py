@@ -190,33 +190,17 @@ def _frame(st: PlacementStudy) -> pp.MapFrame:
     )
 
 
-#: Points on a cylinder's or sphere's circle when its footprint is drawn.
-OUTLINE_CIRCLE_POINTS = 48
-
-
 def _object_outlines(cell: Any) -> tuple[tuple[str, str, np.ndarray], ...]:
-    """Each object's x-y footprint in the cell frame (the convex hull of its points seen from
-    above: a box's corners, a cylinder's end circles, a sphere's equator, a mesh's vertices), m."""
+    """Each object's x-y footprint in the cell frame (the convex hull of its shape's
+    :meth:`~models.collision.shapes.Shape.outline_xy`: a box's corners, a cylinder's end circles, a
+    sphere's equator, a mesh's vertices), m."""
     if cell is None:
         return ()
     from scipy.spatial import ConvexHull
 
-    a = np.linspace(0.0, 2.0 * np.pi, OUTLINE_CIRCLE_POINTS, endpoint=False)
-    ring = np.column_stack([np.cos(a), np.sin(a)])
     out = []
     for o in cell.objects:
-        s = np.asarray(o.size, float)
-        if o.shape == "box":
-            pts = 0.5 * s * np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-        elif o.shape == "cylinder":
-            pts = np.vstack([np.column_stack([s[0] * ring, np.full(len(a), z)]) for z in (-0.5 * s[1], 0.5 * s[1])])
-        elif o.shape == "sphere":
-            pts = np.vstack([np.column_stack([s[0] * ring, np.zeros(len(a))]), [[0, 0, s[0]], [0, 0, -s[0]]]])
-        else:
-            pts = np.asarray(o.mesh.vertices, float)
-        xy = (pts @ o.object2base[:3, :3].T + o.object2base[:3, 3])[:, :2]
-        if o.shape == "sphere":  # a sphere seen from above is its equator's circle about its centre
-            xy = o.object2base[:2, 3] + s[0] * ring
+        xy = o.form.outline_xy(o.object2base)
         hull = xy[ConvexHull(xy).vertices]
         out.append((o.name, o.role, np.vstack([hull, hull[:1]])))
     return tuple(out)

@@ -34,11 +34,12 @@ import numpy as np
 import casadi as ca
 
 from models.codegen import BatchFunction, VMBatchFunction, batch_function
-from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY, capsule_model
+from models.collision import TOOL_MIN_LENGTH_M, TOOL_SELF_MAX_BODY
 from models.collision.capsules import CapsuleModel
-from models.collision.tool import check_pairs, with_tool_geometry
-from models.collision.distance import capsule_distance
-from models.collision.vectorised import VecObject, capsule_object_distance, vec_object
+from models.collision.chain import capsule_points_sx, chain_frames_sx
+from models.collision.scene import SceneObject
+from models.collision.segments import capsule_distance
+from models.collision.vectorised import capsule_object_distance
 from models.portable import evaluator_from_state, portable_state
 from models.robot import Robot
 from problems.cell import FOOTPRINT_TOUCH_TOL_M, COAL_GJK_TOLERANCE_M, base_footprint
@@ -57,30 +58,10 @@ def _transform(coal: Any, T: np.ndarray) -> Any:
 def _capsule_points_function(robot: Robot, model: CapsuleModel) -> ca.Function:
     """CasADi ``capsule_points(q, base2cell) -> ends``: the capsule ends (M x 2 x 3, capsule-major,
     end a then end b, x y z) in the cell frame at joint angles ``q`` (6) of a placement
-    ``base2cell`` (4 x 4); the DH chain of :func:`models.collision.chain_frames`."""
+    ``base2cell`` (4 x 4); the one CasADi chain (:func:`models.collision.chain.chain_frames_sx`)."""
     q = ca.SX.sym("q", 6)
     T = ca.SX.sym("base2cell", 4, 4)
-    frames = [ca.SX(np.asarray(robot.frame02base, dtype=float))]
-    for i in range(6):
-        th = q[i] + float(robot.theta_offset[i])
-        ct, st = ca.cos(th), ca.sin(th)
-        al, a, d = float(robot.alpha[i]), float(robot.a[i]), float(robot.d[i])
-        ca_, sa = float(np.cos(al)), float(np.sin(al))
-        A = ca.SX.eye(4)
-        if robot.convention == "standard_dh":
-            A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st * ca_, st * sa, a * ct
-            A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st, ct * ca_, -ct * sa, a * st
-            A[2, 0], A[2, 1], A[2, 2], A[2, 3] = 0, sa, ca_, d
-        else:
-            A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st, 0, a
-            A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st * ca_, ct * ca_, -sa, -sa * d
-            A[2, 0], A[2, 1], A[2, 2], A[2, 3] = st * sa, ct * sa, ca_, ca_ * d
-        frames.append(ca.mtimes(frames[-1], A))
-    out = []
-    for m in range(model.n_capsules):
-        for fr, loc in ((model.frame_a[m], model.local_a[m]), (model.frame_b[m], model.local_b[m])):
-            F = T if fr < 0 else ca.mtimes(T, frames[int(fr)])
-            out.append(ca.mtimes(F[:3, :3], ca.DM(np.asarray(loc, dtype=float))) + F[:3, 3])
+    out = [p for ends in capsule_points_sx(model, chain_frames_sx(robot, q), T) for p in ends]
     return ca.Function("capsule_points", [q, T], [ca.vertcat(*out)])
 
 
@@ -97,18 +78,17 @@ class KernelCell:
 
     def __init__(self, robot: Robot, cell: Any) -> None:
         self.robot = robot
-        self.cell = cell
         self.clearance = float(cell.clearance)
-        arm = capsule_model(robot)
-        # the tool's capsules and the pairs checked: the plan's rules (planner/cell_check.py), one function
-        self.model, self.tool = with_tool_geometry(arm, robot, getattr(cell, "tool", None))
-        self.objects: tuple[VecObject, ...] = tuple(
-            vec_object(o.name, o.shape, o.size, o.object2base, o.mesh) for o in cell.objects
-        )
-        checked, pairs = check_pairs(arm, self.model, self.tool, tuple(o.role for o in cell.objects))
+        # the capsules, the objects (cell frame) and the pairs checked: the plan's scene (planner/cell_check.py)
+        self.scene = scene = cell.scene(robot)
+        self.model, self.tool = scene.model, scene.tool
+        #: the objects as the closed forms measure them (their shapes' kernel proxies)
+        self.objects: tuple[SceneObject, ...] = tuple(o.proxy(nlp=False) for o in scene.objects)
         #: per object, the capsule indices checked against it
-        self.checked: tuple[np.ndarray, ...] = tuple(np.flatnonzero(checked[:, j]) for j in range(len(cell.objects)))
-        self.self_pairs = pairs.reshape(-1, 2)
+        self.checked: tuple[np.ndarray, ...] = tuple(
+            np.flatnonzero(scene.checked[:, j]) for j in range(len(scene.objects))
+        )
+        self.self_pairs = scene.self_pairs.reshape(-1, 2)
         self.footprint = base_footprint(robot)
         f = _capsule_points_function(robot, self.model)
         points = batch_function(f, 1)
@@ -147,19 +127,19 @@ class KernelCell:
         foot = coal.Cylinder(float(radius - FOOTPRINT_TOUCH_TOL_M), float(height - 2.0 * FOOTPRINT_TOUCH_TOL_M))
         req = coal.CollisionRequest()
         req.gjk_tolerance = COAL_GJK_TOLERANCE_M
-        for obj, vo in zip(self.cell.objects, self.objects):
-            gap = np.linalg.norm(F[:, :3, 3] - vo.object2base[:3, 3], axis=1) - foot_r - vo.bounding_radius
-            tf_obj = obj.coal_transform
+        for obj, vo in zip(self.scene.objects, self.objects):
+            gap = np.linalg.norm(F[:, :3, 3] - vo.pose[:3, 3], axis=1) - foot_r - vo.shape.bounding_radius
+            tf_obj = _transform(coal, obj.pose)
             for i in np.flatnonzero((gap < 0.0) & ~out):
                 res = coal.CollisionResult()
                 hit = coal.collide(foot, _transform(coal, F[i]), obj.geometry, tf_obj, req, res) > 0
-                if not hit and obj.shape == "mesh":
+                if not hit and obj.shape.surface_only:
                     hit = bool(obj.contains(F[i][None, :3, 3], FOOTPRINT_TOUCH_TOL_M)[0])
                 out[i] = hit
         return out
 
     # ------------------------------------------------------------------ the arm
-    def _object_distance(self, seg: np.ndarray, radius: np.ndarray, obj: VecObject) -> np.ndarray:
+    def _object_distance(self, seg: np.ndarray, radius: np.ndarray, obj: SceneObject) -> np.ndarray:
         """The smallest capsule distance to ``obj`` per configuration (K,), m, decided against the
         clearance without computing every pair exactly.  A slab test first: a capsule (segment
         ``seg`` (K, m, 2, 3), cell frame, radii ``radius`` (m,)) within the clearance of the object
@@ -169,11 +149,11 @@ class KernelCell:
         clearance (a lower bound).  The other pairs are computed in closed form
         (:func:`models.collision.vectorised.capsule_object_distance`).  So the decision against
         the clearance is the same as with every pair computed."""
-        R, t = obj.object2base[:3, :3], obj.object2base[:3, 3]
+        R, t = obj.pose[:3, :3], obj.pose[:3, 3]
         s = (seg - t) @ R  # (K, m, 2, 3) object frame
         p0 = s[:, :, 0]
         d = s[:, :, 1] - p0
-        grown = obj.half + (radius + self.clearance)[:, None]  # (m, 3)
+        grown = obj.shape.half_extents + (radius + self.clearance)[:, None]  # (m, 3)
         with np.errstate(divide="ignore", invalid="ignore"):
             inv = 1.0 / d  # +-inf on a zero component: the slab is all or nothing
             t1 = (-grown - p0) * inv
@@ -191,14 +171,12 @@ class KernelCell:
         # or at either end of the span): a violation; its distance, an upper bound, is reported
         tm = np.stack([t_in[kk, cc], 0.5 * (t_in[kk, cc] + t_out[kk, cc]), t_out[kk, cc]], axis=-1)  # (V, 3)
         x = p0[kk, cc][:, None, :] + tm[..., None] * d[kk, cc][:, None, :]  # (V, 3, 3) object frame
-        if obj.kind == "sphere":
-            sd = np.linalg.norm(x, axis=-1) - obj.half[0]
+        if obj.shape.exact_in_kernel:  # the probes' distances are exact: an upper bound of the pair's
+            probe = obj.shape.signed_distance(x).min(axis=-1) - radius[cc]  # (V,)
+            hit = probe < self.clearance
+            out[kk[hit], cc[hit]] = probe[hit]
         else:
-            e = np.abs(x) - obj.half
-            sd = np.linalg.norm(np.maximum(e, 0.0), axis=-1) + np.minimum(e.max(axis=-1), 0.0)
-        probe = sd.min(axis=-1) - radius[cc]  # (V,) >= the pair's distance (box: exact shape)
-        hit = probe < self.clearance if obj.exact else np.zeros(len(kk), dtype=bool)
-        out[kk[hit], cc[hit]] = probe[hit]
+            hit = np.zeros(len(kk), dtype=bool)
         todo = ~hit
         if todo.any():
             out[kk[todo], cc[todo]] = capsule_object_distance(seg[kk[todo], cc[todo]], radius[cc[todo]], obj)

@@ -8,11 +8,12 @@ Per waypoint, one constraint per checked pair (capsule - object, capsule - capsu
 
 * ``f_s = d_pair(p_s(q))``, ``s = 0..S-1``: the exact signed distance of points spread evenly
   along the capsule's segment (both ends included, at most :data:`SAMPLE_SPACING_M` apart,
-  spacing ``h``) from the other body: a box's, sphere's or cylinder's signed distance function,
-  or the distance from the other capsule's segment minus its radius; ``r`` the capsule's
-  radius, ``c`` the cell's clearance.  A mesh object enters as its oriented bounding box
-  (trimesh), which holds the mesh, so its constraint is conservative; the plan's check
-  afterwards measures the mesh itself (coal).
+  spacing ``h``) from the other body: the shape's own signed distance function
+  (:meth:`models.collision.shapes.Shape.signed_distance_sx`), or the distance from the other
+  capsule's segment minus its radius; ``r`` the capsule's radius, ``c`` the cell's clearance.
+  A shape without one enters as its NLP proxy, which holds it (a mesh: its oriented bounding
+  box, trimesh), so its constraint is conservative; the plan's check afterwards measures the
+  shape itself (coal).
 * ``m_i``: a lower bound of the distance's minimum between samples i and i+1
   (:func:`_interval_bounds`).  Every body here is convex, so the signed distance along a
   segment is a convex, 1-Lipschitz function of the arc length: it lies above the secant lines
@@ -40,11 +41,14 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import casadi as ca
 import numpy as np
 
+from models.collision.capsules import CapsuleModel
+from models.collision.chain import capsule_points_sx, chain_frames_sx
+from models.collision.scene import Scene, SceneObject
+from models.collision.shapes import NORM_EPS_M
 from models.robot import Robot
 
 __all__ = [
@@ -62,7 +66,6 @@ __all__ = [
     "clearance_spec",
     "distance_function",
     "near_pairs",
-    "segment_points_sx",
 ]
 
 #: Largest spacing of the sample points along a capsule's segment (m); half of it is the most
@@ -95,8 +98,6 @@ CLEARANCE_TOL_M = 1e-6
 SECANT_SLOPE_EPS = 1e-9
 #: A capsule shorter than this (m) is a sphere: its centre alone is measured.
 MIN_SAMPLED_LENGTH_M = 1e-9
-#: Regularisation of the Euclidean norms (m): keeps their gradients finite at zero.
-NORM_EPS_M = 1e-9
 
 
 @dataclass(frozen=True)
@@ -107,22 +108,26 @@ class PairSpec:
     ----------
     capsule : int
         The sampled capsule (index into the capsule model).
-    kind : {"box", "sphere", "cylinder", "capsule"}
-        What it keeps away from.
-    shape2base : ndarray, shape (4, 4)
-        The object's frame in the base frame (box, sphere, cylinder; unused for a capsule).
-    size : ndarray
-        box: half extents (3,); sphere: (radius,); cylinder: (radius, half length along z);
-        capsule: (index of the other capsule,).
+    other : models.collision.scene.SceneObject or int
+        What it keeps away from: an object as the NLP measures it (its shape's NLP proxy,
+        :meth:`~models.collision.scene.SceneObject.proxy`, base frame), or another capsule's index.
     name : str
         ``link 3 – table`` (messages).
     """
 
     capsule: int
-    kind: str
-    shape2base: np.ndarray
-    size: np.ndarray
+    other: SceneObject | int
     name: str
+
+    @property
+    def kind(self) -> str:
+        """``capsule``, or the object's (proxy's) shape kind."""
+        return "capsule" if isinstance(self.other, int) else self.other.kind
+
+    @property
+    def size(self) -> np.ndarray:
+        """The other capsule's index (a capsule pair), else the object's size, m."""
+        return np.array([float(self.other)]) if isinstance(self.other, int) else self.other.shape.size
 
 
 @dataclass(frozen=True)
@@ -133,8 +138,8 @@ class ClearanceSpec:
     ----------
     robot : Robot
         Its nominal DH chain places the capsules.
-    model : Any
-        The capsule model (:class:`models.collision.CapsuleModel`, tool included).
+    model : models.collision.CapsuleModel
+        The capsule model (tool included).
     pairs : tuple of PairSpec
         Every pair the plan's check checks (objects, then self pairs).
     clearance : float
@@ -142,7 +147,7 @@ class ClearanceSpec:
     """
 
     robot: Robot
-    model: Any
+    model: CapsuleModel
     pairs: tuple[PairSpec, ...]
     clearance: float
 
@@ -159,7 +164,8 @@ class ClearanceSpec:
             h.update(np.ascontiguousarray(arr).tobytes())
         for p in self.pairs:
             h.update(f"{p.capsule}|{p.kind}|".encode())
-            h.update(np.ascontiguousarray(p.shape2base, dtype=float).tobytes())
+            if not isinstance(p.other, int):
+                h.update(np.ascontiguousarray(p.other.pose, dtype=float).tobytes())
             h.update(np.ascontiguousarray(p.size, dtype=float).tobytes())
         h.update(np.float64(self.clearance).tobytes())
         return h.hexdigest()
@@ -170,91 +176,31 @@ class ClearanceSpec:
         return ClearanceSpec(self.robot, self.model, tuple(self.pairs[int(i)] for i in idx), self.clearance)
 
 
-def _obb(mesh: Any) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh's oriented bounding box: ``box2mesh`` (4, 4) and half extents (3,), m."""
-    box = mesh.bounding_box_oriented
-    return np.asarray(box.primitive.transform, dtype=float), 0.5 * np.asarray(box.primitive.extents, dtype=float)
-
-
-def _object_pair(capsule: int, name: str, shape: Any) -> PairSpec:
-    """The pair of a capsule and a :class:`models.collision.CellShape` (a mesh as its bounding box)."""
-    T = np.asarray(shape.shape2base, dtype=float)
-    g = shape.geometry
-    if shape.kind == "box":
-        return PairSpec(capsule, "box", T, np.asarray(g.halfSide, dtype=float).reshape(3), name)
-    if shape.kind == "sphere":
-        return PairSpec(capsule, "sphere", T, np.array([float(g.radius)]), name)
-    if shape.kind == "cylinder":
-        return PairSpec(capsule, "cylinder", T, np.array([float(g.radius), float(g.halfLength)]), name)
-    if shape.kind == "mesh" and shape.mesh is not None:
-        box2mesh, half = _obb(shape.mesh)
-        return PairSpec(capsule, "box", T @ box2mesh, half, name)
-    raise ValueError(f"clearance constraint: object '{shape.name}' of kind {shape.kind!r} has no distance function")
-
-
-def clearance_spec(geom: Any) -> ClearanceSpec:
-    """Every pair a cell geometry checks, as NLP constraints.
+def clearance_spec(scene: Scene) -> ClearanceSpec:
+    """Every pair a collision scene checks, as NLP constraints.
 
     Parameters
     ----------
-    geom : planner.cell_check.CellGeometry or alike
-        With ``robot``, ``model`` (capsules, tool included), ``names``, ``shapes`` (base frame),
-        ``checked`` (M, K) bool, ``self_pairs`` (P, 2) and ``clearance`` (m).
+    scene : models.collision.scene.Scene
+        The capsules (tool included), the objects (base frame), the pairs checked and the
+        clearance (m); an object enters as its shape's NLP proxy (a mesh as its oriented bounding
+        box).
     """
     pairs = []
-    for c in range(geom.model.n_capsules):
-        for j, s in enumerate(geom.shapes):
-            if geom.checked[c, j]:
-                pairs.append(_object_pair(c, f"{geom.names[c]} – {s.name}", s))
-    for i, j in np.asarray(geom.self_pairs, dtype=int).reshape(-1, 2):
+    proxies = [o.proxy(nlp=True) for o in scene.objects]
+    for c in range(scene.model.n_capsules):
+        for j, o in enumerate(proxies):
+            if scene.checked[c, j]:
+                pairs.append(PairSpec(c, o, f"{scene.names[c]} – {o.name}"))
+    for i, j in np.asarray(scene.self_pairs, dtype=int).reshape(-1, 2):
         # sample the longer capsule, measure from the other's segment
-        pairs.append(PairSpec(int(i), "capsule", np.eye(4), np.array([float(j)]), f"{geom.names[i]} – {geom.names[j]}"))
-    return ClearanceSpec(geom.robot, geom.model, tuple(pairs), float(geom.clearance))
+        pairs.append(PairSpec(int(i), int(j), f"{scene.names[i]} – {scene.names[j]}"))
+    return ClearanceSpec(scene.robot, scene.model, tuple(pairs), float(scene.clearance))
 
 
 # --------------------------------------------------------------------------------------
 # Symbolic geometry
 # --------------------------------------------------------------------------------------
-
-
-def _dh_sx(robot: Robot, q: ca.SX) -> list[ca.SX]:
-    """DH frames 0..6 (4x4 SX, base frame) at ``q``, as :func:`models.collision.chain_frames`."""
-    F = [ca.SX(np.asarray(robot.frame02base, dtype=float))]
-    for i in range(6):
-        th = q[i] + float(robot.theta_offset[i])
-        ct, st = ca.cos(th), ca.sin(th)
-        al, a, d = float(robot.alpha[i]), float(robot.a[i]), float(robot.d[i])
-        ca_, sa = math.cos(al), math.sin(al)
-        if robot.convention == "standard_dh":
-            A = ca.vertcat(
-                ca.horzcat(ct, -st * ca_, st * sa, a * ct),
-                ca.horzcat(st, ct * ca_, -ct * sa, a * st),
-                ca.horzcat(0, sa, ca_, d),
-                ca.horzcat(0, 0, 0, 1),
-            )
-        else:
-            A = ca.vertcat(
-                ca.horzcat(ct, -st, 0, a),
-                ca.horzcat(st * ca_, ct * ca_, -sa, -sa * d),
-                ca.horzcat(st * sa, ct * sa, ca_, ca_ * d),
-                ca.horzcat(0, 0, 0, 1),
-            )
-        F.append(ca.mtimes(F[-1], A))
-    return F
-
-
-def _point_sx(frames: list[ca.SX], frame: int, local: np.ndarray) -> ca.SX:
-    if frame < 0:
-        return ca.SX(np.asarray(local, dtype=float))
-    T = frames[frame]
-    return ca.mtimes(T[:3, :3], ca.DM(np.asarray(local, dtype=float))) + T[:3, 3]
-
-
-def segment_points_sx(model: Any, frames: list[ca.SX], c: int) -> tuple[ca.SX, ca.SX]:
-    """End points (3,) of capsule ``c`` in the base frame (SX)."""
-    a = _point_sx(frames, int(model.frame_a[c]), model.local_a[c])
-    b = _point_sx(frames, int(model.frame_b[c]), model.local_b[c])
-    return a, b
 
 
 def _norm(v: ca.SX) -> ca.SX:
@@ -263,25 +209,15 @@ def _norm(v: ca.SX) -> ca.SX:
 
 def _sdf(p: ca.SX, pair: PairSpec, segs: list[tuple[ca.SX, ca.SX]], radius: np.ndarray) -> ca.SX:
     """Signed distance (m) of point ``p`` (3,) from the pair's other body."""
-    if pair.kind == "capsule":
-        j = int(pair.size[0])
+    if isinstance(pair.other, int):
+        j = pair.other
         a, b = segs[j]
         ab = b - a
         t = ca.fmin(ca.fmax(ca.dot(p - a, ab) / (ca.sumsqr(ab) + NORM_EPS_M**2), 0.0), 1.0)
         return _norm(p - a - t * ab) - float(radius[j])
-    T = pair.shape2base
+    T = pair.other.pose
     local = ca.mtimes(ca.DM(T[:3, :3].T), p - ca.DM(T[:3, 3]))
-    if pair.kind == "sphere":
-        return _norm(local) - float(pair.size[0])
-    if pair.kind == "box":
-        d = ca.fabs(local) - ca.DM(pair.size)
-        outside = ca.sqrt(ca.sumsqr(ca.fmax(d, 0.0)) + NORM_EPS_M**2) - NORM_EPS_M
-        return outside + ca.fmin(ca.mmax(d), 0.0)
-    # cylinder along z: radial and axial excess
-    rho = ca.sqrt(local[0] ** 2 + local[1] ** 2 + NORM_EPS_M**2)
-    d = ca.vertcat(rho - float(pair.size[0]), ca.fabs(local[2]) - float(pair.size[1]))
-    outside = ca.sqrt(ca.sumsqr(ca.fmax(d, 0.0)) + NORM_EPS_M**2) - NORM_EPS_M
-    return outside + ca.fmin(ca.mmax(d), 0.0)
+    return pair.other.shape.signed_distance_sx(local)
 
 
 def _softmin(x: list[ca.SX]) -> ca.SX:
@@ -326,9 +262,7 @@ def _interval_bounds(f: list[ca.SX], h: float) -> list[ca.SX]:
 def _ends_sx(spec: ClearanceSpec, q: ca.SX) -> tuple[ca.SX, np.ndarray, np.ndarray]:
     """Every capsule's end points at ``q`` as one vector ``E`` (6 M,: a then b per capsule, base
     frame, m), and the end points (M, 2, 3) and segment lengths (M,) at q = 0 (constant)."""
-    frames = _dh_sx(spec.robot, q)
-    m = spec.model
-    E = ca.vertcat(*[ca.vertcat(*segment_points_sx(m, frames, c)) for c in range(m.n_capsules)])
+    E = ca.vertcat(*[ca.vertcat(a, b) for a, b in capsule_points_sx(spec.model, chain_frames_sx(spec.robot, q))])
     ends = np.asarray(ca.Function("ends0", [q], [E])(np.zeros(6))).reshape(-1, 2, 3)
     return E, ends, np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
 
