@@ -406,13 +406,14 @@ def _join(pieces: list[Trajectory], dwell: np.ndarray, dt: float, width: int, me
         t_end += float(tr.t[-1])
         last = tr.q[-1]
         hold(last, float(dwell[i + 1]))
-    keys = {k for tr in pieces for k in tr.limit_ratio}
+    # the keys in the order the pieces name them (a set's order changes between runs: summary.json must not)
+    keys = list(dict.fromkeys(k for tr in pieces for k in tr.limit_ratio))
     ratio = {k: np.nanmax(np.vstack([tr.limit_ratio[k] for tr in pieces if k in tr.limit_ratio]), axis=0) for k in keys}
     first = {
         k: np.nanmax(
             np.vstack([tr.first_pass_limit_ratio[k] for tr in pieces if k in tr.first_pass_limit_ratio]), axis=0
         )
-        for k in {k for tr in pieces for k in tr.first_pass_limit_ratio}
+        for k in dict.fromkeys(k for tr in pieces for k in tr.first_pass_limit_ratio)
     }
     T = np.concatenate(t) if t else np.zeros(0)
     # uniform at dt from 0: the pieces end at multiples of dt, so the sum is one up to rounding
