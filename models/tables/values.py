@@ -10,14 +10,15 @@ know, and every message reads the same: ``"<where>: key '<key>' <what was expect
 
 The kinds: a number (finite), a positive number, a number at least a bound, an integer in a
 range, true or false, a string (non-empty), a vector of ``n`` numbers (or one number for all),
-rows of ``width`` numbers, a table's unknown keys.  The declarative kinds of a whole document
-(a tree of specs with units, ranges and the commands that need a key: ``summary.json``) are
-:mod:`models.tables.kinds`.
+rows of ``width`` numbers, a number written as text (a CSV cell), a table's unknown keys.  The
+declarative kinds of a whole document (a tree of specs with units, ranges and the commands that
+need a key: ``summary.json``) are :mod:`models.tables.kinds`.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -121,6 +122,17 @@ class TableReader:
         if not isinstance(v, self.lists) or len(v) != n:
             raise self.fail(where, key, f"must be {'a number or ' if scalar else ''}a list of {n} numbers, got {v!r}")
         return np.array([self.number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+
+    def text_number(self, where: str, text: str, pattern: re.Pattern[str]) -> float:
+        """A number written as text (a CSV cell), stripped, of the form ``pattern`` and finite;
+        ``where`` names the place (``"<file>: line 3, column 'x_mm'"``)."""
+        s = text.strip()
+        if not pattern.fullmatch(s):
+            raise self.error(f"{where}: '{s}' is not a number (expected e.g. 12.5 or -3e-2)")
+        v = float(s)
+        if not math.isfinite(v):
+            raise self.error(f"{where}: '{s}' is not finite")
+        return v
 
     def rows(self, where: str, key: str, v: Any, width: int) -> np.ndarray:
         """A non-empty list of rows of ``width`` finite numbers, shape (N, width)."""
