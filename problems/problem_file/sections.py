@@ -44,6 +44,7 @@ from problems.problem_file.values import (
     angle_pair,
     check_radians,
     err,
+    flag,
     integer,
     number,
     positive,
@@ -501,9 +502,7 @@ def parse_solver(where: str, data: Mapping[str, Any]) -> SolverSettings:
     sname = st.get("name", "ipopt")
     if sname != "ipopt":
         raise err(where, "solver.name", f"must be 'ipopt' (the only NLP solver available), got {sname!r}")
-    codegen = st.get("codegen", True)
-    if not isinstance(codegen, bool):
-        raise err(where, "solver.codegen", f"must be true or false, got {codegen!r}")
+    codegen = flag(where, "solver.codegen", st.get("codegen", True))
     return SolverSettings(
         name=sname,
         max_iter=integer(where, "solver.max_iter", st.get("max_iter", DEFAULT_MAX_ITER), 0),

@@ -16,7 +16,7 @@ from typing import Any
 from collections.abc import Mapping
 
 from models.errors import InputError
-from problems.problem_file.values import VALUES, ProblemFileError, err, integer, positive, table
+from problems.problem_file.values import VALUES, ProblemFileError, err, flag, integer, positive, table
 from problems.timing import (
     DT_DEFAULT_S,
     available_methods,
@@ -149,7 +149,6 @@ def parse_timing(where: str, data: Mapping[str, Any], program: bool = False) -> 
         dynamic=tt.get("dynamic", False),
         method_options=_method_tables(where, tt),
     )
-    if not isinstance(timing.dynamic, bool):
-        raise err(where, "timing.dynamic", f"must be true or false, got {timing.dynamic!r}")
+    flag(where, "timing.dynamic", timing.dynamic)
     check_timing(where, timing)
     return timing

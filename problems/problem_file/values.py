@@ -68,6 +68,8 @@ positive = VALUES.positive
 integer = VALUES.integer
 #: A list of ``n`` finite numbers: ``vector(where, key, v, n)``.
 vector = VALUES.vector
+#: true or false: ``flag(where, key, v)``.
+flag = VALUES.flag
 #: A non-empty list of rows of ``width`` numbers: ``rows(where, key, v, width)``.
 rows = VALUES.rows
 
