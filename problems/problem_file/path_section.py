@@ -27,7 +27,6 @@ from problems.problem_file.values import (
     err,
     integer,
     rows,
-    rpy_angles,
     table,
     vector,
 )
@@ -93,7 +92,7 @@ def parse_path(
         return _waypoints_path(where, pt, R_nom)
     if kind in PROGRAM_KINDS:
         wt = table(where, data, "workpiece") if "workpiece" in data else None
-        sec = parse_program(where, pt, wt, base_dir, err, lambda t, prefix: rpy_angles(where, t, prefix))
+        sec = parse_program(where, pt, wt, base_dir)
         if robot is not None:
             check_reach(sec, robot)
         return PathSection(kind, None, sec.positions, sec.rotations, sec)
