@@ -1,12 +1,13 @@
 """Robot files that name a URDF: the chain between two links, read with ``yourdfpy``, as a DH model.
 
 A URDF-based robot file (``docs/robot-file.md``) gives ``urdf``, ``base_link``, ``tip_link``
-(the flange) and the joint stiffnesses.  This module reads the kinematic chain from
-``base_link`` down to ``tip_link`` and turns it, exactly, into the product's one chain form:
+(the flange) and the joint stiffnesses.  This module reads the file: the kinematic chain from
+``base_link`` down to ``tip_link`` (:mod:`~models.robot_file.urdf_chain`) is turned, exactly
+(:mod:`~models.robot_file.urdf_dh`), into the product's one chain form:
 a **modified-DH** table (Khalil-Kleinfinger / Craig) with a fixed transform ``frame02base``
 (DH frame 0 -> base link) before it and ``flange2frame6`` (tip link -> DH frame 6) after it.
 Every model function, effect, IK family and identification parametrisation then works on it
-unchanged.
+unchanged.  Its collision geometry is :mod:`~models.robot_file.urdf_collision`.
 
 Reading the URDF (``docs/robot-file.md``, "URDF-based robot files"):
 
