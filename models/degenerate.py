@@ -15,8 +15,8 @@ load is deterministic) and stop at the first configuration of full rank, so a so
 one forward kinematics.  Only a degenerate chain is examined further, for the reason: which joints
 are coaxial, parallel, concurrent or otherwise dependent at every sample.
 
-Both robot-file readers call :func:`check_chain` (the DH table in :mod:`models.robot`, the URDF
-chain in :mod:`models.urdf`): one definition, one message.
+Both robot-file readers call :func:`check_chain` (the DH table in :mod:`models.robot_file.dh_table`, the URDF
+chain in :mod:`models.robot_file.urdf_file`): one definition, one message.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from itertools import combinations
 
 import numpy as np
 
-from .robot import Robot, RobotFileError
+from .description import Robot, RobotFileError
 from .transforms import dh_chain_frames, rotations_about
 
 #: Random configurations (within the joint limits) at which the Jacobian's rank is tested; the

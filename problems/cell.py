@@ -1,7 +1,7 @@
 """The cell: the objects around the robot (tables, fixtures, walls, the workpiece) as geometry.
 
 A :class:`Cell` is the ``[cell]`` table of a problem file read and checked
-(:mod:`problems.cell_section`, ``docs/problem-file.md``, "[cell]"): the smallest allowed distance
+(:mod:`problems.problem_file.cell_section`, ``docs/problem-file.md``, "[cell]"): the smallest allowed distance
 ``clearance`` (m) and its :class:`CellObject` s. An object is a box, a cylinder, a sphere or a
 triangle mesh (STL, OBJ, PLY read with ``trimesh``), placed by ``object2base`` (pytransform3d's
 naming: it maps object-frame coordinates to the base frame, ``p_base = object2base @ p_object``):
@@ -234,7 +234,7 @@ class Cell:
         Unique names; at most one with role ``workpiece``.
     clearance : float
         m, the smallest allowed distance between the robot (and tool body) and the objects, and
-        between non-adjacent links; in ``[0, MAX_CLEARANCE_M)`` (:mod:`problems.cell_section`).
+        between non-adjacent links; in ``[0, MAX_CLEARANCE_M)`` (:mod:`problems.problem_file.cell_section`).
     tool : models.collision.tool.ToolGeometry or None
         The tool's declared body elements and cutter (``[robot.tool]`` ``body`` / ``cutter``, flange
         frame), checked against the objects with the arm; None: the tool is one capsule flange -> TCP

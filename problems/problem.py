@@ -30,7 +30,7 @@ from models.load import Load
 from models.robot import Robot
 from models.transforms import matrix_to_rpy
 from problems.cell import Cell
-from problems.cell_section import parse_cell
+from problems.problem_file.cell_section import parse_cell
 from problems.path import line_positions
 from problems.posture import OrientationRule, PostureTask, SolverSettings
 from problems.problem_file import (
@@ -134,7 +134,7 @@ class Problem:
     #: :class:`~problems.placement.grid.PlacementGrid`), or None.
     placement: Any = None
     #: A program path (``path_kind`` ``gcode`` / ``toolpath_csv``): the program read and placed
-    #: (:class:`problems.program_section.ProgramSection`: file, waypoints with their program lines,
+    #: (:class:`problems.problem_file.ProgramSection`: file, waypoints with their program lines,
     #: feeds, rapids and stops, the workpiece), else None.
     program: Any = None
     #: The ``[cell]`` table: the objects around the robot (base frame) and the clearance, or None

@@ -1,5 +1,5 @@
 """The ``[cell]`` table of problem files (issue 25): objects read into coal geometry, checked at the
-boundary (``problems/cell.py``, ``problems/cell_section.py``, ``docs/problem-file.md``, "[cell]").
+boundary (``problems/cell.py``, ``problems/problem_file/cell_section.py``, ``docs/problem-file.md``, "[cell]").
 
 * every primitive becomes the right coal shape: coal's distances from points outside it, and the
   object's own signed distances from points inside and outside, agree with the closed form written

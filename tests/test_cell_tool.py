@@ -1,5 +1,5 @@
 """The tool as collision geometry (issue 25): body elements and the cutter under ``[robot.tool]``
-(``models/collision/tool.py``, ``problems/cell_section.py``, ``docs/cell.md``, "The tool").
+(``models/collision/tool.py``, ``problems/problem_file/cell_section.py``, ``docs/cell.md``, "The tool").
 
 * the file's ``[[robot.tool.body]]`` / ``[robot.tool.cutter]`` are read in SI, bad input is one
   ProblemFileError naming the file and the key;
@@ -310,10 +310,10 @@ def _rule_case(tmp_path, tool: str):
 
 
 def _tool_of(tmp_path: Path, tool: str):
-    """The tool geometry of the test problem with ``tool`` (problems.cell_section's reader)."""
+    """The tool geometry of the test problem with ``tool`` (problems.problem_file.cell_section's reader)."""
     import tomllib
 
-    from problems.cell_section import parse_tool_geometry
+    from problems.problem_file import parse_tool_geometry
 
     data = tomllib.loads(HEAD.format(tool=tool, cell=""))
     return parse_tool_geometry("tool.toml", data, tmp_path)

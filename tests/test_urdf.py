@@ -31,7 +31,7 @@ SHIPPED_URDF_ROBOTS = ("ur5e", "kr6_r900")
 
 
 # --------------------------------------------------------------------------------------
-# Writing URDFs from DH tables (the test's own, independent of models.urdf)
+# Writing URDFs from DH tables (the test's own, independent of models.robot_file)
 # --------------------------------------------------------------------------------------
 
 
@@ -259,7 +259,7 @@ def test_defaults_and_overrides(tmp_path):
     r = load_robot(p)
     assert r.q_min[1] == pytest.approx(-math.pi / 2) and r.v_max[1] == 1.0 and r.a_max[1] == 3.0
     # no a_max / j_max: the documented defaults, and notes saying so
-    from models.urdf import DEFAULT_TIME_TO_ACCEL_S, DEFAULT_TIME_TO_SPEED_S
+    from models.robot_file.urdf_file import DEFAULT_TIME_TO_ACCEL_S, DEFAULT_TIME_TO_SPEED_S
 
     assert r.a_max[0] == pytest.approx(dh.v_max[0] / DEFAULT_TIME_TO_SPEED_S)
     assert r.j_max[0] == pytest.approx(r.a_max[0] / DEFAULT_TIME_TO_ACCEL_S)

@@ -26,6 +26,7 @@ import numpy as np
 
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
+from models.tables import TableReader
 
 #: The grid axes: key (unit in the name), SI scale from the key's unit, what it is.
 GRID_AXES: dict[str, tuple[float, str]] = {
@@ -49,6 +50,10 @@ MAX_TOP = 10
 
 class PlacementGridError(InputError):
     """A malformed grid: the message names the key, the value and what was expected."""
+
+
+#: The value kinds of a grid.
+VALUES = TableReader(PlacementGridError, lists=(list, tuple))
 
 
 @dataclass(frozen=True)
@@ -151,15 +156,6 @@ def placement_label(p: np.ndarray) -> str:
 # --------------------------------------------------------------------------------------
 
 
-def _number(key: str, v: Any, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise PlacementGridError(f"{where}: key '{key}' must be a number, got {v!r}")
-    f = float(v)
-    if not math.isfinite(f):
-        raise PlacementGridError(f"{where}: key '{key}' must be finite, got {v!r}")
-    return f
-
-
 def axis_values(key: str, v: Any, where: str = "grid") -> np.ndarray:
     """One axis from a number or ``[start, stop, count]`` (edge units) -> SI values (n,).
 
@@ -175,7 +171,7 @@ def axis_values(key: str, v: Any, where: str = "grid") -> np.ndarray:
     if isinstance(v, (list, tuple)):
         if len(v) != 3:
             raise PlacementGridError(f"{where}: key '{key}' must be a number or [start, stop, count], got {v!r}")
-        a, b = _number(f"{key}[0]", v[0], where), _number(f"{key}[1]", v[1], where)
+        a, b = VALUES.number(where, f"{key}[0]", v[0]), VALUES.number(where, f"{key}[1]", v[1])
         n = v[2]
         if isinstance(n, float) and n.is_integer():
             n = int(n)
@@ -189,7 +185,7 @@ def axis_values(key: str, v: Any, where: str = "grid") -> np.ndarray:
             raise PlacementGridError(f"{where}: key '{key}' has count 1 but start {a:g} != stop {b:g}")
         vals = np.linspace(a, b, n)
     else:
-        vals = np.array([_number(key, v, where)])
+        vals = np.array([VALUES.number(where, key, v)])
     if key.endswith("_m") and np.max(np.abs(vals)) > PLAUSIBLE_POSITION_MAX_M:
         raise PlacementGridError(
             f"{where}: key '{key}' reaches {float(np.max(np.abs(vals))):g} m, implausible for a robot base in a cell "
@@ -203,19 +199,14 @@ def grid_from_table(
 ) -> PlacementGrid:
     """A grid from a ``[placement]`` table (keys of :data:`GRID_AXES` and ``top``), over
     ``base`` (every axis not given keeps ``base``'s values, or 0)."""
-    unknown = sorted(set(tab) - set(GRID_AXES) - set(OTHER_KEYS))
-    if unknown:
-        raise PlacementGridError(f"{where}: unknown key(s) {unknown}; allowed: {list(GRID_AXES) + list(OTHER_KEYS)}")
+    VALUES.unknown_keys(where, tab, list(GRID_AXES) + list(OTHER_KEYS))
     axes = {k: (base.axes[k] if base is not None else np.zeros(1)) for k in GRID_AXES}
     for k, v in tab.items():
         if k in GRID_AXES:
             axes[k] = axis_values(k, v, where)
     top = base.top if base is not None else DEFAULT_TOP
     if "top" in tab:
-        t = tab["top"]
-        if isinstance(t, bool) or not isinstance(t, int) or not 0 <= t <= MAX_TOP:
-            raise PlacementGridError(f"{where}: key 'top' must be an integer in [0, {MAX_TOP}], got {t!r}")
-        top = int(t)
+        top = VALUES.integer(where, "top", tab["top"], 0, MAX_TOP)
     grid = PlacementGrid(axes, top)
     if grid.size > MAX_PLACEMENTS:
         raise PlacementGridError(

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from models.errors import InputError
+from models.tables import TableReader
 
 from .textfile import PROGRAM_MAX_BYTES, read_program_text
 
@@ -139,14 +139,8 @@ def _columns(where: str, line: int, header: list[str]) -> dict[str, int]:
     return cols
 
 
-def _number(where: str, line: int, col: str, text: str) -> float:
-    s = text.strip()
-    if not _NUMBER.fullmatch(s):
-        raise ClDataError(f"{where}: line {line}, column '{col}': '{s}' is not a number (expected e.g. 12.5 or -3e-2)")
-    v = float(s)
-    if not math.isfinite(v):
-        raise ClDataError(f"{where}: line {line}, column '{col}': '{s}' is not finite")
-    return v
+#: The value kinds of a CL file.
+VALUES = TableReader(ClDataError)
 
 
 def _column(name: str, lines: np.ndarray, col: str, cells: list[str]) -> np.ndarray:
@@ -158,7 +152,7 @@ def _column(name: str, lines: np.ndarray, col: str, cells: list[str]) -> np.ndar
     except ValueError:
         pass
     for line, cell in zip(lines, cells):
-        _number(name, int(line), col, cell)
+        VALUES.text_number(f"{name}: line {int(line)}, column '{col}'", cell, _NUMBER)
     raise AssertionError("unreachable: a column that does not convert has a bad cell")  # pragma: no cover
 
 

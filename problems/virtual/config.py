@@ -7,7 +7,6 @@ realises a parameter: the checks are called by the modules that read each table.
 
 from __future__ import annotations
 
-import math
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -16,13 +15,14 @@ from typing import Any
 import numpy as np
 
 from models.errors import InputError
+from models.tables import TableReader, is_number
 
 
 #: Top-level keys of a configuration besides the declared model's tables (``[stiffness]``,
 #: ``[registration]``: :func:`~problems.virtual.registry.top_level_tables`).  The keys of those and
 #: of each ``[effects.NAME]`` table are declared with their realisation
 #: (:mod:`~problems.virtual.effects`, :func:`~problems.virtual.registry.simulates`).
-_TOP_KEYS = {"seed", "campaign", "noise", "temperature", "effects", "units"}
+TOP_KEYS = {"seed", "campaign", "noise", "temperature", "effects", "units"}
 #: Keys of the ``[campaign]`` table and their defaults.
 DEFAULT_CAMPAIGN = {
     "poses": 100,
@@ -54,7 +54,7 @@ class SimConfigError(InputError):
 
 def load_config(path: str | Path) -> dict[str, Any]:
     """Read a simulation configuration TOML file."""
-    from models.robot import read_text_file
+    from models.tables.text_file import read_text_file
 
     p = Path(path)
     text = read_text_file(p, "simulation configuration file (TOML)", SimConfigError)
@@ -69,71 +69,49 @@ def load_config(path: str | Path) -> dict[str, Any]:
 # ----------------------------------------------------------------------------------
 
 
-def _num(where: str, key: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-        raise SimConfigError(f"{where}: key '{key}' must be a finite number, got {v!r}")
-    return float(v)
+#: The value kinds of a simulation configuration (a number is "a finite number" in one message).
+VALUES = TableReader(
+    SimConfigError,
+    lists=(list, tuple),
+    not_number="must be a finite number, got {v!r}",
+    not_finite="must be a finite number, got {v!r}",
+)
+#: A finite number: ``number(where, key, v)``.
+number = VALUES.number
+#: Numbers below a bound refused: ``at_least(where, key, v, lo, strict=False, what="")``.
+at_least = VALUES.at_least
+#: An integer ``>= lo`` (a float such as 20.5 or a string is refused): ``integer(where, key, v, lo)``.
+integer = VALUES.integer
+#: true or false: ``flag(where, key, v)``.
+flag = VALUES.flag
 
 
-def _vec(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.ndarray:
-    if broadcast and isinstance(v, (int, float)) and not isinstance(v, bool):
-        return np.full(n, _num(where, key, v))
-    if not isinstance(v, (list, tuple)) or len(v) != n:
-        raise SimConfigError(
-            f"{where}: key '{key}' must be {'a number or ' if broadcast else ''}a list of {n} numbers, got {v!r}"
-        )
-    return np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+def vector(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.ndarray:
+    """A list of ``n`` finite numbers, shape (n,); ``broadcast``: one number stands for all."""
+    return VALUES.vector(where, key, v, n, scalar=broadcast)
 
 
-def _at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bool = False, what: str = "") -> None:
-    """Refuse values below ``lo`` (or equal to it when ``strict``), naming the key and the value."""
-    arr = np.atleast_1d(np.asarray(v, dtype=float))
-    bad = np.flatnonzero(arr <= lo) if strict else np.flatnonzero(arr < lo)
-    if bad.size:
-        i = int(bad[0])
-        k = key if arr.size == 1 and np.ndim(v) == 0 else f"{key}[{i}]"
-        raise SimConfigError(
-            f"{where}: key '{k}' must be {'>' if strict else '>='} {lo:g}"
-            f"{' ' + what if what else ''}, got {float(arr[i]):g}"
-        )
-
-
-def _int(where: str, key: str, v: Any, lo: int) -> int:
-    """An integer >= ``lo`` (a float such as 20.5 or a string is refused)."""
-    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-        raise SimConfigError(f"{where}: key '{key}' must be an integer >= {lo}, got {v!r}")
-    return int(v)
-
-
-def _bool(where: str, key: str, v: Any) -> bool:
-    if not isinstance(v, bool):
-        raise SimConfigError(f"{where}: key '{key}' must be true or false, got {v!r}")
-    return v
-
-
-def _magnitudes(where: str, key: str, v: Any) -> np.ndarray:
+def magnitudes(where: str, key: str, v: Any) -> np.ndarray:
     """A number or a non-empty list of finite numbers >= 0 (force or moment magnitudes)."""
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        out = np.array([_num(where, key, v)])
+    if is_number(v):
+        out = np.array([number(where, key, v)])
     elif isinstance(v, list) and v:
-        out = np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+        out = np.array([number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
     else:
         raise SimConfigError(f"{where}: key '{key}' must be a number or a non-empty list of numbers, got {v!r}")
-    _at_least(where, key, out if isinstance(v, list) else out[0], 0.0)
+    at_least(where, key, out if isinstance(v, list) else out[0], 0.0)
     return out
 
 
-def _table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> dict[str, Any]:
+def table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> dict[str, Any]:
     t = cfg.get(key, {})
     if not isinstance(t, Mapping):
         raise SimConfigError(f"{where}: '{key}' must be a table")
-    unknown = sorted(set(t) - allowed)
-    if unknown:
-        raise SimConfigError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+    VALUES.unknown_keys(f"{where}: [{key}]", t, sorted(allowed))
     return dict(t)
 
 
-def _joint_list(where: str, links: Any) -> list[int]:
+def joint_list(where: str, links: Any) -> list[int]:
     """``links``, checked to be a list of joint numbers 1..6 (``where``: the table, for messages)."""
     if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
         raise SimConfigError(f"{where}: key 'links' must be a list of joint numbers 1..6, got {links!r}")

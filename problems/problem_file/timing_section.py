@@ -4,8 +4,8 @@ Holds :class:`TimingSettings` (methods, controller period, method options), the 
 of method options (:data:`TIMING_OPTION_KEYS`), :func:`check_timing` (settings against the
 registry of :mod:`problems.timing`) and :func:`parse_timing` (the ``[timing]`` table and its
 ``[timing.<method>]`` tables). The error type and the value validators are
-:mod:`problems.problem_values`; the other sections are parsed in :mod:`problems.problem_file`,
-which re-exports the names here.
+:mod:`problems.problem_file.values`; the package :mod:`problems.problem_file` re-exports the names
+here.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Any
 from collections.abc import Mapping
 
 from models.errors import InputError
-from problems.problem_values import ProblemFileError, _err, _integer, _positive, _table
+from problems.problem_file.values import VALUES, ProblemFileError, err, flag, integer, positive, table
 from problems.timing import (
     DT_DEFAULT_S,
     available_methods,
@@ -87,12 +87,12 @@ def check_timing(where: str, t: TimingSettings) -> None:
     """
     valid = list(available_methods())
     if not t.methods:
-        raise _err(where, "timing.methods", f"must name at least one of {valid}")
+        raise err(where, "timing.methods", f"must name at least one of {valid}")
     for m in t.methods:
         if m not in valid:
-            raise _err(where, "timing.methods", f"has unknown method {m!r}; valid: {valid}")
+            raise err(where, "timing.methods", f"has unknown method {m!r}; valid: {valid}")
     if not controller_methods(t.methods):
-        raise _err(
+        raise err(
             where,
             "timing.methods",
             f"= {list(t.methods)} has no method whose trajectory the controller "
@@ -100,7 +100,7 @@ def check_timing(where: str, t: TimingSettings) -> None:
         )
     dt_max = min(get_method(m).dt_max_s for m in t.methods)
     if not (0.0 < t.dt <= dt_max) or not math.isfinite(t.dt):
-        raise _err(where, "timing.dt", f"must be in (0, {dt_max}] s, got {t.dt!r}")
+        raise err(where, "timing.dt", f"must be in (0, {dt_max}] s, got {t.dt!r}")
     for m in dict.fromkeys([*t.methods, *t.method_options]):
         if m not in valid:
             raise ProblemFileError(f"{where}: [timing.{m}]: unknown method {m!r}; valid: {valid}")
@@ -121,10 +121,8 @@ def _method_tables(where: str, tt: Mapping[str, Any]) -> dict[str, dict[str, Any
             continue
         tab, spec = tt[m], get_method(m)
         if not isinstance(tab, Mapping):
-            raise _err(where, f"timing.{m}", f"must be a table of {m}'s options {list(spec.options)}, got {tab!r}")
-        unknown = sorted(set(tab) - set(spec.options))
-        if unknown:
-            raise ProblemFileError(f"{where}: [timing.{m}]: unknown key(s) {unknown}; allowed: {list(spec.options)}")
+            raise err(where, f"timing.{m}", f"must be a table of {m}'s options {list(spec.options)}, got {tab!r}")
+        VALUES.unknown_keys(f"{where}: [timing.{m}]", tab, spec.options)
         for key, (method, opt) in TIMING_OPTION_KEYS.items():
             if method == m and opt in tab and tt.get(key):
                 raise ProblemFileError(f"{where}: give either 'timing.{key}' or 'timing.{m}.{opt}', not both")
@@ -136,22 +134,21 @@ def parse_timing(where: str, data: Mapping[str, Any], program: bool = False) -> 
     """The ``[timing]`` section: methods (registered in :mod:`problems.timing`), controller period
     (s), method options (``[timing.<method>]`` tables and the older flat keys). ``program``: the path
     is a CAM program (the default methods are then :func:`~problems.timing.program_default_methods`)."""
-    tt = _table(where, data, "timing")
+    tt = table(where, data, "timing")
     methods = tt.get("methods", list(program_default_methods() if program else default_methods()))
     if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
-        raise _err(
+        raise err(
             where, "timing.methods", f"must be a list of method names {list(available_methods())}, got {methods!r}"
         )
     timing = TimingSettings(
         methods=tuple(methods),
-        dt=_positive(where, "timing.dt", tt.get("dt", DT_DEFAULT_S)),
-        toppra_gridpoints=_integer(where, "timing.toppra_gridpoints", tt.get("toppra_gridpoints", 0), 0),
-        toppra_max_iterations=_integer(where, "timing.toppra_max_iterations", tt.get("toppra_max_iterations", 0), 0),
-        ruckig_max_iterations=_integer(where, "timing.ruckig_max_iterations", tt.get("ruckig_max_iterations", 0), 0),
+        dt=positive(where, "timing.dt", tt.get("dt", DT_DEFAULT_S)),
+        toppra_gridpoints=integer(where, "timing.toppra_gridpoints", tt.get("toppra_gridpoints", 0), 0),
+        toppra_max_iterations=integer(where, "timing.toppra_max_iterations", tt.get("toppra_max_iterations", 0), 0),
+        ruckig_max_iterations=integer(where, "timing.ruckig_max_iterations", tt.get("ruckig_max_iterations", 0), 0),
         dynamic=tt.get("dynamic", False),
         method_options=_method_tables(where, tt),
     )
-    if not isinstance(timing.dynamic, bool):
-        raise _err(where, "timing.dynamic", f"must be true or false, got {timing.dynamic!r}")
+    flag(where, "timing.dynamic", timing.dynamic)
     check_timing(where, timing)
     return timing

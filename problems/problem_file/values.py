@@ -1,14 +1,14 @@
 """The values of a problem file: the error type, the generic validators and the plausibility limits.
 
-Every section parser of a problem file (:mod:`problems.problem_file`,
-:mod:`problems.timing_section`, :mod:`problems.program_section`) checks its values with the
-helpers here, so every message reads the same: ``"<file>: key '<key>' ..."``, naming the file,
+Every section parser of a problem file (the modules of :mod:`problems.problem_file`) checks its
+values with the helpers here (the one reader of tables, :class:`models.tables.TableReader`, bound
+to :class:`ProblemFileError`), so every message reads the same: ``"<file>: key '<key>' ..."``, naming the file,
 the key (dotted, e.g. ``path.points``) and, for tables of rows, the row; the value found; and
 what was expected.
 
 Holds :class:`ProblemFileError`; the checks of one value (numbers, positive numbers, bounded
 integers, vectors, rows, an angle given in rad or ``_deg``, a roll-pitch-yaw triple); the check of
-a table against the keys it may hold (``_TABLE_KEYS``; ``[timing]`` also takes one
+a table against the keys it may hold (``TABLE_KEYS``; ``[timing]`` also takes one
 ``[timing.<method>]`` table per registered timing method); and the plausibility limits that catch
 a value in the wrong unit (millimetres for metres, degrees under a radian key).
 """
@@ -23,12 +23,13 @@ import numpy as np
 
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
+from models.tables import TableReader, is_number
 from problems.timing import available_methods
 
 #: The keys each table of a problem file may hold (checked by :func:`_table`).
-_TABLE_KEYS: dict[str, tuple[str, ...]] = {
+TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "robot": ("model", "tool"),
-    "robot.tool": ("xyz", "rpy", "rpy_deg", "body", "cutter"),  # body, cutter: problems.cell_section
+    "robot.tool": ("xyz", "rpy", "rpy_deg", "body", "cutter"),  # body, cutter: cell_section.py
     "path": ("kind", "start", "end", "points", "positions", "rpy", "rpy_deg", "file", "tolerance_mm"),
     "workpiece": ("xyz", "rpy", "rpy_deg"),
     "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
@@ -55,77 +56,44 @@ class ProblemFileError(InputError):
     """A problem file is malformed; the message names the file, key, value and expectation."""
 
 
-# --------------------------------------------------------------------------------------
-# Value helpers (every message: "<file>: key '<key>' ...")
-# --------------------------------------------------------------------------------------
+#: The value kinds of a problem file (every message: "<file>: key '<key>' ...").
+VALUES = TableReader(ProblemFileError)
+#: The error ``"<file>: key '<key>' <msg>"``: ``err(where, key, msg)`` (to raise).
+err = VALUES.fail
+#: A finite number: ``number(where, key, v)``.
+number = VALUES.number
+#: A finite number > 0: ``positive(where, key, v)``.
+positive = VALUES.positive
+#: An integer in ``[lo, hi]``: ``integer(where, key, v, lo, hi=None)``.
+integer = VALUES.integer
+#: A list of ``n`` finite numbers: ``vector(where, key, v, n)``.
+vector = VALUES.vector
+#: true or false: ``flag(where, key, v)``.
+flag = VALUES.flag
+#: A non-empty list of rows of ``width`` numbers: ``rows(where, key, v, width)``.
+rows = VALUES.rows
 
 
-def _err(where: str, key: str, msg: str) -> ProblemFileError:
-    return ProblemFileError(f"{where}: key '{key}' {msg}")
+def vector_or_scalar(where: str, key: str, v: Any, n: int) -> np.ndarray:
+    """One number for all ``n``, or a list of ``n`` numbers (the message asks for the list)."""
+    if is_number(v):
+        return np.full(n, number(where, key, v))
+    return vector(where, key, v, n)
 
 
-def _number(where: str, key: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _err(where, key, f"must be a number, got {v!r}")
-    f = float(v)
-    if not math.isfinite(f):
-        raise _err(where, key, f"must be finite, got {v!r}")
-    return f
-
-
-def _positive(where: str, key: str, v: Any) -> float:
-    f = _number(where, key, v)
-    if f <= 0.0:
-        raise _err(where, key, f"must be > 0, got {v!r}")
-    return f
-
-
-def _integer(where: str, key: str, v: Any, lo: int, hi: int | None = None) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
-        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-        raise _err(where, key, f"must be an integer {rng}, got {v!r}")
-    return int(v)
-
-
-def _vector(where: str, key: str, v: Any, n: int) -> np.ndarray:
-    if not isinstance(v, list) or len(v) != n:
-        raise _err(where, key, f"must be a list of {n} numbers, got {v!r}")
-    return np.array([_number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
-
-
-def _vector_or_scalar(where: str, key: str, v: Any, n: int) -> np.ndarray:
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        return np.full(n, _number(where, key, v))
-    return _vector(where, key, v, n)
-
-
-def _rows(where: str, key: str, v: Any, width: int) -> np.ndarray:
-    if not isinstance(v, list) or not v:
-        raise _err(where, key, f"must be a non-empty list of rows of {width} numbers, got {v!r}")
-    out = np.empty((len(v), width))
-    for i, row in enumerate(v):
-        if not isinstance(row, list) or len(row) != width:
-            raise ProblemFileError(f"{where}: key '{key}' row {i}: must be a list of {width} numbers, got {row!r}")
-        for j, x in enumerate(row):
-            out[i, j] = _number(where, f"{key}[{i}][{j}]", x)
-    return out
-
-
-def _table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+def table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
     parts = key.split(".")
     cur: Any = data
     for p in parts:
         cur = cur.get(p, {}) if isinstance(cur, Mapping) else None
         if not isinstance(cur, Mapping):
-            raise _err(where, key, f"must be a table, got {cur!r}")
-    allowed = _TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
-    unknown = sorted(set(cur) - set(allowed))
-    if unknown:
-        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(allowed)}")
+            raise err(where, key, f"must be a table, got {cur!r}")
+    allowed = TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
+    VALUES.unknown_keys(f"{where}: [{key}]", cur, allowed)
     return cur
 
 
-def _angle_pair(where: str, tab: Mapping[str, Any], key: str, prefix: str) -> tuple[Any, bool] | None:
+def angle_pair(where: str, tab: Mapping[str, Any], key: str, prefix: str) -> tuple[Any, bool] | None:
     """The raw value of ``key`` (rad) or ``key_deg``, and whether it is in degrees."""
     has_rad, has_deg = key in tab, f"{key}_deg" in tab
     if has_rad and has_deg:
@@ -137,18 +105,18 @@ def _angle_pair(where: str, tab: Mapping[str, Any], key: str, prefix: str) -> tu
     return None
 
 
-def _rpy(where: str, tab: Mapping[str, Any], prefix: str) -> np.ndarray | None:
-    got = _angle_pair(where, tab, "rpy", prefix)
+def rpy_angles(where: str, tab: Mapping[str, Any], prefix: str) -> np.ndarray | None:
+    got = angle_pair(where, tab, "rpy", prefix)
     if got is None:
         return None
     raw, deg = got
-    v = _vector(where, f"{prefix}rpy{'_deg' if deg else ''}", raw, 3)
+    v = vector(where, f"{prefix}rpy{'_deg' if deg else ''}", raw, 3)
     if not deg:
-        _check_radians(where, f"{prefix}rpy", v, PLAUSIBLE_RPY_MAX_RAD, f"{prefix}rpy_deg")
+        check_radians(where, f"{prefix}rpy", v, PLAUSIBLE_RPY_MAX_RAD, f"{prefix}rpy_deg")
     return np.radians(v) if deg else v
 
 
-def _check_positions(where: str, key: str, P: np.ndarray) -> None:
+def check_positions(where: str, key: str, P: np.ndarray) -> None:
     r = np.linalg.norm(P, axis=1)
     if np.any(r > PLAUSIBLE_POSITION_MAX_M):
         k = int(np.argmax(r))
@@ -167,14 +135,14 @@ PLAUSIBLE_JOINT_MAX_RAD = 4.0 * math.pi * (1.0 + 1e-9)
 PLAUSIBLE_JOINT_STEP_MAX_RAD = 2.0 * math.pi * (1.0 + 1e-9)
 
 
-def _check_radians(where: str, key: str, values: np.ndarray, limit: float, deg_key: str) -> None:
+def check_radians(where: str, key: str, values: np.ndarray, limit: float, deg_key: str) -> None:
     """Refuse radian values that are almost certainly degrees (|value| > ``limit``), naming the
     key, the value and the ``_deg`` key to use instead."""
     v = np.atleast_1d(np.asarray(values, dtype=float))
     bad = np.flatnonzero(np.abs(v) > limit)
     if bad.size:
         i = int(bad[0])
-        raise _err(
+        raise err(
             where,
             key,
             f"= {v.tolist() if v.size > 1 else float(v[0])} rad is implausible "

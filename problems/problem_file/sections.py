@@ -1,22 +1,12 @@
-"""The problem-file format: one validating parser per section of a problem file.
+"""The sections of a problem file other than ``[path]``, ``[timing]``, programs and ``[cell]``.
 
-A problem file (TOML, documented in ``docs/problem-file.md``) has the sections
-header (``name``, ``description``, ``source``), ``[robot]`` (with its tool),
-``[orientation]``, ``[path]``, ``[wrench]``, ``[payload]``, ``[limits]``,
-``[cost]``, ``[solver]``, ``[branch]``, ``[timing]``, ``[placement]`` and ``[cell]`` (the cell's
-objects: :mod:`problems.cell_section`).  Each ``parse_*``
-function validates one section of the parsed document and returns its values in SI units
-(m, rad, N, N*m, kg, s); :func:`problems.problem.problem_from_dict` calls them in file order and
-assembles the :class:`~problems.problem.Problem`.
-
-This module holds the section parsers and the settings and section types they return
+The header (``name``, ``description``, ``source``), ``[robot]`` (with its tool), ``[orientation]``,
+``[wrench]``, ``[payload]``, ``[limits]``, ``[cost]``, ``[solver]``, ``[branch]`` and
+``[placement]``: each ``parse_*`` function validates one section of the parsed document and returns
+its values in SI units (m, rad, N, N*m, kg, s), with the settings and section types they return
 (:class:`Limits`, :class:`Header`, :class:`RobotSection`, :class:`OrientationSection`,
-:class:`WrenchSection`, :class:`PayloadSection`). The others, whose names are re-exported here:
-:mod:`problems.problem_values` (:class:`ProblemFileError`, the generic value validators and the
-plausibility limits), :mod:`problems.path_section` (``[path]``: :class:`PathSection`,
-:func:`parse_path`, :func:`is_program_path`; a program as the path, with ``[workpiece]``, is
-:mod:`problems.program_section`) and :mod:`problems.timing_section` (``[timing]`` against the
-timing registry: :class:`TimingSettings`, :func:`check_timing`, :func:`parse_timing`).
+:class:`WrenchSection`, :class:`PayloadSection`). The package :mod:`problems.problem_file`
+re-exports them with the other sections' names.
 
 Every error is a :class:`ProblemFileError` naming the file, the key (dotted,
 e.g. ``path.points``) and, for tables of rows, the row; the value found; and
@@ -39,13 +29,6 @@ from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError
 from models.transforms import matrix_to_rpy, rpy_to_matrix, transform
 from problems import paper
 from problems.path import MAX_JOINT_STEP
-from problems.path_section import (
-    PathSection as PathSection,
-    _line_path as _line_path,
-    _waypoints_path as _waypoints_path,
-    is_program_path as is_program_path,
-    parse_path as parse_path,
-)
 from problems.posture import (
     DEFAULT_MAX_ITER,
     DEFAULT_SCAN,
@@ -54,31 +37,22 @@ from problems.posture import (
     OrientationRule,
     SolverSettings,
 )
-from problems.problem_values import (
-    _TABLE_KEYS as _TABLE_KEYS,
+from problems.problem_file.values import (
     PLAUSIBLE_JOINT_MAX_RAD,
     PLAUSIBLE_JOINT_STEP_MAX_RAD,
-    PLAUSIBLE_RPY_MAX_RAD as PLAUSIBLE_RPY_MAX_RAD,
     ProblemFileError,
-    _angle_pair,
-    _check_positions as _check_positions,
-    _check_radians,
-    _err,
-    _integer,
-    _number,
-    _positive,
-    _rows,
-    _rpy,
-    _table,
-    _vector,
-    _vector_or_scalar,
-)
-from problems.timing_section import (
-    TIMING_OPTION_KEYS as TIMING_OPTION_KEYS,
-    TimingSettings as TimingSettings,
-    _method_tables as _method_tables,
-    check_timing as check_timing,
-    parse_timing as parse_timing,
+    angle_pair,
+    check_radians,
+    err,
+    flag,
+    integer,
+    number,
+    positive,
+    rows,
+    rpy_angles,
+    table,
+    vector,
+    vector_or_scalar,
 )
 
 #: Default nominal TCP orientation: tool z axis pointing down (roll = 180 deg).
@@ -264,12 +238,12 @@ def parse_header(where: str, data: Any) -> Header:
         raise ProblemFileError(f"{where}: unknown top-level key(s) {unknown}; allowed: {list(_TOP)}{hint}")
     name = data.get("name")
     if not isinstance(name, str) or not name.strip():
-        raise _err(where, "name", f"must be a non-empty string, got {name!r}")
+        raise err(where, "name", f"must be a non-empty string, got {name!r}")
     desc = data.get("description", "")
     src = data.get("source", "")
     for key, val in (("description", desc), ("source", src)):
         if not isinstance(val, str):
-            raise _err(where, key, f"must be a string, got {val!r}")
+            raise err(where, key, f"must be a string, got {val!r}")
     return Header(name.strip(), desc.strip(), src.strip())
 
 
@@ -281,10 +255,10 @@ def parse_robot(where: str, data: Mapping[str, Any], base_dir: Path | None) -> R
     base_dir : Path, optional
         Directory against which a relative ``robot.model`` path is resolved.
     """
-    rt = _table(where, data, "robot")
+    rt = table(where, data, "robot")
     spec = rt.get("model")
     if not isinstance(spec, str) or not spec:
-        raise _err(
+        raise err(
             where,
             "robot.model",
             f"must be a built-in robot name {list(BUILTIN_ROBOTS)} or a robot file path, got {spec!r}",
@@ -296,17 +270,17 @@ def parse_robot(where: str, data: Mapping[str, Any], base_dir: Path | None) -> R
     except RobotFileError as exc:
         raise ProblemFileError(f"{where}: key 'robot.model': {exc}") from None
     if "tool" in rt:
-        tt = _table(where, data, "robot.tool")
-        xyz = _vector(where, "robot.tool.xyz", tt.get("xyz", [0.0, 0.0, 0.0]), 3)
+        tt = table(where, data, "robot.tool")
+        xyz = vector(where, "robot.tool.xyz", tt.get("xyz", [0.0, 0.0, 0.0]), 3)
         if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-            raise _err(
+            raise err(
                 where,
                 "robot.tool.xyz",
                 f"= {xyz.tolist()} m is implausible for a tool (> "
                 f"{PLAUSIBLE_POSITION_MAX_M:g} m); lengths are in metres "
                 "(millimetres given?)",
             )
-        rpy = _rpy(where, tt, "robot.tool.")
+        rpy = rpy_angles(where, tt, "robot.tool.")
         arm = arm.with_tool(transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz))
     return RobotSection(spec, arm)
 
@@ -317,15 +291,15 @@ def parse_orientation(where: str, data: Mapping[str, Any], program: bool = False
     ``program``: the path is a CAM program, which gives the tool axis: the rule defaults to
     ``free_tool_axis``, ``fixed`` and a nominal rotation are refused.
     """
-    ot = _table(where, data, "orientation")
+    ot = table(where, data, "orientation")
     if program:
         for key in ("rpy", "rpy_deg", "axis"):
             if key in ot:
-                raise _err(
+                raise err(
                     where, f"orientation.{key}", "does not apply to a program path (the program gives the tool axis)"
                 )
         if ot.get("rule") == OrientationRule.FIXED.value:
-            raise _err(
+            raise err(
                 where,
                 "orientation.rule",
                 "= 'fixed' does not apply to a program path: a program gives the tool axis, not the "
@@ -335,50 +309,50 @@ def parse_orientation(where: str, data: Mapping[str, Any], program: bool = False
     try:
         rule = OrientationRule(rule_raw)
     except ValueError:
-        raise _err(
+        raise err(
             where, "orientation.rule", f"must be one of {[r.value for r in OrientationRule]}, got {rule_raw!r}"
         ) from None
-    rpy = _rpy(where, ot, "orientation.")
+    rpy = rpy_angles(where, ot, "orientation.")
     if "axis" in ot:
         if rpy is not None:
             raise ProblemFileError(f"{where}: give either 'orientation.axis' or 'orientation.rpy'/'rpy_deg', not both")
         if rule is OrientationRule.FIXED:
-            raise _err(
+            raise err(
                 where,
                 "orientation.axis",
                 "cannot define a fixed orientation (an axis leaves the "
                 "rotation about it open); give orientation.rpy_deg",
             )
-        ax = _vector(where, "orientation.axis", ot["axis"], 3)
+        ax = vector(where, "orientation.axis", ot["axis"], 3)
         if np.linalg.norm(ax) < 1e-12:
-            raise _err(where, "orientation.axis", f"must be a non-zero vector, got {ax.tolist()}")
+            raise err(where, "orientation.axis", f"must be a non-zero vector, got {ax.tolist()}")
         R_nom = _rotation_with_axis(ax)
         nominal_rpy = matrix_to_rpy(R_nom)
     else:
         nominal_rpy = DEFAULT_RPY.copy() if rpy is None else rpy
         R_nom = rpy_to_matrix(nominal_rpy)
     half = _cone_half_angle(where, ot, rule)
-    scan = _integer(where, "orientation.scan", ot.get("scan", DEFAULT_SCAN), 1, 720)
+    scan = integer(where, "orientation.scan", ot.get("scan", DEFAULT_SCAN), 1, 720)
     return OrientationSection(rule, np.asarray(nominal_rpy, float), R_nom, half, scan)
 
 
 def _cone_half_angle(where: str, ot: Mapping[str, Any], rule: OrientationRule) -> float:
     """``orientation.half_angle`` (rad) / ``half_angle_deg``: required for, and only for, rule cone."""
     half = 0.0
-    got = _angle_pair(where, ot, "half_angle", "orientation.")
+    got = angle_pair(where, ot, "half_angle", "orientation.")
     if rule is OrientationRule.CONE:
         if got is None:
-            raise _err(where, "orientation.half_angle_deg", "is required for rule 'cone' (or half_angle, rad)")
+            raise err(where, "orientation.half_angle_deg", "is required for rule 'cone' (or half_angle, rad)")
         raw, deg = got
         key = f"orientation.half_angle{'_deg' if deg else ''}"
-        given = _number(where, key, raw)
+        given = number(where, key, raw)
         half = math.radians(given) if deg else given
         if not 0.0 < half < math.pi / 2:
             rng = "(0, 90) deg" if deg else "(0, pi/2) rad, i.e. (0, 1.5708)"
             hint = "" if deg or given <= 0 else "; degrees given? use 'orientation.half_angle_deg'"
-            raise _err(where, key, f"must be in {rng}, got {given:g}{' deg' if deg else ' rad'}{hint}")
+            raise err(where, key, f"must be in {rng}, got {given:g}{' deg' if deg else ' rad'}{hint}")
     elif got is not None:
-        raise _err(where, "orientation.half_angle", f"only applies to rule 'cone' (rule is '{rule.value}')")
+        raise err(where, "orientation.half_angle", f"only applies to rule 'cone' (rule is '{rule.value}')")
     return half
 
 
@@ -395,15 +369,13 @@ def parse_wrench(where: str, data: Mapping[str, Any], n: int, tool_rows: np.ndar
     """
     if tool_rows is not None:
         if "wrench" in data:
-            raise _err(
-                where, "wrench", "must be absent: the path's CL file gives the wrench per point (fx_N ... mz_Nm)"
-            )
+            raise err(where, "wrench", "must be absent: the path's CL file gives the wrench per point (fx_N ... mz_Nm)")
         _check_wrench(where, "wrench.per_waypoint", tool_rows)
         return WrenchSection("tool", np.asarray(tool_rows, dtype=float), True)
-    wt = _table(where, data, "wrench")
+    wt = table(where, data, "wrench")
     frame = wt.get("frame", "base")
     if frame not in WRENCH_FRAMES:
-        raise _err(
+        raise err(
             where,
             "wrench.frame",
             f"must be one of {list(WRENCH_FRAMES)} (base frame, or the TCP frame turning with the tool), got {frame!r}",
@@ -411,15 +383,15 @@ def parse_wrench(where: str, data: Mapping[str, Any], n: int, tool_rows: np.ndar
     if "per_waypoint" in wt:
         if "force" in wt or "moment" in wt:
             raise ProblemFileError(f"{where}: give either 'wrench.per_waypoint' or 'wrench.force'/'moment', not both")
-        W = _rows(where, "wrench.per_waypoint", wt["per_waypoint"], 6)
+        W = rows(where, "wrench.per_waypoint", wt["per_waypoint"], 6)
         if len(W) != n:
-            raise _err(where, "wrench.per_waypoint", f"has {len(W)} rows but the path has {n} waypoints")
+            raise err(where, "wrench.per_waypoint", f"has {len(W)} rows but the path has {n} waypoints")
         _check_wrench(where, "wrench.per_waypoint", W)
         return WrenchSection(frame, W, True)
     if "force" not in wt:
-        raise _err(where, "wrench.force", "is required (or wrench.per_waypoint), in N")
-    f = _vector(where, "wrench.force", wt["force"], 3)
-    m = _vector(where, "wrench.moment", wt.get("moment", [0.0, 0.0, 0.0]), 3)
+        raise err(where, "wrench.force", "is required (or wrench.per_waypoint), in N")
+    f = vector(where, "wrench.force", wt["force"], 3)
+    m = vector(where, "wrench.moment", wt.get("moment", [0.0, 0.0, 0.0]), 3)
     _check_wrench(where, "wrench", np.r_[f, m][None, :])
     W = np.broadcast_to(np.r_[f, m], (n, 6)).copy()
     return WrenchSection(frame, W, False)
@@ -438,7 +410,7 @@ def _check_wrench(where: str, key: str, W: np.ndarray) -> None:
         if np.any(part > limit):
             i, j = np.unravel_index(int(np.argmax(part)), part.shape)
             k = f"{key}[{i}][{j + cols.start}]" if key.endswith("per_waypoint") else f"{key}.{name}[{j}]"
-            raise _err(
+            raise err(
                 where,
                 k,
                 f"= {float(W[i, j + cols.start]):g} {unit} is implausible (|value| above "
@@ -448,26 +420,26 @@ def _check_wrench(where: str, key: str, W: np.ndarray) -> None:
 
 def parse_payload(where: str, data: Mapping[str, Any]) -> PayloadSection:
     """The ``[payload]`` section: mass (kg), centre of mass (TCP frame, m), optional gravity."""
-    pt = _table(where, data, "payload")
+    pt = table(where, data, "payload")
     p_mass, p_com, p_grav = 0.0, np.zeros(3), None
     if pt:
         if "mass_kg" not in pt:
-            raise _err(where, "payload.mass_kg", "is required in a [payload] table (kg)")
-        p_mass = _number(where, "payload.mass_kg", pt["mass_kg"])
+            raise err(where, "payload.mass_kg", "is required in a [payload] table (kg)")
+        p_mass = number(where, "payload.mass_kg", pt["mass_kg"])
         if p_mass < 0:
-            raise _err(where, "payload.mass_kg", f"must be >= 0 kg, got {p_mass!r}")
-        p_com = _vector(where, "payload.com_m", pt.get("com_m", [0.0, 0.0, 0.0]), 3)
+            raise err(where, "payload.mass_kg", f"must be >= 0 kg, got {p_mass!r}")
+        p_com = vector(where, "payload.com_m", pt.get("com_m", [0.0, 0.0, 0.0]), 3)
         if np.max(np.abs(p_com)) > PLAUSIBLE_POSITION_MAX_M:
-            raise _err(
+            raise err(
                 where,
                 "payload.com_m",
                 f"= {p_com.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m; millimetres given?)",
             )
         if "gravity_m_s2" in pt:
-            p_grav = _vector(where, "payload.gravity_m_s2", pt["gravity_m_s2"], 3)
+            p_grav = vector(where, "payload.gravity_m_s2", pt["gravity_m_s2"], 3)
             why = gravity_problem(p_grav)
             if why:
-                raise _err(where, "payload.gravity_m_s2", f"= {p_grav.tolist()} {why}")
+                raise err(where, "payload.gravity_m_s2", f"= {p_grav.tolist()} {why}")
     return PayloadSection(p_mass, p_com, p_grav)
 
 
@@ -479,32 +451,32 @@ def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
     robot : Robot
         Supplies the default velocity, acceleration and jerk limits (rad/s, rad/s^2, rad/s^3).
     """
-    lt = _table(where, data, "limits")
+    lt = table(where, data, "limits")
     lims = {}
     for key, base in (("velocity", robot.v_max), ("acceleration", robot.a_max), ("jerk", robot.j_max)):
         if key in lt and f"{key}_scale" in lt:
             raise ProblemFileError(f"{where}: give either 'limits.{key}' or 'limits.{key}_scale', not both")
         if key in lt:
-            v = _vector_or_scalar(where, f"limits.{key}", lt[key], 6)
+            v = vector_or_scalar(where, f"limits.{key}", lt[key], 6)
             bad = np.where(v <= 0)[0]
             if bad.size:
                 raise ProblemFileError(
                     f"{where}: key 'limits.{key}' joint {int(bad[0]) + 1}: must be > 0, got {float(v[bad[0]]):g}"
                 )
         elif f"{key}_scale" in lt:
-            s = _positive(where, f"limits.{key}_scale", lt[f"{key}_scale"])
+            s = positive(where, f"limits.{key}_scale", lt[f"{key}_scale"])
             v = base * s
         else:
             v = base.copy()
         lims[key] = v
-    got = _angle_pair(where, lt, "max_joint_step", "limits.")
+    got = angle_pair(where, lt, "max_joint_step", "limits.")
     if got is None:
         step = MAX_JOINT_STEP
     else:
         raw, deg = got
-        step = _positive(where, f"limits.max_joint_step{'_deg' if deg else ''}", raw)
+        step = positive(where, f"limits.max_joint_step{'_deg' if deg else ''}", raw)
         if not deg:
-            _check_radians(
+            check_radians(
                 where,
                 "limits.max_joint_step",
                 np.array([step]),
@@ -517,26 +489,24 @@ def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
 
 def parse_cost(where: str, data: Mapping[str, Any]) -> float:
     """The ``[cost]`` section: the smoothness weight, mm^2/rad^2 (>= 0)."""
-    ct = _table(where, data, "cost")
-    smooth = _number(where, "cost.smoothness", ct.get("smoothness", DEFAULT_SMOOTHNESS))
+    ct = table(where, data, "cost")
+    smooth = number(where, "cost.smoothness", ct.get("smoothness", DEFAULT_SMOOTHNESS))
     if smooth < 0:
-        raise _err(where, "cost.smoothness", f"must be >= 0 (mm^2/rad^2), got {smooth!r}")
+        raise err(where, "cost.smoothness", f"must be >= 0 (mm^2/rad^2), got {smooth!r}")
     return smooth
 
 
 def parse_solver(where: str, data: Mapping[str, Any]) -> SolverSettings:
     """The ``[solver]`` section: NLP solver name (only ``ipopt``), iterations, tolerance, codegen."""
-    st = _table(where, data, "solver")
+    st = table(where, data, "solver")
     sname = st.get("name", "ipopt")
     if sname != "ipopt":
-        raise _err(where, "solver.name", f"must be 'ipopt' (the only NLP solver available), got {sname!r}")
-    codegen = st.get("codegen", True)
-    if not isinstance(codegen, bool):
-        raise _err(where, "solver.codegen", f"must be true or false, got {codegen!r}")
+        raise err(where, "solver.name", f"must be 'ipopt' (the only NLP solver available), got {sname!r}")
+    codegen = flag(where, "solver.codegen", st.get("codegen", True))
     return SolverSettings(
         name=sname,
-        max_iter=_integer(where, "solver.max_iter", st.get("max_iter", DEFAULT_MAX_ITER), 0),
-        tol=_positive(where, "solver.tol", st.get("tol", DEFAULT_TOL)),
+        max_iter=integer(where, "solver.max_iter", st.get("max_iter", DEFAULT_MAX_ITER), 0),
+        tol=positive(where, "solver.tol", st.get("tol", DEFAULT_TOL)),
         codegen=codegen,
     )
 
@@ -549,14 +519,14 @@ def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:
     ndarray, shape (6,)
         Joint angles, rad (the paper's home pose if absent).
     """
-    bt = _table(where, data, "branch")
-    got = _angle_pair(where, bt, "home", "branch.")
+    bt = table(where, data, "branch")
+    got = angle_pair(where, bt, "home", "branch.")
     if got is None:
         return paper.HOME_Q.copy()
     raw, deg = got
-    home = _vector(where, f"branch.home{'_deg' if deg else ''}", raw, 6)
+    home = vector(where, f"branch.home{'_deg' if deg else ''}", raw, 6)
     if not deg:
-        _check_radians(where, "branch.home", home, PLAUSIBLE_JOINT_MAX_RAD, "branch.home_deg")
+        check_radians(where, "branch.home", home, PLAUSIBLE_JOINT_MAX_RAD, "branch.home_deg")
     return np.radians(home) if deg else home
 
 
@@ -574,7 +544,7 @@ def parse_placement(where: str, data: Mapping[str, Any]) -> Any:
         return None
     tab = data["placement"]
     if not isinstance(tab, Mapping):
-        raise _err(where, "placement", f"must be a table, got {tab!r}")
+        raise err(where, "placement", f"must be a table, got {tab!r}")
     try:
         return grid_from_table(tab, f"{where}: [placement]")
     except PlacementGridError as exc:

@@ -7,7 +7,7 @@ problem file), ``xyz`` (m) and ``rpy`` / ``rpy_deg``, ``role`` (obstacle | workp
 (``base``, or ``workpiece``: the pose is in a program's ``[workpiece]`` frame). The format is
 ``docs/problem-file.md``, "[cell]"; :class:`problems.cell.Cell` is what it becomes.
 
-Every error is a :class:`~problems.problem_values.ProblemFileError` naming the problem file, the key
+Every error is a :class:`~problems.problem_file.ProblemFileError` naming the problem file, the key
 (``cell.objects[2].size``), the value and what was expected; besides the values, the cell is
 checked against the problem: no object may overlap the robot's base footprint at the problem's own
 placement, and no path point (TCP target) may lie inside an object other than the workpiece.
@@ -39,7 +39,16 @@ from problems.cell import (
     base_footprint,
     footprint_overlaps,
 )
-from problems.problem_values import ProblemFileError, _err, _number, _positive, _rpy, _vector
+
+# The function bodies call the value kinds by their former local names (kept: moved verbatim).
+from problems.problem_file.values import (
+    ProblemFileError,
+    err as _err,
+    number as _number,
+    positive as _positive,
+    rpy_angles as _rpy,
+    vector as _vector,
+)
 
 __all__ = [
     "CELL_KEYS",

@@ -15,12 +15,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 from typing import Any, NamedTuple
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.errors import InputError
+from problems.problem_file.values import err, rpy_angles
 from problems.toolpath.waypoints import DEFAULT_PATH_TOLERANCE_M, ProgramWaypoints
 from problems.toolpath.workpiece import Workpiece
 
@@ -97,8 +98,6 @@ def parse_program(
     pt: Mapping[str, Any],
     wt: Mapping[str, Any] | None,
     base_dir: Path | None,
-    err: Callable[[str, str, str], InputError],
-    rpy: Callable[[Mapping[str, Any], str], np.ndarray | None],
 ) -> ProgramSection:
     """Read ``[path]`` (a program kind) and ``[workpiece]``.
 
@@ -110,10 +109,6 @@ def parse_program(
         The ``[path]`` and ``[workpiece]`` tables (``wt`` None when absent).
     base_dir : Path or None
         The problem file's folder (a relative ``file`` is resolved against it).
-    err : callable
-        ``err(where, key, message)`` -> the problem-file error.
-    rpy : callable
-        ``rpy(table, prefix)`` -> the table's ``rpy`` / ``rpy_deg`` in rad, or None.
 
     Raises
     ------
@@ -155,7 +150,7 @@ def parse_program(
         raise err(where, "workpiece.xyz", f"must be a list of 3 numbers (m), got {xyz!r}")
     if max(abs(float(v)) for v in xyz) > PLAUSIBLE_POSITION_MAX_M:
         raise err(where, "workpiece.xyz", f"= {xyz} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres")
-    ang = rpy(wt, "workpiece.")
+    ang = rpy_angles(where, wt, "workpiece.")
     wp = Workpiece(np.array(xyz, dtype=float), np.zeros(3) if ang is None else ang)
     if kind == "gcode":
         prog = read_gcode(f)
