@@ -105,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
         tree = Path(args.tree).resolve()
         env["PYTHONPATH"] = str(tree)
         cwd = tree
+    (out / "tree.txt").write_text(str(cwd.resolve()) + "\n", encoding="utf-8")
     log = open(out / "commands.log", "w", encoding="utf-8")
     for name, argv in commands(out):
         if args.only and not any(name.startswith(o) for o in args.only):
@@ -146,6 +147,9 @@ MASKS = [
 
 def masked(data: bytes, root: Path) -> bytes:
     data = data.replace(str(root.resolve()).encode(), b"<ROOT>")
+    tree = root / "tree.txt"
+    if tree.is_file():
+        data = data.replace(tree.read_text(encoding="utf-8").strip().encode(), b"<TREE>")
     for pattern, repl in MASKS:
         data = pattern.sub(repl, data)
     return data
@@ -168,7 +172,7 @@ def compare(args: argparse.Namespace) -> int:
         bad += 1
     same = 0
     for rel in sorted(files_a & files_b):
-        if rel.name == "commands.log":
+        if rel.name in ("commands.log", "tree.txt"):
             continue
         da, db = (a / rel).read_bytes(), (b / rel).read_bytes()
         if da == db:
