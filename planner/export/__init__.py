@@ -63,6 +63,7 @@ __all__ = [
     "export_files",
     "format_names",
     "formats",
+    "load_formats",
     "part_label",
     "part_ranges",
     "ranged",
