@@ -22,7 +22,8 @@ sys, median: less sensitive than wall time to other load on a shared machine).  
 printed beside the figures.  ``--tests`` also runs the test suite of both versions once
 (``python -m pytest -q``) and prints its wall and CPU time: that takes many minutes.
 
-Prints the figures; asserts nothing.  Usage::
+Prints the figures; asserts nothing (``benchmarks/bench_startup.py`` checks the start-up limits of
+the current checkout and exits non-zero over one).  Usage::
 
     python benchmarks/bench_report.py [--repeat 3] [--before REV | --no-before] [--tests]
 """
@@ -97,10 +98,19 @@ def stage_sum(summary: dict) -> float:
     return float(sum(v for k, v in times.items() if k not in parts))
 
 
+def child_env(code: Path) -> dict[str, str]:
+    """The environment of a timed process: the package tree ``code`` first on ``PYTHONPATH``, and the
+    bytecode cache on (without ``PYTHONDONTWRITEBYTECODE``, every run would compile the tree's
+    modules again; an installed compplan has its bytecode, as the warm-up run gives the tree)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(code), os.environ.get("PYTHONPATH")) if p)
+    return env
+
+
 def run_case(code: Path, case: Case, out: Path, run: Path | None = None) -> tuple[float, float, float | None]:
     """Run ``case`` with the package tree ``code`` (``run``: the folder a ``on_run`` case reads);
     (wall s, CPU s of the children, stages s or None)."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (str(code), os.environ.get("PYTHONPATH")) if p)}
+    env = child_env(code)
     cmd = [
         sys.executable,
         "-m",

@@ -1,11 +1,13 @@
 """What a command imports and builds before its work: libraries are imported on demand
-(``compplan --version`` imports none of them; a plan without its report does not import
-pyplot) and the jerk-limited NLP's derivatives are built once per process.  Behaviour, not
+(``compplan --version`` imports none of them; ``--help`` no SciPy and no export format module; a
+plan without its report neither pyplot nor SciPy's statistics) and the jerk-limited NLP's
+derivatives are built once per process.  Behaviour, not
 timings: the import checks read ``sys.modules`` of a fresh interpreter."""
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -15,15 +17,13 @@ import pytest
 HEAVY = ("numpy", "casadi", "scipy", "matplotlib", "toppra", "ruckig", "dask", "eaik")
 
 
-def _modules_after(code: str) -> list[str]:
-    """The modules of :data:`HEAVY` (and ``matplotlib.pyplot``, ``scipy.stats``) imported by ``code``
-    in a fresh interpreter."""
-    probe = code + (
-        "\nimport json, sys\n"
-        f"print(json.dumps([m for m in {list(HEAVY) + ['matplotlib.pyplot', 'scipy.stats']!r} "
-        "if m in sys.modules]))\n"
-    )
-    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=False)
+def _modules_after(code: str, also: tuple[str, ...] = ()) -> list[str]:
+    """The modules of :data:`HEAVY` (and ``matplotlib.pyplot``, ``scipy.stats``, and ``also``) imported
+    by ``code`` in a fresh interpreter (without plug-in folders of export formats)."""
+    names = list(HEAVY) + ["matplotlib.pyplot", "scipy.stats", *also]
+    probe = code + f"\nimport json, sys\nprint(json.dumps([m for m in {names!r} if m in sys.modules]))\n"
+    env = {k: v for k, v in os.environ.items() if k != "COMPPLAN_EXPORT_PATH"}
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=False, env=env)
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout.strip().splitlines()[-1])
 
@@ -60,6 +60,86 @@ def test_version_prints_what_the_parser_prints(capsys):
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--version"])
     assert fast == capsys.readouterr().out == version_line() + "\n"
+
+
+#: What the help of the command line must not import (the parser is built without them).
+NOT_FOR_HELP = ("scipy", "matplotlib", "toppra", "ruckig", "dask", "eaik")
+#: The export package's format modules (and the ROS 2 check's quintic): the parser offers the
+#: formats' names without importing them.
+FORMAT_MODULES = tuple(f"planner.export.{m}" for m in ("krl", "rapid", "ros2", "rosbag2", "urscript", "quintic"))
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["plan", "--help"], ["export", "--help"]])
+def test_help_imports_no_scipy(argv):
+    """``compplan --help`` and a command's help build the whole parser (every command, the export
+    formats' names) without SciPy, matplotlib or the timing libraries, and without a format module."""
+    code = (
+        f"from planner.cli import main\ntry:\n    main({argv!r})\nexcept SystemExit as exc:\n    assert exc.code == 0\n"
+    )
+    out = _modules_after(code, also=("problems.dynamic", *FORMAT_MODULES))
+    assert [m for m in out if m.split(".")[0] in NOT_FOR_HELP or m.startswith("planner.export.")] == []
+    assert "problems.dynamic" not in out
+
+
+def test_the_parser_offers_every_format_without_importing_them():
+    """The ``--format`` / ``--export`` choices are the registered formats' names."""
+    code = (
+        "from planner.cli import build_parser\nimport sys\n"
+        "p = build_parser()\n"
+        "sub = next(a for a in p._actions if a.dest == 'command').choices\n"
+        "offered = [next(a.choices for a in sub[c]._actions if a.dest == d) for c, d in "
+        "(('export', 'format'), ('plan', 'export'), ('demo', 'export'))]\n"
+        f"imported = [m for m in {FORMAT_MODULES!r} if m in sys.modules]\n"
+        "from planner.export import EXPORT_FORMATS\n"
+        "assert all(list(o) == list(EXPORT_FORMATS) for o in offered), (offered, EXPORT_FORMATS)\n"
+        "print(imported)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "COMPPLAN_EXPORT_PATH"}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False, env=env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]"
+
+
+def test_builtin_formats_are_what_the_modules_register():
+    """:data:`planner.export.BUILTIN_FORMATS` names the formats the package's modules register, in the
+    order they register (a new built-in format adds its name there)."""
+    code = (
+        "import planner.export as e\ne.load_formats()\n"
+        "print(list(e._FORMATS) == list(e.BUILTIN_FORMATS) == list(e.formats()), list(e._FORMATS))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "COMPPLAN_EXPORT_PATH"}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False, env=env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("True"), r.stdout
+
+
+def test_formats_are_listed_in_one_order_whatever_was_imported_first():
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import planner.export.urscript, planner.export.ros2\nfrom planner.export import formats, BUILTIN_FORMATS\n"
+            "print(list(formats()) == list(BUILTIN_FORMATS))",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={k: v for k, v in os.environ.items() if k != "COMPPLAN_EXPORT_PATH"},
+    )
+    assert out.stdout.strip() == "True", out.stderr
+
+
+def test_a_plan_without_its_report_imports_no_scipy_statistics(tmp_path):
+    """A bare plan (``--no-report --no-figures``) reads the uncertainty module without the
+    identification engine, and the export package without the dynamic compensation: neither SciPy's
+    statistics nor its signal processing, and no pyplot."""
+    argv = ["plan", "paper_4_4", "--out", str(tmp_path / "run"), "--no-report", "--no-figures"]
+    out = _modules_after(
+        f"from planner.cli import main\nassert main({argv!r}) == 0\n",
+        also=("scipy.signal", "problems.dynamic", "problems.identify.engine"),
+    )
+    assert not {"scipy.stats", "scipy.signal", "matplotlib.pyplot", "problems.dynamic"} & set(out), out
+    assert "problems.identify.engine" not in out
 
 
 def test_light_modules_import_no_numerical_library():

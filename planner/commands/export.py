@@ -19,9 +19,11 @@ from planner.commands.common import add_force_argument, check_output, releases_o
 
 
 def _format_names() -> list[str]:
-    from planner.export import EXPORT_FORMATS
+    """The ``--format``/``--export`` choices, without importing the format modules unless plug-in
+    folders are named (:func:`planner.export.format_names`)."""
+    from planner.export import format_names
 
-    return list(EXPORT_FORMATS)
+    return list(format_names())
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -2,7 +2,9 @@
 
 One module per format registers an :class:`ExportFormat` with :func:`register_format` (extend by
 adding a file: every module of this package, and every module in the folders named by
-``$COMPPLAN_EXPORT_PATH``, is imported at the end of this module). Every
+``$COMPPLAN_EXPORT_PATH``, is imported when the formats are first asked for: :func:`formats`,
+:func:`build_export`, ``EXPORT_FORMATS``; the command line's ``--format`` choices come from
+:func:`format_names`, which imports no format module unless plug-in folders are named). Every
 format reads an :class:`ExportData`: the controller's trajectory of a plan (``trajectory.csv``:
 joint positions, velocities and accelerations at the controller period), the robot's joint
 names and the mapping from the model's joint angles to the controller's
@@ -32,7 +34,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from models.errors import InputError, PluginError
-from models.plugins import import_plugins
+from models.plugins import import_plugins, plugin_folders
 
 __all__ = [
     "EXPORT_FD_TOL",
@@ -50,6 +52,7 @@ __all__ = [
     "ExportLimitError",
     "Interpolation",
     "VENDOR_FORMATS",
+    "BUILTIN_FORMATS",
     "build_export",
     "check_motion",
     "choice",
@@ -58,7 +61,9 @@ __all__ = [
     "data_from_plan",
     "data_from_run",
     "export_files",
+    "format_names",
     "formats",
+    "load_formats",
     "part_label",
     "part_ranges",
     "ranged",
@@ -204,7 +209,21 @@ class ExportFormat:
     timing_options: tuple[str, ...] = ()
 
 
+#: Extra folders searched for export format modules (``os.pathsep``-separated): each ``*.py``
+#: there is imported as ``planner.export.<name>`` and registers its format(s) with
+#: :func:`register_format`, as the built-in modules do.
+EXPORT_PATH_VARIABLE = "COMPPLAN_EXPORT_PATH"
+
 _FORMATS: dict[str, ExportFormat] = {}
+
+#: The formats the modules of this package register, in the order they register when the package's
+#: modules are imported (``rapid`` before ``krl``, which imports it): the command line offers these
+#: names without importing the modules (start-up), and :func:`formats` lists them in this order.
+#: ``tests/test_startup.py`` checks that it is what the modules register.
+BUILTIN_FORMATS: tuple[str, ...] = ("rapid", "krl", "ros2", "rosbag2", "urscript", "urscript_movej")
+
+#: Whether the modules of this package and of the plug-in folders have been imported (:func:`load_formats`).
+_loaded = False
 
 
 def register_format(fmt: ExportFormat) -> ExportFormat:
@@ -215,9 +234,31 @@ def register_format(fmt: ExportFormat) -> ExportFormat:
     return fmt
 
 
+def load_formats() -> None:
+    """Import the format modules of this package and of the folders of ``$COMPPLAN_EXPORT_PATH``,
+    once (:func:`models.plugins.import_plugins`; a bad folder or plug-in raises its
+    :class:`~models.errors.InputError`)."""
+    global _loaded
+    if not _loaded:
+        import_plugins(__name__, __path__, EXPORT_PATH_VARIABLE)
+        _loaded = True
+
+
 def formats() -> dict[str, ExportFormat]:
-    """The registered export formats by name."""
-    return dict(_FORMATS)
+    """The registered export formats by name: the built-in ones in :data:`BUILTIN_FORMATS`' order,
+    then the others (plug-ins) in the order they registered."""
+    load_formats()
+    first = [n for n in BUILTIN_FORMATS if n in _FORMATS]
+    return {n: _FORMATS[n] for n in first + [n for n in _FORMATS if n not in first]}
+
+
+def format_names() -> tuple[str, ...]:
+    """The ``--format`` names, sorted, for the command line: :data:`BUILTIN_FORMATS` (and any format
+    registered already) without importing a format module while no plug-in folder is named in
+    ``$COMPPLAN_EXPORT_PATH``; else every format, the plug-ins imported (their errors raised here)."""
+    if _loaded or plugin_folders(EXPORT_PATH_VARIABLE):
+        return tuple(sorted(formats()))
+    return tuple(sorted({*BUILTIN_FORMATS, *_FORMATS}))
 
 
 # --------------------------------------------------------------------------------------
@@ -483,7 +524,7 @@ def build_export(data: ExportData, fmt: str, out: str | Path, options: Mapping[s
     :class:`ExportError` naming them.  Nothing is written here (the caller writes the set
     whole or not at all).
     """
-    f = _FORMATS.get(fmt)
+    f = formats().get(fmt)
     if f is None:
         raise ExportError(f"export: unknown format {fmt!r}; formats: {', '.join(sorted(_FORMATS))}")
     opts = dict(options or {})
@@ -551,11 +592,9 @@ from planner.export.limits import (  # noqa: E402
 )
 
 
-#: Extra folders searched for export format modules (``os.pathsep``-separated): each ``*.py``
-#: there is imported as ``planner.export.<name>`` and registers its format(s) with
-#: :func:`register_format`, as the built-in modules do.
-EXPORT_PATH_VARIABLE = "COMPPLAN_EXPORT_PATH"
-import_plugins(__name__, __path__, EXPORT_PATH_VARIABLE)
-
-#: The ``--format`` names, built-in and plug-in, sorted.
-EXPORT_FORMATS: tuple[str, ...] = tuple(sorted(_FORMATS))
+def __getattr__(name: str) -> Any:
+    """``EXPORT_FORMATS``: the ``--format`` names, built-in and plug-in, sorted (the modules imported
+    on first use, :func:`load_formats`)."""
+    if name == "EXPORT_FORMATS":
+        return tuple(sorted(formats()))
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from problems.dynamic import quintic_pieces
+from problems.quintic import polynomial_value, quadratic_roots, quintic_pieces
 
 from planner.export.limits import (
     EXACT_MAX,
@@ -37,7 +37,7 @@ __all__ = ["quintic_coefficients", "quintic_peaks"]
 
 
 #: The quintic through each two consecutive points' (q, qd, qdd): the same pieces the dynamic
-#: compensation's command is checked on (one formula, :func:`problems.dynamic.quintic_pieces`).
+#: compensation's command is checked on (one formula, :func:`problems.quintic.quintic_pieces`).
 quintic_coefficients = quintic_pieces
 
 
@@ -45,29 +45,9 @@ def _derivative(c: list[np.ndarray]) -> list[np.ndarray]:
     return [k * c[k] for k in range(1, len(c))]
 
 
-def _value(c: list[np.ndarray], tau: np.ndarray) -> np.ndarray:
-    out = np.zeros(np.broadcast_shapes(c[0].shape, tau.shape))
-    for ck in reversed(c):
-        out = out * tau + ck
-    return out
-
-
-def _quadratic_roots(c: list[np.ndarray], h: np.ndarray) -> list[np.ndarray]:
-    """The real roots of ``c0 + c1 tau + c2 tau^2`` clipped to ``[0, h]`` (0 where there are none),
-    by the stable formula (a vanishing ``c2`` leaves the linear root)."""
-    a, b, cc = c[2], c[1], c[0]
-    disc = b * b - 4.0 * a * cc
-    real = disc >= 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = -0.5 * (b + np.where(b >= 0.0, 1.0, -1.0) * np.sqrt(np.where(real, disc, 0.0)))
-        r1 = np.where(real & (a != 0.0), w / a, 0.0)
-        r2 = np.where(real & (w != 0.0), cc / w, 0.0)
-    return [np.clip(np.nan_to_num(r, nan=0.0, posinf=0.0, neginf=0.0), 0.0, h) for r in (r1, r2)]
-
-
 def _extreme(c: list[np.ndarray], taus: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """The value of largest magnitude of ``c`` among the times ``taus`` and where, (S, 6) each."""
-    vals = np.stack([_value(c, np.broadcast_to(tau, c[0].shape)) for tau in taus])
+    vals = np.stack([polynomial_value(c, np.broadcast_to(tau, c[0].shape)) for tau in taus])
     k = np.argmax(np.abs(vals), axis=0)
     at = np.stack([np.broadcast_to(tau, c[0].shape) for tau in taus])
     return np.take_along_axis(vals, k[None], 0)[0], np.take_along_axis(at, k[None], 0)[0]
@@ -83,7 +63,7 @@ def _screened(
     reaches ``hi`` or ``lo``; beyond :data:`EXACT_MAX` such entries, that bound itself."""
     n = SCREEN_SAMPLES
     taus = h[None] * (np.arange(n + 1) / n)[:, None]
-    vals = _value(c, taus)
+    vals = polynomial_value(c, taus)
     ka, kb = np.argmax(vals, axis=0), np.argmin(vals, axis=0)
     vmax, vmin = vals.max(axis=0), vals.min(axis=0)
     tmax, tmin = h * ka / n, h * kb / n
@@ -108,7 +88,7 @@ def _range(
     """:func:`_screened` of the (S, 6) polynomials ``c`` where ``near`` (a bound cannot clear them);
     elsewhere their end values, (S, 6) each."""
     hh = np.broadcast_to(h, near.shape)
-    end = _value(c, hh)
+    end = polynomial_value(c, hh)
     vmax, vmin = np.maximum(c[0], end), np.minimum(c[0], end)
     tmax, tmin = np.where(c[0] >= end, 0.0, hh), np.where(c[0] <= end, 0.0, hh)
     if np.any(near):
@@ -126,7 +106,7 @@ def _chunk_peaks(
     vel, acc, jerk = _derivative(c), _derivative(_derivative(c)), _derivative(_derivative(_derivative(c)))
     zero = np.zeros_like(h)
     j_val, j_at = _extreme(jerk, [zero, h, np.clip(-c[4] / np.where(c[5] != 0.0, 5.0 * c[5], np.inf), 0.0, h)])
-    a_val, a_at = _extreme(acc, [zero, h, *_quadratic_roots(jerk, h)])
+    a_val, a_at = _extreme(acc, [zero, h, *quadratic_roots(*jerk, h)])
     # |v| <= (|v0| + |v1| + h max|a|) / 2 on the segment: the velocity is solved where that reaches its limit
     v_hi = data.v_max * (1.0 + EXPORT_FD_TOL)
     near = (
@@ -136,7 +116,7 @@ def _chunk_peaks(
     # the positions move at most h max|v| from an end: solved where that reaches a joint limit
     p_hi, p_lo = data.q_max + (EXPORT_POSITION_TOL + eps), data.q_min - (EXPORT_POSITION_TOL + eps)
     reach = h * np.maximum(v_max, -v_min)
-    p_end = _value(c, np.broadcast_to(h, c[0].shape))
+    p_end = polynomial_value(c, np.broadcast_to(h, c[0].shape))
     near = (np.maximum(c[0], p_end) + reach > p_hi) | (np.minimum(c[0], p_end) - reach < p_lo)
     p_max, p_tmax, p_min, p_tmin = _range(c, h, np.abs(a_val), p_hi, p_lo, near)
     t0 = t[:, None]
