@@ -32,9 +32,9 @@ from planner.identify_report import compensation_sentence, report_markdown
 from planner.identify_report.data import FRACTION_LEFT_AGREE, _headline
 from planner.identify_report.diagnostics import _not_significant_line
 from planner.numbers import format_number, round_sig
-from problems.identify.diagnostics import _regress_cv, run_diagnostics
+from problems.identify.diagnostics import regress_cv, run_diagnostics
 from problems.identify.results import HELD_MESSAGE_MAX_CHARS, HeldGroup, HeldSummary, joints_text
-from problems.identify.selection import _candidate_score, _significance, _Score
+from problems.identify.selection import candidate_score, significance, Score
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
 
@@ -189,14 +189,14 @@ def test_a_candidate_score_reads_as_its_direction(new_cv_mm) -> None:
     """A candidate that lowers the held-out RMS shows a negative change and a share >= 0; one that
     raises it shows a positive change and explains none (share 0, never negative)."""
     n, k = 300, 6
-    cur = _Score(rss=n * 1e-8, cv_rss=n * 1e-8, cv_rms_m=1e-4, rms_m=1e-4, n=n, k=k)
+    cur = Score(rss=n * 1e-8, cv_rss=n * 1e-8, cv_rms_m=1e-4, rms_m=1e-4, n=n, k=k)
     ss = n * (new_cv_mm * 1e-3) ** 2
-    new = _Score(rss=ss, cv_rss=ss, cv_rms_m=new_cv_mm * 1e-3, rms_m=1e-4, n=n, k=k + 3)
-    cs = _candidate_score("drift", new, cur, 2e-5, 3)
+    new = Score(rss=ss, cv_rss=ss, cv_rms_m=new_cv_mm * 1e-3, rms_m=1e-4, n=n, k=k + 3)
+    cs = candidate_score("drift", new, cur, 2e-5, 3)
     assert cs.explained_share >= 0.0
     if new_cv_mm >= 0.1:
         assert cs.explained_share == 0.0
-    _basic, _share_ok, text = _significance(cs, cur)
+    _basic, _share_ok, text = significance(cs, cur)
     ((a, b, p),) = _signed_changes(text)
     assert np.sign(p) == np.sign(round(b - a, 6)) or abs(p) < 0.05
     assert "explains -" not in text
@@ -239,7 +239,7 @@ def test_a_diagnostic_with_no_structure_explains_nothing_not_less() -> None:
     X = np.stack([np.column_stack([x**k for k in range(1, 9)])] * 3, axis=1)  # (n, 3, 8): overfits noise
     m = Measurements(q=np.zeros((n, 6)), wrench=np.zeros((n, 6)), p=np.zeros((n, 3)), point=np.arange(n))
     folds = np.arange(n) % 5
-    raw, _p = _regress_cv(R, X, folds)
+    raw, _p = regress_cv(R, X, folds)
     assert raw < 0.0  # the case: worse than the mean out of fold
     diags = run_diagnostics(R, m, {"time": (x, X, "noise")}, folds)
     assert {d.variable for d in diags} == {"time", "pose"}

@@ -59,170 +59,51 @@ from __future__ import annotations
 
 
 from .apply import (
-    COMPENSATION_CHECK_MAX_COND,
-    COMPENSATION_RESIDUAL_TOL,
-    REGISTRATION_ALIAS_MARKERS,
-    TARGET_SEED_MAX_M,
     alias_effect_m,
-    base_frame_warning,
-    compensate,
     check_command_limits,
+    compensate,
     compensate_targets,
     compensation_check,
-    measured_point_model,
     predict,
     unobservable_in_base,
     validate_on,
 )
-from .campaigns import SHARED_PARTS, campaign_names, identify_campaigns, merge_campaigns
-from .diagnostics import (
-    DIAG_ALPHA,
-    DIAG_MIN_FRACTION,
-    UNEXPLAINED_MIN_FRACTION,
-    UNEXPLAINED_RMS_RATIO,
-    diagnostic_variables,
-    run_diagnostics,
-    structure_left,
-)
-from .engine import SATURATED_MAX_ITER, identify
-from .evaluation import Evaluator, evaluator, make_rows, time_reference
-from .identifiability import (
-    IDENT_MAX_STD_RATIO,
-    IDENT_REL_TOL,
-    LAST_AXIS_ROTATION,
-    STRUCTURAL_DESIGN_ROWS,
-    select_identifiable,
-)
-from .lsq import LM_COST_RTOL, LM_COST_SIGMA_TOL, LM_LAMBDA0, LM_MAX_ITER, LM_STEP_STD_TOL, NORMAL_RIDGE, kabsch
-from .outliers import (
-    OUTLIER_FALSE_ALARM,
-    OUTLIER_GROSS_SIGMAS,
-    OUTLIER_MAX_FRACTION,
-    OUTLIER_MAX_ROUNDS,
-    OUTLIER_MIN_POSE_ROWS,
-    OUTLIER_MIN_SIGMAS,
-    OUTLIER_SCALE_QUANTILE,
-    OUTLIER_SEPARATION,
-    OUTLIER_TAIL_FACTOR,
-    OUTLIER_TAIL_QUANTILE,
-    OUTLIER_TAIL_SLACK,
-)
+from .campaigns import identify_campaigns, merge_campaigns
+from .engine import identify
+from .evaluation import evaluator
 from .results import (
-    CandidateScore,
-    CompensationOutcome,
     DataError,
     Diagnostic,
     IdentificationResult,
-    IdentifiedModel,
     IdentifyStatus,
-    ParameterEstimate,
     ParameterStatus,
-    Progress,
-    SelectionStep,
     TargetsError,
     TargetsFrame,
 )
-from .selection import (
-    CV_FOLDS,
-    CV_MIN_REL_GAIN,
-    CV_SEED,
-    F_TEST_ALPHA,
-    MIN_EXPLAINED_SHARE,
-    NOISE_FLOOR_STOP_RATIO,
-    PARSIMONY_REL_TOL,
-    REFINE_TOP,
-    THERMAL_MIN_RANGE_K,
-    backward_pass,
-    forward_selection,
-    noise_floor,
-)
+from .selection import CV_FOLDS
 
 __all__ = [
     # results and statuses
-    "CandidateScore",
-    "CompensationOutcome",
     "DataError",
     "Diagnostic",
     "IdentificationResult",
-    "IdentifiedModel",
     "IdentifyStatus",
-    "ParameterEstimate",
     "ParameterStatus",
-    "Progress",
-    "SelectionStep",
     "TargetsError",
     "TargetsFrame",
-    # evaluation
-    "Evaluator",
+    # evaluation and selection
     "evaluator",
-    "make_rows",
-    "time_reference",
-    # least squares and identifiability
-    "kabsch",
-    "select_identifiable",
-    "LM_COST_RTOL",
-    "LM_COST_SIGMA_TOL",
-    "LM_LAMBDA0",
-    "LM_MAX_ITER",
-    "LM_STEP_STD_TOL",
-    "NORMAL_RIDGE",
-    "IDENT_MAX_STD_RATIO",
-    "IDENT_REL_TOL",
-    "LAST_AXIS_ROTATION",
-    "STRUCTURAL_DESIGN_ROWS",
-    # outliers
-    "OUTLIER_FALSE_ALARM",
-    "OUTLIER_GROSS_SIGMAS",
-    "OUTLIER_MAX_FRACTION",
-    "OUTLIER_MAX_ROUNDS",
-    "OUTLIER_MIN_POSE_ROWS",
-    "OUTLIER_MIN_SIGMAS",
-    "OUTLIER_SCALE_QUANTILE",
-    "OUTLIER_SEPARATION",
-    "OUTLIER_TAIL_FACTOR",
-    "OUTLIER_TAIL_QUANTILE",
-    "OUTLIER_TAIL_SLACK",
-    # selection
     "CV_FOLDS",
-    "CV_MIN_REL_GAIN",
-    "CV_SEED",
-    "F_TEST_ALPHA",
-    "MIN_EXPLAINED_SHARE",
-    "NOISE_FLOOR_STOP_RATIO",
-    "PARSIMONY_REL_TOL",
-    "REFINE_TOP",
-    "THERMAL_MIN_RANGE_K",
-    "backward_pass",
-    "forward_selection",
-    "noise_floor",
-    # diagnostics
-    "DIAG_ALPHA",
-    "DIAG_MIN_FRACTION",
-    "UNEXPLAINED_MIN_FRACTION",
-    "UNEXPLAINED_RMS_RATIO",
-    "diagnostic_variables",
-    "run_diagnostics",
-    "structure_left",
-    # the engine
-    "SATURATED_MAX_ITER",
+    # the engine and several campaigns
     "identify",
-    # several campaigns
-    "SHARED_PARTS",
-    "campaign_names",
     "identify_campaigns",
     "merge_campaigns",
     # applying a model
-    "COMPENSATION_CHECK_MAX_COND",
-    "COMPENSATION_RESIDUAL_TOL",
-    "REGISTRATION_ALIAS_MARKERS",
-    "TARGET_SEED_MAX_M",
     "alias_effect_m",
-    "base_frame_warning",
-    "compensate",
     "check_command_limits",
+    "compensate",
     "compensate_targets",
     "compensation_check",
-    "measured_point_model",
     "predict",
     "unobservable_in_base",
     "validate_on",

@@ -58,7 +58,7 @@ from models.transforms import invert, matrix_to_rotvec, rotvec_to_matrix, transf
 from ..measurements import Measurements
 from .apply import predict
 from .engine import identify
-from .evaluation import _ev_for, make_rows, row_weights
+from .evaluation import evaluator_for, make_rows, row_weights
 from .lsq import kabsch
 from .results import DataError, IdentificationResult, ParameterStatus, Progress
 
@@ -105,7 +105,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return S
 
 
-def _perturbed(A: np.ndarray, dt: np.ndarray, dphi: np.ndarray) -> np.ndarray:
+def perturbed(A: np.ndarray, dt: np.ndarray, dphi: np.ndarray) -> np.ndarray:
     """``A`` followed by the small motion ``x -> exp([dphi]x) x + dt`` (of the reference frame)."""
     return transform(rotvec_to_matrix(dphi), dt) @ A
 
@@ -248,7 +248,7 @@ def _free_names(res: IdentificationResult) -> list[str]:
     return [p.name for p in res.parameters if p.status is ParameterStatus.FREE]
 
 
-class _Joint:
+class JointFit:
     """The joint least-squares problem of the robot's free parameters and the campaigns' transforms
     (every campaign but the reference: 6 columns each, ``[dt (m), dphi (rad)]``)."""
 
@@ -265,7 +265,7 @@ class _Joint:
         self.names = names
         self.idx = np.array([fx.PARAM_NAMES.index(n) for n in names], dtype=int)
         self.const = model.const
-        self.ev = _ev_for(model.nominal, self.const)
+        self.ev = evaluator_for(model.nominal, self.const)
         self.rows = make_rows(merged, model.time_ref, model.temperature_ref)
         self.raw = np.concatenate([m.p for m in campaigns])
         self.campaign = campaign
@@ -329,7 +329,7 @@ class _Joint:
                 th_n = theta.copy()
                 th_n[self.idx] += step * d[:k]
                 A_n = [
-                    _perturbed(A[c], step * d[k + 6 * c : k + 6 * c + 3], step * d[k + 6 * c + 3 : k + 6 * c + 6])
+                    perturbed(A[c], step * d[k + 6 * c : k + 6 * c + 3], step * d[k + 6 * c + 3 : k + 6 * c + 6])
                     for c in range(self.C - 1)
                 ] + [A[-1]]
                 cost_n = self.cost(th_n, A_n)
@@ -363,7 +363,7 @@ def _campaign_registration(model: ArmModel, x: np.ndarray, A: np.ndarray | None)
     B = transform(fx.cayley_np(theta[fx.GROUP_SLICES["reg.w"]]) @ model.R0, theta[fx.GROUP_SLICES["reg.t"]])
     if A is None:
         return B
-    return invert(_perturbed(A, x[6:9], x[9:12])) @ B
+    return invert(perturbed(A, x[6:9], x[9:12])) @ B
 
 
 def _registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) -> np.ndarray:
@@ -382,7 +382,7 @@ def _registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) ->
     return G @ cov @ G.T
 
 
-def joint_covariance(joint: _Joint, theta: np.ndarray, A: Sequence[np.ndarray]) -> tuple[np.ndarray, float, int]:
+def joint_covariance(joint: JointFit, theta: np.ndarray, A: Sequence[np.ndarray]) -> tuple[np.ndarray, float, int]:
     """``s^2 (J^T J)^-1`` of the joint problem (free parameters, then 6 per non-reference campaign),
     ``s^2`` (weighted residual variance) and the degrees of freedom."""
     r, J = joint.jacobian(theta, A)
@@ -580,7 +580,7 @@ def _fit_rounds(
     identify_kwargs: Mapping[str, Any],
     notes: list[str],
 ) -> tuple[
-    IdentificationResult, IdentificationResult, list[np.ndarray], _Joint, np.ndarray, int, int, tuple[float, float]
+    IdentificationResult, IdentificationResult, list[np.ndarray], JointFit, np.ndarray, int, int, tuple[float, float]
 ]:
     """Steps 2-4 of the method (docs/identification.md, section 11): merge, identify, joint Gauss-Newton,
     until the transforms ``A`` settle; the round of smallest joint RMS is kept.
@@ -592,10 +592,10 @@ def _fit_rounds(
     res = identify(robot, merged, progress=progress, **identify_kwargs)
     first = res
     rounds, gn_steps, change = 0, 0, (float("inf"), float("inf"))
-    tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], _Joint]] = []
+    tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], JointFit]] = []
     while True:
         rounds += 1
-        joint = _Joint(res.model, _free_names(res), campaigns, campaign, merged, res.inliers)
+        joint = JointFit(res.model, _free_names(res), campaigns, campaign, merged, res.inliers)
         tried.append((joint.rms(res.model.theta, A), rounds, res, A, joint))
         _th, A_new, steps = joint.solve(res.model.theta, A)
         gn_steps += steps
@@ -620,7 +620,7 @@ def _fit_rounds(
 def _finish(
     res: IdentificationResult,
     first: IdentificationResult,
-    joint: _Joint,
+    joint: JointFit,
     A: list[np.ndarray],
     names: list[str],
     campaigns: list[Measurements],

@@ -44,24 +44,34 @@ from models.plausibility import IMPLAUSIBLE_LENGTH_ERROR_M, implausible_geometry
 from models.robot import Robot
 
 from ..measurements import Measurements
-from .diagnostics import UNEXPLAINED_MIN_FRACTION, UNEXPLAINED_RMS_RATIO, _diagnose, structure_left
+from .diagnostics import UNEXPLAINED_MIN_FRACTION, UNEXPLAINED_RMS_RATIO, diagnose, structure_left
 from .evaluation import (
-    _ev_for,
-    _gravity_problem,
-    _Problem,
-    _torque_scale,
+    evaluator_for,
+    gravity_problem,
+    FitProblem,
+    torque_scale,
     make_rows,
     row_weights,
     time_reference,
     with_orientation_rows,
 )
-from .identifiability import Known, _order_for, _structural_held
-from .lsq import _evaluate, _Fit, _fit_model, _jac, _lm, _rms, _wjac, _wres, kabsch
+from .identifiability import Known, priority_order, structural_held
+from .lsq import (
+    evaluate,
+    ModelFit,
+    fit_model,
+    jacobian,
+    levenberg_marquardt,
+    rms,
+    weighted_jacobian,
+    weighted_residual,
+    kabsch,
+)
 from .map_candidate import MAP_CHANNEL_GROUPS, MAP_SEARCH_COMPONENTS
 from .map_summary import ErrorMapSummary, summarise_maps
 from .nominal_check import check_nominal_fit, target_note
-from .orientation import _balance_orientation, _measured_frame_start, _orientation_gain
-from .outliers import _outlier_mask
+from .orientation import balance_orientation, measured_frame_start, orientation_gain
+from .outliers import outlier_mask
 from .results import (
     DataError,
     Diagnostic,
@@ -74,13 +84,13 @@ from .results import (
 )
 from .selection import (
     CV_FOLDS,
-    _assign_folds,
-    _candidate_applicable,
-    _linear_scores,
-    _Run,
-    _Score,
-    _score_p,
-    _State,
+    assign_folds,
+    candidate_applicable,
+    linear_scores,
+    SelectionRun,
+    Score,
+    score_p,
+    SelectionState,
     backward_pass,
     forward_selection,
     noise_floor,
@@ -100,7 +110,7 @@ class _Setup:
 
     Attributes
     ----------
-    prob : _Problem
+    prob : FitProblem
     theta : ndarray, shape (N_PARAMS,)
         Start of the declared model (registration and measured point of the "before" fit).
     R0 : ndarray, shape (3, 3)
@@ -111,7 +121,7 @@ class _Setup:
         Time reference ``(t_start, t_span)``, s.
     temp_ref : float
         Mean temperature of the data (20 deg C without a column).
-    fit_b : _Fit
+    fit_b : ModelFit
         The "before" fit: the nominal model with only registration and measured point.
     order_b : list of int
         Its free parameters.
@@ -120,13 +130,13 @@ class _Setup:
         Progress total.
     """
 
-    prob: _Problem
+    prob: FitProblem
     theta: np.ndarray
     R0: np.ndarray
     tau_s: np.ndarray
     t_ref: tuple[float, float]
     temp_ref: float
-    fit_b: _Fit
+    fit_b: ModelFit
     order_b: list[int]
     n_poses: int
     total_steps: int
@@ -162,7 +172,7 @@ def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand:
     """Step 1: problem inputs, initial registration (and measured frame) and the "before" fit."""
     known = Known.of(registered)
     n_poses = len(np.unique(m.pose_groups()))
-    tau_s, knots = _torque_scale(robot, m)
+    tau_s, knots = torque_scale(robot, m)
     t_ref = time_reference(m)
     temp_ref = float(np.mean(m.temperature)) if m.temperature is not None else fx.THERMAL_REFERENCE_C
     orient = m.rotation is not None
@@ -176,11 +186,11 @@ def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand:
     if orient:
         const = set_const(const, "measured_frame.on", [1.0])
     layout = make_layout(robot, const)
-    ev = _ev_for(robot, const)
+    ev = evaluator_for(robot, const)
     theta = layout.nominal.copy()
     weights = row_weights(mx, is_pos)
     lower, upper = layout.lower.copy(), layout.upper.copy()  # declared by the effect plug-ins
-    fold_idx = _assign_folds(mx, folds)
+    fold_idx = assign_folds(mx, folds)
     total_steps = n_cand + 3
     tick("registration", 0, total_steps)
     if not known.registration:
@@ -195,8 +205,8 @@ def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand:
         theta[GROUP_SLICES["reg.t"]] = t0
         const = set_const(const, "registration.R0", R0)
     if orient and not known.measured_point:
-        const = set_const(const, "measured_frame.R0", _measured_frame_start(robot, m, R0))
-    prob = _Problem(
+        const = set_const(const, "measured_frame.R0", measured_frame_start(robot, m, R0))
+    prob = FitProblem(
         m=mx,
         layout=layout,
         ev=ev,
@@ -209,23 +219,23 @@ def _setup(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand:
         is_pos=is_pos,
     )
     all_rows = np.ones(mx.n, dtype=bool)
-    order_b = _order_for(layout, [], known)
-    pred_b, q_b = _evaluate(prob, theta)
+    order_b = priority_order(layout, [], known)
+    pred_b, q_b = evaluate(prob, theta)
     if not order_b:
-        fit_b = _Fit(
+        fit_b = ModelFit(
             theta=theta.copy(),
             free=np.zeros(0, dtype=int),
             held={},
             inliers=all_rows.copy(),
             pred=pred_b,
             q_eq=q_b,
-            J=_jac(prob, theta, q_b),
+            J=jacobian(prob, theta, q_b),
             converged=True,
             iterations=0,
         )
     else:
         order_b = [i for i in order_b if i not in layout.indices(("stiffness.s",))]
-        fit_b = _lm(prob, theta, np.asarray(order_b), all_rows, pred_b, q_b)
+        fit_b = levenberg_marquardt(prob, theta, np.asarray(order_b), all_rows, pred_b, q_b)
         theta = fit_b.theta.copy()
     return _Setup(
         prob=prob,
@@ -266,17 +276,17 @@ def _held_list(bad: Sequence[int], held: Mapping[int, str], effect: Mapping[int,
 
 def _declared_model(
     s: _Setup, include: Sequence[str], registered: bool, robust: bool, structural: set[int], notes: list[str]
-) -> tuple[_Problem, _Fit]:
+) -> tuple[FitProblem, ModelFit]:
     """Step 2: fit the declared model and the included effects; raise :class:`DataError`
     when the registration, the measured point or an included effect cannot be identified
     (and the cause is not structural)."""
     m, layout = s.prob.m, s.prob.layout
-    prob = _gravity_problem(s.prob, True) if "gravity" in include else s.prob
-    fit = _fit_model(prob, s.theta, include, registered, np.ones(m.n, dtype=bool), robust=robust)
-    reg_idx = set(_order_for(layout, [], registered)) - set(layout.indices(("stiffness.s",)))
+    prob = gravity_problem(s.prob, True) if "gravity" in include else s.prob
+    fit = fit_model(prob, s.theta, include, registered, np.ones(m.n, dtype=bool), robust=robust)
+    reg_idx = set(priority_order(layout, [], registered)) - set(layout.indices(("stiffness.s",)))
     bad = [i for i in fit.held if i in reg_idx and i not in structural]
     if bad:
-        rms_b = _rms(s.fit_b.residual(s.prob))
+        rms_b = rms(s.fit_b.residual(s.prob))
         wrong_robot = (
             f"; the nominal model of robot '{s.prob.layout.robot.name}' misses the data by "
             f"{rms_b * 1e3:.0f} mm RMS after the registration: is --robot the arm that was measured?"
@@ -308,13 +318,13 @@ def _declared_model(
 
 def _saturated(
     robot: Robot,
-    prob: _Problem,
-    fit: _Fit,
+    prob: FitProblem,
+    fit: ModelFit,
     include: Sequence[str],
     sat_effects: list[str],
     registered: bool,
     robust: bool,
-) -> tuple[bool, dict[str, Any], np.ndarray, _Fit]:
+) -> tuple[bool, dict[str, Any], np.ndarray, ModelFit]:
     """Step 3: the saturated model, every testable library effect at once.
 
     Its residual tells whether the library can explain the data at all (then no
@@ -329,7 +339,7 @@ def _saturated(
         ``identifiability.saturated_model`` of the report.
     mask_sel : ndarray of bool, shape (N,)
         Rows of the selection.
-    fit : _Fit
+    fit : ModelFit
         The declared model, refitted on ``mask_sel`` when rows were excluded.
     """
     layout = prob.layout
@@ -337,12 +347,12 @@ def _saturated(
     mask_sel = fit.inliers.copy()
     if len(sat_effects) <= len(include):
         return False, info, mask_sel, fit
-    prob_s = _gravity_problem(prob, True) if "gravity" in sat_effects else prob
+    prob_s = gravity_problem(prob, True) if "gravity" in sat_effects else prob
     th_s = fit.theta.copy()
     if "gravity" in sat_effects and "gravity" not in include:
         gi = layout.effect_indices("gravity")
         th_s[gi] = layout.nominal[gi]
-    fit_s = _fit_model(
+    fit_s = fit_model(
         prob_s,
         th_s,
         sat_effects,
@@ -353,12 +363,12 @@ def _saturated(
         passes=1,
         rounds=2,
     )
-    left = structure_left(_diagnose(prob_s, fit_s, robot))
+    left = structure_left(diagnose(prob_s, fit_s, robot))
     clean = left is None or left.explained_fraction < UNEXPLAINED_MIN_FRACTION
     if robust and not clean and (~fit_s.inliers).any():
         # structure outside the library: only gross errors count as outliers
-        fit_s.inliers = _outlier_mask(prob_s, fit_s.pred, gross_only=True)
-    sc_s, _fr = _score_p(prob_s, layout, fit_s, sat_effects, registered)
+        fit_s.inliers = outlier_mask(prob_s, fit_s.pred, gross_only=True)
+    sc_s, _fr = score_p(prob_s, layout, fit_s, sat_effects, registered)
     info.update(
         {
             "cv_rms_mm": sc_s.cv_rms_m * 1e3,
@@ -370,23 +380,23 @@ def _saturated(
     if robust:
         mask_sel = fit_s.inliers.copy()
         if (~mask_sel).any():
-            fit = _fit_model(prob, fit.theta, include, registered, mask_sel, robust=robust)
+            fit = fit_model(prob, fit.theta, include, registered, mask_sel, robust=robust)
     return clean, info, mask_sel, fit
 
 
-def _final_fit(run: _Run, st: _State) -> None:
+def _final_fit(run: SelectionRun, st: SelectionState) -> None:
     """Step 5: every row is tested against the final model (robust fit), or the final
     model is refitted on all rows."""
     prob, fit = st.prob, st.fit
     if run.robust:
         # a residual with structure the library lacks is not a Gaussian bulk: gross errors only
-        structured = structure_left(_diagnose(prob, fit, run.robot)) is not None
-        final_mask = _outlier_mask(prob, fit.pred, gross_only=structured)
+        structured = structure_left(diagnose(prob, fit, run.robot)) is not None
+        final_mask = outlier_mask(prob, fit.pred, gross_only=structured)
         if not np.array_equal(final_mask, fit.inliers):
-            fit = _fit_model(prob, fit.theta, st.active, run.registered, final_mask, robust=False)
+            fit = fit_model(prob, fit.theta, st.active, run.registered, final_mask, robust=False)
             fit.inliers = final_mask
     else:
-        fit = _fit_model(prob, fit.theta, st.active, run.registered, np.ones(prob.m.n, dtype=bool), robust=False)
+        fit = fit_model(prob, fit.theta, st.active, run.registered, np.ones(prob.m.n, dtype=bool), robust=False)
     if run.robust and (~fit.inliers).any():
         st.effects_added.append("outliers")
     st.fit = fit
@@ -471,7 +481,7 @@ def identify(
     target = target_note(robot, m)
     if target is not None:
         notes.append(target)
-    structural = _structural_held(robot, list(inc) + cand, registered)  # structural vs too few data
+    structural = structural_held(robot, list(inc) + cand, registered)  # structural vs too few data
     tick("declared model", 1, s.total_steps)
     try:
         prob, fit = _declared_model(s, inc, registered, robust, structural, notes)
@@ -480,12 +490,12 @@ def identify(
             raise
         raise DataError(nominal.refusal()) from None  # undetermined against the miss: the wrong robot
     if m.rotation is not None and getattr(m, "sigma_rot", None) is None:
-        prob, fit = _balance_orientation(prob, fit, inc, registered, robust, notes)
+        prob, fit = balance_orientation(prob, fit, inc, registered, robust, notes)
     sigma_noise, noise_src = noise_floor(m)
     sigma_w = None if sigma_noise is None else (1.0 if m.sigma is not None else sigma_noise)
     applicable: dict[str, str] = {}
     for e in cand:
-        ok, why = _candidate_applicable(e, m)
+        ok, why = candidate_applicable(e, m)
         if not ok:
             applicable[e] = why
     tick("saturated library model", 2, s.total_steps)
@@ -493,8 +503,8 @@ def identify(
     if "geometric" in sat_effects and "joint_offset" in sat_effects:
         sat_effects.remove("joint_offset")
     sat_clean, sat_info, mask_sel, fit = _saturated(robot, prob, fit, inc, sat_effects, registered, robust)
-    score_b = _linear_scores(prob, s.fit_b.J, s.fit_b.pred, fit.inliers, np.asarray(s.order_b, dtype=int))
-    run = _Run(
+    score_b = linear_scores(prob, s.fit_b.J, s.fit_b.pred, fit.inliers, np.asarray(s.order_b, dtype=int))
+    run = SelectionRun(
         robot=robot,
         layout=prob.layout,
         registered=registered,
@@ -511,7 +521,7 @@ def identify(
         total_steps=s.total_steps,
         map_components=tuple(map_components),
     )
-    st = _State(prob=prob, fit=fit, active=list(inc))
+    st = SelectionState(prob=prob, fit=fit, active=list(inc))
     forward_selection(run, st)
     backward_pass(run, st)
     tick("final fit and diagnostics", s.total_steps, s.total_steps)
@@ -525,15 +535,15 @@ def identify(
 
 
 def _covariance(
-    prob: _Problem, fit: _Fit, free: Sequence[int], full: list[np.ndarray] | None = None
+    prob: FitProblem, fit: ModelFit, free: Sequence[int], full: list[np.ndarray] | None = None
 ) -> tuple[np.ndarray, float]:
     """Standard deviations (N_PARAMS,), SI (NaN where not free), from ``s^2 (J^T J)^-1``,
     and the condition number of the column-normalised Jacobian; the whole covariance
     (N_PARAMS, N_PARAMS), SI, zero where not free, is appended to ``full`` when given."""
-    r_w = _wres(prob, fit.pred, fit.inliers)
+    r_w = weighted_residual(prob, fit.pred, fit.inliers)
     n_res, k_f = r_w.size, len(free)
     s2 = float(r_w @ r_w) / max(n_res - k_f, 1)
-    Js = _wjac(prob, fit.J, fit.inliers, np.asarray(free, dtype=int))
+    Js = weighted_jacobian(prob, fit.J, fit.inliers, np.asarray(free, dtype=int))
     std = np.full(N_PARAMS, np.nan)
     cond = float("nan")
     if k_f:
@@ -564,7 +574,7 @@ def _effect_of(i: int) -> str:
 
 
 def _parameter_table(
-    layout: ModelLayout, fit: _Fit, order: Sequence[int], std: np.ndarray, active: Sequence[str], registered: bool
+    layout: ModelLayout, fit: ModelFit, order: Sequence[int], std: np.ndarray, active: Sequence[str], registered: bool
 ) -> list[ParameterEstimate]:
     """Every parameter of the model (priority order), with value, std, unit and status."""
     out = []
@@ -608,8 +618,8 @@ def _parameter_table(
 
 
 def _build_model(
-    run: _Run,
-    st: _State,
+    run: SelectionRun,
+    st: SelectionState,
     s: _Setup,
     std: np.ndarray,
     free: Sequence[int],
@@ -647,7 +657,7 @@ def _build_model(
 
 
 def _verdict(
-    diags: Sequence[Diagnostic], score_f: _Score, sigma_noise: float | None, stop_reason: str, converged: bool
+    diags: Sequence[Diagnostic], score_f: Score, sigma_noise: float | None, stop_reason: str, converged: bool
 ) -> tuple[IdentifyStatus, str, dict[str, Any]]:
     """Status, reason and the ``unexplained`` record of the final residual."""
     top = structure_left(diags)
@@ -698,12 +708,18 @@ def _verdict(
 
 
 def _result(
-    run: _Run, st: _State, s: _Setup, score_b: _Score, sat_info: dict[str, Any], noise_src: str, notes: list[str]
+    run: SelectionRun,
+    st: SelectionState,
+    s: _Setup,
+    score_b: Score,
+    sat_info: dict[str, Any],
+    noise_src: str,
+    notes: list[str],
 ) -> IdentificationResult:
     """Step 6: covariance, model, parameter table, diagnostics and verdict."""
     prob, fit, m = st.prob, st.fit, st.prob.m
     score_f, free_f = run.score(prob, fit, st.active)
-    order_f = _order_for(prob.layout, st.active, run.registered)
+    order_f = priority_order(prob.layout, st.active, run.registered)
     cov: list[np.ndarray] = []
     std, cond = _covariance(prob, fit, free_f, cov)
     R_un = fit.residual(prob)
@@ -718,7 +734,7 @@ def _result(
     q_used = prob.m.q[fit.inliers]
     model.joint_range_rad = np.column_stack([q_used.min(axis=0), q_used.max(axis=0)]) if len(q_used) else None
     params = _parameter_table(prob.layout, fit, order_f, std, st.active, run.registered)
-    diags = _diagnose(prob, fit, run.robot)  # diagnostics on the final residual (inliers)
+    diags = diagnose(prob, fit, run.robot)  # diagnostics on the final residual (inliers)
     status, reason, unexplained = _verdict(diags, score_f, run.sigma_noise, st.stop_reason, fit.converged)
     implausible = implausible_geometry(run.robot, fit.theta, [i for i in fit.held])
     if implausible is not None and status is not IdentifyStatus.NOT_CONVERGED:
@@ -763,10 +779,10 @@ def _result(
     if (~pos).any():
         rot = ~pos & fit.inliers
         orient = {
-            "rms_before_rad": _rms(res_b_all[~pos][fit.inliers[~pos]]),
-            "rms_after_rad": _rms(R_un_all[rot]),
+            "rms_before_rad": rms(res_b_all[~pos][fit.inliers[~pos]]),
+            "rms_after_rad": rms(R_un_all[rot]),
             "n_rows": int((~pos).sum()),
-            "identifiable_thanks_to_orientation": _orientation_gain(prob, fit, order_f),
+            "identifiable_thanks_to_orientation": orientation_gain(prob, fit, order_f),
         }
         ident["orientation"] = orient
     return IdentificationResult(
@@ -776,8 +792,8 @@ def _result(
         effects_added=st.effects_added,
         history=st.history,
         parameters=params,
-        rms_before_m=_rms(res_b[inl]),
-        rms_after_m=_rms(R_un[inl]),
+        rms_before_m=rms(res_b[inl]),
+        rms_after_m=rms(R_un[inl]),
         cv_rms_before_m=score_b.cv_rms_m,
         cv_rms_after_m=score_f.cv_rms_m,
         noise_sigma_m=run.sigma_noise,
@@ -796,7 +812,7 @@ def _result(
     )
 
 
-def _error_maps(st: _State, cov: np.ndarray | None) -> list[ErrorMapSummary]:
+def _error_maps(st: SelectionState, cov: np.ndarray | None) -> list[ErrorMapSummary]:
     """Summaries of the identified joint error maps (empty without ``joint_error_map``)."""
     if "joint_error_map" not in st.active:
         return []
