@@ -31,7 +31,7 @@ from models.load import load_rows
 from ..compensation import CompensationStatus
 from ..compensation import exact as exact_compensation
 from ..measurements import POSITION_COLUMNS, Measurements
-from .evaluation import evaluator_for, nominal_tcp, make_rows
+from .evaluation import evaluator_for, make_rows, nominal_tcp
 from .identifiability import aliases_registration
 from .lsq import rms
 from .results import CompensationOutcome, DataError, IdentifiedModel, TargetsError, TargetsFrame

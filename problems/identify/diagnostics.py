@@ -22,7 +22,7 @@ from models.robot import Robot
 
 from ..measurements import Measurements
 from .error_map import joint_smoother_cv, smoother_cv
-from .evaluation import nominal_gravity_torque, nominal_points, FitProblem
+from .evaluation import FitProblem, nominal_gravity_torque, nominal_points
 from .results import Diagnostic
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -21,7 +21,7 @@ from models.effects import PARAM_NAMES, ModelLayout, make_const, make_layout
 from models.robot import Robot
 
 from ..measurements import Measurements
-from .evaluation import evaluator_for, torque_scale, make_rows, time_reference
+from .evaluation import evaluator_for, make_rows, time_reference, torque_scale
 
 #: A parameter whose scaled Jacobian column keeps less than this fraction of its
 #: norm after projection on the columns of higher priority is redundant (held):

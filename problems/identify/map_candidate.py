@@ -18,7 +18,7 @@ from models.effects.joint_error_map import MAP_COMPONENTS
 from models.robot import Robot
 
 from .error_map import MapProposal, propose_map
-from .evaluation import evaluator_for, FitProblem
+from .evaluation import FitProblem, evaluator_for
 from .lsq import ModelFit, weighted_jacobian, weighted_residual
 
 #: The parameter groups whose Jacobian columns are the signatures of the map's components

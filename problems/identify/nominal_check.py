@@ -26,8 +26,8 @@ import numpy as np
 from models.robot import Robot
 
 from ..measurements import (
-    POSITION_COLUMNS,
     PLAUSIBLE_NOMINAL_DEVIATION_M,
+    POSITION_COLUMNS,
     TRACKER_COLUMNS,
     TRACKER_FORMATS,
     Measurements,
@@ -35,7 +35,7 @@ from ..measurements import (
 from ..measurements.columns import TRACKER_LENGTH_FACTOR, TRACKER_TARGET_COLUMNS
 from .evaluation import FitProblem
 from .identifiability import Known
-from .lsq import evaluate, ModelFit, fit_model
+from .lsq import ModelFit, evaluate, fit_model
 from .results import DataError
 
 #: Measured points whose spread differs from the nominal forward kinematics' by more than this

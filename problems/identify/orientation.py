@@ -17,7 +17,7 @@ from models.robot import Robot
 from models.transforms import rotvec_to_matrix
 
 from ..measurements import Measurements
-from .evaluation import nominal_tcp, FitProblem
+from .evaluation import FitProblem, nominal_tcp
 from .identifiability import Known, select_identifiable
 from .lsq import ModelFit, fit_model, rms, weighted_jacobian, weighted_residual
 

@@ -28,9 +28,9 @@ from models.robot import Robot
 from ..measurements import Measurements
 from .diagnostics import diagnose, structure_left
 from .error_map import MapProposal
-from .evaluation import gravity_problem, FitProblem, update_knots
+from .evaluation import FitProblem, gravity_problem, update_knots
 from .identifiability import priority_order, select_identifiable
-from .lsq import evaluate, ModelFit, fit_model, jacobian, rms, solve_normal, weighted_jacobian, weighted_residual
+from .lsq import ModelFit, evaluate, fit_model, jacobian, rms, solve_normal, weighted_jacobian, weighted_residual
 from .map_candidate import MAP_SEARCH_COMPONENTS, map_detail, map_problem
 from .results import CandidateScore, SelectionStep
 
