@@ -137,7 +137,8 @@ def run_design(args: argparse.Namespace) -> int:
     import numpy as np
 
     from models.arm_file import load_model
-    from problems.identify.design import TASK_POOL_POSES, design_campaign, pool_guards, task_region
+    from problems.identify.design import design_campaign, pool_guards
+    from problems.identify.design_region import TASK_POOL_POSES, task_region
 
     model = load_model(args.model)
     if model.covariance is None or not model.covariance_names:
