@@ -21,7 +21,7 @@ from models.errors import InputError
 from models.transforms import matrix_to_rotvec, rotvec_to_matrix
 from planner.cli import main as cli_main
 from problems.identify import DataError, identify, identify_campaigns, merge_campaigns, predict
-from problems.identify.campaigns import JointFit, joint_covariance
+from problems.identify.campaign_joint import JointFit, joint_covariance
 from problems.identify.uncertainty import parameter_jacobian
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
@@ -204,7 +204,7 @@ def test_joint_jacobian_by_finite_differences(setup) -> None:
     theta = res.model.theta
     _r, J = joint.jacobian(theta, A)
     k = len(joint.idx)
-    from problems.identify.campaigns import perturbed
+    from problems.identify.campaign_joint import perturbed
 
     def res_vec(th, AA):
         return (joint.residual(th, AA) * joint.w)[joint.mask].reshape(-1)

@@ -34,7 +34,7 @@ from planner.identify_report.diagnostics import _not_significant_line
 from planner.numbers import format_number, round_sig
 from problems.identify.diagnostics import regress_cv, run_diagnostics
 from problems.identify.results import HELD_MESSAGE_MAX_CHARS, HeldGroup, HeldSummary, joints_text
-from problems.identify.selection import candidate_score, significance, Score
+from problems.identify.selection_scores import Score, candidate_score, significance
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
 

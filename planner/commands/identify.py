@@ -297,7 +297,8 @@ def run_identify(args: argparse.Namespace) -> int:
         identify,
         validate_on,
     )
-    from problems.identify.campaigns import campaign_names, identify_campaigns
+    from problems.identify.campaign_merge import campaign_names
+    from problems.identify.campaigns import identify_campaigns
 
     robot = load_robot(args.robot)
     datas = [_read(args, p) for p in paths]

@@ -39,14 +39,19 @@ Modules
     :func:`select_identifiable`, the priority order, structural holds.
 :mod:`~problems.identify.outliers`
     The robust exclusion of rows.
+:mod:`~problems.identify.selection_scores`
+    Scores, cross-validation, BIC, F-test, noise floor.
 :mod:`~problems.identify.selection`
-    Scores, cross-validation, BIC, F-test, noise floor, the forward and backward steps.
+    The forward and backward steps.
 :mod:`~problems.identify.diagnostics`
     Regressions of the residual on explanatory variables.
 :mod:`~problems.identify.engine`
-    :func:`identify`, in named steps.
+    :func:`identify`, in named steps (step 1 in :mod:`~problems.identify.fit_setup`, the result in
+    :mod:`~problems.identify.outcome`).
 :mod:`~problems.identify.campaigns`
-    :func:`identify_campaigns`: one model from several campaigns, one registration each.
+    :func:`identify_campaigns`: one model from several campaigns, one registration each (the merged
+    table in :mod:`~problems.identify.campaign_merge`, the joint problem in
+    :mod:`~problems.identify.campaign_joint`).
 :mod:`~problems.identify.apply`
     :func:`predict`, :func:`compensate`, :func:`compensate_targets`,
     :func:`compensation_check`, :func:`validate_on`.
@@ -68,7 +73,8 @@ from .apply import (
     unobservable_in_base,
     validate_on,
 )
-from .campaigns import identify_campaigns, merge_campaigns
+from .campaign_merge import merge_campaigns
+from .campaigns import identify_campaigns
 from .engine import identify
 from .evaluation import evaluator
 from .results import (
@@ -80,7 +86,7 @@ from .results import (
     TargetsError,
     TargetsFrame,
 )
-from .selection import CV_FOLDS
+from .selection_scores import CV_FOLDS
 
 __all__ = [
     # results and statuses

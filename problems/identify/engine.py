@@ -39,18 +39,8 @@ from .nominal_check import check_nominal_fit, target_note
 from .orientation import balance_orientation
 from .outliers import outlier_mask
 from .results import DataError, IdentificationResult, Progress
-from .selection import (
-    CV_FOLDS,
-    Score,
-    SelectionRun,
-    SelectionState,
-    backward_pass,
-    candidate_applicable,
-    forward_selection,
-    linear_scores,
-    noise_floor,
-    score_p,
-)
+from .selection import SelectionRun, SelectionState, backward_pass, forward_selection
+from .selection_scores import CV_FOLDS, Score, candidate_applicable, linear_scores, noise_floor, score_p
 
 from .fit_setup import FitSetup, effect_lists, known_parts, setup_fit
 from .outcome import build_result

@@ -33,7 +33,7 @@ from .identifiability import Known, priority_order
 from .lsq import ModelFit, evaluate, jacobian, kabsch, levenberg_marquardt
 from .orientation import measured_frame_start
 from .results import DataError, Progress
-from .selection import assign_folds
+from .selection_scores import assign_folds
 
 
 #: Parts of the set-up that can be declared known (``identify(known=...)``).

@@ -35,7 +35,8 @@ from .results import (
     ParameterEstimate,
     ParameterStatus,
 )
-from .selection import Score, SelectionRun, SelectionState
+from .selection import SelectionRun, SelectionState
+from .selection_scores import Score
 
 
 #: Parameter groups of the registration and the measured point (and frame).
