@@ -1,6 +1,6 @@
 """Simulating a measurement campaign: poses, loads, times and temperatures, noise, outliers.
 
-:class:`_Campaign` is a part of :class:`~problems.virtual.robot.VirtualRobot`: it reads
+:class:`CampaignPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`: it reads
 the ``[campaign]``, ``[noise]`` and ``[temperature]`` tables, draws the outliers of ``[effects.outliers]``,
 measures the rows with the robot's noise-free measurement and returns them as
 :class:`~problems.measurements.Measurements`.
@@ -19,12 +19,12 @@ from .config import (
     DEFAULT_NOISE,
     SIM_MAX_ROWS,
     SimConfigError,
-    _at_least,
-    _bool,
-    _int,
-    _magnitudes,
-    _num,
-    _table,
+    at_least,
+    boolean,
+    integer,
+    magnitudes,
+    number,
+    table,
 )
 from .geometry import rotvecs
 
@@ -66,7 +66,7 @@ class _CampaignPlan(NamedTuple):
     z_min_m: float
 
 
-class _Campaign:
+class CampaignPart:
     """The measurement campaign of the configuration (a part of :class:`VirtualRobot`)."""
 
     def sample_poses(
@@ -131,9 +131,9 @@ class _Campaign:
         # measurement noise, outliers, orientation noise (last, so that switching the
         # orientation on leaves every other column of the campaign unchanged).
         rng = np.random.default_rng(self.seed + 1 if seed is None else seed)
-        camp = {**DEFAULT_CAMPAIGN, **_table(self.where, self.config, "campaign", set(DEFAULT_CAMPAIGN))}
+        camp = {**DEFAULT_CAMPAIGN, **table(self.where, self.config, "campaign", set(DEFAULT_CAMPAIGN))}
         plan = self._campaign_plan(camp)
-        orientation = _bool(f"{self.where}: [campaign]", "orientation", camp["orientation"])
+        orientation = boolean(f"{self.where}: [campaign]", "orientation", camp["orientation"])
         sigma_rad, rot_column = self._rotation_noise_config(orientation)
         q_poses = self.sample_poses(plan.poses, rng, plan.r_min_m, plan.z_min_m)
         q, F, pts = self._campaign_loads(q_poses, plan, rng)
@@ -147,7 +147,7 @@ class _Campaign:
         self._campaign_outliers(p, rng)
         extra: dict[str, Any] = {}
         if R is not None:
-            extra["rotation"] = rotvecs(self._campaign_rotation_noise(R, sigma_rad, rng))
+            extra["rotation"] = rotvecs(self.campaign_rotation_noise(R, sigma_rad, rng))
             if rot_column:
                 extra["sigma_rot"] = np.full((n, 3), sigma_rad)
         if progress is not None:
@@ -167,11 +167,11 @@ class _Campaign:
     def _rotation_noise_config(self, orientation: bool) -> tuple[float, bool]:
         """The orientation keys of ``[noise]``: ``sigma_rad`` (rad, >= 0; > 0 with the column)
         and ``sigma_rot_column`` (needs ``[campaign] orientation = true``)."""
-        ncfg = _table(self.where, self.config, "noise", set(DEFAULT_NOISE))
+        ncfg = table(self.where, self.config, "noise", set(DEFAULT_NOISE))
         nw = f"{self.where}: [noise]"
-        sigma = _num(nw, "sigma_rad", ncfg.get("sigma_rad", DEFAULT_NOISE["sigma_rad"]))
-        column = _bool(nw, "sigma_rot_column", ncfg.get("sigma_rot_column", DEFAULT_NOISE["sigma_rot_column"]))
-        _at_least(
+        sigma = number(nw, "sigma_rad", ncfg.get("sigma_rad", DEFAULT_NOISE["sigma_rad"]))
+        column = boolean(nw, "sigma_rot_column", ncfg.get("sigma_rot_column", DEFAULT_NOISE["sigma_rot_column"]))
+        at_least(
             nw,
             "sigma_rad",
             sigma,
@@ -187,7 +187,7 @@ class _Campaign:
         return sigma, column
 
     @staticmethod
-    def _campaign_rotation_noise(R: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
+    def campaign_rotation_noise(R: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
         """Orientation noise: ``R exp([w]x)``, ``w ~ N(0, sigma_rad^2 I)`` (measured frame).
 
         Parameters
@@ -208,10 +208,10 @@ class _Campaign:
         """Validate the row-shaping keys of ``camp``, the ``[campaign]`` table merged over
         :data:`DEFAULT_CAMPAIGN` (``dt_s`` is read later, by :meth:`_campaign_times`)."""
         cw = f"{self.where}: [campaign]"
-        n_poses = _int(cw, "poses", camp["poses"], 1)
-        n_un = _int(cw, "unloaded_rows", camp["unloaded_rows"], 0)
-        n_ld = _int(cw, "loaded_rows", camp["loaded_rows"], 0)
-        n_rep = _int(cw, "repeats", camp["repeats"], 0)
+        n_poses = integer(cw, "poses", camp["poses"], 1)
+        n_un = integer(cw, "unloaded_rows", camp["unloaded_rows"], 0)
+        n_ld = integer(cw, "loaded_rows", camp["loaded_rows"], 0)
+        n_rep = integer(cw, "repeats", camp["repeats"], 0)
         if n_un + n_ld == 0:
             raise SimConfigError(
                 f"{cw}: keys 'unloaded_rows' and 'loaded_rows' are both 0; a pose needs at least one row"
@@ -222,16 +222,18 @@ class _Campaign:
                 f"{cw}: {n_poses} poses x {n_un + n_ld + n_rep} rows = {n_rows} rows, more than "
                 f"the cap of {SIM_MAX_ROWS} rows (SIM_MAX_ROWS)"
             )
-        mags = _magnitudes(cw, "force_magnitudes_N", camp["force_magnitudes_N"])
-        mmags = _magnitudes(cw, "moment_magnitudes_Nm", camp["moment_magnitudes_Nm"])
+        mags = magnitudes(cw, "force_magnitudes_N", camp["force_magnitudes_N"])
+        mmags = magnitudes(cw, "moment_magnitudes_Nm", camp["moment_magnitudes_Nm"])
         dirs = camp["directions"]
         if dirs not in ("random", "axes", "down"):
             raise SimConfigError(f"{cw}: key 'directions' must be 'random', 'axes' or 'down', got {dirs!r}")
-        dt = _num(cw, "dt_s", camp["dt_s"])
-        _at_least(cw, "dt_s", dt, 0.0, strict=True, what="s (the time between rows)")
-        r_min = _num(cw, "r_min_m", camp["r_min_m"])
-        _at_least(cw, "r_min_m", r_min, 0.0)
-        return _CampaignPlan(n_poses, n_un, n_ld, n_rep, mags, mmags, dirs, r_min, _num(cw, "z_min_m", camp["z_min_m"]))
+        dt = number(cw, "dt_s", camp["dt_s"])
+        at_least(cw, "dt_s", dt, 0.0, strict=True, what="s (the time between rows)")
+        r_min = number(cw, "r_min_m", camp["r_min_m"])
+        at_least(cw, "r_min_m", r_min, 0.0)
+        return _CampaignPlan(
+            n_poses, n_un, n_ld, n_rep, mags, mmags, dirs, r_min, number(cw, "z_min_m", camp["z_min_m"])
+        )
 
     def _campaign_loads(
         self, q_poses: np.ndarray, plan: _CampaignPlan, rng: np.random.Generator
@@ -310,18 +312,18 @@ class _Campaign:
         temperature : ndarray, shape (N,) or None
             Warm-up curve ``start + (end - start)(1 - exp(-t/tau))`` plus noise, deg C.
         """
-        dt = _num(f"{self.where}: [campaign]", "dt_s", camp["dt_s"])
+        dt = number(f"{self.where}: [campaign]", "dt_s", camp["dt_s"])
         t = np.arange(n) * dt
-        tcfg = _table(self.where, self.config, "temperature", {"start_C", "end_C", "time_constant_s", "noise_C"})
+        tcfg = table(self.where, self.config, "temperature", {"start_C", "end_C", "time_constant_s", "noise_C"})
         if not tcfg:
             return t, None
         tw = f"{self.where}: [temperature]"
-        t0 = _num(tw, "start_C", tcfg.get("start_C", 20.0))
-        t1 = _num(tw, "end_C", tcfg.get("end_C", t0))
-        tau = _num(tw, "time_constant_s", tcfg.get("time_constant_s", max(t[-1], 1.0) / 2))
-        _at_least(tw, "time_constant_s", tau, 0.0, strict=True, what="s")
-        noise_c = _num(tw, "noise_C", tcfg.get("noise_C", 0.0))
-        _at_least(tw, "noise_C", noise_c, 0.0, what="(a standard deviation, deg C)")
+        t0 = number(tw, "start_C", tcfg.get("start_C", 20.0))
+        t1 = number(tw, "end_C", tcfg.get("end_C", t0))
+        tau = number(tw, "time_constant_s", tcfg.get("time_constant_s", max(t[-1], 1.0) / 2))
+        at_least(tw, "time_constant_s", tau, 0.0, strict=True, what="s")
+        noise_c = number(tw, "noise_C", tcfg.get("noise_C", 0.0))
+        at_least(tw, "noise_C", noise_c, 0.0, what="(a standard deviation, deg C)")
         temperature = t0 + (t1 - t0) * (1 - np.exp(-t / tau))
         temperature = temperature + rng.normal(0, noise_c, n)
         return t, temperature
@@ -343,11 +345,11 @@ class _Campaign:
         sigma : ndarray, shape (N,) or None
             The per-axis noise sigma of each row, m, if ``sigma_column`` is set.
         """
-        ncfg = _table(self.where, self.config, "noise", set(DEFAULT_NOISE))
+        ncfg = table(self.where, self.config, "noise", set(DEFAULT_NOISE))
         nw = f"{self.where}: [noise]"
-        sigma = _num(nw, "sigma_m", ncfg.get("sigma_m", DEFAULT_NOISE["sigma_m"]))
-        column = _bool(nw, "sigma_column", ncfg.get("sigma_column", DEFAULT_NOISE["sigma_column"]))
-        _at_least(
+        sigma = number(nw, "sigma_m", ncfg.get("sigma_m", DEFAULT_NOISE["sigma_m"]))
+        column = boolean(nw, "sigma_column", ncfg.get("sigma_column", DEFAULT_NOISE["sigma_column"]))
+        at_least(
             nw,
             "sigma_m",
             sigma,

@@ -22,7 +22,7 @@ from models.errors import InputError
 #: ``[registration]``: :func:`~problems.virtual.registry.top_level_tables`).  The keys of those and
 #: of each ``[effects.NAME]`` table are declared with their realisation
 #: (:mod:`~problems.virtual.effects`, :func:`~problems.virtual.registry.simulates`).
-_TOP_KEYS = {"seed", "campaign", "noise", "temperature", "effects", "units"}
+TOP_KEYS = {"seed", "campaign", "noise", "temperature", "effects", "units"}
 #: Keys of the ``[campaign]`` table and their defaults.
 DEFAULT_CAMPAIGN = {
     "poses": 100,
@@ -69,23 +69,23 @@ def load_config(path: str | Path) -> dict[str, Any]:
 # ----------------------------------------------------------------------------------
 
 
-def _num(where: str, key: str, v: Any) -> float:
+def number(where: str, key: str, v: Any) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
         raise SimConfigError(f"{where}: key '{key}' must be a finite number, got {v!r}")
     return float(v)
 
 
-def _vec(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.ndarray:
+def vector(where: str, key: str, v: Any, n: int, broadcast: bool = True) -> np.ndarray:
     if broadcast and isinstance(v, (int, float)) and not isinstance(v, bool):
-        return np.full(n, _num(where, key, v))
+        return np.full(n, number(where, key, v))
     if not isinstance(v, (list, tuple)) or len(v) != n:
         raise SimConfigError(
             f"{where}: key '{key}' must be {'a number or ' if broadcast else ''}a list of {n} numbers, got {v!r}"
         )
-    return np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+    return np.array([number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
 
 
-def _at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bool = False, what: str = "") -> None:
+def at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bool = False, what: str = "") -> None:
     """Refuse values below ``lo`` (or equal to it when ``strict``), naming the key and the value."""
     arr = np.atleast_1d(np.asarray(v, dtype=float))
     bad = np.flatnonzero(arr <= lo) if strict else np.flatnonzero(arr < lo)
@@ -98,32 +98,32 @@ def _at_least(where: str, key: str, v: float | np.ndarray, lo: float, strict: bo
         )
 
 
-def _int(where: str, key: str, v: Any, lo: int) -> int:
+def integer(where: str, key: str, v: Any, lo: int) -> int:
     """An integer >= ``lo`` (a float such as 20.5 or a string is refused)."""
     if isinstance(v, bool) or not isinstance(v, int) or v < lo:
         raise SimConfigError(f"{where}: key '{key}' must be an integer >= {lo}, got {v!r}")
     return int(v)
 
 
-def _bool(where: str, key: str, v: Any) -> bool:
+def boolean(where: str, key: str, v: Any) -> bool:
     if not isinstance(v, bool):
         raise SimConfigError(f"{where}: key '{key}' must be true or false, got {v!r}")
     return v
 
 
-def _magnitudes(where: str, key: str, v: Any) -> np.ndarray:
+def magnitudes(where: str, key: str, v: Any) -> np.ndarray:
     """A number or a non-empty list of finite numbers >= 0 (force or moment magnitudes)."""
     if isinstance(v, (int, float)) and not isinstance(v, bool):
-        out = np.array([_num(where, key, v)])
+        out = np.array([number(where, key, v)])
     elif isinstance(v, list) and v:
-        out = np.array([_num(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
+        out = np.array([number(where, f"{key}[{i}]", x) for i, x in enumerate(v)])
     else:
         raise SimConfigError(f"{where}: key '{key}' must be a number or a non-empty list of numbers, got {v!r}")
-    _at_least(where, key, out if isinstance(v, list) else out[0], 0.0)
+    at_least(where, key, out if isinstance(v, list) else out[0], 0.0)
     return out
 
 
-def _table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> dict[str, Any]:
+def table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> dict[str, Any]:
     t = cfg.get(key, {})
     if not isinstance(t, Mapping):
         raise SimConfigError(f"{where}: '{key}' must be a table")
@@ -133,7 +133,7 @@ def _table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> d
     return dict(t)
 
 
-def _joint_list(where: str, links: Any) -> list[int]:
+def joint_list(where: str, links: Any) -> list[int]:
     """``links``, checked to be a list of joint numbers 1..6 (``where``: the table, for messages)."""
     if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
         raise SimConfigError(f"{where}: key 'links' must be a list of joint numbers 1..6, got {links!r}")

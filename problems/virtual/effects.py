@@ -1,6 +1,6 @@
 """Realising the simulated effects: the true parameters of each simulated table.
 
-:class:`_EffectRealisation` is a part of :class:`~problems.virtual.robot.VirtualRobot`.
+:class:`EffectPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`.
 Each of its ``_realise_*`` methods realises the physics of the model effects it names in its
 :func:`~problems.virtual.registry.simulates` decorator, from that table of the configuration
 (which table is the effects' declaration, ``Effect.simulation``; the decorator lists the
@@ -25,12 +25,12 @@ from .config import (
     SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD,
     SIM_JOINT_ERROR_MAX_HARMONIC,
     SimConfigError,
-    _at_least,
-    _bool,
-    _joint_list,
-    _num,
-    _table,
-    _vec,
+    at_least,
+    boolean,
+    joint_list,
+    number,
+    table,
+    vector,
 )
 from .registry import realisations, simulates
 
@@ -38,13 +38,13 @@ from .registry import realisations, simulates
 Table = Mapping[str, Any] | None
 
 
-class _EffectRealisation:
+class EffectPart:
     """The realisation of every configured effect (a part of :class:`VirtualRobot`)."""
 
     def _realise_declared(self, cfg: Mapping[str, Any], rng: np.random.Generator) -> None:
         """Realise the declared model from its top-level tables (always; defaults when absent)."""
         for r in realisations(top_level=True):
-            t = _table(self.where, cfg, r.table, set(r.keys))
+            t = table(self.where, cfg, r.table, set(r.keys))
             getattr(self, r.method)(t, f"{self.where}: [{r.table}]", rng)
         self._simulated = {name for r in realisations(top_level=True) for name in r.effects}
 
@@ -76,8 +76,8 @@ class _EffectRealisation:
     def _realise_stiffness(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """The declared joint springs: :attr:`k_true` (6,) N*m/rad, the robot file's stiffness times
         ``scale`` (a number or 6)."""
-        scale = _vec(ew, "scale", e.get("scale", 1.0), 6)
-        _at_least(ew, "scale", scale if isinstance(e.get("scale"), list) else scale[0], 0.0, strict=True)
+        scale = vector(ew, "scale", e.get("scale", 1.0), 6)
+        at_least(ew, "scale", scale if isinstance(e.get("scale"), list) else scale[0], 0.0, strict=True)
         self.k_true = self.robot.stiffness * scale
 
     @simulates(
@@ -90,22 +90,22 @@ class _EffectRealisation:
         :attr:`t_reg` (3,) m (base frame -> measurement frame), :attr:`p_tool` (3,) m, flange frame
         (registered data: identity, zero and the robot file's TCP)."""
         robot = self.robot
-        self.registered = _bool(ew, "registered", e.get("registered", False))
+        self.registered = boolean(ew, "registered", e.get("registered", False))
         if self.registered:
             self.R_reg, self.t_reg = np.eye(3), np.zeros(3)
             self.p_tool = robot.tcp2flange[:3, 3].copy()
         else:
             self.R_reg = rotvec_to_matrix(
-                _vec(ew, "base2meas_rotvec_rad", e.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False)
+                vector(ew, "base2meas_rotvec_rad", e.get("base2meas_rotvec_rad", [0.02, -0.01, 0.6]), 3, False)
             )
-            self.t_reg = _vec(ew, "base2meas_xyz_m", e.get("base2meas_xyz_m", [1.5, -0.5, 0.2]), 3, False)
-            self.p_tool = _vec(ew, "measured_point_m", e.get("measured_point_m", [0.02, -0.015, 0.06]), 3, False)
+            self.t_reg = vector(ew, "base2meas_xyz_m", e.get("base2meas_xyz_m", [1.5, -0.5, 0.2]), 3, False)
+            self.p_tool = vector(ew, "measured_point_m", e.get("measured_point_m", [0.02, -0.015, 0.06]), 3, False)
 
     @simulates("joint_offset", keys={"dtheta_rad"})
     def _realise_joint_offset(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """Joint offsets: add the zero offsets to :attr:`dtheta`, shape (6,), rad."""
         if e is not None:
-            self.dtheta += _vec(ew, "dtheta_rad", e.get("dtheta_rad", 1e-3), 6)
+            self.dtheta += vector(ew, "dtheta_rad", e.get("dtheta_rad", 1e-3), 6)
 
     @simulates(
         "geometric", keys={"sigma_length_m", "sigma_angle_rad", "da_m", "dalpha_rad", "dd_m", "dtheta_rad", "dbeta_rad"}
@@ -120,17 +120,17 @@ class _EffectRealisation:
         """
         if e is None:
             return
-        sl = _num(ew, "sigma_length_m", e.get("sigma_length_m", 5e-4))
-        sa = _num(ew, "sigma_angle_rad", e.get("sigma_angle_rad", 1e-3))
-        _at_least(ew, "sigma_length_m", sl, 0.0, what="(a standard deviation, m)")
-        _at_least(ew, "sigma_angle_rad", sa, 0.0, what="(a standard deviation, rad)")
-        self.da += _vec(ew, "da_m", e["da_m"], 6) if "da_m" in e else rng.normal(0, sl, 6)
-        self.dd += _vec(ew, "dd_m", e["dd_m"], 6) if "dd_m" in e else rng.normal(0, sl, 6)
-        self.dalpha += _vec(ew, "dalpha_rad", e["dalpha_rad"], 6) if "dalpha_rad" in e else rng.normal(0, sa, 6)
-        self.dtheta += _vec(ew, "dtheta_rad", e["dtheta_rad"], 6) if "dtheta_rad" in e else rng.normal(0, sa, 6)
+        sl = number(ew, "sigma_length_m", e.get("sigma_length_m", 5e-4))
+        sa = number(ew, "sigma_angle_rad", e.get("sigma_angle_rad", 1e-3))
+        at_least(ew, "sigma_length_m", sl, 0.0, what="(a standard deviation, m)")
+        at_least(ew, "sigma_angle_rad", sa, 0.0, what="(a standard deviation, rad)")
+        self.da += vector(ew, "da_m", e["da_m"], 6) if "da_m" in e else rng.normal(0, sl, 6)
+        self.dd += vector(ew, "dd_m", e["dd_m"], 6) if "dd_m" in e else rng.normal(0, sl, 6)
+        self.dalpha += vector(ew, "dalpha_rad", e["dalpha_rad"], 6) if "dalpha_rad" in e else rng.normal(0, sa, 6)
+        self.dtheta += vector(ew, "dtheta_rad", e["dtheta_rad"], 6) if "dtheta_rad" in e else rng.normal(0, sa, 6)
         par = np.abs(np.sin(self.robot.alpha)) < 1e-6
         par[5] = False
-        beta = _vec(ew, "dbeta_rad", e["dbeta_rad"], 6) if "dbeta_rad" in e else rng.normal(0, sa, 6)
+        beta = vector(ew, "dbeta_rad", e["dbeta_rad"], 6) if "dbeta_rad" in e else rng.normal(0, sa, 6)
         self.dbeta += np.where(par, beta, 0.0)
 
     @simulates("gravity", keys={"masses_kg", "coms_m", "mass_scale", "payload_kg", "payload_com_m"})
@@ -147,8 +147,8 @@ class _EffectRealisation:
             self.payload, self.payload_com = 0.0, np.zeros(3)
             return
         if "masses_kg" in e:
-            self.masses = _vec(ew, "masses_kg", e["masses_kg"], 6)
-            _at_least(ew, "masses_kg", self.masses, 0.0)
+            self.masses = vector(ew, "masses_kg", e["masses_kg"], 6)
+            at_least(ew, "masses_kg", self.masses, 0.0)
         elif r.has_masses:
             self.masses = r.masses.copy()
         else:
@@ -157,27 +157,27 @@ class _EffectRealisation:
             c = e["coms_m"]
             if not isinstance(c, list) or len(c) != 6:
                 raise SimConfigError(f"{ew}: key 'coms_m' must be a list of 6 [x, y, z] lists")
-            self.coms = np.array([_vec(ew, f"coms_m[{i}]", ci, 3, False) for i, ci in enumerate(c)])
+            self.coms = np.array([vector(ew, f"coms_m[{i}]", ci, 3, False) for i, ci in enumerate(c)])
         elif r.has_masses:
             self.coms = r.coms.copy()
         else:  # generic: half way back along the link (in link frame i, standard DH: -a/2 on x)
             self.coms = np.column_stack([-r.a / 2.0, np.zeros(6), np.zeros(6)])
-        mass_scale = _num(ew, "mass_scale", e.get("mass_scale", 1.0))
-        _at_least(ew, "mass_scale", mass_scale, 0.0)
+        mass_scale = number(ew, "mass_scale", e.get("mass_scale", 1.0))
+        at_least(ew, "mass_scale", mass_scale, 0.0)
         self.masses = self.masses * mass_scale
-        self.payload = _num(ew, "payload_kg", e.get("payload_kg", 0.0))
-        _at_least(ew, "payload_kg", self.payload, 0.0)
-        self.payload_com = _vec(ew, "payload_com_m", e.get("payload_com_m", [0.0, 0.0, 0.05]), 3, False)
+        self.payload = number(ew, "payload_kg", e.get("payload_kg", 0.0))
+        at_least(ew, "payload_kg", self.payload, 0.0)
+        self.payload_com = vector(ew, "payload_com_m", e.get("payload_com_m", [0.0, 0.0, 0.05]), 3, False)
 
     @simulates("lost_motion", keys={"backlash_rad", "smoothing_Nm"})
     def _realise_lost_motion(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """Lost motion: :attr:`backlash` (6,) rad (half dead band) and
         :attr:`backlash_smoothing` N*m (0: a hard sign)."""
         if e is not None:
-            self.backlash = _vec(ew, "backlash_rad", e.get("backlash_rad", 2e-4), 6)
-            _at_least(ew, "backlash_rad", self.backlash, 0.0, what="(half the dead band)")
-            self.backlash_smoothing = _num(ew, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
-            _at_least(ew, "smoothing_Nm", self.backlash_smoothing, 0.0)
+            self.backlash = vector(ew, "backlash_rad", e.get("backlash_rad", 2e-4), 6)
+            at_least(ew, "backlash_rad", self.backlash, 0.0, what="(half the dead band)")
+            self.backlash_smoothing = number(ew, "smoothing_Nm", e.get("smoothing_Nm", 0.0))
+            at_least(ew, "smoothing_Nm", self.backlash_smoothing, 0.0)
 
     @simulates("stiffness_hardening", keys={"model", "knee_torque_Nm", "stiffness_ratio", "beta_per_Nm"})
     def _realise_stiffness_hardening(self, e: Table, ew: str, rng: np.random.Generator) -> None:
@@ -188,18 +188,20 @@ class _EffectRealisation:
         self.hard_model = e.get("model", "two_slope")
         if self.hard_model not in ("two_slope", "smooth"):
             raise SimConfigError(f"{ew}: key 'model' must be 'two_slope' or 'smooth', got {self.hard_model!r}")
-        self.knee = _vec(ew, "knee_torque_Nm", e.get("knee_torque_Nm", 20.0), 6)
-        self.hard_ratio = _vec(ew, "stiffness_ratio", e.get("stiffness_ratio", 2.0), 6)
-        self.hard_beta = _vec(ew, "beta_per_Nm", e.get("beta_per_Nm", 0.01), 6)
-        _at_least(ew, "knee_torque_Nm", self.knee, 0.0)
-        _at_least(ew, "stiffness_ratio", self.hard_ratio, 0.0, strict=True)
-        _at_least(ew, "beta_per_Nm", self.hard_beta, 0.0)
+        self.knee = vector(ew, "knee_torque_Nm", e.get("knee_torque_Nm", 20.0), 6)
+        self.hard_ratio = vector(ew, "stiffness_ratio", e.get("stiffness_ratio", 2.0), 6)
+        self.hard_beta = vector(ew, "beta_per_Nm", e.get("beta_per_Nm", 0.01), 6)
+        at_least(ew, "knee_torque_Nm", self.knee, 0.0)
+        at_least(ew, "stiffness_ratio", self.hard_ratio, 0.0, strict=True)
+        at_least(ew, "beta_per_Nm", self.hard_beta, 0.0)
 
     @simulates("load_offset", keys={"r_tool_m"})
     def _realise_load_offset(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """Load offset: :attr:`r_tool` (3,) m, TCP frame, where the wrench's force acts (zeros
         without the effect)."""
-        self.r_tool = np.zeros(3) if e is None else _vec(ew, "r_tool_m", e.get("r_tool_m", [0.0, 0.03, 0.05]), 3, False)
+        self.r_tool = (
+            np.zeros(3) if e is None else vector(ew, "r_tool_m", e.get("r_tool_m", [0.0, 0.03, 0.05]), 3, False)
+        )
 
     @simulates("link_compliance", keys={"links", "EI_Nm2", "GJ_Nm2"})
     def _realise_link_compliance(self, e: Table, ew: str, rng: np.random.Generator) -> None:
@@ -207,20 +209,22 @@ class _EffectRealisation:
         link), N*m^2."""
         if e is None:
             return
-        links = _joint_list(ew, e.get("links", [2, 3]))
+        links = joint_list(ew, e.get("links", [2, 3]))
         self.beam_links = [x - 1 for x in links]
-        self.EI = _vec(ew, "EI_Nm2", e.get("EI_Nm2", 2.0e5), len(links))
-        self.GJ = _vec(ew, "GJ_Nm2", e.get("GJ_Nm2", 1.5e5), len(links))
-        _at_least(ew, "EI_Nm2", self.EI, 0.0, strict=True)
-        _at_least(ew, "GJ_Nm2", self.GJ, 0.0, strict=True)
+        self.EI = vector(ew, "EI_Nm2", e.get("EI_Nm2", 2.0e5), len(links))
+        self.GJ = vector(ew, "GJ_Nm2", e.get("GJ_Nm2", 1.5e5), len(links))
+        at_least(ew, "EI_Nm2", self.EI, 0.0, strict=True)
+        at_least(ew, "GJ_Nm2", self.GJ, 0.0, strict=True)
 
     @simulates("drift", keys={"rate_m_per_h", "accel_m_per_h2"})
     def _realise_drift(self, e: Table, ew: str, rng: np.random.Generator) -> None:
         """Drift of the instrument: :attr:`drift_rate` (3,) m/s and :attr:`drift_acc` (3,) m/s^2,
         measurement frame."""
         if e is not None:
-            self.drift_rate = _vec(ew, "rate_m_per_h", e.get("rate_m_per_h", [1e-4, -5e-5, 8e-5]), 3, False) / 3600.0
-            self.drift_acc = _vec(ew, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3, False) / 3600.0**2
+            self.drift_rate = vector(ew, "rate_m_per_h", e.get("rate_m_per_h", [1e-4, -5e-5, 8e-5]), 3, False) / 3600.0
+            self.drift_acc = (
+                vector(ew, "accel_m_per_h2", e.get("accel_m_per_h2", [0.0, 0.0, 0.0]), 3, False) / 3600.0**2
+            )
 
     @simulates("thermal", keys={"alpha_per_K", "links", "reference_C"})
     def _realise_thermal(self, e: Table, ew: str, rng: np.random.Generator) -> None:
@@ -228,10 +232,10 @@ class _EffectRealisation:
         expand) and :attr:`th_ref` deg C."""
         if e is None:
             return
-        self.th_alpha = _num(ew, "alpha_per_K", e.get("alpha_per_K", 2.3e-5))
-        links = _joint_list(ew, e.get("links", [2, 3]))
+        self.th_alpha = number(ew, "alpha_per_K", e.get("alpha_per_K", 2.3e-5))
+        links = joint_list(ew, e.get("links", [2, 3]))
         self.th_links = [x - 1 for x in links]
-        self.th_ref = _num(ew, "reference_C", e.get("reference_C", 20.0))
+        self.th_ref = number(ew, "reference_C", e.get("reference_C", 20.0))
 
     @simulates("joint_error_map", keys={"joint", "amplitude_rad", "harmonic", "phase_rad"})
     def _realise_joint_error(self, e: Table, ew: str, rng: np.random.Generator) -> None:
@@ -280,9 +284,9 @@ class _EffectRealisation:
             if isinstance(j, bool) or not isinstance(j, int) or not 1 <= j <= 6:
                 raise SimConfigError(f"{ew}: key '{k}' must be a joint number 1..6, got {j!r}")
             joints.append(j - 1)
-        amp = np.array([_num(ew, k, v) for k, v in entries("amplitude_rad")])
-        harm = np.array([_num(ew, k, v) for k, v in entries("harmonic")])
-        phase = np.array([_num(ew, k, v) for k, v in entries("phase_rad")])
+        amp = np.array([number(ew, k, v) for k, v in entries("amplitude_rad")])
+        harm = np.array([number(ew, k, v) for k, v in entries("harmonic")])
+        phase = np.array([number(ew, k, v) for k, v in entries("phase_rad")])
         amax, hmax = SIM_JOINT_ERROR_MAX_AMPLITUDE_RAD, SIM_JOINT_ERROR_MAX_HARMONIC
         for (k, _v), a in zip(entries("amplitude_rad"), amp):
             if abs(a) > amax:
@@ -305,13 +309,13 @@ class _EffectRealisation:
         self.outlier_fraction, self.outlier_magnitude = 0.0, 0.0
         if e is None:
             return
-        self.outlier_fraction = _num(ew, "fraction", e.get("fraction", 0.03))
-        self.outlier_magnitude = _num(ew, "magnitude_m", e.get("magnitude_m", 2e-3))
+        self.outlier_fraction = number(ew, "fraction", e.get("fraction", 0.03))
+        self.outlier_magnitude = number(ew, "magnitude_m", e.get("magnitude_m", 2e-3))
         if not 0.0 <= self.outlier_fraction <= 1.0:
             raise SimConfigError(
                 f"{ew}: key 'fraction' must be in [0, 1] (a fraction of the rows), got {self.outlier_fraction:g}"
             )
-        _at_least(ew, "magnitude_m", self.outlier_magnitude, 0.0)
+        at_least(ew, "magnitude_m", self.outlier_magnitude, 0.0)
 
     def joint_error_terms(self) -> list[dict[str, Any]]:
         """The periodic joint-error terms applied (empty without the effect).

@@ -19,15 +19,15 @@ import numpy as np
 from models.robot import Robot, load_robot
 from models.transforms import matrix_to_rotvec
 
-from .campaign import _Campaign
-from .config import _TOP_KEYS, SimConfigError, _int
-from .effects import _EffectRealisation
-from .measure import _Measuring
-from .physics import _Physics
+from .campaign import CampaignPart
+from .config import TOP_KEYS, SimConfigError, integer
+from .effects import EffectPart
+from .measure import MeasuringPart
+from .physics import PhysicsPart
 from .registry import checked_effect_tables, top_level_tables
 
 
-class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
+class VirtualRobot(EffectPart, PhysicsPart, MeasuringPart, CampaignPart):
     """A robot with 'true' parameters and effects, and a measurement system.
 
     Parameters
@@ -47,7 +47,7 @@ class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
         self, robot: Robot, config: Mapping[str, Any], seed: int | None = None, where: str = "simulation config"
     ) -> None:
         cfg = dict(config)
-        top_keys = _TOP_KEYS | set(top_level_tables())
+        top_keys = TOP_KEYS | set(top_level_tables())
         unknown = sorted(set(cfg) - top_keys)
         if unknown:
             raise SimConfigError(f"{where}: unknown top-level key(s) {unknown}; allowed: {sorted(top_keys)}")
@@ -59,7 +59,7 @@ class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
                 raise SimConfigError(f"{where}: seed {seed!r}: expected an integer >= 0")
             self.seed = int(seed)
         else:
-            self.seed = _int(where, "seed", cfg.get("seed", 0), 0)
+            self.seed = integer(where, "seed", cfg.get("seed", 0), 0)
         units = cfg.get("units", "SI")
         if units not in ("SI", "mm"):
             raise SimConfigError(f"{where}: key 'units' must be 'SI' or 'mm', got {units!r}")
