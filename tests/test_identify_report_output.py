@@ -29,8 +29,8 @@ import pytest
 from models import load_robot
 from planner.cli import main as cli_main
 from planner.identify_report import compensation_sentence, report_markdown
-from planner.identify_report.data import FRACTION_LEFT_AGREE, _headline
-from planner.identify_report.diagnostics import _not_significant_line
+from planner.identify_report.data import FRACTION_LEFT_AGREE, headline
+from planner.identify_report.diagnostics import not_significant_line
 from planner.numbers import format_number, round_sig
 from problems.identify.diagnostics import regress_cv, run_diagnostics
 from problems.identify.results import HELD_MESSAGE_MAX_CHARS, HeldGroup, HeldSummary, joints_text
@@ -138,7 +138,7 @@ def test_the_validation_file_is_in_the_headline(run) -> None:
     # the data file given as its own validation is not called held out
     same = copy.deepcopy(rep)
     same["validation"]["file"] = rep["data"]["file"]
-    same["headline"] = _headline(same)
+    same["headline"] = headline(same)
     assert same["headline"]["validation_held_out"] is False
     assert "not held out" in report_markdown(same).split("\n## ")[0]
 
@@ -256,7 +256,7 @@ def test_diagnostics_are_drawn_only_where_significant(run) -> None:
     for v in drawn:
         names = {f"{v[:2]}.{a}" for a in "xyz"} if v.endswith(".xyz") else {v}
         assert names & sig, (v, sig)
-    line = _not_significant_line(rep["diagnostics"])
+    line = not_significant_line(rep["diagnostics"])
     assert line and line in (folder / "report.md").read_text() and line in (folder / "report.html").read_text()
     if not sig:
         assert drawn == [] and line.startswith("no diagnostic is significant on joints 1-6")
@@ -267,7 +267,7 @@ def test_the_not_significant_line_names_every_joint_and_variable_left_out(signif
     names = [f"q{j}{a}" for j in range(1, 7) for a in ("", ".x")]
     diags = [{"variable": v, "significant": v in significant} for v in names]
     diags += [{"variable": v, "significant": v in significant} for v in ("time", "pose")]
-    line = _not_significant_line(diags)
+    line = not_significant_line(diags)
     quiet = sorted(set(range(1, 7)) - {int(v[1]) for v in significant if v.startswith("q")})
     assert (joints_text(quiet) in line) if quiet else ("joint" not in line), line
     assert ("time" in line) is ("time" not in significant) and "pose" in line
