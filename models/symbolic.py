@@ -24,19 +24,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .effects.graph import compliance_from_jacobian, geometric_jacobian, joint_axes, link_transform
 from .arm_model import KinematicModel
 
 
-# The chain, its joint axes and the Jacobian are the model graph's (one FK chain in the product).
 __all__ = [
     "KinematicModel",
     "cartesian_stiffness",
-    "compliance_from_jacobian",
     "directional_stiffness",
-    "geometric_jacobian",
-    "joint_axes",
-    "link_transform",
 ]
 
 

@@ -16,17 +16,7 @@ in this package or in such a folder.
 
 from models.plugins import import_plugins
 
-from .base import (
-    IK_REASONS,
-    IKSolution,
-    IKSolver,
-    IKStatus,
-    IKStructureError,
-    families,
-    ik_solver,
-    into_limits,
-    register_family,
-)
+from .base import IK_REASONS, IKSolution, IKSolver, IKStatus, IKStructureError, ik_solver
 from .ur import BRANCH_LABELS, AnalyticIK
 
 #: Extra folders searched for IK family modules (``os.pathsep``-separated).
@@ -41,15 +31,11 @@ import_plugins(
 
 __all__ = [
     "BRANCH_LABELS",
-    "IK_PATH_VARIABLE",
     "IK_REASONS",
     "AnalyticIK",
     "IKSolution",
     "IKSolver",
     "IKStatus",
     "IKStructureError",
-    "families",
     "ik_solver",
-    "into_limits",
-    "register_family",
 ]
