@@ -217,19 +217,8 @@ def design_campaign(
     InputError
         A model without covariance, an unknown criterion or frame, ``n`` out of range.
     """
-    if criterion not in DESIGN_CRITERIA:
-        raise InputError(f"criterion {criterion!r}: expected one of {', '.join(DESIGN_CRITERIA)}")
-    if eval_frame not in EVAL_FRAMES:
-        raise InputError(f"eval_frame {eval_frame!r}: expected one of {', '.join(EVAL_FRAMES)}")
-    s = _check_model(model)
+    s, uidx, guards = _checked_request(model, pool, n, criterion, eval_frame)
     s2 = s * s
-    usable, guards = pool_guards(model, pool)
-    uidx = np.flatnonzero(usable)
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= len(uidx):
-        raise InputError(
-            f"n = {n!r}: expected an integer from 1 to {len(uidx)}, the usable rows of the pool {pool.source} "
-            f"({pool.n} rows, {pool.n - len(uidx)} set aside by the guards)"
-        )
     names = list(model.covariance_names)
     lay = design_layout(names, len(earlier), new_registration)
     notes: list[str] = []
@@ -306,6 +295,26 @@ def design_campaign(
         random_trials=trials,
         notes=notes,
     )
+
+
+def _checked_request(
+    model: ArmModel, pool: Measurements, n: Any, criterion: str, eval_frame: str
+) -> tuple[float, np.ndarray, dict[str, SetAside]]:
+    """The model's residual sigma (m), the usable pool rows (indices) and the guards' rows set aside;
+    InputError for an unknown criterion or frame, a model without covariance or ``n`` out of range."""
+    if criterion not in DESIGN_CRITERIA:
+        raise InputError(f"criterion {criterion!r}: expected one of {', '.join(DESIGN_CRITERIA)}")
+    if eval_frame not in EVAL_FRAMES:
+        raise InputError(f"eval_frame {eval_frame!r}: expected one of {', '.join(EVAL_FRAMES)}")
+    s = _check_model(model)
+    usable, guards = pool_guards(model, pool)
+    uidx = np.flatnonzero(usable)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= len(uidx):
+        raise InputError(
+            f"n = {n!r}: expected an integer from 1 to {len(uidx)}, the usable rows of the pool {pool.source} "
+            f"({pool.n} rows, {pool.n - len(uidx)} set aside by the guards)"
+        )
+    return s, uidx, guards
 
 
 class _OwnPosterior:
