@@ -20,10 +20,11 @@ for identification and prediction (:meth:`base2meas`, :attr:`measured_point`).
 
 from __future__ import annotations
 
-from .arm_model import TORQUE_RANGE_SLACK, ArmModel, CampaignFrame, EquilibriumResult
+# the arm model's names, imported from here by their callers (models.arm_model defines them)
+from .arm_model import ArmModel
+from .arm_model import CampaignFrame as CampaignFrame
+from .arm_model import EquilibriumResult as EquilibriumResult
 from .robot import Robot
-
-__all__ = ["TORQUE_RANGE_SLACK", "ArmModel", "CampaignFrame", "EquilibriumResult", "load_arm"]
 
 
 def load_arm(spec: str | Robot | ArmModel) -> ArmModel:

@@ -41,17 +41,14 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .compiler import (
-    CompileError,
-    no_compiled_code,
-    one_line,
-    clear_codegen_notes,
-    codegen_notes,
-    compile_shared_library,
-    compiler_disabled,
-    note_virtual_machine,
-    cache_root,
-)
+# the compiler's names its callers import from here (models.compiler owns them)
+from .compiler import CompileError as CompileError
+from .compiler import cache_root as cache_root
+from .compiler import clear_codegen_notes as clear_codegen_notes
+from .compiler import codegen_notes as codegen_notes
+from .compiler import compile_shared_library as compile_shared_library
+from .compiler import compiler_disabled, no_compiled_code, one_line
+from .compiler import note_virtual_machine as note_virtual_machine
 from .errors import InputError
 
 #: Batches smaller than this run on the calling thread: waking an OpenMP team
@@ -329,21 +326,3 @@ def batch_function(f: ca.Function, threads: int = 2) -> BatchFunction | VMBatchF
         return BatchFunction(f, threads)
     except CompileError:
         return VMBatchFunction(f, threads)
-
-
-__all__ = [
-    "PARALLEL_MIN_BATCH",
-    "VM_MAP_CACHE_SIZE",
-    "VM_THREADS",
-    "BatchFunction",
-    "VMBatchFunction",
-    "batch_function",
-    "compile_batch",
-    # the compiler's names its callers import from here (models.compiler owns them)
-    "CompileError",
-    "cache_root",
-    "clear_codegen_notes",
-    "codegen_notes",
-    "compile_shared_library",
-    "note_virtual_machine",
-]
