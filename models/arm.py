@@ -1,21 +1,7 @@
-"""The arm model: one object from measurement to motion (defined in :mod:`models.arm_model`).
-
-An :class:`ArmModel` is the kinematic chain of a robot description plus its
-deflection model, a set of effect plug-ins (:mod:`models.effects`) with their
-parameter values.  A plain robot file gives the nominal model (DH table and
-linear joint springs); a robot file with an ``[identified]`` table (written by
-``compplan identify``, see :mod:`models.arm_file`) gives the identified one.
-Planning, compensation, maps, prediction and reports all evaluate this object:
-
-* :attr:`ArmModel.kinematics` -- named CasADi functions with the parameters fixed
-  (:class:`models.symbolic.KinematicModel`), compiled for batches;
-* :meth:`ArmModel.equilibrium` -- the deflected equilibrium ``q = q_c + dq(q, L)``,
-  the one place the product decides where a loaded arm settles (the deflection is
-  evaluated at the deflected pose).
-
-Frames: the base frame of the robot (``tcp2base`` maps TCP-frame coordinates to
-base-frame coordinates); the measurement frame and the measured point matter only
-for identification and prediction (:meth:`base2meas`, :attr:`measured_point`).
+"""The arm model, where its callers import it from: :func:`load_arm` (a model from a built-in name,
+a robot or model file, a :class:`~models.robot.Robot` or a model) and the names of
+:mod:`models.arm_model` (:class:`ArmModel`, :class:`CampaignFrame`, :class:`EquilibriumResult`),
+which describes the model.
 """
 
 from __future__ import annotations

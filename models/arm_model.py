@@ -8,7 +8,7 @@ linear joint springs); a robot file with an ``[identified]`` table (written by
 Planning, compensation, maps, prediction and reports all evaluate this object:
 
 * :attr:`ArmModel.kinematics` -- named CasADi functions with the parameters fixed
-  (:class:`models.symbolic.KinematicModel`), compiled for batches;
+  (:class:`KinematicModel`, here because the two build each other), compiled for batches;
 * :meth:`ArmModel.equilibrium` -- the deflected equilibrium ``q = q_c + dq(q, L)``,
   the one place the product decides where a loaded arm settles (the deflection is
   evaluated at the deflected pose).
@@ -16,11 +16,7 @@ Planning, compensation, maps, prediction and reports all evaluate this object:
 Frames: the base frame of the robot (``tcp2base`` maps TCP-frame coordinates to
 base-frame coordinates); the measurement frame and the measured point matter only
 for identification and prediction (:meth:`base2meas`, :attr:`measured_point`).
-
-:class:`KinematicModel` is the working data of one model (the two build each other: a model's
-:attr:`ArmModel.kinematics`, and the nominal model of a :class:`~models.robot.Robot` given to
-:class:`KinematicModel`); :mod:`models.arm` (with :func:`~models.arm.load_arm`) and
-:mod:`models.symbolic` are where callers import them from.
+Callers import them from :mod:`models.arm` (with :func:`~models.arm.load_arm`) and :mod:`models.symbolic`.
 """
 
 from __future__ import annotations
@@ -46,8 +42,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: Threads used by batch evaluation (OpenMP, or ``Function.map(..., "thread", N)`` without a compiler).
 BATCH_THREADS = 2
-
-
 #: Joint torques up to this fraction above the identification data's range count as inside it.
 TORQUE_RANGE_SLACK = 0.05
 
