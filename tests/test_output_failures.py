@@ -252,7 +252,7 @@ def test_a_failing_placement_study_leaves_the_previous_study_whole(
 # ------------------------------------------------------------------------------ identify
 #: The report's figures are recorded as empty (their drawing, seconds, is tested with the report).
 IDENTIFY_RECORDED = ("problems.identify:identify",)
-IDENTIFY_FIGURES = "planner.identify_report.writer:_figures"
+IDENTIFY_FIGURES = "planner.identify_report.writer:render_figures"
 #: The phases of ``identify``: the fit, building the report, writing the model file (written
 #: first, moved in last), the report's files, the swap of the report folder.
 IDENTIFY_PHASES: dict[str, tuple] = {
