@@ -17,128 +17,16 @@ from typing import Any
 import numpy as np
 
 from . import effects as fx
-from .arm import ArmModel, CampaignFrame
+from .arm_dict import model_to_dict
+from .arm_model import ArmModel, CampaignFrame
 from .effects import GROUP_SLICES, LIBRARY, make_layout
 from .robot import BUILTIN_ROBOTS, Robot, RobotFileError, load_robot, robot_from_dict
-from .transforms import matrix_to_rotvec, rotvec_to_matrix
+from .transforms import rotvec_to_matrix
 
-#: Format version of the ``[identified]`` table written (2: the parameters' covariance, the
-#: identified joint ranges and the campaigns; see ``docs/identification.md``).
-MODEL_FORMAT = 2
 #: Format versions read (a format-1 file has no covariance: no predicted sigma).
 MODEL_FORMATS_READ = (1, 2)
 #: A covariance read is symmetric when ``|C_ij - C_ji| <= tol sqrt(C_ii C_jj)``.
 COVARIANCE_SYMMETRY_TOL = 1e-9
-
-_FOLDED = ("joint_offset.dtheta", "geometric.da", "geometric.dalpha", "geometric.dd", "stiffness.s")
-
-
-def model_to_dict(model: ArmModel) -> dict[str, Any]:
-    """Robot-file dictionary of an identified model.
-
-    DH errors (``da, dalpha, dd, dtheta``) and stiffness go into the ordinary joint
-    fields; the ``[identified]`` table holds the registration, measured point,
-    effects with their parameters (SI), standard deviations, the nominal values the
-    parameters refer to, and the constants of the effect formulas.
-    """
-    r = model.nominal
-    th = model.theta
-    d = r.to_dict()
-    d.pop("identified", None)
-
-    def g(name: str) -> np.ndarray:
-        return th[GROUP_SLICES[name]]
-
-    for i, j in enumerate(d["joints"]):
-        j["a"] = float(r.a[i] + g("geometric.da")[i])
-        j["alpha"] = float(r.alpha[i] + g("geometric.dalpha")[i])
-        j["d"] = float(r.d[i] + g("geometric.dd")[i])
-        j["theta_offset"] = float(r.theta_offset[i] + g("joint_offset.dtheta")[i])
-        j["stiffness"] = float(r.stiffness[i] / (1.0 + g("stiffness.s")[i]))
-    b2m = model.base2meas()
-    params: dict[str, Any] = {}
-    for grp, eff, _names, _unit in fx.PARAMETER_GROUPS:
-        if grp in _FOLDED or grp.startswith("reg.") or grp == "tool.p":
-            continue
-        if eff not in model.effects and not (grp == "geometric.dbeta" and "geometric" in model.effects):
-            continue
-        params[grp] = [float(v) for v in th[GROUP_SLICES[grp]]]
-    ident = {
-        "format": MODEL_FORMAT,
-        "registered": bool(model.registered),
-        "base2meas": {
-            "xyz": [float(v) for v in b2m[:3, 3]],
-            "rotvec": [float(v) for v in matrix_to_rotvec(b2m[:3, :3])],
-        },
-        "measured_point": [float(v) for v in model.measured_point],
-        "tcp_correction_m": [float(v) for v in model.tcp_correction_m],
-        **({"torque_range_Nm": [float(v) for v in model.torque_range_Nm]} if model.torque_range_Nm is not None else {}),
-        "effects": list(model.effects),
-        "parameters": params,
-        "std": {k: float(v) for k, v in model.std.items() if np.isfinite(v)},
-        "held": dict(model.held),
-        "constants": {
-            "tau_scale_Nm": [float(v) for v in model.tau_scale],
-            "gravity_on": bool(model.gravity_on),
-            "beam_frames": [[float(v) for v in model.beams[i].reshape(-1)] for i in range(6)],
-            "hardening_knots_Nm": [
-                float(v)
-                for v in (
-                    model.knots if model.knots is not None else np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)
-                ).reshape(-1)
-            ],
-            "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
-            "temperature_ref_C": float(model.temperature_ref),
-            **(
-                {
-                    "effect": {
-                        k: [float(v) for v in np.asarray(a, dtype=float).reshape(-1)]
-                        for k, a in model.effect_const.items()
-                    }
-                }
-                if model.effect_const
-                else {}
-            ),
-        },
-        "nominal": {
-            "a": r.a.tolist(),
-            "alpha": r.alpha.tolist(),
-            "d": r.d.tolist(),
-            "theta_offset": r.theta_offset.tolist(),
-            "stiffness": r.stiffness.tolist(),
-        },
-    }
-    if model.noise_sigma_m is not None:
-        ident["noise_sigma_m"] = float(model.noise_sigma_m)
-    if model.covariance is not None and model.covariance_names:
-        C = np.asarray(model.covariance, dtype=float)
-        ident["covariance"] = {
-            "names": list(model.covariance_names),
-            "matrix": [[float(v) for v in row] for row in 0.5 * (C + C.T)],
-        }
-    if model.residual_sigma_m is not None:
-        ident["residual_sigma_m"] = float(model.residual_sigma_m)
-    if model.joint_range_rad is not None:
-        ident["joint_range_rad"] = [[float(v) for v in row] for row in np.asarray(model.joint_range_rad)]
-    if model.campaigns:
-        ident["campaigns"] = [_campaign_to_dict(c) for c in model.campaigns]
-    d["identified"] = ident
-    return d
-
-
-def _campaign_to_dict(c: CampaignFrame) -> dict[str, Any]:
-    out: dict[str, Any] = {
-        "name": c.name,
-        "base2meas": {
-            "xyz": [float(v) for v in c.base2meas[:3, 3]],
-            "rotvec": [float(v) for v in matrix_to_rotvec(c.base2meas[:3, :3])],
-        },
-        "rows": int(c.n_rows),
-        "data": str(c.data),
-    }
-    if c.registration_cov is not None:
-        out["registration_cov"] = [[float(v) for v in row] for row in np.asarray(c.registration_cov)]
-    return out
 
 
 def _matrix(where: str, key: str, v: Any, rows: int, cols: int) -> np.ndarray:

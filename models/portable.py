@@ -15,7 +15,8 @@ from typing import Any
 
 import casadi as ca
 
-from .codegen import _LOCK, BatchFunction, CompileError, VMBatchFunction, _host_id, _private_folder
+from .codegen import BatchFunction, VMBatchFunction
+from .compiler import CACHE_LOCK, CompileError, host_id, private_folder
 
 
 def portable_state(f: ca.Function, evaluator: BatchFunction | VMBatchFunction) -> dict[str, Any]:
@@ -38,7 +39,7 @@ def portable_state(f: ca.Function, evaluator: BatchFunction | VMBatchFunction) -
         "threads": int(evaluator.threads),
         "name": evaluator.name,
         "library": evaluator.library.read_bytes() if compiled else None,
-        "host": _host_id() if compiled else None,
+        "host": host_id() if compiled else None,
     }
 
 
@@ -57,9 +58,9 @@ def evaluator_from_state(state: dict[str, Any], threads: int | None = None) -> B
     th = int(state["threads"] if threads is None else threads)
     f = ca.Function.deserialize(state["function"])
     lib = state.get("library")
-    if lib is not None and state.get("host") == _host_id():
-        path = _private_folder() / f"{state['name']}_shipped_{hashlib.sha256(lib).hexdigest()[:24]}.so"
-        with _LOCK:
+    if lib is not None and state.get("host") == host_id():
+        path = private_folder() / f"{state['name']}_shipped_{hashlib.sha256(lib).hexdigest()[:24]}.so"
+        with CACHE_LOCK:
             if not path.exists():
                 tmp = path.with_suffix(f".tmp{os.getpid()}")
                 tmp.write_bytes(lib)

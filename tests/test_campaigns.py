@@ -21,7 +21,7 @@ from models.errors import InputError
 from models.transforms import matrix_to_rotvec, rotvec_to_matrix
 from planner.cli import main as cli_main
 from problems.identify import DataError, identify, identify_campaigns, merge_campaigns, predict
-from problems.identify.campaigns import _Joint, joint_covariance
+from problems.identify.campaign_joint import JointFit, joint_covariance
 from problems.identify.uncertainty import parameter_jacobian
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
@@ -127,7 +127,7 @@ def test_transform_error_is_within_its_covariance(setup) -> None:
     fr = _frames(res)
     A = [fr["B"].base2meas @ np.linalg.inv(fr["A"].base2meas), np.eye(4)]
     merged, campaign = merge_campaigns([a, b], ["A", "B"], A)
-    joint = _Joint(res.model, list(res.model.covariance_names), [a, b], campaign, merged, res.inliers)
+    joint = JointFit(res.model, list(res.model.covariance_names), [a, b], campaign, merged, res.inliers)
     cov, _s2, _dof = joint_covariance(joint, res.model.theta, A)
     k = len(res.model.covariance_names)
     D = A[0] @ np.linalg.inv(T)  # the identified transform = exp(dphi) truth + dt
@@ -200,11 +200,11 @@ def test_joint_jacobian_by_finite_differences(setup) -> None:
     fr = _frames(res)
     A = [fr["B"].base2meas @ np.linalg.inv(fr["A"].base2meas), np.eye(4)]
     merged, campaign = merge_campaigns([a, b], ["A", "B"], A)
-    joint = _Joint(res.model, list(res.model.covariance_names), [a, b], campaign, merged, res.inliers)
+    joint = JointFit(res.model, list(res.model.covariance_names), [a, b], campaign, merged, res.inliers)
     theta = res.model.theta
     _r, J = joint.jacobian(theta, A)
     k = len(joint.idx)
-    from problems.identify.campaigns import _perturbed
+    from problems.identify.campaign_joint import perturbed
 
     def res_vec(th, AA):
         return (joint.residual(th, AA) * joint.w)[joint.mask].reshape(-1)
@@ -218,8 +218,8 @@ def test_joint_jacobian_by_finite_differences(setup) -> None:
             fd = (res_vec(hi, A) - res_vec(lo, A)) / (2 * FD_STEP)
         else:
             e[col - k] = FD_STEP
-            up = [_perturbed(A[0], e[:3], e[3:]), A[1]]
-            dn = [_perturbed(A[0], -e[:3], -e[3:]), A[1]]
+            up = [perturbed(A[0], e[:3], e[3:]), A[1]]
+            dn = [perturbed(A[0], -e[:3], -e[3:]), A[1]]
             fd = (res_vec(theta, up) - res_vec(theta, dn)) / (2 * FD_STEP)
         assert np.linalg.norm(fd - J[:, col]) < FD_REL_TOL * np.linalg.norm(J[:, col]), col
 

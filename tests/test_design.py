@@ -13,15 +13,10 @@ import pytest
 
 from models.arm_file import load_model, model_toml
 from models.symbolic import KinematicModel
-from problems.identify.design import (
-    DESIGN_MAX_JACOBIAN_COND,
-    DesignStatus,
-    TASK_MAX_EVAL_POSES,
-    design_campaign,
-    greedy_gains,
-    select_greedy,
-    task_region,
-)
+from problems.identify.design import DESIGN_MAX_JACOBIAN_COND, design_campaign
+from problems.identify.design_greedy import greedy_gains, select_greedy
+from problems.identify.design_region import TASK_MAX_EVAL_POSES, task_region
+from problems.identify.design_result import DesignStatus
 from problems.identify.travel import path_time, travel_order
 from problems.identify.uncertainty import parameter_jacobian, predicted_sigma, to_base_frame
 from problems.measurements import Measurements, measurements_to_csv, read_measurements

@@ -26,10 +26,10 @@ from planner.identify_report import (
     structure_sentence,
     write_report,
 )
-from planner.identify_report.diagnostics import _diag_groups
-from planner.identify_report.figures import _figures, _x_of
-from planner.identify_report.html import _md_block
-from planner.identify_report.maps import _maps_drawn
+from planner.identify_report.diagnostics import diag_groups
+from planner.identify_report.figures import render_figures, x_of
+from planner.identify_report.html import md_block
+from planner.identify_report.maps import maps_drawn
 from problems.identify import Diagnostic, identify
 from problems.virtual import VirtualRobot
 
@@ -159,11 +159,11 @@ def test_many_maps_are_drawn_in_at_most_the_panel_limit(maps_run) -> None:
         )
         for i in range(REPORT_MAP_PANELS + 3)
     ]
-    drawn = _maps_drawn(many)
+    drawn = maps_drawn(many)
     assert len(drawn) == REPORT_MAP_PANELS
     assert {m.rms_tcp_m for m in drawn} == {m.rms_tcp_m for m in many[-REPORT_MAP_PANELS:]}  # the largest
     res_many = dataclasses.replace(res, error_maps=many)
-    figs = _figures(res_many, report_dict(res_many))
+    figs = render_figures(res_many, report_dict(res_many))
     assert figs["error_maps"].png.startswith(PNG_MAGIC) and figs["error_maps"].pdf.startswith(b"%PDF")
     md = report_markdown(report_dict(res_many))
     assert f"the {REPORT_MAP_PANELS} maps with the largest RMS at the TCP; 3 more" in md
@@ -222,9 +222,9 @@ def test_joint_angle_diagnostic_labels_are_in_degrees() -> None:
     assert VARIABLE_LABELS["q3.x"] == ("joint 3 angle (residual x)", "deg")
     assert {f"q{j}.{a}" for j in range(1, 7) for a in "xyz"} <= set(VARIABLE_UNITS)
     q = np.linspace(-np.pi, np.pi, 7)
-    x, label = _x_of(Diagnostic("q2.y", 0.1, 1e-9, True, q))
+    x, label = x_of(Diagnostic("q2.y", 0.1, 1e-9, True, q))
     assert np.allclose(x, np.degrees(q)) and label.endswith("[deg]")
-    x, label = _x_of(Diagnostic("temperature", 0.1, 1e-9, True, q))
+    x, label = x_of(Diagnostic("temperature", 0.1, 1e-9, True, q))
     assert np.allclose(x, q) and label.endswith("[°C]")
 
 
@@ -263,11 +263,11 @@ def test_many_diagnostics_stay_in_a_few_figures_and_a_short_table(maps_run) -> N
     diags.sort(key=lambda d: -d.explained_fraction)
     want = "q5.z"
     r = dataclasses.replace(res, diagnostics=diags, unexplained={**res.unexplained, "variable": want})
-    groups = _diag_groups(r)
+    groups = diag_groups(r)
     assert len(groups) == REPORT_DIAGNOSTIC_PLOTS
     assert groups[0][0] == "q5.xyz"  # the unexplained structure's variable first
     assert all(any(d.significant for d in g) for _k, g in groups)  # significant ones before the rest
-    figs = _figures(r, report_dict(r))
+    figs = render_figures(r, report_dict(r))
     assert len([k for k in figs if k.startswith("diag_")]) == REPORT_DIAGNOSTIC_PLOTS
     md = report_markdown(report_dict(r))
     table = md.split("## Diagnostics of the final residual")[1].split("\n## ")[0]
@@ -280,7 +280,7 @@ def test_many_diagnostics_stay_in_a_few_figures_and_a_short_table(maps_run) -> N
 
 
 def test_pipes_in_table_cells_stay_in_their_cell() -> None:
-    out = _md_block("| variable | what |\n|---|---|\n| load_magnitude | applied force \\|f\\| |")
+    out = md_block("| variable | what |\n|---|---|\n| load_magnitude | applied force \\|f\\| |")
     assert "<td>load_magnitude</td><td>applied force |f|</td>" in out
 
 
@@ -295,7 +295,7 @@ def test_only_significant_diagnostics_are_drawn(maps_run, significant) -> None:
     names = [f"q{j}{a}" for j in range(1, 7) for a in ("", ".x", ".y", ".z")] + ["time", "pose"]
     diags = [Diagnostic(v, 0.5 - 0.01 * i, 1e-12, v in significant, x) for i, v in enumerate(names)]
     r = dataclasses.replace(res, diagnostics=diags, unexplained={**res.unexplained, "variable": None})
-    keys = [k for k, _g in _diag_groups(r)]
+    keys = [k for k, _g in diag_groups(r)]
     want = {f"{v[:2]}.xyz" if "." in v else v for v in significant}
     assert set(keys) <= want and len(keys) == min(len(want), REPORT_DIAGNOSTIC_PLOTS)
-    assert all(d.significant for _k, g in _diag_groups(r) for d in g)
+    assert all(d.significant for _k, g in diag_groups(r) for d in g)

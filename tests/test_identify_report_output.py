@@ -29,12 +29,12 @@ import pytest
 from models import load_robot
 from planner.cli import main as cli_main
 from planner.identify_report import compensation_sentence, report_markdown
-from planner.identify_report.data import FRACTION_LEFT_AGREE, _headline
-from planner.identify_report.diagnostics import _not_significant_line
+from planner.identify_report.data import FRACTION_LEFT_AGREE, headline
+from planner.identify_report.diagnostics import not_significant_line
 from planner.numbers import format_number, round_sig
-from problems.identify.diagnostics import _regress_cv, run_diagnostics
+from problems.identify.diagnostics import regress_cv, run_diagnostics
 from problems.identify.results import HELD_MESSAGE_MAX_CHARS, HeldGroup, HeldSummary, joints_text
-from problems.identify.selection import _candidate_score, _significance, _Score
+from problems.identify.selection_scores import Score, candidate_score, significance
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
 
@@ -138,7 +138,7 @@ def test_the_validation_file_is_in_the_headline(run) -> None:
     # the data file given as its own validation is not called held out
     same = copy.deepcopy(rep)
     same["validation"]["file"] = rep["data"]["file"]
-    same["headline"] = _headline(same)
+    same["headline"] = headline(same)
     assert same["headline"]["validation_held_out"] is False
     assert "not held out" in report_markdown(same).split("\n## ")[0]
 
@@ -189,14 +189,14 @@ def test_a_candidate_score_reads_as_its_direction(new_cv_mm) -> None:
     """A candidate that lowers the held-out RMS shows a negative change and a share >= 0; one that
     raises it shows a positive change and explains none (share 0, never negative)."""
     n, k = 300, 6
-    cur = _Score(rss=n * 1e-8, cv_rss=n * 1e-8, cv_rms_m=1e-4, rms_m=1e-4, n=n, k=k)
+    cur = Score(rss=n * 1e-8, cv_rss=n * 1e-8, cv_rms_m=1e-4, rms_m=1e-4, n=n, k=k)
     ss = n * (new_cv_mm * 1e-3) ** 2
-    new = _Score(rss=ss, cv_rss=ss, cv_rms_m=new_cv_mm * 1e-3, rms_m=1e-4, n=n, k=k + 3)
-    cs = _candidate_score("drift", new, cur, 2e-5, 3)
+    new = Score(rss=ss, cv_rss=ss, cv_rms_m=new_cv_mm * 1e-3, rms_m=1e-4, n=n, k=k + 3)
+    cs = candidate_score("drift", new, cur, 2e-5, 3)
     assert cs.explained_share >= 0.0
     if new_cv_mm >= 0.1:
         assert cs.explained_share == 0.0
-    _basic, _share_ok, text = _significance(cs, cur)
+    _basic, _share_ok, text = significance(cs, cur)
     ((a, b, p),) = _signed_changes(text)
     assert np.sign(p) == np.sign(round(b - a, 6)) or abs(p) < 0.05
     assert "explains -" not in text
@@ -239,7 +239,7 @@ def test_a_diagnostic_with_no_structure_explains_nothing_not_less() -> None:
     X = np.stack([np.column_stack([x**k for k in range(1, 9)])] * 3, axis=1)  # (n, 3, 8): overfits noise
     m = Measurements(q=np.zeros((n, 6)), wrench=np.zeros((n, 6)), p=np.zeros((n, 3)), point=np.arange(n))
     folds = np.arange(n) % 5
-    raw, _p = _regress_cv(R, X, folds)
+    raw, _p = regress_cv(R, X, folds)
     assert raw < 0.0  # the case: worse than the mean out of fold
     diags = run_diagnostics(R, m, {"time": (x, X, "noise")}, folds)
     assert {d.variable for d in diags} == {"time", "pose"}
@@ -256,7 +256,7 @@ def test_diagnostics_are_drawn_only_where_significant(run) -> None:
     for v in drawn:
         names = {f"{v[:2]}.{a}" for a in "xyz"} if v.endswith(".xyz") else {v}
         assert names & sig, (v, sig)
-    line = _not_significant_line(rep["diagnostics"])
+    line = not_significant_line(rep["diagnostics"])
     assert line and line in (folder / "report.md").read_text() and line in (folder / "report.html").read_text()
     if not sig:
         assert drawn == [] and line.startswith("no diagnostic is significant on joints 1-6")
@@ -267,7 +267,7 @@ def test_the_not_significant_line_names_every_joint_and_variable_left_out(signif
     names = [f"q{j}{a}" for j in range(1, 7) for a in ("", ".x")]
     diags = [{"variable": v, "significant": v in significant} for v in names]
     diags += [{"variable": v, "significant": v in significant} for v in ("time", "pose")]
-    line = _not_significant_line(diags)
+    line = not_significant_line(diags)
     quiet = sorted(set(range(1, 7)) - {int(v[1]) for v in significant if v.startswith("q")})
     assert (joints_text(quiet) in line) if quiet else ("joint" not in line), line
     assert ("time" in line) is ("time" not in significant) and "pose" in line

@@ -21,18 +21,15 @@ import pytest
 
 from models.constants import IK_ROUNDTRIP_TOL
 from models.errors import InputError
+from models.ik.general_numeric import arm_length_scale, general_guard_factors, poe_jacobian_sx
 from models.ik.general_solver import (
     EAIK_MAX_BRANCHES,
     NUMERIC_MAX_BRANCHES,
     NUMERIC_N_STARTS,
     GeneralIK,
     GeneralIKStatus,
-    arm_length_scale,
-    general_guard_factors,
-    poe_fk,
-    poe_jacobian_sx,
 )
-from models.transforms import rotation_angle, rotvec_to_matrix
+from models.transforms import poe_fk, rotation_angle, rotvec_to_matrix
 
 #: The generating configuration is "among the branches" when some branch is within this (rad).
 SAME_CONFIG_TOL = 1e-8

@@ -18,12 +18,11 @@ from models.ik.opw_closed_form import (
     OPWStatus,
     opw_branch_signs,
     opw_canonical_fk,
-    opw_from_axes,
     opw_guard_factors,
     opw_ik,
     opw_ik_function,
-    poe_fk,
 )
+from models.ik.opw_detect import opw_from_axes, poe_fk
 
 #: Extracted parameters vs published ones (m, rad).
 PARAM_TOL = 1e-12

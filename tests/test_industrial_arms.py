@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from models import KinematicModel, load_robot
-from models.codegen import NO_COMPILER_ENV
+from models.compiler import NO_COMPILER_ENV
 from models.ik import IKStatus, ik_solver
 
 #: FK(IK(T)) against T: positions (m) and rotation entries.

@@ -270,12 +270,12 @@ def test_positions_in_another_unit_are_named(
 def test_the_right_robot_and_unit_pass_the_check(ur5_campaign) -> None:
     """The same campaign in its declared unit, with its own robot: no refusal, no note."""
     from models import load_robot
-    from problems.identify.engine import _setup
+    from problems.identify.fit_setup import setup_fit
     from problems.identify.identifiability import Known
     from problems.identify.nominal_check import check_nominal_fit
 
     robot, known = load_robot("ur5"), Known(False, False)
-    s = _setup(robot, parse_measurements(measurements_to_csv(ur5_campaign), "ok.csv"), known, 5, 1, lambda *a: None)
+    s = setup_fit(robot, parse_measurements(measurements_to_csv(ur5_campaign), "ok.csv"), known, 5, 1, lambda *a: None)
     nf = check_nominal_fit(robot, s.prob, s.fit_b, s.theta, known, True)
     assert nf.plausible and nf.miss_m < 1e-3 and nf.notes() == []
 

@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 
 from models import AnalyticIK, KinematicModel, load_robot
-from models import codegen
-from models.codegen import (
+from models import codegen, compiler
+from models.codegen import batch_function
+from models.compiler import (
     NO_COMPILER_ENV,
     CompileError,
-    batch_function,
     clear_codegen_notes,
     codegen_notes,
     compile_shared_library,
@@ -245,7 +245,7 @@ def test_batches_compiled_equal_virtual_machine(name, monkeypatch):
     assert np.allclose(sv.q[sv.valid], sc.q[sc.valid], rtol=0.0, atol=IK_ATOL)
     # the virtual machine was noted once, by the library, silently
     assert [n for n in codegen_notes() if "virtual machine" in n] == [
-        f"C compiler disabled ({NO_COMPILER_ENV}=1): {codegen.VM_NOTE}"
+        f"C compiler disabled ({NO_COMPILER_ENV}=1): {compiler.VM_NOTE}"
     ]
 
 
@@ -282,7 +282,7 @@ def test_no_compiler_reasons(monkeypatch, tmp_path):
     monkeypatch.setenv("CC", "/bin/false")
     with pytest.raises(CompileError, match="CC=/bin/false"):
         compile_shared_library(PROBE_SRC, "probe_false")
-    assert codegen_notes() == [f"no usable C compiler (CC=/bin/false: exit status 1): {codegen.VM_NOTE}"]
+    assert codegen_notes() == [f"no usable C compiler (CC=/bin/false: exit status 1): {compiler.VM_NOTE}"]
     clear_codegen_notes()
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     with pytest.raises(CompileError, match="not found"):
@@ -347,14 +347,14 @@ def test_unwritable_cache_is_bypassed(monkeypatch, tmp_path):
     cache.mkdir()
     monkeypatch.setenv("COMPPLAN_CACHE", str(cache))
     monkeypatch.delenv(NO_COMPILER_ENV, raising=False)
-    store = codegen._store
+    store = compiler.store_library
 
     def refuse_cache(lib: Path, data: bytes) -> None:  # root ignores permission bits: refuse here
         if lib.parent == cache:
             raise PermissionError(13, "Permission denied")
         store(lib, data)
 
-    monkeypatch.setattr(codegen, "_store", refuse_cache)
+    monkeypatch.setattr(compiler, "store_library", refuse_cache)
     lib = compile_shared_library(PROBE_SRC + "/* unwritable */\n", "probe")
     assert lib.parent != cache and _probe(lib) == PROBE_VALUE
     (note,) = codegen_notes()
@@ -413,7 +413,7 @@ def test_command_with_corrupt_cache(tmp_path):
     _assert_clean(_compplan([*MAP_ARGS, *out], env, tmp_path), 1, "was corrupt", "rebuilt")
     _assert_clean(_compplan([*MAP_ARGS, *out], env, tmp_path), 0)
     for lib in libs:
-        assert codegen._check_library(lib) is None
+        assert compiler.check_library(lib) is None
 
 
 def test_library_is_silent(monkeypatch, capfd):

@@ -252,7 +252,7 @@ def test_a_failing_placement_study_leaves_the_previous_study_whole(
 # ------------------------------------------------------------------------------ identify
 #: The report's figures are recorded as empty (their drawing, seconds, is tested with the report).
 IDENTIFY_RECORDED = ("problems.identify:identify",)
-IDENTIFY_FIGURES = "planner.identify_report.writer:_figures"
+IDENTIFY_FIGURES = "planner.identify_report.writer:render_figures"
 #: The phases of ``identify``: the fit, building the report, writing the model file (written
 #: first, moved in last), the report's files, the swap of the report folder.
 IDENTIFY_PHASES: dict[str, tuple] = {
@@ -280,7 +280,7 @@ def identify_previous(tmp_path_factory) -> tuple[Path, Path, dict]:
     calls: dict[str, Any] = {}
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(importlib.import_module("problems.identify"), "identify", _record(calls, IDENTIFY_RECORDED[0]))
-        mp.setattr(importlib.import_module("planner.identify_report.writer"), "_figures", lambda *_a: {})
+        mp.setattr(importlib.import_module("planner.identify_report.writer"), "render_figures", lambda *_a: {})
         argv = [*map(str, _identify_argv(folder, data)), "--no-progress", "--candidates", "none"]
         assert main(argv) == 0
     return folder, data, calls
@@ -294,7 +294,7 @@ def test_a_failing_identification_leaves_the_previous_model_and_report_whole(
     previous, data, calls = identify_previous
     shutil.copytree(previous / "report", tmp_path / "report")
     shutil.copy2(previous / "model.toml", tmp_path / "model.toml")
-    monkeypatch.setattr(importlib.import_module("planner.identify_report.writer"), "_figures", lambda *_a: {})
+    monkeypatch.setattr(importlib.import_module("planner.identify_report.writer"), "render_figures", lambda *_a: {})
     if phase != "fit":
         _reuse(monkeypatch, calls)
     _inject(monkeypatch, IDENTIFY_PHASES[phase], FAILURES[failure])
@@ -308,7 +308,7 @@ def test_identify_writes_its_model_and_report_together(tmp_path, capsys, monkeyp
     shutil.copytree(previous / "report", tmp_path / "report")
     (tmp_path / "model.toml").write_text("# an earlier model\n")
     (tmp_path / "report" / "report.md").write_text("an earlier report\n")
-    monkeypatch.setattr(importlib.import_module("planner.identify_report.writer"), "_figures", lambda *_a: {})
+    monkeypatch.setattr(importlib.import_module("planner.identify_report.writer"), "render_figures", lambda *_a: {})
     _reuse(monkeypatch, calls)
     code, _, err = _run(capsys, *_identify_argv(tmp_path, data), "--no-progress")
     assert code == 0, err

@@ -12,7 +12,8 @@ import pytest
 from models import effects as fx
 from models import load_robot
 from models.arm import CampaignFrame
-from models.arm_file import COVARIANCE_SYMMETRY_TOL, MODEL_FORMAT, model_from_robot, model_toml
+from models.arm_dict import MODEL_FORMAT
+from models.arm_file import COVARIANCE_SYMMETRY_TOL, model_from_robot, model_toml
 from models.robot import RobotFileError, robot_from_dict
 from problems.identify import identify, predict
 from problems.identify.uncertainty import outside_ranges, parameter_jacobian, predicted_sigma

@@ -391,7 +391,7 @@ def test_orientation_noise_has_the_declared_std_and_leaves_positions_alone() -> 
     R = R_true[:50]
     w50 = np.random.default_rng(9).normal(0.0, sigma, (50, 3))
     np.testing.assert_allclose(
-        VirtualRobot._campaign_rotation_noise(R, sigma, np.random.default_rng(9)),
+        VirtualRobot.campaign_rotation_noise(R, sigma, np.random.default_rng(9)),
         R @ Rotation.from_rotvec(w50).as_matrix(),
         rtol=0,
         atol=1e-15,

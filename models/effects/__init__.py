@@ -15,19 +15,14 @@ from models.plugins import import_plugins
 from . import base
 from .base import (
     ARM,
-    MEASUREMENT,
-    PARALLEL_AXIS_TOL,
     TORQUE_SCALE_FLOOR_NM,
-    ConstGroup,
     Effect,
     ModelLayout,
-    ParamGroup,
     default_constants,
     effect,
     get_const,
     layouts,
     make_layout,
-    register,
     registry,
     set_const,
 )
@@ -39,18 +34,10 @@ from .base import (
 EFFECT_PATH_VARIABLE = "COMPPLAN_EFFECT_PATH"
 import_plugins(__name__, __path__, EFFECT_PATH_VARIABLE, skip=("base", "graph"))
 
-from .graph import (  # noqa: E402 - the layouts need every effect registered first
-    EQUILIBRIUM_UNROLL,
-    JACOBIAN_UNROLL,
-    LOAD_SIZE,
-    ROW_SIZE,
-    arm_functions,
-    identification_functions,
-)
-from .link_compliance import LINK_BEAM_MIN_FRACTION, beam_frames  # noqa: E402 - after the registration above
-from .lost_motion import LOST_MOTION_RHO_BOUNDS, LOST_MOTION_RHO_INIT  # noqa: E402 - after the registration above
-from .registration import cayley, cayley_np, cayley_vector  # noqa: E402 - after the registration above
-from .stiffness_hardening import HARDENING_KNOT_QUANTILES, N_HARDENING, N_KNOTS  # noqa: E402 - after the registration above
+from .graph import LOAD_SIZE, ROW_SIZE, identification_functions  # noqa: E402 - the layouts need every effect registered first
+from .link_compliance import beam_frames  # noqa: E402 - after the registration above
+from .registration import cayley_np, cayley_vector  # noqa: E402 - after the registration above
+from .stiffness_hardening import HARDENING_KNOT_QUANTILES, N_KNOTS  # noqa: E402 - after the registration above
 from .thermal import THERMAL_REFERENCE_C  # noqa: E402 - after the registration above
 
 _L = layouts()
@@ -104,48 +91,32 @@ def make_const(robot, R0=None, tau_scale=None, gravity_on: bool = False, beams=N
 
 __all__ = [
     "ARM",
-    "BASE_GROUPS",
     "CONST_SIZE",
     "CONST_SLICES",
-    "ConstGroup",
     "EFFECTS",
-    "EQUILIBRIUM_UNROLL",
-    "Effect",
     "GROUP_SLICES",
     "HARDENING_KNOT_QUANTILES",
-    "JACOBIAN_UNROLL",
     "LIBRARY",
-    "LINK_BEAM_MIN_FRACTION",
     "LOAD_SIZE",
-    "LOST_MOTION_RHO_BOUNDS",
-    "LOST_MOTION_RHO_INIT",
-    "MEASUREMENT",
     "ModelLayout",
-    "N_HARDENING",
     "N_KNOTS",
     "N_PARAMS",
-    "PARALLEL_AXIS_TOL",
     "PARAMETER_GROUPS",
     "PARAM_NAMES",
-    "ParamGroup",
     "ROW_SIZE",
     "THERMAL_REFERENCE_C",
     "TORQUE_SCALE_FLOOR_NM",
-    "arm_functions",
     "base",
     "beam_frames",
     "REGISTRATION_NAMES",
-    "cayley",
     "cayley_np",
     "cayley_vector",
-    "default_constants",
     "effect",
     "get_const",
     "identification_functions",
     "layouts",
     "make_const",
     "make_layout",
-    "register",
     "registry",
     "set_const",
 ]

@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .general_solver import GeneralIK, GeneralIKStatus, general_guard_factors
+from .general_numeric import general_guard_factors
+from .general_solver import GeneralIK, GeneralIKStatus
 from ..robot import Robot
 from ..transforms import invert
 from .base import FALLBACK_ORDER, IKSolution, IKSolver, IKStatus, check_poses, into_limits, register_family, zero_axes

@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from ..codegen import BatchFunction, VMBatchFunction, batch_function
-from .opw_closed_form import OPW_BRANCH_LABELS, NotOPW, opw_from_axes, opw_guard_factors, opw_ik_function
+from .opw_closed_form import OPW_BRANCH_LABELS, NotOPW, opw_guard_factors, opw_ik_function
+from .opw_detect import opw_from_axes
 from ..robot import Robot
 from ..transforms import invert
 from .base import IKSolution, IKSolver, IKStatus, IKStructureError, check_poses, into_limits, register_family, zero_axes

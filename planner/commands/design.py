@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from planner.commands.common import add_force_argument, check_output, releases_outputs
-from planner.commands.identify import _add_csv_options, _known, _print_notes, _read, _seed
+from planner.commands.identify import add_csv_options, known_arg, print_notes, read_table, seed_arg
 
 #: Sub-commands defined here.
 COMMANDS = ("design",)
@@ -81,14 +81,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--shared",
-        type=_known,  # the words of identify's --known and --shared
+        type=known_arg,  # the words of identify's --known and --shared
         default=(),
         help="'registration': the new campaign will be measured in the frame of the last --data campaign (the "
         "instrument does not move; identify it with --shared registration); default: a frame of its own",
     )
-    p.add_argument("--seed", type=_seed, default=0, help="seed of the task pool and the random baseline (default 0)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="seed of the task pool and the random baseline (default 0)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (the design draws none)")
-    _add_csv_options(p, "--data and --pool")
+    add_csv_options(p, "--data and --pool")
     add_force_argument(p, "--report")
     p.set_defaults(func=run_design)
 
@@ -137,7 +137,8 @@ def run_design(args: argparse.Namespace) -> int:
     import numpy as np
 
     from models.arm_file import load_model
-    from problems.identify.design import TASK_POOL_POSES, design_campaign, pool_guards, task_region
+    from problems.identify.design import design_campaign, pool_guards
+    from problems.identify.design_region import TASK_POOL_POSES, task_region
 
     model = load_model(args.model)
     if model.covariance is None or not model.covariance_names:
@@ -145,7 +146,7 @@ def run_design(args: argparse.Namespace) -> int:
             f"--model {args.model}: has no parameter covariance (a nominal robot, or a model file written "
             "before format 2); re-identify it with this version of compplan (compplan identify)"
         )
-    earlier = [_read(args, d) for d in args.data]
+    earlier = [read_table(args, d) for d in args.data]
     region = None
     if args.pool is not None:
         pool = _read_pool(args, args.pool)
@@ -185,7 +186,7 @@ def run_design(args: argparse.Namespace) -> int:
             _write_report(args, des, pool, region, loads)
     else:
         atomic_write_bytes(args.out, data)
-    _print_notes(pool, *earlier)
+    print_notes(pool, *earlier)
     _print_summary(args, des, frame)
     return 0
 
@@ -344,9 +345,8 @@ def _write_report(args: argparse.Namespace, des: Any, pool: Any, region: Any, lo
     import base64
     import html
 
-    from planner.identify_report.html import _md_block
+    from planner.identify_report.html import md_block, page_head
     from planner.output import OutputSet
-    from planner.report.rendering import _CSS
 
     rep = _report_dict(args, des, pool, region, loads)
     md = _report_md(rep, des)
@@ -354,9 +354,7 @@ def _write_report(args: argparse.Namespace, des: Any, pool: Any, region: Any, lo
     body = md.split("\n", 1)[1]
     page = "\n".join(
         [
-            "<!DOCTYPE html>",
-            '<html lang="en"><head><meta charset="utf-8">',
-            f"<title>compplan campaign design</title><style>{_CSS}</style></head><body>",
+            *page_head("compplan campaign design"),
             "<h1>compplan campaign design</h1>",
             '<figure><img alt="predicted sigma per evaluation pose" '
             f'src="data:image/png;base64,{base64.b64encode(png).decode()}"><figcaption>'
@@ -365,7 +363,7 @@ def _write_report(args: argparse.Namespace, des: Any, pool: Any, region: Any, lo
                 "after the designed one, and after as many random pool poses (mean over the random subsets), mm."
             )
             + ' File: <a href="figures/sigma.png">PNG</a>.</figcaption></figure>',
-            _md_block(body),
+            md_block(body),
             "</body></html>",
         ]
     )

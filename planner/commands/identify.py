@@ -55,7 +55,7 @@ def _folds(text: str) -> int:
     return k
 
 
-def _seed(text: str) -> int:
+def seed_arg(text: str) -> int:
     """``--seed``: an integer >= 0 (NumPy's generators take no negative seed)."""
     try:
         k = int(text)
@@ -77,7 +77,7 @@ def _joint_names(text: str) -> tuple[str, ...] | None:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _add_csv_options(p: argparse.ArgumentParser, files: str) -> None:
+def add_csv_options(p: argparse.ArgumentParser, files: str) -> None:
     """``--format``, ``--csv-dialect`` and ``--joint-names``: how the measurement/command files ``files`` are read."""
     from problems.measurements import DIALECT_CHOICES, FORMAT_CHOICES, JOINT_NAME_PRESETS
 
@@ -110,7 +110,7 @@ def _add_csv_options(p: argparse.ArgumentParser, files: str) -> None:
     )
 
 
-def _read(args: argparse.Namespace, path: str, require_position: bool = True) -> Any:
+def read_table(args: argparse.Namespace, path: str, require_position: bool = True) -> Any:
     """A measurement/command file read with the options ``--format``, ``--csv-dialect`` and ``--joint-names``."""
     from problems.measurements import read_measurements
 
@@ -123,7 +123,7 @@ def _read(args: argparse.Namespace, path: str, require_position: bool = True) ->
     )
 
 
-def _print_notes(*tables: Any) -> None:
+def print_notes(*tables: Any) -> None:
     """The readers' notes (a detected dialect, date-times, a joint-name mapping) on stderr,
     one ``compplan: note:`` line each, as the CLI's other notes."""
     for m in tables:
@@ -136,7 +136,7 @@ def _print_notes(*tables: Any) -> None:
 KNOWN_WORDS = {"registration": "registration", "measured-point": "measured_point"}
 
 
-def _known(text: str) -> tuple[str, ...]:
+def known_arg(text: str) -> tuple[str, ...]:
     """``--known`` value: comma-separated words of :data:`KNOWN_WORDS`."""
     words = [w.strip() for w in text.split(",") if w.strip()]
     bad = [w for w in words if w not in KNOWN_WORDS]
@@ -177,7 +177,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--shared",
-        type=_known,  # the words of --known
+        type=known_arg,  # the words of --known
         default=(),
         help="comma-separated parts of the set-up shared by every --data campaign: 'registration' (the "
         "instrument did not move: one measurement frame, the campaigns are concatenated); 'measured-point' "
@@ -192,7 +192,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--known",
-        type=_known,
+        type=known_arg,
         default=(),
         help="comma-separated parts of the set-up known from a calibration and held: 'registration' "
         "(measurement frame = base frame, e.g. a tracker base calibration) and/or 'measured-point' "
@@ -230,7 +230,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--truth", default=None, help="truth file of a virtual robot (compplan simulate): compensate and re-measure"
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    _add_csv_options(p, "--data and --validation")
+    add_csv_options(p, "--data and --validation")
     add_force_argument(p, "--report")
     p.set_defaults(func=run_identify)
 
@@ -245,7 +245,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="measurement CSV to write")
     p.add_argument("--truth", default=None, help="truth file to write (default: OUT with .truth.toml)")
     p.add_argument(
-        "--seed", type=_seed, default=None, help="random seed, an integer >= 0 (default: the config's, else 0)"
+        "--seed", type=seed_arg, default=None, help="random seed, an integer >= 0 (default: the config's, else 0)"
     )
     p.set_defaults(func=run_simulate)
 
@@ -297,10 +297,11 @@ def run_identify(args: argparse.Namespace) -> int:
         identify,
         validate_on,
     )
-    from problems.identify.campaigns import campaign_names, identify_campaigns
+    from problems.identify.campaign_merge import campaign_names
+    from problems.identify.campaigns import identify_campaigns
 
     robot = load_robot(args.robot)
-    datas = [_read(args, p) for p in paths]
+    datas = [read_table(args, p) for p in paths]
     data = datas[-1]
     if args.folds is not None:
         n_poses = sum(len(set(d.pose_groups().tolist())) for d in datas)
@@ -309,7 +310,7 @@ def run_identify(args: argparse.Namespace) -> int:
                 f"--folds {args.folds}: more folds than the {n_poses} poses of {', '.join(paths)} "
                 f"(a fold holds whole poses); give --folds between 2 and {n_poses}"
             )
-    val = _read(args, args.validation) if args.validation else None
+    val = read_table(args, args.validation) if args.validation else None
     truth = None
     if args.truth:
         from problems.virtual import load_truth
@@ -388,7 +389,7 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
         print(f"  compensation on the virtual robot: {compensation_sentence(rep, arrow='->')}")
     for n in res.notes:
         print(f"  note: {n}")
-    _print_notes(data, val)
+    print_notes(data, val)
     if res.status in (IdentifyStatus.IMPLAUSIBLE, IdentifyStatus.DOES_NOT_GENERALISE):
         print(f"compplan: warning: {res.reason}", file=sys.stderr)
     print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html, figures/")

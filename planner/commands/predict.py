@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from planner.commands.common import check_output, releases_outputs
-from planner.commands.identify import _add_csv_options, _print_notes, _read
+from planner.commands.identify import add_csv_options, print_notes, read_table
 
 #: Sub-commands defined here.
 COMMANDS = ("predict", "compensate")
@@ -105,7 +105,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(text: the joints outside the identified ranges, empty inside)",
     )
     _add_campaign_option(p)
-    _add_csv_options(p, "--input")
+    add_csv_options(p, "--input")
     p.set_defaults(func=run_predict)
 
     p = sub.add_parser(
@@ -142,7 +142,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="fail (nothing written) if any row cannot be compensated; default: write every row "
         "(the best command) and warn naming the rows",
     )
-    _add_csv_options(p, "--input")
+    add_csv_options(p, "--input")
     p.set_defaults(func=run_compensate)
 
 
@@ -157,14 +157,14 @@ def run_predict(args: argparse.Namespace) -> int:
     from problems.measurements import commands_csv
 
     model = _model_for(args)
-    m = _read(args, args.input, require_position=False)
+    m = read_table(args, args.input, require_position=False)
     check_command_limits(model, m)  # a command the robot cannot run has no prediction
     p = predict(model, m)
     sigma, flags, lines = _sigma_outputs(model, m, m.q, "measurement")
     header = ["x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
     table = np.hstack([p, sigma])
     atomic_write_bytes(args.out, commands_csv(header, table, {OUTSIDE_COLUMN: flags}).encode())
-    _print_notes(m)
+    print_notes(m)
     for name in model.active_effects:  # e.g. a joint error map beyond its identified angle range
         for line in fx_effect(name).angle_caveats(model.parameter, lambda k: get_const(model.const, k), m.q):
             print(f"compplan: warning: {line.replace('waypoint', 'row')}", file=sys.stderr)
@@ -187,7 +187,7 @@ def run_compensate(args: argparse.Namespace) -> int:
     from problems.measurements import commands_csv
 
     model = _model_for(args)
-    m = _read(args, args.input, require_position=False)
+    m = read_table(args, args.input, require_position=False)
     out = compensate_targets(model, m, args.targets_frame)
     failed = not out.status.usable
     if failed and args.strict:
@@ -201,7 +201,7 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"compplan: warning: {out.reason}; input lines {lines}", file=sys.stderr)
     for w in out.warnings:
         print(f"compplan: warning: {w}", file=sys.stderr)
-    _print_notes(m)
+    print_notes(m)
     print(
         f"compensate: {m.n} rows, targets {out.targets_frame.value} frame, status {out.status.value}; "
         f"wrote {args.out} (q1..q6 in rad; sigma_x, sigma_y, sigma_z in m, base frame)"

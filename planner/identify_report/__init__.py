@@ -32,7 +32,6 @@ joint error maps: table rows, Markdown, figure), :mod:`~planner.identify_report.
 
 from __future__ import annotations
 
-from planner.identify_report.canvas import FIGURE_FOLDER, REPORT_DPI, RenderedFigure
 from planner.identify_report.data import compensation_sentence, report_dict, structure_sentence
 from planner.identify_report.diagnostics import (
     REPORT_DIAGNOSTIC_PLOTS,
@@ -40,28 +39,15 @@ from planner.identify_report.diagnostics import (
     VARIABLE_LABELS,
     VARIABLE_UNITS,
 )
-from planner.identify_report.figures import AXIS_COLOURS, REPORT_ANGLE_BINS_MAX, REPORT_BINS, RESIDUAL_UM_BELOW_M
-from planner.identify_report.captions import FIGURE_TEXT
 from planner.identify_report.html import report_html
-from planner.identify_report.maps import MAP_COMPONENT_WORDS, MAP_TABLE_NOTE, REPORT_MAP_HARMONICS, REPORT_MAP_PANELS
+from planner.identify_report.maps import REPORT_MAP_PANELS
 from planner.identify_report.markdown import report_markdown
 from planner.identify_report.writer import write_report
 
 __all__ = [
-    "AXIS_COLOURS",
-    "FIGURE_FOLDER",
-    "FIGURE_TEXT",
-    "MAP_COMPONENT_WORDS",
-    "MAP_TABLE_NOTE",
-    "REPORT_ANGLE_BINS_MAX",
-    "REPORT_BINS",
     "REPORT_DIAGNOSTIC_PLOTS",
     "REPORT_DIAGNOSTIC_ROWS",
-    "REPORT_DPI",
-    "REPORT_MAP_HARMONICS",
     "REPORT_MAP_PANELS",
-    "RenderedFigure",
-    "RESIDUAL_UM_BELOW_M",
     "VARIABLE_LABELS",
     "VARIABLE_UNITS",
     "compensation_sentence",

@@ -37,7 +37,7 @@ def figure_file(key: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "_", key)
 
 
-def _figure(w: float, h: float, **adjust: float) -> Any:
+def new_figure(w: float, h: float, **adjust: float) -> Any:
     """A matplotlib Figure on the Agg canvas (no pyplot state)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -49,7 +49,7 @@ def _figure(w: float, h: float, **adjust: float) -> Any:
     return fig
 
 
-def _render(fig: Any) -> RenderedFigure:
+def render_figure(fig: Any) -> RenderedFigure:
     """PNG and PDF bytes of a figure (metadata fixed, so the same figure gives the same bytes)."""
     png, pdf = io.BytesIO(), io.BytesIO()
     fig.savefig(png, format="png", dpi=REPORT_DPI, metadata={"Software": None})
@@ -57,5 +57,5 @@ def _render(fig: Any) -> RenderedFigure:
     return RenderedFigure(png.getvalue(), pdf.getvalue())
 
 
-def _rms(v: np.ndarray) -> float:
+def rms(v: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.asarray(v, float) ** 2))) if np.size(v) else float("nan")

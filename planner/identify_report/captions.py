@@ -8,7 +8,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from planner.identify_report.canvas import FIGURE_FOLDER, figure_file
-from planner.identify_report.diagnostics import _is_angle, _var_name
+from planner.identify_report.diagnostics import is_angle, var_name
 from problems.identify.map_summary import MAP_BAND_SIGMAS
 
 #: Figures of the report with a fixed text, in the order they are numbered: key -> (title, caption).
@@ -58,7 +58,7 @@ def figure_text(key: str) -> tuple[str, str]:
             f"frame) against the commanded angle of joint {j} in degrees (dots: rows; line: binned mean); "
             "each panel names the cross-validated share of that axis a smooth function of the angle explains.",
         )
-    if _is_angle(v):
+    if is_angle(v):
         return (
             f"Equivalent error of joint {v[1]} against its angle",
             f"The residual after identification projected on joint {v[1]}'s column of the positional "
@@ -66,7 +66,7 @@ def figure_text(key: str) -> tuple[str, str]:
             "(dots: rows; line: binned mean).",
         )
     return (
-        f"Residual against {_var_name(v)}",
+        f"Residual against {var_name(v)}",
         "The residual after identification against a diagnostic variable (dots: rows; line: binned mean); "
         "one panel per axis of the measurement frame, or the residual projected on the joint.",
     )

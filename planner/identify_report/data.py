@@ -120,7 +120,7 @@ def report_dict(
         out["compensation_check"] = res.compensation_check
     out["base_frame_aliases"] = _aliases(res)
     out["held_parameters"] = held_summary(res).to_dict()
-    head = {"headline": _headline(out), "provenance": provenance(_inputs(res, data_path))}
+    head = {"headline": headline(out), "provenance": provenance(_inputs(res, data_path))}
     return {**head, **out}
 
 
@@ -205,7 +205,7 @@ def structure_sentence(rep: dict[str, Any]) -> str:
     return msg if msg.startswith("structure remains") else "structure remains" + (f": {msg}" if msg else "")
 
 
-def _structure_value(rep: dict[str, Any]) -> str:
+def structure_value(rep: dict[str, Any]) -> str:
     """The short value of the headline's structure row."""
     u = rep.get("unexplained") or {}
     if not u.get("present"):
@@ -223,7 +223,7 @@ def _same_file(a: Any, b: Any) -> bool:
         return str(a) == str(b)
 
 
-def _headline(rep: dict[str, Any]) -> dict[str, Any]:
+def headline(rep: dict[str, Any]) -> dict[str, Any]:
     """What an engineer reads first: status, the validation file's RMS before/after (with
     ``--validation``), RMS before/after in-sample and held-out, noise floor, effects, structure left,
     joint error maps, held parameters, compensation."""

@@ -33,23 +33,23 @@ VARIABLE_LABELS = {
 VARIABLE_UNITS = {k: u for k, (_name, u) in VARIABLE_LABELS.items()}
 
 
-def _axis_diag(variable: str) -> tuple[int, str] | None:
+def axis_diag(variable: str) -> tuple[int, str] | None:
     """(joint, axis) of a per-axis joint-angle diagnostic ``q3.x``, else None."""
     m = re.fullmatch(r"q([1-6])\.([xyz])", variable)
     return (int(m.group(1)), m.group(2)) if m else None
 
 
-def _is_angle(variable: str) -> bool:
+def is_angle(variable: str) -> bool:
     """Whether a diagnostic variable is a joint angle (rad inside, drawn in degrees)."""
     return re.fullmatch(r"q[1-6](\.[xyz])?", variable) is not None
 
 
-def _var_name(variable: str) -> str:
+def var_name(variable: str) -> str:
     """The words for a diagnostic variable (its key when it has none)."""
     return VARIABLE_LABELS.get(variable, (variable, "-"))[0]
 
 
-def _diag_groups(res: IdentificationResult) -> list[tuple[str, list[Diagnostic]]]:
+def diag_groups(res: IdentificationResult) -> list[tuple[str, list[Diagnostic]]]:
     """The diagnostic figures to draw, at most :data:`REPORT_DIAGNOSTIC_PLOTS`, significant ones
     only: the variable behind the unexplained structure first, then the others by explained
     fraction.  The per-axis diagnostics of one joint (``q3.x``, ``q3.y``, ``q3.z``) share one figure
@@ -59,7 +59,7 @@ def _diag_groups(res: IdentificationResult) -> list[tuple[str, list[Diagnostic]]
     diags.sort(key=lambda d: (d.variable != want, -d.explained_fraction))
     groups: dict[str, list[Diagnostic]] = {}
     for d in diags:
-        ax = _axis_diag(d.variable)
+        ax = axis_diag(d.variable)
         key = f"q{ax[0]}.xyz" if ax else d.variable
         if key in groups:
             groups[key].append(d)
@@ -74,7 +74,7 @@ def _joint_of(variable: str) -> int | None:
     return int(m.group(1)) if m else None
 
 
-def _not_significant_line(diags: list[dict[str, Any]]) -> str:
+def not_significant_line(diags: list[dict[str, Any]]) -> str:
     """One line naming where nothing is significant (those are not drawn): the joints none of whose
     angle diagnostics is significant, then the other variables (``report.json`` diagnostics)."""
     sig_joints = {_joint_of(d["variable"]) for d in diags if d["significant"]} - {None}
@@ -91,7 +91,7 @@ def _not_significant_line(diags: list[dict[str, Any]]) -> str:
     return f"{head} on {' or on '.join(where)}: not drawn"
 
 
-def _shown_diagnostics(diags: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], int]:
+def shown_diagnostics(diags: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], int]:
     """The diagnostics the report's table lists (every significant one, then the
     :data:`REPORT_DIAGNOSTIC_ROWS` strongest others) and how many others it leaves out."""
     sig = [d for d in diags if d["significant"]]

@@ -1,4 +1,4 @@
-"""The report's figures rendered to PNG and PDF (:func:`_figures`): residuals per axis before and
+"""The report's figures rendered to PNG and PDF (:func:`render_figures`): residuals per axis before and
 after, the selection history, the compensation check and the significant diagnostics (the joint
 error maps are drawn by :mod:`planner.identify_report.maps`)."""
 
@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from planner.identify_report.canvas import RenderedFigure, _figure, _render, _rms
-from planner.identify_report.diagnostics import VARIABLE_UNITS, _axis_diag, _diag_groups, _is_angle, _var_name
-from planner.identify_report.maps import _maps_png
+from planner.identify_report.canvas import RenderedFigure, new_figure, render_figure, rms
+from planner.identify_report.diagnostics import VARIABLE_UNITS, axis_diag, diag_groups, is_angle, var_name
+from planner.identify_report.maps import maps_png
 from planner.numbers import format_number
 from problems.identify import Diagnostic, IdentificationResult
 
@@ -27,7 +27,7 @@ AXIS_COLOURS = ("tab:blue", "tab:orange", "tab:green")
 RESIDUAL_UM_BELOW_M = 1e-4
 
 
-def _figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> dict[str, RenderedFigure]:
+def render_figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> dict[str, RenderedFigure]:
     """The report's figures, rendered: joint error maps, residuals per axis, selection history,
     compensation check, significant diagnostics (key -> :class:`RenderedFigure`)."""
     import matplotlib
@@ -35,13 +35,13 @@ def _figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> di
     figs: dict[str, RenderedFigure] = {}
     with matplotlib.rc_context({"font.size": 9, "axes.titlesize": 9, "legend.fontsize": 8}):
         if getattr(res, "error_maps", None):
-            figs["error_maps"] = _maps_png(res)
+            figs["error_maps"] = maps_png(res)
         figs["residuals"] = _residual_png(res)
         if res.history:
             figs["history"] = _history_png(res)
         if res.compensation_check is not None:
             figs["compensation"] = _compensation_png(res, rep or {})
-        for key, group in _diag_groups(res):
+        for key, group in diag_groups(res):
             figs[f"diag_{key}"] = _axes_png(res, group) if key.endswith(".xyz") else _diag_png(res, group[0])
     return figs
 
@@ -49,7 +49,7 @@ def _figures(res: IdentificationResult, rep: dict[str, Any] | None = None) -> di
 def _residual_png(res: IdentificationResult) -> RenderedFigure:
     """Histograms of the residual per axis (x, y, z), before (nominal) and after (identified)."""
     inl = res.inliers
-    fig = _figure(11.0, 5.4, left=0.07, right=0.985, bottom=0.1, top=0.86, wspace=0.25, hspace=0.55)
+    fig = new_figure(11.0, 5.4, left=0.07, right=0.985, bottom=0.1, top=0.86, wspace=0.25, hspace=0.55)
     axs = fig.subplots(2, 3)
     for row, (name, R, colour) in enumerate(
         (
@@ -65,7 +65,7 @@ def _residual_png(res: IdentificationResult) -> RenderedFigure:
             r = R[:, j] * k
             ax.hist(r, bins=40, color=colour, alpha=0.8)
             ax.axvline(0.0, color="0.3", lw=0.8)
-            ax.set_title(f"{ax_name} axis, {name}: RMS {format_number(_rms(r))} {unit}")
+            ax.set_title(f"{ax_name} axis, {name}: RMS {format_number(rms(r))} {unit}")
             ax.set_xlabel(f"residual r_{ax_name} = predicted − measured [{unit}]")
             ax.set_ylabel("rows [count]")
             ax.grid(alpha=0.3)
@@ -74,13 +74,13 @@ def _residual_png(res: IdentificationResult) -> RenderedFigure:
         f"(RMS per axis over x, y, z: before {format_number(res.rms_before_mm)} mm, after "
         f"{format_number(res.rms_after_mm)} mm)"
     )
-    return _render(fig)
+    return render_figure(fig)
 
 
 def _history_png(res: IdentificationResult) -> RenderedFigure:
     """Cross-validated and in-sample RMS at each selection step."""
     steps = list(res.history)
-    fig = _figure(8.0, 3.8, left=0.1, right=0.98, bottom=0.24, top=0.88)
+    fig = new_figure(8.0, 3.8, left=0.1, right=0.98, bottom=0.24, top=0.88)
     ax = fig.subplots()
     labels = ["nominal", "declared"]
     for prev, st in itertools.pairwise(steps):
@@ -109,7 +109,7 @@ def _history_png(res: IdentificationResult) -> RenderedFigure:
     ax.grid(alpha=0.3, which="both")
     ax.legend()
     ax.set_title("Selection history")
-    return _render(fig)
+    return render_figure(fig)
 
 
 def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> RenderedFigure:
@@ -118,7 +118,7 @@ def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> Rendere
     c = res.compensation_check or {}
     aliases = rep.get("base_frame_aliases") or []
     blind = bool(aliases) and not res.model.registered
-    fig = _figure(9.0, 3.8, left=0.08, right=0.98, bottom=0.14, top=0.8, wspace=0.3)
+    fig = new_figure(9.0, 3.8, left=0.08, right=0.98, bottom=0.14, top=0.8, wspace=0.3)
     axs = fig.subplots(1, 2)
     for ax, title, what, b, a, note in (
         (
@@ -165,7 +165,7 @@ def _compensation_png(res: IdentificationResult, rep: dict[str, Any]) -> Rendere
                 bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"},
             )
     fig.suptitle(f"Compensation re-measured on the virtual robot: {c.get('n_poses', '?')} new poses and loads")
-    return _render(fig)
+    return render_figure(fig)
 
 
 def _length_scale(R: np.ndarray) -> tuple[str, float]:
@@ -178,7 +178,7 @@ def _bin_edges(x: np.ndarray, variable: str) -> np.ndarray:
     """Edges of the binned-mean curve (none for the pose index); joint angles get finer bins."""
     if variable == "pose" or np.ptp(x) <= 0:
         return np.array([])
-    bins = max(REPORT_BINS, min(REPORT_ANGLE_BINS_MAX, len(x) // 20)) if _is_angle(variable) else REPORT_BINS
+    bins = max(REPORT_BINS, min(REPORT_ANGLE_BINS_MAX, len(x) // 20)) if is_angle(variable) else REPORT_BINS
     return np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
 
 
@@ -195,12 +195,12 @@ def _scatter_panel(ax: Any, x: np.ndarray, y: np.ndarray, edges: np.ndarray, col
     ax.grid(alpha=0.3)
 
 
-def _x_of(d: Diagnostic) -> tuple[np.ndarray, str]:
+def x_of(d: Diagnostic) -> tuple[np.ndarray, str]:
     """The diagnostic's x for a plot and its axis label: joint angles in degrees."""
     x = np.asarray(d.x, dtype=float)
-    if _is_angle(d.variable):
+    if is_angle(d.variable):
         return np.degrees(x), f"joint {d.variable[1]} angle q{d.variable[1]} [deg]"
-    return x, f"{_var_name(d.variable)} [{VARIABLE_UNITS.get(d.variable, '-')}]"
+    return x, f"{var_name(d.variable)} [{VARIABLE_UNITS.get(d.variable, '-')}]"
 
 
 def _diag_png(res: IdentificationResult, d: Diagnostic) -> RenderedFigure:
@@ -223,9 +223,9 @@ def _diag_png(res: IdentificationResult, d: Diagnostic) -> RenderedFigure:
         names = [f"residual r_{c} [{unit}]" for c in "xyz"]
         titles = [f"{c} axis of the measurement frame" for c in "xyz"]
         colours = AXIS_COLOURS
-    x, xlabel = _x_of(d)
+    x, xlabel = x_of(d)
     n = len(names)
-    fig = _figure(
+    fig = new_figure(
         3.7 * n + 0.6 if n > 1 else 7.0,
         3.4,
         left=0.08 if n > 1 else 0.1,
@@ -244,19 +244,19 @@ def _diag_png(res: IdentificationResult, d: Diagnostic) -> RenderedFigure:
         ax.set_title(titles[j])
     flag = "significant structure" if d.significant else "no significant structure"
     fig.suptitle(
-        f"Residual after identification against {_var_name(d.variable)}\ncross-validated explained share "
+        f"Residual after identification against {var_name(d.variable)}\ncross-validated explained share "
         f"{100 * d.explained_fraction:.0f} % (p = {d.p_value:.2g}, {flag})"
     )
-    return _render(fig)
+    return render_figure(fig)
 
 
 def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> RenderedFigure:
     """The residual per axis against one joint angle (the per-axis diagnostics ``q{j}.x/y/z``, one
     panel each, with its own explained share and significance)."""
-    joint = _axis_diag(group[0].variable)[0]  # type: ignore[index]
+    joint = axis_diag(group[0].variable)[0]  # type: ignore[index]
     by_axis: dict[str, Diagnostic] = {}
     for d in res.diagnostics:
-        ad = _axis_diag(d.variable)
+        ad = axis_diag(d.variable)
         if ad is not None and ad[0] == joint:
             by_axis[ad[1]] = d
     Rm = np.asarray(res.residual_after, dtype=float)[res.inliers]
@@ -273,7 +273,7 @@ def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> RenderedFig
         )
     unit, k = _length_scale(Rm)
     x = np.degrees(x_rad)
-    fig = _figure(11.7, 3.4, left=0.06, right=0.985, bottom=0.16, top=0.74, wspace=0.3)
+    fig = new_figure(11.7, 3.4, left=0.06, right=0.985, bottom=0.16, top=0.74, wspace=0.3)
     axs = fig.subplots(1, 3)
     edges = _bin_edges(x, group[0].variable)
     for i, (ax, a) in enumerate(zip(axs, "xyz")):
@@ -295,4 +295,4 @@ def _axes_png(res: IdentificationResult, group: list[Diagnostic]) -> RenderedFig
         + (f"significant structure on {', '.join(sig)}" if sig else "no significant structure on any axis")
         + " (cross-validated P-spline of each axis on the angle)"
     )
-    return _render(fig)
+    return render_figure(fig)

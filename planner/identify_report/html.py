@@ -11,8 +11,8 @@ from typing import Any
 
 from planner.identify_report.canvas import RenderedFigure
 from planner.identify_report.captions import figure_entries, figure_text
-from planner.identify_report.diagnostics import _not_significant_line
-from planner.identify_report.markdown import _headline_rows, _provenance_rows, campaigns_text, report_markdown
+from planner.identify_report.diagnostics import not_significant_line
+from planner.identify_report.markdown import headline_rows, provenance_rows, campaigns_text, report_markdown
 
 
 def _html_table(
@@ -30,21 +30,30 @@ def _html_table(
     return "\n".join(out)
 
 
+def page_head(title: str) -> list[str]:
+    """The first lines of a self-contained HTML page styled like the plan report (the identification
+    and the campaign design reports): doctype, head with ``title`` (HTML, not escaped) and the style,
+    the opened body."""
+    from planner.report.rendering import _CSS
+
+    return [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{title}</title><style>{_CSS}</style></head><body>",
+    ]
+
+
 def report_html(rep: dict[str, Any], figs: Mapping[str, RenderedFigure]) -> str:
     """Self-contained HTML, styled like the plan report: headline table, figures with captions
     (each linked to its PNG and PDF files), then the tables of the selection, parameters and
     diagnostics, and the provenance."""
-    from planner.report.rendering import _CSS
-
     md = report_markdown(rep)
     sections = md.split("\n## ")
     parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>compplan identification report</title><style>{_CSS}</style></head><body>",
+        *page_head("compplan identification report"),
         "<h1>compplan identification report</h1>",
         '<h3 id="headline">Headline</h3>',
-        _html_table(["quantity", "value", "note"], _headline_rows(rep), "summary headline"),
+        _html_table(["quantity", "value", "note"], headline_rows(rep), "summary headline"),
         f'<p class="note">Data: {html.escape(str(rep["data"]["file"]))}. {html.escape(rep["rms_definition"])}. '
         "Lengths in mm.</p>",
     ]
@@ -66,22 +75,22 @@ def report_html(rep: dict[str, Any], figs: Mapping[str, RenderedFigure]) -> str:
     maps_sec = next((sec for sec in sections[1:] if sec.startswith("Joint error maps")), None)
     if maps_sec is not None:  # what an engineer looks for when a map was added: near the top
         parts.append('<h2 id="error_maps">Joint error maps</h2>')
-        parts.append(_md_block(maps_sec.split("\n", 1)[1]))
+        parts.append(md_block(maps_sec.split("\n", 1)[1]))
         if "error_maps" in figs:
             figure("error_maps")
     parts.append("<h2>Figures</h2>")
     for k in entries:
         if k in figs and k != "error_maps":
             figure(k)
-    line = _not_significant_line(rep["diagnostics"])
+    line = not_significant_line(rep["diagnostics"])
     if line:
         parts.append(f'<p class="note">Residual against the diagnostic variables: {html.escape(line)}.</p>')
     for sec in sections[1:]:
         if sec.startswith(("Provenance", "Figures")) or sec is maps_sec:
             continue
-        parts.append(_md_block("## " + sec))
+        parts.append(md_block("## " + sec))
     parts.append('<h2 id="provenance">Provenance</h2>')
-    parts.append(_html_table(["item", "value", "SHA-256"], _provenance_rows(rep), mono_cols=(1, 2)))
+    parts.append(_html_table(["item", "value", "SHA-256"], provenance_rows(rep), mono_cols=(1, 2)))
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
 
@@ -91,7 +100,7 @@ def _md_cells(line: str) -> list[str]:
     return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))]
 
 
-def _md_block(text: str) -> str:
+def md_block(text: str) -> str:
     """Tiny Markdown subset -> HTML (headings, bullet lists, pipe tables, paragraphs)."""
     out: list[str] = []
     lines = text.splitlines()

@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from planner.identify_report.canvas import RenderedFigure, _figure, _render
-from planner.identify_report.text import _md_cell
+from planner.identify_report.canvas import RenderedFigure, new_figure, render_figure
+from planner.identify_report.text import md_cell
 from planner.numbers import format_number
 from problems.identify import IdentificationResult
 from problems.identify.map_summary import MAP_BAND_SIGMAS
@@ -29,12 +29,12 @@ MAP_COMPONENT_WORDS = {
 }
 
 
-def _map_name(m: dict[str, Any]) -> str:
+def map_name(m: dict[str, Any]) -> str:
     """``joint 1 θ`` for a map of :func:`~planner.identify_report.data.report_dict`."""
     return f"joint {m['joint']} {MAP_COMPONENT_WORDS.get(m['component'], (m['component'], ''))[0]}"
 
 
-def _harmonic_freqs(m: dict[str, Any]) -> str:
+def harmonic_freqs(m: dict[str, Any]) -> str:
     """``13.56, 13.35 cycles/rev`` (the largest harmonics of a map)."""
     hs = m["harmonics"][:REPORT_MAP_HARMONICS]
     more = len(m["harmonics"]) - len(hs)
@@ -90,7 +90,7 @@ MAP_TABLE_NOTE = (
 )
 
 
-def _maps_markdown(rep: dict[str, Any]) -> list[str]:
+def maps_markdown(rep: dict[str, Any]) -> list[str]:
     """The "Joint error maps" section (empty without maps)."""
     rows = _map_rows(rep)
     if not rows:
@@ -103,7 +103,7 @@ def _maps_markdown(rep: dict[str, Any]) -> list[str]:
         "| joint | component | angle range (deg) | dominant harmonics | RMS at the TCP (µm) |",
         "|---|---|---|---|---|",
     ]
-    L += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in rows]
+    L += ["| " + " | ".join(md_cell(c) for c in r) + " |" for r in rows]
     n = len(rows)
     if n > REPORT_MAP_PANELS:
         L += [
@@ -114,7 +114,7 @@ def _maps_markdown(rep: dict[str, Any]) -> list[str]:
     return L + [""]
 
 
-def _maps_drawn(maps: list[Any]) -> list[Any]:
+def maps_drawn(maps: list[Any]) -> list[Any]:
     """The maps drawn: all, or the :data:`REPORT_MAP_PANELS` largest at the TCP, in table order."""
     if len(maps) <= REPORT_MAP_PANELS:
         return list(maps)
@@ -122,14 +122,14 @@ def _maps_drawn(maps: list[Any]) -> list[Any]:
     return [maps[i] for i in sorted(keep)]
 
 
-def _maps_png(res: IdentificationResult) -> RenderedFigure:
+def maps_png(res: IdentificationResult) -> RenderedFigure:
     """The joint error maps over their angle ranges (one panel per map): the map, its band, the
     commanded angles of the data, and the map held at its end values beyond the range."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     maps_all = list(res.error_maps)
-    maps = _maps_drawn(maps_all)
+    maps = maps_drawn(maps_all)
     k = len(maps)
     ncols = min(3, k)
     nrows = math.ceil(k / ncols)
@@ -147,7 +147,7 @@ def _maps_png(res: IdentificationResult) -> RenderedFigure:
         title.append(f"{k} of {len(maps_all)} maps drawn (the largest RMS at the TCP); every map is in the table")
     panel, gap, top, bottom = 2.3, 1.05, 0.75 + 0.2 * len(title), 0.55 + (0.0 if spare else 0.35)
     h = nrows * panel + (nrows - 1) * gap + top + bottom
-    fig = _figure(
+    fig = new_figure(
         w, h, left=0.75 / w, right=1 - 0.3 / w, top=1 - top / h, bottom=bottom / h, wspace=0.3, hspace=gap / panel
     )
     axs = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
@@ -216,4 +216,4 @@ def _maps_png(res: IdentificationResult) -> RenderedFigure:
             handles=handles, loc="lower center", ncol=4 if w > 9 else 2, frameon=False, bbox_to_anchor=(0.5, 0.0)
         )
     fig.suptitle("\n".join(title))
-    return _render(fig)
+    return render_figure(fig)

@@ -6,10 +6,10 @@ from __future__ import annotations
 from typing import Any
 
 from planner.identify_report.captions import figure_text
-from planner.identify_report.data import _headline, _structure_value, compensation_sentence, structure_sentence
-from planner.identify_report.diagnostics import _not_significant_line, _shown_diagnostics, _var_name
-from planner.identify_report.maps import _harmonic_freqs, _map_name, _maps_markdown
-from planner.identify_report.text import _fmt, _md_cell
+from planner.identify_report.data import headline, structure_value, compensation_sentence, structure_sentence
+from planner.identify_report.diagnostics import not_significant_line, shown_diagnostics, var_name
+from planner.identify_report.maps import harmonic_freqs, map_name, maps_markdown
+from planner.identify_report.text import fmt, md_cell
 from planner.numbers import format_number
 
 
@@ -26,9 +26,9 @@ def _setup_note(rep: dict[str, Any]) -> str:
     return f"{known} declared known (held); the {other} is identified"
 
 
-def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
+def headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(quantity, value, note) rows of the headline table."""
-    h = rep.get("headline") or _headline(rep)
+    h = rep.get("headline") or headline(rep)
     d = rep["data"]
     rows = [("status", str(h["status"]), str(h["reason"]))]
     v = rep.get("validation")
@@ -36,7 +36,7 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
         rows.append(
             (
                 "validation file RMS per axis, before → after",
-                f"{_fmt(h.get('validation_rms_before_mm'))} → {_fmt(h.get('validation_rms_after_mm'))} mm",
+                f"{fmt(h.get('validation_rms_before_mm'))} → {fmt(h.get('validation_rms_after_mm'))} mm",
                 f"{v['n_rows']} rows of {v['file']}, "
                 + ("never used in the fit" if h.get("validation_held_out") else "the --data file itself: not held out")
                 + "; before: the nominal robot file with the identified registration and measured point",
@@ -45,23 +45,23 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     rows += [
         (
             "residual RMS per axis, before → after (in-sample)",
-            f"{_fmt(h['rms_before_mm'])} → {_fmt(h['rms_after_mm'])} mm",
+            f"{fmt(h['rms_before_mm'])} → {fmt(h['rms_after_mm'])} mm",
             "before: the nominal robot file with only the registration and the measured point fitted",
         ),
         (
             "residual RMS per axis, before → after (held-out)",
-            f"{_fmt(h['heldout_rms_before_mm'])} → {_fmt(h['heldout_rms_after_mm'])} mm",
+            f"{fmt(h['heldout_rms_before_mm'])} → {fmt(h['heldout_rms_after_mm'])} mm",
             "cross-validated over whole poses: what the model predicts on poses it has not seen",
         ),
         (
             "noise floor",
-            "unknown" if h["noise_sigma_mm"] is None else f"{_fmt(h['noise_sigma_mm'])} mm",
+            "unknown" if h["noise_sigma_mm"] is None else f"{fmt(h['noise_sigma_mm'])} mm",
             str(h["noise_source"]),
         ),
         ("effects added (in order)", ", ".join(h["effects_added"]) or "none", ""),
         (
             "structure left in the residual",
-            _structure_value(rep),
+            structure_value(rep),
             "as the status says" if structure_sentence(rep) == str(h["reason"]) else structure_sentence(rep),
         ),
         ("data", f"{d['n_rows']} rows, {d['n_poses']} poses", _setup_note(rep)),
@@ -76,7 +76,7 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
             names.index("residual RMS per axis, before → after (held-out)") + 1,
             (
                 "orientation residual per axis, before → after (in-sample)",
-                f"{_fmt(ori['rms_before_rad'] * 1e6)} → {_fmt(ori['rms_after_rad'] * 1e6)} µrad",
+                f"{fmt(ori['rms_before_rad'] * 1e6)} → {fmt(ori['rms_after_rad'] * 1e6)} µrad",
                 f"{ori['n_rows']} orientation rows (rx, ry, rz); identifiable only thanks to them: "
                 + (", ".join(gained) if gained else "none"),
             ),
@@ -90,7 +90,7 @@ def _headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
             (
                 "joint error maps",
                 f"{len(maps)} on joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))}",
-                f"largest at the TCP: {_map_name(top)} ({_harmonic_freqs(top)}), "
+                f"largest at the TCP: {map_name(top)} ({harmonic_freqs(top)}), "
                 f"{format_number(top['rms_tcp_um'], 3)} µm RMS; see 'Joint error maps'",
             ),
         )
@@ -117,7 +117,7 @@ def _held_markdown(rep: dict[str, Any]) -> list[str]:
     if not groups:
         return []
     L = ["## Held parameters", "", "| parameters | what it means | what to do |", "|---|---|---|"]
-    L += [f"| {_md_cell(', '.join(g['names']))} | {_md_cell(g['meaning'])} | {_md_cell(g['action'])} |" for g in groups]
+    L += [f"| {md_cell(', '.join(g['names']))} | {md_cell(g['meaning'])} | {md_cell(g['action'])} |" for g in groups]
     return L + [""]
 
 
@@ -139,13 +139,13 @@ def _compensation_markdown(rep: dict[str, Any]) -> list[str]:
         f"- {compensation_sentence(rep)}",
         (
             f"- measurement frame (read this): the measured point against its nominal target mapped by the identified "
-            f"registration (what an instrument checks), {_fmt(c['meas_frame_rms_before_mm'])} → "
-            f"{_fmt(c['meas_frame_rms_after_mm'])} mm ({_fmt(100 * c['meas_frame_fraction_left'], 3)} % left)"
+            f"registration (what an instrument checks), {fmt(c['meas_frame_rms_before_mm'])} → "
+            f"{fmt(c['meas_frame_rms_after_mm'])} mm ({fmt(100 * c['meas_frame_fraction_left'], 3)} % left)"
         ),
         (
             f"- base frame: RMS of the 3-D TCP position error in the true base frame of the virtual robot, "
-            f"{_fmt(c['rms_before_mm'])} → {_fmt(c['rms_after_mm'])} mm "
-            f"({_fmt(100 * c['fraction_left'], 3)} % left){alias_note}"
+            f"{fmt(c['rms_before_mm'])} → {fmt(c['rms_after_mm'])} mm "
+            f"({fmt(100 * c['fraction_left'], 3)} % left){alias_note}"
         ),
         "",
     ]
@@ -181,7 +181,7 @@ def _unexplained_markdown(rep: dict[str, Any]) -> list[str]:
     return ["## Unexplained structure", "", text, ""]
 
 
-def _provenance_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
+def provenance_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
     """(item, value, SHA-256) rows of the provenance table."""
     p = rep.get("provenance") or {}
     rows = [
@@ -222,7 +222,7 @@ def campaigns_text(rep: dict[str, Any]) -> str:
 def report_markdown(rep: dict[str, Any]) -> str:
     """Markdown rendering of :func:`~planner.identify_report.data.report_dict`: the headline table first."""
     L = ["# Identification report", "", "| quantity | value | note |", "|---|---|---|"]
-    L += [f"| {q} | {_md_cell(v)} | {_md_cell(n)} |" for q, v, n in _headline_rows(rep)]
+    L += [f"| {q} | {md_cell(v)} | {md_cell(n)} |" for q, v, n in headline_rows(rep)]
     L += [
         "",
         f"- data: `{rep['data']['file']}`, registered: {rep['data']['registered']}",
@@ -231,7 +231,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
     ]
     if rep.get("campaigns"):  # several campaigns: one line, the figures in report.json 'campaigns'
         L[-1:-1] = [f"- campaigns (the last is the model's registration): {campaigns_text(rep)}"]
-    L += _maps_markdown(rep)
+    L += maps_markdown(rep)
     L += _unexplained_markdown(rep)
     L += _compensation_markdown(rep)
     if rep.get("validation"):
@@ -241,7 +241,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
             "",
             (
                 f"- `{v['file']}` (held out: never used in the fit): {v['n_rows']} rows, RMS per axis "
-                f"{_fmt(v.get('rms_nominal_mm'))} → {_fmt(v['rms_mm'])} mm (nominal robot file with the identified "
+                f"{fmt(v.get('rms_nominal_mm'))} → {fmt(v['rms_mm'])} mm (nominal robot file with the identified "
                 "registration and measured point → identified model)"
             ),
             "",
@@ -254,8 +254,8 @@ def report_markdown(rep: dict[str, Any]) -> str:
     ]
     for h in rep["history"]:
         L.append(
-            f"| {h['step']} | {', '.join(h['effects']) or '(declared)'} | {_fmt(h['cv_rms_mm'])} | "
-            f"{_fmt(h['rms_mm'])} | {h['n_excluded']} | {h['reason']} |"
+            f"| {h['step']} | {', '.join(h['effects']) or '(declared)'} | {fmt(h['cv_rms_mm'])} | "
+            f"{fmt(h['rms_mm'])} | {h['n_excluded']} | {h['reason']} |"
         )
     for h in rep["history"]:
         if not h["candidates"]:
@@ -270,9 +270,9 @@ def report_markdown(rep: dict[str, Any]) -> str:
         cands = sorted(h["candidates"], key=lambda c: (c["cv_rms_mm"] is None, c["cv_rms_mm"] or 0))
         for c in cands:
             L.append(
-                f"| {c['effect']} | {c['n_params']} | {_fmt(c['cv_rms_mm'])} | {_fmt(c['delta_bic'], 3)} | "
-                f"{_fmt(c['f_pvalue'], 2)} | {_fmt(c['explained_share'], 2)} | {c['accepted']} | "
-                f"{_md_cell(c['reason'])} |"
+                f"| {c['effect']} | {c['n_params']} | {fmt(c['cv_rms_mm'])} | {fmt(c['delta_bic'], 3)} | "
+                f"{fmt(c['f_pvalue'], 2)} | {fmt(c['explained_share'], 2)} | {c['accepted']} | "
+                f"{md_cell(c['reason'])} |"
             )
         details = [c for c in cands if c.get("detail")]
         if details:
@@ -286,8 +286,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
     ]
     for p in rep["parameters"]:
         L.append(
-            f"| {p['name']} | {_fmt(p['value'], 6)} | {_fmt(p['std'], 3)} | {p['unit']} | {p['status']} | "
-            f"{p['reason']} |"
+            f"| {p['name']} | {fmt(p['value'], 6)} | {fmt(p['std'], 3)} | {p['unit']} | {p['status']} | {p['reason']} |"
         )
     held_md = _held_markdown(rep)
     if held_md:
@@ -297,7 +296,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
         "",
         "## Identifiability",
         "",
-        f"- rank {idf['rank']}, condition number (column-normalised) {_fmt(idf['condition_number'], 3)}",
+        f"- rank {idf['rank']}, condition number (column-normalised) {fmt(idf['condition_number'], 3)}",
         f"- saturated library model: {_saturated_words(idf.get('saturated_model'))}",
         "",
     ]
@@ -305,10 +304,10 @@ def report_markdown(rep: dict[str, Any]) -> str:
     if rep["excluded_rows"]:
         L += ["| row | file line | |residual| (mm) |", "|---|---|---|"]
         for e in rep["excluded_rows"]:
-            L.append(f"| {e['row']} | {e['line']} | {_fmt(e['residual_mm'])} |")
+            L.append(f"| {e['row']} | {e['line']} | {fmt(e['residual_mm'])} |")
     else:
         L.append("none")
-    shown, hidden = _shown_diagnostics(rep["diagnostics"])
+    shown, hidden = shown_diagnostics(rep["diagnostics"])
     L += [
         "",
         "## Diagnostics of the final residual",
@@ -318,8 +317,8 @@ def report_markdown(rep: dict[str, Any]) -> str:
     ]
     for d in shown:
         L.append(
-            f"| {d['variable']} | {_md_cell(_var_name(d['variable']))} | {_fmt(d['explained_fraction'], 3)} | "
-            f"{_fmt(d['p_value'], 2)} | {d['significant']} |"
+            f"| {d['variable']} | {md_cell(var_name(d['variable']))} | {fmt(d['explained_fraction'], 3)} | "
+            f"{fmt(d['p_value'], 2)} | {d['significant']} |"
         )
     if hidden:
         L += [
@@ -327,7 +326,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
             f"{hidden} other diagnostic{'s' if hidden > 1 else ''} not shown (not significant, explaining "
             "less than those listed); every diagnostic is in report.json.",
         ]
-    drawn_line = _not_significant_line(rep["diagnostics"])
+    drawn_line = not_significant_line(rep["diagnostics"])
     if drawn_line:
         L += ["", f"Figures: only significant diagnostics are drawn; {drawn_line}."]
     if rep["notes"]:
@@ -336,7 +335,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
     if fig_md:
         L += [""] + fig_md[:-1]
     L += ["", "## Provenance", "", "| item | value | SHA-256 |", "|---|---|---|"]
-    L += [f"| {a} | {b} | {c} |" for a, b, c in _provenance_rows(rep)]
+    L += [f"| {a} | {b} | {c} |" for a, b, c in provenance_rows(rep)]
     return "\n".join(L) + "\n"
 
 
@@ -347,9 +346,9 @@ def _saturated_words(info: Any) -> str:
     words = f"effects {', '.join(map(str, info['effects']))}"
     if "cv_rms_mm" not in info:
         return words + " (no effect beyond the declared model: not fitted separately)"
-    structure = _var_name(str(info.get("structure")))
+    structure = var_name(str(info.get("structure")))
     left = "leaves no structure" if info.get("clean") else f"leaves structure in {structure}"
     return (
-        f"{words}; CV RMS {_fmt(info['cv_rms_mm'], 4)} mm; {left}; "
+        f"{words}; CV RMS {fmt(info['cv_rms_mm'], 4)} mm; {left}; "
         f"{info.get('n_excluded', 0)} rows excluded as outliers against it"
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 
-def _fmt(v: Any, nd: int = 4) -> str:
+def fmt(v: Any, nd: int = 4) -> str:
     if v is None:
         return "-"
     if isinstance(v, float):
@@ -13,6 +13,6 @@ def _fmt(v: Any, nd: int = 4) -> str:
     return str(v)
 
 
-def _md_cell(text: str) -> str:
+def md_cell(text: str) -> str:
     """Text for a Markdown table cell: its pipes escaped (``|f|`` stays one cell)."""
     return str(text).replace("|", "\\|")

@@ -8,7 +8,7 @@ from typing import Any
 
 from planner.identify_report.captions import figure_entries
 from planner.identify_report.data import report_dict
-from planner.identify_report.figures import _figures
+from planner.identify_report.figures import render_figures
 from planner.identify_report.html import report_html
 from planner.identify_report.markdown import report_markdown
 from planner.output import OutputSet
@@ -22,7 +22,7 @@ def write_report(
     ``figures/<name>.png`` and ``.pdf`` (listed in ``report.json`` → ``figures``, linked from the
     Markdown and the HTML) to ``folder``, all or nothing; returns the content of ``report.json``."""
     rep = report_dict(res, model_path, data_path)
-    figs = _figures(res, rep)
+    figs = render_figures(res, rep)
     rep["figures"] = figure_entries(figs)
     out = OutputSet(folder)
     out.add_json("report.json", rep)

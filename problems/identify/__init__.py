@@ -39,14 +39,19 @@ Modules
     :func:`select_identifiable`, the priority order, structural holds.
 :mod:`~problems.identify.outliers`
     The robust exclusion of rows.
+:mod:`~problems.identify.selection_scores`
+    Scores, cross-validation, BIC, F-test, noise floor.
 :mod:`~problems.identify.selection`
-    Scores, cross-validation, BIC, F-test, noise floor, the forward and backward steps.
+    The forward and backward steps.
 :mod:`~problems.identify.diagnostics`
     Regressions of the residual on explanatory variables.
 :mod:`~problems.identify.engine`
-    :func:`identify`, in named steps.
+    :func:`identify`, in named steps (step 1 in :mod:`~problems.identify.fit_setup`, the result in
+    :mod:`~problems.identify.outcome`).
 :mod:`~problems.identify.campaigns`
-    :func:`identify_campaigns`: one model from several campaigns, one registration each.
+    :func:`identify_campaigns`: one model from several campaigns, one registration each (the merged
+    table in :mod:`~problems.identify.campaign_merge`, the joint problem in
+    :mod:`~problems.identify.campaign_joint`).
 :mod:`~problems.identify.apply`
     :func:`predict`, :func:`compensate`, :func:`compensate_targets`,
     :func:`compensation_check`, :func:`validate_on`.
@@ -64,272 +69,89 @@ from models.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .apply import (
-        COMPENSATION_CHECK_MAX_COND,
-        COMPENSATION_RESIDUAL_TOL,
-        REGISTRATION_ALIAS_MARKERS,
-        TARGET_SEED_MAX_M,
         alias_effect_m,
-        base_frame_warning,
-        compensate,
         check_command_limits,
+        compensate,
         compensate_targets,
         compensation_check,
-        measured_point_model,
         predict,
         unobservable_in_base,
         validate_on,
     )
-    from .campaigns import SHARED_PARTS, campaign_names, identify_campaigns, merge_campaigns
-    from .diagnostics import (
-        DIAG_ALPHA,
-        DIAG_MIN_FRACTION,
-        UNEXPLAINED_MIN_FRACTION,
-        UNEXPLAINED_RMS_RATIO,
-        diagnostic_variables,
-        run_diagnostics,
-        structure_left,
-    )
-    from .engine import SATURATED_MAX_ITER, identify
-    from .evaluation import Evaluator, evaluator, make_rows, time_reference
-    from .identifiability import (
-        IDENT_MAX_STD_RATIO,
-        IDENT_REL_TOL,
-        LAST_AXIS_ROTATION,
-        STRUCTURAL_DESIGN_ROWS,
-        select_identifiable,
-    )
-    from .lsq import LM_COST_RTOL, LM_COST_SIGMA_TOL, LM_LAMBDA0, LM_MAX_ITER, LM_STEP_STD_TOL, NORMAL_RIDGE, kabsch
-    from .outliers import (
-        OUTLIER_FALSE_ALARM,
-        OUTLIER_GROSS_SIGMAS,
-        OUTLIER_MAX_FRACTION,
-        OUTLIER_MAX_ROUNDS,
-        OUTLIER_MIN_POSE_ROWS,
-        OUTLIER_MIN_SIGMAS,
-        OUTLIER_SCALE_QUANTILE,
-        OUTLIER_SEPARATION,
-        OUTLIER_TAIL_FACTOR,
-        OUTLIER_TAIL_QUANTILE,
-        OUTLIER_TAIL_SLACK,
-    )
+    from .campaign_merge import merge_campaigns
+    from .campaigns import identify_campaigns
+    from .engine import identify
+    from .evaluation import evaluator
     from .results import (
-        CandidateScore,
-        CompensationOutcome,
         DataError,
         Diagnostic,
         IdentificationResult,
-        IdentifiedModel,
         IdentifyStatus,
-        ParameterEstimate,
         ParameterStatus,
-        Progress,
-        SelectionStep,
         TargetsError,
         TargetsFrame,
     )
-    from .selection import (
-        CV_FOLDS,
-        CV_MIN_REL_GAIN,
-        CV_SEED,
-        F_TEST_ALPHA,
-        MIN_EXPLAINED_SHARE,
-        NOISE_FLOOR_STOP_RATIO,
-        PARSIMONY_REL_TOL,
-        REFINE_TOP,
-        THERMAL_MIN_RANGE_K,
-        backward_pass,
-        forward_selection,
-        noise_floor,
-    )
+    from .selection_scores import CV_FOLDS
 
-#: The submodule defining each name re-exported here.  Imported on first use (PEP 562), so that
-#: importing one submodule (``problems.identify.uncertainty``, which every plan reads for the
-#: predicted sigma of its path) does not import the engine, the selection and the diagnostics, and
-#: with them SciPy's statistics: a plan's start-up stays fast.
+#: Each re-exported name -> its submodule, imported on first use (the engine imports SciPy's statistics:
+#: a plan that reads one name of the package must not pay for it).
 _LAZY = {
     **dict.fromkeys(
         (
-            "COMPENSATION_CHECK_MAX_COND",
-            "COMPENSATION_RESIDUAL_TOL",
-            "REGISTRATION_ALIAS_MARKERS",
-            "TARGET_SEED_MAX_M",
             "alias_effect_m",
-            "base_frame_warning",
-            "compensate",
             "check_command_limits",
+            "compensate",
             "compensate_targets",
             "compensation_check",
-            "measured_point_model",
             "predict",
             "unobservable_in_base",
             "validate_on",
         ),
         "apply",
     ),
-    **dict.fromkeys(("SHARED_PARTS", "campaign_names", "identify_campaigns", "merge_campaigns"), "campaigns"),
+    "merge_campaigns": "campaign_merge",
+    "identify_campaigns": "campaigns",
+    "identify": "engine",
+    "evaluator": "evaluation",
     **dict.fromkeys(
         (
-            "DIAG_ALPHA",
-            "DIAG_MIN_FRACTION",
-            "UNEXPLAINED_MIN_FRACTION",
-            "UNEXPLAINED_RMS_RATIO",
-            "diagnostic_variables",
-            "run_diagnostics",
-            "structure_left",
-        ),
-        "diagnostics",
-    ),
-    **dict.fromkeys(("SATURATED_MAX_ITER", "identify"), "engine"),
-    **dict.fromkeys(("Evaluator", "evaluator", "make_rows", "time_reference"), "evaluation"),
-    **dict.fromkeys(
-        ("IDENT_MAX_STD_RATIO", "IDENT_REL_TOL", "LAST_AXIS_ROTATION", "STRUCTURAL_DESIGN_ROWS", "select_identifiable"),
-        "identifiability",
-    ),
-    **dict.fromkeys(
-        ("LM_COST_RTOL", "LM_COST_SIGMA_TOL", "LM_LAMBDA0", "LM_MAX_ITER", "LM_STEP_STD_TOL", "NORMAL_RIDGE", "kabsch"),
-        "lsq",
-    ),
-    **dict.fromkeys(
-        (
-            "OUTLIER_FALSE_ALARM",
-            "OUTLIER_GROSS_SIGMAS",
-            "OUTLIER_MAX_FRACTION",
-            "OUTLIER_MAX_ROUNDS",
-            "OUTLIER_MIN_POSE_ROWS",
-            "OUTLIER_MIN_SIGMAS",
-            "OUTLIER_SCALE_QUANTILE",
-            "OUTLIER_SEPARATION",
-            "OUTLIER_TAIL_FACTOR",
-            "OUTLIER_TAIL_QUANTILE",
-            "OUTLIER_TAIL_SLACK",
-        ),
-        "outliers",
-    ),
-    **dict.fromkeys(
-        (
-            "CandidateScore",
-            "CompensationOutcome",
             "DataError",
             "Diagnostic",
             "IdentificationResult",
-            "IdentifiedModel",
             "IdentifyStatus",
-            "ParameterEstimate",
             "ParameterStatus",
-            "Progress",
-            "SelectionStep",
             "TargetsError",
             "TargetsFrame",
         ),
         "results",
     ),
-    **dict.fromkeys(
-        (
-            "CV_FOLDS",
-            "CV_MIN_REL_GAIN",
-            "CV_SEED",
-            "F_TEST_ALPHA",
-            "MIN_EXPLAINED_SHARE",
-            "NOISE_FLOOR_STOP_RATIO",
-            "PARSIMONY_REL_TOL",
-            "REFINE_TOP",
-            "THERMAL_MIN_RANGE_K",
-            "backward_pass",
-            "forward_selection",
-            "noise_floor",
-        ),
-        "selection",
-    ),
+    "CV_FOLDS": "selection_scores",
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 
 __all__ = [
     # results and statuses
-    "CandidateScore",
-    "CompensationOutcome",
     "DataError",
     "Diagnostic",
     "IdentificationResult",
-    "IdentifiedModel",
     "IdentifyStatus",
-    "ParameterEstimate",
     "ParameterStatus",
-    "Progress",
-    "SelectionStep",
     "TargetsError",
     "TargetsFrame",
-    # evaluation
-    "Evaluator",
+    # evaluation and selection
     "evaluator",
-    "make_rows",
-    "time_reference",
-    # least squares and identifiability
-    "kabsch",
-    "select_identifiable",
-    "LM_COST_RTOL",
-    "LM_COST_SIGMA_TOL",
-    "LM_LAMBDA0",
-    "LM_MAX_ITER",
-    "LM_STEP_STD_TOL",
-    "NORMAL_RIDGE",
-    "IDENT_MAX_STD_RATIO",
-    "IDENT_REL_TOL",
-    "LAST_AXIS_ROTATION",
-    "STRUCTURAL_DESIGN_ROWS",
-    # outliers
-    "OUTLIER_FALSE_ALARM",
-    "OUTLIER_GROSS_SIGMAS",
-    "OUTLIER_MAX_FRACTION",
-    "OUTLIER_MAX_ROUNDS",
-    "OUTLIER_MIN_POSE_ROWS",
-    "OUTLIER_MIN_SIGMAS",
-    "OUTLIER_SCALE_QUANTILE",
-    "OUTLIER_SEPARATION",
-    "OUTLIER_TAIL_FACTOR",
-    "OUTLIER_TAIL_QUANTILE",
-    "OUTLIER_TAIL_SLACK",
-    # selection
     "CV_FOLDS",
-    "CV_MIN_REL_GAIN",
-    "CV_SEED",
-    "F_TEST_ALPHA",
-    "MIN_EXPLAINED_SHARE",
-    "NOISE_FLOOR_STOP_RATIO",
-    "PARSIMONY_REL_TOL",
-    "REFINE_TOP",
-    "THERMAL_MIN_RANGE_K",
-    "backward_pass",
-    "forward_selection",
-    "noise_floor",
-    # diagnostics
-    "DIAG_ALPHA",
-    "DIAG_MIN_FRACTION",
-    "UNEXPLAINED_MIN_FRACTION",
-    "UNEXPLAINED_RMS_RATIO",
-    "diagnostic_variables",
-    "run_diagnostics",
-    "structure_left",
-    # the engine
-    "SATURATED_MAX_ITER",
+    # the engine and several campaigns
     "identify",
-    # several campaigns
-    "SHARED_PARTS",
-    "campaign_names",
     "identify_campaigns",
     "merge_campaigns",
     # applying a model
-    "COMPENSATION_CHECK_MAX_COND",
-    "COMPENSATION_RESIDUAL_TOL",
-    "REGISTRATION_ALIAS_MARKERS",
-    "TARGET_SEED_MAX_M",
     "alias_effect_m",
-    "base_frame_warning",
-    "compensate",
     "check_command_limits",
+    "compensate",
     "compensate_targets",
     "compensation_check",
-    "measured_point_model",
     "predict",
     "unobservable_in_base",
     "validate_on",

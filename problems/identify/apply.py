@@ -31,8 +31,9 @@ from models.load import load_rows
 from ..compensation import CompensationStatus
 from ..compensation import exact as exact_compensation
 from ..measurements import POSITION_COLUMNS, Measurements
-from .evaluation import _ev_for, _nominal_tcp, make_rows
-from .lsq import _rms
+from .evaluation import evaluator_for, make_rows, nominal_tcp
+from .identifiability import aliases_registration
+from .lsq import rms
 from .results import CompensationOutcome, DataError, IdentifiedModel, TargetsError, TargetsFrame
 
 #: Compensation fails for a row if the model-predicted residual exceeds this (m).
@@ -49,9 +50,6 @@ TARGET_SEED_MAX_M = 0.05
 #: Tolerance of the joint-limit checks of :func:`compensate` and :func:`compensate_targets`
 #: (rad): a command this far beyond ``q_min``/``q_max`` is outside the limits.
 JOINT_LIMIT_TOL_RAD = 1e-12
-#: A held parameter whose reason names one of these aliases with the registration or the
-#: measured point (unregistered data): unobservable in the base frame.
-REGISTRATION_ALIAS_MARKERS = ("registration.", "measured_point")
 
 
 # ----------------------------------------------------------------------------------
@@ -67,7 +65,7 @@ def predict(model: IdentifiedModel, m: Measurements) -> np.ndarray:
     otherwise the state at the campaign's first row), temperature from the input or
     the identification data's mean.
     """
-    ev = _ev_for(model.nominal, model.const)
+    ev = evaluator_for(model.nominal, model.const)
     rows = make_rows(m, model.time_ref if m.t is not None else None, model.temperature_ref)
     p, _q = ev.measure(rows, model.theta, model.const)
     return p
@@ -123,7 +121,7 @@ def compensate(
     q_in = np.atleast_2d(np.asarray(q_in, dtype=float))
     n = len(q_in)
     L = load_rows(np.asarray(wrench, dtype=float), n)
-    target = _nominal_tcp(model.nominal, q_in) if target2base is None else np.asarray(target2base, float)
+    target = nominal_tcp(model.nominal, q_in) if target2base is None else np.asarray(target2base, float)
     q_c = np.zeros_like(q_in)
     q_eq = np.zeros_like(q_in)
     res = np.zeros(n)
@@ -295,33 +293,18 @@ def _measured_point_loads(model: ArmModel, wrench: np.ndarray) -> np.ndarray:
     return L
 
 
-def _aliases_registration(reason: str) -> bool:
-    """Whether a held parameter's reason makes it an alias of the registration or the
-    measured point: it names one of them (:data:`REGISTRATION_ALIAS_MARKERS`) first, as the
-    parameter that carries most of its column.  A parameter whose column is mostly that of
-    another arm parameter (e.g. ``dd[3]`` of parallel joints, carried by ``dd[2]``) is
-    compensated through that one."""
-    if not any(k in reason for k in REGISTRATION_ALIAS_MARKERS):
-        return False
-    _head, sep, tail = reason.partition("cannot be told apart from ")
-    if not sep:
-        return True
-    first = tail.split(",")[0].strip()
-    return any(first.startswith(k) for k in REGISTRATION_ALIAS_MARKERS)
-
-
 def unobservable_in_base(model: ArmModel) -> list[str]:
     """Parameters the base frame cannot see for this model, in parameter order.
 
     With unregistered data the joint-1 offset and base height alias with the registration
     and the flange-side DH errors with the measured point: they are held at zero (their
     ``held`` reason names ``registration.`` or ``measured_point``, see
-    :func:`_aliases_registration`) and the model is exact in the measurement frame only.
+    :func:`~.identifiability.aliases_registration`) and the model is exact in the measurement frame only.
     Empty for registered data.
     """
     if model.registered:
         return []
-    names = [n for n, why in model.held.items() if _aliases_registration(why)]
+    names = [n for n, why in model.held.items() if aliases_registration(why)]
     return sorted(names, key=lambda n: PARAM_NAMES.index(n) if n in PARAM_NAMES else len(PARAM_NAMES))
 
 
@@ -354,7 +337,7 @@ def alias_effect_m(
     )
     m = Measurements(q=np.atleast_2d(q), wrench=np.atleast_2d(wrench), temperature=temperature)
     rows = make_rows(m, None, model.temperature_ref)
-    ev = _ev_for(robot, const)
+    ev = evaluator_for(robot, const)
     _p, q_eq = ev.measure(rows, theta, const)
     _p, J = ev.jacobian(rows, q_eq, theta, const)
     out: dict[str, float] = {}
@@ -443,7 +426,7 @@ def compensate_targets(
         out = compensate(model, m.q, m.wrench, m.temperature)
     else:
         p = _target_positions(m, frame)
-        target = _nominal_tcp(model.nominal, m.q)
+        target = nominal_tcp(model.nominal, m.q)
         if frame is TargetsFrame.BASE:
             _check_seeds(m, p, target[:, :3, 3].copy(), frame, "nominal TCP")
             target[:, :3, 3] = p
@@ -500,7 +483,7 @@ def compensation_check(
     F[:, :3] = u * rng.choice(np.asarray(mags, dtype=float), n_poses)[:, None]
     F[::4] = 0.0
     temp = np.full(n_poses, model.temperature_ref)
-    target = _nominal_tcp(model.nominal, q)
+    target = nominal_tcp(model.nominal, q)
     before = vr.tcp_error(q, F, target, temp)
     out = compensate(model, q, F, temp)
     after = vr.tcp_error(out.q_command, F, target, temp)
@@ -568,7 +551,7 @@ def validate_on(model: IdentifiedModel, m: Measurements) -> dict[str, Any]:
     return {
         "file": m.source,
         "n_rows": m.n,
-        "rms_mm": _rms(r) * 1e3,
-        "rms_nominal_mm": _rms(r0) * 1e3,
+        "rms_mm": rms(r) * 1e3,
+        "rms_nominal_mm": rms(r0) * 1e3,
         "max_mm": float(np.linalg.norm(r, axis=1).max() * 1e3),
     }

@@ -44,7 +44,6 @@ the campaigns are only concatenated.  One campaign is exactly :func:`problems.id
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -53,347 +52,32 @@ from models import effects as fx
 from models.arm import ArmModel, CampaignFrame
 from models.errors import InputError
 from models.robot import Robot
-from models.transforms import invert, matrix_to_rotvec, rotvec_to_matrix, transform
+from models.transforms import invert, matrix_to_rotvec, transform
 
 from ..measurements import Measurements
 from .apply import predict
+from .campaign_joint import (
+    CAMPAIGN_TOL_M,
+    CAMPAIGN_TOL_RAD,
+    JointFit,
+    campaign_registration,
+    free_names,
+    joint_covariance,
+    registration_cov,
+    transform_change,
+)
+from .campaign_merge import campaign_names, merge_campaigns
 from .engine import identify
-from .evaluation import _ev_for, make_rows, row_weights
 from .lsq import kabsch
-from .results import DataError, IdentificationResult, ParameterStatus, Progress
+from .results import DataError, IdentificationResult, Progress
 
 #: Parts of the set-up ``shared`` may name.  ``measured_point`` is always shared (the same tool or
 #: reflector in every campaign): naming it changes nothing.
 SHARED_PARTS = ("registration", "measured_point")
-#: Convergence of the campaigns' transforms: translation change, m ...
-CAMPAIGN_TOL_M = 1e-7
-#: ... and rotation change, rad.
-CAMPAIGN_TOL_RAD = 1e-7
-#: Gauss-Newton steps of the joint problem per round.
-CAMPAIGN_GN_MAX_ITER = 12
-#: A Gauss-Newton run stops when its step is below this fraction of the tolerances above (so that two
-#: runs from different starts agree to within the tolerances).
-CAMPAIGN_GN_TOL_RATIO = 0.1
 #: Rounds of (engine re-fit, joint Gauss-Newton) at most.
 CAMPAIGN_MAX_ROUNDS = 4
-#: Step halvings of a Gauss-Newton step that does not lower the joint cost.
-CAMPAIGN_GN_HALVINGS = 8
 #: Fewest distinct poses of a campaign with its own registration (a rigid transform needs 3 points).
 CAMPAIGN_MIN_POSES = 3
-#: Directions of the joint problem (column-normalised Jacobian) with a singular value below this
-#: fraction of the largest are left out of its covariance (taken as determined by the model's holds:
-#: a parameter the engine freed can become inseparable from a campaign's transform).
-CAMPAIGN_COV_RCOND = 1e-6
-#: Central-difference step of the map to a campaign's registration parameters (m and rad).
-REG_FD_STEP = 1e-6
-#: Separator of a campaign's name and a pose id in the merged table's ``point`` column.
-POSE_SEPARATOR = "/"
-
-
-# ----------------------------------------------------------------------------------
-# Transforms
-# ----------------------------------------------------------------------------------
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """``[v]x`` of vectors (..., 3) -> (..., 3, 3)."""
-    v = np.asarray(v, dtype=float)
-    S = np.zeros(v.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
-    return S
-
-
-def _perturbed(A: np.ndarray, dt: np.ndarray, dphi: np.ndarray) -> np.ndarray:
-    """``A`` followed by the small motion ``x -> exp([dphi]x) x + dt`` (of the reference frame)."""
-    return transform(rotvec_to_matrix(dphi), dt) @ A
-
-
-def _change(A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
-    """Translation (m) and rotation (rad) difference of two rigid transforms."""
-    D = B @ invert(A)
-    return float(np.linalg.norm(D[:3, 3])), float(np.linalg.norm(matrix_to_rotvec(D[:3, :3])))
-
-
-# ----------------------------------------------------------------------------------
-# The merged table
-# ----------------------------------------------------------------------------------
-
-
-def campaign_names(sources: Sequence[str]) -> list[str]:
-    """Unique campaign names from data file names: the stems, ``-2``, ``-3`` ... appended to repeats
-    (``campaign1`` ... for tables without a file name)."""
-    out: list[str] = []
-    for k, s in enumerate(sources):
-        stem = Path(str(s)).stem if s and not str(s).startswith("<") else ""
-        base = stem or f"campaign{k + 1}"
-        name, n = base, 2
-        while name in out:
-            name, n = f"{base}-{n}", n + 1
-        out.append(name)
-    return out
-
-
-def _all_or_none(campaigns: Sequence[Measurements], attr: str, names: Sequence[str], notes: list[str]) -> bool:
-    """Whether every campaign has column ``attr``; a note names those without when only some have it."""
-    have = [getattr(m, attr) is not None for m in campaigns]
-    if any(have) and not all(have):
-        missing = [n for n, h in zip(names, have) if not h]
-        notes.append(
-            f"campaigns: {attr} ignored in every campaign: {', '.join(missing)} give(s) none (a column is used "
-            "only when every campaign gives it)"
-        )
-    return all(have)
-
-
-def merge_campaigns(
-    campaigns: Sequence[Measurements],
-    names: Sequence[str],
-    meas2ref: Sequence[np.ndarray] | None = None,
-    notes: list[str] | None = None,
-) -> tuple[Measurements, np.ndarray]:
-    """One table of several campaigns, measured points in the reference frame.
-
-    Parameters
-    ----------
-    campaigns : sequence of Measurements
-        With positions ``p``, each in its own measurement frame, m.
-    names : sequence of str
-        Unique campaign names.
-    meas2ref : sequence of ndarray, shape (4, 4), optional
-        Per campaign: its measurement frame -> the reference frame (default identity: one frame).
-    notes : list of str, optional
-        Receives what the merge decided (columns some campaigns lack).
-
-    Returns
-    -------
-    merged : Measurements
-        ``p`` mapped into the reference frame; ``point`` = ``"<name>/<pose>"`` (a campaign's
-        poses stay distinct from another's even with equal joints); ``t`` the time since the
-        campaign's first row when every campaign has ``t``, else the row number within the
-        campaign; ``sigma`` (isotropic: a rotated campaign's per-axis sigmas become their RMS),
-        ``temperature`` and ``target`` only when every campaign gives them; ``line`` the file lines.
-    campaign : ndarray of int, shape (N,)
-        Campaign index of each row.
-    """
-    notes = [] if notes is None else notes
-    C = len(campaigns)
-    meas2ref = [np.eye(4)] * C if meas2ref is None else list(meas2ref)
-    rot = [m.rotation is not None for m in campaigns]
-    if any(rot) and not all(np.allclose(T, np.eye(4)) for T in meas2ref):
-        raise InputError(
-            f"{', '.join(m.source for m, r in zip(campaigns, rot) if r)}: orientation columns (rx, ry, rz): "
-            "several campaigns with their own registrations are fitted from positions only; give --shared "
-            "registration (one frame for every campaign) or drop the rx, ry, rz columns"
-        )
-    use_t = _all_or_none(campaigns, "t", names, notes)
-    use_sigma = _all_or_none(campaigns, "sigma", names, notes)
-    use_temp = _all_or_none(campaigns, "temperature", names, notes)
-    use_target = all(m.target is not None for m in campaigns)
-    use_rot = all(rot)
-    aniso = False
-    P, T, PT, S, SX = [], [], [], [], []
-    for m, name, A in zip(campaigns, names, meas2ref):
-        P.append(m.p @ A[:3, :3].T + A[:3, 3])
-        T.append((m.t - float(np.min(m.t))) if use_t else np.arange(m.n, dtype=float))
-        ids = m.point if m.point is not None else m.pose_groups().astype(str)
-        PT.append(np.array([f"{name}{POSE_SEPARATOR}{i}" for i in ids], dtype=object))
-        if use_sigma:
-            S.append(np.asarray(m.sigma, dtype=float))
-            if np.allclose(A[:3, :3], np.eye(3)) and m.sigma_xyz is not None:
-                SX.append(np.asarray(m.sigma_xyz, dtype=float))
-            else:
-                aniso |= m.sigma_xyz is not None and bool(np.ptp(m.sigma_xyz, axis=1).max() > 0)
-                SX.append(np.repeat(np.asarray(m.sigma, dtype=float)[:, None], 3, axis=1))
-    if aniso:
-        notes.append("campaigns: per-axis sigmas of a re-registered campaign are used as their RMS (isotropic)")
-    cat = np.concatenate
-    merged = Measurements(
-        q=cat([m.q for m in campaigns]),
-        wrench=cat([m.wrench for m in campaigns]),
-        p=cat(P),
-        t=cat(T),
-        point=cat(PT).astype(str),
-        rotation=cat([m.rotation for m in campaigns]) if use_rot else None,
-        temperature=cat([m.temperature for m in campaigns]) if use_temp else None,
-        sigma=cat(S) if use_sigma else None,
-        line=cat([m.line for m in campaigns]),
-        source=", ".join(m.source for m in campaigns),
-        units=dict(campaigns[-1].units),
-        sigma_xyz=cat(SX) if use_sigma else None,
-        sigma_rot=(
-            cat([m.sigma_rot for m in campaigns])
-            if use_rot and all(m.sigma_rot is not None for m in campaigns)
-            else None
-        ),
-        notes=[n for m in campaigns for n in m.notes],
-        columns=dict(campaigns[-1].columns),
-        target=cat([m.target for m in campaigns]) if use_target else None,
-        file_format=campaigns[-1].file_format,
-    )
-    campaign = np.concatenate([np.full(m.n, k) for k, m in enumerate(campaigns)])
-    return merged, campaign
-
-
-# ----------------------------------------------------------------------------------
-# The joint problem
-# ----------------------------------------------------------------------------------
-
-
-def _free_names(res: IdentificationResult) -> list[str]:
-    """Free parameters of an identification (the covariance's names, else the FREE table rows)."""
-    if res.model.covariance_names:
-        return list(res.model.covariance_names)
-    return [p.name for p in res.parameters if p.status is ParameterStatus.FREE]
-
-
-class _Joint:
-    """The joint least-squares problem of the robot's free parameters and the campaigns' transforms
-    (every campaign but the reference: 6 columns each, ``[dt (m), dphi (rad)]``)."""
-
-    def __init__(
-        self,
-        model: ArmModel,
-        names: list[str],
-        campaigns: Sequence[Measurements],
-        campaign: np.ndarray,
-        merged: Measurements,
-        inliers: np.ndarray,
-    ) -> None:
-        self.model = model
-        self.names = names
-        self.idx = np.array([fx.PARAM_NAMES.index(n) for n in names], dtype=int)
-        self.const = model.const
-        self.ev = _ev_for(model.nominal, self.const)
-        self.rows = make_rows(merged, model.time_ref, model.temperature_ref)
-        self.raw = np.concatenate([m.p for m in campaigns])
-        self.campaign = campaign
-        self.C = len(campaigns)
-        self.w = row_weights(merged, np.ones(merged.n, dtype=bool))
-        self.mask = np.asarray(inliers, dtype=bool)
-
-    def mapped(self, A: Sequence[np.ndarray]) -> np.ndarray:
-        """The raw measured points in the reference frame, (N, 3), m."""
-        out = np.empty_like(self.raw)
-        for c in range(self.C):
-            sel = self.campaign == c
-            out[sel] = self.raw[sel] @ A[c][:3, :3].T + A[c][:3, 3]
-        return out
-
-    def residual(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> np.ndarray:
-        """Unweighted residual ``p_model - A p``, (N, 3), m, reference frame."""
-        p, _q = self.ev.measure(self.rows, theta, self.const)
-        return p - self.mapped(A)
-
-    def rms(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> float:
-        """RMS per axis of the unweighted residual over the inlier rows, m: the rounds' comparison."""
-        r = self.residual(theta, A)[self.mask]
-        return float(np.sqrt(np.mean(r**2))) if r.size else 0.0
-
-    def cost(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> float:
-        r = (self.residual(theta, A) * self.w)[self.mask]
-        return float(np.sum(r**2))
-
-    def jacobian(self, theta: np.ndarray, A: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Weighted residual (3n,) and weighted Jacobian (3n, k + 6 (C - 1)) over the inlier rows:
-        the free parameters (SI) then ``[dt, dphi]`` per non-reference campaign."""
-        p, q_eq = self.ev.measure(self.rows, theta, self.const)
-        _p, J = self.ev.jacobian(self.rows, q_eq, theta, self.const)
-        n = len(self.rows)
-        J3 = np.asarray(J).reshape(n, 3, -1)[:, :, self.idx]
-        pm = self.mapped(A)
-        cols = [J3]
-        for c in range(self.C - 1):
-            JA = np.zeros((n, 3, 6))
-            sel = self.campaign == c
-            JA[sel, :, 0:3] = -np.eye(3)
-            JA[sel, :, 3:6] = _skew(pm[sel])
-            cols.append(JA)
-        Jall = np.concatenate(cols, axis=2) * self.w[:, :, None]
-        r = (p - pm) * self.w
-        return r[self.mask].reshape(-1), Jall[self.mask].reshape(-1, Jall.shape[2])
-
-    def solve(self, theta: np.ndarray, A: list[np.ndarray]) -> tuple[np.ndarray, list[np.ndarray], int]:
-        """Gauss-Newton (with step halving) on the joint problem from ``theta`` and ``A``; returns
-        the parameters, the transforms and the steps taken."""
-        theta, A = theta.copy(), [a.copy() for a in A]
-        k = len(self.idx)
-        cost = self.cost(theta, A)
-        for it in range(1, CAMPAIGN_GN_MAX_ITER + 1):
-            r, J = self.jacobian(theta, A)
-            norm = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
-            d = -np.linalg.lstsq(J / norm, r, rcond=CAMPAIGN_COV_RCOND)[0] / norm
-            step = 1.0
-            for _h in range(CAMPAIGN_GN_HALVINGS):
-                th_n = theta.copy()
-                th_n[self.idx] += step * d[:k]
-                A_n = [
-                    _perturbed(A[c], step * d[k + 6 * c : k + 6 * c + 3], step * d[k + 6 * c + 3 : k + 6 * c + 6])
-                    for c in range(self.C - 1)
-                ] + [A[-1]]
-                cost_n = self.cost(th_n, A_n)
-                if cost_n <= cost:
-                    break
-                step /= 2.0
-            else:
-                return theta, A, it
-            dA = d[k:].reshape(-1, 6) * step if self.C > 1 else np.zeros((0, 6))
-            theta, A, cost = th_n, A_n, cost_n
-            if np.all(np.linalg.norm(dA[:, :3], axis=1) < CAMPAIGN_GN_TOL_RATIO * CAMPAIGN_TOL_M) and np.all(
-                np.linalg.norm(dA[:, 3:], axis=1) < CAMPAIGN_GN_TOL_RATIO * CAMPAIGN_TOL_RAD
-            ):
-                return theta, A, it
-        return theta, A, CAMPAIGN_GN_MAX_ITER
-
-
-def _registration_params(base2meas: np.ndarray, around: np.ndarray) -> np.ndarray:
-    """``[reg.t (m), reg.w (Cayley)]`` of a registration ``base2meas`` with the correction around
-    the rotation ``around`` (3, 3)."""
-    return np.concatenate([base2meas[:3, 3], fx.cayley_vector(base2meas[:3, :3] @ around.T)])
-
-
-def _campaign_registration(model: ArmModel, x: np.ndarray, A: np.ndarray | None) -> np.ndarray:
-    """Registration of a campaign (4, 4) from the model's reference registration perturbed by
-    ``x[:6]`` (``reg.t``, ``reg.w`` of the model) and, for a non-reference campaign, its transform
-    ``A`` (its frame -> the reference frame) perturbed by ``x[6:12]`` (``dt``, ``dphi``)."""
-    theta = model.theta.copy()
-    theta[fx.GROUP_SLICES["reg.t"]] += x[0:3]
-    theta[fx.GROUP_SLICES["reg.w"]] += x[3:6]
-    B = transform(fx.cayley_np(theta[fx.GROUP_SLICES["reg.w"]]) @ model.R0, theta[fx.GROUP_SLICES["reg.t"]])
-    if A is None:
-        return B
-    return invert(_perturbed(A, x[6:9], x[9:12])) @ B
-
-
-def _registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) -> np.ndarray:
-    """6x6 covariance of a campaign's registration in ``[reg.t, reg.w]`` around its own rotation,
-    from the joint covariance ``cov`` of ``[reg.t, reg.w of the model, (dt, dphi of A)]``."""
-    n = cov.shape[0]
-    x0 = np.zeros(n)
-    B0 = _campaign_registration(model, x0, A)
-    G = np.zeros((6, n))
-    for j in range(n):
-        e = np.zeros(n)
-        e[j] = REG_FD_STEP
-        hi = _registration_params(_campaign_registration(model, x0 + e, A), B0[:3, :3])
-        lo = _registration_params(_campaign_registration(model, x0 - e, A), B0[:3, :3])
-        G[:, j] = (hi - lo) / (2.0 * REG_FD_STEP)
-    return G @ cov @ G.T
-
-
-def joint_covariance(joint: _Joint, theta: np.ndarray, A: Sequence[np.ndarray]) -> tuple[np.ndarray, float, int]:
-    """``s^2 (J^T J)^-1`` of the joint problem (free parameters, then 6 per non-reference campaign),
-    ``s^2`` (weighted residual variance) and the degrees of freedom."""
-    r, J = joint.jacobian(theta, A)
-    dof = max(r.size - J.shape[1], 1)
-    s2 = float(r @ r) / dof
-    norm = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
-    _u, sv, vt = np.linalg.svd(J / norm, full_matrices=False)
-    keep = sv > CAMPAIGN_COV_RCOND * sv[0] if len(sv) else np.zeros(0, dtype=bool)
-    V = vt[keep].T / sv[keep]
-    cov = (V @ V.T) / np.outer(norm, norm) * s2
-    return 0.5 * (cov + cov.T), s2, dof
 
 
 # ----------------------------------------------------------------------------------
@@ -580,7 +264,7 @@ def _fit_rounds(
     identify_kwargs: Mapping[str, Any],
     notes: list[str],
 ) -> tuple[
-    IdentificationResult, IdentificationResult, list[np.ndarray], _Joint, np.ndarray, int, int, tuple[float, float]
+    IdentificationResult, IdentificationResult, list[np.ndarray], JointFit, np.ndarray, int, int, tuple[float, float]
 ]:
     """Steps 2-4 of the method (docs/identification.md, section 11): merge, identify, joint Gauss-Newton,
     until the transforms ``A`` settle; the round of smallest joint RMS is kept.
@@ -592,15 +276,16 @@ def _fit_rounds(
     res = identify(robot, merged, progress=progress, **identify_kwargs)
     first = res
     rounds, gn_steps, change = 0, 0, (float("inf"), float("inf"))
-    tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], _Joint]] = []
+    tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], JointFit]] = []
     while True:
         rounds += 1
-        joint = _Joint(res.model, _free_names(res), campaigns, campaign, merged, res.inliers)
+        joint = JointFit(res.model, free_names(res), campaigns, campaign, merged, res.inliers)
         tried.append((joint.rms(res.model.theta, A), rounds, res, A, joint))
         _th, A_new, steps = joint.solve(res.model.theta, A)
         gn_steps += steps
         change = max(
-            (_change(a, b) for a, b in zip(A, A_new)), key=lambda d: d[0] / CAMPAIGN_TOL_M + d[1] / CAMPAIGN_TOL_RAD
+            (transform_change(a, b) for a, b in zip(A, A_new)),
+            key=lambda d: d[0] / CAMPAIGN_TOL_M + d[1] / CAMPAIGN_TOL_RAD,
         )
         if (change[0] < CAMPAIGN_TOL_M and change[1] < CAMPAIGN_TOL_RAD) or rounds >= CAMPAIGN_MAX_ROUNDS:
             break
@@ -620,7 +305,7 @@ def _fit_rounds(
 def _finish(
     res: IdentificationResult,
     first: IdentificationResult,
-    joint: _Joint,
+    joint: JointFit,
     A: list[np.ndarray],
     names: list[str],
     campaigns: list[Measurements],
@@ -651,14 +336,14 @@ def _finish(
         full = np.zeros((6 + len(a_idx), 6 + len(a_idx)))
         pos = [j for j, i in enumerate(reg_idx) if i >= 0] + list(range(6, 6 + len(a_idx)))
         full[np.ix_(pos, pos)] = cov[np.ix_(sub + a_idx, sub + a_idx)]
-        Rc = _campaign_registration(model, np.zeros(6 + len(a_idx)), A[c] if c < C - 1 else None)
+        Rc = campaign_registration(model, np.zeros(6 + len(a_idx)), A[c] if c < C - 1 else None)
         frames.append(
             CampaignFrame(
                 name=names[c],
                 base2meas=Rc,
                 n_rows=int(np.sum(res.inliers & (campaign == c))),
                 data=campaigns[c].source,
-                registration_cov=_registration_cov(model, full, A[c] if c < C - 1 else None),
+                registration_cov=registration_cov(model, full, A[c] if c < C - 1 else None),
             )
         )
     model.campaigns = frames

@@ -22,11 +22,11 @@ from models.robot import Robot
 
 from ..measurements import Measurements
 from .error_map import joint_smoother_cv, smoother_cv
-from .evaluation import _nominal_gravity_torque, _nominal_points, _Problem
+from .evaluation import FitProblem, nominal_gravity_torque, nominal_points
 from .results import Diagnostic
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .lsq import _Fit
+    from .lsq import ModelFit
 
 #: Diagnostics: family-wise significance level and minimum cross-validated
 #: explained fraction of the residual variance for "structure".
@@ -60,7 +60,7 @@ def _joint_design(Jp: np.ndarray, j: int, B: np.ndarray) -> np.ndarray:
     return Jp[:, :, j][:, :, None] * B[:, None, :]
 
 
-def _regress_cv(R: np.ndarray, X: np.ndarray, folds: np.ndarray) -> tuple[float, float]:
+def regress_cv(R: np.ndarray, X: np.ndarray, folds: np.ndarray) -> tuple[float, float]:
     """CV explained fraction and F-test p-value of residual R (n, 3) on design X (n, 3, b).
 
     A constant 3-D offset is always part of the model (it is the reference).
@@ -265,7 +265,7 @@ def run_diagnostics(
     out: list[Diagnostic] = []
     n_tests = len(variables) + 1 + len(extra)
     for name, (x, X, desc) in variables.items():
-        frac, p = _regress_cv(R, X, folds)
+        frac, p = regress_cv(R, X, folds)
         sig = (p < DIAG_ALPHA / n_tests) and frac > DIAG_MIN_FRACTION
         out.append(Diagnostic(name, _share(frac), p, sig, x, desc))
     for d in extra:
@@ -298,7 +298,7 @@ def structure_left(diags: Sequence[Diagnostic]) -> Diagnostic | None:
     return named[0] if named else sig[0]
 
 
-def _diagnose(prob: _Problem, fit: _Fit, robot: Robot) -> list[Diagnostic]:
+def diagnose(prob: FitProblem, fit: ModelFit, robot: Robot) -> list[Diagnostic]:
     """Diagnostics of the residual of ``fit`` (inlier rows), sorted by explained fraction.
 
     The positional Jacobian of the measured point (measurement frame, m/rad) and the
@@ -316,8 +316,8 @@ def _diagnose(prob: _Problem, fit: _Fit, robot: Robot) -> list[Diagnostic]:
     Jp = np.asarray(Jp).reshape(3, n, 6).transpose(1, 0, 2)
     te, _tg, _q = ev.call("torques", m.q, m.wrench, dT, fit.theta, prob.const)
     tau = np.asarray(te).T
-    tau_g = _nominal_gravity_torque(robot, m)
-    p_nom = _nominal_points(robot, m.q)
+    tau_g = nominal_gravity_torque(robot, m)
+    p_nom = nominal_points(robot, m.q)
     variables = diagnostic_variables(m, Jp, tau, tau_g, p_nom)
     W = prob.weights[mask]
     R = (fit.pred[mask] - m.p) * W

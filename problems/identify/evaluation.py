@@ -4,7 +4,7 @@
   mapped over rows with threads, cached per size;
 * :func:`make_rows` and :func:`time_reference` -- the per-row inputs
   ``[q_c (6) rad, F (6) N and N*m base frame, tn (1), dT (1) K]``;
-* :class:`_Problem` -- the data and fixed inputs of one identification, and the
+* :class:`FitProblem` -- the data and fixed inputs of one identification, and the
   constant-vector updates of the selection (hardening knots, gravity switch);
 * the nominal model's evaluations used by diagnostics and compensation.
 
@@ -27,7 +27,7 @@ from models.symbolic import KinematicModel
 from ..measurements import Measurements
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .lsq import _Fit
+    from .lsq import ModelFit
 
 
 def _np(x: ca.DM) -> np.ndarray:
@@ -140,7 +140,7 @@ def evaluator(
     return ev
 
 
-def _ev_for(robot: Robot, const: np.ndarray | None = None) -> Evaluator:
+def evaluator_for(robot: Robot, const: np.ndarray | None = None) -> Evaluator:
     """The shared :class:`Evaluator` of a robot (its convention and eligible parameters) and,
     when given, a model's constant vector (the parameters in use, see ``make_layout``; orientation
     rows when its ``measured_frame.on`` is set)."""
@@ -179,7 +179,7 @@ def make_rows(
 
 
 @dataclass
-class _Problem:
+class FitProblem:
     """Data and fixed inputs of one identification.
 
     Attributes
@@ -276,12 +276,12 @@ def _knots_from(tau: np.ndarray, ts: np.ndarray) -> np.ndarray:
     return knots
 
 
-def _torque_scale(prob_robot: Robot, m: Measurements) -> tuple[np.ndarray, np.ndarray]:
+def torque_scale(prob_robot: Robot, m: Measurements) -> tuple[np.ndarray, np.ndarray]:
     """Per-joint torque scale (90th percentile of |J^T F| over the data), N*m, (6,),
     and hardening knots (quantiles of the nonzero |J^T F|), N*m, (6, N_KNOTS)."""
     layout = make_layout(prob_robot)
     const = make_const(prob_robot, np.eye(3), np.ones(6), False)
-    te, _tg, _q = _ev_for(prob_robot).call(
+    te, _tg, _q = evaluator_for(prob_robot).call(
         "torques", m.q, m.wrench, np.zeros((m.n, 1)), np.zeros(N_PARAMS) + layout.nominal, const
     )
     tau = np.abs(np.asarray(te).T)
@@ -289,7 +289,7 @@ def _torque_scale(prob_robot: Robot, m: Measurements) -> tuple[np.ndarray, np.nd
     return ts, _knots_from(tau, ts)
 
 
-def _update_knots(prob: _Problem, fit: _Fit) -> _Problem:
+def update_knots(prob: FitProblem, fit: ModelFit) -> FitProblem:
     """Place the hardening knots on the joint torques the current model applies (external
     plus, when ``gravity`` is on, self-weight): only while hardening is not active."""
     rows = prob.rows
@@ -299,24 +299,24 @@ def _update_knots(prob: _Problem, fit: _Fit) -> _Problem:
     return replace(prob, const=c)
 
 
-def _gravity_problem(prob: _Problem, on: bool) -> _Problem:
+def gravity_problem(prob: FitProblem, on: bool) -> FitProblem:
     """The same problem with the self-weight torques switched on or off."""
     c = set_const(prob.const, "gravity.on", [1.0 if on else 0.0])
     return replace(prob, const=c)
 
 
-def _nominal_points(robot: Robot, q: np.ndarray) -> np.ndarray:
+def nominal_points(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Nominal TCP positions for joints ``q`` (N, 6) rad: base frame, m, (N, 3), without
     compiling anything."""
     layout = make_layout(robot)
     rows = np.zeros((len(q), fx.ROW_SIZE))
     rows[:, :6] = q
     const = make_const(robot, np.eye(3), np.ones(6), False)
-    p, _q = _ev_for(robot).measure(rows, layout.nominal, const)
+    p, _q = evaluator_for(robot).measure(rows, layout.nominal, const)
     return p
 
 
-def _nominal_tcp(robot: Robot, q: np.ndarray) -> np.ndarray:
+def nominal_tcp(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Nominal-FK TCP frames of joints ``q`` (N, 6) rad: ``tcp2base``, (N, 4, 4), m, via
     ``Function.map`` (no compilation)."""
     km = KinematicModel(robot)
@@ -325,7 +325,7 @@ def _nominal_tcp(robot: Robot, q: np.ndarray) -> np.ndarray:
     return T.reshape(4, n, 4).transpose(1, 0, 2)
 
 
-def _nominal_gravity_torque(robot: Robot, m: Measurements) -> np.ndarray | None:
+def nominal_gravity_torque(robot: Robot, m: Measurements) -> np.ndarray | None:
     """Nominal gravity torques (N*m, (N, 6)) from the robot's masses, or a generic
     proxy (unit masses at the link mid-points) when the file gives none."""
     layout = make_layout(robot)
@@ -337,6 +337,6 @@ def _nominal_gravity_torque(robot: Robot, m: Measurements) -> np.ndarray | None:
         h[:, 0] = -robot.a / 2.0
         theta[GROUP_SLICES["gravity.h"]] = h.reshape(-1)
     const = make_const(robot, np.eye(3), np.ones(6), True)
-    ev = _ev_for(robot)
+    ev = evaluator_for(robot)
     _te, tg, _q = ev.call("torques", m.q, np.zeros((m.n, 6)), np.zeros((m.n, 1)), theta, const)
     return np.asarray(tg).T

@@ -1,11 +1,11 @@
 """Identifiability: which parameters the data can tell apart, in which priority.
 
 :func:`select_identifiable` runs a pivoted Gram-Schmidt on the scaled Jacobian
-columns in priority order (:func:`_order_for`: registration, measured point,
+columns in priority order (:func:`priority_order`: registration, measured point,
 stiffness, then the effects in the order added); a parameter whose column is
 (numerically) a combination of earlier ones is *held* at its nominal value and
 reported with the parameters it aliases, one the data do not excite or determine is
-held too.  :func:`_structural_held` runs the same test on a rich synthetic design to
+held too.  :func:`structural_held` runs the same test on a rich synthetic design to
 tell structural redundancy (e.g. a joint-1 offset and the registration) from too
 few data.
 """
@@ -21,7 +21,7 @@ from models.effects import PARAM_NAMES, ModelLayout, make_const, make_layout
 from models.robot import Robot
 
 from ..measurements import Measurements
-from .evaluation import _ev_for, _torque_scale, make_rows, time_reference
+from .evaluation import evaluator_for, make_rows, time_reference, torque_scale
 
 #: A parameter whose scaled Jacobian column keeps less than this fraction of its
 #: norm after projection on the columns of higher priority is redundant (held):
@@ -36,6 +36,9 @@ LAST_AXIS_ROTATION = "dtheta[6]"
 #: Rows of the synthetic design used to tell structural from data-caused
 #: unidentifiability.
 STRUCTURAL_DESIGN_ROWS = 240
+#: A held parameter whose reason names one of these aliases with the registration or the
+#: measured point (unregistered data): unobservable in the base frame.
+REGISTRATION_ALIAS_MARKERS = ("registration.", "measured_point")
 
 
 def select_identifiable(
@@ -126,7 +129,7 @@ class Known:
         return " and ".join(parts) if parts else "nothing"
 
 
-def _order_for(layout: ModelLayout, effects: Sequence[str], registered: bool | Known) -> list[int]:
+def priority_order(layout: ModelLayout, effects: Sequence[str], registered: bool | Known) -> list[int]:
     """Parameter indices in priority order: registration, point, stiffness, effects
     (registration and point only where not known, see :class:`Known`)."""
     known = Known.of(registered)
@@ -149,7 +152,7 @@ def _order_for(layout: ModelLayout, effects: Sequence[str], registered: bool | K
     return [i for i in order if i not in last] + last
 
 
-def _structural_held(robot: Robot, effects: Sequence[str], registered: bool) -> set[int]:
+def structural_held(robot: Robot, effects: Sequence[str], registered: bool) -> set[int]:
     """Parameters held on a rich synthetic design (structural redundancy).
 
     The design: :data:`STRUCTURAL_DESIGN_ROWS` random configurations within the joint
@@ -164,14 +167,29 @@ def _structural_held(robot: Robot, effects: Sequence[str], registered: bool) -> 
     F[::3] = 0.0
     m = Measurements(q=q, wrench=F, p=np.zeros((n, 3)), t=np.linspace(0, 1, n), temperature=np.linspace(15, 35, n))
     layout = make_layout(robot)
-    tau_s, knots = _torque_scale(robot, m)
+    tau_s, knots = torque_scale(robot, m)
     const = make_const(robot, np.eye(3), tau_s, True, knots=knots)
-    ev = _ev_for(robot)
+    ev = evaluator_for(robot)
     theta = layout.nominal.copy()
     rows = make_rows(m, time_reference(m), 20.0)
     _pred, qe = ev.measure(rows, theta, const)
     _p, J = ev.jacobian(rows, qe, theta, const)
-    order = _order_for(layout, effects, registered)
+    order = priority_order(layout, effects, registered)
     Js = J[:, order] * layout.scale[order][None, :]
     _kept, held = select_identifiable(Js, order, 0.0)
     return set(held)
+
+
+def aliases_registration(reason: str) -> bool:
+    """Whether a held parameter's reason makes it an alias of the registration or the
+    measured point: it names one of them (:data:`REGISTRATION_ALIAS_MARKERS`) first, as the
+    parameter that carries most of its column.  A parameter whose column is mostly that of
+    another arm parameter (e.g. ``dd[3]`` of parallel joints, carried by ``dd[2]``) is
+    compensated through that one."""
+    if not any(k in reason for k in REGISTRATION_ALIAS_MARKERS):
+        return False
+    _head, sep, tail = reason.partition("cannot be told apart from ")
+    if not sep:
+        return True
+    first = tail.split(",")[0].strip()
+    return any(first.startswith(k) for k in REGISTRATION_ALIAS_MARKERS)

@@ -4,7 +4,7 @@ The residual is ``r = (p_model(theta) - p_meas) / sigma`` over the rows of a mas
 (measurement frame; weights ``1/sigma`` in 1/m, or ones), the Jacobian comes from
 CasADi AD (:class:`~problems.identify.evaluation.Evaluator`), and the steps are
 taken on parameters scaled by their typical magnitudes (``ModelLayout.scale``), with
-projected steps for bounded parameters.  :func:`_fit_model` is one complete fit of
+projected steps for bounded parameters.  :func:`fit_model` is one complete fit of
 a model with given effects: identifiability, LM, robust exclusion of outliers and a
 re-check of identifiability at the solution.
 """
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .evaluation import _Problem
-from .identifiability import _order_for, select_identifiable
-from .outliers import OUTLIER_MAX_ROUNDS, _outlier_mask
+from .evaluation import FitProblem
+from .identifiability import priority_order, select_identifiable
+from .outliers import OUTLIER_MAX_ROUNDS, outlier_mask
 
 #: Levenberg-Marquardt: maximum iterations, initial damping, stop tolerances.
 LM_MAX_ITER = 40
@@ -56,7 +56,7 @@ def kabsch(P: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return R, qc - R @ pc
 
 
-def _solve_normal(G: np.ndarray, g: np.ndarray) -> np.ndarray:
+def solve_normal(G: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Solve ``G x = g`` (G symmetric positive semi-definite, (k, k)) with a tiny ridge."""
     n = G.shape[0]
     if n == 0:
@@ -69,13 +69,13 @@ def _solve_normal(G: np.ndarray, g: np.ndarray) -> np.ndarray:
         return np.linalg.lstsq(G, g, rcond=None)[0]
 
 
-def _rms(r: np.ndarray) -> float:
+def rms(r: np.ndarray) -> float:
     """Root mean square of every element (per-axis RMS of an (N, 3) residual); NaN if empty."""
     return float(np.sqrt(np.mean(np.square(r)))) if r.size else float("nan")
 
 
 @dataclass
-class _Fit:
+class ModelFit:
     """A fitted model.
 
     Attributes
@@ -107,30 +107,30 @@ class _Fit:
     converged: bool
     iterations: int
 
-    def residual(self, prob: _Problem) -> np.ndarray:
+    def residual(self, prob: FitProblem) -> np.ndarray:
         """Unweighted residual ``pred - measured``, (N, 3), m, measurement frame."""
         return self.pred - prob.m.p
 
 
-def _wres(prob: _Problem, pred: np.ndarray, mask: np.ndarray) -> np.ndarray:
+def weighted_residual(prob: FitProblem, pred: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Weighted residual of the rows in ``mask``, flattened ``[x0, y0, z0, x1, ...]``."""
     r = (pred - prob.m.p) * prob.weights
     return r[mask].reshape(-1)
 
 
-def _wjac(prob: _Problem, J: np.ndarray, mask: np.ndarray, cols: np.ndarray) -> np.ndarray:
+def weighted_jacobian(prob: FitProblem, J: np.ndarray, mask: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Weighted Jacobian of the rows in ``mask`` and columns ``cols``, times the parameter scales."""
     W = prob.weights.reshape(-1)[:, None]
     rows3 = np.repeat(mask, 3)
     return (J[rows3][:, cols] * W[rows3]) * prob.layout.scale[cols][None, :]
 
 
-def _evaluate(prob: _Problem, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def evaluate(prob: FitProblem, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Prediction (N, 3) m and equilibrium joints (N, 6) rad of every row."""
     return prob.ev.measure(prob.rows, theta, prob.const)
 
 
-def _jac(prob: _Problem, theta: np.ndarray, q_eq: np.ndarray) -> np.ndarray:
+def jacobian(prob: FitProblem, theta: np.ndarray, q_eq: np.ndarray) -> np.ndarray:
     """Jacobian (3N, N_PARAMS) of the prediction at ``theta`` (equilibrium ``q_eq``)."""
     _p, J = prob.ev.jacobian(prob.rows, q_eq, theta, prob.const)
     return J
@@ -145,8 +145,8 @@ def _param_std(G: np.ndarray, cost: float, n_res: int) -> np.ndarray:
         return np.full(G.shape[0], np.inf)
 
 
-def _lm(
-    prob: _Problem,
+def levenberg_marquardt(
+    prob: FitProblem,
     theta0: np.ndarray,
     free: np.ndarray,
     mask: np.ndarray,
@@ -154,7 +154,7 @@ def _lm(
     q0: np.ndarray | None = None,
     J0: np.ndarray | None = None,
     max_iter: int = LM_MAX_ITER,
-) -> _Fit:
+) -> ModelFit:
     """Levenberg-Marquardt over the parameters ``free`` on the rows ``mask``.
 
     Stops when the Gauss-Newton step is below :data:`LM_STEP_STD_TOL` standard
@@ -165,12 +165,12 @@ def _lm(
     """
     theta = theta0.copy()
     if pred0 is None or q0 is None:
-        pred0, q0 = _evaluate(prob, theta)
+        pred0, q0 = evaluate(prob, theta)
         J0 = None
     pred, q = pred0, q0
-    r = _wres(prob, pred, mask)
+    r = weighted_residual(prob, pred, mask)
     cost = float(r @ r)
-    J = _jac(prob, theta, q) if J0 is None else J0
+    J = jacobian(prob, theta, q) if J0 is None else J0
     lam = LM_LAMBDA0
     converged = len(free) == 0
     it = 0
@@ -179,11 +179,11 @@ def _lm(
     for it in range(1, max_iter + 1):  # noqa: B007 - the count is reported after the loop
         if len(free) == 0:
             break
-        Js_all = _wjac(prob, J, mask, free)
+        Js_all = weighted_jacobian(prob, J, mask, free)
         # active bounds: parameters on a bound whose Gauss-Newton step points outwards are
         # frozen for this iteration (projected Gauss-Newton)
         G0 = Js_all.T @ Js_all
-        gn0 = -_solve_normal(G0, Js_all.T @ r)
+        gn0 = -solve_normal(G0, Js_all.T @ r)
         th_f = theta[free]
         at_bound = ((th_f <= prob.lower[free]) & (gn0 < 0)) | ((th_f >= prob.upper[free]) & (gn0 > 0))
         act = np.flatnonzero(~at_bound)
@@ -195,7 +195,7 @@ def _lm(
         g = Js.T @ r
         dG = np.diag(G).copy()
         dG[dG <= 0] = 1.0
-        gn = -_solve_normal(G, g)
+        gn = -solve_normal(G, g)
         std = _param_std(G, cost, r.size)
         if np.all(np.abs(gn) <= LM_STEP_STD_TOL * std):
             converged = True
@@ -203,11 +203,11 @@ def _lm(
         improved = False
         fa = free[act]
         for _ in range(12):
-            step = -_solve_normal(G + lam * np.diag(dG), g)
+            step = -solve_normal(G + lam * np.diag(dG), g)
             trial = theta.copy()
             trial[fa] = np.clip(theta[fa] + step * sc[act], prob.lower[fa], prob.upper[fa])
-            p_t, q_t = _evaluate(prob, trial)
-            r_t = _wres(prob, p_t, mask)
+            p_t, q_t = evaluate(prob, trial)
+            r_t = weighted_residual(prob, p_t, mask)
             c_t = float(r_t @ r_t)
             if np.isfinite(c_t) and c_t < cost:
                 improved = True
@@ -219,12 +219,12 @@ def _lm(
         rel = (cost - c_t) / max(cost, 1e-300)
         cost_prev = cost
         theta, pred, q, r, cost = trial, p_t, q_t, r_t, c_t
-        J = _jac(prob, theta, q)
+        J = jacobian(prob, theta, q)
         lam = max(lam / 3.0, 1e-12)
         if rel < LM_COST_RTOL or (cost_prev - cost) < LM_COST_SIGMA_TOL * cost / max(r.size, 1):
             converged = True
             break
-    return _Fit(
+    return ModelFit(
         theta=theta,
         free=np.asarray(free, dtype=int),
         held={},
@@ -237,8 +237,8 @@ def _lm(
     )
 
 
-def _fit_model(
-    prob: _Problem,
+def fit_model(
+    prob: FitProblem,
     theta0: np.ndarray,
     effects: Sequence[str],
     registered: bool,
@@ -248,7 +248,7 @@ def _fit_model(
     max_iter: int = LM_MAX_ITER,
     passes: int = 3,
     rounds: int = OUTLIER_MAX_ROUNDS,
-) -> _Fit:
+) -> ModelFit:
     """Fit the model with ``effects``: identifiability, LM, robust exclusion, and a
     re-check of identifiability at the solution (nonlinear parameters, up to
     ``passes`` times).
@@ -260,23 +260,23 @@ def _fit_model(
     mask0 : ndarray of bool, shape (N,)
         Rows that may be used (outliers are excluded among them).
     robust : bool
-        Exclude outliers (:func:`~problems.identify.outliers._outlier_mask`), up to
+        Exclude outliers (:func:`~problems.identify.outliers.outlier_mask`), up to
         ``rounds`` refits.
     sigma_hint : float, optional
         Residual scale (weighted units) of the identifiability test; default the
         current residual RMS.
     """
-    order = _order_for(prob.layout, effects, registered)
+    order = priority_order(prob.layout, effects, registered)
     mask = mask0.copy()
     theta = theta0.copy()
-    pred, q = _evaluate(prob, theta)
-    J = _jac(prob, theta, q)
-    fit: _Fit | None = None
+    pred, q = evaluate(prob, theta)
+    J = jacobian(prob, theta, q)
+    fit: ModelFit | None = None
     for _round in range(rounds):
         for _pass in range(passes):
-            r = _wres(prob, pred, mask)
-            sig = _rms(r) if sigma_hint is None else sigma_hint
-            Js = _wjac(prob, J, mask, np.asarray(order, dtype=int))
+            r = weighted_residual(prob, pred, mask)
+            sig = rms(r) if sigma_hint is None else sigma_hint
+            Js = weighted_jacobian(prob, J, mask, np.asarray(order, dtype=int))
             kept, held = select_identifiable(Js, order, sig)
             moved = [i for i in held if theta[i] != prob.layout.nominal[i]]
             if moved:
@@ -284,20 +284,20 @@ def _fit_model(
                 # (held means "at its nominal value"), and the model is re-evaluated there
                 theta = theta.copy()
                 theta[moved] = prob.layout.nominal[moved]
-                pred, q = _evaluate(prob, theta)
-                J = _jac(prob, theta, q)
-            fit = _lm(prob, theta, np.asarray(kept, dtype=int), mask, pred, q, J, max_iter=max_iter)
+                pred, q = evaluate(prob, theta)
+                J = jacobian(prob, theta, q)
+            fit = levenberg_marquardt(prob, theta, np.asarray(kept, dtype=int), mask, pred, q, J, max_iter=max_iter)
             fit.held = held
             theta, pred, q = fit.theta, fit.pred, fit.q_eq
             # nonlinear parameters may become identifiable at the solution
             J = fit.J
-            Js2 = _wjac(prob, J, mask, np.asarray(order, dtype=int))
-            kept2, _held2 = select_identifiable(Js2, order, _rms(_wres(prob, pred, mask)))
+            Js2 = weighted_jacobian(prob, J, mask, np.asarray(order, dtype=int))
+            kept2, _held2 = select_identifiable(Js2, order, rms(weighted_residual(prob, pred, mask)))
             if set(kept2) <= set(kept):
                 break
         if not robust:
             break
-        new_mask = _outlier_mask(prob, pred) & mask0
+        new_mask = outlier_mask(prob, pred) & mask0
         if _round > 0:
             # after the first round rows may come back but no new ones leave: trimming a
             # misspecified fit again and again would feed on its own bias

@@ -18,8 +18,8 @@ from models.effects.joint_error_map import MAP_COMPONENTS
 from models.robot import Robot
 
 from .error_map import MapProposal, propose_map
-from .evaluation import _ev_for, _Problem
-from .lsq import _Fit, _wjac, _wres
+from .evaluation import FitProblem, evaluator_for
+from .lsq import ModelFit, weighted_jacobian, weighted_residual
 
 #: The parameter groups whose Jacobian columns are the signatures of the map's components
 #: (``models.effects.joint_error_map.MAP_COMPONENTS``: theta, d, a, alpha, beta).
@@ -32,8 +32,13 @@ MAP_SEARCH_COMPONENTS = ("theta",)
 
 
 def map_problem(
-    robot: Robot, components: Sequence[str], p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
-) -> tuple[_Problem | None, np.ndarray, MapProposal | None]:
+    robot: Robot,
+    components: Sequence[str],
+    p: FitProblem,
+    fit: ModelFit,
+    th: np.ndarray,
+    others: np.ndarray | None = None,
+) -> tuple[FitProblem | None, np.ndarray, MapProposal | None]:
     """The problem with the map frequencies of :func:`~.error_map.propose_map` on the residual of
     ``fit`` (its free parameters and the weighted, scaled Jacobian columns ``others`` (3n, k) of
     the other candidates projected out), the start parameters and the proposal; the problem is None
@@ -49,10 +54,10 @@ def map_problem(
             i = GROUP_SLICES[group].start + j
             channels[(j, c)] = (fit.J[np.repeat(mask, 3), i] * w3).reshape(m.n, 3)
     free = [i for i in fit.free if i not in fit.held]
-    Jfree = _wjac(p, fit.J, mask, np.asarray(free, dtype=int))
+    Jfree = weighted_jacobian(p, fit.J, mask, np.asarray(free, dtype=int))
     if others is not None:
         Jfree = np.column_stack([Jfree, others])
-    prop = propose_map(_wres(p, fit.pred, mask), channels, m.q, Jfree, p.folds[mask])
+    prop = propose_map(weighted_residual(p, fit.pred, mask), channels, m.q, Jfree, p.folds[mask])
     if prop is None:
         return None, th, None
     const = set_const(p.const, "error_map.freq", prop.freq.reshape(-1))
@@ -60,7 +65,7 @@ def map_problem(
     layout = make_layout(robot, const)
     th = th.copy()
     th[layout.effect_indices("joint_error_map")] = 0.0
-    return replace(p, const=const, layout=layout, ev=_ev_for(robot, const)), th, prop
+    return replace(p, const=const, layout=layout, ev=evaluator_for(robot, const)), th, prop
 
 
 def map_detail(prop: MapProposal) -> str:

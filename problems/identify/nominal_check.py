@@ -26,16 +26,16 @@ import numpy as np
 from models.robot import Robot
 
 from ..measurements import (
-    POSITION_COLUMNS,
     PLAUSIBLE_NOMINAL_DEVIATION_M,
+    POSITION_COLUMNS,
     TRACKER_COLUMNS,
     TRACKER_FORMATS,
     Measurements,
 )
 from ..measurements.columns import TRACKER_LENGTH_FACTOR, TRACKER_TARGET_COLUMNS
-from .evaluation import _Problem
+from .evaluation import FitProblem
 from .identifiability import Known
-from .lsq import _evaluate, _Fit, _fit_model
+from .lsq import ModelFit, evaluate, fit_model
 from .results import DataError
 
 #: Measured points whose spread differs from the nominal forward kinematics' by more than this
@@ -109,7 +109,7 @@ def unit_mismatch(robot: Robot, m: Measurements, measured: np.ndarray, nominal: 
     )
 
 
-def _median_miss(prob: _Problem, fit: _Fit) -> float:
+def _median_miss(prob: FitProblem, fit: ModelFit) -> float:
     """Median distance (m) of the measured points from the fit's prediction (position rows)."""
     return float(np.median(np.linalg.norm(fit.residual(prob)[prob.pos], axis=1)))
 
@@ -174,16 +174,16 @@ class NominalFit:
 
 
 def check_nominal_fit(
-    robot: Robot, prob: _Problem, fit_b: _Fit, theta: np.ndarray, known: Known, can_fit_geometry: bool
+    robot: Robot, prob: FitProblem, fit_b: ModelFit, theta: np.ndarray, known: Known, can_fit_geometry: bool
 ) -> NominalFit:
     """Refuse data that do not fit the declared robot in any way; measure how far they are from it.
 
     Parameters
     ----------
     robot : Robot
-    prob : _Problem
+    prob : FitProblem
         The identification problem (rows, measured points).
-    fit_b : _Fit
+    fit_b : ModelFit
         The "before" fit: nominal model, registration and measured point fitted (as ``known`` allows).
     theta : ndarray, shape (N_PARAMS,)
         Its parameters (the start of a fit with DH corrections).
@@ -216,13 +216,13 @@ def check_nominal_fit(
     if out.plausible:
         return out
     pos = prob.pos
-    nominal, _q = _evaluate(prob, prob.layout.nominal)
+    nominal, _q = evaluate(prob, prob.layout.nominal)
     msg = unit_mismatch(robot, m, m.p[pos], nominal[pos])
     if msg is not None:
         raise DataError(msg)
     if not can_fit_geometry:
         raise DataError(out.refusal())
-    fit_g = _fit_model(prob, theta, ["geometric"], known, np.ones(m.n, dtype=bool), robust=False)
+    fit_g = fit_model(prob, theta, ["geometric"], known, np.ones(m.n, dtype=bool), robust=False)
     out.miss_dh_m = _median_miss(prob, fit_g)
     if out.miss_dh_m > PLAUSIBLE_NOMINAL_DEVIATION_M:
         raise DataError(out.refusal())

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from .evaluation import _Problem
+from .evaluation import FitProblem
 
 #: Outlier rejection: family-wise false-alarm probability of the chi-square bound.
 OUTLIER_FALSE_ALARM = 0.01
@@ -83,7 +83,7 @@ def _exceeds(d2: np.ndarray, n: int, gross_only: bool) -> np.ndarray:
     return d2 > bound
 
 
-def _outlier_mask(prob: _Problem, pred: np.ndarray, gross_only: bool = False) -> np.ndarray:
+def outlier_mask(prob: FitProblem, pred: np.ndarray, gross_only: bool = False) -> np.ndarray:
     """Inlier mask (N,) of the robust fit of the prediction ``pred`` (N, 3), m.
 
     Rows of a pose measured at least :data:`OUTLIER_MIN_POSE_ROWS` times are tested

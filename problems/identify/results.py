@@ -22,6 +22,7 @@ from models.status import Status
 
 from ..compensation import CompensationStatus
 from ..measurements import Measurements
+from .identifiability import Known, aliases_registration, structural_held
 
 #: Progress callback of :func:`problems.identify.identify`: ``progress(message, done, total)``.
 Progress = Callable[[str, int, int], None]
@@ -370,24 +371,22 @@ def held_summary(res: IdentificationResult) -> HeldSummary:
     """The held parameters of ``res`` in groups (:class:`HeldSummary`).
 
     ``setup_alias``: those whose reason names the registration or the measured point first
-    (``problems.identify.apply._aliases_registration``, as :func:`~.apply.unobservable_in_base`);
+    (:func:`~.identifiability.aliases_registration`, as :func:`~.apply.unobservable_in_base`);
     ``redundant``: the others that a rich synthetic design of the same model holds too
-    (:func:`~.identifiability._structural_held`); ``undetermined``: the rest.  Parameters of a
+    (:func:`~.identifiability.structural_held`); ``undetermined``: the rest.  Parameters of a
     part of the set-up declared known are not held by the data and are left out.
     """
-    from .apply import _aliases_registration
-    from .identifiability import Known, _structural_held
 
     held = list(res.identifiability.get("held") or [])
     if not held:
         return HeldSummary([])
     known_words = str(res.identifiability.get("known") or "")
     known = Known("registration" in known_words, "measured point" in known_words)
-    structural = _structural_held(res.model.nominal, list(res.model.active_effects), known)
+    structural = structural_held(res.model.nominal, list(res.model.active_effects), known)
     structural_names = {PARAM_NAMES[i] for i in structural}
     by_kind: dict[str, list[dict[str, Any]]] = {k: [] for k in HELD_KINDS}
     for h in held:
-        if _aliases_registration(str(h.get("reason", ""))):
+        if aliases_registration(str(h.get("reason", ""))):
             by_kind["setup_alias"].append(h)
         elif h["name"] in structural_names:
             by_kind["redundant"].append(h)

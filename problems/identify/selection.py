@@ -1,10 +1,7 @@
 """Effect selection: scores, tests and the forward/backward steps (``docs/identification.md`` §4).
 
-* **Scores** (:func:`_linear_scores`): in-sample and K-fold cross-validated RMS of a
-  model linearised at the current fit (folds of whole poses, :func:`_assign_folds`),
-  BIC ``n ln(RSS/n) + k ln n``;
-* **tests** (:func:`_candidate_score`, :func:`_significance`): CV gain, BIC, F-test
-  of the added parameters, share of the excess variance explained;
+* **Scores and tests** (:mod:`.selection_scores`): cross-validated RMS, BIC, F-test and the share
+  of the excess variance explained of a candidate;
 * **steps**: :func:`forward_selection` adds the best significant candidate until the
   noise floor or no candidate passes; :func:`backward_pass` removes an added effect
   (or replaces ``geometric`` by ``joint_offset``) when the simpler model is as good.
@@ -20,34 +17,25 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
-from models.effects import EFFECTS, N_PARAMS, PARAM_NAMES, ModelLayout, get_const
+from models.effects import N_PARAMS, PARAM_NAMES, ModelLayout, get_const
 from models.robot import Robot
 
-from ..measurements import Measurements
-from .diagnostics import _diagnose, structure_left
+from .diagnostics import diagnose, structure_left
 from .error_map import MapProposal
-from .evaluation import _gravity_problem, _Problem, _update_knots
-from .identifiability import _order_for, select_identifiable
-from .lsq import _evaluate, _Fit, _fit_model, _jac, _rms, _solve_normal, _wjac, _wres
+from .evaluation import FitProblem, gravity_problem, update_knots
+from .identifiability import priority_order, select_identifiable
+from .lsq import ModelFit, evaluate, fit_model, jacobian, rms, weighted_jacobian, weighted_residual
 from .map_candidate import MAP_SEARCH_COMPONENTS, map_detail, map_problem
 from .results import CandidateScore, SelectionStep
+from .selection_scores import (
+    Score,
+    candidate_score,
+    linear_scores,
+    score_p,
+    significance,
+)
 
-#: Folds of the cross-validation (whole poses are held out together).
-CV_FOLDS = 5
-#: Seed of the fold assignment (reproducible results).
-CV_SEED = 12345
-#: Acceptance of an effect: the cross-validated RMS must drop by at least this
-#: fraction ...
-CV_MIN_REL_GAIN = 0.05
-#: ... the F-test of the added parameters must pass at this level ...
-F_TEST_ALPHA = 1e-3
-#: ... and the effect must explain at least this share of the cross-validated
-#: residual variance above the noise floor (of the whole variance when the noise
-#: floor is unknown): a small partial fit of structure it does not describe is a
-#: wrong attribution.
-MIN_EXPLAINED_SHARE = 0.30
 #: Candidates refined with a full nonlinear fit after the linearised ranking.
 REFINE_TOP = 2
 #: A runner-up is refined only when its linearised CV RMS is within this relative margin of the best
@@ -61,223 +49,6 @@ REFINE_MAX_ITER = 12
 PARSIMONY_REL_TOL = 0.02
 #: Stop when the cross-validated RMS is below this multiple of the noise floor.
 NOISE_FLOOR_STOP_RATIO = 1.10
-#: Temperature range below which ``thermal`` cannot be tested, K.
-THERMAL_MIN_RANGE_K = 0.5
-
-
-# ----------------------------------------------------------------------------------
-# Scores
-# ----------------------------------------------------------------------------------
-
-
-@dataclass
-class _Score:
-    """Linearised scores of a model on the rows used.
-
-    Attributes
-    ----------
-    rss : float
-        Weighted in-sample residual sum of squares (linearised).
-    cv_rss : float
-        Weighted held-out residual sum of squares.
-    cv_rms_m, rms_m : float
-        Unweighted per-axis RMS of the held-out and in-sample residuals, m.
-    n : int
-        Residual scalars.
-    k : int
-        Free parameters.
-    """
-
-    rss: float
-    cv_rss: float
-    cv_rms_m: float
-    rms_m: float
-    n: int
-    k: int
-
-    @property
-    def bic(self) -> float:
-        """``n ln(RSS/n) + k ln n``."""
-        return self.n * math.log(max(self.rss, 1e-300) / self.n) + self.k * math.log(self.n)
-
-
-def _linear_scores(
-    prob: _Problem, J: np.ndarray, pred: np.ndarray, mask: np.ndarray, cols: np.ndarray, shift: np.ndarray | None = None
-) -> _Score:
-    """In-sample and K-fold CV scores of the model linearised at the current point.
-
-    The full-data Gauss-Newton step and one per fold (fold rows removed) are taken
-    from the same Jacobian; held-out residuals are predicted linearly.  At a
-    least-squares optimum this is the standard linearised cross-validation; for a
-    candidate whose parameters start at their nominal values it is the one-step
-    Gauss-Newton fit.
-
-    Parameters
-    ----------
-    J : ndarray, shape (3N, N_PARAMS)
-        Jacobian at the current point.
-    pred : ndarray, shape (N, 3)
-        Prediction at the current point, m.
-    mask : ndarray of bool, shape (N,)
-        Rows used.
-    cols : ndarray of int
-        Free parameters.
-    shift : ndarray, shape (N_PARAMS,), optional
-        Parameters moved (linearly) by this, SI, e.g. an effect removed.
-    """
-    r = _wres(prob, pred, mask)
-    if shift is not None:
-        nz = np.flatnonzero(shift)
-        r = r + _wjac(prob, J, mask, nz) @ (shift[nz] / prob.layout.scale[nz])
-    w3 = prob.weights[mask].reshape(-1)
-    pos3 = np.repeat(prob.pos[mask], 3)
-    Js = _wjac(prob, J, mask, cols)
-    G = Js.T @ Js
-    g = Js.T @ r
-    step = -_solve_normal(G, g)
-    r_in = r + Js @ step
-    folds3 = np.repeat(prob.folds[mask], 3)
-    cv_rss = 0.0
-    cv_un = 0.0
-    for k in np.unique(folds3):
-        sel = folds3 == k
-        Jk, rk = Js[sel], r[sel]
-        Gk = G - Jk.T @ Jk
-        gk = g - Jk.T @ rk
-        dk = -_solve_normal(Gk, gk)
-        ek = rk + Jk @ dk
-        cv_rss += float(ek @ ek)
-        cv_un += float(np.sum(np.square(ek / w3[sel])[pos3[sel]]))
-    n = r.size
-    npos = max(int(pos3.sum()), 1)
-    return _Score(
-        rss=float(r_in @ r_in),
-        cv_rss=cv_rss,
-        cv_rms_m=math.sqrt(cv_un / npos),
-        rms_m=math.sqrt(float(np.sum(np.square(r_in / w3)[pos3])) / npos),
-        n=n,
-        k=len(cols),
-    )
-
-
-def _assign_folds(m: Measurements, k: int, seed: int = CV_SEED) -> np.ndarray:
-    """Fold index (N,) per row: whole poses assigned at random (fixed seed) to ``k`` folds."""
-    groups = m.pose_groups()
-    ug = np.unique(groups)
-    rng = np.random.default_rng(seed)
-    perm = rng.permutation(len(ug))
-    kk = max(2, min(k, len(ug)))
-    fold_of_group = np.empty(len(ug), dtype=int)
-    fold_of_group[perm] = np.arange(len(ug)) % kk
-    lookup = {g: fold_of_group[i] for i, g in enumerate(ug)}
-    return np.array([lookup[g] for g in groups], dtype=int)
-
-
-def noise_floor(m: Measurements) -> tuple[float | None, str]:
-    """Per-axis measurement noise (m) and where it comes from.
-
-    ``sigma`` column (RMS of the declared values), else repeated measurements
-    (rows with the same pose and the same wrench: pooled within-group scatter),
-    else unknown.
-    """
-    if m.sigma is not None:
-        return float(np.sqrt(np.mean(m.sigma**2))), "sigma column"
-    groups = m.pose_groups()
-    key = np.column_stack([groups, np.round(m.wrench, 9)])
-    _u, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    inv = np.asarray(inv).reshape(-1)
-    rep = counts[inv] > 1
-    if rep.sum() >= 6 and m.p is not None:
-        ss, dof = 0.0, 0
-        for g in np.unique(inv[rep]):
-            P = m.p[inv == g]
-            ss += float(np.sum(np.square(P - P.mean(axis=0))))
-            dof += 3 * (len(P) - 1)
-        if dof >= 6:
-            return math.sqrt(ss / dof), f"repeated measurements ({dof // 3} degrees of freedom per axis)"
-    return None, "unknown (no sigma column, no repeated measurements)"
-
-
-def _candidate_applicable(effect: str, m: Measurements) -> tuple[bool, str]:
-    """Whether the data can test ``effect`` (varying load, temperature range), and why not."""
-    spec = EFFECTS[effect]
-    if "load" in spec.needs and not m.load_varies():
-        return False, "the applied wrench does not vary in the data"
-    if "temperature" in spec.needs:
-        if m.temperature is None:
-            return False, "no temperature column"
-        if np.ptp(m.temperature) < THERMAL_MIN_RANGE_K:
-            return False, f"temperature varies by less than {THERMAL_MIN_RANGE_K} K"
-    return True, ""
-
-
-def _score_p(
-    prob: _Problem, layout: ModelLayout, f: _Fit, effs: Sequence[str], registered: bool
-) -> tuple[_Score, list[int]]:
-    """Linearised in-sample and CV scores of a fitted model, and its free parameters."""
-    order = _order_for(layout, effs, registered)
-    free = [i for i in order if i not in f.held]
-    return _linear_scores(prob, f.J, f.pred, f.inliers, np.asarray(free, dtype=int)), free
-
-
-def _candidate_score(effect: str, sc: _Score, cur: _Score, sigma_w: float | None, k_new: int) -> CandidateScore:
-    """Scores of a candidate against the current model (same rows, same folds).
-
-    ``sigma_w``: the noise floor in weighted units (None: unknown); ``k_new``: the
-    candidate's new free parameters."""
-    dbic = sc.bic - cur.bic
-    df1 = max(sc.k - cur.k, 1)
-    df2 = max(sc.n - sc.k, 1)
-    if sc.rss > 0 and cur.rss > sc.rss:
-        F = ((cur.rss - sc.rss) / df1) / (sc.rss / df2)
-        p = float(stats.f.sf(F, df1, df2))
-    else:
-        p = 1.0
-    cv_cur = cur.cv_rss / cur.n
-    cv_new = sc.cv_rss / sc.n
-    floor = (sigma_w**2) if sigma_w is not None else 0.0
-    excess = cv_cur - floor
-    share = max((cv_cur - cv_new) / excess, 0.0) if excess > 0 else 0.0  # a worse CV explains none
-    return CandidateScore(
-        effect=effect,
-        n_params=k_new,
-        cv_rms_m=sc.cv_rms_m,
-        rms_m=sc.rms_m,
-        bic=sc.bic,
-        delta_bic=dbic,
-        f_pvalue=p,
-        explained_share=float(share),
-    )
-
-
-def _significance(cs: CandidateScore, cur: _Score) -> tuple[bool, bool, str]:
-    """(basic tests pass, share test passes, explanation).
-
-    Basic: CV RMS gain >= CV_MIN_REL_GAIN, BIC decreases, F-test p < F_TEST_ALPHA.
-    Share: the effect explains >= MIN_EXPLAINED_SHARE of the CV variance above the
-    noise floor (of all of it when the floor is unknown).
-    """
-    gain = 1.0 - cs.cv_rms_m / cur.cv_rms_m
-    parts = [
-        f"CV RMS {cur.cv_rms_m * 1e3:.4g} -> {cs.cv_rms_m * 1e3:.4g} mm ({-100 * gain:+.1f} %)",  # - is a decrease
-        f"dBIC {cs.delta_bic:.1f}",
-        f"F-test p = {cs.f_pvalue:.2g}",
-        f"explains {100 * cs.explained_share:.0f} % of the excess variance",
-    ]
-    basic = True
-    if gain < CV_MIN_REL_GAIN:
-        basic = False
-        parts.append(f"gain below {100 * CV_MIN_REL_GAIN:.0f} %")
-    if cs.delta_bic >= 0:
-        basic = False
-        parts.append("BIC does not decrease")
-    if cs.f_pvalue >= F_TEST_ALPHA:
-        basic = False
-        parts.append(f"F-test not significant at {F_TEST_ALPHA:g}")
-    share_ok = cs.explained_share >= MIN_EXPLAINED_SHARE
-    if not share_ok:
-        parts.append(f"explains less than {100 * MIN_EXPLAINED_SHARE:.0f} % of the structure left")
-    return basic, share_ok, "; ".join(parts)
 
 
 # ----------------------------------------------------------------------------------
@@ -286,7 +57,7 @@ def _significance(cs: CandidateScore, cur: _Score) -> tuple[bool, bool, str]:
 
 
 @dataclass
-class _Run:
+class SelectionRun:
     """What the selection steps share and do not change.
 
     Attributes
@@ -335,17 +106,17 @@ class _Run:
     #: Components of the joint error map the search proposes (:data:`MAP_SEARCH_COMPONENTS`).
     map_components: tuple[str, ...] = MAP_SEARCH_COMPONENTS
 
-    def score(self, p: _Problem, f: _Fit, effs: Sequence[str]) -> tuple[_Score, list[int]]:
+    def score(self, p: FitProblem, f: ModelFit, effs: Sequence[str]) -> tuple[Score, list[int]]:
         """Scores and free parameters of the fit ``f`` of the model with ``effs``."""
-        return _score_p(p, p.layout, f, effs, self.registered)
+        return score_p(p, p.layout, f, effs, self.registered)
 
-    def refit(self, p: _Problem, th: np.ndarray, effs: Sequence[str], mask: np.ndarray) -> _Fit:
+    def refit(self, p: FitProblem, th: np.ndarray, effs: Sequence[str], mask: np.ndarray) -> ModelFit:
         """Full (robust when asked) fit of the model with ``effs`` from ``th``."""
-        return _fit_model(p, th, effs, self.registered, mask, robust=self.robust)
+        return fit_model(p, th, effs, self.registered, mask, robust=self.robust)
 
     def with_effect(
-        self, p: _Problem, th: np.ndarray, e: str, fit: _Fit | None = None, others: np.ndarray | None = None
-    ) -> tuple[_Problem | None, np.ndarray]:
+        self, p: FitProblem, th: np.ndarray, e: str, fit: ModelFit | None = None, others: np.ndarray | None = None
+    ) -> tuple[FitProblem | None, np.ndarray]:
         """Problem and start parameters with ``e`` switched on (``gravity``: its switch
         and the robot file's masses; ``joint_error_map``: the frequencies the residual of
         ``fit`` shows beyond the directions ``others``, None when it shows none)."""
@@ -357,12 +128,12 @@ class _Run:
             th = th.copy()
             gi = self.layout.effect_indices("gravity")
             th[gi] = self.layout.nominal[gi]
-            return _gravity_problem(p, True), th
+            return gravity_problem(p, True), th
         return p, th
 
     def map_problem(
-        self, p: _Problem, fit: _Fit, th: np.ndarray, others: np.ndarray | None = None
-    ) -> tuple[_Problem | None, np.ndarray]:
+        self, p: FitProblem, fit: ModelFit, th: np.ndarray, others: np.ndarray | None = None
+    ) -> tuple[FitProblem | None, np.ndarray]:
         """The ``joint_error_map`` candidate's problem (:func:`~.map_candidate.map_problem`), the
         proposal recorded in :attr:`map_proposal`."""
         prob_e, th_e, self.map_proposal = map_problem(self.robot, self.map_components, p, fit, th, others)
@@ -370,18 +141,18 @@ class _Run:
 
 
 @dataclass
-class _State:
+class SelectionState:
     """The model being selected (changed by the steps)."""
 
-    prob: _Problem
-    fit: _Fit
+    prob: FitProblem
+    fit: ModelFit
     active: list[str]
     effects_added: list[str] = field(default_factory=list)
     history: list[SelectionStep] = field(default_factory=list)
     step_idx: int = 0
     stop_reason: str = "no candidate left"
     #: Candidate problems of the current step (effect -> problem, start), from the screen.
-    pending: dict[str, tuple[_Problem, np.ndarray]] = field(default_factory=dict)
+    pending: dict[str, tuple[FitProblem, np.ndarray]] = field(default_factory=dict)
 
 
 # ----------------------------------------------------------------------------------
@@ -390,14 +161,14 @@ class _State:
 
 
 def _screen(
-    run: _Run, st: _State, score_m: _Score, remaining: Sequence[str]
+    run: SelectionRun, st: SelectionState, score_m: Score, remaining: Sequence[str]
 ) -> tuple[list[CandidateScore], list[CandidateScore]]:
     """Linearised score of every remaining candidate (one Gauss-Newton step and CV).
 
     Returns every candidate's record and those with a score (to rank)."""
     fit = st.fit
-    sig_now = _rms(_wres(st.prob, fit.pred, fit.inliers))
-    cur_order = _order_for(st.prob.layout, st.active, run.registered)
+    sig_now = rms(weighted_residual(st.prob, fit.pred, fit.inliers))
+    cur_order = priority_order(st.prob.layout, st.active, run.registered)
     st.pending = {}
     # directions of the other candidates' new parameters: the map, the most flexible candidate,
     # searches only what none of them can explain (it is screened last, in registry order)
@@ -438,10 +209,10 @@ def _screen(
         if prob_e is st.prob:
             J_e, pred_e = fit.J, fit.pred
         else:
-            pred_e, q_g = _evaluate(prob_e, th_e)
-            J_e = _jac(prob_e, th_e, q_g)
-        order = _order_for(layout, st.active + [e], run.registered)
-        Js = _wjac(prob_e, J_e, fit.inliers, np.asarray(order, dtype=int))
+            pred_e, q_g = evaluate(prob_e, th_e)
+            J_e = jacobian(prob_e, th_e, q_g)
+        order = priority_order(layout, st.active + [e], run.registered)
+        Js = weighted_jacobian(prob_e, J_e, fit.inliers, np.asarray(order, dtype=int))
         kept, held = select_identifiable(Js, order, sig_now)
         kept_new = [i for i in kept if i in new]
         if kept_new and e != "joint_error_map":
@@ -462,8 +233,8 @@ def _screen(
                 )
             )
             continue
-        sc = _linear_scores(prob_e, J_e, pred_e, fit.inliers, np.asarray(kept, dtype=int))
-        cs = _candidate_score(e, sc, score_m, run.sigma_w, len(kept_new))
+        sc = linear_scores(prob_e, J_e, pred_e, fit.inliers, np.asarray(kept, dtype=int))
+        cs = candidate_score(e, sc, score_m, run.sigma_w, len(kept_new))
         cs.held = [f"{PARAM_NAMES[i]}: {held[i]}" for i in new if i in held]
         if e == "joint_error_map" and run.map_proposal is not None:
             cs.detail = map_detail(run.map_proposal)
@@ -473,8 +244,8 @@ def _screen(
 
 
 def _refine(
-    run: _Run, st: _State, prelim: Sequence[CandidateScore], score_m: _Score, free_m: Sequence[int]
-) -> list[tuple[CandidateScore, _Fit, _Problem]]:
+    run: SelectionRun, st: SelectionState, prelim: Sequence[CandidateScore], score_m: Score, free_m: Sequence[int]
+) -> list[tuple[CandidateScore, ModelFit, FitProblem]]:
     """Full nonlinear fit of the best :data:`REFINE_TOP` candidates (and of ``gravity``
     when its linearisation is visibly off); their records are re-scored in place."""
     ranked = sorted(prelim, key=lambda c: c.cv_rms_m)
@@ -486,16 +257,16 @@ def _refine(
     # gravity switches on at the file's masses: when its linearisation is visibly
     # off (worse in-sample than the current model) it is refined anyway
     to_refine += [c for c in ranked if c.effect == "gravity" and c not in to_refine and c.rms_m > score_m.rms_m]
-    refined: list[tuple[CandidateScore, _Fit, _Problem]] = []
+    refined: list[tuple[CandidateScore, ModelFit, FitProblem]] = []
     for cs in to_refine:
         e = cs.effect
         run.tick(f"step {st.step_idx}: fitting {e}", min(3 + st.step_idx, run.total_steps), run.total_steps)
         prob_e, th_e = st.pending[e]
-        f_e = _fit_model(
+        f_e = fit_model(
             prob_e, th_e, st.active + [e], run.registered, st.fit.inliers, robust=False, max_iter=REFINE_MAX_ITER
         )
         sc_e, free_e = run.score(prob_e, f_e, st.active + [e])
-        cs2 = _candidate_score(e, sc_e, score_m, run.sigma_w, len([i for i in free_e if i not in free_m]))
+        cs2 = candidate_score(e, sc_e, score_m, run.sigma_w, len([i for i in free_e if i not in free_m]))
         cs.cv_rms_m, cs.rms_m, cs.bic, cs.delta_bic = cs2.cv_rms_m, cs2.rms_m, cs2.bic, cs2.delta_bic
         cs.f_pvalue, cs.explained_share, cs.n_params = cs2.f_pvalue, cs2.explained_share, cs2.n_params
         cs.refined = True
@@ -504,7 +275,9 @@ def _refine(
     return refined
 
 
-def _pick(refined: list[tuple[CandidateScore, _Fit, _Problem]]) -> tuple[CandidateScore, _Fit, _Problem] | None:
+def _pick(
+    refined: list[tuple[CandidateScore, ModelFit, FitProblem]],
+) -> tuple[CandidateScore, ModelFit, FitProblem] | None:
     """The refined candidate with the lowest CV RMS, or a smaller one within
     :data:`PARSIMONY_REL_TOL` of it."""
     if not refined:
@@ -517,9 +290,9 @@ def _pick(refined: list[tuple[CandidateScore, _Fit, _Problem]]) -> tuple[Candida
     return best
 
 
-def _accept(run: _Run, best: tuple[CandidateScore, _Fit, _Problem], score_m: _Score) -> tuple[bool, str]:
+def _accept(run: SelectionRun, best: tuple[CandidateScore, ModelFit, FitProblem], score_m: Score) -> tuple[bool, str]:
     """Acceptance test of the best candidate (section 4, rule 3) and its explanation."""
-    basic, share_ok, why = _significance(best[0], score_m)
+    basic, share_ok, why = significance(best[0], score_m)
     ok = basic and share_ok
     if basic and not share_ok:
         if run.sat_clean:
@@ -529,7 +302,7 @@ def _accept(run: _Run, best: tuple[CandidateScore, _Fit, _Problem], score_m: _Sc
                 "share is small only because other effects are present"
             )
         else:
-            left = structure_left(_diagnose(best[2], best[1], run.robot))
+            left = structure_left(diagnose(best[2], best[1], run.robot))
             if left is None:
                 ok = True
                 why += "; accepted: no diagnostic shows structure left after it"
@@ -541,12 +314,12 @@ def _accept(run: _Run, best: tuple[CandidateScore, _Fit, _Problem], score_m: _Sc
     return ok, why
 
 
-def _forward_step(run: _Run, st: _State) -> bool:
+def _forward_step(run: SelectionRun, st: SelectionState) -> bool:
     """One forward step: score the current model, test the candidates, add the best one
     that passes; records the step in ``st.history``.  Returns whether one was added."""
     if "stiffness_hardening" not in st.active and get_const(st.prob.const, "gravity.on")[0] > 0.5:
-        st.prob = _update_knots(st.prob, st.fit)
-        st.fit.J = _jac(st.prob, st.fit.theta, st.fit.q_eq)
+        st.prob = update_knots(st.prob, st.fit)
+        st.fit.J = jacobian(st.prob, st.fit.theta, st.fit.q_eq)
     score_m, free_m = run.score(st.prob, st.fit, st.active)
     run.tick(
         f"step {st.step_idx}: CV RMS {score_m.cv_rms_m * 1e3:.4g} mm",
@@ -570,7 +343,7 @@ def _forward_step(run: _Run, st: _State) -> bool:
         best = _pick(_refine(run, st, prelim, score_m, free_m))
         for cs in scores:
             if cs.cv_rms_m is not None and not cs.reason:
-                cs.reason = _significance(cs, score_m)[2]
+                cs.reason = significance(cs, score_m)[2]
         if best is None or best[0].cv_rms_m >= score_m.cv_rms_m:
             st.stop_reason = "no candidate lowers the cross-validated residual"
         else:
@@ -604,7 +377,7 @@ def _forward_step(run: _Run, st: _State) -> bool:
     return accepted is not None
 
 
-def forward_selection(run: _Run, st: _State) -> None:
+def forward_selection(run: SelectionRun, st: SelectionState) -> None:
     """Forward stepwise selection: add effects while the best candidate passes the test."""
     while _forward_step(run, st):
         pass
@@ -615,25 +388,25 @@ def forward_selection(run: _Run, st: _State) -> None:
 # ----------------------------------------------------------------------------------
 
 
-def _try_simpler(run: _Run, st: _State, e: str, alt: list[str], score_m: _Score) -> bool:
+def _try_simpler(run: SelectionRun, st: SelectionState, e: str, alt: list[str], score_m: Score) -> bool:
     """Replace the current model by ``alt`` (``e`` removed or replaced) when its CV RMS is
     within :data:`PARSIMONY_REL_TOL` and its BIC not worse by more than ``2 ln n``."""
     layout, fit = st.prob.layout, st.fit
     p_alt = st.prob
     th_alt = fit.theta.copy()
-    alt_order = _order_for(layout, alt, run.registered)
+    alt_order = priority_order(layout, alt, run.registered)
     gone = [int(i) for i in layout.effect_indices(e) if i not in alt_order]
     # linearised screen first (setting first moments to zero switches gravity off)
     shift = np.zeros(N_PARAMS)
     shift[gone] = (0.0 if e == "gravity" else layout.nominal[gone]) - fit.theta[gone]
     keep = [i for i in alt_order if i not in fit.held]
-    sc_lin = _linear_scores(st.prob, fit.J, fit.pred, fit.inliers, np.asarray(keep, dtype=int), shift)
+    sc_lin = linear_scores(st.prob, fit.J, fit.pred, fit.inliers, np.asarray(keep, dtype=int), shift)
     if sc_lin.cv_rms_m > score_m.cv_rms_m * (1 + 2 * PARSIMONY_REL_TOL):
         return False
     if e == "gravity":
-        p_alt = _gravity_problem(st.prob, False)
+        p_alt = gravity_problem(st.prob, False)
     th_alt[gone] = layout.nominal[gone]
-    f_alt = _fit_model(p_alt, th_alt, alt, run.registered, fit.inliers, robust=False)
+    f_alt = fit_model(p_alt, th_alt, alt, run.registered, fit.inliers, robust=False)
     sc_alt, _fa = run.score(p_alt, f_alt, alt)
     if not (
         sc_alt.cv_rms_m <= score_m.cv_rms_m * (1 + PARSIMONY_REL_TOL)
@@ -668,7 +441,7 @@ def _try_simpler(run: _Run, st: _State, e: str, alt: list[str], score_m: _Score)
     return True
 
 
-def backward_pass(run: _Run, st: _State) -> None:
+def backward_pass(run: SelectionRun, st: SelectionState) -> None:
     """Drop an added effect, or replace it by a nested smaller one (``geometric`` ->
     ``joint_offset``), while the cross-validated RMS does not get worse by more than
     :data:`PARSIMONY_REL_TOL` (forward selection can pick a superset early)."""

@@ -31,7 +31,7 @@ from models import effects as fx
 from models.arm import ArmModel
 
 from ..measurements import Measurements
-from .evaluation import _ev_for, make_rows
+from .evaluation import evaluator_for, make_rows
 
 #: Frames a sigma is given in.
 FRAMES = ("measurement", "base")
@@ -101,7 +101,7 @@ def parameter_jacobian(
     idx = np.array([fx.PARAM_NAMES.index(n) for n in names], dtype=int)
     rows = rows_of(model, q, wrench)
     const = model.const
-    ev = _ev_for(model.nominal, const)
+    ev = evaluator_for(model.nominal, const)
     _p, q_eq = ev.measure(rows, model.theta, const)
     p, J = ev.jacobian(rows, q_eq, model.theta, const)
     n = len(rows)

@@ -52,72 +52,37 @@ from __future__ import annotations
 
 
 from .columns import (
-    COLUMNS,
     DIALECT_CHOICES,
-    DIALECTS,
     FORMAT_CHOICES,
-    FORMATS,
-    IGNORED_PREFIXES,
     JOINT_NAME_PRESETS,
-    LABEL_COLUMNS,
     POSITION_COLUMNS,
-    Q_COLUMNS,
-    ROTATION_COLUMNS,
-    SIGMA_ROT_COLUMNS,
-    SIGMA_XYZ_COLUMNS,
     TRACKER_COLUMNS,
     TRACKER_FORMATS,
-    WRENCH_COLUMNS,
 )
 from .header import resolve_joint_names
 from .parse import parse_measurements, read_measurements
-from .table import Measurements, sigma_rms
-from .validation import (
-    PLAUSIBLE_ANGLE_MAX_RAD,
-    PLAUSIBLE_FORCE_MAX_N,
-    PLAUSIBLE_MOMENT_MAX_NM,
-    PLAUSIBLE_NOMINAL_DEVIATION_M,
-    PLAUSIBLE_SIGMA_MAX_M,
-    PLAUSIBLE_SIGMA_ROT_MAX_RAD,
-    PLAUSIBLE_TEMPERATURE_C,
-    validate,
-)
+from .table import Measurements
+from .validation import PLAUSIBLE_FORCE_MAX_N, PLAUSIBLE_MOMENT_MAX_NM, PLAUSIBLE_NOMINAL_DEVIATION_M
 from .write import commands_csv, measurements_to_csv
 
 __all__ = [
     # the table
     "Measurements",
-    "sigma_rms",
     # reading
     "read_measurements",
     "parse_measurements",
     "resolve_joint_names",
     # checks and their limits
-    "validate",
-    "PLAUSIBLE_ANGLE_MAX_RAD",
     "PLAUSIBLE_FORCE_MAX_N",
     "PLAUSIBLE_MOMENT_MAX_NM",
     "PLAUSIBLE_NOMINAL_DEVIATION_M",
-    "PLAUSIBLE_SIGMA_MAX_M",
-    "PLAUSIBLE_SIGMA_ROT_MAX_RAD",
-    "PLAUSIBLE_TEMPERATURE_C",
     # writing
     "measurements_to_csv",
     "commands_csv",
     # the format's vocabulary
-    "COLUMNS",
-    "Q_COLUMNS",
-    "WRENCH_COLUMNS",
     "POSITION_COLUMNS",
-    "ROTATION_COLUMNS",
-    "SIGMA_XYZ_COLUMNS",
-    "SIGMA_ROT_COLUMNS",
-    "LABEL_COLUMNS",
-    "IGNORED_PREFIXES",
-    "DIALECTS",
     "DIALECT_CHOICES",
     "JOINT_NAME_PRESETS",
-    "FORMATS",
     "FORMAT_CHOICES",
     "TRACKER_COLUMNS",
     "TRACKER_FORMATS",

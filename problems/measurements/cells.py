@@ -22,7 +22,7 @@ _DATETIME = re.compile(
 )
 
 
-class _Cells:
+class Cells:
     """Cell parser of one dialect; counts how decimals were written (for the notes)."""
 
     def __init__(self, where: str, decimal_comma: bool) -> None:
@@ -80,7 +80,7 @@ class _Cells:
 
 def _parse_float(where: str, line: int, col: str, text: str) -> float:
     """A cell of the comma dialect as a finite float (kept for callers of the old helper)."""
-    return _Cells(where, False).number(line, col, text)
+    return Cells(where, False).number(line, col, text)
 
 
 def _parse_datetime(where: str, line: int, col: str, text: str) -> tuple[_dt.datetime, float] | None:
@@ -114,8 +114,8 @@ def _parse_datetime(where: str, line: int, col: str, text: str) -> tuple[_dt.dat
     return stamp, (float("0." + frac) if frac else 0.0)
 
 
-def _time_column(
-    where: str, rows: list[tuple[int, list[str]]], k: int, col: str, factor: float, cells: _Cells
+def time_column(
+    where: str, rows: list[tuple[int, list[str]]], k: int, col: str, factor: float, cells: Cells
 ) -> tuple[np.ndarray, _dt.datetime | None]:
     """The ``t`` column: numbers (times in the column's unit) or date-times (seconds since
     the first row).  Returns (t in s, shape (N,); first date-time or None)."""

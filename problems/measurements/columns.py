@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 # quantity -> {suffix: factor to SI}
-_UNITS: dict[str, dict[str, float]] = {
+UNITS: dict[str, dict[str, float]] = {
     "angle": {"": 1.0, "_rad": 1.0, "_deg": math.pi / 180.0},
     # small angles (orientation standard deviations): also milli- and microradians.  Not
     # offered for q1..q6, whose messages elsewhere quote a column's unit as deg or rad.
@@ -93,8 +93,8 @@ TRACKER_DIF_COLUMNS = ("x_dif", "y_dif", "z_dif")
 TRACKER_JOINT_COLUMNS = tuple(f"joint_{i}" for i in range(1, 7))
 TRACKER_COLUMNS = (TRACKER_ORDER_COLUMN, *TRACKER_TARGET_COLUMNS, *TRACKER_DIF_COLUMNS, *TRACKER_JOINT_COLUMNS)
 #: SI factors of the tracker-dif columns: lengths in mm, joint angles in degrees.
-TRACKER_LENGTH_FACTOR = _UNITS["length"]["_mm"]
-TRACKER_ANGLE_FACTOR = _UNITS["angle"]["_deg"]
+TRACKER_LENGTH_FACTOR = UNITS["length"]["_mm"]
+TRACKER_ANGLE_FACTOR = UNITS["angle"]["_deg"]
 #: Tracker formats: name -> sign of ``dif`` (measured = target + sign * dif).  ``tracker-dif``:
 #: ``dif`` = measured - target; ``tracker-dif-reversed``: ``dif`` = target - measured.
 TRACKER_FORMATS: dict[str, float] = {"tracker-dif": 1.0, "tracker-dif-reversed": -1.0}

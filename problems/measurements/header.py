@@ -1,6 +1,6 @@
 """Column names of a measurement file's header: quantities and units, joint-name mapping.
 
-:func:`resolve_joint_names` checks a ``joint_names`` option; :func:`_split_unit` maps one
+:func:`resolve_joint_names` checks a ``joint_names`` option; :func:`split_unit` maps one
 header cell of the ``compplan`` format to its quantity and SI factor, and its unknown-column
 error lists what every declared format expects (:data:`~.columns.FORMATS`).
 """
@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from models.errors import InputError
 
 from .columns import (
-    _UNITS,
+    UNITS,
     COLUMNS,
     IGNORED_PREFIXES,
     JOINT_NAME_PRESETS,
@@ -74,13 +74,13 @@ def resolve_joint_names(joint_names: str | Sequence[str] | None, where: str = "j
                 "expected six different column names"
             )
         for other in names:
-            if other != name and name.startswith(other) and name[len(other) :] in _UNITS["angle"]:
+            if other != name and name.startswith(other) and name[len(other) :] in UNITS["angle"]:
                 raise InputError(
                     f"{where} '{shown}': '{name}' reads as '{other}' with a unit suffix; "
                     "expected six column names without unit suffixes (a column may add one)"
                 )
         try:
-            as_column = _split_unit(where, name)[0]
+            as_column = split_unit(where, name)[0]
         except InputError:
             as_column = None
         taken = (as_column is not None and not (as_column == Q_COLUMNS[i] and name == Q_COLUMNS[i])) or any(
@@ -94,7 +94,7 @@ def resolve_joint_names(joint_names: str | Sequence[str] | None, where: str = "j
     return tuple(names)
 
 
-def _joint_map(joint_names: tuple[str, ...] | None) -> dict[str, str]:
+def ros_joint_map(joint_names: tuple[str, ...] | None) -> dict[str, str]:
     """Joint column name -> ``q<i>`` (empty for the plain names)."""
     if joint_names is None:
         return {}
@@ -105,7 +105,7 @@ def _ros_hint(col: str) -> str:
     """The hint for an unknown column that is a ROS UR joint name."""
     for preset, names in JOINT_NAME_PRESETS.items():
         for name in names:
-            if col.startswith(name) and col[len(name) :] in _UNITS["angle"]:
+            if col.startswith(name) and col[len(name) :] in UNITS["angle"]:
                 return (
                     f"; '{name}' is a ROS joint name: read the joint columns with --joint-names {preset} "
                     f"(joint_names='{preset}': {', '.join(names)} -> q1..q6)"
@@ -113,18 +113,18 @@ def _ros_hint(col: str) -> str:
     return ""
 
 
-def _split_unit(where: str, col: str, joint_map: dict[str, str] | None = None) -> tuple[str, float]:
+def split_unit(where: str, col: str, joint_map: dict[str, str] | None = None) -> tuple[str, float]:
     """Map a column header to (base name, SI factor); raise for unknown names."""
     if col in LABEL_COLUMNS:
         return col, 1.0
     for name, base in (joint_map or {}).items():
-        if col.startswith(name) and col[len(name) :] in _UNITS["angle"]:
-            return base, _UNITS["angle"][col[len(name) :]]
+        if col.startswith(name) and col[len(name) :] in UNITS["angle"]:
+            return base, UNITS["angle"][col[len(name) :]]
     for base, qty in COLUMNS.items():
         if col.startswith(base):
             suffix = col[len(base) :]
-            if suffix in _UNITS[qty]:
-                return base, _UNITS[qty][suffix]
+            if suffix in UNITS[qty]:
+                return base, UNITS[qty][suffix]
     known = ", ".join(list(COLUMNS) + list(LABEL_COLUMNS))
     hint = _ros_hint(col) if not joint_map else ""
     if col in TRACKER_COLUMNS:

@@ -18,9 +18,9 @@ import numpy as np
 
 from models.errors import InputError
 
-from .cells import _Cells, _time_column
+from .cells import Cells, time_column
 from .columns import (
-    _UNITS,
+    UNITS,
     COLUMNS,
     DIALECT_CHOICES,
     DIALECTS,
@@ -34,7 +34,7 @@ from .columns import (
     SIGMA_XYZ_COLUMNS,
     WRENCH_COLUMNS,
 )
-from .header import _joint_map, _split_unit, resolve_joint_names
+from .header import ros_joint_map, split_unit, resolve_joint_names
 from .table import Measurements, sigma_rms
 from .tracker import is_tracker_header, read_tracker
 from .validation import validate
@@ -242,8 +242,8 @@ def _map_columns(
             raise InputError(f"{where}: line {header_line}: column {k + 1} has an empty name")
         if any(col.startswith(pfx) for pfx in IGNORED_PREFIXES):
             continue
-        base, factor = _split_unit(where, col, jmap)
-        if jmap and base in Q_COLUMNS and not any(col.startswith(n) and col[len(n) :] in _UNITS["angle"] for n in jmap):
+        base, factor = split_unit(where, col, jmap)
+        if jmap and base in Q_COLUMNS and not any(col.startswith(n) and col[len(n) :] in UNITS["angle"] for n in jmap):
             unmapped_q.append(col)
             continue
         if base in colmap:
@@ -335,7 +335,7 @@ def _check_row_lengths(where: str, rows: list[tuple[int, list[str]]], ncol: int,
 
 
 def _column(
-    colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells, base: str
+    colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: Cells, base: str
 ) -> np.ndarray:
     """One numeric column in SI units, shape (N,)."""
     k, col, factor = colmap[base]
@@ -343,7 +343,7 @@ def _column(
 
 
 def _numeric_columns(
-    where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells
+    where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: Cells
 ) -> dict:
     """The numeric fields of :class:`Measurements`, read in column order: joints, wrench
     (zero when absent), position, orientation, then the optional columns."""
@@ -359,7 +359,7 @@ def _numeric_columns(
 
 
 def _optional_columns(
-    where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: _Cells
+    where: str, colmap: dict[str, tuple[int, str, float]], rows: list[tuple[int, list[str]]], cells_parser: Cells
 ) -> dict:
     """t (numbers or date-times), temperature and the standard deviations (None when absent)."""
 
@@ -369,7 +369,7 @@ def _optional_columns(
     t = t_origin = None
     if "t" in colmap:
         k, col, factor = colmap["t"]
-        t, t_origin = _time_column(where, rows, k, col, factor, cells_parser)
+        t, t_origin = time_column(where, rows, k, col, factor, cells_parser)
     temp = column("temperature") if "temperature" in colmap else None
     sigma = column("sigma") if "sigma" in colmap else None
     sigma_xyz = np.column_stack([column(c) for c in SIGMA_XYZ_COLUMNS]) if "sigma_x" in colmap else None
@@ -401,7 +401,7 @@ def _notes(
     where: str,
     dialect: str,
     detected: bool,
-    cells_parser: _Cells,
+    cells_parser: Cells,
     t_origin: _dt.datetime | None,
     line: np.ndarray,
     names: tuple[str, ...] | None,
@@ -463,12 +463,12 @@ def parse_measurements(
     lines = text.splitlines()
     dialect, detected = _resolve_dialect(where, lines, dialect)
     decimal_comma = DIALECTS[dialect][1]
-    cells_parser = _Cells(where, decimal_comma)
+    cells_parser = Cells(where, decimal_comma)
     header_line, header, rows = _read_rows(where, lines, dialect)
     fmt = _resolve_format(where, header, file_format, names)
     if fmt != "compplan":
         return _parse_tracker(where, header_line, header, rows, cells_parser, fmt, (dialect, detected, file_format))
-    jmap = _joint_map(names)
+    jmap = ros_joint_map(names)
     colmap, unmapped_q = _map_columns(where, header_line, header, jmap)
     _check_required(where, header_line, header, colmap, unmapped_q, jmap, names, require_position, require_wrench)
     _check_groups(where, colmap)
@@ -496,7 +496,7 @@ def _parse_tracker(
     header_line: int,
     header: list[str],
     rows: list[tuple[int, list[str]]],
-    cells_parser: _Cells,
+    cells_parser: Cells,
     fmt: str,
     how: tuple[str, bool, str],
 ) -> Measurements:

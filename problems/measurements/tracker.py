@@ -15,7 +15,7 @@ import numpy as np
 
 from models.errors import InputError
 
-from .cells import _Cells
+from .cells import Cells
 from .columns import (
     IGNORED_PREFIXES,
     POSITION_COLUMNS,
@@ -73,7 +73,7 @@ def tracker_columns(where: str, header_line: int, header: list[str], file_format
     return index
 
 
-def _numbers(rows: Rows, cells: _Cells, index: dict[str, int], cols: tuple[str, ...]) -> np.ndarray:
+def _numbers(rows: Rows, cells: Cells, index: dict[str, int], cols: tuple[str, ...]) -> np.ndarray:
     """The columns ``cols`` as written (file units), shape (N, len(cols))."""
     return np.array([[cells.number(ln, c, row[index[c]]) for c in cols] for ln, row in rows], dtype=float).reshape(
         len(rows), len(cols)
@@ -108,7 +108,7 @@ def _check_deviation(where: str, line: np.ndarray, dif_mm: np.ndarray) -> None:
 
 
 def read_tracker(
-    where: str, header_line: int, header: list[str], rows: Rows, cells: _Cells, file_format: str
+    where: str, header_line: int, header: list[str], rows: Rows, cells: Cells, file_format: str
 ) -> tuple[Measurements, dict[str, tuple[int, str, float]]]:
     """The table of a tracker-dif file, and its column map for :func:`~.validation.validate`.
 
@@ -118,7 +118,7 @@ def read_tracker(
         The file, for messages.
     header_line, header, rows
         The header's line number and cells, and the rows as (line, cells); row lengths checked.
-    cells : _Cells
+    cells : Cells
         The cell parser of the file's dialect.
     file_format : str
         A key of :data:`~.columns.TRACKER_FORMATS`.

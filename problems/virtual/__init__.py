@@ -59,11 +59,9 @@ uses ``config`` and ``robot``.
 
 from __future__ import annotations
 
-from models.transforms import matrix_to_rotvec, rotvec_to_matrix
-
 from .config import SimConfigError, load_config
 from .geometry import rotvecs
-from .registry import Realisation, effect_tables, not_simulated, realisation, realisations, simulates
+from .registry import effect_tables, not_simulated, realisation, realisations
 from .robot import VirtualRobot, simulator
 from .truth import from_truth, load_truth
 
@@ -73,19 +71,15 @@ SIM_EFFECTS: tuple[str, ...] = tuple(effect_tables())
 
 __all__ = [
     "SIM_EFFECTS",
-    "Realisation",
     "SimConfigError",
     "VirtualRobot",
     "effect_tables",
     "from_truth",
     "load_config",
     "load_truth",
-    "matrix_to_rotvec",
     "not_simulated",
     "realisation",
     "realisations",
-    "rotvec_to_matrix",
     "rotvecs",
-    "simulates",
     "simulator",
 ]

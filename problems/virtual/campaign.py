@@ -1,6 +1,6 @@
 """Simulating a measurement campaign: poses, loads, times and temperatures, noise, outliers.
 
-:class:`_Campaign` is a part of :class:`~problems.virtual.robot.VirtualRobot`: it reads
+:class:`CampaignPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`: it reads
 the ``[campaign]``, ``[noise]`` and ``[temperature]`` tables, draws the outliers of ``[effects.outliers]``,
 measures the rows with the robot's noise-free measurement and returns them as
 :class:`~problems.measurements.Measurements`.
@@ -66,7 +66,7 @@ class _CampaignPlan(NamedTuple):
     z_min_m: float
 
 
-class _Campaign:
+class CampaignPart:
     """The measurement campaign of the configuration (a part of :class:`VirtualRobot`)."""
 
     def sample_poses(
@@ -147,7 +147,7 @@ class _Campaign:
         self._campaign_outliers(p, rng)
         extra: dict[str, Any] = {}
         if R is not None:
-            extra["rotation"] = rotvecs(self._campaign_rotation_noise(R, sigma_rad, rng))
+            extra["rotation"] = rotvecs(self.campaign_rotation_noise(R, sigma_rad, rng))
             if rot_column:
                 extra["sigma_rot"] = np.full((n, 3), sigma_rad)
         if progress is not None:
@@ -187,7 +187,7 @@ class _Campaign:
         return sigma, column
 
     @staticmethod
-    def _campaign_rotation_noise(R: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
+    def campaign_rotation_noise(R: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
         """Orientation noise: ``R exp([w]x)``, ``w ~ N(0, sigma_rad^2 I)`` (measured frame).
 
         Parameters

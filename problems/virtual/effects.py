@@ -1,6 +1,6 @@
 """Realising the simulated effects: the true parameters of each simulated table.
 
-:class:`_EffectRealisation` is a part of :class:`~problems.virtual.robot.VirtualRobot`.
+:class:`EffectPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`.
 Each of its ``_realise_*`` methods realises the physics of the model effects it names in its
 :func:`~problems.virtual.registry.simulates` decorator, from that table of the configuration
 (which table is the effects' declaration, ``Effect.simulation``; the decorator lists the
@@ -38,7 +38,7 @@ from .registry import realisations, simulates
 Table = Mapping[str, Any] | None
 
 
-class _EffectRealisation:
+class EffectPart:
     """The realisation of every configured effect (a part of :class:`VirtualRobot`)."""
 
     def _realise_declared(self, cfg: Mapping[str, Any], rng: np.random.Generator) -> None:

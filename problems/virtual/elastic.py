@@ -8,7 +8,7 @@ The link side is a rigid multibody driven through one torsional spring-damper pe
 stiffnesses (N*m/rad, ``robot.stiffness``), ``D`` the joint damping (N*m*s/rad), ``W = [f; m]`` the
 process wrench **acting on the arm** at the TCP (base frame, moment about the TCP), ``g(q)`` the
 holding torques of the links and the payload against ``robot.gravity``.  At rest this is the static
-model of the virtual robot (:meth:`problems.virtual.physics._Physics.equilibrium`) and of the arm
+model of the virtual robot (:meth:`problems.virtual.physics.PhysicsPart.equilibrium`) and of the arm
 model: ``q = theta + K^-1 (tau_g + J^T W)``, a joint yields in the direction of the torque applied
 to it.
 
@@ -47,13 +47,11 @@ from models.errors import InputError
 from models.robot import Robot
 from models.status import Status
 
-from .rigid_body import EQUILIBRIUM_MAX_ITER, ElasticArm, _vector, static_command
+from .rigid_body import EQUILIBRIUM_MAX_ITER, ElasticArm, as_vector, static_command
 
 __all__ = [
     "ElasticArm",
-    "ElasticResult",
     "ElasticStatus",
-    "TrackingError",
     "read_trajectory_csv",
     "simulate_elastic",
     "static_command",
@@ -260,7 +258,7 @@ class _Rhs:
 def _damping(arm: ElasticArm, q0: np.ndarray, K: np.ndarray, damping: np.ndarray | None, ratio: float) -> np.ndarray:
     """``damping`` (6,) N*m*s/rad as given, or ``2 ratio sqrt(K_i M_ii(q0))``."""
     if damping is not None:
-        D = _vector(damping, 6, "damping")
+        D = as_vector(damping, 6, "damping")
         if np.any(D < 0):
             raise InputError(f"damping must be >= 0 N*m*s/rad, got {D}")
         return D
@@ -348,7 +346,7 @@ def simulate_elastic(
     if not (np.isfinite(settle_s) and settle_s >= 0):
         raise InputError(f"settle_s must be >= 0 s, got {settle_s}")
     arm = ElasticArm(robot, payload, wrench)
-    K = _vector(robot.stiffness if stiffness is None else stiffness, 6, "stiffness")
+    K = as_vector(robot.stiffness if stiffness is None else stiffness, 6, "stiffness")
     if np.any(K <= 0):
         raise InputError(f"stiffness must be > 0 N*m/rad, got {K}")
     if q0 is None:
@@ -360,9 +358,9 @@ def simulate_elastic(
                 f"in {EQUILIBRIUM_MAX_ITER} iterations (joints too soft for the load?)",
             )
     else:
-        q_start = _vector(q0, 6, "q0")
+        q_start = as_vector(q0, 6, "q0")
     D = _damping(arm, q_start, K, damping, damping_ratio)
-    B = _vector(motor_inertia, 6, "motor_inertia")
+    B = as_vector(motor_inertia, 6, "motor_inertia")
     J = B + np.diagonal(arm.mass_matrix(q_start[None])[0])  # motor and link as one rigid body
     w = float(motor_bandwidth)
     gains = (3 * J * w**2, 3 * J * w, J * w**3)

@@ -36,7 +36,7 @@ def _link(
 
 
 @dataclass
-class _Geometry:
+class ArmGeometry:
     """Per-row DH parameters, shape (N, 6) each, and DH frame 0 in the base frame (4x4)."""
 
     a: np.ndarray
@@ -47,7 +47,7 @@ class _Geometry:
     frame02base: np.ndarray | None = None
 
 
-def _frames(q: np.ndarray, g: _Geometry, convention: str) -> np.ndarray:
+def link_frames(q: np.ndarray, g: ArmGeometry, convention: str) -> np.ndarray:
     """Frames frame_i2base (i = 1..6), shape (N, 6, 4, 4)."""
     n = q.shape[0]
     out = np.zeros((n, 6, 4, 4))
@@ -58,7 +58,9 @@ def _frames(q: np.ndarray, g: _Geometry, convention: str) -> np.ndarray:
     return out
 
 
-def _axes(frames: np.ndarray, convention: str, frame02base: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def joint_axes(
+    frames: np.ndarray, convention: str, frame02base: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Joint axes z_i and points p_i, shape (N, 6, 3) each (``frame02base``: DH frame 0, default
     the base frame)."""
     n = frames.shape[0]
@@ -71,7 +73,7 @@ def _axes(frames: np.ndarray, convention: str, frame02base: np.ndarray | None = 
     return z, p
 
 
-def _tau_point(
+def tau_point(
     z: np.ndarray, p: np.ndarray, point: np.ndarray, f: np.ndarray, m: np.ndarray, first: int = 0
 ) -> np.ndarray:
     """Joint torques of force f at ``point`` and moment m: z_i . ((point - p_i) x f + m)."""

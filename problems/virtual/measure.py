@@ -1,6 +1,6 @@
 """True poses of the deflected arm and their noise-free measurement.
 
-:class:`_Measuring` is a part of :class:`~problems.virtual.robot.VirtualRobot`: the
+:class:`MeasuringPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`: the
 measured point and the TCP (link beams applied), the orientation of the measured frame,
 and what the instrument sees of them (registration ``base2meas`` and drift).
 """
@@ -12,7 +12,7 @@ import numpy as np
 from .geometry import rotvecs
 
 
-class _Measuring:
+class MeasuringPart:
     """Positions, orientations and their measurement (a part of :class:`VirtualRobot`)."""
 
     def positions(

@@ -1,8 +1,8 @@
 """The physics of the true arm: joint errors, torques, joint deflection, equilibrium, link beams.
 
-:class:`_Physics` is a part of :class:`~problems.virtual.robot.VirtualRobot`: its
+:class:`PhysicsPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`: its
 methods read the realised parameters (set by ``__init__`` and
-:class:`~problems.virtual.effects._EffectRealisation`) and give the deflected arm:
+:class:`~problems.virtual.effects.EffectPart`) and give the deflected arm:
 the fixed point ``q = q_c + e(q_c) + dq(q)`` of the joints and the Euler-Bernoulli
 beams of the links.
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 from models.errors import InputError
 
-from .geometry import _axes, _frames, _Geometry, _tau_point
+from .geometry import ArmGeometry, joint_axes, link_frames, tau_point
 
 #: Fixed-point tolerance of the simulator's deflected equilibrium (rad).
 SIM_EQUILIBRIUM_TOL = 1e-13
@@ -23,7 +23,7 @@ SIM_EQUILIBRIUM_TOL = 1e-13
 SIM_EQUILIBRIUM_MAX_ITER = 200
 
 
-class _Physics:
+class PhysicsPart:
     """The deflected arm of the true parameters (a part of :class:`VirtualRobot`)."""
 
     def joint_error(self, q_c: np.ndarray) -> np.ndarray:
@@ -50,7 +50,7 @@ class _Physics:
             err[:, j] += float(a) * np.sin(float(h) * q_c[:, j] + float(ph))
         return err
 
-    def _geometry(self, temperature: np.ndarray) -> _Geometry:
+    def _geometry(self, temperature: np.ndarray) -> ArmGeometry:
         r = self.robot
         n = len(temperature)
         a = np.tile(r.a + self.da, (n, 1))
@@ -60,7 +60,7 @@ class _Physics:
             for i in self.th_links:
                 a[:, i] *= s
                 d[:, i] *= s
-        return _Geometry(
+        return ArmGeometry(
             a=a,
             alpha=np.tile(r.alpha + self.dalpha, (n, 1)),
             d=d,
@@ -76,25 +76,25 @@ class _Physics:
         """flange2base (N, 4, 4) from the frames: DH frame 6 and the chain's ``flange2frame6``."""
         return fr[:, 5] @ np.asarray(self.robot.flange2frame6, dtype=float)
 
-    def _torques(self, q: np.ndarray, F: np.ndarray, geo: _Geometry) -> np.ndarray:
-        fr = _frames(q, geo, self.convention)
-        z, p = _axes(fr, self.convention, geo.frame02base)
+    def _torques(self, q: np.ndarray, F: np.ndarray, geo: ArmGeometry) -> np.ndarray:
+        fr = link_frames(q, geo, self.convention)
+        z, p = joint_axes(fr, self.convention, geo.frame02base)
         fl = self._flange(fr)
         tcp = fl @ self._tool()
         f, m = F[:, :3], F[:, 3:]
         point = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
-        tau = _tau_point(z, p, point, f, m)
+        tau = tau_point(z, p, point, f, m)
         if self.simulated("gravity"):
             g = self.robot.gravity
             for j in range(6):
                 c = fr[:, j, :3, 3] + np.einsum("nij,j->ni", fr[:, j, :3, :3], self.coms[j])
                 tau += (
-                    _tau_point(z, p, c, np.broadcast_to(self.masses[j] * g, c.shape), np.zeros_like(c))
+                    tau_point(z, p, c, np.broadcast_to(self.masses[j] * g, c.shape), np.zeros_like(c))
                     * (np.arange(6) <= j)[None, :]
                 )
             if self.payload > 0:
                 c = fl[:, :3, 3] + np.einsum("nij,j->ni", fl[:, :3, :3], self.payload_com)
-                tau += _tau_point(z, p, c, np.broadcast_to(self.payload * g, c.shape), np.zeros_like(c))
+                tau += tau_point(z, p, c, np.broadcast_to(self.payload * g, c.shape), np.zeros_like(c))
         return tau
 
     def _deflection(self, tau: np.ndarray) -> np.ndarray:
@@ -142,7 +142,7 @@ class _Physics:
         displacement ``delta`` (N, 3) m, the tip rotation ``phi`` (N, 3) rad (a small rotation
         vector) and the tip position (N, 3) m, base frame; everything distal to the tip moves
         by ``delta + phi x (x - tip)`` and turns by ``phi``."""
-        _z, p = _axes(fr, self.convention, self.robot.frame02base)
+        _z, p = joint_axes(fr, self.convention, self.robot.frame02base)
         tcp = self._flange(fr) @ self._tool()
         p_app = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
         f, m = F[:, :3], F[:, 3:]
@@ -186,4 +186,4 @@ class _Physics:
         F = np.broadcast_to(np.asarray(F, dtype=float), (n, 6))
         T = np.full(n, 20.0) if temperature is None else np.asarray(temperature, dtype=float)
         q = self.equilibrium(q_c, F, T)
-        return _frames(q, self._geometry(T), self.convention), F
+        return link_frames(q, self._geometry(T), self.convention), F

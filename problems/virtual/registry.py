@@ -43,7 +43,7 @@ class Realisation:
     keys : frozenset of str
         The keys its table accepts.
     method : str
-        The method of :class:`~problems.virtual.effects._EffectRealisation` that realises it,
+        The method of :class:`~problems.virtual.effects.EffectPart` that realises it,
         called as ``method(table, where, rng)``: ``table`` the checked table (``None`` when an
         ``[effects.NAME]`` table is not given; a top-level table is always realised, ``{}`` when
         absent), ``where`` the source and table for messages, ``rng`` the realisation's generator.
@@ -95,7 +95,7 @@ def _declared_table(effects: tuple[str, ...]) -> None:
 
 
 def simulates(*effects: str, keys: Iterable[str], disturbance: str = "") -> Callable[[_F], _F]:
-    """Method decorator: register a method of :class:`~problems.virtual.effects._EffectRealisation`
+    """Method decorator: register a method of :class:`~problems.virtual.effects.EffectPart`
     as the virtual robot's realisation of the physics of ``effects`` (model effect names).
 
     Realisations run in the order they are registered (the order of the checks, and of the random

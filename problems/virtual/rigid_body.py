@@ -17,7 +17,7 @@ import numpy as np
 from models.errors import InputError
 from models.robot import Robot
 
-from .geometry import _axes, _frames, _Geometry
+from .geometry import ArmGeometry, joint_axes, link_frames
 
 #: Fixed-point tolerance of the static equilibrium (rad).
 EQUILIBRIUM_TOL_RAD = 1e-14
@@ -29,7 +29,7 @@ EQUILIBRIUM_MAX_ITER = 200
 PAYLOAD_LEN = 10
 
 
-def _vector(x: object, n: int, name: str) -> np.ndarray:
+def as_vector(x: object, n: int, name: str) -> np.ndarray:
     a = np.asarray(x, dtype=float).reshape(-1)
     if a.shape != (n,) or not np.all(np.isfinite(a)):
         raise InputError(f"{name} must be {n} finite numbers, got {np.asarray(x).shape}")
@@ -83,8 +83,8 @@ class ElasticArm:
         self.robot = robot
         self.convention = robot.convention
         self.gravity = np.asarray(robot.gravity, dtype=float).reshape(3)
-        self.wrench = np.zeros(6) if wrench is None else _vector(wrench, 6, "wrench")
-        pl = np.zeros(PAYLOAD_LEN) if payload is None else _vector(payload, PAYLOAD_LEN, "payload")
+        self.wrench = np.zeros(6) if wrench is None else as_vector(wrench, 6, "wrench")
+        pl = np.zeros(PAYLOAD_LEN) if payload is None else as_vector(payload, PAYLOAD_LEN, "payload")
         self.frame02base = np.asarray(robot.frame02base, dtype=float)
         self.tcp2frame6 = np.asarray(robot.flange2frame6, dtype=float) @ np.asarray(robot.tcp2flange, dtype=float)
         link, m, c, inertia = [], [], [], []
@@ -106,13 +106,13 @@ class ElasticArm:
         self.body_com = np.array(c, dtype=float).reshape(-1, 3)
         self.body_inertia = np.array(inertia, dtype=float).reshape(-1, 3, 3)
 
-    def _geometry(self, n: int) -> _Geometry:
+    def _geometry(self, n: int) -> ArmGeometry:
         r = self.robot
 
         def row(v: np.ndarray) -> np.ndarray:
             return np.broadcast_to(np.asarray(v, dtype=float), (n, 6))
 
-        return _Geometry(
+        return ArmGeometry(
             a=row(r.a),
             alpha=row(r.alpha),
             d=row(r.d),
@@ -124,8 +124,8 @@ class ElasticArm:
     def kinematics(self, q: np.ndarray) -> _Kin:
         """Frames, axes, TCP and bodies of the states ``q`` (N, 6) rad."""
         q = np.atleast_2d(q)
-        fr = _frames(q, self._geometry(q.shape[0]), self.convention)
-        z, p = _axes(fr, self.convention, self.frame02base)
+        fr = link_frames(q, self._geometry(q.shape[0]), self.convention)
+        z, p = joint_axes(fr, self.convention, self.frame02base)
         Tb = fr[:, self.body_link]  # (N, B, 4, 4)
         Rb = Tb[:, :, :3, :3]
         c = Tb[:, :, :3, 3] + np.einsum("nbij,bj->nbi", Rb, self.body_com)
@@ -135,7 +135,7 @@ class ElasticArm:
     def tcp_position(self, q: np.ndarray) -> np.ndarray:
         """TCP positions (N, 3), base frame, m, of link angles ``q`` (N, 6) rad."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        fr = _frames(q, self._geometry(q.shape[0]), self.convention)
+        fr = link_frames(q, self._geometry(q.shape[0]), self.convention)
         return (fr[:, 5] @ self.tcp2frame6)[:, :3, 3]
 
     def inverse_dynamics(

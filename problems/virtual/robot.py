@@ -19,15 +19,15 @@ import numpy as np
 from models.robot import Robot, load_robot
 from models.transforms import matrix_to_rotvec
 
-from .campaign import _Campaign
+from .campaign import CampaignPart
 from .config import TOP_KEYS, SimConfigError, integer
-from .effects import _EffectRealisation
-from .measure import _Measuring
-from .physics import _Physics
+from .effects import EffectPart
+from .measure import MeasuringPart
+from .physics import PhysicsPart
 from .registry import checked_effect_tables, top_level_tables
 
 
-class VirtualRobot(_EffectRealisation, _Physics, _Measuring, _Campaign):
+class VirtualRobot(EffectPart, PhysicsPart, MeasuringPart, CampaignPart):
     """A robot with 'true' parameters and effects, and a measurement system.
 
     Parameters
