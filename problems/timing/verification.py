@@ -45,14 +45,12 @@ __all__ = [
     "VERIFY_OVERSAMPLE",
     "TimeLaw",
     "check_times",
-    "empty_trajectory",
     "exceeded_limits",
     "finish_trajectory",
     "format_ratios",
     "limit_ratios",
     "max_ratios",
     "moves_backwards",
-    "nan_ratios",
     "sample_path",
     "sample_times",
 ]
@@ -150,11 +148,6 @@ def format_ratios(ratio: Mapping[str, np.ndarray]) -> str:
     return "peak ratios " + ", ".join(parts)
 
 
-def nan_ratios(n: int) -> dict[str, np.ndarray]:
-    """Ratios marked unavailable: NaN, each shape ``(n,)``."""
-    return {k: np.full(n, np.nan) for k in LIMIT_KEYS}
-
-
 def moves_backwards(sd: np.ndarray, sd_scale: float) -> float | None:
     """Most negative path velocity (1/s) if the law moves backwards, else None.
 
@@ -165,34 +158,6 @@ def moves_backwards(sd: np.ndarray, sd_scale: float) -> float | None:
     if backwards < -MONOTONE_TOL * max(1.0, sd_scale):
         return backwards
     return None
-
-
-def empty_trajectory(
-    method: str,
-    status: TimingStatus,
-    reason: str,
-    n: int,
-    dt: float,
-    iterations: int = 0,
-    solver_code: str = "",
-) -> Trajectory:
-    """A result without samples (``M = 0``, NaN duration and ratios) for ``n`` joints."""
-    empty = np.empty((0, n))
-    return Trajectory(
-        method=method,
-        status=status,
-        reason=reason,
-        t=np.empty(0),
-        q=empty,
-        qd=empty.copy(),
-        qdd=empty.copy(),
-        qddd=empty.copy(),
-        duration_s=math.nan,
-        limit_ratio=nan_ratios(n),
-        dt=dt,
-        iterations=iterations,
-        solver_code=solver_code,
-    )
 
 
 def sample_path(
