@@ -44,7 +44,7 @@ from problems.posture.clearance import (
 )
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
-from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
+from problems.posture.warm_start import WarmStarts, onto_model_geometry, linear_error, warm_starts
 
 # --------------------------------------------------------------------------------------
 # What can be chosen
@@ -156,7 +156,7 @@ def optimise_postures(
     freedom, note = analyse_freedom(robot, task.rule)
     ws = warm_starts(ik, model, task)
     if not arm.geometry_is_nominal:
-        ws = _onto_model_geometry(arm, ik, ws)
+        ws = onto_model_geometry(arm, ik, ws)
     default = (
         default_branch(ws.analytic, home_q)
         if ws.analytic
