@@ -209,6 +209,32 @@ def _limit_words(keys: tuple[str, ...]) -> str:
     return keys[0] if len(keys) == 1 else ", ".join(keys[:-1]) + " and " + keys[-1]
 
 
+def _verdict(
+    method: str, ratio: Mapping[str, np.ndarray], backwards: float | None, runs: str
+) -> tuple[TimingStatus, str]:
+    """The status of a sampled law and the reason's head (see :func:`finish_trajectory`).
+
+    Parameters
+    ----------
+    method : str
+        The registered method (its checked limits decide).
+    ratio : Mapping
+        Peak ratios over the samples and the check grid, each shape ``(n,)``.
+    backwards : float or None
+        The most negative path velocity, 1/s, if the law moves backwards (:func:`moves_backwards`).
+    runs : str
+        Appended to the limit-exceeded reason.
+    """
+    checked = get_method(method).checked_limits
+    bad = exceeded_limits(ratio, checked)
+    if backwards is not None:
+        what = f"the {display_name(method)} time law moves backwards along the path (min ds/dt = {backwards:.3g} 1/s)"
+        return TimingStatus.FAILED, what
+    if bad:
+        return TimingStatus.LIMIT_EXCEEDED, f"{' and '.join(bad)} ratio above 1{runs}"
+    return TimingStatus.OK, f"{_limit_words(checked)} within limits"
+
+
 def finish_trajectory(
     method: str,
     path: SplinePath,
@@ -267,20 +293,11 @@ def finish_trajectory(
         ``<= 1 + LIMIT_RATIO_TOL``, otherwise ``LIMIT_EXCEEDED``. The reason says which
         (without repeating the status), then ``summary``.
     """
-    checked = get_method(method).checked_limits
     t = sample_times(duration, dt)
     tm = t[t < duration]
     q, qd, qdd, qddd = sample_path(path, t, duration, *law(tm))
     ratio = max_ratios(limit_ratios(qd, qdd, qddd, limits), check_ratio)
-    backwards = moves_backwards(check_sd, sd_scale)
-    bad = exceeded_limits(ratio, checked)
-    if backwards is not None:
-        status = TimingStatus.FAILED
-        what = f"the {display_name(method)} time law moves backwards along the path (min ds/dt = {backwards:.3g} 1/s)"
-    elif bad:
-        status, what = TimingStatus.LIMIT_EXCEEDED, f"{' and '.join(bad)} ratio above 1{runs}"
-    else:
-        status, what = TimingStatus.OK, f"{_limit_words(checked)} within limits"
+    status, what = _verdict(method, ratio, moves_backwards(check_sd, sd_scale), runs)
     return Trajectory(
         method=method,
         status=status,
