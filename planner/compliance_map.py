@@ -343,20 +343,9 @@ def compliance_map(
     b_fixed = _branch_index(branch, labels)
     u = np.linspace(u_lo, u_hi, int(nu))
     v = np.linspace(v_lo, v_hi, int(nv))
-    U, V = np.meshgrid(u, v, indexing="ij")
-    n_axis, u_axis, v_axis = PLANE_AXES[plane]
-    P = np.empty((U.size, 3))
-    P[:, n_axis] = off
-    P[:, u_axis] = U.ravel()
-    P[:, v_axis] = V.ravel()
+    shape = (u.size, v.size)
+    P = _plane_points(plane, off, u, v)
     q, chosen, diag, status_ref = _evaluate_grid(arm, P, rpy_to_matrix(rpy), b_fixed, chunk, progress)
-
-    reasons: dict[str, int] = {}
-    bad = chosen < 0
-    if bad.any():
-        codes, counts = np.unique(status_ref[bad], return_counts=True)
-        for c, k in zip(codes, counts):
-            reasons[IK_REASONS[IKStatus.from_code(c)]] = int(k)
     return ComplianceMap(
         robot=robot.name,
         plane=plane,
@@ -365,9 +354,33 @@ def compliance_map(
         v_m=v,
         rpy_rad=rpy,
         branch_rule=branch,
-        branch=chosen.reshape(U.shape),
-        q=q.reshape(U.shape + (6,)),
-        diag=diag.reshape(U.shape + (6,)),
-        unreachable_reasons=reasons,
+        branch=chosen.reshape(shape),
+        q=q.reshape(shape + (6,)),
+        diag=diag.reshape(shape + (6,)),
+        unreachable_reasons=_unreachable_reasons(chosen, status_ref),
         labels=labels,
     )
+
+
+def _plane_points(plane: str, off: float, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The grid's TCP positions (U * V, 3), base frame, m: ``u`` (U,) and ``v`` (V,) along the
+    plane's in-plane axes (``u`` slowest), ``off`` along its normal."""
+    U, V = np.meshgrid(u, v, indexing="ij")
+    n_axis, u_axis, v_axis = PLANE_AXES[plane]
+    P = np.empty((U.size, 3))
+    P[:, n_axis] = off
+    P[:, u_axis] = U.ravel()
+    P[:, v_axis] = V.ravel()
+    return P
+
+
+def _unreachable_reasons(chosen: np.ndarray, status_ref: np.ndarray) -> dict[str, int]:
+    """IK reason -> the number of grid points without a solution (``chosen`` < 0), from the IK
+    status codes ``status_ref`` (both shape (P,))."""
+    reasons: dict[str, int] = {}
+    bad = chosen < 0
+    if bad.any():
+        codes, counts = np.unique(status_ref[bad], return_counts=True)
+        for c, k in zip(codes, counts):
+            reasons[IK_REASONS[IKStatus.from_code(c)]] = int(k)
+    return reasons

@@ -76,14 +76,14 @@ from planner.output_siblings import (
     STAGING_KIND,
     TEMP_KIND,
     OutputError,
-    _cause,
-    _real,
     acquire_output_lock,
     clean_up,
     holds_output_lock,
     lock_path,
     new_sibling_name,
+    os_error_cause,
     output_lock,
+    real_path,
     release_output_lock,
     sibling_prefix,
     take_output_notes,
@@ -218,11 +218,11 @@ def pending_file(path: str | Path, data: bytes, what: str = "") -> Iterator[Path
     """
     path = Path(path)
     name = f"{what} {path}".strip()
-    real = _real(path)
+    real = real_path(path)
     try:
         real.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"{name}: cannot create the folder {path.parent} ({_cause(exc)})") from None
+        raise OutputError(f"{name}: cannot create the folder {path.parent} ({os_error_cause(exc)})") from None
     tmp = new_sibling_name(real, TEMP_KIND)
     unchanged = "the previous file, if any, is unchanged"
     done = False
@@ -230,12 +230,12 @@ def pending_file(path: str | Path, data: bytes, what: str = "") -> Iterator[Path
         try:
             _write_new_file(tmp, data)
         except OSError as exc:
-            raise OutputError(f"{name}: cannot write ({_cause(exc)}); {unchanged}") from None
+            raise OutputError(f"{name}: cannot write ({os_error_cause(exc)}); {unchanged}") from None
         yield tmp
         try:
             os.replace(tmp, real)
         except OSError as exc:
-            raise OutputError(f"{name}: cannot move it into place ({_cause(exc)}); {unchanged}") from None
+            raise OutputError(f"{name}: cannot move it into place ({os_error_cause(exc)}); {unchanged}") from None
         done = True
     finally:
         if not done:
@@ -272,14 +272,16 @@ def atomic_write_files(files: dict[Path, bytes]) -> None:
     staged: list[tuple[Path, Path, Path]] = []
     try:
         for path, data in files.items():
-            real = _real(Path(path))
+            real = real_path(Path(path))
             try:
                 real.parent.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
                 tmp = new_sibling_name(real, TEMP_KIND)
                 staged.append((tmp, real, Path(path)))
                 _write_new_file(tmp, data)
             except OSError as exc:
-                raise OutputError(f"{path}: cannot write ({_cause(exc)}); no file of the set was changed") from None
+                raise OutputError(
+                    f"{path}: cannot write ({os_error_cause(exc)}); no file of the set was changed"
+                ) from None
         for tmp, real, _path in staged:
             os.replace(tmp, real)
     finally:
@@ -407,7 +409,7 @@ class OutputSet:
         kind: OutputKind = "folder" if self.owns is None else "update"
         check_output_path(self.folder, kind, "output folder", writes={Path(n).parts[0] for n in self.files})
         with output_lock(self.folder, "output folder"):
-            target = _real(self.folder)
+            target = real_path(self.folder)
             staging = new_sibling_name(target, STAGING_KIND)
             owner = f"output folder {self.folder}"
             doing = "create a temporary folder"
@@ -428,7 +430,7 @@ class OutputSet:
                 retired = _move_into_place(staging, target)
             except OSError as exc:
                 clean_up(staging, owner, "the unfinished new version of it")
-                raise OutputError(f"{owner}: cannot {doing} ({_cause(exc)}); nothing was changed") from None
+                raise OutputError(f"{owner}: cannot {doing} ({os_error_cause(exc)}); nothing was changed") from None
             except BaseException:
                 clean_up(staging, owner, "the unfinished new version of it")
                 raise

@@ -19,7 +19,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Any, Literal
 
-from planner.output_siblings import FOLDER_MODE, OutputError, _cause, _real
+from planner.output_siblings import FOLDER_MODE, OutputError, os_error_cause, real_path
 
 OutputKind = Literal["file", "folder", "update"]
 
@@ -134,7 +134,7 @@ def _check_replaced_folder(
         try:
             entries = sorted(os.listdir(p))
         except OSError as exc:
-            raise OutputError(f"{what} {p}: cannot read the folder ({_cause(exc)})") from None
+            raise OutputError(f"{what} {p}: cannot read the folder ({os_error_cause(exc)})") from None
         if entries and not any(m in entries for m in OUTPUT_FOLDER_MARKERS) and not set(entries) <= set(writes):
             shown = ", ".join(entries[:FOREIGN_SHOWN]) + (", ..." if len(entries) > FOREIGN_SHOWN else "")
             raise OutputError(
@@ -201,7 +201,7 @@ def check_output_path(
         ``holds`` is not a :class:`FolderKind` value.
     """
     p = Path(path)
-    real = _real(p)
+    real = real_path(p)
     want = None if holds is None else FolderKind(holds)
     if real.parent == real:
         raise OutputError(f"{what} {p}: is the root folder; give a folder below it")
@@ -213,7 +213,7 @@ def check_output_path(
     else:
         if p.exists() and not p.is_dir():
             raise OutputError(f"{what} {p}: exists and is not a folder; give a folder path")
-        cwd = _real(os.getcwd())
+        cwd = real_path(os.getcwd())
         if cwd == real or real in cwd.parents:
             raise OutputError(
                 f"{what} {p}: is the current folder or contains it, and it is replaced whole "
@@ -246,7 +246,7 @@ def check_output_folder(folder: str | Path, create: bool = False) -> Path:
         try:
             p.mkdir(FOLDER_MODE, parents=True, exist_ok=True)
         except OSError as exc:
-            raise OutputError(f"--out {p}: cannot create the folder ({_cause(exc)})") from None
+            raise OutputError(f"--out {p}: cannot create the folder ({os_error_cause(exc)})") from None
     return p
 
 

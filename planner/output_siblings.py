@@ -68,7 +68,7 @@ class OutputError(InputError, OSError):
 
 
 # ------------------------------------------------------------------------------ errors
-def _cause(exc: OSError) -> str:
+def os_error_cause(exc: OSError) -> str:
     """``strerror (ENAME)`` of an OS error, e.g. ``No space left on device (ENOSPC)``."""
     if exc.errno is None:
         return str(exc)
@@ -96,7 +96,7 @@ def removal_hint(path: Path) -> str:
 
 
 # ------------------------------------------------------------------------------ siblings
-def _real(path: str | Path) -> Path:
+def real_path(path: str | Path) -> Path:
     """The absolute path with symbolic links resolved (also for parts that do not exist yet)."""
     return Path(os.path.realpath(os.fspath(path)))
 
@@ -111,7 +111,7 @@ def _stem(name: str) -> str:
 
 def sibling_prefix(target: str | Path, kind: str) -> Path:
     """Path (prefix) of a hidden sibling of ``target`` of the given kind (``LOCK_KIND`` ...)."""
-    real = _real(target)
+    real = real_path(target)
     return real.parent / f".{_stem(real.name)}{SIBLING_TAG}{kind}"
 
 
@@ -169,7 +169,7 @@ def clean_up(path: Path, owner: str, why: str) -> bool:
     exc = remove_path(path)
     if exc is None:
         return True
-    _NOTES.append(f"{owner}: cannot remove {path}, {why} ({_cause(exc)}); remove it with: {removal_hint(path)}")
+    _NOTES.append(f"{owner}: cannot remove {path}, {why} ({os_error_cause(exc)}); remove it with: {removal_hint(path)}")
     return False
 
 
@@ -179,7 +179,7 @@ def _remove_leftovers(target: str | Path, what: str) -> None:
 
     Only called by the holder of ``target``'s lock, so no live writer owns them.
     """
-    real = _real(target)
+    real = real_path(target)
     prefixes = tuple(sibling_prefix(real, k).name for k in LEFTOVER_KINDS)
     try:
         names = sorted(os.listdir(real.parent))
@@ -245,7 +245,7 @@ def _holder(fd: int) -> str:
 
 def holds_output_lock(target: str | Path) -> bool:
     """Whether this process holds the lock of ``target``."""
-    return _real(target) in _HELD
+    return real_path(target) in _HELD
 
 
 def _lock_attempt(path: Path, created: list[Path], target: str | Path, what: str) -> tuple[int | None, bool]:
@@ -261,7 +261,7 @@ def _lock_attempt(path: Path, created: list[Path], target: str | Path, what: str
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, FILE_MODE)
     except OSError as exc:
         _remove_if_empty(created)
-        raise OutputError(f"{what} {target}: cannot create the lock file {path} ({_cause(exc)})") from None
+        raise OutputError(f"{what} {target}: cannot create the lock file {path} ({os_error_cause(exc)})") from None
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -281,7 +281,7 @@ def _lock_attempt(path: Path, created: list[Path], target: str | Path, what: str
             _remove_if_empty(created)
             return None, True
         _remove_if_empty(created)
-        raise OutputError(f"{what} {target}: cannot lock {path} ({_cause(exc)})") from None
+        raise OutputError(f"{what} {target}: cannot lock {path} ({os_error_cause(exc)})") from None
     # The previous holder removes the file on release: ours may be an unlinked one.
     try:
         same = os.path.samestat(os.fstat(fd), os.stat(path))
@@ -318,7 +318,7 @@ def acquire_output_lock(target: str | Path, what: str = "output") -> Path:
         Another process (or another thread of this one) is writing ``target``, or the
         lock file cannot be created.
     """
-    real = _real(target)
+    real = real_path(target)
     with _HELD_GUARD:
         held = _HELD.get(real)
         if held is not None:
@@ -332,7 +332,7 @@ def acquire_output_lock(target: str | Path, what: str = "output") -> Path:
     try:
         created = _make_parents(path.parent)
     except OSError as exc:
-        raise OutputError(f"{what} {target}: cannot create the folder {path.parent} ({_cause(exc)})") from None
+        raise OutputError(f"{what} {target}: cannot create the folder {path.parent} ({os_error_cause(exc)})") from None
     for _ in range(LOCK_ATTEMPTS):
         fd, locked = _lock_attempt(path, created, target, what)
         if locked and fd is None:  # a file system without locks: write unlocked
@@ -353,7 +353,7 @@ def acquire_output_lock(target: str | Path, what: str = "output") -> Path:
 
 def release_output_lock(target: str | Path) -> None:
     """Release one :func:`acquire_output_lock` of ``target``; the last removes the lock file."""
-    real = _real(target)
+    real = real_path(target)
     with _HELD_GUARD:
         held = _HELD.get(real)
         if held is None:
@@ -392,7 +392,9 @@ __all__ = [
     "holds_output_lock",
     "lock_path",
     "new_sibling_name",
+    "os_error_cause",
     "output_lock",
+    "real_path",
     "release_output_lock",
     "remove_path",
     "removal_hint",

@@ -209,57 +209,17 @@ class Problem:
 
     def to_dict(self) -> dict[str, Any]:
         """The problem as a dictionary in the problem-file schema (SI units, radians)."""
-        T = self.robot.tcp2flange
         d: dict[str, Any] = {
             "name": self.name,
             "description": self.description,
             "source": self.source_text,
-            "robot": {
-                "model": self.robot_spec,
-                "tool": {"xyz": [float(v) for v in T[:3, 3]], "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]},
-            },
+            "robot": self._robot_dict(),
         }
-        tool = getattr(self.cell, "tool", None)
-        if tool is not None:  # the tool's body and cutter ([robot.tool] body, cutter)
-            d["robot"]["tool"].update(tool.to_dict())
-        if self.program is not None:
-            d["path"] = {"kind": self.path_kind, "file": self.program.file}
-            w = self.program.waypoints
-            if w.tolerance_source != "G64 P":
-                d["path"]["tolerance_mm"] = w.tolerance_m * 1e3
-            d["workpiece"] = {
-                "xyz": [float(v) for v in self.program.workpiece.xyz_m],
-                "rpy": [float(v) for v in self.program.workpiece.rpy_rad],
-            }
-        elif self.path_kind == "line" and self.line is not None:
-            d["path"] = {
-                "kind": "line",
-                "start": [float(v) for v in self.line[0]],
-                "end": [float(v) for v in self.line[1]],
-                "points": self.n,
-            }
-        else:
-            d["path"] = {
-                "kind": "waypoints",
-                "positions": self.positions.tolist(),
-                "rpy": [matrix_to_rpy(R).tolist() for R in self.rotations],
-            }
-        o: dict[str, Any] = {"rule": self.rule.value, "scan": self.scan}
-        if self.program is None:
-            o["rpy"] = [float(v) for v in self.nominal_rpy]
-        if self.rule is OrientationRule.CONE:
-            o["half_angle"] = self.cone_half_angle
-        d["orientation"] = o
-        if self.wrench_per_waypoint and self.program is not None and self.program.waypoints.wrench is not None:
-            pass  # the CL file gives it
-        elif self.wrench_per_waypoint:
-            d["wrench"] = {"frame": self.wrench_frame, "per_waypoint": self.wrench.tolist()}
-        else:
-            d["wrench"] = {
-                "frame": self.wrench_frame,
-                "force": self.wrench[0, :3].tolist(),
-                "moment": self.wrench[0, 3:].tolist(),
-            }
+        d.update(self._path_dicts())
+        d["orientation"] = self._orientation_dict()
+        wrench = self._wrench_dict()
+        if wrench is not None:
+            d["wrench"] = wrench
         if self.payload_mass_kg:
             d["payload"] = {"mass_kg": float(self.payload_mass_kg), "com_m": [float(v) for v in self.payload_com_m]}
             if self.gravity is not None:
@@ -278,7 +238,79 @@ class Problem:
             "codegen": self.solver.codegen,
         }
         d["branch"] = {"home": self.home_q.tolist()}
-        d["timing"] = {
+        d["timing"] = self._timing_dict()
+        if self.placement is not None:
+            g = self.placement.describe()
+            d["placement"] = {k: v for k, v in g.items() if k != "placements"}
+        if self.cell is not None:
+            d["cell"] = self.cell.to_dict()
+        return d
+
+    def _robot_dict(self) -> dict[str, Any]:
+        """``[robot]``: the model and the tool (its TCP, and its body and cutter when the cell has them)."""
+        T = self.robot.tcp2flange
+        robot: dict[str, Any] = {
+            "model": self.robot_spec,
+            "tool": {"xyz": [float(v) for v in T[:3, 3]], "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])]},
+        }
+        tool = getattr(self.cell, "tool", None)
+        if tool is not None:  # the tool's body and cutter ([robot.tool] body, cutter)
+            robot["tool"].update(tool.to_dict())
+        return robot
+
+    def _path_dicts(self) -> dict[str, Any]:
+        """``[path]`` (a program, a line or waypoints) and, for a program, ``[workpiece]``."""
+        if self.program is not None:
+            path: dict[str, Any] = {"kind": self.path_kind, "file": self.program.file}
+            w = self.program.waypoints
+            if w.tolerance_source != "G64 P":
+                path["tolerance_mm"] = w.tolerance_m * 1e3
+            workpiece = {
+                "xyz": [float(v) for v in self.program.workpiece.xyz_m],
+                "rpy": [float(v) for v in self.program.workpiece.rpy_rad],
+            }
+            return {"path": path, "workpiece": workpiece}
+        if self.path_kind == "line" and self.line is not None:
+            return {
+                "path": {
+                    "kind": "line",
+                    "start": [float(v) for v in self.line[0]],
+                    "end": [float(v) for v in self.line[1]],
+                    "points": self.n,
+                }
+            }
+        return {
+            "path": {
+                "kind": "waypoints",
+                "positions": self.positions.tolist(),
+                "rpy": [matrix_to_rpy(R).tolist() for R in self.rotations],
+            }
+        }
+
+    def _orientation_dict(self) -> dict[str, Any]:
+        """``[orientation]``: the rule, the scan, the nominal orientation (not for a program), the cone."""
+        o: dict[str, Any] = {"rule": self.rule.value, "scan": self.scan}
+        if self.program is None:
+            o["rpy"] = [float(v) for v in self.nominal_rpy]
+        if self.rule is OrientationRule.CONE:
+            o["half_angle"] = self.cone_half_angle
+        return o
+
+    def _wrench_dict(self) -> dict[str, Any] | None:
+        """``[wrench]``: per waypoint or constant; None when the program's CL file gives it."""
+        if self.wrench_per_waypoint and self.program is not None and self.program.waypoints.wrench is not None:
+            return None  # the CL file gives it
+        if self.wrench_per_waypoint:
+            return {"frame": self.wrench_frame, "per_waypoint": self.wrench.tolist()}
+        return {
+            "frame": self.wrench_frame,
+            "force": self.wrench[0, :3].tolist(),
+            "moment": self.wrench[0, 3:].tolist(),
+        }
+
+    def _timing_dict(self) -> dict[str, Any]:
+        """``[timing]`` with its ``[timing.<method>]`` tables."""
+        timing: dict[str, Any] = {
             "methods": list(self.timing.methods),
             "dt": self.timing.dt,
             "toppra_gridpoints": self.timing.toppra_gridpoints,
@@ -287,13 +319,8 @@ class Problem:
             "dynamic": self.timing.dynamic,
         }
         for m, opts in self.timing.method_options.items():  # [timing.<method>] tables
-            d["timing"][m] = dict(opts)
-        if self.placement is not None:
-            g = self.placement.describe()
-            d["placement"] = {k: v for k, v in g.items() if k != "placements"}
-        if self.cell is not None:
-            d["cell"] = self.cell.to_dict()
-        return d
+            timing[m] = dict(opts)
+        return timing
 
 
 # --------------------------------------------------------------------------------------

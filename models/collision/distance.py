@@ -4,7 +4,8 @@
 * Objects (:class:`models.collision.scene.SceneObject`: a shape of a registered kind, placed) carry
   their `coal <https://github.com/coal-library/coal>`_ geometries (the maintained hpp-fcl);
   :func:`capsule_shape_distance` asks coal for the signed distance between a capsule and an object
-  and its closest points.  Meshes are read with ``trimesh`` into coal BVH models (:func:`mesh_bvh`).
+  and its closest points.  Meshes are read with ``trimesh`` into coal BVH models
+  (:func:`models.collision.shapes.mesh.mesh_bvh`).
 
 Signed distances: negative is penetration depth.  coal gives it for primitives and convex meshes
 (GJK/EPA); for a non-convex mesh coal's depth is per triangle, so a capsule crossing the surface
@@ -153,19 +154,6 @@ def mesh_shape(name: str, source: Any, shape2base: np.ndarray, scale: float = 1.
         raise InputError(f"{source}: the mesh of object '{name}' has no triangles")
     mesh.apply_scale(float(scale))
     return SceneObject(name, Mesh(mesh), shape2base)
-
-
-def mesh_bvh(mesh: Any) -> Any:
-    """A coal BVH model (OBBRSS) of a ``trimesh.Trimesh``'s triangles (vertices as they are, m)."""
-    verts = coal.StdVec_Vec3s()
-    verts.extend(np.asarray(v, dtype=float) for v in mesh.vertices)
-    tris = coal.StdVec_Triangle()
-    tris.extend(coal.Triangle(int(i), int(j), int(k)) for i, j, k in mesh.faces)
-    bvh = coal.BVHModelOBBRSS()
-    bvh.beginModel(len(mesh.faces), len(mesh.vertices))
-    bvh.addSubModel(verts, tris)
-    bvh.endModel()
-    return bvh
 
 
 def _request() -> Any:

@@ -13,7 +13,7 @@ import numpy as np
 from models.description import CollisionSegment, RobotCollision, RobotFileError
 
 from .collision_table import parse_collision_table
-from .urdf_chain import UrdfChain, chain_joints as _chain_joints, joint_origin as _origin
+from .urdf_chain import UrdfChain, chain_joints, joint_origin
 from .urdf_dh import DHChain
 
 # --------------------------------------------------------------------------------------
@@ -181,12 +181,12 @@ def _origin_segments(
     """The lines between consecutive URDF joint origins from ``base_link`` to ``tip_link`` (the
     links' frames, where a URDF's author put its links), each fixed in the DH frame of its link; a
     line on the next joint's axis belongs to that joint's link (as the DH offsets along an axis)."""
-    common2base, joints = _chain_joints(where, chain.model, base_link, tip_link)
+    common2base, joints = chain_joints(where, chain.model, base_link, tip_link)
     w, p = chain.zero_axes()
     T, body = common2base.copy(), 0
     pts = [(np.zeros(3), 0, base_link)]
     for j in joints:
-        T = T @ _origin(where, j)
+        T = T @ joint_origin(where, j)
         body += int(j.type != "fixed")
         pts.append((T[:3, 3].copy(), body, j.name))
     out = []

@@ -31,8 +31,6 @@ joint 6's axis, with ``theta_offset_6 = 0``.
 
 from __future__ import annotations
 
-from __future__ import annotations
-
 import math
 from pathlib import Path
 from typing import Any
@@ -48,7 +46,7 @@ from .collision_table import check_collision_fixed
 from .sections import parse_controller, parse_frame_table
 from .urdf_chain import UrdfChain, read_chain
 from .urdf_collision import urdf_collision
-from .urdf_dh import check_dh, dh_from_axes
+from .urdf_dh import DHChain, check_dh, dh_from_axes
 from .values import VALUES, angle, vector
 
 #: Keys of a URDF-based robot file.
@@ -176,6 +174,70 @@ def _str_key(where: str, data: Mapping[str, Any], key: str) -> str:
     return VALUES.text(where, key, data.get(key), empty=False)
 
 
+def _urdf_joint(
+    where: str,
+    chain: UrdfChain,
+    ch: DHChain,
+    ov: Mapping[str, Any],
+    lim: Mapping[str, float],
+    i: int,
+    a_max: np.ndarray | None,
+    j_max: np.ndarray | None,
+    stiffness: float,
+    has_mass: bool,
+) -> Joint:
+    """Joint ``i`` (0-based) in its DH form ``ch``: its limits ``lim``, its acceleration and jerk
+    limits (the joint's ``[joints.<name>]`` override, else the file's six, else the defaults), its
+    stiffness (N*m/rad) and, when the URDF gives masses, its link's mass, centre of mass and inertia
+    in DH frame ``i + 1``."""
+    row_ov = ov.get(chain.joint_names[i], {})
+    am = (
+        _positive(where, chain.joint_names[i], row_ov, "a_max")
+        if "a_max" in row_ov
+        else (float(a_max[i]) if a_max is not None else lim["v_max"] / DEFAULT_TIME_TO_SPEED_S)
+    )
+    jm = (
+        _positive(where, chain.joint_names[i], row_ov, "j_max")
+        if "j_max" in row_ov
+        else (float(j_max[i]) if j_max is not None else am / DEFAULT_TIME_TO_ACCEL_S)
+    )
+    mass_kw: dict[str, Any] = {}
+    if has_mass:
+        b = chain.bodies[i]
+        D2J = np.linalg.inv(chain.frames[i]) @ ch.frames0[i + 1]  # DH frame i+1 -> joint frame
+        R = D2J[:3, :3]
+        com = R.T @ (b.com - D2J[:3, 3])
+        mass_kw = {"mass": b.mass, "com": com, "inertia": R.T @ b.inertia @ R}
+    return Joint(
+        a=float(ch.a[i]),
+        alpha=float(ch.alpha[i]),
+        d=float(ch.d[i]),
+        theta_offset=float(ch.theta_offset[i]),
+        q_min=lim["q_min"],
+        q_max=lim["q_max"],
+        v_max=lim["v_max"],
+        a_max=am,
+        j_max=jm,
+        stiffness=stiffness,
+        **mass_kw,
+    )
+
+
+def _default_notes(a_max: np.ndarray | None, j_max: np.ndarray | None, has_mass: bool) -> list[str]:
+    """The robot's notes on what the file leaves to defaults (acceleration, jerk, masses)."""
+    notes = []
+    if a_max is None:
+        notes.append(
+            f"a_max not given: v_max / {DEFAULT_TIME_TO_SPEED_S:g} s assumed (full speed in "
+            f"{DEFAULT_TIME_TO_SPEED_S:g} s)"
+        )
+    if j_max is None:
+        notes.append(f"j_max not given: a_max / {DEFAULT_TIME_TO_ACCEL_S:g} s assumed")
+    if not has_mass:
+        notes.append("the URDF gives no link masses: no self-weight model")
+    return notes
+
+
 def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | None) -> Robot:
     """Build a :class:`Robot` from a URDF-based robot-file dictionary (see ``docs/robot-file.md``).
 
@@ -212,51 +274,10 @@ def robot_from_urdf_dict(data: Mapping[str, Any], where: str, base_dir: Path | N
     notes = list(chain.notes)
     a_max, j_max = _six(where, data, "a_max"), _six(where, data, "j_max")
     has_mass = any(b.mass > 0 for b in chain.bodies)
-    joints = []
-    for i in range(6):
-        lim = limits[i]
-        row_ov = ov.get(chain.joint_names[i], {})
-        am = (
-            _positive(where, chain.joint_names[i], row_ov, "a_max")
-            if "a_max" in row_ov
-            else (float(a_max[i]) if a_max is not None else lim["v_max"] / DEFAULT_TIME_TO_SPEED_S)
-        )
-        jm = (
-            _positive(where, chain.joint_names[i], row_ov, "j_max")
-            if "j_max" in row_ov
-            else (float(j_max[i]) if j_max is not None else am / DEFAULT_TIME_TO_ACCEL_S)
-        )
-        mass_kw: dict[str, Any] = {}
-        if has_mass:
-            b = chain.bodies[i]
-            D2J = np.linalg.inv(chain.frames[i]) @ ch.frames0[i + 1]  # DH frame i+1 -> joint frame
-            R = D2J[:3, :3]
-            com = R.T @ (b.com - D2J[:3, 3])
-            mass_kw = {"mass": b.mass, "com": com, "inertia": R.T @ b.inertia @ R}
-        joints.append(
-            Joint(
-                a=float(ch.a[i]),
-                alpha=float(ch.alpha[i]),
-                d=float(ch.d[i]),
-                theta_offset=float(ch.theta_offset[i]),
-                q_min=lim["q_min"],
-                q_max=lim["q_max"],
-                v_max=lim["v_max"],
-                a_max=am,
-                j_max=jm,
-                stiffness=float(stiffness[i]),
-                **mass_kw,
-            )
-        )
-    if a_max is None:
-        notes.append(
-            f"a_max not given: v_max / {DEFAULT_TIME_TO_SPEED_S:g} s assumed (full speed in "
-            f"{DEFAULT_TIME_TO_SPEED_S:g} s)"
-        )
-    if j_max is None:
-        notes.append(f"j_max not given: a_max / {DEFAULT_TIME_TO_ACCEL_S:g} s assumed")
-    if not has_mass:
-        notes.append("the URDF gives no link masses: no self-weight model")
+    joints = [
+        _urdf_joint(where, chain, ch, ov, limits[i], i, a_max, j_max, float(stiffness[i]), has_mass) for i in range(6)
+    ]
+    notes.extend(_default_notes(a_max, j_max, has_mass))
     tcp2flange = parse_frame_table(where, "tool", data.get("tool", {}))
     gravity = vector(where, "gravity", data.get("gravity", [0.0, 0.0, -STANDARD_GRAVITY]), 3)
     for key in ("description", "source"):

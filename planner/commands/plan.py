@@ -106,17 +106,39 @@ def terminal_warning(text: str, limit: int = WARNING_TERMINAL_CHARS) -> str:
 def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = None) -> None:
     """Print the branch table, the gains, the error table and the timing of a plan
     (``view``: its :class:`~planner.plan.RunView`, when the caller has it)."""
-    from planner.numbers import format_number, mm_text
     from planner.report.tables import load_words
-    from problems.timing.limit_use import describe_binding
 
     s = (res.view() if view is None else view).summary
-    pr = res.problem
-    ps = res.posture
-    md = s["model"]
+    _print_problem(res, s)
+    _print_branches(res.posture, s)
+    if "cell" in s:
+        for line in cell_lines(s["cell"]):
+            print(line)
+    if s["model"].get("identified") and s.get("model_sigma"):
+        print(s["model_sigma"]["text"])
+    print_error_table(
+        [
+            ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
+            ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
+            ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
+        ],
+        f"TCP position error of the chosen posture, load: {load_words(s)}",
+    )
+    if res.trajectories:
+        _print_timing(res, s)
+    for w in s["warnings"]:
+        print(f"warning: {terminal_warning(w)}")
+    _print_headline(s["headline"])
+    if out is not None:
+        print(f"wrote {Path(out)}/: {', '.join(names)}")
+
+
+def _print_problem(res: Any, s: dict[str, Any]) -> None:
+    """The problem, the arm model and the program (``s``: the plan's summary)."""
+    pr, md = res.problem, s["model"]
     print(
         f"problem {pr.name} ({pr.source}): robot {pr.robot.name}, {pr.n} waypoints, "
-        f"rule {pr.rule.value}; {ps.freedom_note}"
+        f"rule {pr.rule.value}; {res.posture.freedom_note}"
     )
     print(f"arm model: {md['file'] or pr.robot.name}; effects: {', '.join(md['effects'])}")
     if "program" in s:
@@ -126,6 +148,10 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
             f"{pg['n_stops']} stops, path tolerance {pg['path_tolerance_mm']:g} mm ({pg['path_tolerance_source']})"
             + (f"; {pg['units_note']}" if pg["units_note"] else "")
         )
+
+
+def _print_branches(ps: Any, s: dict[str, Any]) -> None:
+    """The branch table (``ps``: the posture result), the rejected branches and the chosen one's gains."""
     w = max([8] + [len(lab) + 2 for lab in ps.labels])
     print(
         f"  {'branch':<{w}}{'status':<21}{'analytic RMS':>14}{'optimised RMS':>15}{'cost [m^2]':>13}"
@@ -153,41 +179,36 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
         f"error {ps.best.rms_error_m * 1e3:.4f} mm to first order (exact equilibrium: the table below); "
         f"{default}, x{g.get('vs_best_analytic', float('nan')):.3f} over the best analytic posture"
     )
-    if "cell" in s:
-        for line in cell_lines(s["cell"]):
-            print(line)
-    if md.get("identified") and s.get("model_sigma"):
-        print(s["model_sigma"]["text"])
-    print_error_table(
-        [
-            ("before compensation", s["error_before"]["max_mm"], s["error_before"]["rms_mm"]),
-            ("after closed form", s["error_after"]["closed_form"]["max_mm"], s["error_after"]["closed_form"]["rms_mm"]),
-            ("after exact", s["error_after"]["exact"]["max_mm"], s["error_after"]["exact"]["rms_mm"]),
-        ],
-        f"TCP position error of the chosen posture, load: {load_words(s)}",
-    )
-    if res.trajectories:
-        print(f"timing at dt = {pr.timing.dt * 1e3:g} ms (peak |value|/limit over the joints):")
-        for m, tr in res.trajectories.items():
-            lr = tr.limit_ratio
+
+
+def _print_timing(res: Any, s: dict[str, Any]) -> None:
+    """Each method's duration, peak limit ratios, binding limit and, for a program, its feed."""
+    from problems.timing.limit_use import describe_binding
+
+    print(f"timing at dt = {res.problem.timing.dt * 1e3:g} ms (peak |value|/limit over the joints):")
+    for m, tr in res.trajectories.items():
+        lr = tr.limit_ratio
+        print(
+            f"  {m:<12} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
+            f"{np.max(lr['acceleration']):.3f}   jerk {np.max(lr['jerk']):.3f}"
+            + ("   -> trajectory.csv" if m == res.controller else "")
+        )
+        print(f"  {'':<12} {describe_binding(s['timing'][m]['limit_use'])}")
+        f = s.get("program", {}).get("feed", {}).get(m)
+        if f:
+            ratio = f["cutting_time_over_programmed"]
             print(
-                f"  {m:<12} {tr.duration_s:8.3f} s   velocity {np.max(lr['velocity']):.3f}   acceleration "
-                f"{np.max(lr['acceleration']):.3f}   jerk {np.max(lr['jerk']):.3f}"
-                + ("   -> trajectory.csv" if m == res.controller else "")
+                f"  {'':<12} feed: cutting moves take {f['cutting_time_s']:.3f} s"
+                + (f" = x{ratio:.3f} length/F" if ratio is not None else "")
+                + f" (stops included); peak TCP speed {f['peak_feed_ratio']:.3f} F; "
+                f"{len(f['slowed_lines'])} line(s) slowed"
             )
-            print(f"  {'':<12} {describe_binding(s['timing'][m]['limit_use'])}")
-            f = s.get("program", {}).get("feed", {}).get(m)
-            if f:
-                ratio = f["cutting_time_over_programmed"]
-                print(
-                    f"  {'':<12} feed: cutting moves take {f['cutting_time_s']:.3f} s"
-                    + (f" = x{ratio:.3f} length/F" if ratio is not None else "")
-                    + f" (stops included); peak TCP speed {f['peak_feed_ratio']:.3f} F; "
-                    f"{len(f['slowed_lines'])} line(s) slowed"
-                )
-    for w in s["warnings"]:
-        print(f"warning: {terminal_warning(w)}")
-    h = s["headline"]
+
+
+def _print_headline(h: dict[str, Any]) -> None:
+    """The summary's headline (``h``), and the dynamic compensation's when the plan ran it."""
+    from planner.numbers import format_number, mm_text
+
     dur = (
         f", duration {format_number(h['duration_s'])} s ({h['duration_method']})"
         if h.get("duration_s") is not None
@@ -202,8 +223,6 @@ def print_plan(res: Any, out: str | Path | None, names: list[str], view: Any = N
         from planner.dynamic import headline_text
 
         print(f"  dynamic compensation: {headline_text(h['dynamic_compensation'])}")
-    if out is not None:
-        print(f"wrote {Path(out)}/: {', '.join(names)}")
 
 
 def cell_lines(c: dict[str, Any]) -> list[str]:

@@ -33,7 +33,7 @@ import numpy as np
 from models.errors import CompplanError, InputError
 from problems.placement.kernel import PlacementKernel
 from problems.placement.scores import ChunkScores
-from problems.placement.sweep import PROGRESS_STAGE, SweepStatus
+from problems.placement.sweep_status import PROGRESS_STAGE, SweepStatus
 
 #: What to install when Dask is missing.
 DASK_INSTALL = 'pip install "compplan[dask]"'

@@ -19,9 +19,9 @@ from collections.abc import Callable
 import numpy as np
 
 from models.errors import InputError
-from models.status import Status
 from problems.placement.kernel import PlacementKernel
 from problems.placement.scores import ChunkScores, PlacementStatus
+from problems.placement.sweep_status import PROGRESS_STAGE, Progress, SweepStatus
 
 #: Fewest TCP poses per chunk (one Dask task) by default: Dask's per-task overhead (a few ms,
 #: ``benchmarks/bench_placement.py``) stays a few per cent of a chunk's cost (about 5 us per pose),
@@ -35,24 +35,6 @@ DEFAULT_MAX_CHUNKS = 1000
 CHUNK_MAX_POSES = 262_144
 #: Fewest and most placements in one chunk.
 CHUNK_MIN_PLACEMENTS, CHUNK_MAX_PLACEMENTS = 1, 100_000
-#: Progress stage name (``progress(stage, done, total)``, poses).
-PROGRESS_STAGE = "placement sweep"
-
-Progress = Callable[[str, int, int], None]
-
-
-class SweepStatus(Status):
-    """Outcome of a sweep."""
-
-    OK = "ok"
-    #: every chunk was scored, but no placement is feasible
-    NO_FEASIBLE = "no feasible placement"
-    #: the cluster had no live worker for ``cluster.WORKER_WAIT_S`` (none joined, or all died and
-    #: none came back); the remaining chunks were cancelled
-    NO_WORKERS = "no workers"
-    #: a chunk's workers died more than ``distributed.scheduler.allowed-failures`` times, or the
-    #: scheduler went away
-    CLUSTER_FAILED = "cluster failed"
 
 
 @dataclass

@@ -44,7 +44,7 @@ from problems.posture.clearance import (
 )
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
-from problems.posture.warm_start import WarmStarts, _onto_model_geometry, linear_error, warm_starts
+from problems.posture.warm_start import WarmStarts, onto_model_geometry, linear_error, warm_starts
 
 # --------------------------------------------------------------------------------------
 # What can be chosen
@@ -156,7 +156,7 @@ def optimise_postures(
     freedom, note = analyse_freedom(robot, task.rule)
     ws = warm_starts(ik, model, task)
     if not arm.geometry_is_nominal:
-        ws = _onto_model_geometry(arm, ik, ws)
+        ws = onto_model_geometry(arm, ik, ws)
     default = (
         default_branch(ws.analytic, home_q)
         if ws.analytic
@@ -314,15 +314,14 @@ def _optimised_branch(
     qa, err_a, cost_a = _analytic_of(model, task, ws, b)
     base = qa if qa is not None else bp_warm.q
     sign = branch_signs(ik, bp_warm.q)
+    kept = "analytic posture" if qa is not None else "warm start"
     deep = nlp.clearance_margin_m(bp_warm.q)
     if deep.min() < -NLP_MAX_PENETRATION_M:  # a posture change does not pull a link out of an object
         k = int(np.argmin(deep))
         err = linear_error(model, base, task.load)
         why = (
             f"not optimised: its warm start is {-deep[k] * 1e3:.0f} mm inside the cell's clearance at waypoint {k} "
-            f"(more than {NLP_MAX_PENETRATION_M * 1e3:.0f} mm); the "
-            + ("analytic posture" if qa is not None else "warm start")
-            + " is kept"
+            f"(more than {NLP_MAX_PENETRATION_M * 1e3:.0f} mm); the {kept} is kept"
         )
         return BranchResult(
             b, BranchStatus.SOLVER_FAILED, why, base, qa, bp_warm.q, wname, float(np.sum(err**2)), cost_a, wcost,
@@ -331,24 +330,10 @@ def _optimised_branch(
     q_opt, ip_status, iters, dt = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
     q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
     problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
-    margin_c = nlp.clearance_margin_m(q_pol) if np.all(np.isfinite(q_pol)) else np.full(task.n, -np.inf)
-    if np.any(margin_c < -CLEARANCE_TOL_M):
-        k = int(np.argmin(margin_c))
-        problems = [*problems, f"waypoint {k}: {-margin_c[k] * 1e3:.3g} mm inside the cell's clearance"]
-    kept = "analytic posture" if qa is not None else "warm start"
-    if ip_status not in IPOPT_OK:
-        st, why = BranchStatus.SOLVER_FAILED, (f"IPOPT: {ip_status} after {iters} iterations; the {kept} is kept")
-    elif problems:
-        st, why = BranchStatus.CONSTRAINT_VIOLATED, f"{problems[0]}; the {kept} is kept"
-    else:
-        st, why = BranchStatus.OPTIMISED, f"IPOPT: {ip_status} in {iters} iterations"
+    problems = [*problems, *_clearance_problems(nlp, task, q_pol)]
+    st, why = _branch_verdict(ip_status, iters, problems, kept)
     q = q_pol if st is BranchStatus.OPTIMISED else base
-    if (
-        st is BranchStatus.OPTIMISED
-        and _objective(model, task, bp_warm.q) < _objective(model, task, q)
-        and not verify(model, task, bp_warm.q, q_min, q_max, ik, sign)[0]
-        and np.all(nlp.clearance_margin_m(bp_warm.q) >= -CLEARANCE_TOL_M)
-    ):
+    if st is BranchStatus.OPTIMISED and _start_is_better(nlp, model, ik, task, bp_warm.q, q, sign, q_min, q_max):
         # a local optimum worse than the (feasible) point it started from: keep the start
         q, why = (
             bp_warm.q,
@@ -358,8 +343,6 @@ def _optimised_branch(
             ),
         )
     err = linear_error(model, q, task.load)
-    margin = ik.guard_factors(q) * sign - guard_bounds(ik)
-    active = {name: int(np.sum(margin[:, i] <= GUARD_ACTIVE_TOL)) for i, name in enumerate(ik.guard_names)}
     return BranchResult(
         b,
         st,
@@ -378,8 +361,56 @@ def _optimised_branch(
         ip_status,
         res_m,
         res_rad,
-        {k: v for k, v in active.items() if v},
+        _active_guards(ik, q, sign),
     )
+
+
+def _clearance_problems(nlp: PostureNLP, task: PostureTask, q: np.ndarray) -> list[str]:
+    """The deepest waypoint of ``q`` (N, 6) inside the cell's clearance, as a verification problem
+    (none when every waypoint keeps :data:`CLEARANCE_TOL_M`; a non-finite ``q`` is inside)."""
+    margin_c = nlp.clearance_margin_m(q) if np.all(np.isfinite(q)) else np.full(task.n, -np.inf)
+    if np.any(margin_c < -CLEARANCE_TOL_M):
+        k = int(np.argmin(margin_c))
+        return [f"waypoint {k}: {-margin_c[k] * 1e3:.3g} mm inside the cell's clearance"]
+    return []
+
+
+def _branch_verdict(ip_status: str, iters: int, problems: list[str], kept: str) -> tuple[BranchStatus, str]:
+    """A branch's status and reason from IPOPT's status and the verification ``problems``; ``kept``
+    names the posture kept when it is not optimised."""
+    if ip_status not in IPOPT_OK:
+        return BranchStatus.SOLVER_FAILED, f"IPOPT: {ip_status} after {iters} iterations; the {kept} is kept"
+    if problems:
+        return BranchStatus.CONSTRAINT_VIOLATED, f"{problems[0]}; the {kept} is kept"
+    return BranchStatus.OPTIMISED, f"IPOPT: {ip_status} in {iters} iterations"
+
+
+def _start_is_better(
+    nlp: PostureNLP,
+    model: KinematicModel,
+    ik: IKSolver,
+    task: PostureTask,
+    q_start: np.ndarray,
+    q: np.ndarray,
+    sign: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+) -> bool:
+    """Whether the warm start ``q_start`` (N, 6) has a lower objective than the optimum ``q`` and
+    verifies (constraints and clearance): IPOPT then stopped at a worse local optimum."""
+    return bool(
+        _objective(model, task, q_start) < _objective(model, task, q)
+        and not verify(model, task, q_start, q_min, q_max, ik, sign)[0]
+        and np.all(nlp.clearance_margin_m(q_start) >= -CLEARANCE_TOL_M)
+    )
+
+
+def _active_guards(ik: IKSolver, q: np.ndarray, sign: np.ndarray) -> dict[str, int]:
+    """Guard name -> the number of waypoints of ``q`` (N, 6) where it is active (within
+    :data:`GUARD_ACTIVE_TOL` of its bound); guards never active are left out."""
+    margin = ik.guard_factors(q) * sign - guard_bounds(ik)
+    active = {name: int(np.sum(margin[:, i] <= GUARD_ACTIVE_TOL)) for i, name in enumerate(ik.guard_names)}
+    return {k: v for k, v in active.items() if v}
 
 
 def _objective(model: KinematicModel, task: PostureTask, q: np.ndarray) -> float:

@@ -499,7 +499,7 @@ def _dp(node: np.ndarray, qb: np.ndarray, lam: float, max_step: float, max_state
 # --------------------------------------------------------------------------------------
 
 
-def _onto_model_geometry(arm: ArmModel, ik: IKSolver, ws: WarmStarts) -> WarmStarts:
+def onto_model_geometry(arm: ArmModel, ik: IKSolver, ws: WarmStarts) -> WarmStarts:
     """Move the analytic postures and warm starts onto the model's geometry.
 
     The closed-form IK solves the *nominal* chain; an identified model's chain differs

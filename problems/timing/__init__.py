@@ -77,7 +77,7 @@ import_plugins(
     __name__,
     __path__,
     TIMING_PATH_VARIABLE,
-    skip=("path", "registry", "trajectory", "verification", "limit_use", "toppra_law", "toppra_import"),
+    skip=("path", "registry", "trajectory", "verification", "limit_use", "toppra_law", "toppra_import", "jerk_law"),
     first=("toppra_method", "ruckig_method", "jerk_optimal"),
 )
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from models.errors import InputError
 from problems.timing.path import SplinePath, validate_path
-from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
+from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory, empty_trajectory
 
 __all__ = [
     "CONTROLLER_RANK_NEVER",
@@ -482,8 +482,6 @@ def _too_long_trajectory(method: str, q: np.ndarray, dt: float, duration_s: floa
     k = int(np.argmax(steps))
     median = float(np.median(steps))
     ratio = f", {steps[k] / median:.3g}x the median step" if median > 0 else ""
-    from problems.timing.verification import empty_trajectory  # verification imports this module
-
     return empty_trajectory(
         method,
         TimingStatus.FAILED,

@@ -55,10 +55,9 @@ from problems.timing.registry import (
     check_shrink_margin,
     register_method,
 )
-from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory
+from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory, empty_trajectory
 from problems.timing.verification import (
     check_times,
-    empty_trajectory,
     exceeded_limits,
     finish_trajectory,
     format_ratios,

@@ -77,10 +77,9 @@ from problems.timing.registry import (
 )
 from problems.timing.toppra_import import import_toppra
 from problems.timing.toppra_law import ToppraLaw
-from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory
+from problems.timing.trajectory import JointLimits, TimingStatus, Trajectory, empty_trajectory
 from problems.timing.verification import (
     check_times,
-    empty_trajectory,
     exceeded_limits,
     finish_trajectory,
     format_ratios,

@@ -8,6 +8,7 @@ rad/s^2, jerks in rad/s^3, times in s.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -17,7 +18,7 @@ import numpy as np
 from models.errors import InputError
 from models.status import Status
 
-__all__ = ["LIMIT_KEYS", "JointLimits", "TimingStatus", "Trajectory"]
+__all__ = ["LIMIT_KEYS", "JointLimits", "TimingStatus", "Trajectory", "empty_trajectory", "nan_ratios"]
 
 #: Names of the limited quantities, in this order everywhere (also the keys
 #: of :attr:`Trajectory.limit_ratio`).
@@ -233,3 +234,36 @@ class Trajectory:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
             raise
+
+
+def nan_ratios(n: int) -> dict[str, np.ndarray]:
+    """Ratios marked unavailable: NaN, each shape ``(n,)``."""
+    return {k: np.full(n, np.nan) for k in LIMIT_KEYS}
+
+
+def empty_trajectory(
+    method: str,
+    status: TimingStatus,
+    reason: str,
+    n: int,
+    dt: float,
+    iterations: int = 0,
+    solver_code: str = "",
+) -> Trajectory:
+    """A result without samples (``M = 0``, NaN duration and ratios) for ``n`` joints."""
+    empty = np.empty((0, n))
+    return Trajectory(
+        method=method,
+        status=status,
+        reason=reason,
+        t=np.empty(0),
+        q=empty,
+        qd=empty.copy(),
+        qdd=empty.copy(),
+        qddd=empty.copy(),
+        duration_s=math.nan,
+        limit_ratio=nan_ratios(n),
+        dt=dt,
+        iterations=iterations,
+        solver_code=solver_code,
+    )

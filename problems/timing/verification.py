@@ -45,14 +45,12 @@ __all__ = [
     "VERIFY_OVERSAMPLE",
     "TimeLaw",
     "check_times",
-    "empty_trajectory",
     "exceeded_limits",
     "finish_trajectory",
     "format_ratios",
     "limit_ratios",
     "max_ratios",
     "moves_backwards",
-    "nan_ratios",
     "sample_path",
     "sample_times",
 ]
@@ -150,11 +148,6 @@ def format_ratios(ratio: Mapping[str, np.ndarray]) -> str:
     return "peak ratios " + ", ".join(parts)
 
 
-def nan_ratios(n: int) -> dict[str, np.ndarray]:
-    """Ratios marked unavailable: NaN, each shape ``(n,)``."""
-    return {k: np.full(n, np.nan) for k in LIMIT_KEYS}
-
-
 def moves_backwards(sd: np.ndarray, sd_scale: float) -> float | None:
     """Most negative path velocity (1/s) if the law moves backwards, else None.
 
@@ -165,34 +158,6 @@ def moves_backwards(sd: np.ndarray, sd_scale: float) -> float | None:
     if backwards < -MONOTONE_TOL * max(1.0, sd_scale):
         return backwards
     return None
-
-
-def empty_trajectory(
-    method: str,
-    status: TimingStatus,
-    reason: str,
-    n: int,
-    dt: float,
-    iterations: int = 0,
-    solver_code: str = "",
-) -> Trajectory:
-    """A result without samples (``M = 0``, NaN duration and ratios) for ``n`` joints."""
-    empty = np.empty((0, n))
-    return Trajectory(
-        method=method,
-        status=status,
-        reason=reason,
-        t=np.empty(0),
-        q=empty,
-        qd=empty.copy(),
-        qdd=empty.copy(),
-        qddd=empty.copy(),
-        duration_s=math.nan,
-        limit_ratio=nan_ratios(n),
-        dt=dt,
-        iterations=iterations,
-        solver_code=solver_code,
-    )
 
 
 def sample_path(
@@ -242,6 +207,32 @@ def sample_path(
 def _limit_words(keys: tuple[str, ...]) -> str:
     """``"velocity, acceleration and jerk"`` for the keys given."""
     return keys[0] if len(keys) == 1 else ", ".join(keys[:-1]) + " and " + keys[-1]
+
+
+def _verdict(
+    method: str, ratio: Mapping[str, np.ndarray], backwards: float | None, runs: str
+) -> tuple[TimingStatus, str]:
+    """The status of a sampled law and the reason's head (see :func:`finish_trajectory`).
+
+    Parameters
+    ----------
+    method : str
+        The registered method (its checked limits decide).
+    ratio : Mapping
+        Peak ratios over the samples and the check grid, each shape ``(n,)``.
+    backwards : float or None
+        The most negative path velocity, 1/s, if the law moves backwards (:func:`moves_backwards`).
+    runs : str
+        Appended to the limit-exceeded reason.
+    """
+    checked = get_method(method).checked_limits
+    bad = exceeded_limits(ratio, checked)
+    if backwards is not None:
+        what = f"the {display_name(method)} time law moves backwards along the path (min ds/dt = {backwards:.3g} 1/s)"
+        return TimingStatus.FAILED, what
+    if bad:
+        return TimingStatus.LIMIT_EXCEEDED, f"{' and '.join(bad)} ratio above 1{runs}"
+    return TimingStatus.OK, f"{_limit_words(checked)} within limits"
 
 
 def finish_trajectory(
@@ -302,20 +293,11 @@ def finish_trajectory(
         ``<= 1 + LIMIT_RATIO_TOL``, otherwise ``LIMIT_EXCEEDED``. The reason says which
         (without repeating the status), then ``summary``.
     """
-    checked = get_method(method).checked_limits
     t = sample_times(duration, dt)
     tm = t[t < duration]
     q, qd, qdd, qddd = sample_path(path, t, duration, *law(tm))
     ratio = max_ratios(limit_ratios(qd, qdd, qddd, limits), check_ratio)
-    backwards = moves_backwards(check_sd, sd_scale)
-    bad = exceeded_limits(ratio, checked)
-    if backwards is not None:
-        status = TimingStatus.FAILED
-        what = f"the {display_name(method)} time law moves backwards along the path (min ds/dt = {backwards:.3g} 1/s)"
-    elif bad:
-        status, what = TimingStatus.LIMIT_EXCEEDED, f"{' and '.join(bad)} ratio above 1{runs}"
-    else:
-        status, what = TimingStatus.OK, f"{_limit_words(checked)} within limits"
+    status, what = _verdict(method, ratio, moves_backwards(check_sd, sd_scale), runs)
     return Trajectory(
         method=method,
         status=status,

@@ -217,18 +217,62 @@ def feed_time_law(
         raise InputError(f"feed law: q must be (N, {limits.n_joints}) with N = {n_way} waypoints, got shape {Q.shape}")
     st, dw = _stops(n_way, stop, dwell_s, np.asarray(feed_m_s, dtype=float))
     n = Q.shape[1]
-    aug = JointLimits(
+    length = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(np.asarray(points_m, float), axis=0), axis=1))]
+    cols = np.c_[Q, FEED_TIME_SCALE * tau, length * LENGTH_SCALE]
+    bounds = np.flatnonzero(st)
+    run = _time_stretches(cols, tau, bounds, _augmented_limits(limits), method, dt, progress, options)
+    joined = _with_reason(
+        _join(run.pieces, dw[bounds], dt, n + 2, method), run.pieces, run.failed, run.retimed, run.substituted, method
+    )
+    return _feed_law(joined, n, tau, length, np.asarray(feed_m_s, float), run)
+
+
+def _augmented_limits(limits: JointLimits) -> JointLimits:
+    """The joints' limits followed by those of the two pseudo-joints: the programmed time (scaled by
+    :data:`FEED_TIME_SCALE`) and the path length (unbounded)."""
+    return JointLimits(
         np.r_[limits.velocity, FEED_TIME_SCALE, _INDEX_LIMIT],
         np.r_[limits.acceleration, FEED_TIME_SCALE * FEED_PSEUDO_ACCEL, _INDEX_LIMIT],
         np.r_[limits.jerk, FEED_TIME_SCALE * FEED_PSEUDO_JERK, _INDEX_LIMIT],
     )
-    length = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(np.asarray(points_m, float), axis=0), axis=1))]
-    cols = np.c_[Q, FEED_TIME_SCALE * tau, length * LENGTH_SCALE]
-    bounds = np.flatnonzero(st)
-    pieces: list[Trajectory] = []
+
+
+@dataclass
+class _Stretches:
+    """The stretches between stops, each timed (:func:`_time_stretches`).
+
+    Attributes
+    ----------
+    pieces : list of Trajectory
+        One per stretch, rest to rest from t = 0, on the augmented path.
+    failed : tuple or None
+        ``(first waypoint, last waypoint, trajectory)`` of the first stretch not ``OK``.
+    retimed : int
+        Stretches re-timed by :data:`FEED_RETRY_METHOD`.
+    substituted : list of (int, int, str)
+        Stretches timed by :data:`FEED_FALLBACK_METHOD`: first and last waypoint, the method's reason.
+    """
+
+    pieces: list[Trajectory] = field(default_factory=list)
     failed: tuple[int, int, Trajectory] | None = None
-    retimed = 0
-    substituted: list[tuple[int, int, str]] = []
+    retimed: int = 0
+    substituted: list[tuple[int, int, str]] = field(default_factory=list)
+
+
+def _time_stretches(
+    cols: np.ndarray,
+    tau: np.ndarray,
+    bounds: np.ndarray,
+    aug: JointLimits,
+    method: str,
+    dt: float,
+    progress: Callable[[str, int, int], None] | None,
+    options: dict,
+) -> _Stretches:
+    """Each stretch of the augmented path ``cols`` (N, n + 2) between consecutive stops ``bounds``
+    timed on its own (:func:`_time_stretch`), its programmed time counted from the stretch's start."""
+    n = cols.shape[1] - 2
+    run = _Stretches()
     stage = f"timing {method}"
     for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
         if progress is not None:
@@ -236,30 +280,38 @@ def feed_time_law(
         seg = cols[a : b + 1].copy()
         seg[:, n] -= FEED_TIME_SCALE * tau[a]
         tr, how = _time_stretch(seg, aug, method, dt, tau[b] - tau[a], options)
-        retimed += how == "retimed"
+        run.retimed += how == "retimed"
         if how.startswith("substituted"):
-            substituted.append((int(a), int(b), how.split(":", 1)[1]))
+            run.substituted.append((int(a), int(b), how.split(":", 1)[1]))
         if tr.q.size:
             tr = replace(tr, q=tr.q.copy())
             tr.q[:, n] += FEED_TIME_SCALE * tau[a]
-        pieces.append(tr)
-        if failed is None and tr.status is not TimingStatus.OK:
-            failed = (int(a), int(b), tr)
+        run.pieces.append(tr)
+        if run.failed is None and tr.status is not TimingStatus.OK:
+            run.failed = (int(a), int(b), tr)
     if progress is not None:
         progress(stage, len(bounds) - 1, len(bounds) - 1)
-    joined = _with_reason(_join(pieces, dw[bounds], dt, n + 2, method), pieces, failed, retimed, substituted, method)
+    return run
+
+
+def _feed_law(
+    joined: Trajectory, n: int, tau: np.ndarray, length: np.ndarray, feed: np.ndarray, run: _Stretches
+) -> FeedLaw:
+    """The :class:`FeedLaw` of the joined augmented trajectory: the feed rate read from the
+    programmed-time pseudo-joint, the move of each sample from the path-length one, the joints alone."""
     rate = joined.qd[:, n] / FEED_TIME_SCALE if joined.qd.size else np.empty(0)
     along = joined.q[:, n + 1] / LENGTH_SCALE if joined.q.size else np.empty(0)
     joints = _joints_only(joined, n)
+    n_way = len(tau)
     move = np.clip(np.searchsorted(length, along, side="left"), 1, n_way - 1) if along.size else np.zeros(0, dtype=int)
     return FeedLaw(
         trajectory=joints,
         feed_ratio=float(np.max(np.abs(rate))) if rate.size else float("nan"),
         programmed_time_s=float(tau[-1]),
-        slowed=_slowed(move, rate, tau, np.asarray(feed_m_s, float)),
+        slowed=_slowed(move, rate, tau, feed),
         sample_move=move,
-        n_stretches=len(pieces),
-        n_substituted=len(substituted),
+        n_stretches=len(run.pieces),
+        n_substituted=len(run.substituted),
     )
 
 

@@ -19,7 +19,7 @@ from ...errors import InputError
 from .base import Shape, register_shape
 from .box import Box
 
-__all__ = ["FIT_MARGIN_M", "Mesh", "mesh_capsule"]
+__all__ = ["FIT_MARGIN_M", "Mesh", "mesh_bvh", "mesh_capsule"]
 
 #: Added to a mesh's capsule radius, m: rounding in the fit must not leave a vertex outside.
 FIT_MARGIN_M = 1e-9
@@ -42,6 +42,21 @@ def mesh_capsule(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     if lo > hi:  # a short, fat cloud: any point between them holds all
         lo = hi = 0.5 * (lo + hi)
     return c + lo * u, c + hi * u, r + FIT_MARGIN_M
+
+
+def mesh_bvh(mesh: Any) -> Any:
+    """A coal BVH model (OBBRSS) of a ``trimesh.Trimesh``'s triangles (vertices as they are, m)."""
+    import coal
+
+    verts = coal.StdVec_Vec3s()
+    verts.extend(np.asarray(v, dtype=float) for v in mesh.vertices)
+    tris = coal.StdVec_Triangle()
+    tris.extend(coal.Triangle(int(i), int(j), int(k)) for i, j, k in mesh.faces)
+    bvh = coal.BVHModelOBBRSS()
+    bvh.beginModel(len(mesh.faces), len(mesh.vertices))
+    bvh.addSubModel(verts, tris)
+    bvh.endModel()
+    return bvh
 
 
 @register_shape
@@ -97,8 +112,6 @@ class Mesh(Shape):
         return cls(mesh, str(path), rec["scale"])
 
     def geometry(self) -> Any:
-        from ..distance import mesh_bvh
-
         return mesh_bvh(self.mesh)
 
     def signed_distance(self, q: np.ndarray) -> np.ndarray:
