@@ -1,2 +1,3 @@
-"""Problems built on a model: compensation, paths, (later) posture NLP and identification,
-and the problem files shipped as data.  Depends on :mod:`models` only."""
+"""Tasks and their solution methods, built on a model: problem files (shipped ones as data), paths and
+CAM programs, the cell, the posture NLP, compensation, timing, measurement files, identification,
+placement studies and the virtual robot (``docs/architecture.md``).  Depends on :mod:`models` only."""
