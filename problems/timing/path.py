@@ -35,7 +35,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from models.errors import InputError
 
@@ -133,6 +132,8 @@ class SplinePath:
         self.q_path = q_path
         self.knots = s  # (N,)
         self.length = total  # rad (joint-space chord length)
+        from scipy.interpolate import CubicSpline  # SciPy on first use: reading a problem file does not need it
+
         self.spline = CubicSpline(s, q_path, bc_type="natural")
         self._d1 = self.spline.derivative(1)
         self._d2 = self.spline.derivative(2)

@@ -8,7 +8,6 @@ of :mod:`problems.timing.path`, ``t`` the time in s.
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline, PPoly
 
 __all__ = ["ToppraLaw"]
 
@@ -50,6 +49,8 @@ class ToppraLaw:
     """
 
     def __init__(self, grid: np.ndarray, sd: np.ndarray, kind: str, window: float) -> None:
+        from scipy.interpolate import CubicSpline, PPoly  # on first use: a problem file is read without SciPy
+
         ds = np.diff(grid)
         vmean = 0.5 * (sd[1:] + sd[:-1])
         self.tgrid = np.concatenate(([0.0], np.cumsum(ds / vmean)))  # (K,) s
