@@ -1,4 +1,4 @@
-"""The report's figures: which data of a :class:`~planner.report.run.Run` each one draws.
+"""The report's figures: which data of a :class:`~planner.record.RunRecord` each one draws.
 
 :func:`build_figures` prepares one :class:`~planner.report.rendering.FigureItem`
 per figure, in report order: its drawing job (a function of
@@ -31,7 +31,7 @@ from planner.report import dynamic_plot, plots
 from planner.report.cell_view import cell_items
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job, render_items
-from planner.report.run import DYNAMIC_KEY, Run, method_name, method_order
+from planner.record import DYNAMIC_KEY, RunRecord, method_name, method_order
 from planner.report.tables import RATIO_KINDS, flat_numbers, load_words
 from planner.report.toolpath_plot import program_items
 
@@ -58,7 +58,7 @@ ARM_POSES = 3
 class _Context:
     """What several figures share: the run and its load, branch, names and path length."""
 
-    run: Run
+    run: RunRecord
     robot_name: str
     branch: str
     load: str
@@ -78,7 +78,7 @@ class _Context:
 
 
 def build_figures(
-    run: Run,
+    run: RunRecord,
     progress: ProgressFn | None = None,
     map_options: Mapping[str, Any] | None | bool = None,
     files: dict[str, bytes] | None = None,
@@ -125,7 +125,7 @@ def build_figures(
 QUICK_FIGURES = {"branches.png": FIGURE_NAMES[4], "trajectory.png": FIGURE_NAMES[5]}
 
 
-def quick_figures(run: Run, workers: int | None = 1) -> dict[str, bytes]:
+def quick_figures(run: RunRecord, workers: int | None = 1) -> dict[str, bytes]:
     """PNG bytes of the report's figures 5 (branch comparison) and 6 (trajectory) of ``run``,
     by the file names of :data:`QUICK_FIGURES`: the same drawings as the report's, without the
     rest of it (a figure the run does not allow is left out).  ``workers``: as for
@@ -137,7 +137,7 @@ def quick_figures(run: Run, workers: int | None = 1) -> dict[str, bytes]:
     return {name: it.png for name, it in items.items() if it.png is not None}
 
 
-def _context(run: Run) -> _Context:
+def _context(run: RunRecord) -> _Context:
     s = run.summary
     try:
         _wrench(s)
@@ -368,7 +368,7 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
     return item
 
 
-def _limits(run: Run) -> tuple[dict[str, np.ndarray | None], str]:
+def _limits(run: RunRecord) -> tuple[dict[str, np.ndarray | None], str]:
     """The limits drawn in figure 6 (summary.json's, else the robot file's) and where from."""
     lim: dict[str, np.ndarray | None] = {
         "q_min": None,
@@ -467,7 +467,7 @@ def _polylines(model: KinematicModel, q: np.ndarray) -> tuple[np.ndarray, list[i
     return out, list(range(1, out.shape[1] - 1))
 
 
-def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tuple[Job, str]:
+def _arm(run: RunRecord, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tuple[Job, str]:
     """Figure 7: the planned poses q_target at the start, middle and end of the path, and the
     same commands under the load without compensation, their joint deflection exaggerated.
 

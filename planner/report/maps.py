@@ -40,7 +40,7 @@ from planner.output import OutputSet, atomic_write_bytes, json_bytes
 from planner.provenance import provenance, robot_input
 from planner.report import plots
 from planner.report.rendering import FigureItem, Job, job, render_job
-from planner.report.run import Run
+from planner.record import RunRecord
 
 #: File name (without extension) of the compliance-map figure.
 MAP_FIGURE = "fig1_compliance_map"
@@ -377,7 +377,7 @@ def map_job(cm: ComplianceMap, path: np.ndarray | None = None) -> tuple[Job, str
     return jb, caption
 
 
-def _run_path(run: Run) -> tuple[np.ndarray, np.ndarray, int] | None:
+def _run_path(run: RunRecord) -> tuple[np.ndarray, np.ndarray, int] | None:
     """The run's waypoints (N, 3), the TCP attitude of its middle waypoint (on the run's arm
     model) and that waypoint's index, or None without waypoints."""
     wp = run.waypoints
@@ -391,7 +391,7 @@ def _run_path(run: Run) -> tuple[np.ndarray, np.ndarray, int] | None:
 
 
 def map_item(
-    run: Run,
+    run: RunRecord,
     map_options: Mapping[str, Any] | None | bool,
     progress: ProgressFn | None,
     files: dict[str, bytes],

@@ -33,7 +33,8 @@ import numpy as np
 from planner.numbers import format_mm, format_number
 from planner.report import placement_plots as pp
 from planner.report.rendering import _CSS
-from planner.report.tables import Cell, provenance_table
+from planner.report.table_base import Cell
+from planner.report.tables import provenance_table
 from problems.placement.grid import GRID_AXES, describe_placement, placement_label
 from problems.placement.scores import RANK_RESOLUTION_M, STATUS_REASONS, PlacementStatus
 

@@ -19,7 +19,7 @@ from collections.abc import Callable
 from planner.compliance_map import ProgressFn
 from planner.report import plots
 from planner.report.figure_cache import keep_rendered, take_cached
-from planner.report.run import Run
+from planner.record import RunRecord
 from planner.report.tables import Table, report_title
 
 #: Most processes used to render figures (see :func:`render_items`).
@@ -174,7 +174,7 @@ nav.toc{font-size:90%;color:#444} nav.toc a{margin-right:0.9em}
 """
 
 
-def _html_lists(run: Run) -> list[str]:
+def _html_lists(run: RunRecord) -> list[str]:
     """Rejected branches, warnings and absent pieces, as HTML lists (when there are any)."""
     s, out = run.summary, []
     rej = s.get("rejected_branches") or {}
@@ -238,7 +238,7 @@ def _plotly_script(items: list[FigureItem]) -> str:
     return f'<script type="text/javascript" data-bundle="plotly.js">{get_plotlyjs()}</script>'
 
 
-def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
+def render_html(run: RunRecord, tables: list[Table], items: list[FigureItem]) -> str:
     """``report.html``: self-contained (the PNGs embedded as data URIs), the headline first."""
     title = report_title(run.summary)
     head, body, prov = _split_tables(tables)
@@ -267,7 +267,7 @@ def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
     return "\n".join(out) + "\n"
 
 
-def render_markdown(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
+def render_markdown(run: RunRecord, tables: list[Table], items: list[FigureItem]) -> str:
     """``report.md``: the same tables, referencing ``figures/*.png``."""
     s = run.summary
     head, body, prov = _split_tables(tables)
