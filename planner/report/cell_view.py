@@ -44,7 +44,7 @@ from models.errors import InputError
 
 from planner.numbers import format_number
 from planner.report.cell_record import cell_block
-from planner.report.plots import _figure, _styled
+from planner.report.figure_base import new_figure, styled
 from planner.report.rendering import FigureItem, job
 from planner.record import RunRecord
 from planner.report.tables import load_words
@@ -446,12 +446,12 @@ def cell_plotly_div(scene: CellScene, title: str) -> str:
 
 
 # ---------------------------------------------------------------------- matplotlib (static)
-@_styled
+@styled
 def cell_figure(scene: CellScene, *, title: str) -> Figure:
     """The static view (PNG/PDF): the same scene on matplotlib's 3-D axes, equal scale."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-    fig = _figure(9.5, 6.8)
+    fig = new_figure(9.5, 6.8)
     ax = fig.add_axes((0.0, 0.0, 0.86, 0.93), projection="3d")
     for o in scene.objects:
         colour = WORKPIECE_COLOUR if o.role == "workpiece" else OBSTACLE_COLOUR

@@ -27,7 +27,7 @@ from models.ik import BRANCH_LABELS
 from planner.branches import legend
 from planner.compliance_map import ProgressFn
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
-from planner.report import dynamic_plot, plots
+from planner.report import dynamic_plot, motion_plots, plots
 from planner.report.cell_view import cell_items
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job, render_items
@@ -342,7 +342,7 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
         "trajectory file, as the timing computed them) for each timing method, with "
         "the limits dashed; the methods share the time axis and, per row, the value axis. "
         "The jerk row shows at most "
-        f"{format_number(plots.JERK_VIEW_LIMITS)}× the jerk limit; a method that does not "
+        f"{format_number(motion_plots.JERK_VIEW_LIMITS)}× the jerk limit; a method that does not "
         "limit jerk (TOPP-RA) is cut off there and its peak is written on the panel.",
     )
     run, s = ctx.run, ctx.run.summary
@@ -363,7 +363,7 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
     if missing:
         item.caption += f" No {', '.join(missing)} trajectory in this run."
     item.job = job(
-        plots.trajectory_figure, trajs, limits, title=f"{ctx.robot_name}: joint trajectories", headers=headers
+        motion_plots.trajectory_figure, trajs, limits, title=f"{ctx.robot_name}: joint trajectories", headers=headers
     )
     return item
 
@@ -482,7 +482,7 @@ def _arm(run: RunRecord, wp: Mapping[str, np.ndarray], branch: str, load: str) -
     dq = qt[idx] - qc[idx]  # joint deflection under the load, rad
     eb = _xyz(wp, "eb")
     true_max = float(np.linalg.norm(eb, axis=1).max())
-    factor = plots.nice_factor(true_max)
+    factor = motion_plots.nice_factor(true_max)
     nominal, joints = _polylines(model, qt[idx])
     deflected, _ = _polylines(model, qt[idx] + factor * dq)
     labels = [f"k = {int(wp['k'][i])}" for i in idx]
@@ -491,7 +491,7 @@ def _arm(run: RunRecord, wp: Mapping[str, np.ndarray], branch: str, load: str) -
         "\n"
         + _wrap(f"load: {load}; true TCP deflection up to {format_number(true_max * 1e3)} mm, drawn ×{factor:g}", 115)
     )
-    jb = job(plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title, joint_index=joints)
+    jb = job(motion_plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title, joint_index=joints)
     caption = (
         f"The arm as its links (straight segments between joint centres: the DH frame origins and "
         f"the link offsets along the joint axes) at {len(idx)} waypoints, equal scale on x, y, z: the "

@@ -34,7 +34,7 @@ from matplotlib.lines import Line2D
 from problems.toolpath.feed import FEED_SLOW_TOL
 
 from planner.numbers import NUMERICAL_FLOOR_M, format_number, mm_text
-from planner.report.plots import _figure, _styled
+from planner.report.figure_base import new_figure, styled
 from planner.report.rendering import FigureItem, job
 from planner.record import RunRecord, method_name
 from planner.report.tables import load_words
@@ -297,7 +297,7 @@ MIN_PANEL_RATIO = 0.33
 STACK_RATIO = 1.5
 
 
-@_styled
+@styled
 def toolpath_figure(
     segments_m: np.ndarray,
     values_m: np.ndarray,
@@ -355,7 +355,7 @@ def toolpath_figure(
         H = top_room + 0.15 + ph + bottom_room
         x0 = left + (W - (left + 2.0 * (pw + cbar_room) + gap)) / 2.0  # centred
         boxes = [(x0, bottom_room), (x0 + pw + cbar_room + gap, bottom_room)]
-    fig = _figure(W, H)
+    fig = new_figure(W, H)
     axes: list[Any] = []
     caxes: list[Any] = []
     for bx, by in boxes:
@@ -393,7 +393,7 @@ def toolpath_figure(
     return fig
 
 
-@_styled
+@styled
 def feed_figure(
     t_start_s: np.ndarray,
     t_end_s: np.ndarray,
@@ -434,7 +434,7 @@ def feed_figure(
     ]
     F = np.asarray(feed_m_s, float) * MM_MIN_PER_M_S
     slow = np.asarray(slowed, bool)
-    fig = _figure(12.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.82, hspace=0.08)
+    fig = new_figure(12.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.82, hspace=0.08)
     a1, a2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2.6, 1.0)})
     x = np.r_[t0, t1[-1:]] if len(t0) else t0  # bin edges: bin i spans x[i] .. x[i + 1]
 
