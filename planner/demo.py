@@ -78,9 +78,8 @@ def write_outputs(
     view = res.view()
     extra: dict[str, bytes] = {}
     if report:  # the plan's files and its report are written as one set
-        from planner.report.run import run_from_plan
         from planner.report.writer import report_files
 
-        extra = report_files(run_from_plan(res, folder, view), **report_options)
+        extra = report_files(res.record(folder, view), **report_options)
     _write_plan_outputs(res, folder, with_figures=with_figures, view=view, extra=extra)
     return view.summary

@@ -26,34 +26,27 @@ turns it into the matching :class:`~models.errors.CompplanError`):
    on the sampled trajectory and a method only succeeds when all the limits it
    enforces hold (peak ratio <= 1).
 
-The module prints nothing.
+:class:`~planner.plan_result.PlanResult` (what a plan produced) lives in :mod:`planner.plan_result`,
+the files written from it in :mod:`planner.plan_outputs`, its run record in
+:mod:`planner.plan_record`; this module re-exports their public names.  The module prints nothing.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import replace
 from typing import Any
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 
 import numpy as np
 
 from models.arm import ArmModel
-from models.errors import InfeasibleError, UnreachableError
-from models.status import Status
-from models.symbolic import directional_stiffness
-from problems.compensation import CompensationResult, CompensationStatus, closed_form, exact, uncompensated
+from problems.compensation import CompensationStatus, closed_form, exact, uncompensated
 from problems.identify.uncertainty import path_sigma
-from problems.posture import BranchResult, BranchStatus, PostureResult, PostureStatus, optimise_postures
+from problems.posture import BranchStatus, PostureResult, PostureStatus, optimise_postures
 from problems.posture.solve import rechoose
 from problems.problem import Problem
-
-from planner.output import TRAJECTORY_COLUMNS as OUTPUT_TRAJECTORY_COLUMNS
-from planner.output import OutputSet
-from planner.provenance import invocation, problem_provenance
 from problems.timing import (
-    LIMIT_RATIO_TOL,
     JointLimits,
     Trajectory,
     TimingStatus,
@@ -64,252 +57,13 @@ from problems.timing import (
 from problems.timing.trajectory import LIMIT_KEYS
 from problems.toolpath.feed import FEED_FALLBACK_METHOD, FEED_SLOW_TOL, feed_time_law
 
-#: Columns of ``waypoints.csv`` (see docs/cli.md): k, path parameter s, target position,
-#: planned (deflected) joints qt, exact command qc, closed-form command qf, TCP errors
-#: before / after closed form / after exact (m, base frame), directional stiffness (N/m).
-WAYPOINT_COLUMNS = (
-    ["k", "s", "x", "y", "z"]
-    + [f"qt{i}" for i in range(1, 7)]
-    + [f"qc{i}" for i in range(1, 7)]
-    + [f"qf{i}" for i in range(1, 7)]
-    + ["ebx", "eby", "ebz", "efx", "efy", "efz", "eex", "eey", "eez", "kx", "ky", "kz"]
-)
-#: Columns of ``path.csv``.
-PATH_COLUMNS = ["x", "y", "z"] + [f"q{i}" for i in range(1, 7)]
-#: Columns ``path.csv`` adds for a program path: the programmed feed of the move ending at the
-#: waypoint (mm/min, nan for rapids and waypoint 0), its program line, 1 for a rapid.
-PROGRAM_PATH_COLUMNS = ["feed_mm_min", "line", "rapid"]
-#: Columns ``trajectory*.csv`` adds for a program path: the program line of the move each sample runs,
-#: and the waypoint (0-based row of ``path.csv``) that move ends at.
-PROGRAM_TRAJECTORY_COLUMNS = ["line", "waypoint"]
-#: Columns of ``trajectory*.csv``.
-TRAJECTORY_COLUMNS = OUTPUT_TRAJECTORY_COLUMNS
+from planner.plan_outputs import figures, output_names, write_outputs
+from planner.plan_result import PlanResult, PlanStatus, RunView
+from planner.plan_summary import within_limits
+from planner.record.columns import WAYPOINT_COLUMNS
+
 #: Slack on the commanded joints' position limits (rad).
 COMMAND_LIMIT_TOL = 1e-9
-
-
-class PlanStatus(Status):
-    """Outcome of :func:`plan`."""
-
-    OK = "ok"
-    UNREACHABLE = "unreachable"  # a waypoint has no IK solution
-    NO_BRANCH = "no_branch"  # no branch along the whole path (flip, limits)
-    SOLVER_FAILED = "solver_failed"  # the posture NLP failed on every branch
-    COMPENSATION_FAILED = "compensation_failed"  # exact compensation failed or leaves the limits
-    TIMING_FAILED = "timing_failed"  # a time parametrisation failed or breaks a limit
-    COLLISION = "collision"  # every branch, or the controller's trajectory, closer than the cell's clearance
-
-
-_ERROR_CLASS = {PlanStatus.UNREACHABLE: UnreachableError}
-
-
-@dataclass
-class PlanResult:
-    """Everything a plan produced.
-
-    Attributes
-    ----------
-    status : PlanStatus
-    reason : str
-        One line; names the stage, branch, waypoint or joint that failed.
-    problem : Problem
-    posture : PostureResult or None
-    before, closed, exact : CompensationResult or None
-        Of the chosen posture: uncompensated, closed-form and exact compensation.
-    trajectories : dict method -> Trajectory
-        Of the commanded path ``exact.q_command``.
-    controller : str or None
-        The method whose trajectory the controller runs (``trajectory.csv``).
-    warnings : list of str
-    stage_times_s : dict
-    dynamic : planner.dynamic.DynamicStage or None
-        The dynamic-compensation stage (``[timing] dynamic = true``): the motor-side command is
-        then the controller's trajectory, its link side and predicted TCP errors are here.
-        Wall time of each stage, s.
-    made : dict
-        When and by which command line the result was made (``command_line``, ``argv``,
-        ``date_utc``; :func:`planner.provenance.invocation`): the summary's provenance.
-    feed : dict method -> problems.toolpath.feed.FeedLaw
-        For a program path: each method's feed law (the feed reached, the slowed moves, the
-        program move of every sample); empty otherwise.
-    """
-
-    status: PlanStatus
-    reason: str
-    problem: Problem
-    posture: PostureResult | None = None
-    before: CompensationResult | None = None
-    closed: CompensationResult | None = None
-    exact: CompensationResult | None = None
-    trajectories: dict[str, Trajectory] = field(default_factory=dict)
-    controller: str | None = None
-    warnings: list[str] = field(default_factory=list)
-    stage_times_s: dict[str, float] = field(default_factory=dict)
-    made: dict[str, Any] = field(default_factory=invocation)
-    dynamic: Any = None
-    feed: dict[str, Any] = field(default_factory=dict)
-    #: The predicted sigma of the compensated TCP along the path and where the model extrapolates
-    #: (:class:`problems.identify.uncertainty.PathSigma`), once the exact compensation succeeded.
-    model_sigma: Any = None
-    #: The cell check (:class:`planner.cell_check.CellCheck`) when the problem has a ``[cell]``.
-    cell: Any = None
-
-    @property
-    def ok(self) -> bool:
-        return self.status is PlanStatus.OK
-
-    @property
-    def branch(self) -> BranchResult:
-        """The chosen branch (raises if the plan failed before choosing one)."""
-        if self.posture is None or self.posture.chosen is None:
-            raise InfeasibleError(f"plan '{self.problem.name}': no branch chosen ({self.reason})")
-        return self.posture.best
-
-    @property
-    def positions(self) -> np.ndarray:
-        return self.problem.positions
-
-    @property
-    def wrench(self) -> np.ndarray:
-        return self.problem.wrench
-
-    @property
-    def robot(self):
-        return self.problem.robot
-
-    def raise_for_status(self) -> PlanResult:
-        """Raise the matching CompplanError unless the plan succeeded; returns self."""
-        if self.ok:
-            return self
-        cls = _ERROR_CLASS.get(self.status, InfeasibleError)
-        raise cls(f"plan '{self.problem.name}' ({self.problem.source}): {self.status.value}: {self.reason}")
-
-    # ------------------------------------------------------------------ tables
-    def waypoint_table(self) -> np.ndarray:
-        """Rows of ``waypoints.csv`` (see :data:`WAYPOINT_COLUMNS`)."""
-        assert self.exact is not None and self.closed is not None and self.before is not None
-        P = self.positions
-        n = len(P)
-        seg = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
-        s = seg / seg[-1] if seg[-1] > 0 else seg
-        model = self.problem.model.kinematics
-        q = self.branch.q
-        Cs = model.C(q) if n > 1 else model.C(q[0])[None]
-        k = np.stack([directional_stiffness(Cs, np.eye(3)[i]) for i in range(3)], axis=1)
-        return np.hstack(
-            [
-                np.arange(n)[:, None],
-                s[:, None],
-                P,
-                q,
-                self.exact.q_command,
-                self.closed.q_command,
-                self.before.error_m,
-                self.closed.error_m,
-                self.exact.error_m,
-                k,
-            ]
-        )
-
-    def branch_errors(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-        """Per branch index: the load-induced TCP error norm (m, shape (N,)) at its analytic
-        posture (NaN where the branch has none) and at its optimised one, from the deflected
-        equilibrium of the arm model (``branches.csv``; the summary's equilibrium errors)."""
-        assert self.posture is not None
-        arm, n = self.problem.model, self.problem.n
-        L = self.problem.load.rows(n)
-        out = {}
-        for b, r in self.posture.branches.items():
-            ana = uncompensated(arm, r.q_analytic, L).error_norm_m if r.q_analytic is not None else np.full(n, np.nan)
-            out[b] = (ana, uncompensated(arm, r.q, L).error_norm_m)
-        return out
-
-    def branch_table(
-        self,
-        errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
-    ) -> tuple[list[str], np.ndarray]:
-        """``branches.csv``: per feasible branch, the load-induced TCP error norm (m) per
-        waypoint at the analytic posture (NaN where the branch has none) and at the optimised
-        one, from the deflected equilibrium of the joint-compliance model (``errors``: those of
-        :meth:`branch_errors`, when the caller has them)."""
-        assert self.posture is not None
-        errors = self.branch_errors() if errors is None else errors
-        cols, data = ["k"], [np.arange(self.problem.n, dtype=float)]
-        for b in sorted(self.posture.branches):
-            r = self.posture.branches[b]
-            cols += [f"{r.label}_analytic_m", f"{r.label}_optimised_m"]
-            data += list(errors[b])
-        return cols, np.stack(data, axis=1)
-
-    def view(self) -> RunView:
-        """The plan's summary and tables, computed once: what ``summary.json``, the CSV files,
-        the command line's printout and the report show (:class:`RunView`).
-
-        Raises
-        ------
-        CompplanError
-            If the plan failed (as :meth:`raise_for_status`).
-        """
-        self.raise_for_status()
-        errors = self.branch_errors()
-        cols, rows = self.branch_table(errors)
-        stage = self.dynamic
-        dyn = stage.series(self.problem.model) if stage is not None and stage.link is not None else None
-        return RunView(self, self.summary(errors), self.waypoint_table(), cols, rows, dyn)
-
-    # ------------------------------------------------------------------ summary
-    def summary(self, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> dict[str, Any]:
-        """The content of ``summary.json`` (:func:`planner.plan_summary.plan_summary`). Each call
-        hashes the inputs and solves the equilibria again: build a plan's summary once
-        (:meth:`view`)."""
-        from planner.plan_summary import plan_summary
-
-        return plan_summary(self, errors)
-
-    def provenance(self) -> dict[str, Any]:
-        """The ``provenance`` block: version, command line and date (when the result was made),
-        and the input files (problem, arm model) with their SHA-256."""
-        return problem_provenance(self.problem, self.made)
-
-
-@dataclass(frozen=True)
-class RunView:
-    """A successful plan's outputs, computed once (:meth:`PlanResult.view`) and passed to
-    everything that shows the run: ``write_outputs``, the command line's printout and the
-    report (:func:`planner.report.run_from_plan`).
-
-    Attributes
-    ----------
-    result : PlanResult
-    summary : dict
-        The content of ``summary.json`` (:meth:`PlanResult.summary`).
-    waypoints : ndarray, shape (N, len(WAYPOINT_COLUMNS))
-        Rows of ``waypoints.csv``.
-    branch_columns : list of str
-    branches : ndarray, shape (N, len(branch_columns))
-        Columns and rows of ``branches.csv`` (m).
-    dynamic : (list of str, ndarray) or None
-        Columns and rows of ``dynamic.csv`` (a plan with dynamic compensation), else None.
-    """
-
-    result: PlanResult
-    summary: dict[str, Any]
-    waypoints: np.ndarray
-    branch_columns: list[str]
-    branches: np.ndarray
-    dynamic: tuple[list[str], np.ndarray] | None = None
-
-    @property
-    def model(self) -> ArmModel:
-        """The arm model the plan was made with (its ``kinematics`` built once)."""
-        return self.result.problem.model
-
-
-def _within(tr: Trajectory, keys: tuple[str, ...]) -> bool:
-    return all(
-        np.all(np.isfinite(tr.limit_ratio[k])) and float(np.max(tr.limit_ratio[k])) <= 1.0 + LIMIT_RATIO_TOL
-        for k in keys
-    )
 
 
 # --------------------------------------------------------------------------------------
@@ -645,7 +399,7 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
             return
         if m != res.controller:  # a reference beside the controller's: its unenforced limits are in the summary
             continue
-        for k in (k for k in LIMIT_KEYS if not _within(tr, (k,))):  # limits the method does not enforce
+        for k in (k for k in LIMIT_KEYS if not within_limits(tr, (k,))):  # limits the method does not enforce
             r = float(np.max(tr.limit_ratio[k]))
             hint = (
                 f"; add '{_jerk_limited()}' to timing.methods for a jerk-limited controller trajectory"
@@ -700,113 +454,13 @@ def _trajectory_failure(res: PlanResult, m: str, tr: Trajectory) -> str:
             )
     if tr.status is not TimingStatus.OK:
         return f"{m}: {tr.status.value}: {tr.reason}"
-    bad = [k for k in get_method(m).checked_limits if not _within(tr, (k,))]
+    bad = [k for k in get_method(m).checked_limits if not within_limits(tr, (k,))]
     if bad:
         return (
             f"{m}: {TimingStatus.LIMIT_EXCEEDED.value}: {' and '.join(bad)} ratio above 1 although the "
             f"method reported {tr.status.value} ({tr.reason})"
         )
     return ""
-
-
-# --------------------------------------------------------------------------------------
-# Outputs
-# --------------------------------------------------------------------------------------
-
-
-def _trajectory_rows(tr: Trajectory) -> np.ndarray:
-    """Rows of ``trajectory*.csv`` (see :data:`TRAJECTORY_COLUMNS`): t, q, qd, qdd, qddd."""
-    if not len(tr.t):
-        return np.empty((0, len(TRAJECTORY_COLUMNS)))
-    return np.column_stack([tr.t, tr.q, tr.qd, tr.qdd, tr.qddd])
-
-
-def figures(res: PlanResult, view: RunView | None = None) -> dict[str, bytes]:
-    """PNG figures ``branches.png`` (error per branch) and ``trajectory.png`` (timed joints): the
-    report's figures 5 and 6, drawn by the same functions
-    (:func:`planner.report.figures.quick_figures`); ``view``: the plan's, when the caller has it."""
-    from planner.report.figures import quick_figures
-    from planner.report.run import run_from_plan
-
-    return quick_figures(run_from_plan(res, Path("."), view))
-
-
-#: Extra columns of ``trajectory.csv`` with dynamic compensation: the planned link side, rad.
-LINK_COLUMNS = [f"ql{i}" for i in range(1, 7)]
-
-
-def write_outputs(
-    res: PlanResult,
-    folder: str | Path,
-    with_figures: bool = True,
-    extra: Mapping[str, bytes] | None = None,
-    view: RunView | None = None,
-) -> dict[str, Any]:
-    """Write the plan's files, all or nothing.
-
-    ``summary.json``, ``path.csv`` (x, y, z, q1..q6: the exact commands),
-    ``waypoints.csv``, ``branches.csv``, ``trajectory.csv`` (the controller's,
-    Ruckig when available), ``trajectory_<method>.csv`` for the other methods,
-    and with ``with_figures`` ``branches.png`` and ``trajectory.png`` (the report's figures 5
-    and 6); ``extra`` adds files by name (the exports of ``plan --export``), in the same set.
-    ``view``: the plan's :class:`RunView` when the caller has it (else it is built here).
-
-    Raises
-    ------
-    CompplanError
-        If the plan failed (nothing is written).
-    """
-    view = res.view() if view is None else view
-    assert res.exact is not None and view.result is res
-    summary = view.summary
-    out = OutputSet(folder)
-    out.add_json("summary.json", summary)
-    prog = res.problem.program
-    if prog is None:
-        out.add_csv("path.csv", PATH_COLUMNS, np.hstack([res.positions, res.exact.q_command]))
-    else:
-        w = prog.waypoints
-        out.add_csv(
-            "path.csv",
-            PATH_COLUMNS + PROGRAM_PATH_COLUMNS,
-            np.column_stack([res.positions, res.exact.q_command, w.feed_m_s * 6e4]),
-            np.column_stack([w.line, w.rapid]),
-        )
-    out.add_csv("waypoints.csv", WAYPOINT_COLUMNS, view.waypoints)
-    out.add_csv("branches.csv", view.branch_columns, view.branches)
-    for m, tr in res.trajectories.items():
-        name = "trajectory.csv" if m == res.controller else f"trajectory_{m}.csv"
-        if m == res.controller and res.dynamic is not None and res.dynamic.link is not None:
-            out.add_csv(name, TRAJECTORY_COLUMNS + LINK_COLUMNS, np.hstack([_trajectory_rows(tr), res.dynamic.link.q]))
-        elif m in res.feed and prog is not None:
-            move = res.feed[m].sample_move
-            out.add_csv(
-                name,
-                TRAJECTORY_COLUMNS + PROGRAM_TRAJECTORY_COLUMNS,
-                _trajectory_rows(tr),
-                np.column_stack([prog.waypoints.line[move], move]),
-            )
-        else:
-            out.add_csv(name, TRAJECTORY_COLUMNS, _trajectory_rows(tr))
-    if with_figures:
-        for name, data in figures(res, view).items():
-            out.add_bytes(name, data)
-    if view.dynamic is not None:
-        out.add_csv("dynamic.csv", *view.dynamic)
-    for name, data in (extra or {}).items():
-        out.add_bytes(name, data)
-    out.publish()
-    return summary
-
-
-def output_names(res: PlanResult, with_figures: bool = True) -> list[str]:
-    """Names of the files :func:`write_outputs` writes for ``res``."""
-    names = ["summary.json", "path.csv", "waypoints.csv", "branches.csv"]
-    names += ["trajectory.csv" if m == res.controller else f"trajectory_{m}.csv" for m in res.trajectories]
-    names += ["dynamic.csv"] if res.dynamic is not None and res.dynamic.link is not None else []
-    if with_figures:
-        names += ["branches.png"] + (["trajectory.png"] if res.trajectories else [])
-    return names
 
 
 __all__ = [

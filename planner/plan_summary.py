@@ -1,4 +1,4 @@
-"""The content of a plan's ``summary.json``, built from its :class:`~planner.plan.PlanResult`.
+"""The content of a plan's ``summary.json``, built from its :class:`~planner.plan_result.PlanResult`.
 
 :func:`plan_summary` is what :meth:`PlanResult.summary` returns (a plan builds it once, in
 :meth:`PlanResult.view`); :func:`headline` is its opening block, what a cell engineer reads
@@ -15,18 +15,19 @@ import numpy as np
 
 from problems.compensation import uncompensated
 from problems.posture import BranchResult
-from problems.timing import get_method
+from problems.timing import LIMIT_RATIO_TOL, get_method
 from problems.timing.limit_use import limit_use
 from problems.timing.trajectory import LIMIT_KEYS
 
 from planner import branches as branch_words
 from planner.numbers import NUMERICAL_FLOOR_MM, headline_mm, round_sig
-from planner.plan import _within
+from planner.record.columns import trajectory_file
 
 if TYPE_CHECKING:
-    from planner.plan import PlanResult
+    from planner.plan_result import PlanResult
+    from problems.timing import Trajectory
 
-__all__ = ["HEADLINE_DEFINITION", "headline", "plan_summary", "timing_summary"]
+__all__ = ["HEADLINE_DEFINITION", "headline", "plan_summary", "timing_summary", "within_limits"]
 
 
 def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> dict[str, Any]:
@@ -113,6 +114,15 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items() if t["limit_use"]["why"]]
     head = {"headline": headline(s), "provenance": res.provenance()}
     return {**head, **s}
+
+
+def within_limits(tr: Trajectory, keys: tuple[str, ...]) -> bool:
+    """Whether every limit ratio of ``tr`` named in ``keys`` is finite and at most 1 (within
+    :data:`~problems.timing.LIMIT_RATIO_TOL`) at every sample."""
+    return all(
+        np.all(np.isfinite(tr.limit_ratio[k])) and float(np.max(tr.limit_ratio[k])) <= 1.0 + LIMIT_RATIO_TOL
+        for k in keys
+    )
 
 
 def program_summary(res: PlanResult) -> dict[str, Any]:
@@ -211,12 +221,12 @@ def timing_summary(res: PlanResult) -> dict[str, Any]:
                 "status": tr.status.value,
                 "reason": tr.reason,
                 "limits_enforced": list(get_method(m).checked_limits),
-                "within_all_limits": _within(tr, LIMIT_KEYS),
+                "within_all_limits": within_limits(tr, LIMIT_KEYS),
                 "iterations": tr.iterations,
                 "dt": tr.dt,
                 "limit_use": limit_use(tr, pr.limits, get_method(m).checked_limits),
                 "display_name": get_method(m).display_name,
-                "file": "trajectory.csv" if m == res.controller else f"trajectory_{m}.csv",
+                "file": trajectory_file(m, res.controller),
             }
             for m, tr in res.trajectories.items()
         },

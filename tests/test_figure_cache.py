@@ -15,7 +15,7 @@ from planner.report.rendering import FigureItem, job
 
 def line_figure(y: np.ndarray, title: str = ""):
     """A small figure job for these tests (module level: jobs are pickled)."""
-    from planner.report.plots import _figure
+    from planner.report.figure_base import new_figure as _figure
 
     fig = _figure(3.0, 2.0)
     ax = fig.add_subplot(1, 1, 1)

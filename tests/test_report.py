@@ -29,14 +29,14 @@ from planner.numbers import (
 from planner.report import (
     FIGURE_NAMES,
     build_figures,
-    load_run,
     lookup,
     render_html,
     render_markdown,
-    run_from_plan,
     summary_tables,
     write_report,
 )
+from planner.plan_record import record_from_plan as run_from_plan
+from planner.record import read_record as load_run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 #: A number shown with DISPLAY_DIGITS significant digits is within this of its value (relative).
@@ -282,13 +282,13 @@ def _same(a, b) -> bool:
 def test_view_from_the_plan_equals_the_view_from_its_folder(demo_result, demo_run, monkeypatch):
     """compplan plan/demo build the report from the PlanResult, compplan report from the files
     written from it: the two views, their tables and figure data are the same."""
-    import planner.report.run as run_module
+    import planner.record.read as run_module
 
     def no_reading(*args, **kwargs):
         raise AssertionError("the view of a plan result read a file")
 
     with monkeypatch.context() as m:  # from the result: no file is read
-        for name in ("_read_csv", "_read_summary", "_read_trajectory"):
+        for name in ("read_csv", "read_run_summary", "read_trajectory"):
             m.setattr(run_module, name, no_reading)
         mem = run_from_plan(demo_result, demo_run)
     disk = load_run(demo_run)

@@ -16,10 +16,11 @@ import pytest
 
 from planner.cli import main
 from planner.numbers import format_mm
-from planner.report import FIGURE_NAMES, load_run
+from planner.record import read_record as load_run
+from planner.report import FIGURE_NAMES
 from planner.report.figures import DYNAMIC_FIGURE
-from planner.report.run import DYNAMIC_COLUMNS
-from planner.report.tables import DYNAMIC_CASES
+from planner.record import DYNAMIC_COLUMNS
+from planner.report.dynamic_tables import DYNAMIC_CASES
 from tests.test_report import PNG_MAGIC, check_cells_match_summary, check_figures_embedded, parse
 
 CASES = ("none", "static", "static+dynamic")

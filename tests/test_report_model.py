@@ -24,7 +24,9 @@ from models.errors import InputError
 from planner.cli import main
 from planner.demo import demo_problem
 from planner.plan import plan, write_outputs
-from planner.report import load_run, maps, run_from_plan
+from planner.plan_record import record_from_plan as run_from_plan
+from planner.record import read_record as load_run
+from planner.report import maps
 
 #: Waypoints of the plans (few: the map, not the path, is under test).
 POINTS = 12

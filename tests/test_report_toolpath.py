@@ -16,20 +16,22 @@ import pytest
 from models.transforms import rpy_to_matrix
 from planner.numbers import format_number
 from planner.output import csv_bytes
-from planner.report import load_run, lookup, run_from_plan, write_report
+from planner.plan_record import record_from_plan as run_from_plan
+from planner.record import ProgramRecord as ProgramView
+from planner.record import read_record as load_run
+from planner.record import to_program_frame
+from planner.report import lookup, write_report
+from planner.report.program_tables import SLOWED_SHOWN
 from planner.report.figure_cache import FIGURE_CACHE_ENV, figure_key
 from planner.report.toolpath import (
     FEED_BINS,
     MAX_DRAWN_SEGMENTS,
-    SLOWED_SHOWN,
-    ProgramView,
     bin_extrema,
     line_feed_m_s,
     sample_feed_m_s,
     merge_segments,
     slowed_lines_worst_first,
     tcp_speed_m_s,
-    to_program_frame,
 )
 from planner.report.toolpath_plot import FEED_FIGURE, PROGRAM_FIGURES, TOOLPATH_FIGURE, program_items
 
@@ -176,14 +178,14 @@ def figure_cache(tmp_path_factory):
 def program_run(tmp_path_factory, figure_cache):
     """The small program planned, its outputs written and its report built from the plan."""
     res, view, out = _plan(tmp_path_factory.mktemp("program") / "p", PROGRAM_PROBLEM, {"part.ngc": PROGRAM})
-    write_report(out, result=res, view=view, map_options=False, workers=1)
+    write_report(out, record=res.record(out, view), map_options=False, workers=1)
     return res, view, out
 
 
 @pytest.fixture(scope="module")
 def line_run(tmp_path_factory, figure_cache):
     res, view, out = _plan(tmp_path_factory.mktemp("line") / "p", LINE_PROBLEM, {})
-    write_report(out, result=res, view=view, map_options=False, workers=1)
+    write_report(out, record=res.record(out, view), map_options=False, workers=1)
     return res, view, out
 
 

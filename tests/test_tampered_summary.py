@@ -320,7 +320,7 @@ def test_a_duration_that_is_not_the_file_s_is_refused(run, original, tmp_path):
 
 
 def test_a_trajectory_file_named_but_absent_is_stated(run, original, tmp_path):
-    from planner.report.run import load_run
+    from planner.record import read_record as load_run
 
     folder = tmp_path / "run"
     shutil.copytree(run, folder)
@@ -400,7 +400,7 @@ def test_every_key_the_report_and_the_export_read_is_declared(run, original, tmp
     """Build the report's tables, figures (not drawn) and pages, and the export's data, from a summary
     that records what is read (with every declared block present): every key read is declared."""
     import planner.export as export_module
-    import planner.report.run as run_module
+    import planner.record.read as run_module
     from planner.report.figures import build_figures
     from planner.report.rendering import render_html, render_markdown
     from planner.report.tables import summary_tables
@@ -411,7 +411,7 @@ def test_every_key_the_report_and_the_export_read_is_declared(run, original, tmp
     log: set = set()
     real_read = run_module.read_summary
     monkeypatch.setattr(run_module, "read_summary", lambda f, c: _recorded(real_read(f, c), (), log))
-    run = run_module.load_run(folder)
+    run = run_module.read_record(folder)
     tables = summary_tables(run.summary, run.absent)
     items = build_figures(run, map_options=False)
     render_markdown(run, tables, items), render_html(run, tables, items)

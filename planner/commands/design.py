@@ -345,17 +345,17 @@ def _write_report(args: argparse.Namespace, des: Any, pool: Any, region: Any, lo
     import base64
     import html
 
-    from planner.identify_report.html import md_block, page_head
+    from planner.identify_report.html import md_block
     from planner.output import OutputSet
+    from planner.report.page import PAGE_END, page_head
 
     rep = _report_dict(args, des, pool, region, loads)
     md = _report_md(rep, des)
     png = _figure_png(des)
     body = md.split("\n", 1)[1]
     page = "\n".join(
-        [
-            *page_head("compplan campaign design"),
-            "<h1>compplan campaign design</h1>",
+        page_head("compplan campaign design")
+        + [
             '<figure><img alt="predicted sigma per evaluation pose" '
             f'src="data:image/png;base64,{base64.b64encode(png).decode()}"><figcaption>'
             + html.escape(
@@ -364,7 +364,7 @@ def _write_report(args: argparse.Namespace, des: Any, pool: Any, region: Any, lo
             )
             + ' File: <a href="figures/sigma.png">PNG</a>.</figcaption></figure>',
             md_block(body),
-            "</body></html>",
+            PAGE_END,
         ]
     )
     out = OutputSet(args.report)

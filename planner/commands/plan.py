@@ -276,11 +276,10 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
     report: dict[str, bytes] = {}
     if not args.no_report:  # built first: the plan's files and its report are swapped in together
         from planner.commands.report import report_progress
-        from planner.report.run import run_from_plan
         from planner.report.writer import report_files
 
         with report_progress() as prog:
-            report = report_files(run_from_plan(res, args.out, view), prog)
+            report = report_files(res.record(args.out, view), prog)
     write_outputs(res, args.out, with_figures=quick_figures, extra={**exports, **report}, view=view)
     print_plan(res, args.out, output_names(res, quick_figures) + list(exports), view)
     if report:

@@ -181,8 +181,8 @@ def write_run_report(folder: str | Path, **kwargs: Any) -> Path:
     """Write the report of a run folder with progress bars and print where it went.
 
     ``kwargs`` go to :func:`planner.report.write_report`.  The commands that produce
-    a run (demo, plan) call it at the end with ``result=`` their in-memory
-    :class:`~planner.plan.PlanResult`, so the report is built from it rather than
+    a run (demo, plan) call it at the end with ``record=`` the run record of their in-memory
+    :class:`~planner.plan_result.PlanResult`, so the report is built from it rather than
     from the files they just wrote; ``compplan report`` reads the folder.
     """
     from planner.report import write_report

@@ -473,12 +473,15 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:
 
 def _columns(path: Path, head: list[str]) -> tuple[list[str], bool]:
     """The columns to read (``t``, ``q*``, ``qd*``, ``qdd*``, ``qddd*``, and ``ql*`` when all six are
-    there) and whether the link side is among them."""
-    need = ["t"] + [f"{c}{i}" for c in ("q", "qd", "qdd", "qddd") for i in range(1, 7)]
+    there) and whether the link side is among them (the run record's columns,
+    :mod:`planner.record.columns`)."""
+    from planner.record.columns import LINK_COLUMNS, TRAJECTORY_COLUMNS
+
+    need = list(TRAJECTORY_COLUMNS)
     missing = [c for c in need if c not in head]
     if missing:
         raise ExportError(f"{path}: missing column(s) {', '.join(missing)}")
-    link = [f"ql{i}" for i in range(1, 7)]
+    link = LINK_COLUMNS
     has_link = all(c in head for c in link)
     return need + (link if has_link else []), has_link
 

@@ -4,7 +4,6 @@ PDF bytes (:class:`RenderedFigure`: the report embeds the PNG and writes both be
 from __future__ import annotations
 
 import base64
-import io
 import re
 from dataclasses import dataclass
 from typing import Any
@@ -38,23 +37,18 @@ def figure_file(key: str) -> str:
 
 
 def new_figure(w: float, h: float, **adjust: float) -> Any:
-    """A matplotlib Figure on the Agg canvas (no pyplot state)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    """A matplotlib Figure on the Agg canvas (no pyplot state;
+    :func:`planner.report.figure_base.new_figure`)."""
+    from planner.report.figure_base import new_figure as base_figure
 
-    fig = Figure(figsize=(w, h))
-    FigureCanvasAgg(fig)
-    if adjust:
-        fig.subplots_adjust(**adjust)
-    return fig
+    return base_figure(w, h, **adjust)
 
 
 def render_figure(fig: Any) -> RenderedFigure:
     """PNG and PDF bytes of a figure (metadata fixed, so the same figure gives the same bytes)."""
-    png, pdf = io.BytesIO(), io.BytesIO()
-    fig.savefig(png, format="png", dpi=REPORT_DPI, metadata={"Software": None})
-    fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None, "Producer": None})
-    return RenderedFigure(png.getvalue(), pdf.getvalue())
+    from planner.report.figure_base import pdf_bytes, png_bytes
+
+    return RenderedFigure(png_bytes(fig, REPORT_DPI), pdf_bytes(fig))
 
 
 def rms(v: np.ndarray) -> float:

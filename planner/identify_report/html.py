@@ -30,28 +30,15 @@ def _html_table(
     return "\n".join(out)
 
 
-def page_head(title: str) -> list[str]:
-    """The first lines of a self-contained HTML page styled like the plan report (the identification
-    and the campaign design reports): doctype, head with ``title`` (HTML, not escaped) and the style,
-    the opened body."""
-    from planner.report.rendering import _CSS
-
-    return [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>{title}</title><style>{_CSS}</style></head><body>",
-    ]
-
-
 def report_html(rep: dict[str, Any], figs: Mapping[str, RenderedFigure]) -> str:
     """Self-contained HTML, styled like the plan report: headline table, figures with captions
     (each linked to its PNG and PDF files), then the tables of the selection, parameters and
     diagnostics, and the provenance."""
+    from planner.report.page import PAGE_END, embedded_figure, page_head, page_text
+
     md = report_markdown(rep)
     sections = md.split("\n## ")
-    parts = [
-        *page_head("compplan identification report"),
-        "<h1>compplan identification report</h1>",
+    parts = page_head("compplan identification report") + [
         '<h3 id="headline">Headline</h3>',
         _html_table(["quantity", "value", "note"], headline_rows(rep), "summary headline"),
         f'<p class="note">Data: {html.escape(str(rep["data"]["file"]))}. {html.escape(rep["rms_definition"])}. '
@@ -67,9 +54,7 @@ def report_html(rep: dict[str, Any], figs: Mapping[str, RenderedFigure]) -> str:
         title, caption = figure_text(k)
         parts.append(
             f'<h3 id="{html.escape(k)}">Figure {e["number"]}. {html.escape(title)}</h3>'
-            f'<figure><img data-figure="{html.escape(k)}" alt="{html.escape(title)}" '
-            f'src="data:image/png;base64,{figs[k].b64}"><figcaption>{html.escape(caption)} Files: '
-            f'<a href="{e["png"]}">PNG</a>, <a href="{e["pdf"]}">PDF</a>.</figcaption></figure>'
+            + embedded_figure(k, title, caption, figs[k].png, e["png"], e["pdf"])
         )
 
     maps_sec = next((sec for sec in sections[1:] if sec.startswith("Joint error maps")), None)
@@ -91,8 +76,8 @@ def report_html(rep: dict[str, Any], figs: Mapping[str, RenderedFigure]) -> str:
         parts.append(md_block("## " + sec))
     parts.append('<h2 id="provenance">Provenance</h2>')
     parts.append(_html_table(["item", "value", "SHA-256"], provenance_rows(rep), mono_cols=(1, 2)))
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"
+    parts.append(PAGE_END)
+    return page_text(parts)
 
 
 def _md_cells(line: str) -> list[str]:

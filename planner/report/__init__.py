@@ -12,13 +12,12 @@
 * ``figures/figN_*.png`` and ``.pdf``: every figure in both formats;
 * ``compliance_map.csv``: the data of figure 1.
 
-The report is drawn from a view of the run (:class:`Run`), built either from
-the in-memory :class:`~planner.plan.PlanResult` of the run that just planned
-(``write_report(folder, result=res)``: ``compplan plan``/``demo``) or from the
-folder's files (``summary.json``, ``waypoints.csv``, ``branches.csv`` and,
-when a plan was timed, ``trajectory.csv`` (Ruckig) and
-``trajectory_toppra.csv``, and with dynamic compensation ``dynamic.csv``:
-``compplan report DIR``).  Both give the same view.
+The report is drawn from the run's record (:class:`~planner.record.RunRecord`) and from
+nothing else: made by the plan that just ran (``write_report(folder, record=res.record(folder))``:
+``compplan plan``/``demo``) or read from the folder's files by
+:func:`planner.record.read_record` (``summary.json``, ``waypoints.csv``, ``branches.csv`` and,
+when a plan was timed, ``trajectory*.csv``, and with dynamic compensation ``dynamic.csv``:
+``compplan report DIR``).  Both give the same record.  The report does not import the plan.
 
 A plan with dynamic compensation (``[timing] dynamic = true``, summary.json key
 ``dynamic_compensation``) adds figure 8 (``figures/fig8_dynamic_compensation``:
@@ -39,7 +38,8 @@ processes where the platform allows it.  Everything is built in memory and
 published at the end (all or nothing).  The library prints nothing; progress
 goes to a callback.
 
-Modules: :mod:`~planner.report.run` (the view), :mod:`~planner.report.tables`,
+Modules: :mod:`~planner.report.tables` (with :mod:`~planner.report.table_base`,
+:mod:`~planner.report.program_tables`, :mod:`~planner.report.dynamic_tables`),
 :mod:`~planner.report.figures` (which data each figure draws),
 :mod:`~planner.report.plots` (the matplotlib drawings),
 :mod:`~planner.report.maps` (compliance map and its cache),
@@ -64,18 +64,8 @@ if TYPE_CHECKING:
         render_items,
         render_markdown,
     )
-    from planner.report.run import TRAJECTORY_FILES, Run, load_run, method_name, method_order, run_from_plan
-    from planner.report.tables import (
-        Cell,
-        Table,
-        fmt,
-        headline_table,
-        load_words,
-        lookup,
-        provenance_table,
-        summary_tables,
-        value_cell,
-    )
+    from planner.report.table_base import Cell, Table, fmt, lookup, value_cell
+    from planner.report.tables import headline_table, load_words, provenance_table, summary_tables
     from planner.report.writer import publish_report, report_files, write_report
 
 #: The submodule defining each name re-exported here, imported on first use (PEP 562): a command
@@ -86,18 +76,8 @@ _LAZY = {
         "figures": ("ARM_POSES", "DYNAMIC_FIGURE", "FIGURE_NAMES", "build_figures"),
         "maps": ("map_job", "write_map"),
         "rendering": ("MAX_WORKERS", "FigureItem", "default_workers", "render_html", "render_items", "render_markdown"),
-        "run": ("TRAJECTORY_FILES", "Run", "load_run", "method_name", "method_order", "run_from_plan"),
-        "tables": (
-            "Cell",
-            "Table",
-            "fmt",
-            "headline_table",
-            "load_words",
-            "lookup",
-            "provenance_table",
-            "summary_tables",
-            "value_cell",
-        ),
+        "table_base": ("Cell", "Table", "fmt", "lookup", "value_cell"),
+        "tables": ("headline_table", "load_words", "provenance_table", "summary_tables"),
         "writer": ("publish_report", "report_files", "write_report"),
     }.items()
     for name in names
@@ -114,26 +94,20 @@ __all__ = [
     "FIGURE_NAMES",
     "FigureItem",
     "MAX_WORKERS",
-    "Run",
-    "TRAJECTORY_FILES",
     "Table",
     "build_figures",
     "default_workers",
     "fmt",
     "headline_table",
-    "load_run",
     "load_words",
     "lookup",
     "map_job",
-    "method_name",
-    "method_order",
     "provenance_table",
     "publish_report",
     "report_files",
     "render_html",
     "render_items",
     "render_markdown",
-    "run_from_plan",
     "summary_tables",
     "value_cell",
     "write_map",

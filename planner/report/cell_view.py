@@ -7,7 +7,7 @@ one has no such figure, not an absent one.  The view is built from the run alone
 problem file: the objects from ``problem.cell``, a mesh object's triangles read again from the file
 it records after checking the SHA-256 that ``provenance.inputs`` holds for it (role ``cell mesh``;
 a file moved or changed since the run is not drawn, and the caption says so), the robot from
-``robot_file`` (:attr:`~planner.report.run.Run.robot`), the postures and the errors from
+``robot_file`` (:attr:`~planner.record.RunRecord.robot`), the postures and the errors from
 ``waypoints.csv``.
 
 * the robot: its collision capsules (:func:`models.collision.capsule_model`, the geometry the cell
@@ -44,9 +44,9 @@ from models.errors import InputError
 
 from planner.numbers import format_number
 from planner.report.cell_record import cell_block
-from planner.report.plots import _figure, _styled
+from planner.report.figure_base import new_figure, styled
 from planner.report.rendering import FigureItem, job
-from planner.report.run import Run
+from planner.record import RunRecord
 from planner.report.tables import load_words
 
 if TYPE_CHECKING:
@@ -198,7 +198,7 @@ def _pose_indices(n: int, k: int = CELL_POSES) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n - 1, min(k, n))).astype(int))
 
 
-def cell_scene(run: Run) -> CellScene | str | None:
+def cell_scene(run: RunRecord) -> CellScene | str | None:
     """The cell view of ``run``: None without a cell, a reason (str) when it cannot be drawn.
 
     The objects from ``summary["problem"]["cell"]`` (:func:`cell_block`), the robot's capsules at
@@ -300,7 +300,7 @@ def _axis_points(segments: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ the items
-def cell_items(run: Run) -> list[FigureItem]:
+def cell_items(run: RunRecord) -> list[FigureItem]:
     """The cell view of ``run`` (static job and interactive HTML), or none without a cell."""
     try:
         scene = cell_scene(run)
@@ -434,12 +434,12 @@ def cell_plotly_div(scene: CellScene, title: str) -> str:
 
 
 # ---------------------------------------------------------------------- matplotlib (static)
-@_styled
+@styled
 def cell_figure(scene: CellScene, *, title: str) -> Figure:
     """The static view (PNG/PDF): the same scene on matplotlib's 3-D axes, equal scale."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-    fig = _figure(9.5, 6.8)
+    fig = new_figure(9.5, 6.8)
     ax = fig.add_axes((0.0, 0.0, 0.86, 0.93), projection="3d")
     for o in scene.objects:
         colour = WORKPIECE_COLOUR if o.role == "workpiece" else OBSTACLE_COLOUR

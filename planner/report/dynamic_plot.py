@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number
-from planner.report.plots import _figure, _styled
+from planner.report.figure_base import new_figure, styled
 
 __all__ = ["DYNAMIC_DECADES", "DYNAMIC_STYLES", "dynamic_figure"]
 
@@ -44,7 +44,7 @@ def _rest_spans(t: np.ndarray, moving: np.ndarray) -> list[tuple[float, float]]:
     return spans
 
 
-@_styled
+@styled
 def dynamic_figure(
     t_s: np.ndarray, moving: np.ndarray, errors_m: Sequence[np.ndarray], speed_m_s: np.ndarray, *, title: str
 ) -> Figure:
@@ -62,7 +62,7 @@ def dynamic_figure(
     speed_m_s : ndarray, shape (N,)
         Planned TCP speed, m/s.
     """
-    fig = _figure(11.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.8, hspace=0.1)
+    fig = new_figure(11.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.8, hspace=0.1)
     a1, a2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2.3, 1.0)})
     t = np.asarray(t_s, float)
     mv = np.asarray(moving, float) > 0.5

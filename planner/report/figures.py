@@ -1,4 +1,4 @@
-"""The report's figures: which data of a :class:`~planner.report.run.Run` each one draws.
+"""The report's figures: which data of a :class:`~planner.record.RunRecord` each one draws.
 
 :func:`build_figures` prepares one :class:`~planner.report.rendering.FigureItem`
 per figure, in report order: its drawing job (a function of
@@ -27,11 +27,11 @@ from models.ik import BRANCH_LABELS
 from planner.branches import legend
 from planner.compliance_map import ProgressFn
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
-from planner.report import dynamic_plot, plots
+from planner.report import dynamic_plot, motion_plots, plots
 from planner.report.cell_view import cell_items
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job, render_items
-from planner.report.run import DYNAMIC_KEY, Run, method_name, method_order
+from planner.record import DYNAMIC_KEY, RunRecord, method_name, method_order
 from planner.report.tables import RATIO_KINDS, flat_numbers, load_words
 from planner.report.toolpath_plot import program_items
 
@@ -58,7 +58,7 @@ ARM_POSES = 3
 class _Context:
     """What several figures share: the run and its load, branch, names and path length."""
 
-    run: Run
+    run: RunRecord
     robot_name: str
     branch: str
     load: str
@@ -78,7 +78,7 @@ class _Context:
 
 
 def build_figures(
-    run: Run,
+    run: RunRecord,
     progress: ProgressFn | None = None,
     map_options: Mapping[str, Any] | None | bool = None,
     files: dict[str, bytes] | None = None,
@@ -125,7 +125,7 @@ def build_figures(
 QUICK_FIGURES = {"branches.png": FIGURE_NAMES[4], "trajectory.png": FIGURE_NAMES[5]}
 
 
-def quick_figures(run: Run, workers: int | None = 1) -> dict[str, bytes]:
+def quick_figures(run: RunRecord, workers: int | None = 1) -> dict[str, bytes]:
     """PNG bytes of the report's figures 5 (branch comparison) and 6 (trajectory) of ``run``,
     by the file names of :data:`QUICK_FIGURES`: the same drawings as the report's, without the
     rest of it (a figure the run does not allow is left out).  ``workers``: as for
@@ -137,7 +137,7 @@ def quick_figures(run: Run, workers: int | None = 1) -> dict[str, bytes]:
     return {name: it.png for name, it in items.items() if it.png is not None}
 
 
-def _context(run: Run) -> _Context:
+def _context(run: RunRecord) -> _Context:
     s = run.summary
     try:
         _wrench(s)
@@ -342,7 +342,7 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
         "trajectory file, as the timing computed them) for each timing method, with "
         "the limits dashed; the methods share the time axis and, per row, the value axis. "
         "The jerk row shows at most "
-        f"{format_number(plots.JERK_VIEW_LIMITS)}× the jerk limit; a method that does not "
+        f"{format_number(motion_plots.JERK_VIEW_LIMITS)}× the jerk limit; a method that does not "
         "limit jerk (TOPP-RA) is cut off there and its peak is written on the panel.",
     )
     run, s = ctx.run, ctx.run.summary
@@ -363,12 +363,12 @@ def _trajectory_item(ctx: _Context) -> FigureItem:
     if missing:
         item.caption += f" No {', '.join(missing)} trajectory in this run."
     item.job = job(
-        plots.trajectory_figure, trajs, limits, title=f"{ctx.robot_name}: joint trajectories", headers=headers
+        motion_plots.trajectory_figure, trajs, limits, title=f"{ctx.robot_name}: joint trajectories", headers=headers
     )
     return item
 
 
-def _limits(run: Run) -> tuple[dict[str, np.ndarray | None], str]:
+def _limits(run: RunRecord) -> tuple[dict[str, np.ndarray | None], str]:
     """The limits drawn in figure 6 (summary.json's, else the robot file's) and where from."""
     lim: dict[str, np.ndarray | None] = {
         "q_min": None,
@@ -467,7 +467,7 @@ def _polylines(model: KinematicModel, q: np.ndarray) -> tuple[np.ndarray, list[i
     return out, list(range(1, out.shape[1] - 1))
 
 
-def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tuple[Job, str]:
+def _arm(run: RunRecord, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tuple[Job, str]:
     """Figure 7: the planned poses q_target at the start, middle and end of the path, and the
     same commands under the load without compensation, their joint deflection exaggerated.
 
@@ -482,7 +482,7 @@ def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tupl
     dq = qt[idx] - qc[idx]  # joint deflection under the load, rad
     eb = _xyz(wp, "eb")
     true_max = float(np.linalg.norm(eb, axis=1).max())
-    factor = plots.nice_factor(true_max)
+    factor = motion_plots.nice_factor(true_max)
     nominal, joints = _polylines(model, qt[idx])
     deflected, _ = _polylines(model, qt[idx] + factor * dq)
     labels = [f"k = {int(wp['k'][i])}" for i in idx]
@@ -491,7 +491,7 @@ def _arm(run: Run, wp: Mapping[str, np.ndarray], branch: str, load: str) -> tupl
         "\n"
         + _wrap(f"load: {load}; true TCP deflection up to {format_number(true_max * 1e3)} mm, drawn ×{factor:g}", 115)
     )
-    jb = job(plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title, joint_index=joints)
+    jb = job(motion_plots.arm_figure, nominal, deflected, _xyz(wp, ""), labels, factor, title=title, joint_index=joints)
     caption = (
         f"The arm as its links (straight segments between joint centres: the DH frame origins and "
         f"the link offsets along the joint axes) at {len(idx)} waypoints, equal scale on x, y, z: the "

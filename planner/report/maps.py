@@ -38,9 +38,9 @@ from planner.compliance_map import DEFAULT_POINTS, PLANE_AXES, ComplianceMap, Gr
 from planner.numbers import format_number
 from planner.output import OutputSet, atomic_write_bytes, json_bytes
 from planner.provenance import provenance, robot_input
-from planner.report import plots
+from planner.report import figure_base, plots
 from planner.report.rendering import FigureItem, Job, job, render_job
-from planner.report.run import Run
+from planner.record import RunRecord
 
 #: File name (without extension) of the compliance-map figure.
 MAP_FIGURE = "fig1_compliance_map"
@@ -377,7 +377,7 @@ def map_job(cm: ComplianceMap, path: np.ndarray | None = None) -> tuple[Job, str
     return jb, caption
 
 
-def _run_path(run: Run) -> tuple[np.ndarray, np.ndarray, int] | None:
+def _run_path(run: RunRecord) -> tuple[np.ndarray, np.ndarray, int] | None:
     """The run's waypoints (N, 3), the TCP attitude of its middle waypoint (on the run's arm
     model) and that waypoint's index, or None without waypoints."""
     wp = run.waypoints
@@ -391,7 +391,7 @@ def _run_path(run: Run) -> tuple[np.ndarray, np.ndarray, int] | None:
 
 
 def map_item(
-    run: Run,
+    run: RunRecord,
     map_options: Mapping[str, Any] | None | bool,
     progress: ProgressFn | None,
     files: dict[str, bytes],
@@ -502,7 +502,7 @@ def _map_cache_key(robot: Robot | ArmModel, map_options: Mapping[str, Any]) -> s
     desc = _model_description(robot if isinstance(robot, ArmModel) else ArmModel.from_robot(robot))
     blob = json.dumps({"robot": desc, "options": opts}, sort_keys=True, default=lambda o: np.asarray(o, float).tolist())
     h = hashlib.sha256(blob.encode())
-    for path in (plots.__file__, cmod.__file__, numbers.__file__, __file__):
+    for path in (plots.__file__, figure_base.__file__, cmod.__file__, numbers.__file__, __file__):
         h.update(Path(path).read_bytes())
     h.update(matplotlib.__version__.encode())
     return h.hexdigest()[:24]

@@ -13,23 +13,19 @@ of a cell is the score the study gives the robot standing there.  The path's x-y
 
 from __future__ import annotations
 
-import functools
-import io
 import math
 import textwrap
 from dataclasses import dataclass, field
 from typing import Any
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
-import matplotlib
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
-from planner.report.plots import PNG_COMPRESS_LEVEL, PNG_DPI, STYLE
+from planner.report.figure_base import PNG_COMPRESS_LEVEL, PNG_DPI, STYLE, new_figure, png_bytes, styled
 
 #: Infeasible cells by status code (:attr:`problems.placement.scores.PlacementStatus.code`):
 #: face grey, hatch, legend text.
@@ -105,31 +101,9 @@ class MapFrame:
     objects_xy_m: tuple[tuple[str, str, np.ndarray], ...] = ()
 
 
-def _styled(fn: Callable[..., Figure]) -> Callable[..., Figure]:
-    """Build the figure under the report's :data:`~planner.report.plots.STYLE`."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Figure:
-        with matplotlib.rc_context(STYLE):
-            return fn(*args, **kwargs)
-
-    return wrapper
-
-
 def png(fig: Figure, dpi: int = PNG_DPI) -> bytes:
     """PNG bytes of ``fig`` (no software metadata, so the output is reproducible)."""
-    buf = io.BytesIO()
-    with matplotlib.rc_context(STYLE):
-        fig.savefig(
-            buf, format="png", dpi=dpi, metadata={"Software": None}, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}
-        )
-    return buf.getvalue()
-
-
-def _new_figure(width_in: float, height_in: float) -> Figure:
-    fig = Figure(figsize=(width_in, height_in))
-    FigureCanvasAgg(fig)
-    return fig
+    return png_bytes(fig, dpi, PNG_COMPRESS_LEVEL, STYLE)
 
 
 # ------------------------------------------------------------------------------ map geometry
@@ -346,7 +320,7 @@ def _colour_bar(
         )
 
 
-@_styled
+@styled
 def error_map_figure(
     frame: MapFrame,
     panels: Sequence[MapPanel],
@@ -384,7 +358,7 @@ def error_map_figure(
     W = left + ncols * pw + (ncols - 1) * gap_w + right
     H = bottom + nrows * ph + (nrows - 1) * gap_h + top
     left += max(0.0, MIN_WIDTH_IN - W) / 2  # narrow maps centred in the minimum width
-    fig = _new_figure(max(W, MIN_WIDTH_IN), H)
+    fig = new_figure(max(W, MIN_WIDTH_IN), H)
     axs = _axes_grid(fig, nrows, ncols, (left, bottom, pw, ph), (gap_w, gap_h))
     norm = _norm([p.values for p in panels])
     if norm is not None and baseline_value is not None:  # the as-written value on the scale too
@@ -426,7 +400,7 @@ def error_map_figure(
     return fig
 
 
-@_styled
+@styled
 def margin_map_figure(
     frame: MapFrame, joint: MapPanel, singular: MapPanel, *, title: str, counts: dict[int, int], marks_label: str
 ) -> Figure:
@@ -437,7 +411,7 @@ def margin_map_figure(
     left, gap_w, top, bottom = 0.75, 1.75, 0.85, 1.25
     W, H = left + 2 * pw + gap_w + 1.3, bottom + ph + top
     left += max(0.0, MIN_WIDTH_IN - W) / 2
-    fig = _new_figure(max(W, MIN_WIDTH_IN), H)
+    fig = new_figure(max(W, MIN_WIDTH_IN), H)
     axs = _axes_grid(fig, 1, 2, (left, bottom, pw, ph), (gap_w, 0.0))
     labels = ("joint-limit margin, deg", "singularity margin (1 = at the guard)")
     for k, (ax, panel, label) in enumerate(zip(axs, (joint, singular), labels)):
@@ -573,13 +547,13 @@ def _plan_ticks(ax: Any, bars: Sequence[PlanBar], with_placement: bool) -> None:
     ax.set_ylim(0.0, top * 1.25 if top > 0 else 1.0)
 
 
-@_styled
+@styled
 def plans_figure(bars: Sequence[PlanBar], *, title: str) -> Figure:
     """Figure 3: the full plans side by side: load-induced TCP error before compensation (max and
     RMS, mm) and cycle time (s); a failed plan is shown as its reason."""
     n = max(1, len(bars))
     W = min(14.0, max(9.0, 3.5 + 1.25 * n * 1.45))
-    fig = _new_figure(W, 4.6)
+    fig = new_figure(W, 4.6)
     fig.subplots_adjust(left=0.7 / W, right=1 - 0.25 / W, bottom=0.2, top=0.86, wspace=0.2)
     gs = fig.add_gridspec(1, 2, width_ratios=(1.6, 1.0))
     ax_e, ax_t = fig.add_subplot(gs[0]), fig.add_subplot(gs[1])

@@ -14,8 +14,6 @@ paper figure each one reproduces).
 
 from __future__ import annotations
 
-import functools
-import io
 import math
 from typing import Any
 from collections.abc import Mapping, Sequence
@@ -24,7 +22,6 @@ import matplotlib
 import matplotlib.ticker
 import numpy as np
 from matplotlib.backends import backend_pdf  # noqa: F401  (imported once, before any fork)
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -33,9 +30,7 @@ from mpl_toolkits.axes_grid1 import make_axes_locatable
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
 
 from planner.numbers import NUMERICAL_FLOOR_MM, NUMERICAL_FLOOR_RAD, format_number
-
-#: PNG resolution (dots per inch): modest, keeps the report small and fast.
-PNG_DPI = 100
+from planner.report.figure_base import PNG_COMPRESS_LEVEL, PNG_DPI, STYLE, new_figure, pdf_bytes, png_bytes, styled
 
 #: Colours: one per base axis X, Y, Z and one per joint 1..6.
 AXIS_COLOURS = ("tab:blue", "tab:orange", "tab:green")
@@ -45,71 +40,20 @@ CHOSEN_COLOUR, DEFAULT_COLOUR, OTHER_COLOUR = "tab:red", "tab:blue", "0.62"
 
 #: A map whose (max - min) / |mean| is below this is drawn as one colour and labelled constant.
 CONSTANT_REL_SPREAD = 1e-6
-#: Jerk panels of figure 6 show at most this multiple of the jerk limit (a method that does not
-#: limit jerk, TOPP-RA, would squash the others); what is cut off is stated on the panel.
-JERK_VIEW_LIMITS = 1.6
 #: Angle units of figure 3, largest first: (name, degrees per unit); the first one in which the
 #: largest magnitude is at least 0.1 is used.
 ANGLE_UNITS = (("deg", 1.0), ("mdeg", 1e-3), ("µdeg", 1e-6))
-#: Figure 7 looks at the path from its side, turned by this much (deg) so the arms do not overlap.
-ARM_VIEW_TURN_DEG = 35.0
-#: PNG compression level (zlib, 0-9): 6 is matplotlib's default; 3 writes about twice as fast
-#: for files a few per cent larger.
-PNG_COMPRESS_LEVEL = 3
-
-#: Style applied while a figure is built and saved (text sizes are fixed at creation).  A fixed
-#: ``axes.titley`` spares matplotlib placing every axes title around the tick labels above it
-#: (about a sixth of the drawing time; no panel here has decorations on top).
-STYLE = {
-    "pdf.compression": 3,
-    "font.size": 9,
-    "axes.titlesize": 9,
-    "legend.fontsize": 8,
-    "figure.titlesize": 10,
-    "axes.titley": 1.0,
-    "axes.titlepad": 5.0,
-}
-
-
-def _styled(fn):
-    """Build the figure under :data:`STYLE` without touching the global rc settings."""
-
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        with matplotlib.rc_context(STYLE):
-            return fn(*args, **kwargs)
-
-    return wrapper
-
-
-def _figure(width_in: float, height_in: float, **adjust: float) -> Figure:
-    """A figure on the Agg canvas with fixed margins (``subplots_adjust`` keywords).
-
-    Margins are set by hand rather than by the constrained-layout engine, which
-    would double the drawing time (report generation has a time budget).
-    """
-    fig = Figure(figsize=(width_in, height_in))
-    FigureCanvasAgg(fig)
-    fig.subplots_adjust(**adjust)
-    return fig
 
 
 def render(fig: Figure, dpi: int = PNG_DPI) -> tuple[bytes, bytes]:
     """PNG and PDF bytes of ``fig`` (metadata fixed so output is reproducible)."""
-    png, pdf = render_png(fig, dpi), io.BytesIO()
-    with matplotlib.rc_context(STYLE):
-        fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "Creator": None, "Producer": None})
-    return png, pdf.getvalue()
+    png = render_png(fig, dpi)
+    return png, pdf_bytes(fig, STYLE)
 
 
 def render_png(fig: Figure, dpi: int = PNG_DPI) -> bytes:
     """PNG bytes of ``fig``, as :func:`render` writes them."""
-    png = io.BytesIO()
-    with matplotlib.rc_context(STYLE):
-        fig.savefig(
-            png, format="png", dpi=dpi, metadata={"Software": None}, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}
-        )
-    return png.getvalue()
+    return png_bytes(fig, dpi, PNG_COMPRESS_LEVEL, STYLE)
 
 
 def _angle_unit(values_rad: np.ndarray) -> tuple[str, float]:
@@ -189,7 +133,7 @@ def _path_overlay(ax: Any, path_uv_m: np.ndarray) -> None:
     ax.plot(*path_uv_m[-1], marker=">", color="crimson", mec="white", ms=6, zorder=7)
 
 
-@_styled
+@styled
 def compliance_map_figure(
     u_m: np.ndarray,
     v_m: np.ndarray,
@@ -227,7 +171,7 @@ def compliance_map_figure(
     """
     aspect = float(np.clip((v_m[-1] - v_m[0]) / max(u_m[-1] - u_m[0], 1e-12), 0.4, 1.2))
     height = 2.0 * (2.75 * aspect + 0.85) + 1.7  # two rows of panels at equal scale, title, legend
-    fig = _figure(
+    fig = new_figure(
         12.5,
         height,
         left=0.055,
@@ -287,7 +231,7 @@ def compliance_map_figure(
 
 
 # ------------------------------------------------------------- 2. stiffness and error along path
-@_styled
+@styled
 def stiffness_error_figure(
     s_mm: np.ndarray, stiffness_n_per_m: np.ndarray, error_m: np.ndarray, *, title: str
 ) -> Figure:
@@ -302,7 +246,7 @@ def stiffness_error_figure(
     error_m : ndarray, shape (N, 3)
         TCP position error under load, uncompensated, base frame, m.
     """
-    fig = _figure(11.0, 4.6, left=0.07, right=0.985, bottom=0.12, top=0.83, wspace=0.24)
+    fig = new_figure(11.0, 4.6, left=0.07, right=0.985, bottom=0.12, top=0.83, wspace=0.24)
     a1, a2 = fig.subplots(1, 2, sharex=True)
     for j, name in enumerate("XYZ"):
         a1.plot(
@@ -330,7 +274,7 @@ def stiffness_error_figure(
 
 
 # --------------------------------------------------------------------- 3. compensation angles
-@_styled
+@styled
 def compensation_figure(
     s_mm: np.ndarray, dq_exact_rad: np.ndarray, dq_closed_rad: np.ndarray | None, *, title: str
 ) -> Figure:
@@ -346,7 +290,7 @@ def compensation_figure(
     """
     rows = 4 if dq_closed_rad is not None else 2
     height = 2.35 * rows + 1.2
-    fig = _figure(
+    fig = new_figure(
         12.0, height, left=0.075, right=0.985, bottom=0.6 / height, top=1.0 - 0.75 / height, wspace=0.36, hspace=0.55
     )
     axs = fig.subplots(rows, 3, sharex=True)
@@ -419,7 +363,7 @@ def compensation_figure(
 
 
 # ---------------------------------------------------------------------- 4. error before/after
-@_styled
+@styled
 def error_before_after_figure(
     s_mm: np.ndarray, before_m: np.ndarray, closed_m: np.ndarray, exact_m: np.ndarray, *, title: str
 ) -> Figure:
@@ -437,7 +381,7 @@ def error_before_after_figure(
     before_m, closed_m, exact_m : ndarray, shape (N, 3)
         TCP position error (reached - target), base frame, m.
     """
-    fig = _figure(12.0, 7.0, left=0.065, right=0.985, bottom=0.08, top=0.86, wspace=0.3, hspace=0.32)
+    fig = new_figure(12.0, 7.0, left=0.065, right=0.985, bottom=0.08, top=0.86, wspace=0.3, hspace=0.32)
     axs = fig.subplots(2, 3, sharex=True)
     exact_zero = bool(np.all(np.abs(exact_m) * 1e3 < NUMERICAL_FLOOR_MM))
     exact_label = "after exact compensation: 0 (numerical)" if exact_zero else "after exact compensation"
@@ -463,7 +407,7 @@ def error_before_after_figure(
 
 
 # ----------------------------------------------------------------------- 5. branch comparison
-@_styled
+@styled
 def _branch_ticks(labels: Sequence[str], chosen: str | None, default: str | None) -> list[str]:
     """Tick labels of the branch bars: long labels (OPW: front-up-noflip) two parts a line, so
     neighbouring ticks do not overlap; the chosen and the default branch marked."""
@@ -515,7 +459,7 @@ def branch_figure(
     """
     ticks = _branch_ticks(labels, chosen, default)
     n_lines = max(t.count("\n") + 1 for t in ticks) if ticks else 1
-    fig = _figure(
+    fig = new_figure(
         12.5,
         5.2 + 0.15 * max(0, n_lines - 2),
         left=0.06,
@@ -583,263 +527,15 @@ def branch_figure(
     return fig
 
 
-# ----------------------------------------------------------------------------- 6. trajectory
-def _limit_lines(ax, lim: np.ndarray | None, colours: Sequence[str]) -> None:
-    if lim is None:
-        return
-    lim = np.asarray(lim, dtype=float)
-    if np.allclose(lim, lim[0]):
-        for s in (1, -1):
-            ax.axhline(s * lim[0], color="k", ls="--", lw=1.0, label="limit" if s == 1 else None)
-    else:
-        for j, l in enumerate(lim):
-            for s in (1, -1):
-                ax.axhline(
-                    s * l,
-                    color=colours[j],
-                    ls="--",
-                    lw=0.8,
-                    label="limits (per joint, dashed)" if (j == 0 and s == 1) else None,
-                )
-
-
-@_styled
-def trajectory_figure(
-    trajs: Mapping[str, Mapping[str, np.ndarray]],
-    limits: Mapping[str, np.ndarray | None],
-    *,
-    title: str,
-    headers: Mapping[str, str] | None = None,
-) -> Figure:
-    """Joint position, velocity, acceleration and jerk against time, with limits.
-
-    All panels share the time axis (the methods' durations compare at a glance) and
-    each row its value axis; the jerk row shows at most :data:`JERK_VIEW_LIMITS` times
-    the jerk limit and says what a method that does not limit jerk leaves outside.
-
-    Parameters
-    ----------
-    trajs : mapping method -> {"t": (M,), "q", "qd", "qdd", "qddd": (M, 6)}
-        One column per method (e.g. TOPP-RA, Ruckig); SI units (s, rad, rad/s ...).
-        ``"qddd"`` is the jerk as the timing computed it; when it is None (a file
-        written before the jerk was recorded) the jerk panel says so.
-    limits : mapping with keys "q_min", "q_max", "velocity", "acceleration", "jerk"
-        Arrays (6,) or None; drawn as dashed lines (position limits only if in view).
-    headers : mapping method -> str, optional
-        Column titles (duration, limit ratios).
-    """
-    methods = list(trajs)
-    fig = _figure(
-        5.8 * max(1, len(methods)) + 0.8, 10.5, left=0.08, right=0.985, bottom=0.05, top=0.88, wspace=0.12, hspace=0.25
-    )
-    axs = np.atleast_2d(fig.subplots(4, len(methods), sharex="all", sharey="row", squeeze=False))
-    rows = (
-        ("q", "q [rad]", None),
-        ("qd", "q̇ [rad/s]", "velocity"),
-        ("qdd", "q̈ [rad/s²]", "acceleration"),
-        ("jerk", "jerk [rad/s³]", "jerk"),
-    )
-    q_all = np.concatenate([np.asarray(trajs[m]["q"], float).ravel() for m in methods]) if methods else np.zeros(1)
-    qlo, qhi = float(np.nanmin(q_all)), float(np.nanmax(q_all))
-    qpad = 0.1 * max(qhi - qlo, 1e-3)
-    jlim = limits.get("jerk")
-    jview = JERK_VIEW_LIMITS * float(np.max(jlim)) if jlim is not None else None
-    for c, m in enumerate(methods):
-        tr = trajs[m]
-        t = np.asarray(tr["t"], float)
-        data = {"q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"], "jerk": tr.get("qddd")}
-        for r, (key, ylabel, lim_key) in enumerate(rows):
-            ax = axs[r, c]
-            if c == 0:
-                ax.set_ylabel(ylabel)
-            ax.grid(alpha=0.3)
-            if r == 3:
-                ax.set_xlabel("time t [s]")
-            if data[key] is None:
-                ax.text(
-                    0.5,
-                    0.5,
-                    "jerk not recorded in this trajectory file\n(no qddd columns)",
-                    transform=ax.transAxes,
-                    ha="center",
-                    va="center",
-                )
-                continue
-            y = np.asarray(data[key], float)
-            for j in range(y.shape[1]):
-                ax.plot(t, y[:, j], color=JOINT_COLOURS[j % 6], lw=1.0, label=f"joint {j + 1}")
-            if key == "q":
-                ax.set_ylim(qlo - qpad, qhi + qpad)
-                qmin, qmax = limits.get("q_min"), limits.get("q_max")
-                shown = False
-                if qmin is not None and qmax is not None:
-                    for j in range(len(qmin)):
-                        for v in (qmin[j], qmax[j]):
-                            if qlo - qpad <= v <= qhi + qpad:
-                                ax.axhline(v, color=JOINT_COLOURS[j], ls="--", lw=0.8)
-                                shown = True
-                note = ""
-                if qmin is not None and qmax is not None and not shown:
-                    note = (
-                        f"\nposition limits outside the view (joint ranges "
-                        f"{format_number(float(np.min(qmin)))} … {format_number(float(np.max(qmax)))} rad)"
-                    )
-                ax.set_title((headers or {}).get(m, m) + note)
-            else:
-                _limit_lines(ax, limits.get(lim_key), JOINT_COLOURS)
-            if key == "jerk" and jview is not None:
-                peak = float(np.nanmax(np.abs(y))) if y.size else 0.0
-                if peak > jview:
-                    ax.text(
-                        0.5,
-                        0.97,
-                        f"peak |jerk| of the samples {format_number(peak)} rad/s³ = "
-                        f"{format_number(peak / float(np.max(jlim)))}× the limit: cut off "
-                        "(this method does not limit jerk)",
-                        transform=ax.transAxes,
-                        ha="center",
-                        va="top",
-                        fontsize=8,
-                        bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"},
-                    )
-    if jview is not None:
-        axs[3, 0].set_ylim(-jview, jview)
-    handles, labels = axs[1, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", ncol=len(labels), bbox_to_anchor=(0.5, 0.965), frameon=False)
-    fig.suptitle(title)
-    return fig
-
-
-# --------------------------------------------------------------------------------- 7. arm 3-D
-def nice_factor(max_deflection_m: float, target_m: float = 0.05) -> float:
-    """An exaggeration factor 1, 2 or 5 x 10^k that makes the deflection about ``target_m``."""
-    if not (max_deflection_m > 0 and math.isfinite(max_deflection_m)):
-        return 1.0
-    raw = target_m / max_deflection_m
-    if raw <= 1.0:
-        return 1.0
-    e = 10 ** math.floor(math.log10(raw))
-    for m in (5, 2, 1):
-        if m * e <= raw:
-            return float(m * e)
-    return float(e)
-
-
-@_styled
-def arm_figure(
-    nominal_m: np.ndarray,
-    deflected_m: np.ndarray,
-    path_m: np.ndarray,
-    labels: Sequence[str],
-    factor: float,
-    *,
-    title: str,
-    joint_index: Sequence[int] | None = None,
-) -> Figure:
-    """The arm drawn in 3-D at a few poses: links between joint centres, nominal and
-    (exaggerated) deflected, on equal axes.
-
-    Parameters
-    ----------
-    nominal_m, deflected_m : ndarray, shape (P, L, 3)
-        Polyline points per pose, m: base, the joint centres along the chain, the TCP.
-    path_m : ndarray, shape (N, 3)
-        Target TCP path, m.
-    labels : sequence of str, length P
-        Pose names (e.g. ``"k = 0"``), written at each pose's TCP.
-    factor : float
-        Deflection exaggeration factor (stated in the legend).
-    joint_index : sequence of int, optional
-        Which polyline points are joint centres (drawn as dots); default all but the
-        first (base) and the last (TCP).
-    """
-    fig = _figure(9.5, 7.4)
-    ax = fig.add_axes((0.0, 0.05, 1.0, 0.83), projection="3d")
-    P, L = nominal_m.shape[:2]
-    joints = list(joint_index) if joint_index is not None else list(range(1, L - 1))
-    # look at the path from its side, turned by ARM_VIEW_TURN_DEG so the depth shows
-    run_xy = path_m[-1, :2] - path_m[0, :2] if len(path_m) > 1 else np.array([1.0, 0.0])
-    azim = (
-        math.degrees(math.atan2(run_xy[1], run_xy[0])) - 90.0 - ARM_VIEW_TURN_DEG
-        if np.linalg.norm(run_xy) > 1e-6
-        else -60.0
-    )
-    size = float(np.ptp(np.concatenate([nominal_m.reshape(-1, 3), path_m]), axis=0).max())
-    label_offset = np.array([0.0, 0.0, -0.06 * size])
-    ax.plot(*path_m.T, color="0.35", lw=1.2, ls="-", zorder=1)
-    for p in range(P):
-        c = f"C{p % 10}"
-        nom, dfl = nominal_m[p], deflected_m[p]
-        ax.plot(*dfl.T, color=c, lw=1.1, ls="--", alpha=0.9)
-        ax.plot(*nom.T, color=c, lw=3.0, solid_capstyle="round")
-        ax.scatter(*nom[joints].T, color="white", edgecolor=c, s=22, depthshade=False, zorder=5)
-        ax.scatter(*nom[-1], color=c, marker="v", s=40, depthshade=False)
-        ax.text(
-            *(nom[-1] + label_offset),
-            labels[p],
-            color=c,
-            fontsize=9,
-            ha="center",
-            va="center",
-            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0},
-            zorder=10,
-        )
-    ax.scatter([0.0], [0.0], [0.0], color="k", marker="s", s=40, depthshade=False)
-    pts = np.concatenate([nominal_m.reshape(-1, 3), deflected_m.reshape(-1, 3), path_m, np.zeros((1, 3))])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    pad = 0.05 * float(np.max(hi - lo))
-    lo, hi = lo - pad, hi + pad
-    span = np.maximum(hi - lo, 1e-3)
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_zlim(lo[2], hi[2])
-    ax.set_box_aspect(span)  # equal scale on the three axes
-    for setter in (ax.xaxis, ax.yaxis, ax.zaxis):
-        setter.set_major_locator(matplotlib.ticker.MaxNLocator(4))
-        setter.pane.set_alpha(0.15)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    handles = [
-        Line2D(
-            [],
-            [],
-            color="0.2",
-            lw=3.0,
-            marker="o",
-            mfc="white",
-            ms=5,
-            label="planned pose, TCP on the path (links between joint centres)",
-        ),
-        Line2D(
-            [],
-            [],
-            color="0.2",
-            lw=1.1,
-            ls="--",
-            label=f"the same command under the load, uncompensated: joint deflection ×{factor:g}",
-        ),
-        Line2D([], [], color="0.35", lw=1.2, label="target TCP path"),
-        Line2D([], [], color="k", marker="s", ls="", label="base origin"),
-        Line2D([], [], color="0.2", marker="v", ls="", label="TCP"),
-    ]
-    fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.925), frameon=False, fontsize=8)
-    ax.view_init(elev=18, azim=azim)
-    fig.suptitle(title, y=0.985)
-    return fig
-
-
 __all__ = [
     "ANGLE_UNITS",
-    "JERK_VIEW_LIMITS",
+    "AXIS_COLOURS",
+    "JOINT_COLOURS",
     "PNG_DPI",
-    "arm_figure",
     "branch_figure",
     "compensation_figure",
     "compliance_map_figure",
     "error_before_after_figure",
-    "nice_factor",
     "render",
     "stiffness_error_figure",
-    "trajectory_figure",
 ]

@@ -9,7 +9,6 @@ cheap; without ``fork`` (Windows) the figures are rendered in this process.
 
 from __future__ import annotations
 
-import base64
 import html
 import os
 from dataclasses import dataclass
@@ -19,7 +18,8 @@ from collections.abc import Callable
 from planner.compliance_map import ProgressFn
 from planner.report import plots
 from planner.report.figure_cache import keep_rendered, take_cached
-from planner.report.run import Run
+from planner.report.page import PAGE_END, embedded_figure, page_head, page_text
+from planner.record import RunRecord
 from planner.report.tables import Table, report_title
 
 #: Most processes used to render figures (see :func:`render_items`).
@@ -156,25 +156,7 @@ def render_fresh(
 
 
 # ------------------------------------------------------------------------------ HTML and MD
-_CSS = """
-body{font-family:system-ui,Segoe UI,Helvetica,Arial,sans-serif;max-width:1250px;margin:2em auto;
-     padding:0 1em;color:#222}
-h1{font-size:1.5em;margin-bottom:0.3em} h2{border-bottom:1px solid #ccc;padding-bottom:0.2em;margin-top:1.6em}
-table.summary{border-collapse:collapse;margin:0.5em 0 1em}
-table.summary td,table.summary th{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}
-table.summary th{background:#eee} td.num{font-family:monospace;text-align:right}
-table.headline{font-size:1.08em} table.headline td:first-child{font-weight:600}
-table.headline td.num{font-size:1.1em} table.headline td:nth-child(2){white-space:nowrap}
-td.mono{font-family:monospace;font-size:88%;text-align:left;word-break:break-all}
-td.hash{font-size:80%}
-img{max-width:100%;border:1px solid #ddd} .note{color:#555;font-size:90%;max-width:1100px}
-.absent{background:#fff4e0;border-left:4px solid #e0a030;padding:0.5em 1em}
-figure{margin:1em 0 2em} figcaption{color:#333;font-size:92%;margin-top:0.3em;max-width:1100px}
-nav.toc{font-size:90%;color:#444} nav.toc a{margin-right:0.9em}
-"""
-
-
-def _html_lists(run: Run) -> list[str]:
+def _html_lists(run: RunRecord) -> list[str]:
     """Rejected branches, warnings and absent pieces, as HTML lists (when there are any)."""
     s, out = run.summary, []
     rej = s.get("rejected_branches") or {}
@@ -209,13 +191,8 @@ def _html_figure(i: int, it: FigureItem) -> list[str]:
             f'<a href="figures/{it.name}.pdf">PDF</a>.</figcaption></figure>'
         )
         return out
-    b64 = base64.b64encode(it.png).decode("ascii")
     out.append(
-        f'<figure><img data-figure="{it.name}" alt="{html.escape(it.title)}" '
-        f'src="data:image/png;base64,{b64}">'
-        f"<figcaption>{html.escape(it.caption)} Files: "
-        f'<a href="figures/{it.name}.png">PNG</a>, '
-        f'<a href="figures/{it.name}.pdf">PDF</a>.</figcaption></figure>'
+        embedded_figure(it.name, it.title, it.caption, it.png, f"figures/{it.name}.png", f"figures/{it.name}.pdf")
     )
     return out
 
@@ -238,17 +215,12 @@ def _plotly_script(items: list[FigureItem]) -> str:
     return f'<script type="text/javascript" data-bundle="plotly.js">{get_plotlyjs()}</script>'
 
 
-def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
+def render_html(run: RunRecord, tables: list[Table], items: list[FigureItem]) -> str:
     """``report.html``: self-contained (the PNGs embedded as data URIs), the headline first."""
     title = report_title(run.summary)
     head, body, prov = _split_tables(tables)
     toc = " ".join(f'<a href="#{it.name}">Fig. {i}</a>' for i, it in enumerate(items, start=1))
-    out = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>{html.escape(title)}</title><style>{_CSS}</style>{_plotly_script(items)}</head><body>",
-        f"<h1>{html.escape(title)}</h1>",
-    ]
+    out = page_head(title, head=_plotly_script(items))
     out += [t.html() for t in head]
     out += [
         f'<nav class="toc"><a href="#details">Run details</a> <a href="#provenance">Provenance</a> {toc}</nav>',
@@ -263,11 +235,11 @@ def render_html(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
     out.append("<h2>Figures</h2>")
     for i, it in enumerate(items, start=1):
         out += _html_figure(i, it)
-    out.append("</body></html>")
-    return "\n".join(out) + "\n"
+    out.append(PAGE_END)
+    return page_text(out)
 
 
-def render_markdown(run: Run, tables: list[Table], items: list[FigureItem]) -> str:
+def render_markdown(run: RunRecord, tables: list[Table], items: list[FigureItem]) -> str:
     """``report.md``: the same tables, referencing ``figures/*.png``."""
     s = run.summary
     head, body, prov = _split_tables(tables)

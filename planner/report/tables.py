@@ -15,21 +15,16 @@ SHA-256) closes the summary.
 
 from __future__ import annotations
 
-import html
-import json
-import math
-from dataclasses import dataclass
 from typing import Any
 from collections.abc import Mapping
 
-import numpy as np
 
 from planner import branches as branch_words
-from planner.numbers import NUMERICAL_FLOOR_MM, format_number, format_value
-from planner.report.run import DYNAMIC_KEY, method_name
-
-#: Kinds of limit ratio, in table order.
-RATIO_KINDS = ("velocity", "acceleration", "jerk")
+from planner.numbers import NUMERICAL_FLOOR_MM, format_number
+from planner.record.record import method_name
+from planner.report.dynamic_tables import dynamic_headline_note, dynamic_headline_rows, dynamic_tables
+from planner.report.program_tables import program_tables
+from planner.report.table_base import RATIO_KINDS, Cell, Table, flat_numbers, lookup, value_cell
 
 #: Columns of the branch table when summary.json's branch entries have them (plan, issue 5).
 _BRANCH_KEYS = (
@@ -49,115 +44,6 @@ _BRANCH_HEADERS = {
     "cost": "NLP cost [m²]",
     "iterations": "solver iterations",
 }
-
-
-# ------------------------------------------------------------------------------- value helpers
-def lookup(summary: Mapping[str, Any], key: str) -> Any:
-    """Value at a dotted path in ``summary`` (``KeyError`` if absent); a numeric part indexes a list."""
-    cur: Any = summary
-    for part in key.split("."):
-        if isinstance(cur, Mapping) and part in cur:
-            cur = cur[part]
-        elif isinstance(cur, list) and part.isdigit() and int(part) < len(cur):
-            cur = cur[int(part)]
-        else:
-            raise KeyError(key)
-    return cur
-
-
-def fmt(v: Any, key: str = "") -> str:
-    """Display text of a table value (see :func:`planner.numbers.format_value`)."""
-    return format_value(v, key)
-
-
-def flat_numbers(v: Any) -> list[float]:
-    """The numbers of a (nested) list or array, flattened; other values are skipped."""
-    if isinstance(v, np.ndarray):
-        v = v.tolist()
-    if isinstance(v, (list, tuple)):
-        return [x for item in v for x in flat_numbers(item)]
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        return [float(v)]
-    return []
-
-
-@dataclass
-class Cell:
-    """One table cell: display text and, for values from summary.json, where they come from."""
-
-    text: str
-    key: str | None = None
-    value: Any = None
-    agg: str | None = None
-    #: Extra CSS class (e.g. ``"hash"`` for monospace digests).
-    css: str = ""
-
-    def html(self) -> str:
-        cls = f' class="{self.css}"' if self.css else ""
-        if self.key is None:
-            return f"<td{cls}>{html.escape(self.text)}</td>"
-        attrs = f' data-key="{html.escape(self.key)}" data-value="{html.escape(json.dumps(self.value))}"'
-        if self.agg:
-            attrs += f' data-agg="{self.agg}"'
-        css = ("text" if isinstance(self.value, str) else "num") + (f" {self.css}" if self.css else "")
-        return f'<td class="{css}"{attrs}>{html.escape(self.text)}</td>'
-
-
-def value_cell(summary: Mapping[str, Any], key: str, agg: str | None = None, css: str = "") -> Cell:
-    """A cell showing ``summary[key]`` (or the max of its numbers with ``agg="max"``)."""
-    try:
-        v = lookup(summary, key)
-    except KeyError:
-        return Cell("absent")
-    if agg == "max":
-        nums = [x for x in flat_numbers(v) if math.isfinite(x)]
-        if not nums:
-            return Cell("n/a")
-        shown = max(nums)
-        return Cell(fmt(shown, key), key, shown, "max", css)
-    if isinstance(v, Mapping):
-        return Cell(json.dumps(v))
-    return Cell(fmt(v, key), key, v, css=css)
-
-
-@dataclass
-class Table:
-    title: str
-    header: list[str]
-    rows: list[list[Cell]]
-    note: str = ""
-    #: CSS class of the HTML table (``summary``; the headline is ``summary headline``).
-    css: str = "summary"
-    #: HTML id (anchor) of the table.
-    anchor: str = ""
-
-    def html(self) -> str:
-        anchor = f' id="{self.anchor}"' if self.anchor else ""
-        out = [
-            f"<h3{anchor}>{html.escape(self.title)}</h3>",
-            f'<table class="{self.css}">',
-            "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in self.header) + "</tr>",
-        ]
-        out += ["<tr>" + "".join(c.html() for c in row) + "</tr>" for row in self.rows]
-        out.append("</table>")
-        if self.note:
-            out.append(f'<p class="note">{html.escape(self.note)}</p>')
-        return "\n".join(out)
-
-    def markdown(self) -> str:
-        def esc(s: str) -> str:
-            return s.replace("|", "\\|")
-
-        out = [
-            f"### {self.title}",
-            "",
-            "| " + " | ".join(esc(h) for h in self.header) + " |",
-            "|" + "---|" * len(self.header),
-        ]
-        out += ["| " + " | ".join(esc(c.text) for c in row) + " |" for row in self.rows]
-        if self.note:
-            out += ["", self.note]
-        return "\n".join(out)
 
 
 # ------------------------------------------------------------------------------------ tables
@@ -189,8 +75,6 @@ def report_title(s: Mapping[str, Any]) -> str:
 def summary_tables(summary: Mapping[str, Any], absent: Mapping[str, str]) -> list[Table]:
     """The tables of the report, headline first and provenance last (numbers traceable to
     summary.json)."""
-    from planner.report.toolpath import program_tables  # (it imports this module)
-
     tables = [headline_table(summary), _run_table(summary), _error_table(summary), _timing_table(summary, absent)]
     tables += program_tables(summary)
     tables += dynamic_tables(summary)
@@ -574,131 +458,3 @@ def _branch_table(s: Mapping[str, Any]) -> Table | None:
         "not a failure: six equations fix the six joints and only the branch is chosen."
     )
     return Table("IK branches", ["branch", "posture", "status"] + [_BRANCH_HEADERS.get(k, k) for k in keys], rows, note)
-
-
-#: The cases of the dynamic compensation: (summary.json key, row label); the headline's words
-#: (planner.dynamic.HEADLINE_CASES) open each label.
-DYNAMIC_CASES = (
-    ("none", "uncompensated (link plan commanded as is)"),
-    ("static", "static command (load and own weight, no inertial torques)"),
-    ("static+dynamic", "motor-side command (static + dynamic: trajectory.csv)"),
-)
-#: The dynamic headline's rows: (key part of ``headline.dynamic_compensation``, case words, note).
-DYNAMIC_HEADLINE_ROWS = (
-    ("uncompensated", "uncompensated", "the link plan commanded as is"),
-    ("static_command", "static command", "load and own weight compensated, no inertial torques"),
-    ("motor_side_command", "motor-side command", "the dynamic compensation: what trajectory.csv holds"),
-)
-
-
-def dynamic_headline_rows(s: Mapping[str, Any]) -> list[list[Cell]]:
-    """The headline table's rows of a plan with dynamic compensation (``headline.dynamic_compensation``,
-    computed by the plan, shown as it is): the max predicted TCP error during the motion and at rest
-    without, with the static and with the motor-side command; none without the block."""
-    h = (s.get("headline") or {}).get(DYNAMIC_KEY) if isinstance(s.get("headline"), Mapping) else None
-    if not isinstance(h, Mapping):
-        return []
-    below = set(h.get("below_numerical_floor") or [])
-    floor = f"below the numerical floor {format_number(h.get('numerical_floor_mm', NUMERICAL_FLOOR_MM))} mm"
-    rows = []
-    for where, words in (("motion", "max during the motion"), ("rest", "max at rest (start, end, dwells)")):
-        for key, case, note in DYNAMIC_HEADLINE_ROWS:
-            k = f"error_{where}_max_{key}_mm"
-            if k in h:
-                text = f"TCP error along the trajectory, {words}: {case}"
-                cell = value_cell(s, f"headline.{DYNAMIC_KEY}.{k}")
-                rows.append([Cell(text), cell, Cell("mm"), Cell(floor if k in below else note)])
-    return rows
-
-
-def dynamic_headline_note(s: Mapping[str, Any]) -> str:
-    """The headline note's sentence on the dynamic rows (their definition from summary.json), or ""."""
-    h = (s.get("headline") or {}).get(DYNAMIC_KEY) if isinstance(s.get("headline"), Mapping) else None
-    if not isinstance(h, Mapping):
-        return ""
-    return (
-        " Trajectory rows (dynamic compensation): the predicted (quasi-static) TCP error at every sample of "
-        "trajectory.csv under the load, the arm's own weight and the inertial torques, unlike the waypoint rows "
-        "(the arm model's load alone); at rest the motor-side command is the static command. Definition: "
-        "summary.json headline.dynamic_compensation.definition and the table 'Dynamic compensation: predicted "
-        "TCP error'."
-    )
-
-
-#: The command table's smoothing columns: (``dynamic_compensation`` key, header); older summaries have
-#: only the first.
-DYNAMIC_SMOOTHING_COLUMNS = (
-    ("smoothing_s", "smoothing, centred [s]"),
-    ("smoothing_edge_s", "smoothing next to rest, one-sided [s]"),
-    ("smoothing_blend_s", "hand-over [s]"),
-)
-
-
-def dynamic_tables(s: Mapping[str, Any]) -> list[Table]:
-    """The predicted TCP error without, with static and with static + dynamic compensation, and
-    the command's timing passes, limit scale and smoothing; no table when the run has no
-    dynamic compensation (summary.json key ``dynamic_compensation``)."""
-    d = s.get(DYNAMIC_KEY)
-    if not isinstance(d, Mapping):
-        return []
-    k = f"{DYNAMIC_KEY}.predicted_tcp_error"
-    rows = [
-        [Cell(label)] + [value_cell(s, f"{k}.{case}.{m}") for m in ("motion_max_mm", "motion_rms_mm", "rest_max_mm")]
-        for case, label in DYNAMIC_CASES
-    ]
-    note = " ".join(
-        p
-        for p in (
-            f"Definition: {d['definition']}." if d.get("definition") else "",
-            f"Assumptions: {d['assumptions']}." if d.get("assumptions") else "",
-            f"Series against time: {d.get('file') or 'dynamic.csv'} (figure "
-            "'TCP deviation from the planned path against time').",
-            f"Below {format_number(NUMERICAL_FLOOR_MM)} mm: 0 (numerical).",
-        )
-        if p
-    )
-    errors = Table(
-        "Dynamic compensation: predicted TCP error [mm]",
-        ["case", "max during motion [mm]", "RMS during motion [mm]", "max at rest (start, end, dwells) [mm]"],
-        rows,
-        note.replace("..", "."),
-        anchor="dynamic",
-    )
-    scale = d.get("limit_scale") if isinstance(d.get("limit_scale"), Mapping) else {}
-    kinds = [kd for kd in RATIO_KINDS if kd in scale] + [kd for kd in scale if kd not in RATIO_KINDS]
-    smoothing = [(key, text) for key, text in DYNAMIC_SMOOTHING_COLUMNS if key in d]
-    command = Table(
-        "Dynamic compensation: command",
-        ["status", "timing passes"] + [f"limit scale: {kd} [×]" for kd in kinds] + [t for _k, t in smoothing],
-        [
-            [value_cell(s, f"{DYNAMIC_KEY}.status"), value_cell(s, f"{DYNAMIC_KEY}.passes")]
-            + [value_cell(s, f"{DYNAMIC_KEY}.limit_scale.{kd}") for kd in kinds]
-            + [value_cell(s, f"{DYNAMIC_KEY}.{key}") for key, _t in smoothing]
-        ],
-        str(d.get("reason") or ""),
-        anchor="dynamic-command",
-    )
-    tables = [errors, command]
-    mismatch = d.get("mismatch")
-    if isinstance(mismatch, list) and mismatch:
-        m = f"{DYNAMIC_KEY}.mismatch"
-        cols = ("stiffness_factor", "payload_factor", "static_motion_max_mm", "static_dynamic_motion_max_mm", "gain")
-        rows = [[value_cell(s, f"{m}.{i}.{c}") for c in cols] for i, e in enumerate(mismatch) if isinstance(e, Mapping)]
-        tables.append(
-            Table(
-                "Dynamic compensation: model mismatch",
-                [
-                    "joint stiffness [× model]",
-                    "payload mass [× model]",
-                    "static command: max during motion [mm]",
-                    "motor-side command: max during motion [mm]",
-                    "gain [×]",
-                ],
-                rows,
-                "The same command (planned on the model) run on an arm whose joint stiffness and "
-                "payload mass are the factors times the model's: predicted TCP error during the "
-                "motion; gain = static command / motor-side command.",
-                anchor="dynamic-mismatch",
-            )
-        )
-    return tables

@@ -1,17 +1,11 @@
-"""Program paths in the report: the program's own view of a run, its table, and the reduction of
-long series for drawing.
+"""Program paths in the report: the reduction of long series for drawing and the feed along them.
 
 A run whose problem is a CAM program (G-code or CL data; ``summary.json`` key ``program``) has a
-:class:`ProgramView` in ``Run.program``: the waypoints in the program (workpiece) frame, their
-program line, rapid flag and programmed feed, and the program line of every sample of each
-trajectory timed by the feed law.  It is built from the plan in memory (:func:`program_from_plan`)
-or from the run folder's ``path.csv`` and the ``line`` column of ``trajectory*.csv``
-(:func:`program_from_folder`); both give the same view: the points are the base-frame targets of
-``path.csv`` taken back into the program frame by the workpiece placement the summary records, and
-the feeds are ``path.csv``'s (mm/min) in m/s.
-
-The report's program figures (:mod:`planner.report.toolpath_plot`: the toolpath coloured by the TCP
-error, the feed along the program) draw from this view; :func:`program_tables` shows the summary's
+:class:`~planner.record.ProgramRecord` in ``RunRecord.program`` (the waypoints in the workpiece
+frame the run records, their program line, rapid flag and programmed feed, and the program line of
+every sample of each trajectory timed by the feed law).  The report's program figures
+(:mod:`planner.report.toolpath_plot`: the toolpath coloured by the TCP error, the feed along the
+program) draw from it with these helpers; :mod:`planner.report.program_tables` shows the summary's
 ``program`` keys (nothing recomputed).  :func:`merge_segments` and :func:`bin_extrema` reduce
 10^5 waypoints and 10^6 samples to what a figure can show, keeping every peak.  SI units inside;
 the module prints nothing and does not import matplotlib.
@@ -20,46 +14,29 @@ the module prints nothing and does not import matplotlib.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from models.errors import InputError
-from models.transforms import rpy_to_matrix
-from problems.toolpath.feed import FEED_SLOW_TOL
-
-from planner.numbers import format_number
-from planner.report.run import method_name
-from planner.report.tables import Cell, Table, value_cell
-
-if TYPE_CHECKING:
-    from planner.plan import PlanResult
-    from planner.report.run import Run
+from planner.record.columns import MM_MIN_PER_M_S, PROGRAM_KEY
+from planner.record.record import ProgramRecord
 
 __all__ = [
     "CORNER_DEG",
     "FEED_BINS",
     "MAX_DRAWN_SEGMENTS",
+    "MM_MIN_PER_M_S",
     "PROGRAM_KEY",
-    "SLOWED_SHOWN",
-    "ProgramView",
     "bin_extrema",
     "line_feed_m_s",
     "sample_feed_m_s",
     "merge_segments",
-    "program_from_folder",
-    "program_from_plan",
-    "program_tables",
     "slowed_lines_worst_first",
     "tcp_speed_m_s",
-    "to_program_frame",
+    "view_axes",
 ]
 
-#: The ``summary.json`` key of a program path (:func:`planner.plan_summary.program_summary`).
-PROGRAM_KEY = "program"
 #: Most segments drawn per panel of the toolpath figure; a longer program is merged into chords
 #: (:func:`merge_segments`): a PDF of 10^5 coloured segments took 9 s to write, of 2 x 10^4 about 2 s.
 MAX_DRAWN_SEGMENTS = 20_000
@@ -69,146 +46,11 @@ CORNER_DEG = 30.0
 #: Bins of the feed figure's time axis (about one per pixel column): a longer trajectory is drawn
 #: as the minimum and maximum of each bin (:func:`bin_extrema`).
 FEED_BINS = 1500
-#: Slowed program lines listed in the program table (worst first).
-SLOWED_SHOWN = 10
 #: Samples per forward-kinematics batch in :func:`tcp_speed_m_s` (bounds the (M, 4, 4) temporary).
 _FK_CHUNK = 1 << 16
-#: ``path.csv``'s program columns (:data:`planner.plan.PROGRAM_PATH_COLUMNS`) and its position columns.
-_PATH_POSITION = ("x", "y", "z")
-_PATH_PROGRAM = ("feed_mm_min", "line", "rapid")
-#: m/s -> mm/min.
-MM_MIN_PER_M_S = 6e4
 
 
-@dataclass
-class ProgramView:
-    """The program of a run, as the report draws it (SI units).
-
-    Attributes
-    ----------
-    points_m : np.ndarray
-        Shape ``(N, 3)``, m, program (workpiece) frame: the TCP waypoints.
-    line : np.ndarray
-        Shape ``(N,)``, int: the program line of the move ending at each waypoint.
-    rapid : np.ndarray
-        Shape ``(N,)``, bool: that move is a rapid.
-    feed_m_s : np.ndarray
-        Shape ``(N,)``, m/s: its programmed feed; NaN for rapids and waypoint 0.
-    sample_line : dict of method -> np.ndarray
-        Shape ``(M,)``, int: the program line of the move each sample of the method's trajectory
-        runs (the ``line`` column of its ``trajectory*.csv``); a method without one is left out.
-    """
-
-    points_m: np.ndarray
-    line: np.ndarray
-    rapid: np.ndarray
-    feed_m_s: np.ndarray
-    sample_line: dict[str, np.ndarray] = field(default_factory=dict)
-    sample_waypoint: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def n(self) -> int:
-        """Number of waypoints N."""
-        return len(self.points_m)
-
-
-# ------------------------------------------------------------------------------------ the view
-def to_program_frame(points_base_m: np.ndarray, workpiece: Mapping[str, Any]) -> np.ndarray:
-    """Base-frame points (N, 3), m, in the program frame of ``workpiece``.
-
-    Parameters
-    ----------
-    points_base_m : np.ndarray
-        Shape ``(N, 3)``, m, base frame.
-    workpiece : mapping
-        ``xyz_m`` (3,) and ``rpy_rad`` (3,): the program frame in the base frame, ``p_B = R p_P + t``
-        with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (``summary.json`` ``program.workpiece``).
-
-    Raises
-    ------
-    InputError
-        ``workpiece`` lacks 3 finite numbers for ``xyz_m`` or ``rpy_rad``.
-    """
-    try:
-        t = np.asarray(workpiece["xyz_m"], float).reshape(3)
-        rpy = np.asarray(workpiece["rpy_rad"], float).reshape(3)
-    except (KeyError, TypeError, ValueError):
-        raise InputError(
-            "summary.json: program.workpiece.xyz_m / rpy_rad missing or not 3 numbers each (m, rad)"
-        ) from None
-    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(rpy))):
-        raise InputError("summary.json: program.workpiece.xyz_m / rpy_rad are not finite")
-    R = rpy_to_matrix(rpy)
-    return (np.asarray(points_base_m, float) - t) @ R  # R^T (p - t), row by row
-
-
-def _view(summary: Mapping[str, Any], base_m: np.ndarray, feed_mm_min: np.ndarray, line, rapid) -> ProgramView:
-    """The view from ``path.csv``'s columns (the same arrays from a plan or a folder)."""
-    prog = summary[PROGRAM_KEY]
-    return ProgramView(
-        points_m=to_program_frame(base_m, prog.get("workpiece") or {}),
-        line=np.asarray(line).astype(int),
-        rapid=np.asarray(rapid).astype(bool),
-        feed_m_s=np.asarray(feed_mm_min, float) / MM_MIN_PER_M_S,
-    )
-
-
-def program_from_plan(res: PlanResult, summary: Mapping[str, Any]) -> ProgramView | None:
-    """The program view of a plan in memory (None for a path that is not a program).
-
-    ``summary``: the plan's ``summary.json`` content.  Gives the arrays that
-    :func:`planner.plan.write_outputs` writes into ``path.csv`` and the ``line`` column of
-    ``trajectory*.csv``, so the view equals :func:`program_from_folder`'s of the written folder.
-    """
-    prog = getattr(res.problem, "program", None)
-    if prog is None or not isinstance(summary.get(PROGRAM_KEY), Mapping):
-        return None
-    w = prog.waypoints
-    view = _view(summary, res.positions, w.feed_m_s * MM_MIN_PER_M_S, w.line, w.rapid)
-    link = res.dynamic is not None and getattr(res.dynamic, "link", None) is not None
-    for m, fl in res.feed.items():
-        tr = res.trajectories.get(m)
-        if tr is None or (m == res.controller and link):  # a motor-side command: no line column
-            continue
-        if len(fl.sample_move) == len(tr.t):
-            view.sample_line[m] = np.asarray(w.line)[fl.sample_move].astype(int)
-            view.sample_waypoint[m] = np.asarray(fl.sample_move).astype(int)
-    return view
-
-
-def program_from_folder(run: Run) -> ProgramView | None:
-    """The program view of a run read from its folder (None for a path that is not a program).
-
-    Reads ``path.csv``'s program columns and takes the ``line`` column of each trajectory read into
-    ``run.trajectories`` (removing it there, as in the view of a plan).  A missing or malformed
-    ``path.csv`` leaves the view None with the reason in ``run.absent["program"]``.
-    """
-    from planner.report.run import _read_csv  # the report's one CSV reader
-
-    lines = {m: tr.pop("line", None) for m, tr in run.trajectories.items()}
-    waypoints = {m: tr.pop("waypoint", None) for m, tr in run.trajectories.items()}
-    if not isinstance(run.summary.get(PROGRAM_KEY), Mapping):
-        return None
-    path = Path(run.folder) / "path.csv"
-    if not path.is_file():
-        run.absent[PROGRAM_KEY] = "program path: path.csv absent in this run (the toolpath and feed are not drawn)"
-        return None
-    cols = _read_csv(path)
-    missing = [c for c in _PATH_POSITION + _PATH_PROGRAM if c not in cols]
-    if missing:
-        run.absent[PROGRAM_KEY] = (
-            f"program path: {path.name} has no column(s) {', '.join(missing)} (written before programs were "
-            "planned?): the toolpath and feed are not drawn"
-        )
-        return None
-    base = np.column_stack([cols[c] for c in _PATH_POSITION])
-    view = _view(run.summary, base, cols["feed_mm_min"], cols["line"], cols["rapid"])
-    view.sample_line = {m: np.asarray(v).astype(int) for m, v in lines.items() if v is not None}
-    view.sample_waypoint = {m: np.asarray(v).astype(int) for m, v in waypoints.items() if v is not None}
-    return view
-
-
-def sample_feed_m_s(view: ProgramView, waypoints: np.ndarray) -> np.ndarray:
+def sample_feed_m_s(view: ProgramRecord, waypoints: np.ndarray) -> np.ndarray:
     """The programmed feed of the move each sample runs (m/s), from the waypoint that move ends at;
     NaN on a rapid (also inside a canned cycle, whose line holds rapids and feeds)."""
     k = np.asarray(waypoints).astype(int)
@@ -251,7 +93,7 @@ def tcp_speed_m_s(tcp_position, t_s: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.r_[0.0, v]
 
 
-def line_feed_m_s(view: ProgramView, lines: np.ndarray) -> np.ndarray:
+def line_feed_m_s(view: ProgramRecord, lines: np.ndarray) -> np.ndarray:
     """The programmed feed of program lines ``lines`` (m/s): the largest feed of the cutting moves
     of each line (a canned cycle's line holds rapids and one feed), NaN for a line of rapids only
     or a line not in the program."""
@@ -384,7 +226,7 @@ def view_axes(points_m: np.ndarray, rapid: np.ndarray) -> tuple[int, int, int]:
     return a, b, normal
 
 
-# ----------------------------------------------------------------------------------- the table
+# ------------------------------------------------------------------------------ slowed lines
 def slowed_lines_worst_first(entry: Mapping[str, Any]) -> list[tuple[int, float]]:
     """``(line, fraction of F)`` of a feed entry's ``slowed_lines``, slowest first (then by line)."""
     rows = []
@@ -394,105 +236,3 @@ def slowed_lines_worst_first(entry: Mapping[str, Any]) -> list[tuple[int, float]
         except (TypeError, ValueError, IndexError):
             continue
     return sorted(rows, key=lambda lf: (lf[1], lf[0]))
-
-
-def _slowed_text(entry: Mapping[str, Any]) -> str:
-    rows = slowed_lines_worst_first(entry)
-    if not rows:
-        return "none"
-    shown = ", ".join(f"line {L}: {format_number(100.0 * f, 3)} %" for L, f in rows[:SLOWED_SHOWN])
-    more = len(rows) - SLOWED_SHOWN
-    return f"{len(rows)}: {shown}" + (f" and {more} more" if more > 0 else "")
-
-
-def _ratio_cell(entry: Mapping[str, Any]) -> Cell:
-    prog, dur = entry.get("programmed_time_s"), entry.get("duration_s")
-    if isinstance(prog, (int, float)) and isinstance(dur, (int, float)) and prog > 0 and math.isfinite(dur):
-        return Cell(format_number(float(dur) / float(prog)), css="num")
-    return Cell("n/a")
-
-
-def program_tables(summary: Mapping[str, Any]) -> list[Table]:
-    """The program's tables (file, waypoints, stops, path tolerance; programmed against achieved
-    time and the slowed program lines per timing method), from ``summary.json``'s ``program``
-    keys; none for a path that is not a program."""
-    p = summary.get(PROGRAM_KEY)
-    if not isinstance(p, Mapping):
-        return []
-    k = PROGRAM_KEY
-    rows = [
-        [Cell("program file"), value_cell(summary, f"{k}.file")],
-        [Cell("kind"), value_cell(summary, f"{k}.kind")],
-        [Cell("waypoints"), value_cell(summary, f"{k}.n_waypoints")],
-        [Cell("program lines with moves"), value_cell(summary, f"{k}.n_lines")],
-        [Cell("stops (arm at rest)"), value_cell(summary, f"{k}.n_stops")],
-        [Cell("dwell [s]"), value_cell(summary, f"{k}.dwell_s")],
-        [Cell("path tolerance [mm]"), value_cell(summary, f"{k}.path_tolerance_mm")],
-        [Cell("path tolerance from"), value_cell(summary, f"{k}.path_tolerance_source")],
-        [Cell("cutting length [m]"), value_cell(summary, f"{k}.cutting_length_m")],
-    ]
-    note = "The program read as the path (summary.json 'program')."
-    if p.get("units_note"):
-        note += f" {p['units_note']}"
-    tables = [Table("Program", ["quantity", "value"], rows, note, anchor="program")]
-    feed = p.get("feed") if isinstance(p.get("feed"), Mapping) else {}
-    ctrl = summary.get("controller_trajectory")
-    cutting = any(isinstance(e, Mapping) and "cutting_time_s" in e for e in feed.values())  # (newer summaries)
-    frows = []
-    for m, entry in feed.items():
-        if not isinstance(entry, Mapping):
-            continue
-        name = method_name(summary, m) + (" (controller)" if m == ctrl else "")
-        frows.append(
-            [
-                Cell(name),
-                value_cell(summary, f"{k}.feed.{m}.programmed_time_s"),
-                value_cell(summary, f"{k}.feed.{m}.duration_s"),
-                _ratio_cell(entry),
-            ]
-            + (
-                [
-                    value_cell(summary, f"{k}.feed.{m}.cutting_time_s"),
-                    value_cell(summary, f"{k}.feed.{m}.cutting_time_over_programmed"),
-                ]
-                if cutting
-                else []
-            )
-            + [
-                value_cell(summary, f"{k}.feed.{m}.peak_feed_ratio"),
-                value_cell(summary, f"{k}.feed.{m}.n_stretches"),
-                Cell(_slowed_text(entry)),
-            ]
-        )
-    if frows:
-        tables.append(
-            Table(
-                "Program: feed",
-                [
-                    "method",
-                    "programmed time [s]",
-                    "achieved duration [s]",
-                    "achieved / programmed [×]",
-                ]
-                + (["time on cutting moves [s]", "cutting time / programmed [×]"] if cutting else [])
-                + [
-                    "peak TCP speed / F",
-                    "stretches between stops",
-                    f"slowed program lines (count: slowest {SLOWED_SHOWN}, % of F)",
-                ],
-                frows,
-                "Programmed time: length / F summed over the cutting moves (rapids count 0). Achieved: the "
-                "trajectory's duration, rapids and stops included"
-                + (
-                    "; time on cutting moves: its samples on cutting moves, their accelerations and stops included"
-                    if cutting
-                    else ""
-                )
-                + ". Slowed lines: program lines with a move whose "
-                f"peak TCP speed stays below {format_number(100.0 * (1.0 - FEED_SLOW_TOL))} % of F (the value: that "
-                "peak on the line's slowest move), slowest first; the full list is "
-                "summary.json program.feed.<method>.slowed_lines.",
-                anchor="program-feed",
-            )
-        )
-    return tables

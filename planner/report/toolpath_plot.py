@@ -2,8 +2,8 @@
 program.
 
 Drawn only for a run whose path is a CAM program (``summary.json`` key ``program``; a line path
-has neither figure, not an absent one), from the run's :class:`~planner.report.toolpath.ProgramView`
-(``Run.program``), its waypoint table and the controller's trajectory:
+has neither figure, not an absent one), from the run's :class:`~planner.record.ProgramRecord`
+(``RunRecord.program``), its waypoint table and the controller's trajectory:
 
 * :data:`TOOLPATH_FIGURE`: the programmed path in the program (workpiece) frame, mm, seen along the
   program axis it extends least along (Z for a 3-axis program: the XY view), coloured by the
@@ -34,9 +34,9 @@ from matplotlib.lines import Line2D
 from problems.toolpath.feed import FEED_SLOW_TOL
 
 from planner.numbers import NUMERICAL_FLOOR_M, format_number, mm_text
-from planner.report.plots import _figure, _styled
+from planner.report.figure_base import new_figure, styled
 from planner.report.rendering import FigureItem, job
-from planner.report.run import Run, method_name
+from planner.record import RunRecord, method_name
 from planner.report.tables import load_words
 from planner.report.toolpath import (
     MAX_DRAWN_SEGMENTS,
@@ -70,7 +70,7 @@ _AXES = "XYZ"
 
 
 # ---------------------------------------------------------------------------------- the items
-def program_items(run: Run) -> list[FigureItem]:
+def program_items(run: RunRecord) -> list[FigureItem]:
     """The program figures of ``run`` (toolpath, feed), in report order; none unless its path is
     a program (``summary.json`` key ``program``)."""
     if not isinstance(run.summary.get(PROGRAM_KEY), Mapping):
@@ -78,7 +78,7 @@ def program_items(run: Run) -> list[FigureItem]:
     return [_toolpath_item(run), _feed_item(run)]
 
 
-def _no_program(run: Run) -> str:
+def _no_program(run: RunRecord) -> str:
     return run.absent.get(PROGRAM_KEY, "program path: the program's waypoints are not available in this run")
 
 
@@ -86,14 +86,14 @@ def _norms(wp: Mapping[str, np.ndarray], prefix: str) -> np.ndarray:
     return np.linalg.norm(np.column_stack([wp[f"{prefix}{a}"] for a in "xyz"]), axis=1)
 
 
-def _header(run: Run) -> str:
+def _header(run: RunRecord) -> str:
     s = run.summary
     prog = s.get(PROGRAM_KEY) or {}
     branch = s.get("chosen_branch", s.get("branch", "?"))
     return f"{s.get('robot', '?')}, branch {branch}: program {prog.get('file', '?')}; load: {load_words(s)}"
 
 
-def _toolpath_item(run: Run) -> FigureItem:
+def _toolpath_item(run: RunRecord) -> FigureItem:
     item = FigureItem(
         TOOLPATH_FIGURE,
         "Toolpath: TCP error before and after compensation",
@@ -148,7 +148,7 @@ def _toolpath_item(run: Run) -> FigureItem:
     return item
 
 
-def _feed_item(run: Run) -> FigureItem:
+def _feed_item(run: RunRecord) -> FigureItem:
     s = run.summary
     item = FigureItem(FEED_FIGURE, "Feed along the program: TCP speed against the programmed feed", "")
     ctrl = s.get("controller_trajectory")
@@ -297,7 +297,7 @@ MIN_PANEL_RATIO = 0.33
 STACK_RATIO = 1.5
 
 
-@_styled
+@styled
 def toolpath_figure(
     segments_m: np.ndarray,
     values_m: np.ndarray,
@@ -355,7 +355,7 @@ def toolpath_figure(
         H = top_room + 0.15 + ph + bottom_room
         x0 = left + (W - (left + 2.0 * (pw + cbar_room) + gap)) / 2.0  # centred
         boxes = [(x0, bottom_room), (x0 + pw + cbar_room + gap, bottom_room)]
-    fig = _figure(W, H)
+    fig = new_figure(W, H)
     axes: list[Any] = []
     caxes: list[Any] = []
     for bx, by in boxes:
@@ -393,7 +393,7 @@ def toolpath_figure(
     return fig
 
 
-@_styled
+@styled
 def feed_figure(
     t_start_s: np.ndarray,
     t_end_s: np.ndarray,
@@ -434,7 +434,7 @@ def feed_figure(
     ]
     F = np.asarray(feed_m_s, float) * MM_MIN_PER_M_S
     slow = np.asarray(slowed, bool)
-    fig = _figure(12.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.82, hspace=0.08)
+    fig = new_figure(12.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.82, hspace=0.08)
     a1, a2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2.6, 1.0)})
     x = np.r_[t0, t1[-1:]] if len(t0) else t0  # bin edges: bin i spans x[i] .. x[i + 1]
 

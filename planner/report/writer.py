@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 from collections.abc import Mapping
 
 from planner.compliance_map import ProgressFn
@@ -11,11 +11,8 @@ from planner.output import OutputSet
 from planner.report.figures import build_figures
 from planner.report.maps import cache_rendered_maps
 from planner.report.rendering import render_html, render_items, render_markdown
-from planner.report.run import Run, load_run, run_from_plan
+from planner.record import RunRecord, read_record
 from planner.report.tables import summary_tables
-
-if TYPE_CHECKING:
-    from planner.plan import PlanResult, RunView
 
 #: The entries of a run folder that its report owns (replaced together by each report).
 REPORT_OUTPUTS = ("report.html", "report.md", "figures", "compliance_map.csv")
@@ -25,11 +22,10 @@ def write_report(
     folder: str | Path,
     progress: ProgressFn | None = None,
     *,
-    result: PlanResult | None = None,
+    record: RunRecord | None = None,
     map_options: Mapping[str, Any] | None | bool = None,
     workers: int | None = None,
     map_cache: bool = True,
-    view: RunView | None = None,
 ) -> Path:
     """Write ``report.html``, ``report.md`` and ``figures/*.png|pdf`` into a run folder.
 
@@ -40,11 +36,11 @@ def write_report(
     progress : callable, optional
         ``progress(stage, done, total)`` with stage ``"compliance map"`` (per
         chunk of grid points) and ``"figures"`` (per figure).
-    result : PlanResult, optional
-        The plan whose outputs the folder holds, still in memory: the report is
-        built from it (:func:`~planner.report.run.run_from_plan`) instead of
-        from the folder's files (:func:`~planner.report.run.load_run`).  Its arm model is the
-        one the report draws (compliance map, arm).
+    record : RunRecord, optional
+        The record of the run the folder holds, made by the plan still in memory
+        (:meth:`~planner.plan_result.PlanResult.record`); without it the record is read from the
+        folder's files (:func:`~planner.record.read_record`).  Its arm model is the one the
+        report draws (compliance map, arm).
     map_options : mapping, None or False
         Options of :func:`planner.compliance_map.compliance_map` for figure 1
         (default: the paper's section-4.3 plane with the run's robot);
@@ -56,9 +52,6 @@ def write_report(
         Reuse the compliance map drawn earlier for the same robot and options
         (kept under ``$COMPPLAN_CACHE/maps``, default ``~/.cache/compplan``), and every figure
         drawn earlier from the same data (``$COMPPLAN_CACHE/figures``).
-    view : RunView, optional
-        With ``result``: its summary and tables, already computed
-        (:meth:`~planner.plan.PlanResult.view`).
 
     Returns
     -------
@@ -71,19 +64,19 @@ def write_report(
         The folder is not a run folder or one of its files is malformed, or the identified
         model file its summary records is missing or changed (SHA-256).
     """
-    run = run_from_plan(result, folder, view) if result is not None else load_run(folder)
+    run = record if record is not None else read_record(folder)
     return publish_report(run, progress, map_options=map_options, workers=workers, map_cache=map_cache)
 
 
 def publish_report(
-    run: Run,
+    run: RunRecord,
     progress: ProgressFn | None = None,
     *,
     map_options: Mapping[str, Any] | None | bool = None,
     workers: int | None = None,
     map_cache: bool = True,
 ) -> Path:
-    """Write the report of a :class:`~planner.report.run.Run` into ``run.folder``, all or
+    """Write the report of a :class:`~planner.record.RunRecord` into ``run.folder``, all or
     nothing (options as for :func:`write_report`); returns the path of ``report.html``.
 
     The folder's :data:`REPORT_OUTPUTS` are replaced together, in one step (the folder is
@@ -101,7 +94,7 @@ def publish_report(
 
 
 def report_files(
-    run: Run,
+    run: RunRecord,
     progress: ProgressFn | None = None,
     *,
     map_options: Mapping[str, Any] | None | bool = None,

@@ -1,0 +1,124 @@
+"""The report's tables of a program path: the summary's ``program`` keys (file, waypoints, stops,
+path tolerance; programmed against achieved time and the slowed program lines per timing method),
+nothing recomputed."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+from collections.abc import Mapping
+
+from problems.toolpath.feed import FEED_SLOW_TOL
+
+from planner.numbers import format_number
+from planner.record.columns import PROGRAM_KEY
+from planner.record.record import method_name
+from planner.report.table_base import Cell, Table, value_cell
+from planner.report.toolpath import slowed_lines_worst_first
+
+__all__ = ["SLOWED_SHOWN", "program_tables"]
+
+#: Slowed program lines listed in the program table (worst first).
+SLOWED_SHOWN = 10
+
+
+def _slowed_text(entry: Mapping[str, Any]) -> str:
+    rows = slowed_lines_worst_first(entry)
+    if not rows:
+        return "none"
+    shown = ", ".join(f"line {L}: {format_number(100.0 * f, 3)} %" for L, f in rows[:SLOWED_SHOWN])
+    more = len(rows) - SLOWED_SHOWN
+    return f"{len(rows)}: {shown}" + (f" and {more} more" if more > 0 else "")
+
+
+def _ratio_cell(entry: Mapping[str, Any]) -> Cell:
+    prog, dur = entry.get("programmed_time_s"), entry.get("duration_s")
+    if isinstance(prog, (int, float)) and isinstance(dur, (int, float)) and prog > 0 and math.isfinite(dur):
+        return Cell(format_number(float(dur) / float(prog)), css="num")
+    return Cell("n/a")
+
+
+def program_tables(summary: Mapping[str, Any]) -> list[Table]:
+    """The program's tables (file, waypoints, stops, path tolerance; programmed against achieved
+    time and the slowed program lines per timing method), from ``summary.json``'s ``program``
+    keys; none for a path that is not a program."""
+    p = summary.get(PROGRAM_KEY)
+    if not isinstance(p, Mapping):
+        return []
+    k = PROGRAM_KEY
+    rows = [
+        [Cell("program file"), value_cell(summary, f"{k}.file")],
+        [Cell("kind"), value_cell(summary, f"{k}.kind")],
+        [Cell("waypoints"), value_cell(summary, f"{k}.n_waypoints")],
+        [Cell("program lines with moves"), value_cell(summary, f"{k}.n_lines")],
+        [Cell("stops (arm at rest)"), value_cell(summary, f"{k}.n_stops")],
+        [Cell("dwell [s]"), value_cell(summary, f"{k}.dwell_s")],
+        [Cell("path tolerance [mm]"), value_cell(summary, f"{k}.path_tolerance_mm")],
+        [Cell("path tolerance from"), value_cell(summary, f"{k}.path_tolerance_source")],
+        [Cell("cutting length [m]"), value_cell(summary, f"{k}.cutting_length_m")],
+    ]
+    note = "The program read as the path (summary.json 'program')."
+    if p.get("units_note"):
+        note += f" {p['units_note']}"
+    tables = [Table("Program", ["quantity", "value"], rows, note, anchor="program")]
+    feed = p.get("feed") if isinstance(p.get("feed"), Mapping) else {}
+    ctrl = summary.get("controller_trajectory")
+    cutting = any(isinstance(e, Mapping) and "cutting_time_s" in e for e in feed.values())  # (newer summaries)
+    frows = []
+    for m, entry in feed.items():
+        if not isinstance(entry, Mapping):
+            continue
+        name = method_name(summary, m) + (" (controller)" if m == ctrl else "")
+        frows.append(
+            [
+                Cell(name),
+                value_cell(summary, f"{k}.feed.{m}.programmed_time_s"),
+                value_cell(summary, f"{k}.feed.{m}.duration_s"),
+                _ratio_cell(entry),
+            ]
+            + (
+                [
+                    value_cell(summary, f"{k}.feed.{m}.cutting_time_s"),
+                    value_cell(summary, f"{k}.feed.{m}.cutting_time_over_programmed"),
+                ]
+                if cutting
+                else []
+            )
+            + [
+                value_cell(summary, f"{k}.feed.{m}.peak_feed_ratio"),
+                value_cell(summary, f"{k}.feed.{m}.n_stretches"),
+                Cell(_slowed_text(entry)),
+            ]
+        )
+    if frows:
+        tables.append(
+            Table(
+                "Program: feed",
+                [
+                    "method",
+                    "programmed time [s]",
+                    "achieved duration [s]",
+                    "achieved / programmed [×]",
+                ]
+                + (["time on cutting moves [s]", "cutting time / programmed [×]"] if cutting else [])
+                + [
+                    "peak TCP speed / F",
+                    "stretches between stops",
+                    f"slowed program lines (count: slowest {SLOWED_SHOWN}, % of F)",
+                ],
+                frows,
+                "Programmed time: length / F summed over the cutting moves (rapids count 0). Achieved: the "
+                "trajectory's duration, rapids and stops included"
+                + (
+                    "; time on cutting moves: its samples on cutting moves, their accelerations and stops included"
+                    if cutting
+                    else ""
+                )
+                + ". Slowed lines: program lines with a move whose "
+                f"peak TCP speed stays below {format_number(100.0 * (1.0 - FEED_SLOW_TOL))} % of F (the value: that "
+                "peak on the line's slowest move), slowest first; the full list is "
+                "summary.json program.feed.<method>.slowed_lines.",
+                anchor="program-feed",
+            )
+        )
+    return tables
