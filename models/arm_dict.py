@@ -34,28 +34,10 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
     effects with their parameters (SI), standard deviations, the nominal values the
     parameters refer to, and the constants of the effect formulas.
     """
-    r = model.nominal
-    th = model.theta
-    d = r.to_dict()
+    d = model.nominal.to_dict()
     d.pop("identified", None)
-
-    def g(name: str) -> np.ndarray:
-        return th[GROUP_SLICES[name]]
-
-    for i, j in enumerate(d["joints"]):
-        j["a"] = float(r.a[i] + g("geometric.da")[i])
-        j["alpha"] = float(r.alpha[i] + g("geometric.dalpha")[i])
-        j["d"] = float(r.d[i] + g("geometric.dd")[i])
-        j["theta_offset"] = float(r.theta_offset[i] + g("joint_offset.dtheta")[i])
-        j["stiffness"] = float(r.stiffness[i] / (1.0 + g("stiffness.s")[i]))
+    _fold_joint_errors(model, d["joints"])
     b2m = model.base2meas()
-    params: dict[str, Any] = {}
-    for grp, eff, _names, _unit in fx.PARAMETER_GROUPS:
-        if grp in FOLDED_GROUPS or grp.startswith("reg.") or grp == "tool.p":
-            continue
-        if eff not in model.effects and not (grp == "geometric.dbeta" and "geometric" in model.effects):
-            continue
-        params[grp] = [float(v) for v in th[GROUP_SLICES[grp]]]
     ident = {
         "format": MODEL_FORMAT,
         "registered": bool(model.registered),
@@ -67,40 +49,86 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
         "tcp_correction_m": [float(v) for v in model.tcp_correction_m],
         **({"torque_range_Nm": [float(v) for v in model.torque_range_Nm]} if model.torque_range_Nm is not None else {}),
         "effects": list(model.effects),
-        "parameters": params,
+        "parameters": _effect_parameters(model),
         "std": {k: float(v) for k, v in model.std.items() if np.isfinite(v)},
         "held": dict(model.held),
-        "constants": {
-            "tau_scale_Nm": [float(v) for v in model.tau_scale],
-            "gravity_on": bool(model.gravity_on),
-            "beam_frames": [[float(v) for v in model.beams[i].reshape(-1)] for i in range(6)],
-            "hardening_knots_Nm": [
-                float(v)
-                for v in (
-                    model.knots if model.knots is not None else np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)
-                ).reshape(-1)
-            ],
-            "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
-            "temperature_ref_C": float(model.temperature_ref),
-            **(
-                {
-                    "effect": {
-                        k: [float(v) for v in np.asarray(a, dtype=float).reshape(-1)]
-                        for k, a in model.effect_const.items()
-                    }
-                }
-                if model.effect_const
-                else {}
-            ),
-        },
-        "nominal": {
-            "a": r.a.tolist(),
-            "alpha": r.alpha.tolist(),
-            "d": r.d.tolist(),
-            "theta_offset": r.theta_offset.tolist(),
-            "stiffness": r.stiffness.tolist(),
-        },
+        "constants": _constants(model),
+        "nominal": _nominal(model),
     }
+    _add_optional(model, ident)
+    d["identified"] = ident
+    return d
+
+
+def _fold_joint_errors(model: ArmModel, joints: list[dict[str, Any]]) -> None:
+    """Fold the DH errors and the stiffness factor into the robot file's joint fields (in place)."""
+    r = model.nominal
+    th = model.theta
+
+    def g(name: str) -> np.ndarray:
+        return th[GROUP_SLICES[name]]
+
+    for i, j in enumerate(joints):
+        j["a"] = float(r.a[i] + g("geometric.da")[i])
+        j["alpha"] = float(r.alpha[i] + g("geometric.dalpha")[i])
+        j["d"] = float(r.d[i] + g("geometric.dd")[i])
+        j["theta_offset"] = float(r.theta_offset[i] + g("joint_offset.dtheta")[i])
+        j["stiffness"] = float(r.stiffness[i] / (1.0 + g("stiffness.s")[i]))
+
+
+def _effect_parameters(model: ArmModel) -> dict[str, Any]:
+    """The ``parameters`` table: each effect's parameter groups not folded into the joints (SI)."""
+    th = model.theta
+    params: dict[str, Any] = {}
+    for grp, eff, _names, _unit in fx.PARAMETER_GROUPS:
+        if grp in FOLDED_GROUPS or grp.startswith("reg.") or grp == "tool.p":
+            continue
+        if eff not in model.effects and not (grp == "geometric.dbeta" and "geometric" in model.effects):
+            continue
+        params[grp] = [float(v) for v in th[GROUP_SLICES[grp]]]
+    return params
+
+
+def _constants(model: ArmModel) -> dict[str, Any]:
+    """The ``constants`` table: the constants of the effect formulas."""
+    return {
+        "tau_scale_Nm": [float(v) for v in model.tau_scale],
+        "gravity_on": bool(model.gravity_on),
+        "beam_frames": [[float(v) for v in model.beams[i].reshape(-1)] for i in range(6)],
+        "hardening_knots_Nm": [
+            float(v)
+            for v in (
+                model.knots if model.knots is not None else np.outer(model.tau_scale, fx.HARDENING_KNOT_QUANTILES)
+            ).reshape(-1)
+        ],
+        "time_ref_s": [float(model.time_ref[0]), float(model.time_ref[1])],
+        "temperature_ref_C": float(model.temperature_ref),
+        **(
+            {
+                "effect": {
+                    k: [float(v) for v in np.asarray(a, dtype=float).reshape(-1)] for k, a in model.effect_const.items()
+                }
+            }
+            if model.effect_const
+            else {}
+        ),
+    }
+
+
+def _nominal(model: ArmModel) -> dict[str, Any]:
+    """The ``nominal`` table: the DH values and stiffness the parameters refer to."""
+    r = model.nominal
+    return {
+        "a": r.a.tolist(),
+        "alpha": r.alpha.tolist(),
+        "d": r.d.tolist(),
+        "theta_offset": r.theta_offset.tolist(),
+        "stiffness": r.stiffness.tolist(),
+    }
+
+
+def _add_optional(model: ArmModel, ident: dict[str, Any]) -> None:
+    """Add the fields written only when the model has them (noise, covariance, ranges, campaigns)."""
     if model.noise_sigma_m is not None:
         ident["noise_sigma_m"] = float(model.noise_sigma_m)
     if model.covariance is not None and model.covariance_names:
@@ -115,8 +143,6 @@ def model_to_dict(model: ArmModel) -> dict[str, Any]:
         ident["joint_range_rad"] = [[float(v) for v in row] for row in np.asarray(model.joint_range_rad)]
     if model.campaigns:
         ident["campaigns"] = [campaign_to_dict(c) for c in model.campaigns]
-    d["identified"] = ident
-    return d
 
 
 def campaign_to_dict(c: CampaignFrame) -> dict[str, Any]:

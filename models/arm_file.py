@@ -139,86 +139,106 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
     """An :class:`ArmModel` from a robot (plain file = nominal model, no effects)."""
     ident = robot.identified
     if ident is None:
-        layout = make_layout(robot)
-        return ArmModel(
-            nominal=robot,
-            theta=layout.nominal.copy(),
-            R0=np.eye(3),
-            tau_scale=np.ones(6),
-            gravity_on=False,
-            beams=fx.beam_frames(robot),
-            registered=True,
-        )
+        return _nominal_model(robot)
     try:
-        fmt = ident.get("format")
-        if fmt not in MODEL_FORMATS_READ:
-            raise RobotFileError(
-                f"{where}: [identified] format {fmt!r} is not supported (expected one of {list(MODEL_FORMATS_READ)})"
-            )
-        nom = ident["nominal"]
-        d = robot.to_dict()
-        d.pop("identified", None)
-        for key in ("a", "alpha", "d", "theta_offset", "stiffness"):
-            vals = _nums(where, f"nominal.{key}", nom[key], 6)
-            for i, j in enumerate(d["joints"]):
-                j[key] = float(vals[i])
-        nominal = robot_from_dict(d, where)
-        layout = make_layout(nominal)
-        theta = layout.nominal.copy()
-        # folded parameters: identified - nominal
-        theta[GROUP_SLICES["geometric.da"]] = robot.a - nominal.a
-        theta[GROUP_SLICES["geometric.dalpha"]] = robot.alpha - nominal.alpha
-        theta[GROUP_SLICES["geometric.dd"]] = robot.d - nominal.d
-        theta[GROUP_SLICES["joint_offset.dtheta"]] = robot.theta_offset - nominal.theta_offset
-        theta[GROUP_SLICES["stiffness.s"]] = nominal.stiffness / robot.stiffness - 1.0
-        b2m = ident["base2meas"]
-        R0 = rotvec_to_matrix(_nums(where, "base2meas.rotvec", b2m["rotvec"], 3))
-        theta[GROUP_SLICES["reg.t"]] = _nums(where, "base2meas.xyz", b2m["xyz"], 3)
-        theta[GROUP_SLICES["tool.p"]] = _nums(where, "measured_point", ident["measured_point"], 3)
-        effects = list(ident.get("effects", []))
-        for e in effects:
-            if e not in LIBRARY:
-                raise RobotFileError(f"{where}: [identified] effect '{e}' is not in the library")
-        for grp, vals in dict(ident.get("parameters", {})).items():
-            if grp not in GROUP_SLICES:
-                raise RobotFileError(f"{where}: [identified.parameters] unknown group '{grp}'")
-            s = GROUP_SLICES[grp]
-            theta[s] = _nums(where, f"parameters.{grp}", vals, s.stop - s.start)
-        c = ident["constants"]
-        tau_s = _nums(where, "constants.tau_scale_Nm", c["tau_scale_Nm"], 6)
-        beams = np.array([_nums(where, "constants.beam_frames", b, 9).reshape(3, 3) for b in c["beam_frames"]])
-        if beams.shape != (6, 3, 3):
-            raise RobotFileError(f"{where}: [identified] key 'constants.beam_frames' must hold 6 lists of 9")
-        tr = _nums(where, "constants.time_ref_s", c["time_ref_s"], 2)
-        knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"], 6 * fx.N_KNOTS).reshape(
-            6, fx.N_KNOTS
-        )
-        return ArmModel(
-            nominal=nominal,
-            theta=theta,
-            R0=R0,
-            tau_scale=tau_s,
-            gravity_on=bool(c.get("gravity_on", False)),
-            beams=beams,
-            knots=knots,
-            time_ref=(float(tr[0]), float(tr[1])),
-            temperature_ref=float(c.get("temperature_ref_C", fx.THERMAL_REFERENCE_C)),
-            effects=effects,
-            registered=bool(ident.get("registered", False)),
-            std=dict(ident.get("std", {})),
-            noise_sigma_m=ident.get("noise_sigma_m"),
-            held=dict(ident.get("held", {})),
-            tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3),
-            torque_range_Nm=(
-                _nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6) if "torque_range_Nm" in ident else None
-            ),
-            effect_const=_effect_constants(where, c),
-            **_where_it_holds(where, ident),
-        )
+        return _identified_model(robot, ident, where)
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
     except (TypeError, AttributeError, ValueError) as exc:
         raise RobotFileError(f"{where}: [identified] table is malformed ({exc})") from None
+
+
+def _nominal_model(robot: Robot) -> ArmModel:
+    """The nominal model of a plain robot file (no effects, registered)."""
+    layout = make_layout(robot)
+    return ArmModel(
+        nominal=robot,
+        theta=layout.nominal.copy(),
+        R0=np.eye(3),
+        tau_scale=np.ones(6),
+        gravity_on=False,
+        beams=fx.beam_frames(robot),
+        registered=True,
+    )
+
+
+def _nominal_robot(robot: Robot, ident: dict[str, Any], where: str) -> Robot:
+    """The nominal robot the ``[identified]`` parameters refer to (after checking the table's format)."""
+    fmt = ident.get("format")
+    if fmt not in MODEL_FORMATS_READ:
+        raise RobotFileError(
+            f"{where}: [identified] format {fmt!r} is not supported (expected one of {list(MODEL_FORMATS_READ)})"
+        )
+    nom = ident["nominal"]
+    d = robot.to_dict()
+    d.pop("identified", None)
+    for key in ("a", "alpha", "d", "theta_offset", "stiffness"):
+        vals = _nums(where, f"nominal.{key}", nom[key], 6)
+        for i, j in enumerate(d["joints"]):
+            j[key] = float(vals[i])
+    return robot_from_dict(d, where)
+
+
+def _identified_theta(
+    robot: Robot, nominal: Robot, ident: dict[str, Any], where: str
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Parameter vector, base-to-measurement rotation (3, 3) and effects of an ``[identified]`` table."""
+    theta = make_layout(nominal).nominal.copy()
+    # folded parameters: identified - nominal
+    theta[GROUP_SLICES["geometric.da"]] = robot.a - nominal.a
+    theta[GROUP_SLICES["geometric.dalpha"]] = robot.alpha - nominal.alpha
+    theta[GROUP_SLICES["geometric.dd"]] = robot.d - nominal.d
+    theta[GROUP_SLICES["joint_offset.dtheta"]] = robot.theta_offset - nominal.theta_offset
+    theta[GROUP_SLICES["stiffness.s"]] = nominal.stiffness / robot.stiffness - 1.0
+    b2m = ident["base2meas"]
+    R0 = rotvec_to_matrix(_nums(where, "base2meas.rotvec", b2m["rotvec"], 3))
+    theta[GROUP_SLICES["reg.t"]] = _nums(where, "base2meas.xyz", b2m["xyz"], 3)
+    theta[GROUP_SLICES["tool.p"]] = _nums(where, "measured_point", ident["measured_point"], 3)
+    effects = list(ident.get("effects", []))
+    for e in effects:
+        if e not in LIBRARY:
+            raise RobotFileError(f"{where}: [identified] effect '{e}' is not in the library")
+    for grp, vals in dict(ident.get("parameters", {})).items():
+        if grp not in GROUP_SLICES:
+            raise RobotFileError(f"{where}: [identified.parameters] unknown group '{grp}'")
+        s = GROUP_SLICES[grp]
+        theta[s] = _nums(where, f"parameters.{grp}", vals, s.stop - s.start)
+    return theta, R0, effects
+
+
+def _identified_model(robot: Robot, ident: dict[str, Any], where: str) -> ArmModel:
+    """The model of a robot file with an ``[identified]`` table (its errors raised as they come)."""
+    nominal = _nominal_robot(robot, ident, where)
+    theta, R0, effects = _identified_theta(robot, nominal, ident, where)
+    c = ident["constants"]
+    tau_s = _nums(where, "constants.tau_scale_Nm", c["tau_scale_Nm"], 6)
+    beams = np.array([_nums(where, "constants.beam_frames", b, 9).reshape(3, 3) for b in c["beam_frames"]])
+    if beams.shape != (6, 3, 3):
+        raise RobotFileError(f"{where}: [identified] key 'constants.beam_frames' must hold 6 lists of 9")
+    tr = _nums(where, "constants.time_ref_s", c["time_ref_s"], 2)
+    knots = _nums(where, "constants.hardening_knots_Nm", c["hardening_knots_Nm"], 6 * fx.N_KNOTS).reshape(6, fx.N_KNOTS)
+    return ArmModel(
+        nominal=nominal,
+        theta=theta,
+        R0=R0,
+        tau_scale=tau_s,
+        gravity_on=bool(c.get("gravity_on", False)),
+        beams=beams,
+        knots=knots,
+        time_ref=(float(tr[0]), float(tr[1])),
+        temperature_ref=float(c.get("temperature_ref_C", fx.THERMAL_REFERENCE_C)),
+        effects=effects,
+        registered=bool(ident.get("registered", False)),
+        std=dict(ident.get("std", {})),
+        noise_sigma_m=ident.get("noise_sigma_m"),
+        held=dict(ident.get("held", {})),
+        tcp_correction_m=_nums(where, "tcp_correction_m", ident.get("tcp_correction_m", [0, 0, 0]), 3),
+        torque_range_Nm=(
+            _nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6) if "torque_range_Nm" in ident else None
+        ),
+        effect_const=_effect_constants(where, c),
+        **_where_it_holds(where, ident),
+    )
 
 
 def load_model(spec: str | Path) -> ArmModel:

@@ -355,6 +355,86 @@ def orientation_error(graph: Graph, ctx: Context, rv_meas: Any) -> Any:
     return 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
 
 
+def _measure_jacobian(
+    graph: Graph,
+    observed: Callable[[Graph, Context], Any],
+    el: np.ndarray,
+    row: ca.SX,
+    theta: ca.SX,
+    const: ca.SX,
+    const_F: Callable[[Context], Any],
+) -> ca.Function:
+    """``ident_measure_jac(row, q_eq, theta, const) -> p, J``: the measurement and its Jacobian in the eligible
+    parameters ``el`` (others' columns zero).
+
+    The fixed point restarted from the converged q_eq (an input), so the value is exact and the
+    derivative carries the implicit-function factor to first order.
+    """
+    n = len(el)
+    qc, tn, dT = row[0:6], row[12], row[13]
+    idx_el = np.flatnonzero(el)
+    idx_fx = np.flatnonzero(~el)
+    th_el = ca.SX.sym("theta_el", len(idx_el))
+    th_fx = ca.SX.sym("theta_fixed", len(idx_fx))
+    parts: list[Any] = [None] * n
+    for k, i in enumerate(idx_el):
+        parts[i] = th_el[k]
+    for k, i in enumerate(idx_fx):
+        parts[i] = th_fx[k]
+    theta_v = ca.vertcat(*parts)
+    q_in = ca.SX.sym("q_eq", 6)
+    ctx2 = graph.context(theta_v, const, dT, tn, qc)
+    dh2 = graph.geometry(ctx2)
+    graph.equilibrium(ctx2, dh2, qc, const_F, q_start=q_in, n_iter=JACOBIAN_UNROLL)
+    p2 = observed(graph, ctx2)
+    jac = ca.jacobian(p2, th_el)
+    jf = ca.Function("ident_measure_jac_el", [row, q_in, th_el, th_fx, const], [p2, jac])
+    pj, Jj = jf(
+        row,
+        q_in,
+        theta[idx_el.tolist()] if len(idx_el) else ca.SX(0, 1),
+        theta[idx_fx.tolist()] if len(idx_fx) else ca.SX(0, 1),
+        const,
+    )
+    return ca.Function(
+        "ident_measure_jac", [row, q_in, theta, const], [pj, Jj], ["row", "q_eq", "theta", "const"], ["p", "J"]
+    )
+
+
+def _torques_function(graph: Graph, theta: ca.SX, const: ca.SX, qs: ca.SX, Fs: ca.SX, dTs: ca.SX) -> ca.Function:
+    """``ident_torques(q_c, F, dT, theta, const) -> tau_ext, tau_g, q_eq`` (no time drift)."""
+    ctx3 = graph.context(theta, const, dTs, 0.0, qs)
+    dh3 = graph.geometry(ctx3)
+    q_eq = graph.equilibrium(ctx3, dh3, qs, lambda _c: Fs)
+    te, to = graph.torques(ctx3)
+    return ca.Function(
+        "ident_torques",
+        [qs, Fs, dTs, theta, const],
+        [te, to, q_eq],
+        ["q_c", "F", "dT", "theta", "const"],
+        ["tau_ext", "tau_g", "q_eq"],
+    )
+
+
+def _point_jacobian_function(
+    graph: Graph, convention: str, theta: ca.SX, const: ca.SX, qs: ca.SX, dTs: ca.SX
+) -> ca.Function:
+    """``ident_point_jacobian(q, dT, theta, const) -> p, Jp``: the undeflected arm's measured point and its
+    positional Jacobian, measurement frame."""
+    ctx4 = graph.context(theta, const, dTs, 0.0, qs)
+    dh4 = graph.geometry(ctx4)
+    ctx4.at(chain(qs, dh4, convention), lambda _c: ca.DM.zeros(6))
+    p0 = ca.mtimes(ctx4.flange, ca.vertcat(ctx4.p("tool.p"), 1))[:3]
+    p0m = graph.measurement(ctx4, p0)
+    return ca.Function(
+        "ident_point_jacobian",
+        [qs, dTs, theta, const],
+        [p0m, ca.jacobian(p0m, qs)],
+        ["q", "dT", "theta", "const"],
+        ["p", "Jp"],
+    )
+
+
 @lru_cache(maxsize=8)
 def identification_functions(
     convention: str, eligible: tuple[bool, ...] | None = None, orientation: bool = False, general: bool = False
@@ -399,61 +479,10 @@ def identification_functions(
     p_meas = observed(graph, ctx)
     measure = ca.Function("ident_measure", [row, theta, const], [p_meas, q], ["row", "theta", "const"], ["p", "q_eq"])
 
-    # Jacobian: the fixed point restarted from the converged q_eq (an input), so the value is
-    # exact and the derivative carries the implicit-function factor to first order.
-    idx_el = np.flatnonzero(el)
-    idx_fx = np.flatnonzero(~el)
-    th_el = ca.SX.sym("theta_el", len(idx_el))
-    th_fx = ca.SX.sym("theta_fixed", len(idx_fx))
-    parts: list[Any] = [None] * n
-    for k, i in enumerate(idx_el):
-        parts[i] = th_el[k]
-    for k, i in enumerate(idx_fx):
-        parts[i] = th_fx[k]
-    theta_v = ca.vertcat(*parts)
-    q_in = ca.SX.sym("q_eq", 6)
-    ctx2 = graph.context(theta_v, const, dT, tn, qc)
-    dh2 = graph.geometry(ctx2)
-    graph.equilibrium(ctx2, dh2, qc, const_F, q_start=q_in, n_iter=JACOBIAN_UNROLL)
-    p2 = observed(graph, ctx2)
-    jac = ca.jacobian(p2, th_el)
-    jf = ca.Function("ident_measure_jac_el", [row, q_in, th_el, th_fx, const], [p2, jac])
-    pj, Jj = jf(
-        row,
-        q_in,
-        theta[idx_el.tolist()] if len(idx_el) else ca.SX(0, 1),
-        theta[idx_fx.tolist()] if len(idx_fx) else ca.SX(0, 1),
-        const,
-    )
-    measure_jac = ca.Function(
-        "ident_measure_jac", [row, q_in, theta, const], [pj, Jj], ["row", "q_eq", "theta", "const"], ["p", "J"]
-    )
-
+    measure_jac = _measure_jacobian(graph, observed, el, row, theta, const, const_F)
     qs, Fs, dTs = ca.SX.sym("q", 6), ca.SX.sym("F", 6), ca.SX.sym("dT", 1)
-    ctx3 = graph.context(theta, const, dTs, 0.0, qs)
-    dh3 = graph.geometry(ctx3)
-    q_eq = graph.equilibrium(ctx3, dh3, qs, lambda _c: Fs)
-    te, to = graph.torques(ctx3)
-    torques = ca.Function(
-        "ident_torques",
-        [qs, Fs, dTs, theta, const],
-        [te, to, q_eq],
-        ["q_c", "F", "dT", "theta", "const"],
-        ["tau_ext", "tau_g", "q_eq"],
-    )
-
-    ctx4 = graph.context(theta, const, dTs, 0.0, qs)
-    dh4 = graph.geometry(ctx4)
-    ctx4.at(chain(qs, dh4, convention), lambda _c: ca.DM.zeros(6))
-    p0 = ca.mtimes(ctx4.flange, ca.vertcat(ctx4.p("tool.p"), 1))[:3]
-    p0m = graph.measurement(ctx4, p0)
-    point_jac = ca.Function(
-        "ident_point_jacobian",
-        [qs, dTs, theta, const],
-        [p0m, ca.jacobian(p0m, qs)],
-        ["q", "dT", "theta", "const"],
-        ["p", "Jp"],
-    )
+    torques = _torques_function(graph, theta, const, qs, Fs, dTs)
+    point_jac = _point_jacobian_function(graph, convention, theta, const, qs, dTs)
     return {"measure": measure, "measure_jac": measure_jac, "torques": torques, "point_jacobian": point_jac}
 
 

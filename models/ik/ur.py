@@ -62,6 +62,21 @@ def _rx_tx(alpha: float, a: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0, a], [0.0, c, -s, 0.0], [0.0, s, c, 0.0], [0.0, 0.0, 0.0, 1.0]])
 
 
+def _branch_codes(oks: list, c3s: list, s5s: list, c5s: list, r: Any, ratio: Any) -> list:
+    """Status code of each of the 8 branches, most fundamental reason first (see IKStatus)."""
+    codes = []
+    for b in range(8):
+        sh, w = b // 4, (b // 2) % 2
+        code = ca.if_else(oks[b], float(IKStatus.OK.code), float(IKStatus.JOINT_LIMIT.code))
+        code = ca.if_else(ca.fabs(c3s[2 * sh + w]) > 1 + IK_CLIP_TOL, float(IKStatus.ELBOW_UNREACHABLE.code), code)
+        code = ca.if_else(ca.fabs(s5s[2 * sh + w]) < IK_WRIST_SINGULAR_TOL, float(IKStatus.WRIST_SINGULAR.code), code)
+        code = ca.if_else(ca.fabs(c5s[sh]) > 1 + IK_CLIP_TOL, float(IKStatus.WRIST_UNREACHABLE.code), code)
+        code = ca.if_else(r < IK_SHOULDER_SINGULAR_TOL, float(IKStatus.SHOULDER_SINGULAR.code), code)
+        code = ca.if_else(ca.fabs(ratio) > 1 + IK_CLIP_TOL, float(IKStatus.SHOULDER_UNREACHABLE.code), code)
+        codes.append(code)
+    return codes
+
+
 @register_family
 class AnalyticIK(IKSolver):
     """Closed-form IK of a UR-type arm described by a robot file.
@@ -220,19 +235,7 @@ class AnalyticIK(IKSolver):
             qb = ca.if_else(qb > hi, qb - two_pi * ca.ceil((qb - hi) / two_pi), qb)
             qs.append(qb)
             oks.append(ca.mmin(ca.fmin(qb - lo, hi - qb)) >= -1e-12)
-        # Status per branch, most fundamental reason first (see IKStatus).
-        codes = []
-        for b in range(8):
-            sh, w = b // 4, (b // 2) % 2
-            code = ca.if_else(oks[b], float(IKStatus.OK.code), float(IKStatus.JOINT_LIMIT.code))
-            code = ca.if_else(ca.fabs(c3s[2 * sh + w]) > 1 + IK_CLIP_TOL, float(IKStatus.ELBOW_UNREACHABLE.code), code)
-            code = ca.if_else(
-                ca.fabs(s5s[2 * sh + w]) < IK_WRIST_SINGULAR_TOL, float(IKStatus.WRIST_SINGULAR.code), code
-            )
-            code = ca.if_else(ca.fabs(c5s[sh]) > 1 + IK_CLIP_TOL, float(IKStatus.WRIST_UNREACHABLE.code), code)
-            code = ca.if_else(r < IK_SHOULDER_SINGULAR_TOL, float(IKStatus.SHOULDER_SINGULAR.code), code)
-            code = ca.if_else(ca.fabs(ratio) > 1 + IK_CLIP_TOL, float(IKStatus.SHOULDER_UNREACHABLE.code), code)
-            codes.append(code)
+        codes = _branch_codes(oks, c3s, s5s, c5s, r, ratio)
         return ca.Function("ik_branches", [Tt], [ca.horzcat(*qs), ca.vertcat(*codes)], ["tcp2base"], ["q", "status"])
 
     @property

@@ -160,6 +160,12 @@ def _map_components(text: str) -> tuple[str, ...]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the sub-commands of this module."""
+    _add_identify(sub)
+    _add_simulate(sub)
+
+
+def _add_identify(sub: argparse._SubParsersAction) -> None:
+    """Add the ``identify`` sub-command."""
     p = sub.add_parser(
         "identify",
         help="identify the model from measurements and report before/after",
@@ -234,6 +240,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_force_argument(p, "--report")
     p.set_defaults(func=run_identify)
 
+
+def _add_simulate(sub: argparse._SubParsersAction) -> None:
+    """Add the ``simulate`` sub-command."""
     p = sub.add_parser(
         "simulate",
         help="measurement campaign from the virtual robot",

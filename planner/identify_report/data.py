@@ -9,7 +9,7 @@ from typing import Any
 from planner.numbers import format_number
 from planner.provenance import builtin_robot_file, input_file, provenance
 from problems.identify import IdentificationResult
-from problems.identify.results import held_summary
+from problems.identify.results import CandidateScore, held_summary
 
 
 #: The base-frame and measurement-frame results of the compensation check agree when their fractions
@@ -22,44 +22,79 @@ def _mm(v: float | None) -> float | None:
     return None if v is None else float(v) * 1e3
 
 
+def _history_dicts(res: IdentificationResult) -> list[dict[str, Any]]:
+    """The selection history: one entry per step, with its candidates (mm)."""
+    return [
+        {
+            "step": st.index,
+            "effects": st.effects,
+            "n_params": st.n_params,
+            "rms_mm": _mm(st.rms_m),
+            "cv_rms_mm": _mm(st.cv_rms_m),
+            "bic": st.bic,
+            "n_excluded": st.n_excluded,
+            "accepted": st.accepted,
+            "reason": st.reason,
+            "candidates": [_candidate_dict(c) for c in st.candidates],
+        }
+        for st in res.history
+    ]
+
+
+def _candidate_dict(c: CandidateScore) -> dict[str, Any]:
+    """One candidate's score at one step (mm)."""
+    return {
+        "effect": c.effect,
+        "n_params": c.n_params,
+        "cv_rms_mm": _mm(c.cv_rms_m),
+        "rms_mm": _mm(c.rms_m),
+        "bic": c.bic,
+        "delta_bic": c.delta_bic,
+        "f_pvalue": c.f_pvalue,
+        "explained_share": c.explained_share,
+        "refined": c.refined,
+        "accepted": c.accepted,
+        "reason": c.reason,
+        "detail": getattr(c, "detail", "") or "",
+        "held": c.held,
+    }
+
+
+def _parameter_dicts(res: IdentificationResult) -> list[dict[str, Any]]:
+    """The identified parameters (SI), with their status."""
+    return [
+        {
+            "name": p.name,
+            "effect": p.effect,
+            "value": p.value,
+            "std": p.std,
+            "unit": p.unit,
+            "status": p.status.value,
+            "reason": p.reason,
+        }
+        for p in res.parameters
+    ]
+
+
+def _diagnostic_dicts(res: IdentificationResult) -> list[dict[str, Any]]:
+    """The diagnostics of the final residual."""
+    return [
+        {
+            "variable": d.variable,
+            "explained_fraction": d.explained_fraction,
+            "p_value": d.p_value,
+            "significant": d.significant,
+            "description": d.description,
+        }
+        for d in res.diagnostics
+    ]
+
+
 def report_dict(
     res: IdentificationResult, model_path: str | None = None, data_path: str | None = None
 ) -> dict[str, Any]:
     """The content of ``report.json`` (SI inside the library, mm in the report)."""
     m = res.data
-    hist = []
-    for st in res.history:
-        hist.append(
-            {
-                "step": st.index,
-                "effects": st.effects,
-                "n_params": st.n_params,
-                "rms_mm": _mm(st.rms_m),
-                "cv_rms_mm": _mm(st.cv_rms_m),
-                "bic": st.bic,
-                "n_excluded": st.n_excluded,
-                "accepted": st.accepted,
-                "reason": st.reason,
-                "candidates": [
-                    {
-                        "effect": c.effect,
-                        "n_params": c.n_params,
-                        "cv_rms_mm": _mm(c.cv_rms_m),
-                        "rms_mm": _mm(c.rms_m),
-                        "bic": c.bic,
-                        "delta_bic": c.delta_bic,
-                        "f_pvalue": c.f_pvalue,
-                        "explained_share": c.explained_share,
-                        "refined": c.refined,
-                        "accepted": c.accepted,
-                        "reason": c.reason,
-                        "detail": getattr(c, "detail", "") or "",
-                        "held": c.held,
-                    }
-                    for c in st.candidates
-                ],
-            }
-        )
     out: dict[str, Any] = {
         "status": res.status.value,
         "reason": res.reason,
@@ -78,30 +113,10 @@ def report_dict(
         "error_maps": [s.to_dict() for s in getattr(res, "error_maps", None) or []],
         "unexplained": {**res.unexplained, "weak": bool(res.unexplained.get("weak", False))},
         "excluded_rows": res.excluded,
-        "parameters": [
-            {
-                "name": p.name,
-                "effect": p.effect,
-                "value": p.value,
-                "std": p.std,
-                "unit": p.unit,
-                "status": p.status.value,
-                "reason": p.reason,
-            }
-            for p in res.parameters
-        ],
+        "parameters": _parameter_dicts(res),
         "identifiability": res.identifiability,
-        "diagnostics": [
-            {
-                "variable": d.variable,
-                "explained_fraction": d.explained_fraction,
-                "p_value": d.p_value,
-                "significant": d.significant,
-                "description": d.description,
-            }
-            for d in res.diagnostics
-        ],
-        "history": hist,
+        "diagnostics": _diagnostic_dicts(res),
+        "history": _history_dicts(res),
         "notes": res.notes,
         "data": {
             "file": data_path or m.source,

@@ -12,7 +12,7 @@ from planner.identify_report.canvas import RenderedFigure, new_figure, render_fi
 from planner.identify_report.text import md_cell
 from planner.numbers import format_number
 from problems.identify import IdentificationResult
-from problems.identify.map_summary import MAP_BAND_SIGMAS
+from problems.identify.map_summary import MAP_BAND_SIGMAS, ErrorMapSummary
 
 #: Joint error maps drawn (panels of one figure; the largest RMS at the TCP when there are more).
 REPORT_MAP_PANELS = 6
@@ -122,12 +122,75 @@ def maps_drawn(maps: list[Any]) -> list[Any]:
     return [maps[i] for i in sorted(keep)]
 
 
-def maps_png(res: IdentificationResult) -> RenderedFigure:
-    """The joint error maps over their angle ranges (one panel per map): the map, its band, the
-    commanded angles of the data, and the map held at its end values beyond the range."""
+def _map_panel(ax: Any, m: ErrorMapSummary, q_data: np.ndarray) -> None:
+    """One map's panel: the map and its band, held at its end values beyond the range (grey), and the
+    commanded angles of the data (ticks at the bottom)."""
+    sym, words = MAP_COMPONENT_WORDS.get(m.component, (m.component, ""))
+    unit = "µrad" if m.unit == "rad" else "µm"
+    x = np.degrees(np.asarray(m.q_rad, dtype=float))
+    y = np.asarray(m.value, dtype=float) * 1e6
+    b = np.nan_to_num(np.asarray(m.band, dtype=float)) * 1e6
+    lo, hi = (float(np.degrees(v)) for v in m.range_rad)
+    pad = max(0.08 * (hi - lo), 4.0)
+    ax.fill_between(x, y - b, y + b, color="tab:blue", alpha=0.22, lw=0)
+    ax.plot(x, y, "-", color="tab:blue", lw=1.4)
+    for xa, xb, v in ((lo - pad, lo, y[0]), (hi, hi + pad, y[-1])):
+        ax.axvspan(xa, xb, color="0.88", lw=0)
+        ax.plot([xa, xb], [v, v], "--", color="tab:blue", lw=1.1)
+    if len(q_data):
+        ax.plot(
+            np.degrees(q_data[:, m.joint - 1]),
+            np.zeros(len(q_data)),
+            "|",
+            ms=6,
+            color="0.35",
+            alpha=0.5,
+            transform=ax.get_xaxis_transform(),
+        )
+    ax.set_xlim(lo - pad, hi + pad)
+    y_lo, y_hi = float(np.min(y - b)), float(np.max(y + b))
+    span = max(y_hi - y_lo, 1e-9)
+    ax.set_ylim(y_lo - 0.16 * span, y_hi + 0.06 * span)  # room for the ticks of the data
+    ax.axhline(0.0, color="0.4", lw=0.6)
+    freqs = ", ".join(format_number(hm.freq_cpr, 3) for hm in m.harmonics[:REPORT_MAP_HARMONICS])
+    more = f" (+{len(m.harmonics) - REPORT_MAP_HARMONICS})" if len(m.harmonics) > REPORT_MAP_HARMONICS else ""
+    ax.set_title(
+        f"joint {m.joint} {sym}: {words}\n{freqs}{more} cycles/rev, "
+        f"{format_number(m.rms_tcp_m * 1e6, 3)} µm RMS at the TCP"
+    )
+    ax.set_xlabel(f"commanded angle q{m.joint} [deg]")
+    ax.set_ylabel(f"{sym} error of joint {m.joint} [{unit}]")
+    ax.grid(alpha=0.3)
+
+
+def _legend_handles(spare: bool) -> list[Any]:
+    """The legend's entries (two-line labels for the narrow legend of a spare panel)."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
+    br = "\n" if spare else " "  # the legend in a spare panel is narrow: two-line labels
+    return [
+        Line2D([], [], color="tab:blue", lw=1.4, label="identified map"),
+        Patch(
+            color="tab:blue",
+            alpha=0.22,
+            label=f"uncertainty band ±{MAP_BAND_SIGMAS:g}σ{br}({MAP_BAND_SIGMAS:g} standard deviations)",
+        ),
+        Line2D(
+            [],
+            [],
+            color="tab:blue",
+            lw=1.1,
+            ls="--",
+            label=f"beyond the range (grey): held at{br}the end value, not extrapolated",
+        ),
+        Line2D([], [], color="0.35", ls="none", marker="|", ms=6, label="commanded angles of the data"),
+    ]
+
+
+def maps_png(res: IdentificationResult) -> RenderedFigure:
+    """The joint error maps over their angle ranges (one panel per map): the map, its band, the
+    commanded angles of the data, and the map held at its end values beyond the range."""
     maps_all = list(res.error_maps)
     maps = maps_drawn(maps_all)
     k = len(maps)
@@ -153,60 +216,8 @@ def maps_png(res: IdentificationResult) -> RenderedFigure:
     axs = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
     q_data = np.asarray(res.data.q, dtype=float)[np.asarray(res.inliers, dtype=bool)]
     for ax, m in zip(axs, maps):
-        sym, words = MAP_COMPONENT_WORDS.get(m.component, (m.component, ""))
-        unit = "µrad" if m.unit == "rad" else "µm"
-        x = np.degrees(np.asarray(m.q_rad, dtype=float))
-        y = np.asarray(m.value, dtype=float) * 1e6
-        b = np.nan_to_num(np.asarray(m.band, dtype=float)) * 1e6
-        lo, hi = (float(np.degrees(v)) for v in m.range_rad)
-        pad = max(0.08 * (hi - lo), 4.0)
-        ax.fill_between(x, y - b, y + b, color="tab:blue", alpha=0.22, lw=0)
-        ax.plot(x, y, "-", color="tab:blue", lw=1.4)
-        for xa, xb, v in ((lo - pad, lo, y[0]), (hi, hi + pad, y[-1])):
-            ax.axvspan(xa, xb, color="0.88", lw=0)
-            ax.plot([xa, xb], [v, v], "--", color="tab:blue", lw=1.1)
-        if len(q_data):
-            ax.plot(
-                np.degrees(q_data[:, m.joint - 1]),
-                np.zeros(len(q_data)),
-                "|",
-                ms=6,
-                color="0.35",
-                alpha=0.5,
-                transform=ax.get_xaxis_transform(),
-            )
-        ax.set_xlim(lo - pad, hi + pad)
-        y_lo, y_hi = float(np.min(y - b)), float(np.max(y + b))
-        span = max(y_hi - y_lo, 1e-9)
-        ax.set_ylim(y_lo - 0.16 * span, y_hi + 0.06 * span)  # room for the ticks of the data
-        ax.axhline(0.0, color="0.4", lw=0.6)
-        freqs = ", ".join(format_number(hm.freq_cpr, 3) for hm in m.harmonics[:REPORT_MAP_HARMONICS])
-        more = f" (+{len(m.harmonics) - REPORT_MAP_HARMONICS})" if len(m.harmonics) > REPORT_MAP_HARMONICS else ""
-        ax.set_title(
-            f"joint {m.joint} {sym}: {words}\n{freqs}{more} cycles/rev, "
-            f"{format_number(m.rms_tcp_m * 1e6, 3)} µm RMS at the TCP"
-        )
-        ax.set_xlabel(f"commanded angle q{m.joint} [deg]")
-        ax.set_ylabel(f"{sym} error of joint {m.joint} [{unit}]")
-        ax.grid(alpha=0.3)
-    br = "\n" if spare else " "  # the legend in a spare panel is narrow: two-line labels
-    handles = [
-        Line2D([], [], color="tab:blue", lw=1.4, label="identified map"),
-        Patch(
-            color="tab:blue",
-            alpha=0.22,
-            label=f"uncertainty band ±{MAP_BAND_SIGMAS:g}σ{br}({MAP_BAND_SIGMAS:g} standard deviations)",
-        ),
-        Line2D(
-            [],
-            [],
-            color="tab:blue",
-            lw=1.1,
-            ls="--",
-            label=f"beyond the range (grey): held at{br}the end value, not extrapolated",
-        ),
-        Line2D([], [], color="0.35", ls="none", marker="|", ms=6, label="commanded angles of the data"),
-    ]
+        _map_panel(ax, m, q_data)
+    handles = _legend_handles(spare)
     for ax in axs[k:]:
         ax.axis("off")
     if spare:

@@ -219,34 +219,26 @@ def campaigns_text(rep: dict[str, Any]) -> str:
     return "; ".join(out)
 
 
-def report_markdown(rep: dict[str, Any]) -> str:
-    """Markdown rendering of :func:`~planner.identify_report.data.report_dict`: the headline table first."""
-    L = ["# Identification report", "", "| quantity | value | note |", "|---|---|---|"]
-    L += [f"| {q} | {md_cell(v)} | {md_cell(n)} |" for q, v, n in headline_rows(rep)]
-    L += [
+def _validation_markdown(rep: dict[str, Any]) -> list[str]:
+    """The held-out validation file's section (none without one)."""
+    if not rep.get("validation"):
+        return []
+    v = rep["validation"]
+    return [
+        "## Validation file",
         "",
-        f"- data: `{rep['data']['file']}`, registered: {rep['data']['registered']}",
-        f"- RMS definition: {rep['rms_definition']}",
+        (
+            f"- `{v['file']}` (held out: never used in the fit): {v['n_rows']} rows, RMS per axis "
+            f"{fmt(v.get('rms_nominal_mm'))} → {fmt(v['rms_mm'])} mm (nominal robot file with the identified "
+            "registration and measured point → identified model)"
+        ),
         "",
     ]
-    if rep.get("campaigns"):  # several campaigns: one line, the figures in report.json 'campaigns'
-        L[-1:-1] = [f"- campaigns (the last is the model's registration): {campaigns_text(rep)}"]
-    L += maps_markdown(rep)
-    L += _unexplained_markdown(rep)
-    L += _compensation_markdown(rep)
-    if rep.get("validation"):
-        v = rep["validation"]
-        L += [
-            "## Validation file",
-            "",
-            (
-                f"- `{v['file']}` (held out: never used in the fit): {v['n_rows']} rows, RMS per axis "
-                f"{fmt(v.get('rms_nominal_mm'))} → {fmt(v['rms_mm'])} mm (nominal robot file with the identified "
-                "registration and measured point → identified model)"
-            ),
-            "",
-        ]
-    L += [
+
+
+def _history_markdown(rep: dict[str, Any]) -> list[str]:
+    """The selection history table, then each step's candidates."""
+    L = [
         "## Selection history",
         "",
         "| step | effects | CV RMS (mm) | RMS (mm) | excluded | decision |",
@@ -258,26 +250,36 @@ def report_markdown(rep: dict[str, Any]) -> str:
             f"{fmt(h['rms_mm'])} | {h['n_excluded']} | {h['reason']} |"
         )
     for h in rep["history"]:
-        if not h["candidates"]:
-            continue
-        L += [
-            "",
-            f"### Step {h['step']} candidates",
-            "",
-            "| effect | new params | CV RMS (mm) | dBIC | F-test p | share | accepted | reason |",
-            "|---|---|---|---|---|---|---|---|",
-        ]
-        cands = sorted(h["candidates"], key=lambda c: (c["cv_rms_mm"] is None, c["cv_rms_mm"] or 0))
-        for c in cands:
-            L.append(
-                f"| {c['effect']} | {c['n_params']} | {fmt(c['cv_rms_mm'])} | {fmt(c['delta_bic'], 3)} | "
-                f"{fmt(c['f_pvalue'], 2)} | {fmt(c['explained_share'], 2)} | {c['accepted']} | "
-                f"{md_cell(c['reason'])} |"
-            )
-        details = [c for c in cands if c.get("detail")]
-        if details:
-            L += [""] + [f"- {c['effect']}: {c['detail']}" for c in details]
-    L += [
+        if h["candidates"]:
+            L += _candidates_markdown(h)
+    return L
+
+
+def _candidates_markdown(h: dict[str, Any]) -> list[str]:
+    """One selection step's candidates table (best CV RMS first) and their details."""
+    L = [
+        "",
+        f"### Step {h['step']} candidates",
+        "",
+        "| effect | new params | CV RMS (mm) | dBIC | F-test p | share | accepted | reason |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    cands = sorted(h["candidates"], key=lambda c: (c["cv_rms_mm"] is None, c["cv_rms_mm"] or 0))
+    for c in cands:
+        L.append(
+            f"| {c['effect']} | {c['n_params']} | {fmt(c['cv_rms_mm'])} | {fmt(c['delta_bic'], 3)} | "
+            f"{fmt(c['f_pvalue'], 2)} | {fmt(c['explained_share'], 2)} | {c['accepted']} | "
+            f"{md_cell(c['reason'])} |"
+        )
+    details = [c for c in cands if c.get("detail")]
+    if details:
+        L += [""] + [f"- {c['effect']}: {c['detail']}" for c in details]
+    return L
+
+
+def _parameters_markdown(rep: dict[str, Any]) -> list[str]:
+    """The parameters table (SI units), then the held parameters."""
+    L = [
         "",
         "## Parameters (SI units)",
         "",
@@ -291,8 +293,13 @@ def report_markdown(rep: dict[str, Any]) -> str:
     held_md = _held_markdown(rep)
     if held_md:
         L += [""] + held_md[:-1]
+    return L
+
+
+def _identifiability_markdown(rep: dict[str, Any]) -> list[str]:
+    """The identifiability section, then the excluded rows (outliers)."""
     idf = rep["identifiability"]
-    L += [
+    L = [
         "",
         "## Identifiability",
         "",
@@ -307,8 +314,13 @@ def report_markdown(rep: dict[str, Any]) -> str:
             L.append(f"| {e['row']} | {e['line']} | {fmt(e['residual_mm'])} |")
     else:
         L.append("none")
+    return L
+
+
+def _diagnostics_markdown(rep: dict[str, Any]) -> list[str]:
+    """The diagnostics of the final residual (the significant and largest shown) and what the figures draw."""
     shown, hidden = shown_diagnostics(rep["diagnostics"])
-    L += [
+    L = [
         "",
         "## Diagnostics of the final residual",
         "",
@@ -329,6 +341,29 @@ def report_markdown(rep: dict[str, Any]) -> str:
     drawn_line = not_significant_line(rep["diagnostics"])
     if drawn_line:
         L += ["", f"Figures: only significant diagnostics are drawn; {drawn_line}."]
+    return L
+
+
+def report_markdown(rep: dict[str, Any]) -> str:
+    """Markdown rendering of :func:`~planner.identify_report.data.report_dict`: the headline table first."""
+    L = ["# Identification report", "", "| quantity | value | note |", "|---|---|---|"]
+    L += [f"| {q} | {md_cell(v)} | {md_cell(n)} |" for q, v, n in headline_rows(rep)]
+    L += [
+        "",
+        f"- data: `{rep['data']['file']}`, registered: {rep['data']['registered']}",
+        f"- RMS definition: {rep['rms_definition']}",
+        "",
+    ]
+    if rep.get("campaigns"):  # several campaigns: one line, the figures in report.json 'campaigns'
+        L[-1:-1] = [f"- campaigns (the last is the model's registration): {campaigns_text(rep)}"]
+    L += maps_markdown(rep)
+    L += _unexplained_markdown(rep)
+    L += _compensation_markdown(rep)
+    L += _validation_markdown(rep)
+    L += _history_markdown(rep)
+    L += _parameters_markdown(rep)
+    L += _identifiability_markdown(rep)
+    L += _diagnostics_markdown(rep)
     if rep["notes"]:
         L += ["", "## Notes", ""] + [f"- {n}" for n in rep["notes"]]
     fig_md = _figures_markdown(rep)

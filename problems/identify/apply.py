@@ -133,39 +133,36 @@ def compensate(
         out = exact_compensation(arm, q_in[idx], L[idx], tol_m=COMPENSATION_RESIDUAL_TOL, target2base=target[idx])
         q_c[idx], q_eq[idx] = out.q_command, out.q_deflected
         res[idx], rres[idx] = out.error_norm_m, out.error_rad
+    failure = _failure(model, q_c, res)
+    if failure is not None:
+        message, rows = failure
+        return CompensationOutcome(q_c, q_eq, target, res, rres, CompensationStatus.FAILED, message, failed_rows=rows)
+    return CompensationOutcome(
+        q_c, q_eq, target, res, rres, CompensationStatus.OK, f"max model-predicted residual {res.max():.3g} m"
+    )
+
+
+def _failure(model: ArmModel, q_c: np.ndarray, res: np.ndarray) -> tuple[str, np.ndarray] | None:
+    """Why the compensation failed and its failed rows: commands outside the joint limits, else residuals
+    above :data:`COMPENSATION_RESIDUAL_TOL` (None: every row compensated)."""
     bad_rows = np.flatnonzero(~(np.isfinite(res) & (res <= COMPENSATION_RESIDUAL_TOL)))
     limit_msg, limit_rows = _outside_limits(model, q_c)
     if len(limit_rows):
-        rows = np.union1d(bad_rows, limit_rows)
-        return CompensationOutcome(
-            q_c,
-            q_eq,
-            target,
-            res,
-            rres,
-            CompensationStatus.FAILED,
+        return (
             f"{len(limit_rows)} row(s) need a compensated command outside the joint limits ({limit_msg})",
-            failed_rows=rows,
+            np.union1d(bad_rows, limit_rows),
         )
     if len(bad_rows):
         worst = int(bad_rows[np.argmax(np.where(np.isfinite(res[bad_rows]), res[bad_rows], np.inf))])
-        return CompensationOutcome(
-            q_c,
-            q_eq,
-            target,
-            res,
-            rres,
-            CompensationStatus.FAILED,
+        return (
             f"{len(bad_rows)} row(s) not compensated to {COMPENSATION_RESIDUAL_TOL:g} m "
             f"(rows {', '.join(str(int(i)) for i in bad_rows[:10])}"
             f"{' ...' if len(bad_rows) > 10 else ''}; worst row {worst}: "
             f"{res[worst]:.3g} m): target at the edge of the identified model's reach "
             "or near a singularity",
-            failed_rows=bad_rows,
+            bad_rows,
         )
-    return CompensationOutcome(
-        q_c, q_eq, target, res, rres, CompensationStatus.OK, f"max model-predicted residual {res.max():.3g} m"
-    )
+    return None
 
 
 def _outside_limits(model: ArmModel, q: np.ndarray) -> tuple[str, np.ndarray]:

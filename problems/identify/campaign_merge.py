@@ -47,6 +47,45 @@ def _all_or_none(campaigns: Sequence[Measurements], attr: str, names: Sequence[s
     return all(have)
 
 
+def _check_orientation(campaigns: Sequence[Measurements], meas2ref: Sequence[np.ndarray]) -> None:
+    """Raise :class:`InputError` when campaigns with orientation columns have registrations of their own."""
+    rot = [m.rotation is not None for m in campaigns]
+    if any(rot) and not all(np.allclose(T, np.eye(4)) for T in meas2ref):
+        raise InputError(
+            f"{', '.join(m.source for m, r in zip(campaigns, rot) if r)}: orientation columns (rx, ry, rz): "
+            "several campaigns with their own registrations are fitted from positions only; give --shared "
+            "registration (one frame for every campaign) or drop the rx, ry, rz columns"
+        )
+
+
+def _campaign_rows(
+    campaigns: Sequence[Measurements],
+    names: Sequence[str],
+    meas2ref: Sequence[np.ndarray],
+    use_t: bool,
+    use_sigma: bool,
+) -> tuple[list, list, list, list, list, bool]:
+    """Per campaign: positions in the reference frame, times, point names, sigmas and per-axis sigmas.
+
+    The last item: whether a re-registered campaign's anisotropic per-axis sigmas were made isotropic.
+    """
+    aniso = False
+    P, T, PT, S, SX = [], [], [], [], []
+    for m, name, A in zip(campaigns, names, meas2ref):
+        P.append(m.p @ A[:3, :3].T + A[:3, 3])
+        T.append((m.t - float(np.min(m.t))) if use_t else np.arange(m.n, dtype=float))
+        ids = m.point if m.point is not None else m.pose_groups().astype(str)
+        PT.append(np.array([f"{name}{POSE_SEPARATOR}{i}" for i in ids], dtype=object))
+        if use_sigma:
+            S.append(np.asarray(m.sigma, dtype=float))
+            if np.allclose(A[:3, :3], np.eye(3)) and m.sigma_xyz is not None:
+                SX.append(np.asarray(m.sigma_xyz, dtype=float))
+            else:
+                aniso |= m.sigma_xyz is not None and bool(np.ptp(m.sigma_xyz, axis=1).max() > 0)
+                SX.append(np.repeat(np.asarray(m.sigma, dtype=float)[:, None], 3, axis=1))
+    return P, T, PT, S, SX, aniso
+
+
 def merge_campaigns(
     campaigns: Sequence[Measurements],
     names: Sequence[str],
@@ -80,32 +119,13 @@ def merge_campaigns(
     notes = [] if notes is None else notes
     C = len(campaigns)
     meas2ref = [np.eye(4)] * C if meas2ref is None else list(meas2ref)
-    rot = [m.rotation is not None for m in campaigns]
-    if any(rot) and not all(np.allclose(T, np.eye(4)) for T in meas2ref):
-        raise InputError(
-            f"{', '.join(m.source for m, r in zip(campaigns, rot) if r)}: orientation columns (rx, ry, rz): "
-            "several campaigns with their own registrations are fitted from positions only; give --shared "
-            "registration (one frame for every campaign) or drop the rx, ry, rz columns"
-        )
+    _check_orientation(campaigns, meas2ref)
     use_t = _all_or_none(campaigns, "t", names, notes)
     use_sigma = _all_or_none(campaigns, "sigma", names, notes)
     use_temp = _all_or_none(campaigns, "temperature", names, notes)
     use_target = all(m.target is not None for m in campaigns)
-    use_rot = all(rot)
-    aniso = False
-    P, T, PT, S, SX = [], [], [], [], []
-    for m, name, A in zip(campaigns, names, meas2ref):
-        P.append(m.p @ A[:3, :3].T + A[:3, 3])
-        T.append((m.t - float(np.min(m.t))) if use_t else np.arange(m.n, dtype=float))
-        ids = m.point if m.point is not None else m.pose_groups().astype(str)
-        PT.append(np.array([f"{name}{POSE_SEPARATOR}{i}" for i in ids], dtype=object))
-        if use_sigma:
-            S.append(np.asarray(m.sigma, dtype=float))
-            if np.allclose(A[:3, :3], np.eye(3)) and m.sigma_xyz is not None:
-                SX.append(np.asarray(m.sigma_xyz, dtype=float))
-            else:
-                aniso |= m.sigma_xyz is not None and bool(np.ptp(m.sigma_xyz, axis=1).max() > 0)
-                SX.append(np.repeat(np.asarray(m.sigma, dtype=float)[:, None], 3, axis=1))
+    use_rot = all(m.rotation is not None for m in campaigns)
+    P, T, PT, S, SX, aniso = _campaign_rows(campaigns, names, meas2ref, use_t, use_sigma)
     if aniso:
         notes.append("campaigns: per-axis sigmas of a re-registered campaign are used as their RMS (isotropic)")
     cat = np.concatenate

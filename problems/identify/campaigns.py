@@ -172,6 +172,26 @@ def _reg_block(model: ArmModel) -> np.ndarray | None:
     return np.asarray(model.covariance)[np.ix_(idx, idx)].copy()
 
 
+def _checked_names(campaigns: Sequence[Measurements], names: Sequence[str] | None) -> list[str]:
+    """The campaigns' names (default: from their sources), checked distinct and non-empty."""
+    names = campaign_names([m.source for m in campaigns]) if names is None else [str(n) for n in names]
+    if len(names) != len(campaigns) or len(set(names)) != len(names) or any(not n for n in names):
+        raise InputError(f"campaign names {names}: expected {len(campaigns)} distinct non-empty names")
+    return names
+
+
+def _check_own_registrations(campaigns: Sequence[Measurements], names: Sequence[str]) -> None:
+    """Raise :class:`DataError` when a campaign has too few poses for a registration of its own."""
+    for m, name in zip(campaigns, names):
+        n_poses = len(np.unique(m.pose_groups()))
+        if n_poses < CAMPAIGN_MIN_POSES:
+            raise DataError(
+                f"{m.source}: campaign '{name}' has {n_poses} distinct pose(s); its own registration needs at "
+                f"least {CAMPAIGN_MIN_POSES} (many more for a useful fit); if the instrument did not move "
+                "between the campaigns, give --shared registration (shared=('registration',))"
+            )
+
+
 def identify_campaigns(
     robot: Robot,
     campaigns: Sequence[Measurements],
@@ -222,9 +242,7 @@ def identify_campaigns(
     campaigns = list(campaigns)
     if not campaigns:
         raise InputError("identify_campaigns: no campaign given")
-    names = campaign_names([m.source for m in campaigns]) if names is None else [str(n) for n in names]
-    if len(names) != len(campaigns) or len(set(names)) != len(names) or any(not n for n in names):
-        raise InputError(f"campaign names {names}: expected {len(campaigns)} distinct non-empty names")
+    names = _checked_names(campaigns, names)
     one_frame = _check_shared(shared)
     if len(campaigns) == 1:
         return identify(robot, campaigns[0], progress=progress, **identify_kwargs)
@@ -238,14 +256,7 @@ def identify_campaigns(
         notes.append("campaigns: the data are declared registered: every campaign is in the base frame (one frame)")
     if one_frame:
         return _one_frame(robot, campaigns, names, progress, notes, identify_kwargs)
-    for m, name in zip(campaigns, names):
-        n_poses = len(np.unique(m.pose_groups()))
-        if n_poses < CAMPAIGN_MIN_POSES:
-            raise DataError(
-                f"{m.source}: campaign '{name}' has {n_poses} distinct pose(s); its own registration needs at "
-                f"least {CAMPAIGN_MIN_POSES} (many more for a useful fit); if the instrument did not move "
-                "between the campaigns, give --shared registration (shared=('registration',))"
-            )
+    _check_own_registrations(campaigns, names)
     A, how = _start_transforms(robot, campaigns, identify_kwargs)
     notes.append(f"campaigns: the start of every campaign's transform: {how}")
     first, res, A, joint, campaign, rounds, gn_steps, change = _fit_rounds(

@@ -60,6 +60,7 @@ The library prints nothing.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -218,11 +219,73 @@ def design_campaign(
         A model without covariance, an unknown criterion or frame, ``n`` out of range.
     """
     s, uidx, guards = _checked_request(model, pool, n, criterion, eval_frame)
-    s2 = s * s
     names = list(model.covariance_names)
     lay = design_layout(names, len(earlier), new_registration)
     notes: list[str] = []
+    mats = _design_matrices(
+        model, pool, uidx, names, lay, s, (eval_q, eval_wrench, eval_frame), earlier, potential_knots, notes
+    )
+    sel, _P = select_greedy(inv_spd(mats.I0), mats.Jca, int(n), s * s, criterion, mats.M)
+    spread = _uncertainty_fields(model, mats, lay, sel, s, eval_frame, earlier, uidx, n, random_trials, seed, notes)
+    unident = _pool_unidentifiable(mats, names, lay, s)
+    order, travel_s = travel_order(pool.q[uidx[sel]], model.nominal.v_max)
+    status, reason = _status(unident, int(n), len(uidx), criterion)
+    return CampaignDesign(
+        status=status,
+        reason=reason,
+        chosen=uidx[sel[order]],
+        criterion=criterion,
+        eval_frame=eval_frame,
+        unidentifiable=unident,
+        guards=guards,
+        travel_s=travel_s,
+        n_pool=pool.n,
+        n_usable=len(uidx),
+        n_eval=len(mats.Jev),
+        notes=notes,
+        **spread,
+    )
 
+
+@dataclass(frozen=True)
+class _DesignMatrices:
+    """The design's matrices (parameters scaled by ``scale``).
+
+    ``Jp``: pool Jacobian, model's parameters; ``Jc``/``Jev``: the new campaign's pool rows and the
+    evaluation poses, design layout; ``Je_rows``/``w_rows``: earlier campaigns' rows and weights;
+    ``I0p``/``P0p``: the model's own prior information and its inverse; ``Mp``: evaluation moment;
+    ``Jca``/``I0``/``M``: the same for the selection (with the potential terms when asked for).
+    """
+
+    Jp: np.ndarray
+    Jc: np.ndarray
+    Je_rows: list[np.ndarray]
+    w_rows: list[np.ndarray]
+    Jev: np.ndarray
+    scale: np.ndarray
+    I0p: np.ndarray
+    P0p: np.ndarray
+    Mp: np.ndarray
+    Jca: np.ndarray
+    I0: np.ndarray
+    M: np.ndarray
+
+
+def _design_matrices(
+    model: ArmModel,
+    pool: Measurements,
+    uidx: np.ndarray,
+    names: list[str],
+    lay: DesignLayout,
+    s: float,
+    evaluation: tuple[np.ndarray | None, np.ndarray | None, str],
+    earlier: Sequence[Measurements],
+    potential_knots: int,
+    notes: list[str],
+) -> _DesignMatrices:
+    """Jacobians and information matrices of the design (``evaluation``: eval_q, eval_wrench, eval_frame)."""
+    eval_q, eval_wrench, eval_frame = evaluation
+    s2 = s * s
     # pool Jacobian (usable rows), the new campaign's layout
     _p, Jp = parameter_jacobian(model, pool.q[uidx], pool.wrench[uidx], names)
     Jc = place_columns(Jp, lay, lay.new_reg)
@@ -249,52 +312,55 @@ def design_campaign(
             "sigmas reported are the model's own"
         )
     M = np.einsum("nik,nil->kl", Jeva, Jeva) / len(Jeva)
+    return _DesignMatrices(Jp, Jc, Je_rows, w_rows, Jev, scale, I0p, P0p, Mp, Jca, I0, M)
 
-    sel, _P = select_greedy(inv_spd(I0), Jca, int(n), s2, criterion, M)
 
-    posterior = _OwnPosterior(I0p, Jc, s2)
+def _pool_unidentifiable(mats: _DesignMatrices, names: list[str], lay: DesignLayout, s: float) -> list[Unidentifiable]:
+    """Unidentifiable parameters over the usable pool (the model's k parameters, pool frame)."""
+    return _unidentifiable(mats.Jp, names, [x[:, :, : lay.k] for x in mats.Je_rows], mats.w_rows, s)
+
+
+def _uncertainty_fields(
+    model: ArmModel,
+    mats: _DesignMatrices,
+    lay: DesignLayout,
+    sel: np.ndarray,
+    s: float,
+    eval_frame: str,
+    earlier: Sequence[Measurements],
+    uidx: np.ndarray,
+    n: int,
+    random_trials: int,
+    seed: int,
+    notes: list[str],
+) -> dict[str, Any]:
+    """The design's sigmas, variances and log-det gains before, after and for random subsets (fields of
+    :class:`CampaignDesign`)."""
+    posterior = _OwnPosterior(mats.I0p, mats.Jc, s * s)
     logdet_gain = posterior.logdet_gain
     P = posterior(sel)
-    sig_before = _sigma_before(model, Jev, lay, scale, P0p if earlier else None, notes)
+    sig_before = _sigma_before(model, mats.Jev, lay, mats.scale, mats.P0p if earlier else None, notes)
     if lay.new_reg is not None and eval_frame == "measurement":
         notes.append(
             "before: in the model's measurement frame; after: in the new campaign's, its registration's "
             "uncertainty included"
         )
-    sig_after = sigma_rms(Jev, P)
+    sig_after = sigma_rms(mats.Jev, P)
     trials = max(1, int(random_trials))
-    sig_rand, var_rand, ld_rand = _random_baseline(posterior, logdet_gain, Jev, Mp, len(uidx), int(n), trials, seed)
-
-    # unidentifiable parameters over the usable pool (the model's k parameters, pool frame)
-    unident = _unidentifiable(Jp, names, [x[:, :, : lay.k] for x in Je_rows], w_rows, s)
-
-    # travel order
-    order, travel_s = travel_order(pool.q[uidx[sel]], model.nominal.v_max)
-    chosen = uidx[sel[order]]
-    status, reason = _status(unident, int(n), len(uidx), criterion)
-    return CampaignDesign(
-        status=status,
-        reason=reason,
-        chosen=chosen,
-        criterion=criterion,
-        eval_frame=eval_frame,
-        sigma_before_m=sig_before,
-        sigma_after_m=sig_after,
-        sigma_random_m=sig_rand,
-        variance_before_m2=float(np.mean(3.0 * sig_before**2)),
-        variance_after_m2=float(np.trace(Mp @ P)),
-        variance_random_m2=var_rand,
-        logdet_gain_after=logdet_gain(P),
-        logdet_gain_random=ld_rand,
-        unidentifiable=unident,
-        guards=guards,
-        travel_s=travel_s,
-        n_pool=pool.n,
-        n_usable=len(uidx),
-        n_eval=len(Jev),
-        random_trials=trials,
-        notes=notes,
+    sig_rand, var_rand, ld_rand = _random_baseline(
+        posterior, logdet_gain, mats.Jev, mats.Mp, len(uidx), int(n), trials, seed
     )
+    return {
+        "sigma_before_m": sig_before,
+        "sigma_after_m": sig_after,
+        "sigma_random_m": sig_rand,
+        "variance_before_m2": float(np.mean(3.0 * sig_before**2)),
+        "variance_after_m2": float(np.trace(mats.Mp @ P)),
+        "variance_random_m2": var_rand,
+        "logdet_gain_after": logdet_gain(P),
+        "logdet_gain_random": ld_rand,
+        "random_trials": trials,
+    }
 
 
 def _checked_request(

@@ -196,6 +196,16 @@ def _final_fit(run: SelectionRun, st: SelectionState) -> None:
     st.fit = fit
 
 
+def _start_notes(robot: Robot) -> list[str]:
+    """The notes the identification starts with (a robot file's [identified] table ignored)."""
+    if robot.identified is None:
+        return []
+    return [
+        "the robot file carries an [identified] table; identification starts from its "
+        "ordinary fields and ignores that table"
+    ]
+
+
 def identify(
     robot: Robot,
     data: Measurements,
@@ -262,12 +272,7 @@ def identify(
         raise DataError(f"{m.source}: no measured positions (columns x, y, z) to identify from")
     cand, inc, robust = effect_lists(candidates, include)
     registered = known_parts(registered, known, map_components)
-    notes: list[str] = []
-    if robot.identified is not None:
-        notes.append(
-            "the robot file carries an [identified] table; identification starts from its "
-            "ordinary fields and ignores that table"
-        )
+    notes = _start_notes(robot)
     s = setup_fit(robot, m, registered, folds, len(cand), tick)
     prob, fit = _fit_declared(robot, m, s, inc, cand, registered, robust, notes, tick)
     run, fit, score_b, sat_info, noise_src = _selection_run(

@@ -282,6 +282,17 @@ def _scan(
     return best
 
 
+def _search_space(
+    q: np.ndarray, channels: dict[tuple[int, int], np.ndarray]
+) -> tuple[dict[int, np.ndarray], dict[int, float], dict[tuple[int, int], np.ndarray], int]:
+    """Per joint the frequency grid and resolution (cycles/rev), the channels searched, and the number of tests."""
+    grids = {j: frequency_grid(q[:, j]) for j in range(6)}
+    res = {j: resolution_cpr(q[:, j]) for j in range(6)}
+    chans = {jc: Jc for jc, Jc in channels.items() if len(grids[jc[0]]) and np.any(Jc != 0)}
+    n_tests = int(sum(len(grids[j]) for j, _c in chans))
+    return grids, res, chans, n_tests
+
+
 def propose_map(
     r: np.ndarray, channels: dict[tuple[int, int], np.ndarray], q: np.ndarray, Jfree: np.ndarray, folds: np.ndarray
 ) -> MapProposal | None:
@@ -312,10 +323,7 @@ def propose_map(
     Q = _orth(Jfree)
     r = r - Q @ (Q.T @ r)
     r0 = r.copy()
-    grids = {j: frequency_grid(q[:, j]) for j in range(6)}
-    res = {j: resolution_cpr(q[:, j]) for j in range(6)}
-    chans = {jc: Jc for jc, Jc in channels.items() if len(grids[jc[0]]) and np.any(Jc != 0)}
-    n_tests = int(sum(len(grids[j]) for j, _c in chans))
+    grids, res, chans, n_tests = _search_space(q, channels)
     freq = np.zeros(FREQ_SHAPE)
     prop = MapProposal(freq=freq, range_rad=np.column_stack([q.min(axis=0), q.max(axis=0)]))
     if not n_tests:

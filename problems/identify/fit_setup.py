@@ -21,6 +21,7 @@ from models.robot import Robot
 
 from ..measurements import Measurements
 from .evaluation import (
+    Evaluator,
     FitProblem,
     evaluator_for,
     make_rows,
@@ -104,6 +105,54 @@ def known_parts(registered: bool, known: Sequence[str], map_components: Sequence
     return Known(bool(registered) or "registration" in known, bool(registered) or "measured_point" in known)
 
 
+def _register(
+    m: Measurements,
+    n_poses: int,
+    ev: Evaluator,
+    rows: np.ndarray,
+    theta: np.ndarray,
+    const: np.ndarray,
+    is_pos: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Start the registration from the nominal prediction (Kabsch): its rotation R0 (3, 3) and the
+    constants holding it; its translation written into ``theta`` (in place)."""
+    if n_poses < 3:
+        raise DataError(
+            f"{m.source}: {n_poses} distinct pose(s); the registration of the measurement "
+            "frame and the measured point need at least 3 poses (many more for a useful fit); "
+            "or declare the data registered"
+        )
+    pred0, _q = ev.measure(rows, theta, const)
+    R0, t0 = kabsch(pred0[is_pos], m.p)
+    theta[GROUP_SLICES["reg.t"]] = t0
+    return R0, set_const(const, "registration.R0", R0)
+
+
+def _baseline_fit(prob: FitProblem, theta: np.ndarray, known: Known) -> tuple[np.ndarray, ModelFit, list[int]]:
+    """The baseline fit (set-up parameters only, stiffness as declared): its parameters, fit and free order."""
+    layout = prob.layout
+    all_rows = np.ones(prob.m.n, dtype=bool)
+    order_b = priority_order(layout, [], known)
+    pred_b, q_b = evaluate(prob, theta)
+    if not order_b:
+        fit_b = ModelFit(
+            theta=theta.copy(),
+            free=np.zeros(0, dtype=int),
+            held={},
+            inliers=all_rows.copy(),
+            pred=pred_b,
+            q_eq=q_b,
+            J=jacobian(prob, theta, q_b),
+            converged=True,
+            iterations=0,
+        )
+    else:
+        order_b = [i for i in order_b if i not in layout.indices(("stiffness.s",))]
+        fit_b = levenberg_marquardt(prob, theta, np.asarray(order_b), all_rows, pred_b, q_b)
+        theta = fit_b.theta.copy()
+    return theta, fit_b, order_b
+
+
 def setup_fit(robot: Robot, m: Measurements, registered: Known, folds: int, n_cand: int, tick: Progress) -> FitSetup:
     """Step 1: problem inputs, initial registration (and measured frame) and the "before" fit."""
     known = Known.of(registered)
@@ -130,16 +179,7 @@ def setup_fit(robot: Robot, m: Measurements, registered: Known, folds: int, n_ca
     total_steps = n_cand + 3
     tick("registration", 0, total_steps)
     if not known.registration:
-        if n_poses < 3:
-            raise DataError(
-                f"{m.source}: {n_poses} distinct pose(s); the registration of the measurement "
-                "frame and the measured point need at least 3 poses (many more for a useful fit); "
-                "or declare the data registered"
-            )
-        pred0, _q = ev.measure(rows, theta, const)
-        R0, t0 = kabsch(pred0[is_pos], m.p)
-        theta[GROUP_SLICES["reg.t"]] = t0
-        const = set_const(const, "registration.R0", R0)
+        R0, const = _register(m, n_poses, ev, rows, theta, const, is_pos)
     if orient and not known.measured_point:
         const = set_const(const, "measured_frame.R0", measured_frame_start(robot, m, R0))
     prob = FitProblem(
@@ -154,25 +194,7 @@ def setup_fit(robot: Robot, m: Measurements, registered: Known, folds: int, n_ca
         upper=upper,
         is_pos=is_pos,
     )
-    all_rows = np.ones(mx.n, dtype=bool)
-    order_b = priority_order(layout, [], known)
-    pred_b, q_b = evaluate(prob, theta)
-    if not order_b:
-        fit_b = ModelFit(
-            theta=theta.copy(),
-            free=np.zeros(0, dtype=int),
-            held={},
-            inliers=all_rows.copy(),
-            pred=pred_b,
-            q_eq=q_b,
-            J=jacobian(prob, theta, q_b),
-            converged=True,
-            iterations=0,
-        )
-    else:
-        order_b = [i for i in order_b if i not in layout.indices(("stiffness.s",))]
-        fit_b = levenberg_marquardt(prob, theta, np.asarray(order_b), all_rows, pred_b, q_b)
-        theta = fit_b.theta.copy()
+    theta, fit_b, order_b = _baseline_fit(prob, theta, known)
     return FitSetup(
         prob=prob,
         theta=theta,

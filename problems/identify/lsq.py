@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -145,6 +146,52 @@ def _param_std(G: np.ndarray, cost: float, n_res: int) -> np.ndarray:
         return np.full(G.shape[0], np.inf)
 
 
+def _active(prob: FitProblem, theta: np.ndarray, free: np.ndarray, Js_all: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Positions in ``free`` of the parameters not frozen on a bound this iteration (projected Gauss-Newton).
+
+    A parameter on a bound whose Gauss-Newton step points outwards is frozen.
+    """
+    G0 = Js_all.T @ Js_all
+    gn0 = -solve_normal(G0, Js_all.T @ r)
+    th_f = theta[free]
+    at_bound = ((th_f <= prob.lower[free]) & (gn0 < 0)) | ((th_f >= prob.upper[free]) & (gn0 > 0))
+    return np.flatnonzero(~at_bound)
+
+
+def _damped_step(
+    prob: FitProblem,
+    theta: np.ndarray,
+    fa: np.ndarray,
+    sc: np.ndarray,
+    G: np.ndarray,
+    g: np.ndarray,
+    dG: np.ndarray,
+    lam: float,
+    mask: np.ndarray,
+    cost: float,
+) -> tuple[bool, float, tuple[Any, ...]]:
+    """Raise the damping until a step of the parameters ``fa`` lowers the cost (at most 12 tries).
+
+    Returns whether one did, the damping reached, and the last trial's parameters, prediction,
+    equilibrium, weighted residual and cost.
+    """
+    improved = False
+    trial = p_t = q_t = r_t = None
+    c_t = cost
+    for _ in range(12):
+        step = -solve_normal(G + lam * np.diag(dG), g)
+        trial = theta.copy()
+        trial[fa] = np.clip(theta[fa] + step * sc, prob.lower[fa], prob.upper[fa])
+        p_t, q_t = evaluate(prob, trial)
+        r_t = weighted_residual(prob, p_t, mask)
+        c_t = float(r_t @ r_t)
+        if np.isfinite(c_t) and c_t < cost:
+            improved = True
+            break
+        lam *= 4.0
+    return improved, lam, (trial, p_t, q_t, r_t, c_t)
+
+
 def levenberg_marquardt(
     prob: FitProblem,
     theta0: np.ndarray,
@@ -180,13 +227,7 @@ def levenberg_marquardt(
         if len(free) == 0:
             break
         Js_all = weighted_jacobian(prob, J, mask, free)
-        # active bounds: parameters on a bound whose Gauss-Newton step points outwards are
-        # frozen for this iteration (projected Gauss-Newton)
-        G0 = Js_all.T @ Js_all
-        gn0 = -solve_normal(G0, Js_all.T @ r)
-        th_f = theta[free]
-        at_bound = ((th_f <= prob.lower[free]) & (gn0 < 0)) | ((th_f >= prob.upper[free]) & (gn0 > 0))
-        act = np.flatnonzero(~at_bound)
+        act = _active(prob, theta, free, Js_all, r)
         if len(act) == 0:
             converged = True
             break
@@ -200,19 +241,9 @@ def levenberg_marquardt(
         if np.all(np.abs(gn) <= LM_STEP_STD_TOL * std):
             converged = True
             break
-        improved = False
-        fa = free[act]
-        for _ in range(12):
-            step = -solve_normal(G + lam * np.diag(dG), g)
-            trial = theta.copy()
-            trial[fa] = np.clip(theta[fa] + step * sc[act], prob.lower[fa], prob.upper[fa])
-            p_t, q_t = evaluate(prob, trial)
-            r_t = weighted_residual(prob, p_t, mask)
-            c_t = float(r_t @ r_t)
-            if np.isfinite(c_t) and c_t < cost:
-                improved = True
-                break
-            lam *= 4.0
+        improved, lam, (trial, p_t, q_t, r_t, c_t) = _damped_step(
+            prob, theta, free[act], sc[act], G, g, dG, lam, mask, cost
+        )
         if not improved:
             converged = True
             break

@@ -160,6 +160,13 @@ class SelectionState:
 # ----------------------------------------------------------------------------------
 
 
+def _unscored(e: str, reason: str, held: list[str] | None = None) -> CandidateScore:
+    """Score of a candidate not tested, with the reason (and the parameters held, when given)."""
+    if held is None:
+        return CandidateScore(e, 0, None, None, None, None, None, None, reason=reason)
+    return CandidateScore(e, 0, None, None, None, None, None, None, reason=reason, held=held)
+
+
 def _screen(
     run: SelectionRun, st: SelectionState, score_m: Score, remaining: Sequence[str]
 ) -> tuple[list[CandidateScore], list[CandidateScore]]:
@@ -177,23 +184,14 @@ def _screen(
     prelim: list[CandidateScore] = []
     for e in remaining:
         if e in run.applicable:
-            scores.append(
-                CandidateScore(e, 0, None, None, None, None, None, None, reason=f"not testable: {run.applicable[e]}")
-            )
+            scores.append(_unscored(e, f"not testable: {run.applicable[e]}"))
             continue
         prob_e, th_e = run.with_effect(st.prob, fit.theta, e, fit, np.column_stack(others) if others else None)
         if prob_e is None:
             scores.append(
-                CandidateScore(
+                _unscored(
                     e,
-                    0,
-                    None,
-                    None,
-                    None,
-                    None,
-                    None,
-                    None,
-                    reason="no joint angle shows a significant periodic error in the residual "
+                    "no joint angle shows a significant periodic error in the residual "
                     "(spectrum search with a family-wise test)",
                 )
             )
@@ -201,9 +199,7 @@ def _screen(
         layout = prob_e.layout
         new = [int(i) for i in layout.effect_indices(e) if i not in cur_order]
         if not new:
-            scores.append(
-                CandidateScore(e, 0, None, None, None, None, None, None, reason="subsumed by an effect already added")
-            )
+            scores.append(_unscored(e, "subsumed by an effect already added"))
             continue
         st.pending[e] = (prob_e, th_e)
         if prob_e is st.prob:
@@ -218,20 +214,7 @@ def _screen(
         if kept_new and e != "joint_error_map":
             others.append(Js[:, [order.index(i) for i in kept_new]])
         if not kept_new:
-            scores.append(
-                CandidateScore(
-                    e,
-                    0,
-                    None,
-                    None,
-                    None,
-                    None,
-                    None,
-                    None,
-                    reason="no parameter identifiable from these data",
-                    held=[PARAM_NAMES[i] for i in new],
-                )
-            )
+            scores.append(_unscored(e, "no parameter identifiable from these data", held=[PARAM_NAMES[i] for i in new]))
             continue
         sc = linear_scores(prob_e, J_e, pred_e, fit.inliers, np.asarray(kept, dtype=int))
         cs = candidate_score(e, sc, score_m, run.sigma_w, len(kept_new))

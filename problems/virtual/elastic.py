@@ -282,6 +282,44 @@ def _integrate(rhs: _Rhs, span: tuple[float, float], x0: np.ndarray, t_eval: np.
     return solve_ivp(rhs, span, x0, method=SIM_METHOD, t_eval=t_eval, rtol=SIM_RTOL, atol=atol, vectorized=True)
 
 
+def _check_options(interpolation: str, motor: str, settle_s: float) -> None:
+    """Raise :class:`InputError` for an unknown interpolation or motor, or a negative settle time."""
+    if interpolation not in INTERPOLATIONS:
+        raise InputError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
+    if motor not in ("exact", "pid"):
+        raise InputError(f"motor must be 'exact' or 'pid', got {motor!r}")
+    if not (np.isfinite(settle_s) and settle_s >= 0):
+        raise InputError(f"settle_s must be >= 0 s, got {settle_s}")
+
+
+def _checked_stiffness(robot: Robot, stiffness: np.ndarray | None) -> np.ndarray:
+    """Joint stiffness (6,), N*m/rad: the given one, else the robot's; each > 0."""
+    K = as_vector(robot.stiffness if stiffness is None else stiffness, 6, "stiffness")
+    if np.any(K <= 0):
+        raise InputError(f"stiffness must be > 0 N*m/rad, got {K}")
+    return K
+
+
+def _motor_start(
+    arm: ElasticArm,
+    q_start: np.ndarray,
+    th0: np.ndarray,
+    K: np.ndarray,
+    motor: str,
+    motor_inertia: np.ndarray,
+    motor_bandwidth: float,
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """Motor inertia B (6,), kg*m^2, the PID gains and the initial state (link, and motor with ``pid``)."""
+    B = as_vector(motor_inertia, 6, "motor_inertia")
+    J = B + np.diagonal(arm.mass_matrix(q_start[None])[0])  # motor and link as one rigid body
+    w = float(motor_bandwidth)
+    gains = (3 * J * w**2, 3 * J * w, J * w**3)
+    x0 = np.r_[q_start, np.zeros(6)]
+    if motor == "pid":
+        x0 = np.r_[x0, th0, np.zeros(6), K * (th0 - q_start) / gains[2]]
+    return B, gains, x0
+
+
 def simulate_elastic(
     robot: Robot,
     t: np.ndarray,
@@ -339,16 +377,9 @@ def simulate_elastic(
         Malformed inputs (shapes, non-finite values, unknown ``motor``).
     """
     t, th, thd = _check_command(t, theta_cmd, theta_dot_cmd)
-    if interpolation not in INTERPOLATIONS:
-        raise InputError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
-    if motor not in ("exact", "pid"):
-        raise InputError(f"motor must be 'exact' or 'pid', got {motor!r}")
-    if not (np.isfinite(settle_s) and settle_s >= 0):
-        raise InputError(f"settle_s must be >= 0 s, got {settle_s}")
+    _check_options(interpolation, motor, settle_s)
     arm = ElasticArm(robot, payload, wrench)
-    K = as_vector(robot.stiffness if stiffness is None else stiffness, 6, "stiffness")
-    if np.any(K <= 0):
-        raise InputError(f"stiffness must be > 0 N*m/rad, got {K}")
+    K = _checked_stiffness(robot, stiffness)
     if q0 is None:
         q_start, converged = arm.equilibrium(th[0], K)
         if not converged:
@@ -360,13 +391,7 @@ def simulate_elastic(
     else:
         q_start = as_vector(q0, 6, "q0")
     D = _damping(arm, q_start, K, damping, damping_ratio)
-    B = as_vector(motor_inertia, 6, "motor_inertia")
-    J = B + np.diagonal(arm.mass_matrix(q_start[None])[0])  # motor and link as one rigid body
-    w = float(motor_bandwidth)
-    gains = (3 * J * w**2, 3 * J * w, J * w**3)
-    x0 = np.r_[q_start, np.zeros(6)]
-    if motor == "pid":
-        x0 = np.r_[x0, th[0], np.zeros(6), K * (th[0] - q_start) / gains[2]]
+    B, gains, x0 = _motor_start(arm, q_start, th[0], K, motor, motor_inertia, motor_bandwidth)
     cmd = _command(t, th, thd, interpolation)
     phases = [(_Rhs(arm, K, D, cmd, None, motor, B, gains), (t[0], t[-1]), t)]
     if settle_s > 0:
