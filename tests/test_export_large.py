@@ -406,7 +406,7 @@ def _run_folder(base: Path, data: ExportData) -> Path:
 
 def test_export_command_writes_the_parts_whole_or_not_at_all(tmp_path, monkeypatch, capsys):
     import planner.output as output
-    from planner.export import _read_rows, _read_trajectory
+    from planner.export.sources import _read_rows, _read_trajectory
 
     data = wave(3000)
     run = _run_folder(tmp_path, data)

@@ -362,7 +362,7 @@ def test_what_the_vendor_does_not_document_is_said(run, tmp_path):
 
 
 def test_a_format_without_a_controller_motion_warns(monkeypatch, tmp_path):
-    import planner.export as export
+    import planner.export.registry as export
 
     fmt = ExportFormat("plain_csv", (".csv",), lambda d, stem, o: {f"{stem}.csv": "t\n"}, {}, "test")
     monkeypatch.setitem(export._FORMATS, "plain_csv", fmt)

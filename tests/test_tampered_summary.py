@@ -399,7 +399,7 @@ def _with_every_block(doc: dict[str, Any]) -> dict[str, Any]:
 def test_every_key_the_report_and_the_export_read_is_declared(run, original, tmp_path, monkeypatch):
     """Build the report's tables, figures (not drawn) and pages, and the export's data, from a summary
     that records what is read (with every declared block present): every key read is declared."""
-    import planner.export as export_module
+    import planner.export.sources as export_module
     import planner.record.read as run_module
     from planner.report.figures import build_figures
     from planner.report.rendering import render_html, render_markdown

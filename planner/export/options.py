@@ -7,7 +7,7 @@ import math
 from typing import Any
 from collections.abc import Callable
 
-from planner.export import ExportError
+from planner.export.errors import ExportError
 
 __all__ = ["SLOW_DOWN_OPTION", "choice", "counted", "ranged"]
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from problems.quintic import polynomial_value, quadratic_roots, quintic_pieces
 
-from planner.export.limits import (
+from planner.export.motion import (
     EXACT_MAX,
     EXPORT_FD_TOL,
     EXPORT_POSITION_TOL,
@@ -31,7 +31,7 @@ from planner.export.limits import (
 )
 
 if TYPE_CHECKING:
-    from planner.export import ExportData
+    from planner.export.data import ExportData
 
 __all__ = ["quintic_coefficients", "quintic_peaks"]
 

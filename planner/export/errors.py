@@ -1,0 +1,15 @@
+"""The errors of an export (a leaf: every module of :mod:`planner.export` raises them)."""
+
+from __future__ import annotations
+
+from models.errors import InputError
+
+__all__ = ["ExportError", "ExportLimitError"]
+
+
+class ExportError(InputError):
+    """The trajectory cannot be exported (not ok, no trajectory, a bad option); the message says why."""
+
+
+class ExportLimitError(ExportError):
+    """What a format would send its controller exceeds a limit (:func:`~planner.export.limits.check_motion`)."""
