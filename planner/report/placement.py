@@ -30,7 +30,7 @@ from problems.placement.grid import placement_label
 from problems.placement.scores import RANK_RESOLUTION_M, PlacementStatus
 
 if TYPE_CHECKING:
-    from planner.placement import PlacementStudy
+    from planner.placement_result import PlacementStudy
 
 __all__ = [
     "ERROR_MAP",

@@ -26,7 +26,7 @@ from problems.placement.grid import GRID_AXES, describe_placement, placement_lab
 from problems.placement.scores import STATUS_REASONS, PlacementStatus
 
 if TYPE_CHECKING:
-    from planner.placement import PlacementStudy
+    from planner.placement_result import PlacementStudy
 
 __all__ = ["DIGITS", "ERROR_MAP", "FIGURE_ORDER", "MARGINS", "PLANS", "RANKING_ROWS", "html"]
 
