@@ -194,7 +194,7 @@ def _check_range(key: str, rng: tuple[float, float]) -> tuple[float, float]:
     return lo, hi
 
 
-def _branch_index(rule: str, labels: tuple[str, ...] | None = None) -> int | None:
+def branch_index(rule: str, labels: tuple[str, ...] | None = None) -> int | None:
     """The branch index of ``rule`` among ``labels`` (None for ``"home"``); without labels (the
     robot not known yet) only the type is checked."""
     if not isinstance(rule, str) or not rule:
@@ -242,11 +242,11 @@ def validate_map_options(
     rpy = np.asarray(rpy_rad, dtype=float).reshape(-1)
     if rpy.shape != (3,) or not np.all(np.isfinite(rpy)):
         raise InputError(f"compliance map: rpy = {rpy_rad!r}; expected three finite angles (rad)")
-    b_fixed = _branch_index(branch)
+    b_fixed = branch_index(branch)
     return off, (u_lo, u_hi), (v_lo, v_hi), (nu, nv), rpy, b_fixed
 
 
-def _evaluate_grid(
+def evaluate_grid(
     arm: ArmModel, P: np.ndarray, R: np.ndarray, b_fixed: int | None, chunk: int, progress: Any
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """IK branch and compliance diagonal at every TCP position of ``P`` (N, 3), base frame, at the
@@ -340,12 +340,12 @@ def compliance_map(
     arm = load_arm(robot)  # a Robot (nominal model) or an ArmModel (identified)
     robot = arm.nominal
     labels = arm.ik.labels
-    b_fixed = _branch_index(branch, labels)
+    b_fixed = branch_index(branch, labels)
     u = np.linspace(u_lo, u_hi, int(nu))
     v = np.linspace(v_lo, v_hi, int(nv))
     shape = (u.size, v.size)
     P = _plane_points(plane, off, u, v)
-    q, chosen, diag, status_ref = _evaluate_grid(arm, P, rpy_to_matrix(rpy), b_fixed, chunk, progress)
+    q, chosen, diag, status_ref = evaluate_grid(arm, P, rpy_to_matrix(rpy), b_fixed, chunk, progress)
     return ComplianceMap(
         robot=robot.name,
         plane=plane,

@@ -144,6 +144,17 @@ def plan(
         return res
     res.warnings += _posture_warnings(ps)
     _after_posture(res, tick, progress)
+    return _set_aside_colliding(res, problem, times, tick, progress)
+
+
+def _set_aside_colliding(
+    res: PlanResult,
+    problem: Problem,
+    times: dict[str, float],
+    tick: Callable[[str, int, int], None],
+    progress: Callable[[str, int, int], None] | None,
+) -> PlanResult:
+    """While the controller's trajectory collides with the cell, re-plan on the next collision-free branch."""
     set_aside: list[str] = []
     while _trajectory_collides(res):  # the next collision-free branch, if there is one
         assert res.posture is not None and res.cell is not None and res.cell.trajectory is not None

@@ -25,6 +25,7 @@ from planner.record.columns import trajectory_file
 
 if TYPE_CHECKING:
     from planner.plan_result import PlanResult
+    from problems.problem import Problem
     from problems.timing import Trajectory
 
 __all__ = ["HEADLINE_DEFINITION", "headline", "plan_summary", "timing_summary", "within_limits"]
@@ -42,7 +43,6 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
     """
     pr = res.problem
     R = pr.robot.tcp2flange
-    w = pr.wrench
     s: dict[str, Any] = {
         "command": "plan",
         "plan_status": res.status.value,
@@ -55,24 +55,8 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
             "flange" if np.allclose(R, np.eye(4)) else f"tool: xyz {[float(v) for v in R[:3, 3]]} m in the flange frame"
         ),
         "orientation": pr.rule.value,
-        "wrench": {
-            "frame": pr.wrench_frame,
-            "point": "TCP",
-            "F_N": w[0, :3],
-            "M_Nm": w[0, 3:],
-            "per_waypoint": bool(pr.wrench_per_waypoint),
-        },
-        "payload": (
-            {
-                "mass_kg": float(pr.payload_mass_kg),
-                "com_m_tcp_frame": pr.payload_com_m,
-                "gravity_m_s2": pr.load.gravity,
-                "inertia_kg_m2_about_com_tcp_axes": [0.0] * 6,
-                "inertia_note": "a point mass (ixx, iyy, izz, ixy, ixz, iyz = 0)",
-            }
-            if pr.payload_mass_kg
-            else None
-        ),
+        "wrench": _wrench_keys(pr),
+        "payload": _payload_keys(pr),
         "model": pr.model.describe(),
         "n_waypoints": pr.n,
         "limits": {
@@ -87,11 +71,6 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         "warnings": list(res.warnings),
         "stage_times_s": dict(res.stage_times_s),
     }
-    if pr.wrench_per_waypoint and pr.program is not None:
-        s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; the program's CL file gives every point's (TCP frame)"
-    elif pr.wrench_per_waypoint:
-        s["wrench"]["rows"] = w
-        s["wrench"]["note"] = "F_N and M_Nm are waypoint 0's; rows holds every waypoint's wrench"
     if res.posture is not None:
         s.update(_posture_keys(res, errors))
     if res.exact is not None:
@@ -114,6 +93,39 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         s["warnings"] += [f"{m}: {t['limit_use']['why']}" for m, t in s["timing"].items() if t["limit_use"]["why"]]
     head = {"headline": headline(s), "provenance": res.provenance()}
     return {**head, **s}
+
+
+def _wrench_keys(pr: Problem) -> dict[str, Any]:
+    """The summary's ``wrench``: frame, point, waypoint 0's force and moment, where every waypoint's is."""
+    w = pr.wrench
+    wrench: dict[str, Any] = {
+        "frame": pr.wrench_frame,
+        "point": "TCP",
+        "F_N": w[0, :3],
+        "M_Nm": w[0, 3:],
+        "per_waypoint": bool(pr.wrench_per_waypoint),
+    }
+    if pr.wrench_per_waypoint and pr.program is not None:
+        wrench["note"] = "F_N and M_Nm are waypoint 0's; the program's CL file gives every point's (TCP frame)"
+    elif pr.wrench_per_waypoint:
+        wrench["rows"] = w
+        wrench["note"] = "F_N and M_Nm are waypoint 0's; rows holds every waypoint's wrench"
+    return wrench
+
+
+def _payload_keys(pr: Problem) -> dict[str, Any] | None:
+    """The summary's ``payload`` (a point mass), None without one."""
+    return (
+        {
+            "mass_kg": float(pr.payload_mass_kg),
+            "com_m_tcp_frame": pr.payload_com_m,
+            "gravity_m_s2": pr.load.gravity,
+            "inertia_kg_m2_about_com_tcp_axes": [0.0] * 6,
+            "inertia_note": "a point mass (ixx, iyy, izz, ixy, ixz, iyz = 0)",
+        }
+        if pr.payload_mass_kg
+        else None
+    )
 
 
 def within_limits(tr: Trajectory, keys: tuple[str, ...]) -> bool:

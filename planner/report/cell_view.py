@@ -347,6 +347,46 @@ def cell_plotly_div(scene: CellScene, title: str) -> str:
     report embeds the bundle once: :func:`planner.report.rendering.render_html`)."""
     import plotly.graph_objects as go
 
+    traces = _object_traces(scene) + _pose_traces(scene)
+    P, e = scene.path, scene.error_mm
+    bar = {"title": {"text": "error<br>before<br>[mm]"}, "len": 0.7}  # on the right; the legend below the scene
+    traces.append(
+        go.Scatter3d(
+            x=P[:, 0], y=P[:, 1], z=P[:, 2], mode="lines+markers", name="path (error before compensation)",
+            line={"color": e, "colorscale": ERROR_SCALE[0], "width": 6},
+            marker={"size": 3, "color": e, "colorscale": ERROR_SCALE[0], "colorbar": bar},
+            meta={"kind": "path"}, customdata=np.arange(len(P)),
+            hovertemplate="waypoint %{customdata}<br>error before %{marker.color:.3f} mm<extra></extra>",
+        )
+    )  # fmt: skip
+    lo, hi, span = _scene_range(scene)
+    traces += _base_axis_traces(span)
+    fig = go.Figure(traces)
+    fig.update_layout(
+        title={"text": title, "font": {"size": 14}},
+        height=PLOTLY_HEIGHT_PX,
+        margin={"l": 0, "r": 0, "t": 50, "b": 60},
+        scene={
+            "aspectmode": "data",
+            "xaxis": {"title": {"text": "x [m]"}},
+            "yaxis": {"title": {"text": "y [m]"}},
+            "zaxis": {"title": {"text": "z [m]"}},
+        },
+        legend={"itemsizing": "constant", "orientation": "h", "x": 0.0, "y": 0.0, "yanchor": "top"},
+    )
+    return fig.to_html(
+        full_html=False,
+        include_plotlyjs=False,
+        include_mathjax=False,
+        div_id=PLOTLY_DIV_ID,
+        config={"displaylogo": False, "responsive": True},
+    )
+
+
+def _object_traces(scene: CellScene) -> list[Any]:
+    """The cell's objects as plotly meshes (workpiece and obstacles)."""
+    import plotly.graph_objects as go
+
     traces: list[Any] = []
     for o in scene.objects:
         v, f = o.vertices, o.faces
@@ -359,6 +399,14 @@ def cell_plotly_div(scene: CellScene, title: str) -> str:
                 hovertemplate=f"{o.name} ({o.shape}, {o.role})<extra></extra>",
             )
         )  # fmt: skip
+    return traces
+
+
+def _pose_traces(scene: CellScene) -> list[Any]:
+    """Per drawn waypoint: the robot's capsules, their axes and the tool (the last pose solid, the others faded)."""
+    import plotly.graph_objects as go
+
+    traces: list[Any] = []
     last = len(scene.waypoints) - 1
     for p, k in enumerate(scene.waypoints):
         v, f = _robot_mesh(scene.segments[p], scene.radius, CAPSULE_SIDES)
@@ -388,18 +436,14 @@ def cell_plotly_div(scene: CellScene, title: str) -> str:
                 meta={"kind": "tool", "waypoint": int(k)}, hoverinfo="skip",
             )
         )  # fmt: skip
-    P, e = scene.path, scene.error_mm
-    bar = {"title": {"text": "error<br>before<br>[mm]"}, "len": 0.7}  # on the right; the legend below the scene
-    traces.append(
-        go.Scatter3d(
-            x=P[:, 0], y=P[:, 1], z=P[:, 2], mode="lines+markers", name="path (error before compensation)",
-            line={"color": e, "colorscale": ERROR_SCALE[0], "width": 6},
-            marker={"size": 3, "color": e, "colorscale": ERROR_SCALE[0], "colorbar": bar},
-            meta={"kind": "path"}, customdata=np.arange(len(P)),
-            hovertemplate="waypoint %{customdata}<br>error before %{marker.color:.3f} mm<extra></extra>",
-        )
-    )  # fmt: skip
-    lo, hi, span = _scene_range(scene)
+    return traces
+
+
+def _base_axis_traces(span: float) -> list[Any]:
+    """The base frame's three axes, ``BASE_AXES_SHARE`` of the scene's ``span`` (m) long."""
+    import plotly.graph_objects as go
+
+    traces: list[Any] = []
     L = BASE_AXES_SHARE * span
     for n, (name, col) in enumerate((("x", "#d62728"), ("y", "#2ca02c"), ("z", "#1f77b4"))):
         end = np.zeros(3)
@@ -411,26 +455,7 @@ def cell_plotly_div(scene: CellScene, title: str) -> str:
                 meta={"kind": "base_axis"}, hoverinfo="skip",
             )
         )  # fmt: skip
-    fig = go.Figure(traces)
-    fig.update_layout(
-        title={"text": title, "font": {"size": 14}},
-        height=PLOTLY_HEIGHT_PX,
-        margin={"l": 0, "r": 0, "t": 50, "b": 60},
-        scene={
-            "aspectmode": "data",
-            "xaxis": {"title": {"text": "x [m]"}},
-            "yaxis": {"title": {"text": "y [m]"}},
-            "zaxis": {"title": {"text": "z [m]"}},
-        },
-        legend={"itemsizing": "constant", "orientation": "h", "x": 0.0, "y": 0.0, "yanchor": "top"},
-    )
-    return fig.to_html(
-        full_html=False,
-        include_plotlyjs=False,
-        include_mathjax=False,
-        div_id=PLOTLY_DIV_ID,
-        config={"displaylogo": False, "responsive": True},
-    )
+    return traces
 
 
 # ---------------------------------------------------------------------- matplotlib (static)

@@ -227,7 +227,7 @@ def path_plane_map(
     longer in-plane side and the same spacing along the other.
     """
     from models.arm import load_arm
-    from planner.compliance_map import _evaluate_grid
+    from planner.compliance_map import evaluate_grid
 
     plane = path_plane(P)
     uv = plane.uv(P)
@@ -247,7 +247,7 @@ def path_plane_map(
     arm = load_arm(robot)
     labels = arm.ik.labels
     b = labels.index(branch) if branch in labels else None
-    q, chosen, diag, status_ref = _evaluate_grid(
+    q, chosen, diag, status_ref = evaluate_grid(
         arm, plane.points(u, v), np.asarray(R, float), b, max(1, len(u) * len(v)), progress
     )
     reasons: dict[str, int] = {}
@@ -431,9 +431,9 @@ def map_item(
         opts = dict(map_options or {})
         item.title = "Compliance maps C11…C66 over a plane (paper §4.3)"
         if "branch" in opts:  # the user's option: an unknown label is their error (exit 2), not an absent map
-            from planner.compliance_map import _branch_index
+            from planner.compliance_map import branch_index
 
-            _branch_index(opts["branch"], tuple(model.ik.labels))
+            branch_index(opts["branch"], tuple(model.ik.labels))
         key_opts = {**opts, "path": None if path is None else path[0]}
     key = _map_cache_key(model, key_opts) if map_cache else None
     hit = _map_cache_get(key) if key else None

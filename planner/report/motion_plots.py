@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import matplotlib
 import matplotlib.ticker
@@ -115,45 +116,57 @@ def trajectory_figure(
             for j in range(y.shape[1]):
                 ax.plot(t, y[:, j], color=JOINT_COLOURS[j % 6], lw=1.0, label=f"joint {j + 1}")
             if key == "q":
-                ax.set_ylim(qlo - qpad, qhi + qpad)
-                qmin, qmax = limits.get("q_min"), limits.get("q_max")
-                shown = False
-                if qmin is not None and qmax is not None:
-                    for j in range(len(qmin)):
-                        for v in (qmin[j], qmax[j]):
-                            if qlo - qpad <= v <= qhi + qpad:
-                                ax.axhline(v, color=JOINT_COLOURS[j], ls="--", lw=0.8)
-                                shown = True
-                note = ""
-                if qmin is not None and qmax is not None and not shown:
-                    note = (
-                        f"\nposition limits outside the view (joint ranges "
-                        f"{format_number(float(np.min(qmin)))} … {format_number(float(np.max(qmax)))} rad)"
-                    )
-                ax.set_title((headers or {}).get(m, m) + note)
+                _position_panel(ax, limits, qlo, qhi, qpad, (headers or {}).get(m, m))
             else:
                 _limit_lines(ax, limits.get(lim_key), JOINT_COLOURS)
             if key == "jerk" and jview is not None:
-                peak = float(np.nanmax(np.abs(y))) if y.size else 0.0
-                if peak > jview:
-                    ax.text(
-                        0.5,
-                        0.97,
-                        f"peak |jerk| of the samples {format_number(peak)} rad/s³ = "
-                        f"{format_number(peak / float(np.max(jlim)))}× the limit: cut off "
-                        "(this method does not limit jerk)",
-                        transform=ax.transAxes,
-                        ha="center",
-                        va="top",
-                        fontsize=8,
-                        bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"},
-                    )
+                _jerk_cut_note(ax, y, jview, float(np.max(jlim)))
     if jview is not None:
         axs[3, 0].set_ylim(-jview, jview)
     handles, labels = axs[1, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", ncol=len(labels), bbox_to_anchor=(0.5, 0.965), frameon=False)
     fig.suptitle(title)
     return fig
+
+
+def _position_panel(
+    ax: Any, limits: Mapping[str, np.ndarray | None], qlo: float, qhi: float, qpad: float, header: str
+) -> None:
+    """The position panel's view, the joint limits within it, and its column title (``header``)."""
+    ax.set_ylim(qlo - qpad, qhi + qpad)
+    qmin, qmax = limits.get("q_min"), limits.get("q_max")
+    shown = False
+    if qmin is not None and qmax is not None:
+        for j in range(len(qmin)):
+            for v in (qmin[j], qmax[j]):
+                if qlo - qpad <= v <= qhi + qpad:
+                    ax.axhline(v, color=JOINT_COLOURS[j], ls="--", lw=0.8)
+                    shown = True
+    note = ""
+    if qmin is not None and qmax is not None and not shown:
+        note = (
+            f"\nposition limits outside the view (joint ranges "
+            f"{format_number(float(np.min(qmin)))} … {format_number(float(np.max(qmax)))} rad)"
+        )
+    ax.set_title(header + note)
+
+
+def _jerk_cut_note(ax: Any, y: np.ndarray, jview: float, jerk_limit: float) -> None:
+    """Say on the jerk panel what is cut off when the samples' peak |jerk| passes the view ``jview``."""
+    peak = float(np.nanmax(np.abs(y))) if y.size else 0.0
+    if peak > jview:
+        ax.text(
+            0.5,
+            0.97,
+            f"peak |jerk| of the samples {format_number(peak)} rad/s³ = "
+            f"{format_number(peak / jerk_limit)}× the limit: cut off "
+            "(this method does not limit jerk)",
+            transform=ax.transAxes,
+            ha="center",
+            va="top",
+            fontsize=8,
+            bbox={"facecolor": "#fff4e0", "edgecolor": "#e0a030"},
+        )
 
 
 # --------------------------------------------------------------------------------- 7. arm 3-D
@@ -204,34 +217,62 @@ def arm_figure(
     P, L = nominal_m.shape[:2]
     joints = list(joint_index) if joint_index is not None else list(range(1, L - 1))
     # look at the path from its side, turned by ARM_VIEW_TURN_DEG so the depth shows
-    run_xy = path_m[-1, :2] - path_m[0, :2] if len(path_m) > 1 else np.array([1.0, 0.0])
-    azim = (
-        math.degrees(math.atan2(run_xy[1], run_xy[0])) - 90.0 - ARM_VIEW_TURN_DEG
-        if np.linalg.norm(run_xy) > 1e-6
-        else -60.0
-    )
+    azim = _view_azimuth(path_m)
     size = float(np.ptp(np.concatenate([nominal_m.reshape(-1, 3), path_m]), axis=0).max())
     label_offset = np.array([0.0, 0.0, -0.06 * size])
     ax.plot(*path_m.T, color="0.35", lw=1.2, ls="-", zorder=1)
     for p in range(P):
         c = f"C{p % 10}"
         nom, dfl = nominal_m[p], deflected_m[p]
-        ax.plot(*dfl.T, color=c, lw=1.1, ls="--", alpha=0.9)
-        ax.plot(*nom.T, color=c, lw=3.0, solid_capstyle="round")
-        ax.scatter(*nom[joints].T, color="white", edgecolor=c, s=22, depthshade=False, zorder=5)
-        ax.scatter(*nom[-1], color=c, marker="v", s=40, depthshade=False)
-        ax.text(
-            *(nom[-1] + label_offset),
-            labels[p],
-            color=c,
-            fontsize=9,
-            ha="center",
-            va="center",
-            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0},
-            zorder=10,
-        )
+        _draw_pose(ax, nom, dfl, joints, labels[p], c, label_offset)
     ax.scatter([0.0], [0.0], [0.0], color="k", marker="s", s=40, depthshade=False)
     pts = np.concatenate([nominal_m.reshape(-1, 3), deflected_m.reshape(-1, 3), path_m, np.zeros((1, 3))])
+    _equal_axes(ax, pts)
+    for setter in (ax.xaxis, ax.yaxis, ax.zaxis):
+        setter.set_major_locator(matplotlib.ticker.MaxNLocator(4))
+        setter.pane.set_alpha(0.15)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    handles = _arm_handles(factor)
+    fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.925), frameon=False, fontsize=8)
+    ax.view_init(elev=18, azim=azim)
+    fig.suptitle(title, y=0.985)
+    return fig
+
+
+def _view_azimuth(path_m: np.ndarray) -> float:
+    """The 3-D view's azimuth, deg: the path (N, 3), m, seen from its side, turned by ARM_VIEW_TURN_DEG."""
+    run_xy = path_m[-1, :2] - path_m[0, :2] if len(path_m) > 1 else np.array([1.0, 0.0])
+    return (
+        math.degrees(math.atan2(run_xy[1], run_xy[0])) - 90.0 - ARM_VIEW_TURN_DEG
+        if np.linalg.norm(run_xy) > 1e-6
+        else -60.0
+    )
+
+
+def _draw_pose(
+    ax: Any, nom: np.ndarray, dfl: np.ndarray, joints: Sequence[int], label: str, c: str, label_offset: np.ndarray
+) -> None:
+    """One pose: the deflected polyline dashed, the nominal one solid with joint dots, the TCP marked and named."""
+    ax.plot(*dfl.T, color=c, lw=1.1, ls="--", alpha=0.9)
+    ax.plot(*nom.T, color=c, lw=3.0, solid_capstyle="round")
+    ax.scatter(*nom[joints].T, color="white", edgecolor=c, s=22, depthshade=False, zorder=5)
+    ax.scatter(*nom[-1], color=c, marker="v", s=40, depthshade=False)
+    ax.text(
+        *(nom[-1] + label_offset),
+        label,
+        color=c,
+        fontsize=9,
+        ha="center",
+        va="center",
+        bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0},
+        zorder=10,
+    )
+
+
+def _equal_axes(ax: Any, pts: np.ndarray) -> None:
+    """Limits around ``pts`` (K, 3), m, padded, at equal scale on the three axes."""
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     pad = 0.05 * float(np.max(hi - lo))
     lo, hi = lo - pad, hi + pad
@@ -240,13 +281,11 @@ def arm_figure(
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
     ax.set_box_aspect(span)  # equal scale on the three axes
-    for setter in (ax.xaxis, ax.yaxis, ax.zaxis):
-        setter.set_major_locator(matplotlib.ticker.MaxNLocator(4))
-        setter.pane.set_alpha(0.15)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    handles = [
+
+
+def _arm_handles(factor: float) -> list[Line2D]:
+    """The arm figure's legend entries (the deflection exaggerated ×``factor``)."""
+    return [
         Line2D(
             [],
             [],
@@ -269,7 +308,3 @@ def arm_figure(
         Line2D([], [], color="k", marker="s", ls="", label="base origin"),
         Line2D([], [], color="0.2", marker="v", ls="", label="TCP"),
     ]
-    fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.925), frameon=False, fontsize=8)
-    ax.view_init(elev=18, azim=azim)
-    fig.suptitle(title, y=0.985)
-    return fig

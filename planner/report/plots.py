@@ -133,6 +133,36 @@ def _path_overlay(ax: Any, path_uv_m: np.ndarray) -> None:
     ax.plot(*path_uv_m[-1], marker=">", color="crimson", mec="white", ms=6, zorder=7)
 
 
+#: The compliance map's six panels: factor from SI, unit, and what each diagonal compliance is.
+_MAP_SCALE = (1e3, 1e3, 1e3, 180.0 / math.pi, 180.0 / math.pi, 180.0 / math.pi)
+_MAP_UNITS = ("mm/N", "mm/N", "mm/N", "deg/(N·m)", "deg/(N·m)", "deg/(N·m)")
+_MAP_WHAT = (
+    "x displacement per N along x",
+    "y displacement per N along y",
+    "z displacement per N along z",
+    "rotation about x per N·m about x",
+    "rotation about y per N·m about y",
+    "rotation about z per N·m about z",
+)
+
+
+def _map_handles(
+    branch: np.ndarray | None, branch_labels: Sequence[str], path_uv_m: np.ndarray | None, path_label: str
+) -> list[Any]:
+    """The compliance map's legend: unreachable, the path if drawn, the branch boundaries if any (``branch``)."""
+    handles: list[Any] = [
+        Patch(facecolor="white", edgecolor="0.4", hatch="///", label="unreachable (no IK solution at this attitude)")
+    ]
+    if path_uv_m is not None and len(path_uv_m):
+        handles.append(
+            Line2D([], [], color="crimson", lw=1.6, marker="o", ms=5, label=path_label or "the run's path (● start)")
+        )
+    if branch is not None:
+        used = sorted({branch_labels[int(b)] for b in np.unique(branch[branch >= 0])}) if branch_labels else []
+        handles.append(Line2D([], [], color="k", lw=0.8, label=f"branch changes ({', '.join(used)})"))
+    return handles
+
+
 @styled
 def compliance_map_figure(
     u_m: np.ndarray,
@@ -185,16 +215,7 @@ def compliance_map_figure(
     du = (u_m[-1] - u_m[0]) / max(1, len(u_m) - 1) / 2
     dv = (v_m[-1] - v_m[0]) / max(1, len(v_m) - 1) / 2
     extent = (u_m[0] - du, u_m[-1] + du, v_m[0] - dv, v_m[-1] + dv)
-    scale = (1e3, 1e3, 1e3, 180.0 / math.pi, 180.0 / math.pi, 180.0 / math.pi)
-    units = ("mm/N", "mm/N", "mm/N", "deg/(N·m)", "deg/(N·m)", "deg/(N·m)")
-    what = (
-        "x displacement per N along x",
-        "y displacement per N along y",
-        "z displacement per N along z",
-        "rotation about x per N·m about x",
-        "rotation about y per N·m about y",
-        "rotation about z per N·m about z",
-    )
+    scale, units, what = _MAP_SCALE, _MAP_UNITS, _MAP_WHAT
     multi = branch is not None and len(np.unique(branch[branch >= 0])) > 1
     for i, ax in enumerate(axs.ravel()):
         _heat_panel(fig, ax, diag[..., i].T * scale[i], extent, f"C{i + 1}{i + 1} [{units[i]}]", units[i])
@@ -215,16 +236,7 @@ def compliance_map_figure(
         ax.set_xlabel(f"{u_label} [m]")
         ax.set_ylabel(f"{v_label} [m]")
         ax.set_title(f"({'abcdef'[i]}) C{i + 1}{i + 1}: {what[i]}")
-    handles = [
-        Patch(facecolor="white", edgecolor="0.4", hatch="///", label="unreachable (no IK solution at this attitude)")
-    ]
-    if path_uv_m is not None and len(path_uv_m):
-        handles.append(
-            Line2D([], [], color="crimson", lw=1.6, marker="o", ms=5, label=path_label or "the run's path (● start)")
-        )
-    if multi:
-        used = sorted({branch_labels[int(b)] for b in np.unique(branch[branch >= 0])}) if branch_labels else []
-        handles.append(Line2D([], [], color="k", lw=0.8, label=f"branch changes ({', '.join(used)})"))
+    handles = _map_handles(branch if multi else None, branch_labels, path_uv_m, path_label)
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False, bbox_to_anchor=(0.5, 0.0))
     fig.suptitle(title)
     return fig
@@ -332,34 +344,37 @@ def compensation_figure(
             ax.legend(loc="best")
             legend_done = True
         if dq_closed_rad is not None:
-            bx = axs[r0 + 1, j % 3]
-            d = dq_exact_rad[:, j] - dq_closed_rad[:, j]
-            if np.all(np.abs(d) < NUMERICAL_FLOOR_RAD):
-                bx.plot(s_mm, np.zeros_like(s_mm), color="0.25", lw=1.2)
-                bx.text(
-                    0.5,
-                    0.72,
-                    f"0 (numerical: < {NUMERICAL_FLOOR_RAD:g} rad)",
-                    transform=bx.transAxes,
-                    ha="center",
-                    va="center",
-                    fontsize=8,
-                )
-                bx.set_ylim(-1.0, 1.0)
-                bx.set_yticks([-1.0, 0.0, 1.0])
-                du = "deg"
-            else:
-                du, fd = _angle_unit(d)
-                bx.plot(s_mm, d * fd, color="0.25", lw=1.2)
-                bx.axhline(0.0, color="0.5", lw=0.6)
-            bx.set_title(f"joint {j + 1}: exact − closed form", fontsize=8.5)
-            bx.set_ylabel(f"difference [{du}]")
-            bx.grid(alpha=0.3)
-            bx.ticklabel_format(axis="y", useOffset=False, style="plain")
+            _difference_panel(axs[r0 + 1, j % 3], s_mm, dq_exact_rad[:, j] - dq_closed_rad[:, j], j)
     for ax in axs[-1]:
         ax.set_xlabel("path length from the first waypoint [mm]")
     fig.suptitle(title)
     return fig
+
+
+def _difference_panel(bx: Any, s_mm: np.ndarray, d: np.ndarray, j: int) -> None:
+    """One joint's exact minus closed-form compensation angle (``d`` (N,), rad) on ``bx``."""
+    if np.all(np.abs(d) < NUMERICAL_FLOOR_RAD):
+        bx.plot(s_mm, np.zeros_like(s_mm), color="0.25", lw=1.2)
+        bx.text(
+            0.5,
+            0.72,
+            f"0 (numerical: < {NUMERICAL_FLOOR_RAD:g} rad)",
+            transform=bx.transAxes,
+            ha="center",
+            va="center",
+            fontsize=8,
+        )
+        bx.set_ylim(-1.0, 1.0)
+        bx.set_yticks([-1.0, 0.0, 1.0])
+        du = "deg"
+    else:
+        du, fd = _angle_unit(d)
+        bx.plot(s_mm, d * fd, color="0.25", lw=1.2)
+        bx.axhline(0.0, color="0.5", lw=0.6)
+    bx.set_title(f"joint {j + 1}: exact − closed form", fontsize=8.5)
+    bx.set_ylabel(f"difference [{du}]")
+    bx.grid(alpha=0.3)
+    bx.ticklabel_format(axis="y", useOffset=False, style="plain")
 
 
 # ---------------------------------------------------------------------- 4. error before/after
@@ -479,6 +494,38 @@ def branch_figure(
         if np.isfinite(ana).any() or (opt is not None and np.isfinite(opt).any())
         else 1.0
     )
+    _branch_bars(a1, x, labels, ana, opt, colours, same, infeasible, top)
+    a1.set_xticks(x, ticks, fontsize=8)
+    a1.set_ylabel("RMS load-induced TCP error [mm]")
+    a1.set_ylim(0.0, top * 1.15 if top > 0 else 1.0)  # no load: every error 0
+    a1.set_title("(a) RMS error per IK branch" + ("" if same else " (analytic hatched, optimised solid)"))
+    a1.grid(alpha=0.3, axis="y")
+    _branch_curves(a2, s_mm, curves_mm)
+    a2.set_xlabel(x_label)
+    a2.set_ylabel("load-induced TCP error |Δ| [mm]")
+    a2.set_ylim(bottom=0.0)
+    a2.set_title("(b) along the path: the chosen and the default branch")
+    a2.grid(alpha=0.3)
+    a2.legend(loc="best")
+    if note:
+        fig.text(0.5, 0.015, note, ha="center", va="bottom", fontsize=8, color="0.3")
+    fig.suptitle(title)
+    return fig
+
+
+def _branch_bars(
+    a1: Any,
+    x: np.ndarray,
+    labels: Sequence[str],
+    ana: np.ndarray,
+    opt: np.ndarray | None,
+    colours: Sequence[str],
+    same: bool,
+    infeasible: Mapping[str, str],
+    top: float,
+) -> None:
+    """Panel (a) of the branch figure: the RMS bars (analytic hatched beside optimised unless the
+    same), each with its value or "not feasible"."""
     if same:
         vals = opt if opt is not None else ana
         a1.bar(x, np.nan_to_num(vals), color=colours, width=0.7)
@@ -503,11 +550,10 @@ def branch_figure(
             a1.text(x[i], v + 0.015 * top, format_number(v), ha="center", va="bottom", fontsize=8)
         elif lab in infeasible:
             a1.text(x[i], 0.03 * top, "not feasible", rotation=90, ha="center", va="bottom", fontsize=8, color="0.35")
-    a1.set_xticks(x, ticks, fontsize=8)
-    a1.set_ylabel("RMS load-induced TCP error [mm]")
-    a1.set_ylim(0.0, top * 1.15 if top > 0 else 1.0)  # no load: every error 0
-    a1.set_title("(a) RMS error per IK branch" + ("" if same else " (analytic hatched, optimised solid)"))
-    a1.grid(alpha=0.3, axis="y")
+
+
+def _branch_curves(a2: Any, s_mm: np.ndarray, curves_mm: Mapping[str, np.ndarray]) -> None:
+    """Panel (b) of the branch figure: the error along the path of each curve, styled by its name."""
     styles = {"chosen": (CHOSEN_COLOUR, "-", 2.4), "default": (DEFAULT_COLOUR, "--", 1.6)}
     for name, y in curves_mm.items():
         kind = "chosen" if "chosen" in name else "default" if "default" in name else ""
@@ -515,16 +561,6 @@ def branch_figure(
         if "analytic" in name and kind == "chosen":
             ls, lw = ":", 1.4
         a2.plot(s_mm, y, color=c, ls=ls, lw=lw, label=name)
-    a2.set_xlabel(x_label)
-    a2.set_ylabel("load-induced TCP error |Δ| [mm]")
-    a2.set_ylim(bottom=0.0)
-    a2.set_title("(b) along the path: the chosen and the default branch")
-    a2.grid(alpha=0.3)
-    a2.legend(loc="best")
-    if note:
-        fig.text(0.5, 0.015, note, ha="center", va="bottom", fontsize=8, color="0.3")
-    fig.suptitle(title)
-    return fig
 
 
 __all__ = [

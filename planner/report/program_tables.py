@@ -64,6 +64,15 @@ def program_tables(summary: Mapping[str, Any]) -> list[Table]:
     feed = p.get("feed") if isinstance(p.get("feed"), Mapping) else {}
     ctrl = summary.get("controller_trajectory")
     cutting = any(isinstance(e, Mapping) and "cutting_time_s" in e for e in feed.values())  # (newer summaries)
+    frows = _feed_rows(summary, feed, ctrl, cutting)
+    if frows:
+        tables.append(_feed_table(frows, cutting))
+    return tables
+
+
+def _feed_rows(summary: Mapping[str, Any], feed: Mapping[str, Any], ctrl: Any, cutting: bool) -> list[list[Cell]]:
+    """One row of the feed table per timing method in ``program.feed`` (the controller's marked)."""
+    k = PROGRAM_KEY
     frows = []
     for m, entry in feed.items():
         if not isinstance(entry, Mapping):
@@ -90,35 +99,36 @@ def program_tables(summary: Mapping[str, Any]) -> list[Table]:
                 Cell(_slowed_text(entry)),
             ]
         )
-    if frows:
-        tables.append(
-            Table(
-                "Program: feed",
-                [
-                    "method",
-                    "programmed time [s]",
-                    "achieved duration [s]",
-                    "achieved / programmed [×]",
-                ]
-                + (["time on cutting moves [s]", "cutting time / programmed [×]"] if cutting else [])
-                + [
-                    "peak TCP speed / F",
-                    "stretches between stops",
-                    f"slowed program lines (count: slowest {SLOWED_SHOWN}, % of F)",
-                ],
-                frows,
-                "Programmed time: length / F summed over the cutting moves (rapids count 0). Achieved: the "
-                "trajectory's duration, rapids and stops included"
-                + (
-                    "; time on cutting moves: its samples on cutting moves, their accelerations and stops included"
-                    if cutting
-                    else ""
-                )
-                + ". Slowed lines: program lines with a move whose "
-                f"peak TCP speed stays below {format_number(100.0 * (1.0 - FEED_SLOW_TOL))} % of F (the value: that "
-                "peak on the line's slowest move), slowest first; the full list is "
-                "summary.json program.feed.<method>.slowed_lines.",
-                anchor="program-feed",
-            )
+    return frows
+
+
+def _feed_table(frows: list[list[Cell]], cutting: bool) -> Table:
+    """The program's feed table: programmed against achieved time and the slowed lines per method."""
+    return Table(
+        "Program: feed",
+        [
+            "method",
+            "programmed time [s]",
+            "achieved duration [s]",
+            "achieved / programmed [×]",
+        ]
+        + (["time on cutting moves [s]", "cutting time / programmed [×]"] if cutting else [])
+        + [
+            "peak TCP speed / F",
+            "stretches between stops",
+            f"slowed program lines (count: slowest {SLOWED_SHOWN}, % of F)",
+        ],
+        frows,
+        "Programmed time: length / F summed over the cutting moves (rapids count 0). Achieved: the "
+        "trajectory's duration, rapids and stops included"
+        + (
+            "; time on cutting moves: its samples on cutting moves, their accelerations and stops included"
+            if cutting
+            else ""
         )
-    return tables
+        + ". Slowed lines: program lines with a move whose "
+        f"peak TCP speed stays below {format_number(100.0 * (1.0 - FEED_SLOW_TOL))} % of F (the value: that "
+        "peak on the line's slowest move), slowest first; the full list is "
+        "summary.json program.feed.<method>.slowed_lines.",
+        anchor="program-feed",
+    )

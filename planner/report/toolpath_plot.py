@@ -192,16 +192,41 @@ def _feed_item(run: RunRecord) -> FigureItem:
     line_bands = [bin_extrema(np.where(mask, line_f, np.nan))[1:] for mask in (~slowed, slowed)]
     f_hi = bin_extrema(feed)[2]
     slow_bin = np.logical_or.reduceat(slowed, starts) if len(t) else np.zeros(0, bool)
+    marks = _feed_marks(worst, lines, t, feed)
+    cut = np.isfinite(feed) & (feed > 0)
+    measured = float(np.max(speed[cut] / feed[cut])) if cut.any() else float("nan")
+    per_bin = int(np.ceil(len(t) / max(len(starts), 1)))
+    name = method_name(s, ctrl)
+    item.caption = _feed_caption(name, fname, len(t), len(starts), per_bin)
+    item.job = job(
+        feed_figure,
+        t[starts],
+        t[ends],
+        speed_bands,
+        f_hi,
+        slow_bin,
+        line_bands,
+        marks,
+        title=_header(run) + "\n" + _feed_head(name, entry, worst, measured),
+    )
+    return item
+
+
+def _feed_marks(
+    worst: Sequence[tuple[int, float]], lines: np.ndarray, t: np.ndarray, feed: np.ndarray
+) -> list[tuple[float, int, float, float]]:
+    """The slowest lines to name on the feed figure: (time at the line's middle s, line, fraction, F m/s)."""
     marks = []
     for L, frac in worst[:FEED_MARKED]:
         idx = np.flatnonzero(lines == L)
         if idx.size:  # named at the middle of the line's time
             marks.append((0.5 * float(t[idx[0]] + t[idx[-1]]), int(L), float(frac), float(feed[idx[0]])))
-    cut = np.isfinite(feed) & (feed > 0)
-    measured = float(np.max(speed[cut] / feed[cut])) if cut.any() else float("nan")
-    per_bin = int(np.ceil(len(t) / max(len(starts), 1)))
-    name = method_name(s, ctrl)
-    item.caption = (
+    return marks
+
+
+def _feed_caption(name: str, fname: str, n_samples: int, n_bins: int, per_bin: int) -> str:
+    """The feed figure's caption."""
+    caption = (
         f"The controller's trajectory ({name}, {fname}): (a) the TCP speed it reaches, from forward kinematics "
         "of its sampled joint commands (the arm model's rigid kinematics; |Δp|/Δt between samples), against the "
         "programmed feed F of the program line each sample runs (dashed; the largest F of the line's cutting "
@@ -212,10 +237,15 @@ def _feed_item(run: RunRecord) -> FigureItem:
         "slowest move, % of F: a move starting or ending at a stop counts). Grey: rapids."
     )
     if per_bin > 1:
-        item.caption += (
-            f" {len(t)} samples drawn as {len(starts)} bins of {per_bin}: each bin's band spans its smallest to "
+        caption += (
+            f" {n_samples} samples drawn as {n_bins} bins of {per_bin}: each bin's band spans its smallest to "
             "largest speed (the line is the largest), so no peak and no slow-down is hidden."
         )
+    return caption
+
+
+def _feed_head(name: str, entry: Mapping[str, Any], worst: Sequence[tuple[int, float]], measured: float) -> str:
+    """The feed figure's second title line: duration against the programmed time, slowed lines, peak speed / F."""
     prog_t, dur = entry.get("programmed_time_s"), entry.get("duration_s")
     head = f"{name}: duration {format_number(float(dur))} s" if isinstance(dur, (int, float)) else name
     if isinstance(prog_t, (int, float)) and isinstance(dur, (int, float)) and prog_t > 0:
@@ -223,18 +253,7 @@ def _feed_item(run: RunRecord) -> FigureItem:
     head += f"; {len(worst)} slowed line{'' if len(worst) == 1 else 's'}"
     if np.isfinite(measured):
         head += f"; peak TCP speed / F on cutting moves {measured:.3f} (forward kinematics)"
-    item.job = job(
-        feed_figure,
-        t[starts],
-        t[ends],
-        speed_bands,
-        f_hi,
-        slow_bin,
-        line_bands,
-        marks,
-        title=_header(run) + "\n" + head,
-    )
-    return item
+    return head
 
 
 # ------------------------------------------------------------------------------- the drawings
@@ -341,31 +360,14 @@ def toolpath_figure(
     stacked = ratio >= STACK_RATIO
     shown = min(ratio, MAX_PANEL_RATIO) if stacked else max(ratio, MIN_PANEL_RATIO)
     stretch = ratio / shown  # display length of a vertical mm over a horizontal one
-    # Laid out by hand, in inches, so that each panel's box has the drawn ratio exactly.
-    W, left, cbar_room, gap, top_room, bottom_room = 12.0, 0.85, 1.25, 0.25, 1.05, 0.9
-    if stacked:
-        ph = min((W - left - cbar_room) / shown, 4.2)
-        pw = ph * shown
-        H = top_room + 2.0 * ph + 0.6 + bottom_room
-        x0 = left + (W - left - cbar_room - pw) / 2.0
-        boxes = [(x0, bottom_room + ph + 0.6), (x0, bottom_room)]
-    else:
-        ph = min((W - left - 2.0 * cbar_room - gap) / 2.0 / shown, 6.0)
-        pw = ph * shown
-        H = top_room + 0.15 + ph + bottom_room
-        x0 = left + (W - (left + 2.0 * (pw + cbar_room) + gap)) / 2.0  # centred
-        boxes = [(x0, bottom_room), (x0 + pw + cbar_room + gap, bottom_room)]
+    W, H, pw, ph, boxes = _panel_boxes(shown, stacked)
     fig = new_figure(W, H)
     axes: list[Any] = []
     caxes: list[Any] = []
     for bx, by in boxes:
         axes.append(fig.add_axes((bx / W, by / H, pw / W, ph / H), sharex=axes[0] if axes else None))
         caxes.append(fig.add_axes(((bx + pw + 0.12) / W, by / H, 0.17 / W, ph / H)))
-    x_note = y_note = ""
-    if stretch > 1.0 + 1e-9:
-        y_note = f", drawn ×{format_number(stretch, 3)}"
-    elif stretch < 1.0 - 1e-9:
-        x_note = f", drawn ×{format_number(1.0 / stretch, 3)}"
+    x_note, y_note = _stretch_notes(stretch)
     sep = "\n" if pw < 3.3 else " "
     labels = (f"TCP error{sep}before compensation", f"residual after{sep}exact compensation")
     for i, (ax, label) in enumerate(zip(axes, labels)):
@@ -383,14 +385,48 @@ def toolpath_figure(
         ax.set_xlabel(f"program {axis_names[0]} [mm{x_note}]")
     if stacked:
         axes[0].tick_params(labelbottom=False)
-    handles = [
+    fig.legend(handles=_toolpath_handles(), loc="lower center", ncol=3, frameon=False, bbox_to_anchor=(0.5, 0.0))
+    fig.suptitle(title)
+    return fig
+
+
+def _panel_boxes(shown: float, stacked: bool) -> tuple[float, float, float, float, list[tuple[float, float]]]:
+    """The toolpath figure laid out by hand, in inches, so that each panel's box has the drawn
+    width/height ratio ``shown`` exactly: (figure width, height, panel width, height, lower-left
+    corner of each panel)."""
+    W, left, cbar_room, gap, top_room, bottom_room = 12.0, 0.85, 1.25, 0.25, 1.05, 0.9
+    if stacked:
+        ph = min((W - left - cbar_room) / shown, 4.2)
+        pw = ph * shown
+        H = top_room + 2.0 * ph + 0.6 + bottom_room
+        x0 = left + (W - left - cbar_room - pw) / 2.0
+        boxes = [(x0, bottom_room + ph + 0.6), (x0, bottom_room)]
+    else:
+        ph = min((W - left - 2.0 * cbar_room - gap) / 2.0 / shown, 6.0)
+        pw = ph * shown
+        H = top_room + 0.15 + ph + bottom_room
+        x0 = left + (W - (left + 2.0 * (pw + cbar_room) + gap)) / 2.0  # centred
+        boxes = [(x0, bottom_room), (x0 + pw + cbar_room + gap, bottom_room)]
+    return W, H, pw, ph, boxes
+
+
+def _stretch_notes(stretch: float) -> tuple[str, str]:
+    """The axis-label notes (x, y) saying by how much the shorter axis is stretched."""
+    x_note = y_note = ""
+    if stretch > 1.0 + 1e-9:
+        y_note = f", drawn ×{format_number(stretch, 3)}"
+    elif stretch < 1.0 - 1e-9:
+        x_note = f", drawn ×{format_number(1.0 / stretch, 3)}"
+    return x_note, y_note
+
+
+def _toolpath_handles() -> list[Line2D]:
+    """The toolpath figure's legend entries: rapid, start, end."""
+    return [
         Line2D([], [], color="0.5", lw=0.8, ls=(0, (3, 3)), label="rapid"),
         Line2D([], [], marker="o", color="crimson", mec="white", ls="none", label="start"),
         Line2D([], [], marker=">", color="crimson", mec="white", ls="none", label="end"),
     ]
-    fig.legend(handles=handles, loc="lower center", ncol=3, frameon=False, bbox_to_anchor=(0.5, 0.0))
-    fig.suptitle(title)
-    return fig
 
 
 @styled
@@ -437,35 +473,65 @@ def feed_figure(
     fig = new_figure(12.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.82, hspace=0.08)
     a1, a2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2.6, 1.0)})
     x = np.r_[t0, t1[-1:]] if len(t0) else t0  # bin edges: bin i spans x[i] .. x[i + 1]
-
-    def band(ax: Any, y_lo: np.ndarray, y_hi: np.ndarray, colour: str, label: str, z: float) -> None:
-        if not np.isfinite(y_hi).any():
-            return
-        lo_e, hi_e = np.r_[y_lo, y_lo[-1:]], np.r_[y_hi, y_hi[-1:]]
-        ax.fill_between(x, lo_e, hi_e, step="post", color=colour, alpha=0.35, lw=0, zorder=z)
-        ax.step(x, hi_e, where="post", color=colour, lw=1.0, label=label, zorder=z + 0.1)
-
     if slow.any() and slow.mean() <= SLOWED_SHADE_MAX:  # one artist per panel, however many lines
-        for ax in (a1, a2):
-            ax.fill_between(
-                x,
-                0,
-                1,
-                where=np.r_[slow, False],
-                step="post",
-                transform=ax.get_xaxis_transform(),
-                color="tab:red",
-                alpha=0.1,
-                lw=0,
-                zorder=0,
-            )
+        _shade_slowed((a1, a2), x, slow)
     styles = (
         ("tab:blue", "TCP speed (forward kinematics)", 2.0),
         ("tab:red", "TCP speed on a slowed line", 2.5),
         ("0.55", "TCP speed on rapids", 1.5),
     )
     for (lo, hi), (colour, label, z) in zip(bands, styles):
-        band(a1, lo, hi, colour, label, z)
+        _band(a1, x, lo, hi, colour, label, z)
+    f_max, note = _feed_and_speed_axis(a1, x, F, bands)
+    _mark_slowed_lines(a1, x, marks, f_max)
+    a1.set_ylabel("TCP speed [mm/min]")
+    a1.set_title(f"(a) TCP speed against the programmed feed{note}", loc="left")
+    a1.grid(alpha=0.3)
+    fig.legend(*a1.get_legend_handles_labels(), loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.905), frameon=False)
+    for (lo, hi), (colour, label, z) in zip(
+        line_bands, (("0.3", "program line", 2.0), ("tab:red", "slowed line", 2.5))
+    ):
+        _band(a2, x, np.asarray(lo, float), np.asarray(hi, float), colour, label, z)
+    a2.set_ylabel("program line")
+    a2.set_xlabel("time [s]")
+    a2.set_title("(b) the program line each sample runs", loc="left", y=0.8, x=0.01, fontsize=8.5)
+    a2.grid(alpha=0.3)
+    if len(x) > 1:
+        a2.set_xlim(float(x[0]), float(x[-1]))
+    fig.suptitle(title)
+    return fig
+
+
+def _band(ax: Any, x: np.ndarray, y_lo: np.ndarray, y_hi: np.ndarray, colour: str, label: str, z: float) -> None:
+    """A per-bin band from ``y_lo`` to ``y_hi`` over the bin edges ``x``, its top line labelled."""
+    if not np.isfinite(y_hi).any():
+        return
+    lo_e, hi_e = np.r_[y_lo, y_lo[-1:]], np.r_[y_hi, y_hi[-1:]]
+    ax.fill_between(x, lo_e, hi_e, step="post", color=colour, alpha=0.35, lw=0, zorder=z)
+    ax.step(x, hi_e, where="post", color=colour, lw=1.0, label=label, zorder=z + 0.1)
+
+
+def _shade_slowed(axes: Sequence[Any], x: np.ndarray, slow: np.ndarray) -> None:
+    """Shade the bins running a slowed line on each of ``axes`` (one artist per panel)."""
+    for ax in axes:
+        ax.fill_between(
+            x,
+            0,
+            1,
+            where=np.r_[slow, False],
+            step="post",
+            transform=ax.get_xaxis_transform(),
+            color="tab:red",
+            alpha=0.1,
+            lw=0,
+            zorder=0,
+        )
+
+
+def _feed_and_speed_axis(
+    a1: Any, x: np.ndarray, F: np.ndarray, bands: Sequence[tuple[np.ndarray, np.ndarray]]
+) -> tuple[float, str]:
+    """Draw the programmed feed and set the speed axis; (largest feed mm/min or NaN, title note)."""
     cutting = np.isfinite(F)
     if cutting.any():
         a1.step(x, np.r_[F, F[-1:]], where="post", color="k", lw=1.1, ls="--", label="programmed feed F", zorder=3)
@@ -477,6 +543,11 @@ def feed_figure(
         note = f"; rapids reach {format_number(tops[2])} mm/min, above the axis"
     else:
         a1.set_ylim(0.0, max(max(tops), f_max if np.isfinite(f_max) else 0.0, 1e-9) * 1.12)
+    return f_max, note
+
+
+def _mark_slowed_lines(a1: Any, x: np.ndarray, marks: Sequence[tuple[float, int, float, float]], f_max: float) -> None:
+    """Name the slowest lines on the speed panel, on at most :data:`MARK_LEVELS` rows of labels."""
     span = float(x[-1] - x[0]) if len(x) > 1 else 1.0
     placed: list[tuple[float, int]] = []
     for tm, L, frac, f_line in sorted(marks):
@@ -503,19 +574,3 @@ def feed_figure(
         )
     if placed and np.isfinite(f_max):  # room for the labels above the feed
         a1.set_ylim(0.0, max(a1.get_ylim()[1], FEED_VIEW_TOP * f_max))
-    a1.set_ylabel("TCP speed [mm/min]")
-    a1.set_title(f"(a) TCP speed against the programmed feed{note}", loc="left")
-    a1.grid(alpha=0.3)
-    fig.legend(*a1.get_legend_handles_labels(), loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.905), frameon=False)
-    for (lo, hi), (colour, label, z) in zip(
-        line_bands, (("0.3", "program line", 2.0), ("tab:red", "slowed line", 2.5))
-    ):
-        band(a2, np.asarray(lo, float), np.asarray(hi, float), colour, label, z)
-    a2.set_ylabel("program line")
-    a2.set_xlabel("time [s]")
-    a2.set_title("(b) the program line each sample runs", loc="left", y=0.8, x=0.01, fontsize=8.5)
-    a2.grid(alpha=0.3)
-    if len(x) > 1:
-        a2.set_xlim(float(x[0]), float(x[-1]))
-    fig.suptitle(title)
-    return fig
