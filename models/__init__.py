@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 from models.lazy import lazy_exports
 
 if TYPE_CHECKING:
-    from .errors import CompplanError, InfeasibleError, InputError, SingularityError, UnreachableError
+    from .errors import CompplanError, InfeasibleError, InputError, UnreachableError
     from .ik import BRANCH_LABELS, AnalyticIK, IKSolution, IKSolver, IKStatus, IKStructureError, ik_solver
     from .robot import BUILTIN_ROBOTS, Joint, Robot, RobotFileError, load_robot, robot_from_dict
     from .symbolic import KinematicModel, cartesian_stiffness, directional_stiffness
@@ -45,7 +45,6 @@ __all__ = [
     "KinematicModel",
     "Robot",
     "RobotFileError",
-    "SingularityError",
     "UnreachableError",
     "cartesian_stiffness",
     "directional_stiffness",

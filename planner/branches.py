@@ -210,19 +210,9 @@ def posture_words(
 
 
 __all__ = [
-    "BRANCH_LEGEND",
-    "BRANCH_PARTS",
-    "ELBOW_STRAIGHT_M",
-    "GENERAL_LEGEND",
-    "OPW_LEGEND",
-    "OPW_PARTS",
     "legend",
-    "NO_FREEDOM_TEXT",
-    "STATUS_TEXT",
     "decode",
-    "elbow_words",
     "posture_words",
     "short",
-    "shoulder_words",
     "status_text",
 ]

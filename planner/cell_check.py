@@ -55,17 +55,12 @@ from problems.posture.solve import rechoose
 __all__ = [
     "TOOL_BODY",
     "TOOL_MIN_LENGTH_M",
-    "CellCheck",
     "cell_geometry",
     "cell_summary",
-    "check_branches",
     "check_command",
     "check_poses",
     "check_trajectory",
     "choose_collision_free",
-    "distance_table",
-    "first_violation",
-    "largest_displacement",
     "segments",
 ]
 

@@ -26,7 +26,12 @@ DEMO_PROBLEM = "paper_4_4"
 #: Alias kept for existing callers: the demo result *is* a plan result.
 DemoResult = PlanResult
 
-__all__ = ["DEMO_PROBLEM", "DemoResult", "WAYPOINT_COLUMNS", "demo_problem", "error_stats", "run_demo", "write_outputs"]
+__all__ = [
+    "WAYPOINT_COLUMNS",
+    "demo_problem",
+    "run_demo",
+    "write_outputs",
+]
 
 
 def error_stats(res: Any) -> dict[str, float]:

@@ -49,11 +49,8 @@ from problems.dynamic import (
 )
 
 __all__ = [
-    "DYNAMIC_MAX_PASSES",
-    "DYNAMIC_RETIME_MARGIN",
     "HEADLINE_CASES",
     "HEADLINE_DEFINITION",
-    "DynamicStage",
     "DynamicStageStatus",
     "dynamic_stage",
     "headline_text",

@@ -119,7 +119,6 @@ __all__ = [
     "NUMERICAL_FLOOR_MM",
     "NUMERICAL_FLOOR_RAD",
     "NUMERICAL_ZERO_TEXT",
-    "below_floor",
     "format_mm",
     "format_number",
     "format_value",

@@ -384,7 +384,6 @@ def output_lock(target: str | Path, what: str = "output") -> Iterator[Path]:
 __all__ = [
     "FILE_MODE",
     "FOLDER_MODE",
-    "LEFTOVER_KINDS",
     "OutputError",
     "SIBLING_TAG",
     "acquire_output_lock",
@@ -397,7 +396,6 @@ __all__ = [
     "real_path",
     "release_output_lock",
     "remove_path",
-    "removal_hint",
     "sibling_prefix",
     "take_output_notes",
 ]

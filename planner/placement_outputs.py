@@ -15,7 +15,11 @@ from problems.placement.scores import PlacementStatus
 if TYPE_CHECKING:
     from planner.placement_result import PlacementStudy
 
-__all__ = ["CSV_BLOCK_ROWS", "GRID_DIGITS", "SCORE_COLUMNS", "scores_csv", "write_study"]
+__all__ = [
+    "SCORE_COLUMNS",
+    "scores_csv",
+    "write_study",
+]
 
 
 #: Columns of ``scores.csv`` (one row per placement, grid order; edge units in the names; ``status``

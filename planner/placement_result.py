@@ -29,7 +29,6 @@ __all__ = [
     "StudyStatus",
     "collision_lines",
     "plan_clearance",
-    "plan_entry",
     "scores_dict",
 ]
 

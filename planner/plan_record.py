@@ -30,7 +30,9 @@ if TYPE_CHECKING:
     from planner.plan_result import PlanResult, RunView
     from problems.timing import Trajectory
 
-__all__ = ["program_from_plan", "record_from_plan"]
+__all__ = [
+    "record_from_plan",
+]
 
 
 def record_from_plan(res: PlanResult, folder: str | Path, view: RunView | None = None) -> RunRecord:

@@ -28,7 +28,12 @@ if TYPE_CHECKING:
     from problems.problem import Problem
     from problems.timing import Trajectory
 
-__all__ = ["HEADLINE_DEFINITION", "headline", "plan_summary", "timing_summary", "within_limits"]
+__all__ = [
+    "HEADLINE_DEFINITION",
+    "headline",
+    "plan_summary",
+    "within_limits",
+]
 
 
 def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> dict[str, Any]:

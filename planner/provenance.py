@@ -224,18 +224,13 @@ def problem_provenance(problem: Any, made: dict[str, Any] | None = None) -> dict
 
 
 __all__ = [
-    "DISTRIBUTION",
     "builtin_robot_file",
     "command_line_scope",
-    "current_command_line",
     "input_file",
     "invocation",
     "problem_input",
     "problem_provenance",
     "provenance",
     "robot_input",
-    "sha256_file",
-    "shipped_problem_file",
-    "utc_now",
     "version",
 ]

@@ -41,7 +41,12 @@ from planner.summary_specs import (
     shown,
 )
 
-__all__ = ["COMMANDS", "RUN_COMMANDS", "SUMMARY", "SummaryError", "read_summary", "summary_refusal"]
+__all__ = [
+    "COMMANDS",
+    "SUMMARY",
+    "SummaryError",
+    "read_summary",
+]
 
 #: The commands that read a run's summary.json (the ``need`` of a key names some of them).
 COMMANDS = ("report", "export", "track")

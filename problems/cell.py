@@ -43,8 +43,6 @@ if TYPE_CHECKING:  # models.collision loads coal: only when a cell is built
 
 __all__ = [
     "BASE_FOOTPRINT_HEIGHT_M",
-    "BASE_FOOTPRINT_RADIUS_M",
-    "BUILTIN_BASE_FOOTPRINT_RADIUS_M",
     "COAL_GJK_TOLERANCE_M",
     "DEFAULT_CLEARANCE_M",
     "FOOTPRINT_TOUCH_TOL_M",

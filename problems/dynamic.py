@@ -50,7 +50,6 @@ from models.status import Status
 from problems.quintic import curve_peaks
 
 __all__ = [
-    "DynamicCommand",
     "DynamicStatus",
     "command_derivatives",
     "command_with_rest",

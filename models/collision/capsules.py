@@ -52,7 +52,6 @@ __all__ = [
     "TOOL_SELF_MAX_BODY",
     "with_tool",
     "BUILTIN_ALLOWED_PAIRS",
-    "BUILTIN_COLLISION",
     "BUILTIN_OVERLAPPING_ALLOWED",
     "BUILTIN_RADII_M",
     "BUILTIN_RADII_SOURCE",
@@ -60,7 +59,6 @@ __all__ = [
     "body_name",
     "capsule_model",
     "default_radii",
-    "robot_collision",
     "self_collision_body_pairs",
     "self_collision_pairs",
 ]

@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DEGENERATE_SEGMENT_M2", "capsule_distance", "segment_distance"]
+__all__ = [
+    "capsule_distance",
+    "segment_distance",
+]
 
 #: Squared segment length (m^2) below which a segment is treated as a point.
 DEGENERATE_SEGMENT_M2 = 1e-24

@@ -50,14 +50,10 @@ from .capsules import TOOL_BODY, TOOL_SELF_MAX_BODY, CapsuleModel, self_collisio
 
 __all__ = [
     "CUTTER_BODY",
-    "CUTTER_NAME",
-    "LEGACY_TOOL_NAME",
     "Cutter",
-    "ToolCapsules",
     "ToolElement",
     "ToolGeometry",
     "check_pairs",
-    "element_capsule",
     "reserved_name",
     "with_tool_geometry",
 ]

@@ -49,15 +49,11 @@ from planner.summary_schema import read_summary
 from planner.summary_specs import MAGNITUDE_MAX
 
 __all__ = [
-    "DURATION_TOL_S",
-    "check_columns",
-    "program_from_folder",
     "read_csv",
     "read_record",
     "read_run_summary",
     "read_trajectory",
     "recorded_model",
-    "require",
 ]
 
 #: ``path.csv``'s position columns and its program columns

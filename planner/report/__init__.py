@@ -54,31 +54,29 @@ from typing import TYPE_CHECKING
 from models.lazy import lazy_exports
 
 if TYPE_CHECKING:
-    from planner.report.figures import ARM_POSES, DYNAMIC_FIGURE, FIGURE_NAMES, build_figures
-    from planner.report.maps import map_job, write_map
+    from planner.report.figures import DYNAMIC_FIGURE, FIGURE_NAMES, build_figures
+    from planner.report.maps import write_map
     from planner.report.rendering import (
-        MAX_WORKERS,
         FigureItem,
-        default_workers,
         render_html,
         render_items,
         render_markdown,
     )
     from planner.report.table_base import Cell, Table, fmt, lookup, value_cell
-    from planner.report.tables import headline_table, load_words, provenance_table, summary_tables
-    from planner.report.writer import publish_report, report_files, write_report
+    from planner.report.tables import load_words, provenance_table, summary_tables
+    from planner.report.writer import report_files, write_report
 
 #: The submodule defining each name re-exported here, imported on first use (PEP 562): a command
 #: that reads only the tables (``compplan plan --no-report``) does not import matplotlib.
 _LAZY = {
     name: module
     for module, names in {
-        "figures": ("ARM_POSES", "DYNAMIC_FIGURE", "FIGURE_NAMES", "build_figures"),
-        "maps": ("map_job", "write_map"),
-        "rendering": ("MAX_WORKERS", "FigureItem", "default_workers", "render_html", "render_items", "render_markdown"),
+        "figures": ("DYNAMIC_FIGURE", "FIGURE_NAMES", "build_figures"),
+        "maps": ("write_map",),
+        "rendering": ("FigureItem", "render_html", "render_items", "render_markdown"),
         "table_base": ("Cell", "Table", "fmt", "lookup", "value_cell"),
-        "tables": ("headline_table", "load_words", "provenance_table", "summary_tables"),
-        "writer": ("publish_report", "report_files", "write_report"),
+        "tables": ("load_words", "provenance_table", "summary_tables"),
+        "writer": ("report_files", "write_report"),
     }.items()
     for name in names
 }
@@ -88,22 +86,16 @@ __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 
 
 __all__ = [
-    "ARM_POSES",
     "Cell",
     "DYNAMIC_FIGURE",
     "FIGURE_NAMES",
     "FigureItem",
-    "MAX_WORKERS",
     "Table",
     "build_figures",
-    "default_workers",
     "fmt",
-    "headline_table",
     "load_words",
     "lookup",
-    "map_job",
     "provenance_table",
-    "publish_report",
     "report_files",
     "render_html",
     "render_items",

@@ -54,14 +54,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CELL_FIGURE",
-    "CELL_POSES",
-    "CellScene",
-    "DrawnObject",
-    "capsule_mesh",
-    "cell_figure",
     "cell_items",
-    "cell_plotly_div",
-    "cell_scene",
 ]
 
 #: File name of the cell view (fixed, like the other optional figures' names).

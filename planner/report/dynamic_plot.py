@@ -17,7 +17,9 @@ from matplotlib.figure import Figure
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number
 from planner.report.figure_base import new_figure, styled
 
-__all__ = ["DYNAMIC_DECADES", "DYNAMIC_STYLES", "dynamic_figure"]
+__all__ = [
+    "dynamic_figure",
+]
 
 
 # ------------------------------------------------------------------- 8. dynamic compensation

@@ -13,8 +13,6 @@ from planner.report.table_base import RATIO_KINDS, Cell, Table, value_cell
 
 __all__ = [
     "DYNAMIC_CASES",
-    "DYNAMIC_HEADLINE_ROWS",
-    "DYNAMIC_SMOOTHING_COLUMNS",
     "dynamic_headline_note",
     "dynamic_headline_rows",
     "dynamic_tables",

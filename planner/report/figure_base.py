@@ -15,7 +15,15 @@ import io
 from typing import Any
 from collections.abc import Callable, Mapping
 
-__all__ = ["PDF_METADATA", "PNG_COMPRESS_LEVEL", "PNG_DPI", "STYLE", "new_figure", "pdf_bytes", "png_bytes", "styled"]
+__all__ = [
+    "PNG_COMPRESS_LEVEL",
+    "PNG_DPI",
+    "STYLE",
+    "new_figure",
+    "pdf_bytes",
+    "png_bytes",
+    "styled",
+]
 
 #: PNG resolution (dots per inch) of the plan and placement reports: modest, keeps the report small and fast.
 PNG_DPI = 100

@@ -21,7 +21,12 @@ from planner.numbers import format_number
 from planner.report.figure_base import new_figure, styled
 from planner.report.plots import JOINT_COLOURS
 
-__all__ = ["ARM_VIEW_TURN_DEG", "JERK_VIEW_LIMITS", "arm_figure", "nice_factor", "trajectory_figure"]
+__all__ = [
+    "JERK_VIEW_LIMITS",
+    "arm_figure",
+    "nice_factor",
+    "trajectory_figure",
+]
 
 #: Jerk panels of figure 6 show at most this multiple of the jerk limit (a method that does not
 #: limit jerk, TOPP-RA, would squash the others); what is cut off is stated on the panel.

@@ -11,7 +11,12 @@ from __future__ import annotations
 import base64
 import html
 
-__all__ = ["PAGE_CSS", "PAGE_END", "embedded_figure", "page_head", "page_text"]
+__all__ = [
+    "PAGE_END",
+    "embedded_figure",
+    "page_head",
+    "page_text",
+]
 
 #: The reports' style sheet (a page may add its own rules after it).
 PAGE_CSS = """

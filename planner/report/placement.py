@@ -42,8 +42,6 @@ __all__ = [
     "error_map",
     "figures",
     "html",
-    "margins_map",
-    "plans_chart",
 ]
 
 #: Most panels of the error map (the panels with the best placements and the smallest errors are kept).

@@ -571,11 +571,8 @@ __all__ = [
     "MapFrame",
     "MapPanel",
     "PlanBar",
-    "STATUS_STYLES",
-    "cell_extent",
     "error_map_figure",
     "margin_map_figure",
     "plans_figure",
     "png",
-    "view_limits",
 ]

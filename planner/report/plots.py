@@ -564,8 +564,6 @@ def _branch_curves(a2: Any, s_mm: np.ndarray, curves_mm: Mapping[str, np.ndarray
 
 
 __all__ = [
-    "ANGLE_UNITS",
-    "AXIS_COLOURS",
     "JOINT_COLOURS",
     "PNG_DPI",
     "branch_figure",

@@ -23,7 +23,6 @@ from planner.record.columns import MM_MIN_PER_M_S, PROGRAM_KEY
 from planner.record.record import ProgramRecord
 
 __all__ = [
-    "CORNER_DEG",
     "FEED_BINS",
     "MAX_DRAWN_SEGMENTS",
     "MM_MIN_PER_M_S",

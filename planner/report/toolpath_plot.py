@@ -50,7 +50,12 @@ from planner.report.toolpath import (
     view_axes,
 )
 
-__all__ = ["FEED_FIGURE", "PROGRAM_FIGURES", "TOOLPATH_FIGURE", "feed_figure", "program_items", "toolpath_figure"]
+__all__ = [
+    "FEED_FIGURE",
+    "PROGRAM_FIGURES",
+    "TOOLPATH_FIGURE",
+    "program_items",
+]
 
 #: File names of the program figures (fixed, like figure 8's, whichever optional figures a run has).
 TOOLPATH_FIGURE = "fig9_toolpath"

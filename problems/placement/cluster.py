@@ -468,14 +468,9 @@ def _fetch(ac: Any, batch: list[Any]) -> list[tuple[Any, ChunkScores]]:
 
 
 __all__ = [
-    "CHUNK_RETRIES",
-    "CLOSE_TIMEOUT_S",
     "ClusterError",
-    "DASK_INSTALL",
-    "DaskRun",
     "LOCAL_ENV_DROPPED",
     "WORKER_WAIT_S",
-    "check_workers",
     "dask_client",
     "require_dask",
     "run_on_dask",

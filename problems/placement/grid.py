@@ -271,12 +271,9 @@ def default_grid(positions_cell: np.ndarray, reach_m: float) -> PlacementGrid:
 
 
 __all__ = [
-    "DEFAULT_TOP",
     "GRID_AXES",
-    "MAX_PLACEMENTS",
     "PlacementGrid",
     "PlacementGridError",
-    "axis_values",
     "base2cell",
     "cell2base",
     "default_grid",

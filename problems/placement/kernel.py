@@ -498,4 +498,7 @@ def _into_limits(q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray) -> tuple[n
     return q + 2.0 * np.pi * k[:, None, :], fits
 
 
-__all__ = ["DENSE_CANDIDATES", "KERNEL_THREADS", "PlacementKernel", "PlacementStatus"]
+__all__ = [
+    "PlacementKernel",
+    "PlacementStatus",
+]

@@ -138,12 +138,11 @@ from problems.posture.task import (
     SolverSettings,
 )
 from problems.posture.verification import guard_bounds, singular_factors, verify
-from problems.posture.transcription import PostureNLP, StageCompileError, get_nlp
+from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.warm_start import WarmStarts, candidates, linear_error, warm_starts
 from problems.posture.solve import analyse_freedom, branch_signs, optimal_pose, optimise_postures
 
 __all__ = [
-    # task data, constants and results
     "AXIS_SCALE",
     "COST_SCALE",
     "DEFAULT_MAX_ITER",
@@ -177,20 +176,15 @@ __all__ = [
     "PostureStatus",
     "PostureTask",
     "SolverSettings",
-    # verification
     "guard_bounds",
     "singular_factors",
     "verify",
-    # transcription
     "PostureNLP",
-    "StageCompileError",
     "get_nlp",
-    # warm starts
     "WarmStarts",
     "candidates",
     "linear_error",
     "warm_starts",
-    # the stage
     "analyse_freedom",
     "branch_signs",
     "optimal_pose",

@@ -52,16 +52,11 @@ from models.collision.shapes import NORM_EPS_M
 from models.robot import Robot
 
 __all__ = [
-    "CLEARANCE_EXACT_HESSIAN",
     "CLEARANCE_MAX_NODES",
     "CLEARANCE_SCALE",
     "CLEARANCE_TOL_M",
-    "NEAR_DISTANCE_M",
     "NLP_MAX_PENETRATION_M",
-    "SAMPLE_SPACING_M",
-    "SOFTMIN_SHARPNESS_PER_M",
     "ClearanceSpec",
-    "PairSpec",
     "clearance_functions",
     "clearance_spec",
     "distance_function",

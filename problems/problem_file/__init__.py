@@ -24,16 +24,11 @@ Every error is a :class:`ProblemFileError` naming the file, the key (dotted, e.g
 from typing import TYPE_CHECKING
 
 from models.lazy import lazy_exports
-from problems.problem_file.path_section import PathSection, is_program_path, parse_path
+from problems.problem_file.path_section import is_program_path, parse_path
 from problems.problem_file.sections import (
     DEFAULT_RPY,
     WRENCH_FRAMES,
-    Header,
     Limits,
-    OrientationSection,
-    PayloadSection,
-    RobotSection,
-    WrenchSection,
     parse_branch,
     parse_cost,
     parse_header,
@@ -45,12 +40,11 @@ from problems.problem_file.sections import (
     parse_solver,
     parse_wrench,
 )
-from problems.problem_file.timing_section import TIMING_OPTION_KEYS, TimingSettings, check_timing, parse_timing
+from problems.problem_file.timing_section import TimingSettings, check_timing, parse_timing
 from problems.problem_file.values import (
     PLAUSIBLE_JOINT_MAX_RAD,
     PLAUSIBLE_JOINT_STEP_MAX_RAD,
     PLAUSIBLE_RPY_MAX_RAD,
-    TABLE_KEYS,
     ProblemFileError,
 )
 
@@ -72,19 +66,11 @@ __all__ = [
     "PLAUSIBLE_JOINT_STEP_MAX_RAD",
     "PLAUSIBLE_RPY_MAX_RAD",
     "PROGRAM_KINDS",
-    "TABLE_KEYS",
-    "TIMING_OPTION_KEYS",
     "WRENCH_FRAMES",
-    "Header",
     "Limits",
-    "OrientationSection",
-    "PathSection",
-    "PayloadSection",
     "ProblemFileError",
     "ProgramSection",
-    "RobotSection",
     "TimingSettings",
-    "WrenchSection",
     "check_reach",
     "check_timing",
     "is_program_path",

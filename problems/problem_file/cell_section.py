@@ -51,13 +51,6 @@ from problems.problem_file.values import (
 )
 
 __all__ = [
-    "CELL_KEYS",
-    "CUTTER_KEYS",
-    "MAX_CLEARANCE_M",
-    "MESH_SUFFIXES",
-    "OBJECT_FRAMES",
-    "OBJECT_KEYS",
-    "TOOL_BODY_KEYS",
     "parse_cell",
     "parse_tool_geometry",
 ]

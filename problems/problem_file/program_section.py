@@ -26,13 +26,10 @@ from problems.toolpath.waypoints import DEFAULT_PATH_TOLERANCE_M, ProgramWaypoin
 from problems.toolpath.workpiece import Workpiece
 
 __all__ = [
-    "MAX_TOLERANCE_M",
     "PROGRAM_KINDS",
     "ProgramSection",
     "check_reach",
     "parse_program",
-    "reach_bound_m",
-    "tool_frames",
 ]
 
 #: ``[path] kind`` values whose path is a program file.

@@ -82,16 +82,13 @@ import_plugins(
 )
 
 __all__ = [
-    # public API
     "LIMIT_RATIO_TOL",
     "JointLimits",
     "Trajectory",
     "TimingStatus",
     "time_parametrize",
-    # registry and dt bounds
     "DT_DEFAULT_S",
     "DT_MAX_S",
-    "TIMING_PATH_VARIABLE",
     "TimingMethod",
     "available_methods",
     "controller_methods",
@@ -102,7 +99,6 @@ __all__ = [
     "register_method",
     "unregister_method",
     "SplinePath",
-    # named constants shared by every method
     "MONOTONE_TOL",
     "SHRINK_MARGIN_MAX",
     "VERIFY_OVERSAMPLE",

@@ -80,11 +80,7 @@ from problems.timing.verification import (
 __all__ = [
     "JERK_GRIDPOINTS",
     "JERK_MAX_ITER",
-    "JERK_OPTIMAL_METHOD",
-    "JERK_OPTIONS",
     "JerkLaw",
-    "default_gridpoints",
-    "run_jerk_optimal",
 ]
 
 #: Grid sizes the NLP is built for by default (the smallest with >= JERK_GRIDPOINTS_PER_WAYPOINT

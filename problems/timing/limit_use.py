@@ -18,7 +18,11 @@ from models.errors import InputError
 from problems.timing.registry import get_method
 from problems.timing.trajectory import Trajectory
 
-__all__ = ["ACTIVE_RATIO", "UNDERUSE_RATIO", "describe_binding", "limit_use"]
+__all__ = [
+    "ACTIVE_RATIO",
+    "describe_binding",
+    "limit_use",
+]
 
 #: A sample rides a limit when its ratio |value| / limit is at least this.
 ACTIVE_RATIO: float = 0.98

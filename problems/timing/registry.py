@@ -42,15 +42,12 @@ from problems.timing.path import SplinePath, validate_path
 from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Trajectory, empty_trajectory
 
 __all__ = [
-    "CONTROLLER_RANK_NEVER",
     "DT_DEFAULT_S",
     "DT_MAX_S",
     "LIMIT_RATIO_TOL",
     "MAX_TRAJECTORY_SAMPLES",
     "MONOTONE_TOL",
     "SHRINK_MARGIN_MAX",
-    "MethodRunner",
-    "OptionValidator",
     "TimingMethod",
     "available_methods",
     "check_integer_options",
@@ -63,7 +60,6 @@ __all__ = [
     "register_method",
     "time_parametrize",
     "unregister_method",
-    "validate_dt",
     "validate_options",
 ]
 

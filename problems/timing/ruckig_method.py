@@ -66,16 +66,7 @@ from problems.timing.verification import (
 )
 
 __all__ = [
-    "RUCKIG_BUDGET_FRACTIONS",
-    "RUCKIG_CONSISTENCY_TOL",
-    "RUCKIG_MAX_ITERATIONS",
-    "RUCKIG_METHOD",
-    "RUCKIG_OPTIONS",
-    "RUCKIG_SHRINK_MARGIN",
-    "RuckigAttempt",
-    "RuckigLaw",
     "ruckig_bound_set",
-    "run_ruckig",
 ]
 
 #: Ruckig verification loop: total number of Ruckig runs and extra margin.

@@ -88,23 +88,7 @@ from problems.timing.verification import (
 )
 
 __all__ = [
-    "SHRINK_MARGIN_FLOOR",
-    "TOPPRA_GRIDPOINTS_PER_WAYPOINT",
-    "TOPPRA_MAX_GRIDPOINTS",
-    "TOPPRA_MAX_ITERATIONS",
-    "TOPPRA_MAX_REFINEMENTS",
-    "TOPPRA_METHOD",
-    "TOPPRA_MIN_GRIDPOINTS",
-    "TOPPRA_OPTIONS",
-    "TOPPRA_REFINE_FACTOR",
-    "TOPPRA_REFINE_MIN_EXCESS",
-    "TOPPRA_SHRINK_MARGIN",
-    "TOPPRA_SMOOTHING_S",
-    "TOPPRA_TIME_LAW",
-    "TOPPRA_TIME_LAWS",
-    "ToppraSettings",
     "quiet_toppra",
-    "run_toppra",
 ]
 
 #: TOPP-RA default number of gridpoints: max(MIN, PER_WAYPOINT * N).

@@ -18,7 +18,13 @@ import numpy as np
 from models.errors import InputError
 from models.status import Status
 
-__all__ = ["LIMIT_KEYS", "JointLimits", "TimingStatus", "Trajectory", "empty_trajectory", "nan_ratios"]
+__all__ = [
+    "LIMIT_KEYS",
+    "JointLimits",
+    "TimingStatus",
+    "Trajectory",
+    "empty_trajectory",
+]
 
 #: Names of the limited quantities, in this order everywhere (also the keys
 #: of :attr:`Trajectory.limit_ratio`).

@@ -43,16 +43,12 @@ from problems.timing.trajectory import LIMIT_KEYS, JointLimits, TimingStatus, Tr
 
 __all__ = [
     "VERIFY_OVERSAMPLE",
-    "TimeLaw",
     "check_times",
     "exceeded_limits",
     "finish_trajectory",
     "format_ratios",
     "limit_ratios",
-    "max_ratios",
     "moves_backwards",
-    "sample_path",
-    "sample_times",
 ]
 
 #: The check grid used for ``limit_ratio`` is this many times finer than dt.

@@ -31,18 +31,14 @@ import numpy as np
 __all__ = [
     "CENTER_ARC_RADIUS_TOLERANCE_INCH_M",
     "CENTER_ARC_RADIUS_TOLERANCE_MM_M",
-    "FULL_CIRCLE_FUZZ_M",
     "INCH_M",
-    "MAX_CHORD_ANGLE_RAD",
     "RADIUS_TOLERANCE_INCH_M",
     "RADIUS_TOLERANCE_MM_M",
-    "SPIRAL_RELATIVE_TOLERANCE",
     "ArcGeometry",
     "Plane",
     "arc_points",
     "centre_ijk",
     "centre_r",
-    "chord_count",
 ]
 
 #: One inch in m (exact by definition).

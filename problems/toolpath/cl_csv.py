@@ -36,7 +36,12 @@ from models.tables import TableReader
 
 from .textfile import PROGRAM_MAX_BYTES, read_program_text
 
-__all__ = ["CL_AXIS_NORM_TOL", "CL_MAX_BYTES", "ClPath", "parse_cl_csv", "read_cl_csv"]
+__all__ = [
+    "CL_AXIS_NORM_TOL",
+    "ClPath",
+    "parse_cl_csv",
+    "read_cl_csv",
+]
 
 #: A tool-axis row whose norm is within this of 1 is normalised (CAM rounds to ~6 digits);
 #: further off it is an error (not a unit vector: probably another column).

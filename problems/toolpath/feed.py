@@ -36,15 +36,7 @@ from problems.timing import JointLimits, TimingStatus, Trajectory, time_parametr
 
 __all__ = [
     "FEED_FALLBACK_METHOD",
-    "FEED_PSEUDO_ACCEL",
-    "FEED_PSEUDO_JERK",
-    "FEED_RETRY_METHOD",
-    "FEED_RETRY_MIN_WAYPOINTS",
-    "FEED_RETRY_OPTIONS",
-    "FEED_RETRY_RATIO",
     "FEED_SLOW_TOL",
-    "FEED_TIME_SCALE",
-    "FeedLaw",
     "feed_time_law",
     "programmed_time",
 ]

@@ -25,7 +25,9 @@ if TYPE_CHECKING:
     from .gcode_interp import Interpreter
     from .gcode_words import Word
 
-__all__ = ["G83_PECK_CLEARANCE_INCH_M", "G83_PECK_CLEARANCE_MM_M", "run_cycle"]
+__all__ = [
+    "run_cycle",
+]
 
 #: G83 peck clearance (LinuxCNC's default ``parameter_g83_peck_clearance``, ``rs274ngc_pre.cc``):
 #: 1 mm in G21 ...

@@ -40,13 +40,11 @@ from .cl_csv import ClPath
 from .program import EventKind, Program, discretise_moves
 
 __all__ = [
-    "CORNER_DEVIATION_FACTOR",
     "CORNER_MIN_APPROACH_M",
     "DEFAULT_PATH_TOLERANCE_M",
     "MAX_STEP_M",
     "ProgramWaypoints",
     "cl_waypoints",
-    "corner_waypoints",
     "program_waypoints",
 ]
 

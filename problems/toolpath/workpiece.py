@@ -22,7 +22,9 @@ import numpy as np
 from models.errors import InputError
 from models.transforms import rpy_to_matrix, transform
 
-__all__ = ["Workpiece", "WORKPIECE_AXIS_TOL"]
+__all__ = [
+    "Workpiece",
+]
 
 #: A tool axis whose norm is further than this from 1 is an error (not a unit vector).
 WORKPIECE_AXIS_TOL = 1e-6

@@ -36,7 +36,6 @@ __all__ = [
     "NORM_EPS_M",
     "OUTLINE_CIRCLE_POINTS",
     "SHAPE_KEYS",
-    "SHAPE_PATH_VARIABLE",
     "Shape",
     "box_signed_distance",
     "excess_distance_sx",

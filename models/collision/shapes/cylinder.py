@@ -10,7 +10,9 @@ from ..segments import segment_distance
 from .base import NORM_EPS_M, Shape, box_signed_distance, excess_distance_sx, outline_ring, register_shape
 from .segment_box import segment_box_distance
 
-__all__ = ["CYLINDER_SECTIONS", "Cylinder"]
+__all__ = [
+    "Cylinder",
+]
 
 #: Sides of a cylinder's triangles when it is drawn.
 CYLINDER_SECTIONS = 48

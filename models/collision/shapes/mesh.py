@@ -19,7 +19,9 @@ from ...errors import InputError
 from .base import Shape, register_shape
 from .box import Box
 
-__all__ = ["FIT_MARGIN_M", "Mesh", "mesh_bvh", "mesh_capsule"]
+__all__ = [
+    "Mesh",
+]
 
 #: Added to a mesh's capsule radius, m: rounding in the fit must not leave a vertex outside.
 FIT_MARGIN_M = 1e-9

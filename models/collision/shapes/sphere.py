@@ -8,7 +8,9 @@ import numpy as np
 
 from .base import NORM_EPS_M, Shape, outline_ring, register_shape
 
-__all__ = ["SPHERE_SUBDIVISIONS", "Sphere"]
+__all__ = [
+    "Sphere",
+]
 
 #: Subdivisions of a sphere's icosphere when it is drawn.
 SPHERE_SUBDIVISIONS = 3
