@@ -145,9 +145,11 @@ MASKS = [
 ]
 
 
-def masked(data: bytes, root: Path) -> bytes:
-    data = data.replace(str(root.resolve()).encode(), b"<ROOT>")
-    tree = root / "tree.txt"
+def masked(data: bytes, folder: Path, written: Path) -> bytes:
+    """``data`` with the folder it was written into, the source tree's path (``folder/tree.txt``), dates,
+    hashes and timings replaced by placeholders."""
+    data = data.replace(str(written.resolve()).encode(), b"<ROOT>")
+    tree = folder / "tree.txt"
     if tree.is_file():
         data = data.replace(tree.read_text(encoding="utf-8").strip().encode(), b"<TREE>")
     for pattern, repl in MASKS:
@@ -181,7 +183,8 @@ def compare(args: argparse.Namespace) -> int:
         if rel.suffix == ".json":
             # key order is not part of the format (a dictionary filled from a set can change it between runs)
             da, db = canonical_json(da), canonical_json(db)
-        ma, mb = masked(da, a), masked(db, b)
+        ma = masked(da, a, Path(args.written_a or a))
+        mb = masked(db, b, Path(args.written_b or b))
         if ma == mb:
             same += 1
             continue
@@ -207,6 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("a")
     c.add_argument("b")
     c.add_argument("-v", "--verbose", action="store_true")
+    c.add_argument("--written-a", help="the folder A was written into, if it was moved since")
+    c.add_argument("--written-b", help="the folder B was written into, if it was moved since")
     args = parser.parse_args(argv)
     return run(args) if args.cmd == "run" else compare(args)
 
