@@ -200,6 +200,11 @@ def test_a_placement_study_checks_the_plugin_shape(plugin_case):
         "x_m=0,y_m=0:0.1:2",
         "--grid",
         "yaw_deg=0",
+        # the kernel and the report are what this test is for: one placement planned in full, its
+        # postures the analytic ones (the NLP with the plug-in's constraints: the plan test above)
+        "--top",
+        "1",
+        "--no-optimise",
     ]
     _run(args, plugin_case["plugins"])
     s = json.loads((out / "summary.json").read_text(encoding="utf-8"))
