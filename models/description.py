@@ -265,6 +265,20 @@ class Robot:
         """Joint-angle offsets, rad, shape (6,)."""
         return self._col("theta_offset")
 
+    def nominal_dh(self, frame02base: Any = None) -> dict[str, Any]:
+        """The nominal DH parameters in the form the model graph's chain reads
+        (:func:`models.effects.graph.chain`): ``a``, ``alpha``, ``d`` (m, rad), ``theta_offset`` (rad),
+        ``beta`` (rad, zero: no Hayati tilt) and ``frame02base`` as given (``None``: frame 0 is the
+        base frame; else a 4 x 4 transform, NumPy or CasADi)."""
+        return {
+            "a": self.a,
+            "alpha": self.alpha,
+            "d": self.d,
+            "theta_offset": self.theta_offset,
+            "beta": np.zeros(6),
+            "frame02base": frame02base,
+        }
+
     @property
     def stiffness(self) -> np.ndarray:
         """Joint stiffnesses, N*m/rad, shape (6,)."""

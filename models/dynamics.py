@@ -114,15 +114,7 @@ def payload_vector(mass_kg: float, com_m: Any = (0.0, 0.0, 0.0), inertia: Any = 
 def _kinematics(robot: Robot, q: Any) -> tuple[list[Any], list[Any], list[Any], Any]:
     """DH frames 1..6 (base frame), joint axes and points, and ``tcp2base`` as SX."""
     f0 = None if np.array_equal(robot.frame02base, np.eye(4)) else ca.DM(robot.frame02base)
-    dh = {
-        "a": robot.a,
-        "alpha": robot.alpha,
-        "d": robot.d,
-        "theta_offset": robot.theta_offset,
-        "beta": np.zeros(6),
-        "frame02base": f0,
-    }
-    frames = chain(q, dh, robot.convention)
+    frames = chain(q, robot.nominal_dh(f0), robot.convention)
     zs, ps = joint_axes(frames, robot.convention, f0)
     tcp = ca.mtimes(frames[-1], ca.DM(robot.flange2frame6 @ robot.tcp2flange))
     return frames, zs, ps, tcp

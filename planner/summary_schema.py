@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from models.errors import InputError
-from planner.summary_specs import (
+from models.tables.kinds import (
     Ctx,
     Either,
     External,

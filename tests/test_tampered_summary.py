@@ -29,7 +29,7 @@ import pytest
 from planner.cli import main
 from planner.export import EXPORT_FORMATS
 from planner.summary_schema import COMMANDS, SUMMARY, SummaryError, read_summary
-from planner.summary_specs import (
+from models.tables.kinds import (
     Either,
     External,
     ListOf,

@@ -53,15 +53,7 @@ def chain_frames_sx(robot: Robot, q: Any) -> list[Any]:
     from ..effects.graph import chain
 
     f0 = ca.SX(np.asarray(robot.frame02base, dtype=float))
-    dh = {
-        "a": robot.a,
-        "alpha": robot.alpha,
-        "d": robot.d,
-        "theta_offset": robot.theta_offset,
-        "beta": np.zeros(6),
-        "frame02base": f0,
-    }
-    return [f0, *chain(q, dh, robot.convention)]
+    return [f0, *chain(q, robot.nominal_dh(f0), robot.convention)]
 
 
 def capsule_points_sx(model: CapsuleModel, frames: list[Any], base2x: Any = None) -> list[tuple[Any, Any]]:

@@ -57,8 +57,8 @@ def beam_frames(robot: Robot) -> np.ndarray:
     """
     from .graph import chain
 
-    dh = {"a": robot.a, "alpha": robot.alpha, "d": robot.d, "theta_offset": robot.theta_offset, "beta": np.zeros(6)}
-    fr = [np.asarray(ca.DM(T)) for T in chain(ca.DM.zeros(6), {k: ca.DM(v) for k, v in dh.items()}, robot.convention)]
+    dh = {k: ca.DM(v) for k, v in robot.nominal_dh().items() if v is not None}
+    fr = [np.asarray(ca.DM(T)) for T in chain(ca.DM.zeros(6), dh, robot.convention)]
     pts = ([np.zeros(3)] + [T[:3, 3] for T in fr[:5]]) if robot.convention == "standard_dh" else [T[:3, 3] for T in fr]
     out = np.zeros((6, 3, 3))
     for i in range(6):

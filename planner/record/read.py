@@ -46,7 +46,7 @@ from planner.record.record import (
     trajectory_files,
 )
 from planner.summary_schema import read_summary
-from planner.summary_specs import MAGNITUDE_MAX
+from models.tables.kinds import MAGNITUDE_MAX
 
 __all__ = [
     "read_csv",
@@ -89,7 +89,7 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def check_columns(path: Path, cols: Mapping[str, np.ndarray]) -> None:
-    """Refuse a cell that is infinite or above :data:`~planner.summary_specs.MAGNITUDE_MAX`, or NaN
+    """Refuse a cell that is infinite or above :data:`~models.tables.kinds.MAGNITUDE_MAX`, or NaN
     outside :data:`NAN_COLUMNS`; a time column that is negative or does not increase, an index that
     is not a whole number >= 0, a flag not 0 or 1, a negative magnitude (:data:`TIME_COLUMN`, ...).
     The message names the file, the line (the header is line 1), the column and the value."""
