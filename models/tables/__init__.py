@@ -2,7 +2,9 @@
 
 :mod:`models.tables.values`: :class:`TableReader`, the value kinds of the input files (numbers,
 positive numbers, integers in a range, flags, strings, vectors, rows, unknown keys), bound to each
-format's error class, the key path in every message. :mod:`models.tables.kinds`: the declarative
+format's error class, the key path in every message. :mod:`models.tables.keys`: a table declared key by
+key (:class:`~models.tables.keys.KeyTable`: each key's name, reader, default, unit; the allowed keys
+and the reader follow from it). :mod:`models.tables.kinds`: the declarative
 kinds of a whole document (a tree of specs: tables, lists, vectors, numbers with range and unit,
 strings from a set, file names), read by :mod:`planner.summary_schema`.
 """

@@ -26,6 +26,7 @@ import numpy as np
 from models.arm import ArmModel, load_arm
 from models.constants import PLAUSIBLE_POSITION_MAX_M, gravity_problem
 from models.robot import BUILTIN_ROBOTS, Robot, RobotFileError
+from models.tables.keys import Key, KeyTable
 from models.transforms import matrix_to_rpy, rpy_to_matrix, transform
 from problems import paper
 from problems.path import MAX_JOINT_STEP
@@ -418,29 +419,57 @@ def _check_wrench(where: str, key: str, W: np.ndarray) -> None:
             )
 
 
+def _payload_mass(where: str, key: str, v: Any) -> float:
+    """``[payload] mass_kg``: a number >= 0, kg."""
+    m = number(where, key, v)
+    if m < 0:
+        raise err(where, key, f"must be >= 0 kg, got {m!r}")
+    return m
+
+
+def _payload_com(where: str, key: str, v: Any) -> np.ndarray:
+    """``[payload] com_m``: the centre of mass in the TCP frame, m, shape (3,), plausible in metres."""
+    com = vector(where, key, v, 3)
+    if np.max(np.abs(com)) > PLAUSIBLE_POSITION_MAX_M:
+        raise err(
+            where, key, f"= {com.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m; millimetres given?)"
+        )
+    return com
+
+
+def _payload_gravity(where: str, key: str, v: Any) -> np.ndarray:
+    """``[payload] gravity_m_s2``: the gravity vector in the base frame, m/s^2, shape (3,)."""
+    g = vector(where, key, v, 3)
+    why = gravity_problem(g)
+    if why:
+        raise err(where, key, f"= {g.tolist()} {why}")
+    return g
+
+
+#: ``[payload]``, key by key (a present table needs ``mass_kg``).
+PAYLOAD_KEYS = KeyTable(
+    "payload",
+    (
+        Key(
+            "mass_kg",
+            _payload_mass,
+            required=lambda where, key: err(where, key, "is required in a [payload] table (kg)"),
+            unit="kg",
+        ),
+        Key("com_m", _payload_com, default=[0.0, 0.0, 0.0], unit="m"),
+        Key("gravity_m_s2", _payload_gravity, unit="m/s^2"),
+    ),
+)
+
+
 def parse_payload(where: str, data: Mapping[str, Any]) -> PayloadSection:
-    """The ``[payload]`` section: mass (kg), centre of mass (TCP frame, m), optional gravity."""
-    pt = table(where, data, "payload")
-    p_mass, p_com, p_grav = 0.0, np.zeros(3), None
-    if pt:
-        if "mass_kg" not in pt:
-            raise err(where, "payload.mass_kg", "is required in a [payload] table (kg)")
-        p_mass = number(where, "payload.mass_kg", pt["mass_kg"])
-        if p_mass < 0:
-            raise err(where, "payload.mass_kg", f"must be >= 0 kg, got {p_mass!r}")
-        p_com = vector(where, "payload.com_m", pt.get("com_m", [0.0, 0.0, 0.0]), 3)
-        if np.max(np.abs(p_com)) > PLAUSIBLE_POSITION_MAX_M:
-            raise err(
-                where,
-                "payload.com_m",
-                f"= {p_com.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m; millimetres given?)",
-            )
-        if "gravity_m_s2" in pt:
-            p_grav = vector(where, "payload.gravity_m_s2", pt["gravity_m_s2"], 3)
-            why = gravity_problem(p_grav)
-            if why:
-                raise err(where, "payload.gravity_m_s2", f"= {p_grav.tolist()} {why}")
-    return PayloadSection(p_mass, p_com, p_grav)
+    """The ``[payload]`` section (:data:`PAYLOAD_KEYS`): mass (kg), centre of mass (TCP frame, m),
+    optional gravity (base frame, m/s^2); no table: no payload."""
+    pt = table(where, data, "payload", PAYLOAD_KEYS.names)
+    if not pt:
+        return PayloadSection(0.0, np.zeros(3), None)
+    v = PAYLOAD_KEYS.read(where, pt)
+    return PayloadSection(v["mass_kg"], v["com_m"], v["gravity_m_s2"])
 
 
 def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
@@ -487,28 +516,45 @@ def parse_limits(where: str, data: Mapping[str, Any], robot: Robot) -> Limits:
     return Limits(lims["velocity"], lims["acceleration"], lims["jerk"], step)
 
 
-def parse_cost(where: str, data: Mapping[str, Any]) -> float:
-    """The ``[cost]`` section: the smoothness weight, mm^2/rad^2 (>= 0)."""
-    ct = table(where, data, "cost")
-    smooth = number(where, "cost.smoothness", ct.get("smoothness", DEFAULT_SMOOTHNESS))
+def _smoothness(where: str, key: str, v: Any) -> float:
+    """``[cost] smoothness``: a number >= 0, mm^2/rad^2."""
+    smooth = number(where, key, v)
     if smooth < 0:
-        raise err(where, "cost.smoothness", f"must be >= 0 (mm^2/rad^2), got {smooth!r}")
+        raise err(where, key, f"must be >= 0 (mm^2/rad^2), got {smooth!r}")
     return smooth
 
 
+def _solver_name(where: str, key: str, v: Any) -> str:
+    """``[solver] name``: only ``ipopt``."""
+    if v != "ipopt":
+        raise err(where, key, f"must be 'ipopt' (the only NLP solver available), got {v!r}")
+    return v
+
+
+#: ``[cost]``, key by key.
+COST_KEYS = KeyTable("cost", (Key("smoothness", _smoothness, default=DEFAULT_SMOOTHNESS, unit="mm^2/rad^2"),))
+
+#: ``[solver]``, key by key (the fields of :class:`~problems.posture.SolverSettings`).
+SOLVER_KEYS = KeyTable(
+    "solver",
+    (
+        Key("name", _solver_name, default="ipopt"),
+        Key("max_iter", lambda where, key, v: integer(where, key, v, 0), default=DEFAULT_MAX_ITER),
+        Key("tol", positive, default=DEFAULT_TOL),
+        Key("codegen", flag, default=True),
+    ),
+)
+
+
+def parse_cost(where: str, data: Mapping[str, Any]) -> float:
+    """The ``[cost]`` section (:data:`COST_KEYS`): the smoothness weight, mm^2/rad^2 (>= 0)."""
+    return COST_KEYS.read(where, table(where, data, "cost", COST_KEYS.names))["smoothness"]
+
+
 def parse_solver(where: str, data: Mapping[str, Any]) -> SolverSettings:
-    """The ``[solver]`` section: NLP solver name (only ``ipopt``), iterations, tolerance, codegen."""
-    st = table(where, data, "solver")
-    sname = st.get("name", "ipopt")
-    if sname != "ipopt":
-        raise err(where, "solver.name", f"must be 'ipopt' (the only NLP solver available), got {sname!r}")
-    codegen = flag(where, "solver.codegen", st.get("codegen", True))
-    return SolverSettings(
-        name=sname,
-        max_iter=integer(where, "solver.max_iter", st.get("max_iter", DEFAULT_MAX_ITER), 0),
-        tol=positive(where, "solver.tol", st.get("tol", DEFAULT_TOL)),
-        codegen=codegen,
-    )
+    """The ``[solver]`` section (:data:`SOLVER_KEYS`): NLP solver name (only ``ipopt``), iterations,
+    tolerance, codegen."""
+    return SolverSettings(**SOLVER_KEYS.read(where, table(where, data, "solver", SOLVER_KEYS.names)))
 
 
 def parse_branch(where: str, data: Mapping[str, Any]) -> np.ndarray:

@@ -26,7 +26,9 @@ from models.errors import InputError
 from models.tables import TableReader, is_number
 from problems.timing import available_methods
 
-#: The keys each table of a problem file may hold (checked by :func:`_table`).
+#: The keys each table of a problem file may hold (checked by :func:`table`); a table declared key by
+#: key (:class:`models.tables.keys.KeyTable`: ``[payload]``, ``[cost]``, ``[solver]`` in
+#: :mod:`problems.problem_file.sections`) passes its own ``names``.
 TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "robot": ("model", "tool"),
     "robot.tool": ("xyz", "rpy", "rpy_deg", "body", "cutter"),  # body, cutter: cell_section.py
@@ -34,7 +36,6 @@ TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "workpiece": ("xyz", "rpy", "rpy_deg"),
     "orientation": ("rule", "rpy", "rpy_deg", "axis", "half_angle", "half_angle_deg", "scan"),
     "wrench": ("frame", "force", "moment", "per_waypoint"),
-    "payload": ("mass_kg", "com_m", "gravity_m_s2"),
     "limits": (
         "velocity",
         "acceleration",
@@ -45,8 +46,6 @@ TABLE_KEYS: dict[str, tuple[str, ...]] = {
         "max_joint_step",
         "max_joint_step_deg",
     ),
-    "cost": ("smoothness",),
-    "solver": ("name", "max_iter", "tol", "codegen"),
     "branch": ("home", "home_deg"),
     "timing": ("methods", "dt", "toppra_gridpoints", "toppra_max_iterations", "ruckig_max_iterations", "dynamic"),
 }
@@ -81,14 +80,17 @@ def vector_or_scalar(where: str, key: str, v: Any, n: int) -> np.ndarray:
     return vector(where, key, v, n)
 
 
-def table(where: str, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+def table(where: str, data: Mapping[str, Any], key: str, allowed: tuple[str, ...] | None = None) -> Mapping[str, Any]:
+    """The table ``key`` (dotted) of ``data`` (empty when absent), its unknown keys refused: those not in
+    ``allowed`` (default: ``TABLE_KEYS[key]``; ``[timing]`` also takes a table per timing method)."""
     parts = key.split(".")
     cur: Any = data
     for p in parts:
         cur = cur.get(p, {}) if isinstance(cur, Mapping) else None
         if not isinstance(cur, Mapping):
             raise err(where, key, f"must be a table, got {cur!r}")
-    allowed = TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
+    if allowed is None:
+        allowed = TABLE_KEYS[key] + (available_methods() if key == "timing" else ())  # [timing.<method>]
     VALUES.unknown_keys(f"{where}: [{key}]", cur, allowed)
     return cur
 
