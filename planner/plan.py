@@ -182,14 +182,11 @@ def _set_aside_colliding(
 
 def _trajectory_collides(res: PlanResult) -> bool:
     """Whether the plan failed only because the controller's trajectory meets the cell."""
+    if res.status is not PlanStatus.COLLISION or res.cell is None or res.cell.trajectory is None:
+        return False  # a plan without a cell does not import the collision package
     from models.collision import ClearanceStatus
 
-    return (
-        res.status is PlanStatus.COLLISION
-        and res.cell is not None
-        and res.cell.trajectory is not None
-        and res.cell.trajectory.status is not ClearanceStatus.OK
-    )
+    return res.cell.trajectory.status is not ClearanceStatus.OK
 
 
 def _after_posture(

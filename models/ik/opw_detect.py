@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..transforms import poe_fk as _poe_fk
+from .. import transforms
 
 from .opw_closed_form import OPW_DIST_TOL_REL, TWO_PI, NotOPW, OPWGeometry, opw_canonical_fk
 
@@ -69,7 +69,7 @@ def poe_fk(w: Any, p: Any, M0: Any, q: Any) -> np.ndarray:
         ``flange2base`` for each configuration.
     """
     w, p, M0 = _check_chain(w, p, M0)
-    return _poe_fk(w, p, M0, np.atleast_2d(np.asarray(q, dtype=float)))
+    return transforms.poe_fk(w, p, M0, np.atleast_2d(np.asarray(q, dtype=float)))
 
 
 # --------------------------------------------------------------------------- detection

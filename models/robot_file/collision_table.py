@@ -12,7 +12,7 @@ import numpy as np
 from models.constants import PLAUSIBLE_POSITION_MAX_M
 from models.description import CollisionSegment, Robot, RobotCollision, RobotFileError
 
-from .values import finite as _finite, vector as _vector
+from .values import VALUES, finite, vector
 
 #: Keys of the optional ``[collision]`` table (the arm's own collision geometry, ``docs/cell.md``).
 COLLISION_KEYS = ("radii_m", "allowed_pairs", "segments", "replace_dh", "source")
@@ -38,7 +38,7 @@ def _int_in(where: str, key: str, value: Any, allowed: Sequence[int], what: str)
 
 def _radius(where: str, key: str, value: Any) -> float:
     """A capsule radius: finite, > 0, plausible in metres."""
-    r = _finite(where, key, value)
+    r = finite(where, key, value)
     if r <= 0:
         raise RobotFileError(f"{where}: key '{key}' = {r:g}; expected a radius > 0 (m)")
     if r > PLAUSIBLE_POSITION_MAX_M:
@@ -50,7 +50,7 @@ def _radius(where: str, key: str, value: Any) -> float:
 
 
 def _collision_point(where: str, key: str, value: Any) -> np.ndarray:
-    p = _vector(where, key, value, 3)
+    p = vector(where, key, value, 3)
     if np.max(np.abs(p)) > PLAUSIBLE_POSITION_MAX_M:
         raise RobotFileError(
             f"{where}: key '{key}' = {[float(v) for v in p]} is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
@@ -62,9 +62,7 @@ def _collision_point(where: str, key: str, value: Any) -> np.ndarray:
 def _collision_segment(where: str, seg: Any) -> CollisionSegment:
     if not isinstance(seg, Mapping):
         raise RobotFileError(f"{where}: expected a table (body, frame_a, xyz_a, frame_b, xyz_b), got {seg!r}")
-    unknown = sorted(set(seg) - set(COLLISION_SEGMENT_KEYS))
-    if unknown:
-        raise RobotFileError(f"{where}: unknown key(s) {unknown}; allowed: {list(COLLISION_SEGMENT_KEYS)}")
+    VALUES.unknown_keys(where, seg, COLLISION_SEGMENT_KEYS)
     for key in ("body", "frame_a", "xyz_a", "frame_b", "xyz_b"):
         if key not in seg:
             raise RobotFileError(f"{where}: missing key '{key}'")
@@ -102,9 +100,7 @@ def parse_collision_table(where: str, table: Any) -> RobotCollision:
     w = f"{where}: collision"
     if not isinstance(table, Mapping):
         raise RobotFileError(f"{where}: key 'collision' must be a table, got {table!r}")
-    unknown = sorted(set(table) - set(COLLISION_KEYS))
-    if unknown:
-        raise RobotFileError(f"{w}: unknown key(s) {unknown}; allowed: {list(COLLISION_KEYS)}")
+    VALUES.unknown_keys(w, table, COLLISION_KEYS)
     radii = None
     if "radii_m" in table:
         raw = table["radii_m"]

@@ -36,14 +36,6 @@ def figure_file(key: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "_", key)
 
 
-def new_figure(w: float, h: float, **adjust: float) -> Any:
-    """A matplotlib Figure on the Agg canvas (no pyplot state;
-    :func:`planner.report.figure_base.new_figure`)."""
-    from planner.report.figure_base import new_figure as base_figure
-
-    return base_figure(w, h, **adjust)
-
-
 def render_figure(fig: Any) -> RenderedFigure:
     """PNG and PDF bytes of a figure (metadata fixed, so the same figure gives the same bytes)."""
     from planner.report.figure_base import pdf_bytes, png_bytes

@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from planner.identify_report.canvas import RenderedFigure, new_figure, render_figure, rms
+from planner.identify_report.canvas import RenderedFigure, render_figure, rms
+from planner.report.figure_base import new_figure
 from planner.identify_report.diagnostics import VARIABLE_UNITS, axis_diag, diag_groups, is_angle, var_name
 from planner.identify_report.maps import maps_png
 from planner.numbers import format_number

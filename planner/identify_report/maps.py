@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from planner.identify_report.canvas import RenderedFigure, new_figure, render_figure
+from planner.identify_report.canvas import RenderedFigure, render_figure
+from planner.report.figure_base import new_figure
 from planner.identify_report.text import md_cell
 from planner.numbers import format_number
 from problems.identify import IdentificationResult

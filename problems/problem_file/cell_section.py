@@ -42,12 +42,13 @@ from problems.cell import (
 
 # The function bodies call the value kinds by their former local names (kept: moved verbatim).
 from problems.problem_file.values import (
+    VALUES,
     ProblemFileError,
-    err as _err,
-    number as _number,
-    positive as _positive,
-    rpy_angles as _rpy,
-    vector as _vector,
+    err,
+    number,
+    positive,
+    rpy_angles,
+    vector,
 )
 
 __all__ = [
@@ -114,24 +115,22 @@ def parse_cell(
         return None
     ct = data["cell"]
     if not isinstance(ct, Mapping):
-        raise _err(where, "cell", f"must be a table, got {ct!r}")
-    unknown = sorted(set(ct) - set(CELL_KEYS))
-    if unknown:
-        raise ProblemFileError(f"{where}: [cell]: unknown key(s) {unknown}; allowed: {list(CELL_KEYS)}")
-    clearance = _number(where, "cell.clearance", ct.get("clearance", DEFAULT_CLEARANCE_M))
+        raise err(where, "cell", f"must be a table, got {ct!r}")
+    VALUES.unknown_keys(f"{where}: [cell]", ct, CELL_KEYS)
+    clearance = number(where, "cell.clearance", ct.get("clearance", DEFAULT_CLEARANCE_M))
     if not 0.0 <= clearance < MAX_CLEARANCE_M:
         hint = " (millimetres given? the clearance is in m)" if clearance >= MAX_CLEARANCE_M else ""
-        raise _err(where, "cell.clearance", f"must be in [0, {MAX_CLEARANCE_M:g}) m, got {clearance!r}{hint}")
+        raise err(where, "cell.clearance", f"must be in [0, {MAX_CLEARANCE_M:g}) m, got {clearance!r}{hint}")
     raw = ct.get("objects", [])
     if not isinstance(raw, list) or not all(isinstance(t, Mapping) for t in raw):
-        raise _err(where, "cell.objects", f"must be a list of tables ([[cell.objects]]), got {raw!r}")
+        raise err(where, "cell.objects", f"must be a list of tables ([[cell.objects]]), got {raw!r}")
     program2base = program.workpiece.program2base if program is not None else None
     objects: list[CellObject] = []
     for i, tab in enumerate(raw):
         obj = _parse_object(where, f"cell.objects[{i}]", tab, base_dir, program2base)
         for j, other in enumerate(objects):
             if other.name == obj.name:
-                raise _err(
+                raise err(
                     where,
                     f"cell.objects[{i}].name",
                     f"= {obj.name!r} repeats cell.objects[{j}]'s; names must be unique",
@@ -139,7 +138,7 @@ def parse_cell(
         objects.append(obj)
     wps = [i for i, o in enumerate(objects) if o.role == "workpiece"]
     if len(wps) > 1:
-        raise _err(
+        raise err(
             where,
             f"cell.objects[{wps[1]}].role",
             f"= 'workpiece' for '{objects[wps[1]].name}', but '{objects[wps[0]].name}' (cell.objects[{wps[0]}]) "
@@ -186,32 +185,28 @@ def parse_tool_geometry(where: str, data: Mapping[str, Any], base_dir: Path | No
 
     raw = tt.get("body", [])
     if not isinstance(raw, list) or not all(isinstance(t, Mapping) for t in raw):
-        raise _err(where, "robot.tool.body", f"must be a list of tables ([[robot.tool.body]]), got {raw!r}")
+        raise err(where, "robot.tool.body", f"must be a list of tables ([[robot.tool.body]]), got {raw!r}")
     elements: list[Any] = []
     for i, tab in enumerate(raw):
         key = f"robot.tool.body[{i}]"
         e = _parse_tool_element(where, key, tab, base_dir)
         for j, other in enumerate(elements):
             if other.name == e.name:
-                raise _err(where, f"{key}.name", f"= {e.name!r} repeats robot.tool.body[{j}]'s; names must be unique")
+                raise err(where, f"{key}.name", f"= {e.name!r} repeats robot.tool.body[{j}]'s; names must be unique")
         elements.append(e)
     cutter = None
     if "cutter" in tt:
         ct = tt["cutter"]
         if not isinstance(ct, Mapping):
-            raise _err(where, "robot.tool.cutter", f"must be a table (radius, length in m), got {ct!r}")
-        unknown = sorted(set(ct) - set(CUTTER_KEYS))
-        if unknown:
-            raise ProblemFileError(
-                f"{where}: [robot.tool.cutter]: unknown key(s) {unknown}; allowed: {list(CUTTER_KEYS)}"
-            )
+            raise err(where, "robot.tool.cutter", f"must be a table (radius, length in m), got {ct!r}")
+        VALUES.unknown_keys(f"{where}: [robot.tool.cutter]", ct, CUTTER_KEYS)
         vals = {}
         for k in CUTTER_KEYS:
             if k not in ct:
-                raise _err(where, f"robot.tool.cutter.{k}", "is required (m)")
-            vals[k] = _positive(where, f"robot.tool.cutter.{k}", ct[k])
+                raise err(where, f"robot.tool.cutter.{k}", "is required (m)")
+            vals[k] = positive(where, f"robot.tool.cutter.{k}", ct[k])
             if vals[k] > PLAUSIBLE_POSITION_MAX_M:
-                raise _err(
+                raise err(
                     where,
                     f"robot.tool.cutter.{k}",
                     f"= {vals[k]:g} m is implausible for a cutter (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
@@ -226,24 +221,20 @@ def _parse_tool_element(where: str, key: str, tab: Mapping[str, Any], base_dir: 
     :class:`models.collision.tool.ToolElement`."""
     from models.collision.tool import ToolElement, reserved_name
 
-    unknown = sorted(set(tab) - set(TOOL_BODY_KEYS))
-    if unknown:
-        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(TOOL_BODY_KEYS)}")
+    VALUES.unknown_keys(f"{where}: [{key}]", tab, TOOL_BODY_KEYS)
     name = tab.get("name")
     if not isinstance(name, str) or not name.strip():
-        raise _err(where, f"{key}.name", f"must be a non-empty string, got {name!r}")
+        raise err(where, f"{key}.name", f"must be a non-empty string, got {name!r}")
     name = name.strip()
     if reserved_name(name):
-        raise _err(
+        raise err(
             where,
             f"{key}.name",
             f"= {name!r} is the name of a capsule already (base, link i, tool, cutter); choose another",
         )
     shape = tab.get("shape")
     if shape not in shape_kinds():
-        raise _err(
-            where, f"{key}.shape", f"must be one of {list(shape_kinds())} (tool element '{name}'), got {shape!r}"
-        )
+        raise err(where, f"{key}.shape", f"must be one of {list(shape_kinds())} (tool element '{name}'), got {shape!r}")
     element2flange = _pose(where, key, tab)
     v = _shape_values(where, key, name, shape_class(shape), tab, base_dir, "tool element")
     return ToolElement(name, shape, v["size"], element2flange, v["mesh"], v["file"], v["scale"])
@@ -252,14 +243,14 @@ def _parse_tool_element(where: str, key: str, tab: Mapping[str, Any], base_dir: 
 def _pose(where: str, key: str, tab: Mapping[str, Any]) -> np.ndarray:
     """The table's pose from ``xyz`` (m, checked plausible) and ``rpy`` / ``rpy_deg``: 4x4, mapping
     the shape's coordinates to its frame's."""
-    xyz = _vector(where, f"{key}.xyz", tab.get("xyz", [0.0, 0.0, 0.0]), 3)
+    xyz = vector(where, f"{key}.xyz", tab.get("xyz", [0.0, 0.0, 0.0]), 3)
     if np.max(np.abs(xyz)) > PLAUSIBLE_POSITION_MAX_M:
-        raise _err(
+        raise err(
             where,
             f"{key}.xyz",
             f"= {xyz.tolist()} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres (millimetres given?)",
         )
-    rpy = _rpy(where, tab, f"{key}.")
+    rpy = rpy_angles(where, tab, f"{key}.")
     return transform(rpy_to_matrix(np.zeros(3) if rpy is None else rpy), xyz)
 
 
@@ -267,19 +258,17 @@ def _parse_object(
     where: str, key: str, tab: Mapping[str, Any], base_dir: Path | None, program2base: np.ndarray | None
 ) -> CellObject:
     """One ``[[cell.objects]]`` table (``key`` = ``cell.objects[i]``)."""
-    unknown = sorted(set(tab) - set(OBJECT_KEYS))
-    if unknown:
-        raise ProblemFileError(f"{where}: [{key}]: unknown key(s) {unknown}; allowed: {list(OBJECT_KEYS)}")
+    VALUES.unknown_keys(f"{where}: [{key}]", tab, OBJECT_KEYS)
     name = tab.get("name")
     if not isinstance(name, str) or not name.strip():
-        raise _err(where, f"{key}.name", f"must be a non-empty string, got {name!r}")
+        raise err(where, f"{key}.name", f"must be a non-empty string, got {name!r}")
     name = name.strip()
     shape = tab.get("shape")
     if shape not in shape_kinds():
-        raise _err(where, f"{key}.shape", f"must be one of {list(shape_kinds())} (object '{name}'), got {shape!r}")
+        raise err(where, f"{key}.shape", f"must be one of {list(shape_kinds())} (object '{name}'), got {shape!r}")
     role = tab.get("role", "obstacle")
     if role not in OBJECT_ROLES:
-        raise _err(where, f"{key}.role", f"must be one of {list(OBJECT_ROLES)} (object '{name}'), got {role!r}")
+        raise err(where, f"{key}.role", f"must be one of {list(OBJECT_ROLES)} (object '{name}'), got {role!r}")
     object2frame = _pose(where, key, tab)
     object2base = _in_base(where, key, tab.get("frame", "base"), object2frame, program2base)
     v = _shape_values(where, key, name, shape_class(shape), tab, base_dir, "object")
@@ -305,7 +294,7 @@ def _shape_values(
             else:
                 owners = " or ".join(repr(c) for c in shape_kinds() if k in shape_class(c).keys)
                 note = f"only applies to shape {owners} ({what} '{name}' is a {kind.kind})"
-            raise _err(where, f"{key}.{k}", note)
+            raise err(where, f"{key}.{k}", note)
     out: dict[str, Any] = {"size": np.zeros(3), "mesh": None, "file": None, "scale": 1.0}
     if "size" in kind.keys:
         out["size"] = _size(where, key, name, kind, tab, what)
@@ -318,11 +307,11 @@ def _shape_values(
 def _in_base(where: str, key: str, frame: Any, object2frame: np.ndarray, program2base: np.ndarray | None) -> np.ndarray:
     """``object2base`` from the pose in ``frame`` (``base``, or a program's ``workpiece`` frame)."""
     if frame not in OBJECT_FRAMES:
-        raise _err(where, f"{key}.frame", f"must be one of {list(OBJECT_FRAMES)}, got {frame!r}")
+        raise err(where, f"{key}.frame", f"must be one of {list(OBJECT_FRAMES)}, got {frame!r}")
     if frame == "base":
         return object2frame
     if program2base is None:
-        raise _err(
+        raise err(
             where,
             f"{key}.frame",
             "= 'workpiece' needs a program path ([path] kind 'gcode' or 'toolpath_csv') and its [workpiece]",
@@ -336,14 +325,14 @@ def _size(where: str, key: str, name: str, kind: type[Shape], tab: Mapping[str, 
     n = kind.size_length
     raw = tab.get("size")
     if not isinstance(raw, list) or len(raw) != n:
-        raise _err(
+        raise err(
             where,
             f"{key}.size",
             f"must be {n} number(s) for a {kind.kind}: {kind.size_meaning} ({what} '{name}'), got {raw!r}",
         )
-    size = np.array([_positive(where, f"{key}.size[{j}]", v) for j, v in enumerate(raw)])
+    size = np.array([positive(where, f"{key}.size[{j}]", v) for j, v in enumerate(raw)])
     if np.max(size) > PLAUSIBLE_POSITION_MAX_M:
-        raise _err(
+        raise err(
             where,
             f"{key}.size",
             f"= {size.tolist()} m is implausible for {what} '{name}' (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
@@ -362,30 +351,30 @@ def _read_mesh(
 
     raw = tab.get("file")
     if not isinstance(raw, str) or not raw:
-        raise _err(
+        raise err(
             where,
             f"{key}.file",
             f"is required for shape 'mesh' ({what} '{name}'): an STL, OBJ or PLY file, got {raw!r}",
         )
-    scale = _positive(where, f"{key}.scale", tab.get("scale", 1.0))
+    scale = positive(where, f"{key}.scale", tab.get("scale", 1.0))
     path = Path(raw)
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise _err(
+        raise err(
             where, f"{key}.file", f"= {raw!r} ({what} '{name}'): must be an STL, OBJ or PLY file {list(MESH_SUFFIXES)}"
         )
     if not path.is_file():
-        raise _err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): no such file ({path})")
+        raise err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): no such file ({path})")
     try:
         mesh = trimesh.load_mesh(path, force="mesh")
     except Exception as exc:  # trimesh raises many types on a bad file
-        raise _err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): cannot be read as a mesh: {exc}") from None
+        raise err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): cannot be read as a mesh: {exc}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise _err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): holds no triangles (not a mesh file, or empty)")
+        raise err(where, f"{key}.file", f"= {raw!r} ({what} '{name}'): holds no triangles (not a mesh file, or empty)")
     if not mesh.is_watertight:
         n_open = len(grouping.group_rows(mesh.edges_sorted, require_count=1))
-        raise _err(
+        raise err(
             where,
             f"{key}.file",
             f"= {raw!r} ({what} '{name}'): the mesh is not closed ({n_open} open edge(s)); it must be a closed "
@@ -394,7 +383,7 @@ def _read_mesh(
     mesh.apply_scale(scale)
     ext = float(np.max(mesh.extents))
     if ext > PLAUSIBLE_POSITION_MAX_M:
-        raise _err(
+        raise err(
             where,
             f"{key}.file",
             f"= {raw!r} ({what} '{name}'): the mesh is {ext:.4g} m across after scale = {scale:g} "
@@ -408,7 +397,7 @@ def _check_footprint(where: str, cell: Cell, robot: Any) -> None:
     radius, height = base_footprint(robot)
     for i, obj in enumerate(cell.objects):
         if footprint_overlaps(obj, radius, height):
-            raise _err(
+            raise err(
                 where,
                 f"cell.objects[{i}]",
                 f"object '{obj.name}' overlaps the robot's base (footprint: a cylinder of radius {radius:g} m from "
