@@ -41,7 +41,7 @@ BRANCH_PARTS: dict[str, dict[str, str]] = {
 }
 #: One line that decodes the label format (report legends).
 BRANCH_LEGEND = (
-    "IK branch labels s±w±e± (models/ik.py): s = shoulder, θ1 = ψ + asin(D/r) (+) or ψ + π − "
+    "IK branch labels s±w±e± (models/ik/ur.py): s = shoulder, θ1 = ψ + asin(D/r) (+) or ψ + π − "
     "asin(D/r) (−): the two base turns, about half a turn apart, that put the arm plane on either "
     "side of the wrist centre (shoulder left/right); w = wrist, θ5 = ±acos(c5): the two wrist flips; "
     "e = elbow, θ3 = ±acos(c3): the two elbow bends. Which side is left and which bend is up "
