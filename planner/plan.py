@@ -379,6 +379,8 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
                 w.stop,
                 w.dwell_s,
                 progress,
+                tcp_frame=problem.model.kinematics.tcp,
+                tolerance_m=w.tolerance_m,
                 **problem.timing.options(m),
             )
             res.feed[m] = fl

@@ -78,7 +78,7 @@ import_plugins(
     __path__,
     TIMING_PATH_VARIABLE,
     skip=("path", "registry", "trajectory", "verification", "limit_use", "toppra_law", "toppra_import", "jerk_law"),
-    first=("toppra_method", "ruckig_method", "jerk_optimal"),
+    first=("toppra_method", "ruckig_method", "jerk_optimal", "lookahead"),
 )
 
 __all__ = [

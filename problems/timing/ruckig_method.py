@@ -444,7 +444,6 @@ RUCKIG_METHOD: TimingMethod = register_method(
         description="jerk-limited on the path parameter (Ruckig, global bound set)",
         display_name="Ruckig",
         controller_rank=20,
-        program_default=True,
         duration_note="Ruckig, jerk-limited: the trajectory the controller runs",
         underuse_cause=(
             "Ruckig times the path parameter under one bound per derivative for the whole path, set "

@@ -64,6 +64,9 @@ FEED_RETRY_MIN_WAYPOINTS = 8
 #: (its default grid, up to 480 gridpoints: 0.1-0.3 s a stretch; its smallest, 160, is faster but
 #: held the shipped milling_pocket's cutting time at 1.22x length/F instead of 1.10x).
 FEED_RETRY_METHOD = "jerk_optimal"
+#: The methods whose stretches may be re-timed: those with one bound set per stretch (Ruckig's);
+#: the look-ahead's bounds are local already, so re-timing it gains nothing.
+FEED_RETRY_FROM: tuple[str, ...] = ("ruckig",)
 FEED_RETRY_OPTIONS: dict[str, object] = {}
 #: A stretch the method fails on (TOPP-RA's "not controllable" on a short stretch between two
 #: corners of the shipped milling program) is timed by this method instead when it checks every
@@ -128,6 +131,15 @@ class FeedLaw:
     n_substituted : int
         Stretches the method failed on and :data:`FEED_FALLBACK_METHOD` timed (the trajectory's
         reason names the first and why).
+    path_deviation_m : float
+        Largest distance (m) of a sample's TCP (forward kinematics of the commands) from the
+        programmed path as the commands trace it; NaN when not measured (no ``tcp_position``).
+    tolerance_m : float
+        The path tolerance the samples were held to, m (NaN when not measured).
+    n_fitted : int
+        Cutting stretches fitted within the tolerance before timing (smoothed where there is room).
+    n_rows_added : int
+        Rows the fits added at the middle of intervals that left the tolerance with both ends pinned.
     """
 
     trajectory: Trajectory
@@ -137,6 +149,10 @@ class FeedLaw:
     sample_move: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     n_stretches: int = 1
     n_substituted: int = 0
+    path_deviation_m: float = float("nan")
+    tolerance_m: float = float("nan")
+    n_fitted: int = 0
+    n_rows_added: int = 0
 
     def slowed_lines(self, line: np.ndarray) -> dict[int, float]:
         """Program line -> the smallest fraction of the feed reached on its slowed moves
@@ -166,6 +182,8 @@ def feed_time_law(
     stop: np.ndarray | None = None,
     dwell_s: np.ndarray | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    tcp_frame: Callable[[np.ndarray], np.ndarray] | None = None,
+    tolerance_m: float | None = None,
     **options: object,
 ) -> FeedLaw:
     """Time a joint path so the TCP runs at its programmed feed (see the module docstring).
@@ -195,6 +213,16 @@ def feed_time_law(
         Shape ``(N,)``, s: time held at rest at a stop.
     progress : callable, optional
         ``progress(stage, done, total)``, called after each stretch (stage ``"timing <method>"``).
+    tcp_frame : callable, optional
+        ``tcp_frame(q (M, n)) -> (M, 4, 4)``: the TCP frame (base frame, m) by forward kinematics of
+        the commands. With
+        ``tolerance_m``, every cutting stretch's waypoints are smoothed within
+        :data:`SMOOTH_SHARE` of the tolerance (:mod:`problems.toolpath.smoothing`) and every sample's
+        distance from the programmed path (the polyline through the waypoints' TCP) is measured
+        (:attr:`FeedLaw.path_deviation_m`); a stretch whose samples leave the tolerance is timed
+        again with half the smoothing, at last unsmoothed.
+    tolerance_m : float, optional
+        The path tolerance, m (the program's ``G64 P`` or its default).
     **options
         The method's options.
 
@@ -212,11 +240,20 @@ def feed_time_law(
     length = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(np.asarray(points_m, float), axis=0), axis=1))]
     cols = np.c_[Q, FEED_TIME_SCALE * tau, length * LENGTH_SCALE]
     bounds = np.flatnonzero(st)
-    run = _time_stretches(cols, tau, bounds, _augmented_limits(limits), method, dt, progress, options)
+    geo = None
+    if tcp_frame is not None and tolerance_m is not None and tolerance_m > 0.0:
+        geo = _Geometry(tcp_frame, tcp_frame(Q)[:, :3, 3], length, float(tolerance_m))
+    import scipy.linalg  # noqa: F401  (loaded first, so that threadpool_limits finds its BLAS)
+    from threadpoolctl import threadpool_limits
+
+    # one BLAS thread: the stretches' small banded solves (the fit) run 10-100x slower when
+    # OpenBLAS spreads them over busy cores
+    with threadpool_limits(limits=1, user_api="blas"):
+        run = _time_stretches(cols, tau, bounds, _augmented_limits(limits), method, dt, progress, options, geo)
     joined = _with_reason(
         _join(run.pieces, dw[bounds], dt, n + 2, method), run.pieces, run.failed, run.retimed, run.substituted, method
     )
-    return _feed_law(joined, n, tau, length, np.asarray(feed_m_s, float), run)
+    return _feed_law(joined, n, tau, length, np.asarray(feed_m_s, float), run, geo)
 
 
 def _augmented_limits(limits: JointLimits) -> JointLimits:
@@ -249,6 +286,35 @@ class _Stretches:
     failed: tuple[int, int, Trajectory] | None = None
     retimed: int = 0
     substituted: list[tuple[int, int, str]] = field(default_factory=list)
+    deviation_m: float = float("nan")
+    n_fitted: int = 0
+    n_rows_added: int = 0
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """What smoothing and the path check need: the TCP frame by forward kinematics, the waypoints' TCP by it
+    (the programmed path as the commands trace it, (N, 3) m), the distance along the targets (N,) m
+    and the tolerance, m."""
+
+    tcp_frame: Callable[[np.ndarray], np.ndarray]
+    tcp_m: np.ndarray
+    length_m: np.ndarray
+    tolerance_m: float
+
+    def deviation(self, q: np.ndarray, along_m: np.ndarray) -> float:
+        """Largest distance (m) of the samples' TCP from the polyline, each sample measured against
+        the move it runs (from its distance along the path) and its two neighbours."""
+        from problems.toolpath.stretch_fit import segment_distance
+
+        if not len(q):
+            return 0.0
+        P = self.tcp_m
+        n = len(P)
+        move = np.clip(np.searchsorted(self.length_m, along_m, side="left"), 1, n - 1)
+        pos = self.tcp_frame(q)[:, :3, 3]
+        d = np.min([segment_distance(pos, P[np.clip(move + o - 1, 0, n - 1)], P[np.clip(move + o, 0, n - 1)]) for o in (-1, 0, 1)], axis=0)
+        return float(np.max(d))
 
 
 def _time_stretches(
@@ -260,18 +326,24 @@ def _time_stretches(
     dt: float,
     progress: Callable[[str, int, int], None] | None,
     options: dict,
+    geo: _Geometry | None = None,
 ) -> _Stretches:
     """Each stretch of the augmented path ``cols`` (N, n + 2) between consecutive stops ``bounds``
-    timed on its own (:func:`_time_stretch`), its programmed time counted from the stretch's start."""
+    timed on its own (:func:`_time_stretch`), its programmed time counted from the stretch's start;
+    with ``geo``, a cutting stretch smoothed first and its samples checked against the path."""
     n = cols.shape[1] - 2
     run = _Stretches()
     stage = f"timing {method}"
+    worst = 0.0
     for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
         if progress is not None:
             progress(stage, i, len(bounds) - 1)
         seg = cols[a : b + 1].copy()
         seg[:, n] -= FEED_TIME_SCALE * tau[a]
-        tr, how = _time_stretch(seg, aug, method, dt, tau[b] - tau[a], options)
+        tr, how, dev, added = _time_checked(seg, tau[a : b + 1], aug, method, dt, tau[b] - tau[a], options, geo)
+        worst = max(worst, dev)
+        run.n_fitted += geo is not None and tau[b] > tau[a]
+        run.n_rows_added += added
         run.retimed += how == "retimed"
         if how.startswith("substituted"):
             run.substituted.append((int(a), int(b), how.split(":", 1)[1]))
@@ -283,11 +355,45 @@ def _time_stretches(
             run.failed = (int(a), int(b), tr)
     if progress is not None:
         progress(stage, len(bounds) - 1, len(bounds) - 1)
+    run.deviation_m = worst if geo is not None else float("nan")
     return run
 
 
+def _time_checked(
+    seg: np.ndarray,
+    tau: np.ndarray,
+    aug: JointLimits,
+    method: str,
+    dt: float,
+    programmed_s: float,
+    options: dict,
+    geo: _Geometry | None,
+) -> tuple[Trajectory, str, float, int]:
+    """One stretch timed (:func:`_time_stretch`), a cutting stretch first fitted within the tolerance
+    (:func:`problems.toolpath.stretch_fit.fit_stretch`), and its samples' largest distance from the
+    path measured (m; 0 without ``geo``). Returns the trajectory, how it was timed, the distance and
+    the rows the fit added."""
+    n = seg.shape[1] - 2
+    if geo is None or programmed_s <= 0.0:
+        tr, how = _time_stretch(seg, aug, method, dt, programmed_s, options)
+        dev = geo.deviation(tr.q[:, :n], tr.q[:, n + 1] / LENGTH_SCALE) if geo is not None and tr.q.size else 0.0
+        return tr, how, dev, 0
+    from problems.toolpath.stretch_fit import fit_stretch
+
+    fitted, _ = fit_stretch(seg, n, tau, geo.tcp_frame, geo.tolerance_m)
+    tr, how = _time_stretch(fitted, aug, method, dt, programmed_s, options)
+    dev = geo.deviation(tr.q[:, :n], tr.q[:, n + 1] / LENGTH_SCALE) if tr.q.size else 0.0
+    return tr, how, dev, len(fitted) - len(seg)
+
+
 def _feed_law(
-    joined: Trajectory, n: int, tau: np.ndarray, length: np.ndarray, feed: np.ndarray, run: _Stretches
+    joined: Trajectory,
+    n: int,
+    tau: np.ndarray,
+    length: np.ndarray,
+    feed: np.ndarray,
+    run: _Stretches,
+    geo: _Geometry | None = None,
 ) -> FeedLaw:
     """The :class:`FeedLaw` of the joined augmented trajectory: the feed rate read from the
     programmed-time pseudo-joint, the move of each sample from the path-length one, the joints alone."""
@@ -304,6 +410,10 @@ def _feed_law(
         sample_move=move,
         n_stretches=len(run.pieces),
         n_substituted=len(run.substituted),
+        path_deviation_m=run.deviation_m,
+        tolerance_m=geo.tolerance_m if geo is not None else float("nan"),
+        n_fitted=run.n_fitted,
+        n_rows_added=run.n_rows_added,
     )
 
 
@@ -402,7 +512,7 @@ def _retry(method: str, tr: Trajectory, n_way: int, programmed_s: float) -> bool
     at least :data:`FEED_RETRY_MIN_WAYPOINTS` waypoints that ``method`` ran above
     :data:`FEED_RETRY_RATIO` times its programmed time, when the retry method checks every limit
     ``method`` does."""
-    if tr.status is not TimingStatus.OK or programmed_s <= 0.0:
+    if method not in FEED_RETRY_FROM or tr.status is not TimingStatus.OK or programmed_s <= 0.0:
         return False
     if n_way < FEED_RETRY_MIN_WAYPOINTS or tr.duration_s <= FEED_RETRY_RATIO * programmed_s:
         return False

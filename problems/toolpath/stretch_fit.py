@@ -1,0 +1,129 @@
+"""A cutting stretch's joint path fitted within the path tolerance: smoothed where there is room,
+held to the programmed path where there is not, checked between the waypoints.
+
+The timing methods follow the natural cubic spline through a stretch's rows
+(:class:`problems.timing.path.SplinePath`). :func:`fit_stretch` makes the rows whose spline keeps
+the TCP within the tolerance of the programmed path *between* the waypoints too, not only at them:
+
+1. the joint waypoints are smoothed within :data:`FIT_SMOOTH_SHARE` of the tolerance
+   (:func:`problems.toolpath.smoothing.smooth_stretch`);
+2. the spline through the rows is evaluated at :data:`FIT_POINTS_PER_INTERVAL` points inside every
+   interval and each point's TCP (forward kinematics) measured against the interval's programmed
+   chord (the straight move between the two waypoints' TCP);
+3. where an interval leaves :data:`FIT_CHECK_SHARE` of the tolerance, its two waypoints are pinned
+   (weight :data:`FIT_PIN_WEIGHT` in the smoothing) and the stretch smoothed again; an interval
+   that leaves it with both ends pinned gets a row at its middle (joints, programmed time and
+   length interpolated linearly: on a move a fraction of a millimetre long, the joint-space line's
+   TCP is on the chord to well under a micrometre), which holds the spline to the chord.
+
+At most :data:`FIT_ROUNDS` rounds; the result's deviation is measured and returned, so a stretch
+that still leaves the tolerance is reported, not hidden (``problems.toolpath.feed``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from problems.toolpath.smoothing import smooth_stretch
+
+__all__ = ["FIT_CHECK_SHARE", "fit_stretch", "segment_distance"]
+
+#: Share of the path tolerance the smoothing may move a waypoint (TCP and tool axis).
+FIT_SMOOTH_SHARE: float = 0.5
+#: Share of the tolerance an interval's checked points must stay within (the rest is the room of
+#: the sampled trajectory between the checked points).
+FIT_CHECK_SHARE: float = 0.9
+#: Points checked inside each interval of the spline.
+FIT_POINTS_PER_INTERVAL: int = 7
+#: Weight of a pinned waypoint in the smoothing (the others weigh 1).
+FIT_PIN_WEIGHT: float = 1e8
+#: Rounds of pinning and splitting.
+FIT_ROUNDS: int = 6
+
+
+def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (m) of points ``x`` (M, 3) from the segments ``a``-``b`` (M, 3 each)."""
+    ab = b - a
+    L2 = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", x - a, ab) / np.where(L2 > 0.0, L2, 1.0), 0.0, 1.0)
+    return np.linalg.norm(x - (a + t[:, None] * ab), axis=1)
+
+
+def _interval_deviation(
+    rows: np.ndarray, n: int, tcp_frame: Callable[[np.ndarray], np.ndarray], chord: np.ndarray
+) -> np.ndarray:
+    """Per interval of the spline through ``rows`` (m, n + 2), the largest distance (m) of its
+    checked points' TCP from the interval's chord (``chord``: the rows' programmed TCP, (m, 3))."""
+    from problems.timing.path import SplinePath
+
+    path = SplinePath(rows)
+    k = path.knots
+    f = np.arange(1, FIT_POINTS_PER_INTERVAL + 1) / (FIT_POINTS_PER_INTERVAL + 1)
+    s = (k[:-1, None] + np.diff(k)[:, None] * f[None, :]).ravel()
+    pos = tcp_frame(path.spline(s)[:, :n])[:, :3, 3]
+    i = np.repeat(np.arange(len(k) - 1), len(f))
+    d = segment_distance(pos, chord[i], chord[i + 1])
+    return d.reshape(len(k) - 1, len(f)).max(axis=1)
+
+
+def fit_stretch(
+    rows: np.ndarray,
+    n: int,
+    tau: np.ndarray,
+    tcp_frame: Callable[[np.ndarray], np.ndarray],
+    tolerance_m: float,
+) -> tuple[np.ndarray, float]:
+    """The stretch's rows fitted within the tolerance (see the module docstring).
+
+    Parameters
+    ----------
+    rows : np.ndarray
+        Shape ``(m, n + k)``: the joints (rad, first ``n`` columns) and the pseudo-joints the
+        timing follows (interpolated linearly where a row is added).
+    n : int
+        Number of joints.
+    tau : np.ndarray
+        Shape ``(m,)``, s: programmed time of each row, strictly increasing.
+    tcp_frame : callable
+        ``tcp_frame(q (M, n)) -> (M, 4, 4)``: the TCP frame by forward kinematics.
+    tolerance_m : float
+        The path tolerance, m.
+
+    Returns
+    -------
+    rows : np.ndarray
+        Shape ``(m', n + k)``, ``m' >= m``: the fitted rows (the original rows' order kept).
+    deviation_m : float
+        The largest distance of a checked point from its chord, m.
+    """
+    q0 = rows[:, :n].copy()
+    chord = tcp_frame(q0)[:, :3, 3]
+    tau = np.asarray(tau, dtype=float)
+    weight = np.ones(len(rows))
+    limit = FIT_CHECK_SHARE * tolerance_m
+    dev = np.zeros(0)
+    fitted = rows
+    for _ in range(FIT_ROUNDS):
+        fitted = rows.copy()
+        fitted[:, :n] = smooth_stretch(tau, q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, weight)
+        dev = _interval_deviation(fitted, n, tcp_frame, chord)
+        bad = dev > limit
+        if not bad.any():
+            break
+        ends = np.zeros(len(rows), dtype=bool)
+        ends[:-1] |= bad
+        ends[1:] |= bad
+        pinned = weight >= FIT_PIN_WEIGHT
+        split = bad & pinned[:-1] & pinned[1:]
+        weight[ends] = FIT_PIN_WEIGHT
+        if split.any():
+            at = np.flatnonzero(split)
+            mid = 0.5 * (rows[at] + rows[at + 1])
+            rows = np.insert(rows, at + 1, mid, axis=0)
+            q0 = np.insert(q0, at + 1, 0.5 * (q0[at] + q0[at + 1]), axis=0)
+            chord = np.insert(chord, at + 1, 0.5 * (chord[at] + chord[at + 1]), axis=0)
+            tau = np.insert(tau, at + 1, 0.5 * (tau[at] + tau[at + 1]))
+            weight = np.insert(weight, at + 1, FIT_PIN_WEIGHT)
+    return fitted, float(dev.max()) if dev.size else 0.0
