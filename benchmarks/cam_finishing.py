@@ -24,8 +24,8 @@ import numpy as np
 __all__ = ["finishing_program", "helix_program", "inch_arc_program", "surface_mm"]
 
 
-#: X (mm) of the cliff: a 4 mm step, a wall of up to 40 degrees whose fillets (>= 3.7 mm) the R3 ball fits; drop-cutter rolls the ball
-#: over it (short chords on a radius-R arc, a kink at its foot), sampled 10x finer within 4 mm of it.
+#: X (mm) of the cliff: a 4 mm step, a wall of up to 40 degrees whose fillets (radius >= 3.7 mm)
+#: the R3 ball follows, sampled 10x finer within 4 mm of it.
 CLIFF_X_MM = 18.0
 #: Length (mm, in X) of the surface patches whose boundaries CAM keeps as points, and the sampling
 #: near them (mm).
@@ -132,10 +132,10 @@ def finishing_program(
     forced = np.isin(np.round(xs, 6), np.round(edges, 6))
     lines = [
         "%",
-        "(3D FINISHING - BALL NOSE R%.1f - PARALLEL X - CHORDAL TOL %.3f)" % (ball_radius_mm, chordal_tol_mm),
+        f"(3D FINISHING - BALL NOSE R{ball_radius_mm:.1f} - PARALLEL X - CHORDAL TOL {chordal_tol_mm:.3f})",
         "G21 G90 G94 G17 G40 G49",
         "G54",
-        "G64 P%.3f" % g64_p_mm,
+        f"G64 P{g64_p_mm:.3f}",
         "T1 M6",
         "S12000 M3",
     ]
@@ -166,7 +166,7 @@ def inch_arc_program(g64_p_in: float = 0.004, feed: float = 40.0, slow_feed: flo
     r = 0.35
     w, h = 2.4, 1.6
     x0, y0 = -w / 2, -h / 2
-    lines = ["%", "(INCH CONTOUR, R ARCS)", "G20 G90 G94 G17 G40", "G64 P%.4f" % g64_p_in, "G0 Z0.2"]
+    lines = ["%", "(INCH CONTOUR, R ARCS)", "G20 G90 G94 G17 G40", f"G64 P{g64_p_in:.4f}", "G0 Z0.2"]
     lines += [f"X{x0 + r:.4f} Y{y0:.4f}", f"G1 Z-0.05 F{slow_feed:g}", f"F{feed:g}"]
     lines += [
         f"G1 X{x0 + w - r:.4f} Y{y0:.4f}",

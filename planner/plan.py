@@ -56,6 +56,7 @@ from problems.timing import (
 )
 from problems.timing.trajectory import LIMIT_KEYS
 from problems.toolpath.feed import FEED_FALLBACK_METHOD, FEED_SLOW_TOL, feed_time_law
+from problems.toolpath.waypoints import ARC_SAGITTA_SHARE
 
 from planner.plan_outputs import figures, output_names, write_outputs
 from planner.plan_result import PlanResult, PlanStatus, RunView
@@ -381,6 +382,7 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
                 progress,
                 tcp_frame=problem.model.kinematics.tcp,
                 tolerance_m=w.tolerance_m,
+                path_slack_m=None if w.arc_chord is None else w.arc_chord * (ARC_SAGITTA_SHARE * w.tolerance_m),
                 **problem.timing.options(m),
             )
             res.feed[m] = fl
@@ -421,27 +423,55 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
             )
 
 
+#: A trajectory's distance from the programmed path may exceed the tolerance by this share before
+#: the plan warns (the samples' rounding).
+PATH_TOL_SLACK = 1e-6
 #: Slowed program lines named in a warning (the summary lists them all).
 FEED_WARN_LINES = 5
 
 
 def _feed_warnings(res: PlanResult) -> list[str]:
-    """The program lines whose feed the joint limits force down (the controller's law)."""
+    """The program lines whose feed the joint limits force down (the controller's law), apart from
+    those the stops around them slow; and a trajectory that leaves the path tolerance."""
     fl = res.feed[res.controller]
-    if not fl.slowed or res.problem.program is None:
+    if res.problem.program is None:
         return []
-    worst = fl.slowed_lines(res.problem.program.waypoints.line)
-    order = sorted(worst, key=lambda L: worst[L])
-    shown = ", ".join(f"line {L}: {100 * worst[L]:.0f} %" for L in order[:FEED_WARN_LINES])
-    more = (
-        f" and {len(order) - FEED_WARN_LINES} more (summary.json program.slowed_lines)"
-        if len(order) > FEED_WARN_LINES
-        else ""
-    )
-    return [
-        f"the joint limits (or the stops around them) keep the feed below {100 * (1 - FEED_SLOW_TOL):.0f} % of F on "
-        f"{len(order)} program line(s), peak TCP speed as a fraction of F: {shown}{more}"
-    ]
+    out = []
+    w = res.problem.program.waypoints
+    if np.isfinite(fl.path_deviation_m) and fl.path_deviation_m > fl.tolerance_m * (1.0 + PATH_TOL_SLACK):
+        out.append(
+            f"the controller's trajectory ({res.controller}) leaves the path tolerance: a sample's TCP is "
+            f"{fl.path_deviation_m * 1e3:.4g} mm from the programmed path, tolerance {fl.tolerance_m * 1e3:.4g} mm "
+            "(summary.json program.feed.<method>.path_deviation_mm)"
+        )
+    if not fl.slowed:
+        return out
+    worst = fl.slowed_lines(w.line)
+    by_limit = fl.slowed_by_limit(w.line)
+    n_stops = len(worst) - len(by_limit)
+    if by_limit:
+        order = sorted(by_limit, key=lambda L: by_limit[L][0])
+        shown = ", ".join(
+            f"line {L}: {100 * by_limit[L][0]:.0f} % (joint {by_limit[L][1]} {by_limit[L][2]})"
+            for L in order[:FEED_WARN_LINES]
+        )
+        more = (
+            f" and {len(order) - FEED_WARN_LINES} more (summary.json program.feed.<method>.slowed_by_limit)"
+            if len(order) > FEED_WARN_LINES
+            else ""
+        )
+        out.append(
+            f"the joint limits keep the feed below {100 * (1 - FEED_SLOW_TOL):.0f} % of F on {len(order)} program "
+            f"line(s), peak TCP speed as a fraction of F: {shown}{more}"
+            + (f"; {n_stops} more line(s) are slowed by the stops around them" if n_stops else "")
+        )
+    elif n_stops:
+        out.append(
+            f"{n_stops} program line(s) stay below {100 * (1 - FEED_SLOW_TOL):.0f} % of F only because of the stops "
+            "around them (accelerating out of and into a stop); the joints could cruise at F there "
+            "(summary.json program.slowed_lines)"
+        )
+    return out
 
 
 def _jerk_limited() -> str:

@@ -164,6 +164,7 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
     }
     for m, fl in res.feed.items():
         worst = fl.slowed_lines(w.line)
+        by_limit = fl.slowed_by_limit(w.line)
         dur = fl.trajectory.duration_s
         t = fl.trajectory.t
         on_cut = cut[fl.sample_move[1:]] if len(t) > 1 else np.zeros(0, dtype=bool)
@@ -179,6 +180,21 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
             "n_stretches_by_fallback": fl.n_substituted,
             "slowed_lines": [[L, round_sig(worst[L], 3)] for L in sorted(worst)],
             "slowed_note": "program line, peak TCP speed over F on it, where below 1 - FEED_SLOW_TOL (0.95)",
+            "slowed_by_limit": [
+                [L, round_sig(by_limit[L][0], 3), by_limit[L][1], by_limit[L][2]] for L in sorted(by_limit)
+            ],
+            "slowed_by_limit_note": (
+                "the slowed lines a joint limit holds down (line, peak TCP speed over F, joint, derivative): the "
+                "joints cannot cruise at F there; the other slowed lines are slowed by the stops around them"
+            ),
+            "n_lines_slowed_by_stops": len(worst) - len(by_limit),
+            "path_deviation_mm": fl.path_deviation_m * 1e3 if np.isfinite(fl.path_deviation_m) else None,
+            "path_deviation_note": (
+                "largest distance of a trajectory sample's TCP (forward kinematics of the commands) from the programmed "
+                "path (the chords through the waypoints; on an arc, plus the chords' sagitta bound), mm"
+            ),
+            "n_stretches_fitted": fl.n_fitted,
+            "n_rows_added": fl.n_rows_added,
         }
     return out
 

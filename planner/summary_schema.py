@@ -285,6 +285,19 @@ _PROGRAM = Table(
                     "peak_feed_ratio": Number(lo=0.0, nullable=True),
                     "n_stretches": Number(lo=0, integer=True, nullable=True),
                     "slowed_lines": ListOf(item=Row(items=(Number(lo=0, integer=True), Number(lo=0.0)))),
+                    "slowed_by_limit": ListOf(
+                        item=Row(
+                            items=(
+                                Number(lo=0, integer=True),
+                                Number(lo=0.0),
+                                Number(lo=1, integer=True),
+                                Text(choices=LIMIT_KEYS),
+                            )
+                        ),
+                        need=_REPORT,
+                    ),
+                    "n_lines_slowed_by_stops": Number(lo=0, integer=True, need=_REPORT),
+                    "path_deviation_mm": Number(unit="mm", lo=0.0, nullable=True, need=_REPORT),
                 }
             ),
             name="method",

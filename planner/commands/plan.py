@@ -202,6 +202,16 @@ def _print_timing(res: Any, s: dict[str, Any]) -> None:
                 + (f" = x{ratio:.3f} length/F" if ratio is not None else "")
                 + f" (stops included); peak TCP speed {f['peak_feed_ratio']:.3f} F; "
                 f"{len(f['slowed_lines'])} line(s) slowed"
+                + (
+                    f" ({len(f['slowed_by_limit'])} by a joint limit, the others by the stops around them)"
+                    if f.get("slowed_by_limit") is not None and f["slowed_lines"]
+                    else ""
+                )
+                + (
+                    f"; path within {f['path_deviation_mm'] * 1e3:.2f} µm of the program"
+                    if f.get("path_deviation_mm") is not None
+                    else ""
+                )
             )
 
 

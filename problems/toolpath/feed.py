@@ -136,6 +136,10 @@ class FeedLaw:
         programmed path as the commands trace it; NaN when not measured (no ``tcp_position``).
     tolerance_m : float
         The path tolerance the samples were held to, m (NaN when not measured).
+    cruise, bound_joint, bound_kind : np.ndarray
+        Shape ``(N,)`` each: per waypoint, the fastest the joints let the move ending there cruise,
+        over its feed (inf where not measured: rapids, unfitted runs), the joint (0-based) and the
+        kind of limit (index into ``problems.timing.lookahead.BOUND_KINDS``) that set it.
     n_fitted : int
         Cutting stretches fitted within the tolerance before timing (smoothed where there is room).
     n_rows_added : int
@@ -153,6 +157,27 @@ class FeedLaw:
     tolerance_m: float = float("nan")
     n_fitted: int = 0
     n_rows_added: int = 0
+    cruise: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bound_joint: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    bound_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    def slowed_by_limit(self, line: np.ndarray) -> dict[int, tuple[float, int, str]]:
+        """Program line -> (the smallest fraction of F reached, the joint (1-based), the derivative)
+        of the slowed lines a joint limit holds down: their cruising bound (:attr:`cruise`) is below
+        ``1 - FEED_SLOW_TOL`` of F. The other slowed lines are slowed by the stops around them (the
+        accelerations out of and into a stop, or the approach to a part held down)."""
+        from problems.timing.lookahead import BOUND_KINDS
+
+        out: dict[int, tuple[float, int, str]] = {}
+        if not self.cruise.size:
+            return out
+        for k, frac in self.slowed.items():
+            if not self.cruise[k] < 1.0 - FEED_SLOW_TOL:
+                continue
+            L = int(line[k])
+            if L not in out or frac < out[L][0]:
+                out[L] = (frac, int(self.bound_joint[k]) + 1, BOUND_KINDS[int(self.bound_kind[k])])
+        return out
 
     def slowed_lines(self, line: np.ndarray) -> dict[int, float]:
         """Program line -> the smallest fraction of the feed reached on its slowed moves
@@ -184,6 +209,7 @@ def feed_time_law(
     progress: Callable[[str, int, int], None] | None = None,
     tcp_frame: Callable[[np.ndarray], np.ndarray] | None = None,
     tolerance_m: float | None = None,
+    path_slack_m: np.ndarray | None = None,
     **options: object,
 ) -> FeedLaw:
     """Time a joint path so the TCP runs at its programmed feed (see the module docstring).
@@ -223,6 +249,10 @@ def feed_time_law(
         again with half the smoothing, at last unsmoothed.
     tolerance_m : float, optional
         The path tolerance, m (the program's ``G64 P`` or its default).
+    path_slack_m : np.ndarray, optional
+        Shape ``(N,)``, m: how far the chord ending at each waypoint may lie from the programmed path
+        (an arc's chords: their sagitta bound, ``problems.toolpath.waypoints.ARC_SAGITTA_SHARE`` of
+        the tolerance); a sample's distance from the path is its distance from the chord plus this.
     **options
         The method's options.
 
@@ -242,7 +272,8 @@ def feed_time_law(
     bounds = np.flatnonzero(st)
     geo = None
     if tcp_frame is not None and tolerance_m is not None and tolerance_m > 0.0:
-        geo = _Geometry(tcp_frame, tcp_frame(Q)[:, :3, 3], length, float(tolerance_m))
+        slack = np.zeros(n_way) if path_slack_m is None else np.asarray(path_slack_m, dtype=float)
+        geo = _Geometry(tcp_frame, tcp_frame(Q)[:, :3, 3], length, float(tolerance_m), slack)
     import scipy.linalg  # noqa: F401  (loaded first, so that threadpool_limits finds its BLAS)
     from threadpoolctl import threadpool_limits
 
@@ -289,6 +320,9 @@ class _Stretches:
     deviation_m: float = float("nan")
     n_fitted: int = 0
     n_rows_added: int = 0
+    cruise: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bound_joint: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    bound_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
 
 @dataclass(frozen=True)
@@ -301,6 +335,7 @@ class _Geometry:
     tcp_m: np.ndarray
     length_m: np.ndarray
     tolerance_m: float
+    slack_m: np.ndarray
 
     def deviation(self, q: np.ndarray, along_m: np.ndarray) -> float:
         """Largest distance (m) of the samples' TCP from the polyline, each sample measured against
@@ -313,7 +348,14 @@ class _Geometry:
         n = len(P)
         move = np.clip(np.searchsorted(self.length_m, along_m, side="left"), 1, n - 1)
         pos = self.tcp_frame(q)[:, :3, 3]
-        d = np.min([segment_distance(pos, P[np.clip(move + o - 1, 0, n - 1)], P[np.clip(move + o, 0, n - 1)]) for o in (-1, 0, 1)], axis=0)
+        d = np.min(
+            [
+                segment_distance(pos, P[np.clip(move + o - 1, 0, n - 1)], P[np.clip(move + o, 0, n - 1)])
+                + self.slack_m[np.clip(move + o, 0, n - 1)]
+                for o in (-1, 0, 1)
+            ],
+            axis=0,
+        )
         return float(np.max(d))
 
 
@@ -333,6 +375,8 @@ def _time_stretches(
     with ``geo``, a cutting stretch smoothed first and its samples checked against the path."""
     n = cols.shape[1] - 2
     run = _Stretches()
+    N = len(cols)
+    run.cruise, run.bound_joint, run.bound_kind = np.full(N, np.inf), np.full(N, -1), np.full(N, -1)
     stage = f"timing {method}"
     worst = 0.0
     for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
@@ -340,8 +384,12 @@ def _time_stretches(
             progress(stage, i, len(bounds) - 1)
         seg = cols[a : b + 1].copy()
         seg[:, n] -= FEED_TIME_SCALE * tau[a]
-        tr, how, dev, added = _time_checked(seg, tau[a : b + 1], aug, method, dt, tau[b] - tau[a], options, geo)
+        tr, how, dev, added, cruise = _time_checked(
+            seg, tau[a : b + 1], aug, method, dt, tau[b] - tau[a], options, geo, int(a)
+        )
         worst = max(worst, dev)
+        if cruise is not None:
+            run.cruise[a + 1 : b + 1], run.bound_joint[a + 1 : b + 1], run.bound_kind[a + 1 : b + 1] = cruise
         run.n_fitted += geo is not None and tau[b] > tau[a]
         run.n_rows_added += added
         run.retimed += how == "retimed"
@@ -368,22 +416,66 @@ def _time_checked(
     programmed_s: float,
     options: dict,
     geo: _Geometry | None,
-) -> tuple[Trajectory, str, float, int]:
+    first: int = 0,
+) -> tuple[Trajectory, str, float, int, tuple[np.ndarray, ...] | None]:
     """One stretch timed (:func:`_time_stretch`), a cutting stretch first fitted within the tolerance
     (:func:`problems.toolpath.stretch_fit.fit_stretch`), and its samples' largest distance from the
-    path measured (m; 0 without ``geo``). Returns the trajectory, how it was timed, the distance and
-    the rows the fit added."""
+    path measured (m; 0 without ``geo``). Returns the trajectory, how it was timed, the distance,
+    the rows the fit added and, for a fitted stretch, its moves' cruising bounds (:func:`_cruise_bounds`)."""
     n = seg.shape[1] - 2
     if geo is None or programmed_s <= 0.0:
         tr, how = _time_stretch(seg, aug, method, dt, programmed_s, options)
         dev = geo.deviation(tr.q[:, :n], tr.q[:, n + 1] / LENGTH_SCALE) if geo is not None and tr.q.size else 0.0
-        return tr, how, dev, 0
+        return tr, how, dev, 0, None
     from problems.toolpath.stretch_fit import fit_stretch
 
-    fitted, _ = fit_stretch(seg, n, tau, geo.tcp_frame, geo.tolerance_m)
+    fitted, _, kept = fit_stretch(seg, n, tau, geo.tcp_frame, geo.tolerance_m, geo.slack_m[first : first + len(seg)])
     tr, how = _time_stretch(fitted, aug, method, dt, programmed_s, options)
     dev = geo.deviation(tr.q[:, :n], tr.q[:, n + 1] / LENGTH_SCALE) if tr.q.size else 0.0
-    return tr, how, dev, len(fitted) - len(seg)
+    return tr, how, dev, len(fitted) - len(seg), _cruise_bounds(fitted, kept, n, _checked_only(aug, method))
+
+
+#: A limit the method does not check, in :func:`_checked_only` (JointLimits takes finite values only).
+_UNCHECKED = 1e30
+
+
+def _checked_only(limits: JointLimits, method: str) -> JointLimits:
+    """``limits`` with those the method does not check made practically infinite (TOPP-RA's jerk)."""
+    from problems.timing import get_method
+
+    checked = get_method(method).checked_limits
+    return JointLimits(
+        *(
+            getattr(limits, k) if k in checked else np.full(limits.n_joints, _UNCHECKED)
+            for k in ("velocity", "acceleration", "jerk")
+        )
+    )
+
+
+def _cruise_bounds(rows: np.ndarray, kept: np.ndarray, n: int, aug: JointLimits) -> tuple[np.ndarray, ...]:
+    """Per move of a cutting stretch (between kept rows ``j - 1`` and ``j``): the fastest the joints
+    let it cruise over its feed (the smallest over its knots and interval middles,
+    :func:`problems.timing.lookahead.local_bounds`), the joint (0-based) and the kind of limit
+    (index into ``BOUND_KINDS``) that set it. Shapes ``(m - 1,)``."""
+    from problems.timing.lookahead import local_bounds
+    from problems.timing.path import SplinePath
+
+    path = SplinePath(rows)
+    k = path.knots
+    s = np.sort(np.r_[k, 0.5 * (k[:-1] + k[1:])])  # knot, middle, knot, ...
+    lb = local_bounds(path, aug, s, joints=n)
+    feed_speed = aug.velocity[n] / np.maximum(np.abs(path.spline.derivative(1)(s)[:, n]), 1e-300)
+    ratio = lb.speed / feed_speed
+    # per interval i: points 2i, 2i + 1, 2i + 2
+    tri = np.stack([ratio[0:-1:2], ratio[1::2], ratio[2::2]], axis=1)
+    arg = np.argmin(tri, axis=1)
+    idx = 2 * np.arange(len(tri)) + arg
+    per_interval = tri[np.arange(len(tri)), arg]
+    starts = kept[:-1]
+    moves = np.minimum.reduceat(per_interval, starts)
+    # the point of the smallest ratio of each move
+    where = np.array([starts[j] + int(np.argmin(per_interval[starts[j] : kept[j + 1]])) for j in range(len(starts))])
+    return moves, lb.joint[idx[where]], lb.kind[idx[where]]
 
 
 def _feed_law(
@@ -414,6 +506,9 @@ def _feed_law(
         tolerance_m=geo.tolerance_m if geo is not None else float("nan"),
         n_fitted=run.n_fitted,
         n_rows_added=run.n_rows_added,
+        cruise=run.cruise,
+        bound_joint=run.bound_joint,
+        bound_kind=run.bound_kind,
     )
 
 

@@ -74,7 +74,8 @@ def fit_stretch(
     tau: np.ndarray,
     tcp_frame: Callable[[np.ndarray], np.ndarray],
     tolerance_m: float,
-) -> tuple[np.ndarray, float]:
+    slack_m: np.ndarray | None = None,
+) -> tuple[np.ndarray, float, np.ndarray]:
     """The stretch's rows fitted within the tolerance (see the module docstring).
 
     Parameters
@@ -90,26 +91,34 @@ def fit_stretch(
         ``tcp_frame(q (M, n)) -> (M, 4, 4)``: the TCP frame by forward kinematics.
     tolerance_m : float
         The path tolerance, m.
+    slack_m : np.ndarray, optional
+        Shape ``(m,)``, m: how far the chord of the move ending at each row may lie from the
+        programmed path (an arc's chords: their sagitta bound); the interval's limit is that much
+        tighter (default 0).
 
     Returns
     -------
     rows : np.ndarray
         Shape ``(m', n + k)``, ``m' >= m``: the fitted rows (the original rows' order kept).
     deviation_m : float
-        The largest distance of a checked point from its chord, m.
+        The largest distance of a checked point from its chord plus the chord's slack, m.
+    kept : np.ndarray
+        Shape ``(m,)``, int: the index in ``rows`` of each original row.
     """
     q0 = rows[:, :n].copy()
     chord = tcp_frame(q0)[:, :3, 3]
     tau = np.asarray(tau, dtype=float)
     weight = np.ones(len(rows))
-    limit = FIT_CHECK_SHARE * tolerance_m
+    kept = np.arange(len(rows))
+    slack = np.zeros(len(rows)) if slack_m is None else np.asarray(slack_m, dtype=float).copy()
     dev = np.zeros(0)
-    fitted = rows
+    fitted, fitted_kept, fitted_slack = rows, kept, slack
     for _ in range(FIT_ROUNDS):
         fitted = rows.copy()
         fitted[:, :n] = smooth_stretch(tau, q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, weight)
         dev = _interval_deviation(fitted, n, tcp_frame, chord)
-        bad = dev > limit
+        fitted_kept, fitted_slack = kept.copy(), slack.copy()
+        bad = dev + slack[1:] > FIT_CHECK_SHARE * tolerance_m
         if not bad.any():
             break
         ends = np.zeros(len(rows), dtype=bool)
@@ -126,4 +135,6 @@ def fit_stretch(
             chord = np.insert(chord, at + 1, 0.5 * (chord[at] + chord[at + 1]), axis=0)
             tau = np.insert(tau, at + 1, 0.5 * (tau[at] + tau[at + 1]))
             weight = np.insert(weight, at + 1, FIT_PIN_WEIGHT)
-    return fitted, float(dev.max()) if dev.size else 0.0
+            slack = np.insert(slack, at + 1, slack[at + 1])
+            kept = kept + np.searchsorted(at, kept, side="left")  # rows inserted before each kept row
+    return fitted, float((dev + fitted_slack[1:]).max()) if dev.size else 0.0, fitted_kept

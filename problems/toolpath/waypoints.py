@@ -61,6 +61,10 @@ CORNER_DEVIATION_FACTOR = 0.25
 CORNER_MIN_APPROACH_M = 2e-4
 #: Directions closer than this (rad) are not a corner.
 CORNER_ANGLE_MIN_RAD = 1e-6
+#: Arcs are split into chords whose sagitta is at most this share of the path tolerance: the chords
+#: then stand for the arc within it, and a trajectory within the rest of the tolerance of them is
+#: within the tolerance of the arc (``problems.toolpath.stretch_fit``).
+ARC_SAGITTA_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,9 @@ class ProgramWaypoints:
         Where it came from (``"G64 P"``, ``"problem file"``, ``"default"``).
     source : str
         The program file.
+    arc_chord : np.ndarray or None
+        Shape ``(N,)``, bool: the move ending at the waypoint is (part of) an arc's chord, which lies
+        within :data:`ARC_SAGITTA_SHARE` of the tolerance from the arc; None: no arcs.
     """
 
     points_m: np.ndarray
@@ -109,6 +116,7 @@ class ProgramWaypoints:
     tolerance_m: float
     tolerance_source: str
     source: str
+    arc_chord: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -182,7 +190,7 @@ def program_waypoints(program: Program, tol_m: float | None = None, tol_source: 
         tol_m, tol_source = (p, "G64 P") if p else (DEFAULT_PATH_TOLERANCE_M, "default")
     if not (tol_m > 0.0 and math.isfinite(tol_m)):
         raise InputError(f"{program.source}: the path tolerance must be > 0 m, got {tol_m!r}")
-    P, line, rapid, feed, move = discretise_moves(program, tol_m)
+    P, line, rapid, feed, move = discretise_moves(program, ARC_SAGITTA_SHARE * tol_m)
     if len(P) < 2:
         raise InputError(f"{program.source}: the program has no move with a known start point; nothing to plan")
     stop_m, dwell_m = _stops(program, program.n_moves)
@@ -202,7 +210,24 @@ def program_waypoints(program: Program, tol_m: float | None = None, tol_source: 
     relief = np.zeros(len(P))
     k = np.flatnonzero(ends[1:-1]) + 1
     relief[k] = half[move[k]] + half[move[k + 1]]
-    return _refine(P, None, line, rapid, feed, stop, dwell, ends, None, tol_m, tol_source, program.source, relief)
+    is_arc = np.fromiter((m.kind.value == "arc" for m in program.moves), bool, program.n_moves)
+    arc = np.r_[False, is_arc[move[1:]]]
+    return _refine(
+        P,
+        None,
+        line,
+        rapid,
+        feed,
+        stop,
+        dwell,
+        ends,
+        None,
+        tol_m,
+        tol_source,
+        program.source,
+        relief,
+        arc if arc.any() else None,
+    )
 
 
 def cl_waypoints(cl: ClPath, tol_m: float, tol_source: str = "") -> ProgramWaypoints:
@@ -286,6 +311,7 @@ def _refine(
     tol_source: str,
     source: str,
     relief: np.ndarray | None = None,
+    arc: np.ndarray | None = None,
 ) -> ProgramWaypoints:
     """Stops at the ends and at rapid/cut changes, corners blended or stopped, moves split.
 
@@ -334,6 +360,7 @@ def _refine(
         float(tol),
         tol_source,
         source,
+        arc[idx] if arc is not None else None,
     )
 
 
