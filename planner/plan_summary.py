@@ -190,8 +190,8 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
             "n_lines_slowed_by_stops": len(worst) - len(by_limit),
             "path_deviation_mm": fl.path_deviation_m * 1e3 if np.isfinite(fl.path_deviation_m) else None,
             "path_deviation_note": (
-                "largest distance of a trajectory sample's TCP (forward kinematics of the commands) from the programmed "
-                "path (the chords through the waypoints; on an arc, plus the chords' sagitta bound), mm"
+                "largest distance of a trajectory sample's TCP (forward kinematics of the commands) from the "
+                "programmed path (the chords through the waypoints; on an arc, plus the chords' sagitta bound), mm"
             ),
             "n_stretches_fitted": fl.n_fitted,
             "n_rows_added": fl.n_rows_added,
