@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from planner.plan import plan
 from problems.problem import load_problem
