@@ -40,7 +40,8 @@ time by ``k = max(r_v, sqrt(r_a), cbrt(r_j))`` (at most :data:`SCALE_ROUNDS` tim
 
 On a short path (a move from rest to rest) the filter's length is a large share of the motion;
 there Ruckig's law on the same path under one bound set (``problems.timing.ruckig_method``) is
-computed too and kept when it is shorter (:data:`LOOKAHEAD_ALSO`; the reason says so).
+computed too and kept when it is shorter (:data:`LOOKAHEAD_ALSO`, where the filter is at least
+:data:`LOOKAHEAD_ALSO_SHARE` of the motion; the reason says so).
 
 Cost: O(G) per candidate ``T``; ``G`` is :data:`CELLS_PER_KNOT` per waypoint, at least
 :data:`MIN_CELLS`, at most :data:`MAX_CELLS`. Options: ``cells_per_knot`` (int >= 1). Importing
@@ -78,17 +79,19 @@ SHARE_JERK_CRUISE: float = 0.6
 SHARE_JERK_CROSS: float = 0.5
 #: Grid cells per waypoint, and the least and most cells of a path.
 CELLS_PER_KNOT: int = 4
-MIN_CELLS: int = 2000
+MIN_CELLS: int = 400
 MAX_CELLS: int = 400_000
 #: Filter lengths tried (s): geometric from FILTER_T_MIN_S to FILTER_T_MAX_S, floored at dt.
-FILTER_CANDIDATES: int = 14
+FILTER_CANDIDATES: int = 9
 FILTER_T_MIN_S: float = 0.004
 FILTER_T_MAX_S: float = 2.0
 #: Uniform slow-down when the sampled check exceeds a limit: margin and most rounds.
 SCALE_MARGIN: float = 1e-4
 SCALE_ROUNDS: int = 3
-#: The method whose law of the same path is kept when shorter (see the module docstring).
+#: The method whose law of the same path is kept when shorter (see the module docstring), tried
+#: where the filter is at least LOOKAHEAD_ALSO_SHARE of the motion.
 LOOKAHEAD_ALSO: str = "ruckig"
+LOOKAHEAD_ALSO_SHARE: float = 0.05
 #: The kinds of bound, in the order of :attr:`LocalBounds.kind`.
 BOUND_KINDS: tuple[str, ...] = ("velocity", "acceleration", "jerk")
 
@@ -385,6 +388,8 @@ def run_lookahead(path: SplinePath, limits: JointLimits, dt: float, opts: Mappin
         iterations=rounds,
         first=first,
     )
+    if law.T < LOOKAHEAD_ALSO_SHARE * law.duration:
+        return own  # the filter is a small share of the motion: Ruckig's one bound set cannot win
     return _shorter_of(own, path, limits, dt)
 
 

@@ -36,7 +36,7 @@ import numpy as np
 __all__ = ["SMOOTH_BISECTIONS", "smooth_stretch"]
 
 #: Bisection steps on ``log10 lam`` over [SMOOTH_LOG_LAM_MIN, SMOOTH_LOG_LAM_MAX].
-SMOOTH_BISECTIONS: int = 14
+SMOOTH_BISECTIONS: int = 10
 SMOOTH_LOG_LAM_MIN: float = -30.0
 SMOOTH_LOG_LAM_MAX: float = 10.0
 #: A stretch needs at least this many waypoints (two interior) to be smoothed.
@@ -52,9 +52,9 @@ SMOOTH_JACOBIAN_STEP_RAD: float = 1e-6
 SMOOTH_METRIC_FLOOR: float = 1e-6
 #: Local smoothing beyond the uniform one: steps of SMOOTH_LOCAL_STEP_DECADES in log10 lam, each
 #: with at most SMOOTH_REWEIGHTS reweightings of the waypoints above SMOOTH_REWEIGHT_AT of the budget.
-SMOOTH_LOCAL_STEPS: int = 6
+SMOOTH_LOCAL_STEPS: int = 4
 SMOOTH_LOCAL_STEP_DECADES: float = 1.0
-SMOOTH_REWEIGHTS: int = 6
+SMOOTH_REWEIGHTS: int = 4
 SMOOTH_REWEIGHT_AT: float = 0.7
 
 

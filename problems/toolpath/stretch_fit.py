@@ -35,12 +35,16 @@ FIT_SMOOTH_SHARE: float = 0.5
 #: Share of the tolerance an interval's checked points must stay within (the rest is the room of
 #: the sampled trajectory between the checked points).
 FIT_CHECK_SHARE: float = 0.9
-#: Points checked inside each interval of the spline.
+#: Points checked inside each interval of the spline, and inside an interval whose points come
+#: above FIT_REFINE_AT of the limit (the spline can bend between the coarse points beside a
+#: very short interval).
 FIT_POINTS_PER_INTERVAL: int = 7
+FIT_POINTS_REFINED: int = 63
+FIT_REFINE_AT: float = 0.5
 #: Weight of a pinned waypoint in the smoothing (the others weigh 1).
 FIT_PIN_WEIGHT: float = 1e8
 #: Rounds of pinning and splitting.
-FIT_ROUNDS: int = 6
+FIT_ROUNDS: int = 12
 
 
 def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -52,11 +56,17 @@ def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _interval_deviation(
-    rows: np.ndarray, n: int, tcp_frame: Callable[[np.ndarray], np.ndarray], chord: np.ndarray
+    rows: np.ndarray,
+    n: int,
+    tcp_frame: Callable[[np.ndarray], np.ndarray],
+    chord: np.ndarray,
+    chord_limit: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per interval of the spline through ``rows`` (m, n + 2), the largest distance (m) of its
     checked points' TCP from the interval's chord (``chord``: the rows' programmed TCP, (m, 3)),
-    and the length (m) of the TCP's polyline through the interval's ends and checked points."""
+    and the length (m) of the TCP's polyline through the interval's ends and checked points. With
+    ``chord_limit`` (m), an interval whose points come above :data:`FIT_REFINE_AT` of it is checked
+    again at :data:`FIT_POINTS_REFINED` points."""
     from problems.timing.path import SplinePath
 
     path = SplinePath(rows)
@@ -69,7 +79,17 @@ def _interval_deviation(
     ends = tcp_frame(rows[:, :n])[:, :3, 3]
     pts = np.concatenate([ends[:-1, None], pos.reshape(len(k) - 1, len(f), 3), ends[1:, None]], axis=1)
     length = np.linalg.norm(np.diff(pts, axis=1), axis=2).sum(axis=1)
-    return d.reshape(len(k) - 1, len(f)).max(axis=1), length
+    dev = d.reshape(len(k) - 1, len(f)).max(axis=1)
+    # where the coarse points come near the tolerance, the spline is checked again more finely
+    close = np.flatnonzero(dev > FIT_REFINE_AT * chord_limit) if chord_limit is not None else np.zeros(0, int)
+    if close.size:
+        g = np.arange(1, FIT_POINTS_REFINED + 1) / (FIT_POINTS_REFINED + 1)
+        s2 = (k[close, None] + np.diff(k)[close, None] * g[None, :]).ravel()
+        pos2 = tcp_frame(path.spline(s2)[:, :n])[:, :3, 3]
+        i2 = np.repeat(close, len(g))
+        d2 = segment_distance(pos2, chord[i2], chord[i2 + 1]).reshape(len(close), len(g)).max(axis=1)
+        dev[close] = np.maximum(dev[close], d2)
+    return dev, length
 
 
 def fit_stretch(
@@ -122,14 +142,21 @@ def fit_stretch(
     slack = np.zeros(len(rows)) if slack_m is None else np.asarray(slack_m, dtype=float).copy()
     dev = np.zeros(0)
     fitted, fitted_kept, fitted_slack = rows, kept, slack
-    fitted_ratio = np.ones(len(rows) - 1)
+    limit = FIT_CHECK_SHARE * tolerance_m
     for _ in range(FIT_ROUNDS):
         fitted = rows.copy()
         fitted[:, :n] = smooth_stretch(tau, q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, weight)
-        dev, run = _interval_deviation(fitted, n, tcp_frame, chord)
+        if time_column is not None:
+            # the programmed time over each interval scaled by the TCP's path length there over the
+            # chord's (the smoothing moves waypoints along the path too): a bound on its rate is then
+            # a bound on the TCP's speed; the spline's parameter follows it, so the check comes after
+            _, run = _interval_deviation(fitted, n, tcp_frame, chord)
+            ratio = run / np.maximum(np.linalg.norm(np.diff(chord, axis=0), axis=1), 1e-300)
+            step = np.diff(fitted[:, time_column]) * ratio
+            fitted[:, time_column] = fitted[0, time_column] + np.r_[0.0, np.cumsum(step)]
+        dev, _ = _interval_deviation(fitted, n, tcp_frame, chord, limit)
         fitted_kept, fitted_slack = kept.copy(), slack.copy()
-        fitted_ratio = run / np.maximum(np.linalg.norm(np.diff(chord, axis=0), axis=1), 1e-300)
-        bad = dev + slack[1:] > FIT_CHECK_SHARE * tolerance_m
+        bad = dev + slack[1:] > limit
         if not bad.any():
             break
         ends = np.zeros(len(rows), dtype=bool)
@@ -148,10 +175,4 @@ def fit_stretch(
             weight = np.insert(weight, at + 1, FIT_PIN_WEIGHT)
             slack = np.insert(slack, at + 1, slack[at + 1])
             kept = kept + np.searchsorted(at, kept, side="left")  # rows inserted before each kept row
-    if time_column is not None and fitted is not rows:
-        # the programmed time over each interval scaled by the TCP's path length there over the chord's
-        # (the smoothing moves waypoints along the path too): the feed bound is then the TCP's speed
-        step = np.diff(fitted[:, time_column]) * fitted_ratio
-        fitted = fitted.copy()
-        fitted[:, time_column] = fitted[0, time_column] + np.r_[0.0, np.cumsum(step)]
     return fitted, float((dev + fitted_slack[1:]).max()) if dev.size else 0.0, fitted_kept
