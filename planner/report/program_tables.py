@@ -14,7 +14,12 @@ from planner.numbers import format_number
 from planner.record.columns import PROGRAM_KEY
 from planner.record.record import method_name
 from planner.report.table_base import Cell, Table, value_cell
-from planner.report.toolpath import slowed_lines_worst_first
+from planner.report.toolpath import (
+    deviation_words,
+    slowed_by_limit_worst_first,
+    slowed_line_text,
+    slowed_lines_worst_first,
+)
 
 __all__ = ["SLOWED_SHOWN", "program_tables"]
 
@@ -23,12 +28,22 @@ SLOWED_SHOWN = 10
 
 
 def _slowed_text(entry: Mapping[str, Any]) -> str:
-    rows = slowed_lines_worst_first(entry)
-    if not rows:
+    """All slowed lines: their count and the slowest :data:`SLOWED_SHOWN` with their fraction of F."""
+    return _listed([slowed_line_text(L, f) for L, f in slowed_lines_worst_first(entry)])
+
+
+def _by_limit_text(entry: Mapping[str, Any]) -> str:
+    """The slowed lines a joint limit holds down: their count and the slowest :data:`SLOWED_SHOWN`
+    with their fraction of F, joint and derivative."""
+    return _listed([slowed_line_text(L, f, j, d) for L, f, j, d in slowed_by_limit_worst_first(entry) or []])
+
+
+def _listed(texts: list[str]) -> str:
+    """``"N: first, second, ... and M more"`` of at most :data:`SLOWED_SHOWN` texts; ``"none"``."""
+    if not texts:
         return "none"
-    shown = ", ".join(f"line {L}: {format_number(100.0 * f, 3)} %" for L, f in rows[:SLOWED_SHOWN])
-    more = len(rows) - SLOWED_SHOWN
-    return f"{len(rows)}: {shown}" + (f" and {more} more" if more > 0 else "")
+    more = len(texts) - SLOWED_SHOWN
+    return f"{len(texts)}: " + ", ".join(texts[:SLOWED_SHOWN]) + (f" and {more} more" if more > 0 else "")
 
 
 def _ratio_cell(entry: Mapping[str, Any]) -> Cell:
@@ -64,14 +79,19 @@ def program_tables(summary: Mapping[str, Any]) -> list[Table]:
     feed = p.get("feed") if isinstance(p.get("feed"), Mapping) else {}
     ctrl = summary.get("controller_trajectory")
     cutting = any(isinstance(e, Mapping) and "cutting_time_s" in e for e in feed.values())  # (newer summaries)
-    frows = _feed_rows(summary, feed, ctrl, cutting)
+    split = any(isinstance(e, Mapping) and "slowed_by_limit" in e for e in feed.values())  # (newer still)
+    frows = _feed_rows(summary, feed, ctrl, cutting, split)
     if frows:
-        tables.append(_feed_table(frows, cutting))
+        tables.append(_feed_table(frows, cutting, split))
     return tables
 
 
-def _feed_rows(summary: Mapping[str, Any], feed: Mapping[str, Any], ctrl: Any, cutting: bool) -> list[list[Cell]]:
-    """One row of the feed table per timing method in ``program.feed`` (the controller's marked)."""
+def _feed_rows(
+    summary: Mapping[str, Any], feed: Mapping[str, Any], ctrl: Any, cutting: bool, split: bool
+) -> list[list[Cell]]:
+    """One row of the feed table per timing method in ``program.feed`` (the controller's marked);
+    with ``split`` (a summary with ``slowed_by_limit``) the slowed lines by cause and the path
+    deviation against the tolerance."""
     k = PROGRAM_KEY
     frows = []
     for m, entry in feed.items():
@@ -98,12 +118,23 @@ def _feed_rows(summary: Mapping[str, Any], feed: Mapping[str, Any], ctrl: Any, c
                 value_cell(summary, f"{k}.feed.{m}.n_stretches"),
                 Cell(_slowed_text(entry)),
             ]
+            + (
+                [
+                    Cell(_by_limit_text(entry)),
+                    value_cell(summary, f"{k}.feed.{m}.n_lines_slowed_by_stops"),
+                    value_cell(summary, f"{k}.feed.{m}.path_deviation_mm"),
+                    Cell(deviation_words(entry.get("path_deviation_mm"), summary[k].get("path_tolerance_mm"))),
+                ]
+                if split
+                else []
+            )
         )
     return frows
 
 
-def _feed_table(frows: list[list[Cell]], cutting: bool) -> Table:
-    """The program's feed table: programmed against achieved time and the slowed lines per method."""
+def _feed_table(frows: list[list[Cell]], cutting: bool, split: bool) -> Table:
+    """The program's feed table: programmed against achieved time and the slowed lines per method
+    (with ``split``: by cause, and the path deviation against the tolerance)."""
     return Table(
         "Program: feed",
         [
@@ -117,7 +148,17 @@ def _feed_table(frows: list[list[Cell]], cutting: bool) -> Table:
             "peak TCP speed / F",
             "stretches between stops",
             f"slowed program lines (count: slowest {SLOWED_SHOWN}, % of F)",
-        ],
+        ]
+        + (
+            [
+                f"of which held down by a joint limit (count: slowest {SLOWED_SHOWN}, % of F, joint and derivative)",
+                "of which slowed only by the stops around them (count)",
+                "largest path deviation of the samples [mm]",
+                "path deviation against the path tolerance",
+            ]
+            if split
+            else []
+        ),
         frows,
         "Programmed time: length / F summed over the cutting moves (rapids count 0). Achieved: the "
         "trajectory's duration, rapids and stops included"
@@ -129,6 +170,15 @@ def _feed_table(frows: list[list[Cell]], cutting: bool) -> Table:
         + ". Slowed lines: program lines with a move whose "
         f"peak TCP speed stays below {format_number(100.0 * (1.0 - FEED_SLOW_TOL))} % of F (the value: that "
         "peak on the line's slowest move), slowest first; the full list is "
-        "summary.json program.feed.<method>.slowed_lines.",
+        "summary.json program.feed.<method>.slowed_lines."
+        + (
+            " Held down by a joint limit: the joints cannot cruise at F on the line (Jn: joint n; the derivative, "
+            "velocity, acceleration or jerk, that binds; summary.json slowed_by_limit); the other slowed lines are "
+            "slowed only by the stops around them (accelerating out of a stop, braking into one). Path deviation: "
+            "the largest distance of a trajectory sample's TCP (forward kinematics of the commands) from the "
+            "programmed path, against the program's path tolerance (✓ within, ✗ OUTSIDE)."
+            if split
+            else ""
+        ),
         anchor="program-feed",
     )
