@@ -22,7 +22,16 @@ the budget is the plan).
 Budgets (issue 23): growth from 10^4 to 10^5 moves at most 12x; 10^5 moves planned in at most
 60 s and 4 GiB on the 2-core machine. The script prints each with its figure.
 
-Usage: ``python benchmarks/bench_toolpath.py [--sizes 1000 10000 100000] [--no-anchor]``.
+The 3-D finishing case (issue 33, ``--case finishing``; ``both`` by default): a CAM-style ball-nose
+parallel finishing program of about 10^3, 10^4, 10^5 G1 moves (``benchmarks/cam_finishing.py``:
+drop-cutter CL points reduced to chords within 0.01 mm, 20 µm to 17 mm long, G64 P0.02, F1200 on
+the rows and F600 over the step-overs) on the UR10 with its off-axis spindle and milling force,
+timed by the controller's look-ahead (jerk-limited) and, in a process of its own in the same run,
+by TOPP-RA on the same path (velocity and acceleration only): the cutting time over TOPP-RA's and
+over length / F, the samples' distance from the path over the tolerance, the plan's time and peak
+memory (budget: 10^5 moves in 60 s and 4 GiB).
+
+Usage: ``python benchmarks/bench_toolpath.py [--sizes 1000 10000 100000] [--no-anchor] [--case both]``.
 """
 
 from __future__ import annotations
@@ -140,17 +149,138 @@ def one(n: int, folder: Path, anchor: bool) -> dict:
     return out
 
 
+FINISHING_PROBLEM = """\
+name = "bench_finishing"
+description = "3-D ball-nose parallel finishing, {n} G1 moves"
+[robot]
+model = "ur10"
+tool = {{ xyz = [0.08, 0.0, 0.12] }}
+[path]
+kind = "gcode"
+file = "finishing.ngc"
+[workpiece]
+xyz = [0.65, 0.0, 0.10]
+[wrench]
+frame = "tool"
+force = [40.0, 25.0, 30.0]
+[limits]
+max_joint_step = 0.3
+[timing]
+methods = ["{method}"]
+"""
+#: Rows of the finishing program per G1 move wanted (about 45 moves a 60 mm row), and its step-over, mm.
+FINISHING_MOVES_PER_ROW = 45
+FINISHING_STEPOVER_MM = 0.2
+
+
+def finishing_case(n: int, folder: Path, method: str) -> dict:
+    """Plan the CAM-style finishing program of about ``n`` moves (``benchmarks/cam_finishing.py``)
+    with one timing method, in this process; the figures as a dict."""
+    sys.path.insert(0, str(ROOT))
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from cam_finishing import finishing_program
+
+    from planner.plan import plan
+    from problems.problem import load_problem
+
+    rows = max(2, round(n / FINISHING_MOVES_PER_ROW))
+    t0 = time.perf_counter()
+    text = finishing_program(n_rows=rows, depth_mm=(rows - 1) * FINISHING_STEPOVER_MM)
+    gen = time.perf_counter() - t0
+    (folder / "finishing.ngc").write_text(text)
+    (folder / "p.toml").write_text(FINISHING_PROBLEM.format(n=n, method=method))
+    t0 = time.perf_counter()
+    pr = load_problem(folder / "p.toml")
+    parse = time.perf_counter() - t0
+    res = plan(pr)
+    st = res.stage_times_s
+    f = res.view().summary["program"]["feed"][method]
+    total = parse + sum(st.get(k, 0.0) for k in ("model_s", "posture_s", "compensation_s", f"timing_{method}_s"))
+    return {
+        "moves": sum(1 for ln in text.splitlines() if ln[:1] == "X"),
+        "waypoints": pr.n,
+        "status": res.status.value,
+        "generate_s": gen,
+        "total_s": total,
+        "timing_s": st.get(f"timing_{method}_s", float("nan")),
+        "cutting_s": f["cutting_time_s"],
+        "over_programmed": f["cutting_time_over_programmed"],
+        "deviation_mm": f.get("path_deviation_mm"),
+        "tolerance_mm": res.view().summary["program"]["path_tolerance_mm"],
+        "slowed": len(f["slowed_lines"]),
+        "slowed_by_limit": len(f.get("slowed_by_limit") or []),
+        "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+    }
+
+
+def finishing_rows(sizes: list[int]) -> int:
+    """The finishing case at each size: the look-ahead (the controller's, jerk-limited) and, in a
+    process of its own in the same run, TOPP-RA on the same path (velocity and acceleration only)."""
+    print("3-D finishing (ball-nose parallel, chordal tol 0.01 mm, G64 P0.02, F1200 / F600), UR10, milling force")
+    print(
+        f"{'moves':>7} {'waypts':>7} {'plan':>7} {'timing':>7} {'peak':>7} {'Tcut/Tp':>7} {'Tcut/TOPP-RA':>12} "
+        f"{'dev/tol':>7} {'slowed (limit)':>14} | {'TOPP-RA: Tcut/Tp':>16} {'plan':>7}"
+    )
+    ok = True
+    for n in sizes:
+        got = {}
+        for m in ("lookahead", "toppra"):
+            r = subprocess.run(
+                [sys.executable, __file__, "--finishing", str(n), "--method", m],
+                capture_output=True,
+                text=True,
+                cwd=ROOT,
+            )
+            if r.returncode:
+                print(r.stderr, file=sys.stderr)
+                return 1
+            got[m] = json.loads(r.stdout.strip().splitlines()[-1])
+        la, tp = got["lookahead"], got["toppra"]
+        dev = la["deviation_mm"] / la["tolerance_mm"] if la["deviation_mm"] is not None else float("nan")
+        print(
+            f"{la['moves']:>7} {la['waypoints']:>7} {la['total_s']:6.1f}s {la['timing_s']:6.1f}s "
+            f"{la['peak_rss_gib']:5.2f}Gi {la['over_programmed']:7.3f} {la['cutting_s'] / tp['cutting_s']:12.3f} "
+            f"{dev:7.3f} {la['slowed']:>6} ({la['slowed_by_limit']:>4}) | {tp['over_programmed']:16.3f} "
+            f"{tp['total_s']:6.1f}s"
+        )
+        if la["moves"] >= 0.9 * 100000:
+            t_ok = la["total_s"] <= TIME_BUDGET_S and la["peak_rss_gib"] <= MEMORY_BUDGET_GIB
+            ok &= t_ok
+            print(
+                f"  10^5 moves: {la['total_s']:.1f} s (budget {TIME_BUDGET_S:g} s), {la['peak_rss_gib']:.2f} GiB "
+                f"(budget {MEMORY_BUDGET_GIB:g}): {'ok' if t_ok else 'MISS'}"
+            )
+    print(
+        "Tcut: time of the samples on cutting moves (accelerations at stops included); Tp: length / F; "
+        "dev/tol: the samples' largest distance from the programmed path over the tolerance; plan: parse, "
+        "posture, compensation and timing (the program's generation, 'generate_s', not included)"
+    )
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 100000])
     ap.add_argument("--no-anchor", action="store_true", help="skip the full-NLP anchor")
+    ap.add_argument("--case", choices=("raster", "finishing", "both"), default="both")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--anchor", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--finishing", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--method", default="lookahead", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
         with tempfile.TemporaryDirectory() as d:
             print(json.dumps(one(args.one, Path(d), args.anchor)))
         return 0
+    if args.finishing:
+        with tempfile.TemporaryDirectory() as d:
+            print(json.dumps(finishing_case(args.finishing, Path(d), args.method)))
+        return 0
+    if args.case in ("finishing", "both"):
+        if finishing_rows(args.sizes):
+            return 1
+        if args.case == "finishing":
+            return 0
     rows = []
     for n in args.sizes:
         runs = [[sys.executable, __file__, "--one", str(n)]]

@@ -25,7 +25,7 @@ __all__ = ["finishing_program", "helix_program", "inch_arc_program", "surface_mm
 
 
 #: X (mm) of the cliff: a 4 mm step, a wall of up to 40 degrees whose fillets (radius >= 3.7 mm)
-#: the R3 ball follows, sampled 10x finer within 4 mm of it.
+#: the R3 ball follows, sampled 4x finer within 4 mm of it.
 CLIFF_X_MM = 18.0
 #: Length (mm, in X) of the surface patches whose boundaries CAM keeps as points, and the sampling
 #: near them (mm).
@@ -46,7 +46,7 @@ def surface_mm(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 def _drop_cutter(x: np.ndarray, y: float, radius_mm: float) -> np.ndarray:
     """Tool-tip heights (mm) of a ball-nose of radius ``radius_mm`` dropped onto the surface at
     ``(x, y)``: the highest contact of the ball's lower face, found on a polar grid of its footprint
-    and refined twice on a finer patch around the best point (to about 0.1 µm)."""
+    and refined on finer and finer patches around the best point (to about 0.1 µm)."""
 
     def tip(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
         r2 = dx**2 + dy**2
@@ -62,9 +62,9 @@ def _drop_cutter(x: np.ndarray, y: float, radius_mm: float) -> np.ndarray:
     k = np.argmax(z, axis=1)
     bx, by, best = dx[0, k], dy[0, k], z[np.arange(len(x)), k]
     step = radius_mm / 8.0
-    g = np.linspace(-1.0, 1.0, 7)
+    g = np.linspace(-1.0, 1.0, 5)
     gx, gy = (v.ravel()[None, :] for v in np.meshgrid(g, g))
-    for _ in range(4):
+    for _ in range(6):
         cx = bx[:, None] + step * gx
         cy = by[:, None] + step * gy
         z = tip(cx, cy)
@@ -74,31 +74,40 @@ def _drop_cutter(x: np.ndarray, y: float, radius_mm: float) -> np.ndarray:
         bx = np.where(better, cx[rows, k], bx)
         by = np.where(better, cy[rows, k], by)
         best = np.maximum(best, z[rows, k])
-        step /= 3.0
+        step /= 2.0
     return best
 
 
 def _chords(p: np.ndarray, tol_mm: float, max_mm: float, forced: np.ndarray) -> list[int]:
     """Indices of the points kept: each chord stays within ``tol_mm`` of every point it skips and
-    is at most ``max_mm`` long (greedy, as CAM's chordal reduction); the points ``forced`` (a bool
-    mask: the surface patches' boundaries) are always kept."""
+    is at most ``max_mm`` long (greedy, as CAM's chordal reduction: the farthest point reachable
+    from the last kept one, found by doubling then bisection); the points ``forced`` (a bool mask:
+    the surface patches' boundaries) are always kept."""
+
+    def ok(i: int, j: int) -> bool:
+        c = p[j] - p[i]
+        L = float(np.linalg.norm(c))
+        if L > max_mm or forced[i + 1 : j].any():
+            return False
+        mid = p[i + 1 : j] - p[i]
+        return not mid.size or float(np.linalg.norm(mid - np.outer(mid @ c / L**2, c), axis=1).max()) <= tol_mm
+
     keep = [0]
-    i = 0
-    n = len(p)
+    i, n = 0, len(p)
     while i < n - 1:
-        j = i + 1
-        while j + 1 < n and not forced[j]:
-            c = p[j + 1] - p[i]
-            L = float(np.linalg.norm(c))
-            if L > max_mm:
-                break
-            mid = p[i + 1 : j + 1] - p[i]
-            d = np.linalg.norm(mid - np.outer(mid @ c / L**2, c), axis=1)
-            if d.max() > tol_mm:
-                break
-            j += 1
-        keep.append(j)
-        i = j
+        good, step = i + 1, 1
+        while good + step < n and ok(i, good + step):  # doubling
+            good += step
+            step *= 2
+        bad = min(good + step, n)
+        while bad - good > 1:  # bisection between the last good and the first bad end
+            mid = (good + bad) // 2
+            if ok(i, mid):
+                good = mid
+            else:
+                bad = mid
+        keep.append(good)
+        i = good
     return keep
 
 
@@ -122,7 +131,7 @@ def finishing_program(
     """
     y_rows = np.linspace(-depth_mm / 2, depth_mm / 2, n_rows) if n_rows > 1 else np.zeros(1)
     xs = np.arange(-width_mm / 2, width_mm / 2 + 1e-9, sample_mm)
-    near = np.arange(CLIFF_X_MM - 4.0, CLIFF_X_MM + 4.0, sample_mm / 10.0)
+    near = np.arange(CLIFF_X_MM - 4.0, CLIFF_X_MM + 4.0, sample_mm / 4.0)
     # the surface's patch boundaries (every PATCH_MM in X), kept as CAM keeps them, sampled finely
     # on either side: the chord before a boundary can be as short as 10 µm
     edges = np.arange(-width_mm / 2 + PATCH_MM, width_mm / 2, PATCH_MM)

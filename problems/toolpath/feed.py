@@ -429,7 +429,9 @@ def _time_checked(
         return tr, how, dev, 0, None
     from problems.toolpath.stretch_fit import fit_stretch
 
-    fitted, _, kept = fit_stretch(seg, n, tau, geo.tcp_frame, geo.tolerance_m, geo.slack_m[first : first + len(seg)])
+    fitted, _, kept = fit_stretch(
+        seg, n, tau, geo.tcp_frame, geo.tolerance_m, geo.slack_m[first : first + len(seg)], time_column=n
+    )
     tr, how = _time_stretch(fitted, aug, method, dt, programmed_s, options)
     dev = geo.deviation(tr.q[:, :n], tr.q[:, n + 1] / LENGTH_SCALE) if tr.q.size else 0.0
     return tr, how, dev, len(fitted) - len(seg), _cruise_bounds(fitted, kept, n, _checked_only(aug, method))

@@ -53,9 +53,10 @@ def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _interval_deviation(
     rows: np.ndarray, n: int, tcp_frame: Callable[[np.ndarray], np.ndarray], chord: np.ndarray
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """Per interval of the spline through ``rows`` (m, n + 2), the largest distance (m) of its
-    checked points' TCP from the interval's chord (``chord``: the rows' programmed TCP, (m, 3))."""
+    checked points' TCP from the interval's chord (``chord``: the rows' programmed TCP, (m, 3)),
+    and the length (m) of the TCP's polyline through the interval's ends and checked points."""
     from problems.timing.path import SplinePath
 
     path = SplinePath(rows)
@@ -65,7 +66,10 @@ def _interval_deviation(
     pos = tcp_frame(path.spline(s)[:, :n])[:, :3, 3]
     i = np.repeat(np.arange(len(k) - 1), len(f))
     d = segment_distance(pos, chord[i], chord[i + 1])
-    return d.reshape(len(k) - 1, len(f)).max(axis=1)
+    ends = tcp_frame(rows[:, :n])[:, :3, 3]
+    pts = np.concatenate([ends[:-1, None], pos.reshape(len(k) - 1, len(f), 3), ends[1:, None]], axis=1)
+    length = np.linalg.norm(np.diff(pts, axis=1), axis=2).sum(axis=1)
+    return d.reshape(len(k) - 1, len(f)).max(axis=1), length
 
 
 def fit_stretch(
@@ -75,6 +79,7 @@ def fit_stretch(
     tcp_frame: Callable[[np.ndarray], np.ndarray],
     tolerance_m: float,
     slack_m: np.ndarray | None = None,
+    time_column: int | None = None,
 ) -> tuple[np.ndarray, float, np.ndarray]:
     """The stretch's rows fitted within the tolerance (see the module docstring).
 
@@ -95,6 +100,10 @@ def fit_stretch(
         Shape ``(m,)``, m: how far the chord of the move ending at each row may lie from the
         programmed path (an arc's chords: their sagitta bound); the interval's limit is that much
         tighter (default 0).
+    time_column : int, optional
+        The column of the (scaled) programmed time: its step over each interval is scaled by the
+        fitted TCP path's length there over the chord's, so that a bound on its rate bounds the
+        TCP's speed along the fitted path (the smoothing moves waypoints along the path too).
 
     Returns
     -------
@@ -113,11 +122,13 @@ def fit_stretch(
     slack = np.zeros(len(rows)) if slack_m is None else np.asarray(slack_m, dtype=float).copy()
     dev = np.zeros(0)
     fitted, fitted_kept, fitted_slack = rows, kept, slack
+    fitted_ratio = np.ones(len(rows) - 1)
     for _ in range(FIT_ROUNDS):
         fitted = rows.copy()
         fitted[:, :n] = smooth_stretch(tau, q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, weight)
-        dev = _interval_deviation(fitted, n, tcp_frame, chord)
+        dev, run = _interval_deviation(fitted, n, tcp_frame, chord)
         fitted_kept, fitted_slack = kept.copy(), slack.copy()
+        fitted_ratio = run / np.maximum(np.linalg.norm(np.diff(chord, axis=0), axis=1), 1e-300)
         bad = dev + slack[1:] > FIT_CHECK_SHARE * tolerance_m
         if not bad.any():
             break
@@ -137,4 +148,10 @@ def fit_stretch(
             weight = np.insert(weight, at + 1, FIT_PIN_WEIGHT)
             slack = np.insert(slack, at + 1, slack[at + 1])
             kept = kept + np.searchsorted(at, kept, side="left")  # rows inserted before each kept row
+    if time_column is not None and fitted is not rows:
+        # the programmed time over each interval scaled by the TCP's path length there over the chord's
+        # (the smoothing moves waypoints along the path too): the feed bound is then the TCP's speed
+        step = np.diff(fitted[:, time_column]) * fitted_ratio
+        fitted = fitted.copy()
+        fitted[:, time_column] = fitted[0, time_column] + np.r_[0.0, np.cumsum(step)]
     return fitted, float((dev + fitted_slack[1:]).max()) if dev.size else 0.0, fitted_kept
