@@ -202,8 +202,8 @@ def test_a_program_report_has_the_toolpath_and_feed_figures(program_run):
         assert png.startswith(PNG_MAGIC)
         assert (out / "figures" / f"{name}.pdf").read_bytes().startswith(b"%PDF")
         assert f"figures/{name}.png" in md
-    assert {"program", "program-feed"} <= rep.anchors
-    assert "### Program" in md and "### Program: feed" in md
+    assert {"program", "program-feed", "program-slowed"} <= rep.anchors
+    assert "### Program" in md and "### Program: feed" in md and "### Program: slowed lines and path deviation" in md
 
 
 def test_the_program_tables_show_the_summary_numbers(program_run):
@@ -226,17 +226,18 @@ def test_the_program_tables_show_the_summary_numbers(program_run):
         assert json.loads(cell["value"]) == lookup(summary, key), key  # full precision, machine-checkable
     entry = summary["program"]["feed"][method]
     (row,) = [r for r in rep.rows["program-feed"] if r]  # one timing method
-    col = _columns(program_tables(summary)[1].header)
     assert row[3] == format_number(entry["duration_s"] / entry["programmed_time_s"])  # achieved / programmed
+    (srow,) = [r for r in rep.rows["program-slowed"] if r]  # the slowed lines by cause: a table of their own
+    col = _columns(program_tables(summary)[2].header)
     worst = sorted(entry["slowed_lines"], key=lambda lf: (lf[1], lf[0]))
     assert worst, "the small part's arc and short moves are slowed (else the test shows nothing)"
     shown = [f"line {L}: {format_number(100.0 * f, 3)} %" for L, f in worst[:SLOWED_SHOWN]]
-    assert row[col["slowed program lines"]] == f"{len(worst)}: " + ", ".join(shown) + (
+    assert srow[col["slowed program lines"]] == f"{len(worst)}: " + ", ".join(shown) + (
         f" and {len(worst) - SLOWED_SHOWN} more" if len(worst) > SLOWED_SHOWN else ""
     )
     assert [L for L, _ in slowed_lines_worst_first(entry)] == [L for L, _ in worst]
-    assert row[col["of which slowed only by the stops"]] == str(entry["n_lines_slowed_by_stops"])
-    assert row[col["path deviation against"]].startswith("✓ within: ")  # the plan keeps its samples within
+    assert srow[col["of which slowed only by the stops"]] == str(entry["n_lines_slowed_by_stops"])
+    assert srow[col["path deviation against"]].startswith("✓ within: ")  # the plan keeps its samples within
 
 
 def _columns(header: list[str]) -> dict[str, int]:
@@ -275,7 +276,10 @@ def _feed_summary(split: bool) -> dict:
 
 
 def test_the_feed_table_splits_the_slowed_lines_by_cause_and_marks_the_path_deviation():
-    table = program_tables(_feed_summary(split=True))[1]
+    tables = program_tables(_feed_summary(split=True))
+    assert [t.anchor for t in tables] == ["program", "program-feed", "program-slowed"]
+    assert not any(h.startswith("slowed") for h in tables[1].header)  # the feed table: times only
+    table = tables[2]
     col = _columns(table.header)
     assert len(col) == 5, table.header
     rows = [[c.text for c in r] for r in table.rows]  # look-ahead (controller), Ruckig, TOPP-RA
@@ -295,7 +299,9 @@ def test_the_feed_table_splits_the_slowed_lines_by_cause_and_marks_the_path_devi
 
 
 def test_the_feed_table_of_a_summary_without_the_causes_lists_the_slowed_lines_as_before():
-    table = program_tables(_feed_summary(split=False))[1]
+    tables = program_tables(_feed_summary(split=False))
+    assert [t.anchor for t in tables] == ["program", "program-feed"]  # no table of slowed lines by cause
+    table = tables[1]
     assert not {"of which held down by a joint limit", "path deviation against"} & set(_columns(table.header))
     assert table.header[-1].startswith("slowed program lines")
     for row in table.rows:
@@ -375,7 +381,7 @@ def test_a_line_path_has_no_program_figures_nor_tables(line_run):
     for name in PROGRAM_FIGURES:
         assert name not in rep.images and name not in rep.absent
         assert not (out / "figures" / f"{name}.png").exists()
-    assert not {"program", "program-feed"} & rep.anchors
+    assert not {"program", "program-feed", "program-slowed"} & rep.anchors
     assert "### Program" not in (out / "report.md").read_text()
     assert run_from_plan(res, out, view).program is None and load_run(out).program is None
 
