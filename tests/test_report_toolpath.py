@@ -35,6 +35,7 @@ from planner.report.toolpath import (
     tcp_speed_m_s,
 )
 from planner.report.feed_plot import SLOWED_STYLE
+from planner.record.columns import MM_MIN_PER_M_S
 from planner.report.toolpath_plot import FEED_FIGURE, PROGRAM_FIGURES, TOOLPATH_FIGURE, program_items
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -236,7 +237,7 @@ def test_the_program_tables_show_the_summary_numbers(program_run):
         f" and {len(worst) - SLOWED_SHOWN} more" if len(worst) > SLOWED_SHOWN else ""
     )
     assert [L for L, _ in slowed_lines_worst_first(entry)] == [L for L, _ in worst]
-    assert srow[col["of which slowed only by the stops"]] == str(entry["n_lines_slowed_by_stops"])
+    assert srow[col["of which slowed only by their neighbours"]] == str(entry["n_lines_slowed_by_stops"])
     assert srow[col["path deviation against"]].startswith("✓ within: ")  # the plan keeps its samples within
 
 
@@ -245,7 +246,7 @@ def _columns(header: list[str]) -> dict[str, int]:
     starts = [
         "slowed program lines",
         "of which held down by a joint limit",
-        "of which slowed only by the stops",
+        "of which slowed only by their neighbours",
         "largest path deviation",
         "path deviation against",
     ]
@@ -288,7 +289,7 @@ def test_the_feed_table_splits_the_slowed_lines_by_cause_and_marks_the_path_devi
         assert row[col["of which held down by a joint limit"]] == (
             "3: line 445: 52.4 % (J4 jerk), line 444: 55 % (J4 jerk), line 37: 86.4 % (J2 velocity)"
         )
-        assert row[col["of which slowed only by the stops"]] == "2"
+        assert row[col["of which slowed only by their neighbours"]] == "2"
         assert row[col["slowed program lines"]].startswith("5: line 12: 30 %, line 445: 52.4 %")
     look, ruck, topp = (row[col["path deviation against"]] for row in rows)
     assert look == "✓ within: 0.0184 mm ≤ 0.02 mm"
@@ -357,14 +358,16 @@ def test_the_feed_figure_draws_the_slowed_lines_by_cause(program_run, split):
     if split:
         assert [m[1] for m in marks] == [f"line {chosen[0]}: 40 % (J4 jerk)"]  # the stops' lines are not named
         assert labels == {f"line {chosen[0]}: 40 % (J4 jerk)": SLOWED_STYLE["limit"][0]}
+        (note,) = ax.texts  # its arrow points at the line's peak speed, 40 % of its F, on its own stretch
+        assert note.xy[1] == pytest.approx(0.4 * marks[0][2] * MM_MIN_PER_M_S)
         assert "TCP speed on a line slowed by a joint limit" in legend
-        assert "TCP speed on a line slowed by the stops around it" in legend
+        assert "TCP speed on a line slowed only by its neighbours (a stop, a held line)" in legend
         assert (
-            "3 slowed lines: 1 held down by a joint limit (red), 2 slowed only by the stops around them (orange)"
-            in title
+            "3 slowed lines: 1 held down by a joint limit (red), "
+            "2 slowed only by their neighbours, a stop or a held line (orange)" in title
         )
         assert "red, the 1 line a joint limit holds down" in item.caption
-        assert "orange, the 2 lines slowed only by the stops around them" in item.caption
+        assert "orange, the 2 lines slowed only by their neighbours" in item.caption
     else:
         assert sorted(m[1] for m in marks) == sorted(f"line {L}: {p} %" for L, p in zip(chosen, (40, 60, 80)))
         assert set(labels.values()) == {SLOWED_STYLE["slowed"][0]}

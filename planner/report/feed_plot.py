@@ -27,9 +27,11 @@ MARK_CLEAR = 0.14
 #: colour, that colour in words (for the title and caption) and the words after "line" in the legend.
 SLOWED_STYLE = {
     "limit": ("tab:red", "red", "slowed by a joint limit"),
-    "stops": ("tab:orange", "orange", "slowed by the stops around it"),
+    "stops": ("tab:orange", "orange", "slowed only by its neighbours (a stop, a held line)"),
     "slowed": ("tab:red", "red", "slowed (limit or stops)"),
 }
+#: Width of the slowed lines' curves (pt; the others 1): a line held down for a few samples stays visible.
+SLOWED_LW = 1.8
 #: The feed figure's speed axis ends at this multiple of the largest programmed feed when the
 #: rapids go faster than :data:`RAPID_CUT` times it (what is cut off is written on the panel).
 FEED_VIEW_TOP = 1.25
@@ -48,7 +50,7 @@ def feed_figure(
     kinds: Sequence[str],
     slowed: Sequence[np.ndarray],
     line_bands: Sequence[tuple[np.ndarray, np.ndarray]],
-    marks: Sequence[tuple[float, str, float, str]],
+    marks: Sequence[tuple[float, str, float, float, str]],
     *,
     title: str,
 ) -> Figure:
@@ -75,9 +77,10 @@ def feed_figure(
     line_bands : K + 1 (lo, hi) pairs of np.ndarray
         Shape ``(B,)`` each: the program line of the samples on lines not slowed, and on the slowed
         lines of each kind.
-    marks : sequence of (t, label, F, kind)
-        The slowest lines to name: the time of the line's middle (s), the label, the line's F (m/s)
-        and its kind (the label's colour).
+    marks : sequence of (t, label, F, fraction, kind)
+        The slowest lines to name: the time of the line's middle (s), the label, the line's F (m/s),
+        its peak speed over F (the label's line points there, on the line's own stretch of the
+        speed) and its kind (the label's colour).
     title : str
     """
     t0, t1 = np.asarray(t_start_s, float), np.asarray(t_end_s, float)
@@ -95,13 +98,13 @@ def feed_figure(
     styles = (
         [("tab:blue", "TCP speed at F (forward kinematics)", 2.0)]
         + [
-            (SLOWED_STYLE[k][0], f"TCP speed on a line {SLOWED_STYLE[k][2]}", 2.5 + 0.1 * i)
+            (SLOWED_STYLE[k][0], f"TCP speed on a line {SLOWED_STYLE[k][2]}", 2.6 - 0.1 * i)
             for i, k in enumerate(kinds)
         ]
         + [("0.55", "TCP speed on rapids", 1.5)]
     )
-    for (lo, hi), (colour, label, z) in zip(bands, styles):
-        _band(a1, x, lo, hi, colour, label, z)
+    for i, ((lo, hi), (colour, label, z)) in enumerate(zip(bands, styles)):
+        _band(a1, x, lo, hi, colour, label, z, SLOWED_LW if 0 < i <= len(kinds) else 1.0)
     f_max, note = _feed_and_speed_axis(a1, x, F, bands)
     _mark_slowed_lines(a1, x, marks, f_max)
     a1.set_ylabel("TCP speed [mm/min]")
@@ -109,10 +112,10 @@ def feed_figure(
     a1.grid(alpha=0.3)
     fig.legend(*a1.get_legend_handles_labels(), loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.905), frameon=False)
     line_styles = [("0.3", "program line", 2.0)] + [
-        (SLOWED_STYLE[k][0], f"line {SLOWED_STYLE[k][2]}", 2.5 + 0.1 * i) for i, k in enumerate(kinds)
+        (SLOWED_STYLE[k][0], f"line {SLOWED_STYLE[k][2]}", 2.6 - 0.1 * i) for i, k in enumerate(kinds)
     ]
-    for (lo, hi), (colour, label, z) in zip(line_bands, line_styles):
-        _band(a2, x, np.asarray(lo, float), np.asarray(hi, float), colour, label, z)
+    for i, ((lo, hi), (colour, label, z)) in enumerate(zip(line_bands, line_styles)):
+        _band(a2, x, np.asarray(lo, float), np.asarray(hi, float), colour, label, z, SLOWED_LW if i else 1.0)
     a2.set_ylabel("program line")
     a2.set_xlabel("time [s]")
     a2.set_title("(b) the program line each sample runs", loc="left", y=0.8, x=0.01, fontsize=8.5)
@@ -123,13 +126,16 @@ def feed_figure(
     return fig
 
 
-def _band(ax: Any, x: np.ndarray, y_lo: np.ndarray, y_hi: np.ndarray, colour: str, label: str, z: float) -> None:
-    """A per-bin band from ``y_lo`` to ``y_hi`` over the bin edges ``x``, its top line labelled."""
+def _band(
+    ax: Any, x: np.ndarray, y_lo: np.ndarray, y_hi: np.ndarray, colour: str, label: str, z: float, lw: float = 1.0
+) -> None:
+    """A per-bin band from ``y_lo`` to ``y_hi`` over the bin edges ``x``, its top line (width ``lw``,
+    pt) labelled."""
     if not np.isfinite(y_hi).any():
         return
     lo_e, hi_e = np.r_[y_lo, y_lo[-1:]], np.r_[y_hi, y_hi[-1:]]
     ax.fill_between(x, lo_e, hi_e, step="post", color=colour, alpha=0.35, lw=0, zorder=z)
-    ax.step(x, hi_e, where="post", color=colour, lw=1.0, label=label, zorder=z + 0.1)
+    ax.step(x, hi_e, where="post", color=colour, lw=lw, label=label, zorder=z + 0.1)
 
 
 def _shade_slowed(axes: Sequence[Any], x: np.ndarray, slow: np.ndarray, colour: str) -> None:
@@ -167,14 +173,17 @@ def _feed_and_speed_axis(
     return f_max, note
 
 
-def _mark_slowed_lines(a1: Any, x: np.ndarray, marks: Sequence[tuple[float, str, float, str]], f_max: float) -> None:
-    """Name the slowest lines on the speed panel, on at most :data:`MARK_LEVELS` rows of labels."""
+def _mark_slowed_lines(
+    a1: Any, x: np.ndarray, marks: Sequence[tuple[float, str, float, float, str]], f_max: float
+) -> None:
+    """Name the slowest lines on the speed panel, on at most :data:`MARK_LEVELS` rows of labels
+    above the feed, each with an arrow to the line's peak speed."""
     span = float(x[-1] - x[0]) if len(x) > 1 else 1.0
     if marks and np.isfinite(f_max):  # room for the labels above the feed
         a1.set_ylim(0.0, max(a1.get_ylim()[1], FEED_VIEW_TOP * f_max))
     step = a1.get_ylim()[1]  # the rows of labels are spaced by a share of the axis height
     placed: list[tuple[float, int]] = []
-    for tm, label, f_line, kind in sorted(marks):
+    for tm, label, f_line, frac, kind in sorted(marks):
         level = 0  # a label close to one already placed goes one level up, at most MARK_LEVELS
         while level < MARK_LEVELS and any(abs(tm - tp) < MARK_CLEAR * span and lv == level for tp, lv in placed):
             level += 1
@@ -185,7 +194,7 @@ def _mark_slowed_lines(a1: Any, x: np.ndarray, marks: Sequence[tuple[float, str,
         colour = SLOWED_STYLE[kind][0]
         a1.annotate(
             label,
-            xy=(tm, y),
+            xy=(tm, y * frac),
             xytext=(  # kept clear of the panel's sides
                 float(np.clip(tm, x[0] + 0.07 * span, x[-1] - 0.07 * span)) if len(x) > 1 else tm,
                 y + step * (0.015 + 0.052 * level),
@@ -195,6 +204,6 @@ def _mark_slowed_lines(a1: Any, x: np.ndarray, marks: Sequence[tuple[float, str,
             fontsize=7.5,
             color=colour,
             bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 0.5},
-            arrowprops={"arrowstyle": "-", "color": colour, "lw": 0.6, "alpha": 0.6},
+            arrowprops={"arrowstyle": "->", "color": colour, "lw": 0.7, "alpha": 0.8, "shrinkA": 0, "shrinkB": 1},
             zorder=6,
         )

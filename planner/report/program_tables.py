@@ -194,15 +194,16 @@ def _slowed_table(srows: list[list[Cell]]) -> Table:
             "method",
             _SLOWED_HEADER,
             f"of which held down by a joint limit (count: slowest {SLOWED_SHOWN}, % of F, joint and derivative)",
-            "of which slowed only by the stops around them (count)",
+            "of which slowed only by their neighbours: a stop or a held line (count)",
             "largest path deviation of the samples [mm]",
             "path deviation against the path tolerance",
         ],
         srows,
         _SLOWED_NOTE + " Held down by a joint limit: the joints cannot cruise at F on the line (Jn: joint n, and "
         "the derivative, velocity, acceleration or jerk, that binds; the full list is summary.json "
-        "program.feed.<method>.slowed_by_limit); the other slowed lines are slowed only by the stops around them "
-        "(accelerating out of a stop, braking into one). Path deviation: the largest distance of a trajectory "
+        "program.feed.<method>.slowed_by_limit); the other slowed lines (summary.json n_lines_slowed_by_stops) are "
+        "slowed only by the accelerations around them: out of or into a stop, or into or out of a neighbouring "
+        "line a limit holds down. Path deviation: the largest distance of a trajectory "
         "sample's TCP (forward kinematics of the commands) from the programmed path, against the program's path "
         "tolerance (✓ within, ✗ OUTSIDE; 'not measured' for a method the feed law did not check).",
         anchor="program-slowed",

@@ -58,7 +58,7 @@ FEED_BINS = 1500
 #: own warning, ``planner/plan.py``, uses the same 1e-6).
 DEVIATION_SLACK = 1e-6
 #: The kinds of slowed lines the report tells apart: held down by a joint limit (``slowed_by_limit``),
-#: slowed only by the stops around them (the other ``slowed_lines``), and, for a summary written
+#: slowed only by their neighbours, a stop or a held line (the other ``slowed_lines``), and, for a summary written
 #: before the split (no ``slowed_by_limit``), slowed for either reason.
 SLOWED_KINDS = ("limit", "stops", "slowed")
 #: Samples per forward-kinematics batch in :func:`tcp_speed_m_s` (bounds the (M, 4, 4) temporary).

@@ -15,7 +15,7 @@ has neither figure, not an absent one), from the run's :class:`~planner.record.P
   its sampled joints) against the programmed feed of the line each sample runs, mm/min, over time,
   with the program line below; the slowed lines of the summary in two colours, those a joint limit
   holds down (``slowed_by_limit``; the slowest named with the joint and derivative) and those slowed
-  only by the stops around them (one colour for a summary written before that split).  Long
+  only by their neighbours, a stop or a held line (one colour for a summary written before that split).  Long
   trajectories are drawn as the minimum and maximum over
   :data:`~planner.report.toolpath.FEED_BINS` bins; :mod:`planner.report.feed_plot` draws it.
 
@@ -217,32 +217,37 @@ def _feed_item(run: RunRecord) -> FigureItem:
     return item
 
 
-def _slowed_groups(entry: Mapping[str, Any]) -> list[tuple[str, list[int], list[tuple[int, str]]]]:
+def _slowed_groups(entry: Mapping[str, Any]) -> list[tuple[str, list[int], list[tuple[int, float, str]]]]:
     """The slowed lines of a feed entry by kind (:data:`~planner.report.toolpath.SLOWED_KINDS`):
-    ``(kind, its lines, the lines to name with their label, slowest first)``.
+    ``(kind, its lines, the lines to name as (line, fraction of F, label), slowest first)``.
 
     With ``slowed_by_limit`` (newer summaries): the lines a joint limit holds down, named with the
-    joint and derivative, and the lines slowed by the stops around them (not named: a slow-down
-    out of or into a stop is expected); without it, every slowed line, named with its fraction."""
+    joint and derivative, and the lines slowed only by their neighbours (not named: the slow-down
+    comes from a stop or a held line nearby); without it, every slowed line, named with its
+    fraction."""
     worst = slowed_lines_worst_first(entry)
     by_limit = slowed_by_limit_worst_first(entry)
     if by_limit is None:
-        return [("slowed", [L for L, _ in worst], [(L, slowed_line_text(L, f)) for L, f in worst[:FEED_MARKED]])]
+        return [("slowed", [L for L, _ in worst], [(L, f, slowed_line_text(L, f)) for L, f in worst[:FEED_MARKED]])]
     held = {row[0] for row in by_limit}
-    named = [(L, slowed_line_text(L, f, j, d)) for L, f, j, d in by_limit[:FEED_MARKED]]
+    named = [(L, f, slowed_line_text(L, f, j, d)) for L, f, j, d in by_limit[:FEED_MARKED]]
     return [("limit", [row[0] for row in by_limit], named), ("stops", [L for L, _ in worst if L not in held], [])]
 
 
 def _feed_marks(
-    groups: Sequence[tuple[str, list[int], list[tuple[int, str]]]], lines: np.ndarray, t: np.ndarray, feed: np.ndarray
-) -> list[tuple[float, str, float, str]]:
-    """The slowest lines to name on the feed figure: (time at the line's middle s, label, F m/s, kind)."""
+    groups: Sequence[tuple[str, list[int], list[tuple[int, float, str]]]],
+    lines: np.ndarray,
+    t: np.ndarray,
+    feed: np.ndarray,
+) -> list[tuple[float, str, float, float, str]]:
+    """The slowest lines to name on the feed figure: (time at the line's middle s, label, F m/s,
+    the line's peak speed over F, kind)."""
     marks = []
     for kind, _, named in groups:
-        for L, label in named:
+        for L, frac, label in named:
             idx = np.flatnonzero(lines == L)
             if idx.size:  # named at the middle of the line's time
-                marks.append((0.5 * float(t[idx[0]] + t[idx[-1]]), label, float(feed[idx[0]]), kind))
+                marks.append((0.5 * float(t[idx[0]] + t[idx[-1]]), label, float(feed[idx[0]]), frac, kind))
     return marks
 
 
@@ -271,8 +276,9 @@ def _feed_caption(
         caption += (
             f"The summary's slowed lines ({below}), by cause: {_colour('limit')}, the {n_lim} line{_plural(n_lim)} "
             "a joint limit holds down (the joints cannot cruise at F there; summary.json slowed_by_limit), "
-            f"{named}{_colour('stops')}, the {n_stop} line{_plural(n_stop)} slowed only by the stops around them "
-            "(accelerating out of a stop or braking into one; not named). "
+            f"{named}{_colour('stops')}, the {n_stop} line{_plural(n_stop)} slowed only by their neighbours "
+            "(no limit binds on them: the accelerations out of or into a stop, or into or out of a neighbouring line "
+            "a limit holds down, reach into them; summary.json n_lines_slowed_by_stops; not named). "
         )
     else:
         n = counts.get("slowed", 0)
@@ -313,7 +319,7 @@ def _feed_head(name: str, entry: Mapping[str, Any], counts: Mapping[str, int], m
     if "limit" in counts:
         head += (
             f": {counts['limit']} held down by a joint limit ({_colour('limit')}), {counts['stops']} slowed only by "
-            f"the stops around them ({_colour('stops')})"
+            f"their neighbours, a stop or a held line ({_colour('stops')})"
         )
     return head
 
