@@ -193,8 +193,8 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
                 "largest distance of a trajectory sample's TCP (forward kinematics of the commands) from the "
                 "programmed path (the chords through the waypoints; on an arc, plus the chords' sagitta bound), mm"
             ),
-            "n_stretches_fitted": fl.n_fitted,
-            "n_rows_added": fl.n_rows_added,
+            "n_stretches_fitted": int(fl.n_fitted),
+            "n_rows_added": int(fl.n_rows_added),
         }
     return out
 

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from planner.plan import plan
 from problems.problem import load_problem
@@ -201,3 +202,22 @@ def test_helical_arcs_in_every_plane_stay_on_their_helices(tmp_path):
     pr, res = _plan(tmp_path, text, force="[0.0, 0.0, 0.0]")
     _check_common(pr, res)
     assert _check_against_program(pr, res, text) <= PATH_TOL_FACTOR * pr.program.waypoints.tolerance_m
+
+
+@pytest.mark.slow
+def test_the_shipped_milling_pocket_runs_at_its_feed_within_its_tolerance(tmp_path):
+    """The shipped 10^4-move program (lines, arcs, helices, drilling, 520 stops), timed by the
+    look-ahead beside TOPP-RA (a minute: both methods on 22 700 waypoints)."""
+    src = (ROOT / "problems" / "files" / "milling_pocket.toml").read_text()
+    ngc = (ROOT / "problems" / "files" / "milling_pocket.ngc").as_posix()
+    text = (
+        src.replace('file = "milling_pocket.ngc"', f'file = "{ngc}"')
+        + '\n[timing]\nmethods = ["lookahead", "toppra"]\n'
+    )
+    (tmp_path / "p.toml").write_text(text)
+    pr = load_problem(tmp_path / "p.toml")
+    res = plan(pr)
+    assert res.ok, res.reason
+    feed = _check_common(pr, res)
+    tol_mm = pr.program.waypoints.tolerance_m * 1e3
+    assert feed["lookahead"]["path_deviation_mm"] <= tol_mm * PATH_TOL_FACTOR, feed["lookahead"]

@@ -11,7 +11,7 @@ joint's limits split into shares (:data:`SHARE_CENTRIPETAL`, :data:`SHARE_JERK_C
 
 * path speed ``x <= X = min_j (v_j / |P'_j|, sqrt(rho a_j / |P''_j|), cbrt(s1 J_j / |P'''_j|))``;
 * path acceleration ``|u| <= A = min_j ((a_j - |P''_j| X^2) / |P'_j|, c (J_j - |P'''_j| X^3) / (3 |P''_j| X))``;
-* path jerk ``|w| <= W = min_j ((1 - c) (J_j - |P'''_j| X^3) / |P'_j|)``
+* path jerk ``|w| <= W = min_j ((J_j - |P'''_j| X^3 - 3 |P''_j| X A) / |P'_j|)``
 
 (``rho``, ``s1``, ``c``: the shares), so that the joints' limits hold wherever ``x <= X``.
 
@@ -197,7 +197,8 @@ def _grid(path: SplinePath, limits: JointLimits, cells_per_knot: int) -> _Grid:
         _ratio(left_acc, p1).min(axis=1),
         _ratio(SHARE_JERK_CROSS * left_jerk, 3.0 * p2 * Xc).min(axis=1),
     )
-    W = _ratio((1.0 - SHARE_JERK_CROSS) * left_jerk, p1).min(axis=1)
+    # the path jerk gets what the cross term leaves at that acceleration (all of it on a straight path)
+    W = _ratio(np.maximum(left_jerk - 3.0 * p2 * Xc * A[:, None], 0.0), p1).min(axis=1)
     return _Grid(ds=1.0 / G, X=X, A=A, W=W)
 
 

@@ -390,7 +390,7 @@ def _time_stretches(
         worst = max(worst, dev)
         if cruise is not None:
             run.cruise[a + 1 : b + 1], run.bound_joint[a + 1 : b + 1], run.bound_kind[a + 1 : b + 1] = cruise
-        run.n_fitted += geo is not None and tau[b] > tau[a]
+        run.n_fitted += int(geo is not None and tau[b] > tau[a])
         run.n_rows_added += added
         run.retimed += how == "retimed"
         if how.startswith("substituted"):
