@@ -285,6 +285,8 @@ _PROGRAM = Table(
                     "peak_feed_ratio": Number(lo=0.0, nullable=True),
                     "n_stretches": Number(lo=0, integer=True, nullable=True),
                     "slowed_lines": ListOf(item=Row(items=(Number(lo=0, integer=True), Number(lo=0.0)))),
+                    # the slowed lines by cause and the path deviation: optional (the report draws a summary
+                    # written before them with one kind of slowed line and no deviation)
                     "slowed_by_limit": ListOf(
                         item=Row(
                             items=(
@@ -294,10 +296,9 @@ _PROGRAM = Table(
                                 Text(choices=LIMIT_KEYS),
                             )
                         ),
-                        need=_REPORT,
                     ),
-                    "n_lines_slowed_by_stops": Number(lo=0, integer=True, need=_REPORT),
-                    "path_deviation_mm": Number(unit="mm", lo=0.0, nullable=True, need=_REPORT),
+                    "n_lines_slowed_by_stops": Number(lo=0, integer=True),
+                    "path_deviation_mm": Number(unit="mm", lo=0.0, nullable=True),
                 }
             ),
             name="method",

@@ -5,6 +5,7 @@ keep what the figures must show (peaks, corners, slow-downs) within their size b
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from html.parser import HTMLParser
@@ -21,7 +22,7 @@ from planner.record import ProgramRecord as ProgramView
 from planner.record import read_record as load_run
 from planner.record import to_program_frame
 from planner.report import lookup, write_report
-from planner.report.program_tables import SLOWED_SHOWN
+from planner.report.program_tables import SLOWED_SHOWN, program_tables
 from planner.report.figure_cache import FIGURE_CACHE_ENV, figure_key
 from planner.report.toolpath import (
     FEED_BINS,
@@ -33,6 +34,8 @@ from planner.report.toolpath import (
     slowed_lines_worst_first,
     tcp_speed_m_s,
 )
+from planner.report.feed_plot import SLOWED_STYLE
+from planner.record.columns import MM_MIN_PER_M_S
 from planner.report.toolpath_plot import FEED_FIGURE, PROGRAM_FIGURES, TOOLPATH_FIGURE, program_items
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -200,8 +203,8 @@ def test_a_program_report_has_the_toolpath_and_feed_figures(program_run):
         assert png.startswith(PNG_MAGIC)
         assert (out / "figures" / f"{name}.pdf").read_bytes().startswith(b"%PDF")
         assert f"figures/{name}.png" in md
-    assert {"program", "program-feed"} <= rep.anchors
-    assert "### Program" in md and "### Program: feed" in md
+    assert {"program", "program-feed", "program-slowed"} <= rep.anchors
+    assert "### Program" in md and "### Program: feed" in md and "### Program: slowed lines and path deviation" in md
 
 
 def test_the_program_tables_show_the_summary_numbers(program_run):
@@ -225,13 +228,153 @@ def test_the_program_tables_show_the_summary_numbers(program_run):
     entry = summary["program"]["feed"][method]
     (row,) = [r for r in rep.rows["program-feed"] if r]  # one timing method
     assert row[3] == format_number(entry["duration_s"] / entry["programmed_time_s"])  # achieved / programmed
+    (srow,) = [r for r in rep.rows["program-slowed"] if r]  # the slowed lines by cause: a table of their own
+    col = _columns(program_tables(summary)[2].header)
     worst = sorted(entry["slowed_lines"], key=lambda lf: (lf[1], lf[0]))
     assert worst, "the small part's arc and short moves are slowed (else the test shows nothing)"
     shown = [f"line {L}: {format_number(100.0 * f, 3)} %" for L, f in worst[:SLOWED_SHOWN]]
-    assert row[-1] == f"{len(worst)}: " + ", ".join(shown) + (
+    assert srow[col["slowed program lines"]] == f"{len(worst)}: " + ", ".join(shown) + (
         f" and {len(worst) - SLOWED_SHOWN} more" if len(worst) > SLOWED_SHOWN else ""
     )
     assert [L for L, _ in slowed_lines_worst_first(entry)] == [L for L, _ in worst]
+    assert srow[col["of which slowed only by their neighbours"]] == str(entry["n_lines_slowed_by_stops"])
+    assert srow[col["path deviation against"]].startswith("✓ within: ")  # the plan keeps its samples within
+
+
+def _columns(header: list[str]) -> dict[str, int]:
+    """The feed table's column index by the start of its header (unique starts)."""
+    starts = [
+        "slowed program lines",
+        "of which held down by a joint limit",
+        "of which slowed only by their neighbours",
+        "largest path deviation",
+        "path deviation against",
+    ]
+    return {s: i for s in starts for i, h in enumerate(header) if h.startswith(s)}
+
+
+#: Slowed lines of a made-up feed entry: (line, fraction of F); the first three held down by a limit.
+SLOWED = [[12, 0.3], [13, 0.9], [37, 0.864], [444, 0.55], [445, 0.524]]
+BY_LIMIT = [[37, 0.864, 2, "velocity"], [444, 0.55, 4, "jerk"], [445, 0.524, 4, "jerk"]]
+
+
+def _feed_summary(split: bool) -> dict:
+    """A summary's program block with three timing methods; ``split``: with the slowed lines by cause
+    and the path deviation (within, outside and not measured against a 0.02 mm tolerance)."""
+
+    def entry(deviation_mm):
+        e = {"programmed_time_s": 10.0, "duration_s": 11.0, "peak_feed_ratio": 1.0, "n_stretches": 3}
+        e["slowed_lines"] = SLOWED
+        if split:
+            e |= {"slowed_by_limit": BY_LIMIT, "n_lines_slowed_by_stops": 2, "path_deviation_mm": deviation_mm}
+        return e
+
+    feed = {"lookahead": entry(0.0184), "ruckig": entry(0.03), "toppra": entry(None)}
+    return {
+        "controller_trajectory": "lookahead",
+        "program": {"file": "f.ngc", "kind": "gcode", "path_tolerance_mm": 0.02, "feed": feed},
+    }
+
+
+def test_the_feed_table_splits_the_slowed_lines_by_cause_and_marks_the_path_deviation():
+    tables = program_tables(_feed_summary(split=True))
+    assert [t.anchor for t in tables] == ["program", "program-feed", "program-slowed"]
+    assert not any(h.startswith("slowed") for h in tables[1].header)  # the feed table: times only
+    table = tables[2]
+    col = _columns(table.header)
+    assert len(col) == 5, table.header
+    rows = [[c.text for c in r] for r in table.rows]  # look-ahead (controller), Ruckig, TOPP-RA
+    assert len(rows) == 3 and rows[0][0].endswith("(controller)")
+    for row in rows:
+        assert row[col["of which held down by a joint limit"]] == (
+            "3: line 445: 52.4 % (J4 jerk), line 444: 55 % (J4 jerk), line 37: 86.4 % (J2 velocity)"
+        )
+        assert row[col["of which slowed only by their neighbours"]] == "2"
+        assert row[col["slowed program lines"]].startswith("5: line 12: 30 %, line 445: 52.4 %")
+    look, ruck, topp = (row[col["path deviation against"]] for row in rows)
+    assert look == "✓ within: 0.0184 mm ≤ 0.02 mm"
+    assert ruck == "✗ OUTSIDE: 0.03 mm > 0.02 mm (×1.5)"
+    assert topp == "not measured"
+    assert rows[1][col["largest path deviation"]] == "0.03"
+    assert "joint limit" in table.note and "✗ OUTSIDE" in table.note
+
+
+def test_the_feed_table_of_a_summary_without_the_causes_lists_the_slowed_lines_as_before():
+    tables = program_tables(_feed_summary(split=False))
+    assert [t.anchor for t in tables] == ["program", "program-feed"]  # no table of slowed lines by cause
+    table = tables[1]
+    assert not {"of which held down by a joint limit", "path deviation against"} & set(_columns(table.header))
+    assert table.header[-1].startswith("slowed program lines")
+    for row in table.rows:
+        assert row[-1].text == "5: line 12: 30 %, line 445: 52.4 %, line 444: 55 %, line 37: 86.4 %, line 13: 90 %"
+    assert "joint limit" not in table.note
+
+
+def _with_slowed(run, split: bool):
+    """``run`` with its controller's feed entry replaced: three of its program lines slowed, one of
+    them (the slowest) by joint 4's jerk when ``split``, the others by the stops; the lines chosen."""
+    ctrl = run.summary["controller_trajectory"]
+    lines = np.unique(run.program.sample_line[ctrl])
+    chosen = [int(L) for L in lines[[1, len(lines) // 2, -2]]]
+    summary = json.loads(json.dumps(run.summary))
+    entry = summary["program"]["feed"][ctrl]
+    for key in ("slowed_by_limit", "n_lines_slowed_by_stops", "path_deviation_mm"):
+        entry.pop(key, None)
+    entry["slowed_lines"] = [[chosen[0], 0.4], [chosen[1], 0.6], [chosen[2], 0.8]]
+    if split:
+        entry |= {"slowed_by_limit": [[chosen[0], 0.4, 4, "jerk"]], "n_lines_slowed_by_stops": 2}
+    return dataclasses.replace(run, summary=summary), chosen
+
+
+def _drawn(item):
+    """The feed figure of a figure item, drawn: (its speed panel, the job's arguments)."""
+    fn, args, kwargs = item.job
+    fig = fn(*args, **kwargs)
+    return fig.axes[0], args
+
+
+@pytest.mark.parametrize("split", [True, False])
+def test_the_feed_figure_draws_the_slowed_lines_by_cause(program_run, split):
+    """With ``slowed_by_limit`` the lines a joint limit holds down (red, named with joint and
+    derivative) and those slowed by the stops (orange) are drawn apart, in both panels, and the
+    title and caption count them; a summary without it draws every slowed line in one colour."""
+    res, view, out = program_run
+    run, chosen = _with_slowed(run_from_plan(res, out, view), split)
+    item = program_items(run)[1]
+    ax, args = _drawn(item)
+    kinds, slow_bins, line_bands, marks = args[4], args[5], args[6], args[7]
+    lines = run.program.sample_line[run.summary["controller_trajectory"]]
+    starts = bin_extrema(np.zeros(len(lines)))[0]
+    groups = [[chosen[0]], chosen[1:]] if split else [chosen]
+    assert kinds == (("limit", "stops") if split else ("slowed",))
+    for group, bins, (_, hi), speed in zip(groups, slow_bins, line_bands[1:], args[2][1:-1]):
+        want = np.logical_or.reduceat(np.isin(lines, group), starts)
+        assert np.array_equal(bins, want)  # the bins of that kind's lines, no other
+        assert np.array_equal(np.isfinite(hi), want) and set(hi[want]) <= set(group)  # (b): those lines
+        assert np.array_equal(np.isfinite(speed[1]), want)  # (a): their speed
+    labels = {t.get_text(): t.get_color() for t in ax.texts}
+    legend = [t.get_text() for t in ax.figure.legends[0].get_texts()]
+    title = ax.figure._suptitle.get_text()
+    if split:
+        assert [m[1] for m in marks] == [f"line {chosen[0]}: 40 % (J4 jerk)"]  # the stops' lines are not named
+        assert labels == {f"line {chosen[0]}: 40 % (J4 jerk)": SLOWED_STYLE["limit"][0]}
+        (note,) = ax.texts  # its arrow points at the line's peak speed, 40 % of its F, on its own stretch
+        assert note.xy[1] == pytest.approx(0.4 * marks[0][2] * MM_MIN_PER_M_S)
+        assert "TCP speed on a line slowed by a joint limit" in legend
+        assert "TCP speed on a line slowed only by its neighbours (a stop, a held line)" in legend
+        assert (
+            "3 slowed lines: 1 held down by a joint limit (red), "
+            "2 slowed only by their neighbours, a stop or a held line (orange)" in title
+        )
+        assert "red, the 1 line a joint limit holds down" in item.caption
+        assert "orange, the 2 lines slowed only by their neighbours" in item.caption
+    else:
+        assert sorted(m[1] for m in marks) == sorted(f"line {L}: {p} %" for L, p in zip(chosen, (40, 60, 80)))
+        assert set(labels.values()) == {SLOWED_STYLE["slowed"][0]}
+        assert "TCP speed on a line slowed (limit or stops)" in legend
+        assert title.endswith("\n3 slowed lines")
+        assert "Red: the 3 program lines the summary lists as slowed" in item.caption
+        assert "does not tell the two apart" in item.caption
 
 
 def test_a_line_path_has_no_program_figures_nor_tables(line_run):
@@ -241,7 +384,7 @@ def test_a_line_path_has_no_program_figures_nor_tables(line_run):
     for name in PROGRAM_FIGURES:
         assert name not in rep.images and name not in rep.absent
         assert not (out / "figures" / f"{name}.png").exists()
-    assert not {"program", "program-feed"} & rep.anchors
+    assert not {"program", "program-feed", "program-slowed"} & rep.anchors
     assert "### Program" not in (out / "report.md").read_text()
     assert run_from_plan(res, out, view).program is None and load_run(out).program is None
 
@@ -305,7 +448,7 @@ def test_the_feed_figure_speed_is_the_forward_kinematics_speed(program_run):
     assert np.max(speed[cut] / feed[cut]) <= 1.02
     item = program_items(run)[1]
     bands = item.job[1][2]
-    assert max(np.nanmax(hi) for _, hi in bands) == pytest.approx(speed.max())
+    assert max(np.nanmax(hi) for _, hi in bands if np.isfinite(hi).any()) == pytest.approx(speed.max())
 
 
 # --------------------------------------------------------------------------- the reductions

@@ -6,9 +6,12 @@ frame the run records, their program line, rapid flag and programmed feed, and t
 every sample of each trajectory timed by the feed law).  The report's program figures
 (:mod:`planner.report.toolpath_plot`: the toolpath coloured by the TCP error, the feed along the
 program) draw from it with these helpers; :mod:`planner.report.program_tables` shows the summary's
-``program`` keys (nothing recomputed).  :func:`merge_segments` and :func:`bin_extrema` reduce
-10^5 waypoints and 10^6 samples to what a figure can show, keeping every peak.  SI units inside;
-the module prints nothing and does not import matplotlib.
+``program`` keys (nothing recomputed).  The slowed lines of a feed entry are read here for both:
+all of them (``slowed_lines``), those a joint limit holds down (``slowed_by_limit``), in words
+(:func:`slowed_line_text`), and the path deviation against the tolerance (:func:`deviation_words`).
+:func:`merge_segments` and :func:`bin_extrema` reduce 10^5 waypoints and 10^6 samples to what a
+figure can show, keeping every peak.  SI units inside; the module prints nothing and does not
+import matplotlib.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.numbers import format_number
 from planner.record.columns import MM_MIN_PER_M_S, PROGRAM_KEY
 from planner.record.record import ProgramRecord
 
@@ -31,6 +35,11 @@ __all__ = [
     "line_feed_m_s",
     "sample_feed_m_s",
     "merge_segments",
+    "DEVIATION_SLACK",
+    "SLOWED_KINDS",
+    "deviation_words",
+    "slowed_by_limit_worst_first",
+    "slowed_line_text",
     "slowed_lines_worst_first",
     "tcp_speed_m_s",
     "view_axes",
@@ -45,6 +54,13 @@ CORNER_DEG = 30.0
 #: Bins of the feed figure's time axis (about one per pixel column): a longer trajectory is drawn
 #: as the minimum and maximum of each bin (:func:`bin_extrema`).
 FEED_BINS = 1500
+#: Relative slack of a path deviation over the path tolerance still counted within it (the plan's
+#: own warning, ``planner/plan.py``, uses the same 1e-6).
+DEVIATION_SLACK = 1e-6
+#: The kinds of slowed lines the report tells apart: held down by a joint limit (``slowed_by_limit``),
+#: slowed only by their neighbours, a stop or a held line (the other ``slowed_lines``), and, for a summary written
+#: before the split (no ``slowed_by_limit``), slowed for either reason.
+SLOWED_KINDS = ("limit", "stops", "slowed")
 #: Samples per forward-kinematics batch in :func:`tcp_speed_m_s` (bounds the (M, 4, 4) temporary).
 _FK_CHUNK = 1 << 16
 
@@ -235,3 +251,41 @@ def slowed_lines_worst_first(entry: Mapping[str, Any]) -> list[tuple[int, float]
         except (TypeError, ValueError, IndexError):
             continue
     return sorted(rows, key=lambda lf: (lf[1], lf[0]))
+
+
+def slowed_by_limit_worst_first(entry: Mapping[str, Any]) -> list[tuple[int, float, int, str]] | None:
+    """``(line, fraction of F, joint (1-based), derivative)`` of a feed entry's ``slowed_by_limit``
+    (the slowed lines a joint limit holds down), slowest first (then by line); ``None`` for an entry
+    without the key (a summary written before the slowed lines were split by cause)."""
+    items = entry.get("slowed_by_limit")
+    if not isinstance(items, list):
+        return None
+    rows = []
+    for item in items:
+        try:
+            rows.append((int(item[0]), float(item[1]), int(item[2]), str(item[3])))
+        except (TypeError, ValueError, IndexError):
+            continue
+    return sorted(rows, key=lambda r: (r[1], r[0]))
+
+
+def slowed_line_text(line: int, fraction: float, joint: int | None = None, derivative: str = "") -> str:
+    """A slowed line in words: ``"line 445: 52.4 %"``, with the limit that holds it down
+    ``"line 445: 52.4 % (J4 jerk)"``."""
+    text = f"line {line}: {format_number(100.0 * fraction, 3)} %"
+    return text + (f" (J{joint} {derivative})" if joint is not None else "")
+
+
+def deviation_words(deviation_mm: Any, tolerance_mm: Any) -> str:
+    """The largest path deviation of a trajectory's samples against the path tolerance, in words:
+    ``"✓ within: 0.0184 mm ≤ 0.02 mm"``, ``"✗ OUTSIDE: 0.03 mm > 0.02 mm (×1.5)"``, or why it is not
+    compared (not measured, no tolerance)."""
+    if not isinstance(deviation_mm, (int, float)) or not math.isfinite(deviation_mm):
+        return "not measured"
+    d = f"{format_number(float(deviation_mm), 3)} mm"
+    if not isinstance(tolerance_mm, (int, float)) or not tolerance_mm > 0:
+        return f"{d} (no path tolerance to compare with)"
+    tol = float(tolerance_mm)
+    if deviation_mm <= tol * (1.0 + DEVIATION_SLACK):
+        return f"✓ within: {d} ≤ {format_number(tol, 3)} mm"
+    return f"✗ OUTSIDE: {d} > {format_number(tol, 3)} mm (×{format_number(float(deviation_mm) / tol, 3)})"

@@ -13,8 +13,11 @@ has neither figure, not an absent one), from the run's :class:`~planner.record.P
   (the caption says so and by how much).
 * :data:`FEED_FIGURE`: the TCP speed the controller's trajectory reaches (forward kinematics of
   its sampled joints) against the programmed feed of the line each sample runs, mm/min, over time,
-  with the program line below; the slowed lines of the summary marked.  Long trajectories are
-  drawn as the minimum and maximum over :data:`~planner.report.toolpath.FEED_BINS` bins.
+  with the program line below; the slowed lines of the summary in two colours, those a joint limit
+  holds down (``slowed_by_limit``; the slowest named with the joint and derivative) and those slowed
+  only by their neighbours, a stop or a held line (one colour for a summary written before that split).  Long
+  trajectories are drawn as the minimum and maximum over
+  :data:`~planner.report.toolpath.FEED_BINS` bins; :mod:`planner.report.feed_plot` draws it.
 
 The arrays are prepared (and reduced) in :func:`program_items`, so a figure job stays small; the
 drawing functions take SI arrays and convert at the edge.
@@ -34,17 +37,19 @@ from matplotlib.lines import Line2D
 from problems.toolpath.feed import FEED_SLOW_TOL
 
 from planner.numbers import NUMERICAL_FLOOR_M, format_number, mm_text
+from planner.report.feed_plot import SLOWED_STYLE, feed_figure
 from planner.report.figure_base import new_figure, styled
 from planner.report.rendering import FigureItem, job
 from planner.record import RunRecord, method_name
 from planner.report.tables import load_words
 from planner.report.toolpath import (
     MAX_DRAWN_SEGMENTS,
-    MM_MIN_PER_M_S,
     PROGRAM_KEY,
     bin_extrema,
     sample_feed_m_s,
     merge_segments,
+    slowed_by_limit_worst_first,
+    slowed_line_text,
     slowed_lines_worst_first,
     tcp_speed_m_s,
     view_axes,
@@ -61,16 +66,8 @@ __all__ = [
 TOOLPATH_FIGURE = "fig9_toolpath"
 FEED_FIGURE = "fig10_feed"
 PROGRAM_FIGURES = (TOOLPATH_FIGURE, FEED_FIGURE)
-#: Slowed lines named on the feed figure (slowest first), on at most MARK_LEVELS rows of labels.
+#: Slowed lines named on the feed figure (slowest first; :mod:`planner.report.feed_plot` draws the labels).
 FEED_MARKED = 5
-MARK_LEVELS = 3
-#: The feed figure's speed axis ends at this multiple of the largest programmed feed when the
-#: rapids go faster than :data:`RAPID_CUT` times it (what is cut off is written on the panel).
-FEED_VIEW_TOP = 1.25
-RAPID_CUT = 1.5
-#: The bins running a slowed line are shaded while they are at most this share of all bins (beyond,
-#: the shading would cover the panel: a long program slowed at every row end).
-SLOWED_SHADE_MAX = 0.5
 _AXES = "XYZ"
 
 
@@ -185,62 +182,112 @@ def _feed_item(run: RunRecord) -> FigureItem:
     speed = tcp_speed_m_s(run.model.kinematics.tcp, t, np.asarray(tr["q"], float))
     feed = sample_feed_m_s(view, wps)
     entry = ((s.get(PROGRAM_KEY) or {}).get("feed") or {}).get(ctrl) or {}
-    worst = slowed_lines_worst_first(entry)
-    slowed = np.isin(lines, np.array([L for L, _ in worst], dtype=int))
+    groups = _slowed_groups(entry)
+    masks = [np.isin(lines, np.array(group, dtype=int)) for _, group, _ in groups]
+    slowed = np.logical_or.reduce(masks) if masks else np.zeros(len(t), bool)
     rapid = ~np.isfinite(feed)
     starts = bin_extrema(speed)[0]
     ends = np.r_[starts[1:], len(t)] - 1
     speed_bands = [  # per kind of sample: the smallest and largest speed of each bin (NaN: none of that kind)
-        bin_extrema(np.where(mask, speed, np.nan))[1:] for mask in (~rapid & ~slowed, slowed, rapid & ~slowed)
+        bin_extrema(np.where(mask, speed, np.nan))[1:] for mask in [~rapid & ~slowed, *masks, rapid & ~slowed]
     ]
     line_f = lines.astype(float)
-    line_bands = [bin_extrema(np.where(mask, line_f, np.nan))[1:] for mask in (~slowed, slowed)]
+    line_bands = [bin_extrema(np.where(mask, line_f, np.nan))[1:] for mask in [~slowed, *masks]]
     f_hi = bin_extrema(feed)[2]
-    slow_bin = np.logical_or.reduceat(slowed, starts) if len(t) else np.zeros(0, bool)
-    marks = _feed_marks(worst, lines, t, feed)
+    slow_bins = [np.logical_or.reduceat(mask, starts) if len(t) else np.zeros(0, bool) for mask in masks]
+    marks = _feed_marks(groups, lines, t, feed)
     cut = np.isfinite(feed) & (feed > 0)
     measured = float(np.max(speed[cut] / feed[cut])) if cut.any() else float("nan")
     per_bin = int(np.ceil(len(t) / max(len(starts), 1)))
     name = method_name(s, ctrl)
-    item.caption = _feed_caption(name, fname, len(t), len(starts), per_bin)
+    counts = {kind: len(group) for kind, group, _ in groups}
+    item.caption = _feed_caption(name, fname, counts, len(marks), len(t), len(starts), per_bin)
     item.job = job(
         feed_figure,
         t[starts],
         t[ends],
         speed_bands,
         f_hi,
-        slow_bin,
+        tuple(kind for kind, _, _ in groups),
+        slow_bins,
         line_bands,
         marks,
-        title=_header(run) + "\n" + _feed_head(name, entry, worst, measured),
+        title=_header(run) + "\n" + _feed_head(name, entry, counts, measured),
     )
     return item
 
 
+def _slowed_groups(entry: Mapping[str, Any]) -> list[tuple[str, list[int], list[tuple[int, float, str]]]]:
+    """The slowed lines of a feed entry by kind (:data:`~planner.report.toolpath.SLOWED_KINDS`):
+    ``(kind, its lines, the lines to name as (line, fraction of F, label), slowest first)``.
+
+    With ``slowed_by_limit`` (newer summaries): the lines a joint limit holds down, named with the
+    joint and derivative, and the lines slowed only by their neighbours (not named: the slow-down
+    comes from a stop or a held line nearby); without it, every slowed line, named with its
+    fraction."""
+    worst = slowed_lines_worst_first(entry)
+    by_limit = slowed_by_limit_worst_first(entry)
+    if by_limit is None:
+        return [("slowed", [L for L, _ in worst], [(L, f, slowed_line_text(L, f)) for L, f in worst[:FEED_MARKED]])]
+    held = {row[0] for row in by_limit}
+    named = [(L, f, slowed_line_text(L, f, j, d)) for L, f, j, d in by_limit[:FEED_MARKED]]
+    return [("limit", [row[0] for row in by_limit], named), ("stops", [L for L, _ in worst if L not in held], [])]
+
+
 def _feed_marks(
-    worst: Sequence[tuple[int, float]], lines: np.ndarray, t: np.ndarray, feed: np.ndarray
-) -> list[tuple[float, int, float, float]]:
-    """The slowest lines to name on the feed figure: (time at the line's middle s, line, fraction, F m/s)."""
+    groups: Sequence[tuple[str, list[int], list[tuple[int, float, str]]]],
+    lines: np.ndarray,
+    t: np.ndarray,
+    feed: np.ndarray,
+) -> list[tuple[float, str, float, float, str]]:
+    """The slowest lines to name on the feed figure: (time at the line's middle s, label, F m/s,
+    the line's peak speed over F, kind)."""
     marks = []
-    for L, frac in worst[:FEED_MARKED]:
-        idx = np.flatnonzero(lines == L)
-        if idx.size:  # named at the middle of the line's time
-            marks.append((0.5 * float(t[idx[0]] + t[idx[-1]]), int(L), float(frac), float(feed[idx[0]])))
+    for kind, _, named in groups:
+        for L, frac, label in named:
+            idx = np.flatnonzero(lines == L)
+            if idx.size:  # named at the middle of the line's time
+                marks.append((0.5 * float(t[idx[0]] + t[idx[-1]]), label, float(feed[idx[0]]), frac, kind))
     return marks
 
 
-def _feed_caption(name: str, fname: str, n_samples: int, n_bins: int, per_bin: int) -> str:
-    """The feed figure's caption."""
+def _feed_caption(
+    name: str, fname: str, counts: Mapping[str, int], n_marked: int, n_samples: int, n_bins: int, per_bin: int
+) -> str:
+    """The feed figure's caption: what is drawn, what each colour means and how many lines of each kind."""
+    pct = format_number(100.0 * (1.0 - FEED_SLOW_TOL))
+    below = f"peak TCP speed below {pct} % of F"
     caption = (
         f"The controller's trajectory ({name}, {fname}): (a) the TCP speed it reaches, from forward kinematics "
         "of its sampled joint commands (the arm model's rigid kinematics; |Δp|/Δt between samples), against the "
         "programmed feed F of the program line each sample runs (dashed; the largest F of the line's cutting "
-        "moves; none on rapids), mm/min, over time; (b) that program line. Red: the program lines the summary "
-        f"lists as slowed (peak TCP speed below {format_number(100.0 * (1.0 - FEED_SLOW_TOL))} % of F: the joint "
-        "limits, or the stops around them, keep the "
-        f"feed down), the {FEED_MARKED} slowest named with the summary's measure (the peak speed on the line's "
-        "slowest move, % of F: a move starting or ending at a stop counts). Grey: rapids."
+        "moves; none on rapids), mm/min, over time; (b) that program line. Blue in (a), dark grey in (b): the "
+        f"lines whose peak TCP speed reaches {pct} % of F. "
     )
+    measure = "(the peak speed on the line's slowest move, % of F: a move starting or ending at a stop counts)"
+    if "limit" in counts:
+        n_lim, n_stop = counts["limit"], counts["stops"]
+        named = (
+            f"the {n_marked} slowest named with the summary's measure {measure} and the joint (Jn) and derivative "
+            "(velocity, acceleration or jerk) that binds; "
+            if n_marked
+            else ""
+        )
+        caption += (
+            f"The summary's slowed lines ({below}), by cause: {_colour('limit')}, the {n_lim} line{_plural(n_lim)} "
+            "a joint limit holds down (the joints cannot cruise at F there; summary.json slowed_by_limit), "
+            f"{named}{_colour('stops')}, the {n_stop} line{_plural(n_stop)} slowed only by their neighbours "
+            "(no limit binds on them: the accelerations out of or into a stop, or into or out of a neighbouring line "
+            "a limit holds down, reach into them; summary.json n_lines_slowed_by_stops; not named). "
+        )
+    else:
+        n = counts.get("slowed", 0)
+        caption += (
+            f"{_colour('slowed').capitalize()}: the {n} program line{_plural(n)} the summary lists as slowed "
+            f"({below}: the joint limits, or the stops around them, keep the feed down; this summary does not "
+            f"tell the two apart), the {n_marked} slowest named with the summary's measure {measure}. "
+        )
+    caption += "Grey in (a): rapids."
     if per_bin > 1:
         caption += (
             f" {n_samples} samples drawn as {n_bins} bins of {per_bin}: each bin's band spans its smallest to "
@@ -249,15 +296,31 @@ def _feed_caption(name: str, fname: str, n_samples: int, n_bins: int, per_bin: i
     return caption
 
 
-def _feed_head(name: str, entry: Mapping[str, Any], worst: Sequence[tuple[int, float]], measured: float) -> str:
-    """The feed figure's second title line: duration against the programmed time, slowed lines, peak speed / F."""
+def _colour(kind: str) -> str:
+    """The colour of a kind of slowed line, in words."""
+    return SLOWED_STYLE[kind][1]
+
+
+def _plural(n: int) -> str:
+    return "" if n == 1 else "s"
+
+
+def _feed_head(name: str, entry: Mapping[str, Any], counts: Mapping[str, int], measured: float) -> str:
+    """The feed figure's second and third title lines: duration against the programmed time, peak
+    speed / F; the slowed lines by kind."""
     prog_t, dur = entry.get("programmed_time_s"), entry.get("duration_s")
     head = f"{name}: duration {format_number(float(dur))} s" if isinstance(dur, (int, float)) else name
     if isinstance(prog_t, (int, float)) and isinstance(dur, (int, float)) and prog_t > 0:
         head += f" against {format_number(float(prog_t))} s programmed (×{format_number(float(dur) / float(prog_t))})"
-    head += f"; {len(worst)} slowed line{'' if len(worst) == 1 else 's'}"
     if np.isfinite(measured):
         head += f"; peak TCP speed / F on cutting moves {measured:.3f} (forward kinematics)"
+    n = sum(counts.values())
+    head += f"\n{n} slowed line{_plural(n)}"
+    if "limit" in counts:
+        head += (
+            f": {counts['limit']} held down by a joint limit ({_colour('limit')}), {counts['stops']} slowed only by "
+            f"their neighbours, a stop or a held line ({_colour('stops')})"
+        )
     return head
 
 
@@ -432,150 +495,3 @@ def _toolpath_handles() -> list[Line2D]:
         Line2D([], [], marker="o", color="crimson", mec="white", ls="none", label="start"),
         Line2D([], [], marker=">", color="crimson", mec="white", ls="none", label="end"),
     ]
-
-
-@styled
-def feed_figure(
-    t_start_s: np.ndarray,
-    t_end_s: np.ndarray,
-    speed_bands_m_s: Sequence[tuple[np.ndarray, np.ndarray]],
-    feed_m_s: np.ndarray,
-    slowed: np.ndarray,
-    line_bands: Sequence[tuple[np.ndarray, np.ndarray]],
-    marks: Sequence[tuple[float, int, float, float]],
-    *,
-    title: str,
-) -> Figure:
-    """The TCP speed against the programmed feed over time (mm/min), above the program line.
-
-    Every series is per bin of consecutive samples (one sample a bin for a short trajectory), as
-    the smallest and largest value of the bin's samples of one kind (NaN: the bin has none).
-
-    Parameters
-    ----------
-    t_start_s, t_end_s : np.ndarray
-        Shape ``(B,)``, s: time of the first and last sample of each bin.
-    speed_bands_m_s : three (lo, hi) pairs of np.ndarray
-        Shape ``(B,)`` each, m/s: the TCP speed of the samples on cutting lines that are not slowed,
-        on slowed lines, and on rapids.
-    feed_m_s : np.ndarray
-        Shape ``(B,)``, m/s: the largest programmed feed in the bin; NaN for a bin of rapids only.
-    slowed : np.ndarray
-        Shape ``(B,)``, bool: the bin runs a slowed program line.
-    line_bands : two (lo, hi) pairs of np.ndarray
-        Shape ``(B,)`` each: the program line of the samples on lines not slowed, and on slowed lines.
-    marks : sequence of (t, line, fraction, F)
-        The slowest lines to name: the time of the line's peak speed (s), its number, that peak
-        over F, and F (m/s).
-    title : str
-    """
-    t0, t1 = np.asarray(t_start_s, float), np.asarray(t_end_s, float)
-    bands = [
-        (np.asarray(lo, float) * MM_MIN_PER_M_S, np.asarray(hi, float) * MM_MIN_PER_M_S) for lo, hi in speed_bands_m_s
-    ]
-    F = np.asarray(feed_m_s, float) * MM_MIN_PER_M_S
-    slow = np.asarray(slowed, bool)
-    fig = new_figure(12.0, 7.0, left=0.075, right=0.985, bottom=0.08, top=0.82, hspace=0.08)
-    a1, a2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2.6, 1.0)})
-    x = np.r_[t0, t1[-1:]] if len(t0) else t0  # bin edges: bin i spans x[i] .. x[i + 1]
-    if slow.any() and slow.mean() <= SLOWED_SHADE_MAX:  # one artist per panel, however many lines
-        _shade_slowed((a1, a2), x, slow)
-    styles = (
-        ("tab:blue", "TCP speed (forward kinematics)", 2.0),
-        ("tab:red", "TCP speed on a slowed line", 2.5),
-        ("0.55", "TCP speed on rapids", 1.5),
-    )
-    for (lo, hi), (colour, label, z) in zip(bands, styles):
-        _band(a1, x, lo, hi, colour, label, z)
-    f_max, note = _feed_and_speed_axis(a1, x, F, bands)
-    _mark_slowed_lines(a1, x, marks, f_max)
-    a1.set_ylabel("TCP speed [mm/min]")
-    a1.set_title(f"(a) TCP speed against the programmed feed{note}", loc="left")
-    a1.grid(alpha=0.3)
-    fig.legend(*a1.get_legend_handles_labels(), loc="upper center", ncol=4, bbox_to_anchor=(0.5, 0.905), frameon=False)
-    for (lo, hi), (colour, label, z) in zip(
-        line_bands, (("0.3", "program line", 2.0), ("tab:red", "slowed line", 2.5))
-    ):
-        _band(a2, x, np.asarray(lo, float), np.asarray(hi, float), colour, label, z)
-    a2.set_ylabel("program line")
-    a2.set_xlabel("time [s]")
-    a2.set_title("(b) the program line each sample runs", loc="left", y=0.8, x=0.01, fontsize=8.5)
-    a2.grid(alpha=0.3)
-    if len(x) > 1:
-        a2.set_xlim(float(x[0]), float(x[-1]))
-    fig.suptitle(title)
-    return fig
-
-
-def _band(ax: Any, x: np.ndarray, y_lo: np.ndarray, y_hi: np.ndarray, colour: str, label: str, z: float) -> None:
-    """A per-bin band from ``y_lo`` to ``y_hi`` over the bin edges ``x``, its top line labelled."""
-    if not np.isfinite(y_hi).any():
-        return
-    lo_e, hi_e = np.r_[y_lo, y_lo[-1:]], np.r_[y_hi, y_hi[-1:]]
-    ax.fill_between(x, lo_e, hi_e, step="post", color=colour, alpha=0.35, lw=0, zorder=z)
-    ax.step(x, hi_e, where="post", color=colour, lw=1.0, label=label, zorder=z + 0.1)
-
-
-def _shade_slowed(axes: Sequence[Any], x: np.ndarray, slow: np.ndarray) -> None:
-    """Shade the bins running a slowed line on each of ``axes`` (one artist per panel)."""
-    for ax in axes:
-        ax.fill_between(
-            x,
-            0,
-            1,
-            where=np.r_[slow, False],
-            step="post",
-            transform=ax.get_xaxis_transform(),
-            color="tab:red",
-            alpha=0.1,
-            lw=0,
-            zorder=0,
-        )
-
-
-def _feed_and_speed_axis(
-    a1: Any, x: np.ndarray, F: np.ndarray, bands: Sequence[tuple[np.ndarray, np.ndarray]]
-) -> tuple[float, str]:
-    """Draw the programmed feed and set the speed axis; (largest feed mm/min or NaN, title note)."""
-    cutting = np.isfinite(F)
-    if cutting.any():
-        a1.step(x, np.r_[F, F[-1:]], where="post", color="k", lw=1.1, ls="--", label="programmed feed F", zorder=3)
-    f_max = float(np.nanmax(F)) if cutting.any() else float("nan")
-    tops = [float(np.nanmax(hi)) if np.isfinite(hi).any() else 0.0 for _, hi in bands]
-    note = ""
-    if np.isfinite(f_max) and max(tops[:2]) <= RAPID_CUT * f_max < tops[2]:
-        a1.set_ylim(0.0, FEED_VIEW_TOP * f_max)
-        note = f"; rapids reach {format_number(tops[2])} mm/min, above the axis"
-    else:
-        a1.set_ylim(0.0, max(max(tops), f_max if np.isfinite(f_max) else 0.0, 1e-9) * 1.12)
-    return f_max, note
-
-
-def _mark_slowed_lines(a1: Any, x: np.ndarray, marks: Sequence[tuple[float, int, float, float]], f_max: float) -> None:
-    """Name the slowest lines on the speed panel, on at most :data:`MARK_LEVELS` rows of labels."""
-    span = float(x[-1] - x[0]) if len(x) > 1 else 1.0
-    placed: list[tuple[float, int]] = []
-    for tm, L, frac, f_line in sorted(marks):
-        level = 0  # a label close to one already placed goes one level up, at most MARK_LEVELS
-        while level < MARK_LEVELS and any(abs(tm - tp) < 0.1 * span and lv == level for tp, lv in placed):
-            level += 1
-        if level == MARK_LEVELS:  # no room: the table lists it
-            continue
-        placed.append((tm, level))
-        y = f_line * MM_MIN_PER_M_S if np.isfinite(f_line) else (f_max if np.isfinite(f_max) else 0.0)
-        a1.annotate(
-            f"line {L}: {format_number(100.0 * frac, 3)} %",
-            xy=(tm, y),
-            xytext=(  # kept clear of the panel's sides
-                float(np.clip(tm, x[0] + 0.045 * span, x[-1] - 0.045 * span)) if len(x) > 1 else tm,
-                y + f_max * (0.02 + 0.065 * level) if np.isfinite(f_max) else y,
-            ),
-            ha="center",
-            va="bottom",
-            fontsize=7.5,
-            color="tab:red",
-            arrowprops={"arrowstyle": "-", "color": "tab:red", "lw": 0.6, "alpha": 0.6},
-            zorder=6,
-        )
-    if placed and np.isfinite(f_max):  # room for the labels above the feed
-        a1.set_ylim(0.0, max(a1.get_ylim()[1], FEED_VIEW_TOP * f_max))
