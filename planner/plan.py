@@ -463,7 +463,11 @@ def _feed_warnings(res: PlanResult) -> list[str]:
         out.append(
             f"the joint limits keep the feed below {100 * (1 - FEED_SLOW_TOL):.0f} % of F on {len(order)} program "
             f"line(s), peak TCP speed as a fraction of F: {shown}{more}"
-            + (f"; {n_stops} more line(s) are slowed by the stops around them" if n_stops else "")
+            + (
+                f"; {n_stops} more line(s) are slowed only by what surrounds them (a stop, or a line held down)"
+                if n_stops
+                else ""
+            )
         )
     elif n_stops:
         out.append(

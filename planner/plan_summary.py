@@ -185,9 +185,10 @@ def program_summary(res: PlanResult) -> dict[str, Any]:
             ],
             "slowed_by_limit_note": (
                 "the slowed lines a joint limit holds down (line, peak TCP speed over F, joint, derivative): the "
-                "joints cannot cruise at F there; the other slowed lines are slowed by the stops around them"
+                "joints cannot cruise at F there; the other slowed lines are slowed only by what surrounds them: a "
+                "stop, or a line held down next to them"
             ),
-            "n_lines_slowed_by_stops": len(worst) - len(by_limit),
+            "n_lines_slowed_by_neighbours": len(worst) - len(by_limit),
             "path_deviation_mm": fl.path_deviation_m * 1e3 if np.isfinite(fl.path_deviation_m) else None,
             "path_deviation_note": (
                 "largest distance of a trajectory sample's TCP (forward kinematics of the commands) from the "

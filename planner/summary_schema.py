@@ -297,7 +297,7 @@ _PROGRAM = Table(
                             )
                         ),
                     ),
-                    "n_lines_slowed_by_stops": Number(lo=0, integer=True),
+                    "n_lines_slowed_by_neighbours": Number(lo=0, integer=True),
                     "path_deviation_mm": Number(unit="mm", lo=0.0, nullable=True),
                 }
             ),

@@ -237,7 +237,7 @@ def test_the_program_tables_show_the_summary_numbers(program_run):
         f" and {len(worst) - SLOWED_SHOWN} more" if len(worst) > SLOWED_SHOWN else ""
     )
     assert [L for L, _ in slowed_lines_worst_first(entry)] == [L for L, _ in worst]
-    assert srow[col["of which slowed only by their neighbours"]] == str(entry["n_lines_slowed_by_stops"])
+    assert srow[col["of which slowed only by their neighbours"]] == str(entry["n_lines_slowed_by_neighbours"])
     assert srow[col["path deviation against"]].startswith("✓ within: ")  # the plan keeps its samples within
 
 
@@ -266,7 +266,7 @@ def _feed_summary(split: bool) -> dict:
         e = {"programmed_time_s": 10.0, "duration_s": 11.0, "peak_feed_ratio": 1.0, "n_stretches": 3}
         e["slowed_lines"] = SLOWED
         if split:
-            e |= {"slowed_by_limit": BY_LIMIT, "n_lines_slowed_by_stops": 2, "path_deviation_mm": deviation_mm}
+            e |= {"slowed_by_limit": BY_LIMIT, "n_lines_slowed_by_neighbours": 2, "path_deviation_mm": deviation_mm}
         return e
 
     feed = {"lookahead": entry(0.0184), "ruckig": entry(0.03), "toppra": entry(None)}
@@ -318,11 +318,11 @@ def _with_slowed(run, split: bool):
     chosen = [int(L) for L in lines[[1, len(lines) // 2, -2]]]
     summary = json.loads(json.dumps(run.summary))
     entry = summary["program"]["feed"][ctrl]
-    for key in ("slowed_by_limit", "n_lines_slowed_by_stops", "path_deviation_mm"):
+    for key in ("slowed_by_limit", "n_lines_slowed_by_neighbours", "path_deviation_mm"):
         entry.pop(key, None)
     entry["slowed_lines"] = [[chosen[0], 0.4], [chosen[1], 0.6], [chosen[2], 0.8]]
     if split:
-        entry |= {"slowed_by_limit": [[chosen[0], 0.4, 4, "jerk"]], "n_lines_slowed_by_stops": 2}
+        entry |= {"slowed_by_limit": [[chosen[0], 0.4, 4, "jerk"]], "n_lines_slowed_by_neighbours": 2}
     return dataclasses.replace(run, summary=summary), chosen
 
 

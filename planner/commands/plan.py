@@ -203,7 +203,7 @@ def _print_timing(res: Any, s: dict[str, Any]) -> None:
                 + f" (stops included); peak TCP speed {f['peak_feed_ratio']:.3f} F; "
                 f"{len(f['slowed_lines'])} line(s) slowed"
                 + (
-                    f" ({len(f['slowed_by_limit'])} by a joint limit, the others by the stops around them)"
+                    f" ({len(f['slowed_by_limit'])} by a joint limit, the others by what surrounds them)"
                     if f.get("slowed_by_limit") is not None and f["slowed_lines"]
                     else ""
                 )

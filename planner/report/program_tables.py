@@ -177,7 +177,7 @@ def _slowed_rows(summary: Mapping[str, Any], feed: Mapping[str, Any], ctrl: Any)
             _method_cell(summary, m, ctrl),
             Cell(_slowed_text(entry)),
             Cell(_by_limit_text(entry)),
-            value_cell(summary, f"{k}.feed.{m}.n_lines_slowed_by_stops"),
+            value_cell(summary, f"{k}.feed.{m}.n_lines_slowed_by_neighbours"),
             value_cell(summary, f"{k}.feed.{m}.path_deviation_mm"),
             Cell(deviation_words(entry.get("path_deviation_mm"), tol)),
         ]
@@ -201,7 +201,8 @@ def _slowed_table(srows: list[list[Cell]]) -> Table:
         srows,
         _SLOWED_NOTE + " Held down by a joint limit: the joints cannot cruise at F on the line (Jn: joint n, and "
         "the derivative, velocity, acceleration or jerk, that binds; the full list is summary.json "
-        "program.feed.<method>.slowed_by_limit); the other slowed lines (summary.json n_lines_slowed_by_stops) are "
+        "program.feed.<method>.slowed_by_limit); the other slowed lines (summary.json "
+        "n_lines_slowed_by_neighbours) are "
         "slowed only by the accelerations around them: out of or into a stop, or into or out of a neighbouring "
         "line a limit holds down. Path deviation: the largest distance of a trajectory "
         "sample's TCP (forward kinematics of the commands) from the programmed path, against the program's path "

@@ -278,7 +278,7 @@ def _feed_caption(
             "a joint limit holds down (the joints cannot cruise at F there; summary.json slowed_by_limit), "
             f"{named}{_colour('stops')}, the {n_stop} line{_plural(n_stop)} slowed only by their neighbours "
             "(no limit binds on them: the accelerations out of or into a stop, or into or out of a neighbouring line "
-            "a limit holds down, reach into them; summary.json n_lines_slowed_by_stops; not named). "
+            "a limit holds down, reach into them; summary.json n_lines_slowed_by_neighbours; not named). "
         )
     else:
         n = counts.get("slowed", 0)

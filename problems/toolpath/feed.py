@@ -164,7 +164,7 @@ class FeedLaw:
     def slowed_by_limit(self, line: np.ndarray) -> dict[int, tuple[float, int, str]]:
         """Program line -> (the smallest fraction of F reached, the joint (1-based), the derivative)
         of the slowed lines a joint limit holds down: their cruising bound (:attr:`cruise`) is below
-        ``1 - FEED_SLOW_TOL`` of F. The other slowed lines are slowed by the stops around them (the
+        ``1 - FEED_SLOW_TOL`` of F. The other slowed lines are slowed only by what surrounds them (the
         accelerations out of and into a stop, or the approach to a part held down)."""
         from problems.timing.lookahead import BOUND_KINDS
 
