@@ -55,7 +55,8 @@ from problems.timing import (
     time_parametrize,
 )
 from problems.timing.trajectory import LIMIT_KEYS
-from problems.toolpath.feed import FEED_FALLBACK_METHOD, FEED_SLOW_TOL, feed_time_law
+from problems.toolpath.feed import FEED_SLOW_TOL, feed_time_law
+from problems.toolpath.feed_stretch import FEED_FALLBACK_METHOD
 from problems.toolpath.waypoints import ARC_SAGITTA_SHARE
 
 from planner.plan_outputs import figures, output_names, write_outputs

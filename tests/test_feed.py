@@ -102,7 +102,7 @@ _TOPPRA_UNCONTROLLABLE = np.array(
 
 
 def test_a_stretch_the_method_fails_on_is_timed_by_the_fallback_and_said():
-    from problems.toolpath.feed import FEED_FALLBACK_METHOD
+    from problems.toolpath.feed_stretch import FEED_FALLBACK_METHOD
 
     a = _TOPPRA_UNCONTROLLABLE
     L = a[:, 7] - a[0, 7]

@@ -111,6 +111,15 @@ def feed_figure(
     a1.set_title(f"(a) TCP speed against the programmed feed{note}", loc="left")
     a1.grid(alpha=0.3)
     fig.legend(*a1.get_legend_handles_labels(), loc="upper center", ncol=3, bbox_to_anchor=(0.5, 0.905), frameon=False)
+    _line_panel(a2, x, line_bands, kinds)
+    fig.suptitle(title)
+    return fig
+
+
+def _line_panel(
+    a2: Any, x: np.ndarray, line_bands: Sequence[tuple[np.ndarray, np.ndarray]], kinds: Sequence[str]
+) -> None:
+    """Panel (b) of the feed figure: the program line each sample runs, the slowed kinds coloured."""
     line_styles = [("0.3", "program line", 2.0)] + [
         (SLOWED_STYLE[k][0], f"line {SLOWED_STYLE[k][2]}", 2.6 - 0.1 * i) for i, k in enumerate(kinds)
     ]
@@ -122,8 +131,6 @@ def feed_figure(
     a2.grid(alpha=0.3)
     if len(x) > 1:
         a2.set_xlim(float(x[0]), float(x[-1]))
-    fig.suptitle(title)
-    return fig
 
 
 def _band(

@@ -28,14 +28,22 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from models.errors import InputError
-from problems.timing import JointLimits, TimingStatus, Trajectory, time_parametrize
+from problems.timing import JointLimits, TimingStatus, Trajectory
+from problems.toolpath.feed_stretch import (
+    FEED_FALLBACK_METHOD,
+    FEED_RETRY_METHOD,
+    FEED_RETRY_RATIO,
+    LENGTH_SCALE,
+    StretchGeometry,
+    time_stretch_checked,
+)
 
 __all__ = [
-    "FEED_FALLBACK_METHOD",
     "FEED_SLOW_TOL",
     "feed_time_law",
     "programmed_time",
@@ -52,26 +60,6 @@ FEED_PSEUDO_JERK = 1e6
 #: speed is the feed everywhere, not only where the joints move least (Ruckig's global bounds held a
 #: wavy raster's rows to 74 % of F before).
 FEED_TIME_SCALE = 100.0
-#: A cutting stretch that the method runs above this many times its programmed time is re-timed by
-#: :data:`FEED_RETRY_METHOD` and the shorter law kept: Ruckig's one bound set per stretch is held
-#: down by the stretch's most demanding point (the largest third derivative of the joint path: on a
-#: posture optimised at every waypoint, its small waviness), the jerk-limited NLP is not.
-FEED_RETRY_RATIO = 1.1
-#: Stretches shorter than this (waypoints) are not re-timed: they are mostly the accelerations at
-#: their stops, which no method shortens.
-FEED_RETRY_MIN_WAYPOINTS = 8
-#: The method (and its options) stretches are re-timed by: jerk-limited, time-optimal on its grid
-#: (its default grid, up to 480 gridpoints: 0.1-0.3 s a stretch; its smallest, 160, is faster but
-#: held the shipped milling_pocket's cutting time at 1.22x length/F instead of 1.10x).
-FEED_RETRY_METHOD = "jerk_optimal"
-#: The methods whose stretches may be re-timed: those with one bound set per stretch (Ruckig's);
-#: the look-ahead's bounds are local already, so re-timing it gains nothing.
-FEED_RETRY_FROM: tuple[str, ...] = ("ruckig",)
-FEED_RETRY_OPTIONS: dict[str, object] = {}
-#: A stretch the method fails on (TOPP-RA's "not controllable" on a short stretch between two
-#: corners of the shipped milling program) is timed by this method instead when it checks every
-#: limit the method does; the trajectory's reason and the plan's warnings say so.
-FEED_FALLBACK_METHOD = "ruckig"
 #: A waypoint counts as slowed when its peak ``d tau / dt`` is below ``1 - FEED_SLOW_TOL``: 5 %, above
 #: the uniform slow-down (a few %) that ``jerk_optimal`` applies to its whole law when its fine
 #: check finds a discretisation excess (x1.0245 on the demo's line at 3 m/min).
@@ -189,10 +177,6 @@ class FeedLaw:
         return worst
 
 
-#: The path-length pseudo-joint is the TCP's distance along the waypoints (m) times this: small
-#: enough not to change the spline's chord-length parameter, and read back to tell the move each
-#: sample runs (the length is smooth along the path where the waypoint index is not).
-LENGTH_SCALE = 1e-6
 #: Limits of the path-length pseudo-joint: unbounded in practice.
 _INDEX_LIMIT = 1e12
 
@@ -270,21 +254,36 @@ def feed_time_law(
     length = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(np.asarray(points_m, float), axis=0), axis=1))]
     cols = np.c_[Q, FEED_TIME_SCALE * tau, length * LENGTH_SCALE]
     bounds = np.flatnonzero(st)
-    geo = None
-    if tcp_frame is not None and tolerance_m is not None and tolerance_m > 0.0:
-        slack = np.zeros(n_way) if path_slack_m is None else np.asarray(path_slack_m, dtype=float)
-        geo = _Geometry(tcp_frame, tcp_frame(Q)[:, :3, 3], length, float(tolerance_m), slack)
-    import scipy.linalg  # noqa: F401  (loaded first, so that threadpool_limits finds its BLAS)
-    from threadpoolctl import threadpool_limits
-
-    # one BLAS thread: the stretches' small banded solves (the fit) run 10-100x slower when
-    # OpenBLAS spreads them over busy cores
-    with threadpool_limits(limits=1, user_api="blas"):
+    geo = _geometry(Q, length, tcp_frame, tolerance_m, path_slack_m)
+    with _one_blas_thread():
         run = _time_stretches(cols, tau, bounds, _augmented_limits(limits), method, dt, progress, options, geo)
     joined = _with_reason(
         _join(run.pieces, dw[bounds], dt, n + 2, method), run.pieces, run.failed, run.retimed, run.substituted, method
     )
     return _feed_law(joined, n, tau, length, np.asarray(feed_m_s, float), run, geo)
+
+
+def _geometry(
+    Q: np.ndarray,
+    length: np.ndarray,
+    tcp_frame: Callable[[np.ndarray], np.ndarray] | None,
+    tolerance_m: float | None,
+    path_slack_m: np.ndarray | None,
+) -> StretchGeometry | None:
+    """What fitting and checking the stretches need (None without forward kinematics or tolerance)."""
+    if tcp_frame is None or tolerance_m is None or not tolerance_m > 0.0:
+        return None
+    slack = np.zeros(len(Q)) if path_slack_m is None else np.asarray(path_slack_m, dtype=float)
+    return StretchGeometry(tcp_frame, tcp_frame(Q)[:, :3, 3], length, float(tolerance_m), slack)
+
+
+def _one_blas_thread() -> Any:
+    """A context holding BLAS to one thread: the stretches' small banded solves (the fit) run
+    10-100x slower when OpenBLAS spreads them over busy cores."""
+    import scipy.linalg  # noqa: F401  (loaded first, so that threadpool_limits finds its BLAS)
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _augmented_limits(limits: JointLimits) -> JointLimits:
@@ -325,40 +324,6 @@ class _Stretches:
     bound_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
 
-@dataclass(frozen=True)
-class _Geometry:
-    """What smoothing and the path check need: the TCP frame by forward kinematics, the waypoints' TCP by it
-    (the programmed path as the commands trace it, (N, 3) m), the distance along the targets (N,) m
-    and the tolerance, m."""
-
-    tcp_frame: Callable[[np.ndarray], np.ndarray]
-    tcp_m: np.ndarray
-    length_m: np.ndarray
-    tolerance_m: float
-    slack_m: np.ndarray
-
-    def deviation(self, q: np.ndarray, along_m: np.ndarray) -> float:
-        """Largest distance (m) of the samples' TCP from the polyline, each sample measured against
-        the move it runs (from its distance along the path) and its two neighbours."""
-        from problems.toolpath.stretch_fit import segment_distance
-
-        if not len(q):
-            return 0.0
-        P = self.tcp_m
-        n = len(P)
-        move = np.clip(np.searchsorted(self.length_m, along_m, side="left"), 1, n - 1)
-        pos = self.tcp_frame(q)[:, :3, 3]
-        d = np.min(
-            [
-                segment_distance(pos, P[np.clip(move + o - 1, 0, n - 1)], P[np.clip(move + o, 0, n - 1)])
-                + self.slack_m[np.clip(move + o, 0, n - 1)]
-                for o in (-1, 0, 1)
-            ],
-            axis=0,
-        )
-        return float(np.max(d))
-
-
 def _time_stretches(
     cols: np.ndarray,
     tau: np.ndarray,
@@ -368,10 +333,11 @@ def _time_stretches(
     dt: float,
     progress: Callable[[str, int, int], None] | None,
     options: dict,
-    geo: _Geometry | None = None,
+    geo: StretchGeometry | None = None,
 ) -> _Stretches:
     """Each stretch of the augmented path ``cols`` (N, n + 2) between consecutive stops ``bounds``
-    timed on its own (:func:`_time_stretch`), its programmed time counted from the stretch's start;
+    timed on its own (:func:`~problems.toolpath.feed_stretch.time_stretch_checked`), its programmed time
+    counted from the stretch's start;
     with ``geo``, a cutting stretch smoothed first and its samples checked against the path."""
     n = cols.shape[1] - 2
     run = _Stretches()
@@ -384,7 +350,7 @@ def _time_stretches(
             progress(stage, i, len(bounds) - 1)
         seg = cols[a : b + 1].copy()
         seg[:, n] -= FEED_TIME_SCALE * tau[a]
-        tr, how, dev, added, cruise = _time_checked(
+        tr, how, dev, added, cruise = time_stretch_checked(
             seg, tau[a : b + 1], aug, method, dt, tau[b] - tau[a], options, geo, int(a)
         )
         worst = max(worst, dev)
@@ -407,79 +373,6 @@ def _time_stretches(
     return run
 
 
-def _time_checked(
-    seg: np.ndarray,
-    tau: np.ndarray,
-    aug: JointLimits,
-    method: str,
-    dt: float,
-    programmed_s: float,
-    options: dict,
-    geo: _Geometry | None,
-    first: int = 0,
-) -> tuple[Trajectory, str, float, int, tuple[np.ndarray, ...] | None]:
-    """One stretch timed (:func:`_time_stretch`), a cutting stretch first fitted within the tolerance
-    (:func:`problems.toolpath.stretch_fit.fit_stretch`), and its samples' largest distance from the
-    path measured (m; 0 without ``geo``). Returns the trajectory, how it was timed, the distance,
-    the rows the fit added and, for a fitted stretch, its moves' cruising bounds (:func:`_cruise_bounds`)."""
-    n = seg.shape[1] - 2
-    if geo is None or programmed_s <= 0.0:
-        tr, how = _time_stretch(seg, aug, method, dt, programmed_s, options)
-        dev = geo.deviation(tr.q[:, :n], tr.q[:, n + 1] / LENGTH_SCALE) if geo is not None and tr.q.size else 0.0
-        return tr, how, dev, 0, None
-    from problems.toolpath.stretch_fit import fit_stretch
-
-    fitted, _, kept = fit_stretch(
-        seg, n, tau, geo.tcp_frame, geo.tolerance_m, geo.slack_m[first : first + len(seg)], time_column=n
-    )
-    tr, how = _time_stretch(fitted, aug, method, dt, programmed_s, options)
-    dev = geo.deviation(tr.q[:, :n], tr.q[:, n + 1] / LENGTH_SCALE) if tr.q.size else 0.0
-    return tr, how, dev, len(fitted) - len(seg), _cruise_bounds(fitted, kept, n, _checked_only(aug, method))
-
-
-#: A limit the method does not check, in :func:`_checked_only` (JointLimits takes finite values only).
-_UNCHECKED = 1e30
-
-
-def _checked_only(limits: JointLimits, method: str) -> JointLimits:
-    """``limits`` with those the method does not check made practically infinite (TOPP-RA's jerk)."""
-    from problems.timing import get_method
-
-    checked = get_method(method).checked_limits
-    return JointLimits(
-        *(
-            getattr(limits, k) if k in checked else np.full(limits.n_joints, _UNCHECKED)
-            for k in ("velocity", "acceleration", "jerk")
-        )
-    )
-
-
-def _cruise_bounds(rows: np.ndarray, kept: np.ndarray, n: int, aug: JointLimits) -> tuple[np.ndarray, ...]:
-    """Per move of a cutting stretch (between kept rows ``j - 1`` and ``j``): the fastest the joints
-    let it cruise over its feed (the smallest over its knots and interval middles,
-    :func:`problems.timing.lookahead.local_bounds`), the joint (0-based) and the kind of limit
-    (index into ``BOUND_KINDS``) that set it. Shapes ``(m - 1,)``."""
-    from problems.timing.lookahead import local_bounds
-    from problems.timing.path import SplinePath
-
-    path = SplinePath(rows)
-    k = path.knots
-    s = np.sort(np.r_[k, 0.5 * (k[:-1] + k[1:])])  # knot, middle, knot, ...
-    lb = local_bounds(path, aug, s, joints=n)
-    feed_speed = aug.velocity[n] / np.maximum(np.abs(path.spline.derivative(1)(s)[:, n]), 1e-300)
-    ratio = lb.speed / feed_speed
-    # per interval i: points 2i, 2i + 1, 2i + 2
-    tri = np.stack([ratio[0:-1:2], ratio[1::2], ratio[2::2]], axis=1)
-    arg = np.argmin(tri, axis=1)
-    idx = 2 * np.arange(len(tri)) + arg
-    per_interval = tri[np.arange(len(tri)), arg]
-    starts = kept[:-1]
-    moves = np.minimum.reduceat(per_interval, starts)
-    # the point of the smallest ratio of each move
-    where = np.array([starts[j] + int(np.argmin(per_interval[starts[j] : kept[j + 1]])) for j in range(len(starts))])
-    return moves, lb.joint[idx[where]], lb.kind[idx[where]]
-
-
 def _feed_law(
     joined: Trajectory,
     n: int,
@@ -487,7 +380,7 @@ def _feed_law(
     length: np.ndarray,
     feed: np.ndarray,
     run: _Stretches,
-    geo: _Geometry | None = None,
+    geo: StretchGeometry | None = None,
 ) -> FeedLaw:
     """The :class:`FeedLaw` of the joined augmented trajectory: the feed rate read from the
     programmed-time pseudo-joint, the move of each sample from the path-length one, the joints alone."""
@@ -575,45 +468,6 @@ def _joints_only(tr: Trajectory, n: int) -> Trajectory:
         limit_ratio={k: v[:n] for k, v in tr.limit_ratio.items()},
         first_pass_limit_ratio={k: v[:n] for k, v in tr.first_pass_limit_ratio.items()},
     )
-
-
-def _time_stretch(
-    seg: np.ndarray, aug: JointLimits, method: str, dt: float, programmed_s: float, options: dict
-) -> tuple[Trajectory, str]:
-    """One stretch timed by ``method``; re-timed by :data:`FEED_RETRY_METHOD` where that is shorter
-    (``"retimed"``), or by :data:`FEED_FALLBACK_METHOD` where ``method`` fails
-    (``"substituted:<its reason>"``); else ``""``."""
-    tr = time_parametrize(seg, aug, method, dt, **options)
-    if _retry(method, tr, len(seg), programmed_s):
-        again = time_parametrize(seg, aug, FEED_RETRY_METHOD, dt, **FEED_RETRY_OPTIONS)
-        if again.status is TimingStatus.OK and again.duration_s < tr.duration_s:
-            return replace(again, method=method), "retimed"
-    if tr.status is not TimingStatus.OK and _covers(FEED_FALLBACK_METHOD, method):
-        again = time_parametrize(seg, aug, FEED_FALLBACK_METHOD, dt)
-        if again.status is TimingStatus.OK:
-            return replace(again, method=method), f"substituted:{tr.status.value}: {tr.reason}"
-    return tr, ""
-
-
-def _covers(other: str, method: str) -> bool:
-    """Whether registered method ``other`` (not ``method``) checks every limit ``method`` checks."""
-    from problems.timing import available_methods, get_method
-
-    if other == method or other not in available_methods():
-        return False
-    return set(get_method(method).checked_limits) <= set(get_method(other).checked_limits)
-
-
-def _retry(method: str, tr: Trajectory, n_way: int, programmed_s: float) -> bool:
-    """Whether a stretch timed by ``method`` is re-timed by :data:`FEED_RETRY_METHOD`: a cutting stretch of
-    at least :data:`FEED_RETRY_MIN_WAYPOINTS` waypoints that ``method`` ran above
-    :data:`FEED_RETRY_RATIO` times its programmed time, when the retry method checks every limit
-    ``method`` does."""
-    if method not in FEED_RETRY_FROM or tr.status is not TimingStatus.OK or programmed_s <= 0.0:
-        return False
-    if n_way < FEED_RETRY_MIN_WAYPOINTS or tr.duration_s <= FEED_RETRY_RATIO * programmed_s:
-        return False
-    return _covers(FEED_RETRY_METHOD, method)
 
 
 def _join(pieces: list[Trajectory], dwell: np.ndarray, dt: float, width: int, method: str) -> Trajectory:

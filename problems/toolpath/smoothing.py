@@ -148,54 +148,16 @@ def smooth_stretch(
         Shape ``(m, n)``, rad; ``q`` itself when the stretch is too short or ``tau`` not increasing.
     """
     tau = np.asarray(tau, dtype=float)
-    m = len(tau)
-    if m < SMOOTH_MIN_WAYPOINTS or not np.all(np.diff(tau) > 0.0) or not budget_m > 0.0:
+    if len(tau) < SMOOTH_MIN_WAYPOINTS or not np.all(np.diff(tau) > 0.0) or not budget_m > 0.0:
         return q
-    from scipy.linalg import solveh_banded
-
-    n = q.shape[1]
-    # seconds are small: work in units of the stretch's mean step so the system is well scaled
-    unit = float(tau[-1] - tau[0]) / (m - 1)
-    c, h = _third_difference((tau - tau[0]) / unit)
-    smooth = _normal_bands(c, h, m)  # (4, m): D^T H D, per joint
-    rows = np.arange(len(h))
-    Dq = sum(c[:, a, None] * q[rows + a] for a in range(4))  # (m - 3, n)
-    rhs = np.zeros_like(q)
-    for a in range(4):
-        np.add.at(rhs, rows + a, -(h * c[:, a])[:, None] * Dq)
-    rhs = rhs[1:-1].ravel()  # the interior unknowns (the ends are kept), joint fastest
-    spin_m = budget_m / SMOOTH_SPIN_MAX_RAD
-    ref = _points(tcp_frame, q, spin_m)
-    metric = _metric(tcp_frame, q[1:-1])  # (m - 2, n, n): |J d|^2 of the two points
-    u = 3 * n  # upper bandwidth of the interleaved system
-    N = (m - 2) * n
-    base = np.zeros((u + 1, N))
-    for o in range(4):  # D^T H D (x) I_n: offsets 3n, 2n, n, 0
-        base[u - o * n] = np.repeat(smooth[3 - o, 1:-1], n)
-    col = np.arange(N)
-    blk_j = col % n
-    k_of = col // n
-
-    def solve(log_lam: float, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        lam = 10.0**log_lam
-        band = lam * base
-        for off in range(n):  # the data term's blocks w_k M_k: entry (k n + j - off, k n + j)
-            ok = blk_j >= off
-            band[u - off, col[ok]] += weight[k_of[ok]] * metric[k_of[ok], blk_j[ok] - off, blk_j[ok]]
-        out = q.copy()
-        try:
-            out[1:-1] += solveh_banded(band, lam * rhs, check_finite=False).reshape(m - 2, n)
-        except np.linalg.LinAlgError:  # lam so large that the system is singular in floating point
-            return q, np.full(m, np.inf)
-        return out, _moved(tcp_frame, out, ref, spin_m)
-
-    ones = np.ones(m - 2) if weight is None else np.asarray(weight, dtype=float)[1:-1].copy()
+    system = _System(tau, q, tcp_frame, budget_m)
+    ones = np.ones(len(tau) - 2) if weight is None else np.asarray(weight, dtype=float)[1:-1].copy()
     # 1. the largest uniform smoothing within the budget (bisection)
     lo, hi = SMOOTH_LOG_LAM_MIN, SMOOTH_LOG_LAM_MAX
     best = q
     for _ in range(SMOOTH_BISECTIONS):
         mid = 0.5 * (lo + hi)
-        out, moved = solve(mid, ones)
+        out, moved = system.solve(mid, ones)
         if moved.max() <= budget_m:
             lo, best = mid, out
         else:
@@ -210,7 +172,7 @@ def smooth_stretch(
         trial_w = weight.copy()
         log_lam_try = log_lam + SMOOTH_LOCAL_STEP_DECADES
         for _ in range(SMOOTH_REWEIGHTS):
-            out, moved = solve(log_lam_try, trial_w)
+            out, moved = system.solve(log_lam_try, trial_w)
             over = moved[1:-1] / budget_m
             if over.max() <= 1.0:
                 break
@@ -219,3 +181,49 @@ def smooth_stretch(
             break
         best, weight, log_lam = out, trial_w, log_lam_try
     return best
+
+
+class _System:
+    """The banded normal equations of one stretch's smoothing (the module docstring), built once;
+    :meth:`solve` for a ``lam`` and weights."""
+
+    def __init__(self, tau: np.ndarray, q: np.ndarray, tcp_frame: Callable[[np.ndarray], np.ndarray], budget_m: float):
+        m, n = q.shape
+        self.q, self.tcp_frame = q, tcp_frame
+        # seconds are small: work in units of the stretch's mean step so the system is well scaled
+        unit = float(tau[-1] - tau[0]) / (m - 1)
+        c, h = _third_difference((tau - tau[0]) / unit)
+        smooth = _normal_bands(c, h, m)  # (4, m): D^T H D, per joint
+        rows = np.arange(len(h))
+        Dq = sum(c[:, a, None] * q[rows + a] for a in range(4))  # (m - 3, n)
+        rhs = np.zeros_like(q)
+        for a in range(4):
+            np.add.at(rhs, rows + a, -(h * c[:, a])[:, None] * Dq)
+        self.rhs = rhs[1:-1].ravel()  # the interior unknowns (the ends are kept), joint fastest
+        self.spin_m = budget_m / SMOOTH_SPIN_MAX_RAD
+        self.ref = _points(tcp_frame, q, self.spin_m)
+        self.metric = _metric(tcp_frame, q[1:-1])  # (m - 2, n, n): |J d|^2 of the two points
+        self.u = 3 * n  # upper bandwidth of the interleaved system
+        N = (m - 2) * n
+        self.base = np.zeros((self.u + 1, N))
+        for o in range(4):  # D^T H D (x) I_n: offsets 3n, 2n, n, 0
+            self.base[self.u - o * n] = np.repeat(smooth[3 - o, 1:-1], n)
+        self.col = np.arange(N)
+
+    def solve(self, log_lam: float, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The smoothed waypoints for ``lam = 10**log_lam`` and interior weights ``weight``, and how
+        far each moves (:func:`_moved`, m); ``q`` and inf where the system is singular."""
+        from scipy.linalg import solveh_banded
+
+        m, n = self.q.shape
+        band = 10.0**log_lam * self.base
+        blk_j, k_of = self.col % n, self.col // n
+        for off in range(n):  # the data term's blocks w_k M_k: entry (k n + j - off, k n + j)
+            ok = blk_j >= off
+            band[self.u - off, self.col[ok]] += weight[k_of[ok]] * self.metric[k_of[ok], blk_j[ok] - off, blk_j[ok]]
+        out = self.q.copy()
+        try:
+            out[1:-1] += solveh_banded(band, 10.0**log_lam * self.rhs, check_finite=False).reshape(m - 2, n)
+        except np.linalg.LinAlgError:  # lam so large that the system is singular in floating point
+            return self.q, np.full(m, np.inf)
+        return out, _moved(self.tcp_frame, out, self.ref, self.spin_m)

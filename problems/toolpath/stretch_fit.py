@@ -23,6 +23,7 @@ that still leaves the tolerance is reported, not hidden (``problems.toolpath.fee
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -92,6 +93,42 @@ def _interval_deviation(
     return dev, length
 
 
+class _FitState:
+    """The rows of a fit and what goes with each: the joints to smooth (``q0``), their programmed
+    TCP (``chord``), time, weight, slack and, for the original rows, their index (``kept``)."""
+
+    def __init__(
+        self, rows: np.ndarray, n: int, tcp_frame: Callable[[np.ndarray], np.ndarray], tau: np.ndarray, slack_m: Any
+    ):
+        self.rows = rows
+        self.q0 = rows[:, :n].copy()
+        self.chord = tcp_frame(self.q0)[:, :3, 3]
+        self.tau = tau
+        self.weight = np.ones(len(rows))
+        self.kept = np.arange(len(rows))
+        self.slack = np.zeros(len(rows)) if slack_m is None else np.asarray(slack_m, dtype=float).copy()
+
+    def pin_or_split(self, bad: np.ndarray) -> None:
+        """Pin the ends of the ``bad`` intervals; split those whose ends were pinned already."""
+        ends = np.zeros(len(self.rows), dtype=bool)
+        ends[:-1] |= bad
+        ends[1:] |= bad
+        pinned = self.weight >= FIT_PIN_WEIGHT
+        split = bad & pinned[:-1] & pinned[1:]
+        self.weight[ends] = FIT_PIN_WEIGHT
+        if not split.any():
+            return
+        at = np.flatnonzero(split)
+
+        def mid(a: np.ndarray) -> np.ndarray:
+            return np.insert(a, at + 1, 0.5 * (a[at] + a[at + 1]), axis=0)
+
+        self.rows, self.q0, self.chord, self.tau = mid(self.rows), mid(self.q0), mid(self.chord), mid(self.tau)
+        self.weight = np.insert(self.weight, at + 1, FIT_PIN_WEIGHT)
+        self.slack = np.insert(self.slack, at + 1, self.slack[at + 1])
+        self.kept = self.kept + np.searchsorted(at, self.kept, side="left")  # rows inserted before each kept row
+
+
 def fit_stretch(
     rows: np.ndarray,
     n: int,
@@ -134,45 +171,25 @@ def fit_stretch(
     kept : np.ndarray
         Shape ``(m,)``, int: the index in ``rows`` of each original row.
     """
-    q0 = rows[:, :n].copy()
-    chord = tcp_frame(q0)[:, :3, 3]
-    tau = np.asarray(tau, dtype=float)
-    weight = np.ones(len(rows))
-    kept = np.arange(len(rows))
-    slack = np.zeros(len(rows)) if slack_m is None else np.asarray(slack_m, dtype=float).copy()
+    st = _FitState(rows, n, tcp_frame, np.asarray(tau, dtype=float), slack_m)
     dev = np.zeros(0)
-    fitted, fitted_kept, fitted_slack = rows, kept, slack
+    fitted, fitted_kept, fitted_slack = rows, st.kept, st.slack
     limit = FIT_CHECK_SHARE * tolerance_m
     for _ in range(FIT_ROUNDS):
-        fitted = rows.copy()
-        fitted[:, :n] = smooth_stretch(tau, q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, weight)
+        fitted = st.rows.copy()
+        fitted[:, :n] = smooth_stretch(st.tau, st.q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, st.weight)
         if time_column is not None:
             # the programmed time over each interval scaled by the TCP's path length there over the
             # chord's (the smoothing moves waypoints along the path too): a bound on its rate is then
             # a bound on the TCP's speed; the spline's parameter follows it, so the check comes after
-            _, run = _interval_deviation(fitted, n, tcp_frame, chord)
-            ratio = run / np.maximum(np.linalg.norm(np.diff(chord, axis=0), axis=1), 1e-300)
+            _, run = _interval_deviation(fitted, n, tcp_frame, st.chord)
+            ratio = run / np.maximum(np.linalg.norm(np.diff(st.chord, axis=0), axis=1), 1e-300)
             step = np.diff(fitted[:, time_column]) * ratio
             fitted[:, time_column] = fitted[0, time_column] + np.r_[0.0, np.cumsum(step)]
-        dev, _ = _interval_deviation(fitted, n, tcp_frame, chord, limit)
-        fitted_kept, fitted_slack = kept.copy(), slack.copy()
-        bad = dev + slack[1:] > limit
+        dev, _ = _interval_deviation(fitted, n, tcp_frame, st.chord, limit)
+        fitted_kept, fitted_slack = st.kept.copy(), st.slack.copy()
+        bad = dev + st.slack[1:] > limit
         if not bad.any():
             break
-        ends = np.zeros(len(rows), dtype=bool)
-        ends[:-1] |= bad
-        ends[1:] |= bad
-        pinned = weight >= FIT_PIN_WEIGHT
-        split = bad & pinned[:-1] & pinned[1:]
-        weight[ends] = FIT_PIN_WEIGHT
-        if split.any():
-            at = np.flatnonzero(split)
-            mid = 0.5 * (rows[at] + rows[at + 1])
-            rows = np.insert(rows, at + 1, mid, axis=0)
-            q0 = np.insert(q0, at + 1, 0.5 * (q0[at] + q0[at + 1]), axis=0)
-            chord = np.insert(chord, at + 1, 0.5 * (chord[at] + chord[at + 1]), axis=0)
-            tau = np.insert(tau, at + 1, 0.5 * (tau[at] + tau[at + 1]))
-            weight = np.insert(weight, at + 1, FIT_PIN_WEIGHT)
-            slack = np.insert(slack, at + 1, slack[at + 1])
-            kept = kept + np.searchsorted(at, kept, side="left")  # rows inserted before each kept row
+        st.pin_or_split(bad)
     return fitted, float((dev + fitted_slack[1:]).max()) if dev.size else 0.0, fitted_kept
