@@ -322,7 +322,9 @@ def _best_law(grid: _Grid, dt: float) -> FilteredLaw:
     lo = max(FILTER_T_MIN_S, dt)
     Ts = np.unique(np.geomspace(lo, max(lo, FILTER_T_MAX_S), FILTER_CANDIDATES))
     safe = min((_law(grid, float(T), v_max, 2.0) for T in Ts), key=lambda law: law.duration)
-    bold = sorted((_law(grid, float(T), v_max, 1.0) for T in Ts), key=lambda law: law.duration)
+    # the bold factor gains most near the safe optimum's filter length: tried there and one step around
+    near = Ts[max(0, int(np.searchsorted(Ts, safe.T)) - 1) : int(np.searchsorted(Ts, safe.T)) + 2]
+    bold = sorted((_law(grid, float(T), v_max, 1.0) for T in near), key=lambda law: law.duration)
     for law in bold:
         if law.duration >= safe.duration:
             break

@@ -208,7 +208,14 @@ class _System:
         self.base = np.zeros((self.u + 1, N))
         for o in range(4):  # D^T H D (x) I_n: offsets 3n, 2n, n, 0
             self.base[self.u - o * n] = np.repeat(smooth[3 - o, 1:-1], n)
-        self.col = np.arange(N)
+        col = np.arange(N)
+        blk_j, k_of = col % n, col // n
+        # the data term's blocks w_k M_k, entry (k n + j - off, k n + j): per offset, the columns, their
+        # waypoint and the metric's values (the weights change between solves, these do not)
+        self.blocks = []
+        for off in range(n):
+            ok = blk_j >= off
+            self.blocks.append((off, col[ok], k_of[ok], self.metric[k_of[ok], blk_j[ok] - off, blk_j[ok]]))
 
     def solve(self, log_lam: float, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The smoothed waypoints for ``lam = 10**log_lam`` and interior weights ``weight``, and how
@@ -217,10 +224,8 @@ class _System:
 
         m, n = self.q.shape
         band = 10.0**log_lam * self.base
-        blk_j, k_of = self.col % n, self.col // n
-        for off in range(n):  # the data term's blocks w_k M_k: entry (k n + j - off, k n + j)
-            ok = blk_j >= off
-            band[self.u - off, self.col[ok]] += weight[k_of[ok]] * self.metric[k_of[ok], blk_j[ok] - off, blk_j[ok]]
+        for off, cols, k, vals in self.blocks:
+            band[self.u - off, cols] += weight[k] * vals
         out = self.q.copy()
         try:
             out[1:-1] += solveh_banded(band, 10.0**log_lam * self.rhs, check_finite=False).reshape(m - 2, n)
