@@ -14,8 +14,9 @@ What is checked (``docs/cell.md``, "What is checked where"):
   that ends at the TCP), which may touch the workpiece (its pair is not checked), and capsules
   fixed to the base (they do not move: the problem file's base-footprint check covers the base,
   :func:`problems.cell.footprint_overlaps`); distances through coal
-  (:func:`models.collision.capsule_shape_distance`), a bounding-sphere lower bound first so that
-  coal is asked only for the pairs that can be the nearest of their sample;
+  (:func:`models.collision.capsule_shape_distance`) only where the closed form
+  (:mod:`models.collision.vectorised`, vectorised over the samples) is not exact and its lower
+  bound can be the nearest of its sample;
 * **self-collision**: the arm's self pairs (:func:`models.collision.self_collision_pairs`) and the
   tool's capsules against links 0..4, closed form, vectorised over the samples.
 
@@ -47,6 +48,7 @@ from models.collision import (
 )
 from models.collision.scene import Scene
 from models.collision.segments import segment_distance
+from models.collision.vectorised import capsule_object_distance
 from models.robot import Robot
 from problems.compensation import exact
 from problems.posture import BranchStatus, PostureResult, PostureStatus
@@ -93,9 +95,13 @@ def segments(geom: Scene, q: np.ndarray) -> np.ndarray:
 def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
     """Signed distances (m) of every pair at every configuration, shape (N, M * K + P).
 
-    Object pairs not checked are ``+inf``. An object pair whose bounding-sphere lower bound is
-    not below the smallest distance of its sample holds that lower bound (a distance no smaller
-    than the sample's smallest), so the minimum of each row, and its pair, are exact.
+    Object pairs not checked are ``+inf``. Every checked object pair is first measured in closed
+    form, vectorised over the samples (:func:`models.collision.vectorised.capsule_object_distance`
+    on the object's kernel proxy): exact for a shape whose closed form is exact (box, sphere), a
+    lower bound otherwise (cylinder, mesh). Such a lower bound that is below the smallest distance
+    of its sample is replaced by coal's exact distance, nearest first, until the rest cannot be the
+    nearest; a pair left at its lower bound holds a distance no smaller than the sample's
+    smallest, so the minimum of each row, and its pair, are exact.
     """
     seg = segments(geom, q)
     n, m = seg.shape[:2]
@@ -105,22 +111,38 @@ def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
     self_d = capsule_distance(seg[:, sp[:, 0]], r[sp[:, 0]], seg[:, sp[:, 1]], r[sp[:, 1]])
     obj = np.full((n, m, k), np.inf)
     if k:
-        d_c, _, _ = segment_distance(
-            seg[:, :, None, 0], seg[:, :, None, 1], geom.centre[None, None], geom.centre[None, None]
+        exact = np.zeros(k, dtype=bool)
+        for j in range(k):
+            cols = np.flatnonzero(geom.checked[:, j])
+            obj[:, cols, j], exact[j] = _closed_form(geom, j, seg[:, cols], r[cols])
+        best = np.minimum(
+            self_d.min(axis=1) if sp.size else np.inf, np.where(exact[None, None], obj, np.inf).min(axis=(1, 2))
         )
-        lower = np.where(geom.checked[None], d_c - r[None, :, None] - geom.bound[None, None], np.inf)
-        best = self_d.min(axis=1) if sp.size else np.full(n, np.inf)
-        for i in range(n):
-            for flat in np.argsort(lower[i], axis=None):
+        bound = np.where(exact[None, None], np.inf, obj)  # the lower bounds coal may have to tighten
+        for i in np.flatnonzero((bound < best[:, None, None]).any(axis=(1, 2))):
+            for flat in np.argsort(bound[i], axis=None):
                 c, j = divmod(int(flat), k)
-                if not lower[i, c, j] < best[i]:
+                if not bound[i, c, j] < best[i]:
                     break  # every remaining pair is at least this far
                 d = capsule_shape_distance(seg[i, c, 0], seg[i, c, 1], r[c], geom.shapes[j]).distance
                 obj[i, c, j] = d
                 best[i] = min(best[i], d)
-        unknown = np.isinf(obj) & geom.checked[None]
-        obj[unknown] = lower[unknown]
     return np.hstack([obj.reshape(n, m * k), self_d])
+
+
+def _closed_form(geom: Scene, j: int, seg: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Object ``j``'s signed distances from capsules ``seg`` (N, C, 2, 3), ``radii`` (C,), m, in
+    closed form, and whether they are exact: its kernel proxy's closed form
+    (:meth:`~models.collision.shapes.Shape.capsule_distance`), else (a shape kind without one) the
+    distance from its bounding sphere, a lower bound."""
+    o = geom.shapes[j]
+    proxy = o.proxy(nlp=False)
+    try:
+        return capsule_object_distance(seg, radii, proxy), proxy.shape is o.shape and o.shape.exact_in_kernel
+    except NotImplementedError:
+        c = geom.centre[j]
+        d_c, _, _ = segment_distance(seg[..., 0, :], seg[..., 1, :], c, c)
+        return d_c - radii - geom.bound[j], False
 
 
 def _clearance(d_row_min: float, pair: str, clearance: float, where: str, index: int) -> Clearance:
