@@ -67,6 +67,11 @@ __all__ = [
 ]
 
 
+#: Samples measured at once by :func:`distance_table` (its temporaries hold about 15 candidate
+#: points per capsule, object and sample: some 100 MB for a UR10 with a tool in a five-object cell).
+CHECK_BLOCK = 4096
+
+
 def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) -> Scene:
     """The collision scene to check for a robot in a cell (:meth:`problems.cell.Cell.scene`).
 
@@ -93,45 +98,93 @@ def segments(geom: Scene, q: np.ndarray) -> np.ndarray:
 
 
 def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
-    """Signed distances (m) of every pair at every configuration, shape (N, M * K + P).
+    """Signed distances (m) of the pairs at configurations ``q`` (N, 6) rad, shape (N, M * K + P),
+    such that each row's smallest entry is exact, with its pair, where it is below the clearance
+    or is the table's smallest (elsewhere it is at least the larger of the two).
 
-    Object pairs not checked are ``+inf``. Every checked object pair is first measured in closed
-    form, vectorised over the samples (:func:`models.collision.vectorised.capsule_object_distance`
-    on the object's kernel proxy): exact for a shape whose closed form is exact (box, sphere), a
-    lower bound otherwise (cylinder, mesh). Such a lower bound that is below the smallest distance
-    of its sample is replaced by coal's exact distance, nearest first, until the rest cannot be the
-    nearest; a pair left at its lower bound holds a distance no smaller than the sample's
-    smallest, so the minimum of each row, and its pair, are exact.
+    Self pairs (P) are measured in closed form. Object pairs not checked are ``+inf``. Every
+    checked object pair is first bounded from the capsule's mid point (a shape's signed distance
+    is 1-Lipschitz): ``sd(mid) - r`` from above (where the object's closed form is exact) and
+    ``sd(mid) - half length - r`` from below. A pair is measured only where its lower bound is
+    below both its sample's least upper bound and ``max(clearance, the table's least upper
+    bound)`` (else it can be neither the nearest pair of its sample nor matter to the check):
+    in closed form, vectorised (:func:`models.collision.vectorised.capsule_object_distance` on the
+    object's kernel proxy), exact for boxes and spheres; where that is only a bound (cylinder,
+    mesh) and can be the nearest of its sample, by coal, nearest first. A pair not measured holds
+    its lower bound. Measured in blocks of :data:`CHECK_BLOCK` samples (memory).
     """
+    q = np.atleast_2d(q)
+    blocks = [_bounds(geom, q[i : i + CHECK_BLOCK]) for i in range(0, q.shape[0], CHECK_BLOCK)] or [_bounds(geom, q)]
+    theta = max(geom.clearance, min(float(b[3].min(initial=np.inf)) for b in blocks))
+    return np.vstack([_measure(geom, *b, theta) for b in blocks])
+
+
+def _bounds(geom: Scene, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Segments (N, M, 2, 3), self distances (N, P), the object pairs' lower bounds (N, M, K) and
+    each sample's least upper bound (N,) (:func:`distance_table`)."""
     seg = segments(geom, q)
     n, m = seg.shape[:2]
     k = len(geom.shapes)
     r = geom.model.radius
     sp = geom.self_pairs
     self_d = capsule_distance(seg[:, sp[:, 0]], r[sp[:, 0]], seg[:, sp[:, 1]], r[sp[:, 1]])
-    obj = np.full((n, m, k), np.inf)
-    if k:
-        exact = np.zeros(k, dtype=bool)
-        for j in range(k):
-            cols = np.flatnonzero(geom.checked[:, j])
-            obj[:, cols, j], exact[j] = _closed_form(geom, j, seg[:, cols], r[cols])
-        best = np.minimum(
-            self_d.min(axis=1) if sp.size else np.inf, np.where(exact[None, None], obj, np.inf).min(axis=(1, 2))
-        )
-        bound = np.where(exact[None, None], np.inf, obj)  # the lower bounds coal may have to tighten
-        for i in np.flatnonzero((bound < best[:, None, None]).any(axis=(1, 2))):
-            for flat in np.argsort(bound[i], axis=None):
-                c, j = divmod(int(flat), k)
-                if not bound[i, c, j] < best[i]:
-                    break  # every remaining pair is at least this far
-                d = capsule_shape_distance(seg[i, c, 0], seg[i, c, 1], r[c], geom.shapes[j]).distance
-                obj[i, c, j] = d
-                best[i] = min(best[i], d)
+    mid = 0.5 * (seg[:, :, 0] + seg[:, :, 1])
+    half = 0.5 * np.linalg.norm(seg[:, :, 1] - seg[:, :, 0], axis=-1) + r  # (N, M)
+    lower, upper = np.full((n, m, k), np.inf), np.full((n, m, k), np.inf)
+    for j in range(k):
+        sd, exact = _mid_distance(geom, j, mid)
+        lower[:, :, j] = np.where(geom.checked[:, j], sd - half, np.inf)
+        if exact:
+            upper[:, :, j] = np.where(geom.checked[:, j], sd - r, np.inf)
+    least = np.minimum(self_d.min(axis=1) if sp.size else np.inf, upper.min(axis=(1, 2)) if k else np.inf)
+    return seg, self_d, lower, np.broadcast_to(least, (n,)).copy()
+
+
+def _mid_distance(geom: Scene, j: int, mid: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Object ``j``'s signed distance (m) from points ``mid`` (N, M, 3), and whether it is exact
+    (else a lower bound: measured on its kernel proxy, or from its bounding sphere)."""
+    o = geom.shapes[j]
+    proxy = o.proxy(nlp=False)
+    exact = proxy.shape is o.shape and o.shape.exact_in_kernel
+    try:
+        return proxy.shape.signed_distance(proxy.to_local(mid.reshape(-1, 3))).reshape(mid.shape[:2]), exact
+    except NotImplementedError:
+        return np.linalg.norm(mid - geom.centre[j], axis=-1) - geom.bound[j], False
+
+
+def _measure(
+    geom: Scene,
+    seg: np.ndarray,
+    self_d: np.ndarray,
+    lower: np.ndarray,
+    least: np.ndarray,
+    theta: float,
+) -> np.ndarray:
+    """The rows of :func:`distance_table` of one block, from its bounds (:func:`_bounds`)."""
+    n, m, k = lower.shape
+    r = geom.model.radius
+    obj = lower.copy()
+    exact = np.zeros(k, dtype=bool)
+    need = (lower < least[:, None, None]) & (lower < theta)
+    for j in range(k):
+        i, c = np.nonzero(need[:, :, j])
+        if i.size:
+            obj[i, c, j], exact[j] = _closed_form(geom, j, seg[i, c], r[c])
+    best = np.minimum(self_d.min(axis=1) if self_d.size else np.inf, np.where(exact, obj, np.inf).min(axis=(1, 2)))
+    bound = np.where(need & ~exact[None, None], obj, np.inf)  # measured bounds coal may have to tighten
+    for i in np.flatnonzero((bound < np.minimum(best, theta)[:, None, None]).any(axis=(1, 2))):
+        for flat in np.argsort(bound[i], axis=None):
+            c, j = divmod(int(flat), k)
+            if not bound[i, c, j] < min(best[i], theta):
+                break  # every remaining pair is at least this far
+            d = capsule_shape_distance(seg[i, c, 0], seg[i, c, 1], r[c], geom.shapes[j]).distance
+            obj[i, c, j] = d
+            best[i] = min(best[i], d)
     return np.hstack([obj.reshape(n, m * k), self_d])
 
 
 def _closed_form(geom: Scene, j: int, seg: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Object ``j``'s signed distances from capsules ``seg`` (N, C, 2, 3), ``radii`` (C,), m, in
+    """Object ``j``'s signed distances from capsules ``seg`` (..., 2, 3), ``radii`` (...), m, in
     closed form, and whether they are exact: its kernel proxy's closed form
     (:meth:`~models.collision.shapes.Shape.capsule_distance`), else (a shape kind without one) the
     distance from its bounding sphere, a lower bound."""
