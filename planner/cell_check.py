@@ -102,16 +102,17 @@ def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
     such that each row's smallest entry is exact, with its pair, where it is below the clearance
     or is the table's smallest (elsewhere it is at least the larger of the two).
 
-    Self pairs (P) are measured in closed form. Object pairs not checked are ``+inf``. Every
-    checked object pair is first bounded from the capsule's mid point (a shape's signed distance
-    is 1-Lipschitz): ``sd(mid) - r`` from above (where the object's closed form is exact) and
-    ``sd(mid) - half length - r`` from below. A pair is measured only where its lower bound is
-    below both its sample's least upper bound and ``max(clearance, the table's least upper
-    bound)`` (else it can be neither the nearest pair of its sample nor matter to the check):
-    in closed form, vectorised (:func:`models.collision.vectorised.capsule_object_distance` on the
-    object's kernel proxy), exact for boxes and spheres; where that is only a bound (cylinder,
-    mesh) and can be the nearest of its sample, by coal, nearest first. A pair not measured holds
-    its lower bound. Measured in blocks of :data:`CHECK_BLOCK` samples (memory).
+    Object pairs not checked are ``+inf``. Every pair is first bounded from its capsules' mid
+    points (a shape's signed distance is 1-Lipschitz): an object pair by ``sd(mid) - r`` from
+    above (where the object's closed form is exact) and ``sd(mid) - half length - r`` from below;
+    a self pair by the mid points' distance less both radii from above and less both half
+    lengths and radii from below. A pair is measured only where its lower bound is below both its
+    sample's least upper bound and ``max(clearance, the table's least upper bound)`` (else it can
+    be neither the nearest pair of its sample nor matter to the check): self pairs in closed
+    form, object pairs in closed form too (:func:`models.collision.vectorised.capsule_object_distance`
+    on the object's kernel proxy, vectorised), exact for boxes and spheres; where that is only a
+    bound (cylinder, mesh) and can be the nearest of its sample, by coal, nearest first. A pair
+    not measured holds its lower bound. Measured in blocks of :data:`CHECK_BLOCK` samples (memory).
     """
     q = np.atleast_2d(q)
     blocks = [_bounds(geom, q[i : i + CHECK_BLOCK]) for i in range(0, q.shape[0], CHECK_BLOCK)] or [_bounds(geom, q)]
@@ -120,24 +121,25 @@ def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
 
 
 def _bounds(geom: Scene, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Segments (N, M, 2, 3), self distances (N, P), the object pairs' lower bounds (N, M, K) and
+    """Segments (N, M, 2, 3), the self pairs' lower bounds (N, P), the object pairs' (N, M, K) and
     each sample's least upper bound (N,) (:func:`distance_table`)."""
     seg = segments(geom, q)
     n, m = seg.shape[:2]
     k = len(geom.shapes)
     r = geom.model.radius
-    sp = geom.self_pairs
-    self_d = capsule_distance(seg[:, sp[:, 0]], r[sp[:, 0]], seg[:, sp[:, 1]], r[sp[:, 1]])
+    ci, cj = geom.self_pairs[:, 0], geom.self_pairs[:, 1]
     mid = 0.5 * (seg[:, :, 0] + seg[:, :, 1])
     half = 0.5 * np.linalg.norm(seg[:, :, 1] - seg[:, :, 0], axis=-1) + r  # (N, M)
-    lower, upper = np.full((n, m, k), np.inf), np.full((n, m, k), np.inf)
+    gap = np.linalg.norm(mid[:, ci] - mid[:, cj], axis=-1)  # (N, P)
+    self_lower = gap - half[:, ci] - half[:, cj]
+    least = (gap - r[ci] - r[cj]).min(axis=1, initial=np.inf)
+    lower = np.full((n, m, k), np.inf)
     for j in range(k):
         sd, exact = _mid_distance(geom, j, mid)
         lower[:, :, j] = np.where(geom.checked[:, j], sd - half, np.inf)
         if exact:
-            upper[:, :, j] = np.where(geom.checked[:, j], sd - r, np.inf)
-    least = np.minimum(self_d.min(axis=1) if sp.size else np.inf, upper.min(axis=(1, 2)) if k else np.inf)
-    return seg, self_d, lower, np.broadcast_to(least, (n,)).copy()
+            least = np.minimum(least, np.where(geom.checked[:, j], sd - r, np.inf).min(axis=1))
+    return seg, self_lower, lower, np.broadcast_to(least, (n,)).copy()
 
 
 def _mid_distance(geom: Scene, j: int, mid: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -155,7 +157,7 @@ def _mid_distance(geom: Scene, j: int, mid: np.ndarray) -> tuple[np.ndarray, boo
 def _measure(
     geom: Scene,
     seg: np.ndarray,
-    self_d: np.ndarray,
+    self_lower: np.ndarray,
     lower: np.ndarray,
     least: np.ndarray,
     theta: float,
@@ -163,6 +165,11 @@ def _measure(
     """The rows of :func:`distance_table` of one block, from its bounds (:func:`_bounds`)."""
     n, m, k = lower.shape
     r = geom.model.radius
+    self_d = self_lower.copy()
+    i, s = np.nonzero((self_lower < least[:, None]) & (self_lower < theta))
+    if i.size:
+        ci, cj = geom.self_pairs[s, 0], geom.self_pairs[s, 1]
+        self_d[i, s] = capsule_distance(seg[i, ci], r[ci], seg[i, cj], r[cj])
     obj = lower.copy()
     exact = np.zeros(k, dtype=bool)
     need = (lower < least[:, None, None]) & (lower < theta)
@@ -170,7 +177,7 @@ def _measure(
         i, c = np.nonzero(need[:, :, j])
         if i.size:
             obj[i, c, j], exact[j] = _closed_form(geom, j, seg[i, c], r[c])
-    best = np.minimum(self_d.min(axis=1) if self_d.size else np.inf, np.where(exact, obj, np.inf).min(axis=(1, 2)))
+    best = np.minimum(least, np.where(need & exact[None, None], obj, np.inf).min(axis=(1, 2), initial=np.inf))
     bound = np.where(need & ~exact[None, None], obj, np.inf)  # measured bounds coal may have to tighten
     for i in np.flatnonzero((bound < np.minimum(best, theta)[:, None, None]).any(axis=(1, 2))):
         for flat in np.argsort(bound[i], axis=None):
