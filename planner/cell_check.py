@@ -273,6 +273,9 @@ class CellCheck:
         When the stiffness-best branch collides: what the collision-free choice pays (one line).
     check_time_s : dict
         Wall time of each check, s, and ``poses``: the number of poses checked.
+    checked : dict branch -> (command, posture)
+        The joints (N, 6) rad each entry of ``branches`` was checked at (:func:`check_command`
+        does not measure them again).
     """
 
     geometry: Scene
@@ -286,6 +289,7 @@ class CellCheck:
     stiffness_best: int | None = None
     choice_note: str = ""
     check_time_s: dict[str, float] = field(default_factory=dict)
+    checked: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
 
 
 def check_branches(
@@ -358,6 +362,7 @@ def choose_collision_free(
     kept = check_branches(geom, {b: r.q for b, r in failed.items()}, {})
     ref = free if free is not None and free.ok else ps
     check = CellCheck(geom, found, stiffness_best=ref.chosen)
+    check.checked = {b: (commands[b], usable[b].q) for b in found}
     branches = dict(ps.branches)
     for b, c in found.items():
         if c.status is not ClearanceStatus.OK:
@@ -392,11 +397,16 @@ def choose_collision_free(
     return out, check
 
 
-def check_command(check: CellCheck, q_command: np.ndarray, q_planned: np.ndarray) -> None:
-    """The chosen branch's command at the waypoints again, and the deflection between it and
-    the planned posture (:attr:`CellCheck.deflection_m`)."""
+def check_command(check: CellCheck, q_command: np.ndarray, q_planned: np.ndarray, branch: int | None = None) -> None:
+    """The chosen branch's command at the waypoints again (unless ``branch`` was checked at these
+    very joints: :attr:`CellCheck.checked`), and the deflection between it and the planned posture
+    (:attr:`CellCheck.deflection_m`)."""
     g = check.geometry
-    check.waypoints = first_violation(g, np.minimum(distance_table(g, q_command), distance_table(g, q_planned)))
+    seen = check.checked.get(branch) if branch is not None else None
+    if seen is not None and np.array_equal(seen[0], q_command) and np.array_equal(seen[1], q_planned):
+        check.waypoints = check.branches[branch]
+    else:
+        check.waypoints = first_violation(g, np.minimum(distance_table(g, q_command), distance_table(g, q_planned)))
     size, capsule, k = largest_displacement(g, q_command, q_planned)
     check.deflection_m, check.deflection_where = size, f"{capsule} at waypoint {k}"
 
