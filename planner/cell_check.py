@@ -100,24 +100,29 @@ def segments(geom: Scene, q: np.ndarray) -> np.ndarray:
 def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
     """Signed distances (m) of the pairs at configurations ``q`` (N, 6) rad, shape (N, M * K + P),
     such that each row's smallest entry is exact, with its pair, where it is below the clearance
-    or is the table's smallest (elsewhere it is at least the larger of the two).
+    or is the smallest of its block of :data:`CHECK_BLOCK` rows (elsewhere it is at least the
+    larger of the two): so are the table's smallest and its first row below the clearance.
 
     Object pairs not checked are ``+inf``. Every pair is first bounded from its capsules' mid
     points (a shape's signed distance is 1-Lipschitz): an object pair by ``sd(mid) - r`` from
     above (where the object's closed form is exact) and ``sd(mid) - half length - r`` from below;
     a self pair by the mid points' distance less both radii from above and less both half
     lengths and radii from below. A pair is measured only where its lower bound is below both its
-    sample's least upper bound and ``max(clearance, the table's least upper bound)`` (else it can
+    sample's least upper bound and ``max(clearance, the block's least upper bound)`` (else it can
     be neither the nearest pair of its sample nor matter to the check): self pairs in closed
     form, object pairs in closed form too (:func:`models.collision.vectorised.capsule_object_distance`
     on the object's kernel proxy, vectorised), exact for boxes and spheres; where that is only a
     bound (cylinder, mesh) and can be the nearest of its sample, by coal, nearest first. A pair
-    not measured holds its lower bound. Measured in blocks of :data:`CHECK_BLOCK` samples (memory).
+    not measured holds its lower bound.
     """
     q = np.atleast_2d(q)
-    blocks = [_bounds(geom, q[i : i + CHECK_BLOCK]) for i in range(0, q.shape[0], CHECK_BLOCK)] or [_bounds(geom, q)]
-    theta = max(geom.clearance, min(float(b[3].min(initial=np.inf)) for b in blocks))
-    return np.vstack([_measure(geom, *b, theta) for b in blocks])
+    return np.vstack([_table_block(geom, q[i : i + CHECK_BLOCK]) for i in range(0, max(q.shape[0], 1), CHECK_BLOCK)])
+
+
+def _table_block(geom: Scene, q: np.ndarray) -> np.ndarray:
+    """:func:`distance_table` of one block of at most :data:`CHECK_BLOCK` samples."""
+    seg, self_lower, lower, least = _bounds(geom, q)
+    return _measure(geom, seg, self_lower, lower, least, max(geom.clearance, float(least.min(initial=np.inf))))
 
 
 def _bounds(geom: Scene, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -222,21 +227,51 @@ def first_violation(geom: Scene, d: np.ndarray, label: str = "waypoint", times: 
 
     ``label``: what a sample is in the reason; ``times`` (N,) s: name samples by their time.
     """
-    names = geom.pair_names
     if d.size == 0 or not np.isfinite(d).any():
         return Clearance(ClearanceStatus.OK, "no pair to check", float("inf"), "", -1, geom.clearance)
     row_min = d.min(axis=1)
     bad = np.flatnonzero(row_min < geom.clearance)
     i = int(bad[0]) if bad.size else int(np.argmin(row_min))
-    p = int(np.argmin(d[i]))
-    where = f"{label} {i}" if times is None else f"t = {times[i]:.3f} s ({label} {i})"
-    return _clearance(float(d[i, p]), names[p], geom.clearance, where, i)
+    return _at_row(geom, d, i, 0, label, times)
+
+
+def _at_row(geom: Scene, d: np.ndarray, i: int, start: int, label: str, times: np.ndarray | None) -> Clearance:
+    """The :class:`Clearance` of row ``i`` of a table whose first row is sample ``start``."""
+    p, k = int(np.argmin(d[i])), start + i
+    where = f"{label} {k}" if times is None else f"t = {times[k]:.3f} s ({label} {k})"
+    return _clearance(float(d[i, p]), geom.pair_names[p], geom.clearance, where, k)
+
+
+def _first_violation_of(
+    geom: Scene, qs: list[np.ndarray], label: str = "waypoint", times: np.ndarray | None = None
+) -> Clearance:
+    """:func:`first_violation` of the elementwise smaller of the tables of ``qs`` (each (N, 6)
+    rad), block by block: a block with a sample closer than the clearance ends the check."""
+    n = qs[0].shape[0]
+    best: tuple[float, np.ndarray, int, int] | None = None  # value, block, row, start
+    for start in range(0, n, CHECK_BLOCK):
+        d = _table_block(geom, qs[0][start : start + CHECK_BLOCK])
+        for q in qs[1:]:
+            d = np.minimum(d, _table_block(geom, q[start : start + CHECK_BLOCK]))
+        if d.size == 0 or not np.isfinite(d).any():
+            continue
+        row_min = d.min(axis=1)
+        bad = np.flatnonzero(row_min < geom.clearance)
+        if bad.size:
+            return _at_row(geom, d, int(bad[0]), start, label, times)
+        i = int(np.argmin(row_min))
+        if best is None or row_min[i] < best[0]:
+            best = (float(row_min[i]), d[i : i + 1], 0, start + i)
+    if best is None:
+        return Clearance(ClearanceStatus.OK, "no pair to check", float("inf"), "", -1, geom.clearance)
+    return _at_row(geom, best[1], best[2], best[3], label, times)
 
 
 def check_poses(geom: Scene, q: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None) -> Clearance:
     """Clearance of configurations ``q`` (N, 6) rad against the cell and themselves
-    (:func:`first_violation` of :func:`distance_table`)."""
-    return first_violation(geom, distance_table(geom, q), label, times)
+    (:func:`first_violation` of :func:`distance_table`, block by block: the first block with a
+    sample closer than the clearance ends the check)."""
+    return _first_violation_of(geom, [np.atleast_2d(q)], label, times)
 
 
 def largest_displacement(geom: Scene, q_a: np.ndarray, q_b: np.ndarray) -> tuple[float, str, int]:
@@ -305,11 +340,8 @@ def check_branches(
     """
     out = {}
     for b, q in postures.items():
-        d = distance_table(geom, q)
         qc = commands.get(b)
-        if qc is not None and np.all(np.isfinite(qc)):
-            d = np.minimum(d, distance_table(geom, qc))
-        out[b] = first_violation(geom, d)
+        out[b] = _first_violation_of(geom, [q] if qc is None or not np.all(np.isfinite(qc)) else [q, qc])
     return out
 
 
@@ -406,7 +438,7 @@ def check_command(check: CellCheck, q_command: np.ndarray, q_planned: np.ndarray
     if seen is not None and np.array_equal(seen[0], q_command) and np.array_equal(seen[1], q_planned):
         check.waypoints = check.branches[branch]
     else:
-        check.waypoints = first_violation(g, np.minimum(distance_table(g, q_command), distance_table(g, q_planned)))
+        check.waypoints = _first_violation_of(g, [q_command, q_planned])
     size, capsule, k = largest_displacement(g, q_command, q_planned)
     check.deflection_m, check.deflection_where = size, f"{capsule} at waypoint {k}"
 
