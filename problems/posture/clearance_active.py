@@ -27,12 +27,13 @@ import numpy as np
 
 from models.collision import capsule_distance, capsule_segments, chain_frames
 from models.collision.vectorised import capsule_object_distance
-from problems.posture.clearance import CLEARANCE_SCALE, ClearanceSpec, pair_functions
+from problems.posture.clearance import CLEARANCE_SCALE, NLP_MAX_PENETRATION_M, ClearanceSpec, pair_functions
 
 __all__ = [
     "MAX_RESOLVES",
     "POSED_DISTANCE_M",
     "clearance_margin",
+    "depth_margin",
     "pair_distances",
     "posed_at",
     "unposed_violations",
@@ -45,6 +46,9 @@ POSED_DISTANCE_M = 0.10
 POSED_NEIGHBOURS = 1
 #: How many times a branch is solved again with the entries it violated posed.
 MAX_RESOLVES = 3
+#: A pair this much (m) short of :data:`~problems.posture.clearance.NLP_MAX_PENETRATION_M` deep
+#: (by :func:`pair_distances`) is measured by the NLP's own distance too (:func:`depth_margin`).
+DEPTH_CANDIDATE_M = 0.02
 
 
 def pair_distances(spec: ClearanceSpec, q: np.ndarray) -> np.ndarray:
@@ -96,6 +100,23 @@ def clearance_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
     if ok.any():
         out[ok] = pair_distances(spec, q[ok]).min(axis=1) - spec.clearance
     return out
+
+
+def depth_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
+    """Each waypoint's smallest margin (m) at ``q`` (N, 6) rad as the NLP measures depth: where a
+    pair comes within :data:`DEPTH_CANDIDATE_M` of being
+    :data:`~problems.posture.clearance.NLP_MAX_PENETRATION_M` deep, its NLP distance (pointwise
+    signed distances along the capsule: the depth a posture change has to undo), elsewhere
+    :func:`pair_distances`; less the clearance.  Decides which branches the NLP is given."""
+    q = np.atleast_2d(q)
+    if spec is None or not spec.pairs:
+        return np.full(q.shape[0], np.inf)
+    m = pair_distances(spec, q) - spec.clearance
+    deep = np.flatnonzero((m < -NLP_MAX_PENETRATION_M + DEPTH_CANDIDATE_M).any(axis=0))
+    if deep.size:
+        fns = pair_functions(spec, deep)
+        m[:, deep] = np.vstack([np.asarray(f["g"].map(q.shape[0])(q.T)) for f in fns]).T / CLEARANCE_SCALE
+    return m.min(axis=1)
 
 
 def _dilate(mask: np.ndarray, k: int = POSED_NEIGHBOURS) -> np.ndarray:

@@ -41,7 +41,13 @@ from problems.posture.clearance import (
     NLP_MAX_PENETRATION_M,
     ClearanceSpec,
 )
-from problems.posture.clearance_active import MAX_RESOLVES, clearance_margin, posed_at, unposed_violations
+from problems.posture.clearance_active import (
+    MAX_RESOLVES,
+    clearance_margin,
+    depth_margin,
+    posed_at,
+    unposed_violations,
+)
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
 from problems.posture.warm_start import WarmStarts, onto_model_geometry, linear_error, warm_starts
@@ -176,7 +182,7 @@ def optimise_postures(
         posed = None
         if spec is not None:  # where the branches the NLP will solve come near (clearance_active)
             starts = [v[0].q for v in ws.warm.values()]
-            posed = posed_at(spec, [q for q in starts if clearance_margin(spec, q).min() >= -NLP_MAX_PENETRATION_M])
+            posed = posed_at(spec, [q for q in starts if depth_margin(spec, q).min() >= -NLP_MAX_PENETRATION_M])
         nlp = get_nlp(arm, task.rule, task.n, settings, verbose, spec, posed)
         build = time.perf_counter() - t0
 
@@ -322,7 +328,7 @@ def _optimised_branch(
     base = qa if qa is not None else bp_warm.q
     sign = branch_signs(ik, bp_warm.q)
     kept = "analytic posture" if qa is not None else "warm start"
-    deep = clearance_margin(nlp.clearance, bp_warm.q)
+    deep = depth_margin(nlp.clearance, bp_warm.q)
     if deep.min() < -NLP_MAX_PENETRATION_M:  # a posture change does not pull a link out of an object
         k = int(np.argmin(deep))
         err = linear_error(model, base, task.load)
