@@ -9,6 +9,8 @@ waypoints where it can come near, not at every waypoint of every branch:
   on the shape the NLP measures; capsule-capsule closed form): exact for boxes, spheres and the
   self pairs, a lower bound for the other kinds (the larger of their closed form's and the NLP's
   own bound);
+* :func:`depth_margin`: how deep a warm start lies, as the NLP measures it (a branch more than
+  :data:`~problems.posture.clearance.NLP_MAX_PENETRATION_M` deep is not given to the NLP);
 * :func:`posed_at`: pair p is posed at waypoint k when it comes within :data:`POSED_DISTANCE_M`
   at k or at a neighbouring waypoint of some branch's warm start;
 * :func:`unposed_violations`: after a solve, the entries not posed that come closer than the
