@@ -11,7 +11,9 @@ rounding (:attr:`PostureNLP.compiled` says which; :func:`models.codegen.codegen_
 records why).  The NLP is assembled in MX by mapping them over the waypoints, with
 the sparse derivative functions assembled by hand and passed to ``nlpsol`` (options
 ``grad_f``, ``jac_g``, ``hess_lag``), so one solver per (model, rule, N) serves every
-branch: only the warm start and the parameters change.
+branch: only the warm start and the parameters change.  With a cell, the clearance rows are
+posed pair by pair where each pair comes near (:mod:`problems.posture.clearance_rows`), and the
+solver is cached by that set too (:meth:`PostureNLP.with_posed` adds entries).
 """
 
 from __future__ import annotations
@@ -222,6 +224,9 @@ class PostureNLP:
         The IPOPT ``nlpsol``.
     build_time_s : float
         Time to build the solver (incl. compiling or loading the stage functions), s.
+    posed : ndarray of bool, shape (P, N), or None
+        Where each clearance pair is posed (None without a cell); ``clear`` its rows
+        (:class:`~problems.posture.clearance_rows.ClearanceRows`, None when nothing is posed).
     """
 
     def __init__(
