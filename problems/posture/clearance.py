@@ -65,6 +65,7 @@ __all__ = [
     "clearance_spec",
     "distance_function",
     "pair_functions",
+    "sample_count",
 ]
 
 #: Largest spacing of the sample points along a capsule's segment (m); half of it is the most
@@ -226,7 +227,7 @@ def _softmin(x: list[ca.SX]) -> ca.SX:
     return m - ca.log(ca.sum1(ca.exp(-beta * (v - m)))) / beta
 
 
-def _samples(a: np.ndarray, b: np.ndarray) -> int:
+def sample_count(a: np.ndarray, b: np.ndarray) -> int:
     """Number of samples along a segment of these end points at q = 0 (its length is constant)."""
     return max(2, int(math.ceil(float(np.linalg.norm(b - a)) / SAMPLE_SPACING_M)) + 1)
 
@@ -279,7 +280,7 @@ def _pair_sx(
     length = float(lengths[p.capsule])
     if length < MIN_SAMPLED_LENGTH_M:  # a sphere
         return _sdf(a, p, segs, m.radius) - float(m.radius[p.capsule])
-    n = _samples(ends[p.capsule, 0], ends[p.capsule, 1])
+    n = sample_count(ends[p.capsule, 0], ends[p.capsule, 1])
     f = [_sdf(a + (s / (n - 1)) * (b - a), p, segs, m.radius) for s in range(n)]
     return _softmin(_interval_bounds(f, length / (n - 1))) - float(m.radius[p.capsule])
 

@@ -27,9 +27,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.collision import capsule_distance, capsule_segments, chain_frames
+from models.collision import capsule_distance, capsule_segments, chain_frames, segment_distance
 from models.collision.vectorised import capsule_object_distance
-from problems.posture.clearance import CLEARANCE_SCALE, NLP_MAX_PENETRATION_M, ClearanceSpec, pair_functions
+from problems.posture.clearance import (
+    CLEARANCE_SCALE,
+    NLP_MAX_PENETRATION_M,
+    ClearanceSpec,
+    pair_functions,
+    sample_count,
+)
 
 __all__ = [
     "MAX_RESOLVES",
@@ -107,18 +113,40 @@ def clearance_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
 def depth_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
     """Each waypoint's smallest margin (m) at ``q`` (N, 6) rad as the NLP measures depth: where a
     pair comes within :data:`DEPTH_CANDIDATE_M` of being
-    :data:`~problems.posture.clearance.NLP_MAX_PENETRATION_M` deep, its NLP distance (pointwise
-    signed distances along the capsule: the depth a posture change has to undo), elsewhere
-    :func:`pair_distances`; less the clearance.  Decides which branches the NLP is given."""
+    :data:`~problems.posture.clearance.NLP_MAX_PENETRATION_M` deep, the smallest signed distance
+    of its capsule's sample points (the NLP's, :func:`~problems.posture.clearance.sample_count`)
+    less its radius: the depth a posture change has to undo; elsewhere :func:`pair_distances`;
+    less the clearance.  Decides which branches the NLP is given."""
     q = np.atleast_2d(q)
     if spec is None or not spec.pairs:
         return np.full(q.shape[0], np.inf)
     m = pair_distances(spec, q) - spec.clearance
     deep = np.flatnonzero((m < -NLP_MAX_PENETRATION_M + DEPTH_CANDIDATE_M).any(axis=0))
     if deep.size:
-        fns = pair_functions(spec, deep)
-        m[:, deep] = np.vstack([np.asarray(f["g"].map(q.shape[0])(q.T)) for f in fns]).T / CLEARANCE_SCALE
+        seg = capsule_segments(spec.model, chain_frames(spec.robot, q))
+        for i in deep:
+            d = _sampled_distance(spec, int(i), seg)
+            if d is not None:
+                m[:, i] = d - spec.clearance
     return m.min(axis=1)
+
+
+def _sampled_distance(spec: ClearanceSpec, i: int, seg: np.ndarray) -> np.ndarray | None:
+    """Pair ``i``'s smallest signed distance (m) over its capsule's sample points less its radius,
+    at segments ``seg`` (N, M, 2, 3); None for a shape without a NumPy signed distance."""
+    p, r = spec.pairs[i], spec.model.radius
+    a, b = seg[:, p.capsule, 0], seg[:, p.capsule, 1]
+    t = np.linspace(0.0, 1.0, sample_count(a[0], b[0]))
+    pts = a[:, None] + t[None, :, None] * (b - a)[:, None]  # (N, S, 3)
+    if isinstance(p.other, int):
+        o = seg[:, p.other]
+        d = segment_distance(pts, pts, o[:, None, 0], o[:, None, 1])[0] - r[p.other]
+    else:
+        try:
+            d = p.other.shape.signed_distance(p.other.to_local(pts.reshape(-1, 3))).reshape(pts.shape[:2])
+        except NotImplementedError:
+            return None
+    return d.min(axis=1) - r[p.capsule]
 
 
 def _dilate(mask: np.ndarray, k: int = POSED_NEIGHBOURS) -> np.ndarray:
