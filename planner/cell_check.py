@@ -14,8 +14,9 @@ What is checked (``docs/cell.md``, "What is checked where"):
   that ends at the TCP), which may touch the workpiece (its pair is not checked), and capsules
   fixed to the base (they do not move: the problem file's base-footprint check covers the base,
   :func:`problems.cell.footprint_overlaps`); distances through coal
-  (:func:`models.collision.capsule_shape_distance`), a bounding-sphere lower bound first so that
-  coal is asked only for the pairs that can be the nearest of their sample;
+  (:func:`models.collision.capsule_shape_distance`) only where the closed form
+  (:mod:`models.collision.vectorised`, vectorised over the samples) is not exact and its lower
+  bound can be the nearest of its sample;
 * **self-collision**: the arm's self pairs (:func:`models.collision.self_collision_pairs`) and the
   tool's capsules against links 0..4, closed form, vectorised over the samples.
 
@@ -47,6 +48,7 @@ from models.collision import (
 )
 from models.collision.scene import Scene
 from models.collision.segments import segment_distance
+from models.collision.vectorised import capsule_object_distance
 from models.robot import Robot
 from problems.compensation import exact
 from problems.posture import BranchStatus, PostureResult, PostureStatus
@@ -63,6 +65,11 @@ __all__ = [
     "choose_collision_free",
     "segments",
 ]
+
+
+#: Samples measured at once by :func:`distance_table` (its temporaries hold about 15 candidate
+#: points per capsule, object and sample: some 100 MB for a UR10 with a tool in a five-object cell).
+CHECK_BLOCK = 4096
 
 
 def cell_geometry(robot: Robot, cell: Any, model: CapsuleModel | None = None) -> Scene:
@@ -91,36 +98,116 @@ def segments(geom: Scene, q: np.ndarray) -> np.ndarray:
 
 
 def distance_table(geom: Scene, q: np.ndarray) -> np.ndarray:
-    """Signed distances (m) of every pair at every configuration, shape (N, M * K + P).
+    """Signed distances (m) of the pairs at configurations ``q`` (N, 6) rad, shape (N, M * K + P),
+    such that each row's smallest entry is exact, with its pair, where it is below the clearance
+    or is the smallest of its block of :data:`CHECK_BLOCK` rows (elsewhere it is at least the
+    larger of the two): so are the table's smallest and its first row below the clearance.
 
-    Object pairs not checked are ``+inf``. An object pair whose bounding-sphere lower bound is
-    not below the smallest distance of its sample holds that lower bound (a distance no smaller
-    than the sample's smallest), so the minimum of each row, and its pair, are exact.
+    Object pairs not checked are ``+inf``. Every pair is first bounded from its capsules' mid
+    points (a shape's signed distance is 1-Lipschitz): an object pair by ``sd(mid) - r`` from
+    above (where the object's closed form is exact) and ``sd(mid) - half length - r`` from below;
+    a self pair by the mid points' distance less both radii from above and less both half
+    lengths and radii from below. A pair is measured only where its lower bound is below both its
+    sample's least upper bound and ``max(clearance, the block's least upper bound)`` (else it can
+    be neither the nearest pair of its sample nor matter to the check): self pairs in closed
+    form, object pairs in closed form too (:func:`models.collision.vectorised.capsule_object_distance`
+    on the object's kernel proxy, vectorised), exact for boxes and spheres; where that is only a
+    bound (cylinder, mesh) and can be the nearest of its sample, by coal, nearest first. A pair
+    not measured holds its lower bound.
     """
+    q = np.atleast_2d(q)
+    return np.vstack([_table_block(geom, q[i : i + CHECK_BLOCK]) for i in range(0, max(q.shape[0], 1), CHECK_BLOCK)])
+
+
+def _table_block(geom: Scene, q: np.ndarray) -> np.ndarray:
+    """:func:`distance_table` of one block of at most :data:`CHECK_BLOCK` samples."""
+    seg, self_lower, lower, least = _bounds(geom, q)
+    return _measure(geom, seg, self_lower, lower, least, max(geom.clearance, float(least.min(initial=np.inf))))
+
+
+def _bounds(geom: Scene, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Segments (N, M, 2, 3), the self pairs' lower bounds (N, P), the object pairs' (N, M, K) and
+    each sample's least upper bound (N,) (:func:`distance_table`)."""
     seg = segments(geom, q)
     n, m = seg.shape[:2]
     k = len(geom.shapes)
     r = geom.model.radius
-    sp = geom.self_pairs
-    self_d = capsule_distance(seg[:, sp[:, 0]], r[sp[:, 0]], seg[:, sp[:, 1]], r[sp[:, 1]])
-    obj = np.full((n, m, k), np.inf)
-    if k:
-        d_c, _, _ = segment_distance(
-            seg[:, :, None, 0], seg[:, :, None, 1], geom.centre[None, None], geom.centre[None, None]
-        )
-        lower = np.where(geom.checked[None], d_c - r[None, :, None] - geom.bound[None, None], np.inf)
-        best = self_d.min(axis=1) if sp.size else np.full(n, np.inf)
-        for i in range(n):
-            for flat in np.argsort(lower[i], axis=None):
-                c, j = divmod(int(flat), k)
-                if not lower[i, c, j] < best[i]:
-                    break  # every remaining pair is at least this far
-                d = capsule_shape_distance(seg[i, c, 0], seg[i, c, 1], r[c], geom.shapes[j]).distance
-                obj[i, c, j] = d
-                best[i] = min(best[i], d)
-        unknown = np.isinf(obj) & geom.checked[None]
-        obj[unknown] = lower[unknown]
+    ci, cj = geom.self_pairs[:, 0], geom.self_pairs[:, 1]
+    mid = 0.5 * (seg[:, :, 0] + seg[:, :, 1])
+    half = 0.5 * np.linalg.norm(seg[:, :, 1] - seg[:, :, 0], axis=-1) + r  # (N, M)
+    gap = np.linalg.norm(mid[:, ci] - mid[:, cj], axis=-1)  # (N, P)
+    self_lower = gap - half[:, ci] - half[:, cj]
+    least = (gap - r[ci] - r[cj]).min(axis=1, initial=np.inf)
+    lower = np.full((n, m, k), np.inf)
+    for j in range(k):
+        sd, exact = _mid_distance(geom, j, mid)
+        lower[:, :, j] = np.where(geom.checked[:, j], sd - half, np.inf)
+        if exact:
+            least = np.minimum(least, np.where(geom.checked[:, j], sd - r, np.inf).min(axis=1))
+    return seg, self_lower, lower, np.broadcast_to(least, (n,)).copy()
+
+
+def _mid_distance(geom: Scene, j: int, mid: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Object ``j``'s signed distance (m) from points ``mid`` (N, M, 3), and whether it is exact
+    (else a lower bound: measured on its kernel proxy, or from its bounding sphere)."""
+    o = geom.shapes[j]
+    proxy = o.proxy(nlp=False)
+    exact = proxy.shape is o.shape and o.shape.exact_in_kernel
+    try:
+        return proxy.shape.signed_distance(proxy.to_local(mid.reshape(-1, 3))).reshape(mid.shape[:2]), exact
+    except NotImplementedError:
+        return np.linalg.norm(mid - geom.centre[j], axis=-1) - geom.bound[j], False
+
+
+def _measure(
+    geom: Scene,
+    seg: np.ndarray,
+    self_lower: np.ndarray,
+    lower: np.ndarray,
+    least: np.ndarray,
+    theta: float,
+) -> np.ndarray:
+    """The rows of :func:`distance_table` of one block, from its bounds (:func:`_bounds`)."""
+    n, m, k = lower.shape
+    r = geom.model.radius
+    self_d = self_lower.copy()
+    i, s = np.nonzero((self_lower < least[:, None]) & (self_lower < theta))
+    if i.size:
+        ci, cj = geom.self_pairs[s, 0], geom.self_pairs[s, 1]
+        self_d[i, s] = capsule_distance(seg[i, ci], r[ci], seg[i, cj], r[cj])
+    obj = lower.copy()
+    exact = np.zeros(k, dtype=bool)
+    need = (lower < least[:, None, None]) & (lower < theta)
+    for j in range(k):
+        i, c = np.nonzero(need[:, :, j])
+        if i.size:
+            obj[i, c, j], exact[j] = _closed_form(geom, j, seg[i, c], r[c])
+    best = np.minimum(least, np.where(need & exact[None, None], obj, np.inf).min(axis=(1, 2), initial=np.inf))
+    bound = np.where(need & ~exact[None, None], obj, np.inf)  # measured bounds coal may have to tighten
+    for i in np.flatnonzero((bound < np.minimum(best, theta)[:, None, None]).any(axis=(1, 2))):
+        for flat in np.argsort(bound[i], axis=None):
+            c, j = divmod(int(flat), k)
+            if not bound[i, c, j] < min(best[i], theta):
+                break  # every remaining pair is at least this far
+            d = capsule_shape_distance(seg[i, c, 0], seg[i, c, 1], r[c], geom.shapes[j]).distance
+            obj[i, c, j] = d
+            best[i] = min(best[i], d)
     return np.hstack([obj.reshape(n, m * k), self_d])
+
+
+def _closed_form(geom: Scene, j: int, seg: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Object ``j``'s signed distances from capsules ``seg`` (..., 2, 3), ``radii`` (...), m, in
+    closed form, and whether they are exact: its kernel proxy's closed form
+    (:meth:`~models.collision.shapes.Shape.capsule_distance`), else (a shape kind without one) the
+    distance from its bounding sphere, a lower bound."""
+    o = geom.shapes[j]
+    proxy = o.proxy(nlp=False)
+    try:
+        return capsule_object_distance(seg, radii, proxy), proxy.shape is o.shape and o.shape.exact_in_kernel
+    except NotImplementedError:
+        c = geom.centre[j]
+        d_c, _, _ = segment_distance(seg[..., 0, :], seg[..., 1, :], c, c)
+        return d_c - radii - geom.bound[j], False
 
 
 def _clearance(d_row_min: float, pair: str, clearance: float, where: str, index: int) -> Clearance:
@@ -140,21 +227,51 @@ def first_violation(geom: Scene, d: np.ndarray, label: str = "waypoint", times: 
 
     ``label``: what a sample is in the reason; ``times`` (N,) s: name samples by their time.
     """
-    names = geom.pair_names
     if d.size == 0 or not np.isfinite(d).any():
         return Clearance(ClearanceStatus.OK, "no pair to check", float("inf"), "", -1, geom.clearance)
     row_min = d.min(axis=1)
     bad = np.flatnonzero(row_min < geom.clearance)
     i = int(bad[0]) if bad.size else int(np.argmin(row_min))
-    p = int(np.argmin(d[i]))
-    where = f"{label} {i}" if times is None else f"t = {times[i]:.3f} s ({label} {i})"
-    return _clearance(float(d[i, p]), names[p], geom.clearance, where, i)
+    return _at_row(geom, d, i, 0, label, times)
+
+
+def _at_row(geom: Scene, d: np.ndarray, i: int, start: int, label: str, times: np.ndarray | None) -> Clearance:
+    """The :class:`Clearance` of row ``i`` of a table whose first row is sample ``start``."""
+    p, k = int(np.argmin(d[i])), start + i
+    where = f"{label} {k}" if times is None else f"t = {times[k]:.3f} s ({label} {k})"
+    return _clearance(float(d[i, p]), geom.pair_names[p], geom.clearance, where, k)
+
+
+def _first_violation_of(
+    geom: Scene, qs: list[np.ndarray], label: str = "waypoint", times: np.ndarray | None = None
+) -> Clearance:
+    """:func:`first_violation` of the elementwise smaller of the tables of ``qs`` (each (N, 6)
+    rad), block by block: a block with a sample closer than the clearance ends the check."""
+    n = qs[0].shape[0]
+    best: tuple[float, np.ndarray, int, int] | None = None  # value, block, row, start
+    for start in range(0, n, CHECK_BLOCK):
+        d = _table_block(geom, qs[0][start : start + CHECK_BLOCK])
+        for q in qs[1:]:
+            d = np.minimum(d, _table_block(geom, q[start : start + CHECK_BLOCK]))
+        if d.size == 0 or not np.isfinite(d).any():
+            continue
+        row_min = d.min(axis=1)
+        bad = np.flatnonzero(row_min < geom.clearance)
+        if bad.size:
+            return _at_row(geom, d, int(bad[0]), start, label, times)
+        i = int(np.argmin(row_min))
+        if best is None or row_min[i] < best[0]:
+            best = (float(row_min[i]), d[i : i + 1], 0, start + i)
+    if best is None:
+        return Clearance(ClearanceStatus.OK, "no pair to check", float("inf"), "", -1, geom.clearance)
+    return _at_row(geom, best[1], best[2], best[3], label, times)
 
 
 def check_poses(geom: Scene, q: np.ndarray, label: str = "waypoint", times: np.ndarray | None = None) -> Clearance:
     """Clearance of configurations ``q`` (N, 6) rad against the cell and themselves
-    (:func:`first_violation` of :func:`distance_table`)."""
-    return first_violation(geom, distance_table(geom, q), label, times)
+    (:func:`first_violation` of :func:`distance_table`, block by block: the first block with a
+    sample closer than the clearance ends the check)."""
+    return _first_violation_of(geom, [np.atleast_2d(q)], label, times)
 
 
 def largest_displacement(geom: Scene, q_a: np.ndarray, q_b: np.ndarray) -> tuple[float, str, int]:
@@ -191,6 +308,9 @@ class CellCheck:
         When the stiffness-best branch collides: what the collision-free choice pays (one line).
     check_time_s : dict
         Wall time of each check, s, and ``poses``: the number of poses checked.
+    checked : dict branch -> (command, posture)
+        The joints (N, 6) rad each entry of ``branches`` was checked at (:func:`check_command`
+        does not measure them again).
     """
 
     geometry: Scene
@@ -204,6 +324,7 @@ class CellCheck:
     stiffness_best: int | None = None
     choice_note: str = ""
     check_time_s: dict[str, float] = field(default_factory=dict)
+    checked: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
 
 
 def check_branches(
@@ -219,11 +340,8 @@ def check_branches(
     """
     out = {}
     for b, q in postures.items():
-        d = distance_table(geom, q)
         qc = commands.get(b)
-        if qc is not None and np.all(np.isfinite(qc)):
-            d = np.minimum(d, distance_table(geom, qc))
-        out[b] = first_violation(geom, d)
+        out[b] = _first_violation_of(geom, [q] if qc is None or not np.all(np.isfinite(qc)) else [q, qc])
     return out
 
 
@@ -276,6 +394,7 @@ def choose_collision_free(
     kept = check_branches(geom, {b: r.q for b, r in failed.items()}, {})
     ref = free if free is not None and free.ok else ps
     check = CellCheck(geom, found, stiffness_best=ref.chosen)
+    check.checked = {b: (commands[b], usable[b].q) for b in found}
     branches = dict(ps.branches)
     for b, c in found.items():
         if c.status is not ClearanceStatus.OK:
@@ -310,11 +429,16 @@ def choose_collision_free(
     return out, check
 
 
-def check_command(check: CellCheck, q_command: np.ndarray, q_planned: np.ndarray) -> None:
-    """The chosen branch's command at the waypoints again, and the deflection between it and
-    the planned posture (:attr:`CellCheck.deflection_m`)."""
+def check_command(check: CellCheck, q_command: np.ndarray, q_planned: np.ndarray, branch: int | None = None) -> None:
+    """The chosen branch's command at the waypoints again (unless ``branch`` was checked at these
+    very joints: :attr:`CellCheck.checked`), and the deflection between it and the planned posture
+    (:attr:`CellCheck.deflection_m`)."""
     g = check.geometry
-    check.waypoints = first_violation(g, np.minimum(distance_table(g, q_command), distance_table(g, q_planned)))
+    seen = check.checked.get(branch) if branch is not None else None
+    if seen is not None and np.array_equal(seen[0], q_command) and np.array_equal(seen[1], q_planned):
+        check.waypoints = check.branches[branch]
+    else:
+        check.waypoints = _first_violation_of(g, [q_command, q_planned])
     size, capsule, k = largest_displacement(g, q_command, q_planned)
     check.deflection_m, check.deflection_where = size, f"{capsule} at waypoint {k}"
 

@@ -245,7 +245,7 @@ def _cell_trajectory(res: PlanResult) -> None:
 
     assert res.exact is not None and res.posture is not None
     t0 = time.perf_counter()
-    check_command(res.cell, res.exact.q_command, res.posture.best.q)
+    check_command(res.cell, res.exact.q_command, res.posture.best.q, res.posture.chosen)
     clearance = res.cell.geometry.clearance
     if res.cell.deflection_m > clearance:
         res.warnings.append(

@@ -52,6 +52,23 @@ def test_exact_shapes_match_coal(kind):
     np.testing.assert_allclose(got, ref, atol=TOL_M)  # distance and penetration depth
 
 
+def test_a_segment_through_a_thin_slab_is_measured_as_coal_measures_it():
+    """A link crossing a table top: the closed form's squared distance is zero only up to
+    rounding (1e-34 m^2 was seen); it must still report the penetration depth, not 0."""
+    T = np.eye(4)
+    T[:3, 3] = [0.5, 0.0, -0.04]
+    size = np.array([2.4, 1.6, 0.04])
+    obj, shape = vec_object("table", "box", size, T), box_shape("table", size, T)
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        top = np.r_[rng.uniform(-0.6, 0.6, 2), rng.uniform(0.05, 0.4)]  # the slab: z -0.06 .. -0.02
+        bottom = np.r_[top[:2] + rng.uniform(-0.02, 0.02, 2), -0.06 - rng.uniform(0.05, 0.3)]
+        got = capsule_object_distance(np.array([[top, bottom]]), 0.07, obj)[0]
+        ref = capsule_shape_distance(top, bottom, 0.07, shape).distance
+        assert ref < -0.07
+        np.testing.assert_allclose(got, ref, atol=TOL_M)
+
+
 def test_cylinder_bound_is_conservative():
     rng = np.random.default_rng(8)
     for _ in range(300):

@@ -19,7 +19,11 @@ from planner.cell_check import cell_geometry, check_poses, segments
 from planner.plan import plan
 from problems.cell import Cell, CellObject
 from problems.posture import BranchStatus
+from problems.posture import optimise_postures
+from problems.posture import solve as posture_solve
 from problems.posture.clearance import CLEARANCE_SCALE, clearance_functions, clearance_spec, distance_function
+from problems.posture.clearance_active import clearance_margin, pair_distances
+from problems.posture.transcription import _SOLVERS
 from problems.problem import load_problem
 
 #: The bound may exceed coal's distance by no more than this (m): rounding only.
@@ -124,18 +128,22 @@ def test_derivatives_match_finite_differences(setting):
     assert CLEARANCE_SCALE == 1e3  # the constraints are in mm (their finite differences above too)
 
 
+def _ceiling(problem, q: np.ndarray, cut: float = 0.01) -> Cell:
+    """The problem's cell with a ceiling cutting ``cut`` (m) into the capsules at postures ``q``."""
+    geom = cell_geometry(problem.robot, problem.cell)
+    seg = segments(geom, q)
+    top = float((seg[..., 2].max(axis=-1) + geom.model.radius[None]).max())
+    ceiling = CellObject("ceiling", "box", np.array([3.0, 3.0, 0.1]), _at([0.0, 0.0, top - cut + 0.05]))
+    return replace(problem.cell, objects=problem.cell.objects + (ceiling,))
+
+
 def test_the_nlp_moves_a_branch_off_a_ceiling_and_pays_for_it():
     """A low ceiling cuts into the shipped plan's posture: the NLP keeps the clearance (by coal)
     on an optimised branch instead of setting branches aside, and the load-induced error grows."""
     problem = load_problem("cell_table")
     base = plan(problem)
     assert base.ok, base.reason
-    geom = cell_geometry(problem.robot, problem.cell)
-    seg = segments(geom, base.posture.best.q)
-    top = float((seg[..., 2].max(axis=-1) + geom.model.radius[None]).max())
-    cut = 0.01
-    ceiling = CellObject("ceiling", "box", np.array([3.0, 3.0, 0.1]), _at([0.0, 0.0, top - cut + 0.05]))
-    cell = replace(problem.cell, objects=problem.cell.objects + (ceiling,))
+    cell = _ceiling(problem, base.posture.best.q)
     before = check_poses(cell_geometry(problem.robot, cell), base.posture.best.q)
     assert before.status is not ClearanceStatus.OK and "ceiling" in before.pair
     res = plan(replace(problem, cell=cell))
@@ -155,3 +163,39 @@ def test_branches_that_cannot_clear_the_table_are_named(setting):
     assert colliding
     for r in colliding:
         assert "table" in r.reason and "waypoint" in r.reason and "mm" in r.reason
+
+
+def test_the_broad_phase_measures_what_coal_measures(setting):
+    """The NumPy distances that decide where a pair is posed: exact against coal for boxes,
+    spheres and capsule pairs, never above it for cylinders (a bound)."""
+    _, geom, spec, q = setting
+    got = pair_distances(spec, q)
+    exact = _coal_distances(geom, spec, q)
+    kind = np.array([p.kind for p in spec.pairs])
+    mesh = np.array(["bunny" in p.name for p in spec.pairs])  # measured as the NLP does: its bounding box
+    closed = np.isin(kind, ["box", "sphere", "capsule"]) & ~mesh
+    np.testing.assert_allclose(got[:, closed], exact[:, closed], atol=KEPT_TOL_M)
+    bound = (kind == "cylinder") | mesh
+    apart = exact > 0.0  # in penetration coal's depth on a cylinder is unreliable: the sign only
+    assert (bound[None] & apart).sum() > 100
+    assert np.all(got[apart & bound[None]] <= exact[apart & bound[None]] + BOUND_ABOVE_TOL_M)
+    assert np.all(got[~apart & bound[None]] <= BOUND_ABOVE_TOL_M)
+
+
+def test_a_pair_not_posed_where_the_solution_comes_too_close_is_posed_and_solved_again(monkeypatch):
+    """With no pair posed from the warm starts, the first solve goes into the ceiling; the branch is
+    solved again with the entries it violated posed, and keeps the clearance."""
+    problem = load_problem("cell_table")
+    arm, task = problem.model, problem.task()
+    table = clearance_spec(cell_geometry(problem.robot, problem.cell))
+    base = optimise_postures(arm, task, problem.home_q, problem.solver, clearance=table)
+    cell = _ceiling(problem, base.best.q)
+    spec = clearance_spec(cell_geometry(problem.robot, cell))
+    monkeypatch.setattr(posture_solve, "posed_at", lambda spec, q_sets: np.zeros((len(spec.pairs), task.n), dtype=bool))
+    _SOLVERS.clear()
+    res = optimise_postures(arm, task, problem.home_q, problem.solver, clearance=spec)
+    best = res.branches[base.chosen]
+    assert best.status is BranchStatus.OPTIMISED, best.reason
+    assert clearance_margin(spec, best.q).min() >= -KEPT_TOL_M
+    posed = [nlp for nlp in _SOLVERS.values() if nlp.clear is not None]
+    assert posed and any("ceiling" in spec.pairs[i].name for nlp in posed for i in nlp.clear.pairs)

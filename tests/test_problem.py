@@ -31,6 +31,7 @@ SHIPPED = {
     "ur5_fast_payload": (OrientationRule.FIXED, 24),
     "placement_milling": (OrientationRule.FREE_TOOL_AXIS, 30),
     "cell_table": (OrientationRule.CONE, 29),
+    "milling_pocket_cell": (OrientationRule.FREE_TOOL_AXIS, None),  # milling_pocket in a cell
 }
 
 MINIMAL = """

@@ -28,9 +28,10 @@ Per waypoint, one constraint per checked pair (capsule - object, capsule - capsu
   although another posture of it is free; the branch then gets status ``collision``.  A branch
   deeper than :data:`NLP_MAX_PENETRATION_M` at its warm start is not given to the NLP.
 
-Only pairs that can come near are posed (:func:`near_pairs`): a pair farther than
-:data:`NEAR_DISTANCE_M` at every warm start of every branch is left out; the plan's exact check
-after the NLP (``planner/cell_check.py``) still checks every pair.
+Each pair's functions are built on their own (:func:`pair_functions`, one symbolic chain per
+spec) and the NLP maps them over only the waypoints where the pair can come near
+(:mod:`problems.posture.clearance_active`, :mod:`problems.posture.clearance_rows`); the plan's
+exact check after the NLP (``planner/cell_check.py``) still checks every pair.
 
 Units: m inside, constraints scaled to mm for IPOPT (:data:`CLEARANCE_SCALE`).  Frames: the
 base frame; ``shape2base`` maps a shape's own coordinates to the base frame.
@@ -40,7 +41,10 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -60,7 +64,8 @@ __all__ = [
     "clearance_functions",
     "clearance_spec",
     "distance_function",
-    "near_pairs",
+    "pair_functions",
+    "sample_count",
 ]
 
 #: Largest spacing of the sample points along a capsule's segment (m); half of it is the most
@@ -71,9 +76,6 @@ SAMPLE_SPACING_M = 0.04
 SOFTMIN_SHARPNESS_PER_M = 5000.0
 #: Constraints are posed in mm (m -> mm), as the position constraints.
 CLEARANCE_SCALE = 1e3
-#: A pair is posed in the NLP when it comes within this distance (m, surface to surface) at a
-#: warm start of some branch; the rest are far and left to the exact check after the NLP.
-NEAR_DISTANCE_M = 0.25
 #: With clearance constraints, a long path's NLP is solved on at most this many nodes (each
 #: waypoint's constraints cost about as much as its stage functions ten times over); the densified
 #: postures between the nodes are checked exactly by the plan afterwards.
@@ -225,7 +227,7 @@ def _softmin(x: list[ca.SX]) -> ca.SX:
     return m - ca.log(ca.sum1(ca.exp(-beta * (v - m)))) / beta
 
 
-def _samples(a: np.ndarray, b: np.ndarray) -> int:
+def sample_count(a: np.ndarray, b: np.ndarray) -> int:
     """Number of samples along a segment of these end points at q = 0 (its length is constant)."""
     return max(2, int(math.ceil(float(np.linalg.norm(b - a)) / SAMPLE_SPACING_M)) + 1)
 
@@ -262,21 +264,37 @@ def _ends_sx(spec: ClearanceSpec, q: ca.SX) -> tuple[ca.SX, np.ndarray, np.ndarr
     return E, ends, np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
 
 
+def _chain_segments(spec: ClearanceSpec, q: ca.SX) -> tuple[list[tuple[ca.SX, ca.SX]], np.ndarray, np.ndarray]:
+    """Every capsule's segment ends at ``q`` (3 x 1 SX each, one chain), and the end points
+    (M, 2, 3) and segment lengths (M,) at q = 0 (constant)."""
+    E, ends, lengths = _ends_sx(spec, q)
+    return [(E[6 * c : 6 * c + 3], E[6 * c + 3 : 6 * c + 6]) for c in range(spec.model.n_capsules)], ends, lengths
+
+
+def _pair_sx(
+    spec: ClearanceSpec, i: int, segs: list[tuple[ca.SX, ca.SX]], ends: np.ndarray, lengths: np.ndarray
+) -> ca.SX:
+    """Pair ``i``'s lower-bound surface distance (m), an SX scalar (module docstring)."""
+    m, p = spec.model, spec.pairs[i]
+    a, b = segs[p.capsule]
+    length = float(lengths[p.capsule])
+    if length < MIN_SAMPLED_LENGTH_M:  # a sphere
+        return _sdf(a, p, segs, m.radius) - float(m.radius[p.capsule])
+    n = sample_count(ends[p.capsule, 0], ends[p.capsule, 1])
+    f = [_sdf(a + (s / (n - 1)) * (b - a), p, segs, m.radius) for s in range(n)]
+    return _softmin(_interval_bounds(f, length / (n - 1))) - float(m.radius[p.capsule])
+
+
+def _pair_distances_sx(spec: ClearanceSpec, q: ca.SX) -> list[ca.SX]:
+    """Each pair's lower-bound surface distance (m) at ``q``, one SX scalar per pair, all on one
+    chain (its frames built once)."""
+    segs, ends, lengths = _chain_segments(spec, q)
+    return [_pair_sx(spec, i, segs, ends, lengths) for i in range(len(spec.pairs))]
+
+
 def _distance_sx(spec: ClearanceSpec, q: ca.SX) -> ca.SX:
     """The pairs' lower-bound surface distances (P,), m, at ``q`` (module docstring)."""
-    E, ends, lengths = _ends_sx(spec, q)
-    m = spec.model
-    segs = [(E[6 * c : 6 * c + 3], E[6 * c + 3 : 6 * c + 6]) for c in range(m.n_capsules)]
-    g = []
-    for p in spec.pairs:
-        a, b = segs[p.capsule]
-        length = float(lengths[p.capsule])
-        if length < MIN_SAMPLED_LENGTH_M:  # a sphere
-            g.append(_sdf(a, p, segs, m.radius) - float(m.radius[p.capsule]))
-            continue
-        n = _samples(ends[p.capsule, 0], ends[p.capsule, 1])
-        f = [_sdf(a + (s / (n - 1)) * (b - a), p, segs, m.radius) for s in range(n)]
-        g.append(_softmin(_interval_bounds(f, length / (n - 1))) - float(m.radius[p.capsule]))
+    g = _pair_distances_sx(spec, q)
     return ca.vertcat(*g) if g else ca.SX(0, 1)
 
 
@@ -287,8 +305,23 @@ def distance_function(spec: ClearanceSpec) -> ca.Function:
     return ca.Function("clearance_distance", [q], [_distance_sx(spec, q)], ["q"], ["distance"])
 
 
+def _functions(q: ca.SX, gc: ca.SX, exact_hessian: bool, name: str) -> dict[str, ca.Function]:
+    """The ``g``, ``jac`` and ``hess`` functions of constraints ``gc`` (mm) of ``q`` (6,)."""
+    lam = ca.SX.sym("lam", gc.shape[0])
+    if exact_hessian and gc.shape[0]:
+        H = ca.hessian(ca.dot(lam, gc), q)[0]
+        H = 0.5 * (H + H.T)
+    else:
+        H = ca.SX(6, 6)
+    return {
+        "g": ca.Function(f"{name}_g", [q], [gc], ["q"], ["g"]),
+        "jac": ca.Function(f"{name}_jac", [q], [gc, ca.densify(ca.jacobian(gc, q))], ["q"], ["g", "jac"]),
+        "hess": ca.Function(f"{name}_hess", [q, lam], [ca.densify(H)], ["q", "lam"], ["hess"]),
+    }
+
+
 def clearance_functions(spec: ClearanceSpec, exact_hessian: bool = CLEARANCE_EXACT_HESSIAN) -> dict[str, ca.Function]:
-    """The per-waypoint clearance functions (SX, run on CasADi's virtual machine).
+    """The per-waypoint clearance functions of every pair of ``spec`` (SX, CasADi's virtual machine).
 
     Parameters
     ----------
@@ -305,30 +338,40 @@ def clearance_functions(spec: ClearanceSpec, exact_hessian: bool = CLEARANCE_EXA
         ``lam . g``, dense, symmetric.
     """
     q = ca.SX.sym("q", 6)
-    gc = CLEARANCE_SCALE * (_distance_sx(spec, q) - spec.clearance)
-    lam = ca.SX.sym("lam", gc.shape[0])
-    if exact_hessian and gc.shape[0]:
-        H = ca.hessian(ca.dot(lam, gc), q)[0]
-        H = 0.5 * (H + H.T)
-    else:
-        H = ca.SX(6, 6)
-    return {
-        "g": ca.Function("clearance_g", [q], [gc], ["q"], ["g"]),
-        "jac": ca.Function("clearance_jac", [q], [gc, ca.densify(ca.jacobian(gc, q))], ["q"], ["g", "jac"]),
-        "hess": ca.Function("clearance_hess", [q, lam], [ca.densify(H)], ["q", "lam"], ["hess"]),
-    }
+    return _functions(q, CLEARANCE_SCALE * (_distance_sx(spec, q) - spec.clearance), exact_hessian, "clearance")
 
 
-def near_pairs(spec: ClearanceSpec, q_sets: list[np.ndarray], near_m: float = NEAR_DISTANCE_M) -> np.ndarray:
-    """Which pairs come within ``near_m`` (m) at any configuration of ``q_sets`` (each (N, 6) rad).
+#: Per-pair functions built so far, by (spec key, exact Hessian); cleared beyond this many specs.
+_PAIR_FUNCTIONS_MAX = 16
+_PAIR_FUNCTIONS: dict[tuple[str, bool], dict[str, Any]] = {}
+_PAIR_LOCK = threading.Lock()
 
-    Returns
-    -------
-    ndarray of bool, shape (P,)
+
+def pair_functions(
+    spec: ClearanceSpec, pairs: Sequence[int], exact_hessian: bool = CLEARANCE_EXACT_HESSIAN
+) -> list[dict[str, ca.Function]]:
+    """Pair ``i``'s clearance functions for each ``i`` of ``pairs``, as :func:`clearance_functions`
+    gives them for all pairs (``g``: q (6,) -> (1,) mm; ``jac``: q -> (g, (1, 6)); ``hess``).
+
+    Built on one symbolic chain per spec, each pair once, on first use, and cached: the NLP maps
+    each over the waypoints where its pair is posed (:mod:`problems.posture.clearance_rows`), and
+    a pair posed later (:mod:`problems.posture.clearance_active`) costs only its own build.
     """
-    if not spec.pairs:
-        return np.zeros(0, dtype=bool)
-    fn = distance_function(spec)
-    q = np.vstack([np.atleast_2d(s) for s in q_sets if np.size(s)])
-    d = np.asarray(fn.map(q.shape[0])(q.T))  # (P, N)
-    return d.min(axis=1) < near_m
+    key = (spec.key, bool(exact_hessian))
+    with _PAIR_LOCK:
+        entry = _PAIR_FUNCTIONS.get(key)
+        if entry is None:
+            if len(_PAIR_FUNCTIONS) >= _PAIR_FUNCTIONS_MAX:
+                _PAIR_FUNCTIONS.clear()
+            q = ca.SX.sym("q", 6)
+            entry = {"q": q, "chain": _chain_segments(spec, q), "built": {}}
+            _PAIR_FUNCTIONS[key] = entry
+        out = []
+        for i in pairs:
+            fn = entry["built"].get(int(i))
+            if fn is None:
+                d = _pair_sx(spec, int(i), *entry["chain"])
+                fn = _functions(entry["q"], CLEARANCE_SCALE * (d - spec.clearance), exact_hessian, f"clearance_{i}")
+                entry["built"][int(i)] = fn
+            out.append(fn)
+    return out

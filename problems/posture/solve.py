@@ -40,7 +40,13 @@ from problems.posture.clearance import (
     CLEARANCE_TOL_M,
     NLP_MAX_PENETRATION_M,
     ClearanceSpec,
-    near_pairs,
+)
+from problems.posture.clearance_active import (
+    MAX_RESOLVES,
+    clearance_margin,
+    depth_margin,
+    posed_at,
+    unposed_violations,
 )
 from problems.posture.transcription import PostureNLP, get_nlp
 from problems.posture.verification import guard_bounds, verify
@@ -136,9 +142,12 @@ def optimise_postures(
     optimise : bool
         False: analytic postures only (every branch as if it had no freedom).
     clearance : ClearanceSpec, optional
-        The cell: its pairs that come within :data:`~problems.posture.clearance.NEAR_DISTANCE_M`
-        at some branch's warm start are kept at the clearance by the NLP (constraints with
-        gradients); the caller checks every pair exactly afterwards.
+        The cell: each pair is kept at the clearance by the NLP (constraints with gradients) at
+        the waypoints where it comes within
+        :data:`~problems.posture.clearance_active.POSED_DISTANCE_M` at some branch's warm start;
+        a solution closer than the clearance at a waypoint where its pair was not posed is solved
+        again with it posed (:mod:`problems.posture.clearance_active`); the caller checks every
+        pair exactly afterwards.
 
     Returns
     -------
@@ -169,11 +178,12 @@ def optimise_postures(
     build = 0.0
     if optimise and freedom == "free":
         t0 = time.perf_counter()
+        spec = clearance if clearance is not None and clearance.pairs else None
         posed = None
-        if clearance is not None and clearance.pairs:
-            starts = [v[0].q for v in ws.warm.values()] + [v.q for v in ws.analytic.values()]
-            posed = clearance.subset(near_pairs(clearance, starts))
-        nlp = get_nlp(arm, task.rule, task.n, settings, verbose, posed)
+        if spec is not None:  # where the branches the NLP will solve come near (clearance_active)
+            starts = [v[0].q for v in ws.warm.values()]
+            posed = posed_at(spec, [q for q in starts if depth_margin(spec, q).min() >= -NLP_MAX_PENETRATION_M])
+        nlp = get_nlp(arm, task.rule, task.n, settings, verbose, spec, posed)
         build = time.perf_counter() - t0
 
     results: dict[int, BranchResult] = {}
@@ -181,7 +191,7 @@ def optimise_postures(
         if nlp is None:
             results[b] = _unoptimised_branch(model, task, ws, b, freedom, note)
         else:
-            results[b] = _optimised_branch(nlp, model, ik, task, ws, b, robot.q_min, robot.q_max)
+            results[b], nlp = _optimised_branch(nlp, model, ik, task, ws, b, robot.q_min, robot.q_max)
         results[b].label = ik.labels[b]
     res = _choose(task, ws.rejected, ws.unreachable, results, default, freedom, note, build, ik.labels)
     res.ik_family = ik.family
@@ -303,19 +313,22 @@ def _optimised_branch(
     b: int,
     q_min: np.ndarray,
     q_max: np.ndarray,
-) -> BranchResult:
+) -> tuple[BranchResult, PostureNLP]:
     """Branch ``b`` through the NLP: IPOPT from its warm start, Gauss-Newton polish, verification.
 
     The optimised posture is kept only if IPOPT converged and every constraint verifies;
     otherwise the analytic posture (else the warm start) is kept and the status says why.
-    ``q_min``, ``q_max`` (6,) are the joint limits, rad.
+    ``q_min``, ``q_max`` (6,) are the joint limits, rad.  With a cell, a solution closer than the
+    clearance where its pair was not posed is solved again with it posed (at most
+    :data:`~problems.posture.clearance_active.MAX_RESOLVES` times); the NLP used last is
+    returned with the result (the next branch starts from it).
     """
     bp_warm, wname, wcost = ws.warm[b]
     qa, err_a, cost_a = _analytic_of(model, task, ws, b)
     base = qa if qa is not None else bp_warm.q
     sign = branch_signs(ik, bp_warm.q)
     kept = "analytic posture" if qa is not None else "warm start"
-    deep = nlp.clearance_margin_m(bp_warm.q)
+    deep = depth_margin(nlp.clearance, bp_warm.q)
     if deep.min() < -NLP_MAX_PENETRATION_M:  # a posture change does not pull a link out of an object
         k = int(np.argmin(deep))
         err = linear_error(model, base, task.load)
@@ -326,9 +339,17 @@ def _optimised_branch(
         return BranchResult(
             b, BranchStatus.SOLVER_FAILED, why, base, qa, bp_warm.q, wname, float(np.sum(err**2)), cost_a, wcost,
             err, err_a,
-        )  # fmt: skip
+        ), nlp  # fmt: skip
     q_opt, ip_status, iters, dt = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
     q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
+    for _ in range(MAX_RESOLVES if nlp.clearance is not None else 0):
+        more = unposed_violations(nlp.clearance, nlp.posed, q_pol)
+        if more is None:
+            break
+        nlp = nlp.with_posed(more)
+        q_opt, ip_status, it2, dt2 = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
+        iters, dt = iters + it2, dt + dt2
+        q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
     problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
     problems = [*problems, *_clearance_problems(nlp, task, q_pol)]
     st, why = _branch_verdict(ip_status, iters, problems, kept)
@@ -362,13 +383,13 @@ def _optimised_branch(
         res_m,
         res_rad,
         _active_guards(ik, q, sign),
-    )
+    ), nlp
 
 
 def _clearance_problems(nlp: PostureNLP, task: PostureTask, q: np.ndarray) -> list[str]:
     """The deepest waypoint of ``q`` (N, 6) inside the cell's clearance, as a verification problem
     (none when every waypoint keeps :data:`CLEARANCE_TOL_M`; a non-finite ``q`` is inside)."""
-    margin_c = nlp.clearance_margin_m(q) if np.all(np.isfinite(q)) else np.full(task.n, -np.inf)
+    margin_c = clearance_margin(nlp.clearance, q)
     if np.any(margin_c < -CLEARANCE_TOL_M):
         k = int(np.argmin(margin_c))
         return [f"waypoint {k}: {-margin_c[k] * 1e3:.3g} mm inside the cell's clearance"]
@@ -401,7 +422,7 @@ def _start_is_better(
     return bool(
         _objective(model, task, q_start) < _objective(model, task, q)
         and not verify(model, task, q_start, q_min, q_max, ik, sign)[0]
-        and np.all(nlp.clearance_margin_m(q_start) >= -CLEARANCE_TOL_M)
+        and np.all(clearance_margin(nlp.clearance, q_start) >= -CLEARANCE_TOL_M)
     )
 
 

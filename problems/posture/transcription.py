@@ -11,11 +11,14 @@ rounding (:attr:`PostureNLP.compiled` says which; :func:`models.codegen.codegen_
 records why).  The NLP is assembled in MX by mapping them over the waypoints, with
 the sparse derivative functions assembled by hand and passed to ``nlpsol`` (options
 ``grad_f``, ``jac_g``, ``hess_lag``), so one solver per (model, rule, N) serves every
-branch: only the warm start and the parameters change.
+branch: only the warm start and the parameters change.  With a cell, the clearance rows are
+posed pair by pair where each pair comes near (:mod:`problems.posture.clearance_rows`), and the
+solver is cached by that set too (:meth:`PostureNLP.with_posed` adds entries).
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 import threading
 import time
@@ -45,7 +48,8 @@ from problems.posture.task import (
     PostureTask,
     SolverSettings,
 )
-from problems.posture.clearance import CLEARANCE_SCALE, ClearanceSpec, clearance_functions
+from problems.posture.clearance import ClearanceSpec
+from problems.posture.clearance_rows import ClearanceRows
 from problems.posture.verification import guard_bounds
 
 # --------------------------------------------------------------------------------------
@@ -201,8 +205,12 @@ class PostureNLP:
     verbose : bool
         IPOPT output on (print level 5).
     clearance : ClearanceSpec, optional
-        The cell's clearance constraints (:mod:`problems.posture.clearance`), one row per pair
-        per waypoint after the stage constraints; none without a cell.
+        The cell's clearance constraints (:mod:`problems.posture.clearance`), after the stage
+        constraints: one row per pair and waypoint where it is posed
+        (:class:`~problems.posture.clearance_rows.ClearanceRows`); none without a cell.
+    posed : ndarray of bool, shape (P, N), optional
+        Where each pair is posed (:func:`problems.posture.clearance_active.posed_at`); default
+        every pair at every waypoint.
 
     Attributes
     ----------
@@ -216,6 +224,9 @@ class PostureNLP:
         The IPOPT ``nlpsol``.
     build_time_s : float
         Time to build the solver (incl. compiling or loading the stage functions), s.
+    posed : ndarray of bool, shape (P, N), or None
+        Where each clearance pair is posed (None without a cell); ``clear`` its rows
+        (:class:`~problems.posture.clearance_rows.ClearanceRows`, None when nothing is posed).
     """
 
     def __init__(
@@ -226,6 +237,7 @@ class PostureNLP:
         settings: SolverSettings = SolverSettings(),
         verbose: bool = False,
         clearance: ClearanceSpec | None = None,
+        posed: np.ndarray | None = None,
     ) -> None:
         if settings.name != "ipopt":
             raise InputError(f"solver: unknown NLP solver {settings.name!r}; available: ['ipopt']")
@@ -245,10 +257,14 @@ class PostureNLP:
         self.stage = funcs
         self.m = _n_stage_constraints(rule, len(self.ik.guard_kinds))
         self.clearance = clearance if clearance is not None and clearance.pairs else None
-        # the clearance functions run on CasADi's virtual machine: they change with every cell,
-        # and compiling their Hessian (-O3) takes minutes where the whole solve takes seconds
-        self.clear = clearance_functions(self.clearance) if self.clearance is not None else None
-        self.mc = len(self.clearance.pairs) if self.clearance is not None else 0
+        if self.clearance is not None and posed is None:
+            posed = np.ones((len(self.clearance.pairs), n), dtype=bool)
+        # each pair's functions run on CasADi's virtual machine, mapped over the waypoints where it
+        # is posed (problems/posture/clearance_rows.py); none posed: no clearance rows
+        self.posed = np.asarray(posed, dtype=bool) if self.clearance is not None else None
+        self.clear = ClearanceRows(self.clearance, self.posed) if self.posed is not None and self.posed.any() else None
+        self.mc = self.clear.count if self.clear is not None else 0
+        self.verbose = verbose
         self._build(funcs, verbose)
         self.build_time_s = time.perf_counter() - t0
 
@@ -268,7 +284,7 @@ class PostureNLP:
         dX = ca.mtimes(Dm, x) if n > 1 else ca.MX(0, 1)
         f = w_obj * (ca.sum2(c_all) + lam_s * ca.sumsqr(dX))
         mc, clear = self.mc, self.clear
-        gc = ca.vec(clear["g"].map(n)(X)) if clear is not None else ca.MX(0, 1)
+        gc = clear.g(X) if clear is not None else ca.MX(0, 1)
         g = ca.vertcat(ca.vec(g_all), gc, dX)
 
         c_g, grad = funcs["grad"].map(n)(X, Th)
@@ -284,9 +300,9 @@ class PostureNLP:
         blocks = [ca.MX(_blockdiag_sparsity(n, m, 6), ca.vec(jac))]
         g_rows = [ca.vec(g_j)]
         if clear is not None:
-            g_c, jac_c = clear["jac"].map(n)(X)
-            blocks.append(ca.MX(_blockdiag_sparsity(n, mc, 6), ca.vec(jac_c)))
-            g_rows.append(ca.vec(g_c))
+            g_c, jac_c = clear.jac(X)
+            blocks.append(jac_c)
+            g_rows.append(g_c)
         if n > 1:
             blocks.append(ca.MX(Dm))
         jac_g = ca.Function(
@@ -294,11 +310,12 @@ class PostureNLP:
         )
 
         lam_f = ca.MX.sym("lam_f")
-        lam_g = ca.MX.sym("lam_g", (m + mc) * n + 6 * (n - 1))
+        lam_g = ca.MX.sym("lam_g", m * n + mc + 6 * (n - 1))
         Lg = ca.reshape(lam_g[: m * n], m, n)
         H = funcs["hess"].map(n)(X, Th, ca.repmat(lam_f * w_obj, 1, n), Lg)
-        if clear is not None:
-            H = H + clear["hess"].map(n)(X, ca.reshape(lam_g[m * n : (m + mc) * n], mc, n))
+        H_c = clear.hess(X, lam_g[m * n : m * n + mc]) if clear is not None else None
+        if H_c is not None:
+            H = H + H_c
         H_stage = ca.MX(_blockdiag_sparsity(n, 6, 6), ca.vec(H))
         H_full = H_stage + 2.0 * lam_f * w_obj * lam_s * ca.MX(ca.DM(LtL)) if n > 1 else H_stage
         hess = ca.Function(
@@ -360,7 +377,7 @@ class PostureNLP:
         lo[m - ng :] = guard_bounds(self.ik)[:, None]
         hi[m - ng :] = np.inf
         step = np.full(6 * (n - 1), task.max_joint_step)
-        clo, chi = np.zeros(self.mc * n), np.full(self.mc * n, np.inf)
+        clo, chi = np.zeros(self.mc), np.full(self.mc, np.inf)
         return np.r_[lo.reshape(-1, order="F"), clo, -step], np.r_[hi.reshape(-1, order="F"), chi, step]
 
     def solve(
@@ -389,13 +406,11 @@ class PostureNLP:
         q = np.asarray(res["x"]).reshape(self.n, 6)
         return q, str(st.get("return_status", "unknown")), int(st.get("iter_count", 0)), dt
 
-    def clearance_margin_m(self, q: np.ndarray) -> np.ndarray:
-        """Each waypoint's smallest clearance margin (m) of the posed pairs at ``q`` (N, 6) rad:
-        the lower-bound distance less the clearance; ``+inf`` without clearance constraints."""
-        if self.clear is None:
-            return np.full(q.shape[0], np.inf)
-        g = np.asarray(self.clear["g"].map(q.shape[0])(q.T))  # (mc, N), mm
-        return g.min(axis=0) / CLEARANCE_SCALE
+    def with_posed(self, more: np.ndarray) -> PostureNLP:
+        """The NLP of the same model, rule and N with the clearance entries ``more`` (P, N) bool
+        posed too (:func:`get_nlp`, cached)."""
+        assert self.clearance is not None and self.posed is not None
+        return get_nlp(self.arm, self.rule, self.n, self.settings, self.verbose, self.clearance, self.posed | more)
 
     def objective_weight(self, task: PostureTask, q0: np.ndarray, th: np.ndarray) -> float:
         """Weight that brings the objective at the warm start to about one per waypoint.
@@ -486,16 +501,23 @@ def get_nlp(
     settings: SolverSettings = SolverSettings(),
     verbose: bool = False,
     clearance: ClearanceSpec | None = None,
+    posed: np.ndarray | None = None,
 ) -> PostureNLP:
-    """The cached :class:`PostureNLP` for (model, rule, n, settings, verbose, clearance)."""
+    """The cached :class:`PostureNLP` for (model, rule, n, settings, verbose, clearance, posed).
+
+    ``posed`` (P, N) bool: where each pair of ``clearance`` is posed (default: everywhere).
+    """
     arm = arm if isinstance(arm, ArmModel) else ArmModel.from_robot(arm)
-    ckey = clearance.key if clearance is not None and clearance.pairs else None
+    ckey = None
+    if clearance is not None and clearance.pairs:
+        mask = np.ones((len(clearance.pairs), n), dtype=bool) if posed is None else np.asarray(posed, dtype=bool)
+        ckey = (clearance.key, hashlib.sha256(np.packbits(mask).tobytes() + str(mask.shape).encode()).hexdigest())
     key = (_model_key(arm), rule, n, settings, verbose, ckey)
     with _SOLVERS_LOCK:
         nlp = _SOLVERS.get(key)
         if nlp is None:
             if len(_SOLVERS) > 32:
                 _SOLVERS.clear()
-            nlp = PostureNLP(arm, rule, n, settings, verbose, clearance)
+            nlp = PostureNLP(arm, rule, n, settings, verbose, clearance, posed)
             _SOLVERS[key] = nlp
     return nlp

@@ -79,4 +79,5 @@ def segment_box_distance(p0: np.ndarray, p1: np.ndarray, half: np.ndarray) -> np
         -_dot(normals, p0[..., None, :]), -_dot(normals, p1[..., None, :])
     )
     depth = np.min(np.where(valid, support, np.inf), axis=-1)
-    return np.where(g > 0.0, np.sqrt(g), -np.maximum(depth, 0.0))
+    # a crossing segment's g is zero up to rounding (1e-34 m^2 seen): below DEGENERATE_M2 they meet
+    return np.where(g > DEGENERATE_M2, np.sqrt(g), -np.maximum(depth, 0.0))
