@@ -9,6 +9,8 @@ for infeasible tasks: the result's status and reason say what failed.  Prints no
 
 from __future__ import annotations
 
+from typing import Any
+
 import math
 import time
 
@@ -178,12 +180,7 @@ def optimise_postures(
     build = 0.0
     if optimise and freedom == "free":
         t0 = time.perf_counter()
-        spec = clearance if clearance is not None and clearance.pairs else None
-        posed = None
-        if spec is not None:  # where the branches the NLP will solve come near (clearance_active)
-            starts = [v[0].q for v in ws.warm.values()]
-            posed = posed_at(spec, [q for q in starts if depth_margin(spec, q).min() >= -NLP_MAX_PENETRATION_M])
-        nlp = get_nlp(arm, task.rule, task.n, settings, verbose, spec, posed)
+        nlp = _build_nlp(arm, task, settings, verbose, clearance, ws)
         build = time.perf_counter() - t0
 
     results: dict[int, BranchResult] = {}
@@ -384,6 +381,24 @@ def _optimised_branch(
         res_rad,
         _active_guards(ik, q, sign),
     ), nlp
+
+
+def _build_nlp(
+    arm: ArmModel,
+    task: PostureTask,
+    settings: SolverSettings,
+    verbose: bool,
+    clearance: ClearanceSpec | None,
+    ws: Any,
+) -> PostureNLP:
+    """The posture NLP of ``task``, with the cell's pairs posed where the branches it will solve
+    come near at their warm starts (:mod:`problems.posture.clearance_active`)."""
+    spec = clearance if clearance is not None and clearance.pairs else None
+    posed = None
+    if spec is not None:
+        starts = [v[0].q for v in ws.warm.values()]
+        posed = posed_at(spec, [q for q in starts if depth_margin(spec, q).min() >= -NLP_MAX_PENETRATION_M])
+    return get_nlp(arm, task.rule, task.n, settings, verbose, spec, posed)
 
 
 def _clearance_problems(nlp: PostureNLP, task: PostureTask, q: np.ndarray) -> list[str]:
