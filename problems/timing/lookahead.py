@@ -39,9 +39,9 @@ cell maxima miss a peak (``P'`` between knots) and a ratio exceeds 1, the law is
 time by ``k = max(r_v, sqrt(r_a), cbrt(r_j))`` (at most :data:`SCALE_ROUNDS` times).
 
 On a short path (a move from rest to rest) the filter's length is a large share of the motion;
-there Ruckig's law on the same path under one bound set (``problems.timing.ruckig_method``) is
-computed too and kept when it is shorter (:data:`LOOKAHEAD_ALSO`, where the filter is at least
-:data:`LOOKAHEAD_ALSO_SHARE` of the motion; the reason says so).
+there (where the filter is at least :data:`LOOKAHEAD_ALSO_SHARE` of it) Ruckig's time-optimal
+rest-to-rest profile of the path parameter under the grid's smallest bounds is computed too and
+kept when it is shorter (the reason says so).
 
 Cost: O(G) per candidate ``T``; ``G`` is :data:`CELLS_PER_KNOT` per waypoint, at least
 :data:`MIN_CELLS`, at most :data:`MAX_CELLS`. Options: ``cells_per_knot`` (int >= 1). Importing
@@ -88,9 +88,8 @@ FILTER_T_MAX_S: float = 2.0
 #: Uniform slow-down when the sampled check exceeds a limit: margin and most rounds.
 SCALE_MARGIN: float = 1e-4
 SCALE_ROUNDS: int = 3
-#: The method whose law of the same path is kept when shorter (see the module docstring), tried
-#: where the filter is at least LOOKAHEAD_ALSO_SHARE of the motion.
-LOOKAHEAD_ALSO: str = "ruckig"
+#: Ruckig's rest-to-rest profile under the grid's smallest bounds is tried where the filter is at
+#: least this share of the motion (see the module docstring).
 LOOKAHEAD_ALSO_SHARE: float = 0.05
 #: The kinds of bound, in the order of :attr:`LocalBounds.kind`.
 BOUND_KINDS: tuple[str, ...] = ("velocity", "acceleration", "jerk")
@@ -392,27 +391,44 @@ def run_lookahead(path: SplinePath, limits: JointLimits, dt: float, opts: Mappin
     )
     if law.T < LOOKAHEAD_ALSO_SHARE * law.duration:
         return own  # the filter is a small share of the motion: Ruckig's one bound set cannot win
-    return _shorter_of(own, path, limits, dt)
+    return _shorter_of(own, path, grid, limits, dt)
 
 
-def _shorter_of(own: Trajectory, path: SplinePath, limits: JointLimits, dt: float) -> Trajectory:
-    """``own`` or, where it is shorter and within every limit, Ruckig's law of the same path
-    (:data:`LOOKAHEAD_ALSO`): on a short path, a rest-to-rest move, Ruckig's time-optimal profile
-    under one bound set beats a filtered law, whose filter adds up to ~20 % there."""
-    from dataclasses import replace
-
-    from problems.timing.registry import get_method
+def _shorter_of(own: Trajectory, path: SplinePath, grid: _Grid, limits: JointLimits, dt: float) -> Trajectory:
+    """``own`` or, where it is shorter and within every limit, Ruckig's time-optimal rest-to-rest
+    profile of the path parameter under the grid's smallest bounds (``min X``, ``min A``, ``min W``:
+    within the joints' limits everywhere by the same shares): on a short path, a move from rest to
+    rest, it beats a filtered law, whose filter adds up to ~20 % there."""
+    from problems.timing.ruckig_method import RuckigLaw
     from problems.timing.trajectory import TimingStatus
 
-    other = get_method(LOOKAHEAD_ALSO).run(path, limits, dt, {})
-    if other.status is not TimingStatus.OK or not other.duration_s < own.duration_s:
+    bounds = [float(np.min(b[np.isfinite(b)])) if np.any(np.isfinite(b)) else 0.0 for b in (grid.X, grid.A, grid.W)]
+    if not all(b > 0.0 for b in bounds):
         return own
-    return replace(
-        other,
-        method="lookahead",
-        reason=f"{other.reason} ({LOOKAHEAD_ALSO}'s law, {other.duration_s:.4g} s, shorter than the look-ahead's "
-        f"{own.duration_s:.4g} s on this path)",
+    law = RuckigLaw()
+    attempt = law.solve(*bounds)
+    if not attempt.ok or not attempt.duration < own.duration_s:
+        return own
+    tc = check_times(attempt.duration, dt)
+    s, sd, sdd, sddd = law.profile_eval(tc)
+    _, qd, qdd, qddd = path.evaluate(s, sd, sdd, sddd)
+    ratio = limit_ratios(qd, qdd, qddd, limits)
+    other = finish_trajectory(
+        "lookahead",
+        path,
+        limits,
+        dt,
+        law.profile_eval,
+        attempt.duration,
+        ratio,
+        f"Ruckig ({attempt.solver_code}) under the look-ahead's smallest bounds sd<={bounds[0]:.6g} 1/s, "
+        f"|sdd|<={bounds[1]:.6g} 1/s^2, |sddd|<={bounds[2]:.6g} 1/s^3, shorter than the filtered law's "
+        f"{own.duration_s:.4g} s on this path; {format_ratios(ratio)}",
+        check_sd=sd,
+        sd_scale=float(np.max(np.abs(sd))) if sd.size else 1.0,
+        iterations=1,
     )
+    return other if other.status is TimingStatus.OK and other.duration_s < own.duration_s else own
 
 
 LOOKAHEAD_METHOD: TimingMethod = register_method(

@@ -66,6 +66,7 @@ from problems.timing.verification import (
 )
 
 __all__ = [
+    "RuckigLaw",
     "ruckig_bound_set",
 ]
 
