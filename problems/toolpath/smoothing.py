@@ -33,11 +33,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["SMOOTH_BISECTIONS", "smooth_stretch"]
+__all__ = ["SMOOTH_BISECTIONS", "smooth_stretch", "smooth_stretch_lam"]
 
 #: Bisection steps on ``log10 lam`` over [SMOOTH_LOG_LAM_MIN, SMOOTH_LOG_LAM_MAX].
-SMOOTH_BISECTIONS: int = 10
+SMOOTH_BISECTIONS: int = 9
 SMOOTH_LOG_LAM_MIN: float = -30.0
+#: With a hint (a previous solve of the same stretch): decades searched either side, and steps.
+SMOOTH_HINT_DECADES: float = 2.0
+SMOOTH_HINT_BISECTIONS: int = 5
 SMOOTH_LOG_LAM_MAX: float = 10.0
 #: A stretch needs at least this many waypoints (two interior) to be smoothed.
 SMOOTH_MIN_WAYPOINTS: int = 5
@@ -124,7 +127,8 @@ def smooth_stretch(
     budget_m: float,
     weight: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The stretch's waypoints smoothed within ``budget_m`` (see the module docstring).
+    """The stretch's waypoints smoothed within ``budget_m`` (see the module docstring); the first
+    element of :func:`smooth_stretch_lam`.
 
     Parameters
     ----------
@@ -147,15 +151,31 @@ def smooth_stretch(
     np.ndarray
         Shape ``(m, n)``, rad; ``q`` itself when the stretch is too short or ``tau`` not increasing.
     """
+    return smooth_stretch_lam(tau, q, tcp_frame, budget_m, weight)[0]
+
+
+def smooth_stretch_lam(
+    tau: np.ndarray,
+    q: np.ndarray,
+    tcp_frame: Callable[[np.ndarray], np.ndarray],
+    budget_m: float,
+    weight: np.ndarray | None = None,
+    log_lam_hint: float | None = None,
+) -> tuple[np.ndarray, float]:
+    """:func:`smooth_stretch`, and the ``log10 lam`` of its uniform stage (NaN when not smoothed).
+    ``log_lam_hint`` (a previous call's on the same stretch) narrows the bisection to
+    :data:`SMOOTH_HINT_DECADES` either side of it, in :data:`SMOOTH_HINT_BISECTIONS` steps."""
     tau = np.asarray(tau, dtype=float)
     if len(tau) < SMOOTH_MIN_WAYPOINTS or not np.all(np.diff(tau) > 0.0) or not budget_m > 0.0:
-        return q
+        return q, float("nan")
     system = _System(tau, q, tcp_frame, budget_m)
     ones = np.ones(len(tau) - 2) if weight is None else np.asarray(weight, dtype=float)[1:-1].copy()
     # 1. the largest uniform smoothing within the budget (bisection)
-    lo, hi = SMOOTH_LOG_LAM_MIN, SMOOTH_LOG_LAM_MAX
+    lo, hi, steps = SMOOTH_LOG_LAM_MIN, SMOOTH_LOG_LAM_MAX, SMOOTH_BISECTIONS
+    if log_lam_hint is not None and np.isfinite(log_lam_hint):
+        lo, hi, steps = log_lam_hint - SMOOTH_HINT_DECADES, log_lam_hint + SMOOTH_HINT_DECADES, SMOOTH_HINT_BISECTIONS
     best = q
-    for _ in range(SMOOTH_BISECTIONS):
+    for _ in range(steps):
         mid = 0.5 * (lo + hi)
         out, moved = system.solve(mid, ones)
         if moved.max() <= budget_m:
@@ -163,7 +183,8 @@ def smooth_stretch(
         else:
             hi = mid
     if best is q:
-        return q
+        return q, float("nan")
+    uniform = lo
     # 2. more smoothing where there is room: raise lam, holding the waypoints that would leave the
     #    budget by raising their weights (a few reweightings per step)
     weight = ones.copy()
@@ -180,7 +201,7 @@ def smooth_stretch(
         else:
             break
         best, weight, log_lam = out, trial_w, log_lam_try
-    return best
+    return best, uniform
 
 
 class _System:

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from problems.toolpath.smoothing import smooth_stretch
+from problems.toolpath.smoothing import smooth_stretch_lam
 
 __all__ = ["FIT_CHECK_SHARE", "fit_stretch", "segment_distance"]
 
@@ -175,9 +175,12 @@ def fit_stretch(
     dev = np.zeros(0)
     fitted, fitted_kept, fitted_slack = rows, st.kept, st.slack
     limit = FIT_CHECK_SHARE * tolerance_m
+    hint = None
     for _ in range(FIT_ROUNDS):
         fitted = st.rows.copy()
-        fitted[:, :n] = smooth_stretch(st.tau, st.q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, st.weight)
+        fitted[:, :n], hint = smooth_stretch_lam(
+            st.tau, st.q0, tcp_frame, FIT_SMOOTH_SHARE * tolerance_m, st.weight, hint
+        )
         if time_column is not None:
             # the programmed time over each interval scaled by the TCP's path length there over the
             # chord's (the smoothing moves waypoints along the path too): a bound on its rate is then
