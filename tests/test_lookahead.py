@@ -150,3 +150,45 @@ def test_the_fit_keeps_the_spline_within_the_tolerance_between_waypoints():
     assert d.max() <= tol, d.max()
     # the programmed-time column follows the fitted TCP path's length
     assert np.all(np.diff(fitted[:, 6]) > 0.0)
+
+
+def test_stretches_timed_in_worker_processes_give_the_same_trajectory(tmp_path, monkeypatch):
+    """The stretches are timed in forked workers when there are many (problems.toolpath.stretch_pool):
+    the joined trajectory is the one timed in this process, sample for sample."""
+    import importlib.util
+    from pathlib import Path
+
+    from planner.plan import plan
+    from problems.problem import load_problem
+    from problems.toolpath import stretch_pool
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("cam_finishing", root / "benchmarks" / "cam_finishing.py")
+    cam = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cam)
+    (tmp_path / "part.ngc").write_text(cam.finishing_program(n_rows=4))
+    (tmp_path / "p.toml").write_text(
+        'name = "f"\n[robot]\nmodel = "ur10"\ntool = { xyz = [0.08, 0.0, 0.12] }\n[path]\nkind = "gcode"\n'
+        'file = "part.ngc"\n[workpiece]\nxyz = [0.65, 0.0, 0.10]\n[wrench]\nframe = "tool"\n'
+        "force = [40.0, 25.0, 30.0]\n"
+    )
+    pr = load_problem(tmp_path / "p.toml")
+    monkeypatch.setenv(stretch_pool.WORKERS_ENV, "1")
+    one = plan(pr).feed["lookahead"]
+    monkeypatch.setenv(stretch_pool.WORKERS_ENV, "2")
+    monkeypatch.setattr(stretch_pool, "PARALLEL_MIN_STRETCHES", 2)
+    assert stretch_pool.worker_count(one.n_stretches) == 2
+    two = plan(pr).feed["lookahead"]
+    assert one.n_stretches == two.n_stretches > 2
+    assert np.array_equal(one.trajectory.q, two.trajectory.q) and np.array_equal(one.trajectory.t, two.trajectory.t)
+    assert one.path_deviation_m == two.path_deviation_m and one.slowed == two.slowed
+
+
+@pytest.mark.parametrize("raw", ["0", "two", "-1"])
+def test_a_bad_worker_count_is_named(monkeypatch, raw):
+    from models.errors import InputError
+    from problems.toolpath import stretch_pool
+
+    monkeypatch.setenv(stretch_pool.WORKERS_ENV, raw)
+    with pytest.raises(InputError, match="COMPPLAN_WORKERS"):
+        stretch_pool.worker_count(1000)

@@ -32,7 +32,10 @@ The time law is made in two steps, both vectorised (no loop over cells):
    ``(u(t) - u(t - T)) / T``, at most ``2 A / T <= W``. It is exact in closed form (``s(t)`` is
    piecewise quadratic, its integral piecewise cubic), starts and ends at rest, and lasts ``T``
    longer. ``T`` is chosen per path among :data:`FILTER_CANDIDATES` values, the shortest total
-   time kept: a short ``T`` costs accelerations (``A <= W T / 2``), a long one costs ``T``.
+   time kept: a short ``T`` costs accelerations (``A <= W T / 2``), a long one costs ``T``. Near
+   the best ``T``, ``A <= W T`` is tried too (the jerk is ``A / T`` where the first law's
+   acceleration does not flip sign within ``T``) and kept where the sampled path jerk shows it
+   within ``W``.
 
 The sampled trajectory is checked like every method's (``problems.timing.verification``); where the
 cell maxima miss a peak (``P'`` between knots) and a ratio exceeds 1, the law is slowed uniformly in

@@ -34,6 +34,7 @@ import numpy as np
 
 from models.errors import InputError
 from problems.timing import JointLimits, TimingStatus, Trajectory
+from problems.toolpath.stretch_pool import map_stretches
 from problems.toolpath.feed_stretch import (
     FEED_FALLBACK_METHOD,
     FEED_RETRY_METHOD,
@@ -339,20 +340,16 @@ def _time_stretches(
     timed on its own (:func:`~problems.toolpath.feed_stretch.time_stretch_checked`), its programmed time
     counted from the stretch's start;
     with ``geo``, a cutting stretch smoothed first and its samples checked against the path."""
-    n = cols.shape[1] - 2
     run = _Stretches()
     N = len(cols)
     run.cruise, run.bound_joint, run.bound_kind = np.full(N, np.inf), np.full(N, -1), np.full(N, -1)
     stage = f"timing {method}"
     worst = 0.0
-    for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+    jobs = [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+    shared = (cols, tau, aug, method, dt, options, geo)
+    for i, ((a, b), (tr, how, dev, added, cruise)) in enumerate(zip(jobs, map_stretches(_one_stretch, shared, jobs))):
         if progress is not None:
-            progress(stage, i, len(bounds) - 1)
-        seg = cols[a : b + 1].copy()
-        seg[:, n] -= FEED_TIME_SCALE * tau[a]
-        tr, how, dev, added, cruise = time_stretch_checked(
-            seg, tau[a : b + 1], aug, method, dt, tau[b] - tau[a], options, geo, int(a)
-        )
+            progress(stage, i, len(jobs))
         worst = max(worst, dev)
         if cruise is not None:
             run.cruise[a + 1 : b + 1], run.bound_joint[a + 1 : b + 1], run.bound_kind[a + 1 : b + 1] = cruise
@@ -360,17 +357,33 @@ def _time_stretches(
         run.n_rows_added += added
         run.retimed += how == "retimed"
         if how.startswith("substituted"):
-            run.substituted.append((int(a), int(b), how.split(":", 1)[1]))
-        if tr.q.size:
-            tr = replace(tr, q=tr.q.copy())
-            tr.q[:, n] += FEED_TIME_SCALE * tau[a]
+            run.substituted.append((a, b, how.split(":", 1)[1]))
         run.pieces.append(tr)
         if run.failed is None and tr.status is not TimingStatus.OK:
-            run.failed = (int(a), int(b), tr)
+            run.failed = (a, b, tr)
     if progress is not None:
         progress(stage, len(bounds) - 1, len(bounds) - 1)
     run.deviation_m = worst if geo is not None else float("nan")
     return run
+
+
+def _one_stretch(shared: tuple, job: tuple[int, int]) -> tuple[Trajectory, str, float, int, Any]:
+    """Stretch ``job`` = (first, last waypoint) of the augmented path timed
+    (:func:`~problems.toolpath.feed_stretch.time_stretch_checked`), its programmed time counted from
+    its start and given back on its samples (a module-level function: the workers of
+    :func:`~problems.toolpath.stretch_pool.map_stretches` call it)."""
+    cols, tau, aug, method, dt, options, geo = shared
+    a, b = job
+    n = cols.shape[1] - 2
+    seg = cols[a : b + 1].copy()
+    seg[:, n] -= FEED_TIME_SCALE * tau[a]
+    tr, how, dev, added, cruise = time_stretch_checked(
+        seg, tau[a : b + 1], aug, method, dt, tau[b] - tau[a], options, geo, a
+    )
+    if tr.q.size:
+        tr = replace(tr, q=tr.q.copy())
+        tr.q[:, n] += FEED_TIME_SCALE * tau[a]
+    return tr, how, dev, added, cruise
 
 
 def _feed_law(
