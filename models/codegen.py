@@ -61,6 +61,19 @@ PARALLEL_MIN_BATCH = 4096
 # before libgomp starts; a user's explicit setting wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
+#: Every batch evaluation on the calling thread (:func:`single_threaded`): set in a forked worker
+#: process, whose OpenMP runtime (GNU libgomp is not fork-safe) must not start a team.
+_SINGLE_THREAD = False
+
+
+def single_threaded() -> None:
+    """From now on, evaluate every batch function on the calling thread (no OpenMP team, no
+    CasADi threads). For a process forked from one that has used OpenMP: GNU libgomp's thread pool
+    does not survive a fork, and a team started in the child waits for threads that do not exist."""
+    global _SINGLE_THREAD
+    _SINGLE_THREAD = True
+
+
 #: Threads of a virtual-machine batch (``Function.map(..., "thread", N)``) by default.
 VM_THREADS = 2
 #: Mapped functions kept per :class:`VMBatchFunction` (one per batch size).
@@ -245,7 +258,8 @@ class BatchFunction:
         in_ptrs = (ctypes.c_void_p * self.n_in)(*[b.ctypes.data for b in bufs])
         out_ptrs = (ctypes.c_void_p * self.n_out)(*[o.ctypes.data for o in outs])
         st = (ctypes.c_longlong * self.n_in)(*strides)
-        if self._fn(n, in_ptrs, st, out_ptrs, self.threads) != 0:
+        threads = self.threads if _SINGLE_THREAD is False else 1
+        if self._fn(n, in_ptrs, st, out_ptrs, threads) != 0:
             raise FloatingPointError(f"{self.name}: evaluation failed")
         return _batch_outputs(outs, self.out_sizes)
 
@@ -280,7 +294,7 @@ class VMBatchFunction:
         with self._maps_lock:
             fm = self._maps.get(n)
             if fm is None:
-                fm = self.function.map(n, "thread", self.threads)
+                fm = self.function.map(n, "thread", self.threads if _SINGLE_THREAD is False else 1)
                 if len(self._maps) >= VM_MAP_CACHE_SIZE:
                     self._maps.clear()
                 self._maps[n] = fm

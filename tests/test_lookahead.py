@@ -192,3 +192,50 @@ def test_a_bad_worker_count_is_named(monkeypatch, raw):
     monkeypatch.setenv(stretch_pool.WORKERS_ENV, raw)
     with pytest.raises(InputError, match="COMPPLAN_WORKERS"):
         stretch_pool.worker_count(1000)
+
+
+_AFTER_OPENMP = """
+import sys
+import numpy as np
+from planner.plan import plan
+from problems.problem import load_problem
+from problems.toolpath import stretch_pool
+stretch_pool.PARALLEL_MIN_STRETCHES = 2
+pr = load_problem(sys.argv[1])
+pr.model.kinematics.tcp(np.zeros((6000, 6)))  # a batch large enough to start an OpenMP team here
+res = plan(pr)
+print(res.status.value, res.feed["lookahead"].n_stretches)
+"""
+
+
+def test_workers_forked_after_openmp_do_not_hang(tmp_path):
+    """GNU OpenMP does not survive a fork: a worker forked after the parent ran an OpenMP team waited
+    forever in its first batch evaluation (now single-threaded in workers). In a subprocess with a
+    time-out, so that a hang fails the test instead of the suite."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    (tmp_path / "part.ngc").write_text(
+        "G21 G90 G94 G64 P0.02\nG0 X0 Y0 Z5\nG1 Z0 F300\n"
+        + "".join(f"X{10 * (k % 2)} Y{k} F{1200 if k % 2 else 600}\n" for k in range(1, 6))
+        + "X-150 F200\nG0 Z5\nM30\n"  # a long slow move: more samples than an OpenMP batch's threshold
+    )
+    (tmp_path / "p.toml").write_text(
+        'name = "f"\n[robot]\nmodel = "ur10"\ntool = { xyz = [0.08, 0.0, 0.12] }\n[path]\nkind = "gcode"\n'
+        'file = "part.ngc"\n[workpiece]\nxyz = [0.65, 0.0, 0.10]\n[wrench]\nforce = [0.0, 0.0, 0.0]\n'
+    )
+    env = dict(os.environ, COMPPLAN_WORKERS="2", PYTHONPATH=str(root))
+    out = subprocess.run(
+        [sys.executable, "-c", _AFTER_OPENMP, str(tmp_path / "p.toml")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+        cwd=root,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    status, n = out.stdout.split()
+    assert status == "ok" and int(n) > 2

@@ -6,7 +6,9 @@ The number of workers is ``$COMPPLAN_WORKERS`` when set (an integer >= 1; 1: in 
 else the machine's CPU count capped at :data:`MAX_WORKERS`; fewer than
 :data:`PARALLEL_MIN_STRETCHES` stretches, or a platform without ``fork``, are timed in this process.
 The workers are forked, so they share the stretches' data and the arm model without pickling; they
-ignore Ctrl-C (SIGINT), which the calling process receives and answers by terminating the pool.
+ignore Ctrl-C (SIGINT), which the calling process receives and answers by terminating the pool,
+and evaluate the compiled batch functions on their own thread (GNU OpenMP does not survive a fork:
+a team started in a worker of a parent that had used one waited forever).
 The results come back in the stretches' order, so the trajectory is the same as in one process.
 """
 
@@ -58,8 +60,13 @@ def worker_count(n_jobs: int) -> int:
     return max(1, min(wanted, n_jobs))
 
 
-def _ignore_sigint() -> None:
+def _worker_init() -> None:
+    """A worker: Ctrl-C is the calling process's to answer, and no OpenMP team is started (GNU
+    libgomp's threads do not survive the fork: :func:`models.codegen.single_threaded`)."""
+    from models.codegen import single_threaded
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    single_threaded()
 
 
 def _call(job: Any) -> Any:
@@ -79,7 +86,7 @@ def map_stretches(fn: Callable[[Any, Any], Any], shared: Any, jobs: Sequence[Any
         return
     _SHARED = (fn, shared)
     try:
-        with multiprocessing.get_context("fork").Pool(workers, initializer=_ignore_sigint) as pool:
+        with multiprocessing.get_context("fork").Pool(workers, initializer=_worker_init) as pool:
             yield from pool.imap(_call, jobs, chunksize=CHUNK)
     finally:
         _SHARED = None
