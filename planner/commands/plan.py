@@ -203,12 +203,14 @@ def _print_timing(res: Any, s: dict[str, Any]) -> None:
                 + f" (stops included); peak TCP speed {f['peak_feed_ratio']:.3f} F; "
                 f"{len(f['slowed_lines'])} line(s) slowed"
                 + (
-                    f" ({len(f['slowed_by_limit'])} by a joint limit, the others by what surrounds them)"
+                    f" ({len(f['slowed_by_limit'])} by a joint limit"
+                    + (", the others by what surrounds them)" if f.get("n_lines_slowed_by_neighbours") else ")")
                     if f.get("slowed_by_limit") is not None and f["slowed_lines"]
                     else ""
                 )
                 + (
-                    f"; path within {f['path_deviation_mm'] * 1e3:.2f} µm of the program"
+                    f"; samples at most {f['path_deviation_mm'] * 1e3:.2f} µm from the programmed path (tolerance "
+                    f"{s['program']['path_tolerance_mm'] * 1e3:.3g} µm)"
                     if f.get("path_deviation_mm") is not None
                     else ""
                 )
