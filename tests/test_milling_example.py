@@ -100,7 +100,7 @@ def test_shipped_problem_loads_the_program_next_to_it():
     assert "milling_pocket" in shipped_problems()
     pr = load_problem("milling_pocket")
     assert pr.path_kind == "gcode" and Path(pr.program.file).resolve() == PROGRAM.resolve()
-    assert pr.n == pr.program.waypoints.n and 10_000 <= pr.n <= 40_000  # 30 204 when written (arc chords at a quarter of the tolerance)
+    assert pr.n == pr.program.waypoints.n and 10_000 <= pr.n <= 40_000  # 30 204 when written
     assert pr.positions.shape == (pr.n, 3) and pr.wrench.shape == (pr.n, 6)
     # the program zero at (0.65, 0, 0.10) m in the base frame, program axes = base axes
     assert pr.positions[:, 2].min() == pytest.approx(0.10 - 0.025)
