@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -67,7 +67,8 @@ from problems.timing.verification import (
     check_times,
     finish_trajectory,
     format_ratios,
-    limit_ratios,
+    sampled_ratios,
+    time_scale_factor,
 )
 
 __all__ = ["LocalBounds", "local_bounds", "BOUND_KINDS"]
@@ -351,28 +352,12 @@ def run_lookahead(path: SplinePath, limits: JointLimits, dt: float, opts: Mappin
     rounds = 0
     while True:
         rounds += 1
-        tc = check_times(law.duration, dt)
-        s, sd, sdd, sddd = law(tc)
-        _, qd, qdd, qddd = path.evaluate(s, sd, sdd, sddd)
-        ratio = limit_ratios(qd, qdd, qddd, limits)
-        if first is None:
-            first = ratio
-        worst = max(
-            float(np.max(ratio["velocity"])),
-            math.sqrt(float(np.max(ratio["acceleration"]))),
-            math.cbrt(float(np.max(ratio["jerk"]))),
-        )
+        ratio, sd = sampled_ratios(path, law, law.duration, limits, dt)
+        first = ratio if first is None else first
+        worst = time_scale_factor(ratio)
         if worst <= 1.0 or rounds > SCALE_ROUNDS:
             break
-        law = FilteredLaw(
-            law.t_nodes,
-            law.s_nodes,
-            law.v_nodes,
-            law.a_cells,
-            law.i_nodes,
-            law.T,
-            law.scale * worst * (1 + SCALE_MARGIN),
-        )
+        law = replace(law, scale=law.scale * worst * (1 + SCALE_MARGIN))
     summary = (
         f"look-ahead on {len(grid.X)} cells, filter {law.T * 1e3:.3g} ms"
         + (f", slowed x{law.scale:.4g} after the sampled check" if law.scale > 1.0 else "")
@@ -412,10 +397,7 @@ def _shorter_of(own: Trajectory, path: SplinePath, grid: _Grid, limits: JointLim
     attempt = law.solve(*bounds)
     if not attempt.ok or not attempt.duration < own.duration_s:
         return own
-    tc = check_times(attempt.duration, dt)
-    s, sd, sdd, sddd = law.profile_eval(tc)
-    _, qd, qdd, qddd = path.evaluate(s, sd, sdd, sddd)
-    ratio = limit_ratios(qd, qdd, qddd, limits)
+    ratio, sd = sampled_ratios(path, law.profile_eval, attempt.duration, limits, dt)
     other = finish_trajectory(
         "lookahead",
         path,

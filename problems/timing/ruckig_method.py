@@ -63,6 +63,7 @@ from problems.timing.verification import (
     format_ratios,
     limit_ratios,
     moves_backwards,
+    time_scale_factor,
 )
 
 __all__ = [
@@ -386,11 +387,7 @@ class _RuckigLoop:
     def _rescale(self) -> None:
         """Uniform time scaling of the bound set by the measured ratios."""
         ratio = self.ratio
-        k = max(
-            float(ratio["velocity"].max()),
-            math.sqrt(float(ratio["acceleration"].max())),
-            math.cbrt(float(ratio["jerk"].max())),
-        ) * (1.0 + self.margin)
+        k = time_scale_factor(ratio) * (1.0 + self.margin)
         self.sd_max, self.sdd_max, self.sddd_max = (
             self.sd_max / k,
             self.sdd_max / k**2,

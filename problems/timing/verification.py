@@ -49,6 +49,8 @@ __all__ = [
     "format_ratios",
     "limit_ratios",
     "moves_backwards",
+    "sampled_ratios",
+    "time_scale_factor",
 ]
 
 #: The check grid used for ``limit_ratio`` is this many times finer than dt.
@@ -122,6 +124,27 @@ def limit_ratios(qd: np.ndarray, qdd: np.ndarray, qddd: np.ndarray, limits: Join
         lim = getattr(limits, key)
         out[key] = np.abs(arr).max(axis=0) / lim if arr.shape[0] else np.zeros_like(lim)
     return out
+
+
+def time_scale_factor(ratio: Mapping[str, np.ndarray]) -> float:
+    """``k = max(r_v, sqrt(r_a), cbrt(r_j))`` of the peak ratios: slowing a law uniformly in time by
+    ``k`` divides every velocity by ``k``, acceleration by ``k^2`` and jerk by ``k^3`` on the same
+    path, which brings each peak ratio to at most 1 (<= 1 when they all are)."""
+    return max(
+        float(np.max(ratio["velocity"])),
+        math.sqrt(float(np.max(ratio["acceleration"]))),
+        math.cbrt(float(np.max(ratio["jerk"]))),
+    )
+
+
+def sampled_ratios(
+    path: SplinePath, law: TimeLaw, duration: float, limits: JointLimits, dt: float
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The peak ratios of ``law`` on the fine check grid (:func:`check_times`), and its path velocity
+    there (1/s, for :func:`finish_trajectory`'s ``check_sd``)."""
+    s, sd, sdd, sddd = law(check_times(duration, dt))
+    _, qd, qdd, qddd = path.evaluate(s, sd, sdd, sddd)
+    return limit_ratios(qd, qdd, qddd, limits), sd
 
 
 def max_ratios(*dicts: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
