@@ -123,7 +123,61 @@ def _is_user_error(exc: BaseException) -> bool:
     return errors is not None and isinstance(exc, errors.CompplanError)
 
 
+#: Exit status of a command stopped by SIGINT (Ctrl-C) or SIGTERM: 128 + SIGINT, as a shell reports
+#: a Ctrl-C; the output it was writing is not written, a previous one is left as it was.
+EXIT_INTERRUPTED = 130
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The command line: exit status 0, 2 (user error), 3 (internal error) or 130 (interrupted).
+
+    SIGTERM stops a command as Ctrl-C does (:mod:`models.interrupts`), from the first instruction
+    to the last: during the imports, inside a native solver, while an output is written."""
+    from models.interrupts import Terminated, command_signals
+    from planner.progress import start_clock
+
+    start_clock()
+
+    try:
+        with command_signals():
+            return _main(argv)
+    except KeyboardInterrupt as exc:
+        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        written = _published_outputs()
+        if written:  # the signal came after some output was moved into place (whole)
+            what += " after writing " + ", ".join(str(p) for p in written) + " (complete)"
+        print(f"compplan: {what}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _run_honouring_signals(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """``func(args)``, but a stop signal that arrived meanwhile wins over its outcome: a library
+    may have swallowed the interrupt, or turned it into another error (CasADi's ``SystemError``
+    "returned a result with an exception set") that was then caught or printed as a failure."""
+    from models import interrupts
+
+    try:
+        code = func(args)
+    except BaseException:
+        interrupts.raise_if_pending()
+        raise
+    interrupts.raise_if_pending()
+    return code
+
+
+def _clear_published_outputs() -> None:
+    output = sys.modules.get("planner.output")
+    if output is not None:
+        output.clear_published_outputs()
+
+
+def _published_outputs() -> list:
+    """The outputs this command moved into place (none when ``planner.output`` was not loaded)."""
+    output = sys.modules.get("planner.output")
+    return output.published_outputs() if output is not None else []
+
+
+def _main(argv: list[str] | None) -> int:
     if _asks_version(sys.argv[1:] if argv is None else argv):  # imports nothing more
         print(version_line())
         raise SystemExit(EXIT_OK)  # as argparse's version action does
@@ -140,11 +194,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
     clear_codegen_notes()
+    _clear_published_outputs()
     # The outputs of the command record its command line (planner.provenance).
     command = ["compplan", *(sys.argv[1:] if argv is None else argv)]
     try:
         with command_line_scope(command):
-            code = func(args)
+            code = _run_honouring_signals(func, args)
         _print_codegen_notes()
         return code
     except CompplanError as exc:
@@ -162,9 +217,6 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_USER_ERROR
-    except KeyboardInterrupt:
-        print("compplan: interrupted", file=sys.stderr)
-        return 130
     except Exception as exc:
         if args.verbose:
             traceback.print_exc()

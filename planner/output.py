@@ -56,6 +56,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
+from models import interrupts
 from models.errors import InputError
 from planner.output_checks import (
     FOLDER_KIND_MARKERS,
@@ -231,14 +232,32 @@ def pending_file(path: str | Path, data: bytes, what: str = "") -> Iterator[Path
         except OSError as exc:
             raise OutputError(f"{name}: cannot write ({os_error_cause(exc)}); {unchanged}") from None
         yield tmp
-        try:
-            os.replace(tmp, real)
-        except OSError as exc:
-            raise OutputError(f"{name}: cannot move it into place ({os_error_cause(exc)}); {unchanged}") from None
-        done = True
+        with interrupts.deferred():  # moved and recorded, or neither
+            interrupts.raise_if_pending()  # a signal a library swallowed: not moved in
+            try:
+                os.replace(tmp, real)
+            except OSError as exc:
+                raise OutputError(f"{name}: cannot move it into place ({os_error_cause(exc)}); {unchanged}") from None
+            done = True
+            _PUBLISHED.append(path)
     finally:
         if not done:
             clean_up(tmp, name, "the unfinished new version of it")
+
+
+#: The outputs moved into place in this process, in order (:func:`published_outputs`).
+_PUBLISHED: list[Path] = []
+
+
+def published_outputs() -> list[Path]:
+    """The output folders and files moved into place so far in this process (oldest first): what a
+    command interrupted after writing some of its outputs has changed (the command line says so)."""
+    return list(_PUBLISHED)
+
+
+def clear_published_outputs() -> None:
+    """Forget the outputs recorded by :func:`published_outputs` (a new command starts)."""
+    _PUBLISHED.clear()
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
@@ -281,8 +300,11 @@ def atomic_write_files(files: dict[Path, bytes]) -> None:
                 raise OutputError(
                     f"{path}: cannot write ({os_error_cause(exc)}); no file of the set was changed"
                 ) from None
-        for tmp, real, _path in staged:
-            os.replace(tmp, real)
+        with interrupts.deferred():  # the whole set moved and recorded, or none of it
+            interrupts.raise_if_pending()  # a signal a library swallowed: not moved in
+            for tmp, real, path in staged:
+                os.replace(tmp, real)
+                _PUBLISHED.append(path)
     finally:
         for tmp, _real_path, path in staged:
             if os.path.lexists(tmp):
@@ -426,15 +448,19 @@ class OutputSet:
                             doing = f"keep {entry}"
                             _link_tree(target / entry, staging / entry)
                 doing = "move the new files into place"
-                retired = _move_into_place(staging, target)
+                with interrupts.deferred():  # once moved, the set is recorded and the old one removed
+                    interrupts.raise_if_pending()  # a signal a library swallowed: not moved in
+                    retired = _move_into_place(staging, target)
+                    _PUBLISHED.append(Path(self.folder))
+                    if retired is not None:
+                        clean_up(retired, owner, "its previous version (the new one is in place)")
             except OSError as exc:
                 clean_up(staging, owner, "the unfinished new version of it")
                 raise OutputError(f"{owner}: cannot {doing} ({os_error_cause(exc)}); nothing was changed") from None
             except BaseException:
-                clean_up(staging, owner, "the unfinished new version of it")
+                if not _PUBLISHED or _PUBLISHED[-1] != Path(self.folder):
+                    clean_up(staging, owner, "the unfinished new version of it")
                 raise
-            if retired is not None:
-                clean_up(retired, owner, "its previous version (the new one is in place)")
         return [self.folder / name for name in self.files]
 
 
@@ -464,6 +490,8 @@ __all__ = [
     "output_folder_kind",
     "output_lock",
     "pending_file",
+    "published_outputs",
+    "clear_published_outputs",
     "release_output_lock",
     "sibling_prefix",
     "take_output_notes",

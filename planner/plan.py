@@ -389,7 +389,11 @@ def _time(res: PlanResult, progress: Callable[[str, int, int], None] | None = No
             res.feed[m] = fl
             res.trajectories[m] = fl.trajectory
         else:
+            if progress is not None:
+                progress(f"timing {m}", 0, 1)
             res.trajectories[m] = time_parametrize(qc, lim, m, problem.timing.dt, **problem.timing.options(m))
+            if progress is not None:
+                progress(f"timing {m}", 1, 1)
         res.stage_times_s[f"timing_{m}_s"] = time.perf_counter() - t1
     for m, fl in res.feed.items():
         if fl.n_substituted:

@@ -28,6 +28,7 @@ distributed = pytest.importorskip("distributed")
 psutil = pytest.importorskip("psutil")  # a dependency of distributed
 
 import problems.placement.cluster as cluster_mod  # noqa: E402 - after the importorskip above
+from models import interrupts  # noqa: E402 - after the importorskip above
 from problems.placement.grid import parse_grid_text  # noqa: E402 - after the importorskip above
 from problems.placement.kernel import PlacementKernel  # noqa: E402 - after the importorskip above
 from problems.placement.sweep import SweepStatus, run_sweep  # noqa: E402 - after the importorskip above
@@ -238,13 +239,13 @@ def test_a_ctrl_c_while_closing_is_held_until_the_close_is_done():
     try:
         reached: list[str] = []
         with pytest.raises(KeyboardInterrupt):
-            with cluster_mod._sigint_deferred():
+            with interrupts.deferred():
                 os.kill(os.getpid(), signal.SIGINT)
                 time.sleep(0.05)  # a signal is handled between bytecodes: give it some
                 reached.append("closed")
         assert reached == ["closed"]
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-        with cluster_mod._sigint_deferred():  # without a Ctrl-C, nothing is raised
+        with interrupts.deferred():  # without a Ctrl-C, nothing is raised
             reached.append("again")
         assert reached == ["closed", "again"]
     finally:

@@ -7,7 +7,8 @@ import math
 from pathlib import Path
 
 from planner.commands.common import add_force_argument, check_output, releases_outputs
-from planner.commands.report import add_map_arguments, map_options, report_progress
+from planner.commands.report import add_map_arguments, map_options
+from planner.progress import report_progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -6,7 +6,7 @@ import argparse
 from typing import Any
 
 from planner.commands.common import add_force_argument, check_output, releases_outputs
-from planner.commands.report import report_progress
+from planner.progress import report_progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:

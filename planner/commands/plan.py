@@ -268,7 +268,7 @@ def run(args: argparse.Namespace) -> int:
         problem = problem.with_robot(args.robot)
     if args.dt is not None:
         problem = with_dt(problem, args.dt)
-    from planner.commands.report import report_progress
+    from planner.progress import report_progress
 
     with report_progress() as bars:
         res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise, progress=bars)
@@ -287,7 +287,7 @@ def finish_run(res: Any, args: argparse.Namespace) -> int:
     exports = plan_exports(res, getattr(args, "export", []))
     report: dict[str, bytes] = {}
     if not args.no_report:  # built first: the plan's files and its report are swapped in together
-        from planner.commands.report import report_progress
+        from planner.progress import report_progress
         from planner.report.writer import report_files
 
         with report_progress() as prog:

@@ -1,67 +1,14 @@
-"""``compplan report DIR``: the report of an existing output folder.
-
-Also home of the tqdm progress adapter shared by the commands that write a
-report (demo, plan) or a compliance map (``compplan map``).
-"""
+"""``compplan report DIR``: the report of an existing output folder."""
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import sys
 from pathlib import Path
 from typing import Any
-from collections.abc import Iterator
 
 from models.errors import InputError
 from planner.commands.common import check_output, releases_outputs
-
-
-#: Progress units of the stages that do not count figures: (unit, scale to k/M).
-_UNITS = {
-    "compliance map": ("pt", True),
-    "placement sweep": ("pose", True),
-    "full plans": ("plan", False),
-    "posture": ("stage", False),
-    "compensation": ("stage", False),
-}
-
-
-class TqdmProgress:
-    """``progress(stage, done, total)`` callback driving one tqdm bar per stage (stderr).
-
-    Bars are shown only on a terminal (tqdm's ``disable=None``).
-    """
-
-    def __init__(self) -> None:
-        self._bars: dict[str, Any] = {}
-
-    def __call__(self, stage: str, done: int, total: int) -> None:
-        from tqdm import tqdm
-
-        bar = self._bars.get(stage)
-        if bar is None:
-            unit, scale = _UNITS.get(stage, ("stretch", False) if stage.startswith("timing ") else ("fig", False))
-            bar = tqdm(total=total, desc=stage, unit=unit, unit_scale=scale, file=sys.stderr, disable=None, leave=False)
-            self._bars[stage] = bar
-        bar.update(done - bar.n)
-        if done >= total:
-            bar.close()
-
-    def close(self) -> None:
-        for bar in self._bars.values():
-            bar.close()
-        self._bars.clear()
-
-
-@contextlib.contextmanager
-def report_progress() -> Iterator[TqdmProgress]:
-    """A :class:`TqdmProgress` whose bars are closed on exit (also on error)."""
-    p = TqdmProgress()
-    try:
-        yield p
-    finally:
-        p.close()
+from planner.progress import report_progress
 
 
 def add_map_arguments(p: argparse.ArgumentParser, *, prefix: str = "", optional: bool = False) -> None:

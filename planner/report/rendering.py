@@ -148,7 +148,9 @@ def render_fresh(
     # Most expensive first, so the two processes finish together.
     order = sorted(todo, key=lambda it: -_COST.get(it.name, 1.0))
     ctx = multiprocessing.get_context("fork")
-    with ctx.Pool(processes=n) as pool:
+    from models.interrupts import forked_worker_signals
+
+    with ctx.Pool(processes=n, initializer=forked_worker_signals) as pool:
         results = pool.imap(render, [it.job for it in order], chunksize=1)
         for i, (it, (png, pdf_bytes)) in enumerate(zip(order, results), start=1):
             it.png, it.pdf = png, pdf_bytes

@@ -20,7 +20,6 @@ import logging
 import multiprocessing.resource_tracker
 import os
 import signal
-import threading
 import time
 import uuid
 from contextlib import contextmanager
@@ -30,6 +29,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from models import interrupts
 from models.errors import CompplanError, InputError
 from problems.placement.kernel import PlacementKernel
 from problems.placement.scores import ChunkScores
@@ -184,29 +184,11 @@ def _close(thing: Any) -> None:
     be finished by Dask at the interpreter's exit, which waits for the workers far longer."""
     if thing is None:
         return
-    with _sigint_deferred():
+    with interrupts.deferred():
         try:
             thing.close(timeout=CLOSE_TIMEOUT_S)
         except Exception:  # closing is best effort, see above
             pass
-
-
-@contextmanager
-def _sigint_deferred() -> Iterator[None]:
-    """SIGINT recorded instead of raised inside; on the way out, the previous handler is restored
-    and called if one arrived (Python's raises ``KeyboardInterrupt``).  Only the main thread can
-    set a handler: elsewhere, nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    arrived: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: arrived.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        if arrived and callable(previous):
-            previous(signal.SIGINT, None)
 
 
 def _first_line(exc: BaseException) -> str:

@@ -27,6 +27,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from models import interrupts
 from models.arm import ArmModel
 from models.codegen import CompileError, compile_shared_library, note_virtual_machine
 from models.effects import LOAD_SIZE
@@ -398,9 +399,10 @@ class PostureNLP:
         lbg, ubg = self.bounds_g(task)
         p = np.r_[th.reshape(-1, order="F"), task.smoothness, self.objective_weight(task, q0, th)]
         t0 = time.perf_counter()
-        res = self.solver(
-            x0=q0.reshape(-1), p=p, lbx=np.tile(q_min, self.n), ubx=np.tile(q_max, self.n), lbg=lbg, ubg=ubg
-        )
+        with interrupts.native_call():  # IPOPT swallows Ctrl-C: raised again after the call
+            res = self.solver(
+                x0=q0.reshape(-1), p=p, lbx=np.tile(q_min, self.n), ubx=np.tile(q_max, self.n), lbg=lbg, ubg=ubg
+            )
         dt = time.perf_counter() - t0
         st = self.solver.stats()
         q = np.asarray(res["x"]).reshape(self.n, 6)

@@ -59,6 +59,7 @@ from collections.abc import Mapping
 import casadi as ca
 import numpy as np
 
+from models import interrupts
 from problems.timing.jerk_law import JerkLaw
 from problems.timing.path import SplinePath
 from problems.timing.registry import (
@@ -424,7 +425,8 @@ def _optimise(terms: _Terms, z0: np.ndarray, x_max: np.ndarray, max_iter: int) -
     z, st, rounds, warm = z0, {}, 0, {}
     for rounds in range(1, JERK_SLOT_ROUNDS + 1):  # noqa: B007 - the count is reported after the loop
         solver = _solver(K1, n_slots, max_iter, warm=bool(warm))
-        res = solver(x0=z, p=terms.parameters(slots), **bounds, **warm)
+        with interrupts.native_call():  # IPOPT swallows Ctrl-C: raised again after the call
+            res = solver(x0=z, p=terms.parameters(slots), **bounds, **warm)
         st, z = solver.stats(), np.asarray(res["x"]).ravel()
         if not st.get("success", False):
             break

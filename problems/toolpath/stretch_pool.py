@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import signal
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -61,11 +60,14 @@ def worker_count(n_jobs: int) -> int:
 
 
 def _worker_init() -> None:
-    """A worker: Ctrl-C is the calling process's to answer, and no OpenMP team is started (GNU
-    libgomp's threads do not survive the fork: :func:`models.codegen.single_threaded`)."""
+    """A worker: Ctrl-C is the calling process's to answer, SIGTERM (the pool's ``terminate``) ends
+    it at once without a traceback (not the command's handler it was forked with), and no OpenMP
+    team is started (GNU libgomp's threads do not survive the fork:
+    :func:`models.codegen.single_threaded`)."""
     from models.codegen import single_threaded
+    from models.interrupts import forked_worker_signals
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    forked_worker_signals()
     single_threaded()
 
 

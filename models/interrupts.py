@@ -1,0 +1,191 @@
+"""Interrupts honoured inside native solvers: the one home of the signal rules.
+
+Python delivers a signal by running its handler between two bytecodes of the main thread.  Native
+code that polls for signals (CasADi's IPOPT interface calls ``PyErr_CheckSignals`` once per
+iteration) runs the handler too, but then *swallows* the ``KeyboardInterrupt`` it raises: IPOPT
+stops with ``NonIpopt_Exception_Thrown``, CasADi prints a warning and the call returns as if it
+had merely failed.  The caller would go on and finish the command with a different result.
+
+:func:`native_call` is the guard every such call goes through: the signal is recorded, the solver
+stops at its next poll, and when the call returns the interrupt is raised again as
+:class:`KeyboardInterrupt` (SIGINT) or :class:`Terminated` (SIGTERM, a subclass), so it reaches
+the command line, which exits 130 and leaves the previous output whole.
+
+:func:`deferred` holds a signal across a block that must not be cut in two (moving an output into
+place, closing a cluster).  :func:`command_signals` is the command line's scope: SIGTERM stops a
+command the way Ctrl-C does, and every stop signal is recorded (:func:`pending`) so that no library
+can lose it; :func:`raise_if_pending` raises it again where it must not be lost.
+:func:`forked_worker_signals` is the rule of a worker process a command forks.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
+from typing import Any
+
+#: The signals a command stops on: Ctrl-C and the polite kill of a job scheduler or ``timeout``.
+STOP_SIGNALS: tuple[int, ...] = (signal.SIGINT, signal.SIGTERM)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Python raises ``KeyboardInterrupt`` for SIGINT."""
+
+
+#: The stop signals that arrived under :func:`command_signals` (the command line's scope).
+_PENDING: list[int] = []
+
+
+def _interrupt_for(signum: int) -> KeyboardInterrupt:
+    return Terminated(f"signal {signal.Signals(signum).name}") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _command_handler(signum: int, frame: FrameType | None = None) -> None:
+    """The handler :func:`command_signals` installs: record, then raise."""
+    _PENDING.append(signum)
+    raise _interrupt_for(signum)
+
+
+def pending() -> int | None:
+    """The first stop signal that arrived in the command's scope, or None.
+
+    A native library may swallow the exception a handler raises (or turn it into another one that
+    a fallback catches); the signal is still recorded here, and :func:`raise_if_pending` raises it
+    again where it must not be lost: before an output is moved into place, when the command ends."""
+    return _PENDING[0] if _PENDING else None
+
+
+def raise_if_pending() -> None:
+    """Raise the interrupt of a stop signal that arrived in the command's scope, if one did."""
+    if _PENDING:
+        raise _interrupt_for(_PENDING[0])
+
+
+@contextmanager
+def command_signals() -> Iterator[None]:
+    """SIGINT raises ``KeyboardInterrupt`` and SIGTERM :class:`Terminated` in this block (the command
+    line's scope), and both are recorded (:func:`pending`), so a terminated command unwinds as an
+    interrupted one and no library can lose the signal.  Only the main thread can set a handler:
+    elsewhere, nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _PENDING.clear()
+    previous = {s: signal.signal(s, _command_handler) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def forked_worker_signals() -> None:
+    """In a worker process forked by a command: Ctrl-C is the parent's to answer (a terminal sends
+    it to the whole process group), and SIGTERM (its pool's ``terminate``) ends it at once, without
+    the parent's handlers and their tracebacks."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _PENDING.clear()
+
+
+def _redeliver(signum: int, previous: Any) -> None:
+    """Act on a signal recorded while its handler was replaced, as ``previous`` would have."""
+    if callable(previous):
+        previous(signum, None)
+    elif previous == signal.SIG_DFL:  # the default action: SIGINT raises, SIGTERM ends the process
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        os.kill(os.getpid(), signum)
+    # SIG_IGN: ignored, as it would have been
+
+
+@contextmanager
+def deferred(signals: tuple[int, ...] = STOP_SIGNALS) -> Iterator[None]:
+    """``signals`` recorded instead of acted on inside the block; on the way out the previous
+    handlers are restored and the first recorded signal is delivered to its handler.
+
+    For blocks that must finish once started (closing worker processes).  Only the main thread
+    can set a handler: elsewhere, nothing changes."""
+    with _recording(signals, raise_inside=False):
+        yield
+
+
+@contextmanager
+def native_call(signals: tuple[int, ...] = STOP_SIGNALS) -> Iterator[None]:
+    """A call into a native solver that swallows interrupts (IPOPT through CasADi).
+
+    Inside, a stop signal is recorded *and* raised as ``KeyboardInterrupt`` (so the solver stops
+    at its next poll of Python's signals, and pure-Python code stops at once); on the way out, a
+    recorded signal is delivered to the previous handler, whatever the solver made of the
+    exception.  CasADi's warning about the exception it caught (written through ``sys.stderr``)
+    is dropped: the interrupt is reported once, by whoever handles it.  Only the main thread can
+    set a handler: elsewhere, nothing changes."""
+    stderr, filtered = sys.stderr, _WithoutInterruptWarnings(sys.stderr)
+    sys.stderr = filtered
+    try:
+        with _recording(signals, raise_inside=True):
+            yield
+    finally:
+        sys.stderr = stderr
+        filtered.close_line()
+
+
+#: What CasADi writes when a solver caught the ``KeyboardInterrupt`` of a signal handler.
+CASADI_INTERRUPT_WARNING = "KeyboardInterruptException"
+
+
+class _WithoutInterruptWarnings:
+    """A text stream that passes everything to ``stream`` but the lines of CasADi's interrupt
+    warnings (CasADi writes a warning in several pieces: lines are held until complete)."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self._line = ""
+
+    def write(self, text: str) -> int:
+        self._line += text
+        *lines, self._line = self._line.split("\n")
+        for line in lines:
+            if CASADI_INTERRUPT_WARNING not in line:
+                self._stream.write(line + "\n")
+        return len(text)
+
+    def close_line(self) -> None:
+        """Pass on an unfinished last line (not a warning's)."""
+        if self._line and CASADI_INTERRUPT_WARNING not in self._line:
+            self._stream.write(self._line)
+        self._line = ""
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+@contextmanager
+def _recording(signals: tuple[int, ...], raise_inside: bool) -> Iterator[None]:
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    arrived: list[int] = []
+
+    def record(signum: int, frame: FrameType | None) -> None:
+        arrived.append(signum)
+        if raise_inside:
+            raise KeyboardInterrupt
+
+    previous = {s: signal.signal(s, record) for s in signals}
+    try:
+        yield
+    except BaseException:
+        if not arrived:  # not an interrupt: as it was
+            raise
+        # interrupted: the signal wins over whatever the block made of it (a failed solve)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if arrived:
+        _redeliver(arrived[0], previous[arrived[0]])
