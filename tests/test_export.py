@@ -582,7 +582,7 @@ def test_rosbag2_round_trip(run_folder, tmp_path, capsys):
                 stamps.append(stamp)
     np.testing.assert_allclose(states, qc, atol=1e-12)
     stamps = (np.array(stamps) - 100e9) * 1e-9
-    k = _slow_factor(stamps, t, capsys.readouterr().err)  # the warning says how much slower, as the header
+    k = _slow_factor(stamps, t, capsys.readouterr().out)  # the change line says how much slower, as the header
     np.testing.assert_allclose(stamps, k * t, atol=TIME_TOL_S)
     # a bag folder is written whole, never merged: into a folder holding other files it is refused
     (bag / "notes.txt").write_text("mine")
@@ -637,10 +637,14 @@ def test_a_servoj_export_resampled_beyond_the_limits_is_refused_or_slowed_down()
     ):
         export_files(tight, "urscript", Path("x"), {"period": 0.002, "slow_down": "no"})
     slowed = build_export(tight, "urscript", Path("x"), {"period": 0.002})
-    (warning,) = slowed.warnings
-    k = float(re.search(r"slowed down x(" + NUM + ")", warning).group(1))
-    assert 1.0 < k < 1.5 and "0.002 s" in warning
+    assert not slowed.warnings and slowed.status.value == "slowed"
+    (change,) = [c for c in slowed.changes if c.startswith("slowed down")]  # one short line, the export's result
+    k = float(re.search(r"slowed down x(" + NUM + ")", change).group(1))
+    assert 1.0 < k < 1.5 and "its limit at the plan's timing" in change
+    assert any("to the servoj period 2 ms" in c for c in slowed.changes)
     moves = parse_urscript(next(iter(slowed.files.values())))["moves"]
     assert len(moves) - 1 == pytest.approx(k * tight.t[-1] / 0.002, abs=1.0)  # k times as many setpoints
     roomy = bang_data(room=1.2)
-    assert not build_export(roomy, "urscript", Path("x"), {"period": 0.002}).warnings  # with room: as planned
+    as_planned = build_export(roomy, "urscript", Path("x"), {"period": 0.002})
+    assert not as_planned.warnings and as_planned.status.value == "ok"  # with room: as planned
+    assert not any(c.startswith("slowed") for c in as_planned.changes)

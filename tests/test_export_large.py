@@ -148,7 +148,7 @@ def test_urscript_movej_above_the_limit_is_streamed(big):
     step, r = 0.04, 0.002
     idx = big.decimated(step)
     assert len(idx) > ur_mod.URSCRIPT_MAX_MOTIONS
-    files = _files(big, "urscript_movej", "mj", step_s=step, blend_radius=r)
+    files = _files(big, "urscript_movej", "mj", step_s=step, blend_radius=r, stream_host="pc.lab")
     assert sorted(files) == ["mj.script", "mj_stream.txt"]
     assert "movej([q[1], q[2], q[3], q[4], q[5], q[6]], t=q[7], r=q[8])" in files["mj.script"]
     rows = _stream(files["mj_stream.txt"], 8)
@@ -168,7 +168,8 @@ def test_urscript_at_the_limit_is_one_program_as_before(big):
     files = _files(data, "urscript", "p")
     assert list(files) == ["p.script"] and "socket" not in files["p.script"]
     assert len(parse_urscript(files["p.script"])["moves"]) == ur_mod.URSCRIPT_MAX_MOTIONS
-    assert sorted(_files(wave(ur_mod.URSCRIPT_MAX_MOTIONS + 1), "urscript", "p")) == ["p.script", "p_stream.txt"]
+    over = wave(ur_mod.URSCRIPT_MAX_MOTIONS + 1)
+    assert sorted(_files(over, "urscript", "p", stream_host="10.0.0.2")) == ["p.script", "p_stream.txt"]
 
 
 # ------------------------------------------------------------------ ROS 2 YAML: numbered messages

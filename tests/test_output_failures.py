@@ -38,8 +38,8 @@ from planner.output import SIBLING_TAG, FolderKind, OutputSet
 #: Exit status of an interrupted command (``compplan: interrupted``).
 EXIT_INTERRUPTED = 130
 #: The plan of these tests: the smallest shipped problem (9 waypoints) at its analytic postures,
-#: with an export and the report.
-PLAN_ARGV = ("plan", "drilling_cone", "--no-optimise", "--export", "urscript")
+#: with an export and the report (RAPID: its servoj URScript, over max_motions, would need a stream_host).
+PLAN_ARGV = ("plan", "drilling_cone", "--no-optimise", "--export", "rapid")
 #: The placement study: two placements, the problem as written planned in full, no posture NLP.
 PLACE_ARGV = (
     "place",
@@ -188,7 +188,7 @@ PLAN_PHASES: dict[str, tuple] = {
     "building the exports": ("call", "planner.commands.plan:plan_exports"),
     "building the report": ("call", "planner.report.writer:report_files"),
     "writing summary.json": ("write", _named("summary.json")),
-    "writing the export": ("write", lambda p: p.suffix == ".script"),
+    "writing the export": ("write", lambda p: p.suffix == ".mod"),
     "writing report.html": ("write", _named("report.html")),
     "the swap": ("swap",),
 }

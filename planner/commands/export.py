@@ -1,8 +1,9 @@
 """``compplan export RUN_DIR --format FORMAT --out FILE``: a run's trajectory for a controller.
 
 Reads the run folder of ``compplan plan`` / ``demo`` (``summary.json`` and the controller's
-``trajectory.csv``), refuses a trajectory that is not ok or leaves its limits, and writes
-the format's file(s) whole or not at all (KRL: the ``.src`` and its ``.dat``).  Format
+``trajectory.csv``), refuses a trajectory that is not ok or leaves its limits, writes
+the format's file(s) whole or not at all (KRL: the ``.src`` and its ``.dat``), and prints what the
+export changed, one line each (:func:`print_changes`).  Format
 options are ``--set KEY=VALUE`` (``compplan export --list`` prints formats and options).
 Conventions: ``docs/export.md``.
 """
@@ -134,12 +135,20 @@ def run(args: argparse.Namespace) -> int:
         f"{args.format}: {len(data.t)} samples, {data.t[-1]:.4f} s at {data.dt * 1e3:g} ms from {run_dir} "
         f"(robot {data.robot}) -> {', '.join(str(p) for p in files)}"
     )
+    print_changes(args.format, export)
     from planner.export import controller_warning
 
     for warn in (controller_warning(data, args.format), *export.warnings):
         if warn:
             print(f"compplan: warning: {warn}", file=sys.stderr)
     return 0
+
+
+def print_changes(fmt: str, export: Any) -> None:
+    """What ``export`` (a :class:`planner.export.Export`) made of the plan's trajectory, one
+    ``FORMAT: change`` line each, or one line saying it holds the plan's samples unchanged."""
+    for change in export.changes or ("unchanged: the plan's samples at its timing",):
+        print(f"{fmt}: {change}")
 
 
 def _bytes(content: str | bytes) -> bytes:
@@ -162,10 +171,11 @@ def add_export_argument(parser: argparse.ArgumentParser) -> None:
 
 def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
     """The files of ``plan --export``: ``<problem>_<format>.<suffix>`` (a folder for rosbag2) by name, from the plan in
-    memory (refused, before anything is written, if the trajectory is not ok or leaves its limits).  A format whose
-    controller motion would exceed a limit at its default options is left out with a warning that says why and how
-    ``compplan export`` writes it with other options; the plan and the other formats are written."""
-    from planner.export import ExportLimitError, build_export, controller_warning, data_from_plan
+    memory (refused, before anything is written, if the trajectory is not ok or leaves its limits).  A format refused at
+    its default options (a limit exceeded, a program's feed a slow-down would change, a streamed program without its
+    host) is left out with a warning that says why and how ``compplan export`` writes it with other options; the plan
+    and the other formats are written, and what each export changed is printed (:func:`print_changes`)."""
+    from planner.export import ExportRefusal, build_export, controller_warning, data_from_plan
 
     if not fmts:
         return {}
@@ -174,7 +184,7 @@ def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
     for fmt in dict.fromkeys(fmts):
         try:
             export = build_export(data, fmt, Path(f"{data.name}_{fmt}"))
-        except ExportLimitError as exc:
+        except ExportRefusal as exc:
             print(
                 f"compplan: warning: --export {fmt} not written: {exc}; compplan export RUN_DIR --format {fmt} "
                 "--set KEY=VALUE writes it with other options (docs/export.md)",
@@ -184,6 +194,7 @@ def plan_exports(res: Any, fmts: list[str]) -> dict[str, bytes]:
         for warn in (controller_warning(data, fmt), *export.warnings):
             if warn:
                 print(f"compplan: warning: {warn}", file=sys.stderr)
+        print_changes(f"--export {fmt}", export)
         for path, content in export.files.items():
             out[path.as_posix()] = _bytes(content)
     return out

@@ -13,7 +13,10 @@ plan in memory (:func:`data_from_plan`) or from a run folder (:func:`data_from_r
 A trajectory whose status is not ``ok`` or outside its limits is refused (:class:`ExportError`), and
 so is what a format would send its controller over a limit under the interpolation that controller
 applies (``ExportFormat.motion``; :mod:`planner.export.limits`: refused, or slowed down and said so,
-:func:`build_export`).  Conventions
+:func:`build_export`; a program plan, whose feed a slow-down would change, only with
+``slow_down=yes``).  :func:`build_export` returns an :class:`Export`: the files, a status
+(:class:`ExportStatus`), a one-line reason and the changes, one short line each, that the command
+line prints (slowed down, resampled, decimated, split into parts, streamed or self-contained).  Conventions
 of each vendor (joint order, units, signs, zeros): ``docs/export.md``.  Big programs (10^5-10^6
 samples): above its limit each format writes numbered parts (:func:`part_ranges`,
 :func:`part_label`) and a main file, or a stream, as its controller needs (``docs/export.md``,
@@ -30,9 +33,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from planner.export.build import Export, build_export, export_files
+from planner.export.build import Export, ExportStatus, build_export, export_files
 from planner.export.data import VENDOR_FORMATS, ExportData, controller_warning, header_lines
-from planner.export.errors import ExportError, ExportLimitError
+from planner.export.errors import ExportError, ExportLimitError, ExportRefusal
 from planner.export.limits import check_motion, verify_limits
 from planner.export.motion import (
     EXPORT_FD_TOL,
@@ -42,7 +45,7 @@ from planner.export.motion import (
     ControllerMotion,
     Interpolation,
 )
-from planner.export.options import SLOW_DOWN_OPTION, choice, counted, ranged
+from planner.export.options import SLOW_DOWN_CHOICES, SLOW_DOWN_OPTION, choice, counted, network_host, ranged
 from planner.export.parts import PART_DIGITS, part_label, part_ranges
 from planner.export.registry import (
     BUILTIN_FORMATS,
@@ -62,6 +65,7 @@ __all__ = [
     "EXPORT_PATH_VARIABLE",
     "EXPORT_POSITION_TOL",
     "EXPORT_TIME_TOL",
+    "SLOW_DOWN_CHOICES",
     "SLOW_DOWN_OPTION",
     "ControllerMotion",
     "Export",
@@ -69,6 +73,8 @@ __all__ = [
     "ExportError",
     "ExportFormat",
     "ExportLimitError",
+    "ExportRefusal",
+    "ExportStatus",
     "Interpolation",
     "VENDOR_FORMATS",
     "BUILTIN_FORMATS",
@@ -84,6 +90,7 @@ __all__ = [
     "format_names",
     "formats",
     "load_formats",
+    "network_host",
     "PART_DIGITS",
     "part_label",
     "part_ranges",

@@ -8,21 +8,53 @@ from pathlib import Path
 from typing import Any
 from collections.abc import Mapping
 
+from models.status import Status
+
 from planner.export.data import ExportData, program_name
 from planner.export.errors import ExportError
 from planner.export.limits import check_motion
 from planner.export.registry import formats
 
-__all__ = ["Export", "build_export", "export_files"]
+__all__ = ["Export", "ExportStatus", "build_export", "export_files"]
+
+
+class ExportStatus(Status):
+    """How an export's files time the plan (a refusal raises instead: nothing to write)."""
+
+    #: At the plan's timing (resampled, decimated or split as the changes say, never slower).
+    OK = "ok"
+    #: Slowed down uniformly (the changes say by how much): what the controller runs is slower than planned.
+    SLOWED = "slowed"
+
+    @property
+    def usable(self) -> bool:
+        return True
 
 
 @dataclass(frozen=True)
 class Export:
-    """An export ready to write: ``files`` (path -> text, or bytes for binary formats) and the
-    ``warnings`` the command line prints (what the vendor does not document, a slow-down)."""
+    """An export ready to write.
+
+    Attributes
+    ----------
+    files : dict
+        Path -> text, or bytes for binary formats.
+    warnings : tuple of str
+        What the vendor does not document (the command line prints them on stderr).
+    status : ExportStatus
+    reason : str
+        One line: the status's why (the slow-down, or "at the plan's timing").
+    changes : tuple of str
+        What the export made of the plan's trajectory, one short line each (slowed down, resampled
+        to the controller's period, decimated, split into parts, streamed or self-contained);
+        empty when the files hold the plan's samples as they are.
+    """
 
     files: dict[Path, str | bytes]
     warnings: tuple[str, ...] = ()
+    status: ExportStatus = ExportStatus.OK
+    reason: str = "at the plan's timing"
+    changes: tuple[str, ...] = ()
 
 
 def build_export(data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None) -> Export:
@@ -31,8 +63,10 @@ def build_export(data: ExportData, fmt: str, out: str | Path, options: Mapping[s
     limit (:func:`~planner.export.limits.check_motion`: refused, or slowed down and said so).
 
     Options not given take the format's defaults; unknown options and bad values raise
-    :class:`ExportError` naming them.  Nothing is written here (the caller writes the set
-    whole or not at all).
+    :class:`ExportError` naming them; options that cannot write the trajectory (a limit exceeded,
+    a program plan's feed that a slow-down would change, a streamed program without its host)
+    raise :class:`~planner.export.errors.ExportRefusal`.  Nothing is written here (the caller
+    writes the set whole or not at all).
     """
     known = formats()
     f = known.get(fmt)
@@ -43,6 +77,7 @@ def build_export(data: ExportData, fmt: str, out: str | Path, options: Mapping[s
     if unknown:
         raise ExportError(f"export: format {fmt} has no option(s) {unknown}; options: {sorted(f.options)}")
     values = {k: (check(opts[k]) if k in opts else default) for k, (default, _h, check) in f.options.items()}
+    changes: list[str] = []
     if f.motion is None:
         notes = [
             f"{fmt}: the format declares no controller motion (ExportFormat.motion): what it writes is not checked "
@@ -50,7 +85,9 @@ def build_export(data: ExportData, fmt: str, out: str | Path, options: Mapping[s
         ]
     else:
         motion = f.motion
-        data, notes = check_motion(data, fmt, lambda d: motion(d, values), values.get("slow_down") == "auto")
+        data, notes, changes = check_motion(data, fmt, lambda d: motion(d, values), values.get("slow_down", "no"))
+    if f.changes is not None:
+        changes += f.changes(data, values)
     out = Path(out)
     stem = out.stem if out.suffix else out.name
     texts = f.write(data, program_name(stem), values)
@@ -58,11 +95,15 @@ def build_export(data: ExportData, fmt: str, out: str | Path, options: Mapping[s
         files = {out / name: text for name, text in texts.items()}
     else:
         files = {out.with_name(name): text for name, text in texts.items()}
-    return Export(files, tuple(notes))
+    if data.slow_factor != 1.0:
+        status, reason = ExportStatus.SLOWED, f"slowed down x{data.slow_factor:.4f} from the plan's timing"
+    else:
+        status, reason = ExportStatus.OK, "at the plan's timing"
+    return Export(files, tuple(notes), status, reason, tuple(changes))
 
 
 def export_files(
     data: ExportData, fmt: str, out: str | Path, options: Mapping[str, Any] | None = None
 ) -> dict[Path, str | bytes]:
-    """The files of :func:`build_export` (its warnings dropped)."""
+    """The files of :func:`build_export` (its warnings and changes dropped)."""
     return build_export(data, fmt, out, options).files

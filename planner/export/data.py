@@ -48,6 +48,10 @@ class ExportData:
         The planned link side (``ql1..ql6``) of a run with dynamic compensation, rad.
     slow_factor : float
         How much slower than planned (1: as planned; :meth:`slowed`).
+    program : str
+        The CAM program (G-code, CL data) the plan runs at its programmed feed, by file name; empty
+        for any other task.  Slowing such a plan down changes its feed: ``slow_down=auto`` refuses it
+        (:func:`~planner.export.limits.check_motion`).
     """
 
     name: str
@@ -74,6 +78,7 @@ class ExportData:
     inputs: tuple[Path, ...] = ()
     link_q: np.ndarray | None = None
     slow_factor: float = 1.0
+    program: str = ""
 
     def slowed(self, k: float) -> ExportData:
         """The same path ``k`` times slower: times and ``dt`` times ``k``, velocities over ``k``,

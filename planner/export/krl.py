@@ -46,6 +46,7 @@ from planner.export import (
     ranged,
     register_format,
 )
+from planner.export.parts import decimation_change, parts_change
 from planner.export.rapid import targets
 
 #: Printed decimals of joint angles (deg) and of the time-block parts (s).
@@ -188,6 +189,16 @@ def _percent(name: str) -> Any:
     return lambda v: int(ranged(name, 1, 100)(v))
 
 
+def changes(data: ExportData, o: Mapping[str, Any]) -> tuple[str, ...]:
+    """Decimated to the points, split into part modules (``max_points``), and, for ``ptp``, timed by KUKA."""
+    n = len(data.decimated(float(o["step_s"])))
+    out = [decimation_change(n, len(data.t), float(o["step_s"]), "SPTP" if o["motion"] == "spline" else "PTP")]
+    out += parts_change(n, int(o["max_points"]), "points", "max_points", "part module pair")
+    if o["motion"] == "ptp":
+        out.append("motion ptp: KUKA plans each PTP within $VEL_AXIS/$ACC_AXIS, so the timing is approximate")
+    return tuple(out)
+
+
 register_format(
     ExportFormat(
         "krl",
@@ -216,5 +227,6 @@ register_format(
         "KUKA KRL .src/.dat pair: E6AXIS points (deg), a PTP_SPLINE time block or PTP with axis percentages",
         motion=motion,
         timing_options=("step_s", "motion"),
+        changes=changes,
     )
 )

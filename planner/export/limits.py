@@ -15,8 +15,9 @@ and the time:
   does between points (ABB, KUKA, blended ``movej``), every motion through the points at their
   times (divided differences: what any such motion reaches at least), with a warning saying what
   is not checked.  A streamed motion over a rate limit is slowed down uniformly when the format's
-  ``slow_down`` option allows it (and the trajectory is not a dynamic compensation's motor-side
-  command, which is tied to its timing), saying so; otherwise it is refused.
+  ``slow_down`` option allows it (``auto``: not a program plan's, whose feed it would change; ``yes``:
+  any; and never a dynamic compensation's motor-side command, which is tied to its timing), saying
+  so; otherwise it is refused.
 
 The k-th divided difference of positions times ``k!`` equals the k-th derivative of any smooth
 motion through them at some time between the first and the last of its points (the mean value
@@ -258,34 +259,38 @@ def _rest_to_rest_peaks(data: ExportData, motion: ControllerMotion, names: list[
 
 
 def check_motion(
-    data: ExportData, fmt: str, motion_of: Callable[[ExportData], ControllerMotion], slow_down: bool
-) -> tuple[ExportData, list[str]]:
+    data: ExportData, fmt: str, motion_of: Callable[[ExportData], ControllerMotion], slow_down: str | bool
+) -> tuple[ExportData, list[str], list[str]]:
     """Check what format ``fmt`` sends (``motion_of(data)``) against every limit; slow the
     trajectory down uniformly when that is allowed and enough, else refuse.
 
     Slowing by ``k`` (times ``k t``) divides every velocity by ``k``, acceleration by ``k^2`` and
     jerk by ``k^3`` on the same path: it is allowed for streamed motions (setpoints, quintic) with
-    ``slow_down``, never for positions and never for a dynamic compensation's motor-side command
-    (``data.link_q``: its compensation is computed for its timing).
+    ``slow_down`` ``"yes"``, or ``"auto"`` unless the plan runs a CAM program at its programmed feed
+    (``data.program``: slowing it changes the feed), never with ``"no"``, never for positions and
+    never for a dynamic compensation's motor-side command (``data.link_q``: its compensation is
+    computed for its timing).  ``True``/``False`` are ``"auto"``/``"no"``.
 
     Returns
     -------
-    (ExportData, list of str)
-        The data to write (``data`` or slowed down) and the warnings: what the controller's vendor
-        does not document, and a slow-down (factor, durations, what exceeded at the plan's timing).
+    (ExportData, list of str, list of str)
+        The data to write (``data`` or slowed down), the warnings (what the controller's vendor
+        does not document) and the changes, one short line each (a slow-down: factor, durations,
+        the peak that asked for it).
 
     Raises
     ------
     ExportLimitError
         One line: the format, the joint, the quantity, the value, the limit, the time, what to do.
     """
+    mode = ("auto" if slow_down else "no") if isinstance(slow_down, bool) else slow_down
     motion = motion_of(data)
     notes = [f"{fmt}: {motion.unchecked}"] if motion.unchecked else []
     over = [p for p in motion_peaks(data, motion) if p.over]
     if not over:
-        return data, notes
+        return data, notes, []
     worst = _worst(over)
-    reason = _refusal(data, motion, worst, slow_down)
+    reason = _refusal(data, motion, worst, mode != "no")
     if reason is not None:
         advice = "" if _is_approach(worst) else motion.advice
         raise ExportLimitError(f"{fmt}: {worst.sentence()}; refusing to export{reason}{advice}")
@@ -297,18 +302,35 @@ def check_motion(
         slowed = data.slowed(k)
         over = [p for p in motion_peaks(slowed, motion_of(slowed)) if p.over]
         if not over:
-            notes.append(
-                f"{fmt}: slowed down x{k:.4f} ({data.t[-1]:.6g} s -> {slowed.t[-1]:.6g} s) so that what the "
-                f"controller runs stays within every limit: at the plan's timing {worst.sentence()} "
-                "(slow_down=no refuses instead)"
+            if data.program and mode == "auto":
+                raise ExportLimitError(_feed_refusal(data, fmt, worst, k, motion))
+            feed = f"; {data.program} below its programmed feed (slow_down=yes)" if data.program else ""
+            change = (
+                f"slowed down x{k:.4f} ({data.t[-1]:.6g} s -> {slowed.t[-1]:.6g} s): joint {worst.joint + 1} "
+                f"{worst.quantity} {worst.ratio:.4g}x its limit at the plan's timing{feed}"
             )
-            return slowed, notes
+            return slowed, notes, [change]
         reason = _refusal(slowed, motion, _worst(over), True)
         if reason is not None:  # slowed, what is left cannot be slowed away (a position, an unbounded jerk)
             raise ExportLimitError(f"{fmt}: {_worst(over).sentence()}; refusing to export{reason}{motion.advice}")
     raise ExportLimitError(
         f"{fmt}: {worst.sentence()}; refusing to export: slowing down by up to x{SLOW_DOWN_MAX:g} does not keep "
         f"it within the limits{motion.advice}"
+    )
+
+
+def _feed_refusal(data: ExportData, fmt: str, worst: Peak, k: float, motion: ControllerMotion) -> str:
+    """The refusal of a program plan that only a slow-down by ``k`` would export (its feed changed):
+    the format's own way to plan for its controller (``motion.advice``: its period), else the way that
+    holds the feed (setpoints at the plan's period); lowering the plan's limits does not help, as the
+    export checks against the plan's own limits."""
+    how = motion.advice or (
+        "; the plan's samples are within its limits but this controller's interpolation between them is not: "
+        "send them as setpoints at the plan's period instead (--format urscript)"
+    )
+    return (
+        f"{fmt}: {worst.sentence()}; refusing to slow a program plan down (x{k:.4f} would run {data.program} below "
+        f"its programmed feed){how}; or give --set slow_down=yes to accept the slower feed"
     )
 
 
@@ -333,6 +355,8 @@ def _refusal(data: ExportData, motion: ControllerMotion, worst: Peak, allowed: b
     if motion.interpolation not in (Interpolation.SETPOINTS, Interpolation.QUINTIC):
         return ""
     if not allowed:
+        if data.program:
+            return f" (--set slow_down=yes slows it down, below the programmed feed of {data.program})"
         return " (--set slow_down=auto slows the trajectory down to keep it)"
     if data.link_q is not None:
         return (

@@ -38,6 +38,7 @@ from planner.export import (
     ranged,
     register_format,
 )
+from planner.export.parts import decimation_change, parts_change
 
 #: Printed decimals of joint angles (deg) and move times (s).
 ANGLE_DECIMALS = 6
@@ -177,6 +178,15 @@ def _speed(v: Any) -> float:
     return float(math.floor(x))
 
 
+def changes(data: ExportData, o: Mapping[str, Any]) -> tuple[str, ...]:
+    """Decimated to the targets, and split into part modules (``max_targets``)."""
+    n = len(data.decimated(float(o["step_s"])))
+    return (
+        decimation_change(n, len(data.t), float(o["step_s"]), "MoveAbsJ"),
+        *parts_change(n, int(o["max_targets"]), "targets", "max_targets", "part module"),
+    )
+
+
 register_format(
     ExportFormat(
         "rapid",
@@ -195,5 +205,6 @@ register_format(
         "ABB RAPID module: CONST jointtarget (deg) and MoveAbsJ with \\T from the timing",
         motion=motion,
         timing_options=("step_s",),
+        changes=changes,
     )
 )

@@ -56,6 +56,12 @@ class ExportFormat:
     timing_options : tuple of str
         The options that change what the controller runs (periods, steps, blends, motion types):
         the tests export every format over their whole ranges.
+    changes : callable or None
+        ``changes(data, options) -> tuple of str``: what the files make of the (checked, maybe
+        slowed) trajectory, one short line each (resampled to the controller's period, decimated,
+        split into parts, streamed or one self-contained program); it raises
+        :class:`~planner.export.errors.ExportRefusal` for options that cannot write it (a streamed
+        program without its host).  None: nothing to say.
     """
 
     name: str
@@ -66,6 +72,7 @@ class ExportFormat:
     folder: bool = False
     motion: Callable[[ExportData, Mapping[str, Any]], ControllerMotion] | None = None
     timing_options: tuple[str, ...] = ()
+    changes: Callable[[ExportData, Mapping[str, Any]], tuple[str, ...]] | None = None
 
 
 #: Extra folders searched for export format modules (``os.pathsep``-separated): each ``*.py``

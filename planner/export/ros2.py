@@ -37,6 +37,7 @@ from planner.export import (
     part_ranges,
     register_format,
 )
+from planner.export.parts import parts_change
 
 #: Printed significant digits of positions, velocities and accelerations.
 DIGITS = 12
@@ -168,6 +169,11 @@ def _message(
     return "\n".join(lines) + "\n"
 
 
+def changes(data: ExportData, o: Mapping[str, Any]) -> tuple[str, ...]:
+    """One message, or split into several (``max_points``)."""
+    return parts_change(len(data.t), int(o["max_points"]), "points", "max_points", "JointTrajectory message")
+
+
 def _frame(v: Any) -> str:
     return str(v)
 
@@ -189,5 +195,6 @@ register_format(
         "trajectory_msgs/msg/JointTrajectory as YAML (ros2 topic pub, MoveIt)",
         motion=motion,
         timing_options=("slow_down",),
+        changes=changes,
     )
 )

@@ -41,6 +41,7 @@ from planner.export import (
     register_format,
 )
 from planner.export.ros2 import MAX_POINTS_LIMIT, ROS2_MAX_POINTS, nanoseconds, part_start_ns, spline_motion
+from planner.export.ros2 import changes as ros2_changes
 
 #: ROS 2 distribution whose message definitions are written.
 TYPESTORE = "ROS2_HUMBLE"
@@ -200,5 +201,6 @@ register_format(
         folder=True,
         motion=motion,
         timing_options=("slow_down",),
+        changes=ros2_changes,
     )
 )

@@ -58,9 +58,17 @@ def data_from_plan(res: Any) -> ExportData:
         offset=np.asarray(r.controller_offset, float),
         controller_declared=bool(r.controller_declared),
         source=f"problem {pr.name}",
+        program=_program_name(getattr(pr, "program", None)),
     )
     verify_limits(data, f"export of problem {pr.name} ({res.controller})")
     return data
+
+
+def _program_name(program: Any) -> str:
+    """The file name of a problem's CAM program (its ``program`` section), or "" for another task."""
+    if program is None:
+        return ""
+    return Path(str(getattr(program, "file", "") or "program")).name
 
 
 def _vec6(v: Any) -> np.ndarray:
@@ -142,9 +150,19 @@ def data_from_run(folder: str | Path) -> ExportData:
         source=f"run {folder}",
         inputs=(summary, path),
         link_q=link_q,
+        program=_run_program(s),
     )
     verify_limits(data, str(path))
     return data
+
+
+def _run_program(s: dict[str, Any]) -> str:
+    """The file name of the CAM program a run's plan ran at its feed (``program.file`` of its
+    summary), or "" for another task."""
+    prog = s.get("program")
+    if not isinstance(prog, dict):
+        return ""
+    return Path(str(prog.get("file") or "program")).name
 
 
 def _read_trajectory(path: Path) -> tuple[np.ndarray, ...]:

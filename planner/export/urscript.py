@@ -18,8 +18,10 @@ Big programs: a program of more than ``max_motions`` motion statements (default
 formats then *stream* the motions instead: ``NAME.script`` becomes a short program that
 connects to a PC (``stream_host``:``stream_port``) and reads one setpoint per motion with
 ``socket_read_ascii_float``, and ``NAME_stream.txt`` holds the setpoints, one ``(...)`` line each,
-for the PC to serve (``nc -l PORT < NAME_stream.txt``).  Why and the sources: ``docs/export.md``,
-"Big programs".
+for the PC to serve (``nc -l PORT < NAME_stream.txt``).  Such a program needs ``stream_host`` (an
+IPv4 or IPv6 address or a host name): without it the export is refused, naming the options that
+write it (the host, or ``max_motions`` for one self-contained program).  The changes line says
+which of the two was written and why.  Why and the sources: ``docs/export.md``, "Big programs".
 """
 
 from __future__ import annotations
@@ -36,9 +38,11 @@ from planner.export import (
     ExportData,
     ExportError,
     ExportFormat,
+    ExportRefusal,
     Interpolation,
     counted,
     header_lines,
+    network_host,
     ranged,
     register_format,
 )
@@ -69,8 +73,6 @@ STREAM_TIMEOUT_S = 0.5
 STREAM_ABORT_DECELERATION = 4.0
 #: Rows formatted at a time when writing the stream (bounds the temporary Python objects).
 STREAM_CHUNK = 10_000
-#: Characters allowed in ``stream_host`` (a host name or an IPv4/IPv6 address).
-HOST_CHARACTERS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-:_")
 
 
 def _vec(q: np.ndarray) -> str:
@@ -163,9 +165,11 @@ def _streamed(
     file the PC serves: the first setpoint is the ``movej`` target, each further one a ``motion``
     (``{q}`` is the joint vector; ``{t}``, ``{r}`` the extra values of a movej list)."""
     host, port, n = str(o["stream_host"]), int(o["stream_port"]), len(q)
+    if not host:
+        raise ExportRefusal(_no_host(motion.split("(", 1)[0], n, o, ""))  # the motion word: servoj or movej
     width = 6 if extra is None else 6 + extra.shape[1]
     data = f"{stem}_stream.txt"
-    where = f"{host or '(stream_host not set)'}:{port}"
+    where = f"{host}:{port}"
     lines += [
         f"  # streamed: {n} setpoints, more than the {int(o['max_motions'])} motion statements one program "
         'should hold (max_motions; docs/export.md "Big programs")',
@@ -278,14 +282,65 @@ def write_movej(data: ExportData, stem: str, o: Mapping[str, Any]) -> dict[str, 
     return {f"{stem}.script": "\n".join(lines)}
 
 
-def _host(v: Any) -> str:
-    text = str(v).strip()
-    if not set(text) <= HOST_CHARACTERS or len(text) > 253:
-        raise ExportError(
-            f"export option stream_host = {v!r}: expected the PC's IP address or host name "
-            "(letters, digits, '.', '-', ':')"
+def _no_host(what: str, n: int, o: Mapping[str, Any], alternative: str) -> str:
+    """The refusal of a streamed program of ``what`` (``servoj``, ``movej``) without ``stream_host``:
+    the options that write it."""
+    fmt = "urscript" if what == "servoj" else "urscript_movej"
+    return (
+        f"{fmt}: {n} {what} motions are more than max_motions {int(o['max_motions'])} (what one program should "
+        "hold), so they are streamed from a PC, and stream_host is not set: give --set stream_host=IP (the PC that "
+        f"serves NAME_stream.txt){alternative}, or --set max_motions={n} for one self-contained program (UR scripts "
+        'are reported to fail from 1,000-2,500 moves; docs/export.md "Big programs")'
+    )
+
+
+def _program_line(what: str, n: int, o: Mapping[str, Any], alternative: str = "") -> str:
+    """The change line of a URScript export: one self-contained program, or streamed (and from where);
+    refused (:class:`ExportRefusal`) when streamed without ``stream_host``."""
+    limit = int(o["max_motions"])
+    if n <= limit:
+        return f"one self-contained program: {n} {what} motions, within max_motions {limit}"
+    if not o["stream_host"]:
+        raise ExportRefusal(_no_host(what, n, o, alternative))
+    return (
+        f"streamed from {o['stream_host']}:{int(o['stream_port'])}: {n} {what} setpoints in the _stream.txt file, more "
+        f"than max_motions {limit} (what one program should hold)"
+    )
+
+
+def servoj_changes(data: ExportData, o: Mapping[str, Any]) -> tuple[str, ...]:
+    """Resampled to the servoj period (when it is not the trajectory's), and one program or a stream."""
+    period = _period(data, o)
+    n = _setpoints(data, period)
+    out = []
+    if abs(period - data.dt) >= 1e-12:
+        out.append(
+            f"resampled from {data.dt * 1e3:g} ms to the servoj period {period * 1e3:g} ms (the quintic through "
+            f"the samples): {n} setpoints"
         )
-    return text
+    alternative = ""
+    wide = _setpoints(data, PERIOD_MAX_S)
+    if period < PERIOD_MAX_S and wide <= int(o["max_motions"]):
+        alternative = f", or --set period={PERIOD_MAX_S:g} (CB3) for {wide} setpoints in one program"
+    return (*out, _program_line("servoj", n, o, alternative))
+
+
+def _setpoints(data: ExportData, period: float) -> int:
+    """How many servoj setpoints :func:`resample` gives at ``period`` (without resampling)."""
+    if abs(period - data.dt) < 1e-12:
+        return len(data.t)
+    return int(math.ceil(data.t[-1] / period - 1e-9)) + 1
+
+
+def movej_changes(data: ExportData, o: Mapping[str, Any]) -> tuple[str, ...]:
+    """Decimated to the movej targets, and one program or a stream."""
+    n = len(data.decimated(float(o["step_s"])))
+    between = f"blended r = {float(o['blend_radius']):g} m" if float(o["blend_radius"]) > 0.0 else "stopping at each"
+    return (
+        f"decimated to a movej every ~{float(o['step_s']):g} s: {n} targets of {len(data.t)} samples, the "
+        f"controller's own motion between them ({between})",
+        _program_line("movej", n, o, ", or a larger step_s"),
+    )
 
 
 _COMMON = {
@@ -300,7 +355,11 @@ _COMMON = {
         "most motion statements in one program; more are streamed from a PC (NAME_stream.txt)",
         counted("max_motions", 2, MAX_MOTIONS_LIMIT),
     ),
-    "stream_host": ("", "IP address of the PC that serves NAME_stream.txt (streamed programs)", _host),
+    "stream_host": (
+        "",
+        "IPv4/IPv6 address or host name of the PC that serves NAME_stream.txt (needed by a streamed program)",
+        network_host("stream_host"),
+    ),
     "stream_port": (STREAM_PORT, "TCP port of the stream on that PC", counted("stream_port", 1, 65535)),
 }
 
@@ -323,6 +382,7 @@ register_format(
         "URScript program streaming the trajectory by servoj at the controller period",
         motion=servoj_motion,
         timing_options=("period", "slow_down", "approach_speed", "approach_acceleration"),
+        changes=servoj_changes,
     )
 )
 
@@ -339,5 +399,6 @@ register_format(
         "URScript program of movej moves with blend radii (low-rate use)",
         motion=movej_motion,
         timing_options=("step_s", "blend_radius", "approach_speed", "approach_acceleration"),
+        changes=movej_changes,
     )
 )
