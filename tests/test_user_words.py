@@ -51,3 +51,18 @@ def test_a_gcode_program_that_is_not_utf8_is_read_as_latin1(tmp_path):
     bad.write_bytes("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F600 \xe4\n".encode("latin-1"))
     with pytest.raises(GCodeError, match=r"bad.ngc:3: word"):
         read_gcode(bad)
+
+
+def test_a_failed_solve_names_the_pair_its_last_iterate_comes_too_close_with():
+    from problems.posture import BranchStatus
+    from problems.posture.solve import _branch_verdict
+
+    clear = ["waypoint 4: 3.2 mm inside the cell's clearance (link 3 – table 1.8 mm apart, clearance 5 mm)"]
+    st, why = _branch_verdict("Infeasible_Problem_Detected", 40, clear, "analytic posture", clear)
+    assert st is BranchStatus.SOLVER_FAILED
+    assert why == (
+        "IPOPT: Infeasible_Problem_Detected after 40 iterations; its last iterate: waypoint 4: 3.2 mm inside "
+        "the cell's clearance (link 3 – table 1.8 mm apart, clearance 5 mm); the analytic posture is kept"
+    )
+    st, why = _branch_verdict("Maximum_Iterations_Exceeded", 3000, [], "warm start")
+    assert why == "IPOPT: Maximum_Iterations_Exceeded after 3000 iterations; the warm start is kept"
