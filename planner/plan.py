@@ -455,25 +455,7 @@ def _feed_warnings(res: PlanResult) -> list[str]:
     by_limit = fl.slowed_by_limit(w.line)
     n_stops = len(worst) - len(by_limit)
     if by_limit:
-        order = sorted(by_limit, key=lambda L: by_limit[L][0])
-        shown = ", ".join(
-            f"line {L}: {100 * by_limit[L][0]:.0f} % (joint {by_limit[L][1]} {by_limit[L][2]})"
-            for L in order[:FEED_WARN_LINES]
-        )
-        more = (
-            f" and {len(order) - FEED_WARN_LINES} more (summary.json program.feed.<method>.slowed_by_limit)"
-            if len(order) > FEED_WARN_LINES
-            else ""
-        )
-        out.append(
-            f"the joint limits keep the feed below {100 * (1 - FEED_SLOW_TOL):.0f} % of F on {len(order)} program "
-            f"line(s), peak TCP speed as a fraction of F: {shown}{more}"
-            + (
-                f"; {n_stops} more line(s) are slowed only by what surrounds them (a stop, or a line held down)"
-                if n_stops
-                else ""
-            )
-        )
+        out.append(_held_feed_warning(by_limit, n_stops))
     elif n_stops:
         out.append(
             f"{n_stops} program line(s) stay below {100 * (1 - FEED_SLOW_TOL):.0f} % of F only because of the stops "
@@ -481,6 +463,48 @@ def _feed_warnings(res: PlanResult) -> list[str]:
             "(summary.json program.slowed_lines)"
         )
     return out
+
+
+#: Per bound kind (``problems.timing.lookahead.BOUND_KINDS``): the robot-file key and the problem
+#: file's ``[limits]`` key of that limit (the advice of :func:`_held_feed_warning`).
+_LIMIT_KEYS = {"velocity": ("v_max", "velocity"), "acceleration": ("a_max", "acceleration"), "jerk": ("j_max", "jerk")}
+
+
+def _held_feed_warning(by_limit: dict[int, tuple[float, int, str]], n_stops: int) -> str:
+    """The warning of program lines a joint limit holds below F (``FeedLaw.slowed_by_limit``):
+    which limit of which joint binds, on how many lines, the slowest lines, and what would let
+    the feed reach F (that limit raised, F lowered, and for acceleration or jerk a larger path
+    tolerance: the corners rounded wider)."""
+    order = sorted(by_limit, key=lambda L: by_limit[L][0])
+    binding: dict[tuple[int, str], int] = {}
+    for L in order:
+        key = (by_limit[L][1], by_limit[L][2])
+        binding[key] = binding.get(key, 0) + 1
+    which = ", ".join(f"joint {j}'s {kind} limit on {n}" for (j, kind), n in binding.items())
+    shown = ", ".join(
+        f"line {L}: {100 * by_limit[L][0]:.0f} % (joint {by_limit[L][1]} {by_limit[L][2]})"
+        for L in order[:FEED_WARN_LINES]
+    )
+    more = (
+        f" and {len(order) - FEED_WARN_LINES} more (summary.json program.feed.<method>.slowed_by_limit)"
+        if len(order) > FEED_WARN_LINES
+        else ""
+    )
+    kinds = [k for k in dict.fromkeys(kind for _, kind in binding) if k in _LIMIT_KEYS]
+    advice = (
+        f"to reach F raise {'that limit' if len(binding) == 1 else 'those limits'} ("
+        + ", ".join(f"{_LIMIT_KEYS[k][0]} in the robot file or [limits] {_LIMIT_KEYS[k][1]}" for k in kinds)
+        + "), lower F there"
+    )
+    if any(k != "velocity" for k in kinds):
+        advice += " or allow a larger path tolerance (G64 P) for wider corners"
+    text = (
+        f"a joint limit holds the feed below {100 * (1 - FEED_SLOW_TOL):.0f} % of F on {len(order)} program "
+        f"line(s): {which}; {advice}; slowest (peak TCP speed / F): {shown}{more}"
+    )
+    if n_stops:
+        text += f"; {n_stops} more line(s) are slowed only by what surrounds them (a stop, or a line held down)"
+    return text
 
 
 def _jerk_limited() -> str:

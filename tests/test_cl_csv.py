@@ -78,7 +78,9 @@ def test_binary_missing_and_non_utf8_files_are_refused(tmp_path):
         read_cl_csv(binary)
     latin = tmp_path / "l.csv"
     latin.write_bytes("x_mm,y_mm,z_mm\n1,2,3 # caf\xe9\n".encode("latin-1"))
-    with pytest.raises(InputError, match="not UTF-8"):
+    with pytest.raises(
+        InputError, match=r"l.csv: line 2: byte 0xe9 at offset 26 is not UTF-8 text; .*save the file as UTF-8"
+    ):
         read_cl_csv(latin)
     with pytest.raises(InputError, match="cannot read the CL file"):
         read_cl_csv(tmp_path / "missing.csv")

@@ -22,7 +22,7 @@ from problems.posture import BranchStatus
 from problems.posture import optimise_postures
 from problems.posture import solve as posture_solve
 from problems.posture.clearance import CLEARANCE_SCALE, clearance_functions, clearance_spec, distance_function
-from problems.posture.clearance_active import clearance_margin, pair_distances
+from problems.posture.clearance_active import clearance_margin, closest_pair_words, pair_distances
 from problems.posture.transcription import _SOLVERS
 from problems.problem import load_problem
 
@@ -163,6 +163,18 @@ def test_branches_that_cannot_clear_the_table_are_named(setting):
     assert colliding
     for r in colliding:
         assert "table" in r.reason and "waypoint" in r.reason and "mm" in r.reason
+        # the posture NLP's own part names the pair too (it was "its warm start is 105 mm inside")
+        assert " – table is " in r.reason.split("posture NLP:", 1)[-1], r.reason
+
+
+def test_the_closest_pair_is_named_with_its_distance(setting):
+    problem, geom, spec, q = setting
+    d = pair_distances(spec, q[:1])[0]
+    i = int(np.argmin(d))
+    words = closest_pair_words(spec, q[0])
+    assert words.startswith(spec.pairs[i].name + " ")
+    assert f"{abs(d[i]) * 1e3:.3g} mm {'apart' if d[i] >= 0 else 'deep'}" in words
+    assert closest_pair_words(None, q[0]) == "" and closest_pair_words(spec, np.full(6, np.nan)) == ""
 
 
 def test_the_broad_phase_measures_what_coal_measures(setting):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import html
 import os
+import re
 from dataclasses import dataclass
 from typing import Any
 from collections.abc import Callable
@@ -61,6 +62,18 @@ class FigureItem:
     #: An interactive version for report.html (an HTML ``<div>`` with its script, needing plotly.js:
     #: the cell view, :mod:`planner.report.cell_view`); the PNG stays for report.md and the PDF.
     interactive: str | None = None
+
+
+#: A figure file's name carries its number (``fig9_toolpath``): the report shows that number.
+_NUMBERED_NAME = re.compile(r"fig(\d+)_")
+
+
+def figure_number(name: str, position: int) -> int:
+    """The number a figure is shown with: the one in its file name (``fig9_toolpath`` -> 9), so
+    "Figure 9" is ``figures/fig9_toolpath.png`` even when figures before it are absent from the
+    run; ``position`` (1-based, in the report) for a name without one."""
+    m = _NUMBERED_NAME.match(name)
+    return int(m.group(1)) if m else position
 
 
 def job(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Job:
@@ -181,6 +194,7 @@ def _html_lists(run: RunRecord) -> list[str]:
 
 
 def _html_figure(i: int, it: FigureItem) -> list[str]:
+    i = figure_number(it.name, i)
     out = [f'<h3 id="{it.name}">Figure {i}. {html.escape(it.title)}</h3>']
     if it.png is None:
         out.append(f'<p class="absent" data-absent="{it.name}">{html.escape(it.absent)}</p>')
@@ -221,7 +235,7 @@ def render_html(run: RunRecord, tables: list[Table], items: list[FigureItem]) ->
     """``report.html``: self-contained (the PNGs embedded as data URIs), the headline first."""
     title = report_title(run.summary)
     head, body, prov = _split_tables(tables)
-    toc = " ".join(f'<a href="#{it.name}">Fig. {i}</a>' for i, it in enumerate(items, start=1))
+    toc = " ".join(f'<a href="#{it.name}">Fig. {figure_number(it.name, i)}</a>' for i, it in enumerate(items, start=1))
     out = page_head(title, head=_plotly_script(items))
     out += [t.html() for t in head]
     out += [
@@ -268,6 +282,7 @@ def render_markdown(run: RunRecord, tables: list[Table], items: list[FigureItem]
         out += [t.markdown(), ""]
     out += ["## Figures", ""]
     for i, it in enumerate(items, start=1):
+        i = figure_number(it.name, i)
         out += [f"### Figure {i}. {it.title}", ""]
         if it.png is None:
             out += [f"*{it.absent}*", ""]

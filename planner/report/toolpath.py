@@ -35,6 +35,7 @@ __all__ = [
     "line_feed_m_s",
     "sample_feed_m_s",
     "merge_segments",
+    "rapid_move_count",
     "DEVIATION_SLACK",
     "SLOWED_KINDS",
     "deviation_words",
@@ -70,6 +71,14 @@ def sample_feed_m_s(view: ProgramRecord, waypoints: np.ndarray) -> np.ndarray:
     NaN on a rapid (also inside a canned cycle, whose line holds rapids and feeds)."""
     k = np.asarray(waypoints).astype(int)
     return np.where(view.rapid[k], np.nan, view.feed_m_s[k])
+
+
+def rapid_move_count(view: ProgramRecord) -> int:
+    """The number of rapid moves (G0, and a canned cycle's rapids) of a program: the runs of
+    consecutive rapid waypoints of one program line, not the waypoints a rapid is split into."""
+    r, line = np.asarray(view.rapid[1:], bool), np.asarray(view.line[1:])
+    starts = r & ~np.r_[False, r[:-1] & (line[1:] == line[:-1])]
+    return int(np.count_nonzero(starts))
 
 
 # ---------------------------------------------------------------------------------- the feed

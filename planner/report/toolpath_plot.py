@@ -48,6 +48,7 @@ from planner.report.toolpath import (
     bin_extrema,
     sample_feed_m_s,
     merge_segments,
+    rapid_move_count,
     slowed_by_limit_worst_first,
     slowed_line_text,
     slowed_lines_worst_first,
@@ -134,8 +135,9 @@ def _toolpath_item(run: RunRecord) -> FigureItem:
             "chord), each chord coloured by the largest error of the moves it replaces."
         )
     eb_max, ee_max = float(np.nanmax(errors[:, 0])), float(np.nanmax(errors[:, 1]))
+    n_rapid = rapid_move_count(view)
     title = _header(run) + (
-        f"\n{view.n} waypoints, {int(np.count_nonzero(view.rapid[1:]))} rapid moves; "
+        f"\n{view.n} waypoints, {n_rapid} rapid move{'' if n_rapid == 1 else 's'} (G0); "
         f"max TCP error {mm_text(eb_max * 1e3)} before, {mm_text(ee_max * 1e3)} after exact compensation"
     )
     item.job = job(

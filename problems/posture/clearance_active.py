@@ -41,7 +41,9 @@ __all__ = [
     "MAX_RESOLVES",
     "POSED_DISTANCE_M",
     "clearance_margin",
+    "closest_pair_words",
     "depth_margin",
+    "pair_depth_margins",
     "pair_distances",
     "posed_at",
     "unposed_violations",
@@ -110,8 +112,28 @@ def clearance_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
     return out
 
 
+def closest_pair_words(spec: ClearanceSpec | None, q: np.ndarray) -> str:
+    """The pair that comes closest at configuration ``q`` (6,) rad, in words for a reason:
+    ``"link 3 – table 2.1 mm apart, clearance 5 mm"`` (``... 4 mm deep ...`` when the surfaces
+    overlap); empty without a cell or at a configuration that is not finite."""
+    q = np.asarray(q, float).reshape(1, -1)
+    if spec is None or not spec.pairs or not np.all(np.isfinite(q)):
+        return ""
+    d = pair_distances(spec, q)[0]
+    i = int(np.argmin(d))
+    if not np.isfinite(d[i]):
+        return f"{spec.pairs[i].name} (no closed-form distance), clearance {spec.clearance * 1e3:.3g} mm"
+    gap = f"{d[i] * 1e3:.3g} mm apart" if d[i] >= 0 else f"{-d[i] * 1e3:.3g} mm deep"
+    return f"{spec.pairs[i].name} {gap}, clearance {spec.clearance * 1e3:.3g} mm"
+
+
 def depth_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
-    """Each waypoint's smallest margin (m) at ``q`` (N, 6) rad as the NLP measures depth: where a
+    """Each waypoint's smallest margin (m) over the pairs of :func:`pair_depth_margins`."""
+    return pair_depth_margins(spec, q).min(axis=1)
+
+
+def pair_depth_margins(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
+    """Each waypoint's margin per pair (N, P), m, at ``q`` (N, 6) rad as the NLP measures depth: where a
     pair comes within :data:`DEPTH_CANDIDATE_M` of being
     :data:`~problems.posture.clearance.NLP_MAX_PENETRATION_M` deep, the smallest signed distance
     of its capsule's sample points (the NLP's, :func:`~problems.posture.clearance.sample_count`)
@@ -119,7 +141,7 @@ def depth_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
     less the clearance.  Decides which branches the NLP is given."""
     q = np.atleast_2d(q)
     if spec is None or not spec.pairs:
-        return np.full(q.shape[0], np.inf)
+        return np.full((q.shape[0], 1), np.inf)
     m = pair_distances(spec, q) - spec.clearance
     deep = np.flatnonzero((m < -NLP_MAX_PENETRATION_M + DEPTH_CANDIDATE_M).any(axis=0))
     if deep.size:
@@ -128,7 +150,7 @@ def depth_margin(spec: ClearanceSpec | None, q: np.ndarray) -> np.ndarray:
             d = _sampled_distance(spec, int(i), seg)
             if d is not None:
                 m[:, i] = d - spec.clearance
-    return m.min(axis=1)
+    return m
 
 
 def _sampled_distance(spec: ClearanceSpec, i: int, seg: np.ndarray) -> np.ndarray | None:

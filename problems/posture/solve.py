@@ -46,7 +46,9 @@ from problems.posture.clearance import (
 from problems.posture.clearance_active import (
     MAX_RESOLVES,
     clearance_margin,
+    closest_pair_words,
     depth_margin,
+    pair_depth_margins,
     posed_at,
     unposed_violations,
 )
@@ -325,13 +327,14 @@ def _optimised_branch(
     base = qa if qa is not None else bp_warm.q
     sign = branch_signs(ik, bp_warm.q)
     kept = "analytic posture" if qa is not None else "warm start"
-    deep = depth_margin(nlp.clearance, bp_warm.q)
+    deep = pair_depth_margins(nlp.clearance, bp_warm.q)
     if deep.min() < -NLP_MAX_PENETRATION_M:  # a posture change does not pull a link out of an object
-        k = int(np.argmin(deep))
+        k, i = np.unravel_index(int(np.argmin(deep)), deep.shape)
         err = linear_error(model, base, task.load)
         why = (
-            f"not optimised: its warm start is {-deep[k] * 1e3:.0f} mm inside the cell's clearance at waypoint {k} "
-            f"(more than {NLP_MAX_PENETRATION_M * 1e3:.0f} mm); the {kept} is kept"
+            f"not optimised: at waypoint {k} of its warm start {nlp.clearance.pairs[i].name} is "
+            f"{-deep[k, i] * 1e3:.0f} mm inside the cell's clearance (more than {NLP_MAX_PENETRATION_M * 1e3:.0f} "
+            f"mm); the {kept} is kept"
         )
         return BranchResult(
             b, BranchStatus.SOLVER_FAILED, why, base, qa, bp_warm.q, wname, float(np.sum(err**2)), cost_a, wcost,
@@ -348,8 +351,8 @@ def _optimised_branch(
         iters, dt = iters + it2, dt + dt2
         q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
     problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
-    problems = [*problems, *_clearance_problems(nlp, task, q_pol)]
-    st, why = _branch_verdict(ip_status, iters, problems, kept)
+    clear = _clearance_problems(nlp, task, q_pol)
+    st, why = _branch_verdict(ip_status, iters, [*problems, *clear], kept, clear)
     q = q_pol if st is BranchStatus.OPTIMISED else base
     if st is BranchStatus.OPTIMISED and _start_is_better(nlp, model, ik, task, bp_warm.q, q, sign, q_min, q_max):
         # a local optimum worse than the (feasible) point it started from: keep the start
@@ -407,15 +410,22 @@ def _clearance_problems(nlp: PostureNLP, task: PostureTask, q: np.ndarray) -> li
     margin_c = clearance_margin(nlp.clearance, q)
     if np.any(margin_c < -CLEARANCE_TOL_M):
         k = int(np.argmin(margin_c))
-        return [f"waypoint {k}: {-margin_c[k] * 1e3:.3g} mm inside the cell's clearance"]
+        pair = closest_pair_words(nlp.clearance, q[k])
+        return [
+            f"waypoint {k}: {-margin_c[k] * 1e3:.3g} mm inside the cell's clearance" + (f" ({pair})" if pair else "")
+        ]
     return []
 
 
-def _branch_verdict(ip_status: str, iters: int, problems: list[str], kept: str) -> tuple[BranchStatus, str]:
+def _branch_verdict(
+    ip_status: str, iters: int, problems: list[str], kept: str, clear: list[str] | None = None
+) -> tuple[BranchStatus, str]:
     """A branch's status and reason from IPOPT's status and the verification ``problems``; ``kept``
-    names the posture kept when it is not optimised."""
+    names the posture kept when it is not optimised; ``clear``: the clearance problem of IPOPT's
+    last iterate (the pair named), said when IPOPT failed."""
     if ip_status not in IPOPT_OK:
-        return BranchStatus.SOLVER_FAILED, f"IPOPT: {ip_status} after {iters} iterations; the {kept} is kept"
+        at = f"; its last iterate: {clear[0]}" if clear else ""
+        return BranchStatus.SOLVER_FAILED, f"IPOPT: {ip_status} after {iters} iterations{at}; the {kept} is kept"
     if problems:
         return BranchStatus.CONSTRAINT_VIOLATED, f"{problems[0]}; the {kept} is kept"
     return BranchStatus.OPTIMISED, f"IPOPT: {ip_status} in {iters} iterations"

@@ -28,13 +28,16 @@ def read_program_text(
     error : type
         The format's error class (an :class:`~models.errors.InputError`).
     latin1_fallback : bool
-        Read a file that is not UTF-8 as Latin-1 (old controls' comments) instead of refusing it.
+        Read a file that is not UTF-8 as Latin-1 (old controls' comments) instead of refusing it:
+        every byte is a character, ASCII reads the same, so only non-ASCII text differs (G-code:
+        a comment's text; outside a comment the lexer refuses it, naming the line).
 
     Raises
     ------
     InputError
         Of class ``error``: missing, unreadable, too large (``PROGRAM_MAX_BYTES``) or binary
-        (NUL bytes) file, or not UTF-8 without ``latin1_fallback``.
+        (NUL bytes) file, or not UTF-8 without ``latin1_fallback`` (the line, the byte and its
+        offset named).
     """
     p = Path(path)
     try:
@@ -51,4 +54,8 @@ def read_program_text(
     except UnicodeDecodeError as exc:
         if latin1_fallback:
             return data.decode("latin-1")  # decodes every byte
-        raise error(f"{p}: not UTF-8 text (byte {exc.start}); expected {what}") from None
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise error(
+            f"{p}: line {line}: byte 0x{data[exc.start]:02x} at offset {exc.start} is not UTF-8 text; "
+            f"expected {what}: save the file as UTF-8"
+        ) from None
