@@ -16,6 +16,12 @@ returns) every free parameter counts, the registration included; in the base fra
 (:func:`at_tcp`), the registration's parameters do not act (nor the measured point's, unless the
 data were registered and the measured point is the TCP) and it is rotated into the base frame.
 
+A parameter the identification data do not determine (:func:`undetermined`: its standard deviation
+above :data:`UNDETERMINED_STD_RATIO` typical magnitudes) is not part of the sigma: it is held at
+its identified value (the others' covariance conditioned on it, :func:`held_covariance`) and named,
+with whether the evaluated load changes its effect (:func:`through_load`; loaded measurements
+would determine it).
+
 :func:`outside_ranges` names, per row, the joints commanded outside the range of the
 identification data (:attr:`models.arm.ArmModel.joint_range_rad`): there the model
 extrapolates and its sigma is the linearised one of an extrapolation.
@@ -259,7 +265,8 @@ def predicted_sigma(
     ``sigma^2 = diag(J C J^T) + s^2`` (module docstring); ``frame`` is ``"measurement"`` (the
     measured point, as :func:`problems.identify.predict`) or ``"base"`` (the TCP position of
     compensation and plans, registration excluded).  ``include_residual=False`` leaves out ``s``
-    (the parameters' part alone, what a design can reduce).
+    (the parameters' part alone, what a design can reduce).  The parameters the data do not
+    determine are held and listed in ``excluded`` (module docstring).
     """
     if frame not in FRAMES:
         raise ValueError(f"frame {frame!r}: expected one of {FRAMES}")
