@@ -21,6 +21,7 @@ from problems.identify.design_loads import DESIGN_LOAD_DOMINANT_SHARE
 from problems.identify.design_result import DesignStatus
 from problems.identify.uncertainty import (
     UNDETERMINED_STD_RATIO,
+    at_tcp,
     parameter_jacobian,
     path_sigma,
     predicted_sigma,
@@ -73,7 +74,7 @@ def test_unloaded_identification_leaves_stiffness_out_of_the_sigma(unloaded_mode
     ps = predicted_sigma(model, q, _loaded(N_POSES), frame="base")
     # the full covariance's sigma under load: dominated by the stiffness (what the user saw, in metres)
     names = list(model.covariance_names)
-    J = to_base_frame(model, parameter_jacobian(model, q, _loaded(N_POSES), names)[1], names)
+    J = to_base_frame(model, parameter_jacobian(at_tcp(model), q, _loaded(N_POSES), names)[1], names)
     full = np.sqrt(np.einsum("nik,kl,nil->ni", J, np.asarray(model.covariance), J).max())
     assert ps.available and np.isfinite(ps.sigma_m).all()
     assert ps.sigma_m.max() < 1e-3 < full  # below a millimetre, the full one above
@@ -84,8 +85,13 @@ def test_unloaded_identification_leaves_stiffness_out_of_the_sigma(unloaded_mode
     text = ps.excluded_text()
     assert text.startswith("sigma excludes") and "stiffness.s[2]" in text and "no loaded measurements" in text
     # unloaded, the same parameters are left out but nothing is said to act through a load
-    ps0 = predicted_sigma(model, q, None, frame="base")
+    ps0 = predicted_sigma(model, q, None, frame="base", include_residual=False)
     assert {u.name for u in ps0.excluded} == set(und) and not any(u.through_load for u in ps0.excluded)
+    # holding parameters never makes the sigma larger than the full covariance's (conditioning; the
+    # data determine the product of stiffness and mass, which the held block must keep)
+    J0 = to_base_frame(model, parameter_jacobian(at_tcp(model), q, None, names)[1], names)
+    full0 = np.einsum("nik,kl,nil->ni", J0, np.asarray(model.covariance), J0)
+    assert (ps0.sigma_m**2 <= full0 * (1 + 1e-6) + 1e-20).all()
 
 
 def test_path_sigma_carries_what_it_leaves_out(unloaded_model):

@@ -125,7 +125,9 @@ def held_covariance(C: np.ndarray, held: np.ndarray) -> np.ndarray:
     inv = np.where(sd > 0, 1.0 / np.where(sd > 0, sd, 1.0), 0.0)
     R = C * np.outer(inv, inv)
     Rkk, Rkh, Rhh = R[np.ix_(keep, keep)], R[np.ix_(keep, held)], R[np.ix_(held, held)]
-    Rc = Rkk - Rkh @ np.linalg.pinv(Rhh, rcond=1e-12, hermitian=True) @ Rkh.T
+    # least squares at machine precision: the held block is nearly singular where the data determine
+    # only a combination of its parameters (stiffness times mass), and that combination must count
+    Rc = Rkk - Rkh @ np.linalg.lstsq(Rhh, Rkh.T, rcond=None)[0]
     Rc = 0.5 * (Rc + Rc.T)
     return Rc * np.outer(sd[keep], sd[keep])
 
