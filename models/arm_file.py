@@ -27,6 +27,15 @@ from .transforms import rotvec_to_matrix
 MODEL_FORMATS_READ = (1, 2)
 #: A covariance read is symmetric when ``|C_ij - C_ji| <= tol sqrt(C_ii C_jj)``.
 COVARIANCE_SYMMETRY_TOL = 1e-9
+#: A variance whose standard deviation exceeds this many typical magnitudes of its parameter
+#: (``ParamGroup.scale``) is refused at load: no identification writes it (the real UR5 grid's
+#: least determined parameters reach about 1e6; a tampered 1e30 is far beyond).  Parameters with a
+#: standard deviation above ``problems.identify.uncertainty.UNDETERMINED_STD_RATIO`` typical
+#: magnitudes are read, and left out of the predicted sigma.
+COVARIANCE_MAX_STD_RATIO = 1e8
+#: A covariance read must be positive semi-definite: its correlations at most ``1 + tol`` and the
+#: smallest eigenvalue of its correlation matrix at least ``-tol`` (rounding of the written floats).
+COVARIANCE_PSD_TOL = 1e-6
 
 
 def _matrix(where: str, key: str, v: Any, rows: int, cols: int) -> np.ndarray:
@@ -35,9 +44,9 @@ def _matrix(where: str, key: str, v: Any, rows: int, cols: int) -> np.ndarray:
     return np.array([_nums(where, f"{key}[{i}]", r, cols) for i, r in enumerate(v)], dtype=float).reshape(rows, cols)
 
 
-def _covariance_from(where: str, ident: dict[str, Any]) -> tuple[np.ndarray | None, list[str]]:
-    """The ``[identified.covariance]`` table: names (known parameters, no repeats) and a symmetric
-    matrix with a non-negative diagonal."""
+def _covariance_from(where: str, ident: dict[str, Any], nominal: Robot) -> tuple[np.ndarray | None, list[str]]:
+    """The ``[identified.covariance]`` table: names (known parameters, no repeats) and a plausible
+    covariance of them (:func:`check_covariance`)."""
     cov = ident.get("covariance")
     if cov is None:
         return None, []
@@ -50,13 +59,74 @@ def _covariance_from(where: str, ident: dict[str, Any]) -> tuple[np.ndarray | No
             f"{where}: [identified.covariance] names {unknown or 'repeated'}: expected distinct parameter names "
             "(docs/identification.md)"
         )
-    C = _matrix(where, "covariance.matrix", cov["matrix"], len(names), len(names))
-    scale = np.sqrt(np.outer(np.abs(np.diag(C)), np.abs(np.diag(C))))
-    if (np.abs(C - C.T) > COVARIANCE_SYMMETRY_TOL * scale + 1e-300).any() or (np.diag(C) < 0).any():
-        raise RobotFileError(
-            f"{where}: [identified.covariance] key 'matrix' must be symmetric with a non-negative diagonal"
-        )
+    C = _covariance_matrix(where, cov["matrix"], len(names))
+    scale = make_layout(nominal).scale[[fx.PARAM_NAMES.index(n) for n in names]]
+    check_covariance(where, C, list(names), scale)
     return C, list(names)
+
+
+def _covariance_matrix(where: str, v: Any, k: int) -> np.ndarray:
+    """``covariance.matrix``: k rows of k numbers (finite or not: :func:`check_covariance` names the entry)."""
+    ok = isinstance(v, list) and len(v) == k
+    ok = ok and all(isinstance(r, list) and len(r) == k for r in v)
+    ok = ok and all(isinstance(x, (int, float)) and not isinstance(x, bool) for r in v for x in r)
+    if not ok:
+        raise RobotFileError(
+            f"{where}: [identified] key 'covariance.matrix' must be a list of {k} rows of {k} numbers "
+            "(one row and column per name)"
+        )
+    return np.array(v, dtype=float).reshape(k, k)
+
+
+def check_covariance(where: str, C: np.ndarray, names: list[str], scale: np.ndarray) -> None:
+    """Refuse a covariance no identification writes, naming the file and the entry.
+
+    Finite; a non-negative variance whose standard deviation is at most
+    :data:`COVARIANCE_MAX_STD_RATIO` typical magnitudes of its parameter (``scale``,
+    :class:`~models.effects.ParamGroup`); symmetric (:data:`COVARIANCE_SYMMETRY_TOL`); no
+    correlation beyond 1 (:data:`COVARIANCE_PSD_TOL`); positive semi-definite (the smallest
+    eigenvalue of the correlation matrix at least ``-COVARIANCE_PSD_TOL``, else the parameters of
+    its eigenvector are named).  Raises :class:`RobotFileError`.
+    """
+    head = f"{where}: [identified.covariance] matrix"
+    bad = np.argwhere(~np.isfinite(C))
+    if len(bad):
+        i, j = bad[0]
+        raise RobotFileError(f"{head} entry ({names[i]}, {names[j]}) is {C[i, j]}: expected a finite number")
+    d = np.diag(C)
+    for i in np.flatnonzero(d < 0):
+        raise RobotFileError(f"{head} variance of {names[i]} is {d[i]:.6g}: expected >= 0")
+    ratio = np.sqrt(d) / scale
+    for i in np.flatnonzero(ratio > COVARIANCE_MAX_STD_RATIO):
+        raise RobotFileError(
+            f"{head} variance of {names[i]} is {d[i]:.6g}: a standard deviation of {np.sqrt(d[i]):.3g}, "
+            f"{ratio[i]:.3g} times its typical magnitude {scale[i]:.3g}; expected at most "
+            f"{COVARIANCE_MAX_STD_RATIO:g} times (not a covariance an identification writes)"
+        )
+    sd = np.sqrt(d)
+    outer = np.outer(sd, sd)
+    asym = np.abs(C - C.T) > COVARIANCE_SYMMETRY_TOL * outer + 1e-300
+    if asym.any():
+        i, j = np.argwhere(asym)[0]
+        raise RobotFileError(
+            f"{head} is not symmetric: entry ({names[i]}, {names[j]}) is {C[i, j]:.6g} but "
+            f"({names[j]}, {names[i]}) is {C[j, i]:.6g}"
+        )
+    over = np.abs(C) > outer * (1.0 + COVARIANCE_PSD_TOL) + 1e-300
+    if over.any():
+        i, j = np.argwhere(over)[0]
+        raise RobotFileError(
+            f"{head} entry ({names[i]}, {names[j]}) is {C[i, j]:.6g}: a correlation of "
+            f"{C[i, j] / max(outer[i, j], 1e-300):.3g}, beyond 1 (not positive semi-definite)"
+        )
+    inv = np.where(sd > 0, 1.0 / np.where(sd > 0, sd, 1.0), 0.0)
+    w, V = np.linalg.eigh(0.5 * (C + C.T) * np.outer(inv, inv))
+    if len(w) and w[0] < -COVARIANCE_PSD_TOL:
+        top = np.argsort(np.abs(V[:, 0]))[::-1][:3]
+        raise RobotFileError(
+            f"{head} is not positive semi-definite: the correlation matrix has eigenvalue {w[0]:.3g} "
+            f"(along {', '.join(names[t] for t in top)}); expected >= {-COVARIANCE_PSD_TOL:g}"
+        )
 
 
 def _effect_constants(where: str, c: dict[str, Any]) -> dict[str, np.ndarray]:
@@ -70,10 +140,10 @@ def _effect_constants(where: str, c: dict[str, Any]) -> dict[str, np.ndarray]:
     return out
 
 
-def _where_it_holds(where: str, ident: dict[str, Any]) -> dict[str, Any]:
+def _where_it_holds(where: str, ident: dict[str, Any], nominal: Robot) -> dict[str, Any]:
     """The format-2 keys as :class:`ArmModel` fields: covariance and its names, the residual's sigma,
     the identified joint ranges and the campaigns (absent keys: a format-1 file, no sigma)."""
-    cov, cov_names = _covariance_from(where, ident)
+    cov, cov_names = _covariance_from(where, ident, nominal)
     return {
         "covariance": cov,
         "covariance_names": cov_names,
@@ -142,6 +212,8 @@ def model_from_robot(robot: Robot, where: str = "model") -> ArmModel:
         return _nominal_model(robot)
     try:
         return _identified_model(robot, ident, where)
+    except RobotFileError:
+        raise
     except KeyError as exc:
         raise RobotFileError(f"{where}: [identified] table is missing key {exc}") from None
     except (TypeError, AttributeError, ValueError) as exc:
@@ -237,7 +309,7 @@ def _identified_model(robot: Robot, ident: dict[str, Any], where: str) -> ArmMod
             _nums(where, "torque_range_Nm", ident["torque_range_Nm"], 6) if "torque_range_Nm" in ident else None
         ),
         effect_const=_effect_constants(where, c),
-        **_where_it_holds(where, ident),
+        **_where_it_holds(where, ident, nominal),
     )
 
 

@@ -383,6 +383,16 @@ SUMMARY = Table(
                 "max_waypoint": Number(lo=0, integer=True, nullable=True),
                 "n_outside_range": Number(lo=0, integer=True),
                 "outside_range": ListOf(item=Table(fields={"waypoint": Number(lo=0, integer=True), "joints": Text()})),
+                "excluded": ListOf(
+                    item=Table(
+                        fields={
+                            "name": Text(),
+                            "effect": Text(),
+                            "std_ratio": Number(lo=0.0),
+                            "through_load": Flag(),
+                        }
+                    )
+                ),
                 "text": Text(),
             },
             nullable=True,

@@ -150,8 +150,8 @@ def test_sigma_before_is_the_models_own(fitted):
     own = predicted_sigma(model, pool.q, include_residual=False)
     rms = np.sqrt(np.mean(own.sigma_m**2, axis=1))
     np.testing.assert_allclose(des.sigma_before_m, rms, rtol=1e-2)
-    scratch = design_campaign(model, pool, 5)  # no earlier data: the model's covariance itself
-    np.testing.assert_allclose(scratch.sigma_before_m, rms, rtol=1e-9)
+    scratch = design_campaign(model, pool, 5)  # no earlier data: the nominal model (tests/test_sigma_undetermined.py)
+    assert (scratch.sigma_before_m > 10 * rms).all()
 
 
 def test_guards_set_aside_singular_and_out_of_limit_rows(fitted):
@@ -326,14 +326,15 @@ def test_cli_task_region(files, capsys):
     assert "(criterion d; base frame" in capsys.readouterr().out
     with out.open() as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == 8 and all(float(r["fx"]) == 0.0 for r in rows)  # the task pool is unloaded
-    # extra_pool_line is the task pool's row (1-based): the same seed gives the same pool
+    assert len(rows) == 8
+    # extra_pool_line is the task pool's row (1-based): the same seed gives the same pool, its loaded rows
+    # (the task's load) written with their load
     model = load_model(d / "model.toml")
     _eq, pool = task_region("ur5_tool_thrust", model, seed=2)
     for r in rows:
-        np.testing.assert_allclose(
-            [float(r[f"q{j}"]) for j in range(1, 7)], pool.q[int(r["extra_pool_line"]) - 1], rtol=0, atol=1e-15
-        )
+        i = int(r["extra_pool_line"]) - 1
+        np.testing.assert_allclose([float(r[f"q{j}"]) for j in range(1, 7)], pool.q[i], rtol=0, atol=1e-15)
+        np.testing.assert_allclose([float(r[c]) for c in ("fx", "fy", "fz", "mx", "my", "mz")], pool.wrench[i])
 
 
 def test_potential_terms_change_the_choice_not_the_reported_sigma(fitted):

@@ -177,7 +177,7 @@ def run_design(args: argparse.Namespace) -> int:
         new_registration="registration" not in args.shared,
         seed=args.seed,
     )
-    loads = args.pool is not None and "fx" in pool.columns
+    loads = bool(np.any(pool.wrench))
     data = _campaign_csv(des, pool, loads).encode()
     from planner.output import atomic_write_bytes, pending_file
 
@@ -207,11 +207,12 @@ def _campaign_csv(des: Any, pool: Any, loads: bool) -> str:
     return buf.getvalue()
 
 
-def _region_text(des: Any) -> str:
+def _region_text(des: Any, scratch: bool) -> str:
     mm = 1e3
+    before = "nominal model, no earlier data" if scratch else "the earlier data"
     return (
-        f"predicted sigma over the region {des.region_sigma_m(des.sigma_before_m) * mm:.4f} -> "
-        f"{des.region_sigma_m(des.sigma_after_m) * mm:.4f} mm ({len(des.chosen)} random: "
+        f"predicted sigma over the region {des.region_sigma_m(des.sigma_before_m) * mm:.4f} mm ({before}) -> "
+        f"{des.region_sigma_m(des.sigma_after_m) * mm:.4f} mm with this campaign ({len(des.chosen)} random: "
         f"{des.region_sigma_m(des.sigma_random_m) * mm:.4f} mm)"
     )
 
@@ -221,12 +222,16 @@ def _print_summary(args: argparse.Namespace, des: Any, frame: str) -> None:
     extra = "; ".join([f"criterion {des.criterion}", f"{frame} frame", *aside])
     wrote = f"{args.out}" + (f" and {Path(args.report)}/: report.json, report.md, report.html" if args.report else "")
     print(
-        f"design: {len(des.chosen)} of {des.n_pool} pool poses ({extra}); {_region_text(des)}; "
+        f"design: {len(des.chosen)} of {des.n_pool} pool poses ({extra}); {_region_text(des, not args.data)}; "
         f"travel {des.travel_s:.0f} s; wrote {wrote}"
     )
     for note in des.notes:
         if "outside the joint ranges" in note:
             print(f"compplan: warning: {note}", file=sys.stderr)
+        elif note.startswith(("loads:", "before: the nominal model")):
+            print(f"  {note}")
+    if des.status.value == "needs_loads":
+        print(f"compplan: warning: design: {des.reason}", file=sys.stderr)
     if des.unidentifiable:
         det = [u.name for u in des.unidentifiable if u.determined_by_earlier]
         not_det = [u.name for u in des.unidentifiable if not u.determined_by_earlier]
@@ -282,7 +287,7 @@ def _report_md(rep: dict[str, Any], des: Any) -> str:
         f"| status | {d['status']} ({d['reason']}) |",
         f"| model | {rep['model']} |",
         f"| region | {src} ({d['n_eval']} evaluation poses, {d['eval_frame']} frame) |",
-        f"| earlier data | {', '.join(rep['data']) or 'none (a design from scratch)'} |",
+        f"| earlier data | {', '.join(rep['data']) or 'none (a design from scratch: before is the nominal model)'} |",
         f"| criterion | {d['criterion']} |",
         f"| chosen | {rep['n']} of {d['n_pool']} pool rows ({d['n_usable']} usable) |",
         f"| predicted sigma over the region, before | {d['region_sigma_before_m'] * mm:.4f} mm |",

@@ -69,6 +69,8 @@ def _sigma_outputs(model: Any, m: Any, q: np.ndarray, frame: str) -> tuple[np.nd
             f"{ps.sigma_m.max() * 1e3:.4f} mm (line {int(m.line[k])}); {len(out)} row(s) outside the "
             "identified joint ranges"
         )
+        if ps.excluded:
+            lines.append(f"  {ps.excluded_text()}")
     elif model.effects or not model.is_nominal:  # a plain robot file: the columns say nan (docs/cli.md)
         lines.append(
             "  note: no predicted sigma (columns nan): the model file has no parameter covariance (written "

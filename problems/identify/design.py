@@ -13,8 +13,10 @@ is used, linearised at the model's parameters:
   scaled so that their pool columns have unit RMS (nothing below depends on the scaling).
 * **Prior.**  Earlier data (``earlier``) give the information ``sum J^T J / s^2`` (``s`` the
   row's ``sigma`` when the file has one, else :attr:`~models.arm.ArmModel.residual_sigma_m`);
-  without earlier data the design is from scratch: only a tiny ridge
-  (:data:`DESIGN_PRIOR_POSES`) keeps the information invertible.
+  without earlier data the design is from scratch, and the prior is what the user has without
+  identification, the *nominal model*: each parameter but the set-up's (registration, measured
+  point) known to its typical magnitude (``ParamGroup.scale``: prior information ``1/scale^2``); a
+  tiny ridge (:data:`DESIGN_PRIOR_POSES`) keeps the set-up's columns invertible.
 * **Noise.**  Each new row adds ``J_i^T J_i / s^2``, ``s = residual_sigma_m`` per axis.
 * **Criterion.**  ``"task"`` (default): minimise the mean over the evaluation poses of
   ``trace(J_e P J_e^T)`` (``P`` the posterior covariance): the mean predicted variance of the
@@ -48,9 +50,14 @@ is used, linearised at the model's parameters:
 
 The predicted sigma reported per evaluation pose is the RMS over the three axes of the
 parameters' part, ``sqrt(trace(J_e P J_e^T) / 3)``, m: before the campaign (the earlier data's
-information, or the model's own covariance when no earlier data are given; the new campaign's
-registration is left out, it exists only once measured), after it, and after ``n`` random
+information, or the nominal model's when no earlier data are given; the set-up's parameters are
+left out, the new campaign's exist only once measured), after it, and after ``n`` random
 usable pool rows (mean over ``random_trials`` subsets: the baseline).
+
+* **Loads** (:mod:`.design_loads`).  The parameters that act through the region's load (joint
+  stiffness: the load changes their sensitivity) and their share of the region's variance; when
+  they dominate it after the campaign and the pool has no loaded row, the status is
+  ``needs_loads`` (no campaign from that pool can determine them).
 
 :func:`task_region` (:mod:`.design_region`) turns a planning problem into evaluation poses and a
 pool around its path.
@@ -65,6 +72,7 @@ from typing import Any
 
 import numpy as np
 
+from models import effects as fx
 from models.arm import ArmModel
 from models.errors import InputError
 
@@ -81,6 +89,7 @@ from .design_jacobians import (
     place_columns,
     selection_problem,
 )
+from .design_loads import LoadCheck, load_parameters, load_share
 from .design_result import CampaignDesign, DesignStatus, SetAside, Unidentifiable
 from .identifiability import IDENT_REL_TOL, select_identifiable
 from .travel import travel_order
@@ -104,6 +113,13 @@ DESIGN_PRIOR_POSES = 1e-6
 DESIGN_POTENTIAL_KNOTS = 0
 #: Relative tolerance of the unidentifiability test (the identification's own).
 DESIGN_IDENT_REL_TOL = IDENT_REL_TOL
+#: The set-up's parameters (registration, measured point): no nominal prior, known by no one before
+#: a campaign measures them.
+SETUP_NAMES = frozenset(
+    fx.PARAM_NAMES[i]
+    for g in ("reg.t", "reg.w", "tool.p", "tool.r")
+    for i in range(*fx.GROUP_SLICES[g].indices(fx.N_PARAMS))
+)
 #: Random subsets of the baseline (``design_campaign(random_trials=...)``).
 RANDOM_TRIALS = 20
 #: Rows named per guard (the first ones, by file line).
@@ -229,7 +245,8 @@ def design_campaign(
     spread = _uncertainty_fields(model, mats, lay, sel, s, eval_frame, earlier, uidx, n, random_trials, seed, notes)
     unident = _pool_unidentifiable(mats, names, lay, s)
     order, travel_s = travel_order(pool.q[uidx[sel]], model.nominal.v_max)
-    status, reason = _status(unident, int(n), len(uidx), criterion)
+    loads = _load_check(model, pool, uidx, sel, mats, names, lay, (eval_q, eval_wrench, eval_frame), s)
+    status, reason = _status(unident, int(n), len(uidx), criterion, loads, spread["sigma_after_m"], notes)
     return CampaignDesign(
         status=status,
         reason=reason,
@@ -243,7 +260,37 @@ def design_campaign(
         n_usable=len(uidx),
         n_eval=len(mats.Jev),
         notes=notes,
+        loads=loads,
         **spread,
+    )
+
+
+def _load_check(
+    model: ArmModel,
+    pool: Measurements,
+    uidx: np.ndarray,
+    sel: np.ndarray,
+    mats: _DesignMatrices,
+    names: list[str],
+    lay: DesignLayout,
+    evaluation: tuple[np.ndarray | None, np.ndarray | None, str],
+    s: float,
+) -> LoadCheck:
+    """The parameters that act through the region's load, their share of its variance before and
+    after the chosen rows, and the pool's and the chosen rows' loaded poses."""
+    eval_q, eval_wrench, eval_frame = evaluation
+    eq, ew = (pool.q[uidx], pool.wrench[uidx]) if eval_q is None else (eval_q, eval_wrench)
+    mask_k = load_parameters(model, eq, ew, names, eval_frame)
+    mask = np.zeros(lay.size, dtype=bool)
+    mask[: lay.k] = mask_k
+    loaded_rows = np.any(np.asarray(pool.wrench, dtype=float)[uidx] != 0, axis=1)
+    P_after = _OwnPosterior(mats.I0p, mats.Jc, s * s)(sel)
+    return LoadCheck(
+        parameters=[names[k] for k in np.flatnonzero(mask_k)],
+        share_before=load_share(mats.Jev, mats.P0p, mask),
+        share_after=load_share(mats.Jev, P_after, mask),
+        pool_loaded=int(loaded_rows.sum()),
+        chosen_loaded=int(loaded_rows[sel].sum()),
     )
 
 
@@ -299,6 +346,8 @@ def _design_matrices(
     # the model's own information (what the reported sigmas use)
     n_prim = lay.size
     I0p = _prior_information(n_prim, s2, Je_rows, w_rows, scale)
+    if not earlier:
+        I0p += np.diag(nominal_prior_information(model, names, lay, scale))
     P0p = inv_spd(I0p)
     Mp = np.einsum("nik,nil->kl", Jev, Jev) / len(Jev)
     # the selection's information: with the potential terms when asked for
@@ -438,6 +487,18 @@ def _prior_information(
     return I0p
 
 
+def nominal_prior_information(model: ArmModel, names: list[str], lay: DesignLayout, scale: np.ndarray) -> np.ndarray:
+    """The nominal model's information on the design's (scaled) parameters, the diagonal (lay.size,):
+    ``1/(typical magnitude * scale)^2`` for the model's parameters, 0 for the set-up's (registration,
+    measured point) and the registration blocks of other campaigns."""
+    typical = fx.make_layout(model.nominal).scale
+    info = np.zeros(lay.size)
+    for k, name in enumerate(names):
+        if name not in SETUP_NAMES:
+            info[k] = 1.0 / (typical[fx.PARAM_NAMES.index(name)] * scale[k]) ** 2
+    return info
+
+
 def _sigma_before(
     model: ArmModel, Jev: np.ndarray, lay: DesignLayout, scale: np.ndarray, P0: np.ndarray | None, notes: list[str]
 ) -> np.ndarray:
@@ -451,10 +512,17 @@ def _sigma_before(
     if P0 is not None:
         notes.append("before: the information of the earlier data")
         return sigma_rms(Jb, P0)
-    C = np.asarray(model.covariance, dtype=float)
-    Cs = C * np.outer(scale[: lay.k], scale[: lay.k])  # covariance of theta * scale
-    notes.append("before: the model's own parameter covariance (no earlier data given: a design from scratch)")
-    return sigma_rms(Jb[:, :, : lay.k], Cs)
+    names = lay.names[: lay.k]
+    setup = np.array([n in SETUP_NAMES for n in names], dtype=bool)
+    Jn = Jb[:, :, : lay.k].copy()
+    Jn[:, :, setup] = 0.0
+    info = nominal_prior_information(model, names, lay, scale)[: lay.k]
+    notes.append(
+        "before: the nominal model, what you have without identification (each parameter known to its typical "
+        "magnitude; the set-up's registration and measured point left out); no earlier data given: a design "
+        "from scratch, the campaign alone identifies the model (the model's own covariance is not counted)"
+    )
+    return sigma_rms(Jn, np.diag(np.where(info > 0, 1.0 / np.where(info > 0, info, 1.0), 0.0)))
 
 
 def _random_baseline(
@@ -473,8 +541,22 @@ def _random_baseline(
     return sig_rand, var_rand, ld_rand
 
 
-def _status(unident: list[Unidentifiable], n: int, n_usable: int, criterion: str) -> tuple[DesignStatus, str]:
-    """``unidentifiable_parameters`` when some parameter is determined by no data, else ``ok``."""
+def _status(
+    unident: list[Unidentifiable],
+    n: int,
+    n_usable: int,
+    criterion: str,
+    loads: LoadCheck,
+    sigma_after_m: np.ndarray,
+    notes: list[str],
+) -> tuple[DesignStatus, str]:
+    """``needs_loads`` when the region's sigma after the campaign is dominated by parameters that act
+    through the load and the pool has no loaded row, else ``unidentifiable_parameters`` when some
+    parameter is determined by no data, else ``ok``; the loads' note added to ``notes`` otherwise."""
+    if loads.needs_loads:
+        return DesignStatus.NEEDS_LOADS, loads.reason(CampaignDesign.region_sigma_m(sigma_after_m) * 1e3)
+    if (note := loads.note(n)) is not None:
+        notes.append(note)
     bad = [u for u in unident if not u.determined_by_earlier]
     if bad:
         return DesignStatus.UNIDENTIFIABLE, (

@@ -21,6 +21,9 @@ TASK_MAX_EVAL_POSES = 200
 #: rad (15 deg).
 TASK_POOL_POSES = 1000
 TASK_MARGIN_RAD = float(np.radians(15.0))
+#: Share of the pool's configurations that carry the task's load (when the task has one): the
+#: design may then choose loaded measurements, which alone determine what acts through the load.
+TASK_POOL_LOADED_SHARE = 0.5
 
 
 @dataclass
@@ -34,7 +37,8 @@ class TaskRegion:
     eval_q : ndarray, shape (N_e, 6)
         The path's configurations on the chosen branch, subsampled, rad.
     pool : Measurements
-        Configurations around the path (unloaded), guarded by :func:`design_campaign`.
+        Configurations around the path, guarded by :func:`design_campaign`: unloaded, and (a
+        :data:`TASK_POOL_LOADED_SHARE` of them, when the task has a load) under the task's load.
     eval_wrench : ndarray, shape (N_e, 6)
         The task's load at the evaluation poses, base frame, N and N*m.
     branch : str
@@ -73,7 +77,9 @@ def task_region(
     subsampled evenly to at most ``max_eval`` evaluation poses, whose wrench is the task's load
     (base frame, at the TCP's rotation).  The pool: ``n_pool`` configurations, each a random path configuration plus a
     uniform perturbation of ``margin_rad`` per joint, clipped to the joint limits (seeded; the
-    guards of :func:`design_campaign` set aside those near a singularity).
+    guards of :func:`design_campaign` set aside those near a singularity); when the task has a load,
+    every other one (:data:`TASK_POOL_LOADED_SHARE`) carries the task's load of the waypoint it was
+    drawn from (at its own tool orientation), so the design can choose loaded measurements.
 
     The sigma of a design is that of the model's measured point (its tool) at these
     configurations; the task's TCP sits elsewhere on the flange.
@@ -120,12 +126,31 @@ def task_region(
     load = prob.load
     ew = replace(load, wrench_base=_sel(load.wrench_base, take), wrench_tool=_sel(load.wrench_tool, take)).wrench_at(R)
     rng = np.random.default_rng(seed)
-    base = qpath[rng.integers(0, N, int(n_pool))]
+    drawn = rng.integers(0, N, int(n_pool))
+    base = qpath[drawn]
     q = base + rng.uniform(-margin_rad, margin_rad, base.shape)
     q = np.clip(q, model.nominal.q_min, model.nominal.q_max)
     src = f"task region of {Path(str(prob.source)).name}"
-    pool = Measurements(q=q, wrench=np.zeros((len(q), 6)), line=np.arange(1, len(q) + 1), source=src)
+    wrench = _pool_wrench(arm, load, q, drawn) if np.any(ew) else np.zeros((len(q), 6))
+    pool = Measurements(q=q, wrench=wrench, line=np.arange(1, len(q) + 1), source=src)
     return TaskRegion(eq, pool, ew, ps.labels[ps.chosen] if ps.labels else str(ps.chosen), str(prob.source))
+
+
+def _pool_wrench(arm: ArmModel, load: Any, q: np.ndarray, drawn: np.ndarray) -> np.ndarray:
+    """Base-frame wrenches (N, 6) of the pool: the task's load of waypoint ``drawn[i]`` at row i's tool
+    orientation on every ``1/TASK_POOL_LOADED_SHARE``-th row (1-based odd rows), zero elsewhere."""
+    n = len(q)
+    out = np.zeros((n, 6))
+    rows = np.arange(n)[np.arange(n) % max(1, round(1.0 / TASK_POOL_LOADED_SHARE)) == 1]
+    if not len(rows):
+        return out
+    _p, R, _J, _C = arm.kinematics.kinetostatics.map(len(rows), "thread", 2)(q[rows].T)
+    R = np.asarray(R).reshape(3, len(rows), 3).transpose(1, 0, 2)
+    at = drawn[rows]
+    out[rows] = replace(load, wrench_base=_sel(load.wrench_base, at), wrench_tool=_sel(load.wrench_tool, at)).wrench_at(
+        R
+    )
+    return out
 
 
 def _sel(a: Any, take: np.ndarray) -> np.ndarray:

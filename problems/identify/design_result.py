@@ -17,6 +17,9 @@ class DesignStatus(Status):
     OK = "ok"
     #: chosen, but some parameters no pool row identifies and the earlier data do not determine
     UNIDENTIFIABLE = "unidentifiable_parameters"
+    #: chosen, but the region's sigma after it is dominated by parameters that act through the load
+    #: and the pool has no loaded row (``design_loads``)
+    NEEDS_LOADS = "needs_loads"
 
     @property
     def usable(self) -> bool:
@@ -83,6 +86,9 @@ class CampaignDesign:
     random_trials : int
     notes : list of str
         What the design assumed (e.g. the source of the "before" sigma).
+    loads : LoadCheck or None
+        The parameters that act through the region's load, their share of its variance, the loaded
+        pool and chosen rows (:mod:`.design_loads`).
     """
 
     status: DesignStatus
@@ -106,6 +112,7 @@ class CampaignDesign:
     n_eval: int
     random_trials: int
     notes: list[str] = field(default_factory=list)
+    loads: Any = None
 
     @staticmethod
     def region_sigma_m(sigma: np.ndarray) -> float:
@@ -139,4 +146,5 @@ class CampaignDesign:
             "guards": {k: g.to_dict() for k, g in self.guards.items()},
             "travel_s": self.travel_s,
             "notes": list(self.notes),
+            "loads": None if self.loads is None else self.loads.to_dict(),
         }

@@ -16,6 +16,12 @@ returns) every free parameter counts, the registration included; in the base fra
 (:func:`at_tcp`), the registration's parameters do not act (nor the measured point's, unless the
 data were registered and the measured point is the TCP) and it is rotated into the base frame.
 
+A parameter the identification data do not determine (:func:`undetermined`: its standard deviation
+above :data:`UNDETERMINED_STD_RATIO` typical magnitudes) is not part of the sigma: it is held at
+its identified value (the others' covariance conditioned on it, :func:`held_covariance`) and named,
+with whether the evaluated load changes its effect (:func:`through_load`; loaded measurements
+would determine it).
+
 :func:`outside_ranges` names, per row, the joints commanded outside the range of the
 identification data (:attr:`models.arm.ArmModel.joint_range_rad`): there the model
 extrapolates and its sigma is the linearised one of an extrapolation.
@@ -23,7 +29,7 @@ extrapolates and its sigma is the linearised one of an extrapolation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -32,11 +38,120 @@ from models.arm import ArmModel
 
 from ..measurements import Measurements
 from .evaluation import evaluator_for, make_rows
+from .identifiability import IDENT_MAX_STD_RATIO
 
 #: Frames a sigma is given in.
 FRAMES = ("measurement", "base")
 #: A joint counts as inside the identified range up to this far beyond it, rad (rounding).
 JOINT_RANGE_TOL_RAD = 1e-9
+#: A parameter whose standard deviation in the model's covariance exceeds this many typical
+#: magnitudes (``ParamGroup.scale``) is not determined by the identification data (the
+#: identification's own rule, ``IDENT_MAX_STD_RATIO``): the sigma holds it at its identified value
+#: (conditions on it) and says it leaves it out.
+UNDETERMINED_STD_RATIO = IDENT_MAX_STD_RATIO
+#: A parameter "acts through the load" where the evaluated wrenches change its sensitivity (the
+#: Jacobian column, at most :data:`LOAD_TEST_MAX_POSES` poses) by more than this fraction of its
+#: sensitivity unloaded: loaded measurements tell it apart from what unloaded data see (e.g. a
+#: joint stiffness from the self-weight it multiplies).
+LOAD_EXCITED_FRACTION = 0.1
+#: At most this many poses (evenly spaced) for the load test of the parameters left out.
+LOAD_TEST_MAX_POSES = 200
+#: Names per effect written out in the sigma's sentence of what it leaves out (the rest counted).
+EXCLUDED_NAMED = 6
+
+
+@dataclass(frozen=True)
+class Undetermined:
+    """A parameter of the model's covariance the identification data do not determine.
+
+    Attributes
+    ----------
+    name : str
+        Its label (``models.effects.PARAM_NAMES``), e.g. ``"stiffness.s[2]"``.
+    effect : str
+        The effect (or declared group) it belongs to, e.g. ``"joint_springs"``.
+    std_ratio : float
+        Its standard deviation in the model's covariance over its typical magnitude.
+    through_load : bool
+        It acts through the load at the evaluated poses (:data:`LOAD_EXCITED_RATIO`): loaded
+        measurements would determine it.
+    """
+
+    name: str
+    effect: str
+    std_ratio: float
+    through_load: bool = False
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "name": self.name,
+            "effect": self.effect,
+            "std_ratio": float(self.std_ratio),
+            "through_load": bool(self.through_load),
+        }
+
+
+def effect_of(name: str) -> str:
+    """The effect (or declared group) a parameter label belongs to."""
+    i = fx.PARAM_NAMES.index(name)
+    for g, e, _names, _u in fx.PARAMETER_GROUPS:
+        sl = fx.GROUP_SLICES[g]
+        if sl.start <= i < sl.stop:
+            return e
+    return "?"
+
+
+def undetermined(model: ArmModel) -> list[Undetermined]:
+    """The parameters of the model's covariance whose standard deviation exceeds
+    :data:`UNDETERMINED_STD_RATIO` typical magnitudes, in the covariance's order (none without
+    covariance)."""
+    if model.covariance is None or not model.covariance_names:
+        return []
+    scale = fx.make_layout(model.nominal).scale
+    std = np.sqrt(np.maximum(np.diag(np.asarray(model.covariance, dtype=float)), 0.0))
+    out = []
+    for k, name in enumerate(model.covariance_names):
+        ratio = std[k] / scale[fx.PARAM_NAMES.index(name)]
+        if ratio > UNDETERMINED_STD_RATIO:
+            out.append(Undetermined(name, effect_of(name), float(ratio)))
+    return out
+
+
+def held_covariance(C: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """The covariance of the parameters not in ``held`` (bool mask) given those held at their values:
+    the Schur complement ``C_kk - C_kh C_hh^+ C_hk``, taken on the correlation matrix."""
+    keep = ~held
+    sd = np.sqrt(np.maximum(np.diag(C), 0.0))
+    inv = np.where(sd > 0, 1.0 / np.where(sd > 0, sd, 1.0), 0.0)
+    R = C * np.outer(inv, inv)
+    Rkk, Rkh, Rhh = R[np.ix_(keep, keep)], R[np.ix_(keep, held)], R[np.ix_(held, held)]
+    # least squares at machine precision: the held block is nearly singular where the data determine
+    # only a combination of its parameters (stiffness times mass), and that combination must count
+    Rc = Rkk - Rkh @ np.linalg.lstsq(Rhh, Rkh.T, rcond=None)[0]
+    Rc = 0.5 * (Rc + Rc.T)
+    return Rc * np.outer(sd[keep], sd[keep])
+
+
+def excluded_text(excluded: list[Undetermined]) -> str:
+    """One sentence: what the sigma leaves out and why (empty when nothing)."""
+    if not excluded:
+        return ""
+    parts = []
+    for eff in dict.fromkeys(u.effect for u in excluded):
+        us = [u for u in excluded if u.effect == eff]
+        names = ", ".join(u.name for u in us[:EXCLUDED_NAMED])
+        more = f" and {len(us) - EXCLUDED_NAMED} more" if len(us) > EXCLUDED_NAMED else ""
+        loaded = [u.name for u in us if u.through_load]
+        why = (
+            " (no loaded measurements: the load changes its effect; measure under load to determine it)"
+            if loaded
+            else ""
+        )
+        parts.append(f"{eff} {names}{more}{why}")
+    return (
+        f"sigma excludes {len(excluded)} parameter(s) the identification data do not determine (std > "
+        f"{UNDETERMINED_STD_RATIO:g} typical magnitudes; held at their identified values): " + "; ".join(parts)
+    )
 
 
 @dataclass
@@ -56,6 +171,9 @@ class PredictedSigma:
     available : bool
         False when the model has no covariance (a nominal model, or a format-1 model file):
         then ``sigma_m`` is NaN.
+    excluded : list of Undetermined
+        The parameters the identification data do not determine (:func:`undetermined`): held at
+        their identified values, left out of ``sigma_m`` and ``param_cov``.
     """
 
     sigma_m: np.ndarray
@@ -63,6 +181,11 @@ class PredictedSigma:
     residual_sigma_m: float
     frame: str
     available: bool
+    excluded: list[Undetermined] = field(default_factory=list)
+
+    def excluded_text(self) -> str:
+        """What the sigma leaves out, one sentence (empty when nothing)."""
+        return excluded_text(self.excluded)
 
 
 def rows_of(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None = None) -> np.ndarray:
@@ -144,7 +267,8 @@ def predicted_sigma(
     ``sigma^2 = diag(J C J^T) + s^2`` (module docstring); ``frame`` is ``"measurement"`` (the
     measured point, as :func:`problems.identify.predict`) or ``"base"`` (the TCP position of
     compensation and plans, registration excluded).  ``include_residual=False`` leaves out ``s``
-    (the parameters' part alone, what a design can reduce).
+    (the parameters' part alone, what a design can reduce).  The parameters the data do not
+    determine are held and listed in ``excluded`` (module docstring).
     """
     if frame not in FRAMES:
         raise ValueError(f"frame {frame!r}: expected one of {FRAMES}")
@@ -154,14 +278,55 @@ def predicted_sigma(
     if model.covariance is None or not model.covariance_names:
         return PredictedSigma(np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), s, frame, False)
     names = list(model.covariance_names)
-    if frame == "base":
-        J = to_base_frame(model, parameter_jacobian(at_tcp(model), q, wrench, names)[1], names)
-    else:
-        _p, J = parameter_jacobian(model, q, wrench, names)
+    J = frame_jacobian(model, q, wrench, names, frame)
     C = np.asarray(model.covariance, dtype=float)
+    excluded = undetermined(model)
+    if excluded:
+        held = np.isin(names, [u.name for u in excluded])
+        excluded = _through_load(model, q, wrench, names, frame, J, held, excluded)
+        C = held_covariance(C, held)
+        J = J[:, :, ~held]
     P = np.einsum("nik,kl,njl->nij", J, C, J)
     var = np.maximum(np.diagonal(P, axis1=1, axis2=2), 0.0) + s**2
-    return PredictedSigma(np.sqrt(var), P, s, frame, True)
+    return PredictedSigma(np.sqrt(var), P, s, frame, True, excluded)
+
+
+def frame_jacobian(
+    model: ArmModel, q: np.ndarray, wrench: np.ndarray | None, names: list[str], frame: str
+) -> np.ndarray:
+    """The Jacobian (N, 3, k) of the predicted point in ``frame`` (:func:`predicted_sigma`)."""
+    if frame == "base":
+        return to_base_frame(model, parameter_jacobian(at_tcp(model), q, wrench, names)[1], names)
+    return parameter_jacobian(model, q, wrench, names)[1]
+
+
+def _through_load(
+    model: ArmModel,
+    q: np.ndarray,
+    wrench: np.ndarray | None,
+    names: list[str],
+    frame: str,
+    J: np.ndarray,
+    held: np.ndarray,
+    excluded: list[Undetermined],
+) -> list[Undetermined]:
+    """``excluded`` with ``through_load`` set where ``wrench`` changes a parameter's sensitivity
+    (:func:`through_load`)."""
+    if wrench is None or not np.any(np.asarray(wrench, dtype=float)):
+        return excluded
+    n = len(q)
+    idx = np.unique(np.linspace(0, n - 1, min(n, LOAD_TEST_MAX_POSES)).round().astype(int))
+    hn = [names[k] for k in np.flatnonzero(held)]
+    J0 = frame_jacobian(model, q[idx], None, hn, frame)
+    by_name = dict(zip(hn, through_load(J[idx][:, :, held], J0)))
+    return [replace(u, through_load=bool(by_name[u.name])) for u in excluded]
+
+
+def through_load(J_loaded: np.ndarray, J_unloaded: np.ndarray) -> np.ndarray:
+    """Per column of two Jacobians (N, 3, k) at the same poses, loaded and unloaded: whether the load
+    changes the column by more than :data:`LOAD_EXCITED_FRACTION` of its unloaded norm (bool (k,))."""
+    diff = np.linalg.norm(J_loaded - J_unloaded, axis=(0, 1))
+    return (diff > LOAD_EXCITED_FRACTION * np.linalg.norm(J_unloaded, axis=(0, 1))) & (diff > 0)
 
 
 def outside_joints(model: ArmModel, q: np.ndarray) -> np.ndarray:
@@ -220,6 +385,8 @@ class PathSigma:
         Joints outside the identification data's range at every waypoint of the path.
     outside_text : list of str
         :func:`outside_ranges` of the first :data:`PATH_OUTSIDE_NAMED` waypoints outside, with their index.
+    excluded : list of Undetermined
+        The parameters the identification data do not determine, left out of ``sigma_m``.
     """
 
     available: bool
@@ -228,6 +395,7 @@ class PathSigma:
     sigma_m: np.ndarray
     outside: np.ndarray
     outside_text: list[tuple[int, str]]
+    excluded: list[Undetermined] = field(default_factory=list)
 
     @property
     def n_outside(self) -> int:
@@ -245,10 +413,11 @@ class PathSigma:
             if self.n_outside
             else "; every waypoint inside the identified joint ranges"
         )
+        left = f"; {excluded_text(self.excluded)}" if self.excluded else ""
         return (
             f"predicted sigma of the compensated TCP (base frame, per axis): mean {self.sigma_m.mean() * 1e3:.4f} mm, "
             f"largest {self.sigma_m.max() * 1e3:.4f} mm (|sigma| {norm[k] * 1e3:.4f} mm at waypoint "
-            f"{int(self.waypoints[k])}){out}"
+            f"{int(self.waypoints[k])}){out}{left}"
         )
 
     def warning(self) -> str | None:
@@ -276,6 +445,7 @@ class PathSigma:
             "max_waypoint": int(self.waypoints[int(np.argmax(norm))]) if ok else None,
             "n_outside_range": self.n_outside,
             "outside_range": [{"waypoint": k, "joints": t} for k, t in self.outside_text],
+            "excluded": [u.to_dict() for u in self.excluded],
             "text": self.text(),
         }
 
@@ -299,4 +469,4 @@ def path_sigma(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None = None)
         return PathSigma(False, why, idx, np.full((len(idx), 3), np.nan), outside, out_text)
     w = None if wrench is None else np.broadcast_to(np.asarray(wrench, dtype=float), (n, 6))[idx]
     ps = predicted_sigma(model, q[idx], w, frame="base")
-    return PathSigma(True, "", idx, ps.sigma_m, outside, out_text)
+    return PathSigma(True, "", idx, ps.sigma_m, outside, out_text, ps.excluded)
