@@ -152,7 +152,8 @@ class ArmModel:
     campaigns : list of CampaignFrame
         The measurement campaigns the model was identified from, each with its own registration
         (base frame -> that campaign's measurement frame); the model's own registration
-        (:meth:`base2meas`) is the last campaign's.  Empty for a one-campaign model.
+        (:meth:`base2meas`) is the reference campaign's (by default the one with the most rows).  Empty
+        for a one-campaign model.
     source, sha256 : str
         Where the model was read from and the file's hash (empty when built in memory).
     """
@@ -268,7 +269,7 @@ class ArmModel:
 
     def for_campaign(self, name: str | None) -> ArmModel:
         """The model with campaign ``name``'s registration (None: the model as it is, i.e. the
-        last campaign's).  Raises ``KeyError`` naming the campaigns for an unknown name."""
+        reference campaign's).  Raises ``KeyError`` naming the campaigns for an unknown name."""
         if name is None:
             return self
         for c in self.campaigns:

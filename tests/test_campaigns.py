@@ -111,7 +111,7 @@ def test_campaign_registrations_match_the_moved_tracker(setup) -> None:
     res, a, T = setup["res"], setup["a"], setup["T"]
     fr = _frames(res)
     assert list(fr) == ["A", "B"]
-    assert np.allclose(res.model.base2meas(), fr["B"].base2meas, atol=1e-12)  # the model's own = the last
+    assert np.allclose(res.model.base2meas(), fr["B"].base2meas, atol=1e-12)  # equally large: the last given
     a2b = fr["B"].base2meas @ np.linalg.inv(fr["A"].base2meas)
     err = a.p @ (a2b[:3, :3] - T[:3, :3]).T + (a2b[:3, 3] - T[:3, 3])
     assert _rms(err) < TRANSFORM_TOL_M
@@ -304,7 +304,7 @@ def test_cli_two_data_files(setup, tmp_path, capsys) -> None:
     args = ["identify", "--robot", "ur5", "--data", str(pa), "--data", str(pb), "--out", str(out)]
     assert cli_main(args + ["--report", str(rep), "--no-progress", "--candidates", "geometric"]) == 0
     text = capsys.readouterr().out
-    assert "campaign left" in text and "from the last campaign's" in text
+    assert "campaign left" in text and "from the reference campaign's" in text
     assert "campaign right" in text and "reference" in text
     model = load_model(out)
     assert model.campaign_names() == ["left", "right"]
@@ -313,4 +313,5 @@ def test_cli_two_data_files(setup, tmp_path, capsys) -> None:
     assert _rms(err) < TRANSFORM_TOL_M
     report = json.loads((rep / "report.json").read_text())
     assert [c["name"] for c in report["campaigns"]] == ["left", "right"]
-    assert "- campaigns (the last is the model's registration): left (60 rows" in (rep / "report.md").read_text()
+    assert "- campaigns: left (60 rows" in (rep / "report.md").read_text()
+    assert "reference campaign: right (the campaign with the most rows, 60 rows)" in text  # equally large: the last

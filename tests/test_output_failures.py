@@ -251,12 +251,12 @@ def test_a_failing_placement_study_leaves_the_previous_study_whole(
 
 # ------------------------------------------------------------------------------ identify
 #: The report's figures are recorded as empty (their drawing, seconds, is tested with the report).
-IDENTIFY_RECORDED = ("problems.identify:identify",)
+IDENTIFY_RECORDED = ("problems.identify.campaigns:identify_campaigns",)
 IDENTIFY_FIGURES = "planner.identify_report.writer:render_figures"
 #: The phases of ``identify``: the fit, building the report, writing the model file (written
 #: first, moved in last), the report's files, the swap of the report folder.
 IDENTIFY_PHASES: dict[str, tuple] = {
-    "fit": ("call", "problems.identify:identify"),
+    "fit": ("call", "problems.identify.campaigns:identify_campaigns"),
     "building the report": ("call", "planner.identify_report.writer:report_html"),
     "writing the model file": ("write", lambda p: p.name.startswith(".model.toml" + SIBLING_TAG)),
     "writing report.json": ("write", _named("report.json")),
@@ -279,7 +279,8 @@ def identify_previous(tmp_path_factory) -> tuple[Path, Path, dict]:
     assert main(["simulate", "--robot", "ur5", "--config", str(folder / "sim.toml"), "--out", str(data)]) == 0
     calls: dict[str, Any] = {}
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(importlib.import_module("problems.identify"), "identify", _record(calls, IDENTIFY_RECORDED[0]))
+        module, name = IDENTIFY_RECORDED[0].split(":")
+        mp.setattr(importlib.import_module(module), name, _record(calls, IDENTIFY_RECORDED[0]))
         mp.setattr(importlib.import_module("planner.identify_report.writer"), "render_figures", lambda *_a: {})
         argv = [*map(str, _identify_argv(folder, data)), "--no-progress", "--candidates", "none"]
         assert main(argv) == 0

@@ -83,7 +83,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--shared",
         type=known_arg,  # the words of identify's --known and --shared
         default=(),
-        help="'registration': the new campaign will be measured in the frame of the last --data campaign (the "
+        help="'registration': the new campaign will be measured in the frame of the model's own registration "
+        "(its reference campaign, the last --data campaign for a model without campaigns) (the "
         "instrument does not move; identify it with --shared registration); default: a frame of its own",
     )
     p.add_argument("--seed", type=seed_arg, default=0, help="seed of the task pool and the random baseline (default 0)")

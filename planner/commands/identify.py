@@ -179,7 +179,16 @@ def _add_identify(sub: argparse._SubParsersAction) -> None:
         required=True,
         action="append",
         help="measurement CSV (docs/measurement-file.md); repeat for several campaigns (one robot model, one "
-        "registration per campaign named by the file stem; the last is the model's own)",
+        "registration per campaign named by the file stem; the reference, the model's own, is the campaign "
+        "with the most rows unless --reference-campaign names one). The same file twice is refused; rows "
+        "that repeat earlier rows exactly are counted once, with a warning",
+    )
+    p.add_argument(
+        "--reference-campaign",
+        default=None,
+        metavar="NAME",
+        help="with several --data campaigns: the campaign (file stem) whose registration is the model's own, "
+        "what predict and compensate use without --campaign (default: the one with the most rows)",
     )
     p.add_argument(
         "--shared",
@@ -303,15 +312,14 @@ def run_identify(args: argparse.Namespace) -> int:
     from problems.identify import (
         CV_FOLDS,
         compensation_check,
-        identify,
         validate_on,
     )
     from problems.identify.campaign_merge import campaign_names
     from problems.identify.campaigns import identify_campaigns
 
+    _check_distinct_files(paths)
     robot = load_robot(args.robot)
     datas = [read_table(args, p) for p in paths]
-    data = datas[-1]
     if args.folds is not None:
         n_poses = sum(len(set(d.pose_groups().tolist())) for d in datas)
         if args.folds > n_poses:
@@ -336,10 +344,10 @@ def run_identify(args: argparse.Namespace) -> int:
             "known": args.known,
             "map_components": args.map_components,
         }
-        if len(datas) == 1:  # one campaign: the engine as it is (--shared changes nothing)
-            res = identify(robot, data, **kwargs)
-        else:
-            res = identify_campaigns(robot, datas, names=campaign_names(paths), shared=args.shared, **kwargs)
+        # one campaign: the engine as it is (--shared changes nothing), repeated rows dropped
+        res = identify_campaigns(
+            robot, datas, names=campaign_names(paths), shared=args.shared, reference=args.reference_campaign, **kwargs
+        )
     finally:
         bar.close()
     if val is not None:
@@ -349,8 +357,23 @@ def run_identify(args: argparse.Namespace) -> int:
     text = model_toml(res.model)
     with pending_file(args.out, text.encode(), "--out"):  # the model goes in once the report is written
         rep = write_report(res, args.report, model_path=str(args.out), data_path=", ".join(map(str, paths)))
-    _print_identify(res, rep, data if len(datas) == 1 else res.data, val, args)
+    _print_identify(res, rep, res.data, val, args)
     return 0
+
+
+def _check_distinct_files(paths: list[str]) -> None:
+    """Refuse the same ``--data`` file given twice (its rows would count twice)."""
+    from models.errors import InputError
+
+    seen: dict[Path, int] = {}
+    for k, p in enumerate(paths):
+        key = Path(p).resolve()
+        if key in seen:
+            raise InputError(
+                f"--data {p}: the same file as the earlier --data {paths[seen[key]]}; its rows would count twice "
+                "(one campaign given twice): give each campaign once"
+            )
+        seen[key] = k
 
 
 def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: argparse.Namespace) -> None:
@@ -360,19 +383,7 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
     from problems.identify import IdentifyStatus
 
     print(f"identify: {data.n} rows, {rep['data']['n_poses']} poses, status {res.status.value}")
-    camps = res.identifiability.get("campaigns") or []
-    shared = "shared" in (res.identifiability.get("campaign_fit") or {})
-    for k, c in enumerate(camps):
-        where = (
-            "shared frame"
-            if shared
-            else "reference (the model's registration)"
-            if k == len(camps) - 1
-            else f"registration {c['translation_from_last_mm']:.3f} mm, {c['rotation_from_last_deg']:.4f} deg from "
-            "the last campaign's"
-        )
-        rms = "" if c["rms_after_mm"] is None else f", RMS after {c['rms_after_mm']:.4f} mm"
-        print(f"  campaign {c['name']} ({c['file']}): {c['n_rows']} rows, {c['n_poses']} poses{rms}; {where}")
+    _print_campaigns(res, args)
     if res.validation is not None:
         v = res.validation
         held_out = "held out" if rep["headline"]["validation_held_out"] else "the --data file itself"
@@ -380,6 +391,7 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
             f"  validation file ({held_out}, {v['n_rows']} rows): RMS {v['rms_nominal_mm']:.4f} -> {v['rms_mm']:.4f} "
             "mm per axis (nominal -> identified)"
         )
+        print(f"  {euclidean_line(v['euclidean_nominal'], v['euclidean'], 'validation file')}")
     print(
         f"  RMS before {res.rms_before_mm:.4f} mm -> after {res.rms_after_mm:.4f} mm "
         f"(held-out {rep['heldout_rms_before_mm']:.4f} -> {rep['heldout_rms_after_mm']:.4f} mm, per axis)"
@@ -398,10 +410,54 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
         print(f"  compensation on the virtual robot: {compensation_sentence(rep, arrow='->')}")
     for n in res.notes:
         print(f"  note: {n}")
+    for w in res.warnings:
+        print(f"compplan: warning: {w}", file=sys.stderr)
     print_notes(data, val)
     if res.status in (IdentifyStatus.IMPLAUSIBLE, IdentifyStatus.DOES_NOT_GENERALISE):
         print(f"compplan: warning: {res.reason}", file=sys.stderr)
     print(f"wrote {args.out} and {Path(args.report)}/: report.json, report.md, report.html, figures/")
+
+
+def _print_campaigns(res: Any, args: argparse.Namespace) -> None:
+    """One line per campaign of a several-campaign identification, and which is the reference and why."""
+    camps = res.identifiability.get("campaigns") or []
+    fit = res.identifiability.get("campaign_fit") or {}
+    shared = "shared" in fit
+    for c in camps:
+        where = (
+            "shared frame"
+            if shared
+            else "reference (the model's registration)"
+            if c["reference"]
+            else f"registration {c['translation_from_reference_mm']:.3f} mm, {c['rotation_from_reference_deg']:.4f} "
+            "deg from the reference campaign's"
+        )
+        rms = "" if c["rms_after_mm"] is None else f", RMS after {c['rms_after_mm']:.4f} mm"
+        print(f"  campaign {c['name']} ({c['file']}): {c['n_rows']} rows, {c['n_poses']} poses{rms}; {where}")
+    if camps and not shared:
+        ref = next(c for c in camps if c["reference"])
+        why = "named by --reference-campaign" if args.reference_campaign else "the campaign with the most rows"
+        print(
+            f"  reference campaign: {ref['name']} ({why}, {ref['n_rows']} rows): its registration is the model's "
+            "own, what predict and compensate use without --campaign"
+        )
+
+
+def euclidean_line(before: dict[str, Any] | None, after: dict[str, Any], what: str) -> str:
+    """One line of Euclidean position errors (mean, RMS, max, mm) as calibration results are quoted:
+    ``before -> after`` with ``before`` (nominal -> identified), else the model's alone."""
+
+    def fig(key: str) -> str:
+        if before is None:
+            return f"{after[key]:.4f}"
+        return f"{before[key]:.4f} -> {after[key]:.4f}"
+
+    arrow = " (nominal -> identified)" if before is not None else ""
+    return (
+        f"{what}: position error |predicted - measured| (Euclidean, mm{arrow}): mean {fig('mean_mm')}, "
+        f"RMS {fig('rms_mm')}, max {fig('max_mm')} (line {after['max_line']}); {after['n_rows']} rows, in the "
+        f"{after['frame']}"
+    )
 
 
 @releases_outputs

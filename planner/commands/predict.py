@@ -26,7 +26,7 @@ def _add_campaign_option(p: argparse.ArgumentParser) -> None:
         "--campaign",
         default=None,
         help="with a model identified from several campaigns: the campaign whose registration to use "
-        "(default: the last one, the model's own)",
+        "(default: the reference campaign's, the model's own)",
     )
 
 
@@ -176,6 +176,12 @@ def run_predict(args: argparse.Namespace) -> int:
         + f"; wrote {args.out} (x, y, z and sigma_x, sigma_y, sigma_z in m, measurement frame)"
     )
     _print_lines(lines)
+    if m.p is not None:  # measured rows: the error of the prediction, as calibration results are quoted
+        from planner.commands.identify import euclidean_line
+        from problems.identify.position_error import frame_words, position_errors
+
+        err = position_errors(p, m.p, frame_words(model, args.campaign), m.line)
+        print(f"  {euclidean_line(None, err.to_mm_dict(), f'measured x, y, z of {args.input}')}")
     return 0
 
 

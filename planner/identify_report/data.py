@@ -118,6 +118,7 @@ def report_dict(
         "diagnostics": _diagnostic_dicts(res),
         "history": _history_dicts(res),
         "notes": res.notes,
+        "warnings": list(getattr(res, "warnings", [])),
         "data": {
             "file": data_path or m.source,
             "n_rows": m.n,
@@ -263,6 +264,14 @@ def headline(rep: dict[str, Any]) -> dict[str, Any]:
         "reason": rep["reason"],
         "validation_rms_before_mm": r4(v.get("rms_nominal_mm")),
         "validation_rms_after_mm": r4(v.get("rms_mm")),
+        "validation_euclidean_mm": (
+            {
+                k: {q: r4(v[src][f"{q}_mm"]) for q in ("mean", "rms", "max")}
+                for k, src in (("before", "euclidean_nominal"), ("after", "euclidean"))
+            }
+            if v.get("euclidean")
+            else None
+        ),
         "validation_held_out": (not _same_file(v.get("file"), rep["data"]["file"])) if v else None,
         "rms_before_mm": r4(rep["rms_before_mm"]),
         "rms_after_mm": r4(rep["rms_after_mm"]),

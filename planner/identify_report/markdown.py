@@ -42,6 +42,15 @@ def headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
                 + "; before: the nominal robot file with the identified registration and measured point",
             )
         )
+        e = h.get("validation_euclidean_mm")
+        if e:
+            rows.append(
+                (
+                    "validation file Euclidean error mean / RMS / max, before → after",
+                    " / ".join(f"{fmt(e['before'][q])} → {fmt(e['after'][q])}" for q in ("mean", "rms", "max")) + " mm",
+                    f"|predicted − measured| per row, as calibration results are quoted; in the {v['frame']}",
+                )
+            )
     rows += [
         (
             "residual RMS per axis, before → after (in-sample)",
@@ -201,19 +210,19 @@ def provenance_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
 
 def campaigns_text(rep: dict[str, Any]) -> str:
     """The campaigns of a several-campaign identification on one line: name, rows, RMS after and the
-    registration's difference from the last campaign's (mm, deg)."""
+    registration's difference from the reference campaign's (mm, deg)."""
     camps = rep.get("campaigns") or []
     shared = "shared" in ((rep.get("identifiability") or {}).get("campaign_fit") or {})
     out = []
-    for k, c in enumerate(camps):
+    for c in camps:
         rms = "" if c.get("rms_after_mm") is None else f", RMS after {c['rms_after_mm']:.4f} mm"
         where = (
             "shared frame"
             if shared
-            else "the model's registration"
-            if k == len(camps) - 1
-            else f"registration {c['translation_from_last_mm']:.3f} mm, {c['rotation_from_last_deg']:.4f} deg "
-            "from the last"
+            else "reference: the model's registration"
+            if c.get("reference")
+            else f"registration {c['translation_from_reference_mm']:.3f} mm, "
+            f"{c['rotation_from_reference_deg']:.4f} deg from the reference's"
         )
         out.append(f"{c['name']} ({c['n_rows']} rows{rms}; {where})")
     return "; ".join(out)
@@ -224,7 +233,7 @@ def _validation_markdown(rep: dict[str, Any]) -> list[str]:
     if not rep.get("validation"):
         return []
     v = rep["validation"]
-    return [
+    out = [
         "## Validation file",
         "",
         (
@@ -232,8 +241,16 @@ def _validation_markdown(rep: dict[str, Any]) -> list[str]:
             f"{fmt(v.get('rms_nominal_mm'))} → {fmt(v['rms_mm'])} mm (nominal robot file with the identified "
             "registration and measured point → identified model)"
         ),
-        "",
     ]
+    e, e0 = v.get("euclidean"), v.get("euclidean_nominal")
+    if e and e0:  # reports written before the Euclidean figures have none
+        out.append(
+            f"- Euclidean position error |predicted − measured| (as calibration results are quoted), nominal → "
+            f"identified: mean {fmt(e0['mean_mm'])} → {fmt(e['mean_mm'])} mm, RMS {fmt(e0['rms_mm'])} → "
+            f"{fmt(e['rms_mm'])} mm, max {fmt(e0['max_mm'])} → {fmt(e['max_mm'])} mm (line {e['max_line']}); "
+            f"in the {e['frame']}"
+        )
+    return out + [""]
 
 
 def _history_markdown(rep: dict[str, Any]) -> list[str]:
@@ -355,7 +372,7 @@ def report_markdown(rep: dict[str, Any]) -> str:
         "",
     ]
     if rep.get("campaigns"):  # several campaigns: one line, the figures in report.json 'campaigns'
-        L[-1:-1] = [f"- campaigns (the last is the model's registration): {campaigns_text(rep)}"]
+        L[-1:-1] = [f"- campaigns: {campaigns_text(rep)}"]
     L += maps_markdown(rep)
     L += _unexplained_markdown(rep)
     L += _compensation_markdown(rep)
@@ -364,6 +381,8 @@ def report_markdown(rep: dict[str, Any]) -> str:
     L += _parameters_markdown(rep)
     L += _identifiability_markdown(rep)
     L += _diagnostics_markdown(rep)
+    if rep.get("warnings"):
+        L += ["", "## Warnings", ""] + [f"- {w}" for w in rep["warnings"]]
     if rep["notes"]:
         L += ["", "## Notes", ""] + [f"- {n}" for n in rep["notes"]]
     fig_md = _figures_markdown(rep)

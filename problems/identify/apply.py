@@ -34,6 +34,7 @@ from ..measurements import POSITION_COLUMNS, Measurements
 from .evaluation import evaluator_for, make_rows, nominal_tcp
 from .identifiability import aliases_registration
 from .lsq import rms
+from .position_error import frame_words, position_errors
 from .results import CompensationOutcome, DataError, IdentifiedModel, TargetsError, TargetsFrame
 
 #: Compensation fails for a row if the model-predicted residual exceeds this (m).
@@ -526,7 +527,9 @@ def validate_on(model: IdentifiedModel, m: Measurements) -> dict[str, Any]:
     """Held-out validation on a separate measurement file (a given split).
 
     Returns per-axis RMS (mm) of ``predict(model) - measured`` and, for reference,
-    of the nominal robot with the identified registration and measured point.
+    of the nominal robot with the identified registration and measured point; and the
+    Euclidean errors as calibration results are quoted (:mod:`.position_error`): ``euclidean``
+    and ``euclidean_nominal`` (``mean_mm``, ``rms_mm``, ``max_mm``, ``max_line``, ``frame``).
     """
     if m.p is None:
         raise DataError(f"{m.source}: the validation file has no measured positions (x, y, z)")
@@ -545,10 +548,14 @@ def validate_on(model: IdentifiedModel, m: Measurements) -> dict[str, Any]:
     for g in ("reg.w", "reg.t", "tool.p"):
         nominal.theta[GROUP_SLICES[g]] = model.theta[GROUP_SLICES[g]]
     r0 = predict(nominal, m) - m.p
+    frame = frame_words(model)
     return {
         "file": m.source,
         "n_rows": m.n,
         "rms_mm": rms(r) * 1e3,
         "rms_nominal_mm": rms(r0) * 1e3,
         "max_mm": float(np.linalg.norm(r, axis=1).max() * 1e3),
+        "frame": frame,
+        "euclidean": position_errors(r, np.zeros_like(r), frame, m.line).to_mm_dict(),
+        "euclidean_nominal": position_errors(r0, np.zeros_like(r0), frame, m.line).to_mm_dict(),
     }

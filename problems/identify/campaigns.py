@@ -8,7 +8,9 @@ geometry, stiffness and effects) and the measured point (the same tool or reflec
 Method (:func:`identify_campaigns`; the engine :func:`problems.identify.identify` has one
 registration in its parameter vector and is used unchanged):
 
-1. **Reference frame** -- the last campaign's measurement frame.  Each other campaign ``c`` gets
+1. **Reference frame** -- the reference campaign's measurement frame: the campaign named
+   (``reference``), else the one with the most rows (:func:`.campaign_checks.reference_index`); it is
+   placed last in the merged table.  Each other campaign ``c`` gets
    a rigid transform ``A_c`` (campaign ``c``'s measurement frame -> the reference frame); its start
    is Kabsch of the nominal model's points (base frame, the same for every campaign) to the
    measured points of ``c`` and of the reference: ``A_c = B_ref inv(B_c)``.
@@ -36,6 +38,12 @@ registration in its parameter vector and is used unchanged):
    ``base2meas``, the parametrisation of :meth:`models.arm.ArmModel.for_campaign`) by the
    Jacobian of the map, taken by central differences.
 
+Before anything, rows that repeat an earlier row exactly (the same joint angles, load and measured
+point) are dropped, so a copied campaign or row does not double its weight
+(:func:`.campaign_checks.drop_repeated_rows`; the result's ``warnings`` say how many and where).
+After the fit, a campaign whose registration differs from the reference's by more than an instrument
+that was not moved shows is warned with the figures (:func:`.campaign_checks.frame_warnings`).
+
 With ``shared=("registration",)`` (or data declared registered) every campaign is in one frame and
 the campaigns are only concatenated.  One campaign is exactly :func:`problems.identify.identify`
 (``model.campaigns`` stays empty).  Everything is SI; the library prints nothing.
@@ -56,6 +64,7 @@ from models.transforms import invert, matrix_to_rotvec, transform
 
 from ..measurements import Measurements
 from .apply import predict
+from .campaign_checks import drop_repeated_rows, frame_warnings, reference_index
 from .campaign_joint import (
     CAMPAIGN_TOL_M,
     CAMPAIGN_TOL_RAD,
@@ -93,7 +102,7 @@ def _check_shared(shared: Sequence[str]) -> bool:
 
 
 def _start_transforms(
-    robot: Robot, campaigns: Sequence[Measurements], identify_kwargs: Mapping[str, Any]
+    robot: Robot, campaigns: Sequence[Measurements], names: Sequence[str], identify_kwargs: Mapping[str, Any]
 ) -> tuple[list[np.ndarray], str]:
     """``A_c`` (campaign frame -> reference frame) to start from, and how they were found.
 
@@ -105,12 +114,12 @@ def _start_transforms(
     be identified alone (:class:`DataError`), the nominal model is used."""
     sizes = [len(np.unique(m.pose_groups())) for m in campaigns]
     big = int(np.argmax(sizes))
-    how = f"Kabsch of the model identified from campaign {big + 1} alone"
+    how = f"Kabsch of the model identified from campaign '{names[big]}' alone"
     try:
         model = identify(robot, campaigns[big], **identify_kwargs).model
     except DataError as exc:
         model = ArmModel.from_robot(robot)
-        how = f"Kabsch of the nominal model (campaign {big + 1} alone cannot be identified: {exc})"
+        how = f"Kabsch of the nominal model (campaign '{names[big]}' alone cannot be identified: {exc})"
     frames = []
     for m in campaigns:
         p = predict(model, _no_time(m))
@@ -132,10 +141,12 @@ def _campaign_table(
     campaigns: Sequence[Measurements],
     campaign: np.ndarray,
     frames: Sequence[CampaignFrame],
+    ref_index: int,
 ) -> list[dict[str, Any]]:
     """``identifiability['campaigns']``: per campaign rows, poses, inlier RMS after (mm per axis), its
-    registration and its translation's difference from the last campaign's (mm)."""
-    ref = frames[-1].base2meas
+    registration, whether it is the reference (the last of ``frames``) and its registration's difference
+    from the reference's (mm, deg)."""
+    ref = frames[ref_index].base2meas
     out = []
     for c, (name, m, f) in enumerate(zip(names, campaigns, frames)):
         sel = campaign == c
@@ -154,8 +165,9 @@ def _campaign_table(
                     "rotvec_rad": matrix_to_rotvec(f.base2meas[:3, :3]).tolist(),
                 },
                 "registration_std": (None if std is None else {"t_m": std[:3].tolist(), "w": std[3:].tolist()}),
-                "translation_from_last_mm": float(np.linalg.norm(f.base2meas[:3, 3] - ref[:3, 3]) * 1e3),
-                "rotation_from_last_deg": float(
+                "reference": c == ref_index,
+                "translation_from_reference_mm": float(np.linalg.norm(f.base2meas[:3, 3] - ref[:3, 3]) * 1e3),
+                "rotation_from_reference_deg": float(
                     np.degrees(np.linalg.norm(matrix_to_rotvec(f.base2meas[:3, :3] @ ref[:3, :3].T)))
                 ),
             }
@@ -198,6 +210,7 @@ def identify_campaigns(
     names: Sequence[str] | None = None,
     shared: Sequence[str] = (),
     progress: Progress | None = None,
+    reference: str | None = None,
     **identify_kwargs: Any,
 ) -> IdentificationResult:
     """Identify one robot model from several measurement campaigns.
@@ -207,8 +220,9 @@ def identify_campaigns(
     robot : Robot
         Nominal description.
     campaigns : sequence of Measurements
-        Each with positions ``p`` in its own measurement frame, m; the last one is the reference
-        (the model's own registration, what ``predict`` and ``compensate`` use by default).
+        Each with positions ``p`` in its own measurement frame, m.  Rows that repeat an earlier row
+        exactly (joint angles, load, measured point; within or across campaigns) are dropped, and
+        the result's ``warnings`` say so.
     names : sequence of str, optional
         Unique campaign names (default: :func:`campaign_names` of the sources).
     shared : sequence of str
@@ -217,6 +231,10 @@ def identify_campaigns(
         is always shared.
     progress : callable, optional
         ``progress(message, done, total)`` of the engine.
+    reference : str, optional
+        Name of the reference campaign (the model's own registration, what ``predict`` and
+        ``compensate`` use by default); default: the campaign with the most rows (of several equally
+        large, the last given).
     **identify_kwargs
         Passed to :func:`problems.identify.identify` (``candidates``, ``include``, ``folds``,
         ``known``, ``registered``, ``max_steps``, ``map_components``).  Data declared registered
@@ -226,26 +244,50 @@ def identify_campaigns(
     Returns
     -------
     IdentificationResult
-        On the merged table (``res.data``, reference frame); ``res.model.campaigns`` holds one
-        :class:`~models.arm.CampaignFrame` per campaign (empty for one campaign), the model's
-        registration is the last campaign's; ``res.identifiability["campaigns"]`` the per-campaign
-        figures; the notes say how the campaigns were fitted.
+        On the merged table (``res.data``, reference frame, the reference campaign's rows last);
+        ``res.model.campaigns`` holds one :class:`~models.arm.CampaignFrame` per campaign in the order
+        given (empty for one campaign), the model's registration is the reference campaign's;
+        ``res.identifiability["campaigns"]`` the per-campaign figures (in the order given),
+        ``["campaign_fit"]["reference"]`` the reference's name and ``["repeated_rows"]`` the rows
+        dropped; the notes say how the campaigns were fitted, the ``warnings`` what the user must
+        know (rows dropped, registrations far apart).
 
     Raises
     ------
     DataError
-        A campaign without positions, or one with its own registration and fewer than
-        :data:`CAMPAIGN_MIN_POSES` distinct poses (naming the file).
+        A campaign without positions, one with its own registration and fewer than
+        :data:`CAMPAIGN_MIN_POSES` distinct poses, or one whose every row repeats an earlier
+        campaign's (naming the file).
     InputError
-        Bad ``names``/``shared``, orientation data with per-campaign registrations.
+        Bad ``names``/``shared``/``reference``, orientation data with per-campaign registrations.
     """
     campaigns = list(campaigns)
     if not campaigns:
         raise InputError("identify_campaigns: no campaign given")
     names = _checked_names(campaigns, names)
     one_frame = _check_shared(shared)
+    ref = reference_index(campaigns, names, reference)
+    campaigns, repeated = drop_repeated_rows(campaigns, names)
+    warnings = [repeated.message()] if repeated.n_dropped else []
     if len(campaigns) == 1:
-        return identify(robot, campaigns[0], progress=progress, **identify_kwargs)
+        res = identify(robot, campaigns[0], progress=progress, **identify_kwargs)
+    else:
+        res = _several(robot, campaigns, names, one_frame, ref, progress, identify_kwargs)
+    res.identifiability["repeated_rows"] = repeated.to_dict()
+    res.warnings = warnings + list(res.warnings)
+    return res
+
+
+def _several(
+    robot: Robot,
+    campaigns: list[Measurements],
+    names: list[str],
+    one_frame: bool,
+    ref: int,
+    progress: Progress | None,
+    identify_kwargs: dict[str, Any],
+) -> IdentificationResult:
+    """Several campaigns (``ref``: the reference's index): one frame, or one registration each."""
     for m in campaigns:
         if m.p is None:
             raise DataError(f"{m.source}: no measured positions (columns x, y, z) to identify from")
@@ -255,15 +297,22 @@ def identify_campaigns(
         one_frame = True
         notes.append("campaigns: the data are declared registered: every campaign is in the base frame (one frame)")
     if one_frame:
-        return _one_frame(robot, campaigns, names, progress, notes, identify_kwargs)
+        return _one_frame(robot, campaigns, names, ref, progress, notes, identify_kwargs)
     _check_own_registrations(campaigns, names)
-    A, how = _start_transforms(robot, campaigns, identify_kwargs)
+    order = [c for c in range(len(campaigns)) if c != ref] + [ref]  # the reference last
+    camps, nms = [campaigns[c] for c in order], [names[c] for c in order]
+    A, how = _start_transforms(robot, camps, nms, identify_kwargs)
     notes.append(f"campaigns: the start of every campaign's transform: {how}")
     first, res, A, joint, campaign, rounds, gn_steps, change = _fit_rounds(
-        robot, campaigns, names, A, progress, identify_kwargs, notes
+        robot, camps, nms, A, progress, identify_kwargs, notes
     )
     converged = change[0] < CAMPAIGN_TOL_M and change[1] < CAMPAIGN_TOL_RAD
-    return _finish(res, first, joint, A, names, campaigns, campaign, notes, rounds, gn_steps, change, converged)
+    res = _finish(res, first, joint, A, nms, camps, campaign, notes, rounds, gn_steps, change, converged)
+    back = [order.index(c) for c in range(len(campaigns))]  # to the order given
+    res.model.campaigns = [res.model.campaigns[k] for k in back]
+    res.identifiability["campaigns"] = [res.identifiability["campaigns"][k] for k in back]
+    res.warnings = frame_warnings(res.identifiability["campaigns"], names[ref])
+    return res
 
 
 def _fit_rounds(
@@ -363,7 +412,7 @@ def _finish(
     for e in res.model.effects:
         if e not in res.effects_added:
             res.effects_added.append(e)
-    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, frames)
+    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, frames, C - 1)
     res.identifiability["campaign_fit"] = {
         "reference": names[-1],
         "rounds": rounds,
@@ -379,7 +428,8 @@ def _finish(
         + notes
         + [
             f"campaigns: {C} ({', '.join(names)}), one registration each (reference: '{names[-1]}', the model's "
-            f"own); fitted jointly in {rounds} round(s) of engine re-fit and Gauss-Newton ({gn_steps} steps), "
+            f"own, {campaigns[-1].n} rows); fitted jointly in {rounds} round(s) of engine re-fit and Gauss-Newton "
+            f"({gn_steps} steps), "
             f"last change of a campaign's transform {change[0] * 1e3:.2g} mm / {change[1]:.2g} rad"
             + ("" if converged else f" (not converged in {CAMPAIGN_MAX_ROUNDS} rounds)")
         ]
@@ -391,11 +441,13 @@ def _one_frame(
     robot: Robot,
     campaigns: list[Measurements],
     names: list[str],
+    ref: int,
     progress: Progress | None,
     notes: list[str],
     identify_kwargs: dict[str, Any],
 ) -> IdentificationResult:
-    """Every campaign in one measurement frame: the engine on the concatenation."""
+    """Every campaign in one measurement frame: the engine on the concatenation (``ref``: the index of
+    the campaign reported as the reference; every campaign has the model's registration)."""
     merged, campaign = merge_campaigns(campaigns, names, None, notes)
     res = identify(robot, merged, progress=progress, **identify_kwargs)
     model = res.model
@@ -411,8 +463,8 @@ def _one_frame(
         for c in range(len(campaigns))
     ]
     model.campaigns = frames
-    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, frames)
-    res.identifiability["campaign_fit"] = {"reference": names[-1], "shared": ["registration"]}
+    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, frames, ref)
+    res.identifiability["campaign_fit"] = {"reference": names[ref], "shared": ["registration"]}
     res.notes = (
         list(res.notes)
         + notes

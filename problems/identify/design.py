@@ -9,7 +9,8 @@ is used, linearised at the model's parameters:
   :func:`problems.identify.uncertainty.parameter_jacobian` (measurement frame).  The new campaign
   is measured in its own frame (``new_registration=True``): its registration columns
   (``reg.t``, ``reg.w``) are a separate block of the parameter vector, as are those of every
-  earlier campaign but the last (which is the model's own registration).  Parameters are
+  earlier campaign but the one whose registration is the model's own (its reference campaign when
+  the model's campaigns are the earlier files, else the last).  Parameters are
   scaled so that their pool columns have unit RMS (nothing below depends on the scaling).
 * **Prior.**  Earlier data (``earlier``) give the information ``sum J^T J / s^2`` (``s`` the
   row's ``sigma`` when the file has one, else :attr:`~models.arm.ArmModel.residual_sigma_m`);
@@ -85,6 +86,7 @@ from .design_jacobians import (
     column_scale,
     design_layout,
     earlier_rows,
+    own_campaign,
     eval_jacobian,
     place_columns,
     selection_problem,
@@ -236,7 +238,7 @@ def design_campaign(
     """
     s, uidx, guards = _checked_request(model, pool, n, criterion, eval_frame)
     names = list(model.covariance_names)
-    lay = design_layout(names, len(earlier), new_registration)
+    lay = design_layout(names, len(earlier), new_registration, own_campaign(model, len(earlier)))
     notes: list[str] = []
     mats = _design_matrices(
         model, pool, uidx, names, lay, s, (eval_q, eval_wrench, eval_frame), earlier, potential_knots, notes

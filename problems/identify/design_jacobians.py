@@ -28,7 +28,8 @@ DESIGN_POTENTIAL_SIGMA_RAD = 1e-4
 @dataclass
 class DesignLayout:
     """The design's parameter vector: the model's free parameters, then the new campaign's
-    registration block, then one registration block per earlier campaign but the last."""
+    registration block, then one registration block per earlier campaign but the one whose registration
+    is the model's own (:func:`own_campaign`)."""
 
     names: list[str]
     k: int
@@ -41,7 +42,22 @@ class DesignLayout:
         return len(self.names)
 
 
-def design_layout(names: list[str], n_earlier: int, new_registration: bool) -> DesignLayout:
+def own_campaign(model: ArmModel, n_earlier: int) -> int:
+    """Index of the earlier campaign whose registration is the model's own: when the model's campaigns
+    match the earlier files one for one (a several-campaign fit), its reference campaign (the one with
+    the model's registration), else the last."""
+    if len(model.campaigns) == n_earlier and n_earlier > 1:
+        own = model.base2meas()
+        for e, c in enumerate(model.campaigns):
+            if np.allclose(c.base2meas, own, rtol=0.0, atol=1e-12):
+                return e
+    return n_earlier - 1
+
+
+def design_layout(names: list[str], n_earlier: int, new_registration: bool, own: int | None = None) -> DesignLayout:
+    """The layout of :class:`DesignLayout`; ``own``: the earlier campaign with the model's registration
+    (default: the last)."""
+    own = n_earlier - 1 if own is None else own
     k = len(names)
     reg = np.array([i for i, n in enumerate(names) if n in fx.REGISTRATION_NAMES], dtype=int)
     out = list(names)
@@ -51,7 +67,7 @@ def design_layout(names: list[str], n_earlier: int, new_registration: bool) -> D
         out += [f"{names[i]} (new campaign)" for i in reg]
     earlier_reg: list[np.ndarray | None] = []
     for e in range(n_earlier):
-        if e == n_earlier - 1 or not len(reg):
+        if e == own or not len(reg):
             earlier_reg.append(None)
         else:
             earlier_reg.append(np.arange(len(out), len(out) + len(reg)))

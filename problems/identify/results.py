@@ -210,6 +210,8 @@ class IdentificationResult:
     inliers: np.ndarray
     data: Measurements
     notes: list[str] = field(default_factory=list)
+    #: What the user must be told (printed as warnings): repeated rows dropped, campaigns' registrations far apart.
+    warnings: list[str] = field(default_factory=list)
     validation: dict[str, Any] | None = None
     compensation_check: dict[str, Any] | None = None
     #: Identified joint error maps (``problems.identify.map_summary.ErrorMapSummary``), empty without any.
