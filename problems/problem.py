@@ -352,7 +352,8 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
     spec, arm = parse_robot(where, data, base_dir)
     program = is_program_path(data)
     orient = parse_orientation(where, data, program)
-    path = parse_path(where, data, orient.rotation, base_dir, arm.nominal)
+    timing = parse_timing(where, data, program)
+    path = parse_path(where, data, orient.rotation, base_dir, arm.nominal, timing.dt)
     cl_wrench = path.program.waypoints.wrench if path.program is not None else None
     wrench = parse_wrench(where, data, len(path.positions), cl_wrench)
     payload = parse_payload(where, data)
@@ -360,7 +361,6 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
     smoothness = parse_cost(where, data)
     solver = parse_solver(where, data)
     home = parse_branch(where, data)
-    timing = parse_timing(where, data, program)
     placement = parse_placement(where, data)
     cell = parse_cell(where, data, base_dir, arm.nominal, path.positions, path.program)
     return Problem(

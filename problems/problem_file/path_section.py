@@ -64,7 +64,12 @@ def is_program_path(data: Mapping[str, Any]) -> bool:
 
 
 def parse_path(
-    where: str, data: Mapping[str, Any], R_nom: np.ndarray, base_dir: Path | None = None, robot: Robot | None = None
+    where: str,
+    data: Mapping[str, Any],
+    R_nom: np.ndarray,
+    base_dir: Path | None = None,
+    robot: Robot | None = None,
+    dt: float | None = None,
 ) -> PathSection:
     """The ``[path]`` section: a line, explicit waypoints, or a program file (with ``[workpiece]``).
 
@@ -76,6 +81,9 @@ def parse_path(
         Directory against which a relative ``path.file`` is resolved.
     robot : Robot, optional
         The robot with its tool: a program point beyond its reach is refused with ``file:line``.
+    dt : float, optional
+        The controller period, s: a program longer at its feeds than a trajectory can hold at it is
+        refused before it is made into points (:func:`~problems.problem_file.program_section.check_duration`).
     """
     from problems.problem_file.program_section import PROGRAM_KINDS, check_reach, parse_program
 
@@ -92,7 +100,7 @@ def parse_path(
         return _waypoints_path(where, pt, R_nom)
     if kind in PROGRAM_KINDS:
         wt = table(where, data, "workpiece") if "workpiece" in data else None
-        sec = parse_program(where, pt, wt, base_dir)
+        sec = parse_program(where, pt, wt, base_dir, dt, robot)
         if robot is not None:
             check_reach(sec, robot)
         return PathSection(kind, None, sec.positions, sec.rotations, sec)

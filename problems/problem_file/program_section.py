@@ -90,11 +90,58 @@ def tool_frames(z_axes: np.ndarray) -> np.ndarray:
     return np.stack([X, np.cross(Z, X), Z], axis=2)
 
 
+def check_duration(source: str, seconds: float, longest: str, dt: float) -> None:
+    """Refuse a program that runs longer at its feeds than a trajectory can hold at ``dt``.
+
+    Checked from the moves alone, before the program is made into points, so a runaway program
+    (a helix of 20 000 turns, a feed in the wrong unit) is refused in seconds with its own reason.
+
+    Parameters
+    ----------
+    source : str
+        The program file, for the message.
+    seconds : float
+        Its feed moves' time at the programmed feeds, s (:func:`feed_seconds`).
+    longest : str
+        The longest of them, as the message names it (``line N: <text> (<length> at <feed>)``).
+    dt : float
+        The controller period, s (``[timing] dt``).
+
+    Raises
+    ------
+    InputError
+        More than :data:`~problems.timing.registry.MAX_TRAJECTORY_SAMPLES` samples at ``dt``.
+    """
+    from problems.timing.registry import MAX_TRAJECTORY_SAMPLES
+
+    n = seconds / dt + 1.0
+    if n <= MAX_TRAJECTORY_SAMPLES:
+        return
+    raise InputError(
+        f"{source}: the program's feed moves take {_duration_words(seconds)} at their programmed feeds "
+        f"(longest: {longest}): at dt = {dt:g} s that is at least {n:.3g} trajectory samples, more than the "
+        f"cap of {MAX_TRAJECTORY_SAMPLES} (MAX_TRAJECTORY_SAMPLES); split the program into parts planned "
+        "one by one, or check its feeds (F, in mm/min with G21, in/min with G20) and turn counts (P)"
+    )
+
+
+def _duration_words(seconds: float) -> str:
+    if seconds >= 3600.0:
+        return f"{seconds / 3600.0:.3g} h"
+    return f"{seconds / 60.0:.3g} min" if seconds >= 60.0 else f"{seconds:.3g} s"
+
+
+def _move_words(line: int, text: str, length_m: float, feed_m_s: float) -> str:
+    return f"line {line}: {text.strip()!r}, {length_m:.4g} m at {feed_m_s * 6e4:.4g} mm/min"
+
+
 def parse_program(
     where: str,
     pt: Mapping[str, Any],
     wt: Mapping[str, Any] | None,
     base_dir: Path | None,
+    dt: float | None = None,
+    robot: Any = None,
 ) -> ProgramSection:
     """Read ``[path]`` (a program kind) and ``[workpiece]``.
 
@@ -106,6 +153,12 @@ def parse_program(
         The ``[path]`` and ``[workpiece]`` tables (``wt`` None when absent).
     base_dir : Path or None
         The problem file's folder (a relative ``file`` is resolved against it).
+    dt : float, optional
+        The controller period, s: a G-code or CL program whose feed moves take more samples at it
+        than a trajectory holds is refused before it is made into points (:func:`check_duration`).
+    robot : Robot, optional
+        With it, a G-code move ending beyond the robot's reach is refused first (the likely cause
+        of both: a program in another unit).
 
     Raises
     ------
@@ -114,6 +167,7 @@ def parse_program(
     """
     from problems.toolpath.cl_csv import read_cl_csv
     from problems.toolpath.gcode import read_gcode
+    from problems.toolpath.program import feed_seconds
     from problems.toolpath.waypoints import cl_waypoints, program_waypoints
 
     kind = pt["kind"]
@@ -151,6 +205,14 @@ def parse_program(
     wp = Workpiece(np.array(xyz, dtype=float), np.zeros(3) if ang is None else ang)
     if kind == "gcode":
         prog = read_gcode(f)
+        if robot is not None and prog.moves:  # the moves' ends first: a cheap check of the likely causes
+            ends = np.array([m.end for m in prog.moves])
+            lines = np.array([m.line for m in prog.moves])
+            refuse_out_of_reach(str(f), lines, ends, wp.tcp_targets(ends, None)[0], robot, bool(prog.units_note))
+        seconds, k = feed_seconds(prog)
+        if dt is not None and k >= 0:
+            m = prog.moves[k]
+            check_duration(str(f), seconds, _move_words(m.line, m.text, m.length_m, m.feed_m_s or 0.0), dt)
         if prog.path_tolerance_m:
             way = program_waypoints(prog)
         elif tol is not None:
@@ -160,6 +222,13 @@ def parse_program(
         note = prog.units_note
     else:
         cl = read_cl_csv(f)
+        if dt is not None and cl.feed_m_s is not None and cl.n > 1:
+            step = np.linalg.norm(np.diff(cl.points_m, axis=0), axis=1)
+            feed = cl.feed_m_s[1:]
+            t = np.where(~cl.rapid[1:] & (feed > 0.0), step / np.where(feed > 0.0, feed, 1.0), 0.0)
+            k = int(np.argmax(t))
+            words = _move_words(int(cl.line[k + 1]), "", float(step[k]), float(feed[k])).replace("'', ", "")
+            check_duration(str(f), float(np.sum(t)), words, dt)
         way = cl_waypoints(
             cl, DEFAULT_PATH_TOLERANCE_M if tol is None else tol, "default" if tol is None else "path.tolerance_mm"
         )
@@ -188,21 +257,30 @@ def check_reach(sec: ProgramSection, robot: Any) -> None:
     ------
     InputError
     """
-    r = np.linalg.norm(sec.positions - robot.frame02base[:3, 3], axis=1)
+    w = sec.waypoints
+    refuse_out_of_reach(sec.file, w.line, w.points_m, sec.positions, robot, bool(sec.units_note))
+
+
+def refuse_out_of_reach(
+    file: str, line: np.ndarray, points_m: np.ndarray, positions: np.ndarray, robot: Any, no_units: bool
+) -> None:
+    """Refuse program points ``points_m`` (N, 3) m, program frame, landing at ``positions`` (N, 3) m,
+    base frame, beyond any reach of the robot (:func:`reach_bound_m`), naming ``file:line`` of the
+    first; ``no_units``: the program gave no G20/G21 (the hint then says so)."""
+    r = np.linalg.norm(positions - robot.frame02base[:3, 3], axis=1)
     bound = reach_bound_m(robot)
     far = np.flatnonzero(r > bound)
     if not far.size:
         return
     k = int(far[0])
-    w = sec.waypoints
-    p_mm = w.points_m[k] * 1e3
+    p_mm = points_m[k] * 1e3
     hint = (
         " The program gives no G20/G21 and was read in millimetres: if it is in inches, add G20 at its start."
-        if sec.units_note
+        if no_units
         else " Check [workpiece] xyz (m) and the program's units."
     )
     raise InputError(
-        f"{sec.file}:{int(w.line[k])}: the point ({p_mm[0]:.4g}, {p_mm[1]:.4g}, {p_mm[2]:.4g}) mm of the program "
+        f"{file}:{int(line[k])}: the point ({p_mm[0]:.4g}, {p_mm[1]:.4g}, {p_mm[2]:.4g}) mm of the program "
         f"lands {r[k]:.4g} m from the robot base, beyond the reach of {robot.name} with its tool "
-        f"(at most {bound:.4g} m); {len(far)} waypoint(s) are out of reach.{hint}"
+        f"(at most {bound:.4g} m); {len(far)} point(s) are out of reach.{hint}"
     )

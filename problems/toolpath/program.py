@@ -103,6 +103,15 @@ class Move:
     helical_m: float = 0.0
     cycle: str | None = None
 
+    @property
+    def length_m(self) -> float:
+        """Length of the move along its path, m (an arc's: its helix, the plane's radius taken as the
+        mean of the start's and the end's)."""
+        if self.kind is not MoveKind.ARC:
+            return math.dist(self.start, self.end)
+        g = self.arc()
+        return math.hypot(0.5 * (g.r0 + g.r1) * abs(self.sweep_rad), self.helical_m)
+
     def arc(self) -> ArcGeometry:
         """The arc in its plane's coordinates (arcs only)."""
         if self.kind is not MoveKind.ARC or self.plane is None or self.centre is None:
@@ -209,6 +218,16 @@ class Program:
     def n_moves(self) -> int:
         """Number of moves."""
         return len(self.moves)
+
+
+def feed_seconds(program: Program) -> tuple[float, int]:
+    """The time the program's feed moves take at their programmed feeds, s (a lower bound of its
+    duration: rapids, stops and slow-downs are left out), and the index of the longest of them
+    (-1 without feed moves).  From the moves alone, before any point is made of them."""
+    times = [m.length_m / m.feed_m_s if m.feed_m_s else 0.0 for m in program.moves]
+    if not times or max(times) <= 0.0:
+        return 0.0, -1
+    return math.fsum(times), max(range(len(times)), key=times.__getitem__)
 
 
 @dataclass
