@@ -15,7 +15,7 @@ import contextlib
 import sys
 import time
 from typing import Any, TextIO
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 #: Progress units of the stages that do not count figures: (unit, scale to k/M).
 UNITS = {
@@ -51,16 +51,21 @@ def on_terminal(stream: TextIO | None = None) -> bool:
 
 
 class StageLines:
-    """One line per stage on a stream that is not a terminal (a log, a pipe)."""
+    """One line per stage on a stream that is not a terminal (a log, a pipe).
 
-    def __init__(self, stream: TextIO | None = None) -> None:
+    ``key`` maps a stage's words to the stage it belongs to (default: the words themselves): the
+    first words of a stage are printed, the others are not."""
+
+    def __init__(self, stream: TextIO | None = None, key: Callable[[str], str] | None = None) -> None:
         self.stream = stream
+        self.key = key
         self._seen: set[str] = set()
 
     def __call__(self, stage: str, done: int, total: int, unit: str = "") -> None:
-        if stage in self._seen:
+        k = stage if self.key is None else self.key(stage)
+        if k in self._seen:
             return
-        self._seen.add(stage)
+        self._seen.add(k)
         stream = sys.stderr if self.stream is None else self.stream
         sys.stdout.flush()  # the lines printed before this stage come first in a shared log
         count = f" ({total} {unit})" if unit and total > 1 else ""

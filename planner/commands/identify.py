@@ -269,20 +269,27 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
 
 
 class _Bar:
-    """tqdm progress bar fed by the library's ``progress(message, done, total)`` callback."""
+    """The library's ``progress(message, done, total)`` callback: a tqdm bar on a terminal; in a log
+    or a pipe one line per stage (the message's part before ``:``, e.g. ``step 3``) when it starts."""
 
     def __init__(self, enabled: bool) -> None:
+        from planner.progress import StageLines, on_terminal
+
         self.bar: Any = None
         self.enabled = enabled
+        # "step 3: fitting joint_springs" and "step 3: fitting gravity" are one stage
+        self.lines = None if on_terminal() else StageLines(key=lambda msg: msg.split(":")[0])
 
     def __call__(self, msg: str, done: int, total: int) -> None:
         if not self.enabled:
             return
+        if self.lines is not None:
+            self.lines(msg, done, total)
+            return
         from tqdm import tqdm
 
         if self.bar is None:
-            # on a terminal only (as the other bars): a log or a pipe gets no bar lines
-            self.bar = tqdm(total=total, desc="identify", unit="step", leave=False, file=sys.stderr, disable=None)
+            self.bar = tqdm(total=total, desc="identify", unit="step", leave=False, file=sys.stderr)
         if self.bar.total != total:
             self.bar.total = total
         self.bar.n = min(done, total)

@@ -1,0 +1,161 @@
+"""Interrupts honoured inside native solvers (models/interrupts.py).
+
+IPOPT through CasADi swallows the ``KeyboardInterrupt`` of a Ctrl-C (it stops with
+``NonIpopt_Exception_Thrown`` and the call returns as a failed solve); :func:`native_call` raises it
+again.  A library that turns the interrupt into another error, or catches it, cannot lose it under
+:func:`command_signals`: :func:`raise_if_pending` raises it again.  Tested with real signals sent to
+this process at a random moment of the call (the seed is in the message).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import casadi as ca
+import pytest
+
+from models import interrupts
+
+#: From the signal to the ``KeyboardInterrupt`` out of an IPOPT solve, s: the solver polls
+#: Python's signals once per iteration (milliseconds here); the margin is for a loaded machine.
+SOLVE_STOP_S = 1.0
+
+
+def _long_solve() -> ca.Function:
+    """An IPOPT problem that runs for seconds (a 3000-variable Rosenbrock chain, tight tolerance)."""
+    n = 3000
+    x = ca.SX.sym("x", n)
+    f = ca.sum1(100 * (x[1:] - x[:-1] ** 2) ** 2 + (1 - x[:-1]) ** 2)
+    opts = {"print_time": 0, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": 100000, "tol": 1e-300}}
+    return ca.nlpsol("long", "ipopt", {"x": x, "f": f}, opts)
+
+
+def _send_later(signum: int, after_s: float) -> list[float]:
+    sent: list[float] = []
+
+    def send() -> None:
+        sent.append(time.perf_counter())
+        os.kill(os.getpid(), signum)
+
+    threading.Timer(after_s, send).start()
+    return sent
+
+
+@pytest.fixture
+def default_handlers():
+    """Python's own handlers for the test (pytest may run with SIGINT ignored)."""
+    previous = {s: signal.signal(s, h) for s, h in ((signal.SIGINT, signal.default_int_handler),)}
+    yield
+    for s, h in previous.items():
+        signal.signal(s, h)
+
+
+def test_ipopt_swallows_ctrl_c_without_the_guard(default_handlers):
+    """The reason for the guard: without it, the solve returns as a failed solve and the caller goes on."""
+    solver = _long_solve()
+    _send_later(signal.SIGINT, 0.3)
+    err = io.StringIO()
+    stderr, sys.stderr = sys.stderr, err
+    try:
+        solver(x0=[-1.2] * 3000)
+    finally:
+        sys.stderr = stderr
+    assert solver.stats()["return_status"] == "NonIpopt_Exception_Thrown"
+    assert "KeyboardInterruptException" in err.getvalue()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_native_call_raises_the_interrupt_ipopt_swallowed(default_handlers, signum):
+    seed = random.randrange(10**6)
+    at = random.Random(seed).uniform(0.05, 0.6)
+    solver = _long_solve()
+    err = io.StringIO()
+    stderr, sys.stderr = sys.stderr, err
+    with interrupts.command_signals():
+        sent = _send_later(signum, at)
+        expected = interrupts.Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+        try:
+            with pytest.raises(expected):
+                with interrupts.native_call():
+                    solver(x0=[-1.2] * 3000)
+        finally:
+            sys.stderr = stderr
+        stopped = time.perf_counter()
+    assert sent, f"seed {seed}: the solve ended before the signal at {at:.2f} s"
+    assert stopped - sent[0] < SOLVE_STOP_S, f"seed {seed}: {stopped - sent[0]:.2f} s from the signal"
+    assert "KeyboardInterruptException" not in err.getvalue(), err.getvalue()  # reported once, by the CLI
+
+
+def test_native_call_passes_other_writes_and_errors(default_handlers):
+    err = io.StringIO()
+    stderr, sys.stderr = sys.stderr, err
+    try:
+        with pytest.raises(ValueError):
+            with interrupts.native_call():
+                sys.stderr.write("a warning ")
+                sys.stderr.write("in two pieces\n")
+                sys.stderr.write("CasADi - WARNING(")
+                sys.stderr.write('"KeyboardInterruptException") [ipopt_nlp.cpp:95]\n')
+                sys.stderr.write("unfinished")
+                raise ValueError("not an interrupt")
+    finally:
+        sys.stderr = stderr
+    assert err.getvalue() == "a warning in two pieces\nunfinished"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_a_library_swallowed_is_raised_again(default_handlers, signum):
+    """A broad ``except`` (or CasADi's ``SystemError`` caught as a failure) cannot lose a signal."""
+    with interrupts.command_signals():
+        try:
+            os.kill(os.getpid(), signum)
+            time.sleep(0.05)
+        except BaseException:
+            pass
+        assert interrupts.pending() == signum
+        with pytest.raises(KeyboardInterrupt) as exc:
+            interrupts.raise_if_pending()
+        assert isinstance(exc.value, interrupts.Terminated) == (signum == signal.SIGTERM)
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
+def test_deferred_holds_both_signals_to_the_end_of_the_block(default_handlers):
+    reached: list[str] = []
+    with interrupts.command_signals():
+        with pytest.raises(interrupts.Terminated):
+            with interrupts.deferred():
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(0.05)
+                reached.append("moved in")
+    assert reached == ["moved in"]
+
+
+def test_a_forked_worker_ends_on_sigterm_without_a_traceback(tmp_path):
+    """A worker forked inside a command must not run the command's handlers (a traceback per worker)."""
+    code = (
+        "import os, signal, sys, time\n"
+        "from models import interrupts\n"
+        "with interrupts.command_signals():\n"
+        "    pid = os.fork()\n"
+        "    if pid == 0:\n"
+        "        interrupts.forked_worker_signals()\n"
+        "        time.sleep(30)\n"
+        "        os._exit(0)\n"
+        "    time.sleep(0.5)\n"
+        "    os.kill(pid, signal.SIGINT)\n"  # ignored: the parent answers Ctrl-C
+        "    time.sleep(0.2)\n"
+        "    os.kill(pid, signal.SIGTERM)\n"
+        "    _, status = os.waitpid(pid, 0)\n"
+        "    print(os.WIFSIGNALED(status), os.WTERMSIG(status))\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.stdout.split() == ["True", str(int(signal.SIGTERM))], r.stdout + r.stderr
+    assert "Traceback" not in r.stderr, r.stderr
