@@ -152,8 +152,7 @@ class ArmModel:
     campaigns : list of CampaignFrame
         The measurement campaigns the model was identified from, each with its own registration
         (base frame -> that campaign's measurement frame); the model's own registration
-        (:meth:`base2meas`) is the reference campaign's (by default the one with the most rows).  Empty
-        for a one-campaign model.
+        (:meth:`base2meas`) is the reference campaign's (default: the most rows); empty for one campaign.
     source, sha256 : str
         Where the model was read from and the file's hash (empty when built in memory).
     """

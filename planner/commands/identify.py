@@ -174,30 +174,7 @@ def _add_identify(sub: argparse._SubParsersAction) -> None:
         "cross-validated share of the residual.",
     )
     p.add_argument("--robot", required=True, help="built-in robot name or robot file (the declared model)")
-    p.add_argument(
-        "--data",
-        required=True,
-        action="append",
-        help="measurement CSV (docs/measurement-file.md); repeat for several campaigns (one robot model, one "
-        "registration per campaign named by the file stem; the reference, the model's own, is the campaign "
-        "with the most rows unless --reference-campaign names one). The same file twice is refused; rows "
-        "that repeat earlier rows exactly are counted once, with a warning",
-    )
-    p.add_argument(
-        "--reference-campaign",
-        default=None,
-        metavar="NAME",
-        help="with several --data campaigns: the campaign (file stem) whose registration is the model's own, "
-        "what predict and compensate use without --campaign (default: the one with the most rows)",
-    )
-    p.add_argument(
-        "--shared",
-        type=known_arg,  # the words of --known
-        default=(),
-        help="comma-separated parts of the set-up shared by every --data campaign: 'registration' (the "
-        "instrument did not move: one measurement frame, the campaigns are concatenated); 'measured-point' "
-        "is always shared",
-    )
+    _add_campaign_arguments(p)
     p.add_argument("--out", required=True, help="identified model file to write (robot TOML)")
     p.add_argument("--report", required=True, help="report folder (report.json, report.md, report.html)")
     p.add_argument(
@@ -244,10 +221,38 @@ def _add_identify(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--truth", default=None, help="truth file of a virtual robot (compplan simulate): compensate and re-measure"
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress (bar or stage lines)")
     add_csv_options(p, "--data and --validation")
     add_force_argument(p, "--report")
     p.set_defaults(func=run_identify)
+
+
+def _add_campaign_arguments(p: argparse.ArgumentParser) -> None:
+    """``identify``'s options of its campaigns: the files, the reference, what they share."""
+    p.add_argument(
+        "--data",
+        required=True,
+        action="append",
+        help="measurement CSV (docs/measurement-file.md); repeat for several campaigns (one robot model, one "
+        "registration per campaign named by the file stem; the reference, the model's own, is the campaign "
+        "with the most rows unless --reference-campaign names one). The same file twice is refused; rows "
+        "that repeat earlier rows exactly are counted once, with a warning",
+    )
+    p.add_argument(
+        "--reference-campaign",
+        default=None,
+        metavar="NAME",
+        help="with several --data campaigns: the campaign (file stem) whose registration is the model's own, "
+        "what predict and compensate use without --campaign (default: the one with the most rows)",
+    )
+    p.add_argument(
+        "--shared",
+        type=known_arg,  # the words of --known
+        default=(),
+        help="comma-separated parts of the set-up shared by every --data campaign: 'registration' (the "
+        "instrument did not move: one measurement frame, the campaigns are concatenated); 'measured-point' "
+        "is always shared",
+    )
 
 
 def _add_simulate(sub: argparse._SubParsersAction) -> None:

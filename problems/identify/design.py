@@ -206,8 +206,7 @@ def design_campaign(
     model : ArmModel
         An identified model with its parameter covariance (format 2).
     pool : Measurements
-        Candidate rows: ``q`` (N, 6), rad, and ``wrench`` (N, 6), base frame, N and N*m
-        (positions not needed).
+        Candidate rows: ``q`` (N, 6), rad, and ``wrench`` (N, 6), base frame, N and N*m (no positions).
     n : int
         Rows to choose, 1 .. usable pool rows.
     eval_q : ndarray, shape (N_e, 6), optional

@@ -340,16 +340,7 @@ def _optimised_branch(
             b, BranchStatus.SOLVER_FAILED, why, base, qa, bp_warm.q, wname, float(np.sum(err**2)), cost_a, wcost,
             err, err_a,
         ), nlp  # fmt: skip
-    q_opt, ip_status, iters, dt = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
-    q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
-    for _ in range(MAX_RESOLVES if nlp.clearance is not None else 0):
-        more = unposed_violations(nlp.clearance, nlp.posed, q_pol)
-        if more is None:
-            break
-        nlp = nlp.with_posed(more)
-        q_opt, ip_status, it2, dt2 = nlp.solve(task, bp_warm.q, sign, q_min, q_max)
-        iters, dt = iters + it2, dt + dt2
-        q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
+    nlp, q_pol, ip_status, iters, dt = _solve_posing_clearances(nlp, task, bp_warm.q, sign, q_min, q_max)
     problems, res_m, res_rad = verify(model, task, q_pol, q_min, q_max, ik, sign)
     clear = _clearance_problems(nlp, task, q_pol)
     st, why = _branch_verdict(ip_status, iters, [*problems, *clear], kept, clear)
@@ -384,6 +375,25 @@ def _optimised_branch(
         res_rad,
         _active_guards(ik, q, sign),
     ), nlp
+
+
+def _solve_posing_clearances(
+    nlp: PostureNLP, task: PostureTask, q0: np.ndarray, sign: np.ndarray, q_min: np.ndarray, q_max: np.ndarray
+) -> tuple[PostureNLP, np.ndarray, str, int, float]:
+    """IPOPT from ``q0`` and the Gauss-Newton polish; with a cell, solved again with the clearance
+    pairs the solution violates posed (at most :data:`MAX_RESOLVES` times).  Returns the NLP used
+    last, the polished posture (N, 6) rad, IPOPT's status, its iterations and its wall time, s."""
+    q_opt, ip_status, iters, dt = nlp.solve(task, q0, sign, q_min, q_max)
+    q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
+    for _ in range(MAX_RESOLVES if nlp.clearance is not None else 0):
+        more = unposed_violations(nlp.clearance, nlp.posed, q_pol)
+        if more is None:
+            break
+        nlp = nlp.with_posed(more)
+        q_opt, ip_status, it2, dt2 = nlp.solve(task, q0, sign, q_min, q_max)
+        iters, dt = iters + it2, dt + dt2
+        q_pol = nlp.polish(task, q_opt, sign) if np.all(np.isfinite(q_opt)) else q_opt
+    return nlp, q_pol, ip_status, iters, dt
 
 
 def _build_nlp(

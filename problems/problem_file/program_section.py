@@ -165,11 +165,6 @@ def parse_program(
     InputError
         The problem-file error naming the key, or the program's own error (``file:line``).
     """
-    from problems.toolpath.cl_csv import read_cl_csv
-    from problems.toolpath.gcode import read_gcode
-    from problems.toolpath.program import feed_seconds
-    from problems.toolpath.waypoints import cl_waypoints, program_waypoints
-
     kind = pt["kind"]
     for key in ("start", "end", "points", "positions", "rpy", "rpy_deg"):
         if key in pt:
@@ -203,6 +198,21 @@ def parse_program(
         raise err(where, "workpiece.xyz", f"= {xyz} m is implausible (> {PLAUSIBLE_POSITION_MAX_M:g} m); in metres")
     ang = rpy_angles(where, wt, "workpiece.")
     wp = Workpiece(np.array(xyz, dtype=float), np.zeros(3) if ang is None else ang)
+    way, note = _read_program(kind, f, tol, wp, dt, robot)
+    positions, z = wp.tcp_targets(way.points_m, way.tool_axis)
+    return ProgramSection(kind, str(f), way, wp, positions, tool_frames(z), note)
+
+
+def _read_program(
+    kind: str, f: Path, tol: float | None, wp: Workpiece, dt: float | None, robot: Any
+) -> tuple[ProgramWaypoints, str]:
+    """The program file ``f`` read, checked from its moves (reach, duration) and made into
+    waypoints; with the units note of a G-code program (empty for CL data)."""
+    from problems.toolpath.cl_csv import read_cl_csv
+    from problems.toolpath.gcode import read_gcode
+    from problems.toolpath.program import feed_seconds
+    from problems.toolpath.waypoints import cl_waypoints, program_waypoints
+
     if kind == "gcode":
         prog = read_gcode(f)
         if robot is not None and prog.moves:  # the moves' ends first: a cheap check of the likely causes
@@ -233,8 +243,7 @@ def parse_program(
             cl, DEFAULT_PATH_TOLERANCE_M if tol is None else tol, "default" if tol is None else "path.tolerance_mm"
         )
         note = ""
-    positions, z = wp.tcp_targets(way.points_m, way.tool_axis)
-    return ProgramSection(kind, str(f), way, wp, positions, tool_frames(z), note)
+    return way, note
 
 
 def reach_bound_m(robot: Any) -> float:
