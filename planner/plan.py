@@ -326,9 +326,9 @@ def _compensate(res: PlanResult) -> None:
         return
     qc = res.exact.q_command
     res.model_sigma = path_sigma(arm, qc, arm.tcp_wrench(res.exact.q_deflected, L))
-    extrapolates = res.model_sigma.warning()
-    if extrapolates:
-        res.warnings.append(extrapolates)
+    for caveat in (res.model_sigma.warning(), res.model_sigma.load_warning()):
+        if caveat:
+            res.warnings.append(caveat)
     lo, hi = qc < robot.q_min - COMMAND_LIMIT_TOL, qc > robot.q_max + COMMAND_LIMIT_TOL
     if lo.any() or hi.any():
         k, j = (int(v) for v in np.argwhere(lo | hi)[0])

@@ -102,6 +102,10 @@ def test_path_sigma_carries_what_it_leaves_out(unloaded_model):
     names = {e["name"] for e in d["excluded"]}
     assert "stiffness.s[2]" in names and "sigma excludes" in d["text"]
     assert all(set(e) == {"name", "effect", "std_ratio", "through_load"} for e in d["excluded"])
+    # the plan says that the compensation of its load rests on them; unloaded, it has nothing to say
+    warn = path_sigma(model, q, _loaded(10)).load_warning()
+    assert warn is not None and "stiffness.s[2]" in warn and "not in the sigma" in warn
+    assert path_sigma(model, q, np.zeros((10, 6))).load_warning() is None
 
 
 def test_a_determined_model_leaves_nothing_out(small_virtual_model):

@@ -431,6 +431,21 @@ class PathSigma:
             f"identified on ({named}{more}): its prediction and sigma there are an extrapolation"
         )
 
+    def load_warning(self) -> str | None:
+        """The plan's warning when its load acts through parameters the data do not determine (joint
+        stiffness identified without loads): the compensation of that load rests on values the
+        identification could not check, and its error is not in the sigma.  None otherwise."""
+        loaded = [u for u in self.excluded if u.through_load]
+        if not loaded:
+            return None
+        names = ", ".join(u.name for u in loaded[:EXCLUDED_NAMED])
+        more = f" and {len(loaded) - EXCLUDED_NAMED} more" if len(loaded) > EXCLUDED_NAMED else ""
+        return (
+            f"the compensation of this load rests on {len(loaded)} parameter(s) the identification data do not "
+            f"determine ({names}{more}: no loaded measurements), held at their identified values; its error "
+            "is not in the sigma: identify from measurements under load (compplan design proposes them)"
+        )
+
     def to_dict(self) -> dict[str, object]:
         """``summary.json`` ``model_sigma`` (SI; NaN as None)."""
         ok = self.available and len(self.sigma_m)
