@@ -1,12 +1,13 @@
-"""Progress of long commands on stderr: bars on a terminal, one line per stage elsewhere.
+"""Progress of long commands: bars on a terminal (stderr), one line per stage elsewhere (stdout).
 
 The library reports progress through a callback ``progress(stage, done, total)``; the command
 line turns it into what the user sees:
 
 * on a terminal (stderr is a TTY), one tqdm bar per stage, removed when the stage ends;
-* otherwise (a pipe, a log file, a CI job), one line per stage when it starts,
+* otherwise (a pipe, a log file, a CI job), one line per stage on **stdout** when it starts,
   ``compplan: [  12.3 s] <stage> (<total> <unit>)``, the time since the command started, so a
-  log shows what a long run is doing and where its time went.  Nothing else is printed.
+  log shows what a long run is doing and where its time went.  On stdout, with the command's
+  other lines, so that stderr holds only warnings and the one line of an error.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ def on_terminal(stream: TextIO | None = None) -> bool:
 
 
 class StageLines:
-    """One line per stage on a stream that is not a terminal (a log, a pipe).
+    """One line per stage on a stream that is not a terminal (a log, a pipe): ``stream``, default stdout.
 
     ``key`` maps a stage's words to the stage it belongs to (default: the words themselves): the
     first words of a stage are printed, the others are not."""
@@ -66,8 +67,8 @@ class StageLines:
         if k in self._seen:
             return
         self._seen.add(k)
-        stream = sys.stderr if self.stream is None else self.stream
-        sys.stdout.flush()  # the lines printed before this stage come first in a shared log
+        stream = sys.stdout if self.stream is None else self.stream
+        sys.stderr.flush()  # a warning printed before this stage comes first in a shared log
         count = f" ({total} {unit})" if unit and total > 1 else ""
         print(f"compplan: [{time.monotonic() - _START[0]:7.1f} s] {stage}{count}", file=stream, flush=True)
 

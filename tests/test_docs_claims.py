@@ -10,7 +10,10 @@ Read from every page of ``docs/`` and ``README.md``:
   built-in robot it names (``--robot``, ``robot show/check``) is in ``BUILTIN_ROBOTS``; a list of
   built-in robots in the prose names all of them, and a problem file's ``model = "..."`` a real one;
 * no sentence says a feature is "not yet" there, "in progress", "to come", "TODO" or "planned",
-  unless it is on :data:`ALLOWED` with its reason.
+  unless it is on :data:`ALLOWED` with its reason;
+* a paragraph that says how long the product takes to compute something ("takes 2.7 s", "48.5 s
+  wall") names the benchmark that measures it (``benchmarks/<name>.py``, which exists) or says it
+  was measured once with ``time`` (and when): a figure nobody can measure again is not a claim.
 
 The direction parser -> docs is ``tests/test_cli_docs.py``.
 """
@@ -37,6 +40,14 @@ ALLOWED: dict[tuple[str, str], str] = {
     ("identification.md", "Every library effect not yet added"): "the selection's candidates: effects not added so far",
     ("cli.md", "the new campaign will be measured"): "a campaign being designed is measured later, by the user",
 }
+#: A claim of compute time: "takes 2.7 s", "took 48.5 s", "in about 9 s", "48.5 s wall", "2-5 s on 2 cores".
+TIME_CLAIM = re.compile(
+    r"\b(?:takes?|took|in about|runs? in)\b[^.;|]{0,40}?\d[\d.,]*\s?(?:ms|s|min|h)\b"
+    r"|\d[\d.,]*\s?(?:ms|s|min|h)\s(?:wall|on 2 cores|of CPU)\b",
+    re.IGNORECASE,
+)
+#: Where a time claim comes from: a benchmark script, or a run measured once with ``time`` on a date.
+TIME_SOURCE = re.compile(r"benchmarks/(\w+)\.py|measured[^.]{0,80}\b(?:with `time`|20\d\d-\d\d)")
 #: Sub-commands whose first argument is a problem (a shipped name or a file).
 PROBLEM_COMMANDS = {"plan", "pose", "place", "problem show"}
 #: Sub-commands whose first argument is a robot (a built-in name or a file).
@@ -182,6 +193,21 @@ def unfinished_sentences(page: str, text: str) -> list[str]:
     return bad
 
 
+def unsourced_time_claims(page: str, text: str) -> list[str]:
+    """Paragraphs with a compute-time claim and no benchmark (that exists) or dated measurement."""
+    bad = []
+    for para in re.split(r"\n\s*\n", text):
+        flat = re.sub(r"\s+", " ", para)
+        m = TIME_CLAIM.search(flat)
+        if not m:
+            continue
+        sources = list(TIME_SOURCE.finditer(flat))
+        scripts = [x.group(1) for x in sources if x.group(1)]
+        if not sources or any(not (ROOT / "benchmarks" / f"{b}.py").is_file() for b in scripts):
+            bad.append(f"{page}: ...{flat[max(0, m.start() - 80) : m.end() + 40].strip()}...")
+    return bad
+
+
 def test_the_pages_name_commands() -> None:
     """The parse finds the command lines (a parse that found nothing would check nothing)."""
     names = {c for _, _, c, _ in CLAIMS}
@@ -208,6 +234,14 @@ def test_no_unfinished_sentence(page: Path) -> None:
     )
 
 
+@pytest.mark.parametrize("page", PAGES, ids=[p.name for p in PAGES])
+def test_time_claims_name_their_benchmark(page: Path) -> None:
+    bad = unsourced_time_claims(page.name, page.read_text(encoding="utf-8"))
+    assert not bad, "a compute time without the benchmark that measures it (or a dated measurement):\n" + (
+        "\n".join(bad)
+    )
+
+
 def test_the_checks_can_fail() -> None:
     """Each check finds a false claim injected into a page."""
     page = (
@@ -227,3 +261,8 @@ def test_the_checks_can_fail() -> None:
     assert unfinished_sentences("x.md", "The report does not draw it. Not yet: the cell view.\n")
     assert unfinished_sentences("x.md", "The cell check is in progress.\n")
     assert not unfinished_sentences("x.md", "The report draws the cell.\n")
+    assert unsourced_time_claims("x.md", "The sweep takes 2.7 s.\n\nIt is fast.\n")
+    assert unsourced_time_claims("x.md", "The plan took 48.5 s wall (benchmarks/bench_nosuch.py).\n")
+    assert not unsourced_time_claims("x.md", "The sweep takes 2.7 s (`benchmarks/bench_placement.py`).\n")
+    assert not unsourced_time_claims("x.md", "It took 53 s, measured with `time` on 2026-12-07.\n")
+    assert not unsourced_time_claims("x.md", "The motion lasts 1.93 s.\n")

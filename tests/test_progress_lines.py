@@ -1,4 +1,4 @@
-"""Long commands off a terminal print one progress line per stage (planner/progress.py)."""
+"""Long commands off a terminal print one progress line per stage on stdout (planner/progress.py)."""
 
 from __future__ import annotations
 
@@ -33,8 +33,10 @@ def test_no_bar_and_no_line_for_a_stage_twice_off_a_terminal(capsys):
     for k in range(3):
         p("compliance map", k, 2)
     p.close()
-    err = capsys.readouterr().err.splitlines()
-    assert len(err) == 1 and STAGE_LINE.match(err[0]) and "compliance map (2 pt)" in err[0]
+    out, err = capsys.readouterr()
+    lines = out.splitlines()
+    assert len(lines) == 1 and STAGE_LINE.match(lines[0]) and "compliance map (2 pt)" in lines[0]
+    assert err == ""  # stderr keeps only warnings and errors
 
 
 def test_a_piped_plan_says_each_stage_as_it_starts(tmp_path):
@@ -46,7 +48,8 @@ def test_a_piped_plan_says_each_stage_as_it_starts(tmp_path):
         timeout=600,
     )
     assert r.returncode == 0, r.stderr
-    stages = [m.group(1) for m in map(STAGE_LINE.match, r.stderr.splitlines()) if m]
-    assert stages[:2] == ["posture", "compensation"] and any(s.startswith("timing ") for s in stages), r.stderr
+    stages = [m.group(1) for m in map(STAGE_LINE.match, r.stdout.splitlines()) if m]
+    assert stages[:2] == ["posture", "compensation"] and any(s.startswith("timing ") for s in stages), r.stdout
     assert len(stages) == len(set(stages))
-    assert "\r" not in r.stderr  # no bar redrawn in a log
+    assert "\r" not in r.stderr + r.stdout  # no bar redrawn in a log
+    assert not STAGE_LINE.search(r.stderr)

@@ -76,7 +76,7 @@ def test_a_long_cl_file_is_refused_too(tmp_path, monkeypatch):
     monkeypatch.setattr(waypoints_mod, "_refine", lambda *a, **k: pytest.fail("made into points"))
     rows = ["x_mm,y_mm,z_mm,feed_mm_min"] + [f"{10 * (k % 2)},0,0,1" for k in range(400)]  # 4 m at 1 mm/min
     p = _problem(tmp_path, "\n".join(rows) + "\n", name="p.csv")
-    with pytest.raises(InputError, match=r"p\.csv: the program's feed moves take 66\.5 h"):
+    with pytest.raises(InputError, match=r"p\.csv: the program's feed moves last 66\.5 h"):
         load_problem(p)
 
 

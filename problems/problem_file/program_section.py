@@ -118,7 +118,7 @@ def check_duration(source: str, seconds: float, longest: str, dt: float) -> None
     if n <= MAX_TRAJECTORY_SAMPLES:
         return
     raise InputError(
-        f"{source}: the program's feed moves take {_duration_words(seconds)} at their programmed feeds "
+        f"{source}: the program's feed moves last {_duration_words(seconds)} at their programmed feeds "
         f"(longest: {longest}): at dt = {dt:g} s that is at least {n:.3g} trajectory samples, more than the "
         f"cap of {MAX_TRAJECTORY_SAMPLES} (MAX_TRAJECTORY_SAMPLES); split the program into parts planned "
         "one by one, or check its feeds (F, in mm/min with G21, in/min with G20) and turn counts (P)"
