@@ -4,13 +4,18 @@ A program plan (a small G-code part, ``tests/test_program_path.py``, planned at 
 every format at its controller's period: written, with one change line each on stdout, or refused
 with one line naming the option and what to give, nothing written and the run untouched.  A streamed
 URScript needs a valid ``stream_host``; an export that would slow a program plan down (its programmed
-feed changed) is refused unless ``slow_down=yes``.
+feed changed) is refused unless ``slow_down=yes``, naming the ``[limits]`` scale that plans the
+program for that controller: what the controller runs is checked against the robot's own limits,
+so a plan made with that headroom exports at its feed.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
+import math
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +25,7 @@ import yaml
 from planner.cli import main
 from planner.commands.export import print_changes
 from planner.export import ExportData, ExportError, ExportLimitError, build_export, data_from_run, network_host
+from planner.export.headroom import HEADROOM_MARGIN
 from tests.test_export import NUM, bang_data, small_data
 from tests.test_program_path import PROBLEM, PROGRAM
 
@@ -236,3 +242,121 @@ def test_export_data_of_a_run_knows_its_program(run):
     assert data_from_run(run).program == "part.ngc"
     assert isinstance(small_data(), ExportData) and small_data().program == ""
     assert np.isclose(data_from_run(run).dt, PLAN_DT_S)
+
+
+# ------------------------------------------------------------------ planning a program for its controller
+#: The end of a program plan's refusal that names the ``[limits]`` scale to plan it with.
+HEADROOM = re.compile(
+    r"; or plan it for this controller: in the problem's \[limits\] set jerk_scale = (" + NUM + r") "
+    r"\(what the controller runs reaches jerk (" + NUM + r")x the plan's limit on joint \d; "
+)
+
+
+def _headroom(err: str) -> tuple[float, float]:
+    """The advised ``jerk_scale`` and the ratio of the controller's jerk to the plan's limit."""
+    m = HEADROOM.search(err)
+    assert m, err
+    return float(m.group(1)), float(m.group(2))
+
+
+@pytest.fixture(scope="module")
+def planned_for_ros2(run, tmp_path_factory) -> tuple[Path, float]:
+    """The same part planned again with the ``jerk_scale`` that ``run``'s ros2 refusal advises."""
+    base = tmp_path_factory.mktemp("headroom")
+    with pytest.raises(ExportLimitError) as refused:
+        build_export(data_from_run(run), "ros2", base / "x")
+    scale, _reach = _headroom(str(refused.value))
+    (base / "part.ngc").write_text(PROGRAM)
+    problem = PROBLEM.format(file="part.ngc").replace(
+        "max_joint_step = 0.3", f"max_joint_step = 0.3\njerk_scale = {scale}"
+    )
+    (base / "p.toml").write_text(problem)
+    out = base / "run"
+    assert main(["plan", str(base / "p.toml"), "--out", str(out), "--no-report", "--no-figures"]) == 0
+    return out, scale
+
+
+def test_a_program_refusal_names_the_scale_that_plans_it_for_the_controller(run, tmp_path, capsys):
+    """The quintic's jerk is r times the plan's limit: plan at 1 / (r (1 + margin)) of the robot's,
+    rounded down to two digits, each quantity's scale for its own quantity."""
+    assert _export(run, "ros2", tmp_path / "o" / "p") == 2
+    err = capsys.readouterr().err
+    scale, reach = _headroom(err)
+    assert 1.2 < reach < 1.6  # the spline's overshoot where the jerk switches between samples
+    assert scale == math.floor(100.0 / (reach * (1.0 + HEADROOM_MARGIN))) / 100.0
+    assert "velocity_scale, acceleration_scale and jerk_scale each give headroom to their own quantity only" in err
+    assert "instead of" not in err  # planned at the robot's own limits
+    assert err.index("plan it for this controller") < err.index("--format urscript") < err.index("slow_down=yes")
+    assert _export(run, "ros2", tmp_path / "o" / "p", "slow_down=no") == 2
+    assert _headroom(capsys.readouterr().err) == (scale, reach)
+    assert not _files(tmp_path / "o")
+
+
+def test_a_program_planned_with_the_advised_scale_exports_to_ros2_at_its_feed(planned_for_ros2, tmp_path, capsys):
+    """Its quintic still overshoots the plan's (lowered) jerk limit, but not the robot's: written as
+    planned, no slow-down, the last point at the plan's duration."""
+    folder, scale = planned_for_ros2
+    s = json.loads((folder / "summary.json").read_text())
+    robot_jerk = np.array([j["j_max"] for j in s["robot_file"]["joints"]])
+    assert np.allclose(s["limits"]["jerk"], scale * robot_jerk)
+    assert _export(folder, "ros2", tmp_path / "p") == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1] == "ros2: unchanged: the plan's samples at its timing", out
+    data = data_from_run(folder)
+    end = yaml.safe_load((tmp_path / "p.yaml").read_text())["points"][-1]["time_from_start"]
+    assert end["sec"] + 1e-9 * end["nanosec"] == pytest.approx(data.t[-1], abs=1e-9)
+    # checked against the plan's own limits instead, the same export would be refused
+    own = replace(data, robot_v_max=None, robot_a_max=None, robot_j_max=None)
+    with pytest.raises(ExportLimitError, match=r"jerk .* is 1\.\d+x its limit .*refusing to slow a program plan"):
+        build_export(own, "ros2", tmp_path / "q")
+
+
+def test_the_controllers_motion_is_checked_against_the_robots_limits():
+    """A program plan made with headroom (its limits below the robot's): the quintic over the plan's
+    jerk limit but within the robot's is written unchanged; without the robot's limits, refused."""
+    plan = bang_data(program="part.ngc")
+    with pytest.raises(ExportLimitError, match=r"jerk .*refusing to slow a program plan down") as refused:
+        build_export(plan, "ros2", Path("x"))
+    assert "set jerk to x0.6 of the plan's jerk limits (what the controller runs reaches jerk 1.563x" in str(
+        refused.value
+    )  # the robot's own limits not known: relative to the plan's
+    headroom = replace(plan, robot_v_max=plan.v_max, robot_a_max=plan.a_max / 0.8, robot_j_max=plan.j_max / 0.5)
+    export = build_export(headroom, "ros2", Path("x"))
+    assert export.status.value == "ok" and export.changes == ()
+    # verify_limits still holds the plan's samples to the plan's own limits
+    assert headroom.plan_limit("jerk") is plan.j_max and np.allclose(headroom.robot_limit("jerk"), 2 * plan.j_max)
+
+
+def test_a_motion_beyond_the_robots_limits_is_still_slowed_or_refused():
+    """Limits above the robot's (a problem raising them): what the controller runs is held to the
+    robot's, slowed down for a plan that is not a program, refused for a program naming the scale."""
+    plain = bang_data(room=2.0)  # the quintic's jerk 1.563 / 2 of the plan's limit: within it
+    assert build_export(plain, "ros2", Path("x")).status.value == "ok"
+    robot = {"robot_v_max": plain.v_max, "robot_a_max": plain.a_max / 2.0, "robot_j_max": plain.j_max / 2.0}
+    slowed = build_export(replace(plain, **robot), "ros2", Path("x"))
+    assert slowed.status.value == "slowed" and re.fullmatch(
+        r"slowed down x1\.\d+ \(0\.2 s -> \S+ s\): joint 5 jerk 1\.563x its limit at the plan's timing",
+        slowed.changes[0],
+    ), slowed.changes
+    with pytest.raises(ExportLimitError) as refused:
+        build_export(replace(plain, program="part.ngc", **robot), "ros2", Path("x"))
+    assert re.search(r"set jerk_scale = 1\.2 instead of 2 \(", str(refused.value)), str(refused.value)
+
+
+def test_export_data_of_a_run_knows_the_robots_own_limits(run, tmp_path):
+    """From ``summary.json``'s ``robot_file`` (ur10's limits); without it, the plan's; a bad entry named."""
+    data = data_from_run(run)
+    s = json.loads((run / "summary.json").read_text())
+    for key, name in (("v_max", "velocity"), ("a_max", "acceleration"), ("j_max", "jerk")):
+        assert np.array_equal(data.robot_limit(name), [j[key] for j in s["robot_file"]["joints"]])
+    copy = tmp_path / "run"
+    copy.mkdir()
+    (copy / "trajectory.csv").write_bytes((run / "trajectory.csv").read_bytes())
+    del s["robot_file"]["joints"]
+    (copy / "summary.json").write_text(json.dumps(s))
+    old = data_from_run(copy)
+    assert not old.robot_limits_known and old.robot_limit("jerk") is old.j_max
+    s["robot_file"]["joints"] = [{"j_max": 40.0}] * 6
+    (copy / "summary.json").write_text(json.dumps(s))
+    with pytest.raises(ExportError, match=r"summary.json: robot_file.joints\[0\].v_max = None; expected a number > 0"):
+        data_from_run(copy)

@@ -32,7 +32,8 @@ class ExportData:
     dt : float
         The trajectory's sample period, s.
     v_max, a_max, j_max : ndarray, shape (6,)
-        The plan's velocity (rad/s), acceleration (rad/s^2) and jerk (rad/s^3) limits.
+        The plan's velocity (rad/s), acceleration (rad/s^2) and jerk (rad/s^3) limits: those its
+        timing method kept (the problem's ``[limits]``), which :func:`verify_limits` checks.
     q_min, q_max : ndarray, shape (6,)
         The robot's joint position limits, rad (model convention).
     enforced : tuple of str
@@ -52,6 +53,11 @@ class ExportData:
         The CAM program (G-code, CL data) the plan runs at its programmed feed, by file name; empty
         for any other task.  Slowing such a plan down changes its feed: ``slow_down=auto`` refuses it
         (:func:`~planner.export.limits.check_motion`).
+    robot_v_max, robot_a_max, robot_j_max : ndarray, shape (6,), or None
+        The robot's own velocity, acceleration and jerk limits (its robot file's, before the
+        problem's ``[limits]`` scaled or replaced them): what its controller allows, which what a
+        format sends is checked against (:meth:`robot_limit`); None: not known (a run summary
+        without ``robot_file``), the plan's are used.
     """
 
     name: str
@@ -79,6 +85,23 @@ class ExportData:
     link_q: np.ndarray | None = None
     slow_factor: float = 1.0
     program: str = ""
+    robot_v_max: np.ndarray | None = None
+    robot_a_max: np.ndarray | None = None
+    robot_j_max: np.ndarray | None = None
+
+    def plan_limit(self, name: str) -> np.ndarray:
+        """The plan's limit of rate ``name`` (``velocity``, ``acceleration``, ``jerk``), shape (6,)."""
+        return {"velocity": self.v_max, "acceleration": self.a_max, "jerk": self.j_max}[name]
+
+    def robot_limit(self, name: str) -> np.ndarray:
+        """The robot's own limit of rate ``name`` (its controller's), else the plan's, shape (6,)."""
+        own = {"velocity": self.robot_v_max, "acceleration": self.robot_a_max, "jerk": self.robot_j_max}[name]
+        return self.plan_limit(name) if own is None else own
+
+    @property
+    def robot_limits_known(self) -> bool:
+        """The robot's own limits are known (else :meth:`robot_limit` gives the plan's)."""
+        return self.robot_v_max is not None and self.robot_a_max is not None and self.robot_j_max is not None
 
     def slowed(self, k: float) -> ExportData:
         """The same path ``k`` times slower: times and ``dt`` times ``k``, velocities over ``k``,

@@ -92,8 +92,8 @@ def _ptp(
     for k in ks if ks is not None else range(1, len(idx)):
         lo, hi = idx[k - 1], idx[k]
         src += _axis_lines(
-            _pct(np.abs(data.qd[lo : hi + 1]).max(axis=0) / data.v_max),
-            _pct(np.abs(data.qdd[lo : hi + 1]).max(axis=0) / data.a_max),
+            _pct(np.abs(data.qd[lo : hi + 1]).max(axis=0) / data.robot_limit("velocity")),
+            _pct(np.abs(data.qdd[lo : hi + 1]).max(axis=0) / data.robot_limit("acceleration")),
         )
         src.append(f"  PTP XP{k}" + (" C_PTP" if k < len(idx) - 1 else ""))
     return src

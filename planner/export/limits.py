@@ -7,7 +7,9 @@ and the time:
   memory) is sampled every ``dt`` from 0, inside the joint range, its rate columns inside the
   limits the timing method enforced, and the finite differences of its positions inside them too.
 * :func:`check_motion`: what a format sends, as written (times and positions after any
-  resampling and rounding), under the interpolation its controller applies, a
+  resampling and rounding), against the robot's own rate limits (its robot file's, not the plan's
+  ``[limits]``: :meth:`ExportData.robot_limit`, so a plan made with headroom exports within them),
+  under the interpolation its controller applies, a
   :class:`ControllerMotion` the format builds (``ExportFormat.motion``): setpoints at their
   period (URScript ``servoj``), the quintic spline ROS 2's joint_trajectory_controller lays
   through points with positions, velocities and accelerations, the rest-to-rest trapezoid of a
@@ -17,7 +19,8 @@ and the time:
   is not checked.  A streamed motion over a rate limit is slowed down uniformly when the format's
   ``slow_down`` option allows it (``auto``: not a program plan's, whose feed it would change; ``yes``:
   any; and never a dynamic compensation's motor-side command, which is tied to its timing), saying
-  so; otherwise it is refused.
+  so; otherwise it is refused, a program plan with the ``[limits]`` scale that plans it for its
+  controller (:mod:`planner.export.headroom`).
 
 The k-th divided difference of positions times ``k!`` equals the k-th derivative of any smooth
 motion through them at some time between the first and the last of its points (the mean value
@@ -125,19 +128,15 @@ def verify_limits(data: ExportData, where: str) -> None:
         if name != "velocity" and name not in data.enforced:
             continue
         d, slack = _divided(t, data.q, order, 0.0)
-        score = np.abs(d) / (_limit(data, name) * (1.0 + EXPORT_FD_TOL) + slack)
+        score = np.abs(d) / (data.plan_limit(name) * (1.0 + EXPORT_FD_TOL) + slack)
         if np.any(score > 1.0):
             i, j = np.unravel_index(int(np.argmax(score)), score.shape)
             raise ExportError(
                 f"{where}: joint {j + 1} {name} by finite differences of the positions, {d[i, j]:.9g} {unit} "
                 f"over samples {i} to {i + order} (t = {t[i]:.6g} s), is above its limit "
-                f"({_limit(data, name)[j]:.9g} {unit}): the positions jump where the rate columns do not say so; "
+                f"({data.plan_limit(name)[j]:.9g} {unit}): the positions jump where the rate columns do not say so; "
                 "refusing to export"
             )
-
-
-def _limit(data: ExportData, name: str) -> np.ndarray:
-    return {"velocity": data.v_max, "acceleration": data.a_max, "jerk": data.j_max}[name]
 
 
 def _divided(t: np.ndarray, q: np.ndarray, order: int, eps: float) -> tuple[np.ndarray, float]:
@@ -206,14 +205,14 @@ def _at(t: np.ndarray | None, i: int) -> float:
 
 
 def _rate_peak(data: ExportData, name: str, values: np.ndarray, slack: float, t: np.ndarray | None, how: str) -> Peak:
-    lim = _limit(data, name)
+    lim = data.robot_limit(name)
     score = np.abs(values) / (lim * (1.0 + EXPORT_FD_TOL) + slack)
     i, j = np.unravel_index(int(np.argmax(score)), score.shape)
     return Peak(name, int(j), float(values[i, j]), float(lim[j]), float(score[i, j]), _at(t, i), how)
 
 
 def _column_peak(data: ExportData, name: str, values: np.ndarray, t: np.ndarray | None, how: str) -> Peak:
-    lim = _limit(data, name)
+    lim = data.robot_limit(name)
     score = np.abs(values) / (lim * (1.0 + EXPORT_LIMIT_TOL))
     i, j = np.unravel_index(int(np.argmax(score)), score.shape)
     return Peak(name, int(j), float(values[i, j]), float(lim[j]), float(score[i, j]), _at(t, i), how)
@@ -225,7 +224,7 @@ def _approach_peaks(data: ExportData, speed: float, acceleration: float) -> list
     out = []
     for name, value in (("velocity", speed), ("acceleration", acceleration)):
         if name == "velocity" or name in data.enforced:
-            lim = _limit(data, name)
+            lim = data.robot_limit(name)
             j = int(np.argmin(lim))
             how = f"{APPROACH} (approach_{'speed' if name == 'velocity' else name}, its leading axis)"
             out.append(
@@ -242,7 +241,7 @@ def _rest_to_rest_peaks(data: ExportData, motion: ControllerMotion, names: list[
     t, q = motion.t, motion.q
     dq = np.abs(np.diff(q, axis=0)) + 2.0 * motion.eps
     T = np.diff(t)[:, None]
-    a = data.a_max[None, :]
+    a = data.robot_limit("acceleration")[None, :]
     acc = 4.0 * dq / T**2
     disc = a**2 * T**2 - 4.0 * a * dq
     vel = np.where(disc >= 0.0, (a * T - np.sqrt(np.maximum(disc, 0.0))) / 2.0, 2.0 * dq / T)
@@ -254,7 +253,7 @@ def _rest_to_rest_peaks(data: ExportData, motion: ControllerMotion, names: list[
         moving = np.abs(np.diff(q, axis=0)) > 2.0 * (motion.eps + EXPORT_POSITION_TOL)
         if np.any(moving):
             i, j = np.unravel_index(int(np.argmax(moving)), moving.shape)
-            out.append(Peak("jerk", int(j), math.inf, float(data.j_max[j]), math.inf, float(t[i]), how))
+            out.append(Peak("jerk", int(j), math.inf, float(data.robot_limit("jerk")[j]), math.inf, float(t[i]), how))
     return out
 
 
@@ -292,8 +291,9 @@ def check_motion(
     worst = _worst(over)
     reason = _refusal(data, motion, worst, mode != "no")
     if reason is not None:
-        advice = "" if _is_approach(worst) else motion.advice
+        advice = "" if _is_approach(worst) else motion.advice + _plan_advice(data, worst, over)
         raise ExportLimitError(f"{fmt}: {worst.sentence()}; refusing to export{reason}{advice}")
+    at_plan = over
     k = 1.0
     for _ in range(SLOW_DOWN_ROUNDS):
         k *= max(p.ratio ** (1.0 / _ORDER[p.quantity]) for p in over) * (1.0 + SLOW_DOWN_MARGIN)
@@ -303,7 +303,7 @@ def check_motion(
         over = [p for p in motion_peaks(slowed, motion_of(slowed)) if p.over]
         if not over:
             if data.program and mode == "auto":
-                raise ExportLimitError(_feed_refusal(data, fmt, worst, k, motion))
+                raise ExportLimitError(_feed_refusal(data, fmt, worst, k, motion, _plan_advice(data, worst, at_plan)))
             feed = f"; {data.program} below its programmed feed (slow_down=yes)" if data.program else ""
             change = (
                 f"slowed down x{k:.4f} ({data.t[-1]:.6g} s -> {slowed.t[-1]:.6g} s): joint {worst.joint + 1} "
@@ -315,23 +315,35 @@ def check_motion(
             raise ExportLimitError(f"{fmt}: {_worst(over).sentence()}; refusing to export{reason}{motion.advice}")
     raise ExportLimitError(
         f"{fmt}: {worst.sentence()}; refusing to export: slowing down by up to x{SLOW_DOWN_MAX:g} does not keep "
-        f"it within the limits{motion.advice}"
+        f"it within the limits{motion.advice}{_plan_advice(data, worst, at_plan)}"
     )
 
 
-def _feed_refusal(data: ExportData, fmt: str, worst: Peak, k: float, motion: ControllerMotion) -> str:
+def _feed_refusal(data: ExportData, fmt: str, worst: Peak, k: float, motion: ControllerMotion, plan: str) -> str:
     """The refusal of a program plan that only a slow-down by ``k`` would export (its feed changed):
-    the format's own way to plan for its controller (``motion.advice``: its period), else the way that
-    holds the feed (setpoints at the plan's period); lowering the plan's limits does not help, as the
-    export checks against the plan's own limits."""
+    the format's own way to plan for its controller (``motion.advice``: its period), else the plan's
+    headroom for its controller (``plan``, :func:`_plan_advice`) and the way that holds the feed
+    (setpoints at the plan's period)."""
     how = motion.advice or (
-        "; the plan's samples are within its limits but this controller's interpolation between them is not: "
-        "send them as setpoints at the plan's period instead (--format urscript)"
+        f"{plan}; or send the plan's samples as setpoints at its period (--format urscript), which "
+        "this controller's interpolation between them does not change"
     )
     return (
         f"{fmt}: {worst.sentence()}; refusing to slow a program plan down (x{k:.4f} would run {data.program} below "
         f"its programmed feed){how}; or give --set slow_down=yes to accept the slower feed"
     )
+
+
+def _plan_advice(data: ExportData, worst: Peak, over: list[Peak]) -> str:
+    """How to plan a program for the controller whose interpolation exceeds a rate limit (the
+    ``[limits]`` scales of :func:`~planner.export.headroom.headroom_advice`), or empty: for a
+    program plan only, not when a position or the approach move is the worst (headroom on the
+    rates does not fix them)."""
+    if not data.program or worst.quantity == "position" or _is_approach(worst):
+        return ""
+    from planner.export.headroom import headroom_advice
+
+    return headroom_advice(data, [p for p in over if not _is_approach(p)])
 
 
 def _worst(over: list[Peak]) -> Peak:

@@ -108,7 +108,7 @@ def _chunk_peaks(
     j_val, j_at = _extreme(jerk, [zero, h, np.clip(-c[4] / np.where(c[5] != 0.0, 5.0 * c[5], np.inf), 0.0, h)])
     a_val, a_at = _extreme(acc, [zero, h, *quadratic_roots(*jerk, h)])
     # |v| <= (|v0| + |v1| + h max|a|) / 2 on the segment: the velocity is solved where that reaches its limit
-    v_hi = data.v_max * (1.0 + EXPORT_FD_TOL)
+    v_hi = data.robot_limit("velocity") * (1.0 + EXPORT_FD_TOL)
     near = (
         np.abs(c[1]) + np.abs(vel[0] + h * (vel[1] + h * (vel[2] + h * (vel[3] + h * vel[4])))) + h * np.abs(a_val)
     ) / 2
@@ -125,7 +125,7 @@ def _chunk_peaks(
     v_at = np.where(v_max >= -v_min, v_tmax, v_tmin)
     for name, val, at in (("velocity", v_val, v_at), ("acceleration", a_val, a_at), ("jerk", j_val, j_at)):
         if name in names:
-            lim = {"velocity": data.v_max, "acceleration": data.a_max, "jerk": data.j_max}[name]
+            lim = data.robot_limit(name)
             score = np.abs(val) / (lim * (1.0 + EXPORT_FD_TOL))
             s, j = np.unravel_index(int(np.argmax(score)), score.shape)
             out.append(

@@ -59,6 +59,9 @@ def data_from_plan(res: Any) -> ExportData:
         controller_declared=bool(r.controller_declared),
         source=f"problem {pr.name}",
         program=_program_name(getattr(pr, "program", None)),
+        robot_v_max=_vec6(r.v_max),
+        robot_a_max=_vec6(r.a_max),
+        robot_j_max=_vec6(r.j_max),
     )
     verify_limits(data, f"export of problem {pr.name} ({res.controller})")
     return data
@@ -151,9 +154,32 @@ def data_from_run(folder: str | Path) -> ExportData:
         inputs=(summary, path),
         link_q=link_q,
         program=_run_program(s),
+        **_robot_limits(summary, rf),
     )
     verify_limits(data, str(path))
     return data
+
+
+def _robot_limits(summary: Path, rf: dict[str, Any]) -> dict[str, np.ndarray | None]:
+    """The robot's own rate limits as a run recorded its robot (``robot_file.joints[i].v_max``,
+    ``a_max``, ``j_max``: the robot file's, before the problem's ``[limits]``), as the
+    ``robot_*_max`` fields of :class:`ExportData`; all None for a summary without ``robot_file``
+    (the plan's limits are then the controller's)."""
+    joints = rf.get("joints") if isinstance(rf, dict) else None
+    if joints is None:
+        return {}
+    if not isinstance(joints, list) or len(joints) != 6 or not all(isinstance(j, dict) for j in joints):
+        raise ExportError(f"{summary}: robot_file.joints = {str(joints)[:60]!r}; expected 6 joint tables")
+    out: dict[str, np.ndarray | None] = {}
+    for key in ("v_max", "a_max", "j_max"):
+        vals = []
+        for i, j in enumerate(joints):
+            v = j.get(key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
+                raise ExportError(f"{summary}: robot_file.joints[{i}].{key} = {v!r}; expected a number > 0")
+            vals.append(float(v))
+        out[f"robot_{key}"] = np.asarray(vals)
+    return out
 
 
 def _run_program(s: dict[str, Any]) -> str:
