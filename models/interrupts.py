@@ -61,7 +61,11 @@ def pending() -> int | None:
 
 
 def raise_if_pending() -> None:
-    """Raise the interrupt of a stop signal that arrived in the command's scope, if one did."""
+    """Raise the interrupt of a stop signal that arrived in the command's scope, if one did.
+
+    Called where a lost signal must not go further: before an output is moved into place, when a
+    command ends, at every progress tick and before every native solve (so a signal Python could
+    not raise, in a destructor, stops the command at the next of them)."""
     if _PENDING:
         raise _interrupt_for(_PENDING[0])
 
@@ -77,11 +81,29 @@ def command_signals() -> Iterator[None]:
         return
     _PENDING.clear()
     previous = {s: signal.signal(s, _command_handler) for s in STOP_SIGNALS}
+    unraisable = sys.unraisablehook
+    sys.unraisablehook = _quiet_recorded_interrupts(unraisable)
     try:
         yield
     finally:
+        sys.unraisablehook = unraisable
         for s, handler in previous.items():
             signal.signal(s, handler)
+        _PENDING.clear()  # outside the scope no signal is recorded, and none is pending
+
+
+def _quiet_recorded_interrupts(hook: Any) -> Any:
+    """``sys.unraisablehook`` that drops the report of an interrupt raised where Python cannot pass
+    it on (a signal handled inside a destructor or a weak-reference callback: "Exception ignored
+    in ..." and its traceback).  The signal is recorded (:func:`pending`) and raised again at the
+    next check (:func:`raise_if_pending`); every other report goes to ``hook``."""
+
+    def quiet(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _PENDING:
+            return
+        hook(unraisable)
+
+    return quiet
 
 
 def forked_worker_signals() -> None:
@@ -125,6 +147,7 @@ def native_call(signals: tuple[int, ...] = STOP_SIGNALS) -> Iterator[None]:
     exception.  CasADi's warning about the exception it caught (written through ``sys.stderr``)
     is dropped: the interrupt is reported once, by whoever handles it.  Only the main thread can
     set a handler: elsewhere, nothing changes."""
+    raise_if_pending()  # one a library lost since the last check: not into another solve
     stderr, filtered = sys.stderr, _WithoutInterruptWarnings(sys.stderr)
     sys.stderr = filtered
     try:

@@ -18,6 +18,8 @@ import time
 from typing import Any, TextIO
 from collections.abc import Callable, Iterator
 
+from models import interrupts
+
 #: Progress units of the stages that do not count figures: (unit, scale to k/M).
 UNITS = {
     "compliance map": ("pt", True),
@@ -82,6 +84,7 @@ class TqdmProgress:
         self._lines = None if on_terminal() else StageLines()
 
     def __call__(self, stage: str, done: int, total: int) -> None:
+        interrupts.raise_if_pending()  # a signal lost in a destructor: stop at the next tick
         unit, scale = unit_of(stage)
         if self._lines is not None:
             self._lines(stage, done, total, unit)

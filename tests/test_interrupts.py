@@ -159,3 +159,35 @@ def test_a_forked_worker_ends_on_sigterm_without_a_traceback(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.stdout.split() == ["True", str(int(signal.SIGTERM))], r.stdout + r.stderr
     assert "Traceback" not in r.stderr, r.stderr
+
+
+def test_a_signal_handled_inside_a_destructor_is_not_lost_nor_printed(default_handlers, capsys):
+    """Python cannot raise out of a destructor: it prints "Exception ignored in ..." with a traceback
+    and goes on.  The signal is recorded, the report dropped, and the next check raises it."""
+
+    class Slow:
+        def __del__(self) -> None:
+            time.sleep(0.3)  # the signal is handled here, between two bytecodes of the destructor
+
+    with interrupts.command_signals():
+        _send_later(signal.SIGINT, 0.1)
+        obj = Slow()
+        del obj
+        assert interrupts.pending() == signal.SIGINT  # went on: the destructor swallowed it
+        with pytest.raises(KeyboardInterrupt):
+            interrupts.raise_if_pending()
+    err = capsys.readouterr().err
+    assert "Exception ignored" not in err and "KeyboardInterrupt" not in err, err
+
+
+def test_a_progress_tick_raises_a_lost_signal(default_handlers):
+    from planner.progress import TqdmProgress
+
+    with interrupts.command_signals():
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.05)
+        except KeyboardInterrupt:  # lost by a library
+            pass
+        with pytest.raises(interrupts.Terminated):
+            TqdmProgress()("posture", 0, 1)

@@ -286,6 +286,9 @@ class _Bar:
         self.lines = None if on_terminal() else StageLines(key=lambda msg: msg.split(":")[0])
 
     def __call__(self, msg: str, done: int, total: int) -> None:
+        from models.interrupts import raise_if_pending
+
+        raise_if_pending()  # a signal lost in a destructor: stop at the next tick
         if not self.enabled:
             return
         if self.lines is not None:
