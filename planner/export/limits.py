@@ -291,7 +291,7 @@ def check_motion(
     worst = _worst(over)
     reason = _refusal(data, motion, worst, mode != "no")
     if reason is not None:
-        advice = "" if _is_approach(worst) else motion.advice + _plan_advice(data, worst, over)
+        advice = "" if _is_approach(worst) else motion.advice + _plan_advice(data, worst, over, motion)
         raise ExportLimitError(f"{fmt}: {worst.sentence()}; refusing to export{reason}{advice}")
     at_plan = over
     k = 1.0
@@ -303,7 +303,8 @@ def check_motion(
         over = [p for p in motion_peaks(slowed, motion_of(slowed)) if p.over]
         if not over:
             if data.program and mode == "auto":
-                raise ExportLimitError(_feed_refusal(data, fmt, worst, k, motion, _plan_advice(data, worst, at_plan)))
+                plan = _plan_advice(data, worst, at_plan, motion)
+                raise ExportLimitError(_feed_refusal(data, fmt, worst, k, motion, plan))
             feed = f"; {data.program} below its programmed feed (slow_down=yes)" if data.program else ""
             change = (
                 f"slowed down x{k:.4f} ({data.t[-1]:.6g} s -> {slowed.t[-1]:.6g} s): joint {worst.joint + 1} "
@@ -315,7 +316,7 @@ def check_motion(
             raise ExportLimitError(f"{fmt}: {_worst(over).sentence()}; refusing to export{reason}{motion.advice}")
     raise ExportLimitError(
         f"{fmt}: {worst.sentence()}; refusing to export: slowing down by up to x{SLOW_DOWN_MAX:g} does not keep "
-        f"it within the limits{motion.advice}{_plan_advice(data, worst, at_plan)}"
+        f"it within the limits{motion.advice}{_plan_advice(data, worst, at_plan, motion)}"
     )
 
 
@@ -334,12 +335,15 @@ def _feed_refusal(data: ExportData, fmt: str, worst: Peak, k: float, motion: Con
     )
 
 
-def _plan_advice(data: ExportData, worst: Peak, over: list[Peak]) -> str:
+def _plan_advice(data: ExportData, worst: Peak, over: list[Peak], motion: ControllerMotion) -> str:
     """How to plan a program for the controller whose interpolation exceeds a rate limit (the
     ``[limits]`` scales of :func:`~planner.export.headroom.headroom_advice`), or empty: for a
-    program plan only, not when a position or the approach move is the worst (headroom on the
-    rates does not fix them)."""
+    program plan only, not when a position or the approach move is the worst, nor for moves from
+    rest to rest (headroom on the plan's rates fixes none of them: a stop at every point is the
+    interpolation's, whatever the plan's limits)."""
     if not data.program or worst.quantity == "position" or _is_approach(worst):
+        return ""
+    if motion.interpolation is Interpolation.REST_TO_REST:
         return ""
     from planner.export.headroom import headroom_advice
 
