@@ -37,8 +37,18 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, raised where Python raises ``KeyboardInterrupt`` for SIGINT."""
 
 
+#: Seconds between the raises of a stop signal that a library lost, until the command unwinds
+#: (:func:`command_signals` run as a program): the latency a lost signal adds.
+RERAISE_INTERVAL_S = 0.1
+#: The signal of the interval timer that raises a lost stop signal again.
+RERAISE_SIGNAL: int = signal.SIGALRM
+
 #: The stop signals that arrived under :func:`command_signals` (the command line's scope).
 _PENDING: list[int] = []
+#: Whether the scope of :func:`command_signals` run as a program is open (the re-raise timer's).
+_RERAISING = [False]
+#: How many :func:`deferred` blocks are open (the re-raise timer waits for their end).
+_DEFERRING = [0]
 
 
 def _interrupt_for(signum: int) -> KeyboardInterrupt:
@@ -46,9 +56,38 @@ def _interrupt_for(signum: int) -> KeyboardInterrupt:
 
 
 def _command_handler(signum: int, frame: FrameType | None = None) -> None:
-    """The handler :func:`command_signals` installs: record, then raise."""
+    """The handler :func:`command_signals` installs: record, then raise (and, run as a program,
+    start the timer that raises it again if it is lost)."""
+    if not _PENDING and _RERAISING[0]:
+        signal.setitimer(signal.ITIMER_REAL, RERAISE_INTERVAL_S, RERAISE_INTERVAL_S)
     _PENDING.append(signum)
     raise _interrupt_for(signum)
+
+
+def _unwinding() -> bool:
+    """Whether the code running handles an interrupt: an ``except``, ``finally`` or ``__exit__``
+    on its way out (or an exception raised in one: its implicit context is the interrupt)."""
+    exc: BaseException | None = sys.exc_info()[1]
+    while exc is not None:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        exc = exc.__context__
+    return False
+
+
+def _reraise_handler(signum: int, frame: FrameType | None = None) -> None:
+    """The re-raise timer's handler: raise the stop signal again if it was lost.
+
+    A library can lose the ``KeyboardInterrupt`` a handler raised without a trace: CasADi's
+    bindings choose among a function's overloads by calling Python (an argument's ``shape``) and
+    discard what that raised, so a signal arriving while a symbolic expression is built was lost
+    and the command went on to its end (measured: ``compplan design`` stopped 1.5 to 2.9 s after the
+    signal, at the check before its output is moved in).  The timer raises the interrupt again
+    every :data:`RERAISE_INTERVAL_S` until the command has unwound, but never into the unwinding
+    itself (the clean-up of the first raise) nor into a :func:`deferred` block."""
+    if not _RERAISING[0] or not _PENDING or _DEFERRING[0] or _unwinding():
+        return
+    raise _interrupt_for(_PENDING[0])
 
 
 def pending() -> int | None:
@@ -71,15 +110,26 @@ def raise_if_pending() -> None:
 
 
 @contextmanager
-def command_signals() -> Iterator[None]:
+def command_signals(process: bool = False) -> Iterator[None]:
     """SIGINT raises ``KeyboardInterrupt`` and SIGTERM :class:`Terminated` in this block (the command
     line's scope), and both are recorded (:func:`pending`), so a terminated command unwinds as an
     interrupted one and no library can lose the signal.  Only the main thread can set a handler:
-    elsewhere, nothing changes."""
+    elsewhere, nothing changes.
+
+    With ``process`` (the command is the last work of its process: the command line run as a
+    program), the stop signals are *ignored* from the end of the block on instead of restored: the
+    command has answered, and a signal arriving while it prints its last line or while the
+    interpreter shuts down (a few hundred milliseconds: atexit, the modules' teardown, where
+    Python has already put back the default actions) would otherwise kill it by the signal, with no
+    line and without its exit status, a finished command's 0 or an interrupted one's 130.  See
+    also :func:`forget_escaped_interrupt`."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     _PENDING.clear()
+    if process:  # the timer that raises a lost signal again (:func:`_reraise_handler`)
+        signal.signal(RERAISE_SIGNAL, _reraise_handler)
+        _RERAISING[0] = True
     previous = {s: signal.signal(s, _command_handler) for s in STOP_SIGNALS}
     unraisable = sys.unraisablehook
     sys.unraisablehook = _quiet_recorded_interrupts(unraisable)
@@ -88,7 +138,10 @@ def command_signals() -> Iterator[None]:
     finally:
         sys.unraisablehook = unraisable
         for s, handler in previous.items():
-            signal.signal(s, handler)
+            signal.signal(s, signal.SIG_IGN if process else handler)
+        if process:  # its handler stays (a no-op now): one already due finds it, not a default action
+            _RERAISING[0] = False
+            signal.setitimer(signal.ITIMER_REAL, 0)
         _PENDING.clear()  # outside the scope no signal is recorded, and none is pending
 
 
@@ -106,6 +159,20 @@ def _quiet_recorded_interrupts(hook: Any) -> Any:
     return quiet
 
 
+def forget_escaped_interrupt() -> None:
+    """Forget CPython's record of a ``KeyboardInterrupt`` that escaped an ``exec`` of a string.
+
+    CPython (3.8 and later) marks the process when a ``KeyboardInterrupt`` leaves code it runs from a
+    string (``exec``/``eval`` of text: every ``dataclass`` decorator and ``namedtuple`` during the
+    imports, several libraries' generated code), and at exit kills the process with SIGINT if the
+    mark is set, *even when the program caught the exception*: a command interrupted during such an
+    ``exec`` (a few tenths of a second at its start) printed ``compplan: interrupted`` and then died
+    by SIGINT instead of exiting 130.  The mark is cleared by the next string run that ends without
+    one: this runs an empty one.  The command line calls it once the command has answered, when it
+    is run as a program (the mark concerns the process's exit only)."""
+    exec("pass", {})  # a constant: the string run itself is the point
+
+
 def forked_worker_signals() -> None:
     """In a worker process forked by a command: Ctrl-C is the parent's to answer (a terminal sends
     it to the whole process group), and SIGTERM (its pool's ``terminate``) ends it at once, without
@@ -113,6 +180,7 @@ def forked_worker_signals() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _PENDING.clear()
+    _RERAISING[0] = False  # the parent's timer is not inherited; nor is its task
 
 
 def _redeliver(signum: int, previous: Any) -> None:
@@ -201,6 +269,7 @@ def _recording(signals: tuple[int, ...], raise_inside: bool) -> Iterator[None]:
             raise KeyboardInterrupt
 
     previous = {s: signal.signal(s, record) for s in signals}
+    _DEFERRING[0] += not raise_inside
     try:
         yield
     except BaseException:
@@ -210,5 +279,6 @@ def _recording(signals: tuple[int, ...], raise_inside: bool) -> Iterator[None]:
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+        _DEFERRING[0] -= not raise_inside
     if arrived:
         _redeliver(arrived[0], previous[arrived[0]])

@@ -133,21 +133,25 @@ def main(argv: list[str] | None = None) -> int:
 
     SIGTERM stops a command as Ctrl-C does (:mod:`models.interrupts`), from the first instruction
     to the last: during the imports, inside a native solver, while an output is written."""
-    from models.interrupts import Terminated, command_signals
+    from models.interrupts import Terminated, command_signals, forget_escaped_interrupt
     from planner.progress import start_clock
 
     start_clock()
 
+    process = argv is None  # run as a program (the console script, python -m planner): its last work
     try:
-        with command_signals():
-            return _main(argv)
+        with command_signals(process=process):
+            code = _main(argv)
     except KeyboardInterrupt as exc:
         what = "terminated" if isinstance(exc, Terminated) else "interrupted"
         written = _published_outputs()
         if written:  # the signal came after some output was moved into place (whole)
             what += " after writing " + ", ".join(str(p) for p in written) + " (complete)"
         print(f"compplan: {what}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        code = EXIT_INTERRUPTED
+    if process:  # the exit status is the command's, not CPython's record of a caught interrupt
+        forget_escaped_interrupt()
+    return code
 
 
 def _run_honouring_signals(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:

@@ -191,3 +191,124 @@ def test_a_progress_tick_raises_a_lost_signal(default_handlers):
             pass
         with pytest.raises(interrupts.Terminated):
             TqdmProgress()("posture", 0, 1)
+
+
+# ------------------------------------------------------------------------------ run as a program
+def _program(body: str) -> subprocess.CompletedProcess:
+    """``body`` run as a program (a process of its own: the re-raise timer and the signal rules
+    of the command line run as a program change the process's handlers)."""
+    code = "import os, signal, sys, time\nfrom models import interrupts\n" + body
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p))
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env)
+
+
+#: A library that loses the interrupt (CasADi's overload resolution discards what the Python code
+#: it calls raised), then goes on working for up to 5 s unless the interrupt is raised again.
+_LOST_THEN_WORK = (
+    "try:\n"
+    "    with interrupts.command_signals(process={process}):\n"
+    "        try:\n"
+    "            os.kill(os.getpid(), signal.SIGTERM)\n"
+    "            time.sleep(0.05)\n"
+    "        except KeyboardInterrupt:\n"
+    "            pass\n"
+    "        end = time.monotonic() + 5\n"
+    "        while time.monotonic() < end:\n"
+    "            sum(range(1000))\n"
+    "        print('lost')\n"
+    "except interrupts.Terminated:\n"
+    "    print('raised again')\n"
+)
+
+
+def test_a_lost_signal_is_raised_again_while_the_command_runs():
+    """Run as a program, a stop signal a library lost without a trace is raised again (every
+    RERAISE_INTERVAL_S) while the command goes on; not so without ``process`` (the reason)."""
+    r = _program(_LOST_THEN_WORK.format(process=True))
+    assert (r.stdout.strip(), r.returncode) == ("raised again", 0), r.stdout + r.stderr
+    r = _program(_LOST_THEN_WORK.format(process=False))
+    assert r.stdout.strip() == "lost", r.stdout + r.stderr
+
+
+def test_the_raise_again_spares_the_unwinding_and_deferred_blocks():
+    """The clean-up of the first raise (``finally``, an ``except`` inside it) and a deferred block
+    (an output moved into place) run to their end; the interrupt is raised again after the block."""
+    body = (
+        "done = []\n"
+        "try:\n"
+        "  with interrupts.command_signals(process=True):\n"
+        "    try:\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "        time.sleep(0.05)\n"
+        "    finally:\n"
+        "        end = time.monotonic() + 0.5\n"
+        "        while time.monotonic() < end:\n"
+        "            try:\n"
+        "                raise OSError('a file already gone')\n"
+        "            except OSError:\n"
+        "                sum(range(1000))\n"
+        "        done.append('clean-up')\n"
+        "except interrupts.Terminated:\n"
+        "  pass\n"
+        "try:\n"
+        "  with interrupts.command_signals(process=True):\n"
+        "    try:\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "        time.sleep(0.05)\n"
+        "    except KeyboardInterrupt:\n"
+        "        pass\n"
+        "    with interrupts.deferred():\n"
+        "        end = time.monotonic() + 0.5\n"
+        "        while time.monotonic() < end:\n"
+        "            sum(range(1000))\n"
+        "        done.append('moved in')\n"
+        "    end = time.monotonic() + 5\n"
+        "    while time.monotonic() < end:\n"
+        "        sum(range(1000))\n"
+        "    done.append('lost')\n"
+        "except interrupts.Terminated:\n"
+        "  pass\n"
+        "print(' '.join(done))\n"
+    )
+    r = _program(body)
+    assert r.stdout.strip() == "clean-up moved in", r.stdout + r.stderr
+
+
+def test_run_as_a_program_a_late_signal_is_ignored():
+    """Once the command has answered, a stop signal (during the interpreter's shutdown) leaves the
+    exit status as it is, instead of killing the process without its line."""
+    r = _program(
+        "with interrupts.command_signals(process=True):\n"
+        "    pass\n"
+        "os.kill(os.getpid(), signal.SIGTERM)\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.1)\n"
+        "print('answered')\n"
+        "sys.exit(130)\n"
+    )
+    assert (r.returncode, r.stdout.strip()) == (130, "answered"), r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("forget", [False, True])
+def test_an_interrupt_caught_after_escaping_an_exec_keeps_the_exit_status(tmp_path, forget):
+    """CPython kills a process run with ``python -m`` by SIGINT at exit when a ``KeyboardInterrupt``
+    left code run from a string (``exec``: every dataclass decorator during the imports), even one
+    the program caught: ``python -m planner`` interrupted then printed its line and died by SIGINT
+    instead of exiting 130 (the reason, ``forget`` False); :func:`forget_escaped_interrupt` keeps
+    the status."""
+    (tmp_path / "caught_interrupt.py").write_text(
+        "import sys\n"
+        "from models import interrupts\n"
+        "try:\n"
+        "    exec('raise KeyboardInterrupt')\n"
+        "except KeyboardInterrupt:\n"
+        "    print('compplan: interrupted')\n"
+        f"if {forget}:\n"
+        "    interrupts.forget_escaped_interrupt()\n"
+        "sys.exit(130)\n"
+    )
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), root, os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run([sys.executable, "-m", "caught_interrupt"], capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == (130 if forget else -signal.SIGINT), r.stdout + r.stderr
