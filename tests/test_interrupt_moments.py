@@ -43,6 +43,10 @@ from pathlib import Path
 
 import pytest
 
+# a small G-code part: straight moves, corners, a dwell, and its problem (a template of its file name)
+from tests.test_program_path import PROBLEM as PROGRAM_PROBLEM
+from tests.test_program_path import PROGRAM
+
 #: Seconds from the signal to the exit of the command that an interrupt may take (the issue asks
 #: for one second; the margin is for a loaded 2-core CI machine).
 INTERRUPT_LATENCY_S = 2.5
@@ -68,41 +72,6 @@ FORBIDDEN = ("Traceback", "KeyboardInterruptException", "Exception ignored")
 
 #: The simulated campaign ``identify`` reads (small: the fit takes seconds).
 CAMPAIGN = 'seed = 3\nunits = "mm"\n[campaign]\nposes = 30\n[noise]\nsigma_m = 2e-5\n[effects.gravity]\n'
-#: A small G-code part (tests/test_program_path.py's): straight moves, corners, a dwell.
-PROGRAM = """\
-G21 G90 G17 G94
-F1200
-G0 X0 Y0 Z5
-G1 Z0
-G1 X40
-G1 X80 Y3
-G1 X100 Y3
-G1 Y40
-G1 X60 Y42
-G1 X20 Y40
-G1 X0 Y30
-G4 P0.5
-G1 X0 Y0
-G0 Z5
-M30
-"""
-PROGRAM_PROBLEM = """\
-name = "part"
-[robot]
-model = "ur10"
-tool = { xyz = [0.08, 0.0, 0.12] }
-[path]
-kind = "gcode"
-file = "part.ngc"
-[workpiece]
-xyz = [0.55, -0.05, 0.1]
-[wrench]
-force = [0.0, 0.0, 0.0]
-[limits]
-max_joint_step = 0.3
-[timing]
-dt = 0.002
-"""
 
 
 @dataclass(frozen=True)
@@ -167,7 +136,7 @@ def prepare_inputs(folder: Path) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "campaign.toml").write_text(CAMPAIGN)
     (folder / "part.ngc").write_text(PROGRAM)
-    (folder / "part.toml").write_text(PROGRAM_PROBLEM)
+    (folder / "part.toml").write_text(PROGRAM_PROBLEM.format(file="part.ngc"))
     steps = (
         ("simulate", "--robot", "ur5", "--config", "campaign.toml", "--out", "data.csv"),
         ("identify", "--robot", "ur5", "--data", "data.csv", "--out", "input_model.toml", "--report", "input_id"),

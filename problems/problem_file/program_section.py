@@ -132,7 +132,9 @@ def _duration_words(seconds: float) -> str:
 
 
 def _move_words(line: int, text: str, length_m: float, feed_m_s: float) -> str:
-    return f"line {line}: {text.strip()!r}, {length_m:.4g} m at {feed_m_s * 6e4:.4g} mm/min"
+    """A move as a message names it: ``line N: 'text', L m at F mm/min`` (no text: CL data's row)."""
+    said = f" {text.strip()!r}," if text.strip() else ""
+    return f"line {line}:{said} {length_m:.4g} m at {feed_m_s * 6e4:.4g} mm/min"
 
 
 def parse_program(
@@ -237,7 +239,7 @@ def _read_program(
             feed = cl.feed_m_s[1:]
             t = np.where(~cl.rapid[1:] & (feed > 0.0), step / np.where(feed > 0.0, feed, 1.0), 0.0)
             k = int(np.argmax(t))
-            words = _move_words(int(cl.line[k + 1]), "", float(step[k]), float(feed[k])).replace("'', ", "")
+            words = _move_words(int(cl.line[k + 1]), "", float(step[k]), float(feed[k]))
             check_duration(str(f), float(np.sum(t)), words, dt)
         way = cl_waypoints(
             cl, DEFAULT_PATH_TOLERANCE_M if tol is None else tol, "default" if tol is None else "path.tolerance_mm"
