@@ -140,6 +140,12 @@ class Problem:
     #: The ``[cell]`` table: the objects around the robot (base frame) and the clearance, or None
     #: when the file has none (:class:`problems.cell.Cell`).
     cell: Cell | None = None
+    #: The cut of a program path with ``[material]`` and ``[stock]``: the predicted cutting wrench
+    #: at every waypoint and what made it (:class:`problems.cutting.prediction.CutPrediction`), else
+    #: None.  The load adds it to the ``[wrench]`` (``docs/cutting.md``).
+    cut: Any = None
+    #: The cut's sections as read (:class:`problems.problem_file.cut_section.CutSetup`), or None.
+    cut_setup: Any = None
 
     @property
     def n(self) -> int:
@@ -154,11 +160,15 @@ class Problem:
 
     @property
     def load(self) -> Load:
-        """The load on the TCP: the wrench (in its frame) plus the payload."""
+        """The load on the TCP: the wrench (in its frame), the predicted cut's wrench (base frame, per
+        waypoint) and the payload."""
         g = self.robot.gravity if self.gravity is None else self.gravity
         W = self.wrench
+        base = W if self.wrench_frame == "base" else np.zeros(6)
+        if self.cut is not None:
+            base = self.cut.wrench_base + base
         return Load(
-            wrench_base=W if self.wrench_frame == "base" else np.zeros(6),
+            wrench_base=base,
             wrench_tool=W if self.wrench_frame == "tool" else np.zeros(6),
             payload_mass_kg=self.payload_mass_kg,
             payload_com_m=self.payload_com_m,
@@ -244,6 +254,9 @@ class Problem:
             d["placement"] = {k: v for k, v in g.items() if k != "placements"}
         if self.cell is not None:
             d["cell"] = self.cell.to_dict()
+        if self.cut_setup is not None:
+            d.update(self.cut_setup.table)
+            d["robot"]["tool"]["cutter"] = self.cut_setup.mill.to_dict()
         return d
 
     def _robot_dict(self) -> dict[str, Any]:
@@ -355,7 +368,8 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
     timing = parse_timing(where, data, program)
     path = parse_path(where, data, orient.rotation, base_dir, arm.nominal, timing.dt)
     cl_wrench = path.program.waypoints.wrench if path.program is not None else None
-    wrench = parse_wrench(where, data, len(path.positions), cl_wrench)
+    cutting = "material" in data or "stock" in data
+    wrench = parse_wrench(where, data, len(path.positions), cl_wrench, optional=cutting)
     payload = parse_payload(where, data)
     limits = parse_limits(where, data, arm.nominal)
     smoothness = parse_cost(where, data)
@@ -363,6 +377,7 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
     home = parse_branch(where, data)
     placement = parse_placement(where, data)
     cell = parse_cell(where, data, base_dir, arm.nominal, path.positions, path.program)
+    cut_setup, cut = _cut(where, data, base_dir, path.program, arm.nominal.tcp2flange)
     return Problem(
         name=head.name,
         description=head.description,
@@ -393,7 +408,21 @@ def problem_from_dict(data: Mapping[str, Any], where: str = "problem", base_dir:
         placement=placement,
         program=path.program,
         cell=cell,
+        cut=cut,
+        cut_setup=cut_setup,
     )
+
+
+def _cut(where: str, data: Mapping[str, Any], base_dir: Path | None, program: Any, tcp2flange: np.ndarray) -> tuple:
+    """The cut's sections and the predicted cut of the program (both None without a cut)."""
+    from problems.problem_file.cut_section import parse_cut_setup
+
+    setup = parse_cut_setup(where, data, base_dir, program, tcp2flange)
+    if setup is None:
+        return None, None
+    from problems.cutting.program_cut import predict_cut
+
+    return setup, predict_cut(setup, program.waypoints, program.workpiece.program2base[:3, :3])
 
 
 def shipped_problems() -> tuple[str, ...]:

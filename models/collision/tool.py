@@ -161,6 +161,9 @@ class Cutter:
 
     radius: float
     length: float
+    #: The end mill this capsule bounds (:class:`models.cutting.cutter.EndMill`), when the file
+    #: describes one (``shape``, ``diameter``, ...); None for a bare ``radius`` and ``length``.
+    mill: Any = None
 
     def __post_init__(self) -> None:
         for key in ("radius", "length"):
@@ -169,8 +172,11 @@ class Cutter:
                 raise InputError(f"tool cutter: {key} must be a finite number > 0 (m), got {v!r}")
             object.__setattr__(self, key, float(v))
 
-    def to_dict(self) -> dict[str, float]:
-        """The cutter in the problem-file schema (``[robot.tool.cutter]``, m)."""
+    def to_dict(self) -> dict[str, Any]:
+        """The cutter in the problem-file schema (``[robot.tool.cutter]``, m): the end mill's
+        description when it has one."""
+        if self.mill is not None:
+            return self.mill.to_dict()
         return {"radius": self.radius, "length": self.length}
 
 

@@ -156,9 +156,21 @@ class EndMill:
             out[ring] = r - np.sqrt(np.maximum(r * r - (d[ring] - flat) ** 2, 0.0))
         return out
 
+    def to_dict(self) -> dict[str, float | int | str]:
+        """The end mill in the problem-file schema (``[robot.tool.cutter]``: m, degrees)."""
+        return {
+            "shape": self.shape.value,
+            "diameter": self.diameter_m,
+            "corner_radius": self.corner_radius_m,
+            "flutes": self.flutes,
+            "helix_deg": math.degrees(self.helix_rad),
+            "flute_length": self.flute_length_m,
+            "length": self.length_m,
+        }
+
     def capsule(self):
         """The cutter's collision capsule (:class:`models.collision.tool.Cutter`): radius D/2,
         length the stick-out."""
         from ..collision.tool import Cutter  # loads coal only when a cell is checked
 
-        return Cutter(self.radius_m, self.length_m)
+        return Cutter(self.radius_m, self.length_m, self)

@@ -1,6 +1,6 @@
 """A problem moved to a base placement: the same task, written in the placed robot's base frame.
 
-The problem's path, nominal orientations and base-frame wrench are in the cell frame (the
+The problem's path, nominal orientations and base-frame wrench (and a predicted cut's wrench) are in the cell frame (the
 problem as written is the placement at the origin).  :func:`problem_at` maps them with the
 placement's ``cell2base`` (:mod:`problems.placement.grid`): positions and rotations as
 coordinates, a base-frame force and moment as free vectors (fixed in the cell), the payload's
@@ -63,6 +63,7 @@ def problem_at(problem: Problem, placement: np.ndarray) -> Problem:
         arm=arm,
         nominal_rpy=rpy,
         cell=None if problem.cell is None else problem.cell.moved(T),  # the objects seen from the placed base
+        cut=None if problem.cut is None else problem.cut.rotated(R),  # the cut's wrench is fixed in the cell
     )
 
 

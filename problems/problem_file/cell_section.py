@@ -62,8 +62,6 @@ CELL_KEYS = ("clearance", "objects")
 OBJECT_KEYS = ("name", "shape", "size", "file", "scale", "xyz", "rpy", "rpy_deg", "role", "frame")
 #: The keys of one ``[[robot.tool.body]]`` table (a tool body element, pose in the flange frame).
 TOOL_BODY_KEYS = ("name", "shape", "size", "file", "scale", "xyz", "rpy", "rpy_deg")
-#: The keys of ``[robot.tool.cutter]``.
-CUTTER_KEYS = ("radius", "length")
 #: A clearance at or above this (m) is implausible: millimetres given under the metre key.
 MAX_CLEARANCE_M = 0.1
 #: The mesh file types read (by suffix, lower case).
@@ -110,7 +108,7 @@ def parse_cell(
     ProblemFileError
         Naming the file, the key, the value and what was expected.
     """
-    tool = parse_tool_geometry(where, data, base_dir)
+    tool = parse_tool_geometry(where, data, base_dir, robot.tcp2flange)
     if "cell" not in data:
         return None
     ct = data["cell"]
@@ -150,7 +148,9 @@ def parse_cell(
     return cell
 
 
-def parse_tool_geometry(where: str, data: Mapping[str, Any], base_dir: Path | None) -> Any:
+def parse_tool_geometry(
+    where: str, data: Mapping[str, Any], base_dir: Path | None, tcp2flange: np.ndarray | None = None
+) -> Any:
     """The tool's collision geometry: ``[[robot.tool.body]]`` and ``[robot.tool.cutter]``, or None.
 
     Parameters
@@ -181,7 +181,7 @@ def parse_tool_geometry(where: str, data: Mapping[str, Any], base_dir: Path | No
     tt = robot.get("tool") if isinstance(robot, Mapping) else None
     if not isinstance(tt, Mapping) or ("body" not in tt and "cutter" not in tt):
         return None
-    from models.collision.tool import Cutter, ToolGeometry  # loads coal: only for a declared tool
+    from models.collision.tool import ToolGeometry  # loads coal: only for a declared tool
 
     raw = tt.get("body", [])
     if not isinstance(raw, list) or not all(isinstance(t, Mapping) for t in raw):
@@ -194,25 +194,9 @@ def parse_tool_geometry(where: str, data: Mapping[str, Any], base_dir: Path | No
             if other.name == e.name:
                 raise err(where, f"{key}.name", f"= {e.name!r} repeats robot.tool.body[{j}]'s; names must be unique")
         elements.append(e)
-    cutter = None
-    if "cutter" in tt:
-        ct = tt["cutter"]
-        if not isinstance(ct, Mapping):
-            raise err(where, "robot.tool.cutter", f"must be a table (radius, length in m), got {ct!r}")
-        VALUES.unknown_keys(f"{where}: [robot.tool.cutter]", ct, CUTTER_KEYS)
-        vals = {}
-        for k in CUTTER_KEYS:
-            if k not in ct:
-                raise err(where, f"robot.tool.cutter.{k}", "is required (m)")
-            vals[k] = positive(where, f"robot.tool.cutter.{k}", ct[k])
-            if vals[k] > PLAUSIBLE_POSITION_MAX_M:
-                raise err(
-                    where,
-                    f"robot.tool.cutter.{k}",
-                    f"= {vals[k]:g} m is implausible for a cutter (> {PLAUSIBLE_POSITION_MAX_M:g} m); "
-                    "in metres (millimetres given?)",
-                )
-        cutter = Cutter(vals["radius"], vals["length"])
+    from problems.problem_file.cutter_section import parse_tool_cutter  # one home for the cutter
+
+    cutter = parse_tool_cutter(where, data, tcp2flange)
     return ToolGeometry(tuple(elements), cutter)
 
 

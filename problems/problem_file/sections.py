@@ -76,6 +76,9 @@ _TOP = (
     "placement",
     "workpiece",
     "cell",
+    "material",
+    "stock",
+    "cut",
 )
 #: Frames a wrench may be given in.
 WRENCH_FRAMES = ("base", "tool")
@@ -357,7 +360,9 @@ def _cone_half_angle(where: str, ot: Mapping[str, Any], rule: OrientationRule) -
     return half
 
 
-def parse_wrench(where: str, data: Mapping[str, Any], n: int, tool_rows: np.ndarray | None = None) -> WrenchSection:
+def parse_wrench(
+    where: str, data: Mapping[str, Any], n: int, tool_rows: np.ndarray | None = None, optional: bool = False
+) -> WrenchSection:
     """The ``[wrench]`` section: frame, and a constant force/moment or one row per waypoint.
 
     Parameters
@@ -367,12 +372,16 @@ def parse_wrench(where: str, data: Mapping[str, Any], n: int, tool_rows: np.ndar
     tool_rows : ndarray, shape (N, 6), optional
         A per-waypoint wrench in the TCP frame from the path itself (CL data with wrench columns):
         then ``[wrench]`` must be absent.
+    optional : bool
+        The section may be absent (zero): the load comes from elsewhere (a predicted cut).
     """
     if tool_rows is not None:
         if "wrench" in data:
             raise err(where, "wrench", "must be absent: the path's CL file gives the wrench per point (fx_N ... mz_Nm)")
         _check_wrench(where, "wrench.per_waypoint", tool_rows)
         return WrenchSection("tool", np.asarray(tool_rows, dtype=float), True)
+    if optional and "wrench" not in data:
+        return WrenchSection("base", np.zeros((n, 6)), False)
     wt = table(where, data, "wrench")
     frame = wt.get("frame", "base")
     if frame not in WRENCH_FRAMES:

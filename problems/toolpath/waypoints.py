@@ -30,7 +30,7 @@ and reported (``docs/gcode.md``, "Path tolerance").
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,6 +38,7 @@ from models.errors import InputError
 
 from .cl_csv import ClPath
 from .program import EventKind, Program, discretise_moves
+from .spindle import SpindleTrack, spindle_track
 
 __all__ = [
     "CORNER_MIN_APPROACH_M",
@@ -102,6 +103,12 @@ class ProgramWaypoints:
     arc_chord : np.ndarray or None
         Shape ``(N,)``, bool: the move ending at the waypoint is (part of) an arc's chord, which lies
         within :data:`ARC_SAGITTA_SHARE` of the tolerance from the arc; None: no arcs.
+    move : np.ndarray or None
+        Shape ``(N,)``, int: the index in the program's moves of the move ending at the waypoint
+        (waypoint 0: -1); None for CL data.
+    spindle : SpindleTrack or None
+        The spindle's speed and turning at every move of the program
+        (:func:`problems.toolpath.spindle.spindle_track`); None for CL data.
     """
 
     points_m: np.ndarray
@@ -117,6 +124,8 @@ class ProgramWaypoints:
     tolerance_source: str
     source: str
     arc_chord: np.ndarray | None = None
+    move: np.ndarray | None = None
+    spindle: SpindleTrack | None = None
 
     @property
     def n(self) -> int:
@@ -212,7 +221,7 @@ def program_waypoints(program: Program, tol_m: float | None = None, tol_source: 
     relief[k] = half[move[k]] + half[move[k + 1]]
     is_arc = np.fromiter((m.kind.value == "arc" for m in program.moves), bool, program.n_moves)
     arc = np.r_[False, is_arc[move[1:]]]
-    return _refine(
+    way = _refine(
         P,
         None,
         line,
@@ -227,7 +236,9 @@ def program_waypoints(program: Program, tol_m: float | None = None, tol_source: 
         program.source,
         relief,
         arc if arc.any() else None,
+        move,
     )
+    return replace(way, spindle=spindle_track(program))
 
 
 def cl_waypoints(cl: ClPath, tol_m: float, tol_source: str = "") -> ProgramWaypoints:
@@ -312,6 +323,7 @@ def _refine(
     source: str,
     relief: np.ndarray | None = None,
     arc: np.ndarray | None = None,
+    move: np.ndarray | None = None,
 ) -> ProgramWaypoints:
     """Stops at the ends and at rapid/cut changes, corners blended or stopped, moves split.
 
@@ -361,6 +373,7 @@ def _refine(
         tol_source,
         source,
         arc[idx] if arc is not None else None,
+        move[idx] if move is not None else None,
     )
 
 
