@@ -113,6 +113,36 @@ def _frames(P: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
+#: Slice counts the samples of a chunk are grouped by before their force is computed (a sample is in
+#: the first group holding its highest engaged slice): the slices above it are empty, and leaving
+#: them out is exact.
+DEPTH_GROUPS = (4, 16, 64, 256)
+
+
+def _wrench_by_depth(mill: Any, coeffs: Any, batch: Any, c: np.ndarray) -> Any:
+    """:func:`models.cutting.force.cut_wrench` of a batch, its samples grouped by engaged depth and
+    each group's mask cut to its slices (the same result, far less work for shallow cuts)."""
+    from models.cutting.engagement import EngagementBatch
+    from models.cutting.force import CutWrench, cut_wrench
+
+    m = batch.mask
+    S, K, _ = m.shape
+    top = np.where(m.any(axis=2), np.arange(1, K + 1)[None, :], 0).max(axis=1, initial=0)
+    mean, peak = np.zeros((S, 6)), np.zeros(S)
+    lo = 0
+    for g in (*DEPTH_GROUPS, K):
+        hi = min(g, K)
+        rows = np.flatnonzero((top > lo) & (top <= hi)) if lo < K else np.zeros(0, dtype=int)
+        if rows.size:
+            sub = EngagementBatch(np.ascontiguousarray(m[rows, :hi, :]), batch.dz_m)
+            w = cut_wrench(mill, coeffs, sub, c[rows])
+            mean[rows], peak[rows] = w.mean, w.peak_force_N
+        lo = hi
+        if hi >= K:
+            break
+    return CutWrench(mean, peak)
+
+
 def _image(z: Any) -> np.ndarray:
     """The stock's top for figures, (ny, nx) at most MAX_FIGURE_CELLS a side (NaN: no material)."""
     top = np.asarray(z.top_m, dtype=float)
@@ -139,8 +169,6 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
         spindle stopped; a rapid into the stock; a cut deeper than the cutter's length; a program that
         never touches the stock.
     """
-    from models.cutting.force import cut_wrench
-
     from .simulate import simulate
 
     _check_axes(way)
@@ -165,7 +193,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
 
     def on_chunk(e: Any) -> None:
         seg = e.segment
-        cw = cut_wrench(mill, coeffs, e.batch, c[seg])
+        cw = _wrench_by_depth(mill, coeffs, e.batch, c[seg])
         W = cw.mean.copy()
         ccw = sense[seg] < 0
         W[ccw, 1] *= -1.0
