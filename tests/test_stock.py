@@ -15,7 +15,7 @@ import trimesh
 from models.cutting.cutter import CutterShape, EndMill
 from models.errors import InputError
 from problems.cutting.engagement_zmap import segment_engagement
-from problems.cutting.removal import _reach, cut_segment, lowest_by_search, sweep_envelope
+from problems.cutting.removal import reach_interval, cut_segment, lowest_by_search, sweep_envelope
 from problems.cutting.simulate import simulate
 from problems.cutting.stock import StockBox, StockMesh
 
@@ -111,7 +111,7 @@ def test_ball_capsule_envelope_matches_the_convex_search():
         p0, p1 = rng.uniform(-5e-3, 5e-3, 3), rng.uniform(-5e-3, 5e-3, 3)
         x, y = rng.uniform(-0.01, 0.01, 500), rng.uniform(-0.01, 0.01, 500)
         low, _ = sweep_envelope(mill, p0, p1, x, y)
-        t1, t2, ok = _reach(R, p0, p1 - p0, x, y)
+        t1, t2, ok = reach_interval(R, p0, p1 - p0, x, y)
         ref = lowest_by_search(mill, p0, p1 - p0, x[ok], y[ok], t1[ok], t2[ok])
         # and a brute-force minimum over 20001 positions, independent of both
         ts = np.linspace(0.0, 1.0, 20001)[:, None]
