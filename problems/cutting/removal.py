@@ -36,7 +36,7 @@ from models.errors import InputError
 
 from .stock import ZMap
 
-__all__ = ["GOLDEN_ITERATIONS", "CutResult", "cut_segment", "lowest_by_search", "sweep_envelope"]
+__all__ = ["GOLDEN_ITERATIONS", "CutResult", "cut_segment", "lowest_by_search", "reach_interval", "sweep_envelope"]
 
 #: Golden-section steps of the bull-nose's lowest-surface search.
 GOLDEN_ITERATIONS = 48
@@ -68,8 +68,9 @@ def _points(p0_m, p1_m) -> tuple[np.ndarray, np.ndarray]:
     return p0, p1
 
 
-def _reach(R: float, p0: np.ndarray, v: np.ndarray, x: np.ndarray, y: np.ndarray):
-    """The t-interval [t1, t2] (clipped to [0, 1]) where the axis is within R of (x, y), and its validity."""
+def reach_interval(R: float, p0: np.ndarray, v: np.ndarray, x: np.ndarray, y: np.ndarray):
+    """Where the cutter's axis, moving from ``p0`` by ``v`` (m), is within ``R`` (m) of the vertical
+    lines at ``x, y`` (m): ``(t1, t2, ok)``, the interval clipped to [0, 1] and whether it exists."""
     wx, wy = x - p0[0], y - p0[1]
     A = v[0] ** 2 + v[1] ** 2
     C = wx * wx + wy * wy
@@ -147,7 +148,7 @@ def sweep_envelope(mill: EndMill, p0_m, p1_m, x_m: np.ndarray, y_m: np.ndarray) 
     p0, p1 = _points(p0_m, p1_m)
     v = p1 - p0
     x, y = np.broadcast_arrays(np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float))
-    t1, t2, ok = _reach(mill.radius_m, p0, v, x, y)
+    t1, t2, ok = reach_interval(mill.radius_m, p0, v, x, y)
     z1, z2 = p0[2] + t1 * v[2], p0[2] + t2 * v[2]
     high = np.maximum(z1, z2) + mill.length_m
     if mill.shape is CutterShape.FLAT:
