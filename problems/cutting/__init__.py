@@ -1,0 +1,1 @@
+"""Metal-cutting tasks: measured cutting forces, the identification of cutting coefficients."""
