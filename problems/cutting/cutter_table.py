@@ -17,14 +17,16 @@ the value found and what was expected.
 from __future__ import annotations
 
 import math
+import tomllib
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from models.cutting.cutter import CutterShape, EndMill
 from models.errors import InputError
 from models.tables import TableReader
 
-__all__ = ["CUTTER_KEYS", "MAX_PLAUSIBLE_DIAMETER_M", "parse_cutter_table"]
+__all__ = ["CUTTER_KEYS", "MAX_PLAUSIBLE_DIAMETER_M", "parse_cutter_table", "read_cutter_file"]
 
 #: The keys a cutter table may hold, in the order messages list them.
 CUTTER_KEYS = ("shape", "diameter", "corner_radius", "flutes", "helix_deg", "flute_length", "length")
@@ -139,3 +141,29 @@ def _corner_radius(values: TableReader, where: str, key: str, v: Any, shape: Cut
 def _missing_corner(values: TableReader, where: str, key: str) -> InputError:
     """The error of a bull-nose cutter table without its corner radius."""
     return values.error(f"{where}: key '{key}' is missing (a bull_nose end mill's corner radius in metres)")
+
+
+def read_cutter_file(path: str | Path) -> EndMill:
+    """The end mill of a cutter file: a TOML file with a ``[cutter]`` table (``length`` optional).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read or parsed, has no ``[cutter]`` table, or the table is wrong (the
+        message names the file and the key).
+    """
+    where = str(path)
+    try:
+        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{where}: no such file (expected a TOML file with a [cutter] table)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{where}: cannot read it as UTF-8 text ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{where}: not valid TOML ({exc})") from None
+    if "cutter" not in doc:
+        raise InputError(f"{where}: no [cutter] table (keys {', '.join(CUTTER_KEYS)}; docs/cutting.md)")
+    other = sorted(set(doc) - {"cutter"})
+    if other:
+        raise InputError(f"{where}: unknown table(s) or key(s) {other}; a cutter file holds one [cutter] table")
+    return parse_cutter_table(where, doc["cutter"], "cutter", length_required=False)
