@@ -77,7 +77,9 @@ def _toml_string(text: str) -> str:
 
 def _test_record(t: ForceTest, measured: np.ndarray, fitted: np.ndarray, resid: np.ndarray) -> dict[str, Any]:
     def wrench(w: np.ndarray) -> dict[str, float | None]:
-        return {f"{a}_{u.replace('·', '')}": (float(x) if np.isfinite(x) else None) for a, u, x in zip(AXES, AXIS_UNITS, w)}
+        return {
+            f"{a}_{u.replace('·', '')}": (float(x) if np.isfinite(x) else None) for a, u, x in zip(AXES, AXIS_UNITS, w)
+        }
 
     return {
         "label": t.label,
@@ -106,7 +108,8 @@ def fit_record(fit: CoefficientFit, mill: EndMill, data_path: str, cutter_path: 
             for n, v, s, u, ok in zip(COEFFICIENT_NAMES, fit.values, fit.std_errors, COEFFICIENT_UNITS, fit.identified)
         },
         "axes": {
-            a: {"r_squared": r, "rms_residual": e, "unit": u} for a, r, e, u in zip(AXES, fit.r_squared, rms, AXIS_UNITS)
+            a: {"r_squared": r, "rms_residual": e, "unit": u}
+            for a, r, e, u in zip(AXES, fit.r_squared, rms, AXIS_UNITS)
         },
         "condition_number": fit.condition_number,
         "rank": fit.rank,
@@ -145,7 +148,7 @@ def figure_png(fit: CoefficientFit, mill: EndMill) -> bytes:
     from planner.report.figure_base import new_figure, png_bytes
     from problems.cutting.coefficient_fit import design_of_tests
 
-    fig = new_figure(*FIGURE_SIZE_IN, left=0.07, right=0.99, bottom=0.15, top=0.88, wspace=0.3)
+    fig = new_figure(*FIGURE_SIZE_IN, left=0.07, right=0.99, bottom=0.15, top=0.80, wspace=0.3)
     axes = [fig.add_subplot(1, 3, k + 1) for k in range(3)]
     tests = fit.table.tests
     top = max(t.feed_per_tooth_m for t in tests) * 1e3 * 1.05
@@ -202,7 +205,8 @@ def report_html(fit: CoefficientFit, mill: EndMill, data_path: str, name: str, p
     status = fit.status.value + (f": {fit.reason}" if fit.reason else "")
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in fit.notes)
     cutter = (
-        f"{mill.shape.value} end mill, D {mill.diameter_m * 1e3:g} mm, corner radius {mill.corner_radius_m * 1e3:g} mm, "
+        f"{mill.shape.value} end mill, D {mill.diameter_m * 1e3:g} mm, "
+        f"corner radius {mill.corner_radius_m * 1e3:g} mm, "
         f"{mill.flutes} flutes, helix {np.degrees(mill.helix_rad):g} deg"
     )
     png64 = base64.b64encode(png).decode("ascii")
@@ -212,8 +216,8 @@ def report_html(fit: CoefficientFit, mill: EndMill, data_path: str, name: str, p
 td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}}td:first-child{{text-align:left}}</style></head>
 <body><h1>Cutting coefficients: {html.escape(name)}</h1>
 <p>Data: {html.escape(str(data_path))} ({fit.table.n} tests). Cutter: {html.escape(cutter)}.</p>
-<p><b>Status: {html.escape(status)}</b>. Condition number (column-scaled design) {_fmt(fit.condition_number, '.3g')};
-{fit.n_rows} measured components, {fit.dof} degrees of freedom.</p>{f'<ul>{notes}</ul>' if notes else ''}
+<p><b>Status: {html.escape(status)}</b>. Condition number (column-scaled design) {_fmt(fit.condition_number, ".3g")};
+{fit.n_rows} measured components, {fit.dof} degrees of freedom.</p>{f"<ul>{notes}</ul>" if notes else ""}
 <h2>Figure 1. Mean forces against the feed per tooth</h2>
 <img alt="mean Fx, Fy, Fz against the feed per tooth, measured and fitted" src="data:image/png;base64,{png64}">
 <p>Points: the measured mean forces on the tool (feed frame); lines: the fitted model for each engagement,

@@ -110,5 +110,6 @@ def run_materials(args: argparse.Namespace) -> int:
     names = list(material_names())
     width = max((len(n) for n in names), default=0)
     for n in names:
-        print(f"{n:<{width}}  {material(n).source}")
+        m = material(n)
+        print(f"{n:<{width}}  {m.name}: {m.source}")
     return 0
