@@ -62,7 +62,7 @@ RANK_RTOL = 1e-9
 #: A coefficient is identified when the null space's component along it is below this.
 IDENTIFIED_TOL = 1e-6
 #: Column-scaled condition number above which the tests hardly separate the coefficients.
-COND_LIMIT = 1e3
+COND_LIMIT = 100.0
 #: Coefficient of determination of an axis below which the fit is called poor.
 R2_MIN = 0.9
 
