@@ -443,3 +443,17 @@ def test_shipped_example_is_what_its_generator_writes_and_fits() -> None:
 def test_fit_accepts_a_force_table_and_rejects_none(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no tests"):
         fit_coefficients(MILL, ForceTable("t.csv", ()))
+
+
+def test_cli_refuses_another_commands_folder_without_force(tmp_path: Path, capsys) -> None:
+    data = _write(tmp_path, _csv_rows(slot_tests()), name="al.csv")
+    cutter = tmp_path / "cutter.toml"
+    cutter.write_text(CUTTER_TOML)
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "pose.json").write_text("{}")
+    args = ["cutting", "fit", "--data", str(data), "--cutter", str(cutter), "--out", str(out)]
+    assert main(args) == 2
+    assert "use --force" in capsys.readouterr().err and (out / "pose.json").exists()
+    assert main([*args, "--force"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["coefficients.toml", "fit.json", "report.html"]

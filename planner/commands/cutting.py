@@ -14,7 +14,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from planner.commands.common import check_output, releases_outputs
+from planner.commands.common import add_force_argument, check_output, releases_outputs
 
 #: Sub-commands defined here.
 COMMANDS = ("cutting",)
@@ -52,6 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument(
         "--name", default=None, help="the material's name in coefficients.toml (default: the --data file's stem)"
     )
+    add_force_argument(f)
     f.set_defaults(func=run_fit)
     m = actions.add_parser(
         "materials",
@@ -73,9 +74,10 @@ def run_fit(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     kind = output_folder_kind(out) if out.is_dir() else None
-    if kind is not None:
+    if kind is not None and not args.force:
         raise InputError(
-            f"--out {out}: holds {kind.phrase} ({kind.command}); choose another folder for the cutting fit"
+            f"--out {out}: holds {kind.phrase} ({kind.command}), which a cutting fit would replace whole; use "
+            "--force to replace it, or another --out"
         )
     check_output(out, {"--data": args.data, "--cutter": args.cutter}, "folder", writes=CUTTING_FIT_FILES)
     mill = read_cutter_file(args.cutter)
