@@ -82,6 +82,8 @@ ROTATION_STEPS_PER_TOOTH = 36
 MAX_FEED_PER_TOOTH_M = 5e-3
 #: Memory bound of one chunk of samples' float mask (bytes).
 CHUNK_BYTES = 32 * 2**20
+#: Gauss-Legendre points per slice on a corner (torus or ball) for the slice's integrals.
+CORNER_GAUSS_POINTS = 6
 #: Rotation positions per block of the instantaneous-wrench product (bounds its weight matrix).
 ROTATION_BLOCK = 36
 
@@ -132,14 +134,29 @@ def _half_bins(n_angles: int) -> int:
     return (n_angles + 1) // 2
 
 
-def _edge_length(mill: EndMill, z0: np.ndarray, z1: np.ndarray) -> np.ndarray:
-    """Meridian length of the cutting edge between heights ``z0 < z1`` above the tip, m."""
-    r = mill.corner_radius_m
-    straight = np.maximum(z1 - np.maximum(z0, r), 0.0)
+def _slice_integrals(mill: EndMill, z0: np.ndarray, z1: np.ndarray) -> np.ndarray:
+    """Integrals over each slice ``[z0, z1]`` of the edge, shape (3, 6, K): arms ``1, rho, z`` (m^0,
+    m, m) times the weights ``dz, sin(kappa) dz, cos(kappa) dz`` (the chip's, per unit
+    ``c sin(phi)``) and ``dS, sin(kappa) dS, cos(kappa) dS`` (the edge's; ``dS = r dkappa`` on the
+    corner, ``dz`` on the flank), m.  Closed form on the flank, Gauss-Legendre in ``kappa`` on the
+    corner (smooth there: exact to rounding)."""
+    R, r = mill.radius_m, mill.corner_radius_m
+    za = np.maximum(z0, r)
+    length = np.maximum(z1 - za, 0.0)
+    zb = za + length
+    flank = np.array([length, length, 0.0 * length, length, length, 0.0 * length])
+    out = np.stack([flank, R * flank, 0.5 * (zb * zb - za * za) * (flank > 0.0)])
     if r == 0.0:
-        return straight
-    kappa = lambda z: np.arccos(np.clip((r - np.minimum(z, r)) / r, -1.0, 1.0))  # noqa: E731
-    return r * (kappa(z1) - kappa(z0)) + straight
+        return out
+    k0, k1 = (np.arccos(np.clip((r - np.minimum(z, r)) / r, -1.0, 1.0)) for z in (z0, z1))
+    x, w = np.polynomial.legendre.leggauss(CORNER_GAUSS_POINTS)
+    kap = 0.5 * (k0 + k1)[:, None] + 0.5 * (k1 - k0)[:, None] * x[None, :]
+    wk = 0.5 * (k1 - k0)[:, None] * w[None, :]
+    sk, ck = np.sin(kap), np.cos(kap)
+    arms = (np.ones_like(kap), (R - r) + r * sk, r * (1.0 - ck))
+    per = (r * sk, r * sk * sk, r * sk * ck, r + 0.0 * sk, r * sk, r * ck)
+    out = out + np.array([[(arm * p * wk).sum(axis=1) for p in per] for arm in arms])
+    return out
 
 
 @lru_cache(maxsize=16)
@@ -150,24 +167,25 @@ def _cell_design(mill: EndMill, n_slices: int, dz_m: float, n_angles: int) -> np
     phi = (np.arange(jh) + 0.5) * (2.0 * math.pi / n_angles)
     z0 = np.arange(n_slices) * dz_m
     z1 = np.maximum(np.minimum(z0 + dz_m, mill.flute_length_m), z0)
-    zc = 0.5 * (z0 + z1)
-    rho = mill.radius_at(zc)[:, None]
-    sk = mill.sin_kappa(zc)[:, None]
-    ck = np.sqrt(np.maximum(1.0 - sk * sk, 0.0))
+    ints = _slice_integrals(mill, z0, z1)[:, :, :, None]  # (arm, weight, K, 1)
     sp, cp = np.sin(phi)[None, :], np.cos(phi)[None, :]
     zero = np.zeros((n_slices, jh))
-    u_t = np.stack(np.broadcast_arrays(-cp, sp, zero), axis=-1)
-    u_r = np.stack(np.broadcast_arrays(-sk * sp, -sk * cp, ck + zero), axis=-1)
-    u_a = np.stack(np.broadcast_arrays(-ck * sp, -ck * cp, -sk + zero), axis=-1)
-    pos = np.stack(np.broadcast_arrays(rho * sp, rho * cp, zc[:, None] + zero), axis=-1)
-    area = (np.maximum(sp, 0.0) * (z1 - z0)[:, None])[..., None]  # h db per unit feed
-    edge = _edge_length(mill, z0, z1)[:, None, None] + zero[..., None]
-    g = np.zeros((n_slices, jh, 6, 6))
-    for i, u in enumerate((u_t, u_r, u_a)):
-        for col, size in ((i, area), (i + 3, edge)):
-            f = u * size
-            g[..., :3, col] = f
-            g[..., 3:, col] = np.cross(pos, f)
+    chip = np.maximum(sp, 0.0)  # h db = c sin(phi) dz
+
+    def forces(arm: int) -> np.ndarray:
+        """Forces on the tool per unit coefficient (K, Jh, 6, 3), weighted by the arm."""
+        cols = []
+        for (p, s, c), scale in ((ints[arm, :3], chip), (ints[arm, 3:], np.ones_like(chip))):
+            f_t = np.stack([-cp * p, sp * p, zero], axis=-1)
+            f_r = np.stack([-sp * s, -cp * s, c + zero], axis=-1)
+            f_a = np.stack([-sp * c, -cp * c, -s + zero], axis=-1)
+            cols += [f * scale[..., None] for f in (f_t, f_r, f_a)]
+        return np.stack(cols, axis=2)
+
+    e_rho = np.stack(np.broadcast_arrays(sp, cp, zero), axis=-1)[:, :, None, :]
+    e_z = np.array([0.0, 0.0, 1.0])
+    moment = np.cross(e_rho, forces(1)) + np.cross(e_z, forces(2))
+    g = np.concatenate([forces(0), moment], axis=-1).transpose(0, 1, 3, 2).copy()
     g.setflags(write=False)
     return g
 
