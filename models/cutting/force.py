@@ -16,14 +16,19 @@ radial and axial forces are::
     dFt = Ktc h db + Kte dS,   dFr = Krc h db + Kre dS,   dFa = Kac h db + Kae dS
 
 ``h db = c sin(phi) dz`` for every edge shape.  **Edge length** ``dS``: the length of the edge's
-meridian (its projection on the axial plane through the point) over the slice, ``r dkappa`` on a
-corner of radius ``r`` and ``dz`` on the flank (exact per slice, not ``dz / sin kappa`` at its
-midpoint, which is wrong near a ball's tip).  On the flank this is Altintas' flat-end-mill model
-(edge force ``Kte dz`` per slice, eq. 2.2x), with which published edge coefficients are identified
-(mean forces of flat end mills, linear in the feed).  Altintas' ball-end model takes the helical
-edge's own length ``sqrt(drho^2 + dz^2 + (rho dpsi)^2)``; that reaches ``dz / cos(beta)`` at the
-flank, inconsistent with coefficients identified per unit axial depth by up to ``1/cos(beta)`` (15 %
-at 30 deg), so it is not used here.  With this choice a cell's force does not depend on the helix.
+meridian (its trace in the axial plane through the point), ``r dkappa`` on a corner of radius ``r``
+and ``dz`` on the flank.  On the flank this is Altintas' flat-end-mill model (edge force ``Kte dz``
+per slice), the model with which published coefficients are identified (mean slot forces of flat end
+mills, linear in the feed); on a ball it is Altintas' ball-end ``dS`` without its helical term
+``rho dpsi`` (book: ``dS = sqrt(drho^2 + dz^2 + (rho dpsi)^2)``), which would make the flank's edge
+force ``Kte dz / cos(beta)``, 15 % more at a 30 deg helix than the coefficients were identified with,
+and would jump there at the ball's equator.  With this choice a cell's force does not depend on the
+helix; the helix only shifts it in time.
+
+Each slice's forces are the exact integrals over its height (closed form on the flank, Gauss-Legendre
+in ``kappa`` on a corner, where ``sin(kappa)`` varies like ``sqrt(z)`` near a ball's tip), moments
+included; only the angle is sampled at the bin centres (a midpoint sum, about ``1e-5`` relative on 1
+deg bins).
 
 The forces ON THE TOOL in the sample's **feed frame** (origin at the tool tip, ``x`` the feed, ``z``
 the tool axis towards the spindle, ``y = z x x``; for a clockwise spindle the edge point is
@@ -44,7 +49,11 @@ At rotation ``theta`` flute ``n`` of ``N`` is at ``phi = theta + 2 pi n / N - ps
 that angle.  Averaged over a revolution every flute passes every bin once, so the **mean wrench** is
 ``N / J sum_{k, j} mask[k, j] w(k, j)`` (``J`` angle bins, ``w`` the cell's wrench): it does not depend
 on the helix and is linear in the six coefficients, ``mean = D @ [Ktc, Krc, Kac, Kte, Kre, Kae]``
-(:func:`mean_force_design`).
+(:func:`mean_force_design`).  The **instantaneous wrench** (:func:`instantaneous_wrench`) sums, per
+rotation, the cells under each flute's edge (each slice's angle snapped to its bin, +-half a bin);
+the **peak force** of :func:`cut_wrench` is its largest ``|F|`` over :data:`ROTATION_STEPS_PER_TOOTH`
+rotations of one tooth period (the pattern repeats every ``2 pi / N``).  Both are matrix products of
+the flattened ``(K, J)`` mask with per-cell weights, over chunks of samples and the engaged slices.
 
 Limits: no force of the bottom (end) cutting edges of a flat mill (plunging, ramping); no run-out
 (all flutes cut the same chip); no tool or workpiece deflection fed back into the chip; no size
@@ -84,8 +93,8 @@ MAX_FEED_PER_TOOTH_M = 5e-3
 CHUNK_BYTES = 32 * 2**20
 #: Gauss-Legendre points per slice on a corner (torus or ball) for the slice's integrals.
 CORNER_GAUSS_POINTS = 6
-#: Rotation positions per block of the instantaneous-wrench product (bounds its weight matrix).
-ROTATION_BLOCK = 36
+#: Memory bound of the instantaneous wrench's weight matrix (bytes; rotations are taken in blocks).
+WEIGHT_BYTES = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -234,16 +243,22 @@ def mean_force_design(mill: EndMill, batch: EngagementBatch, feed_per_tooth_m: n
 
 
 def _rotation_weights(
-    mill: EndMill, coeffs: CuttingCoefficients, batch: EngagementBatch, theta: np.ndarray, rows: int
+    mill: EndMill,
+    coeffs: CuttingCoefficients,
+    batch: EngagementBatch,
+    theta: np.ndarray,
+    rows: int,
+    slices: slice,
 ) -> np.ndarray:
-    """Weights ``(K, Jh, T, rows, 2)``: the wrench rows at rotation ``theta[t]`` of a true cell, its
-    cutting part per unit feed ``[..., 0]`` and its edge part ``[..., 1]``."""
-    g = _cell_design(mill, batch.n_slices, float(batch.dz_m), batch.n_angles)
+    """Weights ``(K', Jh, T, rows, 2)`` of the slices ``slices``: the wrench rows at rotation
+    ``theta[t]`` of a true cell, its cutting part per unit feed ``[..., 0]`` and its edge part
+    ``[..., 1]``."""
+    g = _cell_design(mill, batch.n_slices, float(batch.dz_m), batch.n_angles)[slices]
     n_slices, jh = g.shape[:2]
     k = coeffs.as_vector()
     gc = g[:, :, :rows, :3] @ k[:3]
     ge = g[:, :, :rows, 3:] @ k[3:]
-    lag = mill.lag_rad(batch.slice_heights_m())
+    lag = mill.lag_rad(batch.slice_heights_m()[slices])
     w = np.zeros((n_slices, jh, theta.size, rows, 2))
     width = 2.0 * math.pi / batch.n_angles
     ks, ts = np.meshgrid(np.arange(n_slices), np.arange(theta.size), indexing="ij")
@@ -284,16 +299,23 @@ def instantaneous_wrench(
     ndarray, shape (S, T, rows)
         ``[Fx, Fy, Fz(, Mx, My, Mz)]`` on the tool, feed frame, about the tool tip (N, N m).
     """
+    if rows not in (3, 6):
+        raise InputError(f"instantaneous wrench rows must be 3 (forces) or 6 (wrench), got {rows!r}")
     c = _feed(feed_per_tooth_m, batch.n_samples)
     theta = np.atleast_1d(np.asarray(rotation_rad, dtype=float))
     out = np.zeros((batch.n_samples, theta.size, rows))
-    for t0 in range(0, theta.size, ROTATION_BLOCK):
-        th = theta[t0 : t0 + ROTATION_BLOCK]
-        w = _rotation_weights(mill, coeffs, batch, th, rows).astype(dtype)
-        jh = w.shape[1]
+    jh = _half_bins(batch.n_angles)
+    active = np.flatnonzero(batch.mask[:, :, :jh].any(axis=(0, 2)))
+    if active.size == 0:
+        return out
+    lo, hi = int(active[0]), int(active[-1]) + 1
+    block = max(1, min(theta.size, WEIGHT_BYTES // ((hi - lo) * jh * rows * 2 * 8)))
+    for t0 in range(0, theta.size, block):
+        th = theta[t0 : t0 + block]
+        w = _rotation_weights(mill, coeffs, batch, th, rows, slice(lo, hi)).astype(dtype)
         for s0, s1, k0, k1 in _chunks(batch, np.dtype(dtype).itemsize):
             x = batch.mask[s0:s1, k0:k1, :jh].reshape(s1 - s0, -1).astype(dtype)
-            y = (x @ w[k0:k1].reshape(-1, th.size * rows * 2)).reshape(s1 - s0, th.size, rows, 2)
+            y = (x @ w[k0 - lo : k1 - lo].reshape(-1, th.size * rows * 2)).reshape(s1 - s0, th.size, rows, 2)
             out[s0:s1, t0 : t0 + th.size] = y[..., 0] * c[s0:s1, None, None] + y[..., 1]
     return out
 
