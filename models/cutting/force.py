@@ -123,18 +123,18 @@ class CutWrench:
 
 
 def _feed(feed_per_tooth_m: np.ndarray | float, n: int) -> np.ndarray:
-    c = np.broadcast_to(np.asarray(feed_per_tooth_m, dtype=float), (n,)) if np.ndim(feed_per_tooth_m) == 0 else None
-    if c is None:
-        c = np.asarray(feed_per_tooth_m, dtype=float)
-        if c.shape != (n,):
-            raise InputError(f"feed per tooth must have shape ({n},) (one per sample), got {c.shape}")
+    """The feed per tooth of each of ``n`` samples, m, shape (n,), checked."""
+    c = np.asarray(feed_per_tooth_m, dtype=float)
+    if c.ndim == 0:
+        c = np.full(n, float(c))
+    elif c.shape != (n,):
+        raise InputError(f"feed per tooth must have shape ({n},) (one per sample) or be a number, got {c.shape}")
     bad = ~(np.isfinite(c) & (c >= 0.0) & (c <= MAX_FEED_PER_TOOTH_M))
     if bad.any():
         i = int(np.argmax(bad))
-        raise InputError(
-            f"feed per tooth of sample {i} must be in [0, {MAX_FEED_PER_TOOTH_M:g}] m, got {c[i]!r} m"
-            + (" (mm given as m?)" if np.isfinite(c[i]) and c[i] > MAX_FEED_PER_TOOTH_M else "")
-        )
+        hint = " (mm given as m?)" if np.isfinite(c[i]) and c[i] > MAX_FEED_PER_TOOTH_M else ""
+        limit = MAX_FEED_PER_TOOTH_M
+        raise InputError(f"feed per tooth of sample {i} must be in [0, {limit:g}] m, got {c[i]!r} m{hint}")
     return c
 
 
