@@ -46,6 +46,8 @@ TRUE = np.array([631e6, 99e6, 273e6, 13e3, 10e3, 2.8e3])
 EXACT_RTOL = 1e-6
 #: Partial immersions: the entry/exit angle falls within half an angle bin (0.025 deg) of the exact one.
 PARTIAL_RTOL = 5e-3
+#: A ball end mill's slot (corner slices of 0.1 mm, exact slice integrals; 1440 angle bins).
+BALL_RTOL = 1e-5
 #: Noise of the noisy tests, N, and how many standard errors an estimate may be off.
 NOISE_N = 1.0
 MAX_SIGMAS = 4.0
@@ -241,6 +243,40 @@ def test_forces_on_the_workpiece_are_implausible() -> None:
         t.wrench[:3] *= -1.0
     fit = fit_coefficients(MILL, tests)
     assert fit.status is FitStatus.IMPLAUSIBLE and "workpiece" in fit.reason
+
+
+def ball_slot(k: np.ndarray, c: float, a: float, N: int, r: float) -> np.ndarray:
+    """Mean [Fx, Fy, Fz] of a ball end mill (radius r) in a slot of depth a <= r, integrated by hand.
+
+    On the ball ``z = r (1 - cos kappa)``, ``dz = r sin(kappa) dkappa``, the chip ``h db = c sin(phi) dz``
+    and the edge element the meridian's ``dS = r dkappa``; the force on the tool
+    ``dFx = -sin k sin phi dFr - cos phi dFt - cos k sin phi dFa``, ``dFy = -sin k cos phi dFr + sin phi dFt
+    - cos k cos phi dFa``, ``dFz = cos k dFr - sin k dFa``; over phi in [0, pi]: int sin^2 = pi/2,
+    int sin = 2, int sin cos = int cos = 0, int 1 = pi."""
+    Ktc, Krc, Kac, Kte, Kre, Kae = k
+    k1 = math.acos((r - a) / r)
+    int_sin_dz = r * (k1 / 2.0 - math.sin(2.0 * k1) / 4.0)  # int sin(kappa) dz
+    int_cos_dz = r * math.sin(k1) ** 2 / 2.0  # int cos(kappa) dz
+    int_ds, int_sin_ds, int_cos_ds = r * k1, a, r * math.sin(k1)  # int dS, int sin dS, int cos dS
+    g = N / (2.0 * math.pi)
+    fx = -(Krc * c * math.pi / 2 * int_sin_dz + 2 * Kre * int_sin_ds + Kac * c * math.pi / 2 * int_cos_dz)
+    fx -= 2 * Kae * int_cos_ds
+    fy = Ktc * c * math.pi / 2 * a + 2 * Kte * int_ds
+    fz = 2 * Krc * c * int_cos_dz + math.pi * Kre * int_cos_ds - 2 * Kac * c * int_sin_dz - math.pi * Kae * a
+    return g * np.array([fx, fy, fz])
+
+
+def test_ball_end_mill_slots_recover_the_coefficients() -> None:
+    ball = EndMill(CutterShape.BALL, 0.010, 0.005, 2, math.radians(30.0), 0.020, 0.040)
+    tests = []
+    for a in (2e-3, 4e-3):
+        for c in FEEDS_M:
+            w = np.full(6, np.nan)
+            w[:3] = ball_slot(TRUE, c, a, ball.flutes, ball.radius_m)
+            tests.append(ForceTest(2, "", c, a, None, Milling.SLOT, Spindle.CW, w))
+    fit = fit_coefficients(ball, tests)
+    assert fit.status is FitStatus.OK, fit.reason
+    np.testing.assert_allclose(fit.values, TRUE, rtol=BALL_RTOL)
 
 
 # ------------------------------------------------------------------ the engagement
