@@ -68,7 +68,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from models.errors import InputError
     from planner.cutting_report import CUTTING_FIT_FILES, cutting_fit_outputs
     from planner.output import output_folder_kind
-    from problems.cutting.coefficient_fit import COEFFICIENT_NAMES, COEFFICIENT_UNITS, FitStatus, fit_coefficients
+    from problems.cutting.coefficient_fit import COEFFICIENT_NAMES, COEFFICIENT_UNITS, fit_coefficients
     from problems.cutting.cutter_table import read_cutter_file
     from problems.cutting.force_data import read_force_csv
 
@@ -83,7 +83,7 @@ def run_fit(args: argparse.Namespace) -> int:
     mill = read_cutter_file(args.cutter)
     table = read_force_csv(args.data)
     fit = fit_coefficients(mill, table)
-    if fit.status is FitStatus.UNDERDETERMINED:
+    if not fit.status.usable:
         raise InputError(f"{args.data}: cannot identify the cutting coefficients: {fit.reason}")
     name = args.name if args.name is not None else Path(args.data).stem
     cutting_fit_outputs(fit, mill, out, str(args.data), str(args.cutter), name).publish()
@@ -99,7 +99,7 @@ def run_fit(args: argparse.Namespace) -> int:
         print(f"  R^2: {r2}")
     for note in fit.notes:
         print(f"  note: {note}")
-    if fit.status is not FitStatus.OK:
+    if not fit.status.ok:
         print(f"compplan: warning: {fit.status.value}: {fit.reason}", file=sys.stderr)
     print(f"wrote {out}/: {', '.join(CUTTING_FIT_FILES)}")
     return 0

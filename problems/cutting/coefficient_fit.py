@@ -25,13 +25,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from enum import Enum
 
 import numpy as np
 
 from models.cutting.cutter import CutterShape, EndMill
 from models.cutting.engagement import SLICE_HEIGHT_M
 from models.errors import InputError
+from models.status import Status
 from problems.cutting.force_data import ForceTable, ForceTest, Spindle, engagement_of_test
 
 __all__ = [
@@ -67,8 +67,8 @@ COND_LIMIT = 100.0
 R2_MIN = 0.9
 
 
-class FitStatus(Enum):
-    """Outcome of a fit (the worst that applies)."""
+class FitStatus(Status):
+    """Outcome of a fit (the worst that applies); ``usable``: all six coefficients identified."""
 
     OK = "ok"
     #: Some coefficients are not fixed by the tests (the reason names them and what to add).
@@ -79,6 +79,11 @@ class FitStatus(Enum):
     ILL_CONDITIONED = "ill_conditioned"
     #: The model explains a measured axis poorly (R^2 below R2_MIN).
     POOR_FIT = "poor_fit"
+
+    @property
+    def usable(self) -> bool:
+        """Every status but ``underdetermined`` gives all six coefficients (with a caveat unless ok)."""
+        return self is not FitStatus.UNDERDETERMINED
 
 
 @dataclass(frozen=True)
