@@ -38,6 +38,7 @@ COMMAND_MODULES = (
     "export",
     "track",
     "place",
+    "cutting",
 )
 
 

@@ -16,14 +16,19 @@ radial and axial forces are::
     dFt = Ktc h db + Kte dS,   dFr = Krc h db + Kre dS,   dFa = Kac h db + Kae dS
 
 ``h db = c sin(phi) dz`` for every edge shape.  **Edge length** ``dS``: the length of the edge's
-meridian (its projection on the axial plane through the point) over the slice, ``r dkappa`` on a
-corner of radius ``r`` and ``dz`` on the flank (exact per slice, not ``dz / sin kappa`` at its
-midpoint, which is wrong near a ball's tip).  On the flank this is Altintas' flat-end-mill model
-(edge force ``Kte dz`` per slice, eq. 2.2x), with which published edge coefficients are identified
-(mean forces of flat end mills, linear in the feed).  Altintas' ball-end model takes the helical
-edge's own length ``sqrt(drho^2 + dz^2 + (rho dpsi)^2)``; that reaches ``dz / cos(beta)`` at the
-flank, inconsistent with coefficients identified per unit axial depth by up to ``1/cos(beta)`` (15 %
-at 30 deg), so it is not used here.  With this choice a cell's force does not depend on the helix.
+meridian (its trace in the axial plane through the point), ``r dkappa`` on a corner of radius ``r``
+and ``dz`` on the flank.  On the flank this is Altintas' flat-end-mill model (edge force ``Kte dz``
+per slice), the model with which published coefficients are identified (mean slot forces of flat end
+mills, linear in the feed); on a ball it is Altintas' ball-end ``dS`` without its helical term
+``rho dpsi`` (book: ``dS = sqrt(drho^2 + dz^2 + (rho dpsi)^2)``), which would make the flank's edge
+force ``Kte dz / cos(beta)``, 15 % more at a 30 deg helix than the coefficients were identified with,
+and would jump there at the ball's equator.  With this choice a cell's force does not depend on the
+helix; the helix only shifts it in time.
+
+Each slice's forces are the exact integrals over its height (closed form on the flank, Gauss-Legendre
+in ``kappa`` on a corner, where ``sin(kappa)`` varies like ``sqrt(z)`` near a ball's tip), moments
+included; only the angle is sampled at the bin centres (a midpoint sum, about ``1e-5`` relative on 1
+deg bins).
 
 The forces ON THE TOOL in the sample's **feed frame** (origin at the tool tip, ``x`` the feed, ``z``
 the tool axis towards the spindle, ``y = z x x``; for a clockwise spindle the edge point is
@@ -44,7 +49,11 @@ At rotation ``theta`` flute ``n`` of ``N`` is at ``phi = theta + 2 pi n / N - ps
 that angle.  Averaged over a revolution every flute passes every bin once, so the **mean wrench** is
 ``N / J sum_{k, j} mask[k, j] w(k, j)`` (``J`` angle bins, ``w`` the cell's wrench): it does not depend
 on the helix and is linear in the six coefficients, ``mean = D @ [Ktc, Krc, Kac, Kte, Kre, Kae]``
-(:func:`mean_force_design`).
+(:func:`mean_force_design`).  The **instantaneous wrench** (:func:`instantaneous_wrench`) sums, per
+rotation, the cells under each flute's edge (each slice's angle snapped to its bin, +-half a bin);
+the **peak force** of :func:`cut_wrench` is its largest ``|F|`` over :data:`ROTATION_STEPS_PER_TOOTH`
+rotations of one tooth period (the pattern repeats every ``2 pi / N``).  Both are matrix products of
+the flattened ``(K, J)`` mask with per-cell weights, over chunks of samples and the engaged slices.
 
 Limits: no force of the bottom (end) cutting edges of a flat mill (plunging, ramping); no run-out
 (all flutes cut the same chip); no tool or workpiece deflection fed back into the chip; no size
@@ -82,8 +91,10 @@ ROTATION_STEPS_PER_TOOTH = 36
 MAX_FEED_PER_TOOTH_M = 5e-3
 #: Memory bound of one chunk of samples' float mask (bytes).
 CHUNK_BYTES = 32 * 2**20
-#: Rotation positions per block of the instantaneous-wrench product (bounds its weight matrix).
-ROTATION_BLOCK = 36
+#: Gauss-Legendre points per slice on a corner (torus or ball) for the slice's integrals.
+CORNER_GAUSS_POINTS = 6
+#: Memory bound of the instantaneous wrench's weight matrix (bytes; rotations are taken in blocks).
+WEIGHT_BYTES = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -112,18 +123,18 @@ class CutWrench:
 
 
 def _feed(feed_per_tooth_m: np.ndarray | float, n: int) -> np.ndarray:
-    c = np.broadcast_to(np.asarray(feed_per_tooth_m, dtype=float), (n,)) if np.ndim(feed_per_tooth_m) == 0 else None
-    if c is None:
-        c = np.asarray(feed_per_tooth_m, dtype=float)
-        if c.shape != (n,):
-            raise InputError(f"feed per tooth must have shape ({n},) (one per sample), got {c.shape}")
+    """The feed per tooth of each of ``n`` samples, m, shape (n,), checked."""
+    c = np.asarray(feed_per_tooth_m, dtype=float)
+    if c.ndim == 0:
+        c = np.full(n, float(c))
+    elif c.shape != (n,):
+        raise InputError(f"feed per tooth must have shape ({n},) (one per sample) or be a number, got {c.shape}")
     bad = ~(np.isfinite(c) & (c >= 0.0) & (c <= MAX_FEED_PER_TOOTH_M))
     if bad.any():
         i = int(np.argmax(bad))
-        raise InputError(
-            f"feed per tooth of sample {i} must be in [0, {MAX_FEED_PER_TOOTH_M:g}] m, got {c[i]!r} m"
-            + (" (mm given as m?)" if np.isfinite(c[i]) and c[i] > MAX_FEED_PER_TOOTH_M else "")
-        )
+        hint = " (mm given as m?)" if np.isfinite(c[i]) and c[i] > MAX_FEED_PER_TOOTH_M else ""
+        limit = MAX_FEED_PER_TOOTH_M
+        raise InputError(f"feed per tooth of sample {i} must be in [0, {limit:g}] m, got {c[i]!r} m{hint}")
     return c
 
 
@@ -132,14 +143,29 @@ def _half_bins(n_angles: int) -> int:
     return (n_angles + 1) // 2
 
 
-def _edge_length(mill: EndMill, z0: np.ndarray, z1: np.ndarray) -> np.ndarray:
-    """Meridian length of the cutting edge between heights ``z0 < z1`` above the tip, m."""
-    r = mill.corner_radius_m
-    straight = np.maximum(z1 - np.maximum(z0, r), 0.0)
+def _slice_integrals(mill: EndMill, z0: np.ndarray, z1: np.ndarray) -> np.ndarray:
+    """Integrals over each slice ``[z0, z1]`` of the edge, shape (3, 6, K): arms ``1, rho, z`` (m^0,
+    m, m) times the weights ``dz, sin(kappa) dz, cos(kappa) dz`` (the chip's, per unit
+    ``c sin(phi)``) and ``dS, sin(kappa) dS, cos(kappa) dS`` (the edge's; ``dS = r dkappa`` on the
+    corner, ``dz`` on the flank), m.  Closed form on the flank, Gauss-Legendre in ``kappa`` on the
+    corner (smooth there: exact to rounding)."""
+    R, r = mill.radius_m, mill.corner_radius_m
+    za = np.maximum(z0, r)
+    length = np.maximum(z1 - za, 0.0)
+    zb = za + length
+    flank = np.array([length, length, 0.0 * length, length, length, 0.0 * length])
+    out = np.stack([flank, R * flank, 0.5 * (zb * zb - za * za) * (flank > 0.0)])
     if r == 0.0:
-        return straight
-    kappa = lambda z: np.arccos(np.clip((r - np.minimum(z, r)) / r, -1.0, 1.0))  # noqa: E731
-    return r * (kappa(z1) - kappa(z0)) + straight
+        return out
+    k0, k1 = (np.arccos(np.clip((r - np.minimum(z, r)) / r, -1.0, 1.0)) for z in (z0, z1))
+    x, w = np.polynomial.legendre.leggauss(CORNER_GAUSS_POINTS)
+    kap = 0.5 * (k0 + k1)[:, None] + 0.5 * (k1 - k0)[:, None] * x[None, :]
+    wk = 0.5 * (k1 - k0)[:, None] * w[None, :]
+    sk, ck = np.sin(kap), np.cos(kap)
+    arms = (np.ones_like(kap), (R - r) + r * sk, r * (1.0 - ck))
+    per = (r * sk, r * sk * sk, r * sk * ck, r + 0.0 * sk, r * sk, r * ck)
+    out = out + np.array([[(arm * p * wk).sum(axis=1) for p in per] for arm in arms])
+    return out
 
 
 @lru_cache(maxsize=16)
@@ -150,24 +176,25 @@ def _cell_design(mill: EndMill, n_slices: int, dz_m: float, n_angles: int) -> np
     phi = (np.arange(jh) + 0.5) * (2.0 * math.pi / n_angles)
     z0 = np.arange(n_slices) * dz_m
     z1 = np.maximum(np.minimum(z0 + dz_m, mill.flute_length_m), z0)
-    zc = 0.5 * (z0 + z1)
-    rho = mill.radius_at(zc)[:, None]
-    sk = mill.sin_kappa(zc)[:, None]
-    ck = np.sqrt(np.maximum(1.0 - sk * sk, 0.0))
+    ints = _slice_integrals(mill, z0, z1)[:, :, :, None]  # (arm, weight, K, 1)
     sp, cp = np.sin(phi)[None, :], np.cos(phi)[None, :]
     zero = np.zeros((n_slices, jh))
-    u_t = np.stack(np.broadcast_arrays(-cp, sp, zero), axis=-1)
-    u_r = np.stack(np.broadcast_arrays(-sk * sp, -sk * cp, ck + zero), axis=-1)
-    u_a = np.stack(np.broadcast_arrays(-ck * sp, -ck * cp, -sk + zero), axis=-1)
-    pos = np.stack(np.broadcast_arrays(rho * sp, rho * cp, zc[:, None] + zero), axis=-1)
-    area = (np.maximum(sp, 0.0) * (z1 - z0)[:, None])[..., None]  # h db per unit feed
-    edge = _edge_length(mill, z0, z1)[:, None, None] + zero[..., None]
-    g = np.zeros((n_slices, jh, 6, 6))
-    for i, u in enumerate((u_t, u_r, u_a)):
-        for col, size in ((i, area), (i + 3, edge)):
-            f = u * size
-            g[..., :3, col] = f
-            g[..., 3:, col] = np.cross(pos, f)
+    chip = np.maximum(sp, 0.0)  # h db = c sin(phi) dz
+
+    def forces(arm: int) -> np.ndarray:
+        """Forces on the tool per unit coefficient (K, Jh, 6, 3), weighted by the arm."""
+        cols = []
+        for (p, s, c), scale in ((ints[arm, :3], chip), (ints[arm, 3:], np.ones_like(chip))):
+            f_t = np.stack([-cp * p, sp * p, zero], axis=-1)
+            f_r = np.stack([-sp * s, -cp * s, c + zero], axis=-1)
+            f_a = np.stack([-sp * c, -cp * c, -s + zero], axis=-1)
+            cols += [f * scale[..., None] for f in (f_t, f_r, f_a)]
+        return np.stack(cols, axis=2)
+
+    e_rho = np.stack(np.broadcast_arrays(sp, cp, zero), axis=-1)[:, :, None, :]
+    e_z = np.array([0.0, 0.0, 1.0])
+    moment = np.cross(e_rho, forces(1)) + np.cross(e_z, forces(2))
+    g = np.concatenate([forces(0), moment], axis=-1).transpose(0, 1, 3, 2).copy()
     g.setflags(write=False)
     return g
 
@@ -216,16 +243,22 @@ def mean_force_design(mill: EndMill, batch: EngagementBatch, feed_per_tooth_m: n
 
 
 def _rotation_weights(
-    mill: EndMill, coeffs: CuttingCoefficients, batch: EngagementBatch, theta: np.ndarray, rows: int
+    mill: EndMill,
+    coeffs: CuttingCoefficients,
+    batch: EngagementBatch,
+    theta: np.ndarray,
+    rows: int,
+    slices: slice,
 ) -> np.ndarray:
-    """Weights ``(K, Jh, T, rows, 2)``: the wrench rows at rotation ``theta[t]`` of a true cell, its
-    cutting part per unit feed ``[..., 0]`` and its edge part ``[..., 1]``."""
-    g = _cell_design(mill, batch.n_slices, float(batch.dz_m), batch.n_angles)
+    """Weights ``(K', Jh, T, rows, 2)`` of the slices ``slices``: the wrench rows at rotation
+    ``theta[t]`` of a true cell, its cutting part per unit feed ``[..., 0]`` and its edge part
+    ``[..., 1]``."""
+    g = _cell_design(mill, batch.n_slices, float(batch.dz_m), batch.n_angles)[slices]
     n_slices, jh = g.shape[:2]
     k = coeffs.as_vector()
     gc = g[:, :, :rows, :3] @ k[:3]
     ge = g[:, :, :rows, 3:] @ k[3:]
-    lag = mill.lag_rad(batch.slice_heights_m())
+    lag = mill.lag_rad(batch.slice_heights_m()[slices])
     w = np.zeros((n_slices, jh, theta.size, rows, 2))
     width = 2.0 * math.pi / batch.n_angles
     ks, ts = np.meshgrid(np.arange(n_slices), np.arange(theta.size), indexing="ij")
@@ -266,16 +299,23 @@ def instantaneous_wrench(
     ndarray, shape (S, T, rows)
         ``[Fx, Fy, Fz(, Mx, My, Mz)]`` on the tool, feed frame, about the tool tip (N, N m).
     """
+    if rows not in (3, 6):
+        raise InputError(f"instantaneous wrench rows must be 3 (forces) or 6 (wrench), got {rows!r}")
     c = _feed(feed_per_tooth_m, batch.n_samples)
     theta = np.atleast_1d(np.asarray(rotation_rad, dtype=float))
     out = np.zeros((batch.n_samples, theta.size, rows))
-    for t0 in range(0, theta.size, ROTATION_BLOCK):
-        th = theta[t0 : t0 + ROTATION_BLOCK]
-        w = _rotation_weights(mill, coeffs, batch, th, rows).astype(dtype)
-        jh = w.shape[1]
+    jh = _half_bins(batch.n_angles)
+    active = np.flatnonzero(batch.mask[:, :, :jh].any(axis=(0, 2)))
+    if active.size == 0:
+        return out
+    lo, hi = int(active[0]), int(active[-1]) + 1
+    block = max(1, min(theta.size, WEIGHT_BYTES // ((hi - lo) * jh * rows * 2 * 8)))
+    for t0 in range(0, theta.size, block):
+        th = theta[t0 : t0 + block]
+        w = _rotation_weights(mill, coeffs, batch, th, rows, slice(lo, hi)).astype(dtype)
         for s0, s1, k0, k1 in _chunks(batch, np.dtype(dtype).itemsize):
             x = batch.mask[s0:s1, k0:k1, :jh].reshape(s1 - s0, -1).astype(dtype)
-            y = (x @ w[k0:k1].reshape(-1, th.size * rows * 2)).reshape(s1 - s0, th.size, rows, 2)
+            y = (x @ w[k0 - lo : k1 - lo].reshape(-1, th.size * rows * 2)).reshape(s1 - s0, th.size, rows, 2)
             out[s0:s1, t0 : t0 + th.size] = y[..., 0] * c[s0:s1, None, None] + y[..., 1]
     return out
 

@@ -47,8 +47,13 @@ def _length(where: str, key: str, v: Any) -> float:
     return x
 
 
-def parse_cutter_table(where: str, ct: Mapping[str, Any], prefix: str = "robot.tool.cutter") -> EndMill:
+def parse_cutter_table(
+    where: str, ct: Mapping[str, Any], prefix: str = "robot.tool.cutter", length_required: bool = True
+) -> EndMill:
     """An end mill from its table (keys :data:`END_MILL_KEYS`; messages name ``prefix.key``).
+
+    ``length_required`` False (a cutter file for ``compplan cutting fit``): the stick-out defaults to
+    the flute length.
 
     Raises
     ------
@@ -57,7 +62,7 @@ def parse_cutter_table(where: str, ct: Mapping[str, Any], prefix: str = "robot.t
         a corner radius that does not fit the shape, a flute length beyond the stick-out).
     """
     VALUES.unknown_keys(f"{where}: [{prefix}]", ct, END_MILL_KEYS)
-    for k in ("shape", "diameter", "flutes", "flute_length", "length"):
+    for k in ("shape", "diameter", "flutes", "flute_length") + (("length",) if length_required else ()):
         if k not in ct:
             given = ", ".join(sorted(set(ct) & set(END_MILL_KEYS))) or "none"
             raise err(
@@ -93,7 +98,7 @@ def parse_cutter_table(where: str, ct: Mapping[str, Any], prefix: str = "robot.t
     if not 0.0 <= helix < 75.0:
         raise err(where, f"{prefix}.helix_deg", f"= {helix:g} deg; expected a helix angle in [0, 75) degrees")
     flute = _length(where, f"{prefix}.flute_length", ct["flute_length"])
-    length = _length(where, f"{prefix}.length", ct["length"])
+    length = _length(where, f"{prefix}.length", ct["length"]) if "length" in ct else flute
     if flute > length:
         raise err(
             where,
