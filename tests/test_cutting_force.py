@@ -31,7 +31,7 @@ from models.errors import InputError
 #: its error is about (pi/180)^2 / 24 = 1.3e-5 of the integrand's scale.  Tolerance on the wrench,
 #: relative to its largest force component.
 FLAT_MEAN_RTOL = 1e-3
-#: Ball end mill (2 mm deep in a 10 mm ball): the module integrates each slice exactly in z
+#: Ball and bull-nose end mills: the module integrates each slice exactly in z
 #: (Gauss-Legendre in kappa), so only the 1-degree midpoint sum in phi is left (about 1e-5).
 BALL_MEAN_RTOL = 1e-3
 #: The mean over a revolution and the average of the instantaneous wrench over rotations at every
@@ -106,35 +106,56 @@ def test_flat_mean_matches_closed_form(helix_deg, st, ex):
     np.testing.assert_allclose(got[3:5], [mx, my], atol=FLAT_MEAN_RTOL * scale * a)
 
 
-def ball_density(z: float, phi: float, R: float, k: CuttingCoefficients, c: float) -> np.ndarray:
-    """Wrench per unit height and unit angle of Altintas' ball-end model on the lower hemisphere
-    (kappa from the tip, edge length the meridian's: dS = dz / sin kappa)."""
-    kap = math.acos(1 - z / R)
-    sk, ck = math.sin(kap), math.cos(kap)
+def corner_density(u: float, phi: float, R: float, r: float, k: CuttingCoefficients, c: float) -> np.ndarray:
+    """Wrench per unit angle ``u = kappa`` (on a corner of radius ``r``, lower part of a ball or a
+    torus) and unit ``phi`` of Altintas' general end-mill model: ``z = r (1 - cos u)``,
+    ``rho = (R - r) + r sin u``, ``dz = r sin u du``, chip ``h db = c sin(phi) dz``, edge length
+    ``dS = r du`` (the meridian's)."""
+    sk, ck = math.sin(u), math.cos(u)
     s, co = math.sin(phi), math.cos(phi)
-    h = c * s * sk
-    db = 1 / sk
-    ft, fr, fa = (k.Ktc * h + k.Kte) * db, (k.Krc * h + k.Kre) * db, (k.Kac * h + k.Kae) * db
+    chip, edge = c * s * r * sk, r
+    ft, fr, fa = (k.Ktc * chip + k.Kte * edge, k.Krc * chip + k.Kre * edge, k.Kac * chip + k.Kae * edge)
     f = np.array(
         [-sk * s * fr - co * ft - ck * s * fa, -sk * co * fr + s * ft - ck * co * fa, ck * fr - sk * fa],
     )
-    r = np.array([R * sk * s, R * sk * co, z])
-    return np.concatenate([f, np.cross(r, f)])
+    rho = (R - r) + r * sk
+    pos = np.array([rho * s, rho * co, r * (1 - ck)])
+    return np.concatenate([f, np.cross(pos, f)])
 
 
-def test_ball_mean_matches_numerical_integration():
-    mill = ball_mill(2, 30.0)
-    R, a = mill.radius_m, 2e-3
-    got = mean_force_design(mill, batch_for(mill, a, 0.0, math.pi), C)[0] @ COEFFS.as_vector()
+def flank_density(z: float, phi: float, R: float, k: CuttingCoefficients, c: float) -> np.ndarray:
+    """Wrench per unit height and unit ``phi`` on the flank (kappa = pi/2, dS = dz)."""
+    s, co = math.sin(phi), math.cos(phi)
+    ft, fr, fa = k.Ktc * c * s + k.Kte, k.Krc * c * s + k.Kre, k.Kac * c * s + k.Kae
+    f = np.array([-s * fr - co * ft, -co * fr + s * ft, -fa])
+    return np.concatenate([f, np.cross(np.array([R * s, R * co, z]), f)])
+
+
+def corner_mill_mean(R: float, r: float, flutes: int, a: float) -> np.ndarray:
+    """Mean wrench of a slot [0, pi] at depth ``a`` by scipy: the corner over kappa, the flank over z."""
     want = np.empty(6)
+    u_max = math.acos(1 - min(a, r) / r)
     for i in range(6):
-        # substitute z = R (1 - cos u) (u = kappa) so that the 1/sin(kappa) of the edge term is smooth
-        def f(phi, u, i=i):
-            z = R * (1 - math.cos(u))
-            return ball_density(z, phi, R, COEFFS, C)[i] * R * math.sin(u)
+        total = integrate.dblquad(
+            lambda phi, u, i=i: corner_density(u, phi, R, r, COEFFS, C)[i], 0.0, u_max, 0.0, math.pi, epsabs=1e-10
+        )[0]
+        if a > r:
+            total += integrate.dblquad(
+                lambda phi, z, i=i: flank_density(z, phi, R, COEFFS, C)[i], r, a, 0.0, math.pi, epsabs=1e-10
+            )[0]
+        want[i] = flutes / (2 * math.pi) * total
+    return want
 
-        u_max = math.acos(1 - a / R)
-        want[i] = 2 / (2 * math.pi) * integrate.dblquad(f, 0.0, u_max, 0.0, math.pi, epsabs=1e-9, epsrel=1e-10)[0]
+
+@pytest.mark.parametrize(
+    "shape, r, a",
+    [(CutterShape.BALL, 5e-3, 2e-3), (CutterShape.BULL_NOSE, 1e-3, 2.5e-3)],
+    ids=["ball_2mm", "bull_nose_2.5mm"],
+)
+def test_corner_mill_mean_matches_numerical_integration(shape, r, a):
+    mill = EndMill(shape, 0.01, r, 2, math.radians(30.0), 0.02, 0.05)
+    got = mean_force_design(mill, batch_for(mill, a, 0.0, math.pi), C)[0] @ COEFFS.as_vector()
+    want = corner_mill_mean(mill.radius_m, r, 2, a)
     np.testing.assert_allclose(got[:3], want[:3], atol=BALL_MEAN_RTOL * np.abs(want[:3]).max())
     np.testing.assert_allclose(got[3:], want[3:], atol=BALL_MEAN_RTOL * np.abs(want[3:]).max())
 
