@@ -324,6 +324,7 @@ def _compensate(res: PlanResult) -> None:
         res.status = PlanStatus.COMPENSATION_FAILED
         res.reason = f"exact compensation of branch {res.posture.best.label}: {res.exact.reason}"
         return
+    _compare_cut(res, q, L)
     qc = res.exact.q_command
     res.model_sigma = path_sigma(arm, qc, arm.tcp_wrench(res.exact.q_deflected, L))
     for caveat in (res.model_sigma.warning(), res.model_sigma.load_warning()):
@@ -337,6 +338,19 @@ def _compensate(res: PlanResult) -> None:
             f"the compensated command of joint {j + 1} at waypoint {k} is {qc[k, j]:.6g} rad, "
             f"outside its limits [{robot.q_min[j]:.6g}, {robot.q_max[j]:.6g}] rad"
         )
+
+
+def _compare_cut(res: PlanResult, q: np.ndarray, L: np.ndarray) -> None:
+    """With a predicted cut and a ``[cut] stand_in``: the errors the stand-in's commands would leave."""
+    cut = res.problem.cut
+    if cut is None or cut.stand_in is None:
+        return
+    from problems.cutting.comparison import compare_stand_in, stand_in_load
+
+    load = res.problem.load
+    res.cut_comparison = compare_stand_in(
+        res.problem.model, q, load, stand_in_load(load, cut.wrench_base, cut.stand_in, cut.stand_in_frame)
+    )
 
 
 def _base_frame_caveat(arm: ArmModel, q: np.ndarray, L: np.ndarray) -> list[str]:

@@ -19,6 +19,9 @@ from planner.output import OutputSet
 from planner.plan_record import record_from_plan
 from planner.plan_result import PlanResult, RunView
 from planner.record.columns import (
+    CUT_COLUMNS,
+    CUT_FILE,
+    CUT_STOCK_FILE,
     LINK_COLUMNS,
     MM_MIN_PER_M_S,
     PATH_COLUMNS,
@@ -106,6 +109,11 @@ def write_outputs(
             out.add_bytes(name, data)
     if view.dynamic is not None:
         out.add_csv("dynamic.csv", *view.dynamic)
+    if view.cut is not None:
+        from planner.plan_cut import cut_stock_bytes
+
+        out.add_csv(CUT_FILE, CUT_COLUMNS, view.cut)
+        out.add_bytes(CUT_STOCK_FILE, cut_stock_bytes(res))
     for name, data in (extra or {}).items():
         out.add_bytes(name, data)
     out.publish()
@@ -117,6 +125,7 @@ def output_names(res: PlanResult, with_figures: bool = True) -> list[str]:
     names = ["summary.json", "path.csv", "waypoints.csv", "branches.csv"]
     names += [trajectory_file(m, res.controller) for m in res.trajectories]
     names += ["dynamic.csv"] if res.dynamic is not None and res.dynamic.link is not None else []
+    names += [CUT_FILE, CUT_STOCK_FILE] if res.problem.cut is not None else []
     if with_figures:
         names += ["branches.png"] + (["trajectory.png"] if res.trajectories else [])
     return names

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from planner.output import jsonable
-from planner.record.columns import DYNAMIC_KEY, MM_MIN_PER_M_S, PROGRAM_KEY, WAYPOINT_COLUMNS
+from planner.record.columns import CUT_COLUMNS, DYNAMIC_KEY, MM_MIN_PER_M_S, PROGRAM_KEY, WAYPOINT_COLUMNS
 from planner.record.record import (
     NO_TRAJECTORY,
     ProgramRecord,
@@ -70,6 +70,14 @@ def record_from_plan(res: PlanResult, folder: str | Path, view: RunView | None =
         run.dynamic = {c: np.asarray(rows[:, j], float) for j, c in enumerate(cols)}
     elif isinstance(summary.get(DYNAMIC_KEY), Mapping):
         run.absent["dynamic"] = no_dynamic(summary)
+    if view.cut is not None:
+        c = res.problem.cut
+        run.cut = {col: np.asarray(view.cut[:, j], float) for j, col in enumerate(CUT_COLUMNS)}
+        run.cut_stock = {
+            "before": np.asarray(c.heights_before, dtype=float),
+            "after": np.asarray(c.heights_after, dtype=float),
+            "extent": np.asarray(c.grid_extent_m, dtype=float),
+        }
     return run
 
 

@@ -97,6 +97,9 @@ class PlanResult:
     model_sigma: Any = None
     #: The cell check (:class:`planner.cell_check.CellCheck`) when the problem has a ``[cell]``.
     cell: Any = None
+    #: A predicted cut with a ``[cut] stand_in``: the TCP errors its commands would leave under the
+    #: predicted load (:class:`problems.cutting.comparison.StandInComparison`), else None.
+    cut_comparison: Any = None
 
     @property
     def ok(self) -> bool:
@@ -199,7 +202,12 @@ class PlanResult:
         cols, rows = self.branch_table(errors)
         stage = self.dynamic
         dyn = stage.series(self.problem.model) if stage is not None and stage.link is not None else None
-        return RunView(self, self.summary(errors), self.waypoint_table(), cols, rows, dyn)
+        cut = None
+        if self.problem.cut is not None:
+            from planner.plan_cut import cut_rows
+
+            cut = cut_rows(self)
+        return RunView(self, self.summary(errors), self.waypoint_table(), cols, rows, dyn, cut)
 
     # ------------------------------------------------------------------ summary
     def summary(self, errors: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None) -> dict[str, Any]:
@@ -251,6 +259,8 @@ class RunView:
     branch_columns: list[str]
     branches: np.ndarray
     dynamic: tuple[list[str], np.ndarray] | None = None
+    #: Rows of ``cut.csv`` (a predicted cut, :func:`planner.plan_cut.cut_rows`), else None.
+    cut: np.ndarray | None = None
 
     @property
     def model(self) -> ArmModel:

@@ -89,6 +89,10 @@ def plan_summary(res: PlanResult, errors: Mapping[int, tuple[np.ndarray, np.ndar
         s["model_sigma"] = res.model_sigma.to_dict()
     if pr.program is not None:
         s["program"] = program_summary(res)
+    if pr.cut is not None:
+        from planner.plan_cut import cut_summary
+
+        s["cut"] = cut_summary(res)
     if res.cell is not None and res.posture is not None:
         from planner.cell_check import cell_summary
 

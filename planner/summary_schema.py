@@ -307,6 +307,50 @@ _PROGRAM = Table(
     nullable=True,
 )
 
+_ERROR_MM = Table(fields={"max": Number(unit="mm", lo=0.0), "rms": Number(unit="mm", lo=0.0)})
+#: The predicted cut (``[material]`` + ``[stock]``, :func:`planner.plan_cut.cut_summary`).
+_CUT = Table(
+    fields={
+        "cutter": Table(
+            fields={
+                "shape": Text(choices=("flat", "ball", "bull_nose")),
+                "diameter": Number(unit="m", lo=0.0),
+                "flutes": Number(lo=1, integer=True),
+            }
+        ),
+        "material": Table(fields={"name": Text(), "source": Text()}),
+        "stock_volume_mm3": Number(unit="mm^3", lo=0.0),
+        "removed_mm3": Number(unit="mm^3", lo=0.0),
+        "resolution_mm": Number(unit="mm", lo=0.0),
+        "cutting_waypoints": Number(lo=0, integer=True),
+        "milling_codes": ListOf(item=Text()),
+        "force_N": Table(
+            fields={
+                "max": Number(unit="N", lo=0.0),
+                "max_line": Number(lo=0, integer=True),
+                "mean_cutting": Number(unit="N", lo=0.0),
+                "peak_max": Number(unit="N", lo=0.0),
+            }
+        ),
+        "error_mm": Table(
+            fields={
+                "uncompensated": _ERROR_MM,
+                "compensated": _ERROR_MM,
+                "stand_in_compensated": _ERROR_MM,
+            }
+        ),
+        "stand_in": Table(
+            fields={
+                "frame": Text(choices=("tool", "base")),
+                "F_N": Vector(n=3, item=Number(unit="N")),
+                "M_Nm": Vector(n=3, item=Number(unit="N m")),
+            }
+        ),
+        "warnings": ListOf(item=Text()),
+    }
+)
+
+
 #: Every key of ``summary.json`` that report, export and track read (see the module docstring).
 SUMMARY = Table(
     fields={
@@ -429,6 +473,7 @@ SUMMARY = Table(
         "controller_trajectory": Text(key_of="timing", nullable=True, need=_EXPORT),
         "dynamic_compensation": _DYNAMIC,
         "program": _PROGRAM,
+        "cut": _CUT,
     }
 )
 

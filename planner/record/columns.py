@@ -10,6 +10,10 @@ from __future__ import annotations
 from planner.output import TRAJECTORY_COLUMNS
 
 __all__ = [
+    "CUT_COLUMNS",
+    "CUT_FILE",
+    "CUT_KEY",
+    "CUT_STOCK_FILE",
     "DYNAMIC_COLUMNS",
     "DYNAMIC_KEY",
     "FLAG_COLUMNS",
@@ -73,14 +77,67 @@ TRAJECTORY_FILES = (("trajectory_toppra.csv", "toppra"), ("trajectory.csv", "ruc
 TIME_COLUMN = "t"
 INDEX_COLUMNS = ("k", "line", "waypoint")
 FLAG_COLUMNS = ("rapid", "moving")
-MAGNITUDE_COLUMNS = ("e_none_m", "e_static_m", "e_static_dynamic_m", "tcp_speed_m_s", "feed_mm_min")
+MAGNITUDE_COLUMNS = (
+    "e_none_m",
+    "e_static_m",
+    "e_static_dynamic_m",
+    "tcp_speed_m_s",
+    "feed_mm_min",
+    "force_N",
+    "peak_force_N",
+    "axial_depth_mm",
+    "radial_width_mm",
+    "feed_per_tooth_mm",
+    "spindle_rpm",
+)
 #: The columns of a file that may hold NaN, "none" (``"*"``: every column but the indices): a branch
 #: without a posture at a waypoint, the feed of a rapid and of waypoint 0.  Every other cell of
 #: every file must be a finite number (a trajectory's samples, the waypoints, dynamic.csv, ...).
-NAN_COLUMNS: dict[str, tuple[str, ...] | str] = {"branches.csv": "*", "path.csv": ("feed_mm_min",)}
+NAN_COLUMNS: dict[str, tuple[str, ...] | str] = {
+    "branches.csv": "*",
+    "path.csv": ("feed_mm_min",),
+    # the engagement angles in the air; the stand-in's error without one
+    "cut.csv": ("entry_deg", "exit_deg", "error_stand_in_mm", "error_uncompensated_mm", "error_compensated_mm"),
+}
 
 
 def trajectory_file(method: str, controller: str | None) -> str:
     """The file of timing method ``method``'s trajectory: ``trajectory.csv`` for the controller's,
     ``trajectory_<method>.csv`` for the others."""
     return "trajectory.csv" if method == controller else f"trajectory_{method}.csv"
+
+
+#: summary.json key of a run whose load is a predicted cut (``[material]`` + ``[stock]``).
+CUT_KEY = "cut"
+#: The run's per-waypoint cut (``docs/cutting.md``, "Outputs").
+CUT_FILE = "cut.csv"
+#: The stock's top before and after the program (NumPy ``.npz``: ``before``, ``after`` (ny, nx) m,
+#: NaN: no material; ``extent`` x_min, x_max, y_min, y_max, m, program frame).
+CUT_STOCK_FILE = "cut_stock.npz"
+#: The columns of ``cut.csv``, one row per waypoint: the program line; the predicted wrench on the
+#: tool (program frame, N; moment about the tool tip, N·m); its force magnitude and peak over a
+#: revolution (N); the engagement (mm, deg; ``milling``: index into summary.json
+#: ``cut.milling_codes``); the feed per tooth (mm) and the spindle (rev/min); the TCP error (mm, the
+#: norm) under the predicted load: uncompensated, compensated for it (exact), compensated for the
+#: ``[cut] stand_in`` instead (NaN without one).
+CUT_COLUMNS = [
+    "line",
+    "fx_N",
+    "fy_N",
+    "fz_N",
+    "mx_Nm",
+    "my_Nm",
+    "mz_Nm",
+    "force_N",
+    "peak_force_N",
+    "axial_depth_mm",
+    "radial_width_mm",
+    "entry_deg",
+    "exit_deg",
+    "milling",
+    "feed_per_tooth_mm",
+    "spindle_rpm",
+    "error_uncompensated_mm",
+    "error_compensated_mm",
+    "error_stand_in_mm",
+]

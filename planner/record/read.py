@@ -23,6 +23,10 @@ from models.arm import ArmModel
 from models.errors import CompplanError, InputError
 
 from planner.record.columns import (
+    CUT_COLUMNS,
+    CUT_FILE,
+    CUT_KEY,
+    CUT_STOCK_FILE,
     DYNAMIC_COLUMNS,
     DYNAMIC_KEY,
     FLAG_COLUMNS,
@@ -202,6 +206,9 @@ def read_record(folder: str | Path) -> RunRecord:
         else:
             run.absent["dynamic"] = no_dynamic(summary)
 
+    if isinstance(summary.get(CUT_KEY), Mapping):
+        read_cut(run)
+
     rf = summary.get("robot_file")
     if isinstance(rf, dict):
         try:
@@ -213,6 +220,29 @@ def read_record(folder: str | Path) -> RunRecord:
     if run.robot is not None:
         run.model = recorded_model(summary, run.robot, folder / "summary.json", run.absent)
     return run
+
+
+def read_cut(run: RunRecord) -> None:
+    """``cut.csv`` and ``cut_stock.npz`` of a run whose load is a predicted cut (absent: said why)."""
+    cp = run.folder / CUT_FILE
+    if cp.is_file():
+        cols = read_csv(cp)
+        require(cp, cols, list(CUT_COLUMNS))
+        run.cut = {c: cols[c] for c in CUT_COLUMNS}
+    else:
+        run.absent["cut"] = f"{CUT_FILE} absent in this run"
+    sp = run.folder / CUT_STOCK_FILE
+    if not sp.is_file():
+        run.absent["cut_stock"] = f"{CUT_STOCK_FILE} absent in this run"
+        return
+    try:
+        with np.load(sp, allow_pickle=False) as z:
+            stock = {k: np.asarray(z[k], dtype=float) for k in ("before", "after", "extent")}
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"{sp}: not a stock file (arrays before, after, extent): {exc}") from None
+    if stock["before"].ndim != 2 or stock["before"].shape != stock["after"].shape or stock["extent"].shape != (4,):
+        raise InputError(f"{sp}: before/after must be two 2-D arrays of one shape and extent 4 numbers")
+    run.cut_stock = stock
 
 
 def read_trajectories(run: RunRecord) -> None:

@@ -183,6 +183,11 @@ class RunRecord:
     program : ProgramRecord or None
         A program path's waypoints in the program frame, lines, rapids, feeds and the program line
         of each sample (summary.json key ``program``); None otherwise.
+    cut : dict of column -> ndarray, or None
+        The columns of ``cut.csv`` (:data:`~planner.record.columns.CUT_COLUMNS`) of a run whose load
+        is a predicted cut (summary.json key ``cut``); None otherwise.
+    cut_stock : dict or None
+        ``cut_stock.npz``: ``before``, ``after`` (ny, nx) m and ``extent`` (4,) m, program frame.
     absent : dict of piece -> reason
         What the run does not hold and why.
     """
@@ -197,6 +202,8 @@ class RunRecord:
     model: ArmModel | None = None
     dynamic: dict[str, np.ndarray] | None = None
     program: ProgramRecord | None = None
+    cut: dict[str, np.ndarray] | None = None
+    cut_stock: dict[str, np.ndarray] | None = None
     absent: dict[str, str] = field(default_factory=dict)
 
 

@@ -98,6 +98,13 @@ def load_words(s: Mapping[str, Any]) -> str:
         vec = f"F = [{', '.join(format_number(v) for v in F)}] N, M = [{', '.join(format_number(v) for v in M)}] N·m"
         where = "tool-frame wrench (turns with the tool)" if frame == "tool" else "base-frame wrench"
         parts.append(f"{where} {vec}" + (" at waypoint 0 (per-waypoint wrench)" if per_wp else ""))
+    cut = s.get("cut")
+    if isinstance(cut, Mapping) and isinstance(cut.get("force_N"), Mapping):
+        f = cut["force_N"]
+        parts.append(
+            f"the predicted cut (force on the tool up to {format_number(float(f.get('max', 0.0)))} N, "
+            f"{format_number(float(f.get('mean_cutting', 0.0)))} N on average while cutting)"
+        )
     p = s.get("payload")
     if isinstance(p, Mapping) and p.get("mass_kg"):
         com = flat_numbers(p.get("com_m_tcp_frame"))

@@ -1,17 +1,8 @@
-"""An end mill read from a TOML table: ``[cutter]`` of a cutter file, ``[robot.tool.cutter]`` of a problem file.
+"""A cutter file: a TOML file with one ``[cutter]`` table (``compplan cutting fit --cutter``).
 
-Keys (lengths in metres, the helix angle in degrees)::
-
-    shape         = "flat" | "ball" | "bull_nose"
-    diameter      = 0.010        # D, m
-    corner_radius = 0.0          # r, m: flat 0 (default), ball D/2 (default), bull_nose required
-    flutes        = 4            # number of cutting edges
-    helix_deg     = 30.0         # helix angle at the flank, deg
-    flute_length  = 0.030        # length of the cutting edges from the tip, m
-    length        = 0.045        # stick-out from the tip to the holder, m (optional where allowed)
-
-Every message names the file and the dotted key (``cutter.diameter`` or ``robot.tool.cutter.diameter``),
-the value found and what was expected.
+Its keys and their checks are those of a problem file's ``[robot.tool.cutter]``
+(:func:`problems.problem_file.cutter_section.parse_cutter_table`, the one home of the end mill's
+schema); here the stick-out ``length`` is optional (it defaults to the flute length).
 """
 
 from __future__ import annotations
