@@ -42,6 +42,10 @@ MAX_FIGURE_CELLS = 400
 THREE_AXIS_TOL_RAD = 1e-6
 
 
+#: The per-waypoint fields a sample sets.
+_FIELDS = ("wrench", "peak", "depth", "width", "entry", "exit", "kind")
+
+
 @dataclass
 class _Acc:
     """Per-waypoint accumulation of the samples' results."""
@@ -59,6 +63,26 @@ class _Acc:
         self.kind = np.full(n, MILLING_CODES.index(Milling.AIR), dtype=int)
         self.seg_peak = np.zeros(n)
         self.plunge_cut = np.zeros(n, dtype=bool)
+        # the first sample of the move ending at each waypoint (the cut a stop starts)
+        self.first_t = np.full(n, np.inf)
+        self.first = {k: np.zeros_like(getattr(self, k)) for k in _FIELDS}
+
+    def record(self, into: dict[str, np.ndarray] | None, s: np.ndarray, values: dict[str, np.ndarray]) -> None:
+        """Set the fields of waypoints ``s`` (``into``: the first-sample store, None: the waypoint's)."""
+        for k, v in values.items():
+            (getattr(self, k) if into is None else into[k])[s] = v
+
+    def starts(self, rapid: np.ndarray) -> None:
+        """A waypoint where the cutter starts cutting (the move arriving there in the air or a
+        plunge, the move leaving it a feed move that cuts from its first sample) carries the force of
+        the cut it starts: it acts from the first tooth pass, and the compensation must be there."""
+        idle = (self.kind == MILLING_CODES.index(Milling.AIR)) | (self.kind == MILLING_CODES.index(Milling.PLUNGE))
+        first_idle = (self.first["kind"] == MILLING_CODES.index(Milling.AIR)) | (
+            self.first["kind"] == MILLING_CODES.index(Milling.PLUNGE)
+        )
+        i = np.flatnonzero(idle[:-1] & ~first_idle[1:] & np.isfinite(self.first_t[1:]) & ~rapid[1:])
+        for k in _FIELDS:
+            getattr(self, k)[i] = self.first[k][i + 1]
 
 
 _KIND = {"air": Milling.AIR, "up": Milling.UP, "down": Milling.DOWN, "slot": Milling.SLOT, "plunge": Milling.PLUNGE}
@@ -209,15 +233,24 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
         )
         np.maximum.at(acc.seg_peak, seg, np.nan_to_num(cw.peak_force_N))
         np.logical_or.at(acc.plunge_cut, seg, e.plunge & (e.axial_depth_m > 0.0))
+        values = {
+            "wrench": Wp,
+            "peak": np.nan_to_num(cw.peak_force_N),
+            "depth": e.axial_depth_m,
+            "width": e.radial_width_m,
+            "entry": e.entry_rad,
+            "exit": e.exit_rad,
+            "kind": np.array([MILLING_CODES.index(_KIND.get(str(k), Milling.PARTIAL)) for k in e.kind], dtype=int),
+        }
         end = np.flatnonzero(e.t >= 1.0 - 1e-12)
-        s = seg[end]
-        acc.wrench[s] = Wp[end]
-        acc.peak[s] = np.nan_to_num(cw.peak_force_N[end])
-        acc.depth[s] = e.axial_depth_m[end]
-        acc.width[s] = e.radial_width_m[end]
-        acc.entry[s] = e.entry_rad[end]
-        acc.exit[s] = e.exit_rad[end]
-        acc.kind[s] = [MILLING_CODES.index(_KIND.get(str(k), Milling.PARTIAL)) for k in e.kind[end]]
+        acc.record(None, seg[end], {k: v[end] for k, v in values.items()})
+        order = np.lexsort((e.t, seg))
+        segs, at = np.unique(seg[order], return_index=True)
+        rows = order[at]
+        better = e.t[rows] < acc.first_t[segs]
+        rows, segs = rows[better], segs[better]
+        acc.first_t[segs] = e.t[rows]
+        acc.record(acc.first, segs, {k: v[rows] for k, v in values.items()})
 
     sim = simulate(
         zmap,
@@ -230,6 +263,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
         in_place=True,
         **dz_kw,
     )
+    acc.starts(np.asarray(way.rapid, dtype=bool))
     _refuse(setup, way, sim, sense, speed, volume0)
     warnings = _warnings(way, acc)
     x0, y0, r = zmap.x0_m, zmap.y0_m, zmap.resolution_m

@@ -350,7 +350,8 @@ def _time_stretches(
     for i, ((a, b), (tr, how, dev, added, cruise)) in enumerate(zip(jobs, map_stretches(_one_stretch, shared, jobs))):
         if progress is not None:
             progress(stage, i, len(jobs))
-        worst = max(worst, dev)
+        if tau[b] > tau[a]:  # a cutting stretch: rapids in the air are not held to the path tolerance
+            worst = max(worst, dev)
         if cruise is not None:
             run.cruise[a + 1 : b + 1], run.bound_joint[a + 1 : b + 1], run.bound_kind[a + 1 : b + 1] = cruise
         run.n_fitted += int(geo is not None and tau[b] > tau[a])
