@@ -144,6 +144,8 @@ def plan(
     if not ps.ok:
         res.status, res.reason = _POSTURE_TO_PLAN[ps.status], ps.reason
         return res
+    if problem.cut is not None:  # what the predicted cut could not model (plunges, ...)
+        res.warnings += list(problem.cut.warnings)
     res.warnings += _posture_warnings(ps)
     _after_posture(res, tick, progress)
     return _set_aside_colliding(res, problem, times, tick, progress)

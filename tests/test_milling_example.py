@@ -108,4 +108,10 @@ def test_shipped_problem_loads_the_program_next_to_it():
     assert np.allclose(pr.positions.mean(axis=0)[:2], [0.65, 0.0], atol=0.01)
     # 3-axis: the tool points down at every waypoint
     assert np.allclose(pr.rotations[:, :, 2], [0.0, 0.0, -1.0])
-    assert pr.wrench_frame == "tool" and np.allclose(pr.wrench[:, :3], [40.0, 25.0, 30.0])
+    # the load is the predicted cut (docs/cutting.md): no [wrench], the old constant kept as the stand-in
+    assert not np.any(pr.wrench) and pr.cut is not None and pr.cut.n == pr.n
+    assert np.allclose(pr.cut.stand_in[:3], [40.0, 25.0, 30.0]) and pr.cut.stand_in_frame == "tool"
+    F = np.linalg.norm(pr.cut.wrench_program[:, :3], axis=1)
+    rapid = pr.program.waypoints.rapid
+    assert np.all(F[:-1][rapid[:-1] & rapid[1:]] == 0.0) and F.max() > 10.0  # between rapids: in the air
+    assert np.allclose(pr.load.wrench_base, pr.cut.wrench_base)  # program axes = base axes

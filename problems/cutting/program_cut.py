@@ -265,7 +265,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
     )
     acc.starts(np.asarray(way.rapid, dtype=bool))
     _refuse(setup, way, sim, sense, speed, volume0)
-    warnings = _warnings(way, acc)
+    warnings = _warnings(way, acc, np.asarray(sim.removed_m3))
     x0, y0, r = zmap.x0_m, zmap.y0_m, zmap.resolution_m
     nx, ny = zmap.shape
     return CutPrediction(
@@ -328,9 +328,16 @@ def _refuse(setup: Any, way: Any, sim: Any, sense: np.ndarray, speed: np.ndarray
         )
 
 
-def _warnings(way: Any, acc: _Acc) -> list[str]:
+#: A feed move whose horizontal travel is below this share of its length is a plunge.
+PLUNGE_SHARE = 1e-9
+
+
+def _warnings(way: Any, acc: _Acc, removed: np.ndarray) -> list[str]:
     out = []
-    plunges = np.flatnonzero(acc.plunge_cut)
+    P = way.points_m
+    d = np.diff(P, axis=0, prepend=P[:1])
+    vertical = np.linalg.norm(d[:, :2], axis=1) <= PLUNGE_SHARE * np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    plunges = np.flatnonzero(acc.plunge_cut | (vertical & ~way.rapid & (removed > 0.0)))
     if plunges.size:
         lines = sorted({int(way.line[k]) for k in plunges})
         shown = ", ".join(str(v) for v in lines[:8]) + (", ..." if len(lines) > 8 else "")
