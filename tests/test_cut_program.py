@@ -379,6 +379,14 @@ def test_removed_volume_of_a_pocket_and_a_ramp(tmp_path):
     # the pocket's plunge (line 5) is reported, the plunge in the air before the ramp (line 16) is not
     plunges = [w for w in pr.cut.warnings if "plunge" in w]
     assert len(plunges) == 1 and "1 program line(s)" in plunges[0] and "(lines 5)" in plunges[0], plunges
+    # a vertical move is a plunge where it removes material, air above the stock or beside it
+    way, codes = pr.program.waypoints, np.asarray(pr.cut.milling)
+    vertical = np.r_[False, np.all(np.diff(way.points_m[:, :2], axis=0) == 0.0, axis=1)] & ~way.rapid
+    into = vertical & (way.points_m[:, 2] < 0.0) & (way.line == 5)
+    assert into.sum() >= 1 and np.all(codes[into] == MILLING_CODES.index(Milling.PLUNGE))
+    above = vertical & ((way.points_m[:, 2] >= 0.0) | (way.line == 16))
+    assert above.sum() >= 2 and np.all(codes[above] == MILLING_CODES.index(Milling.AIR)), codes[above]
+    assert np.all(pr.cut.wrench_program[vertical] == 0.0)
     print(f"pocket + ramp: removed {got * 1e9:.2f} mm^3, analytic {expected * 1e9:.2f} mm^3")
 
 
@@ -672,3 +680,21 @@ def test_to_dict_round_trip_predicts_the_same_wrench(problem_1):
     np.testing.assert_allclose(again.cut.wrench_program, problem_1.cut.wrench_program, rtol=0, atol=1e-9)
     assert again.cut.removed_m3 == pytest.approx(problem_1.cut.removed_m3, rel=1e-12)
     np.testing.assert_allclose(again.load.wrench_base, problem_1.load.wrench_base, rtol=0, atol=1e-9)
+
+
+def test_a_named_material_round_trips_and_equals_its_coefficients(tmp_path):
+    """``[material] name`` is written back as the table's key (not the row's display name), and the
+    shipped row predicts what its six coefficients given in SI do."""
+    f = _write(tmp_path, PROGRAM_SLOT)
+    text = f.read_text()
+    start, end = text.index("[material]\n"), text.index("[stock]\n")
+    f2 = tmp_path / "named.toml"
+    f2.write_text(text[:start] + '[material]\nname = "al7075_t6"\n' + text[end:])
+    named, si = load_problem(f2), load_problem(f)
+    d = named.to_dict()
+    assert d["material"] == {"name": "al7075_t6"}
+    again = problem_from_dict(d)
+    np.testing.assert_allclose(again.cut.wrench_program, named.cut.wrench_program, rtol=0, atol=1e-9)
+    scale = np.abs(si.cut.wrench_program).max()
+    assert scale > 10.0
+    np.testing.assert_allclose(named.cut.wrench_program, si.cut.wrench_program, rtol=0, atol=1e-12 * scale)

@@ -232,6 +232,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
     )
     _refuse(setup, way, sim, sense, speed, volume0)
     acc.plunge_cut &= np.asarray(sim.removed_m3) > 0.0  # a plunge that removes material
+    acc.kind[(acc.kind == MILLING_CODES.index(Milling.PLUNGE)) & ~acc.plunge_cut] = MILLING_CODES.index(Milling.AIR)
     warnings = _warnings(way, acc)
     x0, y0, r = zmap.x0_m, zmap.y0_m, zmap.resolution_m
     nx, ny = zmap.shape
