@@ -232,7 +232,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
             ]
         )
         np.maximum.at(acc.seg_peak, seg, np.nan_to_num(cw.peak_force_N))
-        np.logical_or.at(acc.plunge_cut, seg, e.plunge & (e.axial_depth_m > 0.0))
+        np.logical_or.at(acc.plunge_cut, seg, e.plunge)  # its mask is empty: whether it cuts is known after the move
         values = {
             "wrench": Wp,
             "peak": np.nan_to_num(cw.peak_force_N),
@@ -263,6 +263,8 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
         in_place=True,
         **dz_kw,
     )
+    acc.plunge_cut &= np.asarray(sim.removed_m3) > 0.0  # a plunge that removes material
+    acc.kind[(acc.kind == MILLING_CODES.index(Milling.PLUNGE)) & ~acc.plunge_cut] = MILLING_CODES.index(Milling.AIR)
     acc.starts(np.asarray(way.rapid, dtype=bool))
     _refuse(setup, way, sim, sense, speed, volume0)
     warnings = _warnings(way, acc, np.asarray(sim.removed_m3))
@@ -302,7 +304,8 @@ def _refuse(setup: Any, way: Any, sim: Any, sense: np.ndarray, speed: np.ndarray
         k = int(crash[0])
         raise InputError(
             f"{src}:{int(way.line[k])}: a rapid (G0) move cuts {removed[k] * 1e9:.3g} mm^3 of the stock: a crash "
-            f"({crash.size} rapid move(s) do); check the program or the [stock] (box/mesh, program frame)"
+            f"({len({int(way.line[i]) for i in crash})} rapid line(s) do); check the program or the [stock] "
+            "(box/mesh, program frame)"
         )
     deep = np.flatnonzero(np.asarray(sim.holder_hit))
     if deep.size:

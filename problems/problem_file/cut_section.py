@@ -153,7 +153,7 @@ def _material(where: str, data: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]
             raise err(
                 where, "material.name", f"= {mt['name']!r} is not in the table; shipped: {list(material_names())}"
             ) from None
-        return c, {"name": c.name}
+        return c, {"name": str(mt["name"]).strip()}  # the table key (c.name is the row's display name)
     if len(given) != len(COEFFICIENT_KEYS):
         missing = [k for k in COEFFICIENT_KEYS if k not in mt]
         raise err(where, f"material.{missing[0]}", "is required (or material.name, a row of the shipped table)")
