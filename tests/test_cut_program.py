@@ -327,7 +327,7 @@ def test_every_waypoint_matches_the_engagement_from_the_geometry(problem_1):
     m4_line = PROGRAM_1.splitlines().index("S10000 M4") + 1
     sense = np.where(way.line > m4_line, -1, 1)
     feed = np.where(np.abs(pts[:, 1] + 32.0) < 1e-9, 100.0, 600.0)
-    W = independent_program_wrench(pts, way.rapid, feed, sense)
+    W = independent_program_wrench(pts, way.rapid, feed, sense, way.stop)
     got = problem_1.cut.wrench_program
     err = np.abs(got - W) / np.abs(W).max(axis=0)
     assert err.max() < ALL_WAYPOINTS_REL_TOL, (np.unravel_index(err.argmax(), err.shape), err.max())
@@ -401,10 +401,17 @@ def test_removed_volume_of_a_pocket_and_a_ramp(tmp_path):
     way, codes = pr.program.waypoints, np.asarray(pr.cut.milling)
     vertical = np.r_[False, np.all(np.diff(way.points_m[:, :2], axis=0) == 0.0, axis=1)] & ~way.rapid
     into = vertical & (way.points_m[:, 2] < 0.0) & (way.line == 5)
-    assert into.sum() >= 1 and np.all(codes[into] == MILLING_CODES.index(Milling.PLUNGE))
+    # the plunge's end is a stop where the pocket's cut starts: it carries that cut (docs/cutting.md)
+    start = into & way.stop
+    assert start.sum() == 1 and codes[start][0] not in (
+        MILLING_CODES.index(Milling.AIR),
+        MILLING_CODES.index(Milling.PLUNGE),
+    )
+    assert np.abs(pr.cut.wrench_program[start, :3]).max() > 1.0
+    assert (into & ~start).sum() >= 1 and np.all(codes[into & ~start] == MILLING_CODES.index(Milling.PLUNGE))
     above = vertical & ((way.points_m[:, 2] >= 0.0) | (way.line == 16))
     assert above.sum() >= 2 and np.all(codes[above] == MILLING_CODES.index(Milling.AIR)), codes[above]
-    assert np.all(pr.cut.wrench_program[vertical] == 0.0)
+    assert np.all(pr.cut.wrench_program[vertical & ~start] == 0.0)
     print(f"pocket + ramp: removed {got * 1e9:.2f} mm^3, analytic {expected * 1e9:.2f} mm^3")
 
 
@@ -481,8 +488,13 @@ def _engaged_intervals(tip: np.ndarray, x: np.ndarray, sense: int, cuts: list) -
     return list(zip(ends[::2], ends[1::2]))
 
 
+#: Where the product samples a move first (its spacing, ``problems.cutting.program_cut.SAMPLE_SPACING_M``):
+#: a waypoint where the cutter starts cutting carries the force of that first sample (docs/cutting.md).
+START_SAMPLE_MM = 1.0
+
+
 def independent_program_wrench(
-    points_mm: np.ndarray, rapid: np.ndarray, feed_mm_min: np.ndarray, sense: np.ndarray
+    points_mm: np.ndarray, rapid: np.ndarray, feed_mm_min: np.ndarray, sense: np.ndarray, stop: np.ndarray
 ) -> np.ndarray:
     """The mean cutting wrench at every waypoint of a program cutting 2 mm deep layers of STOCK_MM
     (program frame), shape (N, 6): the engagement from the geometry against the stock left by the
@@ -500,6 +512,11 @@ def independent_program_wrench(
         parts = _engaged_intervals(b[:2], x, int(sense[k]), cuts)
         w = sum((closed_form_wrench(p0, p1, DEPTH_M, c) for p0, p1 in parts), np.zeros(6))
         W[k] = feed_frame_to_program(w, d, int(sense[k]))
+        if stop[k - 1] and not W[k - 1].any():  # the cutter starts cutting at a stop: it carries that cut
+            first = a[:2] + d / math.ceil(np.linalg.norm(d) / START_SAMPLE_MM - 1e-9)
+            parts = _engaged_intervals(first, x, int(sense[k]), cuts)
+            w = sum((closed_form_wrench(p0, p1, DEPTH_M, c) for p0, p1 in parts), np.zeros(6))
+            W[k - 1] = feed_frame_to_program(w, d, int(sense[k]))
         cuts.append((a[:2].copy(), b[:2].copy()))
     return W
 
@@ -554,7 +571,7 @@ def test_compensated_cut_lands_under_an_independent_arm(tmp_path):
     assert not pr.model.effects and not pr.model.gravity_on and pr.payload_mass_kg == 0.0  # springs only
     way = pr.program.waypoints
     pts = way.points_m / MM
-    W_prog = independent_program_wrench(pts, way.rapid, np.full(pr.n, 600.0), np.ones(pr.n))
+    W_prog = independent_program_wrench(pts, way.rapid, np.full(pr.n, 600.0), np.ones(pr.n), way.stop)
     # the product's wrench equals the independent one at every waypoint, transitions included
     scale = np.abs(W_prog).max(axis=0)
     err = np.abs(pr.cut.wrench_program - W_prog) / np.maximum(scale, 1e-12)

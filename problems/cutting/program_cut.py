@@ -72,15 +72,16 @@ class _Acc:
         for k, v in values.items():
             (getattr(self, k) if into is None else into[k])[s] = v
 
-    def starts(self, rapid: np.ndarray) -> None:
-        """A waypoint where the cutter starts cutting (the move arriving there in the air or a
-        plunge, the move leaving it a feed move that cuts from its first sample) carries the force of
-        the cut it starts: it acts from the first tooth pass, and the compensation must be there."""
+    def starts(self, rapid: np.ndarray, stop: np.ndarray) -> None:
+        """A stop where the cutter starts cutting (the move arriving there in the air or a plunge,
+        the move leaving it a feed move that cuts from its first sample) carries the force of the cut
+        it starts: it acts from the first tooth pass, and the compensation must be there when the arm
+        sets off.  (Entering the stock from the side along a move, the force grows with the samples.)"""
         idle = (self.kind == MILLING_CODES.index(Milling.AIR)) | (self.kind == MILLING_CODES.index(Milling.PLUNGE))
         first_idle = (self.first["kind"] == MILLING_CODES.index(Milling.AIR)) | (
             self.first["kind"] == MILLING_CODES.index(Milling.PLUNGE)
         )
-        i = np.flatnonzero(idle[:-1] & ~first_idle[1:] & np.isfinite(self.first_t[1:]) & ~rapid[1:])
+        i = np.flatnonzero(stop[:-1] & idle[:-1] & ~first_idle[1:] & np.isfinite(self.first_t[1:]) & ~rapid[1:])
         for k in _FIELDS:
             getattr(self, k)[i] = self.first[k][i + 1]
 
@@ -265,7 +266,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
     )
     acc.plunge_cut &= np.asarray(sim.removed_m3) > 0.0  # a plunge that removes material
     acc.kind[(acc.kind == MILLING_CODES.index(Milling.PLUNGE)) & ~acc.plunge_cut] = MILLING_CODES.index(Milling.AIR)
-    acc.starts(np.asarray(way.rapid, dtype=bool))
+    acc.starts(np.asarray(way.rapid, dtype=bool), np.asarray(way.stop, dtype=bool))
     _refuse(setup, way, sim, sense, speed, volume0)
     warnings = _warnings(way, acc, np.asarray(sim.removed_m3))
     x0, y0, r = zmap.x0_m, zmap.y0_m, zmap.resolution_m
