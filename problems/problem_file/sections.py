@@ -60,25 +60,8 @@ from problems.problem_file.values import (
 DEFAULT_RPY = np.array([math.pi, 0.0, 0.0])
 
 _TOP = (
-    "name",
-    "description",
-    "source",
-    "robot",
-    "path",
-    "orientation",
-    "wrench",
-    "payload",
-    "limits",
-    "cost",
-    "solver",
-    "branch",
-    "timing",
-    "placement",
-    "workpiece",
-    "cell",
-    "material",
-    "stock",
-    "cut",
+    *("name", "description", "source", "robot", "path", "orientation", "wrench", "payload", "limits", "cost"),
+    *("solver", "branch", "timing", "placement", "workpiece", "cell", "material", "stock", "cut"),
 )
 #: Frames a wrench may be given in.
 WRENCH_FRAMES = ("base", "tool")
