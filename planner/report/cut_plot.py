@@ -316,10 +316,10 @@ def _stock_item(run: RunRecord) -> FigureItem:
         path = np.where(_air(run)[:, None], np.nan, p)
     pixel = (e[1] - e[0]) / before.shape[1]
     item.caption = (
-        "The top of the stock (program z, mm; white: no material) on the grid the cut was simulated on, before and "
-        "after the program, on one colour scale, and the depth removed (before − after; the cutting moves' "
-        f"waypoints drawn thin). Grid: {before.shape[1]} × {before.shape[0]} cells of "
-        f"{format_number(pixel, 3)} mm. Data: {CUT_STOCK_FILE}; volumes: summary.json cut."
+        "The top of the stock (program z, mm; white: no material) before and after the program, on one colour "
+        "scale, and the depth removed (before − after; the cutting moves' waypoints drawn thin), as the run stored "
+        f"them: {before.shape[1]} × {before.shape[0]} cells of {format_number(pixel, 3)} mm ({CUT_STOCK_FILE}; the "
+        "cut was simulated at summary.json cut.resolution_mm). Volumes: summary.json cut."
     )
     if step > 1:
         item.caption += f" Drawn in blocks of {step} × {step} cells, each block showing its lowest top (no cut hidden)."
