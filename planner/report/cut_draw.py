@@ -96,7 +96,7 @@ def _shade_handles(s: Series) -> list[Line2D]:
 
 
 def _xlim(ax, s: Series) -> None:
-    x0, x1 = float(s.x_mm[0]), float(s.x_mm[-1])
+    x0, x1 = min(0.0, float(s.x_mm[0])), float(s.x_mm[-1])  # the path starts at 0
     ax.set_xlim(x0, x1 if x1 > x0 else x0 + 1.0)
 
 
@@ -204,8 +204,10 @@ def cut_toolpath_figure(
         x0, x1, y0, y1 = stock_xy_mm
         ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="0.45", lw=0.8, label="stock outline")
     ax.add_collection(LineCollection(segs[rap], colors="0.55", linewidths=0.6, linestyles=(0, (3, 3))))
-    lc = LineCollection(segs[cut], cmap=FORCE_CMAP, norm=norm, linewidths=1.6)
-    lc.set_array(np.nan_to_num(np.asarray(force_N, float)[cut]))
+    f_cut = np.nan_to_num(np.asarray(force_N, float)[cut])
+    order = np.argsort(f_cut, kind="stable")  # where passes overlap in this view, the larger |F| on top
+    lc = LineCollection(segs[cut][order], cmap=FORCE_CMAP, norm=norm, linewidths=1.6)
+    lc.set_array(f_cut[order])
     ax.add_collection(lc)
     fig.colorbar(lc, cax=cax, label="|F| on the tool [N]")
     if len(arrows):

@@ -255,7 +255,8 @@ def _toolpath_item(run: RunRecord, why: str) -> FigureItem:
         "magnitude |F| of the predicted cutting force (mean over a revolution; a move carries the larger |F| of "
         f"its two ends); arrows: the XY part of the force on the tool at {len(arrows)} waypoints spread evenly "
         f"along the cutting moves, drawn {format_number(mm_per_N, 3)} mm per N (the key: {key:g} N). Rapids: "
-        "thin grey dashed; the stock's outline in grey. "
+        "thin grey dashed; the stock's outline in grey. Where passes at different depths overlap in this view, the "
+        "move with the larger |F| is drawn on top. "
         f"Data: {CUT_FILE} (fx_N, fy_N, force_N), the program's waypoints (path.csv)."
     )
     if tol > 0:
