@@ -159,6 +159,25 @@ def cut_force_figure(
     return fig
 
 
+def _draw_arrows(ax, arrows: np.ndarray, key_N: float, mm_per_N: float) -> None:
+    """The force arrows (rows x, y mm, fx, fy N) drawn ``mm_per_N`` long per newton, and the key."""
+    if not len(arrows):
+        return
+    q = ax.quiver(
+        arrows[:, 0],
+        arrows[:, 1],
+        arrows[:, 2],
+        arrows[:, 3],
+        angles="xy",
+        scale_units="xy",
+        scale=1.0 / mm_per_N,
+        color="black",
+        width=0.0025,
+        zorder=4,
+    )
+    ax.quiverkey(q, 0.86, 1.03, key_N, f"{key_N:g} N", labelpos="E", coordinates="axes")
+
+
 @styled
 def cut_toolpath_figure(
     segments_mm: np.ndarray,
@@ -210,20 +229,7 @@ def cut_toolpath_figure(
     lc.set_array(f_cut[order])
     ax.add_collection(lc)
     fig.colorbar(lc, cax=cax, label="|F| on the tool [N]")
-    if len(arrows):
-        q = ax.quiver(
-            arrows[:, 0],
-            arrows[:, 1],
-            arrows[:, 2],
-            arrows[:, 3],
-            angles="xy",
-            scale_units="xy",
-            scale=1.0 / mm_per_N,
-            color="black",
-            width=0.0025,
-            zorder=4,
-        )
-        ax.quiverkey(q, 0.86, 1.03, key_N, f"{key_N:g} N", labelpos="E", coordinates="axes")
+    _draw_arrows(ax, arrows, key_N, mm_per_N)
     if start_end_mm is not None:
         se = np.asarray(start_end_mm, float)
         ax.plot(*se[0], marker="o", color="crimson", mec="white", ms=6, ls="none", zorder=5, label="start")
