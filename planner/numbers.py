@@ -82,10 +82,23 @@ def mm_text(value_mm: float, digits: int = DISPLAY_DIGITS) -> str:
     return text if text == NUMERICAL_ZERO_TEXT else f"{text} mm"
 
 
+def error_key_mm(key: str) -> float | None:
+    """Millimetres per unit of the TCP error length a dotted summary key holds (1 for mm, 1000 for
+    m), or None when it holds none.  The unit is the last part's (``exact_residual_max_m``) or, for
+    the entries of an error table, the table's (``cut.error_mm.compensated.max``)."""
+    parts = key.split(".")
+    last = parts[-1]
+    if ("error" in key or "residual" in key) and (last.endswith("_mm") or last.endswith("_m")):
+        return 1.0 if last.endswith("_mm") else 1e3
+    for part in reversed(parts[:-1]):
+        if ("error" in part or "residual" in part) and (part.endswith("_mm") or part.endswith("_m")):
+            return 1.0 if part.endswith("_mm") else 1e3
+    return None
+
+
 def is_error_key(key: str) -> bool:
     """Whether a dotted summary key holds a TCP error length (mm or m) the floor applies to."""
-    last = key.rsplit(".", 1)[-1]
-    return ("error" in key or "residual" in key) and (last.endswith("_mm") or last.endswith("_m"))
+    return error_key_mm(key) is not None
 
 
 def format_value(v: Any, key: str = "") -> str:
@@ -103,9 +116,9 @@ def format_value(v: Any, key: str = "") -> str:
         return str(int(v))
     if isinstance(v, float) or (hasattr(v, "dtype") and v.dtype.kind == "f"):
         f = float(v)
-        if key and is_error_key(key) and math.isfinite(f):
-            mm = f if key.endswith("_mm") else f * 1e3
-            if below_floor(mm):
+        per = error_key_mm(key) if key else None
+        if per is not None and math.isfinite(f):
+            if below_floor(f * per):
                 return NUMERICAL_ZERO_TEXT
         return format_number(f)
     if isinstance(v, (list, tuple)):
@@ -123,6 +136,7 @@ __all__ = [
     "format_number",
     "format_value",
     "headline_mm",
+    "error_key_mm",
     "is_error_key",
     "mm_text",
     "round_sig",

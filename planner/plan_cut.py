@@ -71,6 +71,14 @@ def _stats(v: np.ndarray) -> dict[str, float]:
     return {"max": float(v.max()), "rms": float(np.sqrt(np.mean(v**2)))}
 
 
+def _range(v: np.ndarray, where: np.ndarray) -> dict[str, float] | None:
+    """``{"min", "max"}`` of the positive values of ``v`` over the waypoints ``where`` (bool, shape of
+    ``v``; a plunge has no horizontal feed per tooth); None for none."""
+    v = np.asarray(v, dtype=float)[np.asarray(where, dtype=bool)]
+    v = v[np.isfinite(v) & (v > 0.0)]
+    return {"min": float(v.min()), "max": float(v.max())} if v.size else None
+
+
 def cut_summary(res: PlanResult) -> dict[str, Any]:
     """The ``cut`` block of ``summary.json`` (units in the keys)."""
     from problems.cutting.prediction import MILLING_CODES
@@ -113,6 +121,8 @@ def cut_summary(res: PlanResult) -> dict[str, Any]:
             "uncompensated": _stats(_norm_mm(res.before.error_m if res.before is not None else None, c.n)),
             "compensated": _stats(_norm_mm(res.exact.error_m if res.exact is not None else None, c.n)),
         },
+        "spindle_rpm": _range(np.asarray(c.spindle_rad_s) * 60.0 / (2.0 * math.pi), cutting),
+        "feed_per_tooth_mm": _range(np.asarray(c.feed_per_tooth_m) * 1e3, cutting),
         "warnings": list(c.warnings),
         "file": "cut.csv",
         "stock_file": "cut_stock.npz",

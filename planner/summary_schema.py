@@ -308,6 +308,13 @@ _PROGRAM = Table(
 )
 
 _ERROR_MM = Table(fields={"max": Number(unit="mm", lo=0.0), "rms": Number(unit="mm", lo=0.0)})
+
+
+def _range_of(unit: str) -> Table:
+    """``{"min", "max"}`` over the cutting waypoints (null: none cut)."""
+    return Table(fields={"min": Number(unit=unit, lo=0.0), "max": Number(unit=unit, lo=0.0)}, nullable=True)
+
+
 #: The predicted cut (``[material]`` + ``[stock]``, :func:`planner.plan_cut.cut_summary`).
 _CUT = Table(
     fields={
@@ -316,6 +323,8 @@ _CUT = Table(
                 "shape": Text(choices=("flat", "ball", "bull_nose")),
                 "diameter": Number(unit="m", lo=0.0),
                 "flutes": Number(lo=1, integer=True),
+                "corner_radius": Number(unit="m", lo=0.0),
+                "helix_deg": Number(unit="deg"),
             }
         ),
         "material": Table(fields={"name": Text(), "source": Text()}),
@@ -339,6 +348,8 @@ _CUT = Table(
                 "stand_in_compensated": _ERROR_MM,
             }
         ),
+        "spindle_rpm": _range_of("rev/min"),
+        "feed_per_tooth_mm": _range_of("mm"),
         "stand_in": Table(
             fields={
                 "frame": Text(choices=("tool", "base")),

@@ -228,6 +228,7 @@ def read_cut(run: RunRecord) -> None:
     if cp.is_file():
         cols = read_csv(cp)
         require(cp, cols, list(CUT_COLUMNS))
+        check_cut(cp, cols, run)
         run.cut = {c: cols[c] for c in CUT_COLUMNS}
     else:
         run.absent["cut"] = f"{CUT_FILE} absent in this run"
@@ -243,6 +244,23 @@ def read_cut(run: RunRecord) -> None:
     if stock["before"].ndim != 2 or stock["before"].shape != stock["after"].shape or stock["extent"].shape != (4,):
         raise InputError(f"{sp}: before/after must be two 2-D arrays of one shape and extent 4 numbers")
     run.cut_stock = stock
+
+
+def check_cut(path: Path, cols: Mapping[str, np.ndarray], run: RunRecord) -> None:
+    """Refuse a ``cut.csv`` whose rows are not the program's waypoints or whose ``milling`` is not an
+    index into summary.json ``cut.milling_codes``."""
+    n = len(cols["line"])
+    if run.program is not None and n != run.program.n:
+        raise InputError(f"{path}: {n} rows; expected one per waypoint of the program ({run.program.n}, path.csv)")
+    codes = run.summary[CUT_KEY].get("milling_codes")
+    if isinstance(codes, list) and codes:
+        bad = (cols["milling"] < 0) | (cols["milling"] >= len(codes)) | (cols["milling"] != np.round(cols["milling"]))
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{path}: line {i + 2}, column milling: {float(cols['milling'][i])!r}; expected a whole number "
+                f"from 0 to {len(codes) - 1} (an index into summary.json cut.milling_codes)"
+            )
 
 
 def read_trajectories(run: RunRecord) -> None:

@@ -29,6 +29,7 @@ from planner.compliance_map import ProgressFn
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number, mm_text
 from planner.report import dynamic_plot, motion_plots, plots
 from planner.report.cell_view import cell_items
+from planner.report.cut_plot import cut_items
 from planner.report.maps import MAP_FIGURE, map_item
 from planner.report.rendering import FigureItem, Job, job, render_items
 from planner.record import DYNAMIC_KEY, RunRecord, method_name, method_order
@@ -117,6 +118,9 @@ def build_figures(
         items.append(_dynamic_item(ctx))
     items += program_items(run)  # a program path's toolpath and feed (planner.report.toolpath_plot)
     items += cell_items(run)  # a problem with a [cell]: the 3-D cell view (planner.report.cell_view)
+    # a predicted cut: force, toolpath, stock, error (planner.report.cut_plot); after the cell view (figure 11),
+    # so that the figure numbers, taken from the file names, run in order
+    items += cut_items(run)
     return items
 
 

@@ -23,6 +23,7 @@ from planner import branches as branch_words
 from planner.numbers import NUMERICAL_FLOOR_MM, format_number
 from planner.record.record import method_name
 from planner.report.dynamic_tables import dynamic_headline_note, dynamic_headline_rows, dynamic_tables
+from planner.report.cut_tables import cut_tables
 from planner.report.program_tables import program_tables
 from planner.report.table_base import RATIO_KINDS, Cell, Table, flat_numbers, lookup, value_cell
 
@@ -77,6 +78,7 @@ def summary_tables(summary: Mapping[str, Any], absent: Mapping[str, str]) -> lis
     summary.json)."""
     tables = [headline_table(summary), _run_table(summary), _error_table(summary), _timing_table(summary, absent)]
     tables += program_tables(summary)
+    tables += cut_tables(summary)
     tables += dynamic_tables(summary)
     branches = _branch_table(summary)
     if branches is not None:

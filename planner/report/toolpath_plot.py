@@ -26,6 +26,7 @@ drawing functions take SI arrays and convert at the edge.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from pathlib import PurePath
 from typing import Any
 
 import numpy as np
@@ -93,7 +94,8 @@ def _header(run: RunRecord) -> str:
     s = run.summary
     prog = s.get(PROGRAM_KEY) or {}
     branch = s.get("chosen_branch", s.get("branch", "?"))
-    return f"{s.get('robot', '?')}, branch {branch}: program {prog.get('file', '?')}; load: {load_words(s)}"
+    name = PurePath(str(prog.get("file", "?"))).name  # (a built-in problem's program has a long absolute path)
+    return f"{s.get('robot', '?')}, branch {branch}: program {name}; load: {load_words(s)}"
 
 
 def _toolpath_item(run: RunRecord) -> FigureItem:
