@@ -3,7 +3,9 @@
 The moves are taken in order; for each feed move the samples' masks are made against the stock as
 it is before the move (exact: :mod:`problems.cutting.engagement_zmap`), then the move is cut
 (:func:`problems.cutting.removal.cut_segment`).  Masks are handed to a callback in chunks of bounded
-size and not kept, so a program of any length runs in bounded memory.
+size and not kept, so a program of any length runs in bounded memory; each move's mask is written
+straight into its chunk (only its engaged slices and front angle bins: the rest of a fresh chunk is
+zero and, for a shallow cut, never touched).
 """
 
 from __future__ import annotations

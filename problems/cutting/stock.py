@@ -102,8 +102,8 @@ class ZMap:
         ix = np.floor((np.asarray(x_m) - self.x0_m) / self.resolution_m).astype(np.int64)
         iy = np.floor((np.asarray(y_m) - self.y0_m) / self.resolution_m).astype(np.int64)
         on = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
-        flat = np.clip(ix, 0, nx - 1) * ny + np.clip(iy, 0, ny - 1)
-        bottom, top = self.bottom_m.ravel()[flat], self.top_m.ravel()[flat]
+        flat = np.where(on, ix * ny + iy, 0)
+        bottom, top = np.take(self.bottom_m, flat), np.take(self.top_m, flat)
         if not on.all():
             bottom, top = np.where(on, bottom, np.nan), np.where(on, top, np.nan)
         return bottom, top
