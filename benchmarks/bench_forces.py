@@ -170,7 +170,7 @@ def one(n: int) -> dict:
     feed = np.array([(PLUNGE_MM_MIN if p[3] else FEED_MM_MIN) / 60e3 for p in pts])
     way = SimpleNamespace(
         n=len(pts), points_m=P, rapid=rapid, feed_m_s=feed, spindle=None, move=None, tool_axis=None,
-        source="bench_forces", line=np.arange(len(pts)) + 1,
+        source="bench_forces", line=np.arange(len(pts)) + 1, stop=np.arange(len(pts)) % (len(pts) - 1) == 0,
     )  # fmt: skip
     setup = CutSetup(
         mill=parse_cutter_table("bench_forces", CUTTER, "cutter"),

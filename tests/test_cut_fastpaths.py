@@ -194,7 +194,7 @@ def test_predicted_wrench_equals_cut_wrench_of_every_sample():
     feed = np.full(n, 0.02)
     way = SimpleNamespace(
         n=n, points_m=P, rapid=rapid, feed_m_s=feed, spindle=None, move=None, tool_axis=None, source="t",
-        line=np.arange(n),
+        line=np.arange(n), stop=np.zeros(n, bool),  # no stop: every waypoint has its arriving move's end sample
     )  # fmt: skip
     coeffs = material("al7075_t6")
     setup = SimpleNamespace(
