@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -55,6 +56,7 @@ __all__ = [
     "SWEEP_TOL_M",
     "SampleEngagement",
     "concatenate_engagements",
+    "n_slices",
     "segment_engagement",
 ]
 
@@ -114,74 +116,121 @@ class SampleEngagement:
         return int(self.t.shape[0])
 
 
-def _n_slices(mill: EndMill, dz_m: float) -> int:
+def n_slices(mill: EndMill, dz_m: float) -> int:
+    """Slices K of a mask: ``ceil(flute length / dz)`` (at least 1)."""
     if not (math.isfinite(dz_m) and dz_m > 0.0):
         raise InputError(f"engagement slice height must be > 0 m, got {dz_m!r}")
     return max(int(math.ceil(mill.flute_length_m / dz_m - 1e-9)), 1)
 
 
-def _front_mask(zmap, mill, p0, v, ps, xh, yh, dz_m, K, J) -> np.ndarray:
-    """The (S, K, J) mask of non-plunge samples ``ps`` (S, 3) of the move p0 -> p0 + v."""
-    S = ps.shape[0]
-    mask = np.zeros((S, K, J), dtype=bool)
+@dataclass(frozen=True)
+class _Grid:
+    """The mask's fixed geometry for one cutter, slice height and bin count (shared by all moves)."""
+
+    jf: int  # angle bins whose centre is at most pi
+    sin_phi: np.ndarray  # (jf,)
+    cos_phi: np.ndarray  # (jf,)
+    zk: np.ndarray  # (K,) slice midpoints above the tip, m
+    rho: np.ndarray  # (K,) edge radius there, m
+    flank: np.ndarray  # (K,) bool: on the flank (rho = R)
+
+
+@lru_cache(maxsize=16)
+def _grid(mill: EndMill, dz_m: float, K: int, J: int) -> _Grid:
     w = 2.0 * math.pi / J
     jf = int(np.count_nonzero((np.arange(J) + 0.5) * w <= math.pi))
     phi = (np.arange(jf) + 0.5) * w
+    zk = (np.arange(K) + 0.5) * dz_m
+    arrays = (np.sin(phi), np.cos(phi), zk, mill.radius_at(zk), zk >= mill.corner_radius_m)
+    for x in arrays:
+        x.setflags(write=False)
+    return _Grid(jf, *arrays)
+
+
+def _active_slices(zmap: ZMap, mill: EndMill, p0: np.ndarray, p1: np.ndarray, z_tip: float, dz_m: float, K: int) -> int:
+    """Slices that can reach material: up to the highest top within the cutter's reach over the move
+    (its bounding box grown by the radius, one cell more each side) above the lowest sample tip
+    ``z_tip``; 0 in air.  The slices above are empty: no edge point there is below a column's top."""
     R, res = mill.radius_m, zmap.resolution_m
-    # the slices that can reach material: up to the highest top near the move
     nx, ny = zmap.shape
-    lo = np.floor((np.minimum(p0, p0 + v)[:2] - R - (zmap.x0_m, zmap.y0_m)) / res).astype(int)
-    hi = np.ceil((np.maximum(p0, p0 + v)[:2] + R - (zmap.x0_m, zmap.y0_m)) / res).astype(int)
-    sub = zmap.top_m[max(lo[0], 0) : min(hi[0], nx), max(lo[1], 0) : min(hi[1], ny)]
-    top = np.fmax.reduce(sub, axis=None) if sub.size else np.nan
-    if not np.isfinite(top):
-        return mask
-    k_act = int(np.clip(math.ceil((top - ps[:, 2].min()) / dz_m), 0, K))
+    i0 = max(math.floor((min(p0[0], p1[0]) - R - zmap.x0_m) / res) - 1, 0)
+    i1 = min(math.ceil((max(p0[0], p1[0]) + R - zmap.x0_m) / res) + 1, nx)
+    j0 = max(math.floor((min(p0[1], p1[1]) - R - zmap.y0_m) / res) - 1, 0)
+    j1 = min(math.ceil((max(p0[1], p1[1]) + R - zmap.y0_m) / res) + 1, ny)
+    if i1 <= i0 or j1 <= j0:
+        return 0
+    top = np.fmax.reduce(zmap.top_m[i0:i1, j0:j1], axis=None)
+    if not top > z_tip:  # air (or no material near): no slice is engaged
+        return 0
+    return int(min(math.ceil((top - z_tip) / dz_m), K))
+
+
+def _front_mask(zmap, mill, p0, v, ps, xh, yh, dz_m, K, J) -> np.ndarray:
+    """The compact mask ``(S, k_act, jf)`` of non-plunge samples ``ps`` (S, 3) of the move
+    p0 -> p0 + v: the first ``k_act`` slices (those above are empty) and the ``jf`` bins whose centre
+    is at most pi (the others are never engaged)."""
+    S = ps.shape[0]
+    g = _grid(mill, float(dz_m), K, J)
+    k_act = _active_slices(zmap, mill, p0, p0 + v, float(ps[:, 2].min()), dz_m, K)
     if k_act == 0:
-        return mask
-    zk = (np.arange(k_act) + 0.5) * dz_m
-    rho = mill.radius_at(zk)
-    ex = np.sin(phi)[None, :] * xh[:2, None] + np.cos(phi)[None, :] * yh[:2, None]  # (2, jf)
-    corner = (v[2] > 0.0) and mill.corner_radius_m > 0.0
-    per = max(_POINTS_PER_BLOCK // (k_act * jf), 1)
+        return np.zeros((S, 0, g.jf), dtype=bool)
+    zk, rho = g.zk[:k_act], g.rho[:k_act]
+    # corner slices (rho < R) first; on the flank every slice's edge points share one column per angle
+    kc = k_act - int(np.count_nonzero(g.flank[:k_act]))
+    ex = (g.sin_phi * xh[0] + g.cos_phi * yh[0], g.sin_phi * xh[1] + g.cos_phi * yh[1])
+    mask = np.empty((S, k_act, g.jf), dtype=bool)
+    per = max(_POINTS_PER_BLOCK // (k_act * g.jf), 1)
     for s0 in range(0, S, per):
         p = ps[s0 : s0 + per]
-        X = p[:, 0, None, None] + rho[None, :, None] * ex[0][None, None, :]
-        Y = p[:, 1, None, None] + rho[None, :, None] * ex[1][None, None, :]
-        Z = p[:, 2, None, None] + zk[None, :, None]
-        m = zmap.contains(X, Y, Z)
-        if corner:
-            kc = int(np.count_nonzero(zk < mill.corner_radius_m))
-            for i in range(p.shape[0]):
-                low, high = sweep_envelope(mill, p0, p[i], X[i, :kc], Y[i, :kc])
-                m[i, :kc] &= ~((low < Z[i, :kc] - SWEEP_TOL_M) & (Z[i, :kc] <= high))
-        mask[s0 : s0 + per, :k_act, :jf] = m
+        if kc < k_act:
+            R = mill.radius_m
+            bot, top = zmap.column_interval(p[:, 0, None] + R * ex[0], p[:, 1, None] + R * ex[1])
+            Z = (p[:, 2, None] + zk[kc:])[:, :, None]
+            mask[s0 : s0 + per, kc:] = (bot[:, None, :] <= Z) & (Z <= top[:, None, :])
+        if kc:
+            mask[s0 : s0 + per, :kc] = _corner_mask(zmap, mill, p0, v, p, ex, zk[:kc], rho[:kc])
     return mask
 
 
-def _describe(mask: np.ndarray, mill: EndMill, dz_m: float):
-    """Per sample: radial width, entry, exit (lowest engaged flank slice) and kind."""
-    S, K, J = mask.shape
-    w = 2.0 * math.pi / J
-    any_k = mask.any(axis=2)
-    flank = (np.arange(K) + 0.5) * dz_m >= mill.corner_radius_m
-    on_flank = any_k & flank[None, :]
-    k_low = np.where(on_flank.any(axis=1), np.argmax(on_flank, axis=1), np.argmax(any_k, axis=1))
+def _corner_mask(zmap, mill, p0, v, p, ex, zk, rho) -> np.ndarray:
+    """The corner slices' part (S, kc, jf) of the mask: each slice its own radius; on a rising move the
+    points the move itself swept before the sample are dropped (see the module)."""
+    X = p[:, 0, None, None] + rho[None, :, None] * ex[0][None, None, :]
+    Y = p[:, 1, None, None] + rho[None, :, None] * ex[1][None, None, :]
+    Z = p[:, 2, None, None] + zk[None, :, None]
+    m = zmap.contains(X, Y, Z)
+    if v[2] > 0.0:
+        for i in range(p.shape[0]):
+            low, high = sweep_envelope(mill, p0, p[i], X[i], Y[i])
+            m[i] &= ~((low < Z[i] - SWEEP_TOL_M) & (Z[i] <= high))
+    return m
+
+
+_AIR_KIND = np.asarray(KINDS[:4], dtype="<U6")
+
+
+def _describe(mask: np.ndarray, g: _Grid, dz_m: float, J: int):
+    """Per sample of a compact mask ``(S, k, jf)`` (slices from the tip, bins from phi = 0; ``J`` bins
+    a revolution; ``g`` the grid of all slices): radial width, entry, exit (lowest engaged flank
+    slice), kind and axial depth."""
+    S, K, jf = mask.shape
+    any_k = mask.any(axis=2) if K else np.zeros((S, 0), dtype=bool)
     engaged = any_k.any(axis=1)
-    rows = mask[np.arange(S), k_low]  # (S, J)
-    j_first = np.argmax(rows, axis=1)
-    j_last = J - 1 - np.argmax(rows[:, ::-1], axis=1)
-    entry = np.where(engaged, j_first * w, np.nan)
-    exit_ = np.where(engaged, (j_last + 1) * w, np.nan)
-    rho = mill.radius_at((k_low + 0.5) * dz_m)
-    width = np.where(engaged, rho * (np.cos(np.nan_to_num(entry)) - np.cos(np.nan_to_num(exit_))), 0.0)
+    if not engaged.any():
+        return np.zeros(S), np.full(S, np.nan), np.full(S, np.nan), np.full(S, "air", dtype="<U6"), np.zeros(S)
+    depth = np.where(engaged, K - np.argmax(any_k[:, ::-1], axis=1), 0) * dz_m
+    w = 2.0 * math.pi / J
+    on_flank = any_k & g.flank[None, :K]
+    k_low = np.where(on_flank.any(axis=1), np.argmax(on_flank, axis=1), np.argmax(any_k, axis=1))
+    rows = mask[np.arange(S), k_low]  # (S, jf)
+    entry = np.argmax(rows, axis=1) * w
+    exit_ = (jf - np.argmax(rows[:, ::-1], axis=1)) * w
+    width = np.where(engaged, g.rho[k_low] * (np.cos(entry) - np.cos(exit_)), 0.0)
     at_start, at_end = entry <= EDGE_ANGLE_TOL_RAD, exit_ >= math.pi - EDGE_ANGLE_TOL_RAD
-    kind = np.where(
-        at_start & at_end,
-        "slot",
-        np.where(at_end, "down", np.where(at_start, "up", np.where((entry + exit_) / 2 > math.pi / 2, "down", "up"))),
-    )
-    return width, entry, exit_, np.where(engaged, kind, "air").astype("<U6")
+    side = np.where(at_start, 1, 1 + ((entry + exit_) / 2 > math.pi / 2))  # touching neither edge: by the middle
+    code = np.where(at_start & at_end, 3, np.where(at_end, 2, side))
+    kind = _AIR_KIND[np.where(engaged, code, 0)]
+    return width, np.where(engaged, entry, np.nan), np.where(engaged, exit_, np.nan), kind, depth
 
 
 def segment_engagement(
@@ -194,6 +243,7 @@ def segment_engagement(
     dz_m: float = SLICE_HEIGHT_M,
     n_angles: int = ANGLE_BINS,
     segment_index: int = 0,
+    out: np.ndarray | None = None,
 ) -> SampleEngagement:
     """The engagement of samples of the straight move ``p0_m -> p1_m`` against ``zmap`` as it is
     (call before cutting the move; see the module for why that is exact).
@@ -215,6 +265,9 @@ def segment_engagement(
         Angle bins J of a revolution.
     segment_index : int
         Recorded in the result's ``segment``.
+    out : ndarray or None
+        A zeroed bool array ``(S, K, J)`` to write the mask into (it becomes the result's mask; only
+        its engaged slices and front bins are written); None: a new one.
     """
     p0, p1 = np.asarray(p0_m, dtype=float), np.asarray(p1_m, dtype=float)
     t = np.asarray(t, dtype=float).reshape(-1)
@@ -222,28 +275,36 @@ def segment_engagement(
         raise InputError(f"sample positions on a move must be in [0, 1], got {t.min()!r}..{t.max()!r}")
     if isinstance(n_angles, bool) or not isinstance(n_angles, int) or n_angles < 4:
         raise InputError(f"angle bins must be an integer >= 4, got {n_angles!r}")
-    K, J, S = _n_slices(mill, dz_m), n_angles, t.size
+    K, J, S = n_slices(mill, dz_m), n_angles, t.size
     v = p1 - p0
     ps = p0[None, :] + t[:, None] * v[None, :]
     vh = math.hypot(v[0], v[1])
     plunge = vh <= PLUNGE_TOL * max(float(np.linalg.norm(v)), 1e-300)
-    if plunge:
+    if out is None:
         mask = np.zeros((S, K, J), dtype=bool)
+    elif out.shape != (S, K, J) or out.dtype != bool:
+        raise InputError(
+            f"engagement output mask must be a bool array of shape {(S, K, J)}, got {out.dtype} {out.shape}"
+        )
+    else:
+        mask = out
+    if plunge:
+        compact = np.zeros((S, 0, (J + 1) // 2), dtype=bool)
     else:
         xh = np.array([v[0] / vh, v[1] / vh, 0.0])
         yh = np.array([-xh[1], xh[0], 0.0]) * (1.0 if spindle_cw else -1.0)
-        mask = _front_mask(zmap, mill, p0, v, ps, xh, yh, dz_m, K, J)
-    batch = EngagementBatch(mask, dz_m)
-    width, entry, exit_, kind = _describe(mask, mill, dz_m)
+        compact = _front_mask(zmap, mill, p0, v, ps, xh, yh, dz_m, K, J)
+        mask[:, : compact.shape[1], : compact.shape[2]] = compact
+    width, entry, exit_, kind, depth = _describe(compact, _grid(mill, float(dz_m), K, J), dz_m, J)
     if plunge:
         kind = np.full(S, "plunge", dtype="<U6")
     return SampleEngagement(
         segment=np.full(S, segment_index, dtype=np.int64),
         t=t,
         position_m=ps,
-        batch=batch,
+        batch=EngagementBatch(mask, dz_m),
         plunge=np.full(S, plunge),
-        axial_depth_m=batch.axial_depth_m(),
+        axial_depth_m=depth,
         radial_width_m=width,
         entry_rad=entry,
         exit_rad=exit_,
@@ -251,16 +312,25 @@ def segment_engagement(
     )
 
 
-def concatenate_engagements(parts: list[SampleEngagement]) -> SampleEngagement:
-    """One :class:`SampleEngagement` of the samples of ``parts`` in order (one dz and shape)."""
+def concatenate_engagements(parts: list[SampleEngagement], mask: np.ndarray | None = None) -> SampleEngagement:
+    """One :class:`SampleEngagement` of the samples of ``parts`` in order (one dz and shape).
+
+    ``mask``: the parts' masks already laid out in order in one ``(S, K, J)`` array (written there by
+    :func:`segment_engagement` with ``out=``), used as it is instead of a copy.
+    """
     if not parts:
         raise InputError("no engagements to concatenate")
     cat = np.concatenate
+    n = sum(p.n_samples for p in parts)
+    if mask is None:
+        mask = cat([p.batch.mask for p in parts])
+    elif mask.shape != (n, *parts[0].batch.mask.shape[1:]):
+        raise InputError(f"the joined mask must have shape {(n, *parts[0].batch.mask.shape[1:])}, got {mask.shape}")
     return SampleEngagement(
         segment=cat([p.segment for p in parts]),
         t=cat([p.t for p in parts]),
         position_m=cat([p.position_m for p in parts]),
-        batch=EngagementBatch(cat([p.batch.mask for p in parts]), parts[0].batch.dz_m),
+        batch=EngagementBatch(mask, parts[0].batch.dz_m),
         plunge=cat([p.plunge for p in parts]),
         axial_depth_m=cat([p.axial_depth_m for p in parts]),
         radial_width_m=cat([p.radial_width_m for p in parts]),

@@ -144,15 +144,16 @@ def _frames(P: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 DEPTH_GROUPS = (4, 16, 64, 256)
 
 
-def _wrench_by_depth(mill: Any, coeffs: Any, batch: Any, c: np.ndarray) -> Any:
-    """:func:`models.cutting.force.cut_wrench` of a batch, its samples grouped by engaged depth and
-    each group's mask cut to its slices (the same result, far less work for shallow cuts)."""
+def _wrench_by_depth(mill: Any, coeffs: Any, batch: Any, c: np.ndarray, depth_m: np.ndarray) -> Any:
+    """:func:`models.cutting.force.cut_wrench` of a batch, its samples grouped by engaged depth
+    ``depth_m`` (the samples' highest engaged slice's top, m) and each group's mask cut to its slices
+    (the same result, far less work for shallow cuts; samples in air are not computed: zero)."""
     from models.cutting.engagement import EngagementBatch
     from models.cutting.force import CutWrench, cut_wrench
 
     m = batch.mask
     S, K, _ = m.shape
-    top = np.where(m.any(axis=2), np.arange(1, K + 1)[None, :], 0).max(axis=1, initial=0)
+    top = np.rint(np.asarray(depth_m) / batch.dz_m).astype(int)
     mean, peak = np.zeros((S, 6)), np.zeros(S)
     lo = 0
     for g in (*DEPTH_GROUPS, K):
@@ -218,7 +219,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
 
     def on_chunk(e: Any) -> None:
         seg = e.segment
-        cw = _wrench_by_depth(mill, coeffs, e.batch, c[seg])
+        cw = _wrench_by_depth(mill, coeffs, e.batch, c[seg], e.axial_depth_m)
         W = cw.mean.copy()
         ccw = sense[seg] < 0
         W[ccw, 1] *= -1.0

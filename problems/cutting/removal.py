@@ -36,13 +36,26 @@ from models.errors import InputError
 
 from .stock import ZMap
 
-__all__ = ["GOLDEN_ITERATIONS", "CutResult", "cut_segment", "lowest_by_search", "reach_interval", "sweep_envelope"]
+__all__ = [
+    "CANDIDATE_ULPS",
+    "GOLDEN_ITERATIONS",
+    "CutResult",
+    "cut_segment",
+    "lowest_by_search",
+    "reach_interval",
+    "sweep_envelope",
+]
 
 #: Golden-section steps of the bull-nose's lowest-surface search.
 GOLDEN_ITERATIONS = 48
 #: Horizontal motion below this (m) counts as none (the reach is then a whole segment or nothing).
 HORIZONTAL_TOL_M = 1e-12
 _INV_PHI = (math.sqrt(5.0) - 1.0) / 2.0
+#: A column whose top is not above the cutter's lowest tip cannot be cut by the move (the swept
+#: solid's lowest point is that tip) and is not examined; up to this many units in the last place of
+#: the heights below it, it still is (the computed lowest point may round below the tip; a flat end
+#: mill's horizontal move computes it exactly, and there no allowance is made).
+CANDIDATE_ULPS = 64
 
 
 @dataclass(frozen=True)
@@ -146,8 +159,12 @@ def sweep_envelope(mill: EndMill, p0_m, p1_m, x_m: np.ndarray, y_m: np.ndarray) 
         The lines' X and Y, m, broadcastable to one shape.
     """
     p0, p1 = _points(p0_m, p1_m)
-    v = p1 - p0
     x, y = np.broadcast_arrays(np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float))
+    return _envelope(mill, p0, p1 - p0, x, y)
+
+
+def _envelope(mill: EndMill, p0: np.ndarray, v: np.ndarray, x: np.ndarray, y: np.ndarray):
+    """:func:`sweep_envelope` of checked points: tip ``p0`` moving by ``v``; ``x, y`` one shape, float."""
     t1, t2, ok = reach_interval(mill.radius_m, p0, v, x, y)
     z1, z2 = p0[2] + t1 * v[2], p0[2] + t2 * v[2]
     high = np.maximum(z1, z2) + mill.length_m
@@ -165,8 +182,9 @@ def sweep_envelope(mill: EndMill, p0_m, p1_m, x_m: np.ndarray, y_m: np.ndarray) 
 def cut_segment(zmap: ZMap, mill: EndMill, p0_m, p1_m) -> CutResult:
     """Remove from ``zmap`` (in place) what ``mill`` sweeps moving its tip from ``p0_m`` to ``p1_m``.
 
-    Any direction (horizontal, ramp, plunge, retract).  Vectorised over the columns of the move's
-    bounding box grown by the cutter's radius.
+    Any direction (horizontal, ramp, plunge, retract).  Over the columns of the move's bounding box
+    grown by the cutter's radius, only those whose top is above the cutter's lowest point (see
+    :data:`CANDIDATE_ULPS`) can lose material: the envelope is computed on those alone.
 
     Returns
     -------
@@ -182,25 +200,31 @@ def cut_segment(zmap: ZMap, mill: EndMill, p0_m, p1_m) -> CutResult:
     j1 = min(int(np.ceil((max(p0[1], p1[1]) + R - zmap.y0_m) / res)), ny)
     if i1 <= i0 or j1 <= j0:
         return CutResult(0.0, False)
-    top = zmap.top_m[i0:i1, j0:j1]
-    bot = zmap.bottom_m[i0:i1, j0:j1]
-    zmin = min(p0[2], p1[2])
-    if not np.fmax.reduce(top, axis=None) > zmin:  # all above the cutter's lowest point, or empty
+    # candidates: flat indices into the grid of the columns whose top is above the lowest tip
+    zlo = min(p0[2], p1[2])
+    if not (mill.shape is CutterShape.FLAT and p0[2] == p1[2]):
+        zlo -= CANDIDATE_ULPS * math.ulp(abs(zlo) + mill.length_m)
+    local = np.flatnonzero(zmap.top_m[i0:i1, j0:j1] > zlo)  # NaN (empty): False
+    if local.size == 0:
         return CutResult(0.0, False)
-    x = zmap.x0_m + (np.arange(i0, i1) + 0.5) * res
-    y = zmap.y0_m + (np.arange(j0, j1) + 0.5) * res
-    low, high = sweep_envelope(mill, p0, p1, x[:, None], y[None, :])
-    hit = (low < top) & (high > bot)  # NaN (no reach, empty column) compares False
+    ii, jj = np.divmod(local, j1 - j0)
+    x = zmap.x0_m + (ii + (i0 + 0.5)) * res
+    y = zmap.y0_m + (jj + (j0 + 0.5)) * res
+    low, high = _envelope(mill, p0, p1 - p0, x, y)
+    cells = ii * ny
+    cells += jj + (i0 * ny + j0)
+    top, bot = np.take(zmap.top_m, cells), np.take(zmap.bottom_m, cells)
+    hit = (low < top) & (high > bot)  # NaN (no reach) compares False
     if not hit.any():
         return CutResult(0.0, False)
-    before = top - bot
-    roof = hit & (high < top) & (low > bot)
-    new_top = np.where(hit & (low > bot), np.minimum(top, low), top)
-    new_bot = np.where(hit & (low <= bot) & (high < top), high, bot)
-    gone = hit & (low <= bot) & (high >= top)
+    cells, low, high, top, bot = cells[hit], low[hit], high[hit], top[hit], bot[hit]
+    roof = (high < top) & (low > bot)
+    new_top = np.where(low > bot, np.minimum(top, low), top)
+    new_bot = np.where((low <= bot) & (high < top), high, bot)
+    gone = (low <= bot) & (high >= top)
     new_top[gone] = np.nan
     new_bot[gone] = np.nan
-    removed = float(np.nansum(before[hit]) - np.nansum((new_top - new_bot)[hit])) * res * res
-    zmap.top_m[i0:i1, j0:j1] = new_top
-    zmap.bottom_m[i0:i1, j0:j1] = new_bot
+    removed = float(np.nansum(top - bot) - np.nansum(new_top - new_bot)) * res * res
+    np.put(zmap.top_m, cells, new_top)
+    np.put(zmap.bottom_m, cells, new_bot)
     return CutResult(removed, bool(roof.any()))

@@ -3,7 +3,9 @@
 The moves are taken in order; for each feed move the samples' masks are made against the stock as
 it is before the move (exact: :mod:`problems.cutting.engagement_zmap`), then the move is cut
 (:func:`problems.cutting.removal.cut_segment`).  Masks are handed to a callback in chunks of bounded
-size and not kept, so a program of any length runs in bounded memory.
+size and not kept, so a program of any length runs in bounded memory; each move's mask is written
+straight into its chunk (only its engaged slices and front angle bins: the rest of a fresh chunk is
+zero and, for a shallow cut, never touched).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from models.cutting.cutter import EndMill
 from models.cutting.engagement import ANGLE_BINS, SLICE_HEIGHT_M
 from models.errors import InputError
 
-from .engagement_zmap import SampleEngagement, concatenate_engagements, segment_engagement
+from .engagement_zmap import SampleEngagement, concatenate_engagements, n_slices, segment_engagement
 from .removal import cut_segment
 from .stock import ZMap
 
@@ -123,21 +125,44 @@ def simulate(
     n = P.shape[0]
     removed = np.zeros(n)
     holder = np.zeros(n, dtype=bool)
-    pending: list[SampleEngagement] = []
-    held, n_samples = 0, 0
+    chunk = _Chunk(on_chunk, n_slices(mill, dz_m), n_angles, chunk_bytes)
     for i in range(1, n):
         p0, p1 = P[i - 1], P[i]
         if on_chunk is not None and not rp[i]:
             t = sample_positions(float(np.linalg.norm(p1 - p0)), samples_per_segment, sample_spacing_m)
-            e = segment_engagement(stock, mill, p0, p1, t, bool(cw[i]), dz_m, n_angles, segment_index=i)
-            pending.append(e)
-            held += e.batch.mask.nbytes
-            n_samples += e.n_samples
-            if held >= chunk_bytes:
-                on_chunk(concatenate_engagements(pending))
-                pending, held = [], 0
+            out = chunk.room(t.size)
+            chunk.add(segment_engagement(stock, mill, p0, p1, t, bool(cw[i]), dz_m, n_angles, segment_index=i, out=out))
         res = cut_segment(stock, mill, p0, p1)
         removed[i], holder[i] = res.removed_m3, res.holder_hit
-    if pending and on_chunk is not None:
-        on_chunk(concatenate_engagements(pending))
-    return SimulationResult(removed, holder, stock, n_samples)
+    chunk.flush()
+    return SimulationResult(removed, holder, stock, chunk.n_samples)
+
+
+class _Chunk:
+    """The samples gathered for the next hand-over: their masks are written straight into one zeroed
+    array of at most ``chunk_bytes`` (or one move's samples, if more), handed over when full."""
+
+    def __init__(self, on_chunk, n_slices: int, n_angles: int, chunk_bytes: int) -> None:
+        self.on_chunk, self.K, self.J = on_chunk, n_slices, n_angles
+        self.capacity = max(int(chunk_bytes) // (n_slices * n_angles), 1)
+        self.parts: list[SampleEngagement] = []
+        self.buffer: np.ndarray | None = None
+        self.used = 0
+        self.n_samples = 0
+
+    def room(self, S: int) -> np.ndarray:
+        """A zeroed (S, K, J) slot for the next move's masks (the chunk is handed over first if full)."""
+        if self.buffer is None or self.used + S > self.buffer.shape[0]:
+            self.flush()
+            self.buffer = np.zeros((max(self.capacity, S), self.K, self.J), dtype=bool)  # pages zeroed lazily
+        return self.buffer[self.used : self.used + S]
+
+    def add(self, e: SampleEngagement) -> None:
+        self.parts.append(e)
+        self.used += e.n_samples
+        self.n_samples += e.n_samples
+
+    def flush(self) -> None:
+        if self.parts:
+            self.on_chunk(concatenate_engagements(self.parts, self.buffer[: self.used]))
+        self.parts, self.buffer, self.used = [], None, 0

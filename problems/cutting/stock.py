@@ -89,6 +89,25 @@ class ZMap:
         """An independent copy (cuts on it leave this one as it is)."""
         return ZMap(self.x0_m, self.y0_m, self.resolution_m, self.bottom_m.copy(), self.top_m.copy())
 
+    def column_interval(self, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The material interval ``(bottom, top)`` of the column whose cell holds each point (its
+        nearest centre), m; both NaN where the column is empty or the point is off the grid.
+
+        Parameters
+        ----------
+        x_m, y_m : ndarray
+            Program-frame coordinates, m, broadcastable to one shape.
+        """
+        nx, ny = self.shape
+        ix = np.floor((np.asarray(x_m) - self.x0_m) / self.resolution_m).astype(np.int64)
+        iy = np.floor((np.asarray(y_m) - self.y0_m) / self.resolution_m).astype(np.int64)
+        on = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
+        flat = np.where(on, ix * ny + iy, 0)
+        bottom, top = np.take(self.bottom_m, flat), np.take(self.top_m, flat)
+        if not on.all():
+            bottom, top = np.where(on, bottom, np.nan), np.where(on, top, np.nan)
+        return bottom, top
+
     def contains(self, x_m: np.ndarray, y_m: np.ndarray, z_m: np.ndarray) -> np.ndarray:
         """Whether points are in material, by the column whose cell holds the point (its nearest
         centre): the z-map's own model of the stock, piecewise constant per cell.
@@ -103,13 +122,9 @@ class ZMap:
         ndarray, bool
             True where ``bottom <= z <= top`` of the point's column (False off the grid).
         """
-        nx, ny = self.shape
-        ix = np.floor((np.asarray(x_m) - self.x0_m) / self.resolution_m).astype(np.int64)
-        iy = np.floor((np.asarray(y_m) - self.y0_m) / self.resolution_m).astype(np.int64)
-        on = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
-        ixc, iyc = np.clip(ix, 0, nx - 1), np.clip(iy, 0, ny - 1)
+        bottom, top = self.column_interval(x_m, y_m)
         z = np.asarray(z_m)
-        return on & (self.bottom_m[ixc, iyc] <= z) & (z <= self.top_m[ixc, iyc])
+        return (bottom <= z) & (z <= top)
 
     def cut_segment(self, mill, p0_m, p1_m) -> float:
         """Remove what the end mill sweeps from tip ``p0_m`` to ``p1_m``; the removed volume, m^3.
