@@ -72,6 +72,39 @@ class _Acc:
         for k, v in values.items():
             (getattr(self, k) if into is None else into[k])[s] = v
 
+    def take(self, e: Any, cw: Any, sense: np.ndarray, P: np.ndarray) -> None:
+        """Record a chunk of samples (``e``: :class:`~problems.cutting.engagement_zmap.SampleEngagement`,
+        ``cw``: their :class:`~models.cutting.force.CutWrench`): each move's end sample is its waypoint's,
+        its first sample kept for :meth:`starts`; the wrench turned from the feed frame into the
+        program frame (an M4 spindle's mirrored back)."""
+        seg = e.segment
+        W = cw.mean.copy()
+        ccw = sense[seg] < 0
+        W[np.ix_(ccw, [1, 3, 5])] *= -1.0
+        x, y = _frames(P, seg)
+        z = np.array([0.0, 0.0, 1.0])
+        Wp = np.hstack([W[:, i : i + 1] * x + W[:, i + 1 : i + 2] * y + W[:, i + 2 : i + 3] * z for i in (0, 3)])
+        np.maximum.at(self.seg_peak, seg, np.nan_to_num(cw.peak_force_N))
+        np.logical_or.at(self.plunge_cut, seg, e.plunge)  # its mask is empty: whether it cuts is known after the move
+        values = {
+            "wrench": Wp,
+            "peak": np.nan_to_num(cw.peak_force_N),
+            "depth": e.axial_depth_m,
+            "width": e.radial_width_m,
+            "entry": e.entry_rad,
+            "exit": e.exit_rad,
+            "kind": np.array([MILLING_CODES.index(_KIND.get(str(k), Milling.PARTIAL)) for k in e.kind], dtype=int),
+        }
+        end = np.flatnonzero(e.t >= 1.0 - 1e-12)
+        self.record(None, seg[end], {k: v[end] for k, v in values.items()})
+        order = np.lexsort((e.t, seg))
+        segs, at = np.unique(seg[order], return_index=True)
+        rows = order[at]
+        better = e.t[rows] < self.first_t[segs]
+        rows, segs = rows[better], segs[better]
+        self.first_t[segs] = e.t[rows]
+        self.record(self.first, segs, {k: v[rows] for k, v in values.items()})
+
     def starts(self, rapid: np.ndarray, stop: np.ndarray) -> None:
         """A stop where the cutter starts cutting (the move arriving there in the air or a plunge,
         the move leaving it a feed move that cuts from its first sample) carries the force of the cut
@@ -97,6 +130,18 @@ def _spindle(setup: Any, way: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return np.full(n, w), np.full(n, 1 if setup.spindle_cw else -1), np.zeros(n, dtype=int)
     k = np.maximum(way.move, 0)
     return way.spindle.speed_rad_s[k], way.spindle.sense[k], way.spindle.s_line[k]
+
+
+def _check_speed(way: Any, speed: np.ndarray) -> None:
+    """Refuse a program with feed moves and no spindle speed (no S word, or S0) before them."""
+    feeding = ~way.rapid
+    feeding[0] = False
+    if feeding.any() and not np.any(speed[feeding] > 0.0):
+        k = int(np.argmax(feeding))
+        raise InputError(
+            f"{way.source}:{int(way.line[k])}: the program gives no spindle speed (no S word, or S0) before its "
+            "first feed move; the cut force needs it (feed per tooth = F / (flutes x S)): add S (rev/min)"
+        )
 
 
 def _check_axes(way: Any) -> None:
@@ -200,14 +245,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
     _check_axes(way)
     mill, n = setup.mill, way.n
     speed, sense, _s_line = _spindle(setup, way)
-    feeding = ~way.rapid
-    feeding[0] = False
-    if feeding.any() and not np.any(speed[feeding] > 0.0):
-        k = int(np.argmax(feeding))
-        raise InputError(
-            f"{way.source}:{int(way.line[k])}: the program gives no spindle speed (no S word, or S0) before its "
-            "first feed move; the cut force needs it (feed per tooth = F / (flutes x S)): add S (rev/min)"
-        )
+    _check_speed(way, speed)
     c = _feed_per_tooth(setup, way, speed)
     zmap = setup.stock.to_zmap() if setup.resolution_m is None else setup.stock.to_zmap(setup.resolution_m)
     before = _image(zmap)
@@ -218,41 +256,7 @@ def predict_cut(setup: Any, way: Any, program2base: np.ndarray) -> CutPrediction
     dz_kw = {} if setup.slice_height_m is None else {"dz_m": setup.slice_height_m}
 
     def on_chunk(e: Any) -> None:
-        seg = e.segment
-        cw = _wrench_by_depth(mill, coeffs, e.batch, c[seg], e.axial_depth_m)
-        W = cw.mean.copy()
-        ccw = sense[seg] < 0
-        W[ccw, 1] *= -1.0
-        W[ccw, 3] *= -1.0
-        W[ccw, 5] *= -1.0
-        x, y = _frames(P, seg)
-        z = np.array([0.0, 0.0, 1.0])
-        Wp = np.hstack(
-            [
-                W[:, :1] * x + W[:, 1:2] * y + W[:, 2:3] * z,
-                W[:, 3:4] * x + W[:, 4:5] * y + W[:, 5:6] * z,
-            ]
-        )
-        np.maximum.at(acc.seg_peak, seg, np.nan_to_num(cw.peak_force_N))
-        np.logical_or.at(acc.plunge_cut, seg, e.plunge)  # its mask is empty: whether it cuts is known after the move
-        values = {
-            "wrench": Wp,
-            "peak": np.nan_to_num(cw.peak_force_N),
-            "depth": e.axial_depth_m,
-            "width": e.radial_width_m,
-            "entry": e.entry_rad,
-            "exit": e.exit_rad,
-            "kind": np.array([MILLING_CODES.index(_KIND.get(str(k), Milling.PARTIAL)) for k in e.kind], dtype=int),
-        }
-        end = np.flatnonzero(e.t >= 1.0 - 1e-12)
-        acc.record(None, seg[end], {k: v[end] for k, v in values.items()})
-        order = np.lexsort((e.t, seg))
-        segs, at = np.unique(seg[order], return_index=True)
-        rows = order[at]
-        better = e.t[rows] < acc.first_t[segs]
-        rows, segs = rows[better], segs[better]
-        acc.first_t[segs] = e.t[rows]
-        acc.record(acc.first, segs, {k: v[rows] for k, v in values.items()})
+        acc.take(e, _wrench_by_depth(mill, coeffs, e.batch, c[e.segment], e.axial_depth_m), sense, P)
 
     sim = simulate(
         zmap,

@@ -126,15 +126,6 @@ class ZMap:
         z = np.asarray(z_m)
         return (bottom <= z) & (z <= top)
 
-    def cut_segment(self, mill, p0_m, p1_m) -> float:
-        """Remove what the end mill sweeps from tip ``p0_m`` to ``p1_m``; the removed volume, m^3.
-
-        See :func:`problems.cutting.removal.cut_segment`.
-        """
-        from .removal import cut_segment  # removal builds on this module
-
-        return cut_segment(self, mill, p0_m, p1_m).removed_m3
-
 
 def _grid(lo_xy: np.ndarray, hi_xy: np.ndarray, resolution_m: float, what: str) -> tuple[float, float, int, int]:
     """A grid of square cells covering [lo, hi] in X-Y, centred on it; refuses one too large."""
