@@ -72,6 +72,16 @@ def brute_mask(z: ZMap, mill: EndMill, ps: np.ndarray, xh: np.ndarray, yh: np.nd
                 i, jj = math.floor((q[0] - z.x0_m) / RES), math.floor((q[1] - z.y0_m) / RES)
                 if 0 <= i < nx and 0 <= jj < ny:
                     out[s, k, j] = bool(z.bottom_m[i, jj] <= q[2] <= z.top_m[i, jj])
+            # a run from phi = 0 (or back from pi) narrower across the feed than one z-map cell is
+            # below the z-map's resolution and dropped (SLIVER_CELLS = 1)
+            half = [j for j in range(J) if (j + 0.5) * w <= math.pi]
+            lim = math.ceil(math.acos(max(-1.0, 1.0 - RES / max(rho, 1e-12))) / w)
+            for run in (half, half[::-1]):
+                n = 0
+                while n < len(run) and out[s, k, run[n]]:
+                    n += 1
+                if 0 < n <= lim and n < len(run):
+                    out[s, k, run[:n]] = False
     return out
 
 

@@ -189,7 +189,41 @@ def _front_mask(zmap, mill, p0, v, ps, xh, yh, dz_m, K, J) -> np.ndarray:
             mask[s0 : s0 + per, kc:] = (bot[:, None, :] <= Z) & (Z <= top[:, None, :])
         if kc:
             mask[s0 : s0 + per, :kc] = _corner_mask(zmap, mill, p0, v, p, ex, zk[:kc], rho[:kc])
+    _drop_slivers(mask, _sliver_bins(rho, zmap.resolution_m, J))
     return mask
+
+
+#: An engagement that starts at phi = 0 (ends at pi) narrower across the feed than this many z-map
+#: cells is below the z-map's resolution: a wall a previous pass left exactly where the edge runs now
+#: (a contour's next level, a finishing pass retracing it) shows as such a sliver wherever the cell
+#: holding the edge point has its centre just outside the earlier cut; it is dropped.
+SLIVER_CELLS = 1.0
+
+
+def _sliver_bins(rho: np.ndarray, resolution_m: float, J: int) -> np.ndarray:
+    """Per slice: the angle bins from phi = 0 (or back from pi) a sliver of :data:`SLIVER_CELLS`
+    cells across the feed spans at edge radius ``rho``."""
+    w = 2.0 * math.pi / J
+    c = np.clip(1.0 - SLIVER_CELLS * resolution_m / np.maximum(rho, 1e-12), -1.0, 1.0)
+    return np.ceil(np.arccos(c) / w).astype(int)
+
+
+def _drop_slivers(mask: np.ndarray, nbins: np.ndarray) -> None:
+    """Clear, in place, the engaged runs of ``mask`` (S, k, jf) touching phi = 0 or phi = pi that span
+    at most ``nbins[k]`` bins (and are not the whole half)."""
+    S, K, jf = mask.shape
+    if not (S and K and jf):
+        return
+    lim = nbins[:K][None, :]
+    # the run from phi = 0: its length is the first not-engaged bin
+    first_gap = np.where(mask.all(axis=2), jf, np.argmin(mask, axis=2))
+    drop = mask[:, :, 0] & (first_gap <= lim) & (first_gap < jf)
+    last_gap = np.where(mask.all(axis=2), jf, np.argmin(mask[:, :, ::-1], axis=2))
+    drop_end = mask[:, :, -1] & (last_gap <= lim) & (last_gap < jf)
+    j = np.arange(jf)[None, None, :]
+    mask &= ~(
+        (drop[:, :, None] & (j < first_gap[:, :, None])) | (drop_end[:, :, None] & (j >= jf - last_gap[:, :, None]))
+    )
 
 
 def _corner_mask(zmap, mill, p0, v, p, ex, zk, rho) -> np.ndarray:
