@@ -72,16 +72,28 @@ def brute_mask(z: ZMap, mill: EndMill, ps: np.ndarray, xh: np.ndarray, yh: np.nd
                 i, jj = math.floor((q[0] - z.x0_m) / RES), math.floor((q[1] - z.y0_m) / RES)
                 if 0 <= i < nx and 0 <= jj < ny:
                     out[s, k, j] = bool(z.bottom_m[i, jj] <= q[2] <= z.top_m[i, jj])
-            # a run from phi = 0 (or back from pi) narrower across the feed than one z-map cell is
-            # below the z-map's resolution and dropped (SLIVER_CELLS = 1)
+            # a run of engaged bins with no point that is still in material one z-map cell nearer the
+            # axis is a sliver below the z-map's resolution, and dropped (SLIVER_CELLS = 1)
             half = [j for j in range(J) if (j + 0.5) * w <= math.pi]
-            lim = math.ceil(math.acos(max(-1.0, 1.0 - RES / max(rho, 1e-12))) / w)
-            for run in (half, half[::-1]):
-                n = 0
-                while n < len(run) and out[s, k, run[n]]:
-                    n += 1
-                if 0 < n <= lim and n < len(run):
-                    out[s, k, run[:n]] = False
+            runs, cur = [], []
+            for j in half:
+                if out[s, k, j]:
+                    cur.append(j)
+                elif cur:
+                    runs.append(cur)
+                    cur = []
+            if cur:
+                runs.append(cur)
+            for run in runs:
+                deep = False
+                for j in run:
+                    phi = (j + 0.5) * w
+                    e = math.sin(phi) * xh + math.cos(phi) * yh
+                    q = p + max(rho - RES, 0.0) * e + np.array([0.0, 0.0, zk])
+                    i, jj = math.floor((q[0] - z.x0_m) / RES), math.floor((q[1] - z.y0_m) / RES)
+                    deep |= 0 <= i < nx and 0 <= jj < ny and bool(z.bottom_m[i, jj] <= q[2] <= z.top_m[i, jj])
+                if not deep:
+                    out[s, k, run] = False
     return out
 
 

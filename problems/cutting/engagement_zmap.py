@@ -189,41 +189,51 @@ def _front_mask(zmap, mill, p0, v, ps, xh, yh, dz_m, K, J) -> np.ndarray:
             mask[s0 : s0 + per, kc:] = (bot[:, None, :] <= Z) & (Z <= top[:, None, :])
         if kc:
             mask[s0 : s0 + per, :kc] = _corner_mask(zmap, mill, p0, v, p, ex, zk[:kc], rho[:kc])
-    _drop_slivers(mask, _sliver_bins(rho, zmap.resolution_m, J))
+    if mask.any():
+        _drop_slivers(mask, _inner_mask(zmap, ps, ex, zk, rho, g.flank[:k_act], SLIVER_CELLS * zmap.resolution_m))
     return mask
 
 
-#: An engagement that starts at phi = 0 (ends at pi) narrower across the feed than this many z-map
-#: cells is below the z-map's resolution: a wall a previous pass left exactly where the edge runs now
-#: (a contour's next level, a finishing pass retracing it) shows as such a sliver wherever the cell
-#: holding the edge point has its centre just outside the earlier cut; it is dropped.
+#: A run of engaged edge points (one slice, neighbouring angle bins) is material only if it reaches
+#: this many z-map cells inside the cutter's circle somewhere along it: a wall a previous pass left
+#: exactly where the edge runs now (a contour's next level, a finishing pass retracing it) shows on
+#: the edge wherever the cell holding an edge point has its centre just outside the earlier cut, and
+#: reaches less than a cell in; below the z-map's resolution, it is dropped.  A real engagement keeps
+#: its whole extent (the test is per run, not per point: no bias on the width of cut).
 SLIVER_CELLS = 1.0
 
 
-def _sliver_bins(rho: np.ndarray, resolution_m: float, J: int) -> np.ndarray:
-    """Per slice: the angle bins from phi = 0 (or back from pi) a sliver of :data:`SLIVER_CELLS`
-    cells across the feed spans at edge radius ``rho``."""
-    w = 2.0 * math.pi / J
-    c = np.clip(1.0 - SLIVER_CELLS * resolution_m / np.maximum(rho, 1e-12), -1.0, 1.0)
-    return np.ceil(np.arccos(c) / w).astype(int)
+def _inner_mask(zmap, ps, ex, zk, rho, flank, inset_m: float) -> np.ndarray:
+    """Material at the edge points moved ``inset_m`` towards the axis, (S, k, jf) (on the flank one
+    column per angle, as for the mask)."""
+    r = np.maximum(rho - inset_m, 0.0)
+    out = np.empty((ps.shape[0], len(zk), len(ex[0])), dtype=bool)
+    if flank.any():
+        rf = float(r[flank][0])
+        bot, top = zmap.column_interval(ps[:, 0, None] + rf * ex[0], ps[:, 1, None] + rf * ex[1])
+        Z = (ps[:, 2, None] + zk[flank])[:, :, None]
+        out[:, flank] = (bot[:, None, :] <= Z) & (Z <= top[:, None, :])
+    c = ~flank
+    if c.any():
+        X = ps[:, 0, None, None] + r[c][None, :, None] * ex[0][None, None, :]
+        Y = ps[:, 1, None, None] + r[c][None, :, None] * ex[1][None, None, :]
+        out[:, c] = zmap.contains(X, Y, ps[:, 2, None, None] + zk[c][None, :, None])
+    return out
 
 
-def _drop_slivers(mask: np.ndarray, nbins: np.ndarray) -> None:
-    """Clear, in place, the engaged runs of ``mask`` (S, k, jf) touching phi = 0 or phi = pi that span
-    at most ``nbins[k]`` bins (and are not the whole half)."""
+def _drop_slivers(mask: np.ndarray, inner: np.ndarray) -> None:
+    """Clear, in place, every engaged run of ``mask`` (S, k, jf: consecutive bins of one slice) that
+    has no point in ``inner`` (the same shape)."""
     S, K, jf = mask.shape
     if not (S and K and jf):
         return
-    lim = nbins[:K][None, :]
-    # the run from phi = 0: its length is the first not-engaged bin
-    first_gap = np.where(mask.all(axis=2), jf, np.argmin(mask, axis=2))
-    drop = mask[:, :, 0] & (first_gap <= lim) & (first_gap < jf)
-    last_gap = np.where(mask.all(axis=2), jf, np.argmin(mask[:, :, ::-1], axis=2))
-    drop_end = mask[:, :, -1] & (last_gap <= lim) & (last_gap < jf)
-    j = np.arange(jf)[None, None, :]
-    mask &= ~(
-        (drop[:, :, None] & (j < first_gap[:, :, None])) | (drop_end[:, :, None] & (j >= jf - last_gap[:, :, None]))
-    )
+    start = mask & ~np.concatenate([np.zeros((S, K, 1), dtype=bool), mask[:, :, :-1]], axis=2)
+    rid = np.cumsum(start, axis=2, dtype=np.int32)  # run number within its slice (1, 2, ...)
+    base = (np.arange(S * K, dtype=np.int64) * (jf + 1)).reshape(S, K, 1)
+    idx = base + np.where(mask, rid, 0)
+    keep = np.zeros(S * K * (jf + 1), dtype=bool)
+    keep[idx[mask & inner]] = True
+    mask &= keep[idx]
 
 
 def _corner_mask(zmap, mill, p0, v, p, ex, zk, rho) -> np.ndarray:
