@@ -241,7 +241,7 @@ def test_the_shipped_milling_pocket_runs_at_its_feed_within_its_tolerance(tmp_pa
     src = (ROOT / "problems" / "files" / "milling_pocket.toml").read_text()
     ngc = (ROOT / "problems" / "files" / "milling_pocket.ngc").as_posix()
     cut = src.index("[material]")
-    src = src[:cut] + '[wrench]\nframe = "tool"\nforce = [40.0, 25.0, 30.0]\n\n' + src[src.index("[cost]") :]
+    src = src[:cut] + '[wrench]\nframe = "tool"\nforce = [40.0, 25.0, 30.0]\n\n' + src[src.index("[limits]") :]
     text = (
         src.replace('file = "milling_pocket.ngc"', f'file = "{ngc}"')
         + '\n[timing]\nmethods = ["lookahead", "toppra"]\n'
