@@ -263,13 +263,16 @@ def run(args: argparse.Namespace) -> int:
     from problems.problem import load_problem
 
     check_output(args.out, {"PROBLEM": args.problem, "--robot": args.robot}, holds="plan", force=args.force)
-    problem = load_problem(args.problem)
+    from planner.progress import report_progress
+
+    with report_progress() as bars:  # reading a program and predicting its cut takes seconds
+        bars("reading the problem", 0, 1)
+        problem = load_problem(args.problem)
+        bars("reading the problem", 1, 1)
     if args.robot is not None:
         problem = problem.with_robot(args.robot)
     if args.dt is not None:
         problem = with_dt(problem, args.dt)
-    from planner.progress import report_progress
-
     with report_progress() as bars:
         res = plan(problem, verbose=args.verbose, optimise=not args.no_optimise, progress=bars)
     return finish_run(res.raise_for_status(), args)
