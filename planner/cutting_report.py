@@ -55,24 +55,19 @@ def _toml_float(v: float) -> str:
 
 def material_toml(fit: CoefficientFit, name: str, source: str) -> str:
     """The ``[material]`` table of a complete fit (SI; a comment gives each +- 2 sigma)."""
+    import tomli_w  # the strings; the numbers are written by hand to carry their comments
+
     lines = [
         "# Mechanistic cutting coefficients fitted by `compplan cutting fit` (docs/cutting.md).",
         "# Paste the [material] table into a problem file.  SI units: N/m^2 (K.c) and N/m (K.e).",
         f"# status: {fit.status.value}{' (' + fit.reason + ')' if fit.reason else ''}",
         "[material]",
-        f"name = {_toml_string(name)}",
-        f"source = {_toml_string(source)}",
+        tomli_w.dumps({"name": name, "source": source}).rstrip("\n"),
     ]
     for n, v, s, u in zip(COEFFICIENT_NAMES, fit.values, fit.std_errors, COEFFICIENT_UNITS):
         sigma = f"  # +- {2.0 * s:.3g} {u} (2 sigma)" if np.isfinite(s) else f"  # {u}"
         lines.append(f"{n} = {_toml_float(v)}{sigma}")
     return "\n".join(lines) + "\n"
-
-
-def _toml_string(text: str) -> str:
-    """A TOML basic string."""
-    out = text.replace("\\", "\\\\").replace('"', '\\"')
-    return '"' + "".join(c if c.isprintable() else f"\\u{ord(c):04x}" for c in out) + '"'
 
 
 def _test_record(t: ForceTest, measured: np.ndarray, fitted: np.ndarray, resid: np.ndarray) -> dict[str, Any]:

@@ -19,8 +19,9 @@ if TYPE_CHECKING:
 __all__ = ["cut_rows", "cut_stock_bytes", "cut_summary"]
 
 
-def _norm_mm(e: np.ndarray | None, n: int) -> np.ndarray:
-    return np.full(n, np.nan) if e is None else np.linalg.norm(np.asarray(e), axis=1) * 1e3
+def _norm_mm(result: Any, n: int) -> np.ndarray:
+    """A compensation's or the stand-in comparison's TCP error norms (``error_norm_m``), mm; NaN without one."""
+    return np.full(n, np.nan) if result is None else np.asarray(result.error_norm_m) * 1e3
 
 
 def cut_rows(res: PlanResult) -> np.ndarray:
@@ -28,7 +29,6 @@ def cut_rows(res: PlanResult) -> np.ndarray:
     c = res.problem.cut
     way = res.problem.program.waypoints
     W = np.asarray(c.wrench_program)
-    cmp = res.cut_comparison
     cols = [
         way.line,
         W,
@@ -41,9 +41,9 @@ def cut_rows(res: PlanResult) -> np.ndarray:
         c.milling,
         c.feed_per_tooth_m * 1e3,
         c.spindle_rad_s * 60.0 / (2.0 * math.pi),
-        _norm_mm(res.before.error_m if res.before is not None else None, c.n),
-        _norm_mm(res.exact.error_m if res.exact is not None else None, c.n),
-        _norm_mm(None if cmp is None else cmp.error_m, c.n),
+        _norm_mm(res.before, c.n),
+        _norm_mm(res.exact, c.n),
+        _norm_mm(res.cut_comparison, c.n),
     ]
     rows = np.column_stack(cols).astype(float)
     assert rows.shape[1] == len(CUT_COLUMNS)
@@ -118,8 +118,8 @@ def cut_summary(res: PlanResult) -> dict[str, Any]:
             "peak_max": float(np.max(c.peak_force_N)) if c.n else 0.0,
         },
         "error_mm": {
-            "uncompensated": _stats(_norm_mm(res.before.error_m if res.before is not None else None, c.n)),
-            "compensated": _stats(_norm_mm(res.exact.error_m if res.exact is not None else None, c.n)),
+            "uncompensated": _stats(_norm_mm(res.before, c.n)),
+            "compensated": _stats(_norm_mm(res.exact, c.n)),
         },
         "spindle_rpm": _range(np.asarray(c.spindle_rad_s) * 60.0 / (2.0 * math.pi), cutting),
         "feed_per_tooth_mm": _range(np.asarray(c.feed_per_tooth_m) * 1e3, cutting),
@@ -133,5 +133,5 @@ def cut_summary(res: PlanResult) -> dict[str, Any]:
             "F_N": np.asarray(c.stand_in[:3]).tolist(),
             "M_Nm": np.asarray(c.stand_in[3:]).tolist(),
         }
-        out["error_mm"]["stand_in_compensated"] = _stats(res.cut_comparison.error_norm_m * 1e3)
+        out["error_mm"]["stand_in_compensated"] = _stats(_norm_mm(res.cut_comparison, c.n))
     return out

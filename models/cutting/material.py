@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = [
+    "unit_mistake",
     "MIN_CUTTING_N_M2",
     "MIN_EDGE_N_M",
     "CuttingCoefficients",
@@ -39,6 +40,24 @@ MIN_CUTTING_N_M2 = 1e6
 #: N/mm given as SI.  Published edge coefficients of metals are about 5 to 200 N/mm (5e3 to 2e5 N/m);
 #: given in N/mm by mistake they read 5 to 200.  All three may be zero (no edge force).
 MIN_EDGE_N_M = 500.0
+
+#: Below these a single coefficient typed under its SI key was given in N/mm^2 (cutting) or N/mm
+#: (edge) (:func:`unit_mistake`): one key at a time, so lower than the set's floors above (a small
+#: radial or axial coefficient of a set may lie below those).
+KEY_FLOOR = {"cutting": 1e5, "edge": 10.0}
+#: Published unit to SI: N/mm^2 -> N/m^2, N/mm -> N/m.
+KEY_FACTOR = {"cutting": 1e6, "edge": 1e3}
+
+
+def unit_mistake(key: str, value: float) -> str | None:
+    """What is wrong with coefficient ``key`` (``"Ktc"`` ... ``"Kae"``) = ``value`` typed in SI, if
+    it looks like the published unit (N/mm^2, N/mm): the message, with the SI value; else None."""
+    kind = "cutting" if key in _NAMES[:3] else "edge"
+    if not 0.0 < abs(value) < KEY_FLOOR[kind]:
+        return None
+    unit, other = ("N/m²", "N/mm²") if kind == "cutting" else ("N/m", "N/mm")
+    return f"= {value:g} is far too small for {unit}: it looks like {other} (in {unit}: {value * KEY_FACTOR[kind]:g})"
+
 
 #: The shipped table (``models/tables``).
 TABLE_FILE = "cutting_materials.toml"

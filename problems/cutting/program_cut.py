@@ -42,6 +42,18 @@ MAX_FIGURE_CELLS = 400
 THREE_AXIS_TOL_RAD = 1e-6
 
 
+#: A sample's kind (:mod:`problems.cutting.engagement_zmap`) as a :class:`Milling`.
+_KIND = {"air": Milling.AIR, "up": Milling.UP, "down": Milling.DOWN, "slot": Milling.SLOT, "plunge": Milling.PLUNGE}
+
+
+def _codes(kinds: np.ndarray) -> np.ndarray:
+    """The :data:`MILLING_CODES` index of each sample's kind (``"air"``, ``"up"``, ...), shape (S,)."""
+    out = np.full(len(kinds), MILLING_CODES.index(Milling.PARTIAL), dtype=int)
+    for word, kind in _KIND.items():
+        out[np.asarray(kinds) == word] = MILLING_CODES.index(kind)
+    return out
+
+
 #: The per-waypoint fields a sample sets.
 _FIELDS = ("wrench", "peak", "depth", "width", "entry", "exit", "kind")
 
@@ -93,7 +105,7 @@ class _Acc:
             "width": e.radial_width_m,
             "entry": e.entry_rad,
             "exit": e.exit_rad,
-            "kind": np.array([MILLING_CODES.index(_KIND.get(str(k), Milling.PARTIAL)) for k in e.kind], dtype=int),
+            "kind": _codes(e.kind),
         }
         end = np.flatnonzero(e.t >= 1.0 - 1e-12)
         self.record(None, seg[end], {k: v[end] for k, v in values.items()})
@@ -117,9 +129,6 @@ class _Acc:
         i = np.flatnonzero(stop[:-1] & idle[:-1] & ~first_idle[1:] & np.isfinite(self.first_t[1:]) & ~rapid[1:])
         for k in _FIELDS:
             getattr(self, k)[i] = self.first[k][i + 1]
-
-
-_KIND = {"air": Milling.AIR, "up": Milling.UP, "down": Milling.DOWN, "slot": Milling.SLOT, "plunge": Milling.PLUNGE}
 
 
 def _spindle(setup: Any, way: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

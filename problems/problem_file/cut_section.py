@@ -140,7 +140,7 @@ def parse_cut_setup(
 
 
 def _material(where: str, data: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
-    from models.cutting.material import CuttingCoefficients, material, material_names
+    from models.cutting.material import CuttingCoefficients, material, material_names, unit_mistake
 
     mt = table(where, data, "material", MATERIAL_KEYS)
     given = [k for k in COEFFICIENT_KEYS if k in mt]
@@ -158,8 +158,12 @@ def _material(where: str, data: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]
         missing = [k for k in COEFFICIENT_KEYS if k not in mt]
         raise err(where, f"material.{missing[0]}", "is required (or material.name, a row of the shipped table)")
     vals = {k: number(where, f"material.{k}", mt[k]) for k in COEFFICIENT_KEYS}
-    for k, unit in COEFFICIENT_KEYS.items():
-        _check_si(where, k, unit, vals[k])
+    for k, v in vals.items():
+        if v < 0.0 or (k == "Ktc" and v <= 0.0):
+            raise err(where, f"material.{k}", f"= {v:g} {COEFFICIENT_KEYS[k]}; expected >= 0 (Ktc > 0)")
+        wrong = unit_mistake(k, v)
+        if wrong:
+            raise err(where, f"material.{k}", wrong)
     source = str(mt.get("source", ""))
     if not source.strip():
         raise err(where, "material.source", "is required with the coefficients: where they come from")
@@ -168,24 +172,6 @@ def _material(where: str, data: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]
     except InputError as exc:
         raise err(where, "material", str(exc)) from None
     return c, {**vals, "source": source}
-
-
-#: Below these the coefficient was given in N/mm² (cutting) or N/mm (edge) under its SI key: metals
-#: cut at Ktc ~ 3e8..5e9 N/m² and Kte ~ 1e3..1e5 N/m.
-SI_FLOOR = {"N/m²": 1e5, "N/m": 10.0}
-SI_FACTOR = {"N/m²": 1e6, "N/m": 1e3}
-
-
-def _check_si(where: str, key: str, unit: str, v: float) -> None:
-    if v < 0.0 or (key in ("Ktc",) and v <= 0.0):
-        raise err(where, f"material.{key}", f"= {v:g} {unit}; expected >= 0 (Ktc > 0)")
-    if 0.0 < abs(v) < SI_FLOOR[unit]:
-        other = "N/mm²" if unit == "N/m²" else "N/mm"
-        raise err(
-            where,
-            f"material.{key}",
-            f"= {v:g} is far too small for {unit}: it looks like {other} (in {unit}: {v * SI_FACTOR[unit]:g})",
-        )
 
 
 def _stock(where: str, data: Mapping[str, Any], base_dir: Path | None) -> tuple[Any, dict[str, Any], float | None]:
