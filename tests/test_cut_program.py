@@ -744,3 +744,24 @@ def test_a_named_material_round_trips_and_equals_its_coefficients(tmp_path):
     scale = np.abs(si.cut.wrench_program).max()
     assert scale > 10.0
     np.testing.assert_allclose(named.cut.wrench_program, si.cut.wrench_program, rtol=0, atol=1e-12 * scale)
+
+
+def test_a_fitted_coefficients_file_pasted_as_it_is_is_the_material(tmp_path):
+    """``compplan cutting fit``'s ``coefficients.toml`` (a ``name`` with the six coefficients) pasted as
+    the problem's ``[material]`` (docs/cutting-fit.md, "Outputs"): its coefficients, its name as the label."""
+    fitted = (
+        "# status: ok\n[material]\n"
+        'name = "my-al"\nsource = "fitted from al.csv on 2026-12-08"\n'
+        "Ktc = 796000000.0  # +- 1e6 N/m^2 (2 sigma)\nKrc = 168800000.0\nKac = 222000000.0\n"
+        "Kte = 27700.0\nKre = 30800.0\nKae = 1400.0\n"
+    )
+    text = PROBLEM.format(**{**DEFAULTS, "file": "part.ngc"})
+    text = text[: text.index("[material]")] + fitted[fitted.index("[material]") :] + text[text.index("[stock]") :]
+    (tmp_path / "part.ngc").write_text(PROGRAM_SLOT)
+    (tmp_path / "p.toml").write_text(text)
+    pr = load_problem(tmp_path / "p.toml")
+    m = pr.cut.material
+    assert (m.name, m.Ktc, m.Kae) == ("my-al", 796e6, 1400.0)
+    assert pr.to_dict()["material"]["name"] == "my-al"
+    same = load_problem(_write(tmp_path, PROGRAM_SLOT))  # the same six without a name
+    np.testing.assert_array_equal(pr.cut.wrench_program, same.cut.wrench_program)

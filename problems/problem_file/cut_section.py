@@ -7,7 +7,8 @@ mechanistic force of every waypoint becomes its wrench (:mod:`problems.cutting.p
 
 * ``[material]``: ``name`` (a row of the shipped table, ``compplan cutting materials``), or the six
   coefficients ``Ktc``, ``Krc``, ``Kac`` (N/m²) and ``Kte``, ``Kre``, ``Kae`` (N/m) with a
-  ``source``;
+  ``source`` (a ``name`` beside them labels them, as in ``compplan cutting fit``'s
+  ``coefficients.toml``);
 * ``[stock]``: a box ``box_min``/``box_max`` (m, program frame) or a closed ``mesh`` (a file next to
   the problem file, program frame, ``mesh_unit`` ``"m"`` or ``"mm"``); ``resolution`` (m, the
   z-map's cell);
@@ -144,9 +145,7 @@ def _material(where: str, data: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]
 
     mt = table(where, data, "material", MATERIAL_KEYS)
     given = [k for k in COEFFICIENT_KEYS if k in mt]
-    if "name" in mt:
-        if given:
-            raise err(where, f"material.{given[0]}", "give either material.name or the six coefficients, not both")
+    if "name" in mt and not given:  # a row of the shipped table; with coefficients, name labels them
         try:
             c = material(str(mt["name"]))
         except InputError:
@@ -167,11 +166,12 @@ def _material(where: str, data: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]
     source = str(mt.get("source", ""))
     if not source.strip():
         raise err(where, "material.source", "is required with the coefficients: where they come from")
+    label = str(mt.get("name", "")).strip()
     try:
-        c = CuttingCoefficients(**vals, name="(problem file)", source=source)
+        c = CuttingCoefficients(**vals, name=label or "(problem file)", source=source)
     except InputError as exc:
         raise err(where, "material", str(exc)) from None
-    return c, {**vals, "source": source}
+    return c, {**vals, "source": source, **({"name": label} if label else {})}
 
 
 def _stock(where: str, data: Mapping[str, Any], base_dir: Path | None) -> tuple[Any, dict[str, Any], float | None]:
