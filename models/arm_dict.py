@@ -139,6 +139,9 @@ def _add_optional(model: ArmModel, ident: dict[str, Any]) -> None:
         }
     if model.residual_sigma_m is not None:
         ident["residual_sigma_m"] = float(model.residual_sigma_m)
+    if model.sigma_scale != 1.0 or model.sigma_growth_rad_per_rad:
+        ident["sigma_scale"] = float(model.sigma_scale)
+        ident["sigma_growth_rad_per_rad"] = float(model.sigma_growth_rad_per_rad)
     if model.joint_range_rad is not None:
         ident["joint_range_rad"] = [[float(v) for v in row] for row in np.asarray(model.joint_range_rad)]
     if model.campaigns:

@@ -153,8 +153,29 @@ def _where_it_holds(where: str, ident: dict[str, Any], nominal: Robot) -> dict[s
             else None
         ),
         "joint_range_rad": _joint_range(where, ident),
+        **_sigma_calibration(where, ident),
         "campaigns": _campaigns_from(where, ident),
     }
+
+
+def _sigma_calibration(where: str, ident: dict[str, Any]) -> dict[str, float]:
+    """``sigma_scale`` (> 0) and ``sigma_growth_rad_per_rad`` (>= 0): both or neither (1 and 0)."""
+    keys = ("sigma_scale", "sigma_growth_rad_per_rad")
+    given = [k for k in keys if k in ident]
+    if not given:
+        return {}
+    if len(given) == 1:
+        raise RobotFileError(
+            f"{where}: [identified] key '{given[0]}' needs '{(set(keys) - set(given)).pop()}' beside it"
+        )
+    scale = float(_nums(where, keys[0], [ident[keys[0]]], 1)[0])
+    growth = float(_nums(where, keys[1], [ident[keys[1]]], 1)[0])
+    if scale <= 0 or growth < 0:
+        raise RobotFileError(
+            f"{where}: [identified] sigma_scale = {scale:g}, sigma_growth_rad_per_rad = {growth:g}: expected a "
+            "positive scale and a growth >= 0"
+        )
+    return {"sigma_scale": scale, "sigma_growth_rad_per_rad": growth}
 
 
 def _joint_range(where: str, ident: dict[str, Any]) -> np.ndarray | None:

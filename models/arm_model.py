@@ -149,6 +149,9 @@ class ArmModel:
     joint_range_rad : ndarray, shape (6, 2), or None
         Smallest and largest commanded joint angle of the identification data, rad (every
         campaign): beyond them the model is extrapolated (:func:`problems.identify.uncertainty`).
+    sigma_scale, sigma_growth_rad_per_rad : float
+        The sigma's calibration on held-out rows (:mod:`problems.identify.sigma_calibration`): the
+        factor on the linearised sigma, and the joint angle error per rad beyond ``joint_range_rad``.
     campaigns : list of CampaignFrame
         The measurement campaigns the model was identified from, each with its own registration
         (base frame -> that campaign's measurement frame); the model's own registration
@@ -178,6 +181,8 @@ class ArmModel:
     covariance_names: list[str] = field(default_factory=list)
     residual_sigma_m: float | None = None
     joint_range_rad: np.ndarray | None = None
+    sigma_scale: float = 1.0
+    sigma_growth_rad_per_rad: float = 0.0
     campaigns: list[CampaignFrame] = field(default_factory=list)
     source: str = ""
     sha256: str = ""

@@ -2,7 +2,8 @@
 
 * the map is not added where there is no periodic joint error (false attribution: 0 of
   :data:`FALSE_ATTRIBUTION_SEEDS` virtual robots with other effects);
-* an identified map travels with the model (file round trip, predict, angle-range caveat);
+* an identified map travels with the model (file round trip, predict); its whole harmonics hold over the
+  whole turn, a term that is not whole (an older file's) is held beyond its range with a caveat;
 * "no unexplained structure" holds against an independent nonparametric fit of the residual
   (a kernel smoother on each joint angle, written here, not the product's P-splines);
 * orientation data identify the measured frame and parameters position data cannot; a campaign
@@ -16,6 +17,7 @@ The found / held-out / compensation checks of a virtual robot with periodic erro
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import numpy as np
 import pytest
@@ -125,23 +127,48 @@ def test_planning_model_applies_the_map(map_case) -> None:
     assert np.linalg.norm(p_map - p_bare, axis=1).max() > 10 * SIGMA
 
 
-def test_map_beyond_its_angle_range_is_a_caveat(map_case) -> None:
+def _not_whole(model):
+    """A copy of ``model`` whose map frequencies are shifted by half a cycle per revolution (a map of an
+    older model file: not periodic over the turn, held beyond its range)."""
+    f = np.asarray(model.effect_const["error_map.freq"], dtype=float).copy()
+    f[f != 0] += 0.5
+    return dataclasses.replace(model, effect_const={**model.effect_const, "error_map.freq": f})
+
+
+def test_whole_harmonics_hold_over_the_whole_turn(map_case) -> None:
+    """The search proposes whole harmonics of the turn, which are evaluated at every angle: the model is
+    periodic in the joint's angle (q and q + 2 pi predict the same point, one of them far beyond the
+    covered range), and no caveat names the map there."""
     _vr, m, res = map_case
+    f = np.asarray(res.model.effect_const["error_map.freq"])
+    assert np.all(f[f != 0] == np.round(f[f != 0])) and np.any(f != 0)
+    j = res.error_maps[0].joint - 1
+    lo, hi = res.error_maps[0].range_rad
+    q = np.tile(m.q[0], (2, 1))
+    q[:, j] = lo + 0.3 * (hi - lo)
+    q[1, j] += 2 * np.pi
+    p = np.array([np.asarray(res.model.kinematics.fk_position(qi)).reshape(3) for qi in q])
+    assert np.abs(p[1] - p[0]).max() < ROUND_TRIP_TOL_M
+    assert not [c for c in res.model.caveats(q, np.zeros(6)) if "error map" in c]
+    # the same map with frequencies that are not whole is held beyond its range: not periodic
+    held = _not_whole(res.model)
+    p_held = np.array([np.asarray(held.kinematics.fk_position(qi)).reshape(3) for qi in q])
+    assert np.abs(p_held[1] - p_held[0]).max() > 10 * SIGMA
+
+
+def test_a_map_term_that_is_not_whole_is_a_caveat_beyond_its_range(map_case) -> None:
+    _vr, m, res = map_case
+    model = _not_whole(res.model)
     lo, hi = res.error_maps[0].range_rad
     q = np.tile(m.q[0], (3, 1))
     j = res.error_maps[0].joint - 1
     q[:, j] = [lo + 0.1 * (hi - lo), hi + 0.3, lo - 0.2]
-    msgs = [c for c in res.model.caveats(q, np.zeros(6)) if "error map" in c]
+    msgs = [c for c in model.caveats(q, np.zeros(6)) if "error map" in c]
     assert len(msgs) == 1 and f"joint {j + 1}" in msgs[0] and "2 waypoint(s)" in msgs[0], msgs
-    assert not [c for c in res.model.caveats(q[:1], np.zeros(6)) if "error map" in c]
+    assert not [c for c in model.caveats(q[:1], np.zeros(6)) if "error map" in c]
     # the map does not depend on torque: no torque-range caveat names it, whatever the load
     heavy = np.array([0.0, 0.0, -400.0, 0.0, 0.0, 0.0])
-    assert not [c for c in res.model.caveats(q, heavy) if "joint_error_map" in c]
-
-
-# ----------------------------------------------------------------------------------
-# "No unexplained structure" against an independent nonparametric fit
-# ----------------------------------------------------------------------------------
+    assert not [c for c in model.caveats(q, heavy) if "joint_error_map" in c]
 
 
 def _kernel_cv_share(x: np.ndarray, y: np.ndarray, bandwidths: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2)) -> float:
@@ -263,7 +290,7 @@ def test_predict_warns_beyond_the_map_range(map_case, tmp_path, capsys) -> None:
 
     _vr, m, res = map_case
     model = tmp_path / "model.toml"
-    model.write_text(model_toml(res.model))
+    model.write_text(model_toml(_not_whole(res.model)))
     j = res.error_maps[0].joint - 1
     cmd = m.subset(np.arange(3))
     cmd.q = cmd.q.copy()

@@ -121,15 +121,26 @@ def test_parameter_jacobian_matches_finite_differences(fitted):
 
 def test_sigma_is_parameters_and_residual(fitted):
     _robot, vr, model = fitted
+    model = replace(model, sigma_growth_rad_per_rad=1e-3)  # this model's own is 0: its form is right
     q = vr.sample_poses(5, np.random.default_rng(6))
+    q[0, 0] = model.joint_range_rad[0, 1] + 0.5  # one pose beyond joint 1's identified range
     s = predicted_sigma(model, q)
     _p, J = parameter_jacobian(model, q)
     P = np.einsum("nik,kl,njl->nij", J, model.covariance, J)
-    expect = np.sqrt(np.diagonal(P, axis1=1, axis2=2) + model.residual_sigma_m**2)
+    # the calibrated sigma, written out: kappa^2 (J C J^T + s^2) + g^2 sum_j (beyond_j * dp/dtheta_j)^2
+    levers = [f"dtheta[{j + 1}]" for j in range(6)]
+    _p, L = parameter_jacobian(model, q, names=levers)
+    lo, hi = model.joint_range_rad[:, 0], model.joint_range_rad[:, 1]
+    beyond = np.clip(q - hi, 0, None) + np.clip(lo - q, 0, None)
+    growth = model.sigma_growth_rad_per_rad**2 * np.einsum("nj,nkj->nk", beyond**2, L**2)
+    kappa2 = model.sigma_scale**2
+    expect = np.sqrt(kappa2 * (np.diagonal(P, axis1=1, axis2=2) + model.residual_sigma_m**2) + growth)
     assert s.available and np.allclose(s.sigma_m, expect, rtol=1e-10)
-    assert (s.sigma_m > model.residual_sigma_m).all()
+    inside = ~beyond.any(axis=1)
+    assert growth[0].max() > 0 and inside.any() and not growth[inside].any()
+    assert (s.sigma_m > model.sigma_scale * model.residual_sigma_m).all()
     alone = predicted_sigma(model, q, include_residual=False)
-    assert np.allclose(alone.sigma_m**2 + model.residual_sigma_m**2, s.sigma_m**2)
+    assert np.allclose(alone.sigma_m**2 + kappa2 * model.residual_sigma_m**2, s.sigma_m**2)
     base = predicted_sigma(model, q, frame="base", include_residual=False)
     # the registration does not act on the TCP in the base frame: inflating its covariance changes the
     # measurement-frame sigma, not the base-frame one

@@ -36,6 +36,7 @@ from .results import (
     ParameterStatus,
 )
 from .selection import SelectionRun, SelectionState
+from .sigma_calibration import calibrate_sigma
 from .selection_scores import Score
 
 
@@ -246,6 +247,10 @@ def build_result(
         model.residual_sigma_m = float(np.sqrt(np.sum(r_in**2) / max(r_in.size - len(free_f), 1)))
     q_used = prob.m.q[fit.inliers]
     model.joint_range_rad = np.column_stack([q_used.min(axis=0), q_used.max(axis=0)]) if len(q_used) else None
+    calibration = calibrate_sigma(prob, fit, free_f) if cov else None
+    if calibration is not None:
+        model.sigma_scale, model.sigma_growth_rad_per_rad = calibration.scale, calibration.growth_rad_per_rad
+        notes = [*notes, calibration.text()]
     params = _parameter_table(prob.layout, fit, order_f, std, st.active, run.registered)
     diags = diagnose(prob, fit, run.robot)  # diagnostics on the final residual (inliers)
     status, reason, unexplained = _verdict(diags, score_f, run.sigma_noise, st.stop_reason, fit.converged)
@@ -265,6 +270,7 @@ def build_result(
     R_un = R_un_all[pos]
     excluded = _excluded_rows(m, fit, R_un_all, pos)
     ident, orient = _identifiability_record(run, s, prob, fit, free_f, order_f, cond, sat_info)
+    ident["sigma_calibration"] = calibration.to_dict() if calibration is not None else None
     res_b_all = s.fit_b.residual(prob)
     res_b = res_b_all[pos]
     inl = fit.inliers[pos]

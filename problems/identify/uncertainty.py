@@ -39,6 +39,7 @@ from models.arm import ArmModel
 from ..measurements import Measurements
 from .evaluation import evaluator_for, make_rows
 from .identifiability import IDENT_MAX_STD_RATIO
+from .sigma_calibration import LEVER_GROUP, growth_variance
 
 #: Frames a sigma is given in.
 FRAMES = ("measurement", "base")
@@ -278,7 +279,9 @@ def predicted_sigma(
     if model.covariance is None or not model.covariance_names:
         return PredictedSigma(np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), s, frame, False)
     names = list(model.covariance_names)
-    J = frame_jacobian(model, q, wrench, names, frame)
+    levers = list(fx.PARAM_NAMES[fx.GROUP_SLICES[LEVER_GROUP]])
+    J = frame_jacobian(model, q, wrench, names + levers, frame)
+    J, L = J[:, :, : len(names)], J[:, :, len(names) :]
     C = np.asarray(model.covariance, dtype=float)
     excluded = undetermined(model)
     if excluded:
@@ -287,8 +290,16 @@ def predicted_sigma(
         C = held_covariance(C, held)
         J = J[:, :, ~held]
     P = np.einsum("nik,kl,njl->nij", J, C, J)
-    var = np.maximum(np.diagonal(P, axis1=1, axis2=2), 0.0) + s**2
+    var = model.sigma_scale**2 * (np.maximum(np.diagonal(P, axis1=1, axis2=2), 0.0) + s**2)
+    if model.sigma_growth_rad_per_rad and model.joint_range_rad is not None:
+        var = var + model.sigma_growth_rad_per_rad**2 * growth_variance(beyond_range(model, q), L)
     return PredictedSigma(np.sqrt(var), P, s, frame, True, excluded)
+
+
+def beyond_range(model: ArmModel, q: np.ndarray) -> np.ndarray:
+    """Distance of each command beyond the identified joint ranges (N, 6), rad (0 inside)."""
+    rng = np.asarray(model.joint_range_rad, dtype=float)
+    return np.maximum(np.maximum(rng[:, 0] - q, q - rng[:, 1]), 0.0)
 
 
 def frame_jacobian(
