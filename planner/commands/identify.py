@@ -396,6 +396,7 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
     held parameters, the compensation check (the figure to read first), notes and warnings."""
     from planner.identify_report import compensation_sentence
     from problems.identify import IdentifyStatus
+    from problems.identify.transfer import holds_text
 
     print(f"identify: {data.n} rows, {rep['data']['n_poses']} poses, status {res.status.value}")
     _print_campaigns(res, args)
@@ -407,6 +408,8 @@ def _print_identify(res: Any, rep: dict[str, Any], data: Any, val: Any, args: ar
             "mm per axis (nominal -> identified)"
         )
         print(f"  {euclidean_line(v['euclidean_nominal'], v['euclidean'], 'validation file')}")
+        if v.get("where_it_holds"):
+            print(f"  validation file: {holds_text(v['where_it_holds'])}")
     print(
         f"  RMS before {res.rms_before_mm:.4f} mm -> after {res.rms_after_mm:.4f} mm "
         f"(held-out {rep['heldout_rms_before_mm']:.4f} -> {rep['heldout_rms_after_mm']:.4f} mm, per axis)"

@@ -250,7 +250,44 @@ def _validation_markdown(rep: dict[str, Any]) -> list[str]:
             f"{fmt(e['rms_mm'])} mm, max {fmt(e0['max_mm'])} → {fmt(e['max_mm'])} mm (line {e['max_line']}); "
             f"in the {e['frame']}"
         )
+    return out + [""] + _holds_markdown(v.get("where_it_holds"))
+
+
+def _holds_markdown(w: dict[str, Any] | None) -> list[str]:
+    """Where the model holds: the validation rows by each joint's distance beyond its identified range."""
+    if not w or not w.get("joints"):
+        return []
+    cov = w.get("coverage_2sigma")
+    out = [
+        "### Where the model holds",
+        "",
+        "The validation rows by how far each joint lies beyond the range the identification data covered: "
+        "mean Euclidean error, mean predicted sigma per axis and the share of per-axis errors within 2 sigma"
+        + (f" (all rows: {100 * cov:.1f} %)." if cov is not None else "."),
+        "",
+        "| joint | identified range (deg) | beyond the range (deg) | rows | mean error (mm) | mean sigma (mm) "
+        "| 2σ coverage |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    ins = w.get("inside")
+    if ins:
+        out.append(
+            f"| all | – | inside every range | {ins['n_rows']} | {fmt(ins['mean_error_mm'])} | "
+            f"{fmt(ins['mean_sigma_mm'])} | {_pct(ins['coverage_2sigma'])} |"
+        )
+    for jt in w["joints"]:
+        lo, hi = jt["range_deg"]
+        for b in jt["bins"]:
+            out.append(
+                f"| {jt['joint']} | {lo:.1f} … {hi:.1f} | {b['beyond_deg'][0]:g} – {b['beyond_deg'][1]:g} "
+                f"| {b['n_rows']} | "
+                f"{fmt(b['mean_error_mm'])} | {fmt(b['mean_sigma_mm'])} | {_pct(b['coverage_2sigma'])} |"
+            )
     return out + [""]
+
+
+def _pct(v: float | None) -> str:
+    return "–" if v is None else f"{100 * v:.0f} %"
 
 
 def _history_markdown(rep: dict[str, Any]) -> list[str]:

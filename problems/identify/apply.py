@@ -34,6 +34,7 @@ from ..measurements import POSITION_COLUMNS, Measurements
 from .evaluation import evaluator_for, make_rows, nominal_tcp
 from .identifiability import aliases_registration
 from .lsq import rms
+from .transfer import where_it_holds
 from .position_error import frame_words, position_errors
 from .results import CompensationOutcome, DataError, IdentifiedModel, TargetsError, TargetsFrame
 
@@ -558,4 +559,5 @@ def validate_on(model: IdentifiedModel, m: Measurements) -> dict[str, Any]:
         "frame": frame,
         "euclidean": position_errors(r, np.zeros_like(r), frame, m.line).to_mm_dict(),
         "euclidean_nominal": position_errors(r0, np.zeros_like(r0), frame, m.line).to_mm_dict(),
+        "where_it_holds": where_it_holds(model, m.q, m.wrench, r),
     }

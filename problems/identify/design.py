@@ -31,12 +31,17 @@ is used, linearised at the model's parameters:
   parameters, and a design optimal for them alone piles its poses where those parameters act most,
   wherever that is.  The selection therefore also counts *potential terms*: an unmodelled angular
   error of each joint over the evaluation poses' range of that joint (hat functions on
-  :data:`DESIGN_POTENTIAL_KNOTS` knots, zero outside the range), acting through the joint's
-  ``dp/ddtheta_j``, each with the prior standard deviation :data:`DESIGN_POTENTIAL_SIGMA_RAD`
-  (earlier data inform them too).  Only rows within the region's joint ranges pin them down, so
-  the design measures where the region is.  The sigmas reported are the model's own (its
-  parameters' posterior after the chosen rows).  Off by default (``potential_knots=0``: the
-  model's parameters alone); an option of the library, not of the command line.
+  :data:`~.design_jacobians.DESIGN_TRANSFER_KNOTS` knots, zero outside the range), acting through
+  the joint's ``dp/ddtheta_j``, each with a prior standard deviation: inside the model's identified
+  ranges :data:`DESIGN_POTENTIAL_SIGMA_RAD`, beyond them the model's calibrated sigma growth there
+  (``sigma_growth_rad_per_rad`` times the knot's distance beyond the range,
+  :mod:`.sigma_calibration`; earlier data inform them too).  Only rows within the region's joint
+  ranges pin them down, so the design measures where the region is, most where the model knows least.
+  The sigmas reported are the model's own (its parameters' linearised posterior after the chosen rows,
+  without the calibration of :mod:`.sigma_calibration`).  On
+  when the evaluation poses lie beyond the model's identified ranges and its sigma grows there
+  (:func:`~.design_jacobians.auto_knots`), off otherwise (the model's parameters alone);
+  ``potential_knots`` sets it in the library.
 * **Evaluation poses.**  ``eval_q`` (and ``eval_wrench``), or the pool itself.  ``eval_frame``
   ``"measurement"``: the new campaign's measurement frame (its registration counts);
   ``"base"``: the base frame (the registration does not act, :func:`~.uncertainty.to_base_frame`).
@@ -82,6 +87,7 @@ from ..virtual.campaign import SIM_MAX_JACOBIAN_COND
 from .design_greedy import inv_spd, select_greedy, sigma_rms
 from .design_jacobians import (
     DESIGN_POTENTIAL_SIGMA_RAD,
+    auto_knots,
     DesignLayout,
     column_scale,
     design_layout,
@@ -107,12 +113,6 @@ DESIGN_MAX_JACOBIAN_COND = SIM_MAX_JACOBIAN_COND
 #: Prior information per (scaled) parameter without earlier data, in poses' worth: a ridge
 #: that keeps the information invertible and acts on nothing the pool can identify.
 DESIGN_PRIOR_POSES = 1e-6
-#: Potential terms of the model-robust design (DuMouchel & Jones 1994): an unmodelled angular
-#: error of each joint over the evaluation poses' range of that joint, as hat functions on this
-#: many evenly spaced knots (zero outside the range), that the campaign should also pin down.
-#: 0 (the default): the model's own parameters alone -- on the virtual benchmark
-#: (benchmarks/bench_design.py) 6 knots did not beat the model's own criterion.
-DESIGN_POTENTIAL_KNOTS = 0
 #: Relative tolerance of the unidentifiability test (the identification's own).
 DESIGN_IDENT_REL_TOL = IDENT_REL_TOL
 #: The set-up's parameters (registration, measured point): no nominal prior, known by no one before
@@ -197,7 +197,7 @@ def design_campaign(
     new_registration: bool = True,
     random_trials: int = RANDOM_TRIALS,
     seed: int = 0,
-    potential_knots: int = DESIGN_POTENTIAL_KNOTS,
+    potential_knots: int | None = None,
 ) -> CampaignDesign:
     """Choose ``n`` pool rows to measure (module docstring: the method).
 
@@ -223,8 +223,9 @@ def design_campaign(
         Random subsets of ``n`` usable pool rows for the baseline (>= 1).
     seed : int
         Seed of the random subsets.
-    potential_knots : int
-        Knots of the potential terms per joint (:data:`DESIGN_POTENTIAL_KNOTS`; 0: none).
+    potential_knots : int, optional
+        Knots of the potential terms per joint (0: none; default :func:`.design_jacobians.auto_knots`: on
+        where the evaluation poses lie beyond the model's identified ranges).
 
     Returns
     -------
@@ -328,7 +329,7 @@ def _design_matrices(
     s: float,
     evaluation: tuple[np.ndarray | None, np.ndarray | None, str],
     earlier: Sequence[Measurements],
-    potential_knots: int,
+    potential_knots: int | None,
     notes: list[str],
 ) -> _DesignMatrices:
     """Jacobians and information matrices of the design (``evaluation``: eval_q, eval_wrench, eval_frame)."""
@@ -340,6 +341,7 @@ def _design_matrices(
     Je_rows, w_rows = earlier_rows(model, earlier, names, lay, s)
     eq, ew = _evaluation_poses(model, pool, uidx, eval_q, eval_wrench, notes)
     Jev = eval_jacobian(model, eq, ew, names, lay, eval_frame)
+    potential_knots = auto_knots(model, eq, potential_knots)
 
     scale = column_scale([Jc] + Je_rows)
     Jc = Jc / scale
@@ -358,8 +360,9 @@ def _design_matrices(
     if Jca.shape[2] > n_prim:
         notes.append(
             "selection: model-robust, with an unmodelled angular error of each joint over the region's range "
-            f"({int(potential_knots)} knots, prior {DESIGN_POTENTIAL_SIGMA_RAD:g} rad) as potential terms; the "
-            "sigmas reported are the model's own"
+            f"({int(potential_knots)} knots, prior {DESIGN_POTENTIAL_SIGMA_RAD:g} rad, beyond the identified ranges "
+            f"the model's sigma growth {model.sigma_growth_rad_per_rad * 1e3:.3g} mrad/rad times the distance) as "
+            "potential terms; the sigmas reported are the model's own"
         )
     M = np.einsum("nik,nil->kl", Jeva, Jeva) / len(Jeva)
     return _DesignMatrices(Jp, Jc, Je_rows, w_rows, Jev, scale, I0p, P0p, Mp, Jca, I0, M)

@@ -19,10 +19,38 @@ from models import effects as fx
 from models.arm import ArmModel
 
 from ..measurements import Measurements
-from .uncertainty import parameter_jacobian, to_base_frame
+from .uncertainty import beyond_range, parameter_jacobian, to_base_frame
 
-#: Prior standard deviation of each potential term, rad (a gear's periodic error).
+#: Prior standard deviation of each potential term, rad (a gear's periodic error), at least: beyond the
+#: model's identified range a knot's prior is the calibrated growth of its sigma there
+#: (:func:`potential_prior`).
 DESIGN_POTENTIAL_SIGMA_RAD = 1e-4
+#: Knots per joint of the potential terms when the evaluation poses lie beyond the model's identified
+#: ranges and its sigma grows there (:func:`auto_knots`).
+DESIGN_TRANSFER_KNOTS = 8
+
+
+def auto_knots(model: ArmModel, eval_q: np.ndarray, requested: int | None) -> int:
+    """The potential terms' knots per joint: ``requested`` when given, else :data:`DESIGN_TRANSFER_KNOTS`
+    when some evaluation pose (``eval_q`` (N, 6), rad) lies beyond the model's identified joint ranges and
+    its sigma grows there (``sigma_growth_rad_per_rad`` > 0), else 0 (the model's parameters alone)."""
+    if requested is not None:
+        return max(0, int(requested))
+    if not model.sigma_growth_rad_per_rad or model.joint_range_rad is None:
+        return 0
+    return DESIGN_TRANSFER_KNOTS if beyond_range(model, np.atleast_2d(eval_q)).any() else 0
+
+
+def potential_prior(model: ArmModel, centres: np.ndarray) -> np.ndarray:
+    """Prior standard deviation of each potential term (6, K), rad: :data:`DESIGN_POTENTIAL_SIGMA_RAD`, or
+    beyond the identified range the model's calibrated growth there (``g`` times the knot's distance
+    beyond the range, :mod:`.sigma_calibration`), whichever is larger."""
+    tau = np.full(centres.shape, DESIGN_POTENTIAL_SIGMA_RAD)
+    if model.sigma_growth_rad_per_rad and model.joint_range_rad is not None:
+        rng = np.asarray(model.joint_range_rad, dtype=float)
+        beyond = np.maximum(np.maximum(rng[:, :1] - centres, centres - rng[:, 1:]), 0.0)
+        tau = np.maximum(tau, model.sigma_growth_rad_per_rad * beyond)
+    return tau
 
 
 @dataclass
@@ -109,11 +137,11 @@ def _with_potential(
     q: np.ndarray,
     wrench: np.ndarray | None,
     knots: int,
-    tau: float,
     frame: str,
     q_range: np.ndarray,
 ) -> np.ndarray:
-    """``J`` (N, 3, p) with the potential terms' columns appended (N, 3, p + 6 K), scaled by ``tau``:
+    """``J`` (N, 3, p) with the potential terms' columns appended (N, 3, p + 6 K), scaled by their prior
+    standard deviations (:func:`potential_prior`):
     joint ``j``'s angular error as hat functions of ``q_j`` on ``K = knots`` evenly spaced knots over
     ``q_range[j]`` (rad, (6, 2): the evaluation poses' range; zero outside it), acting through
     ``dp/ddtheta_j`` (the joint's angle offset; in the base frame rotated as
@@ -131,8 +159,9 @@ def _with_potential(
     u = np.abs(q[:, :, None] - centres[None]) / width[None, :, None]  # (N, 6, K)
     inside = ((q >= lo - 1e-12) & (q <= hi + 1e-12))[:, :, None]
     basis = np.where(inside, np.maximum(1.0 - u, 0.0), 0.0) if knots > 1 else inside.astype(float)
+    basis = basis * potential_prior(model, centres)[None]
     K = (Jt[:, :, :, None] * basis[:, None, :, :]).reshape(len(q), 3, -1)
-    return np.concatenate([J, tau * K], axis=2)
+    return np.concatenate([J, K], axis=2)
 
 
 def earlier_rows(
@@ -174,21 +203,20 @@ def selection_problem(
     potential_knots: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The selection's pool and evaluation Jacobians and prior information: the model's own (scaled)
-    with, when ``potential_knots`` > 0, the potential terms appended (scaled by their prior sigma:
-    prior information 1 each, and what the earlier data say of them)."""
+    with, when ``potential_knots`` > 0, the potential terms appended (scaled by their prior sigma
+    :func:`potential_prior`: prior information 1 each, and what the earlier data say of them)."""
     H = max(0, int(potential_knots))
-    tau = DESIGN_POTENTIAL_SIGMA_RAD
     n_prim = len(I0p)
     q_range = np.column_stack([eq.min(axis=0), eq.max(axis=0)])
-    Jca = _with_potential(Jc, model, pool.q, pool.wrench, H, tau, "measurement", q_range)
-    Jeva = _with_potential(Jev, model, eq, ew, H, tau, eval_frame, q_range)
+    Jca = _with_potential(Jc, model, pool.q, pool.wrench, H, "measurement", q_range)
+    Jeva = _with_potential(Jev, model, eq, ew, H, eval_frame, q_range)
     I0 = np.zeros((Jca.shape[2], Jca.shape[2]))
     I0[:n_prim, :n_prim] = I0p
     if H:
         I0[n_prim:, n_prim:] += np.eye(Jca.shape[2] - n_prim)
         for e, (Jx, w, m) in enumerate(zip(Je_rows, w_rows, earlier)):
             me = _model_for_earlier(model, e, len(earlier))
-            K = _with_potential(np.zeros(Jx.shape[:2] + (0,)), me, m.q, m.wrench, H, tau, "measurement", q_range)
+            K = _with_potential(np.zeros(Jx.shape[:2] + (0,)), me, m.q, m.wrench, H, "measurement", q_range)
             Jw = np.concatenate([Jx / scale, K], axis=2) * w[:, None, None]
             I0[:n_prim, n_prim:] += np.einsum("nik,nil->kl", Jw[:, :, :n_prim], Jw[:, :, n_prim:])
             I0[n_prim:, :n_prim] = I0[:n_prim, n_prim:].T

@@ -136,9 +136,11 @@ class _Holdout:
     lever: np.ndarray
 
 
-def _refit(J: np.ndarray, r: np.ndarray, train3: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Gauss-Newton step of the training rows (``train3``, per residual entry), its covariance factor
-    ``pinv(J_T^T J_T)`` and the training residual variance."""
+def refit_without(J: np.ndarray, r: np.ndarray, train3: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The refit on the training entries ``train3`` (bool, (3n,)) of a linearised problem: the Gauss-Newton
+    step ``delta`` (k,) from the residual ``r`` (3n,) with Jacobian ``J`` (3n, k), the covariance of the
+    refit's parameters ``s_T^2 pinv(J_T^T J_T)`` (k, k) and its residual variance ``s_T^2`` (per entry,
+    over ``n_T - k`` degrees of freedom).  Exact for a model linear in its parameters."""
     Jt, rt = J[train3], r[train3]
     G = Jt.T @ Jt
     Gi = np.linalg.pinv(G, rcond=REFIT_RCOND, hermitian=True)
@@ -153,7 +155,7 @@ def _holdout(
 ) -> _Holdout:
     """Refit without the rows ``held`` (bool, (n,)) and predict them (weighted units back to m)."""
     held3 = np.repeat(held, 3)
-    delta, C, s2 = _refit(J, r, ~held3)
+    delta, C, s2 = refit_without(J, r, ~held3)
     Jh = J[held3]
     h = int(held.sum())
     err = (r[held3] + Jh @ delta).reshape(h, 3)
