@@ -7,7 +7,8 @@ written as a tracker-dif file with the original header.  Then, with ``compplan``
 1. ``identify --data A.csv`` -> model A;
 2. ``design --model A.toml --data A.csv --pool B.csv --n N`` -> the N poses to measure;
 3. ``identify --data A.csv --data B_N.csv`` (the N measured rows of B, own registration) -> model AB;
-4. ``predict --model AB.toml --input B_rest.csv`` (the rest of the pool) -> errors and sigma;
+4. ``predict --model AB.toml --input B_rest.csv --campaign B_N`` (the rest of the pool, in the second
+   campaign's frame: its own registration, as ``identify`` fits it by default) -> errors and sigma;
 5. the same with N random pool rows (``--random-seeds`` subsets) as the baseline;
 6. ``predict --model A.toml --input B.csv``: the transfer with no data of B (issue 37).
 
@@ -97,8 +98,9 @@ def _evaluate(out: Path, label: str, idx: list[int], header: list[str], B: list[
     model = str(out / f"AB_{label}.toml")
     _run("identify", "--robot", "ur5", "--data", str(out / "A.csv"), "--data", str(out / f"B_{label}.csv"), *FMT,
          "--out", model, "--report", str(out / f"AB_{label}_report"), "--force")  # fmt: skip
-    _run("predict", "--model", model, "--input", str(out / f"rest_{label}.csv"), *FMT, "--out",
-         str(out / f"pred_{label}.csv"))  # fmt: skip
+    # the rest of the pool is measured in the second campaign's frame: predicted through its registration
+    _run("predict", "--model", model, "--input", str(out / f"rest_{label}.csv"), *FMT, "--campaign", f"B_{label}",
+         "--out", str(out / f"pred_{label}.csv"))  # fmt: skip
     e, s = _errors(out / f"pred_{label}.csv", rest, header)
     eu = np.linalg.norm(e, axis=1) * 1e3
     cov = float(np.mean(np.abs(e) <= 2 * s))

@@ -115,7 +115,7 @@ def test_markdown_and_html_show_the_maps_near_the_top(maps_run) -> None:
     lo, hi = _true_map(rep)["range_deg"]
     assert cells[2].startswith(f"{lo:.3g}") and "…" in cells[2]
     assert float(cells[4]) == pytest.approx(_true_map(rep)["rms_tcp_um"], rel=0.01)
-    assert "held at its end value (not extrapolated)" in md
+    assert "periodic in its joint's angle and holds beyond the angle range of the data" in md
     detail = next(c["detail"] for st in rep["history"] for c in st["candidates"] if c["detail"])
     assert detail in md  # the candidate's detail under its table
 
@@ -127,7 +127,7 @@ def test_markdown_and_html_show_the_maps_near_the_top(maps_run) -> None:
         < html_text.index("<h2>Figures</h2>")
     )
     assert html_text.count("Joint error maps</h2>") == 1  # not repeated with the other sections
-    assert "±2 standard deviations" in html_text and "not extrapolated" in html_text
+    assert "±2 standard deviations" in html_text and "the map continued (dashed)" in html_text
     src = re.search(r'data-figure="error_maps" [^>]*src="data:image/png;base64,([^"]+)"', html_text).group(1)
     assert base64.b64decode(src).startswith(PNG_MAGIC)
     # the figure numbers stay in order

@@ -135,6 +135,13 @@ def test_the_validation_file_is_in_the_headline(run) -> None:
     assert "never used in the fit" in row
     line = _line(stdout, "validation file (held out")
     assert f"{v['rms_nominal_mm']:.4f} -> {v['rms_mm']:.4f} mm" in line
+    # where it holds: the coverage on the file, on the terminal as in report.json
+    w = v["where_it_holds"]
+    assert 0.0 <= w["coverage_2sigma"] <= 1.0
+    cover = _line(stdout, "validation file: 2-sigma coverage")
+    assert f"2-sigma coverage {100 * w['coverage_2sigma']:.1f} % per axis" in cover
+    if w["joints"]:
+        assert "### Where the model holds" in (folder / "report.md").read_text()
     # the data file given as its own validation is not called held out
     same = copy.deepcopy(rep)
     same["validation"]["file"] = rep["data"]["file"]

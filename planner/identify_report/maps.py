@@ -86,8 +86,9 @@ MAP_TABLE_NOTE = (
     "commanded angle: a Fourier series in that angle with the harmonics (cycles per revolution of "
     "the joint) the spectrum search found, largest first. Amplitude of a harmonic ± 1 standard "
     "deviation (µrad for angles, µm for lengths); at the TCP: times the median lever of the "
-    "component over the data. RMS at the TCP: the map's effect over the measured poses. Beyond "
-    "the angle range of the data a map is held at its end value (not extrapolated)."
+    "component over the data. RMS at the TCP: the map's effect over the measured poses. The "
+    "harmonics are whole numbers of cycles per revolution, so a map is periodic in its joint's angle and "
+    "holds beyond the angle range of the data too, where the model's sigma grows with the distance."
 )
 
 
@@ -124,20 +125,21 @@ def maps_drawn(maps: list[Any]) -> list[Any]:
 
 
 def _map_panel(ax: Any, m: ErrorMapSummary, q_data: np.ndarray) -> None:
-    """One map's panel: the map and its band, held at its end values beyond the range (grey), and the
-    commanded angles of the data (ticks at the bottom)."""
+    """One map's panel: the map and its band, continued beyond the range (grey: whole harmonics are periodic;
+    a term that is not whole, of an older model file, is held at its end value), and the commanded angles of
+    the data (ticks at the bottom)."""
     sym, words = MAP_COMPONENT_WORDS.get(m.component, (m.component, ""))
     unit = "µrad" if m.unit == "rad" else "µm"
     x = np.degrees(np.asarray(m.q_rad, dtype=float))
     y = np.asarray(m.value, dtype=float) * 1e6
     b = np.nan_to_num(np.asarray(m.band, dtype=float)) * 1e6
     lo, hi = (float(np.degrees(v)) for v in m.range_rad)
-    pad = max(0.08 * (hi - lo), 4.0)
     ax.fill_between(x, y - b, y + b, color="tab:blue", alpha=0.22, lw=0)
-    ax.plot(x, y, "-", color="tab:blue", lw=1.4)
-    for xa, xb, v in ((lo - pad, lo, y[0]), (hi, hi + pad, y[-1])):
-        ax.axvspan(xa, xb, color="0.88", lw=0)
-        ax.plot([xa, xb], [v, v], "--", color="tab:blue", lw=1.1)
+    inside = (x >= lo) & (x <= hi)
+    ax.plot(np.where(inside, x, np.nan), y, "-", color="tab:blue", lw=1.4)
+    for side in (x <= lo, x >= hi):
+        ax.axvspan(float(x[side].min()), float(x[side].max()), color="0.88", lw=0)
+        ax.plot(x[side], y[side], "--", color="tab:blue", lw=1.1)
     if len(q_data):
         ax.plot(
             np.degrees(q_data[:, m.joint - 1]),
@@ -148,7 +150,7 @@ def _map_panel(ax: Any, m: ErrorMapSummary, q_data: np.ndarray) -> None:
             alpha=0.5,
             transform=ax.get_xaxis_transform(),
         )
-    ax.set_xlim(lo - pad, hi + pad)
+    ax.set_xlim(float(x[0]), float(x[-1]))
     y_lo, y_hi = float(np.min(y - b)), float(np.max(y + b))
     span = max(y_hi - y_lo, 1e-9)
     ax.set_ylim(y_lo - 0.16 * span, y_hi + 0.06 * span)  # room for the ticks of the data
@@ -183,7 +185,7 @@ def _legend_handles(spare: bool) -> list[Any]:
             color="tab:blue",
             lw=1.1,
             ls="--",
-            label=f"beyond the range (grey): held at{br}the end value, not extrapolated",
+            label=f"beyond the range (grey): whole harmonics{br}continued (periodic in the angle)",
         ),
         Line2D([], [], color="0.35", ls="none", marker="|", ms=6, label="commanded angles of the data"),
     ]
@@ -191,7 +193,7 @@ def _legend_handles(spare: bool) -> list[Any]:
 
 def maps_png(res: IdentificationResult) -> RenderedFigure:
     """The joint error maps over their angle ranges (one panel per map): the map, its band, the
-    commanded angles of the data, and the map held at its end values beyond the range."""
+    commanded angles of the data, and the map continued beyond the range."""
     maps_all = list(res.error_maps)
     maps = maps_drawn(maps_all)
     k = len(maps)

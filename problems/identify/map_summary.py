@@ -13,12 +13,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from models.effects import GROUP_SLICES
-from models.effects.joint_error_map import COEF_SHAPE, FREQ_SHAPE, MAP_COMPONENTS, MAP_UNITS, slot_index
+from models.effects.joint_error_map import COEF_SHAPE, FREQ_SHAPE, MAP_COMPONENTS, MAP_UNITS, WHOLE_CPR_TOL, slot_index
 
 #: Width of the uncertainty band of a drawn map, standard deviations.
 MAP_BAND_SIGMAS = 2.0
 #: Points of a drawn map.
 MAP_CURVE_POINTS = 240
+#: A drawn map extends beyond its covered range by this share of the range on each side (at least
+#: MAP_CURVE_EXTEND_MIN_RAD): whole harmonics continued, other terms held at their end values.
+MAP_CURVE_EXTEND = 0.25
+MAP_CURVE_EXTEND_MIN_RAD = float(np.radians(10.0))
 
 
 @dataclass
@@ -50,7 +54,9 @@ class ErrorMapSummary:
     harmonics : list of Harmonic
         Largest amplitude first.
     q_rad, value, band : ndarray, shape (MAP_CURVE_POINTS,)
-        The map over its range (SI) and the half-width of its band (MAP_BAND_SIGMAS std).
+        (The curve spans the range and :data:`MAP_CURVE_EXTEND` of it beyond each end.)
+        The map over its range and :data:`MAP_CURVE_EXTEND` of it beyond each end (SI), and the
+        half-width of its band (MAP_BAND_SIGMAS std, the coefficients' covariance).
     rms_tcp_m : float
         RMS of the map's effect at the TCP over the data, m.
     """
@@ -123,7 +129,8 @@ def summarise_maps(
                 continue
             lo, hi = float(rng[j, 0]), float(rng[j, 1])
             med_lever = float(np.median(lever[:, j, k])) if len(lever) else 0.0
-            grid = np.linspace(lo, hi, MAP_CURVE_POINTS)
+            ext = max(MAP_CURVE_EXTEND * (hi - lo), MAP_CURVE_EXTEND_MIN_RAD)
+            grid = np.linspace(lo - ext, hi + ext, MAP_CURVE_POINTS)
             idx, cols = [], []
             harm = []
             for s in slots:
@@ -137,7 +144,8 @@ def summarise_maps(
                     std = float(np.sqrt(max(g @ sub @ g, 0.0)))
                 harm.append(Harmonic(float(f[j, k, s]), amp, std, amp * med_lever))
                 idx += [s0 + ic, s0 + is_]
-                cols += [np.cos(f[j, k, s] * grid), np.sin(f[j, k, s] * grid)]
+                qg = grid if abs(f[j, k, s] - round(f[j, k, s])) <= WHOLE_CPR_TOL else np.clip(grid, lo, hi)
+                cols += [np.cos(f[j, k, s] * qg), np.sin(f[j, k, s] * qg)]
             B = np.column_stack(cols)
             coef = np.asarray(theta, dtype=float)[idx]
             value = B @ coef
