@@ -18,8 +18,8 @@ docs/real-data.md):
 * the measured position is ``target + dif`` (the format ``tracker-dif``; the sign that makes the
   identified self-weight compliance of joint 2 positive, i.e. physical; the other sign,
   ``tracker-dif-reversed``, gives a negative stiffness);
-* no external load: the wrench is zero, self-weight acts through the ``gravity`` effect (UR5
-  link masses from the robot file).
+* no external load: the wrench is zero, self-weight acts through the ``gravity`` and
+  ``joint_tilt`` effects (UR5 link masses from the robot file).
 """
 
 from __future__ import annotations

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import models.effects as fx
 from models.arm import ArmModel, EquilibriumResult
 from models.constants import DLS_DAMPING, EXACT_COMPENSATION_TOL, JACOBIAN_COND_WARN
 from models.errors import InputError
@@ -288,7 +289,8 @@ def exact(
     qt = np.atleast_2d(np.asarray(q_target, dtype=float))
     L = load_rows(load, len(qt))
     target = _targets(arm, qt) if target2base is None else np.asarray(target2base, dtype=float).reshape(-1, 4, 4)
-    displaces = "link_compliance" in arm.active_effects
+    # an effect that moves the TCP other than through the joints (link compliance, joint tilt)
+    displaces = any(fx.EFFECTS[e].overrides("point_displacement") for e in arm.active_effects if e in fx.EFFECTS)
     q_star = _pose_solve(arm, qt, L, target) if (displaces or target2base is not None) else qt
     qc = q_star - arm.load_deflection(q_star, L)
     eq = arm.equilibrium(qc, L)

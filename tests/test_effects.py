@@ -87,6 +87,14 @@ def _map_link_compliance(vr: VirtualRobot, th: dict, c: dict) -> None:
     th["link_compliance.link"] = lc.reshape(-1)
 
 
+def _map_joint_tilt(vr: VirtualRobot, th: dict, c: dict) -> None:
+    """The tilt compliances of the joints listed; the weight is the robot file's links (no
+    ``[effects.gravity]``), the model's ``gravity`` parameters at their nominal values."""
+    cx, cy = np.zeros(6), np.zeros(6)
+    cx[vr.tilt_joints], cy[vr.tilt_joints] = vr.tilt_cx, vr.tilt_cy
+    th["joint_tilt.cx"], th["joint_tilt.cy"] = cx, cy
+
+
 #: Campaign span of the rows (s): tn = t / span.
 SPAN_S = 7200.0
 
@@ -147,6 +155,16 @@ SIMULATION_MAP = {
         lambda vr, th, c: th.__setitem__("load_offset.r_tool", vr.r_tool),
     ),
     "link_compliance": ("ur10", {"EI_Nm2": 1.5e5, "GJ_Nm2": 1.0e5}, True, _map_link_compliance),
+    "joint_tilt": (
+        "ur10",
+        {
+            "joints": [1, 2, 3],
+            "compliance_x_rad_per_Nm": [2e-6, 5e-6, 8e-6],
+            "compliance_y_rad_per_Nm": [3e-6, 1e-6, 6e-6],
+        },
+        True,
+        _map_joint_tilt,
+    ),
     "drift": ("ur5", {"rate_m_per_h": [2e-4, -1e-4, 1.5e-4], "accel_m_per_h2": [1e-4, 0, -2e-4]}, True, _map_drift),
     "thermal": ("ur5", {"alpha_per_K": 2.3e-5, "links": [2, 3]}, True, _map_thermal),
     "stiffness_hardening": None,  # no exact mapping: see test_hardening_spline_fits_the_simulated_curves

@@ -67,6 +67,8 @@ CASES = {
     "geometric": ("ur10", {"geometric": {}}, {}, True, "base"),
     "load_offset": ("ur5", {"load_offset": {"r_tool_m": [0.0, 0.05, 0.08]}}, {}, False, "base"),
     "link_compliance": ("ur10", {"link_compliance": {"EI_Nm2": 1.5e5, "GJ_Nm2": 1.0e5}}, {}, False, "base"),
+    # tilting joints 2 and 3 (their moments from the self-weight and the loads, perpendicular to the axes)
+    "joint_tilt": ("ur10", {"joint_tilt": {}}, {}, False, "base"),
     "drift": ("ar5", {"drift": {"rate_m_per_h": [2e-4, -1e-4, 1.5e-4]}}, {"campaign": AR5_LOADS}, False, "base"),
     "thermal": (
         "ur5",

@@ -111,8 +111,9 @@ def table(where: str, cfg: Mapping[str, Any], key: str, allowed: set[str]) -> di
     return dict(t)
 
 
-def joint_list(where: str, links: Any) -> list[int]:
-    """``links``, checked to be a list of joint numbers 1..6 (``where``: the table, for messages)."""
+def joint_list(where: str, links: Any, key: str = "links") -> list[int]:
+    """``links``, checked to be a list of joint numbers 1..6 (``where``: the table, ``key``: its
+    key, for messages)."""
     if not isinstance(links, list) or not all(isinstance(x, int) and 1 <= x <= 6 for x in links):
-        raise SimConfigError(f"{where}: key 'links' must be a list of joint numbers 1..6, got {links!r}")
+        raise SimConfigError(f"{where}: key '{key}' must be a list of joint numbers 1..6, got {links!r}")
     return links

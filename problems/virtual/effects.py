@@ -8,7 +8,7 @@ table's keys).  A method receives the checked table (``None`` when an ``[effects
 table is not given), the source and table for messages and the realisation's random
 generator, and sets the realised parameters as attributes of the robot (stiffness,
 registration and measured point, geometric errors, masses, hardening curve, dead band,
-beams, drift, thermal expansion, periodic joint-error terms, outliers).  The tables are
+beams, joint tilts, drift, thermal expansion, periodic joint-error terms, outliers).  The tables are
 realised in the order of the methods below (the order of the checks and the random draws).
 """
 
@@ -215,6 +215,29 @@ class EffectPart:
         self.GJ = vector(ew, "GJ_Nm2", e.get("GJ_Nm2", 1.5e5), len(links))
         at_least(ew, "EI_Nm2", self.EI, 0.0, strict=True)
         at_least(ew, "GJ_Nm2", self.GJ, 0.0, strict=True)
+
+    @simulates("joint_tilt", keys={"joints", "compliance_x_rad_per_Nm", "compliance_y_rad_per_Nm"})
+    def _realise_joint_tilt(self, e: Table, ew: str, rng: np.random.Generator) -> None:
+        """Joint tilt: :attr:`tilt_joints` (0-based), :attr:`tilt_cx` and :attr:`tilt_cy` (one per
+        joint listed), rad/(N*m), about x and y of the joint's DH frame (the one whose z is its
+        axis); :attr:`tilt_masses` (6,) kg and :attr:`tilt_coms` (6, 3) m, link frame j, the
+        weight the joints carry: the ``[effects.gravity]`` links when that table is given (its
+        payload too), else the robot file's (zeros without masses)."""
+        if e is None:
+            return
+        joints = joint_list(ew, e.get("joints", [2, 3]), "joints")
+        self.tilt_joints = [x - 1 for x in joints]
+        self.tilt_cx = vector(ew, "compliance_x_rad_per_Nm", e.get("compliance_x_rad_per_Nm", 5e-6), len(joints))
+        self.tilt_cy = vector(ew, "compliance_y_rad_per_Nm", e.get("compliance_y_rad_per_Nm", 5e-6), len(joints))
+        at_least(ew, "compliance_x_rad_per_Nm", self.tilt_cx, 0.0)
+        at_least(ew, "compliance_y_rad_per_Nm", self.tilt_cy, 0.0)
+        r = self.robot
+        if self.simulated("gravity"):
+            self.tilt_masses, self.tilt_coms = self.masses.copy(), self.coms.copy()
+        elif r.has_masses:
+            self.tilt_masses, self.tilt_coms = r.masses.copy(), r.coms.copy()
+        else:
+            self.tilt_masses, self.tilt_coms = np.zeros(6), np.zeros((6, 3))
 
     @simulates("drift", keys={"rate_m_per_h", "accel_m_per_h2"})
     def _realise_drift(self, e: Table, ew: str, rng: np.random.Generator) -> None:

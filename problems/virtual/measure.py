@@ -1,7 +1,7 @@
 """True poses of the deflected arm and their noise-free measurement.
 
 :class:`MeasuringPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`: the
-measured point and the TCP (link beams applied), the orientation of the measured frame,
+measured point and the TCP (link beams and joint tilts applied), the orientation of the measured frame,
 and what the instrument sees of them (registration ``base2meas`` and drift).
 """
 
@@ -25,8 +25,8 @@ class MeasuringPart:
         p_point : ndarray, shape (N, 3)
             Position of ``point`` (flange frame, m; default the measured point), m.
         tcp2base : ndarray, shape (N, 4, 4)
-            TCP frame of the deflected arm (link compliance applied to the position only;
-            :meth:`orientations` also turns the frame by the beams).
+            TCP frame of the deflected arm (link compliance and joint tilts applied to the position
+            only; :meth:`orientations` also turns the frame by the beams and tilts).
         """
         fr, F = self._deflected_frames(q_c, F, temperature)
         return self._positions_from_frames(fr, F, point)
@@ -39,10 +39,15 @@ class MeasuringPart:
         fl = self._flange(fr)
         p_point = fl[:, :3, 3] + np.einsum("nij,j->ni", fl[:, :3, :3], pt)
         tcp = fl @ self._tool()
-        if self.simulated("link_compliance"):
-            p_point = p_point + self._beam_displacement(fr, F, p_point)
-            tcp = tcp.copy()
-            tcp[:, :3, 3] += self._beam_displacement(fr, F, tcp[:, :3, 3].copy())
+        p0, p_tcp = p_point.copy(), tcp[:, :3, 3].copy()
+        tcp = tcp.copy()
+        for name, displacement in (
+            ("link_compliance", self._beam_displacement),
+            ("joint_tilt", self._tilt_displacement),
+        ):
+            if self.simulated(name):  # each at the undisplaced points (linear, first order)
+                p_point = p_point + displacement(fr, F, p0)
+                tcp[:, :3, 3] += displacement(fr, F, p_tcp)
         return p_point, tcp
 
     def orientations(self, q_c: np.ndarray, F: np.ndarray, temperature: np.ndarray | None = None) -> np.ndarray:
@@ -52,7 +57,7 @@ class MeasuringPart:
         ``R = exp([phi]) R_flange2base(q) R_tcp2flange``, ``q`` the deflected joints plus
         periodic joint errors on the true geometry (DH errors, joint offsets, thermal
         lengths), ``phi`` the summed tip rotations of the link beams (effect
-        ``link_compliance``; zero without it).
+        ``link_compliance``) and the joint tilts (effect ``joint_tilt``); zero without them.
         """
         fr, F = self._deflected_frames(q_c, F, temperature)
         return self._orientations_from_frames(fr, F)
@@ -60,10 +65,15 @@ class MeasuringPart:
     def _orientations_from_frames(self, fr: np.ndarray, F: np.ndarray) -> np.ndarray:
         """:meth:`orientations` from the deflected frames of :meth:`_deflected_frames`."""
         R = self._flange(fr)[:, :3, :3] @ self._tool()[:3, :3]
+        phi = np.zeros((fr.shape[0], 3))
         if self.simulated("link_compliance"):
+            phi += self._beam_rotation(fr, F)
+        if self.simulated("joint_tilt"):
+            phi += self._tilt_rotation(fr, F)
+        if self.simulated("link_compliance") or self.simulated("joint_tilt"):
             from scipy.spatial.transform import Rotation
 
-            R = Rotation.from_rotvec(self._beam_rotation(fr, F)).as_matrix() @ R
+            R = Rotation.from_rotvec(phi).as_matrix() @ R
         return R
 
     def _to_measurement_frame(self, p: np.ndarray, t: np.ndarray | None) -> np.ndarray:

@@ -1,10 +1,10 @@
-"""The physics of the true arm: joint errors, torques, joint deflection, equilibrium, link beams.
+"""The physics of the true arm: joint errors, torques, joint deflection, equilibrium, link beams, joint tilts.
 
 :class:`PhysicsPart` is a part of :class:`~problems.virtual.robot.VirtualRobot`: its
 methods read the realised parameters (set by ``__init__`` and
 :class:`~problems.virtual.effects.EffectPart`) and give the deflected arm:
-the fixed point ``q = q_c + e(q_c) + dq(q)`` of the joints and the Euler-Bernoulli
-beams of the links.
+the fixed point ``q = q_c + e(q_c) + dq(q)`` of the joints, the Euler-Bernoulli
+beams of the links and the tilts of the joints.
 """
 
 from __future__ import annotations
@@ -173,6 +173,53 @@ class PhysicsPart:
         rotation vector (N, 3), rad, base frame (small: the beams are linear)."""
         phi_sum = np.zeros((fr.shape[0], 3))
         for _delta, phi, _tip in self._beams(fr, F):
+            phi_sum += phi
+        return phi_sum
+
+    def _tilts(self, fr: np.ndarray, F: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Tilts of effect ``joint_tilt``, one per tilted joint: yields the rotation ``phi`` (N, 3)
+        rad (a small rotation vector) of everything distal to the joint, and the joint's point
+        (N, 3) m, base frame.
+
+        The moment through joint i about its point: each distal link's weight at its centre of
+        mass, the payload's (with ``[effects.gravity]``), the wrench's moment and its force at
+        the load point; its components about x and y of the joint's DH frame times the tilt
+        compliances."""
+        n = fr.shape[0]
+        g = np.asarray(self.robot.gravity, dtype=float)
+        _z, p = joint_axes(fr, self.convention, self.robot.frame02base)
+        f0 = np.broadcast_to(np.asarray(self.robot.frame02base, dtype=float), (n, 4, 4))
+        axes = np.concatenate([f0[:, None], fr[:, :5]], axis=1) if self.convention == "standard_dh" else fr
+        fl = self._flange(fr)
+        tcp = fl @ self._tool()
+        p_app = tcp[:, :3, 3] + np.einsum("nij,j->ni", tcp[:, :3, :3], self.r_tool)
+        weights = [
+            (fr[:, j, :3, 3] + np.einsum("nij,j->ni", fr[:, j, :3, :3], self.tilt_coms[j]), self.tilt_masses[j], j)
+            for j in range(6)
+        ]
+        if self.simulated("gravity") and self.payload > 0:
+            weights.append((fl[:, :3, 3] + np.einsum("nij,j->ni", fl[:, :3, :3], self.payload_com), self.payload, 5))
+        for k, i in enumerate(self.tilt_joints):
+            mom = F[:, 3:] + np.cross(p_app - p[:, i], F[:, :3])
+            for c, mass, j in weights:
+                if j >= i:
+                    mom = mom + np.cross(c - p[:, i], mass * g)
+            x, y = axes[:, i, :3, 0], axes[:, i, :3, 1]
+            mx, my = np.sum(mom * x, axis=1, keepdims=True), np.sum(mom * y, axis=1, keepdims=True)
+            yield self.tilt_cx[k] * mx * x + self.tilt_cy[k] * my * y, p[:, i]
+
+    def _tilt_displacement(self, fr: np.ndarray, F: np.ndarray, point: np.ndarray) -> np.ndarray:
+        """Displacement of ``point`` (N, 3), base frame, m, by the joint tilts."""
+        dp = np.zeros_like(point)
+        for phi, pivot in self._tilts(fr, F):
+            dp += np.cross(phi, point - pivot)
+        return dp
+
+    def _tilt_rotation(self, fr: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """Rotation of the flange by the joint tilts: the sum of their rotations, a rotation
+        vector (N, 3), rad, base frame (small: the tilts are linear)."""
+        phi_sum = np.zeros((fr.shape[0], 3))
+        for phi, _pivot in self._tilts(fr, F):
             phi_sum += phi
         return phi_sum
 
