@@ -20,10 +20,12 @@ the library has it, else ``gravity``) and 20 um measurement noise:
    (task criterion, the test region's poses as its region) or at random; fitted with A
    (:func:`problems.identify.campaigns.identify_campaigns`), the same figures.
 
-Run it against another tree (``PYTHONPATH=/path/to/tree python benchmarks/transfer_virtual.py``) for
-the figures before a change.  Run::
+The figures before a change: run this tree with ``--data-dir DIR`` (it writes each seed's data there),
+then the other tree on the same data (``PYTHONPATH=/path/to/tree python benchmarks/transfer_virtual.py
+--data-dir DIR``; the 60 random pool rows are part of the data).  Run::
 
-    python benchmarks/transfer_virtual.py [--seeds 3] [--n 60] [--left-out joint_tilt] [--json out/transfer.json]
+    python benchmarks/transfer_virtual.py [--seeds 3] [--n 60] [--left-out joint_tilt] [--data-dir DIR]
+        [--json out/transfer.json]
 """
 
 from __future__ import annotations
@@ -92,35 +94,56 @@ def figures(model, test, exact: np.ndarray) -> dict:
     }
 
 
-def one_seed(robot, seed: int, n: int, left_out: str) -> dict:
-    from models.effects import LIBRARY
-    from problems.identify import identify
-    from problems.identify.campaigns import identify_campaigns
-    from problems.identify.design import design_campaign
+def make_data(robot, seed: int, left_out: str) -> dict:
+    """Campaign A, the pool and the test poses of region B, the test poses' noise-free truth and the tracker
+    move (arrays only, so that another tree can evaluate the same data: ``--data-dir``)."""
     from problems.virtual import VirtualRobot
 
     rng = np.random.default_rng(seed)
     vr = VirtualRobot(robot, truth_config(seed, left_out))
-    candidates = [e for e in LIBRARY if e != left_out]
-    qA = region(robot, REGION_A_DEG, N_A, rng)
-    mA = measure(vr, qA, None, rng, "A")
-    t0 = time.perf_counter()
-    model_A = identify(robot, mA, candidates=candidates).model
-    out: dict = {"seed": seed, "identify_A_s": time.perf_counter() - t0}
+    mA = measure(vr, region(robot, REGION_A_DEG, N_A, rng), None, rng, "A")
     region_b = (REGION_A_DEG[0] + SHIFT_DEG, REGION_A_DEG[1] + SHIFT_DEG)
     T_B = tracker_move(rng)
     pool = measure(vr, region(robot, region_b, N_POOL, rng), T_B, rng, "B")
     q_test = region(robot, region_b, N_TEST, rng)
     test = measure(vr, q_test, T_B, rng, "T")
     exact = vr.measure(q_test, np.zeros((N_TEST, 6)), test.t, None) @ T_B[:3, :3].T + T_B[:3, 3]
+    out = {"T_B": T_B, "exact": exact, "random": rng.choice(N_POOL, 60, replace=False)}
+    for name, m in (("A", mA), ("pool", pool), ("test", test)):
+        out.update({f"{name}_q": m.q, f"{name}_p": m.p, f"{name}_t": m.t})
+    return out
+
+
+def _campaign(d: dict, name: str):
+    from problems.measurements import Measurements
+
+    q = d[f"{name}_q"]
+    n = len(q)
+    return Measurements(
+        q=q, wrench=np.zeros((n, 6)), p=d[f"{name}_p"], t=d[f"{name}_t"],
+        point=np.array([f"{name}{i}" for i in range(n)]), source=name,
+    )  # fmt: skip
+
+
+def one_seed(robot, seed: int, n: int, left_out: str, d: dict) -> dict:
+    from models.effects import LIBRARY
+    from problems.identify import identify
+    from problems.identify.campaigns import identify_campaigns
+    from problems.identify.design import design_campaign
+
+    candidates = [e for e in LIBRARY if e != left_out]
+    mA, pool, test = _campaign(d, "A"), _campaign(d, "pool"), _campaign(d, "test")
+    t0 = time.perf_counter()
+    model_A = identify(robot, mA, candidates=candidates).model
+    out: dict = {"seed": seed, "identify_A_s": time.perf_counter() - t0}
     # no data of B: A's model in frame B through the known tracker move (the robot model's transfer alone)
-    out["none"] = figures(_moved(model_A, T_B), test, exact)
-    des = design_campaign(model_A, pool, n, eval_q=q_test, earlier=[mA], criterion="task", new_registration=True)
-    picks = {"designed": np.asarray(des.chosen, dtype=int), "random": rng.choice(N_POOL, n, replace=False)}
+    out["none"] = figures(_moved(model_A, d["T_B"]), test, d["exact"])
+    des = design_campaign(model_A, pool, n, eval_q=test.q, earlier=[mA], criterion="task", new_registration=True)
+    picks = {"designed": np.asarray(des.chosen, dtype=int), "random": np.asarray(d["random"][:n], dtype=int)}
     for label, idx in picks.items():
         t0 = time.perf_counter()
         res = identify_campaigns(robot, [mA, pool.subset(np.sort(idx))], names=["A", "B"], candidates=candidates)
-        out[label] = figures(res.model.for_campaign("B"), test, exact)
+        out[label] = figures(res.model.for_campaign("B"), test, d["exact"])
         out[label]["fit_s"] = time.perf_counter() - t0
     out["ratio"] = out["designed"]["mean_eucl_mm"] / out["random"]["mean_eucl_mm"]
     return out
@@ -144,6 +167,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot", default="ur10")
     ap.add_argument("--left-out", default=None, help="the effect the model may not add (default joint_tilt if any)")
     ap.add_argument("--json", default=None)
+    ap.add_argument(
+        "--data-dir",
+        default=None,
+        help="read each seed's data from DIR/seedN.npz when there, else simulate it and write it there "
+        "(so that another tree evaluates the same data: run this tree first)",
+    )
     a = ap.parse_args(argv)
     from models import load_robot
     from models.effects import LIBRARY
@@ -157,7 +186,15 @@ def main(argv: list[str] | None = None) -> int:
     print("seed  case       mean / RMS / max |e| (mm, vs truth)   2-sigma coverage  median sigma  effects")
     rows = []
     for s in range(a.first_seed, a.first_seed + a.seeds):
-        r = one_seed(robot, s, a.n, left_out)
+        f = Path(a.data_dir) / f"seed{s}.npz" if a.data_dir else None
+        if f is not None and f.exists():
+            d = dict(np.load(f))
+        else:
+            d = make_data(robot, s, left_out)
+            if f is not None:
+                f.parent.mkdir(parents=True, exist_ok=True)
+                np.savez(f, **d)
+        r = one_seed(robot, s, a.n, left_out, d)
         rows.append(r)
         for case in ("none", "designed", "random"):
             f = r[case]

@@ -160,4 +160,6 @@ def campaign_to_dict(c: CampaignFrame) -> dict[str, Any]:
     }
     if c.registration_cov is not None:
         out["registration_cov"] = [[float(v) for v in row] for row in np.asarray(c.registration_cov)]
+    if c.registration_cross_cov is not None:
+        out["registration_cross_cov"] = [[float(v) for v in row] for row in np.asarray(c.registration_cross_cov)]
     return out

@@ -154,7 +154,7 @@ def _where_it_holds(where: str, ident: dict[str, Any], nominal: Robot) -> dict[s
         ),
         "joint_range_rad": _joint_range(where, ident),
         **_sigma_calibration(where, ident),
-        "campaigns": _campaigns_from(where, ident),
+        "campaigns": _campaigns_from(where, ident, cov, cov_names),
     }
 
 
@@ -188,7 +188,25 @@ def _joint_range(where: str, ident: dict[str, Any]) -> np.ndarray | None:
     return r
 
 
-def _campaigns_from(where: str, ident: dict[str, Any]) -> list[CampaignFrame]:
+def _cross_cov(where: str, key: str, v: Any, reg: np.ndarray | None, cov: np.ndarray | None, k: int) -> np.ndarray:
+    """``registration_cross_cov``: 6 rows of k numbers, each a covariance its two variances allow."""
+    if reg is None or cov is None:
+        raise RobotFileError(f"{where}: [identified] key '{key}' needs 'registration_cov' and the model's covariance")
+    X = _matrix(where, key, v, 6, k)
+    bound = np.sqrt(np.outer(np.maximum(np.diag(reg), 0.0), np.maximum(np.diag(cov), 0.0)))
+    bad = np.argwhere(np.abs(X) > (1.0 + COVARIANCE_PSD_TOL) * bound + 1e-300)
+    if len(bad):
+        a, b = bad[0]
+        raise RobotFileError(
+            f"{where}: [identified] key '{key}' entry [{a}][{b}] = {X[a, b]:g} exceeds the product of the two "
+            f"standard deviations ({bound[a, b]:g}): not a covariance"
+        )
+    return X
+
+
+def _campaigns_from(
+    where: str, ident: dict[str, Any], cov: np.ndarray | None = None, cov_names: list[str] | None = None
+) -> list[CampaignFrame]:
     out = []
     for k, c in enumerate(ident.get("campaigns", [])):
         key = f"campaigns[{k}]"
@@ -198,13 +216,18 @@ def _campaigns_from(where: str, ident: dict[str, Any]) -> list[CampaignFrame]:
         T[:3, :3] = rotvec_to_matrix(_nums(where, f"{key}.base2meas.rotvec", c["base2meas"]["rotvec"], 3))
         T[:3, 3] = _nums(where, f"{key}.base2meas.xyz", c["base2meas"]["xyz"], 3)
         rc = c.get("registration_cov")
+        reg = None if rc is None else _matrix(where, f"{key}.registration_cov", rc, 6, 6)
+        xc = c.get("registration_cross_cov")
+        k = len(cov_names or [])
+        cross = None if xc is None else _cross_cov(where, f"{key}.registration_cross_cov", xc, reg, cov, k)
         out.append(
             CampaignFrame(
                 name=c["name"],
                 base2meas=T,
                 n_rows=int(c.get("rows", 0)),
                 data=str(c.get("data", "")),
-                registration_cov=None if rc is None else _matrix(where, f"{key}.registration_cov", rc, 6, 6),
+                registration_cov=reg,
+                registration_cross_cov=cross,
             )
         )
     names = [c.name for c in out]

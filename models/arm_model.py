@@ -31,6 +31,7 @@ import numpy as np
 from . import effects as fx
 from .constants import EQUILIBRIUM_MAX_ITER, EQUILIBRIUM_STEP_TOL
 from .load import Load, load_rows
+from .campaign_frame import CampaignFrame, campaign_covariance
 from .codegen import BatchFunction, VMBatchFunction, batch_function
 from .errors import InputError
 from .effects.graph import arm_functions, load_error_gravity_function
@@ -61,33 +62,6 @@ class EquilibriumResult:
     q: np.ndarray
     converged: np.ndarray
     iterations: int
-
-
-@dataclass
-class CampaignFrame:
-    """One measurement campaign of a model identified from several.
-
-    Attributes
-    ----------
-    name : str
-        The campaign's name (by default its data file's stem), unique within the model.
-    base2meas : ndarray, shape (4, 4)
-        Its registration: base-frame coordinates -> that campaign's measurement-frame coordinates, m.
-    n_rows : int
-        Rows of the campaign used in the fit.
-    data : str
-        The data file it was read from.
-    registration_cov : ndarray, shape (6, 6), or None
-        Covariance of its registration in the model's registration parameters ``reg.t`` (m) then
-        ``reg.w`` (Cayley vector of the rotation correction applied on the measurement side,
-        around the rotation of ``base2meas``), SI.
-    """
-
-    name: str
-    base2meas: np.ndarray
-    n_rows: int = 0
-    data: str = ""
-    registration_cov: np.ndarray | None = None
 
 
 @dataclass
@@ -282,20 +256,8 @@ class ArmModel:
                 theta[fx.GROUP_SLICES["reg.t"]] = c.base2meas[:3, 3]
                 theta[fx.GROUP_SLICES["reg.w"]] = 0.0
                 cov = self.covariance
-                if cov is not None and c.registration_cov is not None:
-                    cov = cov.copy()
-                    idx = [
-                        self.covariance_names.index(n) if n in self.covariance_names else -1
-                        for n in fx.REGISTRATION_NAMES
-                    ]
-                    for a, ia in enumerate(idx):
-                        if ia < 0:
-                            continue
-                        cov[ia, :] = 0.0
-                        cov[:, ia] = 0.0
-                        for b, ib in enumerate(idx):
-                            if ib >= 0:
-                                cov[ia, ib] = c.registration_cov[a, b]
+                if cov is not None:
+                    cov = campaign_covariance(cov, list(self.covariance_names), c)
                 return replace(self, theta=theta, R0=np.array(c.base2meas[:3, :3], dtype=float), covariance=cov)
         raise KeyError(name)
 

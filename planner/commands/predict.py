@@ -55,7 +55,7 @@ def _sigma_outputs(model: Any, m: Any, q: np.ndarray, frame: str) -> tuple[np.nd
     """Predicted sigma (N, 3), m, in ``frame`` at the commands ``q``, the rows' ``outside_range``
     texts, and the lines to print: the sigma's summary (or why there is none) and a warning naming
     up to :data:`OUTSIDE_ROWS_NAMED` rows outside the identified ranges."""
-    from problems.identify.uncertainty import outside_ranges, predicted_sigma
+    from problems.identify.uncertainty import calibration_text, outside_ranges, predicted_sigma
 
     ps = predicted_sigma(model, q, m.wrench, frame=frame)
     flags = outside_ranges(model, q)
@@ -67,7 +67,7 @@ def _sigma_outputs(model: Any, m: Any, q: np.ndarray, frame: str) -> tuple[np.nd
         lines.append(
             f"  predicted sigma ({frame} frame, per axis): mean {ps.sigma_m.mean() * 1e3:.4f} mm, largest "
             f"{ps.sigma_m.max() * 1e3:.4f} mm (line {int(m.line[k])}); {len(out)} row(s) outside the "
-            "identified joint ranges"
+            f"identified joint ranges; {calibration_text(model)}"
         )
         if ps.excluded:
             lines.append(f"  {ps.excluded_text()}")
@@ -180,8 +180,11 @@ def run_predict(args: argparse.Namespace) -> int:
         from planner.commands.identify import euclidean_line
         from problems.identify.position_error import frame_words, position_errors
 
+        from problems.identify.transfer import holds_text, where_it_holds
+
         err = position_errors(p, m.p, frame_words(model, args.campaign), m.line)
         print(f"  {euclidean_line(None, err.to_mm_dict(), f'measured x, y, z of {args.input}')}")
+        print(f"  measured x, y, z of {args.input}: {holds_text(where_it_holds(model, m.q, m.wrench, p - m.p))}")
     return 0
 
 

@@ -296,6 +296,16 @@ def predicted_sigma(
     return PredictedSigma(np.sqrt(var), P, s, frame, True, excluded)
 
 
+def calibration_text(model: ArmModel) -> str:
+    """Words for the sigma's calibration (:mod:`.sigma_calibration`): its scale and growth, or that it has none."""
+    if model.sigma_scale == 1.0 and not model.sigma_growth_rad_per_rad:
+        return "sigma linearised (no calibration on held-out rows in the model file)"
+    return (
+        f"sigma calibrated on held-out rows (x{model.sigma_scale:.3g}), growing beyond the identified ranges by "
+        f"{model.sigma_growth_rad_per_rad * 1e3:.3g} mrad of joint error per rad"
+    )
+
+
 def beyond_range(model: ArmModel, q: np.ndarray) -> np.ndarray:
     """Distance of each command beyond the identified joint ranges (N, 6), rad (0 inside)."""
     rng = np.asarray(model.joint_range_rad, dtype=float)
