@@ -42,7 +42,8 @@ def refit_selection(sel: Selection, data: Measurements, theta: np.ndarray) -> Se
         The rows of ``sel``'s table (same joint angles, loads and times, same order) with other
         measured points ``p`` (m, the same measurement frame up to a small motion).
     theta : ndarray, shape (N_PARAMS,)
-        Start, SI: the held parameters must be at ``sel``'s values (nominal).
+        Start, SI: the held parameters must be at ``sel``'s values (nominal); the free ones are
+        clipped to the parameter bounds (the joint Gauss-Newton of several campaigns has none).
 
     Returns
     -------
@@ -63,7 +64,9 @@ def refit_selection(sel: Selection, data: Measurements, theta: np.ndarray) -> Se
     prob = replace(st.prob, m=s.prob.m)  # the selection's constants, weights and folds; the new points
     order = priority_order(prob.layout, st.active, run.registered)
     free = np.asarray([i for i in order if i not in st.fit.held], dtype=int)
-    fit = levenberg_marquardt(prob, np.asarray(theta, dtype=float), free, st.fit.inliers)
+    start = np.asarray(theta, dtype=float).copy()
+    start[free] = np.clip(start[free], prob.lower[free], prob.upper[free])  # a start from an unbounded fit
+    fit = levenberg_marquardt(prob, start, free, st.fit.inliers)
     fit.held = dict(st.fit.held)
     state = SelectionState(
         prob=prob,
