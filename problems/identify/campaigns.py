@@ -24,10 +24,12 @@ registration in its parameter vector and is used unchanged):
    to :data:`CAMPAIGN_TOL_M` / :data:`CAMPAIGN_TOL_RAD` or :data:`CAMPAIGN_GN_MAX_ITER` steps.
    A step over both blocks (not a Kabsch re-estimate of ``A_c`` alone with the robot held) is what
    converges in a few steps when the robot's parameters and the transforms are correlated.
-4. **Re-merge and re-fit** -- with the new ``A_c``, the engine refits (selection restricted to the
-   effects already selected); repeated until ``A_c`` changes by less than the tolerances between
-   two rounds, at most :data:`CAMPAIGN_MAX_ROUNDS` rounds.  The result's notes say how many rounds
-   and the last change.
+4. **Re-merge and re-fit** -- with the new ``A_c``, the model of step 2 is re-fitted
+   (:func:`.refit.refit_selection`: the same effects, joint error map frequencies and constants, held
+   parameters and inlier rows; Levenberg-Marquardt over the same free parameters from the joint
+   solution of step 3; no selection again), and step 3 repeated, until ``A_c`` changes by less than
+   the tolerances between two rounds, at most :data:`CAMPAIGN_MAX_ROUNDS` rounds.  The result's
+   notes say how many rounds and the last change.
 5. **Covariance** -- ``s^2 (J^T J)^-1`` of the joint problem (weighted Jacobian over the free robot
    parameters and 6 columns per non-reference campaign, inlier rows, ``s^2`` the weighted residual
    over ``3 n - k - 6 (C - 1)`` degrees of freedom).  The robot block (and the reference
@@ -76,8 +78,9 @@ from .campaign_joint import (
     transform_change,
 )
 from .campaign_merge import campaign_names, merge_campaigns
-from .engine import identify
+from .engine import Selection, identify, select_model
 from .lsq import kabsch
+from .refit import refit_selection
 from .results import DataError, IdentificationResult, Progress
 
 #: Parts of the set-up ``shared`` may name.  ``measured_point`` is always shared (the same tool or
@@ -326,22 +329,23 @@ def _fit_rounds(
 ) -> tuple[
     IdentificationResult, IdentificationResult, list[np.ndarray], JointFit, np.ndarray, int, int, tuple[float, float]
 ]:
-    """Steps 2-4 of the method (docs/identification.md, section 11): merge, identify, joint Gauss-Newton,
-    until the transforms ``A`` settle; the round of smallest joint RMS is kept.
+    """Steps 2-4 of the method (docs/identification.md, section 11): merge, identify (the only effect
+    selection), joint Gauss-Newton, then re-merge and re-fit the selected model (no selection) until the
+    transforms ``A`` settle; the round of smallest joint RMS is kept.
 
     Returns the first round's result (its selection history), the kept result, its transforms and joint
     problem, the campaign index of the merged rows, the rounds, the Gauss-Newton steps and the last
     change of a transform (m, rad)."""
     merged, campaign = merge_campaigns(campaigns, names, A, notes)
-    res = identify(robot, merged, progress=progress, **identify_kwargs)
-    first = res
+    sel: Selection = select_model(robot, merged, progress=progress, **identify_kwargs)
+    res = first = sel.result()
     rounds, gn_steps, change = 0, 0, (float("inf"), float("inf"))
     tried: list[tuple[float, int, IdentificationResult, list[np.ndarray], JointFit]] = []
     while True:
         rounds += 1
         joint = JointFit(res.model, free_names(res), campaigns, campaign, merged, res.inliers)
         tried.append((joint.rms(res.model.theta, A), rounds, res, A, joint))
-        _th, A_new, steps = joint.solve(res.model.theta, A)
+        theta, A_new, steps = joint.solve(res.model.theta, A)
         gn_steps += steps
         change = max(
             (transform_change(a, b) for a, b in zip(A, A_new)),
@@ -351,9 +355,10 @@ def _fit_rounds(
             break
         A = A_new
         merged, campaign = merge_campaigns(campaigns, names, A)
-        res = identify(robot, merged, progress=progress, **identify_kwargs)
+        sel = refit_selection(sel, merged, theta)
+        res = sel.result()
     best = min(tried, key=lambda t: t[0])
-    if best[1] != rounds:  # an engine re-fit can end worse than an earlier round: keep the best of them
+    if best[1] != rounds:  # a re-fit can end worse than an earlier round: keep the best of them
         notes.append(
             f"campaigns: round {best[1]}'s fit is kept (RMS per axis {best[0] * 1e3:.4g} mm over the inlier rows of "
             f"every campaign; the last round's {tried[-1][0] * 1e3:.4g} mm)"
@@ -428,7 +433,7 @@ def _finish(
         + notes
         + [
             f"campaigns: {C} ({', '.join(names)}), one registration each (reference: '{names[-1]}', the model's "
-            f"own, {campaigns[-1].n} rows); fitted jointly in {rounds} round(s) of engine re-fit and Gauss-Newton "
+            f"own, {campaigns[-1].n} rows); fitted jointly in {rounds} round(s) of re-fit and Gauss-Newton "
             f"({gn_steps} steps), "
             f"last change of a campaign's transform {change[0] * 1e3:.2g} mm / {change[1]:.2g} rad"
             + ("" if converged else f" (not converged in {CAMPAIGN_MAX_ROUNDS} rounds)")

@@ -14,6 +14,10 @@
 6. :func:`~.outcome.build_result` -- covariance, identified model, parameter table, diagnostics and
    the verdict (ok / unexplained structure / not converged).
 
+:func:`select_model` runs steps 1-5 and returns a :class:`Selection` (its
+:meth:`~Selection.result` is step 6), which :func:`~.refit.refit_selection` re-fits to other measured
+points of the same rows without selecting again (several campaigns, :mod:`.campaigns`).
+
 Everything is SI; the library never prints -- progress goes to an optional
 callback ``progress(message, done, total)``.
 """
@@ -21,6 +25,7 @@ callback ``progress(message, done, total)``.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -206,6 +211,49 @@ def _start_notes(robot: Robot) -> list[str]:
     ]
 
 
+@dataclass
+class Selection:
+    """An identification before its result (steps 1-5 of :func:`identify`): what a re-fit keeps.
+
+    Attributes
+    ----------
+    run : SelectionRun
+        The selection's fixed inputs (robot, layout, candidates, noise floor, rows of the selection).
+    st : SelectionState
+        The selected model: its problem (constants: joint error map frequencies, gravity switch,
+        knots), its final fit (parameters, held parameters, inlier rows), effects and history.
+    s : FitSetup
+        Step 1 (registration start ``R0``, torque scales, time and temperature references, the
+        "before" fit).
+    score_b : Score
+        Linearised scores of the "before" fit on the rows ``score_mask``.
+    score_mask : ndarray of bool, shape (N,)
+        Rows of the "before" score (the declared model's inliers).
+    sat_info : dict
+        The saturated model's record.
+    noise_src : str
+        Where the noise floor comes from.
+    notes : list of str
+    folds : int
+        K of the K-fold cross-validation.
+    """
+
+    run: SelectionRun
+    st: SelectionState
+    s: FitSetup
+    score_b: Score
+    score_mask: np.ndarray
+    sat_info: dict[str, Any]
+    noise_src: str
+    notes: list[str]
+    folds: int
+
+    def result(self) -> IdentificationResult:
+        """Step 6 (:func:`~.outcome.build_result`): covariance, model, parameter table, diagnostics
+        and verdict."""
+        return build_result(self.run, self.st, self.s, self.score_b, self.sat_info, self.noise_src, list(self.notes))
+
+
 def identify(
     robot: Robot,
     data: Measurements,
@@ -263,6 +311,27 @@ def identify(
         An unknown effect name.
     """
 
+    return select_model(
+        robot, data, registered, candidates, include, folds, progress, max_steps, known, map_components
+    ).result()
+
+
+def select_model(
+    robot: Robot,
+    data: Measurements,
+    registered: bool = False,
+    candidates: Sequence[str] | None = None,
+    include: Sequence[str] = (),
+    folds: int = CV_FOLDS,
+    progress: Progress | None = None,
+    max_steps: int = 12,
+    known: Sequence[str] = (),
+    map_components: Sequence[str] = MAP_SEARCH_COMPONENTS,
+) -> Selection:
+    """Steps 1-5 of :func:`identify` (same arguments, same errors): the selected and fitted model,
+    whose :meth:`Selection.result` is :func:`identify`'s result (step 6) and which
+    :func:`~.refit.refit_selection` re-fits to other measured points of the same rows."""
+
     def tick(msg: str, k: int, total: int) -> None:
         if progress is not None:
             progress(msg, k, total)
@@ -278,12 +347,13 @@ def identify(
     run, fit, score_b, sat_info, noise_src = _selection_run(
         robot, m, s, prob, fit, inc, cand, registered, robust, max_steps, tick, map_components
     )
+    score_mask = fit.inliers.copy()
     st = SelectionState(prob=prob, fit=fit, active=list(inc))
     forward_selection(run, st)
     backward_pass(run, st)
     tick("final fit and diagnostics", s.total_steps, s.total_steps)
     _final_fit(run, st)
-    return build_result(run, st, s, score_b, sat_info, noise_src, notes)
+    return Selection(run, st, s, score_b, score_mask, sat_info, noise_src, notes, folds)
 
 
 def _fit_declared(
