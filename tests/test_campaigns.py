@@ -22,7 +22,7 @@ from models.transforms import matrix_to_rotvec, rotvec_to_matrix
 from planner.cli import main as cli_main
 from problems.identify import DataError, identify, identify_campaigns, merge_campaigns, predict
 from problems.identify.campaign_joint import JointFit, joint_covariance
-from problems.identify.uncertainty import parameter_jacobian
+from problems.identify.uncertainty import beyond_range, parameter_jacobian, predicted_sigma
 from problems.measurements import Measurements, measurements_to_csv
 from problems.virtual import VirtualRobot
 
@@ -52,6 +52,8 @@ SAME_ROBOT_MAX_Z = 3.0
 JOINT_GAIN = 0.5
 #: Relative agreement of two computations of the same covariance.
 COV_REL_TOL = 1e-3
+#: The sigma in a campaign's frame against the one of the independent joint covariance (relative).
+SIGMA_REL_TOL = 1e-3
 #: Finite-difference agreement of the joint Jacobian (relative to the column's norm).
 FD_REL_TOL = 1e-4
 FD_STEP = 1e-6
@@ -182,9 +184,24 @@ def test_covariance_equals_an_independent_block_computation(setup) -> None:
     J, r = np.vstack(blocks), np.concatenate(rs)
     cov = np.linalg.inv(J.T @ J) * float(r @ r) / (r.size - J.shape[1])
     fr = _frames(res)
+    rob_cols = [model.covariance_names.index(n) for n in rob]
     for c, name in enumerate(("A", "B")):
         blk = cov[k + 6 * c : k + 6 * c + 6, k + 6 * c : k + 6 * c + 6]
         assert np.abs(fr[name].registration_cov - blk).max() < COV_REL_TOL * np.abs(blk).max()
+        # and its cross-covariance with the robot's parameters
+        cross = cov[k + 6 * c : k + 6 * c + 6, :k]
+        mine_x = fr[name].registration_cross_cov[:, rob_cols]
+        assert np.abs(mine_x - cross).max() < COV_REL_TOL * np.sqrt(np.abs(blk).max() * np.abs(cov[:k, :k]).max())
+        # the sigma in the campaign's frame is the joint covariance's: J_c C J_c^T with the cross terms
+        held = setup["held_a"] if name == "A" else setup["held_b"]
+        mc = model.for_campaign(name)
+        _p, Jh = parameter_jacobian(mc, held.q, held.wrench, rob + reg)
+        sub = np.r_[0:k, k + 6 * c : k + 6 * c + 6]
+        P = np.einsum("nik,kl,nil->ni", Jh, cov[np.ix_(sub, sub)], Jh)  # rows: robot, then this campaign's 6
+        mine_s = predicted_sigma(mc, held.q, held.wrench, include_residual=False).sigma_m / mc.sigma_scale
+        inside = ~beyond_range(mc, held.q).any(axis=1)
+        assert inside.any()
+        assert np.allclose(mine_s[inside], np.sqrt(P[inside]), rtol=SIGMA_REL_TOL)
     idx = [model.covariance_names.index(n) for n in rob]
     mine = model.covariance[np.ix_(idx, idx)]
     assert np.abs(mine - cov[:k, :k]).max() < COV_REL_TOL * np.abs(cov[:k, :k]).max()

@@ -186,10 +186,10 @@ def campaign_registration(model: ArmModel, x: np.ndarray, A: np.ndarray | None) 
     return invert(perturbed(A, x[6:9], x[9:12])) @ B
 
 
-def registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) -> np.ndarray:
-    """6x6 covariance of a campaign's registration in ``[reg.t, reg.w]`` around its own rotation,
-    from the joint covariance ``cov`` of ``[reg.t, reg.w of the model, (dt, dphi of A)]``."""
-    n = cov.shape[0]
+def registration_jacobian(model: ArmModel, n: int, A: np.ndarray | None) -> np.ndarray:
+    """Jacobian (6, n) of a campaign's registration parameters ``[reg.t, reg.w]`` (around its own rotation)
+    w.r.t. ``[reg.t, reg.w of the model, (dt, dphi of A)]`` (``n`` = 6, or 12 for a non-reference campaign),
+    by central differences."""
     x0 = np.zeros(n)
     B0 = campaign_registration(model, x0, A)
     G = np.zeros((6, n))
@@ -199,6 +199,13 @@ def registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) -> 
         hi = _registration_params(campaign_registration(model, x0 + e, A), B0[:3, :3])
         lo = _registration_params(campaign_registration(model, x0 - e, A), B0[:3, :3])
         G[:, j] = (hi - lo) / (2.0 * REG_FD_STEP)
+    return G
+
+
+def registration_cov(model: ArmModel, cov: np.ndarray, A: np.ndarray | None) -> np.ndarray:
+    """6x6 covariance of a campaign's registration in ``[reg.t, reg.w]`` around its own rotation,
+    from the joint covariance ``cov`` of ``[reg.t, reg.w of the model, (dt, dphi of A)]``."""
+    G = registration_jacobian(model, cov.shape[0], A)
     return G @ cov @ G.T
 
 

@@ -38,7 +38,9 @@ registration in its parameter vector and is used unchanged):
    covariance carried to that campaign's registration parameters ``reg.t`` (m) and ``reg.w``
    (Cayley vector of the correction on the measurement side around the rotation of its
    ``base2meas``, the parametrisation of :meth:`models.arm.ArmModel.for_campaign`) by the
-   Jacobian of the map, taken by central differences.
+   Jacobian of the map, taken by central differences, and so is its cross-covariance with the robot's
+   free parameters (:attr:`models.arm.CampaignFrame.registration_cross_cov`), so that the sigma in a
+   campaign's frame keeps the correlation between its registration and the robot.
 
 Before anything, rows that repeat an earlier row exactly (the same joint angles, load and measured
 point) are dropped, so a copied campaign or row does not double its weight
@@ -74,7 +76,7 @@ from .campaign_joint import (
     campaign_registration,
     free_names,
     joint_covariance,
-    registration_cov,
+    registration_jacobian,
     transform_change,
 )
 from .campaign_merge import campaign_names, merge_campaigns
@@ -185,6 +187,15 @@ def _reg_block(model: ArmModel) -> np.ndarray | None:
         return None
     idx = [model.covariance_names.index(n) for n in reg]
     return np.asarray(model.covariance)[np.ix_(idx, idx)].copy()
+
+
+def _reg_rows(model: ArmModel) -> np.ndarray | None:
+    """The registration's rows of the model's covariance (6, k) (None without): its cross-covariance with
+    every free parameter, the campaign's own when every campaign shares the model's registration."""
+    if _reg_block(model) is None:
+        return None
+    idx = [model.covariance_names.index(n) for n in fx.REGISTRATION_NAMES]
+    return np.asarray(model.covariance)[idx].copy()
 
 
 def _checked_names(campaigns: Sequence[Measurements], names: Sequence[str] | None) -> list[str]:
@@ -392,32 +403,17 @@ def _finish(
     r = joint.residual(model.theta, A)[joint.mask]
     if r.size:
         model.residual_sigma_m = float(np.sqrt(np.sum(r**2) / max(r.size - k - 6 * (C - 1), 1)))
-    reg = list(fx.REGISTRATION_NAMES)
-    reg_idx = [names_free.index(n) if n in names_free else -1 for n in reg]
-    frames = []
-    for c in range(C):
-        sub = [i for i in reg_idx if i >= 0]
-        a_idx = list(range(k + 6 * c, k + 6 * c + 6)) if c < C - 1 else []
-        full = np.zeros((6 + len(a_idx), 6 + len(a_idx)))
-        pos = [j for j, i in enumerate(reg_idx) if i >= 0] + list(range(6, 6 + len(a_idx)))
-        full[np.ix_(pos, pos)] = cov[np.ix_(sub + a_idx, sub + a_idx)]
-        Rc = campaign_registration(model, np.zeros(6 + len(a_idx)), A[c] if c < C - 1 else None)
-        frames.append(
-            CampaignFrame(
-                name=names[c],
-                base2meas=Rc,
-                n_rows=int(np.sum(res.inliers & (campaign == c))),
-                data=campaigns[c].source,
-                registration_cov=registration_cov(model, full, A[c] if c < C - 1 else None),
-            )
-        )
-    model.campaigns = frames
+    model.campaigns = [
+        _campaign_frame(model, cov, names_free, k, c, A[c] if c < C - 1 else None, names[c], campaigns[c].source,
+                        int(np.sum(res.inliers & (campaign == c))))
+        for c in range(C)
+    ]  # fmt: skip
     res.history = first.history
     res.effects_added = list(first.effects_added)
     for e in res.model.effects:
         if e not in res.effects_added:
             res.effects_added.append(e)
-    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, frames, C - 1)
+    res.identifiability["campaigns"] = _campaign_table(res, names, campaigns, campaign, model.campaigns, C - 1)
     res.identifiability["campaign_fit"] = {
         "reference": names[-1],
         "rounds": rounds,
@@ -442,6 +438,32 @@ def _finish(
     return res
 
 
+def _campaign_frame(
+    model: ArmModel, cov: np.ndarray, names_free: list[str], k: int, c: int, A: np.ndarray | None, name: str,
+    source: str, n_rows: int,
+) -> CampaignFrame:  # fmt: skip
+    """Campaign ``c``'s frame: its registration, the registration's covariance and its cross-covariance with the
+    robot's ``k`` free parameters, from the joint covariance ``cov`` (free parameters, then 6 per non-reference
+    campaign; ``A`` None for the reference)."""
+    reg_idx = [names_free.index(n) if n in names_free else -1 for n in fx.REGISTRATION_NAMES]
+    sub = [i for i in reg_idx if i >= 0]
+    a_idx = list(range(k + 6 * c, k + 6 * c + 6)) if A is not None else []
+    pos = [j for j, i in enumerate(reg_idx) if i >= 0] + list(range(6, 6 + len(a_idx)))
+    full = np.zeros((6 + len(a_idx), 6 + len(a_idx)))
+    full[np.ix_(pos, pos)] = cov[np.ix_(sub + a_idx, sub + a_idx)]
+    cross = np.zeros((6 + len(a_idx), k))
+    cross[pos] = cov[np.ix_(sub + a_idx, list(range(k)))]
+    G = registration_jacobian(model, 6 + len(a_idx), A)
+    return CampaignFrame(
+        name=name,
+        base2meas=campaign_registration(model, np.zeros(6 + len(a_idx)), A),
+        n_rows=n_rows,
+        data=source,
+        registration_cov=G @ full @ G.T,
+        registration_cross_cov=G @ cross,
+    )
+
+
 def _one_frame(
     robot: Robot,
     campaigns: list[Measurements],
@@ -464,6 +486,7 @@ def _one_frame(
             n_rows=int(np.sum(res.inliers & (campaign == c))),
             data=campaigns[c].source,
             registration_cov=None if reg_cov is None else reg_cov.copy(),
+            registration_cross_cov=_reg_rows(model),
         )
         for c in range(len(campaigns))
     ]
