@@ -224,8 +224,7 @@ def design_campaign(
     seed : int
         Seed of the random subsets.
     potential_knots : int, optional
-        Knots of the potential terms per joint (0: none; default :func:`.design_jacobians.auto_knots`: on
-        where the evaluation poses lie beyond the model's identified ranges).
+        Potential terms' knots per joint (0: none; default: :func:`.design_jacobians.auto_knots`).
 
     Returns
     -------
