@@ -115,7 +115,7 @@ def test_markdown_and_html_show_the_maps_near_the_top(maps_run) -> None:
     lo, hi = _true_map(rep)["range_deg"]
     assert cells[2].startswith(f"{lo:.3g}") and "…" in cells[2]
     assert float(cells[4]) == pytest.approx(_true_map(rep)["rms_tcp_um"], rel=0.01)
-    assert "periodic in its joint's angle and holds beyond the angle range of the data" in md
+    assert "it continues beyond the angle range of the data" in md
     detail = next(c["detail"] for st in rep["history"] for c in st["candidates"] if c["detail"])
     assert detail in md  # the candidate's detail under its table
 

@@ -2,8 +2,7 @@
 
 * the map is not added where there is no periodic joint error (false attribution: 0 of
   :data:`FALSE_ATTRIBUTION_SEEDS` virtual robots with other effects);
-* an identified map travels with the model (file round trip, predict); its whole harmonics hold over the
-  whole turn, a term that is not whole (an older file's) is held beyond its range with a caveat;
+* an identified map travels with the model (file round trip, predict) and continues beyond its range;
 * "no unexplained structure" holds against an independent nonparametric fit of the residual
   (a kernel smoother on each joint angle, written here, not the product's P-splines);
 * orientation data identify the measured frame and parameters position data cannot; a campaign
@@ -127,48 +126,36 @@ def test_planning_model_applies_the_map(map_case) -> None:
     assert np.linalg.norm(p_map - p_bare, axis=1).max() > 10 * SIGMA
 
 
-def _not_whole(model):
-    """A copy of ``model`` whose map frequencies are shifted by half a cycle per revolution (a map of an
-    older model file: not periodic over the turn, held beyond its range)."""
-    f = np.asarray(model.effect_const["error_map.freq"], dtype=float).copy()
-    f[f != 0] += 0.5
-    return dataclasses.replace(model, effect_const={**model.effect_const, "error_map.freq": f})
+def test_map_continues_beyond_its_angle_range(map_case) -> None:
+    """A map is a function of its joint's angle everywhere: beyond the covered range the planning model's TCP
+    moves by the map's own series at that angle (written out here from its constants and coefficients), not
+    by its value at the end of the range; and no caveat says otherwise."""
+    from models.effects import GROUP_SLICES
+    from models.effects.joint_error_map import COEF_SHAPE, FREQ_SHAPE
 
-
-def test_whole_harmonics_hold_over_the_whole_turn(map_case) -> None:
-    """The search proposes whole harmonics of the turn, which are evaluated at every angle: the model is
-    periodic in the joint's angle (q and q + 2 pi predict the same point, one of them far beyond the
-    covered range), and no caveat names the map there."""
     _vr, m, res = map_case
-    f = np.asarray(res.model.effect_const["error_map.freq"])
-    assert np.all(f[f != 0] == np.round(f[f != 0])) and np.any(f != 0)
-    j = res.error_maps[0].joint - 1
-    lo, hi = res.error_maps[0].range_rad
+    model = res.model
+    bare = dataclasses.replace(model, effect_const={})  # a new object: no kinematics cached with the maps
+    emap = res.error_maps[0]
+    j = emap.joint - 1
+    lo, hi = emap.range_rad
+    f = np.asarray(model.effect_const["error_map.freq"]).reshape(FREQ_SHAPE)[:, 0]  # theta maps, every joint
+    c = np.asarray(model.theta[GROUP_SLICES["error_map.c"]]).reshape(COEF_SHAPE)[:, 0]
+    assert not np.any(np.asarray(model.effect_const["error_map.freq"]).reshape(FREQ_SHAPE)[:, 1:])
     q = np.tile(m.q[0], (2, 1))
-    q[:, j] = lo + 0.3 * (hi - lo)
-    q[1, j] += 2 * np.pi
-    p = np.array([np.asarray(res.model.kinematics.fk_position(qi)).reshape(3) for qi in q])
-    assert np.abs(p[1] - p[0]).max() < ROUND_TRIP_TOL_M
-    assert not [c for c in res.model.caveats(q, np.zeros(6)) if "error map" in c]
-    # the same map with frequencies that are not whole is held beyond its range: not periodic
-    held = _not_whole(res.model)
-    p_held = np.array([np.asarray(held.kinematics.fk_position(qi)).reshape(3) for qi in q])
-    assert np.abs(p_held[1] - p_held[0]).max() > 10 * SIGMA
+    q[:, j] = [hi + 0.6, hi]
 
+    def series(i: int, x: float) -> float:
+        return float(np.sum(c[i, :, 0] * np.cos(f[i] * x) + c[i, :, 1] * np.sin(f[i] * x)))
 
-def test_a_map_term_that_is_not_whole_is_a_caveat_beyond_its_range(map_case) -> None:
-    _vr, m, res = map_case
-    model = _not_whole(res.model)
-    lo, hi = res.error_maps[0].range_rad
-    q = np.tile(m.q[0], (3, 1))
-    j = res.error_maps[0].joint - 1
-    q[:, j] = [lo + 0.1 * (hi - lo), hi + 0.3, lo - 0.2]
-    msgs = [c for c in model.caveats(q, np.zeros(6)) if "error map" in c]
-    assert len(msgs) == 1 and f"joint {j + 1}" in msgs[0] and "2 waypoint(s)" in msgs[0], msgs
-    assert not [c for c in model.caveats(q[:1], np.zeros(6)) if "error map" in c]
-    # the map does not depend on torque: no torque-range caveat names it, whatever the load
-    heavy = np.array([0.0, 0.0, -400.0, 0.0, 0.0, 0.0])
-    assert not [c for c in model.caveats(q, heavy) if "joint_error_map" in c]
+    # the maps' effect at the TCP, by the joint offsets they add: the same as a bare model with those offsets
+    for qi in q:
+        p_map = np.asarray(model.kinematics.fk_position(qi)).reshape(3)
+        shifted = qi + np.array([series(i, qi[i]) for i in range(6)])
+        p_ref = np.asarray(bare.kinematics.fk_position(shifted)).reshape(3)
+        assert np.abs(p_map - p_ref).max() < 1e-3 * SIGMA
+    assert abs(series(j, hi + 0.6) - series(j, hi)) > 1e-6  # continued, not held at the end value
+    assert not [x for x in model.caveats(q, np.zeros(6)) if "error map" in x]
 
 
 def _kernel_cv_share(x: np.ndarray, y: np.ndarray, bandwidths: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2)) -> float:
@@ -282,25 +269,6 @@ def test_map_components_are_checked_and_runout_is_searched_on_request() -> None:
     )
     assert res.effects_added == ["joint_error_map"]
     assert {(e.joint, e.component) for e in res.error_maps} >= {(1, "theta")}
-
-
-def test_predict_warns_beyond_the_map_range(map_case, tmp_path, capsys) -> None:
-    from planner.cli import main as cli_main
-    from problems.measurements import measurements_to_csv
-
-    _vr, m, res = map_case
-    model = tmp_path / "model.toml"
-    model.write_text(model_toml(_not_whole(res.model)))
-    j = res.error_maps[0].joint - 1
-    cmd = m.subset(np.arange(3))
-    cmd.q = cmd.q.copy()
-    cmd.q[1, j] = res.error_maps[0].range_rad[1] + 0.2
-    (tmp_path / "cmd.csv").write_text(measurements_to_csv(cmd))
-    rc = cli_main(
-        ["predict", "--model", str(model), "--input", str(tmp_path / "cmd.csv"), "--out", str(tmp_path / "pred.csv")]
-    )
-    err = capsys.readouterr().err
-    assert rc == 0 and f"joint {j + 1}" in err and "error map" in err and "at row 1" in err, err
 
 
 def test_per_axis_sigmas_weight_each_residual_component() -> None:

@@ -4,10 +4,7 @@ Joint j's DH row gets, per component ``c`` of :data:`MAP_COMPONENTS` (``theta``:
 positioning error; ``d``: axial; ``a``: radial along the link's x axis; ``alpha``, ``beta``:
 tilts about the link's x and y axes -- the error motions of ISO 230-7 expressed in DH terms),
 
-``p_c,j += e_cj(q_c,j)``,  ``e_cj(q) = sum_s a_cjs cos(f_cjs q~) + b_cjs sin(f_cjs q~)``,
-``q~ = q`` for a whole number of cycles per revolution ``f_cjs`` (a harmonic of the turn: periodic,
-so what the data showed over part of a turn holds over the rest), ``q~ = clip(q, lo_j, hi_j)``
-otherwise
+``p_c,j += e_cj(q_c,j)``,  ``e_cj(q) = sum_s a_cjs cos(f_cjs q) + b_cjs sin(f_cjs q)``
 
 a Fourier series of the *commanded* angle ``q_c,j`` (the transmission error of a strain-wave
 or cycloidal gear, a bearing's runout and wobble, an output encoder's error: functions of the
@@ -17,12 +14,13 @@ joint's own angle, what machine tools compensate with axis error tables).
   from the residual by :mod:`problems.identify.error_map` (a cross-validated spectrum search
   with a significance test), up to :data:`MAP_SLOTS` per joint;
 * ``a_js, b_js`` (parameters ``error_map.c``, rad) are fitted like every other parameter;
-* ``[lo_j, hi_j]`` (constants ``error_map.range``, rad) is the angle range the data covered:
-  a term whose frequency is not a whole number of cycles per revolution is not periodic over the
-  turn, so beyond the range it is held at its value at the end of the range (not extrapolated)
-  and planning says so (:meth:`JointErrorMap.angle_caveats`).  The search proposes whole
-  harmonics (:mod:`problems.identify.error_map`); other frequencies come only from older model
-  files.
+* ``[lo_j, hi_j]`` (constants ``error_map.range``, rad) is the angle range the data covered.
+  The map is a function of the joint's angle everywhere, beyond that range too: a gear's error
+  follows the gear's angle, which turns with the joint's (a whole number of cycles per revolution
+  repeats every turn; another frequency, an intermediate stage's, continues as the same sinusoid).
+  What it says beyond the range is as good as the data that determined it: the model's sigma grows
+  there (:mod:`problems.identify.sigma_calibration`).  (Model files written before issue 37 held a
+  map at its end value beyond the range.)
 
 The parameters of unused slots are not in use (:meth:`JointErrorMap.in_use`: not eligible, no
 Jacobian column), so a model without a map costs nothing.
@@ -47,9 +45,6 @@ MAP_SLOTS = 6
 MAP_RANGE_OPEN_RAD = 1.0e3
 #: The constant blocks an identified model carries for its maps.
 MAP_CONST_KEYS = ("error_map.freq", "error_map.range")
-#: A frequency within this of a whole number of cycles per revolution is a harmonic of the turn
-#: (periodic: the map is evaluated at every angle, not held beyond the covered range), cycles/rev.
-WHOLE_CPR_TOL = 1e-9
 #: Typical magnitude of a map coefficient, rad or m (10 urad, 10 um).
 MAP_COEF_SCALE = 1e-5
 #: Shape of the coefficient block ``error_map.c`` and of ``error_map.freq`` (joint, component, slot).
@@ -120,7 +115,7 @@ class JointErrorMap(Effect):
     def geometry(self, ctx: Any, dh: dict[str, Any]) -> dict[str, Any]:
         if ctx.qc is None:
             return dh
-        c, f, rng = ctx.p("error_map.c"), ctx.c("error_map.freq"), ctx.c("error_map.range")
+        c, f = ctx.p("error_map.c"), ctx.c("error_map.freq")
         used = self._slots_used(ctx, c, f)
         if not used.any():
             return dh
@@ -132,13 +127,10 @@ class JointErrorMap(Effect):
             for j in range(6):
                 acc: Any = 0
                 if used[j, k].any():
-                    held = ca.fmin(ca.fmax(ctx.qc[j], rng[2 * j]), rng[2 * j + 1])
+                    qj = ctx.qc[j]  # the map is a function of the joint's angle everywhere (not held)
                     for s in np.flatnonzero(used[j, k]):
                         kc, ks = slot_index(j, k, int(s))
                         fs = f[(N_COMP * j + k) * MAP_SLOTS + int(s)]
-                        # a whole number of cycles per revolution is periodic over the turn: evaluated at every
-                        # angle; another frequency is held at its value at the end of the covered range
-                        qj = ca.if_else(ca.fabs(fs - ca.floor(fs + 0.5)) <= WHOLE_CPR_TOL, ctx.qc[j], held)
                         acc = acc + c[kc] * ca.cos(fs * qj) + c[ks] * ca.sin(fs * qj)
                 terms.append(acc)
             key = "theta_offset" if comp == "theta" else comp
@@ -156,25 +148,3 @@ class JointErrorMap(Effect):
             return (fv != 0) & np.any(cv != 0, axis=3)
         el = np.asarray(ctx.eligible_of("error_map.c"), dtype=bool).reshape(COEF_SHAPE)
         return np.any(el, axis=3)
-
-    def angle_caveats(self, param: Any, const: Any, q: np.ndarray) -> list[str]:
-        """Joints whose commanded angle leaves the range of a map term held there (a frequency that is not a
-        whole number of cycles per revolution; one line each).  Whole harmonics are periodic and hold
-        everywhere; their uncertainty beyond the covered range is the model's sigma's
-        (:mod:`problems.identify.uncertainty`)."""
-        f = np.asarray(const("error_map.freq")).reshape(6, -1)
-        c = np.asarray(param("error_map.c")).reshape(6, -1, 2).any(axis=2)
-        acting = np.any(c & (np.abs(f - np.round(f)) > WHOLE_CPR_TOL), axis=1)
-        rng = np.asarray(const("error_map.range")).reshape(6, 2)
-        out = []
-        for j in np.flatnonzero(acting):
-            lo, hi = rng[j]
-            bad = (q[:, j] < lo) | (q[:, j] > hi)
-            if bad.any():
-                k = int(np.flatnonzero(bad)[0])
-                out.append(
-                    f"joint {j + 1}: commanded angle {np.degrees(q[k, j]):.4g} deg at waypoint {k} is outside the "
-                    f"range its error map was identified on ({np.degrees(lo):.4g} .. {np.degrees(hi):.4g} deg, "
-                    f"{int(bad.sum())} waypoint(s)): the map is held at its end value there, not extrapolated"
-                )
-        return out

@@ -167,7 +167,7 @@ def run_predict(args: argparse.Namespace) -> int:
     table = np.hstack([p, sigma])
     atomic_write_bytes(args.out, commands_csv(header, table, {OUTSIDE_COLUMN: flags}).encode())
     print_notes(m)
-    for name in model.active_effects:  # e.g. a joint error map beyond its identified angle range
+    for name in model.active_effects:  # an effect's caveats about the commanded angles (none ships one now)
         for line in fx_effect(name).angle_caveats(model.parameter, lambda k: get_const(model.const, k), m.q):
             print(f"compplan: warning: {line.replace('waypoint', 'row')}", file=sys.stderr)
     print(

@@ -19,9 +19,9 @@ FIGURE_TEXT = {
         "Each panel: the identified error of one joint (one component of its motion) against its "
         "commanded angle (deg), µrad for angles, µm for lengths; shaded, the uncertainty band of "
         f"±{MAP_BAND_SIGMAS:g} standard deviations from the fit's covariance; ticks at the bottom, the "
-        "commanded angles of the measured rows; grey, beyond the range: the map continued (dashed), its "
-        "harmonics being whole numbers of cycles per revolution (periodic in the joint's angle); the "
-        "model's sigma there also grows with the distance beyond the range.",
+        "commanded angles of the measured rows; grey, beyond the range: the map continued (dashed), a "
+        "function of the joint's angle everywhere; the model's sigma there also grows with the distance "
+        "beyond the range.",
     ),
     "residuals": (
         "Residual per axis, before and after",

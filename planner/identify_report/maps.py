@@ -86,9 +86,9 @@ MAP_TABLE_NOTE = (
     "commanded angle: a Fourier series in that angle with the harmonics (cycles per revolution of "
     "the joint) the spectrum search found, largest first. Amplitude of a harmonic ± 1 standard "
     "deviation (µrad for angles, µm for lengths); at the TCP: times the median lever of the "
-    "component over the data. RMS at the TCP: the map's effect over the measured poses. The "
-    "harmonics are whole numbers of cycles per revolution, so a map is periodic in its joint's angle and "
-    "holds beyond the angle range of the data too, where the model's sigma grows with the distance."
+    "component over the data. RMS at the TCP: the map's effect over the measured poses. A map is a "
+    "function of its joint's angle everywhere: it continues beyond the angle range of the data, where the "
+    "model's sigma grows with the distance."
 )
 
 
@@ -125,8 +125,7 @@ def maps_drawn(maps: list[Any]) -> list[Any]:
 
 
 def _map_panel(ax: Any, m: ErrorMapSummary, q_data: np.ndarray) -> None:
-    """One map's panel: the map and its band, continued beyond the range (grey: whole harmonics are periodic;
-    a term that is not whole, of an older model file, is held at its end value), and the commanded angles of
+    """One map's panel: the map and its band, continued beyond the range (grey), and the commanded angles of
     the data (ticks at the bottom)."""
     sym, words = MAP_COMPONENT_WORDS.get(m.component, (m.component, ""))
     unit = "µrad" if m.unit == "rad" else "µm"
@@ -185,7 +184,7 @@ def _legend_handles(spare: bool) -> list[Any]:
             color="tab:blue",
             lw=1.1,
             ls="--",
-            label=f"beyond the range (grey): whole harmonics{br}continued (periodic in the angle)",
+            label=f"beyond the range (grey): the map{br}continued (a function of the angle)",
         ),
         Line2D([], [], color="0.35", ls="none", marker="|", ms=6, label="commanded angles of the data"),
     ]

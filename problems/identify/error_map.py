@@ -4,15 +4,16 @@ Two jobs, both on the weighted residual of a fitted model (measurement frame):
 
 * :func:`propose_map` -- the candidate ``joint_error_map``
   (:mod:`models.effects.joint_error_map`): a greedy search over joints and frequencies
-  (the whole harmonics of the turn, :data:`MAP_MIN_CPR` .. :data:`MAP_MAX_CPR` cycles per
-  revolution: periodic in the joint's angle, so they hold beyond the covered range) of the
-  error signature of joint j,
+  (cycles per revolution, :data:`MAP_MIN_CPR` .. :data:`MAP_MAX_CPR` in steps of
+  :data:`MAP_FREQ_STEP_CPR`, refined between grid points) of the error signature of joint j,
   ``J_j(q) [cos(f q_j), sin(f q_j)]``, orthogonal to the model's free parameters.  A term is
   kept when its F-test passes at :data:`MAP_ALPHA` divided by the number of (joint,
   frequency) pairs searched (a spectrum with a family-wise significance test) *and* it lowers
   the cross-validated residual (same folds as the selection).  The angle range of each joint
   is the data's; frequencies above what the sampling of the joint angle resolves (three samples
-  per cycle across the 90 % quantile of the gaps) are not searched.
+  per cycle across the 90 % quantile of the gaps) are not searched; below one cycle within the
+  range only whole harmonics are (:func:`frequency_grid`).  A map is a function of its joint's
+  angle everywhere: beyond the covered range its terms continue (:mod:`models.effects.joint_error_map`).
 * :func:`smoother_cv` -- a penalised B-spline (P-spline) of a residual component against one
   variable, the smoothing chosen by generalised cross-validation, scored out of fold: the
   nonparametric check behind "no unexplained structure" (:mod:`.diagnostics`).
@@ -31,16 +32,16 @@ from scipy.interpolate import BSpline
 
 from models.effects.joint_error_map import FREQ_SHAPE, MAP_COMPONENTS, MAP_SLOTS, N_COMP
 
-#: Frequencies searched, cycles per revolution: the whole harmonics of the turn from MAP_MIN_CPR to
-#: MAP_MAX_CPR (a function of the joint's angle that is periodic over the turn has only these; a gear's
-#: or bearing's error is one), at most what the sampling of the joint angle resolves.  Harmonics slower
-#: than one cycle over the covered range are searched too: what the data show over part of a turn
-#: determines them in part, the identifiability step holds what they cannot, and the model's sigma
-#: carries their uncertainty over the rest of the turn.
-MAP_MIN_CPR = 1
-MAP_MAX_CPR = 48
+#: Frequencies searched, cycles per revolution: from MAP_MIN_CPR to MAP_MAX_CPR in steps of a quarter
+#: of the resolution of the joint's covered range (``1 / range`` in revolutions), at least
+#: MAP_FREQ_STEP_CPR; the best is refined between its grid neighbours.
+MAP_MIN_CPR = 1.0
+MAP_MAX_CPR = 48.0
+MAP_FREQ_STEP_CPR = 0.1
 #: Family-wise significance level of the spectrum search (divided by the pairs searched).
 MAP_ALPHA = 1e-3
+#: Cycles a term must complete within the joint's covered range.
+MAP_MIN_CYCLES_IN_RANGE = 1.0
 #: Two terms of one channel are at least this many resolutions (1 / range in revolutions) apart:
 #: closer ones cannot be told apart over the range (they would trade large opposite amplitudes).
 MAP_MIN_SEPARATION = 1.0
@@ -51,10 +52,14 @@ MAP_MIN_RANGE_RAD = np.radians(10.0)
 #: Samples per cycle required across the gaps between sorted joint angles (their MAP_GAP_QUANTILE).
 MAP_SAMPLES_PER_CYCLE = 3.0
 MAP_GAP_QUANTILE = 0.9
+#: A whole number of cycles per revolution is preferred unless the refined frequency's gain exceeds
+#: its gain by more than this many residual variances (likelihood ratio, chi-square with 1 dof, p = 0.001:
+#: a whole number of cycles per revolution is the physical prior of a gear or bearing error).
+MAP_WHOLE_CHI2 = 10.83
 #: Passes of the frequency refinement with every term in the model.
 MAP_BACKFIT_PASSES = 2
-#: A frequency is refined over the whole harmonics this far from it (cycles/rev).
-MAP_REFINE_SPAN = 2
+#: Golden-section refinement steps of a frequency between grid points.
+MAP_REFINE_STEPS = 20
 
 
 @dataclass
@@ -112,12 +117,23 @@ def resolution_cpr(q: np.ndarray) -> float:
 
 
 def frequency_grid(q: np.ndarray) -> np.ndarray:
-    """Frequencies (whole cycles/rev) searched for one joint's angles ``q`` (N,) rad (empty: none): the
-    harmonics of the turn from MAP_MIN_CPR to what the sampling resolves (at most MAP_MAX_CPR)."""
+    """Frequencies (cycles/rev) searched for one joint's angles ``q`` (N,) rad (empty: none): from
+    one full cycle within the covered range or MAP_MIN_CPR, to what the sampling resolves, in steps
+    of a quarter of the range's resolution; and below one cycle within the range the whole harmonics
+    of the turn from MAP_MIN_CPR (a bearing's or gear's 1, 2, ... cycles per revolution: what the data
+    show of them over part of a turn says something about the rest, the geometric directions are
+    projected out so that they claim only what a trend cannot, and the identifiability step holds what
+    the data cannot determine)."""
     if np.ptp(q) < MAP_MIN_RANGE_RAD:
         return np.zeros(0)
-    fmax = min(MAP_MAX_CPR, int(np.floor(joint_max_cpr(q))))
-    return np.arange(MAP_MIN_CPR, fmax + 1, dtype=float) if fmax >= MAP_MIN_CPR else np.zeros(0)
+    res = resolution_cpr(q)
+    fmin = max(MAP_MIN_CPR, MAP_MIN_CYCLES_IN_RANGE * res)
+    fmax = min(MAP_MAX_CPR, joint_max_cpr(q))
+    step = max(MAP_FREQ_STEP_CPR, 0.25 * res)
+    if fmax < fmin:
+        return np.zeros(0)
+    slow = np.arange(MAP_MIN_CPR, fmin - 1e-9, 1.0)  # whole harmonics slower than a cycle over the range
+    return np.concatenate([slow, np.arange(fmin, fmax + 1e-9, step)])
 
 
 def _orth(A: np.ndarray) -> np.ndarray:
@@ -189,15 +205,35 @@ def _cv_rss(Z: np.ndarray, r: np.ndarray, folds3: np.ndarray) -> float:
     return tot
 
 
-def _refine(Jc: np.ndarray, q: np.ndarray, r: np.ndarray, Q: np.ndarray, f0: float, lo: float, hi: float) -> float:
-    """The whole harmonic of largest gain within :data:`MAP_REFINE_SPAN` of ``f0``, inside ``[lo, hi]``
-    (``f0`` itself when none is)."""
-    fs = np.arange(max(lo, f0 - MAP_REFINE_SPAN), min(hi, f0 + MAP_REFINE_SPAN) + 1e-9)
-    fs = fs[np.abs(fs - np.round(fs)) < 1e-9]
-    if not len(fs):
-        return f0
-    g = _channel_gain(Jc, q, fs, r, Q)
-    return float(fs[int(np.argmax(g))]) if g.max() > float(_channel_gain(Jc, q, np.array([f0]), r, Q)[0]) else f0
+def _refine(
+    Jc: np.ndarray, q: np.ndarray, r: np.ndarray, Q: np.ndarray, f0: float, lo: float, hi: float, step: float, s2: float
+) -> float:
+    """Golden-section maximum of the gain within a grid ``step`` of ``f0``, inside ``[lo, hi]``;
+    a whole number of cycles per revolution when the data do not tell it from the refined
+    frequency (a likelihood-ratio test at :data:`MAP_WHOLE_CHI2` with the residual variance ``s2``)."""
+    a, b = max(lo, f0 - step), min(hi, f0 + step)
+    gr = (np.sqrt(5) - 1) / 2
+
+    def gain(f: float) -> float:
+        return float(_channel_gain(Jc, q, np.array([f]), r, Q)[0])
+
+    c, d = b - gr * (b - a), a + gr * (b - a)
+    gc, gd = gain(c), gain(d)
+    for _ in range(MAP_REFINE_STEPS):
+        if gc > gd:
+            b, d, gd = d, c, gc
+            c = b - gr * (b - a)
+            gc = gain(c)
+        else:
+            a, c, gc = c, d, gd
+            d = a + gr * (b - a)
+            gd = gain(d)
+    best = c if gc > gd else d
+    best = best if gain(best) >= gain(f0) else f0
+    whole = float(np.round(best))
+    if lo <= whole <= hi and abs(whole - best) <= min(step, 0.5) and gain(best) - gain(whole) <= MAP_WHOLE_CHI2 * s2:
+        return whole
+    return best
 
 
 def _bracket(fg: np.ndarray, f: float, others: Sequence[float], sep: float) -> tuple[float, float]:
@@ -313,8 +349,12 @@ def propose_map(
         if best is None or best[0] <= 0:
             break
         _g, (j, c), f = best
+        fg = grids[j]
         Jc = chans[(j, c)]
+        step = float(fg[-1] - fg[-2]) if len(fg) > 1 else MAP_FREQ_STEP_CPR
+        lo_f, hi_f = _bracket(fg, f, freq[j, c, : used[j, c]], MAP_MIN_SEPARATION * res[j])
         df2 = 3 * n - k_free - Z.shape[1] - 2
+        f = _refine(Jc, q[:, j], r, QZ, f, lo_f, hi_f, step, max(rss - best[0], 0.0) / max(df2, 1))
         D = _signature(Jc, q[:, j], np.array([f]))
         D = D - QZ @ (QZ.T @ D)
         coef = np.linalg.lstsq(D, r, rcond=None)[0]
@@ -337,7 +377,7 @@ def propose_map(
         r = r - Dn @ (Dn.T @ r)
     if not prop.terms:
         return None
-    _backfit(prop, chans, grids, res, q, r0, Q)
+    _backfit(prop, chans, grids, res, q, r0, Q, rss / max(3 * n - k_free - Z.shape[1], 1))
     _prune(prop, chans, q, r0, Q, alpha)
     return prop if prop.terms else None
 
@@ -388,6 +428,7 @@ def _backfit(
     q: np.ndarray,
     r0: np.ndarray,
     Q: np.ndarray,
+    s2: float,
 ) -> None:
     """Refine each term's frequency with the others in the model (:data:`MAP_BACKFIT_PASSES`
     passes): a term found early was fitted while later ones were still in the residual."""
@@ -397,9 +438,10 @@ def _backfit(
             O = _orth(np.column_stack([Q] + others)) if others else Q
             r = r0 - O @ (O.T @ r0)
             fg = grids[t.joint]
+            step = float(fg[-1] - fg[-2]) if len(fg) > 1 else MAP_FREQ_STEP_CPR
             same = [u.freq_cpr for u in prop.terms if u is not t and (u.joint, u.component) == (t.joint, t.component)]
             lo_f, hi_f = _bracket(fg, t.freq_cpr, same, MAP_MIN_SEPARATION * res[t.joint])
-            t.freq_cpr = _refine(chans[(t.joint, t.component)], q[:, t.joint], r, O, t.freq_cpr, lo_f, hi_f)
+            t.freq_cpr = _refine(chans[(t.joint, t.component)], q[:, t.joint], r, O, t.freq_cpr, lo_f, hi_f, step, s2)
     _set_freq(prop)
 
 

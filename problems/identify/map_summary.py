@@ -13,14 +13,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from models.effects import GROUP_SLICES
-from models.effects.joint_error_map import COEF_SHAPE, FREQ_SHAPE, MAP_COMPONENTS, MAP_UNITS, WHOLE_CPR_TOL, slot_index
+from models.effects.joint_error_map import COEF_SHAPE, FREQ_SHAPE, MAP_COMPONENTS, MAP_UNITS, slot_index
 
 #: Width of the uncertainty band of a drawn map, standard deviations.
 MAP_BAND_SIGMAS = 2.0
 #: Points of a drawn map.
 MAP_CURVE_POINTS = 240
 #: A drawn map extends beyond its covered range by this share of the range on each side (at least
-#: MAP_CURVE_EXTEND_MIN_RAD): whole harmonics continued, other terms held at their end values.
+#: MAP_CURVE_EXTEND_MIN_RAD): the map continues there (it is a function of the angle everywhere).
 MAP_CURVE_EXTEND = 0.25
 MAP_CURVE_EXTEND_MIN_RAD = float(np.radians(10.0))
 
@@ -144,8 +144,7 @@ def summarise_maps(
                     std = float(np.sqrt(max(g @ sub @ g, 0.0)))
                 harm.append(Harmonic(float(f[j, k, s]), amp, std, amp * med_lever))
                 idx += [s0 + ic, s0 + is_]
-                qg = grid if abs(f[j, k, s] - round(f[j, k, s])) <= WHOLE_CPR_TOL else np.clip(grid, lo, hi)
-                cols += [np.cos(f[j, k, s] * qg), np.sin(f[j, k, s] * qg)]
+                cols += [np.cos(f[j, k, s] * grid), np.sin(f[j, k, s] * grid)]
             B = np.column_stack(cols)
             coef = np.asarray(theta, dtype=float)[idx]
             value = B @ coef
