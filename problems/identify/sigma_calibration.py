@@ -45,6 +45,7 @@ from models import effects as fx
 
 from .evaluation import FitProblem
 from .lsq import ModelFit, weighted_jacobian, weighted_residual
+from .uncertainty import LEVER_GROUP, growth_variance
 
 #: Share of held-out per-axis errors the calibrated sigma puts within 2 sigma.
 SIGMA_COVERAGE = 0.95
@@ -54,8 +55,6 @@ HOLDOUT_RANGE_SHARE = 0.25
 GROWTH_MIN_RANGE_RAD = float(np.radians(20.0))
 #: Fewest held-out rows of a range hold-out (fewer: skipped).
 HOLDOUT_MIN_ROWS = 10
-#: The parameter group whose Jacobian columns are the joints' levers ``dp/dtheta_j``.
-LEVER_GROUP = "joint_offset.dtheta"
 #: The growth rate's search (rad/rad): log-spaced grid over this range (and zero), then golden-section steps.
 GROWTH_RANGE, GROWTH_GRID, GROWTH_REFINE_STEPS = (1e-7, 1.0), 141, 40
 #: Singular values of a refit's normal matrix below this fraction of the largest are not inverted.
@@ -171,12 +170,6 @@ def _holdout(
 
 def _coverage(err: np.ndarray, var: np.ndarray) -> float:
     return float(np.mean(np.abs(err) <= 2.0 * np.sqrt(var))) if err.size else float("nan")
-
-
-def growth_variance(beyond: np.ndarray, lever: np.ndarray) -> np.ndarray:
-    """Per-axis variance of a unit growth rate: ``sum_j Delta_j^2 L_jk^2`` ((n, 3), m^2 per (rad/rad)^2)
-    from the distances beyond the ranges ``beyond`` (n, 6), rad, and the levers ``lever`` (n, 3, 6), m/rad."""
-    return np.einsum("nj,nkj->nk", beyond**2, lever**2)
 
 
 def _growth(hos: list[_Holdout], scale: float) -> float:

@@ -39,10 +39,12 @@ from models.arm import ArmModel
 from ..measurements import Measurements
 from .evaluation import evaluator_for, make_rows
 from .identifiability import IDENT_MAX_STD_RATIO
-from .sigma_calibration import LEVER_GROUP, growth_variance
 
 #: Frames a sigma is given in.
 FRAMES = ("measurement", "base")
+#: The parameter group whose Jacobian columns are the joints' levers ``dp/dtheta_j`` (the point's motion per
+#: radian of each joint's angle): what the sigma's growth beyond the identified ranges acts through.
+LEVER_GROUP = "joint_offset.dtheta"
 #: A joint counts as inside the identified range up to this far beyond it, rad (rounding).
 JOINT_RANGE_TOL_RAD = 1e-9
 #: A parameter whose standard deviation in the model's covariance exceeds this many typical
@@ -304,6 +306,13 @@ def calibration_text(model: ArmModel) -> str:
         f"sigma calibrated on held-out rows (x{model.sigma_scale:.3g}), growing beyond the identified ranges by "
         f"{model.sigma_growth_rad_per_rad * 1e3:.3g} mrad of joint error per rad"
     )
+
+
+def growth_variance(beyond: np.ndarray, lever: np.ndarray) -> np.ndarray:
+    """Per-axis variance of a unit growth rate: ``sum_j Delta_j^2 L_jk^2`` ((n, 3), m^2 per (rad/rad)^2)
+    from the distances beyond the ranges ``beyond`` (n, 6), rad, and the levers ``lever`` (n, 3, 6), m/rad
+    (:mod:`.sigma_calibration`)."""
+    return np.einsum("nj,nkj->nk", beyond**2, lever**2)
 
 
 def beyond_range(model: ArmModel, q: np.ndarray) -> np.ndarray:
