@@ -15,7 +15,7 @@ from problems.identify.map_summary import MAP_BAND_SIGMAS
 #: The diagnostic figures (``diag_<variable>``) follow them (:func:`figure_text`).
 FIGURE_TEXT = {
     "error_maps": (
-        "Joint error maps over the angle range of the data",
+        "Joint error maps over the angle range of the data and beyond",
         "Each panel: the identified error of one joint (one component of its motion) against its "
         "commanded angle (deg), µrad for angles, µm for lengths; shaded, the uncertainty band of "
         f"±{MAP_BAND_SIGMAS:g} standard deviations from the fit's covariance; ticks at the bottom, the "

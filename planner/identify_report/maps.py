@@ -202,11 +202,11 @@ def maps_png(res: IdentificationResult) -> RenderedFigure:
     # inches: panels 2.3 high, 1.05 between rows (x label and a two-line title), 1.15 on top
     # (figure title and the first titles), 0.55 below (x label) and 0.35 more for a legend there
     w = 3.9 * ncols + 0.5 if ncols > 1 else 7.5
-    title = ["Joint error maps: the error of each joint against its commanded angle, over the angle range of the data"]
+    title = ["Joint error maps: the error of each joint against its commanded angle, over the data's range and beyond"]
     if w < 10:  # one or two panels: the title on two lines
         title = [
             "Joint error maps: the error of each joint against its commanded angle,",
-            "over the angle range of the data",
+            "over the data's range and beyond",
         ]
     if k < len(maps_all):
         title.append(f"{k} of {len(maps_all)} maps drawn (the largest RMS at the TCP); every map is in the table")
