@@ -36,8 +36,13 @@ FD_REL_TOL = 1e-6
 #: |d dq/dq| (<= 1e-2 for the loads here), which Levenberg-Marquardt tolerates.
 FD_EQUILIBRIUM_REL_TOL = 1e-2
 #: Absolute floor of that comparison, relative to the largest derivative of the row
-#: (central differences of a 1e-6-scaled step).
+#: (central differences of a FD_PARAM_STEP-scaled step).
 FD_EQUILIBRIUM_ABS_REL = 1e-7
+#: Central-difference step of a parameter, in its typical magnitudes: large enough that the rounding of
+#: the measured point (~1e-15 m) stays far below the difference for the smallest magnitudes (a map
+#: coefficient's 1e-5 rad: a 1e-11 rad step left 1e-4 relative noise), small enough that the truncation
+#: of a nonlinear parameter's difference (relative ~step^2) does not matter.
+FD_PARAM_STEP = 1e-4
 
 
 def _vr(robot_name: str, effect: str, table: dict, registered: bool = True) -> VirtualRobot:
@@ -360,7 +365,7 @@ def test_identification_derivatives_of_each_effect_match_finite_differences(effe
         Jfull = np.zeros((3, fx.N_PARAMS))
         Jfull[:, el] = J
         for i in idx:
-            h = 1e-6 * lay.scale[i]
+            h = FD_PARAM_STEP * lay.scale[i]
             tp, tm = theta.copy(), theta.copy()
             tp[i] += h
             tm[i] -= h

@@ -105,22 +105,30 @@ def where_it_holds(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None, er
     return out
 
 
+#: Joints named on the terminal line (the farthest beyond their ranges); the report's table has every one.
+HOLDS_JOINTS_NAMED = 2
+
+
 def holds_text(w: dict[str, Any]) -> str:
-    """One line for the terminal: the coverage, and per joint beyond its range how far the model holds."""
+    """One line for the terminal: the coverage and, for the :data:`HOLDS_JOINTS_NAMED` joints farthest beyond
+    their ranges, the error and coverage in the farthest bin and up to where the model holds."""
     cov = w.get("coverage_2sigma")
     head = f"2-sigma coverage {100 * cov:.1f} % per axis" if cov is not None else "no sigma (no covariance)"
     if not w.get("joints"):
         return f"{head}; every row inside the identified joint ranges"
+    joints = sorted(w["joints"], key=lambda jt: -jt["max_beyond_deg"])
     parts = []
-    for jt in w["joints"]:
+    for jt in joints[:HOLDS_JOINTS_NAMED]:
         far = jt["bins"][-1]
+        holds = "holds" if jt["holds_to_deg"] >= far["beyond_deg"][1] else f"holds to {jt['holds_to_deg']:g} deg"
+        cov_far = f", {100 * far['coverage_2sigma']:.0f} %" if far["coverage_2sigma"] is not None else ""
         parts.append(
-            f"joint {jt['joint']} up to {jt['max_beyond_deg']:.0f} deg beyond its range: mean error "
-            f"{far['mean_error_mm']:.3f} mm"
-            + (f", coverage {100 * far['coverage_2sigma']:.0f} %" if far["coverage_2sigma"] is not None else "")
-            + (f" (holds to {jt['holds_to_deg']:g} deg)" if jt["holds_to_deg"] < far["beyond_deg"][1] else " (holds)")
-            + f" in the farthest bin ({far['n_rows']} rows)"
+            f"joint {jt['joint']} up to {jt['max_beyond_deg']:.0f} deg beyond: {far['mean_error_mm']:.3f} mm{cov_far} "
+            f"({holds})"
         )
+    more = (
+        f"; {len(joints) - HOLDS_JOINTS_NAMED} more joint(s) in the report" if len(joints) > HOLDS_JOINTS_NAMED else ""
+    )
     inside = w.get("inside")
-    ins = f"inside every range {inside['mean_error_mm']:.3f} mm ({inside['n_rows']} rows); " if inside else ""
-    return f"{head}; {w['n_outside']} rows beyond an identified range: {ins}" + "; ".join(parts)
+    ins = f"inside every range {inside['mean_error_mm']:.3f} mm; " if inside else ""
+    return f"{head}; {w['n_outside']} rows beyond a range: {ins}" + "; ".join(parts) + more
