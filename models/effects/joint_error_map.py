@@ -92,13 +92,13 @@ class JointErrorMap(Effect):
             "error_map.range",
             12,
             lambda r: np.tile([-MAP_RANGE_OPEN_RAD, MAP_RANGE_OPEN_RAD], 6),
-            "angle range of each joint's map (6 x [lo, hi]), rad: held constant beyond it",
+            "angle range of each joint's map (6 x [lo, hi]), rad: the data's range (the map continues beyond it)",
         ),
     )
     formula = (
         "per-joint angle error maps: DH entry c of joint j (theta, d, a, alpha, beta) += sum_s a cos(f q_c,j) "
         "+ b sin(f q_c,j), harmonics f (cycles/rev) chosen by a cross-validated spectrum search with a "
-        "family-wise test, q_c,j clipped to the range the data covered"
+        "family-wise test, a function of q_c,j everywhere (continued beyond the range the data covered)"
     )
     simulation = "eccentricity"
 
