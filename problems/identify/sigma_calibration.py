@@ -31,7 +31,7 @@ identification data by refits that leave rows out, correct it (:func:`calibrate_
 The growth is linear in the distance beyond the range, not bounded: an error the data show
 nothing of (a gear's harmonic slower than the range, a structure no effect describes) is not
 bounded by what the data saw.  It is a rate measured over the outer quarters of each joint's
-range and applied at any distance; ``docs/identification.md`` (section "A sigma that covers")
+range and applied at any distance; ``docs/identification.md`` (section 10)
 says so with the measured coverage.  Everything SI; weighted residuals are converted back to m.
 """
 
