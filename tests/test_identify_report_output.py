@@ -140,6 +140,8 @@ def test_the_validation_file_is_in_the_headline(run) -> None:
     assert 0.0 <= w["coverage_2sigma"] <= 1.0
     cover = _line(stdout, "validation file: 2-sigma coverage")
     assert f"2-sigma coverage {100 * w['coverage_2sigma']:.1f} % per axis" in cover
+    assert h["validation_coverage_2sigma"] == w["coverage_2sigma"]
+    assert f"| validation file 2σ coverage | {100 * w['coverage_2sigma']:.1f} % per axis |" in head
     if w["joints"]:
         assert "### Where the model holds" in (folder / "report.md").read_text()
     # the data file given as its own validation is not called held out

@@ -273,6 +273,7 @@ def headline(rep: dict[str, Any]) -> dict[str, Any]:
             else None
         ),
         "validation_held_out": (not _same_file(v.get("file"), rep["data"]["file"])) if v else None,
+        "validation_coverage_2sigma": (v.get("where_it_holds") or {}).get("coverage_2sigma") if v else None,
         "rms_before_mm": r4(rep["rms_before_mm"]),
         "rms_after_mm": r4(rep["rms_after_mm"]),
         "heldout_rms_before_mm": r4(rep["heldout_rms_before_mm"]),

@@ -51,6 +51,21 @@ def headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
                     f"|predicted − measured| per row, as calibration results are quoted; in the {v['frame']}",
                 )
             )
+        cov = h.get("validation_coverage_2sigma")
+        if cov is not None:
+            w = v.get("where_it_holds") or {}
+            rows.append(
+                (
+                    "validation file 2σ coverage",
+                    f"{100 * cov:.1f} % per axis",
+                    "share of per-axis errors within twice the model's predicted σ (95 % expected); "
+                    + (
+                        f"{w['n_outside']} rows beyond the identified joint ranges: see 'Where the model holds'"
+                        if w.get("joints")
+                        else "every row inside the identified joint ranges"
+                    ),
+                )
+            )
     rows += [
         (
             "residual RMS per axis, before → after (in-sample)",
