@@ -61,6 +61,48 @@ def _error(message: str) -> int:
     return EXIT_USER_ERROR
 
 
+def _row(name: str, e: np.ndarray) -> str:
+    return f"  {name:<34}{e.mean():>10.4f}{np.sqrt(np.mean(e**2)):>10.4f}{e.max():>10.4f}"
+
+
+def _print_results(e_before: np.ndarray, e_after: np.ndarray, report: dict, elapsed: float) -> None:
+    """The held-out table beside the published figures, the issue-10 target, and the maps."""
+    print(f"\nrandom.csv (held out, {len(e_after)} poses): Euclidean error [mm]")
+    print(f"  {'model':<34}{'mean':>10}{'RMS':>10}{'max':>10}")
+    print(_row("nominal (uncalibrated)", e_before))
+    print(_row("identified (" + ", ".join(report.get("effects_added", [])) + ")", e_after))
+    print(
+        f"  published: uncalibrated {PUBLISHED_UNCALIBRATED_MEAN_MM} mm mean, "
+        f"hybrid MDH + neural network {PUBLISHED_BEST_MEAN_MM} mm mean"
+    )
+    verdict = "below" if e_after.mean() < PUBLISHED_BEST_MEAN_MM else "NOT below"
+    print(f"  -> {verdict} the published best; identification took {elapsed:.1f} s")
+    print(
+        f"  target of issue 10: held-out mean <= {TARGET_MEAN_MM} mm: "
+        f"{'met' if e_after.mean() <= TARGET_MEAN_MM else 'NOT met'}"
+    )
+    maps = report.get("error_maps") or []
+    if maps:
+        print("\njoint error maps (harmonic cycles/rev: amplitude, at the TCP):")
+        for e in maps:
+            unit = "urad" if e["unit"] == "rad" else "um"
+            terms = ", ".join(
+                f"{h['freq_cpr']:.2f}: {h['amplitude_' + unit]:.0f} {unit} ({h['amplitude_tcp_um']:.0f} um)"
+                for h in e["harmonics"]
+            )
+            print(
+                f"  joint {e['joint']} {e['component']:<5} range {e['range_deg'][0]:.0f}..{e['range_deg'][1]:.0f} deg, "
+                f"RMS at TCP {e['rms_tcp_um']:.0f} um: {terms}"
+            )
+
+
+def _identify_argv(out: Path, grid_csv: Path, rand_csv: Path, candidates: str | None) -> list[str]:
+    """The ``compplan identify`` command of the benchmark (full library unless ``candidates``)."""
+    argv = ["identify", "--robot", str(out / "ur5_tracker.toml"), "--data", str(grid_csv), "--format", DATA_FORMAT]
+    argv += ["--out", str(out / "ur5_identified.toml"), "--report", str(out / "report"), "--validation", str(rand_csv)]
+    return argv + (["--candidates", candidates] if candidates else [])
+
+
 def main() -> int:
     here = Path(__file__).resolve().parents[1]
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -100,23 +142,7 @@ def main() -> int:
     p_rand_mm = m.p * 1e3
 
     t0 = time.perf_counter()
-    argv = [
-        "identify",
-        "--robot",
-        str(out / "ur5_tracker.toml"),
-        "--data",
-        str(grid_csv),
-        "--format",
-        DATA_FORMAT,
-        "--out",
-        str(out / "ur5_identified.toml"),
-        "--report",
-        str(out / "report"),
-        "--validation",
-        str(rand_csv),
-    ]
-    if args.candidates:
-        argv += ["--candidates", args.candidates]
+    argv = _identify_argv(out, grid_csv, rand_csv, args.candidates)
     rc = cli(argv)
     elapsed = time.perf_counter() - t0
     if rc != 0:
@@ -131,36 +157,7 @@ def main() -> int:
     e_before = np.linalg.norm(km.tcp(m.q)[:, :3, 3] * 1e3 - p_rand_mm, axis=1)
     report = json.loads((out / "report" / "report.json").read_text())
 
-    def row(name: str, e: np.ndarray) -> str:
-        return f"  {name:<34}{e.mean():>10.4f}{np.sqrt(np.mean(e**2)):>10.4f}{e.max():>10.4f}"
-
-    print(f"\nrandom.csv (held out, {len(e_after)} poses): Euclidean error [mm]")
-    print(f"  {'model':<34}{'mean':>10}{'RMS':>10}{'max':>10}")
-    print(row("nominal (uncalibrated)", e_before))
-    print(row("identified (" + ", ".join(report.get("effects_added", [])) + ")", e_after))
-    print(
-        f"  published: uncalibrated {PUBLISHED_UNCALIBRATED_MEAN_MM} mm mean, "
-        f"hybrid MDH + neural network {PUBLISHED_BEST_MEAN_MM} mm mean"
-    )
-    verdict = "below" if e_after.mean() < PUBLISHED_BEST_MEAN_MM else "NOT below"
-    print(f"  -> {verdict} the published best; identification took {elapsed:.1f} s")
-    print(
-        f"  target of issue 10: held-out mean <= {TARGET_MEAN_MM} mm: "
-        f"{'met' if e_after.mean() <= TARGET_MEAN_MM else 'NOT met'}"
-    )
-    maps = report.get("error_maps") or []
-    if maps:
-        print("\njoint error maps (harmonic cycles/rev: amplitude, at the TCP):")
-        for e in maps:
-            unit = "urad" if e["unit"] == "rad" else "um"
-            terms = ", ".join(
-                f"{h['freq_cpr']:.2f}: {h['amplitude_' + unit]:.0f} {unit} ({h['amplitude_tcp_um']:.0f} um)"
-                for h in e["harmonics"]
-            )
-            print(
-                f"  joint {e['joint']} {e['component']:<5} range {e['range_deg'][0]:.0f}..{e['range_deg'][1]:.0f} deg, "
-                f"RMS at TCP {e['rms_tcp_um']:.0f} um: {terms}"
-            )
+    _print_results(e_before, e_after, report, elapsed)
     summary = {
         "random_mean_mm_before": float(e_before.mean()),
         "random_mean_mm_after": float(e_after.mean()),

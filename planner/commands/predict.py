@@ -184,7 +184,8 @@ def run_predict(args: argparse.Namespace) -> int:
 
         err = position_errors(p, m.p, frame_words(model, args.campaign), m.line)
         print(f"  {euclidean_line(None, err.to_mm_dict(), f'measured x, y, z of {args.input}')}")
-        print(f"  measured x, y, z of {args.input}: {holds_text(where_it_holds(model, m.q, m.wrench, p - m.p))}")
+        holds = where_it_holds(model, m.q, m.wrench, p - m.p, sigma)  # the sigma written above, not recomputed
+        print(f"  measured x, y, z of {args.input}: {holds_text(holds)}")
     return 0
 
 

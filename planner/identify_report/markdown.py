@@ -26,11 +26,9 @@ def _setup_note(rep: dict[str, Any]) -> str:
     return f"{known} declared known (held); the {other} is identified"
 
 
-def headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
-    """(quantity, value, note) rows of the headline table."""
-    h = rep.get("headline") or headline(rep)
-    d = rep["data"]
-    rows = [("status", str(h["status"]), str(h["reason"]))]
+def _validation_rows(rep: dict[str, Any], h: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """The headline's rows of the validation file (none without one): RMS, Euclidean error, 2-sigma coverage."""
+    rows: list[tuple[str, str, str]] = []
     v = rep.get("validation")
     if v:
         rows.append(
@@ -66,6 +64,15 @@ def headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
                     ),
                 )
             )
+    return rows
+
+
+def headline_rows(rep: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """(quantity, value, note) rows of the headline table."""
+    h = rep.get("headline") or headline(rep)
+    d = rep["data"]
+    rows = [("status", str(h["status"]), str(h["reason"]))]
+    rows += _validation_rows(rep, h)
     rows += [
         (
             "residual RMS per axis, before → after (in-sample)",

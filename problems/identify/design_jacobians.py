@@ -47,9 +47,7 @@ def potential_prior(model: ArmModel, centres: np.ndarray) -> np.ndarray:
     beyond the range, :mod:`.sigma_calibration`), whichever is larger."""
     tau = np.full(centres.shape, DESIGN_POTENTIAL_SIGMA_RAD)
     if model.sigma_growth_rad_per_rad and model.joint_range_rad is not None:
-        rng = np.asarray(model.joint_range_rad, dtype=float)
-        beyond = np.maximum(np.maximum(rng[:, :1] - centres, centres - rng[:, 1:]), 0.0)
-        tau = np.maximum(tau, model.sigma_growth_rad_per_rad * beyond)
+        tau = np.maximum(tau, model.sigma_growth_rad_per_rad * beyond_range(model, centres.T).T)
     return tau
 
 

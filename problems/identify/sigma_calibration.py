@@ -172,11 +172,9 @@ def _coverage(err: np.ndarray, var: np.ndarray) -> float:
     return float(np.mean(np.abs(err) <= 2.0 * np.sqrt(var))) if err.size else float("nan")
 
 
-def _growth(hos: list[_Holdout], scale: float) -> float:
-    """Smallest growth rate with :data:`SIGMA_COVERAGE` of the range hold-outs' errors within 2 sigma."""
-    err = np.concatenate([h.err for h in hos])
-    base = scale**2 * np.concatenate([h.var for h in hos])
-    unit = np.concatenate([growth_variance(h.beyond, h.lever) for h in hos])
+def _growth(err: np.ndarray, base: np.ndarray, unit: np.ndarray) -> float:
+    """Smallest growth rate with :data:`SIGMA_COVERAGE` of the range hold-outs' errors ``err`` within 2 sigma,
+    their scaled linearised variance ``base`` and the variance ``unit`` of a unit rate (all (h, 3))."""
 
     def cov(g: float) -> float:
         return _coverage(err, base + g**2 * unit)
@@ -242,11 +240,12 @@ def calibrate_sigma(prob: FitProblem, fit: ModelFit, free: list[int] | np.ndarra
     z = np.abs(err) / np.sqrt(np.maximum(var, 1e-300))
     scale = float(max(np.quantile(z, SIGMA_COVERAGE) / 2.0, 1e-3))
     ranges = _range_holdouts(J, r, w, q, lever)
-    g = _growth(ranges, scale) if ranges else 0.0
+    g = 0.0
     if ranges:
         e_r = np.concatenate([h.err for h in ranges])
         v_r = np.concatenate([h.var for h in ranges])
         u_r = np.concatenate([growth_variance(h.beyond, h.lever) for h in ranges])
+        g = _growth(e_r, scale**2 * v_r, u_r)
         cov_lin, cov_cal = _coverage(e_r, v_r), _coverage(e_r, scale**2 * v_r + g**2 * u_r)
         n_r, rms_r = int(len(e_r)), float(np.sqrt(np.mean(e_r**2)))
     else:

@@ -40,7 +40,9 @@ def _bin_rows(err: np.ndarray, sig: np.ndarray, sel: np.ndarray) -> dict[str, An
     }
 
 
-def where_it_holds(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None, err: np.ndarray) -> dict[str, Any]:
+def where_it_holds(
+    model: ArmModel, q: np.ndarray, wrench: np.ndarray | None, err: np.ndarray, sigma: np.ndarray | None = None
+) -> dict[str, Any]:
     """The validation rows' errors and coverage by joint range (module docstring).
 
     Parameters
@@ -53,6 +55,9 @@ def where_it_holds(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None, er
         Their base-frame TCP wrenches, N and N*m.
     err : ndarray, shape (N, 3)
         ``predicted - measured``, m, measurement frame.
+    sigma : ndarray, shape (N, 3), optional
+        The model's predicted sigma at those rows (measurement frame, m) when the caller has it
+        (:func:`.uncertainty.predicted_sigma`); computed otherwise.
 
     Returns
     -------
@@ -62,10 +67,10 @@ def where_it_holds(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None, er
         rows beyond its range: ``joint``, ``range_deg``, ``bins`` (each with ``beyond_deg`` [lo, hi] and
         :func:`_bin_rows`' figures) and ``holds_to_deg``, the farthest bin edge up to which every bin holds).
     """
-    ps = predicted_sigma(model, q, wrench)
-    sig = ps.sigma_m if ps.available else np.full(err.shape, np.nan)
+    sig = predicted_sigma(model, q, wrench).sigma_m if sigma is None else np.asarray(sigma, dtype=float)
+    available = bool(np.isfinite(sig).all())
     out: dict[str, Any] = {
-        "coverage_2sigma": float(np.mean(np.abs(err) <= 2.0 * sig)) if ps.available else None,
+        "coverage_2sigma": float(np.mean(np.abs(err) <= 2.0 * sig)) if available else None,
         "n_outside": 0,
         "inside": None,
         "joints": [],
@@ -83,7 +88,7 @@ def where_it_holds(model: ArmModel, q: np.ndarray, wrench: np.ndarray | None, er
     for j in np.flatnonzero(beyond.any(axis=0)):
         bins, holds_to, holding = [], 0.0, True
         for lo, hi in zip(BEYOND_BINS_DEG[:-1], BEYOND_BINS_DEG[1:]):
-            sel = (beyond[:, j] > lo) & (beyond[:, j] <= hi) if lo > 0 else (beyond[:, j] > 0) & (beyond[:, j] <= hi)
+            sel = (beyond[:, j] > lo) & (beyond[:, j] <= hi)
             if not sel.any():
                 continue
             b = {"beyond_deg": [lo, hi], **_bin_rows(err, sig, sel)}
