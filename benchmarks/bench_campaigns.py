@@ -19,7 +19,6 @@ The ``PYTHONPATH`` of the run is passed to the children (to time another checkou
 from __future__ import annotations
 
 import argparse
-import csv
 import resource
 import subprocess
 import sys
@@ -28,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-#: Joint 1 angle splitting grid.csv into campaign A (below) and the rest, deg (as real_ur5_design.py).
-SPLIT_JOINT1_DEG = 19.2
+from real_ur5_design import SPLIT_JOINT1_DEG, split_grid, write_rows
+
 #: Rows of the rest in campaign B, and the seed choosing them.
 N_B, SEED = 60, 0
 #: The bar: two campaigns cost at most this multiple of one identification of the same rows (CPU).
@@ -38,28 +37,15 @@ RATIO_BAR = 3.0
 FMT = ("--format", "tracker-dif")
 
 
-def _write(path: Path, header: list[str], rows: list[list[str]]) -> None:
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(rows)
-
-
 def _split(data: Path, out: Path) -> tuple[int, int]:
-    """A.csv, B60.csv and AB.csv (their rows in measurement order) written to ``out``; their row counts (A, B60)."""
-    with (data / "grid.csv").open() as f:
-        rd = csv.reader(f)
-        header = next(rd)
-        rows = list(rd)
-    j1 = header.index("joint_1")
-    A = [r for r in rows if float(r[j1]) < SPLIT_JOINT1_DEG]
-    rest = [r for r in rows if float(r[j1]) >= SPLIT_JOINT1_DEG]
+    """A.csv (and B.csv) as ``real_ur5_design.py`` splits the grid, then B60.csv (N_B rows of B, seed SEED) and
+    AB.csv (A and B60 in measurement order) written to ``out``; their row counts (A, B60)."""
+    header, A, rest = split_grid(data, out)
     idx = sorted(np.random.default_rng(SEED).choice(len(rest), N_B, replace=False).tolist())
     B = [rest[i] for i in idx]
-    _write(out / "A.csv", header, A)
-    _write(out / "B60.csv", header, B)
+    write_rows(out / "B60.csv", header, B)
     order = header.index("step_order")  # one file's rows are in measurement order
-    _write(out / "AB.csv", header, sorted(A + B, key=lambda r: float(r[order])))
+    write_rows(out / "AB.csv", header, sorted(A + B, key=lambda r: float(r[order])))
     return len(A), len(B)
 
 

@@ -41,7 +41,7 @@ def _run(*args: str) -> None:
         raise SystemExit(f"real_ur5_design.py: compplan {' '.join(args)} failed:\n{r.stderr}")
 
 
-def _write(path: Path, header: list[str], rows: list[list[str]]) -> None:
+def write_rows(path: Path, header: list[str], rows: list[list[str]]) -> None:
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
@@ -63,7 +63,7 @@ def _errors(pred_csv: Path, rows: list[list[str]], header: list[str]) -> tuple[n
 FMT = ("--format", "tracker-dif")
 
 
-def _split(data: Path, out: Path) -> tuple[list[str], list[list[str]], list[list[str]]]:
+def split_grid(data: Path, out: Path) -> tuple[list[str], list[list[str]], list[list[str]]]:
     """grid.csv split by joint 1 into campaign A and the pool B, both written to ``out`` (A.csv, B.csv)."""
     with (data / "grid.csv").open() as f:
         rd = csv.reader(f)
@@ -72,8 +72,8 @@ def _split(data: Path, out: Path) -> tuple[list[str], list[list[str]], list[list
     j1 = header.index("joint_1")
     A = [r for r in rows if float(r[j1]) < SPLIT_JOINT1_DEG]
     B = [r for r in rows if float(r[j1]) >= SPLIT_JOINT1_DEG]
-    _write(out / "A.csv", header, A)
-    _write(out / "B.csv", header, B)
+    write_rows(out / "A.csv", header, A)
+    write_rows(out / "B.csv", header, B)
     return header, A, B
 
 
@@ -92,9 +92,9 @@ def _evaluate(out: Path, label: str, idx: list[int], header: list[str], B: list[
     """Identify A with the pool rows ``idx``, predict the rest of the pool: the mean Euclidean error (mm)
     and the share of per-axis errors within 2 sigma; prints one line."""
     sel = set(idx)
-    _write(out / f"B_{label}.csv", header, [B[i] for i in sorted(idx)])  # measurement order
+    write_rows(out / f"B_{label}.csv", header, [B[i] for i in sorted(idx)])  # measurement order
     rest = [B[i] for i in range(len(B)) if i not in sel]
-    _write(out / f"rest_{label}.csv", header, rest)
+    write_rows(out / f"rest_{label}.csv", header, rest)
     model = str(out / f"AB_{label}.toml")
     _run("identify", "--robot", "ur5", "--data", str(out / "A.csv"), "--data", str(out / f"B_{label}.csv"), *FMT,
          "--out", model, "--report", str(out / f"AB_{label}_report"), "--force")  # fmt: skip
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    header, A, B = _split(Path(a.data), out)
+    header, A, B = split_grid(Path(a.data), out)
     chosen = {"designed": _designed(out, a.n, a.criterion)}
     # model A alone predicting the whole pool: the transfer with no data of it
     _run("predict", "--model", str(out / "A.toml"), "--input", str(out / "B.csv"), *FMT, "--out",
